@@ -1,0 +1,330 @@
+"""The actor base class: typed handlers, one message at a time, a direct-call fast path."""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import inspect
+import types as types_mod
+import typing
+from collections import deque
+from collections.abc import Awaitable, Callable, Coroutine
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, overload
+
+import structlog
+
+from actors.errors import ActorFailed, DeadLetter, MailboxFull
+from transports.message import Address
+
+if TYPE_CHECKING:
+    from actors.ref import ActorRef
+    from actors.system import ActorSystem
+
+__all__ = ["Actor", "Reply", "Supervision", "handler"]
+
+log = structlog.get_logger("actors")
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: Called once with the handler's result, or with the error that replaces it.
+Reply = Callable[[Any, BaseException | None], None]
+
+_HANDLER_ATTR = "__actor_handles__"
+
+
+class Supervision(enum.Enum):
+    """What happens to an actor whose handler raised.
+
+    RESUME keeps its state and goes on; RESTART calls :meth:`Actor.on_restart` (up to
+    ``max_restarts`` times, then stops it); STOP stops it; ESCALATE stops it and fails
+    its parent the same way (or the whole system, for a top-level actor).
+    """
+
+    RESUME = "resume"
+    RESTART = "restart"
+    STOP = "stop"
+    ESCALATE = "escalate"
+
+
+@overload
+def handler(fn: F, /) -> F: ...
+@overload
+def handler(*types: type[Any]) -> Callable[[F], F]: ...
+def handler(*args: Any) -> Any:
+    """Mark a method as the handler of a message type.
+
+    Use bare (the type is read from the annotation of the message parameter) or with the
+    types it handles: ``@handler(Ping, Pong)``. Handlers may be sync or async; what they
+    return is the reply to an ask.
+    """
+    if len(args) == 1 and inspect.isfunction(args[0]):
+        fn = args[0]
+        setattr(fn, _HANDLER_ATTR, ())
+        return fn
+
+    def mark(fn: F) -> F:
+        setattr(fn, _HANDLER_ATTR, args)
+        return fn
+
+    return mark
+
+
+class _Handler:
+    __slots__ = ("fn", "is_async")
+
+    def __init__(self, fn: Callable[..., Any]) -> None:
+        self.fn = fn
+        self.is_async = inspect.iscoroutinefunction(fn)
+
+
+def _collect_handlers(cls: type[Actor]) -> dict[type[Any], _Handler]:
+    table: dict[type[Any], _Handler] = {}
+    for klass in reversed(cls.__mro__):
+        for name, fn in vars(klass).items():
+            declared = getattr(fn, _HANDLER_ATTR, None)
+            if declared is None:
+                continue
+            types = declared
+            if not types:
+                hints = typing.get_type_hints(fn)
+                params = [p for p in inspect.signature(fn).parameters if p != "self"]
+                if not params or params[0] not in hints:
+                    raise TypeError(
+                        f"{cls.__qualname__}.{name}: annotate the message parameter or "
+                        f"name the types in @handler(...)"
+                    )
+                hint = hints[params[0]]
+                union = typing.get_origin(hint) in (typing.Union, types_mod.UnionType)
+                types = typing.get_args(hint) if union else (hint,)
+            for t in types:
+                table[t] = _Handler(fn)
+    return table
+
+
+class Actor:
+    """Base class of everything addressable: BT nodes, slots, repositories, auctioneers.
+
+    An actor handles one message at a time, in arrival order per sender. When it is idle,
+    a local sender's message is handled by a direct call (no queue, no task switch); when
+    it is busy, or the handler is async, the message waits in a bounded mailbox drained by
+    a task of the system.
+    """
+
+    __slots__ = ("_address", "_busy", "_mailbox", "_parent", "_restarts", "_system", "_tasks")
+
+    supervision: ClassVar[Supervision] = Supervision.RESTART
+    max_restarts: ClassVar[int] = 10
+    _handlers: ClassVar[dict[type[Any], _Handler] | None] = None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._handlers = None  # built on first message, when forward references resolve
+
+    def __init__(self) -> None:
+        self._system: ActorSystem | None = None
+        self._address: Address | None = None
+        self._busy = False
+        self._mailbox: deque[tuple[Any, Reply | None]] | None = None
+        self._parent: Actor | None = None
+        self._restarts = 0
+        self._tasks: set[asyncio.Task[Any]] | None = None
+
+    # -- identity -------------------------------------------------------------------
+    @property
+    def address(self) -> Address:
+        if self._address is None:
+            raise RuntimeError(f"{type(self).__name__} is not spawned in an actor system")
+        return self._address
+
+    @property
+    def system(self) -> ActorSystem:
+        if self._system is None:
+            raise RuntimeError(f"{type(self).__name__} is not spawned in an actor system")
+        return self._system
+
+    @property
+    def spawned(self) -> bool:
+        return self._system is not None
+
+    @property
+    def ref(self) -> ActorRef[Any]:
+        from actors.ref import ActorRef
+
+        return ActorRef(self.address, self.system, self)
+
+    @property
+    def parent(self) -> Actor | None:
+        return self._parent
+
+    # -- hooks ----------------------------------------------------------------------
+    def on_start(self) -> None:
+        """Called when spawned; start background tasks here."""
+
+    def on_stop(self) -> None:
+        """Called once when stopped; its own tasks are cancelled right after."""
+
+    def on_restart(self, error: BaseException) -> None:
+        """Called under the RESTART policy after a handler raised: reset state here."""
+
+    # -- background work --------------------------------------------------------------
+    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+        """Run ``coro`` as a task owned by this actor: cancelled when the actor stops."""
+        task = self.system.start_task(coro, name=name or f"{self.address}")
+        if self._tasks is None:
+            self._tasks = set()
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+    # -- delivery -------------------------------------------------------------------
+    @classmethod
+    def _handler_for(cls, t: type[Any]) -> _Handler | None:
+        table = cls._handlers
+        if table is None:
+            table = cls._handlers = _collect_handlers(cls)
+        h = table.get(t)
+        if h is None:
+            for base in t.__mro__[1:]:
+                h = table.get(base)
+                if h is not None:
+                    table[t] = h
+                    break
+        return h
+
+    def _receive(self, msg: Any, reply: Reply | None) -> None:
+        """Deliver a message: handle it now if idle and sync, else queue it."""
+        if self._busy or self._mailbox:
+            self._enqueue(msg, reply)
+            return
+        h = self._handler_for(type(msg))
+        if h is None:
+            self._unhandled(msg, reply)
+            return
+        if h.is_async:
+            self._enqueue(msg, reply)
+            return
+        self._busy = True
+        try:
+            result = h.fn(self, msg)
+        except Exception as exc:
+            self._busy = False
+            self._failed(exc, msg, reply)
+        else:
+            self._busy = False
+            if reply is not None:
+                reply(result, None)
+        if self._mailbox and self._system is not None:
+            self._schedule_drain()
+
+    def _call_now(self, msg: Any) -> Any:
+        """The ask fast path: the caller checked the actor is idle and the handler sync."""
+        h = self._handler_for(type(msg))
+        if h is None:
+            err = self._unhandled(msg, None)
+            raise err
+        self._busy = True
+        try:
+            return h.fn(self, msg)
+        except Exception as exc:
+            self._busy = False
+            self._failed(exc, msg, None)
+            raise self._as_failure(exc) from exc
+        finally:
+            self._busy = False
+            if self._mailbox and self._system is not None:
+                self._schedule_drain()
+
+    def _can_call_now(self, msg: Any) -> bool:
+        if self._busy or self._mailbox or self._system is None:
+            return False
+        h = self._handler_for(type(msg))
+        return h is not None and not h.is_async
+
+    def _enqueue(self, msg: Any, reply: Reply | None) -> None:
+        system = self._system
+        if system is None:
+            if reply is not None:
+                reply(None, DeadLetter(f"{type(self).__name__} is stopped"))
+            return
+        box = self._mailbox
+        if box is None:
+            box = self._mailbox = deque()
+        if len(box) >= system.mailbox_size:
+            system._count_drop("mailbox_full", self._address, msg)
+            if reply is not None:
+                reply(None, MailboxFull(f"mailbox of {self._address} is full"))
+            return
+        box.append((msg, reply))
+        if not self._busy:
+            self._schedule_drain()
+
+    def _schedule_drain(self) -> None:
+        self._busy = True
+        self.system.start_task(self._drain(), name=f"drain {self._address}")
+
+    async def _drain(self) -> None:
+        box = self._mailbox
+        try:
+            while box and self._system is not None:
+                msg, reply = box.popleft()
+                h = self._handler_for(type(msg))
+                if h is None:
+                    self._unhandled(msg, reply)
+                    continue
+                try:
+                    result = h.fn(self, msg)
+                    if h.is_async:
+                        result = await typing.cast(Awaitable[Any], result)
+                except Exception as exc:
+                    self._failed(exc, msg, reply)
+                else:
+                    if reply is not None:
+                        reply(result, None)
+        finally:
+            self._busy = False
+
+    def _unhandled(self, msg: Any, reply: Reply | None) -> ActorFailed:
+        err = ActorFailed(str(self._address), "UnhandledMessage", type(msg).__qualname__)
+        if self._system is not None:
+            self._system._count_drop("unhandled", self._address, msg)
+        if reply is not None:
+            reply(None, err)
+        return err
+
+    def _as_failure(self, exc: BaseException) -> ActorFailed:
+        return ActorFailed(str(self._address), type(exc).__qualname__, str(exc))
+
+    def _failed(self, exc: Exception, msg: Any, reply: Reply | None) -> None:
+        system = self._system
+        policy = type(self).supervision
+        log.error(
+            "actor.handler_failed",
+            system=system.id if system else None,
+            actor=str(self._address),
+            message=type(msg).__qualname__,
+            policy=policy.value,
+            exc_info=exc,
+        )
+        if reply is not None:
+            reply(None, self._as_failure(exc))
+        if system is None:
+            return
+        if policy is Supervision.RESTART:
+            self._restarts += 1
+            if self._restarts > type(self).max_restarts:
+                system.stop(self)
+                return
+            try:
+                self.on_restart(exc)
+            except Exception as again:
+                log.error("actor.restart_failed", actor=str(self._address), exc_info=again)
+                system.stop(self)
+        elif policy is Supervision.STOP:
+            system.stop(self)
+        elif policy is Supervision.ESCALATE:
+            parent = self._parent
+            system.stop(self)
+            if parent is not None and parent._system is not None:
+                parent._failed(exc, msg, None)
+            else:
+                system._escalated(self._address, exc)

@@ -1,0 +1,42 @@
+"""Errors the actor runtime raises to callers."""
+
+from __future__ import annotations
+
+__all__ = [
+    "ActorError",
+    "ActorFailed",
+    "AskTimeout",
+    "DeadLetter",
+    "MailboxFull",
+    "SystemClosed",
+]
+
+
+class ActorError(Exception):
+    """Base of every error the runtime raises."""
+
+
+class ActorFailed(ActorError):
+    """The handler of an ask raised; carries the remote error's type and text."""
+
+    def __init__(self, address: str, error_type: str, detail: str) -> None:
+        super().__init__(f"{address} failed handling the request: {error_type}: {detail}")
+        self.address = address
+        self.error_type = error_type
+        self.detail = detail
+
+
+class AskTimeout(ActorError, TimeoutError):
+    """No reply came in time."""
+
+
+class DeadLetter(ActorError):
+    """The recipient does not exist (never did, or was stopped)."""
+
+
+class MailboxFull(ActorError):
+    """The recipient's bounded mailbox is full."""
+
+
+class SystemClosed(ActorError):
+    """The actor system shut down while a request was pending."""

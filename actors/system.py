@@ -1,0 +1,369 @@
+"""The actor system: spawns actors inside the caller's event loop and routes their mail."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import uuid
+from collections.abc import Coroutine
+from types import TracebackType
+from typing import Any, TypeVar
+
+import anyio
+import structlog
+from anyio.abc import TaskGroup
+
+from actors.actor import Actor, Reply
+from actors.clock import Clock, TimeSource
+from actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
+from actors.ref import ActorRef
+from transports.base import BROADCAST, Transport
+from transports.codec import Envelope, Kind
+from transports.message import Address, Message, MessageRegistry
+
+__all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
+
+log = structlog.get_logger("actors")
+
+A = TypeVar("A", bound=Actor)
+
+
+class Failure(Message):
+    """The reply to an ask whose handler raised or whose recipient does not exist."""
+
+    error_type: str
+    detail: str
+
+
+def runtime_messages() -> MessageRegistry:
+    """A registry holding the runtime's own message types."""
+    return MessageRegistry([Failure])
+
+
+class SystemStats:
+    """Counters of what could not be delivered, by reason."""
+
+    __slots__ = ("dead_letters", "dropped", "escalations")
+
+    def __init__(self) -> None:
+        self.dead_letters = 0
+        self.escalations = 0
+        self.dropped: dict[str, int] = {}
+
+
+class ActorSystem:
+    """Hosts actors in the running event loop; use as ``async with ActorSystem(...)``.
+
+    Leaving the block stops every actor, cancels every task the system started, fails
+    pending asks with :class:`SystemClosed` and closes the transport.
+    """
+
+    def __init__(
+        self,
+        system_id: str | None = None,
+        *,
+        transport: Transport | None = None,
+        registry: MessageRegistry | None = None,
+        clock: TimeSource | None = None,
+        mailbox_size: int = 10_000,
+        ask_timeout: float = 5.0,
+    ) -> None:
+        if transport is not None and system_id is not None and transport.system_id != system_id:
+            raise ValueError(
+                f"system id {system_id!r} differs from the transport's {transport.system_id!r}"
+            )
+        self.id: str = system_id or (transport.system_id if transport else uuid.uuid4().hex[:8])
+        if "/" in self.id or self.id == BROADCAST:
+            raise ValueError(f"system id {self.id!r} may not contain '/' or be '*'")
+        self.transport = transport
+        self.registry = registry if registry is not None else MessageRegistry()
+        self.registry.register(Failure)
+        self.clock: TimeSource = clock if clock is not None else Clock()
+        self.mailbox_size = mailbox_size
+        self.ask_timeout = ask_timeout
+        self.stats = SystemStats()
+        self.address = Address(self.id, "$system")
+        self._actors: dict[str, Actor] = {}
+        self._names = itertools.count(1)
+        self._corr = itertools.count(1)
+        self._pending: dict[int, asyncio.Future[Any]] = {}
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._tg: TaskGroup | None = None
+        self._closing = False
+        self._failure: tuple[Address, BaseException] | None = None
+        self._log = log.bind(system=self.id)
+
+    # -- lifecycle --------------------------------------------------------------------
+    async def __aenter__(self) -> ActorSystem:
+        if self._tg is not None:
+            raise RuntimeError(f"actor system {self.id} is already running")
+        self._tg = anyio.create_task_group()
+        await self._tg.__aenter__()
+        if self.transport is not None:
+            try:
+                await self._tg.start(self._serve_transport)
+            except BaseException:
+                await self._tg.__aexit__(None, None, None)
+                raise
+        return self
+
+    async def _serve_transport(self, *, task_status: anyio.abc.TaskStatus[None]) -> None:
+        assert self.transport is not None
+        await self.transport.serve(self._on_envelope, task_status=task_status)
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        await self.aclose()
+        assert self._tg is not None
+        self._tg.cancel_scope.cancel()
+        tg, self._tg = self._tg, None
+        suppress = await tg.__aexit__(exc_type, exc, tb)
+        if self._failure is not None and exc is None:
+            where, err = self._failure
+            raise ActorError(f"actor {where} escalated a failure to the system") from err
+        return suppress
+
+    async def aclose(self) -> None:
+        """Stop every actor and task; safe to call more than once."""
+        if self._closing:
+            return
+        self._closing = True
+        for actor in sorted(self._actors.values(), key=lambda a: -len(a.address.path)):
+            self.stop(actor)
+        tasks = list(self._tasks)
+        for task in tasks:
+            task.cancel()
+        if tasks:
+            await asyncio.gather(*tasks, return_exceptions=True)
+        pending, self._pending = self._pending, {}
+        for fut in pending.values():
+            if not fut.done():
+                fut.set_exception(SystemClosed(f"actor system {self.id} shut down"))
+
+    @property
+    def running(self) -> bool:
+        return self._tg is not None and not self._closing
+
+    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+        """Run a task owned by the system: cancelled and awaited when the system closes."""
+        if self._closing:
+            coro.close()
+            raise SystemClosed(f"actor system {self.id} is shutting down")
+        task = asyncio.get_running_loop().create_task(coro, name=name)
+        self._tasks.add(task)
+        task.add_done_callback(self._task_done)
+        return task
+
+    def _task_done(self, task: asyncio.Task[Any]) -> None:
+        self._tasks.discard(task)
+        if not task.cancelled() and (exc := task.exception()) is not None:
+            self._log.error("actors.task_failed", task=task.get_name(), exc_info=exc)
+
+    # -- actors -----------------------------------------------------------------------
+    def spawn(self, actor: A, name: str | None = None, *, parent: Actor | None = None) -> ActorRef[A]:
+        """Give ``actor`` an address in this system and start it."""
+        if actor._system is not None:
+            raise ValueError(f"{type(actor).__name__} is already spawned at {actor._address}")
+        if self._closing:
+            raise SystemClosed(f"actor system {self.id} is shutting down")
+        if name is None:
+            name = f"{type(actor).__name__.lower()}-{next(self._names)}"
+        elif not name or "/" in name:
+            raise ValueError(f"actor name {name!r}: expected a non-empty name without '/'")
+        if parent is not None:
+            if parent._system is not self:
+                raise ValueError("the parent must be spawned in the same system")
+            path = f"{parent.address.path}/{name}"
+        else:
+            path = name
+        if path in self._actors:
+            raise ValueError(f"an actor already lives at {self.id}/{path}")
+        actor._system = self
+        actor._address = Address(self.id, path)
+        actor._parent = parent
+        self._actors[path] = actor
+        try:
+            actor.on_start()
+        except BaseException:
+            self.stop(actor)
+            raise
+        return ActorRef(actor._address, self, actor)
+
+    def stop(self, target: Actor | ActorRef[Any]) -> None:
+        """Stop an actor and its children; queued asks fail with :class:`DeadLetter`."""
+        actor = target._local if isinstance(target, ActorRef) else target
+        if actor is None or actor._system is not self:
+            return
+        prefix = actor.address.path + "/"
+        for path in [p for p in self._actors if p.startswith(prefix)]:
+            child = self._actors.get(path)
+            if child is not None:
+                self.stop(child)
+        self._actors.pop(actor.address.path, None)
+        try:
+            actor.on_stop()
+        except Exception as exc:
+            self._log.error("actor.on_stop_failed", actor=str(actor.address), exc_info=exc)
+        actor._system = None
+        box, actor._mailbox = actor._mailbox, None
+        if box:
+            gone = DeadLetter(f"{actor.address} was stopped")
+            for _msg, reply in box:
+                if reply is not None:
+                    reply(None, gone)
+        if actor._tasks:
+            for task in list(actor._tasks):
+                task.cancel()
+
+    def lookup(self, path: str) -> Actor | None:
+        return self._actors.get(path)
+
+    def ref(self, address: Address | str) -> ActorRef[Any]:
+        """A handle to any actor, here or on a peer system."""
+        if isinstance(address, str):
+            address = Address.parse(address) if "/" in address else Address(self.id, address)
+        local = self._actors.get(address.path) if address.system == self.id else None
+        return ActorRef(address, self, local)
+
+    def __len__(self) -> int:
+        return len(self._actors)
+
+    # -- messaging --------------------------------------------------------------------
+    def tell(self, address: Address, msg: Any, *, sender: Address | None = None) -> None:
+        if address.system == self.id:
+            actor = self._actors.get(address.path)
+            if actor is None:
+                self._dead_letter(address, msg)
+            else:
+                actor._receive(msg, None)
+        else:
+            self._send(Envelope(Kind.TELL, sender or self.address, address, msg))
+
+    def broadcast(self, path: str, msg: Message, *, include_self: bool = False) -> None:
+        """Send to the actor at ``path`` on every peer system."""
+        self._send(Envelope(Kind.TELL, self.address, Address(BROADCAST, path), msg))
+        if include_self:
+            self.tell(Address(self.id, path), msg)
+
+    async def ask(self, address: Address, msg: Any, *, timeout: float | None = None) -> Any:
+        """Request/response to any address; see :meth:`ActorRef.ask`."""
+        if self._closing:
+            raise SystemClosed(f"actor system {self.id} is shutting down")
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[Any] = loop.create_future()
+        if address.system == self.id:
+            actor = self._actors.get(address.path)
+            if actor is None:
+                self._dead_letter(address, msg)
+                raise DeadLetter(f"no actor at {address}")
+            if actor._can_call_now(msg):
+                return actor._call_now(msg)
+            actor._receive(msg, _future_reply(fut))
+        else:
+            if self.transport is None:
+                raise DeadLetter(f"no transport to reach {address}")
+            corr = next(self._corr)
+            self._pending[corr] = fut
+            try:
+                self._send(Envelope(Kind.ASK, self.address, address, msg, corr))
+            except BaseException:
+                self._pending.pop(corr, None)
+                raise
+            fut.add_done_callback(lambda _f, c=corr: self._pending.pop(c, None))
+        limit = self.ask_timeout if timeout is None else timeout
+        try:
+            async with asyncio.timeout(limit):
+                return await fut
+        except TimeoutError:
+            raise AskTimeout(
+                f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
+            ) from None
+
+    def _send(self, env: Envelope) -> None:
+        if self.transport is None:
+            self._dead_letter(env.recipient, env.msg)
+            return
+        self.transport.send(env)
+
+    def _on_envelope(self, env: Envelope) -> None:
+        """Entry point for everything a transport received."""
+        kind = env.kind
+        if kind is Kind.REPLY or kind is Kind.FAIL:
+            fut = self._pending.pop(env.corr, None)
+            if fut is None or fut.done():
+                self._count_drop("late_reply", env.sender, env.msg)
+                return
+            msg = env.msg
+            if kind is Kind.FAIL:
+                if isinstance(msg, Failure):
+                    if msg.error_type == "DeadLetter":
+                        fut.set_exception(DeadLetter(f"{env.sender}: {msg.detail}"))
+                    else:
+                        fut.set_exception(ActorFailed(str(env.sender), msg.error_type, msg.detail))
+                else:
+                    fut.set_exception(ActorFailed(str(env.sender), "Unknown", repr(msg)))
+            else:
+                fut.set_result(msg)
+            return
+        actor = self._actors.get(env.recipient.path)
+        if actor is None:
+            self._dead_letter(env.recipient, env.msg, origin=env.sender)
+            if kind is Kind.ASK:
+                self._reply_remote(env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}"))
+            return
+        if kind is Kind.ASK:
+            actor._receive(env.msg, lambda r, e, env=env: self._reply_remote(env, r, e))
+        else:
+            actor._receive(env.msg, None)
+
+    def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
+        me = Address(self.id, env.recipient.path)
+        if error is None and result is not None and not isinstance(result, Message):
+            error = TypeError(f"reply of type {type(result).__qualname__} is not a Message")
+        if error is not None:
+            if isinstance(error, ActorFailed):
+                failure = Failure(error.error_type, error.detail)
+            else:
+                failure = Failure(type(error).__qualname__, str(error))
+            self._send(Envelope(Kind.FAIL, me, env.sender, failure, env.corr))
+        else:
+            self._send(Envelope(Kind.REPLY, me, env.sender, result, env.corr))
+
+    # -- accounting -------------------------------------------------------------------
+    def _dead_letter(self, address: Address, msg: Any, *, origin: Address | None = None) -> None:
+        self.stats.dead_letters += 1
+        self._log.info(
+            "actors.dead_letter",
+            to=str(address),
+            message=type(msg).__qualname__,
+            origin=str(origin) if origin else None,
+        )
+
+    def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None:
+        self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
+        self._log.warning(
+            "actors.dropped", reason=reason, to=str(address), message=type(msg).__qualname__
+        )
+
+    def _escalated(self, where: Address | None, exc: BaseException) -> None:
+        self.stats.escalations += 1
+        if self._failure is None and where is not None:
+            self._failure = (where, exc)
+        if self._tg is not None:
+            self._tg.cancel_scope.cancel()
+
+
+def _future_reply(fut: asyncio.Future[Any]) -> Reply:
+    def reply(result: Any, error: BaseException | None) -> None:
+        if fut.done():
+            return
+        if error is None:
+            fut.set_result(result)
+        else:
+            fut.set_exception(error)
+
+    return reply

@@ -1,0 +1,1 @@
+"""Reproducible benchmarks: each writes ``bench/results/NAME.json`` and prints a table."""

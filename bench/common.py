@@ -1,0 +1,41 @@
+"""Shared helpers for benchmarks: percentiles and result files."""
+
+from __future__ import annotations
+
+import json
+import platform
+import statistics
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+__all__ = ["RESULTS", "machine", "percentiles", "write_result"]
+
+
+def percentiles(samples: Sequence[float]) -> dict[str, float]:
+    """Median and p99 of ``samples`` (same unit as given)."""
+    ordered = sorted(samples)
+    if not ordered:
+        raise ValueError("no samples")
+    p99 = ordered[min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))]
+    return {"p50": statistics.median(ordered), "p99": p99}
+
+
+def machine() -> dict[str, Any]:
+    import os
+
+    return {
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+    }
+
+
+def write_result(name: str, data: dict[str, Any]) -> Path:
+    """Write ``bench/results/NAME.json`` (with machine facts under ``_machine``)."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    path.write_text(json.dumps({**data, "_machine": machine()}, indent=2, sort_keys=True) + "\n")
+    return path

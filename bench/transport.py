@@ -1,0 +1,304 @@
+"""Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
+
+The ipc and tcp peers run in another OS process (``python -m bench.transport --peer``),
+and a raw pyzmq asyncio DEALER/ROUTER echo (``--raw-peer``) over tcp is measured in the
+same run, so the runtime's overhead shows as a ratio to what pyzmq alone costs.
+
+Run ``python -m bench transport [--quick]`` or ``python -m bench.transport [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import gc
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator, Sequence
+from typing import Any
+
+import msgspec
+import zmq
+import zmq.asyncio
+
+from actors import Actor, ActorSystem, Address, Message, handler
+from bench.common import percentiles, write_result
+from transports import InProcessNetwork, MessageRegistry, ZmqTransport
+
+__all__ = ["Ping", "Pong", "run"]
+
+SCENARIOS = ("local", "inproc_transport", "zmq_inproc", "zmq_ipc", "zmq_tcp", "raw_zmq_tcp")
+_READY = "READY "
+_PAYLOAD = "x" * 32
+
+
+class Ping(Message):
+    seq: int
+    text: str
+
+
+class Pong(Message):
+    seq: int
+
+
+class Echo(Actor):
+    """Replies from a sync handler, so local asks take the direct-call fast path."""
+
+    @handler
+    def ping(self, msg: Ping) -> Pong:
+        return Pong(msg.seq)
+
+
+def _registry() -> MessageRegistry:
+    return MessageRegistry([Ping, Pong])
+
+
+# -- measuring --------------------------------------------------------------------------
+
+
+async def _measure(ask: Callable[[int], Awaitable[Any]], warmup: int, count: int) -> list[float]:
+    """Per-call latency in microseconds, after ``warmup`` unmeasured calls."""
+    for i in range(warmup):
+        await ask(i)
+    gc.collect()
+    clock = time.perf_counter_ns
+    samples = [0.0] * count
+    for i in range(count):
+        t0 = clock()
+        await ask(i)
+        samples[i] = (clock() - t0) / 1000.0
+    return samples
+
+
+async def _bench_local(warmup: int, count: int) -> list[float]:
+    async with ActorSystem("local", registry=_registry()) as system:
+        ref = system.spawn(Echo(), "echo")
+
+        async def ask(i: int) -> Any:
+            return await ref.ask(Ping(i, _PAYLOAD))
+
+        return await _measure(ask, warmup, count)
+
+
+async def _bench_inproc_transport(warmup: int, count: int) -> list[float]:
+    net = InProcessNetwork(_registry())
+    async with (
+        ActorSystem(transport=net.transport("a"), registry=_registry()) as a,
+        ActorSystem(transport=net.transport("b"), registry=_registry()) as b,
+    ):
+        b.spawn(Echo(), "echo")
+        ref = a.ref(Address("b", "echo"))
+
+        async def ask(i: int) -> Any:
+            return await ref.ask(Ping(i, _PAYLOAD))
+
+        return await _measure(ask, warmup, count)
+
+
+async def _bench_zmq_inproc(warmup: int, count: int) -> list[float]:
+    tag = uuid.uuid4().hex[:8]
+    tb = ZmqTransport("b", f"inproc://bench-b-{tag}", _registry())
+    ta = ZmqTransport("a", f"inproc://bench-a-{tag}", _registry(), peers={"b": tb.endpoint})
+    async with (
+        ActorSystem(transport=tb, registry=_registry()) as b,
+        ActorSystem(transport=ta, registry=_registry()) as a,
+    ):
+        b.spawn(Echo(), "echo")
+        ref = a.ref(Address("b", "echo"))
+
+        async def ask(i: int) -> Any:
+            return await ref.ask(Ping(i, _PAYLOAD))
+
+        return await _measure(ask, warmup, count)
+
+
+async def _bench_zmq_remote(bind: str, peer_bind: str, warmup: int, count: int) -> list[float]:
+    with _child("--peer", peer_bind) as endpoint:
+        transport = ZmqTransport("main", bind, _registry(), peers={"peer": endpoint})
+        async with ActorSystem(transport=transport, registry=_registry()) as system:
+            ref = system.ref(Address("peer", "echo"))
+
+            async def ask(i: int) -> Any:
+                return await ref.ask(Ping(i, _PAYLOAD), timeout=10.0)
+
+            return await _measure(ask, warmup, count)
+
+
+async def _bench_raw_zmq_tcp(warmup: int, count: int) -> list[float]:
+    with _child("--raw-peer", "tcp://127.0.0.1:*") as endpoint:
+        ctx = zmq.asyncio.Context.instance()
+        sock = ctx.socket(zmq.DEALER)
+        sock.setsockopt(zmq.LINGER, 0)
+        sock.connect(endpoint)
+        payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
+        try:
+
+            async def ask(i: int) -> Any:
+                await sock.send(payload)
+                return await sock.recv()
+
+            return await _measure(ask, warmup, count)
+        finally:
+            sock.close(0)
+
+
+# -- peer processes ---------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def _child(*args: str) -> Iterator[str]:
+    """Run a peer process; yield the endpoint it bound; stop it (stdin EOF) on exit."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "bench.transport", *args],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        if not line.startswith(_READY):
+            raise RuntimeError(f"peer {args} did not start: {line!r}")
+        yield line[len(_READY) :].strip()
+    finally:
+        if proc.stdin is not None:
+            proc.stdin.close()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+async def _until_stdin_closes() -> None:
+    """Peers live until their parent closes our stdin (or dies, which closes it too)."""
+    loop = asyncio.get_running_loop()
+    done = loop.create_future()
+    fd = sys.stdin.fileno()
+
+    def readable() -> None:
+        if not os.read(fd, 4096) and not done.done():
+            done.set_result(None)
+
+    loop.add_reader(fd, readable)
+    try:
+        await done
+    finally:
+        loop.remove_reader(fd)
+
+
+async def _serve_peer(bind: str) -> None:
+    transport = ZmqTransport("peer", bind, _registry())
+    async with ActorSystem(transport=transport, registry=_registry()) as system:
+        system.spawn(Echo(), "echo")
+        print(_READY + transport.endpoint, flush=True)
+        await _until_stdin_closes()
+
+
+async def _serve_raw_peer(bind: str) -> None:
+    ctx = zmq.asyncio.Context.instance()
+    sock = ctx.socket(zmq.ROUTER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.bind(bind)
+    print(_READY + sock.getsockopt(zmq.LAST_ENDPOINT).decode(), flush=True)
+
+    async def echo() -> None:
+        while True:
+            frames = await sock.recv_multipart()
+            await sock.send_multipart(frames)
+
+    task = asyncio.ensure_future(echo())
+    try:
+        await _until_stdin_closes()
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        sock.close(0)
+
+
+# -- the benchmark ----------------------------------------------------------------------
+
+
+@contextlib.asynccontextmanager
+async def _ipc_dir() -> AsyncIterator[str]:
+    path = tempfile.mkdtemp(prefix="btcap-bench-")
+    try:
+        yield path
+    finally:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+async def _run_all(warmup: int, count: int) -> dict[str, dict[str, float]]:
+    results: dict[str, dict[str, float]] = {}
+    results["local"] = percentiles(await _bench_local(warmup, count))
+    results["inproc_transport"] = percentiles(await _bench_inproc_transport(warmup, count))
+    results["zmq_inproc"] = percentiles(await _bench_zmq_inproc(warmup, count))
+    async with _ipc_dir() as tmp:
+        samples = await _bench_zmq_remote(
+            f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock", warmup, count
+        )
+    results["zmq_ipc"] = percentiles(samples)
+    samples = await _bench_zmq_remote("tcp://127.0.0.1:*", "tcp://127.0.0.1:*", warmup, count)
+    results["zmq_tcp"] = percentiles(samples)
+    results["raw_zmq_tcp"] = percentiles(await _bench_raw_zmq_tcp(warmup, count))
+    return results
+
+
+def _table(ask_us: dict[str, dict[str, float]]) -> str:
+    raw = ask_us["raw_zmq_tcp"]["p50"]
+    lines = [
+        f"{'ask round trip':<18} {'p50 us':>9} {'p99 us':>9} {'p50 / raw tcp':>14}",
+        "-" * 53,
+    ]
+    for name in SCENARIOS:
+        p = ask_us[name]
+        lines.append(f"{name:<18} {p['p50']:>9.1f} {p['p99']:>9.1f} {p['p50'] / raw:>14.2f}")
+    return "\n".join(lines)
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    """Measure every scenario, print a table and write ``bench/results/transport.json``."""
+    warmup, count = (500, 3_000) if quick else (3_000, 20_000)
+    ask_us = asyncio.run(_run_all(warmup, count))
+    data: dict[str, Any] = {
+        "ask_us": ask_us,
+        "ratio_to_raw_zmq_tcp": {
+            name: ask_us[name]["p50"] / ask_us["raw_zmq_tcp"]["p50"] for name in SCENARIOS
+        },
+        "samples": count,
+        "warmup": warmup,
+        "quick": quick,
+    }
+    print(_table(ask_us))
+    path = write_result("transport", data)
+    print(f"wrote {path}")
+    return data
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.transport", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer samples, for CI smoke runs")
+    role = parser.add_mutually_exclusive_group()
+    role.add_argument("--peer", metavar="BIND", help="(internal) serve an echo actor system")
+    role.add_argument("--raw-peer", metavar="BIND", help="(internal) serve a raw zmq echo")
+    args = parser.parse_args(argv)
+    if args.peer:
+        asyncio.run(_serve_peer(args.peer))
+    elif args.raw_peer:
+        asyncio.run(_serve_raw_peer(args.raw_peer))
+    else:
+        run(quick=args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,254 @@
+"""Ready-made leaves: actions from async callables, conditions, constants, waits, logs.
+
+Write your own leaf by subclassing :class:`~btcap.node.Leaf`::
+
+    class Battery(Leaf):
+        \"\"\"Succeeds while the battery holds enough charge.\"\"\"
+
+        INPUTS = {"level": float}
+        OPTIONS = {"minimum": Port(float, 0.2)}
+
+        def on_tick(self) -> State:
+            ok = self.inputs["level"] >= self.options["minimum"]
+            return State.SUCCEEDED if ok else State.FAILED
+"""
+
+from __future__ import annotations
+
+import asyncio
+import inspect
+import operator
+from collections.abc import Awaitable, Callable
+from typing import Any, ClassVar
+
+import structlog
+
+from btcap.node import Leaf
+from btcap.ports import Port, normalize_ports
+from btcap.state import State, TreeError
+
+__all__ = [
+    "Action",
+    "AlwaysFailure",
+    "AlwaysRunning",
+    "AlwaysSuccess",
+    "Compare",
+    "Condition",
+    "Constant",
+    "Log",
+    "Wait",
+]
+
+_SUCCEEDED = State.SUCCEEDED
+_FAILED = State.FAILED
+_RUNNING = State.RUNNING
+
+log = structlog.get_logger("btcap.tree")
+
+
+class AlwaysSuccess(Leaf):
+    """Succeeds at once."""
+
+    __slots__ = ()
+
+    def on_tick(self) -> State:
+        return _SUCCEEDED
+
+
+class AlwaysFailure(Leaf):
+    """Fails at once."""
+
+    __slots__ = ()
+
+    def on_tick(self) -> State:
+        return _FAILED
+
+
+class AlwaysRunning(Leaf):
+    """Never finishes."""
+
+    __slots__ = ()
+
+    def on_tick(self) -> State:
+        return _RUNNING
+
+
+class Constant(Leaf):
+    """Outputs ``value`` (of ``type``) and succeeds."""
+
+    __slots__ = ()
+    OPTIONS: ClassVar[Any] = {"value": Port(Any), "type": Port(Any, Any, "the output's type")}
+
+    def declare_ports(self) -> None:
+        self.output_ports = {"value": Port(self.options["type"])}
+
+    def on_tick(self) -> State:
+        self.outputs["value"] = self.options["value"]
+        return _SUCCEEDED
+
+
+_OPS: dict[str, Callable[[Any, Any], bool]] = {
+    "==": operator.eq,
+    "!=": operator.ne,
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
+
+
+class Compare(Leaf):
+    """Succeeds if ``a op b`` holds (``op`` one of ==, !=, <, <=, >, >=)."""
+
+    __slots__ = ()
+    INPUTS: ClassVar[Any] = {"a": Port(Any, None), "b": Port(Any, None)}
+    OPTIONS: ClassVar[Any] = {"op": Port(str, "==")}
+
+    def declare_ports(self) -> None:
+        if self.options["op"] not in _OPS:
+            raise TreeError(
+                f"Compare {self.name!r}: op {self.options['op']!r}; expected one of {', '.join(_OPS)}"
+            )
+
+    def on_tick(self) -> State:
+        ok = _OPS[self.options["op"]](self.inputs["a"], self.inputs["b"])
+        return _SUCCEEDED if ok else _FAILED
+
+
+class Log(Leaf):
+    """Logs ``message`` (with the ``value`` input, if wired) and succeeds."""
+
+    __slots__ = ()
+    INPUTS: ClassVar[Any] = {"value": Port(Any, None)}
+    OPTIONS: ClassVar[Any] = {"message": Port(str), "level": Port(str, "info")}
+
+    def declare_ports(self) -> None:
+        if self.options["level"] not in ("debug", "info", "warning", "error"):
+            raise TreeError(f"Log {self.name!r}: level must be debug, info, warning or error")
+
+    def on_tick(self) -> State:
+        getattr(log, self.options["level"])(
+            self.options["message"], node=self.path, value=self.inputs["value"]
+        )
+        return _SUCCEEDED
+
+
+class Wait(Leaf):
+    """Runs for ``seconds`` of clock time after its first tick, then succeeds."""
+
+    __slots__ = ("_until",)
+    OPTIONS: ClassVar[Any] = {"seconds": Port(float)}
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._until: float | None = None
+
+    def on_tick(self) -> State:
+        now = self.clock.now()
+        if self._until is None:
+            self._until = now + self.options["seconds"]
+        if now >= self._until:
+            self._until = None
+            return _SUCCEEDED
+        return _RUNNING
+
+    def on_reset(self) -> None:
+        self._until = None
+
+
+class Condition(Leaf):
+    """Succeeds when ``predicate(**inputs)`` is true; for quick checks, never I/O."""
+
+    __slots__ = ("_ports_in", "predicate")
+
+    def __init__(
+        self,
+        predicate: Callable[..., bool],
+        name: str | None = None,
+        *,
+        inputs: dict[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        self.predicate = predicate
+        self._ports_in = normalize_ports(inputs or {}, f"Condition {name!r} inputs")
+        super().__init__(name or getattr(predicate, "__name__", None), **kwargs)
+
+    def declare_ports(self) -> None:
+        self.input_ports = self._ports_in
+
+    def on_tick(self) -> State:
+        return _SUCCEEDED if self.predicate(**self.inputs) else _FAILED
+
+
+class Action(Leaf):
+    """Runs ``fn(**inputs)`` (an async callable) in the background; running until done.
+
+    The first tick starts it; untick, reset and shutdown cancel it. It succeeds when ``fn``
+    returns ``None`` or ``True``, fails on ``False``, and a ``dict`` result fills the
+    outputs of the same names (and succeeds). An exception puts the node in ERROR.
+    """
+
+    __slots__ = ("_ports_in", "_ports_out", "_task", "fn")
+
+    def __init__(
+        self,
+        fn: Callable[..., Awaitable[Any]],
+        name: str | None = None,
+        *,
+        inputs: dict[str, Any] | None = None,
+        outputs: dict[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        if not (inspect.iscoroutinefunction(fn) or callable(fn)):
+            raise TypeError(f"Action {name!r}: expected an async callable, got {fn!r}")
+        self.fn = fn
+        self._task: asyncio.Task[Any] | None = None
+        self._ports_in = normalize_ports(inputs or {}, f"Action {name!r} inputs")
+        self._ports_out = normalize_ports(outputs or {}, f"Action {name!r} outputs")
+        super().__init__(name or getattr(fn, "__name__", None), **kwargs)
+
+    def declare_ports(self) -> None:
+        self.input_ports = self._ports_in
+        self.output_ports = self._ports_out
+
+    def on_tick(self) -> State:
+        task = self._task
+        if task is None:
+            self._task = self.start_background(self._call())
+            return _RUNNING
+        if not task.done():
+            return _RUNNING
+        self._task = None
+        if task.cancelled():
+            return _FAILED
+        exc = task.exception()
+        if exc is not None:
+            raise exc
+        result = task.result()
+        if result is False:
+            return _FAILED
+        if isinstance(result, dict):
+            for key, value in result.items():
+                if key not in self.outputs:
+                    raise TreeError(f"Action {self.name!r} returned unknown output {key!r}")
+                self.outputs[key] = value
+        return _SUCCEEDED
+
+    async def _call(self) -> Any:
+        return await self.fn(**self.inputs)
+
+    def _cancel(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            self._task = None
+
+    def on_untick(self) -> None:
+        self._cancel()
+
+    def on_reset(self) -> None:
+        self._cancel()
+
+    def on_shutdown(self) -> None:
+        self._cancel()
+
+

@@ -1,0 +1,383 @@
+"""The node model: every BT node is an actor with typed ports and a small life cycle.
+
+Ticking a local tree is a chain of plain method calls (the actor runtime's fast path);
+the same actions are also messages (:mod:`btcap.protocol`) so a node can be driven from
+another actor or another process.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Coroutine, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import structlog
+
+from actors import Actor, handler
+from btcap.ports import PortMap, check_value, normalize_ports
+from btcap.protocol import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
+from btcap.state import ACTIVE, IllegalTransition, State, TreeError
+from btcap.utility import Utility
+
+if TYPE_CHECKING:
+    import asyncio
+
+    from actors import TimeSource
+    from btcap.tree import Tree
+
+__all__ = ["Leaf", "Node", "Observer"]
+
+log = structlog.get_logger("btcap")
+
+#: Called as ``observer(node, old_state, new_state)`` whenever a node changes state.
+Observer = Callable[["Node", State, State], None]
+
+_UNINIT = State.UNINITIALIZED
+_SHUTDOWN = State.SHUTDOWN
+_IDLE = State.IDLE
+_PAUSED = State.PAUSED
+_ERROR = State.ERROR
+
+
+class Node(Actor):
+    """Base class of every node.
+
+    Subclasses declare ports as class attributes (``INPUTS``, ``OUTPUTS``, ``OPTIONS``:
+    dicts of name to type or :class:`~btcap.ports.Port`) and implement :meth:`on_tick`;
+    they may override :meth:`on_setup`, :meth:`on_untick`, :meth:`on_reset`,
+    :meth:`on_shutdown` and :meth:`utility`. Options are keyword arguments of the
+    constructor and are checked against their declared types.
+    """
+
+    __slots__ = (
+        "_pulls",
+        "_ready",
+        "_tree",
+        "_watch",
+        "children",
+        "error",
+        "input_ports",
+        "inputs",
+        "name",
+        "options",
+        "output_ports",
+        "outputs",
+        "parent_node",
+        "state",
+    )
+
+    INPUTS: ClassVar[PortMap] = {}
+    OUTPUTS: ClassVar[PortMap] = {}
+    OPTIONS: ClassVar[PortMap] = {}
+    #: Bounds on the number of children; ``None`` means unbounded.
+    MIN_CHILDREN: ClassVar[int] = 0
+    MAX_CHILDREN: ClassVar[int | None] = 0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        for attr in ("INPUTS", "OUTPUTS", "OPTIONS"):
+            if attr in cls.__dict__:
+                setattr(cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}"))
+
+    def __init__(
+        self,
+        name: str | None = None,
+        *,
+        children: Sequence[Node] = (),
+        inputs: dict[str, Any] | None = None,
+        **options: Any,
+    ) -> None:
+        super().__init__()
+        cls = type(self)
+        self.name: str = name if name is not None else cls.__name__
+        if not self.name or "/" in self.name or "." in self.name:
+            raise TreeError(f"node name {self.name!r}: expected a non-empty name without '/' or '.'")
+        self.state = _UNINIT
+        self.error: BaseException | None = None
+        self.parent_node: Node | None = None
+        self._tree: Tree | None = None
+        self._watch: Observer | None = None
+        self._pulls: list[tuple[str, Node, str]] | None = None
+        self._ready = False
+        self.options = self._check_options(options)
+        self.input_ports: PortMap = cls.INPUTS
+        self.output_ports: PortMap = cls.OUTPUTS
+        self.declare_ports()
+        self.inputs: dict[str, Any] = {n: p.default_value() for n, p in self.input_ports.items()}
+        self.outputs: dict[str, Any] = dict.fromkeys(self.output_ports)
+        if inputs:
+            for key, value in inputs.items():
+                self.set_input(key, value)
+        self.children: list[Node] = []
+        for child in children:
+            self.add_child(child)
+
+    # -- declaration ------------------------------------------------------------------
+    def declare_ports(self) -> None:
+        """Override to compute ``input_ports``/``output_ports`` from options."""
+
+    def _check_options(self, given: dict[str, Any]) -> dict[str, Any]:
+        spec = type(self).OPTIONS
+        unknown = set(given) - set(spec)
+        if unknown:
+            raise TreeError(
+                f"node {self.name!r} ({type(self).__name__}): unknown option(s) "
+                f"{', '.join(sorted(unknown))}; expected {', '.join(sorted(spec)) or 'none'}"
+            )
+        out: dict[str, Any] = {}
+        for key, port in spec.items():
+            if key in given:
+                out[key] = check_value(given[key], port.type, f"node {self.name!r} option {key!r}")
+            elif port.required:
+                raise TreeError(
+                    f"node {self.name!r} ({type(self).__name__}): option {key!r} is required"
+                )
+            else:
+                out[key] = port.default_value()
+        return out
+
+    def set_input(self, key: str, value: Any) -> None:
+        """Give an input a constant value (checked against its type)."""
+        port = self.input_ports.get(key)
+        if port is None:
+            raise TreeError(
+                f"node {self.name!r} ({type(self).__name__}) has no input {key!r}; "
+                f"inputs: {', '.join(self.input_ports) or 'none'}"
+            )
+        self.inputs[key] = check_value(value, port.type, f"node {self.name!r} input {key!r}")
+
+    # -- structure --------------------------------------------------------------------
+    def add_child(self, child: Node, index: int | None = None) -> Node:
+        limit = type(self).MAX_CHILDREN
+        if limit is not None and len(self.children) >= limit:
+            raise TreeError(
+                f"node {self.name!r} ({type(self).__name__}) takes at most {limit} children"
+            )
+        if child.parent_node is not None:
+            raise TreeError(f"node {child.name!r} already has parent {child.parent_node.name!r}")
+        if any(c.name == child.name for c in self.children):
+            raise TreeError(f"node {self.name!r} already has a child named {child.name!r}")
+        if self.state not in (_UNINIT, _IDLE, _SHUTDOWN, State.SUCCEEDED, State.FAILED):
+            raise IllegalTransition(
+                f"cannot add a child to {self.name!r} while it is {self.state.value}"
+            )
+        child.parent_node = self
+        if index is None:
+            self.children.append(child)
+        else:
+            self.children.insert(index, child)
+        if self._tree is not None:
+            self._tree._adopt(child)
+        return child
+
+    def remove_child(self, child: Node) -> None:
+        if child.parent_node is not self:
+            raise TreeError(f"node {child.name!r} is not a child of {self.name!r}")
+        if child.state in ACTIVE:
+            raise IllegalTransition(f"cannot remove {child.name!r} while it is {child.state.value}")
+        if self._tree is not None:
+            self._tree._release(child)
+        self.children.remove(child)
+        child.parent_node = None
+
+    @property
+    def path(self) -> str:
+        """Slash-separated names from the root: how files and wires name this node."""
+        parts = [self.name]
+        node = self.parent_node
+        while node is not None:
+            parts.append(node.name)
+            node = node.parent_node
+        return "/".join(reversed(parts))
+
+    def walk(self) -> Iterator[Node]:
+        """This node and all below it, depth first."""
+        yield self
+        for c in self.children:
+            yield from c.walk()
+
+    @property
+    def tree(self) -> Tree:
+        if self._tree is None:
+            raise TreeError(f"node {self.name!r} is not part of a Tree")
+        return self._tree
+
+    @property
+    def clock(self) -> TimeSource:
+        return self.tree.clock
+
+    def start_background(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
+        """Run long work (I/O, motion) off the tick path, owned by the tree."""
+        if self._tree is None:
+            coro.close()
+            raise TreeError(f"node {self.name!r} needs a Tree to run background work")
+        return self._tree.start_task(coro, name=self.path)
+
+    # -- life cycle -------------------------------------------------------------------
+    def setup(self) -> None:
+        """Prepare for ticking (allocate, connect); from uninitialized or shutdown."""
+        if self.state is not _UNINIT and self.state is not _SHUTDOWN:
+            raise IllegalTransition(
+                f"setup of {self.name!r} while {self.state.value}: expected uninitialized "
+                f"or shutdown (reset it instead)"
+            )
+        for c in self.children:
+            c.setup()
+        try:
+            self.on_setup()
+        except Exception as exc:
+            self._fail(exc, "setup")
+            self._ready = True
+            return
+        self._ready = True
+        self._set(_IDLE)
+
+    def tick(self) -> State:
+        """Advance by one tick and return the new state. Never waits on I/O."""
+        if not self._ready:
+            self._not_ready("tick")
+        if self._pulls is not None:
+            for key, src, out in self._pulls:
+                self.inputs[key] = src.outputs[out]
+        prev = self.state
+        try:
+            new = self.on_tick()
+        except Exception as exc:
+            return self._fail(exc, "tick")
+        if new.__class__ is not State:
+            return self._fail(
+                TypeError(f"on_tick returned {new!r}, expected a State"), "tick"
+            )
+        self.state = new
+        if self._watch is not None and new is not prev:
+            self._watch(self, prev, new)
+        return new
+
+    def untick(self) -> None:
+        """Stop background work but keep progress: active nodes pause, others go idle."""
+        if not self._ready:
+            self._not_ready("untick")
+        try:
+            self.on_untick()
+        except Exception as exc:
+            self._fail(exc, "untick")
+            return
+        self._set(_PAUSED if self.state in ACTIVE or self.state is _PAUSED else _IDLE)
+
+    def reset(self) -> None:
+        """Back to idle: outputs cleared, background work cancelled, children reset."""
+        if not self._ready:
+            self._not_ready("reset")
+        for c in self.children:
+            c.reset()
+        self.error = None
+        try:
+            self.on_reset()
+        except Exception as exc:
+            self._fail(exc, "reset")
+            return
+        for key in self.outputs:
+            self.outputs[key] = None
+        self._set(_IDLE)
+
+    def shutdown(self) -> None:
+        """Release everything; the node may be set up again later."""
+        for c in self.children:
+            c.shutdown()
+        if self.state is _SHUTDOWN or self.state is _UNINIT:
+            self._ready = False
+            return
+        try:
+            self.on_shutdown()
+        except Exception as exc:
+            log.error("btcap.node_shutdown_failed", node=self.path, exc_info=exc)
+        self._ready = False
+        self._set(_SHUTDOWN)
+
+    def _set(self, new: State) -> None:
+        prev = self.state
+        self.state = new
+        if self._watch is not None and new is not prev:
+            self._watch(self, prev, new)
+
+    def _fail(self, exc: BaseException, action: str) -> State:
+        self.error = exc
+        log.error(
+            "btcap.node_error", node=self.path, type=type(self).__name__, action=action,
+            exc_info=exc,
+        )
+        self._set(_ERROR)
+        return _ERROR
+
+    def _not_ready(self, action: str) -> None:
+        raise IllegalTransition(
+            f"{action} of {self.path!r} while {self.state.value}: call setup() first"
+        )
+
+    # -- overridables -----------------------------------------------------------------
+    def on_setup(self) -> None:
+        """Acquire what ticking needs."""
+
+    def on_tick(self) -> State:
+        raise NotImplementedError(f"{type(self).__name__} must implement on_tick")
+
+    def on_untick(self) -> None:
+        """Pause background work; the default unticks active children."""
+        for c in self.children:
+            if c.state in ACTIVE:
+                c.untick()
+
+    def on_reset(self) -> None:
+        """Forget progress; children are already reset."""
+
+    def on_shutdown(self) -> None:
+        """Release what :meth:`on_setup` acquired; children are already shut down."""
+
+    def utility(self) -> Utility:
+        """Expected cost bounds, for bids; leaves may override, composites aggregate."""
+        return Utility()
+
+    # -- actor protocol ---------------------------------------------------------------
+    def status(self) -> NodeStatus:
+        return NodeStatus(self.state, dict(self.outputs))
+
+    @handler
+    def _on_setup_msg(self, msg: Setup) -> NodeStatus:
+        self.setup()
+        return self.status()
+
+    @handler
+    def _on_tick_msg(self, msg: Tick) -> NodeStatus:
+        for key, value in msg.inputs.items():
+            self.set_input(key, value)
+        self.tick()
+        return self.status()
+
+    @handler
+    def _on_untick_msg(self, msg: Untick) -> NodeStatus:
+        self.untick()
+        return self.status()
+
+    @handler
+    def _on_reset_msg(self, msg: Reset) -> NodeStatus:
+        self.reset()
+        return self.status()
+
+    @handler
+    def _on_shutdown_msg(self, msg: Shutdown) -> NodeStatus:
+        self.shutdown()
+        return self.status()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} {self.state.value}>"
+
+
+class Leaf(Node):
+    """A node without children; subclass and implement :meth:`on_tick`."""
+
+    __slots__ = ()
+
+
+def declared_ports(node: Node) -> dict[str, PortMap]:
+    """The node's ports by kind, as a dict (for files, CLI and docs)."""
+    return {"inputs": node.input_ports, "outputs": node.output_ports, "options": type(node).OPTIONS}
+

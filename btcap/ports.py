@@ -1,0 +1,117 @@
+"""Typed ports (inputs, outputs, options) and the type check applied when wiring."""
+
+from __future__ import annotations
+
+import types
+import typing
+from dataclasses import dataclass
+from typing import Any
+
+import msgspec
+
+from btcap.state import TreeError
+
+__all__ = ["NO_DEFAULT", "Port", "PortMap", "assignable", "check_value", "type_name"]
+
+
+class _NoDefault:
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "NO_DEFAULT"
+
+
+NO_DEFAULT: Any = _NoDefault()
+
+
+@dataclass(frozen=True, slots=True)
+class Port:
+    """A declared port: its type (anything msgspec can encode), default and description.
+
+    An input or option without a default is required; an ``Optional`` type gets ``None``
+    as its default.
+    """
+
+    type: Any = Any
+    default: Any = NO_DEFAULT
+    description: str = ""
+
+    @property
+    def required(self) -> bool:
+        return self.default is NO_DEFAULT and not _is_optional(self.type)
+
+    def default_value(self) -> Any:
+        if self.default is not NO_DEFAULT:
+            return self.default
+        return None
+
+
+PortMap = dict[str, Port]
+
+
+def _is_optional(t: Any) -> bool:
+    return _is_union(t) and type(None) in typing.get_args(t)
+
+
+def _is_union(t: Any) -> bool:
+    return typing.get_origin(t) in (typing.Union, types.UnionType)
+
+
+def type_name(t: Any) -> str:
+    """A readable name for error messages."""
+    if t is Any:
+        return "Any"
+    if isinstance(t, type) and not typing.get_args(t):
+        return t.__qualname__
+    return repr(t).replace("typing.", "")
+
+
+def normalize_ports(spec: Any, where: str) -> PortMap:
+    """Accept ``{"name": type}`` or ``{"name": Port(...)}`` and return a PortMap."""
+    if spec is None:
+        return {}
+    if not isinstance(spec, dict):
+        raise TypeError(f"{where}: expected a dict of port name to type or Port")
+    out: PortMap = {}
+    for name, p in spec.items():
+        if not isinstance(name, str) or not name.isidentifier():
+            raise TypeError(f"{where}: port name {name!r} is not an identifier")
+        out[name] = p if isinstance(p, Port) else Port(p)
+    return out
+
+
+def assignable(src: Any, dst: Any) -> bool:
+    """Whether a value typed ``src`` may flow into a port typed ``dst``."""
+    if dst is Any or dst is object or src == dst:
+        return True
+    if src is Any:
+        return True  # checked at run time instead
+    if _is_union(src):
+        return all(assignable(s, dst) for s in typing.get_args(src))
+    if _is_union(dst):
+        return any(assignable(src, d) for d in typing.get_args(dst))
+    if dst is float and src is int:
+        return True
+    so, do = typing.get_origin(src) or src, typing.get_origin(dst) or dst
+    if isinstance(so, type) and isinstance(do, type):
+        if not issubclass(so, do):
+            return False
+        sa, da = typing.get_args(src), typing.get_args(dst)
+        if not da:
+            return True
+        if len(sa) != len(da):
+            return False
+        return all(assignable(s, d) for s, d in zip(sa, da, strict=True))
+    return False
+
+
+def check_value(value: Any, t: Any, where: str) -> Any:
+    """Validate (and convert, e.g. list -> tuple) a value for a port, or raise TreeError."""
+    if t is Any:
+        return value
+    try:
+        return msgspec.convert(value, t, strict=False)
+    except (msgspec.ValidationError, TypeError) as exc:
+        raise TreeError(
+            f"{where}: expected {type_name(t)}, got {type(value).__qualname__} {value!r} ({exc})"
+        ) from None

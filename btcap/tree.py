@@ -1,0 +1,362 @@
+"""Trees: a root node plus data wires, a clock, background tasks and observers."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Coroutine, Iterator
+from typing import TYPE_CHECKING, Any
+
+from actors import Clock, TimeSource
+from btcap.node import Node, Observer
+from btcap.ports import PortMap, assignable, type_name
+from btcap.state import ACTIVE, DONE, State, TreeError
+from btcap.utility import Utility
+
+if TYPE_CHECKING:
+    from actors import ActorSystem
+
+__all__ = ["Subtree", "Tree", "Wire"]
+
+
+class Wire:
+    """An output of one node feeding an input of another, pulled when the input's node ticks."""
+
+    __slots__ = ("source", "source_port", "target", "target_port")
+
+    def __init__(self, source: Node, source_port: str, target: Node, target_port: str) -> None:
+        self.source = source
+        self.source_port = source_port
+        self.target = target
+        self.target_port = target_port
+
+    def __repr__(self) -> str:
+        return f"Wire({self.source.path}.{self.source_port} -> {self.target.path}.{self.target_port})"
+
+
+class Tree:
+    """A behavior tree ready to run: owns its nodes' wiring, clock and background tasks.
+
+    ``Tree(root)`` adopts every node below ``root``; :meth:`attach` additionally spawns
+    every node as an actor of an :class:`~actors.ActorSystem` so each is addressable.
+    """
+
+    def __init__(self, root: Node, *, name: str | None = None, clock: TimeSource | None = None) -> None:
+        self.root = root
+        self.name = name or root.name
+        self.clock: TimeSource = clock if clock is not None else Clock()
+        self.wires: list[Wire] = []
+        self.system: ActorSystem | None = None
+        self._observers: list[Observer] = []
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._adopt(root)
+
+    # -- structure --------------------------------------------------------------------
+    def _adopt(self, node: Node) -> None:
+        watch = self._notify if self._observers else None
+        for n in node.walk():
+            if n._tree is not None and n._tree is not self:
+                raise TreeError(f"node {n.path!r} already belongs to tree {n._tree.name!r}")
+            n._tree = self
+            n._watch = watch
+            if self.system is not None and not n.spawned:
+                self._spawn(n)
+
+    def _release(self, node: Node) -> None:
+        gone = set(map(id, node.walk()))
+        for w in [w for w in self.wires if id(w.source) in gone or id(w.target) in gone]:
+            self.unwire(w)
+        for n in node.walk():
+            if n.spawned:
+                n.system.stop(n)
+            n._tree = None
+            n._watch = None
+
+    def nodes(self) -> Iterator[Node]:
+        return self.root.walk()
+
+    def find(self, path: str) -> Node:
+        """The node at ``path`` (slash-separated names from the root)."""
+        parts = path.split("/")
+        if parts[0] != self.root.name:
+            raise TreeError(f"tree {self.name!r}: no node {path!r} (root is {self.root.name!r})")
+        node = self.root
+        for part in parts[1:]:
+            for c in node.children:
+                if c.name == part:
+                    node = c
+                    break
+            else:
+                raise TreeError(f"tree {self.name!r}: no node {path!r} ({node.path!r} has no child {part!r})")
+        return node
+
+    def _resolve(self, node: Node | str) -> Node:
+        if isinstance(node, str):
+            return self.find(node)
+        if node._tree is not self:
+            raise TreeError(f"node {node.path!r} is not part of tree {self.name!r}")
+        return node
+
+    def insert(self, parent: Node | str, subtree: Node, index: int | None = None) -> Node:
+        """Add a subtree below ``parent`` (not while the parent is running)."""
+        return self._resolve(parent).add_child(subtree, index)
+
+    def remove(self, node: Node | str) -> Node:
+        """Detach a subtree (and its wires); it is shut down first."""
+        n = self._resolve(node)
+        if n.parent_node is None:
+            raise TreeError(f"tree {self.name!r}: cannot remove the root")
+        if n.state in ACTIVE:
+            raise TreeError(f"cannot remove {n.path!r} while it is {n.state.value}")
+        n.shutdown()
+        n.parent_node.remove_child(n)
+        return n
+
+    # -- data wiring ------------------------------------------------------------------
+    def wire(self, source: Node | str, source_port: str, target: Node | str, target_port: str) -> Wire:
+        """Feed ``source.outputs[source_port]`` into ``target.inputs[target_port]``.
+
+        Type-checked now: raises TreeError naming both ends and the types.
+        """
+        src, dst = self._resolve(source), self._resolve(target)
+        out = src.output_ports.get(source_port)
+        if out is None:
+            raise TreeError(
+                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: {src.path!r} "
+                f"has no output {source_port!r} (outputs: {', '.join(src.output_ports) or 'none'})"
+            )
+        inp = dst.input_ports.get(target_port)
+        if inp is None:
+            raise TreeError(
+                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: {dst.path!r} "
+                f"has no input {target_port!r} (inputs: {', '.join(dst.input_ports) or 'none'})"
+            )
+        if not assignable(out.type, inp.type):
+            raise TreeError(
+                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: output is "
+                f"{type_name(out.type)} but the input expects {type_name(inp.type)}"
+            )
+        if any(w.target is dst and w.target_port == target_port for w in self.wires):
+            raise TreeError(f"input {dst.path}.{target_port} is already wired")
+        w = Wire(src, source_port, dst, target_port)
+        self.wires.append(w)
+        if dst._pulls is None:
+            dst._pulls = []
+        dst._pulls.append((target_port, src, source_port))
+        return w
+
+    def unwire(self, wire: Wire) -> None:
+        self.wires.remove(wire)
+        pulls = wire.target._pulls or []
+        pulls.remove((wire.target_port, wire.source, wire.source_port))
+        wire.target._pulls = pulls or None
+
+    def validate(self) -> None:
+        """Check child counts and that every required input has a value or a wire."""
+        wired = {(id(w.target), w.target_port) for w in self.wires}
+        for n in self.nodes():
+            cls = type(n)
+            k = len(n.children)
+            if k < cls.MIN_CHILDREN or (cls.MAX_CHILDREN is not None and k > cls.MAX_CHILDREN):
+                most = "any" if cls.MAX_CHILDREN is None else cls.MAX_CHILDREN
+                raise TreeError(
+                    f"node {n.path!r} ({cls.__name__}) has {k} children; expected "
+                    f"{cls.MIN_CHILDREN} to {most}"
+                )
+            for key, port in n.input_ports.items():
+                if port.required and n.inputs.get(key) is None and (id(n), key) not in wired:
+                    raise TreeError(f"node {n.path!r}: input {key!r} needs a value or a wire")
+
+    # -- actors -----------------------------------------------------------------------
+    def attach(self, system: ActorSystem) -> None:
+        """Spawn every node as an actor at ``tree:<name>/<node path below the root>``."""
+        if self.system is not None:
+            raise TreeError(f"tree {self.name!r} is already attached to {self.system.id}")
+        self.system = system
+        for n in self.nodes():
+            self._spawn(n)
+
+    def _spawn(self, n: Node) -> None:
+        assert self.system is not None
+        if n.parent_node is None:
+            self.system.spawn(n, f"tree:{self.name}")
+        else:
+            self.system.spawn(n, n.name, parent=n.parent_node)
+
+    # -- running ----------------------------------------------------------------------
+    def setup(self) -> None:
+        self.validate()
+        self.root.setup()
+
+    def tick(self) -> State:
+        """One tick of the whole tree; sets the tree up on first use."""
+        root = self.root
+        if not root._ready:
+            self.setup()
+        return root.tick()
+
+    async def run(
+        self,
+        rate_hz: float = 10.0,
+        *,
+        until: Callable[[State], bool] | None = None,
+        max_ticks: int | None = None,
+    ) -> State:
+        """Tick at ``rate_hz`` (clock time, drift-free) until a result or ``until(state)``."""
+        if rate_hz <= 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        stop = until or (lambda s: s in DONE)
+        period = 1.0 / rate_hz
+        deadline = self.clock.now()
+        ticks = 0
+        while True:
+            state = self.tick()
+            ticks += 1
+            if stop(state) or (max_ticks is not None and ticks >= max_ticks):
+                return state
+            deadline += period
+            now = self.clock.now()
+            if deadline < now - period:  # fell far behind: skip, don't burst
+                deadline = now
+            await self.clock.sleep_until(deadline)
+
+    def tick_until_result(self, max_ticks: int = 1_000_000) -> State:
+        """Tick synchronously until succeeded/failed/error (for trees with no waits)."""
+        for _ in range(max_ticks):
+            s = self.tick()
+            if s in DONE:
+                return s
+        raise TreeError(f"tree {self.name!r} gave no result within {max_ticks} ticks")
+
+    def untick(self) -> None:
+        if self.root._ready:
+            self.root.untick()
+
+    def reset(self) -> None:
+        if self.root._ready:
+            self.root.reset()
+
+    async def shutdown(self) -> None:
+        """Shut every node down and wait for its background work to end."""
+        self.root.shutdown()
+        tasks = list(self._tasks)
+        for t in tasks:
+            t.cancel()
+        if tasks:
+            await asyncio.gather(*tasks, return_exceptions=True)
+        if self.system is not None:
+            system, self.system = self.system, None
+            for n in self.nodes():
+                if n._system is system:
+                    system.stop(n)
+
+    async def __aenter__(self) -> Tree:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.shutdown()
+
+    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+        """Background work of a node: owned by the actor system if attached, else the tree."""
+        if self.system is not None:
+            return self.system.start_task(coro, name=name)
+        task = asyncio.get_running_loop().create_task(coro, name=name)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+    # -- observing --------------------------------------------------------------------
+    def observe(self, observer: Observer) -> Callable[[], None]:
+        """Call ``observer(node, old, new)`` on every state change; returns an unsubscribe."""
+        self._observers.append(observer)
+        self._set_watch()
+
+        def unsubscribe() -> None:
+            if observer in self._observers:
+                self._observers.remove(observer)
+                self._set_watch()
+
+        return unsubscribe
+
+    def _set_watch(self) -> None:
+        watch = self._notify if self._observers else None
+        for n in self.nodes():
+            n._watch = watch
+
+    def _notify(self, node: Node, old: State, new: State) -> None:
+        for ob in self._observers:
+            ob(node, old, new)
+
+    def utility(self) -> Utility:
+        return self.root.utility()
+
+    def errors(self) -> list[Node]:
+        """Nodes currently in ERROR, with their exception in ``node.error``."""
+        return [n for n in self.nodes() if n.state is State.ERROR]
+
+
+class Subtree(Node):
+    """A whole tree used as one node, exposing some inner ports as its own.
+
+    ``public_inputs`` maps a public input name to ``"node/path.port"`` of an inner input;
+    ``public_outputs`` maps a public output name to an inner ``"node/path.port"`` output.
+    """
+
+    __slots__ = ("_in_map", "_out_map", "inner")
+    MAX_CHILDREN = 0
+
+    def __init__(
+        self,
+        inner: Tree,
+        name: str | None = None,
+        *,
+        public_inputs: dict[str, str] | None = None,
+        public_outputs: dict[str, str] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        self.inner = inner
+        self._in_map = {k: self._split(inner, v, "input") for k, v in (public_inputs or {}).items()}
+        self._out_map = {k: self._split(inner, v, "output") for k, v in (public_outputs or {}).items()}
+        super().__init__(name or inner.name, **kwargs)
+
+    @staticmethod
+    def _split(inner: Tree, ref: str, kind: str) -> tuple[Node, str]:
+        path, dot, port = ref.rpartition(".")
+        if not dot:
+            raise TreeError(f"subtree {inner.name!r}: {kind} {ref!r} must look like 'node/path.port'")
+        node = inner.find(path)
+        ports = node.input_ports if kind == "input" else node.output_ports
+        if port not in ports:
+            raise TreeError(f"subtree {inner.name!r}: {path!r} has no {kind} {port!r}")
+        return node, port
+
+    def declare_ports(self) -> None:
+        ins: PortMap = {k: n.input_ports[p] for k, (n, p) in self._in_map.items()}
+        outs: PortMap = {k: n.output_ports[p] for k, (n, p) in self._out_map.items()}
+        self.input_ports = ins
+        self.output_ports = outs
+
+    def on_setup(self) -> None:
+        self.inner.clock = self.clock
+        self.inner.setup()
+
+    def on_tick(self) -> State:
+        for key, (n, p) in self._in_map.items():
+            n.inputs[p] = self.inputs[key]
+        s = self.inner.root.tick()
+        for key, (n, p) in self._out_map.items():
+            self.outputs[key] = n.outputs[p]
+        return s
+
+    def on_untick(self) -> None:
+        self.inner.untick()
+
+    def on_reset(self) -> None:
+        self.inner.reset()
+
+    def on_shutdown(self) -> None:
+        self.inner.root.shutdown()
+
+    def utility(self) -> Utility:
+        return self.inner.utility()
+
+

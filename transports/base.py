@@ -1,0 +1,56 @@
+"""What an actor system needs from a transport, and the counters every transport keeps."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from anyio.abc import TaskStatus
+
+from transports.codec import Envelope
+
+__all__ = ["BROADCAST", "Deliver", "Transport", "TransportStats"]
+
+#: The system id that addresses every peer of the team at once.
+BROADCAST = "*"
+
+Deliver = Callable[[Envelope], None]
+
+
+@dataclass(slots=True)
+class TransportStats:
+    """Counters so dropped input is visible, never silent."""
+
+    sent: int = 0
+    received: int = 0
+    malformed: int = 0
+    unknown_peer: int = 0
+    undeliverable: int = 0
+    by_reason: dict[str, int] = field(default_factory=dict)
+
+    def drop(self, reason: str) -> None:
+        self.by_reason[reason] = self.by_reason.get(reason, 0) + 1
+
+
+class Transport(abc.ABC):
+    """Moves envelopes between actor systems.
+
+    ``send`` never blocks and never raises for a peer that is gone: delivery between
+    robots is best effort, and the protocols above rely on leases and timeouts.
+    """
+
+    system_id: str
+    stats: TransportStats
+
+    @abc.abstractmethod
+    async def serve(self, deliver: Deliver, *, task_status: TaskStatus[None]) -> None:
+        """Receive until cancelled, handing every valid envelope to ``deliver``."""
+
+    @abc.abstractmethod
+    def send(self, env: Envelope) -> None:
+        """Send to ``env.recipient.system``; a recipient system of ``*`` means every peer."""
+
+    @abc.abstractmethod
+    def peers(self) -> frozenset[str]:
+        """The system ids this transport can currently reach."""

@@ -1,0 +1,104 @@
+"""Joins several actor systems inside one process (tests, the simulation)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import anyio
+from anyio.abc import TaskStatus
+
+from transports.base import BROADCAST, Deliver, Transport, TransportStats
+from transports.codec import Codec, CodecError, Envelope
+from transports.message import MessageRegistry
+
+__all__ = ["InProcessNetwork", "InProcessTransport"]
+
+
+class InProcessNetwork:
+    """A switchboard of in-process transports, with partitions for failure tests.
+
+    By default every envelope goes through the codec, so systems never share mutable
+    messages and a type that would not survive the wire fails here first.
+    """
+
+    def __init__(self, registry: MessageRegistry | None = None, *, encode: bool = True) -> None:
+        self._members: dict[str, InProcessTransport] = {}
+        self._cut: set[str] = set()
+        self.codec = Codec(registry or MessageRegistry()) if encode else None
+
+    def transport(self, system_id: str) -> InProcessTransport:
+        if system_id in self._members or system_id == BROADCAST:
+            raise ValueError(f"system id {system_id!r} is already on this network or reserved")
+        t = InProcessTransport(self, system_id)
+        self._members[system_id] = t
+        return t
+
+    def isolate(self, system_id: str) -> None:
+        """Cut a system off (it neither sends nor receives) until :meth:`heal`."""
+        self._cut.add(system_id)
+
+    def heal(self, system_id: str) -> None:
+        self._cut.discard(system_id)
+
+    def _leave(self, system_id: str) -> None:
+        self._members.pop(system_id, None)
+        self._cut.discard(system_id)
+
+    def _route(self, src: InProcessTransport, env: Envelope) -> None:
+        if src.system_id in self._cut:
+            src.stats.drop("isolated")
+            return
+        target = env.recipient.system
+        if target == BROADCAST:
+            dests = [t for sid, t in self._members.items() if sid != src.system_id]
+        else:
+            dest = self._members.get(target)
+            if dest is None:
+                src.stats.undeliverable += 1
+                src.stats.drop(f"no peer {target}")
+                return
+            dests = [dest]
+        for dest in dests:
+            if dest.system_id in self._cut or dest._deliver is None:
+                continue
+            out = env
+            if self.codec is not None:
+                try:
+                    out = self.codec.decode(self.codec.encode(env))
+                except CodecError as exc:
+                    src.stats.malformed += 1
+                    raise CodecError(f"envelope to {target}: {exc}") from None
+            src.stats.sent += 1
+            dest._loop.call_soon(dest._receive, out)
+
+
+class InProcessTransport(Transport):
+    """One system's port on an :class:`InProcessNetwork`; delivery is asynchronous."""
+
+    def __init__(self, network: InProcessNetwork, system_id: str) -> None:
+        self._network = network
+        self.system_id = system_id
+        self.stats = TransportStats()
+        self._deliver: Deliver | None = None
+        self._loop: asyncio.AbstractEventLoop
+
+    async def serve(self, deliver: Deliver, *, task_status: TaskStatus[None]) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._deliver = deliver
+        task_status.started()
+        try:
+            await anyio.sleep_forever()
+        finally:
+            self._deliver = None
+            self._network._leave(self.system_id)
+
+    def _receive(self, env: Envelope) -> None:
+        if self._deliver is not None:
+            self.stats.received += 1
+            self._deliver(env)
+
+    def send(self, env: Envelope) -> None:
+        self._network._route(self, env)
+
+    def peers(self) -> frozenset[str]:
+        return frozenset(s for s in self._network._members if s != self.system_id)
