@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, overload
 
 import structlog
 
-from actors.errors import ActorFailed, DeadLetter, MailboxFull
+from actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
 from transports.message import Address
 
 if TYPE_CHECKING:
@@ -167,7 +167,9 @@ class Actor:
         """Called under the RESTART policy after a handler raised: reset state here."""
 
     # -- background work --------------------------------------------------------------
-    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]:
         """Run ``coro`` as a task owned by this actor: cancelled when the actor stops."""
         task = self.system.start_task(coro, name=name or f"{self.address}")
         if self._tasks is None:
@@ -259,8 +261,11 @@ class Actor:
             self._schedule_drain()
 
     def _schedule_drain(self) -> None:
+        system = self.system
+        if system._closing:
+            return  # the closing system stops this actor, which fails what is queued
         self._busy = True
-        self.system.start_task(self._drain(), name=f"drain {self._address}")
+        system.start_task(self._drain(), name=f"drain {self._address}")
 
     async def _drain(self) -> None:
         box = self._mailbox
@@ -275,6 +280,16 @@ class Actor:
                     result = h.fn(self, msg)
                     if h.is_async:
                         result = await typing.cast(Awaitable[Any], result)
+                except asyncio.CancelledError:
+                    # Only a closing system cancels a drain: never leave the asker hanging.
+                    if reply is not None:
+                        reply(
+                            None,
+                            SystemClosed(
+                                f"{self._address} shut down while handling {type(msg).__qualname__}"
+                            ),
+                        )
+                    raise
                 except Exception as exc:
                     self._failed(exc, msg, reply)
                 else:

@@ -6,6 +6,7 @@ import asyncio
 import itertools
 import uuid
 from collections.abc import Coroutine
+from functools import partial
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -18,7 +19,7 @@ from actors.clock import Clock, TimeSource
 from actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from actors.ref import ActorRef
 from transports.base import BROADCAST, Transport
-from transports.codec import Envelope, Kind
+from transports.codec import CodecError, Envelope, Kind
 from transports.message import Address, Message, MessageRegistry
 
 __all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
@@ -117,12 +118,20 @@ class ActorSystem:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> bool | None:
-        await self.aclose()
+        # Shielded: an escalation has already cancelled the scope this task runs in.
+        with anyio.CancelScope(shield=True):
+            await self.aclose()
         assert self._tg is not None
         self._tg.cancel_scope.cancel()
         tg, self._tg = self._tg, None
+        if isinstance(exc, Exception):
+            # The body's own error propagates as it is, not wrapped in an ExceptionGroup by
+            # the task group (which holds nothing but the transport's receive loop).
+            await tg.__aexit__(None, None, None)
+            return None
         suppress = await tg.__aexit__(exc_type, exc, tb)
-        if self._failure is not None and exc is None:
+        # ``suppress`` means the exception was the cancellation an escalation caused.
+        if self._failure is not None and (exc is None or suppress):
             where, err = self._failure
             raise ActorError(f"actor {where} escalated a failure to the system") from err
         return suppress
@@ -148,7 +157,9 @@ class ActorSystem:
     def running(self) -> bool:
         return self._tg is not None and not self._closing
 
-    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]:
         """Run a task owned by the system: cancelled and awaited when the system closes."""
         if self._closing:
             coro.close()
@@ -164,7 +175,9 @@ class ActorSystem:
             self._log.error("actors.task_failed", task=task.get_name(), exc_info=exc)
 
     # -- actors -----------------------------------------------------------------------
-    def spawn(self, actor: A, name: str | None = None, *, parent: Actor | None = None) -> ActorRef[A]:
+    def spawn(
+        self, actor: A, name: str | None = None, *, parent: Actor | None = None
+    ) -> ActorRef[A]:
         """Give ``actor`` an address in this system and start it."""
         if actor._system is not None:
             raise ValueError(f"{type(actor).__name__} is already spawned at {actor._address}")
@@ -211,7 +224,11 @@ class ActorSystem:
         actor._system = None
         box, actor._mailbox = actor._mailbox, None
         if box:
-            gone = DeadLetter(f"{actor.address} was stopped")
+            gone: ActorError = (
+                SystemClosed(f"actor system {self.id} shut down")
+                if self._closing
+                else DeadLetter(f"{actor.address} was stopped")
+            )
             for _msg, reply in box:
                 if reply is not None:
                     reply(None, gone)
@@ -273,7 +290,7 @@ class ActorSystem:
             except BaseException:
                 self._pending.pop(corr, None)
                 raise
-            fut.add_done_callback(lambda _f, c=corr: self._pending.pop(c, None))
+            fut.add_done_callback(partial(self._forget, corr))
         limit = self.ask_timeout if timeout is None else timeout
         try:
             async with asyncio.timeout(limit):
@@ -282,6 +299,9 @@ class ActorSystem:
             raise AskTimeout(
                 f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
             ) from None
+
+    def _forget(self, corr: int, _fut: asyncio.Future[Any]) -> None:
+        self._pending.pop(corr, None)
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
@@ -313,10 +333,12 @@ class ActorSystem:
         if actor is None:
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
             if kind is Kind.ASK:
-                self._reply_remote(env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}"))
+                self._reply_remote(
+                    env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
+                )
             return
         if kind is Kind.ASK:
-            actor._receive(env.msg, lambda r, e, env=env: self._reply_remote(env, r, e))
+            actor._receive(env.msg, partial(self._reply_remote, env))
         else:
             actor._receive(env.msg, None)
 
@@ -324,14 +346,21 @@ class ActorSystem:
         me = Address(self.id, env.recipient.path)
         if error is None and result is not None and not isinstance(result, Message):
             error = TypeError(f"reply of type {type(result).__qualname__} is not a Message")
-        if error is not None:
-            if isinstance(error, ActorFailed):
-                failure = Failure(error.error_type, error.detail)
-            else:
-                failure = Failure(type(error).__qualname__, str(error))
-            self._send(Envelope(Kind.FAIL, me, env.sender, failure, env.corr))
+        if error is None:
+            try:
+                self._send(Envelope(Kind.REPLY, me, env.sender, result, env.corr))
+                return
+            except CodecError as exc:  # e.g. an unregistered reply type
+                error = exc
+        if isinstance(error, ActorFailed):
+            failure = Failure(error.error_type, error.detail)
         else:
-            self._send(Envelope(Kind.REPLY, me, env.sender, result, env.corr))
+            failure = Failure(type(error).__qualname__, str(error))
+        try:
+            self._send(Envelope(Kind.FAIL, me, env.sender, failure, env.corr))
+        except CodecError:
+            # The transport's codec does not know Failure (see runtime_messages()).
+            self._count_drop("reply_unencodable", env.sender, failure)
 
     # -- accounting -------------------------------------------------------------------
     def _dead_letter(self, address: Address, msg: Any, *, origin: Address | None = None) -> None:

@@ -225,7 +225,12 @@ class Parallel(Composite):
 
 
 class IfThenElse(Composite):
-    """Ticks the first child; then the second if it succeeded, else the third (if any)."""
+    """Ticks the first child; then the second if it succeeded, else the third (if any).
+
+    Reactive: the condition is ticked every tick; the branch not taken is unticked, and so
+    are both while the condition is still running. Without a third child, a failed
+    condition fails the node.
+    """
 
     __slots__ = ()
     MIN_CHILDREN: ClassVar[int] = 2
@@ -247,6 +252,10 @@ class IfThenElse(Composite):
             if then.state in ACTIVE:
                 then.untick()
             return _collapse(otherwise.tick()) if otherwise is not None else _FAILED
+        # The condition is undecided: neither branch may keep working meanwhile.
+        for branch in self.children[1:]:
+            if branch.state in ACTIVE:
+                branch.untick()
         return _RUNNING
 
     def utility(self) -> Utility:

@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import structlog
 
 from btcap.node import Leaf
-from btcap.ports import Port, normalize_ports
+from btcap.ports import Port, check_value, normalize_ports
 from btcap.state import State, TreeError
 
 __all__ = [
@@ -80,7 +80,11 @@ class Constant(Leaf):
     OPTIONS: ClassVar[Any] = {"value": Port(Any), "type": Port(Any, Any, "the output's type")}
 
     def declare_ports(self) -> None:
-        self.output_ports = {"value": Port(self.options["type"])}
+        t = self.options["type"]
+        self.options["value"] = check_value(
+            self.options["value"], t, f"node {self.name!r} option 'value'"
+        )
+        self.output_ports = {"value": Port(t)}
 
     def on_tick(self) -> State:
         self.outputs["value"] = self.options["value"]
@@ -214,7 +218,7 @@ class Action(Leaf):
     def on_tick(self) -> State:
         task = self._task
         if task is None:
-            self._task = self.start_background(self._call())
+            self._task = self.start_background(self._call(dict(self.inputs)))
             return _RUNNING
         if not task.done():
             return _RUNNING
@@ -228,14 +232,16 @@ class Action(Leaf):
         if result is False:
             return _FAILED
         if isinstance(result, dict):
+            ports = self.output_ports
             for key, value in result.items():
-                if key not in self.outputs:
+                port = ports.get(key)
+                if port is None:
                     raise TreeError(f"Action {self.name!r} returned unknown output {key!r}")
-                self.outputs[key] = value
+                self.outputs[key] = check_value(value, port.type, f"Action {self.name!r} output {key!r}")
         return _SUCCEEDED
 
-    async def _call(self) -> Any:
-        return await self.fn(**self.inputs)
+    async def _call(self, inputs: dict[str, Any]) -> Any:
+        return await self.fn(**inputs)
 
     def _cancel(self) -> None:
         if self._task is not None:

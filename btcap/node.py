@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import structlog
 
 from actors import Actor, handler
-from btcap.ports import PortMap, check_value, normalize_ports
+from btcap.ports import PortMap, check_value, normalize_ports, type_name
 from btcap.protocol import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.utility import Utility
@@ -129,7 +129,8 @@ class Node(Actor):
                 out[key] = check_value(given[key], port.type, f"node {self.name!r} option {key!r}")
             elif port.required:
                 raise TreeError(
-                    f"node {self.name!r} ({type(self).__name__}): option {key!r} is required"
+                    f"node {self.name!r} ({type(self).__name__}): option {key!r} "
+                    f"({type_name(port.type)}) is required"
                 )
             else:
                 out[key] = port.default_value()
@@ -166,7 +167,14 @@ class Node(Actor):
         else:
             self.children.insert(index, child)
         if self._tree is not None:
-            self._tree._adopt(child)
+            try:
+                self._tree._adopt(child)
+            except BaseException:
+                self.children.remove(child)
+                child.parent_node = None
+                raise
+        if self._ready and not child._ready:
+            child.setup()  # joining a set-up tree: ready to be ticked like its siblings
         return child
 
     def remove_child(self, child: Node) -> None:

@@ -53,6 +53,8 @@ NODE_MESSAGES: tuple[type[Message], ...] = (Setup, Tick, Untick, Reset, Shutdown
 
 def protocol_registry() -> MessageRegistry:
     """A fresh registry with every message btcap and its runtime speak."""
+    from btcap.messages import CAPABILITY_MESSAGES
+
     reg = runtime_messages()
-    reg.register(*NODE_MESSAGES)
+    reg.register(*NODE_MESSAGES, *CAPABILITY_MESSAGES)
     return reg

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import Callable, Collection, Coroutine, Iterator
 from typing import TYPE_CHECKING, Any
 
 from actors import Clock, TimeSource
@@ -53,9 +53,11 @@ class Tree:
     # -- structure --------------------------------------------------------------------
     def _adopt(self, node: Node) -> None:
         watch = self._notify if self._observers else None
-        for n in node.walk():
+        nodes = list(node.walk())
+        for n in nodes:  # check them all before adopting any
             if n._tree is not None and n._tree is not self:
                 raise TreeError(f"node {n.path!r} already belongs to tree {n._tree.name!r}")
+        for n in nodes:
             n._tree = self
             n._watch = watch
             if self.system is not None and not n.spawned:
@@ -150,9 +152,13 @@ class Tree:
         pulls.remove((wire.target_port, wire.source, wire.source_port))
         wire.target._pulls = pulls or None
 
-    def validate(self) -> None:
-        """Check child counts and that every required input has a value or a wire."""
+    def validate(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
+        """Check child counts and that every required input has a value or a wire.
+
+        ``provided`` lists inputs fed from outside, e.g. a :class:`Subtree`'s public inputs.
+        """
         wired = {(id(w.target), w.target_port) for w in self.wires}
+        wired.update((id(n), key) for n, key in provided)
         for n in self.nodes():
             cls = type(n)
             k = len(n.children)
@@ -183,9 +189,17 @@ class Tree:
             self.system.spawn(n, n.name, parent=n.parent_node)
 
     # -- running ----------------------------------------------------------------------
-    def setup(self) -> None:
-        self.validate()
+    def setup(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
+        """Validate and set up every node; raises TreeError (and shuts down) if any failed."""
+        self.validate(provided=provided)
         self.root.setup()
+        failed = self.errors()
+        if failed:
+            self.root.shutdown()
+            raise TreeError(
+                f"tree {self.name!r}: setup failed: "
+                + "; ".join(f"{n.path}: {type(n.error).__name__}: {n.error}" for n in failed)
+            )
 
     def tick(self) -> State:
         """One tick of the whole tree; sets the tree up on first use."""
@@ -238,6 +252,9 @@ class Tree:
     async def shutdown(self) -> None:
         """Shut every node down and wait for its background work to end."""
         self.root.shutdown()
+        for n in self.nodes():
+            if isinstance(n, Subtree):
+                await n.inner.shutdown()
         tasks = list(self._tasks)
         for t in tasks:
             t.cancel()
@@ -256,10 +273,18 @@ class Tree:
         await self.shutdown()
 
     def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
-        """Background work of a node: owned by the actor system if attached, else the tree."""
+        """Background work of a node, awaited by :meth:`shutdown` (and the system's, if any)."""
         if self.system is not None:
-            return self.system.start_task(coro, name=name)
-        task = asyncio.get_running_loop().create_task(coro, name=name)
+            task = self.system.start_task(coro, name=name)
+        else:
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:
+                coro.close()
+                raise TreeError(
+                    f"tree {self.name!r}: background work needs a running event loop"
+                ) from None
+            task = loop.create_task(coro, name=name)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
         return task
@@ -337,7 +362,7 @@ class Subtree(Node):
 
     def on_setup(self) -> None:
         self.inner.clock = self.clock
-        self.inner.setup()
+        self.inner.setup(provided=list(self._in_map.values()))
 
     def on_tick(self) -> State:
         for key, (n, p) in self._in_map.items():

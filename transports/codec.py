@@ -58,13 +58,11 @@ class Codec:
         if self._version != self._registry.version:
             types = tuple(self._registry)
             if types:
-                payload: Any = Union[(*types, None)]  # noqa: UP007 - built at run time
+                payload: Any = Union[(*types, None)]
             else:
                 payload = None
             # A tuple decodes the envelope's array form straight into typed fields.
-            self._decoder = msgspec.msgpack.Decoder(
-                tuple[Kind, Address, Address, payload, int]  # type: ignore[valid-type]
-            )
+            self._decoder = msgspec.msgpack.Decoder(tuple[Kind, Address, Address, payload, int])
             self._version = self._registry.version
         return self._decoder
 
@@ -72,7 +70,10 @@ class Codec:
         msg = env.msg
         if msg is not None and type(msg) not in self._registry:
             raise CodecError(f"message type {type(msg).__qualname__} is not registered")
-        return self._encoder.encode(env)
+        try:
+            return self._encoder.encode(env)
+        except (msgspec.EncodeError, TypeError, OverflowError) as exc:  # e.g. an int > 64 bit
+            raise CodecError(f"{type(msg).__qualname__} cannot be encoded: {exc}") from None
 
     def decode(self, data: bytes | memoryview) -> Envelope:
         decoder = self._refresh()

@@ -59,7 +59,11 @@ class InProcessNetwork:
                 return
             dests = [dest]
         for dest in dests:
-            if dest.system_id in self._cut or dest._deliver is None:
+            if dest.system_id in self._cut:
+                src.stats.drop("isolated")
+                continue
+            if dest._deliver is None:
+                src.stats.drop("not serving")
                 continue
             out = env
             if self.codec is not None:

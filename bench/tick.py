@@ -1,0 +1,334 @@
+"""Tick cost and memory per node: btcap vs py_trees 2.x on the same shapes, in one run.
+
+Shapes, built from one neutral description so both libraries get identical trees, all
+composites reactive (btcap ``Sequence``/``Fallback``; py_trees ``Sequence``/``Selector``
+with ``memory=False``):
+
+- ``flat``: a Sequence of 1000 always-success leaves (1001 nodes).
+- ``balanced``: depth 4, fan-out 5, 5, 6, 6 (1 + 5 + 25 + 150 + 900 = 1081 nodes), levels
+  alternating Sequence / Fallback from the root. Every node is ticked on every tick: each
+  non-last child returns what makes its parent go on (success under a Sequence, failure
+  under a Fallback), and a composite's result is then its last child's, so each last
+  child passes on what its parent must return. No decorators are needed; the root
+  succeeds.
+
+Before timing, ticks per node are counted in both libraries (py_trees: the nodes its
+``tick()`` generator yields; btcap: calls of ``Node.tick`` seen by a profile hook) and
+every node's resulting state is checked against the description.
+
+Timing: per-tick wall time (``perf_counter_ns``), btcap through ``Tree.tick()``, py_trees
+through ``root.tick_once()`` (no ``BehaviourTree`` visitors or pre/post tick handlers),
+in alternating blocks so drift hits both libraries alike; reported as the median per
+tick divided by the node count, in microseconds per node. Memory: ``tracemalloc`` traced
+bytes held after building and setting up a 10,000-node tree (a flat Sequence of 9,999
+leaves), divided by 10,000.
+
+Run ``python -m bench tick [--quick]`` or ``python -m bench.tick [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import itertools
+import sys
+import time
+import tracemalloc
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from importlib.metadata import version
+from types import FrameType
+from typing import Any
+
+import py_trees
+
+import btcap
+from bench.common import percentiles, write_result
+
+__all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
+
+LIBS = ("btcap", "py_trees")
+SHAPES = ("flat", "balanced")
+FLAT_LEAVES = 1000
+BALANCED_FANOUT = (5, 5, 6, 6)
+MEMORY_NODES = 10_000
+VERIFY_TICKS = 3
+
+SEQUENCE, FALLBACK, SUCCESS, FAILURE = "sequence", "fallback", "success", "failure"
+
+
+# -- the shapes, library-neutral ---------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Spec:
+    """One node: ``kind`` is a composite (sequence, fallback) or a leaf result.
+
+    ``expect`` is the result the node must give on every tick (success or failure).
+    """
+
+    kind: str
+    name: str
+    expect: str
+    children: tuple[Spec, ...] = ()
+
+    def walk(self) -> Iterator[Spec]:
+        yield self
+        for c in self.children:
+            yield from c.walk()
+
+
+def flat_spec(leaves: int) -> Spec:
+    """A Sequence of ``leaves`` successful leaves."""
+    kids = tuple(Spec(SUCCESS, f"leaf{i}", SUCCESS) for i in range(leaves))
+    return Spec(SEQUENCE, "root", SUCCESS, kids)
+
+
+def balanced_spec(fanout: Sequence[int] = BALANCED_FANOUT) -> Spec:
+    """Sequence at even depths, Fallback at odd ones; every node ticked; root succeeds."""
+    names = itertools.count()
+
+    def build(depth: int, expect: str) -> Spec:
+        name = f"n{next(names)}"
+        if depth == len(fanout):
+            return Spec(expect, name, expect)
+        kind = SEQUENCE if depth % 2 == 0 else FALLBACK
+        go_on = SUCCESS if kind == SEQUENCE else FAILURE  # what lets the parent tick on
+        k = fanout[depth]
+        kids = tuple(build(depth + 1, expect if i == k - 1 else go_on) for i in range(k))
+        return Spec(kind, name, expect, kids)
+
+    return build(0, SUCCESS)
+
+
+def _count(spec: Spec) -> int:
+    return sum(1 for _ in spec.walk())
+
+
+# -- building -------------------------------------------------------------------------
+
+
+def build_btcap(spec: Spec) -> btcap.Node:
+    if spec.kind == SUCCESS:
+        return btcap.AlwaysSuccess(spec.name)
+    if spec.kind == FAILURE:
+        return btcap.AlwaysFailure(spec.name)
+    kids = [build_btcap(c) for c in spec.children]
+    cls = btcap.Sequence if spec.kind == SEQUENCE else btcap.Fallback
+    return cls(spec.name, children=kids)
+
+
+def build_py_trees(spec: Spec) -> py_trees.behaviour.Behaviour:
+    if spec.kind == SUCCESS:
+        return py_trees.behaviours.Success(spec.name)
+    if spec.kind == FAILURE:
+        return py_trees.behaviours.Failure(spec.name)
+    kids = [build_py_trees(c) for c in spec.children]
+    cls = py_trees.composites.Sequence if spec.kind == SEQUENCE else py_trees.composites.Selector
+    return cls(spec.name, memory=False, children=kids)
+
+
+def _btcap_tree(spec: Spec) -> btcap.Tree:
+    tree = btcap.Tree(build_btcap(spec))
+    tree.setup()
+    return tree
+
+
+def _py_trees_root(spec: Spec) -> py_trees.behaviour.Behaviour:
+    root = build_py_trees(spec)
+    py_trees.trees.setup(root)
+    return root
+
+
+# -- verification: every node ticked on every tick, with the expected result ---------------
+
+_BTCAP_STATE = {SUCCESS: btcap.State.SUCCEEDED, FAILURE: btcap.State.FAILED}
+_PY_TREES_STATUS = {
+    SUCCESS: py_trees.common.Status.SUCCESS,
+    FAILURE: py_trees.common.Status.FAILURE,
+}
+
+
+def verify_btcap(spec: Spec, tree: btcap.Tree, ticks: int = VERIFY_TICKS) -> None:
+    counts: Counter[int] = Counter()
+    code = btcap.Node.tick.__code__
+
+    def hook(frame: FrameType, event: str, arg: Any) -> None:
+        if event == "call" and frame.f_code is code:
+            counts[id(frame.f_locals["self"])] += 1
+
+    sys.setprofile(hook)
+    try:
+        results = [tree.tick() for _ in range(ticks)]
+    finally:
+        sys.setprofile(None)
+    assert results == [_BTCAP_STATE[spec.expect]] * ticks, f"btcap root gave {results}"
+    nodes = list(tree.nodes())
+    assert len(nodes) == _count(spec), (len(nodes), _count(spec))
+    assert len(counts) == len(nodes), f"btcap ticked {len(counts)} of {len(nodes)} nodes"
+    for s, n in zip(spec.walk(), nodes, strict=True):
+        assert n.name == s.name, (n.name, s.name)
+        assert counts[id(n)] == ticks, f"btcap {n.path}: ticked {counts[id(n)]}x in {ticks} ticks"
+        assert n.state is _BTCAP_STATE[s.expect], f"btcap {n.path}: {n.state}, not {s.expect}"
+
+
+def verify_py_trees(
+    spec: Spec, root: py_trees.behaviour.Behaviour, ticks: int = VERIFY_TICKS
+) -> None:
+    counts: Counter[Any] = Counter()
+    for _ in range(ticks):
+        for b in root.tick():
+            counts[b.id] += 1
+    expected = _PY_TREES_STATUS[spec.expect]
+    assert root.status == expected, f"py_trees root gave {root.status}"
+    nodes = list(_pre_order(root))
+    assert len(nodes) == _count(spec), (len(nodes), _count(spec))
+    assert len(counts) == len(nodes), f"py_trees ticked {len(counts)} of {len(nodes)} nodes"
+    for s, b in zip(spec.walk(), nodes, strict=True):
+        assert b.name == s.name, (b.name, s.name)
+        assert counts[b.id] == ticks, f"py_trees {b.name}: ticked {counts[b.id]}x in {ticks} ticks"
+        assert b.status == _PY_TREES_STATUS[s.expect], f"py_trees {b.name}: {b.status}"
+
+
+def _pre_order(b: py_trees.behaviour.Behaviour) -> Iterator[py_trees.behaviour.Behaviour]:
+    yield b
+    for c in b.children:
+        yield from _pre_order(c)
+
+
+# -- measuring ----------------------------------------------------------------------------
+
+
+def _time_block(tick: Callable[[], object], count: int, out: list[float]) -> None:
+    """Append ``count`` per-tick times in nanoseconds."""
+    clock = time.perf_counter_ns
+    for _ in range(count):
+        t0 = clock()
+        tick()
+        out.append(clock() - t0)
+
+
+def time_shape(
+    ticks: dict[str, Callable[[], object]], warmup: int, count: int, blocks: int
+) -> dict[str, list[float]]:
+    """Per-tick ns for each library, timed in ``blocks`` alternating blocks after warm-up."""
+    for tick in ticks.values():
+        for _ in range(warmup):
+            tick()
+    samples: dict[str, list[float]] = {lib: [] for lib in ticks}
+    per_block = -(-count // blocks)
+    for _ in range(blocks):
+        for lib, tick in ticks.items():
+            gc.collect()
+            _time_block(tick, per_block, samples[lib])
+    return samples
+
+
+def memory_per_node(build: Callable[[], object], nodes: int) -> float:
+    """Traced bytes still held after ``build()``, divided by ``nodes``."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        keep = build()
+        gc.collect()
+        after = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    del keep
+    return (after - before) / nodes
+
+
+def _build_btcap_for_memory(spec: Spec) -> Callable[[], object]:
+    return lambda: _btcap_tree(spec)
+
+
+def _build_py_trees_for_memory(spec: Spec) -> Callable[[], object]:
+    def build() -> object:
+        tree = py_trees.trees.BehaviourTree(build_py_trees(spec))
+        tree.setup()
+        return tree
+
+    return build
+
+
+# -- the benchmark --------------------------------------------------------------------------
+
+
+def _table(data: dict[str, Any]) -> str:
+    us, p99 = data["us_per_node"], data["us_per_node_p99"]
+    lines = [
+        f"{'tick, us/node':<14} {'nodes':>6} {'btcap p50':>10} {'p99':>7} "
+        f"{'py_trees p50':>13} {'p99':>7} {'speed-up':>9}",
+        "-" * 72,
+    ]
+    for shape in SHAPES:
+        lines.append(
+            f"{shape:<14} {data['nodes'][shape]:>6} {us['btcap'][shape]:>10.3f} "
+            f"{p99['btcap'][shape]:>7.3f} {us['py_trees'][shape]:>13.3f} "
+            f"{p99['py_trees'][shape]:>7.3f} {data['speedup'][shape]:>8.1f}x"
+        )
+    b = data["bytes_per_node"]
+    lines.append(
+        f"memory, {data['memory_nodes']} nodes: btcap {b['btcap']:.0f} B/node, "
+        f"py_trees {b['py_trees']:.0f} B/node ({b['py_trees'] / b['btcap']:.2f}x)"
+    )
+    return "\n".join(lines)
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    """Verify the shapes, time both libraries, print a table, write ``bench/results/tick.json``."""
+    warmup, count, blocks = (20, 200, 2) if quick else (100, 2_000, 5)
+    specs = {"flat": flat_spec(FLAT_LEAVES), "balanced": balanced_spec()}
+    us: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
+    us99: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
+    nodes: dict[str, int] = {}
+    for shape, spec in specs.items():
+        n = nodes[shape] = _count(spec)
+        tree = _btcap_tree(spec)
+        root = _py_trees_root(spec)
+        verify_btcap(spec, tree)
+        verify_py_trees(spec, root)
+        samples = time_shape(
+            {"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count, blocks
+        )
+        for lib in LIBS:
+            p = percentiles([s / 1000.0 / n for s in samples[lib]])
+            us[lib][shape], us99[lib][shape] = p["p50"], p["p99"]
+
+    mem_spec = flat_spec(MEMORY_NODES - 1)
+    bytes_per_node = {
+        "btcap": memory_per_node(_build_btcap_for_memory(mem_spec), MEMORY_NODES),
+        "py_trees": memory_per_node(_build_py_trees_for_memory(mem_spec), MEMORY_NODES),
+    }
+    data: dict[str, Any] = {
+        "us_per_node": us,
+        "us_per_node_p99": us99,
+        "speedup": {s: us["py_trees"][s] / us["btcap"][s] for s in SHAPES},
+        "bytes_per_node": bytes_per_node,
+        "nodes": nodes,
+        "memory_nodes": MEMORY_NODES,
+        "ticks": count,
+        "warmup": warmup,
+        "quick": quick,
+        "py_trees_version": version("py_trees"),
+        "py_trees_tick": "root.tick_once()",
+        "btcap_tick": "Tree.tick()",
+    }
+    print(_table(data))
+    path = write_result("tick", data)
+    print(f"wrote {path}")
+    return data
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.tick", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer ticks, for CI smoke runs")
+    args = parser.parse_args(argv)
+    run(quick=args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,137 @@
+"""The per-robot runtime: one actor system with membership, repository, auctioneer,
+mission control and a host tree with a remote capability slot."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterable
+from types import TracebackType
+from typing import Any
+
+from actors import ActorSystem, TimeSource
+from btcap.assignment import SingleItemAuction
+from btcap.capability import Implementation
+from btcap.mission import MissionConfig, MissionControl
+from btcap.node import Node
+from btcap.protocol import protocol_registry
+from btcap.repository import CapabilityRepository
+from btcap.slot import RemoteCapabilitySlot
+from btcap.state import DONE, State
+from btcap.team import Membership
+from btcap.tree import Tree
+from transports import MessageRegistry, Transport
+
+__all__ = ["Agent", "AgentConfig"]
+
+
+class AgentConfig(MissionConfig):
+    """Timing of one robot, in clock seconds (see :class:`~btcap.mission.MissionConfig`)."""
+
+    __slots__ = ("failure_timeout_s", "heartbeat_s", "tick_hz")
+
+    def __init__(
+        self,
+        *,
+        tick_hz: float = 10.0,
+        heartbeat_s: float = 0.1,
+        failure_timeout_s: float = 0.5,
+        **mission: Any,
+    ) -> None:
+        super().__init__(**mission)
+        self.tick_hz = tick_hz
+        self.heartbeat_s = heartbeat_s
+        self.failure_timeout_s = failure_timeout_s
+
+
+class Agent:
+    """Everything one robot runs; use as ``async with Agent("husky1", ...) as agent``.
+
+    ``host`` is the robot's own tree; by default just a :class:`RemoteCapabilitySlot`,
+    ticked at ``config.tick_hz`` while the agent runs. Give your own host tree that
+    contains a slot to do other work beside it.
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        *,
+        transport: Transport | None = None,
+        clock: TimeSource | None = None,
+        implementations: Iterable[Implementation] = (),
+        config: AgentConfig | None = None,
+        host: Node | None = None,
+        registry: MessageRegistry | None = None,
+    ) -> None:
+        self.robot = robot
+        self.config = config or AgentConfig()
+        reg = registry or protocol_registry()
+        self.system = ActorSystem(robot, transport=transport, registry=reg, clock=clock)
+        self.repository = CapabilityRepository(robot)
+        self.repository.extend(implementations)
+        cfg = self.config
+        self.team = Membership(
+            robot,
+            heartbeat_s=cfg.heartbeat_s,
+            failure_timeout_s=cfg.failure_timeout_s,
+            repo_version=lambda: self.repository.version,
+        )
+        self.auctioneer = SingleItemAuction(
+            robot, window_s=cfg.auction_window_s, award_timeout_s=cfg.award_timeout_s
+        )
+        self.mission_control = MissionControl(
+            robot, self.repository, self.team, self.auctioneer, config=cfg
+        )
+        self.host = Tree(host or RemoteCapabilitySlot(), name=f"{robot}-host", clock=self.system.clock)
+        self._host_task: asyncio.Task[Any] | None = None
+
+    @property
+    def clock(self) -> TimeSource:
+        return self.system.clock
+
+    async def __aenter__(self) -> Agent:
+        await self.system.__aenter__()
+        try:
+            s = self.system
+            s.spawn(self.team, Membership.PATH)
+            s.spawn(self.repository, CapabilityRepository.PATH)
+            s.spawn(self.auctioneer, SingleItemAuction.PATH)
+            s.spawn(self.mission_control, MissionControl.PATH)
+            self.host.attach(s)
+            self.host.setup()
+            self._host_task = s.start_task(self._run_host(), name=f"host tree {self.robot}")
+        except BaseException as exc:
+            await self.system.__aexit__(type(exc), exc, exc.__traceback__)
+            raise
+        return self
+
+    async def _run_host(self) -> None:
+        await self.host.run(self.config.tick_hz, until=lambda _s: False)
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        if self._host_task is not None:
+            self._host_task.cancel()
+        await self.host.shutdown()
+        return await self.system.__aexit__(exc_type, exc, tb)
+
+    def mission(self, root: Node | Tree, *, name: str | None = None) -> Tree:
+        """Attach a mission tree to this robot so its capability nodes can be assigned."""
+        tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
+        tree.clock = self.clock
+        tree.attach(self.system)
+        return tree
+
+    async def run_mission(
+        self, root: Node | Tree, *, rate_hz: float | None = None, max_ticks: int | None = None
+    ) -> State:
+        """Attach and tick a mission tree until it succeeds or fails."""
+        tree = self.mission(root)
+        try:
+            return await tree.run(rate_hz or self.config.tick_hz, max_ticks=max_ticks,
+                                  until=lambda s: s in DONE)
+        finally:
+            await tree.shutdown()

@@ -1,0 +1,161 @@
+"""The assignment system: an abstract strategy and the reference single-item auction."""
+
+from __future__ import annotations
+
+import abc
+import asyncio
+import itertools
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import structlog
+
+from actors import Actor, ActorError, TimeSource, handler
+from btcap.auction import Auction, AuctionOutcome
+from btcap.messages import Award, AwardReply, Bid, CallForBids, NoBid
+from btcap.team import Membership, TeamEvent
+
+__all__ = ["AssignmentStrategy", "AssignmentTask", "Assigned", "AuctionStats", "SingleItemAuction"]
+
+log = structlog.get_logger("btcap.assignment")
+
+
+@dataclass(frozen=True, slots=True)
+class AssignmentTask:
+    """One capability execution to place on a robot."""
+
+    execution: str
+    interface: str
+    identity: str
+    inputs: Mapping[str, Any]
+    candidates: frozenset[str]
+    origin: str
+    lease_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class Assigned:
+    """The robot that accepted, with the implementation it runs and its bid."""
+
+    robot: str
+    implementation: str
+    cost: float
+
+
+@dataclass(slots=True)
+class AuctionStats:
+    auctions: int = 0
+    awarded: int = 0
+    unassigned: int = 0
+    declined_awards: int = 0
+    early_closes: int = 0
+
+
+class AssignmentStrategy(abc.ABC):
+    """Chooses the executor of a capability among candidate robots."""
+
+    @abc.abstractmethod
+    async def assign(self, task: AssignmentTask) -> Assigned | None:
+        """Find a robot that accepted to run ``task`` now, or None."""
+
+
+def _wall(clock: TimeSource, seconds: float, floor: float = 0.05) -> float:
+    return max(clock.to_wall(seconds), floor)
+
+
+class SingleItemAuction(Actor, AssignmentStrategy):
+    """Call for bids, close early, award the cheapest bidder, fall through on declines.
+
+    The auctioneer's own robot is invited like any other (it bids in its own auction).
+    The auction closes when every invited robot still alive has bid or declined, or when
+    ``window_s`` clock seconds have passed. Awards are asks: a winner that became busy
+    declines and the award goes to the next-best bid.
+    """
+
+    PATH = "auctioneer"
+
+    def __init__(self, robot: str, *, window_s: float = 1.0, award_timeout_s: float = 0.5) -> None:
+        super().__init__()
+        self.robot = robot
+        self.window_s = window_s
+        self.award_timeout_s = award_timeout_s
+        self.stats = AuctionStats()
+        self._open: dict[str, tuple[Auction, asyncio.Event]] = {}
+        self._ids = itertools.count(1)
+        self.last_outcome: AuctionOutcome | None = None
+
+    def on_start(self) -> None:
+        team = self.system.lookup(Membership.PATH)
+        if isinstance(team, Membership):
+            team.subscribe(self._on_team)
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event in (TeamEvent.LEFT, TeamEvent.FAILED):
+            now = self.system.clock.now()
+            for auction, done in self._open.values():
+                auction.member_lost(robot)
+                if auction.closed(now):
+                    done.set()
+
+    async def assign(self, task: AssignmentTask) -> Assigned | None:
+        system = self.system
+        clock = system.clock
+        auction_id = f"{self.robot}:{next(self._ids)}"
+        auction = Auction(auction_id, task.interface, task.candidates, clock.now() + self.window_s)
+        done = asyncio.Event()
+        self._open[auction_id] = (auction, done)
+        self.stats.auctions += 1
+        me = str(self.address)
+        try:
+            cfb = CallForBids(auction_id, task.interface, task.identity, dict(task.inputs), self.robot, me)
+            for robot in sorted(task.candidates):
+                system.ref(f"{robot}/mission_control").tell(cfb, sender=self.address)
+            if not auction.closed(clock.now()):
+                await _wait(done, clock, self.window_s)
+            if not auction.waiting_for:
+                self.stats.early_closes += 1
+        finally:
+            del self._open[auction_id]
+        outcome = self.last_outcome = auction.outcome()
+        for bid in outcome.ranking:
+            award = Award(
+                auction_id, task.execution, task.interface, bid.implementation,
+                dict(task.inputs), task.origin, me, task.lease_s,
+            )
+            try:
+                reply = await system.ref(f"{bid.robot}/mission_control").ask(
+                    award, expect=AwardReply, timeout=_wall(clock, self.award_timeout_s)
+                )
+            except (ActorError, TypeError) as exc:
+                log.info("auction.award_lost", auction=auction_id, robot=bid.robot, error=str(exc))
+                self.stats.declined_awards += 1
+                continue
+            if reply.accepted:
+                self.stats.awarded += 1
+                return Assigned(bid.robot, bid.implementation, bid.cost)
+            self.stats.declined_awards += 1
+            log.info("auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason)
+        self.stats.unassigned += 1
+        return None
+
+    @handler(Bid, NoBid)
+    def on_answer(self, msg: Bid | NoBid) -> None:
+        entry = self._open.get(msg.auction)
+        if entry is None:
+            return  # late: the auction has closed
+        auction, done = entry
+        auction.offer(msg)
+        if not auction.waiting_for:
+            done.set()
+
+
+async def _wait(done: asyncio.Event, clock: TimeSource, seconds: float) -> None:
+    """Until ``done`` is set or ``seconds`` of clock time pass, whichever is first."""
+    waiter = asyncio.ensure_future(done.wait())
+    sleeper = asyncio.ensure_future(clock.sleep(seconds))
+    try:
+        await asyncio.wait((waiter, sleeper), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        waiter.cancel()
+        sleeper.cancel()

@@ -1,0 +1,75 @@
+"""The single-item auction as pure state (no I/O), so it can be tested without sockets.
+
+An :class:`Auction` is opened for one capability execution with the set of robots
+invited; it closes as soon as every invited robot that is still alive has bid or
+declined, or when its window ends. The ranking is by cost, then robot id, so every
+auctioneer given the same bids picks the same winner.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from btcap.messages import Bid, NoBid
+
+__all__ = ["Auction", "AuctionOutcome"]
+
+
+@dataclass(slots=True)
+class AuctionOutcome:
+    """What an auction produced: bids best first, and who declined or never answered."""
+
+    ranking: list[Bid]
+    declined: dict[str, str]
+    silent: frozenset[str]
+
+
+@dataclass(slots=True)
+class Auction:
+    """One call for bids and the answers to it."""
+
+    id: str
+    interface: str
+    invited: frozenset[str]
+    deadline: float
+    bids: dict[str, Bid] = field(default_factory=dict)
+    declined: dict[str, str] = field(default_factory=dict)
+    gone: set[str] = field(default_factory=set)
+    rejected: int = 0
+
+    def offer(self, answer: Bid | NoBid) -> bool:
+        """Record a bid or decline; answers from robots not invited, late or twice are ignored.
+
+        Returns whether the answer was taken.
+        """
+        robot = answer.robot
+        if answer.auction != self.id or robot not in self.invited:
+            self.rejected += 1
+            return False
+        if robot in self.bids or robot in self.declined:
+            self.rejected += 1
+            return False
+        if isinstance(answer, Bid):
+            if not math.isfinite(answer.cost) or answer.cost < 0:
+                self.declined[robot] = f"invalid cost {answer.cost!r}"
+            else:
+                self.bids[robot] = answer
+        else:
+            self.declined[robot] = answer.reason
+        return True
+
+    def member_lost(self, robot: str) -> None:
+        """A robot left or failed: stop waiting for it."""
+        self.gone.add(robot)
+
+    @property
+    def waiting_for(self) -> frozenset[str]:
+        return self.invited - self.bids.keys() - self.declined.keys() - self.gone
+
+    def closed(self, now: float) -> bool:
+        return not self.waiting_for or now >= self.deadline
+
+    def outcome(self) -> AuctionOutcome:
+        ranking = sorted(self.bids.values(), key=lambda b: (b.cost, b.robot))
+        return AuctionOutcome(ranking, dict(self.declined), self.waiting_for)

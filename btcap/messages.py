@@ -1,0 +1,174 @@
+"""Messages of the capability layer: team membership, repository gossip, auctions, executions.
+
+Every type here is registered by :func:`btcap.protocol.protocol_registry`, so it travels
+between robots over any transport. Values of capability ports travel as ``Any`` and are
+converted back to their declared types on arrival.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from btcap.state import State
+from transports import Message
+
+__all__ = [
+    "CAPABILITY_MESSAGES",
+    "Award",
+    "AwardReply",
+    "Bid",
+    "CallForBids",
+    "CancelExecution",
+    "ExecutionInputs",
+    "ExecutionStatus",
+    "Goodbye",
+    "Heartbeat",
+    "KeepAlive",
+    "NoBid",
+    "PauseExecution",
+    "RepositoryQuery",
+    "RepositoryState",
+]
+
+
+# -- team --------------------------------------------------------------------------------
+class Heartbeat(Message):
+    """I am alive; ``incarnation`` changes when a robot restarts, ``repo_version`` when its
+    capabilities change (peers then ask for the new :class:`RepositoryState`)."""
+
+    robot: str
+    incarnation: int
+    repo_version: int
+    endpoint: str = ""
+
+
+class Goodbye(Message):
+    """I am leaving the team on purpose."""
+
+    robot: str
+    incarnation: int
+
+
+# -- repository --------------------------------------------------------------------------
+class RepositoryState(Message):
+    """A robot's implemented interfaces (by identity) and the capabilities it completed."""
+
+    robot: str
+    version: int
+    interfaces: dict[str, str]
+    succeeded: list[str] = []
+
+
+class RepositoryQuery(Message):
+    """Ask a robot's repository for its full state (after a missed update)."""
+
+    robot: str
+
+
+# -- auctions ----------------------------------------------------------------------------
+class CallForBids(Message):
+    """Who can run ``interface`` with these inputs, and at what cost?"""
+
+    auction: str
+    interface: str
+    identity: str
+    inputs: dict[str, Any]
+    auctioneer: str
+    reply_to: str
+
+
+class Bid(Message):
+    """A cost (lower is better) for running the capability with one implementation."""
+
+    auction: str
+    robot: str
+    cost: float
+    implementation: str
+
+
+class NoBid(Message):
+    """A decline, so the auction can close before its window ends."""
+
+    auction: str
+    robot: str
+    reason: str
+
+
+class Award(Message):
+    """You won: start ``implementation`` now as execution ``execution``."""
+
+    auction: str
+    execution: str
+    interface: str
+    implementation: str
+    inputs: dict[str, Any]
+    origin: str
+    reply_to: str
+    lease_s: float
+
+
+class AwardReply(Message):
+    """Whether the winner took the award (it may have become busy since it bid)."""
+
+    execution: str
+    robot: str
+    accepted: bool
+    reason: str = ""
+
+
+# -- executions --------------------------------------------------------------------------
+class ExecutionInputs(Message):
+    """The capability's latest inputs, sent every tick of the capability node."""
+
+    execution: str
+    seq: int
+    inputs: dict[str, Any]
+
+
+class ExecutionStatus(Message):
+    """The implementation's root state and outputs, sent back every tick of the slot."""
+
+    execution: str
+    robot: str
+    state: State
+    outputs: dict[str, Any]
+    seq: int = 0
+    detail: str = ""
+
+
+class PauseExecution(Message):
+    """The capability node was unticked: pause the implementation, keep it."""
+
+    execution: str
+
+
+class CancelExecution(Message):
+    """The capability node was reset or shut down: stop and remove the implementation."""
+
+    execution: str
+    reason: str = ""
+
+
+class KeepAlive(Message):
+    """Renews the leases of these executions (sent while no tick traffic flows)."""
+
+    robot: str
+    executions: list[str]
+
+
+CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
+    Heartbeat,
+    Goodbye,
+    RepositoryState,
+    RepositoryQuery,
+    CallForBids,
+    Bid,
+    NoBid,
+    Award,
+    AwardReply,
+    ExecutionInputs,
+    ExecutionStatus,
+    PauseExecution,
+    CancelExecution,
+    KeepAlive,
+)

@@ -1,0 +1,482 @@
+"""Mission control: serves capability nodes, runs executions, holds their leases.
+
+On the origin side (the robot whose tree holds the capability node) it turns a request
+into an auction and the winner into an :class:`~btcap.capability.Execution`. On the
+executor side it bids, accepts or declines awards, and runs accepted implementations in
+the robot's :class:`~btcap.slot.RemoteCapabilitySlot` (or, when the origin wins its own
+auction, hands the run straight to the capability node). Every robot has one body, so it
+runs at most one execution at a time, local or remote.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import structlog
+
+from actors import Actor, handler
+from btcap.assignment import AssignmentStrategy, AssignmentTask
+from btcap.capability import Capability, ImplementationRun, Precondition, Scope
+from btcap.messages import (
+    Award,
+    AwardReply,
+    Bid,
+    CallForBids,
+    CancelExecution,
+    ExecutionInputs,
+    ExecutionStatus,
+    KeepAlive,
+    NoBid,
+    PauseExecution,
+)
+from btcap.repository import CapabilityRepository
+from btcap.state import DONE, State, TreeError
+from btcap.team import Membership, TeamEvent
+from transports import Address
+
+if TYPE_CHECKING:
+    import asyncio
+
+    from btcap.slot import RemoteCapabilitySlot
+
+__all__ = [
+    "AssignmentRequest",
+    "LocalExecution",
+    "MissionConfig",
+    "MissionControl",
+    "MissionStats",
+    "RemoteExecution",
+]
+
+log = structlog.get_logger("btcap.mission")
+
+_LOST = State.SHUTDOWN  # an executor answers an unknown execution with this state
+
+
+@dataclass(slots=True)
+class MissionConfig:
+    """Protocol timing in clock seconds."""
+
+    lease_s: float = 1.0
+    keepalive_s: float = 0.2
+    auction_window_s: float = 1.0
+    award_timeout_s: float = 0.5
+
+
+@dataclass(slots=True)
+class MissionStats:
+    requests: int = 0
+    assigned: int = 0
+    unassigned: int = 0
+    lost: int = 0
+    hosted: int = 0
+    declined: int = 0
+
+
+class AssignmentRequest:
+    """An assignment in progress; the capability node polls ``done`` on its ticks."""
+
+    __slots__ = ("cancelled", "done", "execution", "reason", "task")
+
+    def __init__(self) -> None:
+        self.done = False
+        self.cancelled = False
+        self.execution: LocalExecution | RemoteExecution | None = None
+        self.reason = ""
+        self.task: asyncio.Task[Any] | None = None
+
+    def cancel(self) -> None:
+        self.cancelled = True
+        if self.execution is not None:
+            self.execution.cancel("request cancelled")
+            self.execution = None
+        if self.task is not None:
+            self.task.cancel()
+
+
+class LocalExecution:
+    """The origin won its own auction: the capability node ticks the run directly."""
+
+    __slots__ = ("_mc", "id", "robot", "run")
+
+    def __init__(self, mc: MissionControl, execution: str, run: ImplementationRun) -> None:
+        self._mc = mc
+        self.id = execution
+        self.robot = mc.robot
+        self.run = run
+
+    def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
+        state, outputs = self.run.step(inputs)
+        if state is State.SUCCEEDED:
+            self._mc.repository.record_success(self.run.implementation.interface.name)
+        return state, outputs
+
+    def pause(self) -> None:
+        self.run.pause()
+
+    def cancel(self, reason: str) -> None:
+        self._mc._release(self.id, self.run)
+
+
+class RemoteExecution:
+    """The origin's proxy of a run in another robot's slot: inputs out, status back."""
+
+    __slots__ = ("_mc", "detail", "id", "last_heard", "lost", "outputs", "robot", "seq", "state")
+
+    def __init__(self, mc: MissionControl, execution: str, robot: str) -> None:
+        self._mc = mc
+        self.id = execution
+        self.robot = robot
+        self.state = State.ASSIGNED
+        self.outputs: dict[str, Any] = {}
+        self.seq = 0
+        self.lost = False
+        self.detail = ""
+        self.last_heard = mc.system.clock.now()
+
+    def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
+        if self.lost:
+            return None, {}
+        self.seq += 1
+        self._mc._to_mc(self.robot, ExecutionInputs(self.id, self.seq, dict(inputs)))
+        return self.state, self.outputs
+
+    def pause(self) -> None:
+        if not self.lost:
+            self._mc._to_mc(self.robot, PauseExecution(self.id))
+
+    def cancel(self, reason: str) -> None:
+        self._mc.origin_executions.pop(self.id, None)
+        if not self.lost:
+            self._mc._to_mc(self.robot, CancelExecution(self.id, reason))
+
+
+@dataclass(slots=True)
+class Hosted:
+    """A run this robot executes for another robot's capability node."""
+
+    id: str
+    origin: str
+    run: ImplementationRun
+    inputs: dict[str, Any]
+    last_heard: float
+    state: State = State.ASSIGNED
+    outputs: dict[str, Any] | None = None
+    paused: bool = False
+    seq: int = 0
+
+
+class MissionControl(Actor):
+    """One per robot; see the module docstring."""
+
+    PATH = "mission_control"
+
+    def __init__(
+        self,
+        robot: str,
+        repository: CapabilityRepository,
+        team: Membership,
+        strategy: AssignmentStrategy,
+        *,
+        config: MissionConfig | None = None,
+    ) -> None:
+        super().__init__()
+        self.robot = robot
+        self.repository = repository
+        self.team = team
+        self.strategy = strategy
+        self.config = config or MissionConfig()
+        self.stats = MissionStats()
+        self.slot: RemoteCapabilitySlot | None = None
+        self.occupied: str | None = None  # the execution using this robot's body
+        self.origin_executions: dict[str, RemoteExecution] = {}
+        self.hosted: dict[str, Hosted] = {}
+        self._local_runs: dict[str, ImplementationRun] = {}
+        self._finished: OrderedDict[str, ExecutionStatus] = OrderedDict()
+        self._ids = itertools.count(1)
+
+    # -- life cycle -------------------------------------------------------------------
+    def on_start(self) -> None:
+        self.team.subscribe(self._on_team)
+        self.start_task(self._leases(), name=f"leases {self.robot}")
+
+    def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
+        if self.slot is not None and self.slot is not slot:
+            raise TreeError(f"robot {self.robot} already has a remote capability slot")
+        self.slot = slot
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event not in (TeamEvent.LEFT, TeamEvent.FAILED):
+            return
+        for ex in list(self.origin_executions.values()):
+            if ex.robot == robot:
+                self._lose(ex, f"robot {robot} {event.value}")
+        for h in list(self.hosted.values()):
+            if h.origin == robot:
+                self._drop_hosted(h, f"origin {robot} {event.value}")
+
+    async def _leases(self) -> None:
+        clock = self.system.clock
+        cfg = self.config
+        while True:
+            await clock.sleep(cfg.keepalive_s)
+            now = clock.now()
+            by_robot: dict[str, list[str]] = {}
+            for ex in list(self.origin_executions.values()):
+                if now - ex.last_heard > cfg.lease_s:
+                    self._lose(ex, "lease lapsed")
+                else:
+                    by_robot.setdefault(ex.robot, []).append(ex.id)
+            # The executor gives up a little before the origin re-assigns, so the two
+            # runs of a partitioned execution never overlap.
+            for h in list(self.hosted.values()):
+                if now - h.last_heard > 0.8 * cfg.lease_s:
+                    self._drop_hosted(h, "origin lease lapsed")
+                else:
+                    by_robot.setdefault(h.origin, []).append(h.id)
+            for robot, ids in by_robot.items():
+                self._to_mc(robot, KeepAlive(self.robot, ids))
+
+    def _lose(self, ex: RemoteExecution, why: str) -> None:
+        if ex.lost:
+            return
+        ex.lost = True
+        self.origin_executions.pop(ex.id, None)
+        self.stats.lost += 1
+        log.warning("mission.execution_lost", robot=self.robot, execution=ex.id, executor=ex.robot, why=why)
+
+    def _to_mc(self, robot: str, msg: Any) -> None:
+        self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
+
+    # -- origin side ------------------------------------------------------------------
+    def request_assignment(
+        self,
+        node: Capability,
+        inputs: dict[str, Any],
+        *,
+        local_only: bool = False,
+        exclude: frozenset[str] = frozenset(),
+    ) -> AssignmentRequest:
+        """Start finding an executor for ``node``; never blocks the tick."""
+        req = AssignmentRequest()
+        self.stats.requests += 1
+        iface = type(node).INTERFACE
+        providers = self.repository.providers(iface.identity)
+        candidates = {self.robot} & providers if local_only else providers & self.team.alive()
+        candidates -= exclude
+        if not candidates:
+            req.done = True
+            req.reason = f"no robot of the team implements {iface.name}"
+            self.stats.unassigned += 1
+            return req
+        execution = f"{self.robot}:{node.path}:{next(self._ids)}"
+        task = AssignmentTask(
+            execution, iface.name, iface.identity, inputs, frozenset(candidates), self.robot,
+            self.config.lease_s,
+        )
+        req.task = self.start_task(self._assign(req, task), name=f"assign {execution}")
+        return req
+
+    async def _assign(self, req: AssignmentRequest, task: AssignmentTask) -> None:
+        try:
+            won = await self.strategy.assign(task)
+        finally:
+            req.done = True
+        if won is None:
+            req.reason = "no robot could take it"
+            self.stats.unassigned += 1
+            return
+        self.stats.assigned += 1
+        if won.robot == self.robot:
+            run = self._local_runs.pop(task.execution)
+            req.execution = LocalExecution(self, task.execution, run)
+        else:
+            ex = RemoteExecution(self, task.execution, won.robot)
+            self.origin_executions[ex.id] = ex
+            req.execution = ex
+        if req.cancelled:
+            req.execution.cancel("request cancelled")
+            req.execution = None
+
+    @handler
+    def on_status(self, msg: ExecutionStatus) -> None:
+        ex = self.origin_executions.get(msg.execution)
+        if ex is None or ex.robot != msg.robot:
+            return
+        ex.last_heard = self.system.clock.now()
+        if msg.state is _LOST:
+            self._lose(ex, f"executor no longer has it ({msg.detail})")
+            return
+        ex.state = msg.state
+        ex.outputs = msg.outputs
+        ex.detail = msg.detail
+        if msg.state in DONE:
+            self.origin_executions.pop(ex.id, None)
+
+    @handler
+    def on_keepalive(self, msg: KeepAlive) -> None:
+        now = self.system.clock.now()
+        for eid in msg.executions:
+            ex = self.origin_executions.get(eid)
+            if ex is not None and ex.robot == msg.robot:
+                ex.last_heard = now
+            h = self.hosted.get(eid)
+            if h is not None and h.origin == msg.robot:
+                h.last_heard = now
+
+    # -- executor side ----------------------------------------------------------------
+    def _preconditions_hold(self, pre: tuple[Precondition, ...]) -> str | None:
+        for p in pre:
+            ok = (
+                p.capability in self.repository.succeeded
+                if p.scope is Scope.LOCAL
+                else self.repository.succeeded_anywhere(p.capability)
+            )
+            if not ok:
+                return f"precondition {p.capability} ({p.scope.value}) not met"
+        return None
+
+    def evaluate(self, cfb: CallForBids) -> Bid | NoBid:
+        """This robot's answer to a call for bids (pure: reserves nothing)."""
+        impls = self.repository.local_implementations(cfb.interface, cfb.identity)
+        if not impls:
+            return NoBid(cfb.auction, self.robot, "no matching implementation")
+        if self.occupied is not None:
+            return NoBid(cfb.auction, self.robot, "busy")
+        try:
+            inputs = impls[0].interface.convert_inputs(cfb.inputs, f"call for bids {cfb.auction}")
+        except TreeError as exc:
+            return NoBid(cfb.auction, self.robot, str(exc))
+        best: tuple[float, str] | None = None
+        reasons = []
+        for impl in impls:
+            why = self._preconditions_hold(impl.preconditions)
+            if why is not None:
+                reasons.append(why)
+                continue
+            try:
+                cost = impl.cost(inputs)
+            except Exception as exc:
+                log.error("mission.bid_failed", robot=self.robot, implementation=impl.name, exc_info=exc)
+                reasons.append(f"{impl.name}: bid failed")
+                continue
+            if cost is None:
+                reasons.append(f"{impl.name}: cannot execute")
+            elif best is None or (cost, impl.name) < best:
+                best = (cost, impl.name)
+        if best is None:
+            return NoBid(cfb.auction, self.robot, "; ".join(reasons))
+        return Bid(cfb.auction, self.robot, best[0], best[1])
+
+    @handler
+    def on_call_for_bids(self, msg: CallForBids) -> None:
+        answer = self.evaluate(msg)
+        self.system.ref(msg.reply_to).tell(answer, sender=self.address)
+
+    @handler
+    def on_award(self, msg: Award) -> AwardReply:
+        def decline(reason: str) -> AwardReply:
+            self.stats.declined += 1
+            return AwardReply(msg.execution, self.robot, False, reason)
+
+        if self.occupied is not None:
+            return decline(f"busy with {self.occupied}")
+        impl = next(
+            (i for i in self.repository.local_implementations(msg.interface) if i.name == msg.implementation),
+            None,
+        )
+        if impl is None:
+            return decline(f"no implementation {msg.implementation!r}")
+        why = self._preconditions_hold(impl.preconditions)
+        if why is not None:
+            return decline(why)
+        remote = msg.origin != self.robot
+        if remote and self.slot is None:
+            return decline("no remote capability slot")
+        try:
+            inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
+            run = impl.instantiate(self.system.clock)
+        except TreeError as exc:
+            return decline(str(exc))
+        if remote:
+            assert self.slot is not None
+            hosted = Hosted(msg.execution, msg.origin, run, inputs, self.system.clock.now())
+            refused = self.slot.load(hosted)
+            if refused is not None:
+                return decline(refused)
+            self.hosted[msg.execution] = hosted
+            self.stats.hosted += 1
+        else:
+            self._local_runs[msg.execution] = run
+        self.occupied = msg.execution
+        return AwardReply(msg.execution, self.robot, True)
+
+    @handler
+    def on_inputs(self, msg: ExecutionInputs) -> None:
+        h = self.hosted.get(msg.execution)
+        if h is None:
+            final = self._finished.get(msg.execution)
+            origin = msg.execution.split(":", 1)[0]
+            self._to_mc(
+                origin,
+                final or ExecutionStatus(msg.execution, self.robot, _LOST, {}, msg.seq, "unknown execution"),
+            )
+            return
+        h.last_heard = self.system.clock.now()
+        h.paused = False
+        if msg.seq > h.seq:
+            h.seq = msg.seq
+            try:
+                h.inputs = h.run.implementation.interface.convert_inputs(msg.inputs, f"execution {h.id}")
+            except TreeError as exc:
+                log.warning("mission.bad_inputs", robot=self.robot, execution=h.id, error=str(exc))
+        # Answer at once, so the origin sees fresh state without waiting for our tick.
+        self._report(h)
+
+    @handler
+    def on_pause(self, msg: PauseExecution) -> None:
+        h = self.hosted.get(msg.execution)
+        if h is not None:
+            h.paused = True
+            h.run.pause()
+            h.state = State.PAUSED
+
+    @handler
+    def on_cancel(self, msg: CancelExecution) -> None:
+        h = self.hosted.get(msg.execution)
+        if h is not None:
+            self._drop_hosted(h, msg.reason or "cancelled")
+
+    def _report(self, h: Hosted) -> None:
+        self._to_mc(h.origin, ExecutionStatus(h.id, self.robot, h.state, h.outputs or {}, h.seq))
+
+    def hosted_ticked(self, h: Hosted, state: State, outputs: dict[str, Any]) -> None:
+        """Called by the slot after each tick of a hosted run."""
+        h.state, h.outputs = state, outputs
+        self._report(h)
+        if state in DONE:
+            if state is State.SUCCEEDED:
+                self.repository.record_success(h.run.implementation.interface.name)
+            self._finished[h.id] = ExecutionStatus(h.id, self.robot, state, outputs, h.seq)
+            while len(self._finished) > 256:
+                self._finished.popitem(last=False)
+            self._drop_hosted(h, "finished")
+
+    def _drop_hosted(self, h: Hosted, why: str) -> None:
+        if self.hosted.pop(h.id, None) is None:
+            return
+        if self.slot is not None:
+            self.slot.unload(h)
+        log.info("mission.hosted_done", robot=self.robot, execution=h.id, why=why)
+        self._release(h.id, h.run)
+
+    def _release(self, execution: str, run: ImplementationRun) -> None:
+        self._local_runs.pop(execution, None)
+        if self.occupied == execution:
+            self.occupied = None
+        if self._system is not None and self.system.running:
+            self.start_task(run.close(), name=f"close {execution}")

@@ -1,0 +1,360 @@
+"""Node types by name, so tree files and the CLI can build nodes without importing code.
+
+A registry is a plain object: :func:`default_registry` builds a fresh one holding every
+built-in node plus the node packages installed under the ``btcap.nodes`` entry-point
+group. It also names the types that ports carry (``"list[float]"``, ``"int | None"``), so
+type-valued options such as :class:`~btcap.leaves.Constant`'s ``type`` fit in a file.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+import types
+import typing
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from importlib import metadata
+from typing import Any
+
+from btcap import composites, decorators, leaves
+from btcap.node import Node
+from btcap.state import TreeError
+
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "NodeRegistry",
+    "RegistryError",
+    "default_registry",
+]
+
+#: The entry-point group third-party node packages register under.
+ENTRY_POINT_GROUP = "btcap.nodes"
+
+#: Names handled by the tree-file format itself, never by a registry entry.
+RESERVED = frozenset({"Subtree"})
+
+#: Exported node classes that cannot be built from a file: they need Python callables
+#: (Action, Condition) or are abstract bases (Decorator, Remap).
+_NOT_FROM_FILES = frozenset({"Action", "Condition", "Decorator", "Remap"})
+
+_BUILTIN_TYPES: dict[str, Any] = {
+    "Any": Any,
+    "None": None,
+    "bool": bool,
+    "bytes": bytes,
+    "dict": dict,
+    "float": float,
+    "frozenset": frozenset,
+    "int": int,
+    "list": list,
+    "object": object,
+    "set": set,
+    "str": str,
+    "tuple": tuple,
+}
+
+#: Generic containers and how many type arguments they take (``None``: tuple's rules).
+_GENERICS: dict[Any, int | None] = {
+    list: 1,
+    set: 1,
+    frozenset: 1,
+    dict: 2,
+    tuple: None,
+}
+
+_TOKEN = re.compile(r"\s*(?:(\.\.\.)|([A-Za-z_][A-Za-z0-9_.]*)|(.))")
+
+
+class RegistryError(TreeError):
+    """A node type or type name is unknown, duplicated, or a node plugin is broken."""
+
+
+def _builtin_nodes() -> list[type[Node]]:
+    """Every node class the core exports that a file can build (no callables needed)."""
+    out: list[type[Node]] = []
+    for module in (composites, decorators, leaves):
+        for name in module.__all__:
+            obj = getattr(module, name)
+            if isinstance(obj, type) and issubclass(obj, Node) and name not in _NOT_FROM_FILES:
+                out.append(obj)
+    return out
+
+
+def _close(word: str, options: Iterable[str]) -> str:
+    """' (did you mean X, Y?)' for a misspelt name, or '' if nothing is close."""
+    near = difflib.get_close_matches(word, list(options), n=3, cutoff=0.6)
+    return f" (did you mean {', '.join(near)}?)" if near else ""
+
+
+class NodeRegistry:
+    """Maps type names used in files to node classes, and type names to port types."""
+
+    def __init__(
+        self,
+        nodes: Iterable[type[Node]] = (),
+        *,
+        types: Mapping[str, Any] | None = None,
+    ) -> None:
+        self._nodes: dict[str, type[Node]] = {}
+        self._names: dict[type[Node], str] = {}
+        self._types: dict[str, Any] = dict(_BUILTIN_TYPES)
+        for cls in nodes:
+            self.register(cls)
+        for name, tp in (types or {}).items():
+            self.register_type(name, tp)
+
+    # -- node types -------------------------------------------------------------------
+    def register(self, cls: type[Node], name: str | None = None) -> type[Node]:
+        """Add a node class under ``name`` (default: its class name); returns ``cls``.
+
+        Usable as a decorator. A name may be taken only once, so a file never silently
+        builds a different class than its author meant.
+        """
+        if not (isinstance(cls, type) and issubclass(cls, Node)):
+            raise RegistryError(f"cannot register {cls!r}: expected a Node subclass")
+        key = cls.__name__ if name is None else name
+        if not key or not all(part.isidentifier() for part in key.split(".")):
+            raise RegistryError(
+                f"cannot register {cls.__qualname__} as {key!r}: expected an identifier "
+                f"(dots allowed, e.g. 'acme.Grasp')"
+            )
+        if key in RESERVED:
+            raise RegistryError(
+                f"cannot register {cls.__qualname__} as {key!r}: the name is reserved "
+                f"for the tree-file format"
+            )
+        old = self._nodes.get(key)
+        if old is not None:
+            raise RegistryError(
+                f"node type {key!r} is already registered "
+                f"({old.__module__}.{old.__qualname__}); cannot add "
+                f"{cls.__module__}.{cls.__qualname__} under the same name"
+            )
+        self._nodes[key] = cls
+        self._names.setdefault(cls, key)
+        return cls
+
+    def get(self, name: str) -> type[Node]:
+        """The node class registered as ``name``; the error suggests close names."""
+        try:
+            return self._nodes[name]
+        except KeyError:
+            pass
+        hint = " (Subtree is built from the file's 'subtrees')" if name in RESERVED else ""
+        raise RegistryError(
+            f"unknown node type {name!r}{_close(name, self._nodes) or hint}; "
+            f"known types: {', '.join(sorted(self._nodes))}"
+        )
+
+    def name_of(self, cls: type[Node]) -> str:
+        """The name ``cls`` was registered under (first one, if several)."""
+        try:
+            return self._names[cls]
+        except KeyError:
+            raise RegistryError(
+                f"node class {cls.__module__}.{cls.__qualname__} is not registered; "
+                f"register it to write it to a file"
+            ) from None
+
+    def names(self) -> list[str]:
+        return sorted(self._nodes)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._nodes
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(self._nodes))
+
+    def __len__(self) -> int:
+        return len(self._nodes)
+
+    def items(self) -> list[tuple[str, type[Node]]]:
+        return sorted(self._nodes.items())
+
+    # -- plugins ----------------------------------------------------------------------
+    def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> list[str]:
+        """Register the node packages installed under ``group``; returns the names added.
+
+        Each entry point names a Node subclass, or a callable returning an iterable of
+        them. A broken one raises :class:`RegistryError` naming the entry point, so a bad
+        plugin is found at start-up rather than when a file happens to use it.
+        """
+        added: list[str] = []
+        for ep in sorted(metadata.entry_points(group=group), key=lambda e: e.name):
+            where = f"node plugin {ep.name!r} ({ep.value}) in entry-point group {group!r}"
+            try:
+                obj = ep.load()
+            except Exception as exc:
+                raise RegistryError(
+                    f"{where} failed to load: {type(exc).__name__}: {exc}"
+                ) from exc
+            for cls in self._plugin_classes(obj, where):
+                try:
+                    self.register(cls)
+                except RegistryError as exc:
+                    raise RegistryError(f"{where}: {exc}") from None
+                added.append(self.name_of(cls))
+        return added
+
+    @staticmethod
+    def _plugin_classes(obj: object, where: str) -> list[type[Node]]:
+        if isinstance(obj, type):
+            if issubclass(obj, Node):
+                return [obj]
+            raise RegistryError(f"{where}: {obj.__qualname__} is not a Node subclass")
+        if not callable(obj):
+            raise RegistryError(
+                f"{where}: expected a Node subclass or a callable returning Node subclasses, "
+                f"got {type(obj).__qualname__}"
+            )
+        try:
+            produced = list(obj())
+        except Exception as exc:
+            raise RegistryError(
+                f"{where}: calling it failed: {type(exc).__name__}: {exc}"
+            ) from exc
+        bad = [c for c in produced if not (isinstance(c, type) and issubclass(c, Node))]
+        if bad:
+            raise RegistryError(
+                f"{where}: returned {bad[0]!r}; expected only Node subclasses"
+            )
+        return produced
+
+    # -- type names -------------------------------------------------------------------
+    def register_type(self, name: str, tp: Any) -> None:
+        """Let files name ``tp`` (e.g. a msgspec Struct of a node package) as ``name``."""
+        if not all(part.isidentifier() for part in name.split(".")):
+            raise RegistryError(f"type name {name!r}: expected an identifier")
+        old = self._types.get(name, tp)
+        if old is not tp:
+            raise RegistryError(f"type name {name!r} is already taken by {old!r}")
+        self._types[name] = tp
+
+    def parse_type(self, text: str) -> Any:
+        """Turn ``"dict[str, list[float]] | None"`` into the type; no eval involved."""
+        return _TypeParser(text, self._types).parse()
+
+    def format_type(self, tp: Any) -> str:
+        """The inverse of :meth:`parse_type`; raises RegistryError for unnamed types."""
+        if tp is Any:
+            return "Any"
+        if tp is None or tp is type(None):
+            return "None"
+        origin = typing.get_origin(tp)
+        if origin in (typing.Union, types.UnionType):
+            return " | ".join(self.format_type(a) for a in typing.get_args(tp))
+        if origin is not None and origin in _GENERICS:
+            args = typing.get_args(tp)
+            inner = ", ".join("..." if a is Ellipsis else self.format_type(a) for a in args)
+            return f"{self.format_type(origin)}[{inner}]" if args else self.format_type(origin)
+        for name, known in self._types.items():
+            if known is tp and name != "None":
+                return name
+        raise RegistryError(
+            f"type {tp!r} has no name in files; register it with "
+            f"registry.register_type('{getattr(tp, '__name__', 'Name')}', ...)"
+        )
+
+
+class _TypeParser:
+    """Recursive descent over ``union := term ('|' term)*``, ``term := NAME ['[' args ']']``."""
+
+    def __init__(self, text: str, names: Mapping[str, Any]) -> None:
+        self.text = text
+        self.names = names
+        self.tokens = self._tokenize(text)
+        self.pos = 0
+
+    def _tokenize(self, text: str) -> list[str]:
+        out: list[str] = []
+        for m in _TOKEN.finditer(text):
+            tok = m.group(1) or m.group(2) or m.group(3)
+            if tok is None:
+                continue  # trailing whitespace
+            if m.group(3) is not None and tok not in "[],|":
+                self._fail(f"unexpected character {tok!r}")
+            out.append(tok)
+        return out
+
+    def _fail(self, why: str) -> typing.NoReturn:
+        raise RegistryError(
+            f"type {self.text!r}: {why}; expected e.g. 'float', 'list[int]', "
+            f"'tuple[float, float]', 'dict[str, int]' or 'int | None'"
+        )
+
+    def _peek(self) -> str | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def _take(self, want: str | None = None) -> str:
+        tok = self._peek()
+        if tok is None:
+            self._fail("unexpected end" + (f", expected {want!r}" if want else ""))
+        if want is not None and tok != want:
+            self._fail(f"expected {want!r}, found {tok!r}")
+        self.pos += 1
+        return tok
+
+    def parse(self) -> Any:
+        if not self.tokens:
+            self._fail("empty type name")
+        tp = self._union()
+        if self._peek() is not None:
+            self._fail(f"unexpected {self._peek()!r}")
+        return tp
+
+    def _union(self) -> Any:
+        members = [self._term()]
+        while self._peek() == "|":
+            self._take("|")
+            members.append(self._term())
+        if len(members) == 1:
+            return members[0]
+        return typing.Union[tuple(members)]  # noqa: UP007 - built from a runtime list
+
+    def _term(self) -> Any:
+        tok = self._take()
+        if tok in "[],|" or tok == "...":
+            self._fail(f"expected a type name, found {tok!r}")
+        if tok not in self.names:
+            self._fail(f"unknown name {tok!r}{_close(tok, self.names)}")
+        base = self.names[tok]
+        if self._peek() != "[":
+            return type(None) if base is None else base
+        if base not in _GENERICS:
+            self._fail(f"{tok!r} takes no type arguments")
+        self._take("[")
+        args: list[Any] = [self._arg(base)]
+        while self._peek() == ",":
+            self._take(",")
+            args.append(self._arg(base))
+        self._take("]")
+        want = _GENERICS[base]
+        if want is not None and len(args) != want:
+            self._fail(f"{tok}[...] takes {want} type argument(s), got {len(args)}")
+        if base is tuple and Ellipsis in args and (len(args) != 2 or args[0] is Ellipsis):
+            self._fail("'...' only fits as tuple[X, ...]")
+        return base[tuple(args)] if len(args) > 1 else base[args[0]]
+
+    def _arg(self, base: Any) -> Any:
+        if self._peek() == "...":
+            if base is not tuple:
+                self._fail("'...' only fits as tuple[X, ...]")
+            self._take()
+            return Ellipsis
+        return self._union()
+
+
+def default_registry(*, plugins: bool = True) -> NodeRegistry:
+    """A new registry with every built-in node and, if ``plugins``, the installed packages.
+
+    Built fresh on each call (no module-level state), so callers may add their own
+    types without affecting anyone else.
+    """
+    reg = NodeRegistry(_builtin_nodes())
+    if plugins:
+        reg.load_entry_points()
+    return reg
+
+
+#: A plugin entry point may name one of these.
+NodePlugin = type[Node] | Callable[[], Iterable[type[Node]]]

@@ -1,0 +1,138 @@
+"""The capability repository: what this robot can do, and what every teammate can do."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import structlog
+
+from actors import Actor, handler
+from btcap.capability import CapabilityInterface, Implementation
+from btcap.messages import RepositoryQuery, RepositoryState
+from btcap.state import TreeError
+from btcap.team import Membership, TeamEvent
+
+__all__ = ["CapabilityRepository"]
+
+log = structlog.get_logger("btcap.repository")
+
+class CapabilityRepository(Actor):
+    """Local interfaces and implementations (changeable at run time), plus a team-wide view.
+
+    Changes are broadcast to the team at once; a newcomer gets the full state directly,
+    and a heartbeat announcing an unknown version triggers a query, so views converge
+    even when an update was lost.
+    """
+
+    PATH = "repository"
+
+    def __init__(self, robot: str) -> None:
+        super().__init__()
+        self.robot = robot
+        self.version = 0
+        self.interfaces: dict[str, CapabilityInterface] = {}
+        self.implementations: dict[str, list[Implementation]] = {}
+        self.succeeded: set[str] = set()
+        self.team: dict[str, RepositoryState] = {}
+        self._unsubscribe: object = None
+
+    # -- local content ----------------------------------------------------------------
+    def add_interface(self, interface: CapabilityInterface) -> None:
+        known = self.interfaces.get(interface.name)
+        if known is not None and known.identity != interface.identity:
+            raise TreeError(
+                f"repository of {self.robot}: interface {interface.name!r} is already "
+                f"{known.identity}, not {interface.identity}"
+            )
+        self.interfaces[interface.name] = interface
+
+    def add_implementation(self, impl: Implementation) -> None:
+        self.add_interface(impl.interface)
+        impls = self.implementations.setdefault(impl.interface.name, [])
+        if any(i.name == impl.name for i in impls):
+            raise TreeError(f"repository of {self.robot}: implementation {impl.name!r} exists")
+        impls.append(impl)
+        self._changed()
+
+    def remove_implementation(self, interface: str, name: str) -> None:
+        impls = self.implementations.get(interface, [])
+        kept = [i for i in impls if i.name != name]
+        if len(kept) == len(impls):
+            raise TreeError(f"repository of {self.robot}: no implementation {interface}/{name}")
+        if kept:
+            self.implementations[interface] = kept
+        else:
+            del self.implementations[interface]
+        self._changed()
+
+    def extend(self, impls: Iterable[Implementation]) -> None:
+        for impl in impls:
+            self.add_implementation(impl)
+
+    def local_implementations(self, interface: str, identity: str | None = None) -> list[Implementation]:
+        impls = self.implementations.get(interface, [])
+        if identity is not None:
+            impls = [i for i in impls if i.interface.identity == identity]
+        return impls
+
+    def record_success(self, capability: str) -> None:
+        """A capability completed on this robot (for preconditions, local and remote)."""
+        if capability not in self.succeeded:
+            self.succeeded.add(capability)
+            self._changed()
+
+    # -- team view --------------------------------------------------------------------
+    def providers(self, identity: str) -> set[str]:
+        """Robots (this one included) that implement the interface with this identity."""
+        robots = {r for r, st in self.team.items() if identity in st.interfaces.values()}
+        if any(i.interface.identity == identity for impls in self.implementations.values() for i in impls):
+            robots.add(self.robot)
+        return robots
+
+    def succeeded_anywhere(self, capability: str) -> bool:
+        return capability in self.succeeded or any(
+            capability in st.succeeded for st in self.team.values()
+        )
+
+    def state(self) -> RepositoryState:
+        return RepositoryState(
+            self.robot,
+            self.version,
+            {name: impls[0].interface.identity for name, impls in self.implementations.items()},
+            sorted(self.succeeded),
+        )
+
+    def _changed(self) -> None:
+        self.version += 1
+        if self._system is not None:
+            self.system.broadcast(self.PATH, self.state())
+
+    # -- life cycle and messages ------------------------------------------------------
+    def on_start(self) -> None:
+        team = self.system.lookup(Membership.PATH)
+        if isinstance(team, Membership):
+            self._unsubscribe = team.subscribe(self._on_team)
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        system = self.system
+        if event is TeamEvent.JOINED:
+            system.ref(f"{robot}/{self.PATH}").tell(self.state())
+            if robot not in self.team:
+                system.ref(f"{robot}/{self.PATH}").tell(RepositoryQuery(self.robot))
+        elif event is TeamEvent.CHANGED:
+            system.ref(f"{robot}/{self.PATH}").tell(RepositoryQuery(self.robot))
+        elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
+            self.team.pop(robot, None)
+
+    @handler
+    def on_state(self, msg: RepositoryState) -> None:
+        if msg.robot == self.robot:
+            return
+        known = self.team.get(msg.robot)
+        if known is None or msg.version >= known.version:
+            self.team[msg.robot] = msg
+
+    @handler
+    def on_query(self, msg: RepositoryQuery) -> None:
+        if msg.robot != self.robot:
+            self.system.ref(f"{msg.robot}/{self.PATH}").tell(self.state())

@@ -1,0 +1,27 @@
+"""Shared test configuration for the whole suite."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from hypothesis import HealthCheck, settings
+
+# pytest puts this folder on sys.path to import this file; its ``actors/`` and
+# ``transports/`` test folders would then shadow the real packages (as namespace
+# packages, ahead of the editable install's finder). Put the project root first, as
+# ``python -m pytest`` does.
+_ROOT = str(Path(__file__).resolve().parent.parent)
+if _ROOT not in sys.path:
+    sys.path.insert(0, _ROOT)
+
+# No per-example deadline: a loaded CI machine must not turn a slow first example into a
+# failure. Example counts stay small and explicit in each test.
+settings.register_profile(
+    "btcap",
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    print_blob=True,
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "btcap"))
