@@ -206,7 +206,13 @@ class ImplementationRun:
             self.input_bridge.feed(inputs)
         state = self.tree.tick()
         out = self.output_bridge
-        return state, (dict(out.inputs) if out is not None else {})
+        if out is None:
+            return state, {}
+        # Outputs flow back every tick, even while the bridge itself is not reached yet.
+        values = out.inputs
+        for key, src, port in out._pulls or ():
+            values[key] = src.outputs[port]
+        return state, dict(values)
 
     def pause(self) -> None:
         self.tree.untick()

@@ -237,7 +237,8 @@ class Action(Leaf):
                 port = ports.get(key)
                 if port is None:
                     raise TreeError(f"Action {self.name!r} returned unknown output {key!r}")
-                self.outputs[key] = check_value(value, port.type, f"Action {self.name!r} output {key!r}")
+                where = f"Action {self.name!r} output {key!r}"
+                self.outputs[key] = check_value(value, port.type, where)
         return _SUCCEEDED
 
     async def _call(self, inputs: dict[str, Any]) -> Any:

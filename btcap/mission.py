@@ -125,7 +125,9 @@ class LocalExecution:
 class RemoteExecution:
     """The origin's proxy of a run in another robot's slot: inputs out, status back."""
 
-    __slots__ = ("_mc", "detail", "id", "last_heard", "lost", "outputs", "robot", "seq", "state")
+    __slots__ = (
+        "_mc", "acked", "detail", "id", "last_heard", "lost", "outputs", "robot", "seq", "state",
+    )
 
     def __init__(self, mc: MissionControl, execution: str, robot: str) -> None:
         self._mc = mc
@@ -134,6 +136,7 @@ class RemoteExecution:
         self.state = State.ASSIGNED
         self.outputs: dict[str, Any] = {}
         self.seq = 0
+        self.acked = 0  # the latest input seq the executor confirmed
         self.lost = False
         self.detail = ""
         self.last_heard = mc.system.clock.now()
@@ -313,6 +316,8 @@ class MissionControl(Actor):
             return
         ex.state = msg.state
         ex.outputs = msg.outputs
+        if msg.seq > ex.acked:
+            ex.acked = msg.seq
         ex.detail = msg.detail
         if msg.state in DONE:
             self.origin_executions.pop(ex.id, None)

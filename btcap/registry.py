@@ -12,7 +12,7 @@ import difflib
 import re
 import types
 import typing
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from importlib import metadata
 from typing import Any
 
@@ -62,7 +62,7 @@ _GENERICS: dict[Any, int | None] = {
     tuple: None,
 }
 
-_TOKEN = re.compile(r"\s*(?:(\.\.\.)|([A-Za-z_][A-Za-z0-9_.]*)|(.))")
+_TOKEN = re.compile(r"\s*(?:(\.\.\.)|([A-Za-z_][A-Za-z0-9_.]*)|(\S))")
 
 
 class RegistryError(TreeError):
@@ -185,9 +185,7 @@ class NodeRegistry:
             try:
                 obj = ep.load()
             except Exception as exc:
-                raise RegistryError(
-                    f"{where} failed to load: {type(exc).__name__}: {exc}"
-                ) from exc
+                raise RegistryError(f"{where} failed to load: {type(exc).__name__}: {exc}") from exc
             for cls in self._plugin_classes(obj, where):
                 try:
                     self.register(cls)
@@ -210,14 +208,10 @@ class NodeRegistry:
         try:
             produced = list(obj())
         except Exception as exc:
-            raise RegistryError(
-                f"{where}: calling it failed: {type(exc).__name__}: {exc}"
-            ) from exc
+            raise RegistryError(f"{where}: calling it failed: {type(exc).__name__}: {exc}") from exc
         bad = [c for c in produced if not (isinstance(c, type) and issubclass(c, Node))]
         if bad:
-            raise RegistryError(
-                f"{where}: returned {bad[0]!r}; expected only Node subclasses"
-            )
+            raise RegistryError(f"{where}: returned {bad[0]!r}; expected only Node subclasses")
         return produced
 
     # -- type names -------------------------------------------------------------------
@@ -354,7 +348,3 @@ def default_registry(*, plugins: bool = True) -> NodeRegistry:
     if plugins:
         reg.load_entry_points()
     return reg
-
-
-#: A plugin entry point may name one of these.
-NodePlugin = type[Node] | Callable[[], Iterable[type[Node]]]

@@ -338,7 +338,7 @@ def _read_txt(file: Path) -> tuple[NDArray[np.bool_], Cell | None, Cell | None]:
     if len(unknown):
         row, col = (int(v) for v in unknown[0])
         raise MapError(
-            f"{file}: unknown character {chars[row, col]!r} at line {row + 1}, col {col + 1} "
+            f"{file}: unknown character {lines[row][col]!r} at line {row + 1}, col {col + 1} "
             f"(expected {expected})"
         )
     marks: list[Cell | None] = []

@@ -4,14 +4,15 @@ For every goal a robot currently heads for, the world keeps two planes in a slab
 distance field and a next-hop table (the offset of the first neighbour, in N, S, W, E
 order, that is one step closer), both over the map padded with a wall border and
 flattened. A robot's state is its index into that slab (goal plane + cell), so a move is
-"add the next-hop offset" and needs no bounds checks. Plane 0 is a parking plane of zeros
-for idle robots, which lets a step run over all robots without selecting the moving ones.
+"add the next-hop offset" and needs no bounds checks. Plane 0 is a parking plane for idle
+robots (no hops, an unreachable goal), which lets a step run over all robots without first
+selecting the moving ones.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,7 +23,8 @@ from sim.grid import GridMap
 __all__ = ["World"]
 
 _T = TypeVar("_T", bound=np.generic)
-_PARKED = 0  # slab plane of idle robots: distance 0 and no hop everywhere
+_PARKED = 0  # slab plane of idle robots: no hop anywhere, goal never reached
+_NEVER = np.iinfo(np.int32).max
 _INITIAL_CAPACITY = 16
 _INITIAL_PLANES = 4
 _ROBOT_COLUMNS = (
@@ -33,7 +35,7 @@ _ROBOT_COLUMNS = (
     ("_rate", np.float64, 0.0),
     ("_cost", np.float64, 0.0),
     ("_progress", np.float64, 0.0),
-    ("_travelled", np.float64, 0.0),
+    ("_moved", np.int64, 0),
     ("_active", np.bool_, False),
     ("_moving", np.bool_, False),
 )
@@ -54,7 +56,7 @@ class World:
     _rate: NDArray[np.float64]  # cells/s while moving, 0 otherwise
     _cost: NDArray[np.float64]
     _progress: NDArray[np.float64]
-    _travelled: NDArray[np.float64]
+    _moved: NDArray[np.int64]  # cells travelled
     _active: NDArray[np.bool_]
     _moving: NDArray[np.bool_]
 
@@ -74,8 +76,13 @@ class World:
         self._n = 0
         for name, dtype, fill in _ROBOT_COLUMNS:
             setattr(self, name, np.full(_INITIAL_CAPACITY, fill, dtype=dtype))
+        # Hops are +-1 or +-padded width: int16 halves the slab's cache footprint.
+        hop_type = np.int16 if self._width_p <= np.iinfo(np.int16).max else np.int32
         self._dist = np.zeros((_INITIAL_PLANES, self._plane), dtype=np.int32)
-        self._hop = np.zeros((_INITIAL_PLANES, self._plane), dtype=np.int32)
+        self._dist[_PARKED] = _NEVER  # idle robots never "arrive"
+        self._hop: NDArray[np.signedinteger[Any]] = np.zeros(
+            (_INITIAL_PLANES, self._plane), dtype=hop_type
+        )
         self._slot_of: dict[Cell, int] = {}
         self._slot_goal: list[Cell | None] = [None] * _INITIAL_PLANES
         self._slot_refs: list[int] = [0] * _INITIAL_PLANES
@@ -181,7 +188,10 @@ class World:
 
     @property
     def travelled_m(self) -> NDArray[np.float64]:
-        return _read_only(self._travelled[: self._n])
+        """Distance each robot has driven (a fresh array)."""
+        travelled = self._moved[: self._n].astype(np.float64)
+        travelled *= self.grid.cell_size_m
+        return travelled
 
     def position(self, i: int) -> Cell:
         self._check_index(i)
@@ -209,8 +219,8 @@ class World:
         hop = self._hop.ravel()
         for sub in range(int(moves.max(initial=0))):
             at += hop[at] * (moves > sub)
-        self._travelled[:n] += moves * self.grid.cell_size_m
-        arrived: NDArray[np.intp] = np.flatnonzero(self._moving[:n] & (moves == remaining))
+        self._moved[:n] += moves
+        arrived: NDArray[np.intp] = np.flatnonzero(remaining <= whole)
         if arrived.size:
             self._park_all(arrived)
         return arrived
@@ -223,7 +233,6 @@ class World:
         """
         _check_dt(dt)
         offsets = [int(o) for o in self._offsets]
-        cell_size = self.grid.cell_size_m
         arrived: list[int] = []
         for i in range(self._n):
             if not self._moving[i]:
@@ -243,7 +252,7 @@ class World:
                         break
                 remaining = closer
             self._at[i] = slot * self._plane + cell
-            self._travelled[i] += moves * cell_size
+            self._moved[i] += moves
             self._progress[i] = progress - whole
             if remaining == 0:
                 self._park(i)
@@ -369,9 +378,9 @@ class World:
         self._free_slots.extend(range(2 * old - 1, old - 1, -1))
 
 
-def _next_hops(dist: NDArray[np.int32], offsets: NDArray[np.intp]) -> NDArray[np.int32]:
+def _next_hops(dist: NDArray[np.int32], offsets: NDArray[np.intp]) -> NDArray[np.intp]:
     """Per padded cell, the offset of the first neighbour one step closer (0 at the goal)."""
-    hops = np.zeros(dist.shape, dtype=np.int32)
+    hops = np.zeros(dist.shape, dtype=np.intp)
     cells = np.flatnonzero(dist > 0)
     closer = dist[cells[:, None] + offsets] == (dist[cells] - 1)[:, None]
     hops[cells] = offsets[np.argmax(closer, axis=1)]

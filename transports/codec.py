@@ -79,7 +79,7 @@ class Codec:
         decoder = self._refresh()
         try:
             kind, sender, recipient, msg, corr = decoder.decode(data)
-        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+        except (msgspec.DecodeError, UnicodeDecodeError) as exc:  # bad UTF-8 is not wrapped
             raise CodecError(str(exc)) from None
         return Envelope(kind, sender, recipient, msg, corr)
 

@@ -1,0 +1,120 @@
+"""Explicit time: the sped-up wall clock and the manual clock for tests."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+
+import anyio
+import pytest
+
+from actors import ActorSystem, Clock, ManualClock, TimeSource
+
+
+async def _sleeper(
+    clock: ManualClock, seconds: float, name: str, woke: list[tuple[str, float]]
+) -> None:
+    await clock.sleep(seconds)
+    woke.append((name, clock.now()))
+
+
+async def test_manual_clock_wakes_sleepers_in_deadline_order() -> None:
+    clock = ManualClock(start=10.0)
+    woke: list[tuple[str, float]] = []
+    with anyio.fail_after(2):
+        async with anyio.create_task_group() as tg:
+            # Started in an order that differs from their deadlines.
+            tg.start_soon(_sleeper, clock, 3.0, "c", woke)
+            tg.start_soon(_sleeper, clock, 1.0, "a", woke)
+            tg.start_soon(_sleeper, clock, 2.0, "b", woke)
+            tg.start_soon(_sleeper, clock, 2.0, "b2", woke)  # same deadline: FIFO
+            while clock.pending < 4:
+                await asyncio.sleep(0)
+            await clock.advance(0.5)
+            assert woke == []
+            assert clock.now() == 10.5
+            await clock.advance(1.5)  # reaches 12.0: a, b and b2 are due
+            assert woke == [("a", 11.0), ("b", 12.0), ("b2", 12.0)]
+            assert clock.pending == 1
+            await clock.advance(5.0)
+            assert woke[-1] == ("c", 13.0)  # each sleeper sees its own deadline as now
+            assert clock.now() == 17.0
+            assert clock.pending == 0
+
+
+async def test_manual_clock_wakes_sleepers_that_sleep_again_within_one_advance() -> None:
+    clock = ManualClock()
+    ticks: list[float] = []
+
+    async def ticker() -> None:
+        for _ in range(5):
+            await clock.sleep(1.0)
+            ticks.append(clock.now())
+
+    with anyio.fail_after(2):
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(ticker)
+            while clock.pending < 1:
+                await asyncio.sleep(0)
+            await clock.advance(3.5)
+            assert ticks == [1.0, 2.0, 3.0]
+            await clock.advance(10.0)
+            assert ticks == [1.0, 2.0, 3.0, 4.0, 5.0]
+
+
+async def test_manual_clock_past_deadlines_and_cancelled_sleepers() -> None:
+    clock = ManualClock(start=5.0)
+    with anyio.fail_after(2):
+        await clock.sleep(0)  # returns at once, time does not move
+        await clock.sleep(-3)
+        await clock.sleep_until(4.0)
+        assert clock.now() == 5.0
+        task = asyncio.create_task(clock.sleep(1.0))
+        await asyncio.sleep(0)
+        assert clock.pending == 1
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+        assert clock.pending == 0
+        await clock.advance(2.0)  # skips the cancelled sleeper without error
+        assert clock.now() == 7.0
+    assert clock.speedup == math.inf
+    assert clock.to_wall(100.0) == 0.0
+
+
+async def test_sped_up_clock_sleeps_a_fraction_of_the_wall_time() -> None:
+    clock = Clock(speedup=100)
+    with anyio.fail_after(2):
+        start_wall, start_clock = time.monotonic(), clock.now()
+        await clock.sleep(1.0)  # one clock second = 10 ms of wall
+        wall = time.monotonic() - start_wall
+    assert 0.008 <= wall < 0.5
+    assert clock.now() - start_clock >= 1.0
+    assert clock.to_wall(1.0) == pytest.approx(0.01)
+    assert clock.speedup == 100.0
+
+
+async def test_clock_sleep_until_a_clock_deadline() -> None:
+    clock = Clock(speedup=1000)
+    with anyio.fail_after(2):
+        deadline = clock.now() + 5.0  # 5 ms of wall
+        await clock.sleep_until(deadline)
+        assert clock.now() >= deadline
+        before = time.monotonic()
+        await clock.sleep_until(deadline - 100.0)  # in the past: no wait
+        assert time.monotonic() - before < 0.05
+
+
+@pytest.mark.parametrize("speedup", [0, -1.0, float("nan")])
+def test_clock_rejects_non_positive_speedups(speedup: float) -> None:
+    with pytest.raises(ValueError, match="speedup must be > 0"):
+        Clock(speedup)
+
+
+def test_both_clocks_are_time_sources_and_systems_use_the_one_given() -> None:
+    manual = ManualClock()
+    assert isinstance(manual, TimeSource)
+    assert isinstance(Clock(), TimeSource)
+    assert ActorSystem("s", clock=manual).clock is manual
+    assert isinstance(ActorSystem("s").clock, Clock)

@@ -1,0 +1,552 @@
+"""Control flow: reactive and memory Sequence/Fallback, Parallel, IfThenElse, Switch."""
+
+from __future__ import annotations
+
+import asyncio
+
+import anyio
+import pytest
+from structlog.testing import capture_logs
+
+from btcap import (
+    Action,
+    AlwaysFailure,
+    AlwaysRunning,
+    AlwaysSuccess,
+    Constant,
+    Fallback,
+    FallbackWithMemory,
+    IfThenElse,
+    Leaf,
+    Node,
+    Parallel,
+    Sequence,
+    SequenceWithMemory,
+    State,
+    Switch,
+    Tree,
+    TreeError,
+)
+
+S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
+WAITING = [State.RUNNING, State.UNASSIGNED, State.ASSIGNED, State.PAUSED]
+
+
+class Leafy(Leaf):
+    """Returns ``result`` (settable; an exception is raised instead) and counts ticks."""
+
+    def __init__(self, name: str, result: State | Exception = S) -> None:
+        super().__init__(name)
+        self.result = result
+        self.ticks = 0
+        self.unticks = 0
+
+    def on_tick(self) -> State:
+        self.ticks += 1
+        if isinstance(self.result, Exception):
+            raise self.result
+        return self.result
+
+    def on_untick(self) -> None:
+        self.unticks += 1
+
+
+def leaves(*results: State) -> list[Leafy]:
+    return [Leafy(f"c{i}", r) for i, r in enumerate(results)]
+
+
+def ticks(nodes: list[Leafy]) -> list[int]:
+    return [n.ticks for n in nodes]
+
+
+def states(nodes: list[Leafy]) -> list[State]:
+    return [n.state for n in nodes]
+
+
+async def settle() -> None:
+    for _ in range(5):
+        await asyncio.sleep(0)
+
+
+# -- Sequence -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("results", "expected", "ticked"),
+    [
+        ([S, S, S], S, [1, 1, 1]),
+        ([S, F, S], F, [1, 1, 0]),
+        ([S, R, S], R, [1, 1, 0]),
+        ([F, S, S], F, [1, 0, 0]),
+        ([], S, []),
+    ],
+)
+def test_sequence_results(results: list[State], expected: State, ticked: list[int]) -> None:
+    kids = leaves(*results)
+    tree = Tree(Sequence("seq", children=kids))
+    assert tree.tick() is expected
+    assert ticks(kids) == ticked
+
+
+@pytest.mark.parametrize(
+    ("results", "expected", "ticked"),
+    [
+        ([F, F, F], F, [1, 1, 1]),
+        ([F, S, F], S, [1, 1, 0]),
+        ([F, R, F], R, [1, 1, 0]),
+        ([S, F, F], S, [1, 0, 0]),
+        ([], F, []),
+    ],
+)
+def test_fallback_results(results: list[State], expected: State, ticked: list[int]) -> None:
+    kids = leaves(*results)
+    tree = Tree(Fallback("fb", children=kids))
+    assert tree.tick() is expected
+    assert ticks(kids) == ticked
+
+
+@pytest.mark.parametrize("kind", [Sequence, Fallback])
+def test_reactive_composites_retick_from_the_first_child(kind: type[Node]) -> None:
+    first = S if kind is Sequence else F
+    kids = leaves(first, first, R)
+    tree = Tree(kind("c", children=kids))
+    for _ in range(3):
+        assert tree.tick() is R
+    assert ticks(kids) == [3, 3, 3]
+
+
+@pytest.mark.parametrize("kind", [Sequence, Fallback])
+@pytest.mark.parametrize("waiting", WAITING)
+def test_waiting_children_count_as_running(kind: type[Node], waiting: State) -> None:
+    first = S if kind is Sequence else F
+    kids = leaves(first, waiting, first)
+    tree = Tree(kind("c", children=kids))
+    assert tree.tick() is R
+    assert kids[1].state is waiting
+    assert ticks(kids) == [1, 1, 0]
+
+
+def test_error_child_counts_as_failed_and_keeps_its_error() -> None:
+    bad = Leafy("bad", ValueError("boom"))
+    seq_kids = [bad, Leafy("after")]
+    tree = Tree(Sequence("seq", children=seq_kids))
+    with capture_logs():
+        assert tree.tick() is F
+    assert bad.state is State.ERROR
+    assert isinstance(bad.error, ValueError)
+    assert seq_kids[1].ticks == 0
+
+    bad2 = Leafy("bad", ValueError("boom"))
+    fb = Tree(Fallback("fb", children=[bad2, Leafy("next", S)]))
+    with capture_logs():
+        assert fb.tick() is S
+    assert bad2.state is State.ERROR
+
+
+@pytest.mark.parametrize("kind", [Sequence, Fallback])
+@pytest.mark.parametrize("waiting", [State.RUNNING, State.UNASSIGNED, State.ASSIGNED])
+def test_earlier_child_running_unticks_the_later_running_child(
+    kind: type[Node], waiting: State
+) -> None:
+    first = S if kind is Sequence else F
+    a, b, c = leaves(first, first, waiting)
+    tree = Tree(kind("c", children=[a, b, c]))
+    assert tree.tick() is R
+    assert c.state is waiting
+    b.result = R
+    assert tree.tick() is R
+    assert c.state is State.PAUSED
+    assert c.unticks == 1
+    assert b.state is R
+    assert c.ticks == 1
+    a.result = R
+    assert tree.tick() is R
+    assert b.state is State.PAUSED
+    assert ticks([a, b, c]) == [3, 2, 1]
+
+
+@pytest.mark.parametrize("kind", [Sequence, Fallback])
+def test_earlier_child_finishing_unticks_the_later_running_child(kind: type[Node]) -> None:
+    first, stop = (S, F) if kind is Sequence else (F, S)
+    a, b = leaves(first, R)
+    tree = Tree(kind("c", children=[a, b]))
+    assert tree.tick() is R
+    a.result = stop
+    assert tree.tick() is stop
+    assert b.state is State.PAUSED
+    assert b.unticks == 1
+
+
+def test_finished_later_children_are_not_unticked() -> None:
+    a, b, c = leaves(S, S, S)
+    tree = Tree(Sequence("seq", children=[a, b, c]))
+    assert tree.tick() is S
+    a.result = R
+    assert tree.tick() is R
+    assert [b.unticks, c.unticks] == [0, 0]
+    assert states([b, c]) == [S, S]
+
+
+async def test_preempted_action_is_paused_and_its_task_cancelled() -> None:
+    with anyio.fail_after(5):
+        seen: list[str] = []
+
+        async def move() -> None:
+            seen.append("started")
+            try:
+                await asyncio.sleep(100)
+            except asyncio.CancelledError:
+                seen.append("cancelled")
+                raise
+
+        guard = Leafy("guard", S)
+        act = Action(move, "move")
+        tree = Tree(Sequence("seq", children=[guard, act]))
+        assert tree.tick() is R
+        await settle()
+        assert seen == ["started"]
+        guard.result = R
+        assert tree.tick() is R
+        assert act.state is State.PAUSED
+        await settle()
+        assert seen == ["started", "cancelled"]
+        await tree.shutdown()
+
+
+# -- with memory -------------------------------------------------------------------------
+
+
+def test_sequence_with_memory_skips_succeeded_children() -> None:
+    a, b, c = leaves(S, R, S)
+    tree = Tree(SequenceWithMemory("seq", children=[a, b, c]))
+    assert tree.tick() is R
+    assert tree.tick() is R
+    assert ticks([a, b, c]) == [1, 2, 0]
+    a.result = F  # no longer looked at
+    b.result = S
+    assert tree.tick() is S
+    assert ticks([a, b, c]) == [1, 3, 1]
+    assert tree.tick() is F  # starts over from the first child
+    assert ticks([a, b, c]) == [2, 3, 1]
+
+
+def test_sequence_with_memory_failure_starts_over() -> None:
+    a, b = leaves(S, F)
+    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+    assert tree.tick() is F
+    assert tree.tick() is F
+    assert ticks([a, b]) == [2, 2]
+
+
+def test_fallback_with_memory_skips_failed_children() -> None:
+    a, b, c = leaves(F, R, S)
+    tree = Tree(FallbackWithMemory("fb", children=[a, b, c]))
+    assert tree.tick() is R
+    a.result = S  # no longer looked at
+    assert tree.tick() is R
+    assert ticks([a, b, c]) == [1, 2, 0]
+    b.result = F
+    assert tree.tick() is S
+    assert ticks([a, b, c]) == [1, 3, 1]
+    assert tree.tick() is S
+    assert ticks([a, b, c]) == [2, 3, 1]
+
+
+@pytest.mark.parametrize("kind", [SequenceWithMemory, FallbackWithMemory])
+def test_memory_counts_error_as_failure(kind: type[Node]) -> None:
+    bad = Leafy("bad", RuntimeError("x"))
+    other = Leafy("other", S)
+    tree = Tree(kind("m", children=[bad, other]))
+    with capture_logs():
+        result = tree.tick()
+    assert result is (F if kind is SequenceWithMemory else S)
+    assert other.ticks == (0 if kind is SequenceWithMemory else 1)
+
+
+@pytest.mark.parametrize("waiting", WAITING)
+def test_memory_waiting_children_count_as_running(waiting: State) -> None:
+    a, b = leaves(S, waiting)
+    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+    assert tree.tick() is R
+    assert tree.tick() is R
+    assert ticks([a, b]) == [1, 2]
+
+
+def test_memory_resumes_after_untick_and_forgets_on_reset() -> None:
+    a, b = leaves(S, R)
+    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+    tree.tick()
+    tree.untick()
+    assert states([a, b]) == [S, State.PAUSED]
+    tree.tick()
+    assert ticks([a, b]) == [1, 2]
+    tree.reset()
+    tree.tick()
+    assert ticks([a, b]) == [2, 3]
+
+
+# -- Parallel ---------------------------------------------------------------------------
+
+
+def test_parallel_default_needs_every_child() -> None:
+    a, b, c = leaves(S, R, R)
+    tree = Tree(Parallel("par", children=[a, b, c]))
+    assert tree.tick() is R
+    b.result = S
+    assert tree.tick() is R
+    assert ticks([a, b, c]) == [1, 2, 2]  # finished children are not ticked again
+    c.result = S
+    assert tree.tick() is S
+    assert ticks([a, b, c]) == [1, 2, 3]
+
+
+def test_parallel_default_fails_as_soon_as_one_child_fails() -> None:
+    a, b, c = leaves(R, F, R)
+    tree = Tree(Parallel("par", children=[a, b, c]))
+    assert tree.tick() is F
+    assert states([a, b, c]) == [State.PAUSED, F, State.PAUSED]
+    assert [a.unticks, c.unticks] == [1, 1]
+
+
+@pytest.mark.parametrize(
+    ("success", "failure", "results", "expected"),
+    [
+        (1, None, [R, S, R], S),
+        (1, None, [F, F, R], R),  # success still possible
+        (1, None, [F, F, F], F),
+        (2, None, [F, R, R], R),
+        (2, None, [F, F, R], F),  # default failure threshold: 3 - 2 + 1 = 2
+        (2, 1, [F, R, R], F),
+        (None, 3, [F, F, R], R),
+        (None, 3, [F, S, S], R),  # not all succeeded, and only one failed
+        (0, None, [R, R, R], S),
+        (3, 2, [S, S, S], S),
+    ],
+)
+def test_parallel_thresholds(
+    success: int | None, failure: int | None, results: list[State], expected: State
+) -> None:
+    kids = leaves(*results)
+    par = Parallel("par", children=kids, success_threshold=success, failure_threshold=failure)
+    tree = Tree(par)
+    assert tree.tick() is expected
+    if expected is not R:
+        assert State.RUNNING not in states(kids)
+
+
+def test_parallel_children_running_at_success_are_unticked() -> None:
+    a, b = leaves(S, R)
+    tree = Tree(Parallel("par", children=[a, b], success_threshold=1))
+    assert tree.tick() is S
+    assert b.state is State.PAUSED
+    assert b.unticks == 1
+
+
+def test_parallel_reticked_after_finishing_restarts() -> None:
+    a, b = leaves(S, S)
+    tree = Tree(Parallel("par", children=[a, b]))
+    assert tree.tick() is S
+    b.result = R
+    assert tree.tick() is R
+    assert ticks([a, b]) == [2, 2]
+
+
+def test_parallel_resumes_after_untick() -> None:
+    a, b = leaves(S, R)
+    tree = Tree(Parallel("par", children=[a, b]))
+    tree.tick()
+    tree.untick()
+    assert b.state is State.PAUSED
+    tree.tick()
+    assert ticks([a, b]) == [1, 2]
+    tree.reset()
+    tree.tick()
+    assert ticks([a, b]) == [2, 3]
+
+
+@pytest.mark.parametrize("waiting", [State.UNASSIGNED, State.ASSIGNED, State.PAUSED])
+def test_parallel_waiting_children_count_as_running(waiting: State) -> None:
+    a, b = leaves(S, waiting)
+    tree = Tree(Parallel("par", children=[a, b]))
+    assert tree.tick() is R
+    b.result = S
+    assert tree.tick() is S
+
+
+def test_parallel_error_counts_as_failure() -> None:
+    bad = Leafy("bad", RuntimeError("x"))
+    tree = Tree(Parallel("par", children=[bad, Leafy("ok", R)]))
+    with capture_logs():
+        assert tree.tick() is F
+
+
+@pytest.mark.parametrize(("success", "failure"), [(3, None), (-1, None), (1, 0)])
+def test_parallel_bad_thresholds_fail_setup(success: int, failure: int | None) -> None:
+    par = Parallel(
+        "par", children=leaves(S, S), success_threshold=success, failure_threshold=failure
+    )
+    with capture_logs(), pytest.raises(TreeError, match="success_threshold must be within 0..2"):
+        Tree(par).tick()
+
+
+# -- IfThenElse -----------------------------------------------------------------------
+
+
+def test_if_then_else_takes_the_branch_of_the_condition() -> None:
+    cond, then, other = Leafy("cond", S), Leafy("then", R), Leafy("else", R)
+    tree = Tree(IfThenElse("ite", children=[cond, then, other]))
+    assert tree.tick() is R
+    assert ticks([cond, then, other]) == [1, 1, 0]
+    then.result = F
+    assert tree.tick() is F
+    cond.result = F
+    other.result = S
+    assert tree.tick() is S
+    assert ticks([cond, then, other]) == [3, 2, 1]
+
+
+def test_if_then_else_switching_branch_unticks_the_other() -> None:
+    cond, then, other = Leafy("cond", S), Leafy("then", R), Leafy("else", R)
+    tree = Tree(IfThenElse("ite", children=[cond, then, other]))
+    tree.tick()
+    cond.result = F
+    assert tree.tick() is R
+    assert then.state is State.PAUSED
+    assert other.state is R
+    cond.result = S
+    assert tree.tick() is R
+    assert other.state is State.PAUSED
+    assert then.state is R
+
+
+def test_if_then_else_running_condition_pauses_both_branches() -> None:
+    cond, then, other = Leafy("cond", S), Leafy("then", R), Leafy("else", R)
+    tree = Tree(IfThenElse("ite", children=[cond, then, other]))
+    tree.tick()
+    cond.result = State.UNASSIGNED
+    assert tree.tick() is R
+    assert then.state is State.PAUSED
+    assert ticks([cond, then, other]) == [2, 1, 0]
+
+
+def test_if_then_without_else_fails_when_the_condition_fails() -> None:
+    cond, then = Leafy("cond", F), Leafy("then", S)
+    tree = Tree(IfThenElse("ite", children=[cond, then]))
+    assert tree.tick() is F
+    assert then.ticks == 0
+    cond.result = State.ERROR
+    assert tree.tick() is F
+    cond.result = S
+    assert tree.tick() is S
+
+
+@pytest.mark.parametrize("waiting", WAITING)
+def test_if_then_else_branch_waiting_counts_as_running(waiting: State) -> None:
+    tree = Tree(IfThenElse("ite", children=[Leafy("c", S), Leafy("t", waiting)]))
+    assert tree.tick() is R
+
+
+def test_if_then_else_child_count() -> None:
+    with pytest.raises(TreeError, match="at most 3 children"):
+        IfThenElse("ite", children=leaves(S, S, S, S))
+    tree = Tree(IfThenElse("ite", children=leaves(S)))
+    with pytest.raises(TreeError, match=r"'ite' \(IfThenElse\) has 1 children; expected 2 to 3"):
+        tree.tick()
+
+
+# -- Switch -----------------------------------------------------------------------------
+
+
+def test_switch_ticks_the_matching_case() -> None:
+    a, b, c = leaves(S, F, R)
+    sw = Switch("sw", children=[a, b, c], cases=["a", "b", "c"])
+    tree = Tree(sw)
+    for value, expected in [("a", S), ("b", F), ("c", R)]:
+        sw.set_input("value", value)
+        assert tree.tick() is expected
+    assert ticks([a, b, c]) == [1, 1, 1]
+
+
+def test_switch_without_a_match_fails_or_takes_the_default() -> None:
+    a, b = leaves(S, S)
+    sw = Switch("sw", children=[a, b], cases=[1, 2])
+    tree = Tree(sw)
+    sw.set_input("value", 3)
+    assert tree.tick() is F
+    assert ticks([a, b]) == [0, 0]
+
+    a, default = leaves(F, S)
+    sw = Switch("sw", children=[a, default], cases=[1])
+    tree = Tree(sw)
+    sw.set_input("value", 1)
+    assert tree.tick() is F
+    sw.set_input("value", 99)
+    assert tree.tick() is S
+    assert ticks([a, default]) == [1, 1]
+
+
+def test_switch_changing_branch_unticks_the_old_one() -> None:
+    a, b = leaves(R, R)
+    sw = Switch("sw", children=[a, b], cases=["a"])
+    tree = Tree(sw)
+    sw.set_input("value", "a")
+    tree.tick()
+    sw.set_input("value", "other")
+    assert tree.tick() is R
+    assert a.state is State.PAUSED
+    assert b.state is R
+    sw.set_input("value", "nothing")  # still the default: b keeps running
+    tree.tick()
+    assert b.state is R
+    assert b.unticks == 0
+
+
+def test_switch_no_match_unticks_the_old_branch() -> None:
+    a, b = leaves(R, R)
+    sw = Switch("sw", children=[a, b], cases=["a", "b"])
+    tree = Tree(sw)
+    sw.set_input("value", "a")
+    tree.tick()
+    sw.set_input("value", "z")
+    assert tree.tick() is F
+    assert a.state is State.PAUSED
+
+
+def test_switch_value_from_a_wire() -> None:
+    sw = Switch("sw", children=leaves(F, S), cases=[1, 2])
+    tree = Tree(Sequence("root", children=[Constant("k", value=2, type=int), sw]))
+    tree.wire("root/k", "value", "root/sw", "value")
+    assert tree.tick() is S
+
+
+@pytest.mark.parametrize("cases", [[], [1, 2, 3, 4]])
+def test_switch_wrong_number_of_cases_fails_setup(cases: list[int]) -> None:
+    tree = Tree(Switch("sw", children=leaves(S, S), cases=cases))
+    with capture_logs(), pytest.raises(TreeError, match="cases for 2 children; expected 2 or 1"):
+        tree.tick()
+
+
+def test_switch_needs_cases() -> None:
+    with pytest.raises(TreeError, match="option 'cases'"):
+        Switch("sw", children=leaves(S))
+
+
+# -- nesting ----------------------------------------------------------------------------
+
+
+def test_nested_halting_reaches_grandchildren() -> None:
+    guard = Leafy("guard", S)
+    deep = Leafy("deep", R)
+    inner = Sequence("inner", children=[Leafy("x", S), deep])
+    tree = Tree(Fallback("root", children=[Leafy("never", F), Sequence("s", children=[guard, inner])]))
+    assert tree.tick() is R
+    guard.result = R
+    tree.tick()
+    assert inner.state is State.PAUSED
+    assert deep.state is State.PAUSED
+    assert deep.unticks == 1
+
+
+def test_always_leaves_in_composites() -> None:
+    assert Tree(Sequence("s", children=[AlwaysSuccess(), AlwaysRunning()])).tick() is R
+    assert Tree(Fallback("f", children=[AlwaysFailure(), AlwaysSuccess()])).tick() is S

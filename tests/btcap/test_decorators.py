@@ -1,0 +1,375 @@
+"""Decorators: remapping, retrying, repeating, timing (on a ManualClock) and running once."""
+
+from __future__ import annotations
+
+import anyio
+import pytest
+from structlog.testing import capture_logs
+
+from actors import ManualClock
+from btcap import (
+    Delay,
+    FailureIsRunning,
+    ForceFailure,
+    ForceSuccess,
+    Inverter,
+    Leaf,
+    Node,
+    Repeat,
+    RepeatUntilFailure,
+    RepeatUntilSuccess,
+    Retry,
+    RunningIsFailure,
+    RunningIsSuccess,
+    RunOnce,
+    SuccessIsRunning,
+    Throttle,
+    Timeout,
+    Tree,
+    TreeError,
+)
+from btcap import State as St
+from btcap.decorators import Decorator
+
+S, F, R = St.SUCCEEDED, St.FAILED, St.RUNNING
+
+
+class Leafy(Leaf):
+    """Returns the next scripted result (the last one repeats); counts ticks and resets."""
+
+    def __init__(self, *script: St, name: str = "child") -> None:
+        super().__init__(name)
+        self.script = list(script)
+        self.ticks = 0
+        self.resets = 0
+
+    def on_tick(self) -> St:
+        self.ticks += 1
+        if len(self.script) > 1:
+            return self.script.pop(0)
+        return self.script[0]
+
+    def on_reset(self) -> None:
+        self.resets += 1
+
+
+def run(tree: Tree, n: int) -> list[St]:
+    return [tree.tick() for _ in range(n)]
+
+
+# -- remapping --------------------------------------------------------------------------
+
+REMAPS: dict[type[Decorator], dict[St, St]] = {
+    Inverter: {S: F, F: S, R: R},
+    ForceSuccess: {S: S, F: S, R: R},
+    ForceFailure: {S: F, F: F, R: R},
+    RunningIsSuccess: {S: S, F: F, R: S},
+    RunningIsFailure: {S: S, F: F, R: F},
+    SuccessIsRunning: {S: R, F: F, R: R},
+    FailureIsRunning: {S: S, F: R, R: R},
+}
+# How each child state is seen by a decorator: waiting counts as running, error as failure.
+SEEN = {
+    S: S,
+    F: F,
+    R: R,
+    St.UNASSIGNED: R,
+    St.ASSIGNED: R,
+    St.PAUSED: R,
+    St.ERROR: F,
+}
+
+
+@pytest.mark.parametrize("kind", list(REMAPS), ids=lambda k: k.__name__)
+@pytest.mark.parametrize("child_state", list(SEEN), ids=lambda s: s.value)
+def test_remapping_decorators(kind: type[Decorator], child_state: St) -> None:
+    child = Leafy(child_state)
+    tree = Tree(kind("dec", children=[child]))
+    assert tree.tick() is REMAPS[kind][SEEN[child_state]]
+    assert child.state is child_state
+
+
+def test_decorator_counts_error_of_a_raising_child_as_failure() -> None:
+    class Boom(Leaf):
+        def on_tick(self) -> St:
+            raise RuntimeError("boom")
+
+    tree = Tree(Inverter("inv", children=[Boom("boom")]))
+    with capture_logs():
+        assert tree.tick() is S
+    assert tree.errors()[0].name == "boom"
+
+
+@pytest.mark.parametrize("kind", [Inverter, Retry, Repeat, Timeout, RunOnce])
+def test_decorators_need_exactly_one_child(kind: type[Node]) -> None:
+    opts = {"seconds": 1.0} if kind is Timeout else {}
+    with pytest.raises(TreeError, match="at most 1 children"):
+        kind("d", children=[Leafy(S, name="a"), Leafy(S, name="b")], **opts)
+    tree = Tree(kind("d", **opts))
+    with pytest.raises(TreeError, match="has 0 children; expected 1 to 1"):
+        tree.tick()
+
+
+def test_decorator_child_property() -> None:
+    child = Leafy(S)
+    assert Inverter("inv", children=[child]).child is child
+
+
+# -- retry / repeat -----------------------------------------------------------------------
+
+
+def test_retry_re_runs_a_failing_child() -> None:
+    child = Leafy(F, F, S)
+    tree = Tree(Retry("retry", children=[child], retries=2))
+    assert run(tree, 3) == [R, R, S]
+    assert child.ticks == 3
+    assert child.resets == 2  # fresh start for every new attempt
+
+
+def test_retry_gives_up_after_the_retries() -> None:
+    child = Leafy(F)
+    tree = Tree(Retry("retry", children=[child], retries=2))
+    assert run(tree, 3) == [R, R, F]
+    assert child.ticks == 3
+    assert run(tree, 3) == [R, R, F]  # the count starts over
+
+
+def test_retry_default_is_one_retry_and_running_passes_through() -> None:
+    child = Leafy(R, F, R, F)
+    tree = Tree(Retry("retry", children=[child]))
+    assert run(tree, 4) == [R, R, R, F]
+
+
+def test_retry_success_resets_the_count() -> None:
+    child = Leafy(F, S, F, S)
+    tree = Tree(Retry("retry", children=[child], retries=1))
+    assert run(tree, 4) == [R, S, R, S]
+
+
+def test_retry_counts_errors_as_failures() -> None:
+    class Flaky(Leaf):
+        def __init__(self) -> None:
+            super().__init__("flaky")
+            self.calls = 0
+
+        def on_tick(self) -> St:
+            self.calls += 1
+            if self.calls == 1:
+                raise OSError("transient")
+            return S
+
+    flaky = Flaky()
+    tree = Tree(Retry("retry", children=[flaky], retries=1))
+    with capture_logs():
+        assert run(tree, 2) == [R, S]
+    assert flaky.error is None  # reset between attempts
+
+
+def test_repeat_n_times() -> None:
+    child = Leafy(S)
+    tree = Tree(Repeat("rep", children=[child], times=3))
+    assert run(tree, 3) == [R, R, S]
+    assert child.resets == 2
+    assert run(tree, 3) == [R, R, S]
+
+
+def test_repeat_waits_for_a_running_child_and_fails_on_failure() -> None:
+    child = Leafy(R, S, F)
+    tree = Tree(Repeat("rep", children=[child], times=3))
+    assert run(tree, 3) == [R, R, F]
+
+
+def test_repeat_default_once() -> None:
+    assert Tree(Repeat("rep", children=[Leafy(S)])).tick() is S
+
+
+def test_repeat_forever() -> None:
+    child = Leafy(S)
+    tree = Tree(Repeat("rep", children=[child], times=-1))
+    assert set(run(tree, 200)) == {R}
+    assert child.ticks == 200
+
+
+def test_repeat_until_success() -> None:
+    child = Leafy(F, F, R, S)
+    tree = Tree(RepeatUntilSuccess("rus", children=[child]))
+    assert run(tree, 4) == [R, R, R, S]
+
+
+def test_repeat_until_success_unbounded() -> None:
+    tree = Tree(RepeatUntilSuccess("rus", children=[Leafy(F)]))
+    assert set(run(tree, 100)) == {R}
+
+
+def test_repeat_until_success_max_attempts() -> None:
+    child = Leafy(F)
+    tree = Tree(RepeatUntilSuccess("rus", children=[child], max_attempts=3))
+    assert run(tree, 3) == [R, R, F]
+    assert child.ticks == 3
+    assert run(tree, 3) == [R, R, F]
+
+
+def test_repeat_until_failure() -> None:
+    child = Leafy(S, R, S, F)
+    tree = Tree(RepeatUntilFailure("ruf", children=[child]))
+    assert run(tree, 4) == [R, R, R, S]
+
+
+def test_repeat_until_failure_max_attempts() -> None:
+    child = Leafy(S)
+    tree = Tree(RepeatUntilFailure("ruf", children=[child], max_attempts=2))
+    assert run(tree, 2) == [R, F]
+
+
+def test_counts_are_forgotten_on_reset() -> None:
+    tree = Tree(Repeat("rep", children=[Leafy(S)], times=2))
+    assert tree.tick() is R
+    tree.reset()
+    assert run(tree, 2) == [R, S]
+
+
+@pytest.mark.parametrize(
+    ("kind", "option", "value"),
+    [(Retry, "retries", "x"), (Repeat, "times", 1.5), (RepeatUntilSuccess, "max_attempts", "a")],
+)
+def test_counting_options_are_type_checked(kind: type[Node], option: str, value: object) -> None:
+    with pytest.raises(TreeError, match=f"option '{option}': expected int"):
+        kind("d", children=[Leafy(S)], **{option: value})
+
+
+# -- time -------------------------------------------------------------------------------
+
+
+async def test_timeout_fails_and_unticks_a_slow_child() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(R)
+        tree = Tree(Timeout("to", children=[child], seconds=2), clock=clock)
+        assert tree.tick() is R
+        await clock.advance(1.9)
+        assert tree.tick() is R
+        assert child.ticks == 2
+        await clock.advance(0.1)
+        assert tree.tick() is F
+        assert child.state is St.PAUSED
+        assert child.ticks == 2
+        # A new tick starts a new period.
+        assert tree.tick() is R
+        await clock.advance(1.0)
+        assert tree.tick() is R
+
+
+async def test_timeout_passes_a_timely_result_through() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(R, R, S)
+        tree = Tree(Timeout("to", children=[child], seconds=2), clock=clock)
+        assert tree.tick() is R
+        await clock.advance(1.5)
+        assert tree.tick() is R
+        assert tree.tick() is S
+        await clock.advance(1.0)  # the period started over when the child finished
+        child.script = [F]
+        assert tree.tick() is F
+
+
+async def test_timeout_restarts_after_untick_and_reset() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        tree = Tree(Timeout("to", children=[Leafy(R)], seconds=2), clock=clock)
+        tree.tick()
+        await clock.advance(1.5)
+        tree.untick()
+        assert tree.tick() is R
+        await clock.advance(1.5)
+        assert tree.tick() is R
+        tree.reset()
+        await clock.advance(1.9)
+        assert tree.tick() is R
+
+
+async def test_delay_waits_before_ticking_the_child() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(S)
+        tree = Tree(Delay("delay", children=[child], seconds=1.5), clock=clock)
+        assert tree.tick() is R
+        await clock.advance(1.0)
+        assert tree.tick() is R
+        assert child.ticks == 0
+        await clock.advance(0.5)
+        assert tree.tick() is S
+        assert child.ticks == 1
+        assert tree.tick() is R  # the next run waits again
+        await clock.advance(1.5)
+        assert tree.tick() is S
+
+
+async def test_delay_keeps_ticking_a_running_child() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(R, R, F)
+        tree = Tree(Delay("delay", children=[child], seconds=1), clock=clock)
+        tree.tick()
+        await clock.advance(1)
+        assert run(tree, 3) == [R, R, F]
+
+
+async def test_delay_forgets_on_reset() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        tree = Tree(Delay("delay", children=[Leafy(S)], seconds=1), clock=clock)
+        tree.tick()
+        await clock.advance(0.9)
+        tree.reset()
+        await clock.advance(0.2)
+        assert tree.tick() is R
+
+
+async def test_throttle_limits_child_ticks_and_repeats_its_state() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(R, S)
+        tree = Tree(Throttle("thr", children=[child], rate_hz=2), clock=clock)
+        assert tree.tick() is R
+        assert tree.tick() is R
+        await clock.advance(0.4)
+        assert tree.tick() is R
+        assert child.ticks == 1
+        await clock.advance(0.1)
+        assert tree.tick() is S
+        assert child.ticks == 2
+        assert tree.tick() is S  # repeated without a tick
+        assert child.ticks == 2
+        await clock.advance(0.5)
+        tree.tick()
+        assert child.ticks == 3
+
+
+@pytest.mark.parametrize("rate", [0, -1.0])
+def test_throttle_rate_must_be_positive(rate: float) -> None:
+    with pytest.raises(TreeError, match="rate_hz must be > 0"):
+        Throttle("thr", children=[Leafy(S)], rate_hz=rate)
+
+
+@pytest.mark.parametrize("kind", [Timeout, Delay])
+def test_time_options_are_required_and_checked(kind: type[Node]) -> None:
+    with pytest.raises(TreeError, match=r"option 'seconds' \(float\) is required"):
+        kind("d", children=[Leafy(S)])
+    with pytest.raises(TreeError, match="option 'seconds': expected float, got str"):
+        kind("d", children=[Leafy(S)], seconds="soon")
+    assert kind("d", children=[Leafy(S)], seconds=2).options["seconds"] == 2.0
+
+
+# -- run once ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("result", [S, F])
+def test_run_once_keeps_the_first_result(result: St) -> None:
+    child = Leafy(R, result, S if result is F else F)
+    tree = Tree(RunOnce("once", children=[child]))
+    assert run(tree, 4) == [R, result, result, result]
+    assert child.ticks == 2
+    tree.reset()
+    assert tree.tick() is child.script[0]
+    assert child.ticks == 3
