@@ -101,13 +101,34 @@ def _collect_handlers(cls: type[Actor]) -> dict[type[Any], _Handler]:
     return table
 
 
+def _reply(reply: Reply, result: Any) -> None:
+    """Answer an ask; a Future result is a deferred reply, sent when it resolves.
+
+    Handlers return a Future to answer later (a motion that ends in a minute) without
+    keeping the actor busy meanwhile.
+    """
+    if isinstance(result, asyncio.Future):
+        result.add_done_callback(lambda f: _settle(reply, f))
+    else:
+        reply(result, None)
+
+
+def _settle(reply: Reply, fut: asyncio.Future[Any]) -> None:
+    if fut.cancelled():
+        reply(None, ActorFailed("?", "Cancelled", "the deferred reply was cancelled"))
+    elif (exc := fut.exception()) is not None:
+        reply(None, exc)
+    else:
+        reply(fut.result(), None)
+
+
 class Actor:
     """Base class of everything addressable: BT nodes, slots, repositories, auctioneers.
 
     An actor handles one message at a time, in arrival order per sender. When it is idle,
     a local sender's message is handled by a direct call (no queue, no task switch); when
     it is busy, or the handler is async, the message waits in a bounded mailbox drained by
-    a task of the system.
+    a task of the system. A handler may return an ``asyncio.Future`` to reply later.
     """
 
     __slots__ = ("_address", "_busy", "_mailbox", "_parent", "_restarts", "_system", "_tasks")
@@ -214,7 +235,7 @@ class Actor:
         else:
             self._busy = False
             if reply is not None:
-                reply(result, None)
+                _reply(reply, result)
         if self._mailbox and self._system is not None:
             self._schedule_drain()
 
@@ -294,7 +315,7 @@ class Actor:
                     self._failed(exc, msg, reply)
                 else:
                     if reply is not None:
-                        reply(result, None)
+                        _reply(reply, result)
         finally:
             self._busy = False
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
 
 from transports.message import Address
@@ -48,11 +49,21 @@ class ActorRef(Generic[A]):
             self._system.tell(self.address, msg, sender=sender)
 
     @overload
-    async def ask(self, msg: Any, *, timeout: float | None = None) -> Any: ...
+    async def ask(self, msg: Any, *, timeout: float | None = None) -> Any: ...  # noqa: ASYNC109
     @overload
-    async def ask(self, msg: Any, *, expect: type[R], timeout: float | None = None) -> R: ...
     async def ask(
-        self, msg: Any, *, expect: type[Any] | None = None, timeout: float | None = None
+        self,
+        msg: Any,
+        *,
+        expect: type[R],
+        timeout: float | None = None,  # noqa: ASYNC109
+    ) -> R: ...
+    async def ask(
+        self,
+        msg: Any,
+        *,
+        expect: type[Any] | None = None,
+        timeout: float | None = None,  # noqa: ASYNC109 - a per-request limit is part of ask
     ) -> Any:
         """Request and await the reply (wall-clock ``timeout`` seconds).
 
@@ -63,6 +74,8 @@ class ActorRef(Generic[A]):
         actor = self._local
         if actor is not None and actor._can_call_now(msg):
             result = actor._call_now(msg)
+            if isinstance(result, asyncio.Future):
+                result = await self._system.await_deferred(self.address, msg, result, timeout)
         else:
             result = await self._system.ask(self.address, msg, timeout=timeout)
         if expect is not None and not isinstance(result, expect):

@@ -266,7 +266,13 @@ class ActorSystem:
         if include_self:
             self.tell(Address(self.id, path), msg)
 
-    async def ask(self, address: Address, msg: Any, *, timeout: float | None = None) -> Any:
+    async def ask(
+        self,
+        address: Address,
+        msg: Any,
+        *,
+        timeout: float | None = None,  # noqa: ASYNC109 - see ActorRef.ask
+    ) -> Any:
         """Request/response to any address; see :meth:`ActorRef.ask`."""
         if self._closing:
             raise SystemClosed(f"actor system {self.id} is shutting down")
@@ -278,7 +284,10 @@ class ActorSystem:
                 self._dead_letter(address, msg)
                 raise DeadLetter(f"no actor at {address}")
             if actor._can_call_now(msg):
-                return actor._call_now(msg)
+                result = actor._call_now(msg)
+                if isinstance(result, asyncio.Future):
+                    return await self.await_deferred(address, msg, result, timeout)
+                return result
             actor._receive(msg, _future_reply(fut))
         else:
             if self.transport is None:
@@ -302,6 +311,19 @@ class ActorSystem:
 
     def _forget(self, corr: int, _fut: asyncio.Future[Any]) -> None:
         self._pending.pop(corr, None)
+
+    async def await_deferred(
+        self, address: Address, msg: Any, fut: asyncio.Future[Any], timeout: float | None
+    ) -> Any:
+        """Wait for a reply a handler deferred by returning a Future (fast-path asks)."""
+        limit = self.ask_timeout if timeout is None else timeout
+        try:
+            async with asyncio.timeout(limit):
+                return await asyncio.shield(fut)
+        except TimeoutError:
+            raise AskTimeout(
+                f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
+            ) from None
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
@@ -331,6 +353,12 @@ class ActorSystem:
             return
         actor = self._actors.get(env.recipient.path)
         if actor is None:
+            if env.recipient.system == BROADCAST:
+                # A broadcast reaches systems that do not host that service: not an error.
+                self.stats.dropped["broadcast_unhandled"] = (
+                    self.stats.dropped.get("broadcast_unhandled", 0) + 1
+                )
+                return
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
             if kind is Kind.ASK:
                 self._reply_remote(

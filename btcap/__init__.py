@@ -27,6 +27,16 @@ from btcap.decorators import (
     Throttle,
     Timeout,
 )
+from btcap.files import (
+    TreeFile,
+    TreeFileError,
+    dump_tree,
+    dumps_tree,
+    load_tree,
+    loads_tree,
+    save_tree,
+    validate_file,
+)
 from btcap.leaves import (
     Action,
     AlwaysFailure,
@@ -41,6 +51,8 @@ from btcap.leaves import (
 from btcap.node import Leaf, Node, Observer
 from btcap.ports import Port
 from btcap.protocol import protocol_registry
+from btcap.registry import NodeRegistry, RegistryError, default_registry
+from btcap.render import render_dot, render_text
 from btcap.state import IllegalTransition, State, TreeError
 from btcap.tree import Subtree, Tree, Wire
 from btcap.utility import Utility
@@ -57,9 +69,9 @@ __all__ = [
     "Constant",
     "Decorator",
     "Delay",
+    "FailureIsRunning",
     "Fallback",
     "FallbackWithMemory",
-    "FailureIsRunning",
     "ForceFailure",
     "ForceSuccess",
     "IfThenElse",
@@ -68,9 +80,11 @@ __all__ = [
     "Leaf",
     "Log",
     "Node",
+    "NodeRegistry",
     "Observer",
     "Parallel",
     "Port",
+    "RegistryError",
     "Repeat",
     "RepeatUntilFailure",
     "RepeatUntilSuccess",
@@ -88,8 +102,19 @@ __all__ = [
     "Timeout",
     "Tree",
     "TreeError",
+    "TreeFile",
+    "TreeFileError",
     "Utility",
     "Wait",
     "Wire",
+    "default_registry",
+    "dump_tree",
+    "dumps_tree",
+    "load_tree",
+    "loads_tree",
     "protocol_registry",
+    "render_dot",
+    "render_text",
+    "save_tree",
+    "validate_file",
 ]

@@ -4,11 +4,11 @@ mission control and a host tree with a remote capability slot."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
-from actors import ActorSystem, TimeSource
+from actors import Actor, ActorSystem, TimeSource
 from btcap.assignment import SingleItemAuction
 from btcap.capability import Implementation
 from btcap.mission import MissionConfig, MissionControl
@@ -46,6 +46,7 @@ class AgentConfig(MissionConfig):
 class Agent:
     """Everything one robot runs; use as ``async with Agent("husky1", ...) as agent``.
 
+    ``actors`` are spawned beside the runtime's own (e.g. a simulated robot's body).
     ``host`` is the robot's own tree; by default just a :class:`RemoteCapabilitySlot`,
     ticked at ``config.tick_hz`` while the agent runs. Give your own host tree that
     contains a slot to do other work beside it.
@@ -61,6 +62,7 @@ class Agent:
         config: AgentConfig | None = None,
         host: Node | None = None,
         registry: MessageRegistry | None = None,
+        actors: Mapping[str, Actor] | None = None,
     ) -> None:
         self.robot = robot
         self.config = config or AgentConfig()
@@ -83,6 +85,7 @@ class Agent:
         )
         self.host = Tree(host or RemoteCapabilitySlot(), name=f"{robot}-host", clock=self.system.clock)
         self._host_task: asyncio.Task[Any] | None = None
+        self._extra = dict(actors or {})
 
     @property
     def clock(self) -> TimeSource:
@@ -96,6 +99,8 @@ class Agent:
             s.spawn(self.repository, CapabilityRepository.PATH)
             s.spawn(self.auctioneer, SingleItemAuction.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)
+            for path, actor in self._extra.items():
+                s.spawn(actor, path)
             self.host.attach(s)
             self.host.setup()
             self._host_task = s.start_task(self._run_host(), name=f"host tree {self.robot}")

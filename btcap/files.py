@@ -190,6 +190,7 @@ def _decode(text: bytes | str, fmt: Format, where: str) -> Any:
 def _decode_detail(msg: str, text: bytes | str) -> str:
     """Make parser messages point at a line: YAML's marks, JSON's byte offsets."""
     msg = msg.replace('in "<unicode string>", ', "").replace('in "<byte string>", ', "")
+    msg = msg.removeprefix("JSON is malformed: ")
     msg = "; ".join(part.strip() for part in msg.splitlines() if part.strip())
     m = re.search(r"\(byte (\d+)\)", msg)
     if m:
@@ -345,9 +346,11 @@ def _get(value: Any, key: str | int) -> Any:
 
 def _raw_name(node: Any, fallback: str) -> str:
     if isinstance(node, dict):
-        for key in ("name", "type"):
-            if isinstance(node.get(key), str):
-                return str(node[key])
+        name = node.get("name")
+        if isinstance(name, str | int | float):
+            return str(name)
+        if name is None and isinstance(node.get("type"), str):
+            return str(node["type"])
     return fallback
 
 
@@ -407,6 +410,7 @@ class _Builder:
         self.problems: list[str] = []
         self._checked: dict[str, bool] = {}
         self._building: list[str] = []
+        self._bad_inputs: set[tuple[str, str, str]] = set()  # (ctx, path, input) reported
 
     def fail(self, msg: str) -> None:
         self.problems.append(f"{self.where}: {msg}")
@@ -451,6 +455,7 @@ class _Builder:
                     and n.inputs.get(key) is None
                     and (n.path, key) not in wired
                     and (n.path, key) not in public_in
+                    and (ctx, n.path, key) not in self._bad_inputs
                 ):
                     self.fail(
                         f"{ctx}node {n.path!r} input {key!r}: required "
@@ -474,12 +479,11 @@ class _Builder:
                 self.fail(f"{loc} field {field!r}: {value!r} is not 'node/path.port'")
         if src is None or dst is None or _under(src[0], failed) or _under(dst[0], failed):
             return
+        wired.add(dst)  # even if it fails below: a bad wire is one problem, not two
         try:
             tree.wire(src[0], src[1], dst[0], dst[1])
         except TreeError as exc:
             self.fail(f"{loc}: {exc}")
-            return
-        wired.add(dst)
 
     def _check_public(
         self, tree: Tree, public: PublicSpec, ctx: str, failed: list[str]
@@ -592,7 +596,7 @@ class _Builder:
         if node is None:
             failed.append(path)
             return None
-        self._inputs(node, spec, loc)
+        self._inputs(node, spec, loc, (ctx, path))
         self._children(node, spec, path, loc, ctx, failed)
         return node
 
@@ -681,7 +685,7 @@ class _Builder:
             self.fail(f"{loc} option 'tree': {exc}")
             return None
 
-    def _inputs(self, node: Node, spec: NodeSpec, loc: str) -> None:
+    def _inputs(self, node: Node, spec: NodeSpec, loc: str, at: tuple[str, str]) -> None:
         for key, value in spec.inputs.items():
             port = node.input_ports.get(key)
             if port is None:
@@ -697,6 +701,7 @@ class _Builder:
                 )
             except TreeError as exc:
                 self.problems.append(str(exc))
+                self._bad_inputs.add((*at, key))
 
     def _children(
         self, node: Node, spec: NodeSpec, path: str, loc: str, ctx: str, failed: list[str]
@@ -705,8 +710,11 @@ class _Builder:
         n = len(spec.children)
         lo, hi = cls.MIN_CHILDREN, cls.MAX_CHILDREN
         if n < lo or (hi is not None and n > hi):
-            want = f"exactly {lo}" if lo == hi else f"{lo} to {'any number' if hi is None else hi}"
-            self.fail(f"{loc} field 'children': {spec.type} takes {want} children, got {n}")
+            want = (
+                f"exactly {lo}" if lo == hi else f"{lo} to {'any number of' if hi is None else hi}"
+            )
+            noun = "child" if lo == hi == 1 else "children"
+            self.fail(f"{loc} field 'children': {spec.type} takes {want} {noun}, got {n}")
             failed.append(path)
         attach = path not in failed
         seen: set[str] = set()
@@ -794,6 +802,15 @@ def validate_file(path: str | os.PathLike[str], registry: NodeRegistry | None = 
 
 
 # -- dumping --------------------------------------------------------------------------
+def _lists(value: Any) -> Any:
+    """Tuples as lists, as a file would give them back (so dumps compare equal)."""
+    if isinstance(value, list | tuple):
+        return [_lists(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _lists(v) for k, v in value.items()}
+    return value
+
+
 def _same(a: Any, b: Any) -> bool:
     try:
         return bool(a == b) and type(a) is type(b)
@@ -812,7 +829,7 @@ class _Dumper:
 
     def encode(self, value: Any, loc: str) -> Any:
         try:
-            return msgspec.to_builtins(value)
+            return _lists(msgspec.to_builtins(value))
         except (TypeError, ValueError) as exc:
             self.fail(f"{loc}: value {value!r} cannot be written to a file ({exc})")
 

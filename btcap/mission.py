@@ -405,7 +405,10 @@ class MissionControl(Actor):
         try:
             inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
             run = impl.instantiate(self.system.clock)
-        except TreeError as exc:
+            # Its nodes become actors of this robot, at a path unique to the execution.
+            run.tree.name = msg.execution.replace("/", ".")
+            run.tree.attach(self.system)
+        except (TreeError, ValueError) as exc:
             return decline(str(exc))
         if remote:
             assert self.slot is not None
@@ -431,14 +434,17 @@ class MissionControl(Actor):
                 final or ExecutionStatus(msg.execution, self.robot, _LOST, {}, msg.seq, "unknown execution"),
             )
             return
+        try:
+            inputs = h.run.implementation.interface.convert_inputs(msg.inputs, f"execution {h.id}")
+        except TreeError as exc:
+            # Malformed: changes nothing (a bad seq must not make later inputs look stale).
+            log.warning("mission.bad_inputs", robot=self.robot, execution=h.id, error=str(exc))
+            return
         h.last_heard = self.system.clock.now()
         h.paused = False
         if msg.seq > h.seq:
             h.seq = msg.seq
-            try:
-                h.inputs = h.run.implementation.interface.convert_inputs(msg.inputs, f"execution {h.id}")
-            except TreeError as exc:
-                log.warning("mission.bad_inputs", robot=self.robot, execution=h.id, error=str(exc))
+            h.inputs = inputs
         # Answer at once, so the origin sees fresh state without waiting for our tick.
         self._report(h)
 

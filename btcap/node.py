@@ -65,9 +65,11 @@ class Node(Actor):
         "state",
     )
 
-    INPUTS: ClassVar[PortMap] = {}
-    OUTPUTS: ClassVar[PortMap] = {}
-    OPTIONS: ClassVar[PortMap] = {}
+    # Declared as plain types or Ports (``{"x": float}``); normalized to PortMaps on
+    # subclass creation, hence the loose annotation.
+    INPUTS: ClassVar[dict[str, Any]] = {}
+    OUTPUTS: ClassVar[dict[str, Any]] = {}
+    OPTIONS: ClassVar[dict[str, Any]] = {}
     #: Bounds on the number of children; ``None`` means unbounded.
     MIN_CHILDREN: ClassVar[int] = 0
     MAX_CHILDREN: ClassVar[int | None] = 0

@@ -13,13 +13,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
 
 from sim.distance import Cell, CellLike, as_cell, distance_field
 
 __all__ = ["GridMap", "MapError"]
 
-_FOUR_CONNECTED = ndimage.generate_binary_structure(2, 1)
+_FOUR_CONNECTED = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.bool_)
 _TEXT_CHARS = "#.SD"
 _SUFFIXES = (".npy", ".png", ".txt")
 
@@ -60,7 +59,7 @@ class GridMap:
         free.flags.writeable = False
         start = _checked_cell(free, self.start, "start", where)
         decon = _checked_cell(free, self.decon_area, "decon area", where)
-        labels, _ = ndimage.label(free, structure=_FOUR_CONNECTED)
+        labels = _components(free)
         if labels[decon] != labels[start]:
             raise MapError(f"{where}: decon area {decon} is not reachable from start {start}")
         reachable = labels == labels[start]
@@ -132,6 +131,8 @@ class GridMap:
         if iterations < 0:
             raise ValueError(f"iterations must be >= 0, got {iterations}")
         source = f"<cave {width}x{height} seed={seed}>"
+        from scipy import ndimage  # deferred: importing scipy.ndimage takes ~0.5 s
+
         rng = np.random.default_rng(seed)
         wall = (rng.random((height, width)) < fill).astype(np.uint8)
         block = np.ones((3, 3), dtype=np.uint8)
@@ -139,8 +140,8 @@ class GridMap:
             walls_around = ndimage.convolve(wall, block, mode="constant", cval=1)
             wall = (walls_around >= 5).astype(np.uint8)
         free = wall == 0
-        labels, count = ndimage.label(free, structure=_FOUR_CONNECTED)
-        if count == 0:
+        labels = _components(free)
+        if labels.max() == 0:
             raise MapError(f"{source}: no free cell (fill {fill} is too high)")
         sizes = np.bincount(labels.ravel())
         sizes[0] = 0
@@ -243,6 +244,14 @@ class GridMap:
         return picked
 
 
+def _components(free: NDArray[np.bool_]) -> NDArray[np.int32]:
+    """Label of each cell's 4-connected free component (0 for walls)."""
+    from scipy import ndimage  # deferred: importing scipy.ndimage takes ~0.5 s
+
+    labels: NDArray[np.int32] = ndimage.label(free, structure=_FOUR_CONNECTED)[0]
+    return labels
+
+
 def _checked_cell(free: NDArray[np.bool_], cell: CellLike, name: str, where: str) -> Cell:
     try:
         row, col = as_cell(cell)
@@ -260,7 +269,7 @@ def _place_endpoints(
     free: NDArray[np.bool_], start: CellLike | None, decon: CellLike | None, where: str
 ) -> tuple[Cell, Cell]:
     """Fill in a missing start (leftmost, nearest the middle) and decon area (farthest)."""
-    labels, _ = ndimage.label(free, structure=_FOUR_CONNECTED)
+    labels = _components(free)
     if start is not None:
         component = int(labels[_checked_cell(free, start, "start", where)])
     elif decon is not None:

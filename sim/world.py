@@ -47,6 +47,8 @@ class World:
     Robots are addressed by the index :meth:`add_robot` returns; indices are never reused,
     so a robot that fails and comes back keeps its identity. Speeds are given in m/s and
     stored in cells/s; a robot accumulates fractional progress and moves whole cells.
+    Each goal in use at once costs 6 bytes per map cell (distance + next hop); the slab
+    grows to the largest number of distinct goals in use and reuses freed planes.
     """
 
     _at: NDArray[np.intp]  # slab index: plane * plane_size + padded flat cell

@@ -60,6 +60,7 @@ class Worker(Noted):
         super().__init__(journal)
         self.task: asyncio.Task[None] | None = None
         self.ticks = 0
+        self.ticking = asyncio.Event()
         self.waiting = asyncio.Event()
 
     def on_start(self) -> None:
@@ -69,6 +70,7 @@ class Worker(Noted):
     async def _tick(self) -> None:
         while True:
             self.ticks += 1
+            self.ticking.set()
             await asyncio.sleep(0.001)
 
     @handler
@@ -259,11 +261,11 @@ async def test_leaving_the_block_stops_everything_and_leaves_no_tasks() -> None:
                 in_flight = asyncio.ensure_future(root.ref.ask(Wait()))
                 await root.waiting.wait()
                 queued = asyncio.ensure_future(root.ref.ask(Ping()))
-                while root.ticks < 2:
-                    await asyncio.sleep(0.001)
+                await root.ticking.wait()
                 journal.clear()
             assert own.cancelled()
-            assert root.task is not None and root.task.cancelled()
+            assert root.task is not None
+            assert root.task.cancelled()
             assert journal.index("stop root/leaf") < journal.index("stop root")
             assert sorted(journal) == sorted(
                 ["stop root/leaf", "stop root", "stop a-much-longer-top-level-name"]
@@ -293,11 +295,10 @@ async def test_a_failing_on_stop_is_logged_and_shutdown_goes_on() -> None:
 async def test_telling_during_shutdown_never_raises() -> None:
     journal: list[str] = []
     with anyio.fail_after(2), capture_logs() as logs:
-        async with no_task_left_behind():
-            async with ActorSystem("s") as system:
-                target = Worker(journal)
-                system.spawn(target, "target")
-                system.spawn(TellsOnStop(journal, target), "a-longer-name-stops-first")
+        async with no_task_left_behind(), ActorSystem("s") as system:
+            target = Worker(journal)
+            system.spawn(target, "target")
+            system.spawn(TellsOnStop(journal, target), "a-longer-name-stops-first")
     assert "stop a-longer-name-stops-first" in journal
     assert [e for e in logs if e["event"] == "actor.on_stop_failed"] == []
 
@@ -336,22 +337,28 @@ async def test_cancelling_the_users_task_closes_the_system_cleanly() -> None:
 
 async def test_a_timeout_around_the_block_closes_the_system_cleanly() -> None:
     journal: list[str] = []
+
+    async def run() -> None:
+        with anyio.fail_after(0.02):
+            async with ActorSystem("s") as system:
+                system.spawn(Worker(journal), "w")
+                await asyncio.Event().wait()
+
     with anyio.fail_after(2):
         async with no_task_left_behind():
             with pytest.raises(TimeoutError):
-                with anyio.fail_after(0.02):
-                    async with ActorSystem("s") as system:
-                        system.spawn(Worker(journal), "w")
-                        await asyncio.Event().wait()
+                await run()
     assert journal == ["start w", "stop w"]
 
 
 async def test_the_blocks_own_exception_propagates_unwrapped() -> None:
-    with anyio.fail_after(2):
-        with pytest.raises(LookupError, match="mine"):
-            async with ActorSystem("s") as system:
-                system.spawn(Noted(), "n")
-                raise LookupError("mine")
+    async def run() -> None:
+        async with ActorSystem("s") as system:
+            system.spawn(Noted(), "n")
+            raise LookupError("mine")
+
+    with anyio.fail_after(2), pytest.raises(LookupError, match="mine"):
+        await run()
 
 
 async def test_aclose_is_idempotent_and_a_system_cannot_be_entered_twice() -> None:

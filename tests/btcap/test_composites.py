@@ -385,7 +385,7 @@ def test_parallel_bad_thresholds_fail_setup(success: int, failure: int | None) -
     par = Parallel(
         "par", children=leaves(S, S), success_threshold=success, failure_threshold=failure
     )
-    with capture_logs(), pytest.raises(TreeError, match="success_threshold must be within 0..2"):
+    with capture_logs(), pytest.raises(TreeError, match=r"success_threshold must be within 0\.\.2"):
         Tree(par).tick()
 
 
@@ -538,7 +538,9 @@ def test_nested_halting_reaches_grandchildren() -> None:
     guard = Leafy("guard", S)
     deep = Leafy("deep", R)
     inner = Sequence("inner", children=[Leafy("x", S), deep])
-    tree = Tree(Fallback("root", children=[Leafy("never", F), Sequence("s", children=[guard, inner])]))
+    tree = Tree(
+        Fallback("root", children=[Leafy("never", F), Sequence("s", children=[guard, inner])])
+    )
     assert tree.tick() is R
     guard.result = R
     tree.tick()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import anyio
 import pytest
 from structlog.testing import capture_logs
@@ -102,7 +104,7 @@ def test_decorator_counts_error_of_a_raising_child_as_failure() -> None:
 
 @pytest.mark.parametrize("kind", [Inverter, Retry, Repeat, Timeout, RunOnce])
 def test_decorators_need_exactly_one_child(kind: type[Node]) -> None:
-    opts = {"seconds": 1.0} if kind is Timeout else {}
+    opts: dict[str, Any] = {"seconds": 1.0} if kind is Timeout else {}
     with pytest.raises(TreeError, match="at most 1 children"):
         kind("d", children=[Leafy(S, name="a"), Leafy(S, name="b")], **opts)
     tree = Tree(kind("d", **opts))
@@ -232,7 +234,7 @@ def test_counts_are_forgotten_on_reset() -> None:
     ("kind", "option", "value"),
     [(Retry, "retries", "x"), (Repeat, "times", 1.5), (RepeatUntilSuccess, "max_attempts", "a")],
 )
-def test_counting_options_are_type_checked(kind: type[Node], option: str, value: object) -> None:
+def test_counting_options_are_type_checked(kind: type[Node], option: str, value: Any) -> None:
     with pytest.raises(TreeError, match=f"option '{option}': expected int"):
         kind("d", children=[Leafy(S)], **{option: value})
 

@@ -59,9 +59,7 @@ def test_wavefront_equals_plain_bfs_on_caves(seed: int) -> None:
     rng = np.random.default_rng(seed)
     for goal in grid.random_free_cells(3, rng):
         cell = as_cell(goal)
-        np.testing.assert_array_equal(
-            distance_field(grid.free, cell), plain_bfs(grid.free, cell)
-        )
+        np.testing.assert_array_equal(distance_field(grid.free, cell), plain_bfs(grid.free, cell))
 
 
 def test_walls_and_other_components_are_unreachable() -> None:
@@ -79,7 +77,7 @@ def test_goal_must_be_a_free_cell(goal: tuple[int, int]) -> None:
 
 def test_grid_must_be_2d_bool() -> None:
     with pytest.raises(ValueError, match="2-D bool"):
-        distance_field(np.ones((3, 3), dtype=np.int8), (0, 0))  # type: ignore[arg-type]
+        distance_field(np.ones((3, 3), dtype=np.int8), (0, 0))
     with pytest.raises(ValueError, match="2-D bool"):
         distance_field(np.ones(3, dtype=bool), (0, 0))
 

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from contextlib import AsyncExitStack, asynccontextmanager
 
 import anyio
 import pytest
+from structlog.testing import capture_logs
 
 from actors import (
     Actor,
@@ -23,6 +24,16 @@ from actors import (
     runtime_messages,
 )
 from transports import CodecError, InProcessNetwork, MessageRegistry
+
+
+@pytest.fixture(autouse=True)
+def plain_logs() -> Iterator[None]:
+    """Capture log events (cheap) and print them plainly, shown only for a failing test."""
+    with capture_logs() as entries:
+        yield
+    for entry in entries:
+        print(entry)
+
 
 # -- messages and actors ------------------------------------------------------------------
 
@@ -172,12 +183,13 @@ async def test_remote_messages_from_one_sender_arrive_in_order() -> None:
 async def test_transport_counters_and_peers() -> None:
     net = InProcessNetwork(registry())
     with anyio.fail_after(5):
-        async with team(net, "a", "b", "c") as (a, b, c):
-            assert a.transport is not None and b.transport is not None
+        async with team(net, "a", "b", "c") as (a, b, _c):
+            assert a.transport is not None
+            assert b.transport is not None
             assert a.transport.peers() == frozenset({"b", "c"})
             await a.ref("b/peer").ask(Ping(0))
-            assert a.transport.stats.sent == 1 and a.transport.stats.received == 1
-            assert b.transport.stats.sent == 1 and b.transport.stats.received == 1
+            assert (a.transport.stats.sent, a.transport.stats.received) == (1, 1)
+            assert (b.transport.stats.sent, b.transport.stats.received) == (1, 1)
             a.ref("nowhere/peer").tell(Note("x"))  # no such system on the network
             assert a.transport.stats.undeliverable == 1
             assert a.transport.stats.by_reason == {"no peer nowhere": 1}
@@ -202,7 +214,7 @@ async def test_broadcast_reaches_every_peer_but_not_self() -> None:
             b.broadcast("nobody-here", Note("lost"))  # a missing path is a dead letter there
             await b.ref("a/peer").ask(Ping(0))
             await b.ref("c/peer").ask(Ping(0))
-            assert a.stats.dead_letters == 1 and c.stats.dead_letters == 1
+            assert (a.stats.dead_letters, c.stats.dead_letters) == (1, 1)
 
 
 # -- partitions -----------------------------------------------------------------------------
@@ -220,7 +232,8 @@ async def test_isolate_drops_traffic_both_ways_until_heal() -> None:
             a.ref("b/peer").tell(Note("lost"))
             a.broadcast("peer", Note("only c"))
             assert (await a.ref("c/peer").ask(Ping(0), expect=Pong)).n == 1  # a-c unaffected
-            assert a.transport is not None and b.transport is not None
+            assert a.transport is not None
+            assert b.transport is not None
             assert a.transport.stats.by_reason["isolated"] == 3  # ask, tell, broadcast to b
             assert b.transport.stats.by_reason["isolated"] == 1
             net.heal("b")

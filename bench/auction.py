@@ -1,0 +1,335 @@
+"""Auction round latency, remote capability tick round trip, and fail-over time.
+
+- **round_ms**: one single-item auction round, ``await auctioneer.assign(task)`` from the
+  call for bids to the accepted award, with 1, 3, 10 and 50 bidders: (a) every agent in
+  this process on an :class:`~transports.InProcessNetwork` (codec on every hop); (b) over
+  ZeroMQ tcp loopback with the bidders in other OS processes (a few processes, each
+  hosting many agents, each agent with its own actor system, socket and port). The
+  auction window is long (5 s), so a round that did not close early would show; the
+  execution each round creates is cancelled at once so the next round finds the bidders
+  free.
+- **remote_tick_ms**: the origin's ``tree.tick()`` sends inputs (seq n) to an executor in
+  another process; timed until ``execution.acked >= n`` (the executor's status for them
+  arrived back).
+- **failover_s**: the executing robot's process is SIGKILLed; timed until the capability
+  runs again on another robot (its execution is set, on another robot, and running), at
+  speed-up 1 with the default :class:`~btcap.agent.AgentConfig`.
+
+Run ``python -m bench auction [--quick]`` or ``python -m bench.auction [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import gc
+import itertools
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from actors import Address
+from bench.common import percentiles, write_result
+from btcap import Sequence as SequenceNode
+from btcap.agent import Agent, AgentConfig
+from btcap.assignment import AssignmentTask
+from btcap.demo import ECHO, implementations
+from btcap.launch import AgentProcess, AgentSpec, spawn_agents
+from btcap.messages import CancelExecution
+from btcap.mission import MissionControl, RemoteExecution
+from btcap.protocol import protocol_registry
+from btcap.state import State
+from transports import InProcessNetwork, ZmqTransport
+
+__all__ = ["run"]
+
+BIDDERS = (1, 3, 10, 50)
+WINDOW_S = 5.0  # long, so an auction that did not close early would show
+MISSION_TICK_HZ = 100.0  # how often the origin ticks its tree while waiting for fail-over
+_INPUTS = {"value": 1, "stop": False}
+_LOCAL = "127.0.0.1"
+
+
+async def _until(cond: Any, timeout: float, what: str, step: float = 0.01) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"bench auction: {what} within {timeout} s")
+        await asyncio.sleep(step)
+
+
+# -- auction rounds ------------------------------------------------------------------------
+
+
+async def _rounds(
+    origin: Agent, bidders: Sequence[str], warmup: int, count: int
+) -> tuple[list[float], int]:
+    """Per-round latency in ms, and how many measured rounds closed early."""
+    auctioneer = origin.auctioneer
+    system = origin.system
+    candidates = frozenset(bidders)
+    ids = itertools.count(1)
+    lease_s = origin.config.lease_s
+    samples: list[float] = []
+    early = 0
+    clock = time.perf_counter_ns
+    for i in range(warmup + count):
+        execution = f"{origin.robot}:bench:{len(bidders)}:{next(ids)}"
+        task = AssignmentTask(
+            execution, ECHO.name, ECHO.identity, _INPUTS, candidates, origin.robot, lease_s
+        )
+        closes = auctioneer.stats.early_closes
+        if i == warmup:
+            gc.collect()
+        t0 = clock()
+        won = await auctioneer.assign(task)
+        t1 = clock()
+        if won is None:
+            raise RuntimeError(f"bench auction: round {i} with {len(bidders)} bidders unassigned")
+        # Free the winner: the cancel travels ahead of the next call for bids.
+        system.tell(Address(won.robot, MissionControl.PATH), CancelExecution(execution, "bench"))
+        if i >= warmup:
+            samples.append((t1 - t0) / 1e6)
+            early += auctioneer.stats.early_closes - closes
+    return samples, early
+
+
+def _bidder_names(n: int) -> list[str]:
+    return [f"b{i:02d}" for i in range(n)]
+
+
+def _origin_config() -> AgentConfig:
+    return AgentConfig(auction_window_s=WINDOW_S)
+
+
+async def _bench_inproc(warmup: int, count: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    reg = protocol_registry()
+    net = InProcessNetwork(reg)
+    names = _bidder_names(max(BIDDERS))
+    agents = [
+        Agent(
+            name,
+            transport=net.transport(name),
+            registry=protocol_registry(),
+            implementations=implementations(name, cost=1.0 + i),
+        )
+        for i, name in enumerate(names)
+    ]
+    origin = Agent("origin", transport=net.transport("origin"), registry=reg, config=_origin_config())
+    started: list[Agent] = []
+    try:
+        for a in agents:
+            await a.__aenter__()
+            started.append(a)
+        await origin.__aenter__()
+        started.append(origin)
+        await _until(lambda: set(names) <= origin.team.alive(), 20.0, "bidders joined")
+        return await _all_sizes(origin, names, warmup, count)
+    finally:
+        for a in reversed(started):
+            await a.__aexit__(None, None, None)
+
+
+async def _all_sizes(
+    origin: Agent, names: Sequence[str], warmup: int, count: int
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    lat: dict[str, Any] = {}
+    early: dict[str, Any] = {}
+    for n in BIDDERS:
+        # Spread the bidders over every process (names were dealt round robin).
+        samples, closed = await _rounds(origin, names[:n], warmup, count)
+        lat[str(n)] = percentiles(samples)
+        early[str(n)] = {"rounds": count, "early": closed}
+    return lat, early
+
+
+async def _bench_zmq(
+    warmup: int, count: int, processes: int
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    names = _bidder_names(max(BIDDERS))
+    groups: list[list[AgentSpec]] = [[] for _ in range(processes)]
+    for i, name in enumerate(names):
+        spec = AgentSpec(
+            robot=name, factory="btcap.demo:implementations", factory_args={"cost": 1.0 + i}
+        )
+        groups[i % processes].append(spec)
+    procs = spawn_agents(groups, timeout=60.0)
+    try:
+        peers = {robot: ep for p in procs for robot, ep in p.endpoints.items()}
+        reg = protocol_registry()
+        transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
+        async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
+            await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
+            return await _all_sizes(o, names, warmup, count)
+    finally:
+        for p in procs:
+            p.stop()
+
+
+# -- remote tick and fail-over -------------------------------------------------------------
+
+
+def _executor_spec(i: int) -> AgentSpec:
+    return AgentSpec(
+        robot=f"x{i}", factory="btcap.demo:implementations", factory_args={"cost": 1.0 + i}
+    )
+
+
+async def _bench_remote(
+    warmup: int, ticks: int, failovers: int
+) -> tuple[list[float], list[float], dict[str, Any]]:
+    """Remote tick round trips (ms) on the first executor, then fail-over times (s)."""
+    procs = spawn_agents([_executor_spec(i) for i in range(failovers + 1)], timeout=60.0)
+    by_robot = {p.robot: p for p in procs}
+    try:
+        reg = protocol_registry()
+        peers = {p.robot: p.endpoint for p in procs}
+        transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
+        async with Agent("origin", transport=transport, registry=reg) as origin:
+            await _until(
+                lambda: len(origin.repository.providers(ECHO.identity)) == len(procs),
+                30.0,
+                "executors joined",
+            )
+            node = ECHO.node_type()("echo", inputs={"value": 0})
+            tree = origin.mission(SequenceNode("root", children=[node]))
+            period = 1.0 / MISSION_TICK_HZ
+
+            async def running_on_new(old: str | None, timeout: float) -> None:
+                deadline = time.monotonic() + timeout
+                while True:
+                    tree.tick()
+                    ex = node.execution
+                    if ex is not None and ex.robot != old and node.state is State.RUNNING:
+                        return
+                    if time.monotonic() > deadline:
+                        raise TimeoutError(f"bench auction: not re-assigned in {timeout} s")
+                    await asyncio.sleep(period)
+
+            await running_on_new(None, 10.0)
+            rtt = await _remote_ticks(node, tree, warmup, ticks)
+            failover: list[float] = []
+            for _ in range(failovers):
+                victim = node.execution
+                assert victim is not None
+                proc = by_robot[victim.robot]
+                # Let the new executor settle into its lease before failing it.
+                await asyncio.sleep(0.3)
+                t0 = time.perf_counter()
+                proc.kill()
+                await running_on_new(victim.robot, 10.0)
+                failover.append(time.perf_counter() - t0)
+            node.set_input("stop", True)
+            await _until(lambda: tree.tick() is State.SUCCEEDED, 5.0, "echo finished")
+            info = {
+                "assignments": list(node.assignments),
+                "mission_tick_hz": MISSION_TICK_HZ,
+                "lost": origin.mission_control.stats.lost,
+            }
+            await tree.shutdown()
+            return rtt, failover, info
+    finally:
+        for p in procs:
+            p.stop()
+
+
+async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[float]:
+    ex = node.execution
+    if not isinstance(ex, RemoteExecution):
+        raise RuntimeError("bench auction: expected a remote execution")
+    samples: list[float] = []
+    clock = time.perf_counter_ns
+    for i in range(warmup + count):
+        if i == warmup:
+            gc.collect()
+        node.set_input("value", i)
+        t0 = clock()
+        tree.tick()
+        n = ex.seq
+        while ex.acked < n:
+            await asyncio.sleep(0)
+        if i >= warmup:
+            samples.append((clock() - t0) / 1e6)
+    if node.outputs.get("robot") != ex.robot:
+        raise RuntimeError("bench auction: outputs did not come back from the executor")
+    return samples
+
+
+# -- report --------------------------------------------------------------------------------
+
+
+def _table(data: dict[str, Any]) -> str:
+    rounds = data["round_ms"]
+    lines = [
+        "auction round, call for bids -> accepted award (ms)",
+        f"{'bidders':>8} | {'inproc p50':>10} {'p99':>8} | {'zmq tcp p50':>11} {'p99':>8}",
+    ]
+    for n in BIDDERS:
+        a, b = rounds["inproc"][str(n)], rounds["zmq_tcp"][str(n)]
+        lines.append(
+            f"{n:>8} | {a['p50']:>10.3f} {a['p99']:>8.3f} | {b['p50']:>11.3f} {b['p99']:>8.3f}"
+        )
+    ok = "yes" if data["early_close"]["all"] else "NO"
+    lines.append(f"every round closed early: {ok} (window {WINDOW_S} s)")
+    t, f = data["remote_tick_ms"], data["failover_s"]
+    lines.append(f"remote tick round trip (tcp): p50 {t['p50']:.3f} ms, p99 {t['p99']:.3f} ms")
+    lines.append(
+        f"fail-over at speed-up 1: p50 {f['p50']:.3f} s, max {f['max']:.3f} s "
+        f"({f['repeats']} kills)"
+    )
+    return "\n".join(lines)
+
+
+async def _run(quick: bool) -> dict[str, Any]:
+    warmup, count = (10, 60) if quick else (30, 400)
+    tick_warmup, ticks = (50, 300) if quick else (200, 3000)
+    failovers = 2 if quick else 5
+    processes = 2 if quick else 4
+    inproc, inproc_early = await _bench_inproc(warmup, count)
+    zmq_tcp, zmq_early = await _bench_zmq(warmup, count, processes)
+    rtt, failover, info = await _bench_remote(tick_warmup, ticks, failovers)
+    all_early = all(
+        v["early"] == v["rounds"] for e in (inproc_early, zmq_early) for v in e.values()
+    )
+    return {
+        "round_ms": {"inproc": inproc, "zmq_tcp": zmq_tcp},
+        "early_close": {"inproc": inproc_early, "zmq_tcp": zmq_early, "all": all_early},
+        "remote_tick_ms": percentiles(rtt),
+        "failover_s": {
+            "p50": percentiles(failover)["p50"],
+            "max": max(failover),
+            "repeats": len(failover),
+            "samples": failover,
+        },
+        "setup": {
+            "bidders": list(BIDDERS),
+            "rounds": count,
+            "warmup_rounds": warmup,
+            "window_s": WINDOW_S,
+            "bidder_processes": processes,
+            "remote_ticks": ticks,
+            "failover": info,
+            "quick": quick,
+        },
+    }
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    """Measure, print a table, write ``bench/results/auction.json``."""
+    data = asyncio.run(_run(quick))
+    print(_table(data))
+    path = write_result("auction", data)
+    print(f"wrote {path}")
+    return data
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.auction", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="fewer rounds, for CI smoke runs")
+    args = parser.parse_args(argv)
+    run(quick=args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,201 @@
+"""Trees as text (for terminals and logs) and as Graphviz DOT (for pictures).
+
+Both show what a file says: node types and names, options that differ from their
+defaults, constant inputs and data wires; once a tree has been ticked they also show
+each node's state, and outputs as values.
+"""
+
+from __future__ import annotations
+
+import typing
+from collections.abc import Iterator
+from typing import Any
+
+from btcap.composites import Composite
+from btcap.decorators import Decorator
+from btcap.node import Node
+from btcap.ports import type_name
+from btcap.state import State
+from btcap.tree import Subtree, Tree
+
+__all__ = ["render_dot", "render_text"]
+
+_STATE_COLOURS = {
+    State.UNINITIALIZED: "white",
+    State.IDLE: "white",
+    State.RUNNING: "lightskyblue",
+    State.SUCCEEDED: "palegreen",
+    State.FAILED: "salmon",
+    State.ERROR: "red",
+    State.SHUTDOWN: "lightgrey",
+    State.PAUSED: "khaki",
+    State.UNASSIGNED: "plum",
+    State.ASSIGNED: "orchid",
+}
+
+
+def _ticked(tree: Tree) -> bool:
+    return tree.root.state is not State.UNINITIALIZED
+
+
+def _fmt(value: Any, limit: int = 60) -> str:
+    """A short readable value; types by name, long values cut."""
+    if value is Any or isinstance(value, type) or typing.get_origin(value) is not None:
+        text = type_name(value)
+    else:
+        text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _differs(value: Any, default: Any) -> bool:
+    try:
+        return not (bool(value == default) and type(value) is type(default))
+    except Exception:
+        return True
+
+
+def _options(node: Node) -> list[str]:
+    out = []
+    for key, port in type(node).OPTIONS.items():
+        value = node.options.get(key)
+        if port.required or _differs(value, port.default_value()):
+            out.append(f"{key}={_fmt(value)}")
+    return out
+
+
+def _wired_inputs(tree: Tree) -> dict[tuple[int, str], str]:
+    return {(id(w.target), w.target_port): f"{w.source.path}.{w.source_port}" for w in tree.wires}
+
+
+def _detail_lines(
+    node: Node, tree: Tree, wired: dict[tuple[int, str], str], states: bool
+) -> list[str]:
+    lines = []
+    for key, port in node.input_ports.items():
+        src = wired.get((id(node), key))
+        if src is not None:
+            lines.append(f"in  {key} <- {src}")
+        elif _differs(node.inputs.get(key), port.default_value()):
+            lines.append(f"in  {key} = {_fmt(node.inputs.get(key))}")
+    if states:
+        for key, value in node.outputs.items():
+            if value is not None:
+                lines.append(f"out {key} = {_fmt(value)}")
+    if node.error is not None:
+        lines.append(f"error: {type(node.error).__name__}: {node.error}")
+    return lines
+
+
+def _head(node: Node, states: bool) -> str:
+    kind = type(node).__name__
+    if isinstance(node, Subtree):
+        head = f"{kind} {node.name!r} (tree {node.inner.name!r})"
+    else:
+        head = f"{kind} {node.name!r}"
+    opts = _options(node) if not isinstance(node, Subtree) else []
+    if opts:
+        head += "  " + " ".join(opts)
+    if states:
+        head += f"  [{node.state.value}]"
+    return head
+
+
+def render_text(tree: Tree, *, states: bool | None = None) -> str:
+    """An indented outline of the tree; ``states`` defaults to "if it has been ticked"."""
+    show = _ticked(tree) if states is None else states
+    n_nodes = sum(1 for _ in tree.nodes())
+    lines = [f"tree {tree.name!r}: {n_nodes} nodes, {len(tree.wires)} wires"]
+    lines.extend(_text_lines(tree, tree.root, "", "", show))
+    return "\n".join(lines) + "\n"
+
+
+def _text_lines(tree: Tree, node: Node, first: str, rest: str, states: bool) -> Iterator[str]:
+    wired = _wired_inputs(tree)
+    yield first + _head(node, states)
+    kids: list[tuple[Tree, Node]] = [(tree, c) for c in node.children]
+    if isinstance(node, Subtree):
+        kids.append((node.inner, node.inner.root))
+    details = _detail_lines(node, tree, wired, states)
+    bar = "│   " if kids else "    "
+    for line in details:
+        yield rest + bar + "· " + line
+    for i, (t, child) in enumerate(kids):
+        last = i == len(kids) - 1
+        yield from _text_lines(
+            t,
+            child,
+            rest + ("└── " if last else "├── "),
+            rest + ("    " if last else "│   "),
+            states,
+        )
+
+
+def _q(text: str) -> str:
+    """A DOT double-quoted string."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def _shape(node: Node) -> tuple[str, str]:
+    if isinstance(node, Subtree):
+        return "folder", "filled"
+    if isinstance(node, Composite):
+        return "box", "rounded,filled"
+    if isinstance(node, Decorator):
+        return "hexagon", "filled"
+    return "ellipse", "filled"
+
+
+def render_dot(tree: Tree, *, states: bool | None = None) -> str:
+    """Graphviz DOT: solid child edges, dashed data wires labelled ``output -> input``.
+
+    Subtrees are drawn as clusters below their Subtree node. Node ids are node paths
+    (prefixed by the Subtree node's path inside subtrees), so they are unique.
+    """
+    show = _ticked(tree) if states is None else states
+    out = [
+        f"digraph {_q(tree.name)} {{",
+        "  rankdir=TB;",
+        '  node [fontname="Helvetica", fontsize=11];',
+        '  edge [fontname="Helvetica", fontsize=9];',
+    ]
+    _dot_tree(tree, "", out, "  ", show)
+    out.append("}")
+    return "\n".join(out) + "\n"
+
+
+def _dot_tree(tree: Tree, prefix: str, out: list[str], indent: str, states: bool) -> None:
+    def ident(node: Node) -> str:
+        return _q(prefix + node.path)
+
+    for node in tree.nodes():
+        shape, style = _shape(node)
+        label = [type(node).__name__, node.name, *_options(node)]
+        if states:
+            label.append(f"[{node.state.value}]")
+        colour = _STATE_COLOURS[node.state] if states else "white"
+        out.append(
+            f"{indent}{ident(node)} [label={_q(chr(10).join(label))}, shape={shape}, "
+            f'style="{style}", fillcolor={colour}];'
+        )
+    for node in tree.nodes():
+        for child in node.children:
+            out.append(f"{indent}{ident(node)} -> {ident(child)};")
+    for w in tree.wires:
+        out.append(
+            f"{indent}{ident(w.source)} -> {ident(w.target)} [style=dashed, color=blue, "
+            f"fontcolor=blue, constraint=false, "
+            f"label={_q(f'{w.source_port} -> {w.target_port}')}];"
+        )
+    for node in tree.nodes():
+        if isinstance(node, Subtree):
+            inner_prefix = f"{prefix}{node.path}::"
+            cluster = _q(f"cluster_{inner_prefix}")
+            out.append(f"{indent}subgraph {cluster} {{")
+            out.append(f"{indent}  label={_q(f'subtree {node.inner.name}')};")
+            out.append(f"{indent}  style=dashed;")
+            _dot_tree(node.inner, inner_prefix, out, indent + "  ", states)
+            out.append(f"{indent}}}")
+            out.append(
+                f"{indent}{ident(node)} -> {_q(inner_prefix + node.inner.root.path)} "
+                f"[style=dotted, arrowhead=none];"
+            )

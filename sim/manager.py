@@ -1,0 +1,281 @@
+"""The simulation manager: ground truth of the world, answering robots after delays.
+
+Robots ask it to move and to explore, identify or decontaminate. Moves end when the
+vectorised world step brings the robot to its goal; operations end after the robot
+model's duration, randomised, and may fail with a set chance (seeded). Answers are
+deferred replies, so the manager serves every robot at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import structlog
+
+from actors import Actor, handler
+from sim.distance import Cell
+from sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
+from sim.model import RobotModel
+from sim.store import MissionState
+from sim.world import World
+from transports import Address
+
+__all__ = ["SimConfig", "SimEvent", "SimulationManager"]
+
+log = structlog.get_logger("sim")
+
+
+@dataclass(slots=True)
+class SimConfig:
+    """Randomness and pace of the simulation (clock seconds)."""
+
+    step_s: float = 0.5
+    delay_jitter: float = 0.2  # durations are drawn from duration x U(1 - j, 1 + j)
+    failure_chance: float = 0.05
+    seed: int = 0
+
+
+@dataclass(slots=True)
+class SimEvent:
+    """A line of the mission's timeline: who did what, from when to when."""
+
+    robot: str
+    kind: str  # move | explore | identify | decontaminate
+    start: float
+    end: float | None = None
+    ok: bool | None = None
+    target: int = -1
+    detail: str = ""
+
+
+@dataclass(slots=True)
+class _Robot:
+    name: str
+    index: int
+    model: RobotModel
+    up: bool = True
+    move: asyncio.Future[SimResult] | None = None
+    move_event: SimEvent | None = None
+    busy: list[asyncio.Future[SimResult]] = field(default_factory=list)
+    carrying: int = -1
+
+
+class SimulationManager(Actor):
+    """One per simulation; lives beside the :class:`~sim.store.ObjectStore`."""
+
+    PATH = "manager"
+
+    def __init__(self, state: MissionState, config: SimConfig | None = None) -> None:
+        super().__init__()
+        self.state = state
+        self.config = config or SimConfig()
+        self.world = World(state.grid)
+        self.rng = np.random.default_rng(self.config.seed)
+        self.robots: dict[str, _Robot] = {}
+        self.events: list[SimEvent] = []
+        self.on_change: Callable[[], None] | None = None
+
+    def add_robot(self, name: str, model: RobotModel, cell: Cell | None = None) -> None:
+        if name in self.robots:
+            raise ValueError(f"robot {name!r} is already in the simulation")
+        i = self.world.add_robot(
+            cell or self.state.grid.start, speed_mps=model.speed_mps, cost_factor=model.cost_factor
+        )
+        self.robots[name] = _Robot(name, i, model)
+
+    def position(self, name: str) -> Cell:
+        return self.world.position(self.robots[name].index)
+
+    def now(self) -> float:
+        return self.system.clock.now()
+
+    # -- life cycle -------------------------------------------------------------------
+    def on_start(self) -> None:
+        self.start_task(self._run(), name="sim steps")
+
+    async def _run(self) -> None:
+        clock = self.system.clock
+        dt = self.config.step_s
+        deadline = clock.now()
+        while True:
+            deadline += dt
+            await clock.sleep_until(deadline)
+            arrived = self.world.step(dt)
+            for r in self.robots.values():
+                if r.move is not None and r.index in arrived:
+                    self._end_move(r, True, "arrived")
+
+    # -- failures (driven by scenarios) -----------------------------------------------
+    def robot_down(self, name: str) -> None:
+        """The robot fails: it stops, drops what it carries, its operations fail."""
+        r = self.robots[name]
+        r.up = False
+        self.world.deactivate(r.index)
+        if r.move is not None:
+            self._end_move(r, False, "robot down")
+        for fut in r.busy:
+            if not fut.done():
+                fut.set_result(SimResult(False, self.position(name), "robot down"))
+        r.busy.clear()
+        if r.carrying >= 0:
+            self.state.drop(r.carrying, self.position(name))
+            r.carrying = -1
+        self._changed()
+
+    def robot_up(self, name: str) -> None:
+        r = self.robots[name]
+        r.up = True
+        self.world.activate(r.index)
+
+    # -- requests ---------------------------------------------------------------------
+    def _robot(self, name: str) -> _Robot | None:
+        r = self.robots.get(name)
+        return r if r is not None and r.up else None
+
+    def _failed(self, name: str, why: str) -> SimResult:
+        cell = self.position(name) if name in self.robots else (0, 0)
+        return SimResult(False, cell, why)
+
+    @handler
+    def on_move(self, msg: MoveTo) -> SimResult | asyncio.Future[SimResult]:
+        r = self._robot(msg.robot)
+        if r is None:
+            return self._failed(msg.robot, "unknown or failed robot")
+        goal = (int(msg.goal[0]), int(msg.goal[1]))
+        if not self.state.grid.is_free(goal):
+            return self._failed(msg.robot, f"goal {goal} is not a free cell")
+        if r.move is not None:
+            self._end_move(r, False, "superseded")
+        if self.position(msg.robot) == goal:
+            return SimResult(True, goal, "already there")
+        try:
+            self.world.set_goal(r.index, goal)
+        except ValueError as exc:
+            return self._failed(msg.robot, str(exc))
+        fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
+        r.move = fut
+        r.move_event = self._event(r.name, "move", detail=f"to {goal}")
+        return fut
+
+    @handler
+    def on_stop_robot(self, msg: StopRobot) -> None:
+        r = self.robots.get(msg.robot)
+        if r is not None and r.move is not None:
+            self.world.stop(r.index)
+            self._end_move(r, False, "stopped")
+
+    def _end_move(self, r: _Robot, ok: bool, detail: str) -> None:
+        fut, r.move = r.move, None
+        cell = self.position(r.name)
+        if r.move_event is not None:
+            self._close(r.move_event, ok, detail)
+            r.move_event = None
+        if fut is not None and not fut.done():
+            fut.set_result(SimResult(ok, cell, detail))
+        self.system.ref(Address(r.name, "body")).tell(PositionUpdate(r.name, cell))
+
+    @handler
+    def on_operate(self, msg: Operate) -> SimResult | asyncio.Future[SimResult]:
+        r = self._robot(msg.robot)
+        if r is None:
+            return self._failed(msg.robot, "unknown or failed robot")
+        if msg.op not in ("explore", "identify", "decontaminate") or not r.model.can(msg.op):
+            return self._failed(msg.robot, f"robot cannot {msg.op}")
+        if msg.op != "explore" and not 0 <= msg.target < len(self.state.objects):
+            return self._failed(msg.robot, f"no object {msg.target}")
+        for old in r.busy:  # one operation at a time: a new request supersedes
+            if not old.done():
+                old.set_result(SimResult(False, self.position(r.name), "superseded"))
+        model = r.model.operation(msg.op)
+        j = self.config.delay_jitter
+        duration = model.duration_s * float(self.rng.uniform(1 - j, 1 + j))
+        fails = bool(self.rng.random() < self.config.failure_chance)
+        fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
+        r.busy.append(fut)
+        event = self._event(r.name, msg.op, target=msg.target)
+        self.start_task(self._operate(r, msg, duration, fails, fut, event), name=f"{msg.op} {r.name}")
+        return fut
+
+    async def _operate(
+        self, r: _Robot, msg: Operate, duration: float, fails: bool,
+        fut: asyncio.Future[SimResult], event: SimEvent,
+    ) -> None:
+        state = self.state
+        try:
+            if msg.op == "decontaminate":
+                obj = state.objects[msg.target]
+                if obj.carried_by is not None or obj.decontaminated:
+                    self._finish(fut, event, SimResult(False, self.position(r.name), "object taken"))
+                    return
+                state.pick_up(msg.target, r.name)
+                r.carrying = msg.target
+                self.world.set_goal(r.index, state.grid.decon_area)
+                while self.position(r.name) != state.grid.decon_area:
+                    if not r.up or fut.done():
+                        return
+                    await self.system.clock.sleep(self.config.step_s)
+            await self.system.clock.sleep(duration)
+            if fut.done() or not r.up:
+                if r.carrying >= 0 and r.up:
+                    state.drop(r.carrying, self.position(r.name))
+                    r.carrying = -1
+                return
+            cell = self.position(r.name)
+            if fails:
+                if msg.op == "decontaminate" and r.carrying >= 0:
+                    state.drop(r.carrying, cell)
+                    r.carrying = -1
+                self._finish(fut, event, SimResult(False, cell, "operation failed"))
+                return
+            result = SimResult(True, cell)
+            if msg.op == "explore":
+                result.found = state.explore(cell, r.model.operation("explore").radius_m)
+            elif msg.op == "identify":
+                result.contaminated = state.identify(msg.target)
+            else:
+                state.decontaminated(msg.target)
+                r.carrying = -1
+            self._finish(fut, event, result)
+        finally:
+            if fut in r.busy:
+                r.busy.remove(fut)
+            if not fut.done():
+                fut.set_result(SimResult(False, self.position(r.name), "interrupted"))
+                self._close(event, False, "interrupted")
+
+    def _finish(self, fut: asyncio.Future[SimResult], event: SimEvent, result: SimResult) -> None:
+        if not fut.done():
+            fut.set_result(result)
+        self._close(event, result.ok, result.detail)
+        self._changed()
+
+    # -- timeline ---------------------------------------------------------------------
+    def _event(self, robot: str, kind: str, *, target: int = -1, detail: str = "") -> SimEvent:
+        e = SimEvent(robot, kind, self.now(), target=target, detail=detail)
+        self.events.append(e)
+        return e
+
+    def _close(self, e: SimEvent, ok: bool, detail: str) -> None:
+        if e.end is None:
+            e.end = self.now()
+            e.ok = ok
+            if detail:
+                e.detail = detail
+
+    def _changed(self) -> None:
+        if self.on_change is not None:
+            self.on_change()
+
+    def snapshot(self) -> dict[str, Any]:
+        return {
+            "time": self.now(),
+            **self.state.summary(),
+            "robots": {
+                n: {"cell": self.position(n), "up": r.up, "carrying": r.carrying}
+                for n, r in self.robots.items()
+            },
+        }

@@ -1,0 +1,82 @@
+"""Messages between robots and the simulation manager / shared object store."""
+
+from __future__ import annotations
+
+from actors import Message
+
+__all__ = [
+    "Claim",
+    "ClaimReply",
+    "MoveTo",
+    "Operate",
+    "PositionUpdate",
+    "SIM_MESSAGES",
+    "SimResult",
+    "StopRobot",
+]
+
+
+class MoveTo(Message):
+    """Drive ``robot`` to ``goal`` (row, col); answered when it arrives or cannot."""
+
+    robot: str
+    goal: tuple[int, int]
+
+
+class StopRobot(Message):
+    """Stop ``robot`` where it is (its move was abandoned)."""
+
+    robot: str
+
+
+class Operate(Message):
+    """Run a sim operation: ``explore`` at the robot's cell, ``identify`` or
+    ``decontaminate`` object ``target``; answered after its (randomised) duration."""
+
+    robot: str
+    op: str
+    target: int = -1
+
+
+class SimResult(Message):
+    """How a move or operation ended, and where the robot is now."""
+
+    ok: bool
+    position: tuple[int, int]
+    detail: str = ""
+    found: int = 0
+    contaminated: bool | None = None
+
+
+class PositionUpdate(Message):
+    """Sent to a robot's body whenever the simulation moved or stopped it."""
+
+    robot: str
+    position: tuple[int, int]
+
+
+class Claim(Message):
+    """Ask the store for work: ``kind`` is ``goal`` or ``object``; one claim per claimant."""
+
+    claimant: str
+    kind: str
+
+
+class ClaimReply(Message):
+    """``status``: ``ok`` (work in ``target``/``at``), ``wait`` (nothing yet), ``done``."""
+
+    status: str
+    target: int = -1
+    at: tuple[int, int] = (0, 0)
+    identified: bool = False
+
+
+SIM_MESSAGES: tuple[type[Message], ...] = (
+    MoveTo,
+    StopRobot,
+    Operate,
+    SimResult,
+    PositionUpdate,
+    Claim,
+    ClaimReply,
+)

@@ -1,0 +1,69 @@
+"""The paper's mission tree: Parallel(Explore, Sequence(Identify Object, Move to
+Decontamination)), each leaf a capability, looped until the cave is explored and every
+contaminated object is decontaminated."""
+
+from __future__ import annotations
+
+from btcap import (
+    Compare,
+    ForceSuccess,
+    Parallel,
+    RepeatUntilFailure,
+    SequenceWithMemory,
+    Tree,
+)
+from sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY
+from sim.leaves import ClaimWork
+
+__all__ = ["mission_tree"]
+
+
+def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
+    """Build the mission; ``object_workers`` identify/decontaminate loops run in parallel.
+
+    Each loop claims work from the shared store, so a goal or object is worked on by one
+    loop at a time, and work whose capability failed is claimed again later.
+    """
+    if object_workers < 1:
+        raise ValueError("object_workers must be >= 1")
+    next_goal = ClaimWork("next_goal", kind="goal", store=store)
+    explore = EXPLORE.node_type()("explore")
+    explore_loop = RepeatUntilFailure(
+        "explore_loop",
+        children=[
+            SequenceWithMemory(
+                "explore_next",
+                children=[next_goal, ForceSuccess("try_explore", children=[explore])],
+            )
+        ],
+    )
+    loops = [explore_loop]
+    wires = [(next_goal, "at", explore, "goal")]
+    for k in range(object_workers):
+        claim = ClaimWork("next_object", kind="object", store=store)
+        identify = IDENTIFY.node_type()("identify")
+        dirty = Compare("is_contaminated", op="==", inputs={"b": True})
+        decon = DECONTAMINATE.node_type()("decontaminate")
+        handle = SequenceWithMemory("identify_then_clean", children=[identify, dirty, decon])
+        loops.append(
+            RepeatUntilFailure(
+                f"object_loop_{k + 1}",
+                children=[
+                    SequenceWithMemory(
+                        "handle_next",
+                        children=[claim, ForceSuccess("try_object", children=[handle])],
+                    )
+                ],
+            )
+        )
+        wires += [
+            (claim, "target", identify, "object"),
+            (claim, "at", identify, "at"),
+            (identify, "contaminated", dirty, "a"),
+            (claim, "target", decon, "object"),
+            (claim, "at", decon, "at"),
+        ]
+    tree = Tree(Parallel("mission", children=loops), name="find_and_decontaminate")
+    for src, out, dst, inp in wires:
+        tree.wire(src, out, dst, inp)
+    return tree

@@ -1,0 +1,228 @@
+"""Run a scenario: the simulation, an operator holding the mission tree, and the robots.
+
+In-process mode puts every robot's actor system on one :class:`InProcessNetwork`;
+distributed mode starts each robot in its own OS process over ZeroMQ (see
+:mod:`sim.distributed`). Both record the same :class:`~sim.metrics.MissionResult`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import structlog
+
+from actors import ActorSystem, Clock, TimeSource
+from btcap import State, Tree
+from btcap.agent import Agent, AgentConfig
+from btcap.capability import Capability
+from btcap.protocol import protocol_registry
+from sim.capabilities import robot_setup
+from sim.manager import SimConfig, SimulationManager
+from sim.messages import SIM_MESSAGES
+from sim.metrics import MissionResult, collect
+from sim.mission import mission_tree
+from sim.model import RobotModel
+from sim.scenario import Event, Scenario, check_scenario
+from sim.store import MissionState, ObjectStore
+from transports import InProcessNetwork, MessageRegistry
+
+__all__ = ["Progress", "agent_config", "registry", "run_scenario"]
+
+log = structlog.get_logger("sim")
+
+
+def registry() -> MessageRegistry:
+    """Every message of btcap plus the simulation's."""
+    reg = protocol_registry()
+    reg.register(*SIM_MESSAGES)
+    return reg
+
+
+def agent_config(s: Scenario) -> AgentConfig:
+    t = s.agent
+    return AgentConfig(
+        tick_hz=t.tick_hz,
+        heartbeat_s=t.heartbeat_s,
+        failure_timeout_s=t.failure_timeout_s,
+        lease_s=t.lease_s,
+        keepalive_s=t.keepalive_s,
+        auction_window_s=t.auction_window_s,
+        award_timeout_s=t.award_timeout_s,
+    )
+
+
+@dataclass
+class Progress:
+    """What a live display shows; updated as the mission runs."""
+
+    time: float = 0.0
+    summary: dict[str, Any] = field(default_factory=dict)
+    tasks: dict[str, str] = field(default_factory=dict)
+    present: dict[str, bool] = field(default_factory=dict)
+
+
+@dataclass
+class _World:
+    scenario: Scenario
+    clock: TimeSource
+    state: MissionState
+    manager: SimulationManager
+    models: dict[str, RobotModel]
+    marks: list[tuple[float, str, str]] = field(default_factory=list)
+
+
+async def run_scenario(
+    scenario: Scenario,
+    *,
+    on_progress: Callable[[Progress], None] | None = None,
+    progress_every_s: float = 0.1,
+    clock: TimeSource | None = None,
+) -> MissionResult:
+    """Run the mission in this process until it completes or the time limit passes."""
+    s = check_scenario(scenario)
+    clock = clock or Clock(s.speedup)
+    reg = registry()
+    net = InProcessNetwork(reg)
+    grid = s.grid()
+    rng = np.random.default_rng(s.seed)
+    state = MissionState.scatter(grid, s.objects, s.contaminated_share, rng)
+    manager = SimulationManager(
+        state,
+        SimConfig(s.sim.step_s, s.sim.delay_jitter, s.sim.failure_chance, s.seed),
+    )
+    models = s.models()
+    for r in s.robots:
+        manager.add_robot(r.name, models[r.model])
+    w = _World(s, clock, state, manager, models)
+    cfg = agent_config(s)
+    robots: dict[str, Agent] = {}
+    robot_tasks: dict[str, asyncio.Task[None]] = {}
+    stop_robot: dict[str, asyncio.Event] = {}
+
+    async with ActorSystem("sim", transport=net.transport("sim"), registry=reg, clock=clock) as simsys:
+        simsys.spawn(manager, SimulationManager.PATH)
+        simsys.spawn(ObjectStore(state), ObjectStore.PATH)
+        async with Agent(
+            "operator", transport=net.transport("operator"), clock=clock, config=cfg, registry=reg
+        ) as operator:
+            operator.team.subscribe(lambda ev, robot: w.marks.append((clock.now(), ev.value, robot)))
+
+            async def robot_life(name: str) -> None:
+                setup = robot_setup(name, models[_model_of(s, name)], grid)
+                done = stop_robot[name] = asyncio.Event()
+                transport = net.transport(name)
+                async with Agent(
+                    name, transport=transport, clock=clock, config=cfg, registry=reg,
+                    implementations=setup.implementations, actors=setup.actors,
+                ) as agent:
+                    robots[name] = agent
+                    await done.wait()
+                robots.pop(name, None)
+
+            def start(name: str) -> None:
+                manager.robot_up(name)
+                robot_tasks[name] = simsys.start_task(robot_life(name), name=f"robot {name}")
+
+            for r in s.initially_present():
+                start(r.name)
+            await _until(lambda: len(operator.team.members) == len(s.initially_present()), clock, 30.0)
+
+            def apply(e: Event) -> None:
+                if e.kind == "join":
+                    start(e.robot)
+                elif e.kind == "leave":
+                    manager.robot_down(e.robot)
+                    ev = stop_robot.get(e.robot)
+                    if ev is not None:
+                        ev.set()
+                elif e.kind == "fail":
+                    net.isolate(e.robot)
+                    manager.robot_down(e.robot)
+                    w.marks.append((clock.now(), "down", e.robot))
+
+                    async def recover() -> None:
+                        await clock.sleep(e.duration)
+                        net.heal(e.robot)
+                        manager.robot_up(e.robot)
+                        w.marks.append((clock.now(), "up", e.robot))
+
+                    simsys.start_task(recover(), name=f"recover {e.robot}")
+
+            async def events() -> None:
+                t0 = clock.now()
+                for e in sorted(s.events, key=lambda e: e.at):
+                    await clock.sleep_until(t0 + e.at)
+                    apply(e)
+
+            tree = mission_tree(object_workers=s.object_workers)
+            operator.mission(tree)
+            started = clock.now()
+            ev_task = simsys.start_task(events(), name="scenario events")
+            final = await _run_mission(tree, w, started, cfg.tick_hz, on_progress, progress_every_s, robots)
+            ev_task.cancel()
+            result = collect(
+                s, w.state, manager, tree, operator, started, clock.now(), final, w.marks
+            )
+            await tree.shutdown()
+            for ev in stop_robot.values():
+                ev.set()
+            await asyncio.gather(*robot_tasks.values(), return_exceptions=True)
+    return result
+
+
+def _model_of(s: Scenario, name: str) -> str:
+    return next(r.model for r in s.robots if r.name == name)
+
+
+async def _until(cond: Callable[[], bool], clock: TimeSource, limit_s: float) -> None:
+    for _ in range(int(limit_s / 0.01)):
+        if cond():
+            return
+        await asyncio.sleep(0.01)
+
+
+async def _run_mission(
+    tree: Tree,
+    w: _World,
+    started: float,
+    rate_hz: float,
+    on_progress: Callable[[Progress], None] | None,
+    every_s: float,
+    robots: dict[str, Agent],
+) -> State:
+    clock = w.clock
+    limit = w.scenario.time_limit_s
+    period = 1.0 / rate_hz
+    deadline = clock.now()
+    next_report = 0.0
+    state = State.RUNNING
+    loop = asyncio.get_running_loop()
+    while True:
+        state = tree.tick()
+        now = clock.now()
+        if on_progress is not None and loop.time() >= next_report:
+            next_report = loop.time() + every_s
+            on_progress(_progress(tree, w, now - started, robots))
+        if state in (State.SUCCEEDED, State.FAILED, State.ERROR) or now - started > limit:
+            if on_progress is not None:
+                on_progress(_progress(tree, w, now - started, robots))
+            return state
+        deadline += period
+        if deadline < now - period:
+            deadline = now
+        await clock.sleep_until(deadline)
+
+
+def _progress(tree: Tree, w: _World, t: float, robots: dict[str, Agent]) -> Progress:
+    tasks: dict[str, str] = {}
+    for n in tree.nodes():
+        if isinstance(n, Capability) and n.execution is not None:
+            tasks[n.execution.robot] = f"{type(n).INTERFACE.name} ({n.path.rsplit('/', 2)[-2]})"
+    present = {r.name: r.name in robots and w.manager.robots[r.name].up for r in w.scenario.robots}
+    return Progress(t, w.state.summary(), tasks, present)
+
+

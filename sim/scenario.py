@@ -1,0 +1,222 @@
+"""Scenario files: map, seed, team, events and timing of one simulated mission."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import msgspec
+
+from sim.grid import GridMap, MapError
+from sim.model import RobotModel, load_team, paper_team
+
+__all__ = [
+    "AgentTiming",
+    "CaveSpec",
+    "Event",
+    "MapSpec",
+    "RobotEntry",
+    "Scenario",
+    "ScenarioError",
+    "SimSettings",
+    "builtin_scenarios",
+    "load_scenario",
+]
+
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+class ScenarioError(ValueError):
+    """A scenario file is invalid; the message names the file and the field."""
+
+
+class CaveSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    width: int = 120
+    height: int = 80
+    seed: int = 7
+    fill: float = 0.45
+    iterations: int = 5
+
+
+class MapSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """Either a generated cave or a map file (relative to the scenario file)."""
+
+    cave: CaveSpec | None = None
+    file: str | None = None
+    cell_size_m: float = 1.0
+
+
+class RobotEntry(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    name: str
+    model: str
+
+
+class Event(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """``join`` at ``at``; ``leave`` at ``at``; ``fail`` at ``at`` for ``duration`` seconds."""
+
+    at: float
+    robot: str
+    kind: Literal["join", "leave", "fail"]
+    duration: float = 0.0
+
+
+class SimSettings(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    step_s: float = 0.5
+    delay_jitter: float = 0.2
+    failure_chance: float = 0.05
+
+
+class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """Protocol timing in simulated seconds (scaled by the speed-up like everything else)."""
+
+    tick_hz: float = 2.0
+    heartbeat_s: float = 2.0
+    failure_timeout_s: float = 15.0
+    lease_s: float = 20.0
+    keepalive_s: float = 2.0
+    auction_window_s: float = 5.0
+    award_timeout_s: float = 10.0
+
+
+class Scenario(msgspec.Struct, forbid_unknown_fields=True):
+    """One mission: who takes part, what happens to them, and how fast time runs."""
+
+    name: str
+    robots: list[RobotEntry]
+    description: str = ""
+    map: MapSpec = MapSpec(cave=CaveSpec())
+    seed: int = 1
+    objects: int = 10
+    contaminated_share: float = 0.5
+    speedup: float = 100.0
+    time_limit_s: float = 4 * 3600.0
+    object_workers: int = 1
+    team_file: str | None = None
+    events: list[Event] = []
+    sim: SimSettings = SimSettings()
+    agent: AgentTiming = AgentTiming()
+    source: str = "<scenario>"
+
+    def models(self) -> dict[str, RobotModel]:
+        if self.team_file is None:
+            return paper_team()
+        path = Path(self.team_file)
+        if not path.is_absolute() and self.source not in ("<scenario>", ""):
+            path = Path(self.source).parent / path
+        return load_team(path)
+
+    def grid(self) -> GridMap:
+        spec = self.map
+        if spec.file is not None:
+            path = Path(spec.file)
+            if not path.is_absolute():
+                path = Path(self.source).parent / path
+            return GridMap.load(path, cell_size_m=spec.cell_size_m)
+        cave = spec.cave or CaveSpec()
+        return GridMap.generate_cave(
+            cave.width, cave.height, seed=cave.seed, fill=cave.fill,
+            iterations=cave.iterations, cell_size_m=spec.cell_size_m,
+        )
+
+    def initially_present(self) -> list[RobotEntry]:
+        """Robots present from the start: all but those whose first event is a join."""
+        first: dict[str, str] = {}
+        for e in sorted(self.events, key=lambda e: e.at):
+            first.setdefault(e.robot, e.kind)
+        return [r for r in self.robots if first.get(r.name) != "join"]
+
+
+def _check(s: Scenario, where: str) -> Scenario:
+    def bad(field: str, expected: str) -> ScenarioError:
+        return ScenarioError(f"{where}: {field}: {expected}")
+
+    if not s.robots:
+        raise bad("robots", "expected at least one robot")
+    names = [r.name for r in s.robots]
+    if len(set(names)) != len(names):
+        raise bad("robots", f"robot names must be unique, got {names}")
+    for i, r in enumerate(s.robots):
+        if not r.name or "/" in r.name or r.name in ("sim", "operator", "*"):
+            raise bad(f"robots[{i}].name", f"{r.name!r} is reserved or contains '/'")
+    try:
+        models = s.models()
+    except ValueError as exc:
+        raise bad("team_file", str(exc)) from None
+    for i, r in enumerate(s.robots):
+        if r.model not in models:
+            raise bad(f"robots[{i}].model", f"{r.model!r}; expected one of {', '.join(sorted(models))}")
+    if (s.map.cave is None) == (s.map.file is None):
+        raise bad("map", "expected exactly one of 'cave' or 'file'")
+    for field, value in (("speedup", s.speedup), ("time_limit_s", s.time_limit_s)):
+        if not value > 0:
+            raise bad(field, f"expected > 0, got {value}")
+    if s.objects < 0 or not 0 <= s.contaminated_share <= 1:
+        raise bad("objects", "expected objects >= 0 and 0 <= contaminated_share <= 1")
+    if s.object_workers < 1:
+        raise bad("object_workers", "expected >= 1")
+    if not 0 <= s.sim.failure_chance < 1:
+        raise bad("sim.failure_chance", f"expected within [0, 1), got {s.sim.failure_chance}")
+    t = s.agent
+    if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s or t.tick_hz <= 0:
+        raise bad("agent", "expected failure_timeout_s > heartbeat_s, lease_s > keepalive_s, tick_hz > 0")
+    present = {r.name: True for r in s.initially_present()}
+    for r in s.robots:
+        present.setdefault(r.name, False)
+    if not any(present.values()):
+        raise bad("events", "no robot is present at the start")
+    for i, e in enumerate(sorted(s.events, key=lambda e: e.at)):
+        where_e = f"events[{s.events.index(e)}]"
+        if e.robot not in present:
+            raise bad(f"{where_e}.robot", f"{e.robot!r} is not in robots")
+        if e.at < 0 or e.duration < 0:
+            raise bad(where_e, "at and duration must be >= 0")
+        if e.kind == "join":
+            if present[e.robot] and i > 0:
+                raise bad(where_e, f"{e.robot} joins at {e.at} but is already present")
+            present[e.robot] = True
+        elif e.kind == "leave":
+            if not present[e.robot]:
+                raise bad(where_e, f"{e.robot} leaves at {e.at} but is not present")
+            present[e.robot] = False
+        elif e.kind == "fail":
+            if not present[e.robot]:
+                raise bad(where_e, f"{e.robot} fails at {e.at} but is not present")
+            if e.duration <= 0:
+                raise bad(f"{where_e}.duration", "a failure needs a duration > 0")
+    try:
+        s.grid()
+    except (MapError, OSError) as exc:
+        raise bad("map", str(exc)) from None
+    return s
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and check a scenario (YAML or JSON); errors name the file and the field."""
+    file = Path(path)
+    try:
+        data = file.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(f"{file}: cannot read ({exc.strerror})") from None
+    try:
+        if file.suffix in (".yaml", ".yml"):
+            s = msgspec.yaml.decode(data, type=Scenario)
+        elif file.suffix == ".json":
+            s = msgspec.json.decode(data, type=Scenario)
+        else:
+            raise ScenarioError(f"{file}: expected a .yaml, .yml or .json file")
+    except msgspec.ValidationError as exc:
+        raise ScenarioError(f"{file}: {exc}") from None
+    except msgspec.DecodeError as exc:
+        raise ScenarioError(f"{file}: not valid YAML/JSON ({exc})") from None
+    s.source = str(file)
+    return _check(s, str(file))
+
+
+def builtin_scenarios() -> dict[str, Path]:
+    """The scenarios shipped with btcap (the paper's three), by name."""
+    return {p.stem: p for p in sorted(SCENARIO_DIR.glob("*.yaml"))}
+
+
+def check_scenario(s: Scenario) -> Scenario:
+    """Validate a scenario built in Python."""
+    return _check(s, s.source)

@@ -1,0 +1,274 @@
+"""Shared helpers for the capability-layer tests: a probed implementation, agent teams on
+an in-process network, and bounded polling (never fixed long sleeps)."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+from collections import Counter
+from collections.abc import AsyncIterator, Callable, Iterable, Iterator, Mapping
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+from actors import ActorSystem, Clock
+from btcap import Leaf, Port, Sequence, State, Tree
+from btcap.agent import Agent, AgentConfig
+from btcap.capability import CapabilityInterface, Implementation, Precondition
+from btcap.protocol import protocol_registry
+from btcap.repository import CapabilityRepository
+from btcap.team import Membership
+from transports import InProcessNetwork
+
+#: Clock seconds run SPEEDUP times faster than the wall in these tests.
+SPEEDUP = 10.0
+
+#: A capability whose implementation echoes its input every tick and runs until told to
+#: stop (or for a fixed number of ticks): ``y = x * k``, ``ticks`` counts the run's ticks.
+COUNT = CapabilityInterface(
+    "Count",
+    inputs={"x": int, "stop": Port(bool, False)},
+    outputs={"y": int, "ticks": int, "robot": str},
+    description="echo x*k every tick until stop",
+)
+
+
+def config(**over: Any) -> AgentConfig:
+    """Fast protocol timing (clock seconds; divide by SPEEDUP for wall time)."""
+    base: dict[str, Any] = {
+        "tick_hz": 20.0,
+        "heartbeat_s": 0.1,
+        "failure_timeout_s": 1.0,
+        "lease_s": 1.0,
+        "keepalive_s": 0.2,
+        "auction_window_s": 1.0,
+        "award_timeout_s": 1.0,
+    }
+    base.update(over)
+    return AgentConfig(**base)
+
+
+@dataclass
+class Probe:
+    """What the implementations of one test did, by robot and by run."""
+
+    ticks: Counter[str] = field(default_factory=Counter)
+    unticks: Counter[str] = field(default_factory=Counter)
+    shutdowns: Counter[str] = field(default_factory=Counter)
+    setups: Counter[str] = field(default_factory=Counter)
+    first_x: dict[int, tuple[str, int]] = field(default_factory=dict)  # run -> (robot, x)
+    active: dict[str, set[int]] = field(default_factory=dict)  # robot -> runs ticked, not ended
+    violations: list[str] = field(default_factory=list)
+    runs: Iterator[int] = field(default_factory=lambda: itertools.count(1))
+
+    def live(self, robot: str) -> int:
+        """Runs of ``robot`` set up and not yet shut down."""
+        return self.setups[robot] - self.shutdowns[robot]
+
+    def start(self, robot: str, run: int) -> None:
+        mine = self.active.setdefault(robot, set())
+        others = mine - {run}
+        if others:
+            self.violations.append(f"{robot} ticks run {run} while {sorted(others)} active")
+        mine.add(run)
+
+    def end(self, robot: str, run: int) -> None:
+        self.active.get(robot, set()).discard(run)
+
+
+class Echo(Leaf):
+    """``y = x * k`` and one more tick, every tick; always succeeds."""
+
+    INPUTS = {"x": int}
+    OUTPUTS = {"y": int, "ticks": int, "robot": str}
+
+    def __init__(self, probe: Probe, robot: str, run: int, k: int) -> None:
+        super().__init__("echo")
+        self.probe, self.robot, self.run, self.k = probe, robot, run, k
+        self.count = 0
+
+    def on_setup(self) -> None:
+        self.probe.setups[self.robot] += 1
+
+    def on_tick(self) -> State:
+        self.probe.start(self.robot, self.run)
+        if self.count == 0:
+            self.probe.first_x[self.run] = (self.robot, self.inputs["x"])
+        self.count += 1
+        self.probe.ticks[self.robot] += 1
+        self.outputs.update(y=self.inputs["x"] * self.k, ticks=self.count, robot=self.robot)
+        return State.SUCCEEDED
+
+    def on_shutdown(self) -> None:
+        self.probe.shutdowns[self.robot] += 1
+        self.probe.end(self.robot, self.run)
+
+
+class Finish(Leaf):
+    """Running until the ``stop`` input is set or ``after`` ticks have passed."""
+
+    INPUTS = {"stop": Port(bool, False)}
+
+    def __init__(self, probe: Probe, robot: str, run: int, after: int | None) -> None:
+        super().__init__("finish")
+        self.probe, self.robot, self.run, self.after = probe, robot, run, after
+        self.count = 0
+
+    def on_tick(self) -> State:
+        self.count += 1
+        if self.inputs["stop"] or (self.after is not None and self.count >= self.after):
+            self.probe.end(self.robot, self.run)
+            return State.SUCCEEDED
+        return State.RUNNING
+
+    def on_untick(self) -> None:
+        self.probe.unticks[self.robot] += 1
+
+
+def count_impl(
+    robot: str,
+    cost: float | Callable[[Mapping[str, Any]], float | None],
+    probe: Probe,
+    *,
+    k: int = 1,
+    after: int | None = None,
+    name: str | None = None,
+    interface: CapabilityInterface = COUNT,
+    preconditions: tuple[Precondition, ...] = (),
+) -> Implementation:
+    """An implementation of ``interface`` (shaped like COUNT) on ``robot`` bidding ``cost``."""
+
+    def build() -> Tree:
+        run = next(probe.runs)
+        ib, ob = interface.bridge_types()
+        i, e, f, o = ib(name="in"), Echo(probe, robot, run, k), Finish(probe, robot, run, after), ob(name="out")
+        t = Tree(Sequence("impl", children=[i, e, o, f]))
+        t.wire(i, "x", e, "x")
+        t.wire(i, "stop", f, "stop")
+        for port in ("y", "ticks", "robot"):
+            t.wire(e, port, o, port)
+        return t
+
+    bid = cost if callable(cost) else (lambda _inputs, c=float(cost): c)
+    return Implementation(
+        name or f"{interface.name.lower()}-{robot}", interface, build, preconditions, bid
+    )
+
+
+async def until(cond: Callable[[], bool], what: str = "condition", *, limit: int = 2000) -> None:
+    """Poll ``cond`` every 5 ms (bounded); the test's fail_after is the real limit."""
+    for _ in range(limit):
+        if cond():
+            return
+        await asyncio.sleep(0.005)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+async def tick_until(
+    tree: Tree, cond: Callable[[State], bool], what: str = "state", *, limit: int = 2000
+) -> State:
+    """Tick ``tree`` every 5 ms until ``cond(state)``; returns that state."""
+    for _ in range(limit):
+        state = tree.tick()
+        if cond(state):
+            return state
+        await asyncio.sleep(0.005)
+    raise AssertionError(f"tree {tree.name!r}: timed out waiting for {what} (last {state})")
+
+
+class Team:
+    """Agents on one in-process network. Each agent lives in its own task (an actor system
+    holds a task group, so systems sharing one task must exit in reverse order), so any
+    robot can leave at any time."""
+
+    def __init__(self, *, speedup: float = SPEEDUP, **cfg: Any) -> None:
+        self.net = InProcessNetwork(protocol_registry())
+        self.clock = Clock(speedup=speedup)
+        self.cfg = cfg
+        self.agents: dict[str, Agent] = {}
+        self._lives: dict[str, tuple[asyncio.Event, asyncio.Task[None]]] = {}
+
+    async def add(self, robot: str, impls: Iterable[Implementation] = (), **cfg: Any) -> Agent:
+        agent = Agent(
+            robot,
+            transport=self.net.transport(robot),
+            clock=self.clock,
+            implementations=impls,
+            config=config(**{**self.cfg, **cfg}),
+        )
+        ready, stop = asyncio.Event(), asyncio.Event()
+
+        async def life() -> None:
+            async with agent:
+                ready.set()
+                await stop.wait()
+
+        task = asyncio.get_running_loop().create_task(life(), name=f"agent {robot}")
+        waiter = asyncio.ensure_future(ready.wait())
+        await asyncio.wait((task, waiter), return_when=asyncio.FIRST_COMPLETED)
+        waiter.cancel()
+        if task.done():
+            task.result()  # raises what the agent raised on entry
+        self.agents[robot] = agent
+        self._lives[robot] = (stop, task)
+        return agent
+
+    async def remove(self, robot: str) -> None:
+        """The robot leaves on purpose (its agent exits, saying goodbye)."""
+        self.agents.pop(robot)
+        stop, task = self._lives.pop(robot)
+        stop.set()
+        await task
+
+    async def close(self) -> None:
+        for robot in reversed(list(self._lives)):
+            await self.remove(robot)
+
+    def __getitem__(self, robot: str) -> Agent:
+        return self.agents[robot]
+
+    async def converged(self, identity: str = COUNT.identity) -> None:
+        """Every agent sees every other as alive, and knows what each provides."""
+        robots = set(self.agents)
+
+        def ok() -> bool:
+            for a in self.agents.values():
+                if a.team.alive() != robots:
+                    return False
+                want = {r for r, b in self.agents.items() if b.repository.local_implementations(
+                    identity.split("(", 1)[0], identity)}
+                if a.repository.providers(identity) != want:
+                    return False
+            return True
+
+        await until(ok, f"team {sorted(robots)} to converge")
+
+
+@asynccontextmanager
+async def team(**cfg: Any) -> AsyncIterator[Team]:
+    t = Team(**cfg)
+    try:
+        yield t
+    finally:
+        await t.close()
+
+
+@asynccontextmanager
+async def silent_member(
+    net: InProcessNetwork, robot: str, impls: Iterable[Implementation], clock: Clock, **cfg: Any
+) -> AsyncIterator[ActorSystem]:
+    """A robot that heartbeats and advertises implementations but never answers calls for
+    bids (it has no mission control): auctions must not wait for it forever."""
+    c = config(**cfg)
+    system = ActorSystem(robot, transport=net.transport(robot), registry=protocol_registry(),
+                         clock=clock)
+    async with system:
+        repo = CapabilityRepository(robot)
+        repo.extend(impls)
+        system.spawn(
+            Membership(robot, heartbeat_s=c.heartbeat_s, failure_timeout_s=c.failure_timeout_s,
+                       repo_version=lambda: repo.version),
+            Membership.PATH,
+        )
+        system.spawn(repo, CapabilityRepository.PATH)
+        yield system

@@ -1,0 +1,273 @@
+"""The single-item auction: sans-IO rules, then the same rules between live agents."""
+
+from __future__ import annotations
+
+import math
+
+import anyio
+import pytest
+from capfixtures import COUNT, Probe, count_impl, silent_member, team, tick_until, until
+from hypothesis import given
+from hypothesis import strategies as st
+
+from btcap import Sequence, State
+from btcap.auction import Auction
+from btcap.messages import Bid, NoBid
+
+# -- sans-IO ------------------------------------------------------------------------------
+
+
+def _auction(*robots: str, deadline: float = 10.0) -> Auction:
+    return Auction("a:1", "Count", frozenset(robots), deadline)
+
+
+def test_closes_early_when_every_invited_robot_answered() -> None:
+    auc = _auction("a", "b", "c")
+    assert not auc.closed(0.0)
+    assert auc.offer(Bid("a:1", "a", 3.0, "i"))
+    assert auc.offer(NoBid("a:1", "b", "busy"))
+    assert auc.waiting_for == {"c"}
+    assert not auc.closed(9.9)
+    assert auc.offer(Bid("a:1", "c", 1.0, "j"))
+    assert auc.closed(0.0)
+    out = auc.outcome()
+    assert [b.robot for b in out.ranking] == ["c", "a"]
+    assert out.declined == {"b": "busy"}
+    assert out.silent == frozenset()
+
+
+def test_closes_at_the_window_when_someone_is_silent() -> None:
+    auc = _auction("a", "b", deadline=5.0)
+    auc.offer(Bid("a:1", "a", 1.0, "i"))
+    assert not auc.closed(4.99)
+    assert auc.closed(5.0)
+    out = auc.outcome()
+    assert [b.robot for b in out.ranking] == ["a"]
+    assert out.silent == {"b"}
+
+
+def test_member_loss_closes_it() -> None:
+    auc = _auction("a", "b")
+    auc.offer(Bid("a:1", "a", 1.0, "i"))
+    auc.member_lost("z")  # not invited: changes nothing
+    assert not auc.closed(0.0)
+    auc.member_lost("b")
+    assert auc.closed(0.0)
+    assert auc.outcome().silent == frozenset()
+
+
+def test_nobody_invited_is_closed_at_once_with_no_winner() -> None:
+    auc = _auction()
+    assert auc.closed(0.0)
+    assert auc.outcome().ranking == []
+
+
+def test_ranking_by_cost_then_robot_id() -> None:
+    auc = _auction("a", "b", "c", "d")
+    for robot, cost in (("d", 2.0), ("b", 1.0), ("c", 2.0), ("a", 2.0)):
+        auc.offer(Bid("a:1", robot, cost, f"impl-{robot}"))
+    assert [b.robot for b in auc.outcome().ranking] == ["b", "a", "c", "d"]
+
+
+@given(st.dictionaries(st.sampled_from("abcdef"), st.sampled_from([0.0, 1.0, 2.0]), min_size=1))
+def test_ranking_does_not_depend_on_arrival_order(costs: dict[str, float]) -> None:
+    ranks = []
+    for order in (sorted(costs), sorted(costs, reverse=True)):
+        auc = _auction(*costs)
+        for robot in order:
+            auc.offer(Bid("a:1", robot, costs[robot], "i"))
+        ranks.append([b.robot for b in auc.outcome().ranking])
+    assert ranks[0] == ranks[1] == sorted(costs, key=lambda r: (costs[r], r))
+
+
+@pytest.mark.parametrize("cost", [math.nan, math.inf, -math.inf, -0.5])
+def test_invalid_costs_become_declines(cost: float) -> None:
+    auc = _auction("a", "b")
+    assert auc.offer(Bid("a:1", "a", cost, "i"))
+    auc.offer(Bid("a:1", "b", 4.0, "j"))
+    out = auc.outcome()
+    assert [b.robot for b in out.ranking] == ["b"]
+    assert "invalid cost" in out.declined["a"]
+    assert auc.closed(0.0)
+
+
+def test_zero_cost_is_a_valid_bid() -> None:
+    auc = _auction("a")
+    auc.offer(Bid("a:1", "a", 0.0, "i"))
+    assert [b.cost for b in auc.outcome().ranking] == [0.0]
+
+
+def test_late_duplicate_and_foreign_answers_are_ignored() -> None:
+    auc = _auction("a", "b")
+    assert auc.offer(Bid("a:1", "a", 2.0, "i"))
+    assert not auc.offer(Bid("a:1", "a", 0.1, "i"))  # a second answer from a
+    assert not auc.offer(NoBid("a:1", "a", "changed my mind"))
+    assert not auc.offer(Bid("a:2", "b", 0.1, "j"))  # another auction's bid
+    assert not auc.offer(Bid("a:1", "zed", 0.1, "k"))  # never invited
+    assert auc.rejected == 4
+    assert auc.waiting_for == {"b"}
+    assert [(b.robot, b.cost) for b in auc.outcome().ranking] == [("a", 2.0)]
+
+
+# -- between agents -----------------------------------------------------------------------
+
+
+async def test_auction_between_agents_closes_early_and_cheapest_wins() -> None:
+    # A window of 1000 clock seconds (100 s of wall time): only an early close can finish.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=1000.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("b", [count_impl("b", 2.0, probe)])
+            await t.add("c", [count_impl("c", 3.0, probe)])
+            await t.add("d")  # no implementation: not even invited
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.assignments == ["b"]
+            out = a.auctioneer.last_outcome
+            assert out is not None
+            assert [(b.robot, b.cost) for b in out.ranking] == [("b", 2.0), ("c", 3.0), ("a", 5.0)]
+            assert out.silent == frozenset() and out.declined == {}
+            assert a.auctioneer.stats.early_closes == a.auctioneer.stats.auctions == 1
+            assert a.auctioneer.stats.awarded == 1
+            await tree.shutdown()
+
+
+async def test_equal_costs_are_broken_by_robot_id() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            c = await t.add("c", [count_impl("c", 2.0, probe)])
+            await t.add("b", [count_impl("b", 2.0, probe)])
+            await t.add("d", [count_impl("d", 2.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+            tree = c.mission(Sequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.assignments == ["b"]
+            await tree.shutdown()
+
+
+async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=2.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
+                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "s"}
+                            and "s" in a.team.alive(), "a to know s")
+                node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+                tree = a.mission(Sequence("root", children=[node]))
+                start = t.clock.now()
+                assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                assert t.clock.now() - start >= 2.0  # the auction waited its whole window
+                out = a.auctioneer.last_outcome
+                assert out is not None and out.silent == {"s"}
+                assert [b.robot for b in out.ranking] == ["a"]
+                assert a.auctioneer.stats.early_closes == 0
+                assert node.assignments == ["a"]
+                await tree.shutdown()
+
+
+async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=1000.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
+                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "s"}
+                            and "s" in a.team.alive(), "a to know s")
+                node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+                tree = a.mission(Sequence("root", children=[node]))
+                tree.tick()
+                await until(lambda: bool(a.auctioneer._open), "the auction to open")
+                auction, _done = next(iter(a.auctioneer._open.values()))
+                await until(lambda: auction.waiting_for == {"s"}, "a's own bid")
+            # s said goodbye: the auction stops waiting for it, long before its window.
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            out = a.auctioneer.last_outcome
+            assert out is not None and out.silent == frozenset()
+            assert node.assignments == ["a"]
+            await tree.shutdown()
+
+
+async def test_invalid_bids_from_a_robot_are_declines_and_the_next_wins() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("n", [count_impl("n", math.nan, probe)])
+            await t.add("m", [count_impl("m", -1.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.assignments == ["a"]
+            out = a.auctioneer.last_outcome
+            assert out is not None
+            assert set(out.declined) == {"n", "m"}
+            assert all("invalid cost" in why for why in out.declined.values())
+            await tree.shutdown()
+
+
+async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("b", [count_impl("b", lambda inp: None if inp["x"] > 10 else 1.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 11, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            out = a.auctioneer.last_outcome
+            assert out is not None and "cannot execute" in out.declined["b"]
+            assert node.assignments == ["a"]
+            await tree.shutdown()
+
+
+async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> None:
+    # Two origins auction at once; s never answers, so both auctions run their whole
+    # window and both rank b first. b accepts the first award and declines the second,
+    # which falls through to the next bid.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=1.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            c = await t.add("c", [count_impl("c", 4.0, probe)])
+            async with silent_member(t.net, "s", [count_impl("s", 9.0, probe)], t.clock):
+                await until(
+                    lambda: all(x.repository.providers(COUNT.identity) == {"a", "b", "c", "s"}
+                                and len(x.team.alive()) == 4 for x in (a, b, c)),
+                    "the team to converge",
+                )
+                na = COUNT.node_type()("count", inputs={"x": 1})
+                nc = COUNT.node_type()("count", inputs={"x": 2})
+                ta = a.mission(Sequence("ra", children=[na]))
+                tc = c.mission(Sequence("rc", children=[nc]))
+                ta.tick()
+                tc.tick()
+                await until(lambda: na.execution is None and nc.execution is None
+                            and a.auctioneer.stats.auctions == c.auctioneer.stats.auctions == 1,
+                            "both auctions")
+                for _ in range(1000):
+                    ta.tick()
+                    tc.tick()
+                    if na.state is State.RUNNING and nc.state is State.RUNNING:
+                        break
+                    await anyio.sleep(0.005)
+                robots = sorted([*na.assignments, *nc.assignments])
+                assert "b" in robots and len(robots) == 2 and robots[0] != robots[1]
+                assert b.mission_control.stats.declined == 1
+                stats = [a.auctioneer.stats, c.auctioneer.stats]
+                assert sum(s.declined_awards for s in stats) == 1
+                assert sum(s.awarded for s in stats) == 2
+                for node in (na, nc):
+                    node.set_input("stop", True)
+                for tree in (ta, tc):
+                    assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                await ta.shutdown()
+                await tc.shutdown()

@@ -1,0 +1,232 @@
+"""Capability interfaces, implementations, IO bridges, and local execution on one robot."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import anyio
+import pytest
+
+from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
+from btcap.capability import (
+    Capability,
+    CapabilityInterface,
+    Implementation,
+    InputBridge,
+    OutputBridge,
+)
+from btcap.mission import LocalExecution
+from btcap.utility import CANNOT
+from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
+
+# -- interfaces --------------------------------------------------------------------------
+
+
+def test_interface_rejects_options_with_a_clear_error() -> None:
+    with pytest.raises(TreeError, match=r"'Move'.*no options.*speed.*make them inputs"):
+        CapabilityInterface("Move", inputs={"goal": float}, options={"speed": float})
+
+
+def test_interface_name_must_be_an_identifier() -> None:
+    with pytest.raises(TreeError, match="identifier"):
+        CapabilityInterface("move to", inputs={})
+
+
+def test_identity_is_name_plus_port_names_and_types() -> None:
+    a = CapabilityInterface("Go", inputs={"x": int, "y": float}, outputs={"ok": bool})
+    b = CapabilityInterface(
+        "Go", inputs={"y": float, "x": int}, outputs={"ok": bool}, description="other text"
+    )
+    assert a.identity == b.identity == "Go(x:int,y:float)->(ok:bool)"
+    assert repr(a) == "CapabilityInterface(Go(x:int,y:float)->(ok:bool))"
+    differs = [
+        CapabilityInterface("Go", inputs={"x": int, "y": int}, outputs={"ok": bool}),
+        CapabilityInterface("Go", inputs={"x": int, "z": float}, outputs={"ok": bool}),
+        CapabilityInterface("Go", inputs={"x": int, "y": float}, outputs={}),
+        CapabilityInterface("Went", inputs={"x": int, "y": float}, outputs={"ok": bool}),
+    ]
+    assert len({a.identity, *(d.identity for d in differs)}) == 5
+
+
+def test_node_type_is_a_cached_capability_subclass_with_the_interface_ports() -> None:
+    cls = COUNT.node_type()
+    assert cls is COUNT.node_type()
+    assert issubclass(cls, Capability)
+    assert cls.__name__ == "Count"
+    assert cls.interface() is COUNT
+    assert cls.__doc__ == COUNT.description
+    node = cls("c", inputs={"x": 3})
+    assert set(node.input_ports) == {"x", "stop"}
+    assert set(node.output_ports) == {"y", "ticks", "robot"}
+    assert node.inputs == {"x": 3, "stop": False}
+    assert node.options == {"local_only": False, "retry_s": 1.0}
+    assert node.execution is None
+    with pytest.raises(TreeError, match="unknown option"):
+        cls("c", speed=2.0)
+    with pytest.raises(TreeError, match="input 'x'"):
+        cls("c", inputs={"x": "three"})
+
+
+def test_bridge_types_mirror_the_interface() -> None:
+    ib_t, ob_t = COUNT.bridge_types()
+    assert (ib_t, ob_t) == COUNT.bridge_types()
+    assert ib_t.__name__ == "CountInputs" and ob_t.__name__ == "CountOutputs"
+    ib, ob = ib_t(name="in"), ob_t(name="out")
+    assert ib.interface is COUNT and ob.interface is COUNT
+    assert ib.output_ports == COUNT.inputs and not ib.input_ports
+    assert set(ob.input_ports) == {"y", "ticks", "robot"} and not ob.output_ports
+    assert not any(p.required for p in ob.input_ports.values())
+    # The generic bridges take the interface explicitly, and need one.
+    assert InputBridge(COUNT, name="in").interface is COUNT
+    with pytest.raises(TreeError, match="needs the capability interface"):
+        OutputBridge(name="out")
+
+
+def _impl(build: Any, iface: CapabilityInterface = COUNT) -> Implementation:
+    return Implementation("impl", iface, build)
+
+
+def test_bridges_must_be_for_the_implemented_interface() -> None:
+    other = CapabilityInterface("Count", inputs={"x": float, "stop": bool}, outputs={})
+
+    def wrong_bridge() -> Tree:
+        ib = other.bridge_types()[0](name="in")
+        return Tree(Sequence("s", children=[ib, COUNT.bridge_types()[1](name="out")]))
+
+    with pytest.raises(TreeError, match=r"bridge 's/in' is for Count\(stop:bool,x:float\)"):
+        _impl(wrong_bridge).instantiate()
+
+
+def test_implementation_needs_its_bridges_once() -> None:
+    ib_t, ob_t = COUNT.bridge_types()
+    with pytest.raises(TreeError, match="inputs need an InputBridge"):
+        _impl(lambda: Sequence("s", children=[ob_t(name="out")])).instantiate()
+    with pytest.raises(TreeError, match="outputs need an OutputBridge"):
+        _impl(lambda: Sequence("s", children=[ib_t(name="in")])).instantiate()
+    with pytest.raises(TreeError, match="at most one bridge"):
+        _impl(
+            lambda: Sequence("s", children=[ib_t(name="a"), ib_t(name="b"), ob_t(name="o")])
+        ).instantiate()
+    # An interface without ports needs no bridges at all.
+    bare = CapabilityInterface("Bare")
+    run = _impl(lambda: AlwaysSuccess("ok"), bare).instantiate()
+    assert run.input_bridge is None and run.output_bridge is None
+    assert run.step({}) == (State.SUCCEEDED, {})
+
+
+def test_implementation_run_feeds_inputs_and_collects_outputs_every_step() -> None:
+    probe = Probe()
+    run = count_impl("r", 0.0, probe, k=3).instantiate()
+    seen = [run.step({"x": x, "stop": False}) for x in (1, 2, 5)]
+    assert [s for s, _ in seen] == [State.RUNNING] * 3
+    assert [o["y"] for _, o in seen] == [3, 6, 15]
+    assert [o["ticks"] for _, o in seen] == [1, 2, 3]
+    assert run.step({"x": 7, "stop": True}) == (State.SUCCEEDED, {"y": 21, "ticks": 4, "robot": "r"})
+
+
+def test_implementation_cost_adds_bid_to_utility_and_none_means_cannot() -> None:
+    probe = Probe()
+    assert count_impl("r", 2.5, probe).cost({"x": 1}) == 2.5
+    assert count_impl("r", lambda inp: None, probe).cost({"x": 1}) is None
+    assert count_impl("r", lambda inp: inp["x"] * 2.0, probe).cost({"x": 4}) == 8.0
+
+    class Never(AlwaysSuccess):
+        def utility(self) -> Any:
+            return CANNOT
+
+    assert Implementation("n", CapabilityInterface("Bare"), lambda: Never("n")).cost({}) is None
+
+
+def test_capability_outside_an_agent_errors_with_a_hint() -> None:
+    node = COUNT.node_type()("c", inputs={"x": 1})
+    tree = Tree(Sequence("root", children=[node]))
+    assert tree.tick() is State.FAILED
+    assert node.state is State.ERROR
+    assert isinstance(node.error, TreeError)
+    assert "MissionControl" in str(node.error)
+
+
+# -- local execution ---------------------------------------------------------------------
+
+
+async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 1.0, probe, k=2)])
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.ASSIGNED, "assigned")
+            ex = node.execution
+            assert isinstance(ex, LocalExecution)
+            assert ex.robot == "a"
+            assert a.mission_control.occupied == ex.id
+            assert node.assignments == ["a"]
+            out = a.auctioneer.last_outcome
+            assert out is not None and [b.robot for b in out.ranking] == ["a"]
+            # Every tick: the input goes in, the implementation ticks, the output comes back.
+            for step, x in enumerate((1, 4, 9, -2), start=1):
+                node.set_input("x", x)
+                assert tree.tick() is State.RUNNING
+                assert node.state is State.RUNNING
+                assert node.outputs == {"y": 2 * x, "ticks": step, "robot": "a"}
+            assert probe.ticks["a"] == 4
+            node.set_input("stop", True)
+            assert tree.tick() is State.SUCCEEDED
+            assert node.outputs["ticks"] == 5
+            assert node.execution is None
+            assert a.mission_control.occupied is None
+            assert "Count" in a.repository.succeeded
+            await until(lambda: probe.live("a") == 0, "the run to be shut down")
+            # The result is kept until reset: ticking again does not re-run.
+            assert tree.tick() is State.SUCCEEDED
+            assert probe.ticks["a"] == 5
+            await tree.shutdown()
+
+
+async def test_local_execution_pause_and_reset_release_the_robot() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 1.0, probe)])
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            tree.untick()
+            assert node.state is State.PAUSED
+            assert probe.unticks["a"] == 1
+            assert a.mission_control.occupied is not None  # paused work keeps the robot
+            assert tree.tick() is State.RUNNING
+            tree.reset()
+            assert node.execution is None and node.state is State.IDLE
+            assert a.mission_control.occupied is None
+            await until(lambda: probe.live("a") == 0, "the run to be shut down")
+            # Reset forgets the result: the next tick runs a fresh auction and execution.
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running again")
+            assert node.assignments == ["a", "a"]
+            await tree.shutdown()
+            assert a.mission_control.occupied is None
+            await until(lambda: probe.live("a") == 0, "the second run to be shut down")
+
+
+async def test_local_only_never_leaves_the_robot_and_waits_when_it_cannot() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 9.0, probe)])
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            c = await t.add("c")
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1}, local_only=True)
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            assert node.assignments == ["a"]  # b is cheaper, but local_only
+            await tree.shutdown()
+            # A robot without an implementation stays unassigned (retrying), never errors.
+            lonely = COUNT.node_type()("count", inputs={"x": 1}, local_only=True, retry_s=0.1)
+            tree2 = c.mission(Sequence("root2", children=[lonely]))
+            for _ in range(5):
+                assert tree2.tick() is State.RUNNING
+                assert lonely.state is State.UNASSIGNED
+            assert c.mission_control.stats.unassigned >= 1
+            await tree2.shutdown()

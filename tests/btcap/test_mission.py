@@ -1,0 +1,407 @@
+"""Mission control between agents: remote execution, pause/cancel, leases and failures,
+joins, preconditions, and hostile or stray protocol messages."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import anyio
+from capfixtures import COUNT, Probe, Team, count_impl, team, tick_until, until
+
+from btcap import Parallel, Sequence, State, Tree
+from btcap.agent import Agent
+from btcap.capability import Capability, CapabilityInterface, Precondition, Scope
+from btcap.messages import (
+    Award,
+    AwardReply,
+    Bid,
+    CallForBids,
+    CancelExecution,
+    ExecutionInputs,
+    ExecutionStatus,
+    KeepAlive,
+    NoBid,
+    PauseExecution,
+)
+from btcap.mission import LocalExecution, RemoteExecution
+
+
+def _count(name: str = "count", **inputs: Any) -> Capability:
+    return COUNT.node_type()(name, inputs={"x": 1, **inputs})
+
+
+def _no_trace(agent: Agent) -> bool:
+    mc = agent.mission_control
+    slot = mc.slot
+    return (
+        mc.occupied is None
+        and not mc.hosted
+        and not mc._local_runs
+        and not mc.origin_executions
+        and (slot is None or slot.current is None)
+    )
+
+
+async def _running_on(tree: Tree, node: Capability, robot: str) -> None:
+    await tick_until(
+        tree,
+        lambda _s: node.state is State.RUNNING
+        and node.execution is not None
+        and node.execution.robot == robot,
+        f"running on {robot}",
+    )
+
+
+# -- remote execution -----------------------------------------------------------------------
+
+
+async def test_remote_execution_streams_io_both_ways_every_tick() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe, k=2)])
+            b = await t.add("b", [count_impl("b", 1.0, probe, k=3)])
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            ex = node.execution
+            assert isinstance(ex, RemoteExecution)
+            assert b.mission_control.occupied == ex.id == next(iter(b.mission_control.hosted))
+            assert a.mission_control.occupied is None  # the origin's body is free
+            assert a.mission_control.origin_executions == {ex.id: ex}
+            # Change the input on the origin while b runs: b's output follows.
+            for x in (4, 7, -3):
+                node.set_input("x", x)
+                await tick_until(tree, lambda _s, x=x: node.outputs["y"] == 3 * x, f"y == 3*{x}")
+                assert node.outputs["robot"] == "b"
+            ticks = node.outputs["ticks"]
+            await tick_until(tree, lambda _s: node.outputs["ticks"] > ticks, "more ticks")
+            assert probe.ticks["a"] == 0
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.outputs["y"] == -9
+            await until(lambda: _no_trace(a) and _no_trace(b) and probe.live("b") == 0, "no trace")
+            assert b.mission_control.stats.hosted == 1
+            await tree.shutdown()
+
+
+async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            hosted = next(iter(b.mission_control.hosted.values()))
+            tree.untick()
+            assert node.state is State.PAUSED
+            await until(lambda: probe.unticks["b"] == 1 and hosted.paused, "b to pause")
+            frozen = probe.ticks["b"]
+            assert hosted.state is State.PAUSED
+            # Paused, not gone: the lease is kept alive without ticks.
+            for _ in range(60):  # 0.3 s wall = 3 clock s, well beyond the 1 s lease
+                await anyio.sleep(0.005)
+            assert probe.ticks["b"] == frozen
+            assert b.mission_control.hosted == {hosted.id: hosted}
+            assert node.execution is not None and node.execution.id == hosted.id
+            # Ticking again resumes the same run.
+            await tick_until(tree, lambda _s: probe.ticks["b"] > frozen + 2, "b to resume")
+            assert not hosted.paused
+            assert node.assignments == ["b"]
+            await tree.shutdown()
+
+
+async def test_reset_and_shutdown_cancel_the_remote_run_without_trace() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            tree.reset()
+            assert node.execution is None and node.state is State.IDLE
+            await until(lambda: _no_trace(a) and _no_trace(b) and probe.live("b") == 0, "no trace")
+            # And again, ended by shutting the mission tree down.
+            await _running_on(tree, node, "b")
+            assert probe.live("b") == 1
+            await tree.shutdown()
+            await until(lambda: _no_trace(a) and _no_trace(b) and probe.live("b") == 0, "no trace")
+            assert node.assignments == ["b", "b"]
+
+
+async def test_three_robots_each_capability_to_the_cheapest_free_one() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.add("c", [count_impl("c", 2.0, probe)])
+            await t.converged()
+            n1, n2, n3 = _count("one"), _count("two"), _count("three")
+            tree = a.mission(Parallel("root", children=[n1, n2, n3]))
+            await tick_until(
+                tree, lambda _s: all(n.state is State.RUNNING for n in (n1, n2, n3)), "all running"
+            )
+            assert sorted(n.assignments[0] for n in (n1, n2, n3)) == ["a", "b", "c"]
+            local = [n for n in (n1, n2, n3) if n.assignments == ["a"]]
+            assert isinstance(local[0].execution, LocalExecution)
+            for n in (n1, n2, n3):
+                n.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree.shutdown()
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+
+
+# -- failures and joins ---------------------------------------------------------------------
+
+
+async def _failover(t: Team, kill: str) -> None:
+    probe = Probe()
+    a = await t.add("a", [count_impl("a", 5.0, probe)])
+    await t.add("b", [count_impl("b", 1.0, probe, k=10)])
+    c = await t.add("c", [count_impl("c", 2.0, probe, k=100)])
+    await t.converged()
+    node = _count(x=1)
+    tree = a.mission(Sequence("root", children=[node]))
+    await _running_on(tree, node, "b")
+    node.set_input("x", 7)
+    await tick_until(tree, lambda _s: node.outputs["y"] == 70, "b to see x=7")
+    if kill == "isolate":
+        t.net.isolate("b")
+    else:
+        await t.remove("b")
+    await _running_on(tree, node, "c")
+    assert node.assignments == ["b", "c"]
+    # The new executor started from the latest inputs, not the first ones.
+    first = [x for robot, x in probe.first_x.values() if robot == "c"]
+    assert first == [7]
+    await tick_until(tree, lambda _s: node.outputs["y"] == 700, "c's outputs")
+    node.set_input("stop", True)
+    assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+    assert a.mission_control.stats.lost == 1
+    await tree.shutdown()
+    await until(lambda: _no_trace(a) and _no_trace(c), "no trace on a and c")
+    if kill == "isolate":
+        # The isolated executor gave the run up on its own (its origin went silent).
+        b = t["b"]
+        await until(lambda: _no_trace(b) and probe.live("b") == 0, "b to drop its run")
+
+
+async def test_isolated_executor_lease_lapses_and_the_capability_moves_on() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            await _failover(t, "isolate")
+
+
+async def test_executor_agent_exiting_mid_task_moves_the_capability_on() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            await _failover(t, "exit")
+
+
+async def test_lease_lapse_without_membership_failure_reassigns() -> None:
+    # The team still sees b (its heartbeats are fine) but nothing b's mission control sends
+    # gets through (a one-way partition): only the lease notices.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(failure_timeout_s=1000.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            b.mission_control._to_mc = lambda robot, msg: None  # type: ignore[method-assign]
+            await _running_on(tree, node, "a")
+            assert node.assignments == ["b", "a"]
+            assert a.mission_control.stats.lost == 1
+            # b gives its run up on its own once the origin stops renewing the lease.
+            await until(lambda: _no_trace(b) and probe.live("b") == 0, "b to drop its run")
+            await tree.shutdown()
+
+
+async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_auction() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            b = await t.add("b", [count_impl("b", 3.0, probe)])
+            await t.converged()
+            first = _count("first")
+            tree = a.mission(SequenceWithStop := Sequence("root", children=[first]))
+            await _running_on(tree, first, "b")
+            hosted = set(b.mission_control.hosted)
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await t.converged()
+            for _ in range(40):  # keep working for a while with c in the team
+                tree.tick()
+                await anyio.sleep(0.005)
+            assert first.assignments == ["b"] and set(b.mission_control.hosted) == hosted
+            assert probe.ticks["c"] == 0
+            first.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            second = _count("second", stop=True)
+            tree2 = a.mission(Sequence("root2", children=[second]))
+            assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert second.assignments == ["c"]
+            assert SequenceWithStop.state is State.SUCCEEDED
+            await tree.shutdown()
+            await tree2.shutdown()
+
+
+# -- preconditions ------------------------------------------------------------------------
+
+FIRST = CapabilityInterface("First", inputs={"x": int, "stop": bool}, outputs={"y": int, "ticks": int, "robot": str})
+
+
+async def test_local_precondition_needs_success_on_this_robot() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        need = (Precondition("First", Scope.LOCAL),)
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe), count_impl("a", 5.0, probe, interface=FIRST)])
+            b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need),
+                                  count_impl("b", 9.0, probe, interface=FIRST)])
+            await t.converged()
+            n1 = _count("n1", stop=True)
+            tree = a.mission(Sequence("root", children=[n1]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert n1.assignments == ["a"]
+            out = a.auctioneer.last_outcome
+            assert out is not None and "precondition First (local) not met" in out.declined["b"]
+            # First succeeds on a (cheaper there): b's precondition is still unmet.
+            f = FIRST.node_type()("f", inputs={"x": 1, "stop": True})
+            tree2 = a.mission(Sequence("root2", children=[f]))
+            assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert f.assignments == ["a"]
+            tree.reset()
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert n1.assignments == ["a", "a"]
+            # Once First succeeded on b itself, b may bid.
+            b.repository.record_success("First")
+            tree.reset()
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert n1.assignments == ["a", "a", "b"]
+            await tree.shutdown()
+            await tree2.shutdown()
+
+
+async def test_remote_precondition_needs_success_anywhere_in_the_team() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        need = (Precondition("First", Scope.REMOTE),)
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe), count_impl("a", 1.0, probe, interface=FIRST)])
+            b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
+            await t.converged()
+            n1 = _count("n1", stop=True)
+            tree = a.mission(Sequence("root", children=[n1]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert n1.assignments == ["a"]
+            f = FIRST.node_type()("f", inputs={"x": 1, "stop": True})
+            tree2 = a.mission(Sequence("root2", children=[f]))
+            assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await until(lambda: b.repository.succeeded_anywhere("First"), "b to learn of First")
+            tree.reset()
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert n1.assignments == ["a", "b"]
+            await tree.shutdown()
+            await tree2.shutdown()
+
+
+async def test_preconditions_are_checked_again_at_award() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        need = (Precondition("First", Scope.REMOTE),)
+        async with team() as t:
+            await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
+            await t.converged()
+            b.repository.team["a"].succeeded.append("First")
+            mc = b.mission_control
+            cfb = CallForBids("a:9", "Count", COUNT.identity, {"x": 1}, "a", "a/auctioneer")
+            assert isinstance(mc.evaluate(cfb), Bid)
+            # The member that had done it left before the award came.
+            b.repository.team.pop("a")
+            award = Award("a:9", "a:root:9", "Count", "count-b", {"x": 1}, "a", "a/auctioneer", 1.0)
+            reply = await b.mission_control.ref.ask(award, expect=AwardReply)
+            assert not reply.accepted and "precondition First (remote)" in reply.reason
+            assert _no_trace(b)
+
+
+# -- stray and hostile messages -------------------------------------------------------------
+
+
+async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            x = await t.add("x")  # a peer sending nonsense over the real network
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            real = node.execution
+            assert real is not None
+            send = x.system.tell
+            from transports import Address
+
+            a_mc, b_mc = Address("a", "mission_control"), Address("b", "mission_control")
+            stray: list[tuple[Address, Any]] = [
+                (Address("a", "auctioneer"), Bid("a:999", "x", 0.0, "count-x")),
+                (Address("a", "auctioneer"), NoBid("nope", "x", "")),
+                (a_mc, ExecutionStatus("x:root:1", "x", State.SUCCEEDED, {"y": 1})),
+                # A real execution, but reported by a robot that does not run it.
+                (a_mc, ExecutionStatus(real.id, "x", State.SUCCEEDED, {"y": 666})),
+                (a_mc, ExecutionStatus(real.id, "x", State.SHUTDOWN, {})),
+                (a_mc, KeepAlive("x", [real.id, "bogus"])),
+                (b_mc, ExecutionInputs("x:root:1", 1, {"x": 5})),
+                (b_mc, ExecutionInputs("", 1, {})),
+                (b_mc, ExecutionInputs(real.id, 10**6, {"x": "not an int"})),
+                (b_mc, PauseExecution("x:root:1")),
+                (b_mc, CancelExecution("x:root:1", "stray")),
+                (b_mc, KeepAlive("x", ["x:root:1"])),
+                (a_mc, CallForBids("z:1", "Nope", "Nope()->()", {}, "x", "x/auctioneer")),
+                (a_mc, CallForBids("z:2", "Count", COUNT.identity, {"x": "bad"}, "x", "x/auctioneer")),
+                (a_mc, AwardReply("a:1", "x", True)),
+            ]
+            for address, msg in stray:
+                send(address, msg)
+            # An award for an implementation the robot does not have is declined.
+            award = Award("x:1", "x:root:1", "Count", "no-such-impl", {"x": 1}, "x", "x/auctioneer", 1.0)
+            reply = await x.system.ref("a/mission_control").ask(award, expect=AwardReply)
+            assert not reply.accepted and "no implementation" in reply.reason
+            award2 = Award("x:2", "x:root:2", "Nope", "count-a", {}, "x", "x/auctioneer", 1.0)
+            reply = await x.system.ref("a/mission_control").ask(award2, expect=AwardReply)
+            assert not reply.accepted
+            # The real execution was not disturbed and still finishes on b.
+            for _ in range(20):
+                tree.tick()
+                await anyio.sleep(0.005)
+            assert node.execution is real and node.state is State.RUNNING
+            assert node.outputs["y"] != 666
+            node.set_input("x", 3)
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.outputs["y"] == 3 and node.assignments == ["b"]
+            for agent in (a, b):
+                mc = agent.mission_control
+                assert agent.system.lookup("mission_control") is mc
+                assert mc._restarts == 0
+                assert agent.auctioneer._restarts == 0
+            await tree.shutdown()
+            # And a new capability is still auctioned and run normally.
+            again = _count("again", stop=True)
+            tree2 = a.mission(Sequence("root2", children=[again]))
+            assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert again.assignments == ["b"]
+            await tree2.shutdown()

@@ -1,0 +1,136 @@
+"""Team membership: joins, goodbyes, silent failures, restarts; unit and between agents."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+import anyio
+import pytest
+from capfixtures import team, until
+
+from actors import ActorSystem, ManualClock
+from btcap.messages import Goodbye, Heartbeat
+from btcap.protocol import protocol_registry
+from btcap.team import Membership, TeamEvent
+
+
+@asynccontextmanager
+async def membership(**kw: float) -> AsyncIterator[tuple[Membership, ManualClock, list[tuple[TeamEvent, str]]]]:
+    clock = ManualClock()
+    async with ActorSystem("me", registry=protocol_registry(), clock=clock) as system:
+        m = Membership("me", **kw)
+        system.spawn(m, Membership.PATH)
+        events: list[tuple[TeamEvent, str]] = []
+        m.subscribe(lambda e, r: events.append((e, r)))
+        yield m, clock, events
+
+
+def test_failure_timeout_must_exceed_the_heartbeat() -> None:
+    with pytest.raises(ValueError, match="failure_timeout_s"):
+        Membership("me", heartbeat_s=1.0, failure_timeout_s=1.0)
+
+
+async def test_heartbeats_join_change_and_restart() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (m, _clock, events):
+            tell = m.system.tell
+            tell(m.address, Heartbeat("me", m.incarnation, 0))  # my own echo: ignored
+            assert events == [] and m.alive() == {"me"}
+            tell(m.address, Heartbeat("x", 1, 0))
+            tell(m.address, Heartbeat("x", 1, 0))  # nothing new
+            assert events == [(TeamEvent.JOINED, "x")]
+            assert m.alive() == {"me", "x"}
+            tell(m.address, Heartbeat("x", 1, 3))
+            assert events[-1] == (TeamEvent.CHANGED, "x")
+            # A new incarnation: the old one failed, the new one joined.
+            tell(m.address, Heartbeat("x", 2, 0))
+            assert events[-2:] == [(TeamEvent.FAILED, "x"), (TeamEvent.JOINED, "x")]
+            assert m.members["x"].incarnation == 2
+            assert [e for _, e, _ in m.history] == [e for e, _ in events]
+
+
+async def test_goodbye_of_the_current_incarnation_only() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (m, _clock, events):
+            tell = m.system.tell
+            tell(m.address, Heartbeat("x", 2, 0))
+            tell(m.address, Goodbye("x", 1))  # from an old incarnation
+            tell(m.address, Goodbye("y", 1))  # from a stranger
+            assert m.alive() == {"me", "x"}
+            tell(m.address, Goodbye("x", 2))
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.LEFT, "x")]
+            assert m.alive() == {"me"}
+
+
+async def test_silence_beyond_the_failure_timeout_is_a_failure() -> None:
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (m, clock, events):
+            m.system.tell(m.address, Heartbeat("x", 1, 0))
+            await clock.advance(0.4)
+            m.system.tell(m.address, Heartbeat("x", 1, 0))  # renews
+            await clock.advance(0.5)
+            assert events == [(TeamEvent.JOINED, "x")]
+            await clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
+            assert m.alive() == {"me"}
+
+
+async def test_a_failing_listener_does_not_stop_the_others() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (m, _clock, events):
+
+            def bad(_e: TeamEvent, _r: str) -> None:
+                raise RuntimeError("listener bug")
+
+            unsubscribe = m.subscribe(bad)
+            m.subscribe(lambda e, r: events.append((e, r)))
+            m.system.tell(m.address, Heartbeat("x", 1, 0))
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.JOINED, "x")]
+            unsubscribe()
+            unsubscribe()  # twice is harmless
+            assert bad not in m._listeners
+
+
+def _events(agent_team: Membership, robot: str) -> list[TeamEvent]:
+    return [e for _, e, r in agent_team.history if r == robot]
+
+
+async def test_join_leave_and_failure_between_agents() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b")
+            await t.add("c")
+            await t.converged()
+            assert _events(a.team, "b") == [TeamEvent.JOINED]
+            # b leaves on purpose: everyone knows at once (no timeout needed).
+            await t.remove("b")
+            await until(lambda: a.team.alive() == {"a", "c"} and t["c"].team.alive() == {"a", "c"})
+            assert _events(a.team, "b") == [TeamEvent.JOINED, TeamEvent.LEFT]
+            # c goes silent: after the failure timeout it counts as failed, and c sees a fail.
+            t.net.isolate("c")
+            await until(lambda: a.team.alive() == {"a"} and t["c"].team.alive() == {"c"})
+            assert _events(a.team, "c") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            assert _events(t["c"].team, "a") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            # Healed, it joins again.
+            t.net.heal("c")
+            await until(lambda: a.team.alive() == {"a", "c"})
+            assert _events(a.team, "c") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+
+
+async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
+    # The failure timeout is long: only the new incarnation can reveal the restart.
+    with anyio.fail_after(10):
+        async with team(failure_timeout_s=1000.0) as t:
+            a = await t.add("a")
+            b = await t.add("b")
+            await t.converged()
+            old = b.team.incarnation
+            t.net.isolate("b")  # a crash: no goodbye gets out
+            await t.remove("b")
+            assert a.team.alive() == {"a", "b"}
+            b2 = await t.add("b")
+            assert b2.team.incarnation != old
+            await until(lambda: a.team.members["b"].incarnation == b2.team.incarnation)
+            assert _events(a.team, "b") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
