@@ -115,7 +115,9 @@ async def _bench_inproc(warmup: int, count: int) -> tuple[dict[str, Any], dict[s
         )
         for i, name in enumerate(names)
     ]
-    origin = Agent("origin", transport=net.transport("origin"), registry=reg, config=_origin_config())
+    origin = Agent(
+        "origin", transport=net.transport("origin"), registry=reg, config=_origin_config()
+    )
     started: list[Agent] = []
     try:
         for a in agents:

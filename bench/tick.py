@@ -152,10 +152,11 @@ _PY_TREES_STATUS = {
 
 def verify_btcap(spec: Spec, tree: btcap.Tree, ticks: int = VERIFY_TICKS) -> None:
     counts: Counter[int] = Counter()
-    code = btcap.Node.tick.__code__
+    nodes = list(tree.nodes())
+    codes = {type(n).tick.__code__ for n in nodes}  # whichever tick each class runs
 
     def hook(frame: FrameType, event: str, arg: Any) -> None:
-        if event == "call" and frame.f_code is code:
+        if event == "call" and frame.f_code in codes:
             counts[id(frame.f_locals["self"])] += 1
 
     sys.setprofile(hook)
@@ -164,7 +165,6 @@ def verify_btcap(spec: Spec, tree: btcap.Tree, ticks: int = VERIFY_TICKS) -> Non
     finally:
         sys.setprofile(None)
     assert results == [_BTCAP_STATE[spec.expect]] * ticks, f"btcap root gave {results}"
-    nodes = list(tree.nodes())
     assert len(nodes) == _count(spec), (len(nodes), _count(spec))
     assert len(counts) == len(nodes), f"btcap ticked {len(counts)} of {len(nodes)} nodes"
     for s, n in zip(spec.walk(), nodes, strict=True):

@@ -13,7 +13,7 @@ import structlog
 
 from actors import Actor, ActorError, TimeSource, handler
 from btcap.auction import Auction, AuctionOutcome
-from btcap.messages import Award, AwardReply, Bid, CallForBids, NoBid
+from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 from btcap.team import Membership, TeamEvent
 
 __all__ = ["AssignmentStrategy", "AssignmentTask", "Assigned", "AuctionStats", "SingleItemAuction"]
@@ -127,7 +127,14 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 reply = await system.ref(f"{bid.robot}/mission_control").ask(
                     award, expect=AwardReply, timeout=_wall(clock, self.award_timeout_s)
                 )
-            except (ActorError, TypeError) as exc:
+            except (ActorError, TypeError, asyncio.CancelledError) as exc:
+                # The robot may still take the award after we gave up waiting (or were
+                # cancelled): withdraw it, so the task never runs twice at once.
+                system.ref(f"{bid.robot}/mission_control").tell(
+                    CancelExecution(task.execution, "award withdrawn"), sender=self.address
+                )
+                if isinstance(exc, asyncio.CancelledError):
+                    raise
                 log.info("auction.award_lost", auction=auction_id, robot=bid.robot, error=str(exc))
                 self.stats.declined_awards += 1
                 continue

@@ -44,9 +44,14 @@ class _CommandModule(Protocol):
 def _command_modules() -> list[str]:
     """Modules that contribute top-level subcommands, in help order.
 
-    Register a new command (e.g. ``btcap run``) by appending its module here.
+    Register a new command by appending its module here, or, from a package above
+    btcap (``btcap run`` lives in ``sim``), by an entry point in the group
+    ``btcap.commands`` naming the module, so btcap never imports the layers above it.
     """
-    return ["btcap.cli"]
+    from importlib.metadata import entry_points
+
+    plugins = sorted(ep.value for ep in entry_points(group="btcap.commands"))
+    return ["btcap.cli", *plugins]
 
 
 def _version() -> str:

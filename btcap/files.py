@@ -27,6 +27,7 @@ everything it can before giving up, so one run shows all the mistakes in a file.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import os
 import re
 import typing
@@ -178,13 +179,40 @@ def _format_of(path: Path) -> Format:
 
 def _decode(text: bytes | str, fmt: Format, where: str) -> Any:
     try:
-        if fmt == "yaml":
-            return msgspec.yaml.decode(text)
-        return msgspec.json.decode(text)
+        if fmt == "json":
+            return msgspec.json.decode(text)
+        raw = msgspec.yaml.decode(text)
+        dups = _yaml_duplicates(text)
     except (msgspec.DecodeError, yaml.YAMLError) as exc:
         raise TreeFileError(
             [f"{where}: malformed {fmt.upper()}: {_decode_detail(str(exc), text)}"]
         ) from None
+    if dups:
+        raise TreeFileError(f"{where}: {d}" for d in dups)
+    return raw
+
+
+_Loader: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def _yaml_duplicates(text: bytes | str) -> list[str]:
+    """YAML silently keeps the last of two equal keys; a tree file must not."""
+    out: list[tuple[int, str]] = []
+    stack = [yaml.compose(text, Loader=_Loader)]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, yaml.MappingNode):
+            seen: set[str] = set()
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    if key.value in seen:
+                        line = key.start_mark.line + 1
+                        out.append((line, f"line {line}: duplicate key {key.value!r}"))
+                    seen.add(key.value)
+                stack.append(value)
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+    return [f"{msg} (YAML would silently keep only the last one)" for _, msg in sorted(out)]
 
 
 def _decode_detail(msg: str, text: bytes | str) -> str:
@@ -249,7 +277,7 @@ def _parse(raw: Any, where: str) -> TreeFile:
                 )
             else:
                 subtrees[key] = sub
-        raw = {**raw, "subtrees": {k: {"file": "-"} for k in raw_subs if isinstance(k, str)}}
+        raw = {**raw, "subtrees": {k: {"file": "-"} for k in raw_subs}}
     try:
         spec = msgspec.convert(raw, TreeFile)
     except msgspec.ValidationError as exc:
@@ -313,7 +341,9 @@ def _translate(msg: str, raw: Any, kind: str, where: str, label: str) -> str:
             field.extend(steps[i:])
             struct = ""
             break
-    name = "".join(f"[{s}]" if isinstance(s, int) else f".{s}" for s in field).lstrip(".")
+    name = "".join(
+        f"[{s}]" if isinstance(s, int) else s if s == "[...]" else f".{s}" for s in field
+    ).lstrip(".")
     parts = [label.strip()] if label else []
     if node_path:
         parts.append(f"node {'/'.join(node_path)!r}")
@@ -737,8 +767,6 @@ def _under(path: str, failed: list[str]) -> bool:
 
 
 def _near(word: str, options: Iterable[str]) -> str:
-    import difflib
-
     near = difflib.get_close_matches(word, list(options), n=3, cutoff=0.6)
     return f" (did you mean {', '.join(near)}?)" if near else ""
 

@@ -10,6 +10,7 @@ runs at most one execution at a time, local or remote.
 
 from __future__ import annotations
 
+import asyncio
 import itertools
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -39,8 +40,6 @@ from btcap.team import Membership, TeamEvent
 from transports import Address
 
 if TYPE_CHECKING:
-    import asyncio
-
     from btcap.slot import RemoteCapabilitySlot
 
 __all__ = [
@@ -207,6 +206,13 @@ class MissionControl(Actor):
         self.team.subscribe(self._on_team)
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
+    def on_stop(self) -> None:
+        # The robot is going away: what it runs for others or itself stops with it.
+        for h in list(self.hosted.values()):
+            self._drop_hosted(h, "robot stopping")
+        for execution, run in list(self._local_runs.items()):
+            self._release(execution, run)
+
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         if self.slot is not None and self.slot is not slot:
             raise TreeError(f"robot {self.robot} already has a remote capability slot")
@@ -287,6 +293,11 @@ class MissionControl(Actor):
     async def _assign(self, req: AssignmentRequest, task: AssignmentTask) -> None:
         try:
             won = await self.strategy.assign(task)
+        except asyncio.CancelledError:
+            run = self._local_runs.get(task.execution)
+            if run is not None:  # this robot took the award as the request was cancelled
+                self._release(task.execution, run)
+            raise
         finally:
             req.done = True
         if won is None:
@@ -408,14 +419,27 @@ class MissionControl(Actor):
             # Its nodes become actors of this robot, at a path unique to the execution.
             run.tree.name = msg.execution.replace("/", ".")
             run.tree.attach(self.system)
-        except (TreeError, ValueError) as exc:
+        except Exception as exc:  # a broken implementation declines, never kills the actor
+            if not isinstance(exc, TreeError | ValueError):
+                log.error(
+                    "mission.build_failed", robot=self.robot, implementation=impl.name, exc_info=exc
+                )
             return decline(str(exc))
+        hosted = Hosted(msg.execution, msg.origin, run, inputs, self.system.clock.now())
+        refused: str | None = None
+        try:
+            # Set up now, so an implementation that cannot start is declined, not run.
+            if remote:
+                assert self.slot is not None
+                refused = self.slot.load(hosted)
+            else:
+                run.tree.setup()
+        except Exception as exc:
+            refused = f"setup of {impl.name!r} failed: {exc}"
+        if refused is not None:
+            self._close(run)
+            return decline(refused)
         if remote:
-            assert self.slot is not None
-            hosted = Hosted(msg.execution, msg.origin, run, inputs, self.system.clock.now())
-            refused = self.slot.load(hosted)
-            if refused is not None:
-                return decline(refused)
             self.hosted[msg.execution] = hosted
             self.stats.hosted += 1
         else:
@@ -489,5 +513,14 @@ class MissionControl(Actor):
         self._local_runs.pop(execution, None)
         if self.occupied == execution:
             self.occupied = None
-        if self._system is not None and self.system.running:
-            self.start_task(run.close(), name=f"close {execution}")
+        self._close(run)
+
+    def _close(self, run: ImplementationRun) -> None:
+        # Shut the nodes down at once, so nothing of the run works on (also when the
+        # system is stopping and no task can run); a system task then waits for its
+        # background work and removes its actors. Not this actor's task: stopping mission
+        # control must not cancel it before it ran.
+        run.tree.root.shutdown()
+        system = self._system
+        if system is not None and system.running:
+            system.start_task(run.close(), name=f"close {run.tree.name}")

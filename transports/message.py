@@ -45,10 +45,11 @@ class MessageRegistry:
     theirs, without any module-level state.
     """
 
-    __slots__ = ("_by_tag", "_version")
+    __slots__ = ("_by_tag", "_types", "_version")
 
     def __init__(self, types: Iterable[type[Message]] = ()) -> None:
         self._by_tag: dict[str, type[Message]] = {}
+        self._types: set[type[Message]] = set()
         self._version = 0
         self.register(*types)
 
@@ -68,6 +69,7 @@ class MessageRegistry:
                     f"taken by {known.__module__}.{known.__qualname__}"
                 )
             self._by_tag[tag] = t
+            self._types.add(t)
             self._version += 1
 
     def merge(self, other: MessageRegistry) -> None:
@@ -85,4 +87,4 @@ class MessageRegistry:
         return len(self._by_tag)
 
     def __contains__(self, item: object) -> bool:
-        return item in self._by_tag.values()
+        return item in self._types

@@ -129,6 +129,8 @@ class ZmqTransport(Transport):
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, _Monitor] = {}
+        self.hellos = 0
+        """Well-formed hellos received (so every inbound frame is counted somewhere)."""
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -307,6 +309,10 @@ class ZmqTransport(Transport):
             if env.sender.system != peer:
                 self._malformed("sender mismatch", ident, f"claims {env.sender.system[:64]!r}")
                 return
+            to = env.recipient.system
+            if to != self.system_id and to != BROADCAST:
+                self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
+                return
             self.stats.received += 1
             try:
                 deliver(env)
@@ -335,6 +341,7 @@ class ZmqTransport(Transport):
         if peer == self.system_id:
             self._malformed("bad hello", ident, "another system uses our id")
             return
+        self.hellos += 1
         known = self._endpoints.get(peer)
         if known == endpoint or peer in self._configured:
             return

@@ -567,6 +567,32 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         ["malformed YAML", "line 2"],
     ),
     "empty file": ("", ["the file is empty"]),
+    "duplicate YAML key": (
+        """
+        btcap: 1
+        root:
+          type: Sequence
+          children:
+            - {type: Wait, options: {seconds: 1}, options: {seconds: 2}}
+        """,
+        ["line 5: duplicate key 'options'", "keep only the last one"],
+    ),
+    "subtree name not a string": (
+        """
+        btcap: 1
+        root: {type: AlwaysSuccess}
+        subtrees: {1: {root: {type: AlwaysSuccess}}}
+        """,
+        ["key of field 'subtrees'", "expected str, got int"],
+    ),
+    "public port not a string": (
+        """
+        btcap: 1
+        root: {type: AlwaysSuccess}
+        public: {inputs: {a: 3}}
+        """,
+        ["field 'public.inputs[...]'", "expected str, got int"],
+    ),
     "not a mapping": ("- 1\n", ["top level", "expected a mapping", "got a list"]),
     "unknown subtree": (
         """

@@ -192,6 +192,9 @@ async def _failover(t: Team, kill: str) -> None:
         # The isolated executor gave the run up on its own (its origin went silent).
         b = t["b"]
         await until(lambda: _no_trace(b) and probe.live("b") == 0, "b to drop its run")
+    else:
+        # The exiting agent shut its run down on the way out.
+        assert probe.live("b") == 0
 
 
 async def test_isolated_executor_lease_lapses_and_the_capability_moves_on() -> None:

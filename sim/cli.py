@@ -1,0 +1,163 @@
+"""``btcap run``: the reference mission, with a live display, a summary, a plot and JSON."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console, Group
+from rich.live import Live
+from rich.table import Table
+
+from sim.metrics import MissionResult
+from sim.plots import plot_timeline
+from sim.runner import Progress, run_scenario
+from sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+
+__all__ = ["add_parser", "resolve_scenario", "run_command"]
+
+DEFAULT = "full-team"
+
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "run",
+        help="run the find-and-decontaminate mission (default scenario: full-team)",
+        description="Run a simulated mission scenario and write a summary, a timeline plot "
+        "and a JSON result into an output folder.",
+    )
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEFAULT,
+        help=f"a scenario file or a built-in name ({', '.join(builtin_scenarios())})",
+    )
+    p.add_argument("--out", type=Path, help="output folder (default: a new folder under runs/)")
+    p.add_argument("--compare", action="store_true", help="run the three built-in scenarios")
+    p.add_argument(
+        "--distributed", action="store_true", help="every robot in its own OS process (ZeroMQ)"
+    )
+    p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
+    p.add_argument("--quiet", action="store_true", help="no live display")
+    p.set_defaults(handler=run_command)
+
+
+def resolve_scenario(ref: str) -> Scenario:
+    """A built-in scenario name or a path to a scenario file."""
+    builtins = builtin_scenarios()
+    if ref in builtins:
+        return load_scenario(builtins[ref])
+    path = Path(ref)
+    if not path.exists():
+        raise ScenarioError(
+            f"scenario {ref!r}: no such file, and not a built-in ({', '.join(builtins)})"
+        )
+    return load_scenario(path)
+
+
+def _progress_view(p: Progress, name: str) -> Table:
+    t = Table(title=f"{name} - t = {p.time:7.0f} s", expand=False)
+    t.add_column("robot")
+    t.add_column("status")
+    t.add_column("current task")
+    for robot, present in p.present.items():
+        t.add_row(robot, "up" if present else "[red]away[/red]", p.tasks.get(robot, "-"))
+    s = p.summary
+    t.caption = (
+        f"found {s.get('found', 0)}/{s.get('objects', 0)}  identified {s.get('identified', 0)}  "
+        f"contaminated {s.get('contaminated', 0)}  decontaminated {s.get('decontaminated', 0)}  "
+        f"explored {100 * float(s.get('coverage', 0)):.0f}%"
+    )
+    return t
+
+
+def summary_table(results: list[MissionResult]) -> Group:
+    head = Table(title="mission summary")
+    head.add_column("")
+    for r in results:
+        head.add_column(r.scenario, justify="right")
+    rows: list[tuple[str, list[str]]] = [
+        ("completed", ["yes" if r.completed else "NO" for r in results]),
+        ("mission time [s]", [f"{r.mission_time_s:.0f}" for r in results]),
+        ("objects found", [f"{r.summary['found']:.0f}/{r.summary['objects']:.0f}" for r in results]),
+        ("decontaminated", [f"{r.summary['decontaminated']:.0f}" for r in results]),
+        ("auctions", [str(r.auctions) for r in results]),
+        ("re-assignments", [str(r.reassignments) for r in results]),
+        ("failures survived", [str(r.failures_survived) for r in results]),
+    ]
+    for label, cells in rows:
+        head.add_row(label, *cells)
+    parts: list[Any] = [head]
+    for r in results:
+        t = Table(title=f"{r.scenario}: robots")
+        for col in ("robot", "model", "utilisation", "tasks", "distance [m]"):
+            t.add_column(col, justify="right" if col in ("utilisation", "distance [m]") else "left")
+        for name, st in r.robots.items():
+            tasks = ", ".join(f"{k} {v}" for k, v in sorted(st.tasks.items())) or "-"
+            t.add_row(name, st.model, f"{100 * st.utilisation:.0f}%", tasks, f"{st.distance_m:.0f}")
+        parts.append(t)
+    return Group(*parts)
+
+
+def _out_dir(args: argparse.Namespace, name: str) -> Path:
+    if args.out is not None:
+        return Path(args.out)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"{stamp}-{name}"
+
+
+def _write(result: MissionResult, out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "result.json").write_bytes(result.to_json())
+    plot_timeline(result, out / "timeline.png")
+
+
+async def _run_one(s: Scenario, console: Console, quiet: bool, distributed: bool) -> MissionResult:
+    if distributed:
+        from sim.distributed import run_distributed
+
+        runner = run_distributed
+    else:
+        runner = run_scenario
+    if quiet or not console.is_terminal:
+        return await runner(s)
+    with Live(console=console, refresh_per_second=8, transient=True) as live:
+
+        def show(p: Progress) -> None:
+            live.update(_progress_view(p, s.name))
+
+        return await runner(s, on_progress=show)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    console = Console()
+    names = list(builtin_scenarios()) if args.compare else [args.scenario]
+    scenarios = [resolve_scenario(n) for n in names]
+    if args.speedup is not None:
+        if not args.speedup > 0:
+            raise ScenarioError(f"--speedup: expected > 0, got {args.speedup}")
+        for s in scenarios:
+            s.speedup = args.speedup
+    out = _out_dir(args, "compare" if args.compare else scenarios[0].name)
+    results: list[MissionResult] = []
+    for s in scenarios:
+        console.print(f"running [bold]{s.name}[/bold] (speed-up {s.speedup:g}x) ...")
+        result = asyncio.run(_run_one(s, console, args.quiet, args.distributed))
+        results.append(result)
+        _write(result, out / s.name if args.compare else out)
+    console.print(summary_table(results))
+    if args.compare:
+        (out / "compare.json").write_text(
+            json.dumps(
+                {r.scenario: {"completed": r.completed, "mission_time_s": r.mission_time_s}
+                 for r in results},
+                indent=2,
+            )
+            + "\n"
+        )
+    console.print(f"results written to [bold]{out}[/bold] (result.json, timeline.png)")
+    return 0 if all(r.completed for r in results) else 1
