@@ -27,7 +27,7 @@ import msgspec
 import zmq
 import zmq.asyncio
 
-from actors import Actor, ActorSystem, Address, Message, handler
+from actors import Actor, ActorSystem, Address, Message, configure_logging, handler
 from bench.common import percentiles, write_result
 from transports import InProcessNetwork, MessageRegistry, ZmqTransport
 
@@ -208,7 +208,7 @@ async def _serve_raw_peer(bind: str) -> None:
     sock = ctx.socket(zmq.ROUTER)
     sock.setsockopt(zmq.LINGER, 0)
     sock.bind(bind)
-    print(_READY + sock.getsockopt(zmq.LAST_ENDPOINT).decode(), flush=True)
+    print(_READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
 
     async def echo() -> None:
         while True:
@@ -267,6 +267,7 @@ def _table(ask_us: dict[str, dict[str, float]]) -> str:
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Measure every scenario, print a table and write ``bench/results/transport.json``."""
+    configure_logging("warning")  # hellos log at info; keep the table readable
     warmup, count = (500, 3_000) if quick else (3_000, 20_000)
     ask_us = asyncio.run(_run_all(warmup, count))
     data: dict[str, Any] = {
@@ -292,6 +293,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     role.add_argument("--raw-peer", metavar="BIND", help="(internal) serve a raw zmq echo")
     args = parser.parse_args(argv)
     if args.peer:
+        configure_logging("warning")  # to stderr: stdout carries the READY line
         asyncio.run(_serve_peer(args.peer))
     elif args.raw_peer:
         asyncio.run(_serve_raw_peer(args.raw_peer))

@@ -81,8 +81,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _command_modules():
-        module: _CommandModule = importlib.import_module(name)
-        module.add_parser(sub)
+        try:
+            module: _CommandModule = importlib.import_module(name)
+            module.add_parser(sub)
+        except (ImportError, AttributeError) as exc:  # a broken plugin must not break btcap
+            print(f"btcap: command plugin {name!r} could not be loaded: {exc}", file=sys.stderr)
     parser.set_defaults(handler=_usage(parser))
     return parser
 

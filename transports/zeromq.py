@@ -164,9 +164,17 @@ class ZmqTransport(Transport):
         sock.setsockopt(zmq.LINGER, 0)
         sock.setsockopt(zmq.ROUTING_ID, self._id)
         sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
+        monitor = None
+        if not endpoint.startswith("inproc://"):
+            # A peer that restarts on the same endpoint gets our DEALER back by zmq's
+            # reconnect, but has forgotten us: a monitor tells us to say hello again.
+            # It must watch before connecting, or the first connection may go unseen.
+            monitor = _Monitor(system_id, sock, sock.get_monitor_socket(zmq.EVENT_CONNECTED))
         try:
             sock.connect(endpoint)
         except zmq.ZMQError as exc:
+            if monitor is not None:
+                monitor.close()
             sock.close(0)
             raise ValueError(f"peer {system_id}: cannot connect to {endpoint!r}: {exc}") from None
         self.remove_peer(system_id)
@@ -175,13 +183,16 @@ class ZmqTransport(Transport):
         self._known[system_id.encode()] = system_id
         # The first hello waits in the DEALER's queue until the connection is up.
         self._write(system_id, sock, _HELLO, self.endpoint.encode())
-        if not endpoint.startswith("inproc://"):
-            # A peer that restarts on the same endpoint gets our DEALER back by zmq's
-            # reconnect, but has forgotten us: a monitor tells us to say hello again.
-            monitor = _Monitor(system_id, sock, sock.get_monitor_socket(zmq.EVENT_CONNECTED))
+        if monitor is not None:
             self._monitors[system_id] = monitor
             if self._loop is not None:
-                self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
+                self._watch(monitor)
+
+    def _watch(self, monitor: _Monitor) -> None:
+        assert self._loop is not None
+        self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
+        # Events that came before we watched have already reset the descriptor.
+        self._loop.call_soon(self._on_monitor, monitor)
 
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
@@ -250,8 +261,7 @@ class ZmqTransport(Transport):
         # zmq's descriptors are edge-triggered: drain what arrived before we watched them.
         loop.call_soon(self._on_readable)
         for monitor in self._monitors.values():
-            loop.add_reader(monitor.fd, self._on_monitor, monitor)
-            loop.call_soon(self._on_monitor, monitor)
+            self._watch(monitor)
         task_status.started()
         try:
             await self._stopped

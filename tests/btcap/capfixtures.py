@@ -11,7 +11,7 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from actors import ActorSystem, Clock
+from actors import Actor, ActorSystem, Clock
 from btcap import Leaf, Port, Sequence, State, Tree
 from btcap.agent import Agent, AgentConfig
 from btcap.capability import CapabilityInterface, Implementation, Precondition
@@ -141,7 +141,12 @@ def count_impl(
     def build() -> Tree:
         run = next(probe.runs)
         ib, ob = interface.bridge_types()
-        i, e, f, o = ib(name="in"), Echo(probe, robot, run, k), Finish(probe, robot, run, after), ob(name="out")
+        i, e, f, o = (
+            ib(name="in"),
+            Echo(probe, robot, run, k),
+            Finish(probe, robot, run, after),
+            ob(name="out"),
+        )
         t = Tree(Sequence("impl", children=[i, e, o, f]))
         t.wire(i, "x", e, "x")
         t.wire(i, "stop", f, "stop")
@@ -235,8 +240,11 @@ class Team:
             for a in self.agents.values():
                 if a.team.alive() != robots:
                     return False
-                want = {r for r, b in self.agents.items() if b.repository.local_implementations(
-                    identity.split("(", 1)[0], identity)}
+                want = {
+                    r
+                    for r, b in self.agents.items()
+                    if b.repository.local_implementations(identity.split("(", 1)[0], identity)
+                }
                 if a.repository.providers(identity) != want:
                     return False
             return True
@@ -255,20 +263,33 @@ async def team(**cfg: Any) -> AsyncIterator[Team]:
 
 @asynccontextmanager
 async def silent_member(
-    net: InProcessNetwork, robot: str, impls: Iterable[Implementation], clock: Clock, **cfg: Any
+    net: InProcessNetwork,
+    robot: str,
+    impls: Iterable[Implementation],
+    clock: Clock,
+    actors: Mapping[str, Actor] | None = None,
+    **cfg: Any,
 ) -> AsyncIterator[ActorSystem]:
     """A robot that heartbeats and advertises implementations but never answers calls for
-    bids (it has no mission control): auctions must not wait for it forever."""
+    bids (it has no mission control): auctions must not wait for it forever. ``actors``
+    are spawned beside (e.g. a scripted mission control)."""
     c = config(**cfg)
-    system = ActorSystem(robot, transport=net.transport(robot), registry=protocol_registry(),
-                         clock=clock)
+    system = ActorSystem(
+        robot, transport=net.transport(robot), registry=protocol_registry(), clock=clock
+    )
     async with system:
         repo = CapabilityRepository(robot)
         repo.extend(impls)
         system.spawn(
-            Membership(robot, heartbeat_s=c.heartbeat_s, failure_timeout_s=c.failure_timeout_s,
-                       repo_version=lambda: repo.version),
+            Membership(
+                robot,
+                heartbeat_s=c.heartbeat_s,
+                failure_timeout_s=c.failure_timeout_s,
+                repo_version=lambda: repo.version,
+            ),
             Membership.PATH,
         )
         system.spawn(repo, CapabilityRepository.PATH)
+        for path, actor in (actors or {}).items():
+            system.spawn(actor, path)
         yield system

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 
 import anyio
@@ -10,9 +11,10 @@ from capfixtures import COUNT, Probe, count_impl, silent_member, team, tick_unti
 from hypothesis import given
 from hypothesis import strategies as st
 
+from actors import Actor, handler
 from btcap import Sequence, State
 from btcap.auction import Auction
-from btcap.messages import Bid, NoBid
+from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 
 # -- sans-IO ------------------------------------------------------------------------------
 
@@ -129,7 +131,8 @@ async def test_auction_between_agents_closes_early_and_cheapest_wins() -> None:
             out = a.auctioneer.last_outcome
             assert out is not None
             assert [(b.robot, b.cost) for b in out.ranking] == [("b", 2.0), ("c", 3.0), ("a", 5.0)]
-            assert out.silent == frozenset() and out.declined == {}
+            assert out.silent == frozenset()
+            assert out.declined == {}
             assert a.auctioneer.stats.early_closes == a.auctioneer.stats.auctions == 1
             assert a.auctioneer.stats.awarded == 1
             await tree.shutdown()
@@ -156,15 +159,21 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
         async with team(auction_window_s=2.0) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
-                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "s"}
-                            and "s" in a.team.alive(), "a to know s")
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"a", "s"}
+                        and "s" in a.team.alive()
+                    ),
+                    "a to know s",
+                )
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(Sequence("root", children=[node]))
                 start = t.clock.now()
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert t.clock.now() - start >= 2.0  # the auction waited its whole window
                 out = a.auctioneer.last_outcome
-                assert out is not None and out.silent == {"s"}
+                assert out is not None
+                assert out.silent == {"s"}
                 assert [b.robot for b in out.ranking] == ["a"]
                 assert a.auctioneer.stats.early_closes == 0
                 assert node.assignments == ["a"]
@@ -177,8 +186,13 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
         async with team(auction_window_s=1000.0) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
-                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "s"}
-                            and "s" in a.team.alive(), "a to know s")
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"a", "s"}
+                        and "s" in a.team.alive()
+                    ),
+                    "a to know s",
+                )
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(Sequence("root", children=[node]))
                 tree.tick()
@@ -188,7 +202,8 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
             # s said goodbye: the auction stops waiting for it, long before its window.
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             out = a.auctioneer.last_outcome
-            assert out is not None and out.silent == frozenset()
+            assert out is not None
+            assert out.silent == frozenset()
             assert node.assignments == ["a"]
             await tree.shutdown()
 
@@ -223,7 +238,8 @@ async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             out = a.auctioneer.last_outcome
-            assert out is not None and "cannot execute" in out.declined["b"]
+            assert out is not None
+            assert "cannot execute" in out.declined["b"]
             assert node.assignments == ["a"]
             await tree.shutdown()
 
@@ -240,8 +256,11 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
             c = await t.add("c", [count_impl("c", 4.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 9.0, probe)], t.clock):
                 await until(
-                    lambda: all(x.repository.providers(COUNT.identity) == {"a", "b", "c", "s"}
-                                and len(x.team.alive()) == 4 for x in (a, b, c)),
+                    lambda: all(
+                        x.repository.providers(COUNT.identity) == {"a", "b", "c", "s"}
+                        and len(x.team.alive()) == 4
+                        for x in (a, b, c)
+                    ),
                     "the team to converge",
                 )
                 na = COUNT.node_type()("count", inputs={"x": 1})
@@ -250,9 +269,14 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                 tc = c.mission(Sequence("rc", children=[nc]))
                 ta.tick()
                 tc.tick()
-                await until(lambda: na.execution is None and nc.execution is None
-                            and a.auctioneer.stats.auctions == c.auctioneer.stats.auctions == 1,
-                            "both auctions")
+                await until(
+                    lambda: (
+                        na.execution is None
+                        and nc.execution is None
+                        and a.auctioneer.stats.auctions == c.auctioneer.stats.auctions == 1
+                    ),
+                    "both auctions",
+                )
                 for _ in range(1000):
                     ta.tick()
                     tc.tick()
@@ -260,7 +284,9 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                         break
                     await anyio.sleep(0.005)
                 robots = sorted([*na.assignments, *nc.assignments])
-                assert "b" in robots and len(robots) == 2 and robots[0] != robots[1]
+                assert "b" in robots
+                assert len(robots) == 2
+                assert robots[0] != robots[1]
                 assert b.mission_control.stats.declined == 1
                 stats = [a.auctioneer.stats, c.auctioneer.stats]
                 assert sum(s.declined_awards for s in stats) == 1
@@ -268,6 +294,94 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                 for node in (na, nc):
                     node.set_input("stop", True)
                 for tree in (ta, tc):
-                    assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                    assert (
+                        await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                    )
                 await ta.shutdown()
                 await tc.shutdown()
+
+
+class SlowExecutor(Actor):
+    """A scripted mission control: bids low, takes its time to answer awards (accepting
+    them in the end), and records cancellations."""
+
+    def __init__(self, robot: str, cost: float) -> None:
+        super().__init__()
+        self.robot, self.cost = robot, cost
+        self.release = asyncio.Event()
+        self.awards: list[Award] = []
+        self.cancels: list[CancelExecution] = []
+
+    @handler
+    def on_call(self, msg: CallForBids) -> None:
+        self.system.ref(msg.reply_to).tell(Bid(msg.auction, self.robot, self.cost, "count-f"))
+
+    @handler
+    async def on_award(self, msg: Award) -> AwardReply:
+        self.awards.append(msg)
+        await self.release.wait()
+        return AwardReply(msg.execution, self.robot, True)
+
+    @handler
+    def on_cancel(self, msg: CancelExecution) -> None:
+        self.cancels.append(msg)
+
+
+async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(award_timeout_s=0.5) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            slow = SlowExecutor("f", 1.0)
+            async with silent_member(
+                t.net, "f", [count_impl("f", 1.0, probe)], t.clock, {"mission_control": slow}
+            ):
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"a", "f"}
+                        and "f" in a.team.alive()
+                    ),
+                    "a to know f",
+                )
+                node = COUNT.node_type()("count", inputs={"x": 1})
+                tree = a.mission(Sequence("root", children=[node]))
+                await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+                assert node.assignments == ["a"]
+                assert [w.execution for w in slow.awards] == [node.execution.id]  # type: ignore[union-attr]
+                assert a.auctioneer.stats.declined_awards == 1
+                # f finally takes the award, too late: the withdrawal follows right behind.
+                slow.release.set()
+                await until(lambda: bool(slow.cancels), "the withdrawal")
+                assert slow.cancels[0].execution == slow.awards[0].execution
+                await tree.shutdown()
+
+
+async def test_an_award_in_flight_is_withdrawn_when_the_capability_is_reset() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(award_timeout_s=1000.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            slow = SlowExecutor("f", 1.0)
+            async with silent_member(
+                t.net, "f", [count_impl("f", 1.0, probe)], t.clock, {"mission_control": slow}
+            ):
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"a", "f"}
+                        and "f" in a.team.alive()
+                    ),
+                    "a to know f",
+                )
+                node = COUNT.node_type()("count", inputs={"x": 1})
+                tree = a.mission(Sequence("root", children=[node]))
+                tree.tick()
+                await until(lambda: bool(slow.awards), "the award to f")
+                tree.reset()
+                slow.release.set()
+                await until(lambda: bool(slow.cancels), "the withdrawal")
+                assert slow.cancels[0].execution == slow.awards[0].execution
+                assert node.assignments == []
+                assert node.execution is None
+                assert a.mission_control.occupied is None
+                assert not a.mission_control.origin_executions
+                await tree.shutdown()

@@ -6,6 +6,7 @@ from typing import Any
 
 import anyio
 import pytest
+from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
 from btcap.capability import (
@@ -17,7 +18,6 @@ from btcap.capability import (
 )
 from btcap.mission import LocalExecution
 from btcap.utility import CANNOT
-from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 # -- interfaces --------------------------------------------------------------------------
 
@@ -70,11 +70,15 @@ def test_node_type_is_a_cached_capability_subclass_with_the_interface_ports() ->
 def test_bridge_types_mirror_the_interface() -> None:
     ib_t, ob_t = COUNT.bridge_types()
     assert (ib_t, ob_t) == COUNT.bridge_types()
-    assert ib_t.__name__ == "CountInputs" and ob_t.__name__ == "CountOutputs"
+    assert ib_t.__name__ == "CountInputs"
+    assert ob_t.__name__ == "CountOutputs"
     ib, ob = ib_t(name="in"), ob_t(name="out")
-    assert ib.interface is COUNT and ob.interface is COUNT
-    assert ib.output_ports == COUNT.inputs and not ib.input_ports
-    assert set(ob.input_ports) == {"y", "ticks", "robot"} and not ob.output_ports
+    assert ib.interface is COUNT
+    assert ob.interface is COUNT
+    assert ib.output_ports == COUNT.inputs
+    assert not ib.input_ports
+    assert set(ob.input_ports) == {"y", "ticks", "robot"}
+    assert not ob.output_ports
     assert not any(p.required for p in ob.input_ports.values())
     # The generic bridges take the interface explicitly, and need one.
     assert InputBridge(COUNT, name="in").interface is COUNT
@@ -110,7 +114,8 @@ def test_implementation_needs_its_bridges_once() -> None:
     # An interface without ports needs no bridges at all.
     bare = CapabilityInterface("Bare")
     run = _impl(lambda: AlwaysSuccess("ok"), bare).instantiate()
-    assert run.input_bridge is None and run.output_bridge is None
+    assert run.input_bridge is None
+    assert run.output_bridge is None
     assert run.step({}) == (State.SUCCEEDED, {})
 
 
@@ -121,7 +126,10 @@ def test_implementation_run_feeds_inputs_and_collects_outputs_every_step() -> No
     assert [s for s, _ in seen] == [State.RUNNING] * 3
     assert [o["y"] for _, o in seen] == [3, 6, 15]
     assert [o["ticks"] for _, o in seen] == [1, 2, 3]
-    assert run.step({"x": 7, "stop": True}) == (State.SUCCEEDED, {"y": 21, "ticks": 4, "robot": "r"})
+    assert run.step({"x": 7, "stop": True}) == (
+        State.SUCCEEDED,
+        {"y": 21, "ticks": 4, "robot": "r"},
+    )
 
 
 def test_implementation_cost_adds_bid_to_utility_and_none_means_cannot() -> None:
@@ -163,7 +171,8 @@ async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
             assert a.mission_control.occupied == ex.id
             assert node.assignments == ["a"]
             out = a.auctioneer.last_outcome
-            assert out is not None and [b.robot for b in out.ranking] == ["a"]
+            assert out is not None
+            assert [b.robot for b in out.ranking] == ["a"]
             # Every tick: the input goes in, the implementation ticks, the output comes back.
             for step, x in enumerate((1, 4, 9, -2), start=1):
                 node.set_input("x", x)
@@ -198,7 +207,8 @@ async def test_local_execution_pause_and_reset_release_the_robot() -> None:
             assert a.mission_control.occupied is not None  # paused work keeps the robot
             assert tree.tick() is State.RUNNING
             tree.reset()
-            assert node.execution is None and node.state is State.IDLE
+            assert node.execution is None
+            assert node.state is State.IDLE
             assert a.mission_control.occupied is None
             await until(lambda: probe.live("a") == 0, "the run to be shut down")
             # Reset forgets the result: the next tick runs a fresh auction and execution.

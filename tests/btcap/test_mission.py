@@ -3,10 +3,13 @@ joins, preconditions, and hostile or stray protocol messages."""
 
 from __future__ import annotations
 
+import asyncio
 from typing import Any
 
 import anyio
 from capfixtures import COUNT, Probe, Team, count_impl, team, tick_until, until
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from btcap import Parallel, Sequence, State, Tree
 from btcap.agent import Agent
@@ -45,9 +48,11 @@ def _no_trace(agent: Agent) -> bool:
 async def _running_on(tree: Tree, node: Capability, robot: str) -> None:
     await tick_until(
         tree,
-        lambda _s: node.state is State.RUNNING
-        and node.execution is not None
-        and node.execution.robot == robot,
+        lambda _s: (
+            node.state is State.RUNNING
+            and node.execution is not None
+            and node.execution.robot == robot
+        ),
         f"running on {robot}",
     )
 
@@ -107,7 +112,8 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
                 await anyio.sleep(0.005)
             assert probe.ticks["b"] == frozen
             assert b.mission_control.hosted == {hosted.id: hosted}
-            assert node.execution is not None and node.execution.id == hosted.id
+            assert node.execution is not None
+            assert node.execution.id == hosted.id
             # Ticking again resumes the same run.
             await tick_until(tree, lambda _s: probe.ticks["b"] > frozen + 2, "b to resume")
             assert not hosted.paused
@@ -126,7 +132,8 @@ async def test_reset_and_shutdown_cancel_the_remote_run_without_trace() -> None:
             tree = a.mission(Sequence("root", children=[node]))
             await _running_on(tree, node, "b")
             tree.reset()
-            assert node.execution is None and node.state is State.IDLE
+            assert node.execution is None
+            assert node.state is State.IDLE
             await until(lambda: _no_trace(a) and _no_trace(b) and probe.live("b") == 0, "no trace")
             # And again, ended by shutting the mission tree down.
             await _running_on(tree, node, "b")
@@ -238,7 +245,7 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             b = await t.add("b", [count_impl("b", 3.0, probe)])
             await t.converged()
             first = _count("first")
-            tree = a.mission(SequenceWithStop := Sequence("root", children=[first]))
+            tree = a.mission(root_node := Sequence("root", children=[first]))
             await _running_on(tree, first, "b")
             hosted = set(b.mission_control.hosted)
             await t.add("c", [count_impl("c", 1.0, probe)])
@@ -246,7 +253,8 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             for _ in range(40):  # keep working for a while with c in the team
                 tree.tick()
                 await anyio.sleep(0.005)
-            assert first.assignments == ["b"] and set(b.mission_control.hosted) == hosted
+            assert first.assignments == ["b"]
+            assert set(b.mission_control.hosted) == hosted
             assert probe.ticks["c"] == 0
             first.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -254,14 +262,16 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             tree2 = a.mission(Sequence("root2", children=[second]))
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert second.assignments == ["c"]
-            assert SequenceWithStop.state is State.SUCCEEDED
+            assert root_node.state is State.SUCCEEDED
             await tree.shutdown()
             await tree2.shutdown()
 
 
 # -- preconditions ------------------------------------------------------------------------
 
-FIRST = CapabilityInterface("First", inputs={"x": int, "stop": bool}, outputs={"y": int, "ticks": int, "robot": str})
+FIRST = CapabilityInterface(
+    "First", inputs={"x": int, "stop": bool}, outputs={"y": int, "ticks": int, "robot": str}
+)
 
 
 async def test_local_precondition_needs_success_on_this_robot() -> None:
@@ -269,16 +279,24 @@ async def test_local_precondition_needs_success_on_this_robot() -> None:
         probe = Probe()
         need = (Precondition("First", Scope.LOCAL),)
         async with team() as t:
-            a = await t.add("a", [count_impl("a", 5.0, probe), count_impl("a", 5.0, probe, interface=FIRST)])
-            b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need),
-                                  count_impl("b", 9.0, probe, interface=FIRST)])
+            a = await t.add(
+                "a", [count_impl("a", 5.0, probe), count_impl("a", 5.0, probe, interface=FIRST)]
+            )
+            b = await t.add(
+                "b",
+                [
+                    count_impl("b", 1.0, probe, preconditions=need),
+                    count_impl("b", 9.0, probe, interface=FIRST),
+                ],
+            )
             await t.converged()
             n1 = _count("n1", stop=True)
             tree = a.mission(Sequence("root", children=[n1]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert n1.assignments == ["a"]
             out = a.auctioneer.last_outcome
-            assert out is not None and "precondition First (local) not met" in out.declined["b"]
+            assert out is not None
+            assert "precondition First (local) not met" in out.declined["b"]
             # First succeeds on a (cheaper there): b's precondition is still unmet.
             f = FIRST.node_type()("f", inputs={"x": 1, "stop": True})
             tree2 = a.mission(Sequence("root2", children=[f]))
@@ -301,7 +319,9 @@ async def test_remote_precondition_needs_success_anywhere_in_the_team() -> None:
         probe = Probe()
         need = (Precondition("First", Scope.REMOTE),)
         async with team() as t:
-            a = await t.add("a", [count_impl("a", 5.0, probe), count_impl("a", 1.0, probe, interface=FIRST)])
+            a = await t.add(
+                "a", [count_impl("a", 5.0, probe), count_impl("a", 1.0, probe, interface=FIRST)]
+            )
             b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
             await t.converged()
             n1 = _count("n1", stop=True)
@@ -335,7 +355,8 @@ async def test_preconditions_are_checked_again_at_award() -> None:
             b.repository.team.pop("a")
             award = Award("a:9", "a:root:9", "Count", "count-b", {"x": 1}, "a", "a/auctioneer", 1.0)
             reply = await b.mission_control.ref.ask(award, expect=AwardReply)
-            assert not reply.accepted and "precondition First (remote)" in reply.reason
+            assert not reply.accepted
+            assert "precondition First (remote)" in reply.reason
             assert _no_trace(b)
 
 
@@ -374,15 +395,21 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
                 (b_mc, CancelExecution("x:root:1", "stray")),
                 (b_mc, KeepAlive("x", ["x:root:1"])),
                 (a_mc, CallForBids("z:1", "Nope", "Nope()->()", {}, "x", "x/auctioneer")),
-                (a_mc, CallForBids("z:2", "Count", COUNT.identity, {"x": "bad"}, "x", "x/auctioneer")),
+                (
+                    a_mc,
+                    CallForBids("z:2", "Count", COUNT.identity, {"x": "bad"}, "x", "x/auctioneer"),
+                ),
                 (a_mc, AwardReply("a:1", "x", True)),
             ]
             for address, msg in stray:
                 send(address, msg)
             # An award for an implementation the robot does not have is declined.
-            award = Award("x:1", "x:root:1", "Count", "no-such-impl", {"x": 1}, "x", "x/auctioneer", 1.0)
+            award = Award(
+                "x:1", "x:root:1", "Count", "no-such-impl", {"x": 1}, "x", "x/auctioneer", 1.0
+            )
             reply = await x.system.ref("a/mission_control").ask(award, expect=AwardReply)
-            assert not reply.accepted and "no implementation" in reply.reason
+            assert not reply.accepted
+            assert "no implementation" in reply.reason
             award2 = Award("x:2", "x:root:2", "Nope", "count-a", {}, "x", "x/auctioneer", 1.0)
             reply = await x.system.ref("a/mission_control").ask(award2, expect=AwardReply)
             assert not reply.accepted
@@ -390,12 +417,14 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             for _ in range(20):
                 tree.tick()
                 await anyio.sleep(0.005)
-            assert node.execution is real and node.state is State.RUNNING
+            assert node.execution is real
+            assert node.state is State.RUNNING
             assert node.outputs["y"] != 666
             node.set_input("x", 3)
             node.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-            assert node.outputs["y"] == 3 and node.assignments == ["b"]
+            assert node.outputs["y"] == 3
+            assert node.assignments == ["b"]
             for agent in (a, b):
                 mc = agent.mission_control
                 assert agent.system.lookup("mission_control") is mc
@@ -408,3 +437,77 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert again.assignments == ["b"]
             await tree2.shutdown()
+
+
+# -- one execution per robot, one executor per capability ----------------------------------
+
+
+def _check_exclusive(t: Team, trees: list[Tree], probe: Probe) -> None:
+    assert probe.violations == []
+    where: dict[str, str] = {}
+    for robot, agent in t.agents.items():
+        mc = agent.mission_control
+        local_nodes = [
+            n
+            for tree in trees
+            if tree.system is agent.system
+            for n in tree.nodes()
+            if isinstance(n, Capability) and isinstance(n.execution, LocalExecution)
+        ]
+        busy = len(mc.hosted) + len(mc._local_runs) + len(local_nodes)
+        assert busy <= 1, f"{robot} runs {busy} executions at once"
+        if busy:
+            assert mc.occupied is not None
+        for eid in mc.hosted:
+            assert mc.occupied == eid
+            assert eid not in where, f"{eid} hosted on {where[eid]} and {robot}"
+            where[eid] = robot
+    for tree in trees:
+        for n in tree.nodes():
+            if isinstance(n, Capability) and n.execution is not None:
+                ex = n.execution
+                assert where.get(ex.id, ex.robot) == ex.robot
+
+
+async def _storm(costs: list[float], durations: list[int], load: list[tuple[int, int]]) -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            robots = [f"r{i}" for i in range(len(costs))]
+            for robot, cost, after in zip(robots, costs, durations, strict=True):
+                await t.add(robot, [count_impl(robot, cost, probe, after=after)])
+            await t.converged()
+            trees: list[Tree] = []
+            nodes: list[Capability] = []
+            for i, (origin, k) in enumerate(load):
+                caps = [COUNT.node_type()(f"c{j}", inputs={"x": j}, retry_s=0.2) for j in range(k)]
+                nodes += caps
+                agent = t[robots[origin % len(robots)]]
+                trees.append(agent.mission(Parallel(f"m{i}", children=caps)))
+            pending = list(trees)
+            for _ in range(2000):
+                # A finished Parallel ticked again would start over: tick only the rest.
+                pending = [tree for tree in pending if tree.tick() is not State.SUCCEEDED]
+                _check_exclusive(t, trees, probe)
+                if not pending:
+                    break
+                await anyio.sleep(0.005)
+                _check_exclusive(t, trees, probe)
+            assert all(n.state is State.SUCCEEDED for n in nodes)
+            assert all(len(n.assignments) == 1 for n in nodes)  # nothing was lost or re-run
+            for tree in trees:
+                await tree.shutdown()
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+            assert probe.violations == []
+
+
+@settings(max_examples=10, deadline=None)
+@given(
+    costs=st.lists(st.sampled_from([0.5, 1.0, 2.0]), min_size=2, max_size=3),
+    durations=st.lists(st.integers(1, 4), min_size=3, max_size=3),
+    load=st.lists(st.tuples(st.integers(0, 2), st.integers(1, 3)), min_size=1, max_size=3),
+)
+def test_no_robot_ever_runs_two_executions_at_once(
+    costs: list[float], durations: list[int], load: list[tuple[int, int]]
+) -> None:
+    asyncio.run(_storm(costs, durations[: len(costs)], load))

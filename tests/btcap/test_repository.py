@@ -17,7 +17,8 @@ OTHER = CapabilityInterface("Other", inputs={"x": int, "stop": bool}, outputs={"
 def test_local_content_and_version() -> None:
     probe = Probe()
     repo = CapabilityRepository("a")
-    assert repo.version == 0 and repo.providers(COUNT.identity) == set()
+    assert repo.version == 0
+    assert repo.providers(COUNT.identity) == set()
     repo.add_implementation(count_impl("a", 1.0, probe, name="one"))
     repo.add_implementation(count_impl("a", 2.0, probe, name="two"))
     assert repo.version == 2
@@ -39,7 +40,8 @@ def test_local_content_and_version() -> None:
     repo.record_success("Count")
     repo.record_success("Count")
     assert repo.version == 5
-    assert repo.succeeded_anywhere("Count") and not repo.succeeded_anywhere("Other")
+    assert repo.succeeded_anywhere("Count")
+    assert not repo.succeeded_anywhere("Other")
 
 
 async def test_team_view_converges_and_follows_changes() -> None:
@@ -61,8 +63,11 @@ async def test_team_view_converges_and_follows_changes() -> None:
             await until(lambda: a.repository.providers(COUNT.identity) == {"a", "c"})
             # A leaving robot leaves the view.
             await t.remove("c")
-            await until(lambda: a.repository.providers(COUNT.identity) == {"a"}
-                        and "c" not in b.repository.team)
+            await until(
+                lambda: (
+                    a.repository.providers(COUNT.identity) == {"a"} and "c" not in b.repository.team
+                )
+            )
 
 
 async def test_a_lost_update_is_repaired_by_the_heartbeat_version() -> None:

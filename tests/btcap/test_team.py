@@ -16,7 +16,9 @@ from btcap.team import Membership, TeamEvent
 
 
 @asynccontextmanager
-async def membership(**kw: float) -> AsyncIterator[tuple[Membership, ManualClock, list[tuple[TeamEvent, str]]]]:
+async def membership(
+    **kw: float,
+) -> AsyncIterator[tuple[Membership, ManualClock, list[tuple[TeamEvent, str]]]]:
     clock = ManualClock()
     async with ActorSystem("me", registry=protocol_registry(), clock=clock) as system:
         m = Membership("me", **kw)
@@ -36,7 +38,8 @@ async def test_heartbeats_join_change_and_restart() -> None:
         async with membership() as (m, _clock, events):
             tell = m.system.tell
             tell(m.address, Heartbeat("me", m.incarnation, 0))  # my own echo: ignored
-            assert events == [] and m.alive() == {"me"}
+            assert events == []
+            assert m.alive() == {"me"}
             tell(m.address, Heartbeat("x", 1, 0))
             tell(m.address, Heartbeat("x", 1, 0))  # nothing new
             assert events == [(TeamEvent.JOINED, "x")]

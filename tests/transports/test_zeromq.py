@@ -11,7 +11,7 @@ import random
 import subprocess
 import sys
 import uuid
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator, MutableMapping
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +32,7 @@ PEER_SCRIPT = Path(__file__).with_name("peer_process.py")
 
 
 @pytest.fixture(autouse=True)
-def plain_logs() -> Iterator[list[dict[str, Any]]]:
+def plain_logs() -> Iterator[list[MutableMapping[str, Any]]]:
     """Capture log events (the fuzz test floods them) and show them only on failure."""
     with capture_logs() as entries:
         yield entries
@@ -101,7 +101,7 @@ def inbox(system: ActorSystem) -> Inbox:
 async def eventually(predicate: Callable[[], bool], what: str, limit: float = 5.0) -> None:
     """Poll until ``predicate()`` holds (hellos and drops arrive asynchronously)."""
     with anyio.fail_after(limit):
-        while not predicate():
+        while not predicate():  # noqa: ASYNC110 - counters have no event to wait on
             await anyio.sleep(0.005)
     assert predicate(), what
 
@@ -117,10 +117,10 @@ async def note_arrives(system: ActorSystem, text: str) -> None:
 def endpoints(scheme: str, tmp_path: Path) -> tuple[str, str, str]:
     if scheme == "inproc":
         tag = uuid.uuid4().hex[:8]
-        return tuple(f"inproc://test-{tag}-{n}" for n in "abc")  # type: ignore[return-value]
+        return (f"inproc://{tag}-a", f"inproc://{tag}-b", f"inproc://{tag}-c")
     if scheme == "ipc":
-        return tuple(f"ipc://{tmp_path}/{n}.sock" for n in "abc")  # type: ignore[return-value]
-    return ("tcp://127.0.0.1:*",) * 3  # type: ignore[return-value]
+        return (f"ipc://{tmp_path}/a.sock", f"ipc://{tmp_path}/b.sock", f"ipc://{tmp_path}/c.sock")
+    return ("tcp://127.0.0.1:*",) * 3
 
 
 # -- two systems in one process -----------------------------------------------------------
@@ -154,7 +154,8 @@ async def test_two_systems_ask_and_tell_both_ways(scheme: str, tmp_path: Path) -
             # A missing actor on the far side is a DeadLetter here, not a timeout.
             with pytest.raises(DeadLetter):
                 await a.ref(Address("b", "nobody")).ask(Echo("?"))
-            assert ta.stats.sent > 0 and ta.stats.received > 0
+            assert ta.stats.sent > 0
+            assert ta.stats.received > 0
             assert ta.stats.malformed == tb.stats.malformed == 0
 
 
@@ -189,7 +190,7 @@ async def test_peer_restarting_on_the_same_endpoint_learns_us_again() -> None:
     """b only knows a from a's hello; after b restarts, a's reconnect says hello again."""
     with anyio.fail_after(10):
         async with zmq_system("a", "tcp://127.0.0.1:*") as (a, ta):
-            async with zmq_system("b", "tcp://127.0.0.1:*") as (b, tb):
+            async with zmq_system("b", "tcp://127.0.0.1:*") as (_b, tb):
                 endpoint = tb.endpoint
                 ta.add_peer("b", endpoint)
                 await eventually(lambda: "a" in tb.peers(), "b learnt a")
@@ -208,7 +209,7 @@ async def test_peer_restarting_on_the_same_endpoint_learns_us_again() -> None:
                 assert await a.ref(Address("b", "echo")).ask(Echo("3")) == Echoed("3", "b")
 
 
-async def test_hello_refused_when_not_accepting(plain_logs: list[dict[str, Any]]) -> None:
+async def test_hello_refused_when_not_accepting(plain_logs: list[MutableMapping[str, Any]]) -> None:
     with anyio.fail_after(5):
         async with (
             zmq_system("a", "tcp://127.0.0.1:*", accept_hello=False) as (_a, ta),
@@ -262,20 +263,22 @@ async def test_two_processes_round_trips_both_ways(scheme: str, tmp_path: Path) 
     else:
         mine, theirs = f"ipc://{tmp_path}/parent.sock", f"ipc://{tmp_path}/child.sock"
     with anyio.fail_after(20):
-        async with zmq_system("parent", mine) as (system, transport):
-            async with child_system("child", theirs, transport) as endpoint:
-                assert endpoint.startswith(f"{scheme}://")
-                # Never configured here: the child's hello makes it a peer.
-                await eventually(lambda: "child" in transport.peers(), "child said hello")
-                assert transport.peer_endpoints()["child"] == endpoint
-                child_echo = system.ref(Address("child", "echo"))
-                for i in range(20):
-                    assert await child_echo.ask(Echo(f"{i}")) == Echoed(f"{i}", "child")
-                # child -> parent: the child's actor asks our echo and returns the answer.
-                for i in range(5):
-                    reply = await child_echo.ask(Relay(Address("parent", "echo"), f"r{i}"))
-                    assert reply == Echoed(f"r{i}", "parent")
-                assert transport.stats.malformed == transport.stats.unknown_peer == 0
+        async with (
+            zmq_system("parent", mine) as (system, transport),
+            child_system("child", theirs, transport) as endpoint,
+        ):
+            assert endpoint.startswith(f"{scheme}://")
+            # Never configured here: the child's hello makes it a peer.
+            await eventually(lambda: "child" in transport.peers(), "child said hello")
+            assert transport.peer_endpoints()["child"] == endpoint
+            child_echo = system.ref(Address("child", "echo"))
+            for i in range(20):
+                assert await child_echo.ask(Echo(f"{i}")) == Echoed(f"{i}", "child")
+            # child -> parent: the child's actor asks our echo and returns the answer.
+            for i in range(5):
+                reply = await child_echo.ask(Relay(Address("parent", "echo"), f"r{i}"))
+                assert reply == Echoed(f"r{i}", "parent")
+            assert transport.stats.malformed == transport.stats.unknown_peer == 0
 
 
 # -- junk on the wire ---------------------------------------------------------------------
@@ -335,14 +338,16 @@ class _Fuzzer:
         return rng.choice(choices)()
 
 
-async def test_junk_frames_are_dropped_and_counted(plain_logs: list[dict[str, Any]]) -> None:
+async def test_junk_frames_are_dropped_and_counted(
+    plain_logs: list[MutableMapping[str, Any]],
+) -> None:
     rng = random.Random(20_241_122)
     ctx = zmq.asyncio.Context.instance()
     raw: list[zmq.Socket[bytes]] = []
     with anyio.fail_after(15):
         async with zmq_system("target", "tcp://127.0.0.1:*") as (system, transport):
             try:
-                idents: list[bytes | None] = [
+                idents: list[bytes | str | None] = [
                     None,  # zmq makes up a NUL-prefixed routing id
                     b"fuzz-known",  # says a valid hello first, then sends junk
                     b"fuzz-unknown",  # never says hello
