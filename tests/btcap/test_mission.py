@@ -494,7 +494,8 @@ async def _storm(costs: list[float], durations: list[int], load: list[tuple[int,
                 await anyio.sleep(0.005)
                 _check_exclusive(t, trees, probe)
             assert all(n.state is State.SUCCEEDED for n in nodes)
-            assert all(len(n.assignments) == 1 for n in nodes)  # nothing was lost or re-run
+            lost = {r: a.mission_control.stats.lost for r, a in t.agents.items()}
+            assert all(len(n.assignments) == 1 for n in nodes), ([n.assignments for n in nodes], lost)
             for tree in trees:
                 await tree.shutdown()
             await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
