@@ -262,7 +262,8 @@ class ActorSystem:
 
     def broadcast(self, path: str, msg: Message, *, include_self: bool = False) -> None:
         """Send to the actor at ``path`` on every peer system."""
-        self._send(Envelope(Kind.TELL, self.address, Address(BROADCAST, path), msg))
+        if self.transport is not None:
+            self._send(Envelope(Kind.TELL, self.address, Address(BROADCAST, path), msg))
         if include_self:
             self.tell(Address(self.id, path), msg)
 

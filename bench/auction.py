@@ -24,17 +24,18 @@ import argparse
 import asyncio
 import gc
 import itertools
+import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
-from actors import Address
+from actors import Address, configure_logging
 from bench.common import percentiles, write_result
 from btcap import Sequence as SequenceNode
 from btcap.agent import Agent, AgentConfig
 from btcap.assignment import AssignmentTask
 from btcap.demo import ECHO, implementations
-from btcap.launch import AgentProcess, AgentSpec, spawn_agents
+from btcap.launch import AgentSpec, spawn_agents
 from btcap.messages import CancelExecution
 from btcap.mission import MissionControl, RemoteExecution
 from btcap.protocol import protocol_registry
@@ -50,12 +51,58 @@ _INPUTS = {"value": 1, "stop": False}
 _LOCAL = "127.0.0.1"
 
 
-async def _until(cond: Any, timeout: float, what: str, step: float = 0.01) -> None:
-    deadline = time.monotonic() + timeout
+async def _until(cond: Callable[[], bool], limit: float, what: str) -> None:
+    deadline = time.monotonic() + limit
     while not cond():
         if time.monotonic() > deadline:
-            raise TimeoutError(f"bench auction: {what} within {timeout} s")
-        await asyncio.sleep(step)
+            raise TimeoutError(f"bench auction: {what} within {limit} s")
+        await asyncio.sleep(0.01)
+
+
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _cpu_of(pid: int) -> float:
+    """CPU seconds (user + system, every thread) a child process used so far (Linux)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / _TICK
+
+
+class _CpuMeter:
+    """CPU time per round of this process and of child processes, minus what they burn
+    idle (heartbeats, host trees), so the figure is what the rounds themselves cost."""
+
+    def __init__(self, pids: Sequence[int] = ()) -> None:
+        self.pids = list(pids)
+        self.idle_self = 0.0
+        self.idle_children = 0.0
+
+    def _read(self) -> tuple[float, float, float]:
+        kids = sum(_cpu_of(pid) for pid in self.pids)
+        return time.perf_counter(), time.process_time(), kids
+
+    async def calibrate(self, seconds: float) -> None:
+        w0, s0, c0 = self._read()
+        await asyncio.sleep(seconds)
+        w1, s1, c1 = self._read()
+        self.idle_self = (s1 - s0) / (w1 - w0)
+        self.idle_children = (c1 - c0) / (w1 - w0)
+
+    def start(self) -> None:
+        self._start = self._read()
+
+    def per_round_ms(self, rounds: int) -> dict[str, float]:
+        w1, s1, c1 = self._read()
+        w0, s0, c0 = self._start
+        wall = w1 - w0
+        out = {"this_process": (s1 - s0 - self.idle_self * wall) / rounds * 1e3}
+        if self.pids:
+            out["bidder_processes"] = (c1 - c0 - self.idle_children * wall) / rounds * 1e3
+        return out
 
 
 # -- auction rounds ------------------------------------------------------------------------
@@ -68,6 +115,7 @@ async def _rounds(
     auctioneer = origin.auctioneer
     system = origin.system
     candidates = frozenset(bidders)
+    identity = ECHO.identity
     ids = itertools.count(1)
     lease_s = origin.config.lease_s
     samples: list[float] = []
@@ -76,7 +124,7 @@ async def _rounds(
     for i in range(warmup + count):
         execution = f"{origin.robot}:bench:{len(bidders)}:{next(ids)}"
         task = AssignmentTask(
-            execution, ECHO.name, ECHO.identity, _INPUTS, candidates, origin.robot, lease_s
+            execution, ECHO.name, identity, _INPUTS, candidates, origin.robot, lease_s
         )
         closes = auctioneer.stats.early_closes
         if i == warmup:
@@ -102,7 +150,9 @@ def _origin_config() -> AgentConfig:
     return AgentConfig(auction_window_s=WINDOW_S)
 
 
-async def _bench_inproc(warmup: int, count: int) -> tuple[dict[str, Any], dict[str, Any]]:
+async def _bench_inproc(
+    warmup: int, count: int
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     reg = protocol_registry()
     net = InProcessNetwork(reg)
     names = _bidder_names(max(BIDDERS))
@@ -126,28 +176,34 @@ async def _bench_inproc(warmup: int, count: int) -> tuple[dict[str, Any], dict[s
         await origin.__aenter__()
         started.append(origin)
         await _until(lambda: set(names) <= origin.team.alive(), 20.0, "bidders joined")
-        return await _all_sizes(origin, names, warmup, count)
+        return await _all_sizes(origin, names, warmup, count, _CpuMeter())
     finally:
         for a in reversed(started):
             await a.__aexit__(None, None, None)
 
 
 async def _all_sizes(
-    origin: Agent, names: Sequence[str], warmup: int, count: int
-) -> tuple[dict[str, Any], dict[str, Any]]:
+    origin: Agent, names: Sequence[str], warmup: int, count: int, cpu: _CpuMeter
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     lat: dict[str, Any] = {}
     early: dict[str, Any] = {}
+    cpu_ms: dict[str, Any] = {}
+    await asyncio.sleep(0.5)  # let the joins settle
+    await cpu.calibrate(1.0)
     for n in BIDDERS:
         # Spread the bidders over every process (names were dealt round robin).
-        samples, closed = await _rounds(origin, names[:n], warmup, count)
+        await _rounds(origin, names[:n], warmup, 0)
+        cpu.start()
+        samples, closed = await _rounds(origin, names[:n], 0, count)
+        cpu_ms[str(n)] = cpu.per_round_ms(count)
         lat[str(n)] = percentiles(samples)
         early[str(n)] = {"rounds": count, "early": closed}
-    return lat, early
+    return lat, early, cpu_ms
 
 
 async def _bench_zmq(
     warmup: int, count: int, processes: int
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     names = _bidder_names(max(BIDDERS))
     groups: list[list[AgentSpec]] = [[] for _ in range(processes)]
     for i, name in enumerate(names):
@@ -162,7 +218,7 @@ async def _bench_zmq(
         transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
         async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
             await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
-            return await _all_sizes(o, names, warmup, count)
+            return await _all_sizes(o, names, warmup, count, _CpuMeter([p.pid for p in procs]))
     finally:
         for p in procs:
             p.stop()
@@ -197,15 +253,15 @@ async def _bench_remote(
             tree = origin.mission(SequenceNode("root", children=[node]))
             period = 1.0 / MISSION_TICK_HZ
 
-            async def running_on_new(old: str | None, timeout: float) -> None:
-                deadline = time.monotonic() + timeout
+            async def running_on_new(old: str | None, limit: float) -> None:
+                deadline = time.monotonic() + limit
                 while True:
                     tree.tick()
                     ex = node.execution
                     if ex is not None and ex.robot != old and node.state is State.RUNNING:
                         return
                     if time.monotonic() > deadline:
-                        raise TimeoutError(f"bench auction: not re-assigned in {timeout} s")
+                        raise TimeoutError(f"bench auction: not re-assigned in {limit} s")
                     await asyncio.sleep(period)
 
             await running_on_new(None, 10.0)
@@ -248,7 +304,8 @@ async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[f
         t0 = clock()
         tree.tick()
         n = ex.seq
-        while ex.acked < n:
+        # Spin: the status comes back within a fraction of a millisecond.
+        while ex.acked < n:  # noqa: ASYNC110
             await asyncio.sleep(0)
         if i >= warmup:
             samples.append((clock() - t0) / 1e6)
@@ -261,18 +318,28 @@ async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[f
 
 
 def _table(data: dict[str, Any]) -> str:
-    rounds = data["round_ms"]
+    rounds, cpu = data["round_ms"], data["round_cpu_ms"]
     lines = [
-        "auction round, call for bids -> accepted award (ms)",
-        f"{'bidders':>8} | {'inproc p50':>10} {'p99':>8} | {'zmq tcp p50':>11} {'p99':>8}",
+        "auction round, call for bids -> accepted award (ms); cpu = CPU ms per round",
+        f"{'bidders':>7} | {'inproc p50':>10} {'p99':>7} {'cpu':>6} | "
+        f"{'tcp p50':>7} {'p99':>7} {'cpu here':>8} {'cpu bidders':>11}",
     ]
     for n in BIDDERS:
-        a, b = rounds["inproc"][str(n)], rounds["zmq_tcp"][str(n)]
+        k = str(n)
+        a, b = rounds["inproc"][k], rounds["zmq_tcp"][k]
+        ca, cb = cpu["inproc"][k], cpu["zmq_tcp"][k]
         lines.append(
-            f"{n:>8} | {a['p50']:>10.3f} {a['p99']:>8.3f} | {b['p50']:>11.3f} {b['p99']:>8.3f}"
+            f"{n:>7} | {a['p50']:>10.3f} {a['p99']:>7.3f} {ca['this_process']:>6.2f} | "
+            f"{b['p50']:>7.3f} {b['p99']:>7.3f} {cb['this_process']:>8.2f} "
+            f"{cb['bidder_processes']:>11.2f}"
         )
+    setup = data["setup"]
     ok = "yes" if data["early_close"]["all"] else "NO"
-    lines.append(f"every round closed early: {ok} (window {WINDOW_S} s)")
+    lines.append(
+        f"every round closed early: {ok} (window {WINDOW_S} s); bidders over tcp in "
+        f"{setup['bidder_processes']} processes; load average "
+        f"{setup['load_average'][0]:.1f} -> {setup['load_average'][1]:.1f}"
+    )
     t, f = data["remote_tick_ms"], data["failover_s"]
     lines.append(f"remote tick round trip (tcp): p50 {t['p50']:.3f} ms, p99 {t['p99']:.3f} ms")
     lines.append(
@@ -286,15 +353,17 @@ async def _run(quick: bool) -> dict[str, Any]:
     warmup, count = (10, 60) if quick else (30, 400)
     tick_warmup, ticks = (50, 300) if quick else (200, 3000)
     failovers = 2 if quick else 5
-    processes = 2 if quick else 4
-    inproc, inproc_early = await _bench_inproc(warmup, count)
-    zmq_tcp, zmq_early = await _bench_zmq(warmup, count, processes)
+    processes = 4
+    load_before = os.getloadavg()[0]
+    inproc, inproc_early, inproc_cpu = await _bench_inproc(warmup, count)
+    zmq_tcp, zmq_early, zmq_cpu = await _bench_zmq(warmup, count, processes)
     rtt, failover, info = await _bench_remote(tick_warmup, ticks, failovers)
     all_early = all(
         v["early"] == v["rounds"] for e in (inproc_early, zmq_early) for v in e.values()
     )
     return {
         "round_ms": {"inproc": inproc, "zmq_tcp": zmq_tcp},
+        "round_cpu_ms": {"inproc": inproc_cpu, "zmq_tcp": zmq_cpu},
         "early_close": {"inproc": inproc_early, "zmq_tcp": zmq_early, "all": all_early},
         "remote_tick_ms": percentiles(rtt),
         "failover_s": {
@@ -311,6 +380,7 @@ async def _run(quick: bool) -> dict[str, Any]:
             "bidder_processes": processes,
             "remote_ticks": ticks,
             "failover": info,
+            "load_average": [load_before, os.getloadavg()[0]],
             "quick": quick,
         },
     }
@@ -318,6 +388,7 @@ async def _run(quick: bool) -> dict[str, Any]:
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Measure, print a table, write ``bench/results/auction.json``."""
+    configure_logging("error")  # the executors this benchmark kills are logged as lost
     data = asyncio.run(_run(quick))
     print(_table(data))
     path = write_result("auction", data)

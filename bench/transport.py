@@ -269,6 +269,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     """Measure every scenario, print a table and write ``bench/results/transport.json``."""
     configure_logging("warning")  # hellos log at info; keep the table readable
     warmup, count = (500, 3_000) if quick else (3_000, 20_000)
+    load = os.getloadavg()
     ask_us = asyncio.run(_run_all(warmup, count))
     data: dict[str, Any] = {
         "ask_us": ask_us,
@@ -278,8 +279,12 @@ def run(quick: bool = False) -> dict[str, Any]:
         "samples": count,
         "warmup": warmup,
         "quick": quick,
+        # Two processes share the machine's cores: a busy machine shows in the figures.
+        "loadavg_before": load,
+        "loadavg_after": os.getloadavg(),
     }
     print(_table(ask_us))
+    print(f"load average before/after: {load[0]:.2f} / {data['loadavg_after'][0]:.2f}")
     path = write_result("transport", data)
     print(f"wrote {path}")
     return data

@@ -118,7 +118,9 @@ class _Bridge(Leaf):
     __slots__ = ("_iface",)
     INTERFACE: ClassVar[CapabilityInterface | None] = None
 
-    def __init__(self, interface: CapabilityInterface | None = None, name: str | None = None, **kw: Any) -> None:
+    def __init__(
+        self, name: str | None = None, *, interface: CapabilityInterface | None = None, **kw: Any
+    ) -> None:
         iface = interface or type(self).INTERFACE
         if iface is None:
             raise TreeError(f"{type(self).__name__}: needs the capability interface it bridges")

@@ -21,6 +21,7 @@ import json
 import os
 import select
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -141,10 +142,14 @@ async def _main_async(specs: Sequence[AgentSpec]) -> None:
         print(line, flush=True)
 
     runner = asyncio.ensure_future(run_agents(specs, ready=announce))
-    # Stop when the parent closes our stdin (it went away or wants us gone).
-    reader = asyncio.StreamReader()
-    await loop.connect_read_pipe(lambda: asyncio.StreamReaderProtocol(reader), sys.stdin)
-    eof = asyncio.ensure_future(reader.read())
+    # Stop when the parent closes our stdin (it went away or wants us gone). A stdin that
+    # cannot be watched (/dev/null, a file) means: run until terminated.
+    if _watchable(sys.stdin):
+        reader = asyncio.StreamReader()
+        await loop.connect_read_pipe(lambda: asyncio.StreamReaderProtocol(reader), sys.stdin)
+        eof: asyncio.Future[Any] = asyncio.ensure_future(reader.read())
+    else:
+        eof = loop.create_future()
     try:
         await asyncio.wait((runner, eof), return_when=asyncio.FIRST_COMPLETED)
     finally:
@@ -153,6 +158,14 @@ async def _main_async(specs: Sequence[AgentSpec]) -> None:
         await asyncio.gather(runner, eof, return_exceptions=True)
     if runner.done() and not runner.cancelled() and (exc := runner.exception()) is not None:
         raise exc
+
+
+def _watchable(stream: Any) -> bool:
+    try:
+        mode = os.fstat(stream.fileno()).st_mode
+    except (OSError, ValueError, AttributeError):
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or (stat.S_ISCHR(mode) and stream.isatty())
 
 
 def _decode_specs(text: str) -> list[AgentSpec]:

@@ -129,7 +129,8 @@ class MissionState:
         cand = np.argwhere(self.frontier())
         if len(cand) == 0:
             return
-        taken = [g.cell for g in self.pending_goals()]
+        # A covered goal is done once its claimant lets go: it stands for no frontier.
+        taken = [g.cell for g in self.pending_goals() if not self.covered[g.cell]]
         order = self.rng.permutation(len(cand))
         cand = cand[order]
         keep = np.ones(len(cand), dtype=bool)

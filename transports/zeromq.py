@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import sys
+import uuid
 from typing import Any
 
 import structlog
@@ -72,12 +73,13 @@ class ZmqTransport(Transport):
     port chosen. Bound to a wildcard address (``tcp://0.0.0.0:7000``), pass ``advertise``:
     the endpoint other hosts should connect to, sent in hellos. ``peers`` maps system ids
     to endpoints; more can be added at run time, and with ``accept_hello`` (default) any
-    system that says hello becomes a peer. A peer learnt from a hello that says hello
-    again from a new endpoint (it restarted elsewhere) is reconnected there; endpoints
-    given in ``peers`` or :meth:`add_peer` are kept as configured.
+    system that says hello becomes a peer, up to ``max_peers``. A peer learnt from a
+    hello that says hello again from a new endpoint (it restarted elsewhere) is
+    reconnected there; endpoints given in ``peers`` or :meth:`add_peer` stay as given.
 
     ``inproc://`` endpoints only reach transports on the same zmq context (by default the
-    process-wide ``zmq.asyncio.Context.instance()``).
+    process-wide ``zmq.asyncio.Context.instance()``). Use a transport from one thread,
+    the one running its event loop.
     """
 
     def __init__(
@@ -88,6 +90,7 @@ class ZmqTransport(Transport):
         *,
         peers: dict[str, str] | None = None,
         accept_hello: bool = True,
+        max_peers: int = 1024,
         advertise: str | None = None,
         context: zmq.Context[Any] | None = None,
     ) -> None:
@@ -101,6 +104,7 @@ class ZmqTransport(Transport):
         self.stats = TransportStats()
         self.codec = Codec(registry)
         self.accept_hello = accept_hello
+        self.max_peers = max_peers
         self._id = system_id.encode()
         base = context if context is not None else zmq.asyncio.Context.instance()
         # Plain sockets on the same underlying context (so inproc:// still connects):
@@ -130,7 +134,8 @@ class ZmqTransport(Transport):
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, _Monitor] = {}
         self.hellos = 0
-        """Well-formed hellos received (so every inbound frame is counted somewhere)."""
+        """Hellos taken (new, moved or known peers): with ``stats.received``,
+        ``stats.malformed`` and ``stats.unknown_peer`` every inbound frame is counted once."""
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -169,7 +174,15 @@ class ZmqTransport(Transport):
             # A peer that restarts on the same endpoint gets our DEALER back by zmq's
             # reconnect, but has forgotten us: a monitor tells us to say hello again.
             # It must watch before connecting, or the first connection may go unseen.
-            monitor = _Monitor(system_id, sock, sock.get_monitor_socket(zmq.EVENT_CONNECTED))
+            # (pyzmq names monitors after the socket's fd, which a closed one may still
+            # hold while zmq reaps it: a fresh name never collides.)
+            name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
+            try:
+                events = sock.get_monitor_socket(zmq.EVENT_CONNECTED, addr=name)
+            except zmq.ZMQError as exc:
+                log.warning("transport.no_monitor", peer=system_id, error=str(exc))
+            else:
+                monitor = _Monitor(system_id, sock, events)
         try:
             sock.connect(endpoint)
         except zmq.ZMQError as exc:
@@ -275,11 +288,15 @@ class ZmqTransport(Transport):
         router = self._router
         try:
             for _ in range(_BATCH):
-                # Asking first is cheaper than ending every drain with a zmq.Again raised.
-                if not router.getsockopt(_EVENTS) & _POLLIN:  # type: ignore[operator]
+                try:
+                    frames = router.recv_multipart(_NOBLOCK)
+                except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
-                self._handle(router.recv_multipart(_NOBLOCK), deliver)
+                self._handle(frames, deliver)
                 if self._deliver is None:  # closed by whoever we delivered to
+                    return
+                # Asking is cheaper than ending every drain with a zmq.Again raised.
+                if not router.getsockopt(_EVENTS) & _POLLIN:  # type: ignore[operator]
                     return
         except zmq.ZMQError as exc:
             if not self._closed:
@@ -351,20 +368,25 @@ class ZmqTransport(Transport):
         if peer == self.system_id:
             self._malformed("bad hello", ident, "another system uses our id")
             return
-        self.hellos += 1
         known = self._endpoints.get(peer)
-        if known == endpoint or peer in self._configured:
-            return
-        if known is None and not self.accept_hello:
-            self.stats.unknown_peer += 1
-            self._reject("unknown peer", ident, "hello refused")
-            return
-        try:
-            self._connect(peer, endpoint)
-        except (ValueError, RuntimeError) as exc:
-            self._malformed("bad hello", ident, str(exc)[:200])
-            return
-        log.info("transport.peer_joined", system=self.system_id, peer=peer, endpoint=endpoint)
+        if known != endpoint and peer not in self._configured:
+            if known is None and not self.accept_hello:
+                self.stats.unknown_peer += 1
+                self._reject("unknown peer", ident, "hello refused")
+                return
+            if known is None and len(self._dealers) >= self.max_peers:
+                # Every peer costs sockets: a flood of made-up ids must not exhaust them.
+                self.stats.unknown_peer += 1
+                self._reject("too many peers", ident, f"already {len(self._dealers)}")
+                return
+            try:
+                self._connect(peer, endpoint)
+            except (ValueError, RuntimeError) as exc:
+                self._malformed("bad hello", ident, str(exc)[:200])
+                return
+            event = "transport.peer_joined" if known is None else "transport.peer_moved"
+            log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
+        self.hellos += 1
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

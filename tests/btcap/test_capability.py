@@ -81,7 +81,7 @@ def test_bridge_types_mirror_the_interface() -> None:
     assert not ob.output_ports
     assert not any(p.required for p in ob.input_ports.values())
     # The generic bridges take the interface explicitly, and need one.
-    assert InputBridge(COUNT, name="in").interface is COUNT
+    assert InputBridge("in", interface=COUNT).interface is COUNT
     with pytest.raises(TreeError, match="needs the capability interface"):
         OutputBridge(name="out")
 

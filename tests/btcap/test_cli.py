@@ -216,7 +216,12 @@ class _BrokenEntryPoint:
 def test_broken_plugin_is_reported_and_no_plugins_skips_it(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [_BrokenEntryPoint()])
+    real = importlib.metadata.entry_points
+
+    def entry_points(*, group: str) -> Any:
+        return [_BrokenEntryPoint()] if group == "btcap.nodes" else real(group=group)
+
+    monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
     assert main(["tree", "validate", str(PATROL)]) == 1
     assert "node plugin 'acme' (acme_nodes:nodes)" in capsys.readouterr().err
     assert main(["--no-plugins", "tree", "validate", str(PATROL)]) == 0

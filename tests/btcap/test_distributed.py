@@ -108,6 +108,14 @@ def running_on(node: Capability, robot: str) -> Callable[[], bool]:
     return check
 
 
+def acked(ex: RemoteExecution, seq: int) -> Callable[[], bool]:
+    return lambda: ex.acked >= seq
+
+
+def output_is(node: Capability, value: int) -> Callable[[], bool]:
+    return lambda: bool(node.outputs["value"] == value)
+
+
 async def echo_follows(tree: Tree, node: Capability, values: Sequence[int], robot: str) -> None:
     """Change the input, see the output follow, from ``robot``; every tick is confirmed."""
     ex = node.execution
@@ -116,8 +124,8 @@ async def echo_follows(tree: Tree, node: Capability, values: Sequence[int], robo
         node.set_input("value", value)
         tree.tick()
         sent = ex.seq
-        await until(None, lambda n=sent: ex.acked >= n)  # inputs out, status back
-        await until(tree, lambda v=value: node.outputs["value"] == v)
+        await until(None, acked(ex, sent))  # inputs out, status back
+        await until(tree, output_is(node, value))
         assert node.outputs["robot"] == robot
 
 
@@ -237,7 +245,7 @@ def _junk() -> Iterator[tuple[bytes | None, list[bytes]]]:
 
 
 def _send_junk(endpoint: str) -> None:
-    ctx = zmq.Context.instance()
+    ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context.instance()
     socks: dict[bytes | None, zmq.Socket[bytes]] = {}
     try:
         for ident, frames in _junk():

@@ -209,6 +209,39 @@ async def test_peer_restarting_on_the_same_endpoint_learns_us_again() -> None:
                 assert await a.ref(Address("b", "echo")).ask(Echo("3")) == Echoed("3", "b")
 
 
+async def test_peer_moving_to_a_new_endpoint_is_followed() -> None:
+    with anyio.fail_after(10):
+        async with zmq_system("a", "tcp://127.0.0.1:*") as (a, ta):
+            async with zmq_system("b", "tcp://127.0.0.1:*", peers={"a": ta.endpoint}) as (_, tb):
+                await eventually(lambda: "b" in ta.peers(), "a learnt b")
+                first = tb.endpoint
+            async with zmq_system("b", "tcp://127.0.0.1:*", peers={"a": ta.endpoint}) as (_, tb):
+                assert tb.endpoint != first
+                await eventually(lambda: ta.peer_endpoints()["b"] == tb.endpoint, "a followed b")
+                assert await a.ref(Address("b", "echo")).ask(Echo("moved")) == Echoed("moved", "b")
+
+
+async def test_advertised_endpoint_is_what_peers_connect_to(tmp_path: Path) -> None:
+    (tmp_path / "alias.sock").symlink_to(tmp_path / "real.sock")
+    alias = f"ipc://{tmp_path}/alias.sock"
+    with anyio.fail_after(5):
+        async with (
+            zmq_system("a", f"ipc://{tmp_path}/a.sock") as (a, ta),
+            zmq_system(
+                "b", f"ipc://{tmp_path}/real.sock", advertise=alias, peers={"a": ta.endpoint}
+            ) as (_, tb),
+        ):
+            assert tb.endpoint == alias
+            assert tb.bound_endpoint == f"ipc://{tmp_path}/real.sock"
+            await eventually(lambda: "b" in ta.peers(), "a learnt b")
+            assert ta.peer_endpoints()["b"] == alias
+            assert await a.ref(Address("b", "echo")).ask(Echo("via alias")) == Echoed(
+                "via alias", "b"
+            )
+    with pytest.raises(ValueError, match="advertise"):
+        ZmqTransport("c", "tcp://127.0.0.1:*", registry(), advertise="localhost:1")
+
+
 async def test_hello_refused_when_not_accepting(plain_logs: list[MutableMapping[str, Any]]) -> None:
     with anyio.fail_after(5):
         async with (
@@ -221,6 +254,30 @@ async def test_hello_refused_when_not_accepting(plain_logs: list[MutableMapping[
             assert ta.stats.by_reason["unknown peer"] == ta.stats.unknown_peer
             assert ta.stats.received == 0
             assert any(e["event"] == "transport.dropped" for e in plain_logs)
+
+
+async def test_hellos_beyond_max_peers_are_refused() -> None:
+    ctx = zmq.asyncio.Context.instance()
+    raw: list[zmq.Socket[bytes]] = []
+    with anyio.fail_after(5):
+        async with zmq_system("a", "tcp://127.0.0.1:*", max_peers=2) as (_a, ta):
+            try:
+                for n in range(4):
+                    sock: zmq.Socket[bytes] = zmq.Socket(ctx, zmq.DEALER)
+                    raw.append(sock)
+                    sock.setsockopt(zmq.LINGER, 0)
+                    sock.setsockopt(zmq.ROUTING_ID, f"joiner-{n}".encode())
+                    sock.connect(ta.endpoint)
+                    sock.send(f"Hinproc://nowhere-{uuid.uuid4().hex}".encode())
+                await eventually(
+                    lambda: ta.hellos + ta.stats.unknown_peer == 4, "all hellos handled"
+                )
+            finally:
+                for sock in raw:
+                    sock.close(0)
+            assert len(ta.peers()) == ta.hellos == 2
+            assert ta.stats.by_reason == {"too many peers": 2}
+            assert ta.stats.unknown_peer == 2
 
 
 # -- two systems in two OS processes ------------------------------------------------------
