@@ -7,7 +7,13 @@
   hosting many agents, each agent with its own actor system, socket and port). The
   auction window is long (5 s), so a round that did not close early would show; the
   execution each round creates is cancelled at once so the next round finds the bidders
-  free.
+  free. All 50 bidders are up throughout; a round with N bidders invites the first N
+  (dealt round robin over the processes). ``early_close`` counts the rounds that closed
+  because every invited bidder had answered.
+- **round_cpu_ms**: CPU time per round (every thread, so ZeroMQ's I/O threads count) of
+  this process and of the bidder processes, minus what they burn idle (heartbeats, host
+  trees). On a small shared machine this says more than wall time: a 50-bidder round
+  cannot take less wall time than its CPU time divided by the cores.
 - **remote_tick_ms**: the origin's ``tree.tick()`` sends inputs (seq n) to an executor in
   another process; timed until ``execution.acked >= n`` (the executor's status for them
   arrived back).
