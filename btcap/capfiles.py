@@ -191,6 +191,4 @@ def load_implementation(
         more = extra(inputs) if extra is not None else 0.0
         return None if more is None else cost + float(more)
 
-    return Implementation(
-        spec.name, iface, build, preconditions=tuple(spec.preconditions), bid=bid
-    )
+    return Implementation(spec.name, iface, build, preconditions=tuple(spec.preconditions), bid=bid)

@@ -260,9 +260,10 @@ class IfThenElse(Composite):
 
     def utility(self) -> Utility:
         return fallback_utility(
-            [sequence_utility([c.utility() for c in self.children[:2]]), *(
-                c.utility() for c in self.children[2:]
-            )]
+            [
+                sequence_utility([c.utility() for c in self.children[:2]]),
+                *(c.utility() for c in self.children[2:]),
+            ]
         )
 
 
@@ -318,4 +319,3 @@ def _collapse(s: State) -> State:
     if s is _FAILED or s is _ERROR:
         return _FAILED
     return _RUNNING
-

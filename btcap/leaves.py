@@ -111,7 +111,8 @@ class Compare(Leaf):
     def declare_ports(self) -> None:
         if self.options["op"] not in _OPS:
             raise TreeError(
-                f"Compare {self.name!r}: op {self.options['op']!r}; expected one of {', '.join(_OPS)}"
+                f"Compare {self.name!r}: op {self.options['op']!r}; "
+                f"expected one of {', '.join(_OPS)}"
             )
 
     def on_tick(self) -> State:
@@ -257,5 +258,3 @@ class Action(Leaf):
 
     def on_shutdown(self) -> None:
         self._cancel()
-
-

@@ -78,7 +78,9 @@ class Node(Actor):
         super().__init_subclass__(**kwargs)
         for attr in ("INPUTS", "OUTPUTS", "OPTIONS"):
             if attr in cls.__dict__:
-                setattr(cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}"))
+                setattr(
+                    cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}")
+                )
 
     def __init__(
         self,
@@ -92,7 +94,9 @@ class Node(Actor):
         cls = type(self)
         self.name: str = name if name is not None else cls.__name__
         if not self.name or "/" in self.name or "." in self.name:
-            raise TreeError(f"node name {self.name!r}: expected a non-empty name without '/' or '.'")
+            raise TreeError(
+                f"node name {self.name!r}: expected a non-empty name without '/' or '.'"
+            )
         self.state = _UNINIT
         self.error: BaseException | None = None
         self.parent_node: Node | None = None
@@ -254,9 +258,7 @@ class Node(Actor):
         except Exception as exc:
             return self._fail(exc, "tick")
         if new.__class__ is not State:
-            return self._fail(
-                TypeError(f"on_tick returned {new!r}, expected a State"), "tick"
-            )
+            return self._fail(TypeError(f"on_tick returned {new!r}, expected a State"), "tick")
         self.state = new
         if self._watch is not None and new is not prev:
             self._watch(self, prev, new)
@@ -312,7 +314,10 @@ class Node(Actor):
     def _fail(self, exc: BaseException, action: str) -> State:
         self.error = exc
         log.error(
-            "btcap.node_error", node=self.path, type=type(self).__name__, action=action,
+            "btcap.node_error",
+            node=self.path,
+            type=type(self).__name__,
+            action=action,
             exc_info=exc,
         )
         self._set(_ERROR)
@@ -390,4 +395,3 @@ class Leaf(Node):
 def declared_ports(node: Node) -> dict[str, PortMap]:
     """The node's ports by kind, as a dict (for files, CLI and docs)."""
     return {"inputs": node.input_ports, "outputs": node.output_ports, "options": type(node).OPTIONS}
-

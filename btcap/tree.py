@@ -30,7 +30,9 @@ class Wire:
         self.target_port = target_port
 
     def __repr__(self) -> str:
-        return f"Wire({self.source.path}.{self.source_port} -> {self.target.path}.{self.target_port})"
+        return (
+            f"Wire({self.source.path}.{self.source_port} -> {self.target.path}.{self.target_port})"
+        )
 
 
 class Tree:
@@ -40,7 +42,9 @@ class Tree:
     every node as an actor of an :class:`~actors.ActorSystem` so each is addressable.
     """
 
-    def __init__(self, root: Node, *, name: str | None = None, clock: TimeSource | None = None) -> None:
+    def __init__(
+        self, root: Node, *, name: str | None = None, clock: TimeSource | None = None
+    ) -> None:
         self.root = root
         self.name = name or root.name
         self.clock: TimeSource = clock if clock is not None else Clock()
@@ -88,7 +92,9 @@ class Tree:
                     node = c
                     break
             else:
-                raise TreeError(f"tree {self.name!r}: no node {path!r} ({node.path!r} has no child {part!r})")
+                raise TreeError(
+                    f"tree {self.name!r}: no node {path!r} ({node.path!r} has no child {part!r})"
+                )
         return node
 
     def _resolve(self, node: Node | str) -> Node:
@@ -114,7 +120,9 @@ class Tree:
         return n
 
     # -- data wiring ------------------------------------------------------------------
-    def wire(self, source: Node | str, source_port: str, target: Node | str, target_port: str) -> Wire:
+    def wire(
+        self, source: Node | str, source_port: str, target: Node | str, target_port: str
+    ) -> Wire:
         """Feed ``source.outputs[source_port]`` into ``target.inputs[target_port]``.
 
         Type-checked now: raises TreeError naming both ends and the types.
@@ -272,7 +280,9 @@ class Tree:
     async def __aexit__(self, *exc: object) -> None:
         await self.shutdown()
 
-    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> asyncio.Task[Any]:
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]:
         """Background work of a node, awaited by :meth:`shutdown` (and the system's, if any)."""
         if self.system is not None:
             task = self.system.start_task(coro, name=name)
@@ -340,14 +350,18 @@ class Subtree(Node):
     ) -> None:
         self.inner = inner
         self._in_map = {k: self._split(inner, v, "input") for k, v in (public_inputs or {}).items()}
-        self._out_map = {k: self._split(inner, v, "output") for k, v in (public_outputs or {}).items()}
+        self._out_map = {
+            k: self._split(inner, v, "output") for k, v in (public_outputs or {}).items()
+        }
         super().__init__(name or inner.name, **kwargs)
 
     @staticmethod
     def _split(inner: Tree, ref: str, kind: str) -> tuple[Node, str]:
         path, dot, port = ref.rpartition(".")
         if not dot:
-            raise TreeError(f"subtree {inner.name!r}: {kind} {ref!r} must look like 'node/path.port'")
+            raise TreeError(
+                f"subtree {inner.name!r}: {kind} {ref!r} must look like 'node/path.port'"
+            )
         node = inner.find(path)
         ports = node.input_ports if kind == "input" else node.output_ports
         if port not in ports:
@@ -383,5 +397,3 @@ class Subtree(Node):
 
     def utility(self) -> Utility:
         return self.inner.utility()
-
-

@@ -16,8 +16,16 @@ async def main() -> None:
     net = InProcessNetwork(protocol_registry())
     async with (
         Agent("base", transport=net.transport("base")) as base,
-        Agent("cheap", transport=net.transport("cheap"), implementations=implementations("cheap", cost=1.0)),
-        Agent("dear", transport=net.transport("dear"), implementations=implementations("dear", cost=5.0)),
+        Agent(
+            "cheap",
+            transport=net.transport("cheap"),
+            implementations=implementations("cheap", cost=1.0),
+        ),
+        Agent(
+            "dear",
+            transport=net.transport("dear"),
+            implementations=implementations("dear", cost=5.0),
+        ),
     ):
         await asyncio.sleep(0.3)  # let heartbeats and repositories spread
         echo = ECHO.node_type()("echo", inputs={"value": 41})
