@@ -16,7 +16,7 @@ class ActorError(Exception):
     """Base of every error the runtime raises."""
 
 
-class ActorFailed(ActorError):  # noqa: N818 - actor-model names, part of the API
+class ActorFailed(ActorError):
     """The handler of an ask raised; carries the remote error's type and text."""
 
     def __init__(self, address: str, error_type: str, detail: str) -> None:
@@ -26,17 +26,17 @@ class ActorFailed(ActorError):  # noqa: N818 - actor-model names, part of the AP
         self.detail = detail
 
 
-class AskTimeout(ActorError, TimeoutError):  # noqa: N818 - actor-model names, part of the API
+class AskTimeout(ActorError, TimeoutError):
     """No reply came in time."""
 
 
-class DeadLetter(ActorError):  # noqa: N818 - actor-model names, part of the API
+class DeadLetter(ActorError):
     """The recipient does not exist (never did, or was stopped)."""
 
 
-class MailboxFull(ActorError):  # noqa: N818 - actor-model names, part of the API
+class MailboxFull(ActorError):
     """The recipient's bounded mailbox is full."""
 
 
-class SystemClosed(ActorError):  # noqa: N818 - actor-model names, part of the API
+class SystemClosed(ActorError):
     """The actor system shut down while a request was pending."""

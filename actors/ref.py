@@ -49,21 +49,21 @@ class ActorRef(Generic[A]):
             self._system.tell(self.address, msg, sender=sender)
 
     @overload
-    async def ask(self, msg: Any, *, timeout: float | None = None) -> Any: ...  # noqa: ASYNC109
+    async def ask(self, msg: Any, *, timeout: float | None = None) -> Any: ...
     @overload
     async def ask(
         self,
         msg: Any,
         *,
         expect: type[R],
-        timeout: float | None = None,  # noqa: ASYNC109
+        timeout: float | None = None,
     ) -> R: ...
     async def ask(
         self,
         msg: Any,
         *,
         expect: type[Any] | None = None,
-        timeout: float | None = None,  # noqa: ASYNC109 - a per-request limit is part of ask
+        timeout: float | None = None,
     ) -> Any:
         """Request and await the reply (wall-clock ``timeout`` seconds).
 

@@ -272,7 +272,7 @@ class ActorSystem:
         address: Address,
         msg: Any,
         *,
-        timeout: float | None = None,  # noqa: ASYNC109 - see ActorRef.ask
+        timeout: float | None = None,
     ) -> Any:
         """Request/response to any address; see :meth:`ActorRef.ask`."""
         if self._closing:

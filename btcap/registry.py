@@ -303,7 +303,7 @@ class _TypeParser:
             members.append(self._term())
         if len(members) == 1:
             return members[0]
-        return typing.Union[tuple(members)]  # noqa: UP007 - built from a runtime list
+        return typing.Union[tuple(members)]
 
     def _term(self) -> Any:
         tok = self._take()

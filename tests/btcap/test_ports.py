@@ -25,7 +25,7 @@ from btcap.ports import NO_DEFAULT, assignable, check_value, normalize_ports, ty
 class Sink(Leaf):
     """Remembers every ``x`` it saw."""
 
-    INPUTS = {"x": int, "label": Port(str, "none"), "maybe": Optional[float]}  # noqa: UP045
+    INPUTS = {"x": int, "label": Port(str, "none"), "maybe": Optional[float]}
 
     def __init__(self, name: str = "sink", **kw: Any) -> None:
         super().__init__(name, **kw)
@@ -74,7 +74,7 @@ def test_port_required_and_defaults() -> None:
     assert not Port(int, 3).required
     assert Port(int, 3).default_value() == 3
     assert not Port(int | None).required
-    assert not Port(Optional[int]).required  # noqa: UP045
+    assert not Port(Optional[int]).required
     assert Port(Any).required
     assert repr(NO_DEFAULT) == "NO_DEFAULT"
 
@@ -133,7 +133,7 @@ def test_type_names() -> None:
     assert type_name(int) == "int"
     assert type_name(Any) == "Any"
     assert type_name(list[int]) == "list[int]"
-    assert type_name(Optional[int]) == "Optional[int]"  # noqa: UP045
+    assert type_name(Optional[int]) == "Optional[int]"
     assert type_name(int | None) == "int | None"
 
 

@@ -101,7 +101,7 @@ def inbox(system: ActorSystem) -> Inbox:
 async def eventually(predicate: Callable[[], bool], what: str, limit: float = 5.0) -> None:
     """Poll until ``predicate()`` holds (hellos and drops arrive asynchronously)."""
     with anyio.fail_after(limit):
-        while not predicate():  # noqa: ASYNC110 - counters have no event to wait on
+        while not predicate():
             await anyio.sleep(0.005)
     assert predicate(), what
 
