@@ -13,15 +13,21 @@ with ``memory=False``):
   succeeds.
 
 Before timing, ticks per node are counted in both libraries (py_trees: the nodes its
-``tick()`` generator yields; btcap: calls of ``Node.tick`` seen by a profile hook) and
-every node's resulting state is checked against the description.
+``tick()`` generator yields; btcap: calls of each node class's ``tick`` seen by a profile
+hook) and every node's resulting state is checked against the description.
 
-Timing: per-tick wall time (``perf_counter_ns``), btcap through ``Tree.tick()``, py_trees
-through ``root.tick_once()`` (no ``BehaviourTree`` visitors or pre/post tick handlers),
-in alternating blocks so drift hits both libraries alike; reported as the median per
-tick divided by the node count, in microseconds per node. Memory: ``tracemalloc`` traced
-bytes held after building and setting up a 10,000-node tree (a flat Sequence of 9,999
-leaves), divided by 10,000.
+Timing: btcap through ``Tree.tick()``, py_trees through ``root.tick_once()`` (no
+``BehaviourTree`` visitors or pre/post tick handlers). Each tick is timed by wall clock
+(``perf_counter_ns``) and by thread CPU time (``thread_time_ns``); the libraries take
+turns in blocks of about 50 ms each, so both are sampled over the same stretch of time.
+Reported: the median per tick divided by the node count, in microseconds per node, and
+py_trees / btcap as the speed-up (``speedup`` from wall time, ``cpu_speedup`` from CPU
+time, which is steadier on a shared machine because preemption does not count).
+
+Memory: ``tracemalloc`` traced bytes held after building and setting up a 10,000-node
+tree (a flat Sequence of 9,999 leaves; btcap ``Tree`` + ``setup()``, py_trees
+``BehaviourTree`` + ``setup()``), divided by 10,000. Node names are created before
+tracing starts, so neither library is charged for them.
 
 Run ``python -m bench tick [--quick]`` or ``python -m bench.tick [--quick]``.
 """
@@ -54,6 +60,7 @@ FLAT_LEAVES = 1000
 BALANCED_FANOUT = (5, 5, 6, 6)
 MEMORY_NODES = 10_000
 VERIFY_TICKS = 3
+BLOCK_S = 0.05
 
 SEQUENCE, FALLBACK, SUCCESS, FAILURE = "sequence", "fallback", "success", "failure"
 
@@ -200,28 +207,41 @@ def _pre_order(b: py_trees.behaviour.Behaviour) -> Iterator[py_trees.behaviour.B
 # -- measuring ----------------------------------------------------------------------------
 
 
-def _time_block(tick: Callable[[], object], count: int, out: list[float]) -> None:
-    """Append ``count`` per-tick times in nanoseconds."""
-    clock = time.perf_counter_ns
+def _time_block(
+    tick: Callable[[], object], count: int, wall: list[float], cpu: list[float]
+) -> None:
+    """Append ``count`` per-tick wall and thread-CPU times, in nanoseconds."""
+    wall_clock, cpu_clock = time.perf_counter_ns, time.thread_time_ns
     for _ in range(count):
-        t0 = clock()
+        c0 = cpu_clock()
+        t0 = wall_clock()
         tick()
-        out.append(clock() - t0)
+        t1 = wall_clock()
+        c1 = cpu_clock()
+        wall.append(t1 - t0)
+        cpu.append(c1 - c0)
 
 
 def time_shape(
-    ticks: dict[str, Callable[[], object]], warmup: int, count: int, blocks: int
-) -> dict[str, list[float]]:
-    """Per-tick ns for each library, timed in ``blocks`` alternating blocks after warm-up."""
-    for tick in ticks.values():
+    ticks: dict[str, Callable[[], object]], warmup: int, count: int, block_s: float = BLOCK_S
+) -> dict[str, dict[str, list[float]]]:
+    """Per-tick ns (``wall``, ``cpu``) per library, at least ``count`` ticks each.
+
+    The libraries take turns in blocks of about ``block_s`` seconds each (block sizes
+    from the warm-up's cost per tick), so both are sampled evenly over the same stretch of
+    time and whatever else the machine is doing weighs on both alike.
+    """
+    per_block: dict[str, int] = {}
+    for lib, tick in ticks.items():
+        t0 = time.perf_counter()
         for _ in range(warmup):
             tick()
-    samples: dict[str, list[float]] = {lib: [] for lib in ticks}
-    per_block = -(-count // blocks)
-    for _ in range(blocks):
+        per_block[lib] = max(1, round(block_s * warmup / (time.perf_counter() - t0)))
+    samples: dict[str, dict[str, list[float]]] = {lib: {"wall": [], "cpu": []} for lib in ticks}
+    gc.collect()
+    while any(len(samples[lib]["wall"]) < count for lib in ticks):
         for lib, tick in ticks.items():
-            gc.collect()
-            _time_block(tick, per_block, samples[lib])
+            _time_block(tick, per_block[lib], samples[lib]["wall"], samples[lib]["cpu"])
     return samples
 
 
@@ -257,17 +277,19 @@ def _build_py_trees_for_memory(spec: Spec) -> Callable[[], object]:
 
 
 def _table(data: dict[str, Any]) -> str:
-    us, p99 = data["us_per_node"], data["us_per_node_p99"]
+    us, p99, cpu = data["us_per_node"], data["us_per_node_p99"], data["cpu_us_per_node"]
     lines = [
-        f"{'tick, us/node':<14} {'nodes':>6} {'btcap p50':>10} {'p99':>7} "
-        f"{'py_trees p50':>13} {'p99':>7} {'speed-up':>9}",
-        "-" * 72,
+        f"{'us per node':<11} {'nodes':>5} {'btcap p50':>9} {'p99':>6} {'py_trees p50':>12} "
+        f"{'p99':>6} {'speed-up':>8} {'cpu time speed-up':>17}",
+        "-" * 80,
     ]
     for shape in SHAPES:
         lines.append(
-            f"{shape:<14} {data['nodes'][shape]:>6} {us['btcap'][shape]:>10.3f} "
-            f"{p99['btcap'][shape]:>7.3f} {us['py_trees'][shape]:>13.3f} "
-            f"{p99['py_trees'][shape]:>7.3f} {data['speedup'][shape]:>8.1f}x"
+            f"{shape:<11} {data['nodes'][shape]:>5} {us['btcap'][shape]:>9.3f} "
+            f"{p99['btcap'][shape]:>6.2f} {us['py_trees'][shape]:>12.3f} "
+            f"{p99['py_trees'][shape]:>6.2f} {data['speedup'][shape]:>7.1f}x "
+            f"{data['cpu_speedup'][shape]:>8.1f}x ({cpu['btcap'][shape]:.3f}"
+            f" vs {cpu['py_trees'][shape]:.2f})"
         )
     b = data["bytes_per_node"]
     lines.append(
@@ -279,10 +301,12 @@ def _table(data: dict[str, Any]) -> str:
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Verify the shapes, time both libraries, print a table, write ``bench/results/tick.json``."""
-    warmup, count, blocks = (20, 200, 2) if quick else (100, 2_000, 5)
+    warmup, count = (20, 200) if quick else (100, 1_000)
     specs = {"flat": flat_spec(FLAT_LEAVES), "balanced": balanced_spec()}
     us: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
     us99: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
+    cpu_us: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
+    ticked: dict[str, dict[str, int]] = {lib: {} for lib in LIBS}
     nodes: dict[str, int] = {}
     for shape, spec in specs.items():
         n = nodes[shape] = _count(spec)
@@ -290,12 +314,12 @@ def run(quick: bool = False) -> dict[str, Any]:
         root = _py_trees_root(spec)
         verify_btcap(spec, tree)
         verify_py_trees(spec, root)
-        samples = time_shape(
-            {"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count, blocks
-        )
+        samples = time_shape({"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count)
         for lib in LIBS:
-            p = percentiles([s / 1000.0 / n for s in samples[lib]])
+            p = percentiles([s / 1000.0 / n for s in samples[lib]["wall"]])
             us[lib][shape], us99[lib][shape] = p["p50"], p["p99"]
+            cpu_us[lib][shape] = percentiles([s / 1000.0 / n for s in samples[lib]["cpu"]])["p50"]
+            ticked[lib][shape] = len(samples[lib]["wall"])
 
     mem_spec = flat_spec(MEMORY_NODES - 1)
     bytes_per_node = {
@@ -306,10 +330,12 @@ def run(quick: bool = False) -> dict[str, Any]:
         "us_per_node": us,
         "us_per_node_p99": us99,
         "speedup": {s: us["py_trees"][s] / us["btcap"][s] for s in SHAPES},
+        "cpu_us_per_node": cpu_us,
+        "cpu_speedup": {s: cpu_us["py_trees"][s] / cpu_us["btcap"][s] for s in SHAPES},
         "bytes_per_node": bytes_per_node,
         "nodes": nodes,
         "memory_nodes": MEMORY_NODES,
-        "ticks": count,
+        "ticks": ticked,
         "warmup": warmup,
         "quick": quick,
         "py_trees_version": version("py_trees"),

@@ -33,7 +33,15 @@ from transports import InProcessNetwork, MessageRegistry, ZmqTransport
 
 __all__ = ["Ping", "Pong", "run"]
 
-SCENARIOS = ("local", "inproc_transport", "zmq_inproc", "zmq_ipc", "zmq_tcp", "raw_zmq_tcp")
+SCENARIOS = (
+    "local",
+    "inproc_transport",
+    "zmq_inproc",
+    "zmq_ipc",
+    "zmq_tcp",
+    "raw_zmq_tcp",
+    "raw_zmq_tcp_blocking",
+)
 _READY = "READY "
 _PAYLOAD = "x" * 32
 
@@ -87,10 +95,11 @@ async def _bench_local(warmup: int, count: int) -> list[float]:
 
 
 async def _bench_inproc_transport(warmup: int, count: int) -> list[float]:
-    net = InProcessNetwork(_registry())
+    reg = _registry()
+    net = InProcessNetwork(reg)
     async with (
-        ActorSystem(transport=net.transport("a"), registry=_registry()) as a,
-        ActorSystem(transport=net.transport("b"), registry=_registry()) as b,
+        ActorSystem(transport=net.transport("a"), registry=reg) as a,
+        ActorSystem(transport=net.transport("b"), registry=reg) as b,
     ):
         b.spawn(Echo(), "echo")
         ref = a.ref(Address("b", "echo"))
@@ -103,11 +112,12 @@ async def _bench_inproc_transport(warmup: int, count: int) -> list[float]:
 
 async def _bench_zmq_inproc(warmup: int, count: int) -> list[float]:
     tag = uuid.uuid4().hex[:8]
-    tb = ZmqTransport("b", f"inproc://bench-b-{tag}", _registry())
-    ta = ZmqTransport("a", f"inproc://bench-a-{tag}", _registry(), peers={"b": tb.endpoint})
+    reg_a, reg_b = _registry(), _registry()
+    tb = ZmqTransport("b", f"inproc://bench-b-{tag}", reg_b)
+    ta = ZmqTransport("a", f"inproc://bench-a-{tag}", reg_a, peers={"b": tb.endpoint})
     async with (
-        ActorSystem(transport=tb, registry=_registry()) as b,
-        ActorSystem(transport=ta, registry=_registry()) as a,
+        ActorSystem(transport=tb, registry=reg_b) as b,
+        ActorSystem(transport=ta, registry=reg_a) as a,
     ):
         b.spawn(Echo(), "echo")
         ref = a.ref(Address("b", "echo"))
@@ -120,8 +130,9 @@ async def _bench_zmq_inproc(warmup: int, count: int) -> list[float]:
 
 async def _bench_zmq_remote(bind: str, peer_bind: str, warmup: int, count: int) -> list[float]:
     with _child("--peer", peer_bind) as endpoint:
-        transport = ZmqTransport("main", bind, _registry(), peers={"peer": endpoint})
-        async with ActorSystem(transport=transport, registry=_registry()) as system:
+        reg = _registry()
+        transport = ZmqTransport("main", bind, reg, peers={"peer": endpoint})
+        async with ActorSystem(transport=transport, registry=reg) as system:
             ref = system.ref(Address("peer", "echo"))
 
             async def ask(i: int) -> Any:
@@ -146,6 +157,32 @@ async def _bench_raw_zmq_tcp(warmup: int, count: int) -> list[float]:
             return await _measure(ask, warmup, count)
         finally:
             sock.close(0)
+
+
+def _bench_raw_zmq_tcp_blocking(warmup: int, count: int) -> list[float]:
+    """The floor: blocking pyzmq on both sides, no event loop at all."""
+    with _child("--raw-peer-blocking", "tcp://127.0.0.1:*") as endpoint:
+        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+        sock = ctx.socket(zmq.DEALER)
+        sock.setsockopt(zmq.LINGER, 0)
+        sock.connect(endpoint)
+        payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
+        try:
+            for _ in range(warmup):
+                sock.send(payload)
+                sock.recv()
+            gc.collect()
+            clock = time.perf_counter_ns
+            samples = [0.0] * count
+            for i in range(count):
+                t0 = clock()
+                sock.send(payload)
+                sock.recv()
+                samples[i] = (clock() - t0) / 1000.0
+            return samples
+        finally:
+            sock.close(0)
+            ctx.term()
 
 
 # -- peer processes ---------------------------------------------------------------------
@@ -196,11 +233,33 @@ async def _until_stdin_closes() -> None:
 
 
 async def _serve_peer(bind: str) -> None:
-    transport = ZmqTransport("peer", bind, _registry())
-    async with ActorSystem(transport=transport, registry=_registry()) as system:
+    reg = _registry()
+    transport = ZmqTransport("peer", bind, reg)
+    async with ActorSystem(transport=transport, registry=reg) as system:
         system.spawn(Echo(), "echo")
         print(_READY + transport.endpoint, flush=True)
         await _until_stdin_closes()
+
+
+def _serve_raw_peer_blocking(bind: str) -> None:
+    ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
+    sock = ctx.socket(zmq.ROUTER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.bind(bind)
+    print(_READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
+    poller = zmq.Poller()
+    poller.register(sock, zmq.POLLIN)
+    poller.register(sys.stdin.fileno(), zmq.POLLIN)
+    try:
+        while True:
+            ready = dict(poller.poll())
+            if sock in ready:
+                sock.send_multipart(sock.recv_multipart())
+            if sys.stdin.fileno() in ready and not os.read(sys.stdin.fileno(), 4096):
+                return
+    finally:
+        sock.close(0)
+        ctx.term()
 
 
 async def _serve_raw_peer(bind: str) -> None:
@@ -250,18 +309,19 @@ async def _run_all(warmup: int, count: int) -> dict[str, dict[str, float]]:
     samples = await _bench_zmq_remote("tcp://127.0.0.1:*", "tcp://127.0.0.1:*", warmup, count)
     results["zmq_tcp"] = percentiles(samples)
     results["raw_zmq_tcp"] = percentiles(await _bench_raw_zmq_tcp(warmup, count))
+    results["raw_zmq_tcp_blocking"] = percentiles(_bench_raw_zmq_tcp_blocking(warmup, count))
     return results
 
 
 def _table(ask_us: dict[str, dict[str, float]]) -> str:
     raw = ask_us["raw_zmq_tcp"]["p50"]
     lines = [
-        f"{'ask round trip':<18} {'p50 us':>9} {'p99 us':>9} {'p50 / raw tcp':>14}",
-        "-" * 53,
+        f"{'ask round trip':<22} {'p50 us':>9} {'p99 us':>9} {'p50 / raw tcp':>14}",
+        "-" * 57,
     ]
     for name in SCENARIOS:
         p = ask_us[name]
-        lines.append(f"{name:<18} {p['p50']:>9.1f} {p['p99']:>9.1f} {p['p50'] / raw:>14.2f}")
+        lines.append(f"{name:<22} {p['p50']:>9.1f} {p['p99']:>9.1f} {p['p50'] / raw:>14.2f}")
     return "\n".join(lines)
 
 
@@ -296,12 +356,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     role = parser.add_mutually_exclusive_group()
     role.add_argument("--peer", metavar="BIND", help="(internal) serve an echo actor system")
     role.add_argument("--raw-peer", metavar="BIND", help="(internal) serve a raw zmq echo")
+    role.add_argument(
+        "--raw-peer-blocking", metavar="BIND", help="(internal) serve a blocking zmq echo"
+    )
     args = parser.parse_args(argv)
     if args.peer:
         configure_logging("warning")  # to stderr: stdout carries the READY line
         asyncio.run(_serve_peer(args.peer))
     elif args.raw_peer:
         asyncio.run(_serve_raw_peer(args.raw_peer))
+    elif args.raw_peer_blocking:
+        _serve_raw_peer_blocking(args.raw_peer_blocking)
     else:
         run(quick=args.quick)
     return 0

@@ -59,13 +59,20 @@ class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
     speedup: float = 1.0
     config: dict[str, float] = {}
     log_level: str = "warning"
+    registry: str = ""
 
 
-ImplementationFactory = Callable[..., Iterable[Implementation]]
+ImplementationFactory = Callable[..., Any]
 
 
 def load_factory(ref: str) -> ImplementationFactory:
-    """Resolve ``"package.module:function"``; the function returns implementations."""
+    """Resolve ``"package.module:function"``.
+
+    An implementation factory returns an iterable of implementations, or an object with
+    ``implementations`` and ``actors`` (a mapping of path to actor to spawn beside the
+    runtime, e.g. a simulated robot's body). A registry factory returns the
+    :class:`~transports.MessageRegistry` the robot speaks (default: btcap's protocol).
+    """
     module, sep, attr = ref.partition(":")
     if not sep or not module or not attr:
         raise ValueError(f"implementation factory {ref!r}: expected 'package.module:function'")
@@ -88,10 +95,15 @@ def _check_specs(specs: Sequence[AgentSpec]) -> None:
 
 async def run_agent(spec: AgentSpec, *, ready: Callable[[str], None] | None = None) -> None:
     """Run one agent until cancelled; ``ready(endpoint)`` is called once it listens."""
-    impls = (
-        list(load_factory(spec.factory)(spec.robot, **spec.factory_args)) if spec.factory else []
-    )
-    registry = protocol_registry()
+    made = load_factory(spec.factory)(spec.robot, **spec.factory_args) if spec.factory else []
+    impls: list[Implementation]
+    extra: dict[str, Any] = {}
+    if hasattr(made, "implementations"):
+        impls = list(made.implementations)
+        extra = dict(getattr(made, "actors", {}))
+    else:
+        impls = list(made)
+    registry = load_factory(spec.registry)() if spec.registry else protocol_registry()
     transport = ZmqTransport(spec.robot, spec.bind, registry, peers=dict(spec.peers))
     cfg = AgentConfig(**spec.config)
     async with Agent(
@@ -101,6 +113,7 @@ async def run_agent(spec: AgentSpec, *, ready: Callable[[str], None] | None = No
         implementations=impls,
         config=cfg,
         registry=registry,
+        actors=extra,
     ):
         if ready is not None:
             ready(transport.endpoint)

@@ -100,7 +100,8 @@ class MoveToLeaf(_Background):
         except asyncio.CancelledError:
             ref.tell(StopRobot(self.options["robot"]))
             raise
-        except ActorError as exc:
+        except ActorError as exc:  # e.g. no answer in time: the robot must not drive on
+            ref.tell(StopRobot(self.options["robot"]))
             return SimResult(False, (0, 0), str(exc))
         return result
 
@@ -137,11 +138,16 @@ class OperateLeaf(_Background):
     async def _operate(self) -> SimResult:
         target = self.inputs["target"]
         msg = Operate(self.options["robot"], self.options["op"], -1 if target is None else target)
+        ref = self._ref_to(self.options["manager"])
         try:
-            result: SimResult = await self._ref_to(self.options["manager"]).ask(
-                msg, expect=SimResult, timeout=self._wall(3600)
-            )
+            result: SimResult = await ref.ask(msg, expect=SimResult, timeout=self._wall(3600))
+        except asyncio.CancelledError:
+            # Abandoned (paused, cancelled, lease lost): the robot must not go on with it,
+            # or it would keep holding an object nobody is waiting for.
+            ref.tell(StopRobot(self.options["robot"]))
+            raise
         except ActorError as exc:
+            ref.tell(StopRobot(self.options["robot"]))
             return SimResult(False, (0, 0), str(exc))
         return result
 

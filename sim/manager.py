@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import structlog
 
-from actors import Actor, handler
+from actors import Actor, TimeSource, handler
 from sim.distance import Cell
 from sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
 from sim.model import RobotModel
@@ -53,6 +53,16 @@ class SimEvent:
 
 
 @dataclass(slots=True)
+class _Op:
+    """An operation in progress: its reply, its timeline line, whether it holds an object."""
+
+    fut: asyncio.Future[SimResult]
+    event: SimEvent
+    target: int
+    carrying: bool = False
+
+
+@dataclass(slots=True)
 class _Robot:
     name: str
     index: int
@@ -60,7 +70,7 @@ class _Robot:
     up: bool = True
     move: asyncio.Future[SimResult] | None = None
     move_event: SimEvent | None = None
-    busy: list[asyncio.Future[SimResult]] = field(default_factory=list)
+    busy: list[_Op] = field(default_factory=list)
     carrying: int = -1
 
 
@@ -78,6 +88,7 @@ class SimulationManager(Actor):
         self.robots: dict[str, _Robot] = {}
         self.events: list[SimEvent] = []
         self.on_change: Callable[[], None] | None = None
+        self._clock: TimeSource | None = None
 
     def add_robot(self, name: str, model: RobotModel, cell: Cell | None = None) -> None:
         if name in self.robots:
@@ -91,10 +102,12 @@ class SimulationManager(Actor):
         return self.world.position(self.robots[name].index)
 
     def now(self) -> float:
-        return self.system.clock.now()
+        # The clock is kept, so operations ending as the system stops still get a time.
+        return self._clock.now() if self._clock is not None else self.system.clock.now()
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
+        self._clock = self.system.clock
         self.start_task(self._run(), name="sim steps")
 
     async def _run(self) -> None:
@@ -117,10 +130,7 @@ class SimulationManager(Actor):
         self.world.deactivate(r.index)
         if r.move is not None:
             self._end_move(r, False, "robot down")
-        for fut in r.busy:
-            if not fut.done():
-                fut.set_result(SimResult(False, self.position(name), "robot down"))
-        r.busy.clear()
+        self._abort(r, "robot down")
         if r.carrying >= 0:
             self.state.drop(r.carrying, self.position(name))
             r.carrying = -1
@@ -150,6 +160,7 @@ class SimulationManager(Actor):
             return self._failed(msg.robot, f"goal {goal} is not a free cell")
         if r.move is not None:
             self._end_move(r, False, "superseded")
+        self._abort(r, "superseded")  # one body: driving off abandons any operation
         if self.position(msg.robot) == goal:
             return SimResult(True, goal, "already there")
         try:
@@ -163,10 +174,14 @@ class SimulationManager(Actor):
 
     @handler
     def on_stop_robot(self, msg: StopRobot) -> None:
+        """Stop the robot's move and operation (its execution was abandoned)."""
         r = self.robots.get(msg.robot)
-        if r is not None and r.move is not None:
+        if r is None:
+            return
+        if r.move is not None:
             self.world.stop(r.index)
             self._end_move(r, False, "stopped")
+        self._abort(r, "stopped")
 
     def _end_move(self, r: _Robot, ok: bool, detail: str) -> None:
         fut, r.move = r.move, None
@@ -176,7 +191,12 @@ class SimulationManager(Actor):
             r.move_event = None
         if fut is not None and not fut.done():
             fut.set_result(SimResult(ok, cell, detail))
-        self.system.ref(Address(r.name, "body")).tell(PositionUpdate(r.name, cell))
+        self._tell_position(r)
+
+    def _tell_position(self, r: _Robot) -> None:
+        if self._system is not None:
+            cell = self.position(r.name)
+            self.system.ref(Address(r.name, "body")).tell(PositionUpdate(r.name, cell))
 
     @handler
     def on_operate(self, msg: Operate) -> SimResult | asyncio.Future[SimResult]:
@@ -187,49 +207,42 @@ class SimulationManager(Actor):
             return self._failed(msg.robot, f"robot cannot {msg.op}")
         if msg.op != "explore" and not 0 <= msg.target < len(self.state.objects):
             return self._failed(msg.robot, f"no object {msg.target}")
-        for old in r.busy:  # one operation at a time: a new request supersedes
-            if not old.done():
-                old.set_result(SimResult(False, self.position(r.name), "superseded"))
+        self._abort(r, "superseded")  # one operation at a time: a new request supersedes
         model = r.model.operation(msg.op)
         j = self.config.delay_jitter
         duration = model.duration_s * float(self.rng.uniform(1 - j, 1 + j))
         fails = bool(self.rng.random() < self.config.failure_chance)
         fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
-        r.busy.append(fut)
-        event = self._event(r.name, msg.op, target=msg.target)
-        self.start_task(self._operate(r, msg, duration, fails, fut, event), name=f"{msg.op} {r.name}")
+        op = _Op(fut, self._event(r.name, msg.op, target=msg.target), msg.target)
+        r.busy.append(op)
+        self.start_task(self._operate(r, msg, duration, fails, op), name=f"{msg.op} {r.name}")
         return fut
 
     async def _operate(
-        self, r: _Robot, msg: Operate, duration: float, fails: bool,
-        fut: asyncio.Future[SimResult], event: SimEvent,
+        self, r: _Robot, msg: Operate, duration: float, fails: bool, op: _Op
     ) -> None:
         state = self.state
+        clock = self.system.clock
         try:
             if msg.op == "decontaminate":
                 obj = state.objects[msg.target]
                 if obj.carried_by is not None or obj.decontaminated:
-                    self._finish(fut, event, SimResult(False, self.position(r.name), "object taken"))
+                    self._end_op(r, op, SimResult(False, self.position(r.name), "object taken"))
                     return
                 state.pick_up(msg.target, r.name)
                 r.carrying = msg.target
+                op.carrying = True
                 self.world.set_goal(r.index, state.grid.decon_area)
                 while self.position(r.name) != state.grid.decon_area:
-                    if not r.up or fut.done():
+                    await clock.sleep(self.config.step_s)
+                    if op.fut.done():  # superseded, stopped or the robot went down
                         return
-                    await self.system.clock.sleep(self.config.step_s)
-            await self.system.clock.sleep(duration)
-            if fut.done() or not r.up:
-                if r.carrying >= 0 and r.up:
-                    state.drop(r.carrying, self.position(r.name))
-                    r.carrying = -1
+            await clock.sleep(duration)
+            if op.fut.done():
                 return
             cell = self.position(r.name)
             if fails:
-                if msg.op == "decontaminate" and r.carrying >= 0:
-                    state.drop(r.carrying, cell)
-                    r.carrying = -1
-                self._finish(fut, event, SimResult(False, cell, "operation failed"))
+                self._end_op(r, op, SimResult(False, cell, "operation failed"))
                 return
             result = SimResult(True, cell)
             if msg.op == "explore":
@@ -239,18 +252,32 @@ class SimulationManager(Actor):
             else:
                 state.decontaminated(msg.target)
                 r.carrying = -1
-            self._finish(fut, event, result)
+                op.carrying = False
+            self._end_op(r, op, result)
         finally:
-            if fut in r.busy:
-                r.busy.remove(fut)
-            if not fut.done():
-                fut.set_result(SimResult(False, self.position(r.name), "interrupted"))
-                self._close(event, False, "interrupted")
+            if not op.fut.done():  # the manager is stopping
+                self._end_op(r, op, SimResult(False, self.position(r.name), "interrupted"))
 
-    def _finish(self, fut: asyncio.Future[SimResult], event: SimEvent, result: SimResult) -> None:
-        if not fut.done():
-            fut.set_result(result)
-        self._close(event, result.ok, result.detail)
+    def _abort(self, r: _Robot, why: str) -> None:
+        """End the robot's operations unfinished; an object it carries falls where it is."""
+        for op in list(r.busy):
+            self._end_op(r, op, SimResult(False, self.position(r.name), why))
+
+    def _end_op(self, r: _Robot, op: _Op, result: SimResult) -> None:
+        if op in r.busy:
+            r.busy.remove(op)
+        if op.carrying:  # unfinished: the object stays where the robot is
+            op.carrying = False
+            if r.carrying == op.target:
+                self.state.drop(op.target, result.position)
+                r.carrying = -1
+                if r.move is None and r.up:
+                    self.world.stop(r.index)  # no longer bound for the decon area
+        if not op.fut.done():
+            op.fut.set_result(result)
+        self._close(op.event, result.ok, result.detail)
+        if op.event.kind == "decontaminate":
+            self._tell_position(r)  # carrying moved the robot
         self._changed()
 
     # -- timeline ---------------------------------------------------------------------

@@ -135,7 +135,8 @@ def collect(
         survived if completed else 0,
         assignments,
         timeline,
-        [Mark(round(t - started, 3), ev, robot) for t, ev, robot in marks],
+        # Team changes only: "changed" (a member's capabilities changed) is no mark.
+        [Mark(round(t - started, 3), ev, robot) for t, ev, robot in marks if ev != "changed"],
     )
 
 

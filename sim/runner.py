@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import structlog
@@ -21,6 +21,7 @@ from btcap.agent import Agent, AgentConfig
 from btcap.capability import Capability
 from btcap.protocol import protocol_registry
 from sim.capabilities import robot_setup
+from sim.grid import GridMap
 from sim.manager import SimConfig, SimulationManager
 from sim.messages import SIM_MESSAGES
 from sim.metrics import MissionResult, collect
@@ -28,9 +29,17 @@ from sim.mission import mission_tree
 from sim.model import RobotModel
 from sim.scenario import Event, Scenario, check_scenario
 from sim.store import MissionState, ObjectStore
-from transports import InProcessNetwork, MessageRegistry
+from transports import InProcessNetwork, MessageRegistry, Transport
 
-__all__ = ["Progress", "agent_config", "registry", "run_scenario"]
+__all__ = [
+    "HostFactory",
+    "InProcessHost",
+    "Progress",
+    "RobotHost",
+    "agent_config",
+    "registry",
+    "run_scenario",
+]
 
 log = structlog.get_logger("sim")
 
@@ -75,18 +84,99 @@ class _World:
     marks: list[tuple[float, str, str]] = field(default_factory=list)
 
 
+class RobotHost(Protocol):
+    """Where robots live: tasks in this process, or OS processes (see sim.distributed)."""
+
+    def transport(self, system_id: str) -> Transport: ...
+
+    def start(self, name: str) -> None: ...
+
+    def leave(self, name: str) -> None: ...
+
+    def fail(self, name: str) -> None: ...
+
+    def recover(self, name: str) -> None: ...
+
+    def present(self) -> set[str]: ...
+
+    async def aclose(self) -> None: ...
+
+
+class InProcessHost:
+    """Every robot an :class:`Agent` in this event loop, on one in-process network."""
+
+    def __init__(self, s: Scenario, clock: TimeSource, reg: MessageRegistry, grid: GridMap) -> None:
+        self.s = s
+        self.clock = clock
+        self.reg = reg
+        self.grid = grid
+        self.net = InProcessNetwork(reg)
+        self.cfg = agent_config(s)
+        self.models = s.models()
+        self._tasks: dict[str, asyncio.Task[None]] = {}
+        self._stop: dict[str, asyncio.Event] = {}
+        self._up: set[str] = set()
+
+    def transport(self, system_id: str) -> Transport:
+        return self.net.transport(system_id)
+
+    async def _life(self, name: str, stop: asyncio.Event) -> None:
+        setup = robot_setup(name, self.models[_model_of(self.s, name)], self.grid)
+        async with Agent(
+            name, transport=self.net.transport(name), clock=self.clock, config=self.cfg,
+            registry=self.reg, implementations=setup.implementations, actors=setup.actors,
+        ):
+            self._up.add(name)
+            try:
+                await stop.wait()
+            finally:
+                self._up.discard(name)
+
+    def start(self, name: str) -> None:
+        stop = self._stop[name] = asyncio.Event()
+        self._tasks[name] = asyncio.get_running_loop().create_task(self._life(name, stop))
+
+    def leave(self, name: str) -> None:
+        ev = self._stop.get(name)
+        if ev is not None:
+            ev.set()
+
+    def fail(self, name: str) -> None:
+        self.net.isolate(name)
+        self._up.discard(name)
+
+    def recover(self, name: str) -> None:
+        self.net.heal(name)
+        self._up.add(name)
+
+    def present(self) -> set[str]:
+        return set(self._up)
+
+    async def aclose(self) -> None:
+        for ev in self._stop.values():
+            ev.set()
+        await asyncio.gather(*self._tasks.values(), return_exceptions=True)
+
+
+HostFactory = Callable[[Scenario, TimeSource, MessageRegistry, GridMap], RobotHost]
+
+
 async def run_scenario(
     scenario: Scenario,
     *,
     on_progress: Callable[[Progress], None] | None = None,
     progress_every_s: float = 0.1,
     clock: TimeSource | None = None,
+    host: HostFactory | None = None,
 ) -> MissionResult:
-    """Run the mission in this process until it completes or the time limit passes."""
+    """Run the mission until it completes or its time limit passes.
+
+    Robots are hosted in this process unless ``host`` says otherwise (see
+    :func:`sim.distributed.run_distributed`).
+    """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
     reg = registry()
-    net = InProcessNetwork(reg)
     grid = s.grid()
     rng = np.random.default_rng(s.seed)
     state = MissionState.scatter(grid, s.objects, s.contaminated_share, rng)
@@ -99,78 +189,66 @@ async def run_scenario(
         manager.add_robot(r.name, models[r.model])
     w = _World(s, clock, state, manager, models)
     cfg = agent_config(s)
-    robots: dict[str, Agent] = {}
-    robot_tasks: dict[str, asyncio.Task[None]] = {}
-    stop_robot: dict[str, asyncio.Event] = {}
+    robots: RobotHost = (host or InProcessHost)(s, clock, reg, grid)
+    try:
+        async with ActorSystem(
+            "sim", transport=robots.transport("sim"), registry=reg, clock=clock
+        ) as simsys:
+            simsys.spawn(manager, SimulationManager.PATH)
+            simsys.spawn(ObjectStore(state), ObjectStore.PATH)
+            async with Agent(
+                "operator", transport=robots.transport("operator"), clock=clock, config=cfg,
+                registry=reg,
+            ) as operator:
+                operator.team.subscribe(
+                    lambda ev, robot: w.marks.append((clock.now(), ev.value, robot))
+                )
+                for r in s.initially_present():
+                    manager.robot_up(r.name)
+                    robots.start(r.name)
+                expected = len(s.initially_present())
+                await _until(lambda: len(operator.team.members) >= expected, 60.0)
 
-    async with ActorSystem("sim", transport=net.transport("sim"), registry=reg, clock=clock) as simsys:
-        simsys.spawn(manager, SimulationManager.PATH)
-        simsys.spawn(ObjectStore(state), ObjectStore.PATH)
-        async with Agent(
-            "operator", transport=net.transport("operator"), clock=clock, config=cfg, registry=reg
-        ) as operator:
-            operator.team.subscribe(lambda ev, robot: w.marks.append((clock.now(), ev.value, robot)))
-
-            async def robot_life(name: str) -> None:
-                setup = robot_setup(name, models[_model_of(s, name)], grid)
-                done = stop_robot[name] = asyncio.Event()
-                transport = net.transport(name)
-                async with Agent(
-                    name, transport=transport, clock=clock, config=cfg, registry=reg,
-                    implementations=setup.implementations, actors=setup.actors,
-                ) as agent:
-                    robots[name] = agent
-                    await done.wait()
-                robots.pop(name, None)
-
-            def start(name: str) -> None:
-                manager.robot_up(name)
-                robot_tasks[name] = simsys.start_task(robot_life(name), name=f"robot {name}")
-
-            for r in s.initially_present():
-                start(r.name)
-            await _until(lambda: len(operator.team.members) == len(s.initially_present()), clock, 30.0)
-
-            def apply(e: Event) -> None:
-                if e.kind == "join":
-                    start(e.robot)
-                elif e.kind == "leave":
-                    manager.robot_down(e.robot)
-                    ev = stop_robot.get(e.robot)
-                    if ev is not None:
-                        ev.set()
-                elif e.kind == "fail":
-                    net.isolate(e.robot)
-                    manager.robot_down(e.robot)
-                    w.marks.append((clock.now(), "down", e.robot))
-
-                    async def recover() -> None:
-                        await clock.sleep(e.duration)
-                        net.heal(e.robot)
+                def apply(e: Event) -> None:
+                    if e.kind == "join":
                         manager.robot_up(e.robot)
-                        w.marks.append((clock.now(), "up", e.robot))
+                        robots.start(e.robot)
+                    elif e.kind == "leave":
+                        manager.robot_down(e.robot)
+                        robots.leave(e.robot)
+                    elif e.kind == "fail":
+                        robots.fail(e.robot)
+                        manager.robot_down(e.robot)
+                        w.marks.append((clock.now(), "down", e.robot))
 
-                    simsys.start_task(recover(), name=f"recover {e.robot}")
+                        async def recover() -> None:
+                            await clock.sleep(e.duration)
+                            robots.recover(e.robot)
+                            manager.robot_up(e.robot)
+                            w.marks.append((clock.now(), "up", e.robot))
 
-            async def events() -> None:
-                t0 = clock.now()
-                for e in sorted(s.events, key=lambda e: e.at):
-                    await clock.sleep_until(t0 + e.at)
-                    apply(e)
+                        simsys.start_task(recover(), name=f"recover {e.robot}")
 
-            tree = mission_tree(object_workers=s.object_workers)
-            operator.mission(tree)
-            started = clock.now()
-            ev_task = simsys.start_task(events(), name="scenario events")
-            final = await _run_mission(tree, w, started, cfg.tick_hz, on_progress, progress_every_s, robots)
-            ev_task.cancel()
-            result = collect(
-                s, w.state, manager, tree, operator, started, clock.now(), final, w.marks
-            )
-            await tree.shutdown()
-            for ev in stop_robot.values():
-                ev.set()
-            await asyncio.gather(*robot_tasks.values(), return_exceptions=True)
+                async def events() -> None:
+                    t0 = clock.now()
+                    for e in sorted(s.events, key=lambda e: e.at):
+                        await clock.sleep_until(t0 + e.at)
+                        apply(e)
+
+                tree = mission_tree(object_workers=s.object_workers)
+                operator.mission(tree)
+                started = clock.now()
+                ev_task = simsys.start_task(events(), name="scenario events")
+                final = await _run_mission(
+                    tree, w, started, cfg.tick_hz, on_progress, progress_every_s, robots
+                )
+                ev_task.cancel()
+                result = collect(
+                    s, w.state, manager, tree, operator, started, clock.now(), final, w.marks
+                )
+                await tree.shutdown()
+    finally:
+        await robots.aclose()
     return result
 
 
@@ -178,7 +256,7 @@ def _model_of(s: Scenario, name: str) -> str:
     return next(r.model for r in s.robots if r.name == name)
 
 
-async def _until(cond: Callable[[], bool], clock: TimeSource, limit_s: float) -> None:
+async def _until(cond: Callable[[], bool], limit_s: float) -> None:
     for _ in range(int(limit_s / 0.01)):
         if cond():
             return
@@ -192,7 +270,7 @@ async def _run_mission(
     rate_hz: float,
     on_progress: Callable[[Progress], None] | None,
     every_s: float,
-    robots: dict[str, Agent],
+    robots: RobotHost,
 ) -> State:
     clock = w.clock
     limit = w.scenario.time_limit_s
@@ -217,12 +295,13 @@ async def _run_mission(
         await clock.sleep_until(deadline)
 
 
-def _progress(tree: Tree, w: _World, t: float, robots: dict[str, Agent]) -> Progress:
+def _progress(tree: Tree, w: _World, t: float, robots: RobotHost) -> Progress:
     tasks: dict[str, str] = {}
     for n in tree.nodes():
         if isinstance(n, Capability) and n.execution is not None:
             tasks[n.execution.robot] = f"{type(n).INTERFACE.name} ({n.path.rsplit('/', 2)[-2]})"
-    present = {r.name: r.name in robots and w.manager.robots[r.name].up for r in w.scenario.robots}
+    up = robots.present()
+    present = {r.name: r.name in up and w.manager.robots[r.name].up for r in w.scenario.robots}
     return Progress(t, w.state.summary(), tasks, present)
 
 

@@ -156,7 +156,14 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("object_workers", "expected >= 1")
     if not 0 <= s.sim.failure_chance < 1:
         raise bad("sim.failure_chance", f"expected within [0, 1), got {s.sim.failure_chance}")
+    if not s.sim.step_s > 0:
+        raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
+    if not 0 <= s.sim.delay_jitter <= 1:
+        raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
     t = s.agent
+    for name in AgentTiming.__struct_fields__:
+        if not getattr(t, name) > 0:
+            raise bad(f"agent.{name}", f"expected > 0, got {getattr(t, name)}")
     if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s or t.tick_hz <= 0:
         raise bad("agent", "expected failure_timeout_s > heartbeat_s, lease_s > keepalive_s, tick_hz > 0")
     present = {r.name: True for r in s.initially_present()}
@@ -164,14 +171,22 @@ def _check(s: Scenario, where: str) -> Scenario:
         present.setdefault(r.name, False)
     if not any(present.values()):
         raise bad("events", "no robot is present at the start")
-    for i, e in enumerate(sorted(s.events, key=lambda e: e.at)):
-        where_e = f"events[{s.events.index(e)}]"
+    down_until: dict[str, float] = {}
+    for k in sorted(range(len(s.events)), key=lambda k: s.events[k].at):
+        e = s.events[k]
+        where_e = f"events[{k}]"
         if e.robot not in present:
             raise bad(f"{where_e}.robot", f"{e.robot!r} is not in robots")
         if e.at < 0 or e.duration < 0:
             raise bad(where_e, "at and duration must be >= 0")
+        if e.at < down_until.get(e.robot, 0.0):
+            raise bad(
+                where_e,
+                f"{e.robot} {e.kind}s at {e.at} while it is failed "
+                f"(until {down_until[e.robot]})",
+            )
         if e.kind == "join":
-            if present[e.robot] and i > 0:
+            if present[e.robot]:
                 raise bad(where_e, f"{e.robot} joins at {e.at} but is already present")
             present[e.robot] = True
         elif e.kind == "leave":
@@ -183,9 +198,10 @@ def _check(s: Scenario, where: str) -> Scenario:
                 raise bad(where_e, f"{e.robot} fails at {e.at} but is not present")
             if e.duration <= 0:
                 raise bad(f"{where_e}.duration", "a failure needs a duration > 0")
+            down_until[e.robot] = e.at + e.duration
     try:
         s.grid()
-    except (MapError, OSError) as exc:
+    except (MapError, ValueError, OSError) as exc:  # generate_cave raises ValueError
         raise bad("map", str(exc)) from None
     return s
 

@@ -267,10 +267,16 @@ class ZmqTransport(Transport):
         if self._deliver is not None:
             raise RuntimeError(f"transport of {self.system_id} is already serving")
         loop = asyncio.get_running_loop()
+        try:
+            loop.add_reader(self._fd, self._on_readable)
+        except NotImplementedError:
+            raise RuntimeError(
+                "ZmqTransport needs an event loop with add_reader (on Windows, the "
+                "selector event loop)"
+            ) from None
         self._loop = loop
         self._deliver = deliver
         self._stopped = loop.create_future()
-        loop.add_reader(self._fd, self._on_readable)
         # zmq's descriptors are edge-triggered: drain what arrived before we watched them.
         loop.call_soon(self._on_readable)
         for monitor in self._monitors.values():

@@ -172,7 +172,8 @@ async def test_robots_move_independently() -> None:
         ra = await sim.run(a)
         t_a = sim.clock.now()
         rb = await sim.run(b)
-        assert ra.ok and rb.ok
+        assert ra.ok
+        assert rb.ok
         assert t_a < sim.clock.now()
 
 
@@ -191,15 +192,19 @@ async def test_explore_takes_its_duration_and_reveals() -> None:
         assert sim.clock.now() - t0 == pytest.approx(10.0, abs=STEP)
         assert sim.state.coverage > 0
         (op,) = [e for e in sim.manager.events if e.kind == "explore"]
-        assert op.ok and op.end is not None and op.end - op.start == pytest.approx(10.0)
+        assert op.ok
+        assert op.end is not None
+        assert op.end - op.start == pytest.approx(10.0)
 
 
 async def test_identify_reports_the_ground_truth() -> None:
     async with simulation() as sim:
         dirty = await sim.run(sim.ask(Operate("spot", "identify", 0)))
         clean = await sim.run(sim.ask(Operate("spot", "identify", 1)))
-        assert dirty.ok and dirty.contaminated is True
-        assert clean.ok and clean.contaminated is False
+        assert dirty.ok
+        assert dirty.contaminated is True
+        assert clean.ok
+        assert clean.contaminated is False
         assert sim.obj(0).identified is True
         assert sim.obj(1).identified is False
         assert sim.obj(1).finished
@@ -216,7 +221,9 @@ async def test_decontaminate_carries_the_object_to_the_area() -> None:
         assert result.ok
         assert result.position == GRID.decon_area
         o = sim.obj(2)
-        assert o.decontaminated and o.carried_by is None and o.cell == GRID.decon_area
+        assert o.decontaminated
+        assert o.carried_by is None
+        assert o.cell == GRID.decon_area
         assert sim.manager.robots["r1"].carrying == -1
 
 
@@ -258,12 +265,14 @@ async def test_operations_fail_with_the_failure_chance() -> None:
         assert sim.clock.now() - t0 >= 4.0  # the failure comes after the duration
         assert sim.obj(0).identified is None
         explored = await sim.run(sim.ask(Operate("r1", "explore")))
-        assert not explored.ok and sim.state.coverage == 0.0
+        assert not explored.ok
+        assert sim.state.coverage == 0.0
         # A failed decontamination drops the object where the robot is.
         result = await sim.run(sim.ask(Operate("r1", "decontaminate", 0)))
         assert not result.ok
         o = sim.obj(0)
-        assert o.carried_by is None and not o.decontaminated
+        assert o.carried_by is None
+        assert not o.decontaminated
         assert o.cell == GRID.decon_area == result.position
         assert sim.manager.robots["r1"].carrying == -1
         assert [ok for kind, ok, _ in events(sim.manager, "r1") if kind != "move"] == [False] * 3
@@ -328,11 +337,14 @@ async def test_a_superseded_decontamination_drops_its_object() -> None:
         assert (old.ok, old.detail) == (False, "superseded")
         await sim.advance(STEP * 2)
         o = sim.obj(0)
-        assert o.carried_by is None and not o.decontaminated, "the first object is lost"
+        assert o.carried_by is None, "the first object is lost"
+        assert not o.decontaminated
         assert sim.state.claim("w", "object").status == "ok"
         result = await sim.run(second)
-        assert result.ok and sim.obj(2).decontaminated
-        assert sim.obj(0).carried_by is None and not sim.obj(0).decontaminated
+        assert result.ok
+        assert sim.obj(2).decontaminated
+        assert sim.obj(0).carried_by is None
+        assert not sim.obj(0).decontaminated
 
 
 async def test_stop_aborts_an_operation_and_drops_the_object() -> None:
@@ -345,7 +357,8 @@ async def test_stop_aborts_an_operation_and_drops_the_object() -> None:
         assert (result.ok, result.detail) == (False, "stopped")
         await sim.advance(STEP * 2)
         o = sim.obj(0)
-        assert o.carried_by is None and not o.decontaminated
+        assert o.carried_by is None
+        assert not o.decontaminated
         assert o.cell == result.position != GRID.decon_area
         assert sim.manager.position("r1") == result.position
         assert sim.manager.robots["r1"].carrying == -1
@@ -363,7 +376,9 @@ async def test_robot_down_fails_its_requests_and_drops_what_it_carries() -> None
         assert (await sim.run(carry)).detail == "robot down"
         assert (await sim.run(move)).detail == "robot down"
         o = sim.obj(0)
-        assert o.carried_by is None and o.cell == where and not o.decontaminated
+        assert o.carried_by is None
+        assert o.cell == where
+        assert not o.decontaminated
         await sim.advance(5.0)
         assert sim.manager.position("r1") == where  # a failed robot does not move
         refused = await sim.ask(MoveTo("r1", (1, 1)))
@@ -375,7 +390,8 @@ async def test_robot_down_fails_its_requests_and_drops_what_it_carries() -> None
         # Back up: it works again, from where it stopped.
         sim.manager.robot_up("r1")
         result = await sim.run(sim.ask(Operate("r1", "decontaminate", 0)))
-        assert result.ok and sim.obj(0).decontaminated
+        assert result.ok
+        assert sim.obj(0).decontaminated
 
 
 async def test_robot_down_during_an_operation_fails_it() -> None:
@@ -389,7 +405,8 @@ async def test_robot_down_during_an_operation_fails_it() -> None:
         await sim.advance(20.0)
         assert sim.state.coverage == 0.0
         (explore,) = [e for e in sim.manager.events if e.kind == "explore"]
-        assert explore.ok is False and explore.end is not None
+        assert explore.ok is False
+        assert explore.end is not None
 
 
 async def test_on_change_is_called_when_the_state_changes() -> None:
@@ -401,15 +418,14 @@ async def test_on_change_is_called_when_the_state_changes() -> None:
 
 
 async def test_walls_make_moves_take_the_long_way() -> None:
-    async with simulation() as sim:
-        clock = ManualClock()
-        manager = SimulationManager(MissionState(WALLED, []), config())
-        manager.add_robot("w", RobotModel(cost_factor=1.0, speed_mps=1.0))
-        with anyio.fail_after(10):
-            async with ActorSystem("walled", clock=clock) as system:
-                ref = system.spawn(manager, "manager")
-                task = asyncio.ensure_future(ref.ask(MoveTo("w", (0, 4)), timeout=10.0))
-                while not task.done():
-                    await clock.advance(STEP)
-                assert task.result().ok
-                assert clock.now() >= 8.0  # 8 cells around the wall, not 4 across it
+    clock = ManualClock()
+    manager = SimulationManager(MissionState(WALLED, []), config())
+    manager.add_robot("w", RobotModel(cost_factor=1.0, speed_mps=1.0))
+    with anyio.fail_after(10):
+        async with ActorSystem("walled", clock=clock) as system:
+            ref = system.spawn(manager, "manager")
+            task = asyncio.ensure_future(ref.ask(MoveTo("w", (0, 4)), timeout=10.0))
+            while not task.done():
+                await clock.advance(STEP)
+            assert task.result().ok
+            assert clock.now() >= 8.0  # 8 cells around the wall, not 4 across it

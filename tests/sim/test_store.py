@@ -328,9 +328,13 @@ def check_consistent(s: MissionState, n_objects: int) -> None:
             assert held[("object", o.id)] == o.claimed_by
         assert s.grid.reachable[o.cell]
         if o.decontaminated:
-            assert o.contaminated and o.carried_by is None and o.cell == s.grid.decon_area
+            assert o.contaminated
+            assert o.carried_by is None
+            assert o.cell == s.grid.decon_area
         if o.carried_by is not None:
-            assert o.found and o.identified and not o.decontaminated
+            assert o.found
+            assert o.identified
+            assert not o.decontaminated
 
 
 @settings(max_examples=60)

@@ -101,7 +101,7 @@ def inbox(system: ActorSystem) -> Inbox:
 async def eventually(predicate: Callable[[], bool], what: str, limit: float = 5.0) -> None:
     """Poll until ``predicate()`` holds (hellos and drops arrive asynchronously)."""
     with anyio.fail_after(limit):
-        while not predicate():
+        while not predicate():  # noqa: ASYNC110 - counters have no event to wait on
             await anyio.sleep(0.005)
     assert predicate(), what
 
@@ -519,6 +519,16 @@ async def test_close_is_idempotent_and_ends_serving() -> None:
     assert transport.closed
     with pytest.raises(RuntimeError, match="closed"):
         transport.add_peer("c", "tcp://127.0.0.1:9")
+
+
+async def test_leaving_the_system_closes_the_transport() -> None:
+    with anyio.fail_after(5):
+        async with zmq_system("a", "tcp://127.0.0.1:*") as (_, transport):
+            assert not transport.closed
+        assert transport.closed
+        with pytest.raises(RuntimeError, match="closed"):
+            async with ActorSystem(transport=transport, registry=transport.codec.registry):
+                pass
 
 
 def test_close_without_serving() -> None:

@@ -1,0 +1,184 @@
+"""Whole missions in-process: the small scenario completes, a dynamic team survives joins,
+leaves and failures, and on a manual clock the same scenario allocates the same way."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import anyio
+import numpy as np
+import pytest
+
+from actors import ManualClock
+from sim.metrics import Interval, MissionResult
+from sim.runner import Progress, run_scenario
+from sim.scenario import Scenario, load_scenario
+from sim.store import MissionState
+
+DATA = Path(__file__).parent / "data"
+SMALL = DATA / "small.yaml"
+DYNAMIC = DATA / "dynamic.yaml"
+
+pytestmark = pytest.mark.slow
+
+
+def ground_truth(s: Scenario) -> list[tuple[tuple[int, int], bool]]:
+    """Where the runner puts the objects for this scenario, and which are contaminated."""
+    state = MissionState.scatter(
+        s.grid(), s.objects, s.contaminated_share, np.random.default_rng(s.seed)
+    )
+    return [(o.cell, o.contaminated) for o in state.objects]
+
+
+async def run_manual(s: Scenario, *, step_s: float = 1.0, yields: int = 5) -> MissionResult:
+    """Run on a manual clock, advanced in fixed steps with a fixed number of loop turns.
+
+    Time starts moving with the mission's first tick (the team forms while it stands
+    still), and every step lets the event loop turn the same number of times, so two runs
+    see the same interleaving.
+    """
+    clock = ManualClock()
+    ticking = asyncio.Event()
+    finished = False
+
+    def progress(_p: Progress) -> None:
+        ticking.set()
+
+    async def drive() -> None:
+        await ticking.wait()
+        while not finished:
+            await clock.advance(step_s)
+            for _ in range(yields):
+                await asyncio.sleep(0)
+
+    driver = asyncio.ensure_future(drive())
+    try:
+        return await run_scenario(s, clock=clock, on_progress=progress)
+    finally:
+        finished = True
+        ticking.set()
+        await driver
+
+
+def assert_sound(result: MissionResult, s: Scenario) -> None:
+    """Completed, nothing lost, and a timeline a real team could have produced."""
+    truth = ground_truth(s)
+    assert result.completed, result.summary
+    summary = result.summary
+    assert summary["objects"] == summary["found"] == len(truth)
+    assert summary["identified"] == len(truth)
+    dirty = sum(d for _, d in truth)
+    assert summary["contaminated"] == summary["decontaminated"] == dirty
+    assert summary["coverage"] == 1.0
+    assert result.mission_time_s > 0
+    models = s.models()
+    by_robot: dict[str, list[Interval]] = {}
+    for iv in result.timeline:
+        assert 0.0 <= iv.end <= result.mission_time_s + 1e-6
+        assert iv.start <= iv.end
+        model = models[result.robots[iv.robot].model]
+        assert iv.kind == "move" or model.can(iv.kind), iv
+        by_robot.setdefault(iv.robot, []).append(iv)
+    # One body: a robot never does two things at once.
+    for robot, ivs in by_robot.items():
+        ivs.sort(key=lambda i: i.start)
+        for a, b in zip(ivs, ivs[1:], strict=False):
+            assert a.end <= b.start + 1e-6, f"{robot}: {a} overlaps {b}"
+    done = {k: sum(st.tasks.get(k, 0) for st in result.robots.values()) for k in ("decontaminate",)}
+    assert done["decontaminate"] == dirty
+    for name, st in result.robots.items():
+        assert 0.0 <= st.utilisation <= 1.0, name
+        assert st.busy_s <= st.present_s + 1e-6 or st.present_s == 0
+    for path, robots in result.assignments.items():
+        kind = path.rsplit("/", 1)[-1]
+        op = {"explore": "explore", "identify": "identify", "decontaminate": "decontaminate"}[kind]
+        for robot in robots:
+            assert models[result.robots[robot].model].can(op), (path, robot)
+    # The result survives JSON.
+    assert MissionResult.__name__ in type(result).__name__
+    assert result.to_json().startswith(b"{")
+
+
+async def test_small_mission_completes_on_a_fast_clock() -> None:
+    s = load_scenario(SMALL)
+    with anyio.fail_after(30):
+        result = await run_scenario(s)
+    assert_sound(result, s)
+    assert result.scenario == "small"
+    assert result.auctions >= 3
+    # The full team: each robot did what only it does best.
+    tasks = {name: st.tasks for name, st in result.robots.items()}
+    assert tasks["spot1"].get("identify", 0) > 0
+    assert set(tasks["bebop1"]) <= {"explore"}
+    assert result.failures_survived == 0
+    # Joins before the mission started are marks too; "changed" is no team change.
+    assert {(m.event, m.robot) for m in result.marks} >= {
+        ("joined", "husky1"),
+        ("joined", "spot1"),
+        ("joined", "bebop1"),
+    }
+    assert all(m.event != "changed" for m in result.marks)
+
+
+async def test_dynamic_team_mission_survives_joins_leaves_and_failures() -> None:
+    s = load_scenario(DYNAMIC)
+    with anyio.fail_after(30):
+        result = await run_scenario(s)
+    assert_sound(result, s)
+    marks = [(m.event, m.robot) for m in result.marks]
+    for expected in (
+        ("joined", "bebop1"),
+        ("down", "husky1"),
+        ("failed", "husky1"),
+        ("up", "husky1"),
+        ("left", "bebop1"),
+    ):
+        assert expected in marks, marks
+    order = [m for m in marks if m[1] == "husky1" and m[0] != "joined"]
+    assert order == [("down", "husky1"), ("failed", "husky1"), ("up", "husky1")]
+    # husky1 was exploring when it failed: that execution moved to another robot.
+    explore = next(v for k, v in result.assignments.items() if k.endswith("/explore"))
+    assert explore[0] == "husky1"
+    assert result.reassignments > 0
+    assert any(r != "husky1" for r in explore[1:])
+    assert result.failures_survived == 2
+    # Present only between join and leave; away while failed.
+    assert result.robots["bebop1"].present_s == pytest.approx(370.0)
+    assert result.robots["husky1"].present_s == pytest.approx(result.mission_time_s - 200.0)
+    (fail,) = [
+        iv for iv in result.timeline if iv.robot == "husky1" and iv.kind == "explore" and not iv.ok
+    ]
+    down = next(m.time for m in result.marks if (m.event, m.robot) == ("down", "husky1"))
+    assert fail.end == pytest.approx(down, abs=0.5)  # cut short by the failure
+
+
+async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
+    s = load_scenario(DYNAMIC)
+    with anyio.fail_after(40):
+        first = await run_manual(s)
+        second = await run_manual(load_scenario(DYNAMIC))
+    assert_sound(first, s)
+
+    def allocation(r: MissionResult) -> list[tuple[str, str, int, float, float, bool]]:
+        return [(i.robot, i.kind, i.target, i.start, i.end, i.ok) for i in r.timeline]
+
+    assert first.assignments == second.assignments
+    assert allocation(first) == allocation(second)
+    assert [(m.time, m.event, m.robot) for m in first.marks] == [
+        (m.time, m.event, m.robot) for m in second.marks
+    ]
+    assert first.mission_time_s == second.mission_time_s
+    assert first.reassignments == second.reassignments > 0
+
+
+async def test_same_seed_same_world_on_a_real_clock() -> None:
+    """Wall-clock runs may allocate differently, but the world they solve is the same."""
+    s = load_scenario(SMALL)
+    assert ground_truth(s) == ground_truth(load_scenario(SMALL))
+    other = load_scenario(SMALL)
+    other.seed = s.seed + 1
+    assert ground_truth(other) != ground_truth(s)
+    with anyio.fail_after(30):
+        result = await run_scenario(load_scenario(SMALL))
+    assert_sound(result, s)
