@@ -61,18 +61,21 @@ class Sequence(Composite):
     __slots__ = ()
 
     def on_tick(self) -> State:
+        succeeded = _SUCCEEDED
         children = self.children
-        for i, c in enumerate(children):
+        for c in children:
             s = c.tick()
-            if s is _SUCCEEDED:
-                continue
-            if self._high > i:
-                self._halt_after(i)
-            else:
-                self._high = i
-            return _FAILED if s is _FAILED or s is _ERROR else _RUNNING
-        self._high = len(children) - 1
-        return _SUCCEEDED
+            if s is not succeeded:
+                break
+        else:
+            self._high = len(children) - 1
+            return succeeded
+        i = children.index(c)  # identity: nodes do not define __eq__
+        if self._high > i:
+            self._halt_after(i)
+        else:
+            self._high = i
+        return _FAILED if s is _FAILED or s is _ERROR else _RUNNING
 
     def utility(self) -> Utility:
         return sequence_utility([c.utility() for c in self.children])
@@ -84,18 +87,21 @@ class Fallback(Composite):
     __slots__ = ()
 
     def on_tick(self) -> State:
+        failed, error = _FAILED, _ERROR
         children = self.children
-        for i, c in enumerate(children):
+        for c in children:
             s = c.tick()
-            if s is _FAILED or s is _ERROR:
-                continue
-            if self._high > i:
-                self._halt_after(i)
-            else:
-                self._high = i
-            return _SUCCEEDED if s is _SUCCEEDED else _RUNNING
-        self._high = len(children) - 1
-        return _FAILED
+            if s is not failed and s is not error:
+                break
+        else:
+            self._high = len(children) - 1
+            return failed
+        i = children.index(c)  # identity: nodes do not define __eq__
+        if self._high > i:
+            self._halt_after(i)
+        else:
+            self._high = i
+        return _SUCCEEDED if s is _SUCCEEDED else _RUNNING
 
     def utility(self) -> Utility:
         return fallback_utility([c.utility() for c in self.children])

@@ -8,6 +8,7 @@ another actor or another process.
 from __future__ import annotations
 
 from collections.abc import Callable, Coroutine, Iterator, Sequence
+from types import FunctionType
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import structlog
@@ -49,6 +50,7 @@ class Node(Actor):
     """
 
     __slots__ = (
+        "_gate",
         "_pulls",
         "_ready",
         "_tree",
@@ -81,6 +83,8 @@ class Node(Actor):
                 setattr(
                     cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}")
                 )
+        if "tick" not in cls.__dict__ and cls.tick.__code__ == Node.tick.__code__:
+            cls.tick = _own_copy(Node.tick)  # type: ignore[method-assign]
 
     def __init__(
         self,
@@ -104,6 +108,7 @@ class Node(Actor):
         self._watch: Observer | None = None
         self._pulls: list[tuple[str, Node, str]] | None = None
         self._ready = False
+        self._gate: bool | None = True
         self.options = self._check_options(options)
         self.input_ports: PortMap = cls.INPUTS
         self.output_ports: PortMap = cls.OUTPUTS
@@ -114,8 +119,12 @@ class Node(Actor):
             for key, value in inputs.items():
                 self.set_input(key, value)
         self.children: list[Node] = []
+        seen: set[str] = set()
         for child in children:
-            self.add_child(child)
+            if child.name in seen:
+                raise TreeError(f"node {self.name!r} already has a child named {child.name!r}")
+            seen.add(child.name)
+            self.add_child(child, _unique=True)
 
     # -- declaration ------------------------------------------------------------------
     def declare_ports(self) -> None:
@@ -153,7 +162,7 @@ class Node(Actor):
         self.inputs[key] = check_value(value, port.type, f"node {self.name!r} input {key!r}")
 
     # -- structure --------------------------------------------------------------------
-    def add_child(self, child: Node, index: int | None = None) -> Node:
+    def add_child(self, child: Node, index: int | None = None, *, _unique: bool = False) -> Node:
         limit = type(self).MAX_CHILDREN
         if limit is not None and len(self.children) >= limit:
             raise TreeError(
@@ -161,7 +170,7 @@ class Node(Actor):
             )
         if child.parent_node is not None:
             raise TreeError(f"node {child.name!r} already has parent {child.parent_node.name!r}")
-        if any(c.name == child.name for c in self.children):
+        if not _unique and any(c.name == child.name for c in self.children):
             raise TreeError(f"node {self.name!r} already has a child named {child.name!r}")
         if self.state not in (_UNINIT, _IDLE, _SHUTDOWN, State.SUCCEEDED, State.FAILED):
             raise IllegalTransition(
@@ -241,17 +250,16 @@ class Node(Actor):
         except Exception as exc:
             self._fail(exc, "setup")
             self._ready = True
+            self._regate()
             return
         self._ready = True
+        self._regate()
         self._set(_IDLE)
 
     def tick(self) -> State:
         """Advance by one tick and return the new state. Never waits on I/O."""
-        if not self._ready:
-            self._not_ready("tick")
-        if self._pulls is not None:
-            for key, src, out in self._pulls:
-                self.inputs[key] = src.outputs[out]
+        if self._gate is not None:  # not set up, or inputs to pull
+            self._before_tick()
         prev = self.state
         try:
             new = self.on_tick()
@@ -263,6 +271,16 @@ class Node(Actor):
         if self._watch is not None and new is not prev:
             self._watch(self, prev, new)
         return new
+
+    def _before_tick(self) -> None:
+        if not self._ready:
+            self._not_ready("tick")
+        for key, src, out in self._pulls or ():
+            self.inputs[key] = src.outputs[out]
+
+    def _regate(self) -> None:
+        """Keep ``_gate`` None exactly when ticking needs no check and no input pulls."""
+        self._gate = None if self._ready and self._pulls is None else True
 
     def untick(self) -> None:
         """Stop background work but keep progress: active nodes pause, others go idle."""
@@ -297,12 +315,14 @@ class Node(Actor):
             c.shutdown()
         if self.state is _SHUTDOWN or self.state is _UNINIT:
             self._ready = False
+            self._regate()
             return
         try:
             self.on_shutdown()
         except Exception as exc:
             log.error("btcap.node_shutdown_failed", node=self.path, exc_info=exc)
         self._ready = False
+        self._regate()
         self._set(_SHUTDOWN)
 
     def _set(self, new: State) -> None:
@@ -384,6 +404,16 @@ class Node(Actor):
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r} {self.state.value}>"
+
+
+def _own_copy(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn`` with a code object of its own, so CPython's specialising interpreter (3.11+)
+    keeps separate, monomorphic inline caches for it instead of sharing them (and missing)
+    across every node class."""
+    copy = FunctionType(fn.__code__.replace(), fn.__globals__, fn.__name__, fn.__defaults__)
+    copy.__qualname__, copy.__doc__ = fn.__qualname__, fn.__doc__
+    copy.__kwdefaults__, copy.__annotations__ = fn.__kwdefaults__, fn.__annotations__
+    return copy
 
 
 class Leaf(Node):

@@ -152,6 +152,7 @@ class Tree:
         if dst._pulls is None:
             dst._pulls = []
         dst._pulls.append((target_port, src, source_port))
+        dst._regate()
         return w
 
     def unwire(self, wire: Wire) -> None:
@@ -159,6 +160,7 @@ class Tree:
         pulls = wire.target._pulls or []
         pulls.remove((wire.target_port, wire.source, wire.source_port))
         wire.target._pulls = pulls or None
+        wire.target._regate()
 
     def validate(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
         """Check child counts and that every required input has a value or a wire.
