@@ -15,6 +15,7 @@ from actors import Actor, ActorError, TimeSource, handler
 from btcap.auction import Auction, AuctionOutcome
 from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 from btcap.team import Membership, TeamEvent
+from transports import Address
 
 __all__ = ["AssignmentStrategy", "AssignmentTask", "Assigned", "AuctionStats", "SingleItemAuction"]
 
@@ -110,10 +111,10 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         try:
             cfb = CallForBids(auction_id, task.interface, task.identity, dict(task.inputs), self.robot, me)
             for robot in sorted(task.candidates):
-                system.ref(f"{robot}/mission_control").tell(cfb, sender=self.address)
+                system.tell(Address(robot, "mission_control"), cfb, sender=self.address)
             if not auction.closed(clock.now()):
                 await _wait(done, clock, self.window_s)
-            if not auction.waiting_for:
+            if auction.answered_all:
                 self.stats.early_closes += 1
         finally:
             del self._open[auction_id]
@@ -153,12 +154,20 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             return  # late: the auction has closed
         auction, done = entry
         auction.offer(msg)
-        if not auction.waiting_for:
+        if auction.answered_all:
             done.set()
 
 
 async def _wait(done: asyncio.Event, clock: TimeSource, seconds: float) -> None:
     """Until ``done`` is set or ``seconds`` of clock time pass, whichever is first."""
+    wall = clock.to_wall(seconds)
+    if wall > 0:  # a real clock: one timer, no extra tasks
+        timer = asyncio.get_running_loop().call_later(wall, done.set)
+        try:
+            await done.wait()
+        finally:
+            timer.cancel()
+        return
     waiter = asyncio.ensure_future(done.wait())
     sleeper = asyncio.ensure_future(clock.sleep(seconds))
     try:

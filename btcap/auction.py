@@ -37,6 +37,10 @@ class Auction:
     declined: dict[str, str] = field(default_factory=dict)
     gone: set[str] = field(default_factory=set)
     rejected: int = 0
+    _pending: set[str] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._pending = set(self.invited)
 
     def offer(self, answer: Bid | NoBid) -> bool:
         """Record a bid or decline; answers from robots not invited, late or twice are ignored.
@@ -50,6 +54,7 @@ class Auction:
         if robot in self.bids or robot in self.declined:
             self.rejected += 1
             return False
+        self._pending.discard(robot)
         if isinstance(answer, Bid):
             if not math.isfinite(answer.cost) or answer.cost < 0:
                 self.declined[robot] = f"invalid cost {answer.cost!r}"
@@ -62,13 +67,18 @@ class Auction:
     def member_lost(self, robot: str) -> None:
         """A robot left or failed: stop waiting for it."""
         self.gone.add(robot)
+        self._pending.discard(robot)
 
     @property
     def waiting_for(self) -> frozenset[str]:
-        return self.invited - self.bids.keys() - self.declined.keys() - self.gone
+        return frozenset(self._pending)
+
+    @property
+    def answered_all(self) -> bool:
+        return not self._pending
 
     def closed(self, now: float) -> bool:
-        return not self.waiting_for or now >= self.deadline
+        return not self._pending or now >= self.deadline
 
     def outcome(self) -> AuctionOutcome:
         ranking = sorted(self.bids.values(), key=lambda b: (b.cost, b.robot))

@@ -52,7 +52,10 @@ class CapabilityInterface:
     types) is; robots compare identities before bidding.
     """
 
-    __slots__ = ("__weakref__", "_bridges", "_node_type", "description", "inputs", "name", "outputs")
+    __slots__ = (
+        "__weakref__", "_bridges", "_node_type", "description", "identity", "inputs", "name",
+        "outputs",
+    )
 
     def __init__(
         self,
@@ -76,12 +79,10 @@ class CapabilityInterface:
         self.outputs: PortMap = normalize_ports(dict(outputs or {}), f"interface {name} outputs")
         self._node_type: type[Capability] | None = None
         self._bridges: tuple[type[InputBridge], type[OutputBridge]] | None = None
-
-    @property
-    def identity(self) -> str:
+        # Compared on every call for bids, so computed once; the ports are fixed from here.
         ins = ",".join(f"{k}:{type_name(p.type)}" for k, p in sorted(self.inputs.items()))
         outs = ",".join(f"{k}:{type_name(p.type)}" for k, p in sorted(self.outputs.items()))
-        return f"{self.name}({ins})->({outs})"
+        self.identity: str = f"{self.name}({ins})->({outs})"
 
     def __repr__(self) -> str:
         return f"CapabilityInterface({self.identity})"

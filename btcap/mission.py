@@ -21,7 +21,13 @@ import structlog
 
 from actors import Actor, handler
 from btcap.assignment import AssignmentStrategy, AssignmentTask
-from btcap.capability import Capability, ImplementationRun, Precondition, Scope
+from btcap.capability import (
+    Capability,
+    Implementation,
+    ImplementationRun,
+    Precondition,
+    Scope,
+)
 from btcap.messages import (
     Award,
     AwardReply,
@@ -200,6 +206,7 @@ class MissionControl(Actor):
         self._local_runs: dict[str, ImplementationRun] = {}
         self._finished: OrderedDict[str, ExecutionStatus] = OrderedDict()
         self._ids = itertools.count(1)
+        self._spares: dict[tuple[str, str], ImplementationRun] = {}
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
@@ -391,7 +398,12 @@ class MissionControl(Actor):
     @handler
     def on_call_for_bids(self, msg: CallForBids) -> None:
         answer = self.evaluate(msg)
-        self.system.ref(msg.reply_to).tell(answer, sender=self.address)
+        try:
+            reply_to = Address.parse(msg.reply_to)
+        except ValueError:
+            self.system._count_drop("bad_reply_to", self.address, msg)
+            return
+        self.system.tell(reply_to, answer, sender=self.address)
 
     @handler
     def on_award(self, msg: Award) -> AwardReply:
@@ -415,7 +427,7 @@ class MissionControl(Actor):
             return decline("no remote capability slot")
         try:
             inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
-            run = impl.instantiate(self.system.clock)
+            run = self._take_run(impl)
             # Its nodes become actors of this robot, at a path unique to the execution.
             run.tree.name = msg.execution.replace("/", ".")
             run.tree.attach(self.system)
@@ -446,6 +458,25 @@ class MissionControl(Actor):
             self._local_runs[msg.execution] = run
         self.occupied = msg.execution
         return AwardReply(msg.execution, self.robot, True)
+
+    def _take_run(self, impl: Implementation) -> ImplementationRun:
+        """A fresh instance, built ahead of the award when possible (building costs more
+        than the rest of an award), and another built right after for next time."""
+        key = (impl.interface.name, impl.name)
+        run = self._spares.pop(key, None)
+        if run is None:
+            run = impl.instantiate(self.system.clock)
+        asyncio.get_running_loop().call_soon(self._refill, impl)
+        return run
+
+    def _refill(self, impl: Implementation) -> None:
+        key = (impl.interface.name, impl.name)
+        if key in self._spares or self._system is None or not self.system.running:
+            return
+        try:
+            self._spares[key] = impl.instantiate(self.system.clock)
+        except Exception as exc:  # the award path will report it with context
+            log.debug("mission.prebuild_failed", implementation=impl.name, error=str(exc))
 
     @handler
     def on_inputs(self, msg: ExecutionInputs) -> None:
