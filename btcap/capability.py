@@ -397,7 +397,3 @@ class Capability(Node):
 
     def utility(self) -> Utility:
         return Utility()
-
-
-def interface_ports(interface: CapabilityInterface) -> dict[str, PortMap]:
-    return {"inputs": interface.inputs, "outputs": interface.outputs}

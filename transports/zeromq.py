@@ -298,7 +298,12 @@ class ZmqTransport(Transport):
                     frames = router.recv_multipart(_NOBLOCK)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
-                self._handle(frames, deliver)
+                try:
+                    self._handle(frames, deliver)
+                except Exception as exc:  # a bug here must not stall the receiver
+                    self.stats.malformed += 1
+                    self.stats.drop("receiver error")
+                    log.error("transport.handle_failed", system=self.system_id, exc_info=exc)
                 if self._deliver is None:  # closed by whoever we delivered to
                     return
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
@@ -313,12 +318,16 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_readable)
 
     def _on_monitor(self, monitor: _Monitor) -> None:
-        for _ in range(_BATCH):
-            if monitor.closed or not monitor.pending():
-                return
-            if monitor.connected() and monitor.connects > 1:
-                log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)
-                self._write(monitor.peer, monitor.dealer, _HELLO, self.endpoint.encode())
+        try:
+            for _ in range(_BATCH):
+                if monitor.closed or not monitor.pending():
+                    return
+                if monitor.connected() and monitor.connects > 1:
+                    log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)
+                    self._write(monitor.peer, monitor.dealer, _HELLO, self.endpoint.encode())
+        except zmq.ZMQError as exc:
+            log.warning("transport.monitor_failed", peer=monitor.peer, error=str(exc))
+            return
         if self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
 

@@ -6,6 +6,7 @@ every socket, system and child process is closed in a ``finally``.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import random
 import subprocess
@@ -401,6 +402,24 @@ async def test_junk_frames_are_dropped_and_counted(
     rng = random.Random(20_241_122)
     ctx = zmq.asyncio.Context.instance()
     raw: list[zmq.Socket[bytes]] = []
+    # Reader callbacks run outside any task: an exception there would only reach the
+    # loop's exception handler, so watch it too.
+    loop = asyncio.get_running_loop()
+    escaped: list[dict[str, Any]] = []
+    loop.set_exception_handler(lambda _loop, context: escaped.append(context))
+    try:
+        await _fire_junk(rng, ctx, raw, plain_logs)
+    finally:
+        loop.set_exception_handler(None)
+    assert not escaped
+
+
+async def _fire_junk(
+    rng: random.Random,
+    ctx: zmq.asyncio.Context,
+    raw: list[zmq.Socket[bytes]],
+    plain_logs: list[MutableMapping[str, Any]],
+) -> None:
     with anyio.fail_after(15):
         async with zmq_system("target", "tcp://127.0.0.1:*") as (system, transport):
             try:
