@@ -43,6 +43,7 @@ SCENARIOS = (
     "raw_zmq_tcp_blocking",
 )
 _READY = "READY "
+_TCP = "tcp://127.0.0.1:*"
 _PAYLOAD = "x" * 32
 
 
@@ -67,34 +68,24 @@ def _registry() -> MessageRegistry:
     return MessageRegistry([Ping, Pong])
 
 
-# -- measuring --------------------------------------------------------------------------
+# -- scenarios: each yields an ``ask(i)`` that does one round trip ------------------------
+
+Ask = Callable[[int], Awaitable[Any]]
 
 
-async def _measure(ask: Callable[[int], Awaitable[Any]], warmup: int, count: int) -> list[float]:
-    """Per-call latency in microseconds, after ``warmup`` unmeasured calls."""
-    for i in range(warmup):
-        await ask(i)
-    gc.collect()
-    clock = time.perf_counter_ns
-    samples = [0.0] * count
-    for i in range(count):
-        t0 = clock()
-        await ask(i)
-        samples[i] = (clock() - t0) / 1000.0
-    return samples
-
-
-async def _bench_local(warmup: int, count: int) -> list[float]:
+@contextlib.asynccontextmanager
+async def _local() -> AsyncIterator[Ask]:
     async with ActorSystem("local", registry=_registry()) as system:
         ref = system.spawn(Echo(), "echo")
 
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        return await _measure(ask, warmup, count)
+        yield ask
 
 
-async def _bench_inproc_transport(warmup: int, count: int) -> list[float]:
+@contextlib.asynccontextmanager
+async def _inproc_transport() -> AsyncIterator[Ask]:
     reg = _registry()
     net = InProcessNetwork(reg)
     async with (
@@ -107,10 +98,11 @@ async def _bench_inproc_transport(warmup: int, count: int) -> list[float]:
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        return await _measure(ask, warmup, count)
+        yield ask
 
 
-async def _bench_zmq_inproc(warmup: int, count: int) -> list[float]:
+@contextlib.asynccontextmanager
+async def _zmq_inproc() -> AsyncIterator[Ask]:
     tag = uuid.uuid4().hex[:8]
     reg_a, reg_b = _registry(), _registry()
     tb = ZmqTransport("b", f"inproc://bench-b-{tag}", reg_b)
@@ -125,26 +117,29 @@ async def _bench_zmq_inproc(warmup: int, count: int) -> list[float]:
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        return await _measure(ask, warmup, count)
+        yield ask
 
 
-async def _bench_zmq_remote(bind: str, peer_bind: str, warmup: int, count: int) -> list[float]:
+@contextlib.asynccontextmanager
+async def _zmq_remote(system_id: str, bind: str, peer_bind: str) -> AsyncIterator[Ask]:
+    """Our system here, the echo actor's system in another OS process."""
     with _child("--peer", peer_bind) as endpoint:
         reg = _registry()
-        transport = ZmqTransport("main", bind, reg, peers={"peer": endpoint})
+        transport = ZmqTransport(system_id, bind, reg, peers={"peer": endpoint})
         async with ActorSystem(transport=transport, registry=reg) as system:
             ref = system.ref(Address("peer", "echo"))
 
             async def ask(i: int) -> Any:
                 return await ref.ask(Ping(i, _PAYLOAD), timeout=10.0)
 
-            return await _measure(ask, warmup, count)
+            yield ask
 
 
-async def _bench_raw_zmq_tcp(warmup: int, count: int) -> list[float]:
+@contextlib.asynccontextmanager
+async def _raw_zmq_tcp() -> AsyncIterator[Ask]:
+    """The peer figure: pyzmq's own asyncio sockets, DEALER here, ROUTER echo there."""
     with _child("--raw-peer", "tcp://127.0.0.1:*") as endpoint:
-        ctx = zmq.asyncio.Context.instance()
-        sock = ctx.socket(zmq.DEALER)
+        sock = zmq.asyncio.Context.instance().socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
         sock.connect(endpoint)
         payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
@@ -154,13 +149,14 @@ async def _bench_raw_zmq_tcp(warmup: int, count: int) -> list[float]:
                 await sock.send(payload)
                 return await sock.recv()
 
-            return await _measure(ask, warmup, count)
+            yield ask
         finally:
             sock.close(0)
 
 
-def _bench_raw_zmq_tcp_blocking(warmup: int, count: int) -> list[float]:
-    """The floor: blocking pyzmq on both sides, no event loop at all."""
+@contextlib.asynccontextmanager
+async def _raw_zmq_tcp_blocking() -> AsyncIterator[Ask]:
+    """The floor: blocking pyzmq on both sides, no event loop in the way."""
     with _child("--raw-peer-blocking", "tcp://127.0.0.1:*") as endpoint:
         ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
         sock = ctx.socket(zmq.DEALER)
@@ -168,21 +164,24 @@ def _bench_raw_zmq_tcp_blocking(warmup: int, count: int) -> list[float]:
         sock.connect(endpoint)
         payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
         try:
-            for _ in range(warmup):
+
+            async def ask(i: int) -> Any:
                 sock.send(payload)
-                sock.recv()
-            gc.collect()
-            clock = time.perf_counter_ns
-            samples = [0.0] * count
-            for i in range(count):
-                t0 = clock()
-                sock.send(payload)
-                sock.recv()
-                samples[i] = (clock() - t0) / 1000.0
-            return samples
+                return sock.recv()
+
+            yield ask
         finally:
             sock.close(0)
             ctx.term()
+
+
+async def _measure(ask: Ask, count: int, samples: list[float]) -> None:
+    """Append ``count`` per-call latencies in microseconds to ``samples``."""
+    clock = time.perf_counter_ns
+    for i in range(count):
+        t0 = clock()
+        await ask(i)
+        samples.append((clock() - t0) / 1000.0)
 
 
 # -- peer processes ---------------------------------------------------------------------
@@ -287,30 +286,41 @@ async def _serve_raw_peer(bind: str) -> None:
 # -- the benchmark ----------------------------------------------------------------------
 
 
-@contextlib.asynccontextmanager
-async def _ipc_dir() -> AsyncIterator[str]:
-    path = tempfile.mkdtemp(prefix="btcap-bench-")
+async def _run_all(warmup: int, count: int, rounds: int) -> dict[str, dict[str, float]]:
+    """Every scenario set up at once, then measured in interleaved rounds.
+
+    On a shared machine the load drifts; interleaving gives each scenario the same
+    conditions, so the ratios to the raw pyzmq figure hold even when absolutes move.
+    """
+    tmp = tempfile.mkdtemp(prefix="btcap-bench-")
     try:
-        yield path
+        async with contextlib.AsyncExitStack() as stack:
+            scenarios: dict[str, Callable[[], contextlib.AbstractAsyncContextManager[Ask]]] = {
+                "local": _local,
+                "inproc_transport": _inproc_transport,
+                "zmq_inproc": _zmq_inproc,
+                "zmq_ipc": lambda: _zmq_remote(
+                    "main-ipc", f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock"
+                ),
+                "zmq_tcp": lambda: _zmq_remote("main-tcp", _TCP, _TCP),
+                "raw_zmq_tcp": _raw_zmq_tcp,
+                "raw_zmq_tcp_blocking": _raw_zmq_tcp_blocking,
+            }
+            asks = {
+                name: await stack.enter_async_context(make()) for name, make in scenarios.items()
+            }
+            samples: dict[str, list[float]] = {name: [] for name in asks}
+            for ask in asks.values():
+                for i in range(warmup):
+                    await ask(i)
+            per_round = max(1, count // rounds)
+            for _ in range(rounds):
+                gc.collect()
+                for name, ask in asks.items():
+                    await _measure(ask, per_round, samples[name])
+            return {name: percentiles(values) for name, values in samples.items()}
     finally:
-        shutil.rmtree(path, ignore_errors=True)
-
-
-async def _run_all(warmup: int, count: int) -> dict[str, dict[str, float]]:
-    results: dict[str, dict[str, float]] = {}
-    results["local"] = percentiles(await _bench_local(warmup, count))
-    results["inproc_transport"] = percentiles(await _bench_inproc_transport(warmup, count))
-    results["zmq_inproc"] = percentiles(await _bench_zmq_inproc(warmup, count))
-    async with _ipc_dir() as tmp:
-        samples = await _bench_zmq_remote(
-            f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock", warmup, count
-        )
-    results["zmq_ipc"] = percentiles(samples)
-    samples = await _bench_zmq_remote("tcp://127.0.0.1:*", "tcp://127.0.0.1:*", warmup, count)
-    results["zmq_tcp"] = percentiles(samples)
-    results["raw_zmq_tcp"] = percentiles(await _bench_raw_zmq_tcp(warmup, count))
-    results["raw_zmq_tcp_blocking"] = percentiles(_bench_raw_zmq_tcp_blocking(warmup, count))
-    return results
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _table(ask_us: dict[str, dict[str, float]]) -> str:
@@ -330,7 +340,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     configure_logging("warning")  # hellos log at info; keep the table readable
     warmup, count = (500, 3_000) if quick else (3_000, 20_000)
     load = os.getloadavg()
-    ask_us = asyncio.run(_run_all(warmup, count))
+    ask_us = asyncio.run(_run_all(warmup, count, rounds=10))
     data: dict[str, Any] = {
         "ask_us": ask_us,
         "ratio_to_raw_zmq_tcp": {
