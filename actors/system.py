@@ -87,7 +87,7 @@ class ActorSystem:
         self._actors: dict[str, Actor] = {}
         self._names = itertools.count(1)
         self._corr = itertools.count(1)
-        self._pending: dict[int, asyncio.Future[Any]] = {}
+        self._pending: dict[int, tuple[str, asyncio.Future[Any]]] = {}  # corr -> (peer, reply)
         self._tasks: set[asyncio.Task[Any]] = set()
         self._tg: TaskGroup | None = None
         self._closing = False
@@ -149,7 +149,7 @@ class ActorSystem:
         if tasks:
             await asyncio.gather(*tasks, return_exceptions=True)
         pending, self._pending = self._pending, {}
-        for fut in pending.values():
+        for _peer, fut in pending.values():
             if not fut.done():
                 fut.set_exception(SystemClosed(f"actor system {self.id} shut down"))
 
@@ -294,13 +294,24 @@ class ActorSystem:
             if self.transport is None:
                 raise DeadLetter(f"no transport to reach {address}")
             corr = next(self._corr)
-            self._pending[corr] = fut
+            self._pending[corr] = (address.system, fut)
             try:
                 self._send(Envelope(Kind.ASK, self.address, address, msg, corr))
             except BaseException:
                 self._pending.pop(corr, None)
                 raise
-            fut.add_done_callback(partial(self._forget, corr))
+            limit = self.ask_timeout if timeout is None else timeout
+            # One timer instead of a timeout context: a remote ask is a hot path.
+            timer = loop.call_later(limit, _expire, fut)
+            try:
+                return await fut
+            except _Expired:
+                raise AskTimeout(
+                    f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
+                ) from None
+            finally:
+                timer.cancel()
+                self._pending.pop(corr, None)
         limit = self.ask_timeout if timeout is None else timeout
         try:
             async with asyncio.timeout(limit):
@@ -309,9 +320,6 @@ class ActorSystem:
             raise AskTimeout(
                 f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
             ) from None
-
-    def _forget(self, corr: int, _fut: asyncio.Future[Any]) -> None:
-        self._pending.pop(corr, None)
 
     async def await_deferred(
         self, address: Address, msg: Any, fut: asyncio.Future[Any], timeout: float | None
@@ -336,10 +344,13 @@ class ActorSystem:
         """Entry point for everything a transport received."""
         kind = env.kind
         if kind is Kind.REPLY or kind is Kind.FAIL:
-            fut = self._pending.pop(env.corr, None)
-            if fut is None or fut.done():
+            pending = self._pending.get(env.corr)
+            # Only the system that was asked may answer: correlation ids are guessable.
+            if pending is None or pending[0] != env.sender.system or pending[1].done():
                 self._count_drop("late_reply", env.sender, env.msg)
                 return
+            del self._pending[env.corr]
+            fut = pending[1]
             msg = env.msg
             if kind is Kind.FAIL:
                 if isinstance(msg, Failure):
@@ -351,6 +362,9 @@ class ActorSystem:
                     fut.set_exception(ActorFailed(str(env.sender), "Unknown", repr(msg)))
             else:
                 fut.set_result(msg)
+            return
+        if env.recipient.system != self.id and env.recipient.system != BROADCAST:
+            self._count_drop("wrong_recipient", env.recipient, env.msg)
             return
         actor = self._actors.get(env.recipient.path)
         if actor is None:
@@ -413,6 +427,15 @@ class ActorSystem:
             self._failure = (where, exc)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
+
+
+class _Expired(Exception):
+    """Set on a remote ask's future when its timer fires."""
+
+
+def _expire(fut: asyncio.Future[Any]) -> None:
+    if not fut.done():
+        fut.set_exception(_Expired())
 
 
 def _future_reply(fut: asyncio.Future[Any]) -> Reply:

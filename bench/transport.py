@@ -1,8 +1,11 @@
 """Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
 
-The ipc and tcp peers run in another OS process (``python -m bench.transport --peer``),
-and a raw pyzmq asyncio DEALER/ROUTER echo (``--raw-peer``) over tcp is measured in the
-same run, so the runtime's overhead shows as a ratio to what pyzmq alone costs.
+The ipc and tcp peers run in another OS process (``python -m bench.transport --peer``).
+Two peer figures are measured in the same run: pyzmq's own asyncio DEALER/ROUTER echo
+over tcp (``raw_zmq_tcp``, what the runtime is compared to as a ratio) and blocking
+pyzmq on both sides (``raw_zmq_tcp_blocking``, the floor with no event loop at all).
+All scenarios are set up at once and measured in interleaved rounds, so a machine whose
+load drifts during the run still gives every scenario the same conditions.
 
 Run ``python -m bench transport [--quick]`` or ``python -m bench.transport [--quick]``.
 """

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,7 @@ from rich.console import Console, Group
 from rich.live import Live
 from rich.table import Table
 
+from btcap.cli import CliError
 from sim.metrics import MissionResult
 from sim.plots import plot_timeline
 from sim.runner import Progress, run_scenario
@@ -136,10 +138,13 @@ async def _run_one(s: Scenario, console: Console, quiet: bool, distributed: bool
 def run_command(args: argparse.Namespace) -> int:
     console = Console()
     names = list(builtin_scenarios()) if args.compare else [args.scenario]
-    scenarios = [resolve_scenario(n) for n in names]
+    if args.speedup is not None and not (math.isfinite(args.speedup) and args.speedup > 0):
+        raise CliError(f"--speedup: expected a number > 0, got {args.speedup:g}")
+    try:
+        scenarios = [resolve_scenario(n) for n in names]
+    except ScenarioError as exc:  # a usage problem: the message names file and field
+        raise CliError(str(exc)) from None
     if args.speedup is not None:
-        if not args.speedup > 0:
-            raise ScenarioError(f"--speedup: expected > 0, got {args.speedup}")
         for s in scenarios:
             s.speedup = args.speedup
     out = _out_dir(args, "compare" if args.compare else scenarios[0].name)
@@ -148,7 +153,10 @@ def run_command(args: argparse.Namespace) -> int:
         console.print(f"running [bold]{s.name}[/bold] (speed-up {s.speedup:g}x) ...")
         result = asyncio.run(_run_one(s, console, args.quiet, args.distributed))
         results.append(result)
-        _write(result, out / s.name if args.compare else out)
+        try:
+            _write(result, out / s.name if args.compare else out)
+        except OSError as exc:
+            raise CliError(f"cannot write results to {out}: {exc.strerror or exc}") from None
     console.print(summary_table(results))
     if args.compare:
         (out / "compare.json").write_text(

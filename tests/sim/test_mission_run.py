@@ -135,8 +135,9 @@ async def test_dynamic_team_mission_survives_joins_leaves_and_failures() -> None
         ("left", "bebop1"),
     ):
         assert expected in marks, marks
-    order = [m for m in marks if m[1] == "husky1" and m[0] != "joined"]
-    assert order == [("down", "husky1"), ("failed", "husky1"), ("up", "husky1")]
+    # In this order (a loaded machine may add a spurious failure detection later on).
+    order = [e for e, robot in marks if robot == "husky1"]
+    assert order.index("down") < order.index("failed") < order.index("up")
     # husky1 was exploring when it failed: that execution moved to another robot.
     explore = next(v for k, v in result.assignments.items() if k.endswith("/explore"))
     assert explore[0] == "husky1"

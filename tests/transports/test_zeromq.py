@@ -348,7 +348,7 @@ def _envelope_bytes(kind: Kind, sender: Address, recipient: Address, msg: Any) -
 
 
 class _Fuzzer:
-    """Makes seeded junk frames for one raw DEALER; tracks what the receiver must see."""
+    """Makes seeded junk frames (and a few well-formed lies) for one raw DEALER."""
 
     def __init__(self, rng: random.Random, ident: bytes | None, target: str) -> None:
         self.rng = rng
