@@ -207,6 +207,9 @@ class SimulationManager(Actor):
             return self._failed(msg.robot, f"robot cannot {msg.op}")
         if msg.op != "explore" and not 0 <= msg.target < len(self.state.objects):
             return self._failed(msg.robot, f"no object {msg.target}")
+        if r.move is not None:  # one body: it works where it is, it does not drive on
+            self.world.stop(r.index)
+            self._end_move(r, False, "superseded")
         self._abort(r, "superseded")  # one operation at a time: a new request supersedes
         model = r.model.operation(msg.op)
         j = self.config.delay_jitter

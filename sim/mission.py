@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from btcap import (
     Compare,
+    FallbackWithMemory,
     ForceSuccess,
     Parallel,
     RepeatUntilFailure,
@@ -43,8 +44,15 @@ def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
         claim = ClaimWork("next_object", kind="object", store=store)
         identify = IDENTIFY.node_type()("identify")
         dirty = Compare("is_contaminated", op="==", inputs={"b": True})
+        # An object offered again after a failed decontamination is known to be dirty:
+        # it is not identified a second time.
+        known = Compare("known_contaminated", op="==", inputs={"b": True})
         decon = DECONTAMINATE.node_type()("decontaminate")
-        handle = SequenceWithMemory("identify_then_clean", children=[identify, dirty, decon])
+        check = FallbackWithMemory(
+            "known_or_identify",
+            children=[known, SequenceWithMemory("identify_then_check", children=[identify, dirty])],
+        )
+        handle = SequenceWithMemory("identify_then_clean", children=[check, decon])
         loops.append(
             RepeatUntilFailure(
                 f"object_loop_{k + 1}",
@@ -60,6 +68,7 @@ def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
             (claim, "target", identify, "object"),
             (claim, "at", identify, "at"),
             (identify, "contaminated", dirty, "a"),
+            (claim, "identified", known, "a"),
             (claim, "target", decon, "object"),
             (claim, "at", decon, "at"),
         ]

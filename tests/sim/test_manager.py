@@ -220,6 +220,7 @@ async def test_decontaminate_carries_the_object_to_the_area() -> None:
         result = await sim.run(task)
         assert result.ok
         assert result.position == GRID.decon_area
+        assert sim.body.position == GRID.decon_area  # carrying moved it
         o = sim.obj(2)
         assert o.decontaminated
         assert o.carried_by is None
@@ -324,6 +325,31 @@ async def test_a_new_operation_supersedes_the_previous_one() -> None:
             ("explore", False),
             ("identify", True),
         ]
+
+
+async def test_an_operation_ends_the_move() -> None:
+    async with simulation() as sim:
+        move = asyncio.ensure_future(sim.ask(MoveTo("r1", (1, 30))))
+        await sim.advance(3.0)
+        op = await sim.run(sim.ask(Operate("r1", "identify", 0)))
+        old = await sim.run(move)
+        assert (old.ok, old.detail) == (False, "superseded")
+        assert op.ok
+        assert op.position == old.position == sim.manager.position("r1")
+        await sim.advance(5.0)
+        assert sim.manager.position("r1") == old.position  # it did not drive on
+
+
+async def test_a_move_supersedes_an_operation() -> None:
+    async with simulation() as sim:
+        op = asyncio.ensure_future(sim.ask(Operate("r1", "explore")))
+        await sim.advance(2.0)
+        move = await sim.run(sim.ask(MoveTo("r1", (1, 5))))
+        assert move.ok
+        old = await sim.run(op)
+        assert (old.ok, old.detail) == (False, "superseded")
+        await sim.advance(20.0)
+        assert sim.state.coverage == 0.0
 
 
 async def test_a_superseded_decontamination_drops_its_object() -> None:

@@ -4,9 +4,14 @@ leaves and failures, and on a manual clock the same scenario allocates the same 
 from __future__ import annotations
 
 import asyncio
+import itertools
+import os
+import sys
+from collections import Counter
 from pathlib import Path
 
 import anyio
+import msgspec
 import numpy as np
 import pytest
 
@@ -83,7 +88,7 @@ def assert_sound(result: MissionResult, s: Scenario) -> None:
     # One body: a robot never does two things at once.
     for robot, ivs in by_robot.items():
         ivs.sort(key=lambda i: i.start)
-        for a, b in zip(ivs, ivs[1:], strict=False):
+        for a, b in itertools.pairwise(ivs):
             assert a.end <= b.start + 1e-6, f"{robot}: {a} overlaps {b}"
     done = {k: sum(st.tasks.get(k, 0) for st in result.robots.values()) for k in ("decontaminate",)}
     assert done["decontaminate"] == dirty
@@ -175,6 +180,54 @@ async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
     ]
     assert first.mission_time_s == second.mission_time_s
     assert first.reassignments == second.reassignments > 0
+
+
+ALLOCATION_SCRIPT = """
+import asyncio, json, sys
+sys.path.insert(0, sys.argv[1])
+from test_mission_run import DYNAMIC, run_manual
+from sim.scenario import load_scenario
+r = asyncio.run(run_manual(load_scenario(DYNAMIC)))
+print(json.dumps([r.assignments, [(i.robot, i.kind, i.target, i.start) for i in r.timeline]]))
+"""
+
+
+async def test_allocation_does_not_depend_on_hash_randomisation() -> None:
+    """No set or dict order of strings decides who gets what (PYTHONHASHSEED differs)."""
+
+    async def allocation(hash_seed: str) -> str:
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable,
+            "-c",
+            ALLOCATION_SCRIPT,
+            str(Path(__file__).parent),
+            stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.DEVNULL,
+            env={**os.environ, "PYTHONHASHSEED": hash_seed},
+        )
+        out, _ = await proc.communicate()
+        assert proc.returncode == 0
+        return out.decode().strip().splitlines()[-1]
+
+    with anyio.fail_after(50):
+        first, second = await asyncio.gather(allocation("1"), allocation("2"))
+    assert first == second
+
+
+async def test_failed_work_is_retried_and_objects_are_identified_once() -> None:
+    """With many sim failures every piece of work fails and is claimed again; a dirty
+    object whose decontamination failed is not identified a second time."""
+    s = load_scenario(SMALL)
+    s.sim = msgspec.structs.replace(s.sim, failure_chance=0.6)
+    with anyio.fail_after(40):
+        result = await run_manual(s)
+    assert_sound(result, s)
+    failed = Counter(i.kind for i in result.timeline if not i.ok)
+    assert failed["decontaminate"] > 0
+    assert failed["explore"] > 0
+    identified = Counter(i.target for i in result.timeline if i.kind == "identify" and i.ok)
+    assert sorted(identified) == list(range(s.objects))
+    assert set(identified.values()) == {1}
 
 
 async def test_same_seed_same_world_on_a_real_clock() -> None:

@@ -211,8 +211,8 @@ def test_identified_objects_are_offered_with_their_identification() -> None:
     s.identify(r.target)
     s.release("a")
     again = s.claim("b", "object")
-    if again.target == r.target:
-        assert again.identified
+    assert again.target == r.target  # the first available object comes first
+    assert again.identified
 
 
 def test_a_failed_carriers_object_is_offered_again_where_it_fell() -> None:

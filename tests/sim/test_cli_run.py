@@ -1,0 +1,89 @@
+"""``btcap run``: writes a JSON result and a timeline plot; usage errors exit 2, cleanly."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+import pytest
+
+import btcap.cli
+from btcap.cli import main
+from sim.cli import resolve_scenario
+from sim.metrics import MissionResult
+from sim.scenario import ScenarioError
+
+SMALL = Path(__file__).parent / "data" / "small.yaml"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(autouse=True)
+def no_logging_setup(monkeypatch: pytest.MonkeyPatch) -> None:
+    """main() configures structlog globally, onto this test's captured stderr: later
+    tests would log into a closed file. Keep the configuration as it is."""
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+
+
+def usage_error(capsys: pytest.CaptureFixture[str], argv: list[str], *fragments: str) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.startswith("btcap: error: ")
+    for fragment in fragments:
+        assert fragment in err, err
+
+
+@pytest.mark.slow
+def test_run_writes_result_and_timeline(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert main(["run", str(SMALL), "--out", str(out), "--quiet"]) == 0
+    result = msgspec.json.decode((out / "result.json").read_bytes(), type=MissionResult)
+    assert result.scenario == "small"
+    assert result.completed
+    assert set(result.robots) == {"husky1", "spot1", "bebop1"}
+    assert result.timeline
+    png = (out / "timeline.png").read_bytes()
+    assert png.startswith(PNG_MAGIC)
+    assert len(png) > 10_000
+    printed = capsys.readouterr().out
+    assert "mission summary" in printed
+    assert str(out) in printed.replace("\n", "")
+
+
+def test_unknown_scenario_name(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    usage_error(
+        capsys,
+        ["run", "no-such-scenario", "--out", str(tmp_path), "--quiet"],
+        "no-such-scenario",
+        "full-team",
+    )
+    assert not list(tmp_path.iterdir())
+
+
+def test_invalid_scenario_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nrobots: [{name: r, model: tank}]\n")
+    argv = ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]
+    usage_error(capsys, argv, str(bad), "robots[0].model", "'tank'")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("speedup", ["0", "-5", "nan", "inf"])
+def test_speedup_must_be_positive(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, speedup: str
+) -> None:
+    argv = ["run", str(SMALL), f"--speedup={speedup}", "--out", str(tmp_path / "o"), "--quiet"]
+    usage_error(capsys, argv, "--speedup")
+    assert not (tmp_path / "o").exists()
+
+
+def test_resolve_scenario() -> None:
+    assert resolve_scenario("single-husky").name == "single-husky"
+    assert resolve_scenario(str(SMALL)).name == "small"
+    with pytest.raises(ScenarioError, match="not a built-in"):
+        resolve_scenario("nowhere.yaml")
+
+
+def test_run_is_a_command(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--help"]) == 0
+    assert "--speedup" in capsys.readouterr().out
