@@ -122,6 +122,22 @@ def _settle(reply: Reply, fut: asyncio.Future[Any]) -> None:
         reply(fut.result(), None)
 
 
+_RUNTIME_NAMES = frozenset(
+    {
+        "_as_failure",
+        "_call_now",
+        "_can_call_now",
+        "_drain",
+        "_enqueue",
+        "_failed",
+        "_handler_for",
+        "_receive",
+        "_schedule_drain",
+        "_unhandled",
+    }
+)
+
+
 class Actor:
     """Base class of everything addressable: BT nodes, slots, repositories, auctioneers.
 
@@ -140,6 +156,12 @@ class Actor:
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         cls._handlers = None  # built on first message, when forward references resolve
+        clash = _RUNTIME_NAMES & cls.__dict__.keys()
+        if clash:
+            raise TypeError(
+                f"{cls.__qualname__} overrides the actor runtime's own "
+                f"{', '.join(sorted(clash))}; choose other names"
+            )
 
     def __init__(self) -> None:
         self._system: ActorSystem | None = None

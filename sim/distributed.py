@@ -44,7 +44,7 @@ class ProcessHost:
         self._endpoints: dict[str, str] = {}
         self._procs: dict[str, AgentProcess] = {}
         self._frozen: set[str] = set()
-        self._pending: set[asyncio.Task[None]] = set()
+        self._pending: set[asyncio.Task[object]] = set()
         t = agent_config(s)
         self._config = {
             "tick_hz": t.tick_hz,
@@ -62,7 +62,7 @@ class ProcessHost:
         self._endpoints[system_id] = t.endpoint
         return t
 
-    def _later(self, fn: Callable[[], None]) -> None:
+    def _later(self, fn: Callable[[], object]) -> None:
         task = asyncio.get_running_loop().create_task(asyncio.to_thread(fn))
         self._pending.add(task)
         task.add_done_callback(self._pending.discard)

@@ -146,7 +146,7 @@ class SimulationManager(Actor):
         r = self.robots.get(name)
         return r if r is not None and r.up else None
 
-    def _failed(self, name: str, why: str) -> SimResult:
+    def _refuse(self, name: str, why: str) -> SimResult:
         cell = self.position(name) if name in self.robots else (0, 0)
         return SimResult(False, cell, why)
 
@@ -154,10 +154,10 @@ class SimulationManager(Actor):
     def on_move(self, msg: MoveTo) -> SimResult | asyncio.Future[SimResult]:
         r = self._robot(msg.robot)
         if r is None:
-            return self._failed(msg.robot, "unknown or failed robot")
+            return self._refuse(msg.robot, "unknown or failed robot")
         goal = (int(msg.goal[0]), int(msg.goal[1]))
         if not self.state.grid.is_free(goal):
-            return self._failed(msg.robot, f"goal {goal} is not a free cell")
+            return self._refuse(msg.robot, f"goal {goal} is not a free cell")
         if r.move is not None:
             self._end_move(r, False, "superseded")
         self._abort(r, "superseded")  # one body: driving off abandons any operation
@@ -166,7 +166,7 @@ class SimulationManager(Actor):
         try:
             self.world.set_goal(r.index, goal)
         except ValueError as exc:
-            return self._failed(msg.robot, str(exc))
+            return self._refuse(msg.robot, str(exc))
         fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
         r.move = fut
         r.move_event = self._event(r.name, "move", detail=f"to {goal}")
@@ -202,11 +202,11 @@ class SimulationManager(Actor):
     def on_operate(self, msg: Operate) -> SimResult | asyncio.Future[SimResult]:
         r = self._robot(msg.robot)
         if r is None:
-            return self._failed(msg.robot, "unknown or failed robot")
+            return self._refuse(msg.robot, "unknown or failed robot")
         if msg.op not in ("explore", "identify", "decontaminate") or not r.model.can(msg.op):
-            return self._failed(msg.robot, f"robot cannot {msg.op}")
+            return self._refuse(msg.robot, f"robot cannot {msg.op}")
         if msg.op != "explore" and not 0 <= msg.target < len(self.state.objects):
-            return self._failed(msg.robot, f"no object {msg.target}")
+            return self._refuse(msg.robot, f"no object {msg.target}")
         if r.move is not None:  # one body: it works where it is, it does not drive on
             self.world.stop(r.index)
             self._end_move(r, False, "superseded")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from btcap import (
     Compare,
+    Node,
     FallbackWithMemory,
     ForceSuccess,
     Parallel,
@@ -39,7 +40,7 @@ def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
         ],
     )
     loops = [explore_loop]
-    wires = [(next_goal, "at", explore, "goal")]
+    wires: list[tuple[Node, str, Node, str]] = [(next_goal, "at", explore, "goal")]
     for k in range(object_workers):
         claim = ClaimWork("next_object", kind="object", store=store)
         identify = IDENTIFY.node_type()("identify")

@@ -134,7 +134,15 @@ class InProcessHost:
 
     def start(self, name: str) -> None:
         stop = self._stop[name] = asyncio.Event()
-        self._tasks[name] = asyncio.get_running_loop().create_task(self._life(name, stop))
+        before = self._tasks.get(name)
+        self._tasks[name] = asyncio.get_running_loop().create_task(self._rejoin(name, stop, before))
+
+    async def _rejoin(
+        self, name: str, stop: asyncio.Event, before: asyncio.Task[None] | None
+    ) -> None:
+        if before is not None:  # a robot that left must be gone before it comes back
+            await asyncio.gather(before, return_exceptions=True)
+        await self._life(name, stop)
 
     def leave(self, name: str) -> None:
         ev = self._stop.get(name)
