@@ -303,7 +303,7 @@ class _TypeParser:
             members.append(self._term())
         if len(members) == 1:
             return members[0]
-        return typing.Union[tuple(members)]
+        return typing.Union[tuple(members)]  # noqa: UP007 - built at run time
 
     def _term(self) -> Any:
         tok = self._take()

@@ -123,7 +123,9 @@ def robot_setup(
             tree.wire(op, "contaminated", bo, "contaminated")
             return tree
 
-        impls.append(Implementation(f"identify-{robot}", IDENTIFY, build_identify, bid=bid_identify))
+        impls.append(
+            Implementation(f"identify-{robot}", IDENTIFY, build_identify, bid=bid_identify)
+        )
 
     if model.decontaminate is not None:
         duration_d = model.decontaminate.duration_s

@@ -85,7 +85,10 @@ def summary_table(results: list[MissionResult]) -> Group:
     rows: list[tuple[str, list[str]]] = [
         ("completed", ["yes" if r.completed else "NO" for r in results]),
         ("mission time [s]", [f"{r.mission_time_s:.0f}" for r in results]),
-        ("objects found", [f"{r.summary['found']:.0f}/{r.summary['objects']:.0f}" for r in results]),
+        (
+            "objects found",
+            [f"{r.summary['found']:.0f}/{r.summary['objects']:.0f}" for r in results],
+        ),
         ("decontaminated", [f"{r.summary['decontaminated']:.0f}" for r in results]),
         ("auctions", [str(r.auctions) for r in results]),
         ("re-assignments", [str(r.reassignments) for r in results]),
@@ -161,8 +164,10 @@ def run_command(args: argparse.Namespace) -> int:
     if args.compare:
         (out / "compare.json").write_text(
             json.dumps(
-                {r.scenario: {"completed": r.completed, "mission_time_s": r.mission_time_s}
-                 for r in results},
+                {
+                    r.scenario: {"completed": r.completed, "mission_time_s": r.mission_time_s}
+                    for r in results
+                },
                 indent=2,
             )
             + "\n"

@@ -5,12 +5,12 @@ from __future__ import annotations
 from actors import Message
 
 __all__ = [
+    "SIM_MESSAGES",
     "Claim",
     "ClaimReply",
     "MoveTo",
     "Operate",
     "PositionUpdate",
-    "SIM_MESSAGES",
     "SimResult",
     "StopRobot",
 ]

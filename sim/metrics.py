@@ -96,8 +96,14 @@ def collect(
     """Gather the result of a finished (or timed-out) run."""
     duration = ended - started
     timeline = [
-        Interval(e.robot, e.kind, e.start - started, (e.end if e.end is not None else ended) - started,
-                 bool(e.ok), e.target)
+        Interval(
+            e.robot,
+            e.kind,
+            e.start - started,
+            (e.end if e.end is not None else ended) - started,
+            bool(e.ok),
+            e.target,
+        )
         for e in manager.events
         if e.end is None or e.end >= started
     ]
@@ -119,9 +125,7 @@ def collect(
             tasks,
             round(float(manager.world.travelled_m[idx]), 2),
         )
-    assignments = {
-        n.path: list(n.assignments) for n in tree.nodes() if isinstance(n, Capability)
-    }
+    assignments = {n.path: list(n.assignments) for n in tree.nodes() if isinstance(n, Capability)}
     survived = sum(1 for e in s.events if e.kind in ("fail", "leave") and e.at < duration)
     completed = final is State.SUCCEEDED and state.mission_complete
     return MissionResult(

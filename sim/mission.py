@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from btcap import (
     Compare,
-    Node,
     FallbackWithMemory,
     ForceSuccess,
+    Node,
     Parallel,
     RepeatUntilFailure,
     SequenceWithMemory,

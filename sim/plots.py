@@ -48,7 +48,9 @@ def plot_timeline(result: MissionResult, path: str | Path) -> Path:
             hatch=None if iv.ok else "//",
         )
         if iv.kind != "move" and iv.target >= 0 and iv.end - iv.start > result.mission_time_s / 80:
-            ax.text((iv.start + iv.end) / 2, y, str(iv.target), ha="center", va="center", fontsize=6)
+            ax.text(
+                (iv.start + iv.end) / 2, y, str(iv.target), ha="center", va="center", fontsize=6
+            )
     for m in result.marks:
         if m.robot in lane and m.event in _MARKS:
             marker, colour = _MARKS[m.event]

@@ -123,8 +123,13 @@ class InProcessHost:
     async def _life(self, name: str, stop: asyncio.Event) -> None:
         setup = robot_setup(name, self.models[_model_of(self.s, name)], self.grid)
         async with Agent(
-            name, transport=self.net.transport(name), clock=self.clock, config=self.cfg,
-            registry=self.reg, implementations=setup.implementations, actors=setup.actors,
+            name,
+            transport=self.net.transport(name),
+            clock=self.clock,
+            config=self.cfg,
+            registry=self.reg,
+            implementations=setup.implementations,
+            actors=setup.actors,
         ):
             self._up.add(name)
             try:
@@ -205,7 +210,10 @@ async def run_scenario(
             simsys.spawn(manager, SimulationManager.PATH)
             simsys.spawn(ObjectStore(state), ObjectStore.PATH)
             async with Agent(
-                "operator", transport=robots.transport("operator"), clock=clock, config=cfg,
+                "operator",
+                transport=robots.transport("operator"),
+                clock=clock,
+                config=cfg,
                 registry=reg,
             ) as operator:
                 operator.team.subscribe(
@@ -311,5 +319,3 @@ def _progress(tree: Tree, w: _World, t: float, robots: RobotHost) -> Progress:
     up = robots.present()
     present = {r.name: r.name in up and w.manager.robots[r.name].up for r in w.scenario.robots}
     return Progress(t, w.state.summary(), tasks, present)
-
-

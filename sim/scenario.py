@@ -114,8 +114,12 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
             return GridMap.load(path, cell_size_m=spec.cell_size_m)
         cave = spec.cave or CaveSpec()
         return GridMap.generate_cave(
-            cave.width, cave.height, seed=cave.seed, fill=cave.fill,
-            iterations=cave.iterations, cell_size_m=spec.cell_size_m,
+            cave.width,
+            cave.height,
+            seed=cave.seed,
+            fill=cave.fill,
+            iterations=cave.iterations,
+            cell_size_m=spec.cell_size_m,
         )
 
     def initially_present(self) -> list[RobotEntry]:
@@ -144,7 +148,9 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("team_file", str(exc)) from None
     for i, r in enumerate(s.robots):
         if r.model not in models:
-            raise bad(f"robots[{i}].model", f"{r.model!r}; expected one of {', '.join(sorted(models))}")
+            raise bad(
+                f"robots[{i}].model", f"{r.model!r}; expected one of {', '.join(sorted(models))}"
+            )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
     for field, value in (("speedup", s.speedup), ("time_limit_s", s.time_limit_s)):
@@ -165,7 +171,9 @@ def _check(s: Scenario, where: str) -> Scenario:
         if not getattr(t, name) > 0:
             raise bad(f"agent.{name}", f"expected > 0, got {getattr(t, name)}")
     if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s or t.tick_hz <= 0:
-        raise bad("agent", "expected failure_timeout_s > heartbeat_s, lease_s > keepalive_s, tick_hz > 0")
+        raise bad(
+            "agent", "expected failure_timeout_s > heartbeat_s, lease_s > keepalive_s, tick_hz > 0"
+        )
     present = {r.name: True for r in s.initially_present()}
     for r in s.robots:
         present.setdefault(r.name, False)
@@ -182,8 +190,7 @@ def _check(s: Scenario, where: str) -> Scenario:
         if e.at < down_until.get(e.robot, 0.0):
             raise bad(
                 where_e,
-                f"{e.robot} {e.kind}s at {e.at} while it is failed "
-                f"(until {down_until[e.robot]})",
+                f"{e.robot} {e.kind}s at {e.at} while it is failed (until {down_until[e.robot]})",
             )
         if e.kind == "join":
             if present[e.robot]:

@@ -39,7 +39,9 @@ class SimObject:
 
     @property
     def available(self) -> bool:
-        return self.found and not self.finished and self.claimed_by is None and self.carried_by is None
+        return (
+            self.found and not self.finished and self.claimed_by is None and self.carried_by is None
+        )
 
 
 @dataclass(slots=True)
@@ -72,7 +74,10 @@ class MissionState:
     ) -> MissionState:
         cells = grid.random_free_cells(n_objects, rng)
         dirty = rng.random(n_objects) < contaminated_share
-        objs = [SimObject(i, (int(r), int(c)), bool(d)) for i, ((r, c), d) in enumerate(zip(cells, dirty, strict=True))]
+        objs = [
+            SimObject(i, (int(r), int(c)), bool(d))
+            for i, ((r, c), d) in enumerate(zip(cells, dirty, strict=True))
+        ]
         return cls(grid, objs, rng=rng)
 
     # -- goals ------------------------------------------------------------------------
