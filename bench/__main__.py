@@ -7,7 +7,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-BENCHES = ("tick", "transport", "auction", "sim")
+BENCHES = ("tick", "transport", "auction", "sim", "allocation")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
