@@ -43,6 +43,7 @@ class ProcessHost:
         self.reg = reg
         self._endpoints: dict[str, str] = {}
         self._procs: dict[str, AgentProcess] = {}
+        self.started: dict[str, AgentProcess] = {}  # every process ever started, by robot
         self._frozen: set[str] = set()
         self._pending: set[asyncio.Task[object]] = set()
         t = agent_config(s)
@@ -80,6 +81,7 @@ class ProcessHost:
         )
         proc = AgentProcess(spec, wait=False)
         self._procs[name] = proc
+        self.started[name] = proc
         self._later(proc.wait_ready)
 
     def leave(self, name: str) -> None:
