@@ -370,6 +370,8 @@ class MissionControl(Actor):
             return NoBid(cfb.auction, self.robot, "no matching implementation")
         if self.occupied is not None:
             return NoBid(cfb.auction, self.robot, "busy")
+        if self.slot is None and cfb.auctioneer != self.robot:
+            return NoBid(cfb.auction, self.robot, "no remote capability slot")  # award would fail
         try:
             inputs = impls[0].interface.convert_inputs(cfb.inputs, f"call for bids {cfb.auction}")
         except TreeError as exc:

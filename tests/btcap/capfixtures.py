@@ -38,8 +38,9 @@ def config(**over: Any) -> AgentConfig:
     base: dict[str, Any] = {
         "tick_hz": 20.0,
         "heartbeat_s": 0.1,
-        "failure_timeout_s": 1.0,
-        "lease_s": 1.0,
+        # Generous against false failures on a loaded machine (200 ms of wall time).
+        "failure_timeout_s": 2.0,
+        "lease_s": 2.0,
         "keepalive_s": 0.2,
         "auction_window_s": 1.0,
         "award_timeout_s": 1.0,
