@@ -4,6 +4,7 @@ mission control and a host tree with a remote capability slot."""
 from __future__ import annotations
 
 import asyncio
+import weakref
 from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
@@ -83,9 +84,12 @@ class Agent:
         self.mission_control = MissionControl(
             robot, self.repository, self.team, self.auctioneer, config=cfg
         )
-        self.host = Tree(host or RemoteCapabilitySlot(), name=f"{robot}-host", clock=self.system.clock)
+        self.host = Tree(
+            host or RemoteCapabilitySlot(), name=f"{robot}-host", clock=self.system.clock
+        )
         self._host_task: asyncio.Task[Any] | None = None
         self._extra = dict(actors or {})
+        self._missions: weakref.WeakSet[Tree] = weakref.WeakSet()
 
     @property
     def clock(self) -> TimeSource:
@@ -120,14 +124,20 @@ class Agent:
     ) -> bool | None:
         if self._host_task is not None:
             self._host_task.cancel()
+        for tree in list(self._missions):  # the robot leaves: its missions end with it
+            await tree.shutdown()
         await self.host.shutdown()
         return await self.system.__aexit__(exc_type, exc, tb)
 
     def mission(self, root: Node | Tree, *, name: str | None = None) -> Tree:
-        """Attach a mission tree to this robot so its capability nodes can be assigned."""
+        """Attach a mission tree to this robot so its capability nodes can be assigned.
+
+        A mission tree still attached when the agent exits is shut down with it.
+        """
         tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
         tree.clock = self.clock
         tree.attach(self.system)
+        self._missions.add(tree)
         return tree
 
     async def run_mission(
@@ -136,7 +146,8 @@ class Agent:
         """Attach and tick a mission tree until it succeeds or fails."""
         tree = self.mission(root)
         try:
-            return await tree.run(rate_hz or self.config.tick_hz, max_ticks=max_ticks,
-                                  until=lambda s: s in DONE)
+            return await tree.run(
+                rate_hz or self.config.tick_hz, max_ticks=max_ticks, until=lambda s: s in DONE
+            )
         finally:
             await tree.shutdown()

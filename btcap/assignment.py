@@ -17,7 +17,7 @@ from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution,
 from btcap.team import Membership, TeamEvent
 from transports import Address
 
-__all__ = ["AssignmentStrategy", "AssignmentTask", "Assigned", "AuctionStats", "SingleItemAuction"]
+__all__ = ["Assigned", "AssignmentStrategy", "AssignmentTask", "AuctionStats", "SingleItemAuction"]
 
 log = structlog.get_logger("btcap.assignment")
 
@@ -109,7 +109,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         self.stats.auctions += 1
         me = str(self.address)
         try:
-            cfb = CallForBids(auction_id, task.interface, task.identity, dict(task.inputs), self.robot, me)
+            cfb = CallForBids(
+                auction_id, task.interface, task.identity, dict(task.inputs), self.robot, me
+            )
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, "mission_control"), cfb, sender=self.address)
             if not auction.closed(clock.now()):
@@ -121,8 +123,14 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         outcome = self.last_outcome = auction.outcome()
         for bid in outcome.ranking:
             award = Award(
-                auction_id, task.execution, task.interface, bid.implementation,
-                dict(task.inputs), task.origin, me, task.lease_s,
+                auction_id,
+                task.execution,
+                task.interface,
+                bid.implementation,
+                dict(task.inputs),
+                task.origin,
+                me,
+                task.lease_s,
             )
             try:
                 reply = await system.ref(f"{bid.robot}/mission_control").ask(
@@ -143,7 +151,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 self.stats.awarded += 1
                 return Assigned(bid.robot, bid.implementation, bid.cost)
             self.stats.declined_awards += 1
-            log.info("auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason)
+            log.info(
+                "auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason
+            )
         self.stats.unassigned += 1
         return None
 

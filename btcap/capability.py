@@ -53,7 +53,13 @@ class CapabilityInterface:
     """
 
     __slots__ = (
-        "__weakref__", "_bridges", "_node_type", "description", "identity", "inputs", "name",
+        "__weakref__",
+        "_bridges",
+        "_node_type",
+        "description",
+        "identity",
+        "inputs",
+        "name",
         "outputs",
     )
 
@@ -111,7 +117,9 @@ class CapabilityInterface:
         out: dict[str, Any] = {}
         for key, port in self.inputs.items():
             value = values.get(key)
-            out[key] = None if value is None else check_value(value, port.type, f"{where} input {key!r}")
+            out[key] = (
+                None if value is None else check_value(value, port.type, f"{where} input {key!r}")
+            )
         return out
 
 
@@ -189,7 +197,9 @@ class ImplementationRun:
         outs = [n for n in tree.nodes() if isinstance(n, OutputBridge)]
         iface = implementation.interface
         if len(ins) > 1 or len(outs) > 1:
-            raise TreeError(f"implementation {implementation.name!r}: at most one bridge of each kind")
+            raise TreeError(
+                f"implementation {implementation.name!r}: at most one bridge of each kind"
+            )
         if iface.inputs and not ins:
             raise TreeError(f"implementation {implementation.name!r}: inputs need an InputBridge")
         if iface.outputs and not outs:
@@ -359,7 +369,10 @@ class Capability(Node):
             if now < self._retry_at:
                 return _UNASSIGNED
             self._request = self._mission_control().request_assignment(
-                self, dict(self.inputs), local_only=self.options["local_only"], exclude=self._exclude
+                self,
+                dict(self.inputs),
+                local_only=self.options["local_only"],
+                exclude=self._exclude,
             )
             return _UNASSIGNED
         if not req.done:
@@ -384,6 +397,11 @@ class Capability(Node):
     def on_untick(self) -> None:
         if self._exec is not None:
             self._exec.pause()
+        elif self._request is not None:
+            # Paused before an executor was found: no work may start for a paused node,
+            # so give the auction up; the next tick starts a fresh one.
+            self._request.cancel()
+            self._request = None
 
     def on_reset(self) -> None:
         self._drop("reset")

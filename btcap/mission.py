@@ -131,7 +131,16 @@ class RemoteExecution:
     """The origin's proxy of a run in another robot's slot: inputs out, status back."""
 
     __slots__ = (
-        "_mc", "acked", "detail", "id", "last_heard", "lost", "outputs", "robot", "seq", "state",
+        "_mc",
+        "acked",
+        "detail",
+        "id",
+        "last_heard",
+        "lost",
+        "outputs",
+        "robot",
+        "seq",
+        "state",
     )
 
     def __init__(self, mc: MissionControl, execution: str, robot: str) -> None:
@@ -263,7 +272,9 @@ class MissionControl(Actor):
         ex.lost = True
         self.origin_executions.pop(ex.id, None)
         self.stats.lost += 1
-        log.warning("mission.execution_lost", robot=self.robot, execution=ex.id, executor=ex.robot, why=why)
+        log.warning(
+            "mission.execution_lost", robot=self.robot, execution=ex.id, executor=ex.robot, why=why
+        )
 
     def _to_mc(self, robot: str, msg: Any) -> None:
         self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
@@ -291,7 +302,12 @@ class MissionControl(Actor):
             return req
         execution = f"{self.robot}:{node.path}:{next(self._ids)}"
         task = AssignmentTask(
-            execution, iface.name, iface.identity, inputs, frozenset(candidates), self.robot,
+            execution,
+            iface.name,
+            iface.identity,
+            inputs,
+            frozenset(candidates),
+            self.robot,
             self.config.lease_s,
         )
         req.task = self.start_task(self._assign(req, task), name=f"assign {execution}")
@@ -386,7 +402,9 @@ class MissionControl(Actor):
             try:
                 cost = impl.cost(inputs)
             except Exception as exc:
-                log.error("mission.bid_failed", robot=self.robot, implementation=impl.name, exc_info=exc)
+                log.error(
+                    "mission.bid_failed", robot=self.robot, implementation=impl.name, exc_info=exc
+                )
                 reasons.append(f"{impl.name}: bid failed")
                 continue
             if cost is None:
@@ -416,7 +434,11 @@ class MissionControl(Actor):
         if self.occupied is not None:
             return decline(f"busy with {self.occupied}")
         impl = next(
-            (i for i in self.repository.local_implementations(msg.interface) if i.name == msg.implementation),
+            (
+                i
+                for i in self.repository.local_implementations(msg.interface)
+                if i.name == msg.implementation
+            ),
             None,
         )
         if impl is None:
@@ -488,7 +510,10 @@ class MissionControl(Actor):
             origin = msg.execution.split(":", 1)[0]
             self._to_mc(
                 origin,
-                final or ExecutionStatus(msg.execution, self.robot, _LOST, {}, msg.seq, "unknown execution"),
+                final
+                or ExecutionStatus(
+                    msg.execution, self.robot, _LOST, {}, msg.seq, "unknown execution"
+                ),
             )
             return
         try:

@@ -16,6 +16,7 @@ __all__ = ["CapabilityRepository"]
 
 log = structlog.get_logger("btcap.repository")
 
+
 class CapabilityRepository(Actor):
     """Local interfaces and implementations (changeable at run time), plus a team-wide view.
 
@@ -69,7 +70,9 @@ class CapabilityRepository(Actor):
         for impl in impls:
             self.add_implementation(impl)
 
-    def local_implementations(self, interface: str, identity: str | None = None) -> list[Implementation]:
+    def local_implementations(
+        self, interface: str, identity: str | None = None
+    ) -> list[Implementation]:
         impls = self.implementations.get(interface, [])
         if identity is not None:
             impls = [i for i in impls if i.interface.identity == identity]
@@ -85,7 +88,11 @@ class CapabilityRepository(Actor):
     def providers(self, identity: str) -> set[str]:
         """Robots (this one included) that implement the interface with this identity."""
         robots = {r for r, st in self.team.items() if identity in st.interfaces.values()}
-        if any(i.interface.identity == identity for impls in self.implementations.values() for i in impls):
+        if any(
+            i.interface.identity == identity
+            for impls in self.implementations.values()
+            for i in impls
+        ):
             robots.add(self.robot)
         return robots
 

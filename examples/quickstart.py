@@ -10,7 +10,9 @@ def build() -> Tree:
     report = Log("report", message="arrived")
     leg = Timeout("leg", seconds=5.0, children=[Wait("drive", seconds=0.2)])
     tree = Tree(
-        Sequence("go_and_report", children=[goal, Retry("retry", retries=2, children=[leg]), report])
+        Sequence(
+            "go_and_report", children=[goal, Retry("retry", retries=2, children=[leg]), report]
+        )
     )
     tree.wire(goal, "value", report, "value")  # type-checked here, not at run time
     return tree

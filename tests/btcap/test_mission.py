@@ -4,16 +4,34 @@ joins, preconditions, and hostile or stray protocol messages."""
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from typing import Any
 
 import anyio
-from capfixtures import COUNT, Probe, Team, count_impl, team, tick_until, until
+import pytest
+from capfixtures import (
+    COUNT,
+    Probe,
+    Team,
+    count_impl,
+    silent_member,
+    team,
+    tick_until,
+    until,
+)
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from structlog.testing import capture_logs
 
-from btcap import Parallel, Sequence, State, Tree
+from btcap import AlwaysFailure, Leaf, Parallel, Sequence, State, Tree
 from btcap.agent import Agent
-from btcap.capability import Capability, CapabilityInterface, Precondition, Scope
+from btcap.capability import (
+    Capability,
+    CapabilityInterface,
+    Implementation,
+    Precondition,
+    Scope,
+)
 from btcap.messages import (
     Award,
     AwardReply,
@@ -43,6 +61,10 @@ def _no_trace(agent: Agent) -> bool:
         and not mc.origin_executions
         and (slot is None or slot.current is None)
     )
+
+
+def _output_is(node: Capability, key: str, want: Any) -> Callable[[State], bool]:
+    return lambda _s: node.outputs[key] == want
 
 
 async def _running_on(tree: Tree, node: Capability, robot: str) -> None:
@@ -78,7 +100,7 @@ async def test_remote_execution_streams_io_both_ways_every_tick() -> None:
             # Change the input on the origin while b runs: b's output follows.
             for x in (4, 7, -3):
                 node.set_input("x", x)
-                await tick_until(tree, lambda _s, x=x: node.outputs["y"] == 3 * x, f"y == 3*{x}")
+                await tick_until(tree, _output_is(node, "y", 3 * x), f"y == {3 * x}")
                 assert node.outputs["robot"] == "b"
             ticks = node.outputs["ticks"]
             await tick_until(tree, lambda _s: node.outputs["ticks"] > ticks, "more ticks")
@@ -119,6 +141,38 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
             assert not hosted.paused
             assert node.assignments == ["b"]
             await tree.shutdown()
+
+
+async def test_untick_while_the_auction_runs_starts_no_work() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=2.0) as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            # s never answers, so the auction stays open for its whole window.
+            async with silent_member(t.net, "s", [count_impl("s", 9.0, probe)], t.clock):
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"b", "s"}
+                        and len(a.team.alive()) == 3
+                    ),
+                    "a to know b and s",
+                )
+                node = _count()
+                tree = a.mission(Sequence("root", children=[node]))
+                tree.tick()
+                assert node.state is State.UNASSIGNED
+                tree.untick()
+                assert node.state in {State.PAUSED}
+                # Long after the window: nothing was awarded, nothing runs for a paused node.
+                start = t.clock.now()
+                await until(lambda: t.clock.now() - start > 3.0 and not a.auctioneer._open)
+                assert probe.ticks["b"] == 0
+                assert _no_trace(b)
+                assert node.execution is None
+                # Ticked again, it is auctioned afresh and runs.
+                await _running_on(tree, node, "b")
+                await tree.shutdown()
 
 
 async def test_reset_and_shutdown_cancel_the_remote_run_without_trace() -> None:
@@ -502,7 +556,7 @@ async def _storm(costs: list[float], durations: list[int], load: list[tuple[int,
             assert probe.violations == []
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(
     costs=st.lists(st.sampled_from([0.5, 1.0, 2.0]), min_size=2, max_size=3),
     durations=st.lists(st.integers(1, 4), min_size=3, max_size=3),
@@ -512,3 +566,42 @@ def test_no_robot_ever_runs_two_executions_at_once(
     costs: list[float], durations: list[int], load: list[tuple[int, int]]
 ) -> None:
     asyncio.run(_storm(costs, durations[: len(costs)], load))
+
+
+# -- results ----------------------------------------------------------------------------------
+
+BARE = CapabilityInterface("Bare")
+
+
+class _Boom(Leaf):
+    def on_tick(self) -> State:
+        raise RuntimeError("actuator fault")
+
+
+@pytest.mark.parametrize("where", ["local", "remote"])
+@pytest.mark.parametrize("how", ["fails", "raises"])
+async def test_a_failing_implementation_fails_the_capability(where: str, how: str) -> None:
+    def build() -> Leaf:
+        return AlwaysFailure("nope") if how == "fails" else _Boom("boom")
+
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add(
+                "a", [Implementation("bare-a", BARE, build)] if where == "local" else []
+            )
+            b = await t.add(
+                "b", [Implementation("bare-b", BARE, build)] if where == "remote" else []
+            )
+            await t.converged(BARE.identity)
+            node = BARE.node_type()("bare")
+            tree = a.mission(Sequence("root", children=[node]))
+            with capture_logs():
+                assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
+            assert node.state is State.FAILED
+            assert node.assignments == ["a" if where == "local" else "b"]
+            assert "Bare" not in a.repository.succeeded | b.repository.succeeded
+            await until(lambda: _no_trace(a) and _no_trace(b), "no trace")
+            # The failure is kept until reset, not retried behind the parent's back.
+            assert tree.tick() is State.FAILED
+            assert len(node.assignments) == 1
+            await tree.shutdown()

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 import anyio
 import pytest
-from capfixtures import team, until
+from capfixtures import COUNT, Probe, count_impl, team, until
 
 from actors import ActorSystem, ManualClock
 from btcap.messages import Goodbye, Heartbeat
@@ -17,7 +18,7 @@ from btcap.team import Membership, TeamEvent
 
 @asynccontextmanager
 async def membership(
-    **kw: float,
+    **kw: Any,
 ) -> AsyncIterator[tuple[Membership, ManualClock, list[tuple[TeamEvent, str]]]]:
     clock = ManualClock()
     async with ActorSystem("me", registry=protocol_registry(), clock=clock) as system:
@@ -126,9 +127,15 @@ async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
     # The failure timeout is long: only the new incarnation can reveal the restart.
     with anyio.fail_after(10):
         async with team(failure_timeout_s=1000.0) as t:
+            probe = Probe()
             a = await t.add("a")
-            b = await t.add("b")
+            b = await t.add(
+                "b", [count_impl("b", 1.0, probe), count_impl("b", 1.0, probe, name="x")]
+            )
             await t.converged()
+            for i in range(3):  # the old incarnation's repository version grows past the new one's
+                b.repository.record_success(f"Cap{i}")
+            await until(lambda: a.repository.team["b"].version == b.repository.version)
             old = b.team.incarnation
             t.net.isolate("b")  # a crash: no goodbye gets out
             await t.remove("b")
@@ -136,4 +143,10 @@ async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
             b2 = await t.add("b")
             assert b2.team.incarnation != old
             await until(lambda: a.team.members["b"].incarnation == b2.team.incarnation)
-            assert _events(a.team, "b") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+            joins = [e for e in _events(a.team, "b") if e is not TeamEvent.CHANGED]
+            assert joins == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+            # What the old incarnation could do and did is forgotten; the new one is learnt.
+            await until(lambda: "b" in a.repository.team)
+            assert a.repository.team["b"].version == b2.repository.version
+            assert a.repository.providers(COUNT.identity) == set()
+            assert not a.repository.succeeded_anywhere("Cap0")
