@@ -33,6 +33,7 @@ class AssignmentTask:
     candidates: frozenset[str]
     origin: str
     lease_s: float
+    reserve: float | None = None  # award only bids cheaper than this (moving running work)
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,7 +72,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     The auctioneer's own robot is invited like any other (it bids in its own auction).
     The auction closes when every invited robot still alive has bid or declined, or when
     ``window_s`` clock seconds have passed. Awards are asks: a winner that became busy
-    declines and the award goes to the next-best bid.
+    declines and the award goes to the next-best bid. A task with a ``reserve`` is
+    awarded only to a bid below it.
     """
 
     PATH = "auctioneer"
@@ -122,6 +124,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             del self._open[auction_id]
         outcome = self.last_outcome = auction.outcome()
         for bid in outcome.ranking:
+            if task.reserve is not None and bid.cost >= task.reserve:
+                break  # the ranking is cheapest first: nobody else beats the reserve
             award = Award(
                 auction_id,
                 task.execution,

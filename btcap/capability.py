@@ -281,11 +281,15 @@ class Execution(Protocol):
     robot: str
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
-        """Send inputs, return the latest (state, outputs); state None: the executor is lost."""
+        """Send inputs, return the latest (state, outputs); state None: the executor is lost
+        or the work moved (see :meth:`hand_over`)."""
 
     def pause(self) -> None: ...
 
     def cancel(self, reason: str) -> None: ...
+
+    def hand_over(self) -> Execution | None:
+        """The execution that takes over from this one (work moved to a cheaper robot)."""
 
 
 class Capability(Node):
@@ -294,8 +298,9 @@ class Capability(Node):
     unassigned (auction pending) -> assigned (executor found) -> running -> succeeded or
     failed. The result is kept until reset, so reactive parents do not re-run it. The
     assignment is fixed while assigned/running/paused; if the executor is lost the node
-    goes back to unassigned and is re-assigned with its latest inputs. ``local_only``
-    restricts the auction to this robot.
+    goes back to unassigned and is re-assigned with its latest inputs, and it moves only
+    when mission control's optional ``rebid_on_join`` policy found a cheaper robot.
+    ``local_only`` restricts the auction to this robot.
     """
 
     __slots__ = ("_exclude", "_exec", "_request", "_result", "_retry_at", "assignments")
@@ -346,8 +351,15 @@ class Capability(Node):
         if ex is None:
             return self._assign()
         state, outputs = ex.step(self.inputs)
-        if state is None:  # executor lost: re-assign with the latest inputs
+        if state is None:
             self._exec = None
+            nxt = ex.hand_over()
+            if nxt is not None:  # moved to a cheaper robot that joined
+                ex.cancel(f"moved to {nxt.robot}")
+                self._exec = nxt
+                self.assignments.append(nxt.robot)
+                return _ASSIGNED
+            # The executor is lost: re-assign with the latest inputs.
             self._exclude = frozenset({ex.robot})
             return self._assign()
         if outputs:

@@ -57,7 +57,7 @@ class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
     factory: str = ""
     factory_args: dict[str, Any] = {}
     speedup: float = 1.0
-    config: dict[str, float] = {}
+    config: dict[str, float | None] = {}
     log_level: str = "warning"
     registry: str = ""
 
@@ -105,7 +105,8 @@ async def run_agent(spec: AgentSpec, *, ready: Callable[[str], None] | None = No
         impls = list(made)
     registry = load_factory(spec.registry)() if spec.registry else protocol_registry()
     transport = ZmqTransport(spec.robot, spec.bind, registry, peers=dict(spec.peers))
-    cfg = AgentConfig(**spec.config)
+    options: dict[str, Any] = dict(spec.config)  # None only where AgentConfig allows it
+    cfg = AgentConfig(**options)
     async with Agent(
         spec.robot,
         transport=transport,

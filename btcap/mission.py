@@ -70,6 +70,10 @@ class MissionConfig:
     keepalive_s: float = 0.2
     auction_window_s: float = 1.0
     award_timeout_s: float = 0.5
+    #: Move running work to a robot that joins and bids at least this fraction below the
+    #: bid the current executor won with (0.25: a quarter cheaper). None, the default:
+    #: healthy work is never moved by a join.
+    rebid_on_join: float | None = None
 
 
 @dataclass(slots=True)
@@ -80,6 +84,7 @@ class MissionStats:
     lost: int = 0
     hosted: int = 0
     declined: int = 0
+    moved: int = 0
 
 
 class AssignmentRequest:
@@ -103,18 +108,47 @@ class AssignmentRequest:
             self.task.cancel()
 
 
-class LocalExecution:
-    """The origin won its own auction: the capability node ticks the run directly."""
+class _OriginExecution:
+    """What the origin knows of every execution it started: who runs it for which node,
+    at what bid, and whether it is being moved to another robot."""
 
-    __slots__ = ("_mc", "id", "robot", "run")
+    __slots__ = ("_mc", "cost", "id", "node", "replacement", "robot")
 
-    def __init__(self, mc: MissionControl, execution: str, run: ImplementationRun) -> None:
+    def __init__(
+        self, mc: MissionControl, execution: str, robot: str, node: Capability, cost: float
+    ) -> None:
         self._mc = mc
         self.id = execution
-        self.robot = mc.robot
+        self.robot = robot
+        self.node = node
+        self.cost = cost
+        self.replacement: RemoteExecution | None = None
+
+    def hand_over(self) -> RemoteExecution | None:
+        """The execution taking over from this one, now the caller's to hold."""
+        nxt, self.replacement = self.replacement, None
+        return nxt
+
+
+class LocalExecution(_OriginExecution):
+    """The origin won its own auction: the capability node ticks the run directly."""
+
+    __slots__ = ("run",)
+
+    def __init__(
+        self,
+        mc: MissionControl,
+        execution: str,
+        run: ImplementationRun,
+        node: Capability,
+        cost: float,
+    ) -> None:
+        super().__init__(mc, execution, mc.robot, node, cost)
         self.run = run
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
+        if self.replacement is not None:
+            return None, {}  # moved: the node adopts the replacement
         state, outputs = self.run.step(inputs)
         if state is State.SUCCEEDED:
             self._mc.repository.record_success(self.run.implementation.interface.name)
@@ -124,29 +158,19 @@ class LocalExecution:
         self.run.pause()
 
     def cancel(self, reason: str) -> None:
+        self._mc._ended(self, reason)
         self._mc._release(self.id, self.run)
 
 
-class RemoteExecution:
+class RemoteExecution(_OriginExecution):
     """The origin's proxy of a run in another robot's slot: inputs out, status back."""
 
-    __slots__ = (
-        "_mc",
-        "acked",
-        "detail",
-        "id",
-        "last_heard",
-        "lost",
-        "outputs",
-        "robot",
-        "seq",
-        "state",
-    )
+    __slots__ = ("acked", "detail", "last_heard", "lost", "outputs", "seq", "state")
 
-    def __init__(self, mc: MissionControl, execution: str, robot: str) -> None:
-        self._mc = mc
-        self.id = execution
-        self.robot = robot
+    def __init__(
+        self, mc: MissionControl, execution: str, robot: str, node: Capability, cost: float
+    ) -> None:
+        super().__init__(mc, execution, robot, node, cost)
         self.state = State.ASSIGNED
         self.outputs: dict[str, Any] = {}
         self.seq = 0
@@ -156,8 +180,8 @@ class RemoteExecution:
         self.last_heard = mc.system.clock.now()
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
-        if self.lost:
-            return None, {}
+        if self.lost or (self.replacement is not None and self.state not in DONE):
+            return None, {}  # lost, or moved: the node adopts the replacement
         self.seq += 1
         self._mc._to_mc(self.robot, ExecutionInputs(self.id, self.seq, dict(inputs)))
         return self.state, self.outputs
@@ -167,7 +191,7 @@ class RemoteExecution:
             self._mc._to_mc(self.robot, PauseExecution(self.id))
 
     def cancel(self, reason: str) -> None:
-        self._mc.origin_executions.pop(self.id, None)
+        self._mc._ended(self, reason)
         if not self.lost:
             self._mc._to_mc(self.robot, CancelExecution(self.id, reason))
 
@@ -211,6 +235,8 @@ class MissionControl(Actor):
         self.slot: RemoteCapabilitySlot | None = None
         self.occupied: str | None = None  # the execution using this robot's body
         self.origin_executions: dict[str, RemoteExecution] = {}
+        # Every execution a capability node of this robot holds, local or remote.
+        self.active: dict[str, LocalExecution | RemoteExecution] = {}
         self.hosted: dict[str, Hosted] = {}
         self._local_runs: dict[str, ImplementationRun] = {}
         self._finished: OrderedDict[str, ExecutionStatus] = OrderedDict()
@@ -220,6 +246,8 @@ class MissionControl(Actor):
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
         self.team.subscribe(self._on_team)
+        if self.config.rebid_on_join is not None:
+            self.repository.subscribe(self._on_new_member)
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
     def on_stop(self) -> None:
@@ -271,6 +299,7 @@ class MissionControl(Actor):
             return
         ex.lost = True
         self.origin_executions.pop(ex.id, None)
+        self.active.pop(ex.id, None)
         self.stats.lost += 1
         log.warning(
             "mission.execution_lost", robot=self.robot, execution=ex.id, executor=ex.robot, why=why
@@ -310,10 +339,75 @@ class MissionControl(Actor):
             self.robot,
             self.config.lease_s,
         )
-        req.task = self.start_task(self._assign(req, task), name=f"assign {execution}")
+        req.task = self.start_task(self._assign(req, task, node), name=f"assign {execution}")
         return req
 
-    async def _assign(self, req: AssignmentRequest, task: AssignmentTask) -> None:
+    def _remote(self, execution: str, robot: str, node: Capability, cost: float) -> RemoteExecution:
+        ex = RemoteExecution(self, execution, robot, node, cost)
+        self.origin_executions[execution] = ex
+        return ex
+
+    def _ended(self, ex: LocalExecution | RemoteExecution, reason: str) -> None:
+        """The node let ``ex`` go; a replacement it never adopted goes with it."""
+        self.origin_executions.pop(ex.id, None)
+        self.active.pop(ex.id, None)
+        if ex.replacement is not None:
+            ex.replacement.cancel(reason)
+            ex.replacement = None
+
+    # -- moving work to a robot that joins (MissionConfig.rebid_on_join) ---------------
+    def _on_new_member(self, robot: str) -> None:
+        if self.active and robot != self.robot:
+            self.start_task(self._offer_to(robot), name=f"offer work to {robot}")
+
+    async def _offer_to(self, robot: str) -> None:
+        """Auction running work, costliest first, to ``robot`` alone with the current bid
+        less the margin as reserve; the first award it accepts moves that work."""
+        margin = self.config.rebid_on_join
+        assert margin is not None
+        for ex in sorted(self.active.values(), key=lambda e: (-e.cost, e.id)):
+            node = ex.node
+            iface = type(node).INTERFACE
+            if (
+                ex.id not in self.active
+                or ex.replacement is not None
+                or ex.robot == robot
+                or node.options["local_only"]
+                or robot not in self.repository.providers(iface.identity)
+            ):
+                continue
+            execution = f"{self.robot}:{node.path}:{next(self._ids)}"
+            task = AssignmentTask(
+                execution,
+                iface.name,
+                iface.identity,
+                dict(node.inputs),
+                frozenset({robot}),
+                self.robot,
+                self.config.lease_s,
+                reserve=ex.cost * (1.0 - margin),
+            )
+            won = await self.strategy.assign(task)
+            if won is None:
+                continue
+            new = self._remote(execution, won.robot, node, won.cost)
+            if ex.id not in self.active:  # it ended while we asked
+                new.cancel("no longer needed")
+                continue
+            ex.replacement = new
+            self.active[new.id] = new
+            self.stats.moved += 1
+            log.info(
+                "mission.moving",
+                robot=self.robot,
+                execution=ex.id,
+                to=robot,
+                cost=won.cost,
+                was=ex.cost,
+            )
+            return
+
+    async def _assign(self, req: AssignmentRequest, task: AssignmentTask, node: Capability) -> None:
         try:
             won = await self.strategy.assign(task)
         except asyncio.CancelledError:
@@ -330,11 +424,13 @@ class MissionControl(Actor):
         self.stats.assigned += 1
         if won.robot == self.robot:
             run = self._local_runs.pop(task.execution)
-            req.execution = LocalExecution(self, task.execution, run)
+            ex: LocalExecution | RemoteExecution = LocalExecution(
+                self, task.execution, run, node, won.cost
+            )
         else:
-            ex = RemoteExecution(self, task.execution, won.robot)
-            self.origin_executions[ex.id] = ex
-            req.execution = ex
+            ex = self._remote(task.execution, won.robot, node, won.cost)
+        self.active[ex.id] = ex
+        req.execution = ex
         if req.cancelled:
             req.execution.cancel("request cancelled")
             req.execution = None
@@ -355,6 +451,7 @@ class MissionControl(Actor):
         ex.detail = msg.detail
         if msg.state in DONE:
             self.origin_executions.pop(ex.id, None)
+            self.active.pop(ex.id, None)
 
     @handler
     def on_keepalive(self, msg: KeepAlive) -> None:

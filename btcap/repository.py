@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import structlog
 
@@ -36,6 +36,7 @@ class CapabilityRepository(Actor):
         self.succeeded: set[str] = set()
         self.team: dict[str, RepositoryState] = {}
         self._unsubscribe: object = None
+        self._listeners: list[Callable[[str], None]] = []
 
     # -- local content ----------------------------------------------------------------
     def add_interface(self, interface: CapabilityInterface) -> None:
@@ -85,6 +86,12 @@ class CapabilityRepository(Actor):
             self._changed()
 
     # -- team view --------------------------------------------------------------------
+    def subscribe(self, listener: Callable[[str], None]) -> Callable[[], None]:
+        """Call ``listener(robot)`` when a teammate's capabilities are first known (a join:
+        the membership event comes before its capabilities do)."""
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+
     def providers(self, identity: str) -> set[str]:
         """Robots (this one included) that implement the interface with this identity."""
         robots = {r for r, st in self.team.items() if identity in st.interfaces.values()}
@@ -138,6 +145,12 @@ class CapabilityRepository(Actor):
         known = self.team.get(msg.robot)
         if known is None or msg.version >= known.version:
             self.team[msg.robot] = msg
+        if known is None:
+            for listener in list(self._listeners):
+                try:
+                    listener(msg.robot)
+                except Exception as exc:
+                    log.error("repository.listener_failed", robot=self.robot, exc_info=exc)
 
     @handler
     def on_query(self, msg: RepositoryQuery) -> None:

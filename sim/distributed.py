@@ -55,6 +55,7 @@ class ProcessHost:
             "keepalive_s": t.keepalive_s,
             "auction_window_s": t.auction_window_s,
             "award_timeout_s": t.award_timeout_s,
+            "rebid_on_join": t.rebid_on_join,
         }
         self._scenario = msgspec.to_builtins(s)
 

@@ -95,6 +95,8 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
     events: list[Event] = []
     sim: SimSettings = SimSettings()
     agent: AgentTiming = AgentTiming()
+    #: Move running work to a joining robot that bids this fraction cheaper (None: never).
+    rebid_on_join: float | None = None
     source: str = "<scenario>"
 
     def models(self) -> dict[str, RobotModel]:
@@ -166,6 +168,8 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
     if not 0 <= s.sim.delay_jitter <= 1:
         raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
+    if s.rebid_on_join is not None and not 0 < s.rebid_on_join < 1:
+        raise bad("rebid_on_join", f"expected a fraction within (0, 1), got {s.rebid_on_join}")
     t = s.agent
     for name in AgentTiming.__struct_fields__:
         if not getattr(t, name) > 0:

@@ -59,6 +59,7 @@ def _no_trace(agent: Agent) -> bool:
         and not mc.hosted
         and not mc._local_runs
         and not mc.origin_executions
+        and not mc.active
         and (slot is None or slot.current is None)
     )
 
@@ -319,6 +320,72 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             assert root_node.state is State.SUCCEEDED
             await tree.shutdown()
             await tree2.shutdown()
+
+
+@pytest.mark.parametrize("executor", ["a", "b"])
+@pytest.mark.parametrize(("joiner_cost", "moves"), [(1.0, True), (2.5, False)])
+async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
+    executor: str, joiner_cost: float, moves: bool
+) -> None:
+    # The executor won with a bid of 3.0 (run locally by the origin a, or remotely by b);
+    # with a 25 % margin a joiner must bid below 2.25 to take the work over.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(rebid_on_join=0.25) as t:
+            a = await t.add("a", [count_impl("a", 3.0 if executor == "a" else 5.0, probe)])
+            b = await t.add("b", [count_impl("b", 3.0 if executor == "b" else 5.0, probe)])
+            await t.converged()
+            node = _count(x=1)
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, executor)
+            node.set_input("x", 7)
+            await tick_until(tree, _output_is(node, "y", 7), "the executor to see x=7")
+            auctions = a.auctioneer.stats.auctions
+            c = await t.add("c", [count_impl("c", joiner_cost, probe, k=100)])
+            await t.converged()
+            await until(lambda: a.auctioneer.stats.auctions > auctions, "the offer to c")
+            if moves:
+                await _running_on(tree, node, "c")
+                assert node.assignments == [executor, "c"]
+                # c started from the latest inputs, and the old run is gone.
+                assert [x for robot, x in probe.first_x.values() if robot == "c"] == [7]
+                await tick_until(tree, _output_is(node, "y", 700), "c's outputs")
+                old = t[executor]
+                await until(lambda: probe.live(executor) == 0, "the old run to shut down")
+                assert old.mission_control.occupied is None
+                assert (a.mission_control.stats.moved, a.mission_control.stats.lost) == (1, 0)
+            else:
+                for _ in range(40):  # keep working with c in the team
+                    tree.tick()
+                    await anyio.sleep(0.005)
+                assert node.assignments == [executor]
+                assert probe.ticks["c"] == 0
+                assert c.mission_control.occupied is None
+                assert a.mission_control.stats.moved == 0
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree.shutdown()
+            await until(lambda: all(_no_trace(x) for x in (a, b, c)), "no trace anywhere")
+            assert sum(probe.live(r) for r in "abc") == 0
+
+
+async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(rebid_on_join=0.25) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("b", [count_impl("b", 3.0, probe)])
+            await t.converged()
+            node = _count()
+            tree = a.mission(Sequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            c = await t.add("c", [count_impl("c", 1.0, probe)])
+            # Stop ticking: the replacement is made but never adopted by the node.
+            await until(lambda: a.mission_control.stats.moved == 1, "the move to c")
+            assert c.mission_control.occupied is not None
+            tree.reset()
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+            await tree.shutdown()
 
 
 # -- preconditions ------------------------------------------------------------------------
