@@ -417,9 +417,9 @@ class ActorSystem:
 
     def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None:
         self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
-        self._log.warning(
-            "actors.dropped", reason=reason, to=str(address), message=type(msg).__qualname__
-        )
+        # A reply after its ask timed out or was cancelled is routine, not a fault.
+        emit = self._log.info if reason == "late_reply" else self._log.warning
+        emit("actors.dropped", reason=reason, to=str(address), message=type(msg).__qualname__)
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None:
         self.stats.escalations += 1

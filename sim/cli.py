@@ -92,6 +92,7 @@ def summary_table(results: list[MissionResult]) -> Group:
         ("decontaminated", [f"{r.summary['decontaminated']:.0f}" for r in results]),
         ("auctions", [str(r.auctions) for r in results]),
         ("re-assignments", [str(r.reassignments) for r in results]),
+        ("moved to joiners", [str(r.moved) for r in results]),
         ("failures survived", [str(r.failures_survived) for r in results]),
     ]
     for label, cells in rows:

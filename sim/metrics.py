@@ -58,6 +58,7 @@ class MissionResult(msgspec.Struct):
     assignments: dict[str, list[str]]
     timeline: list[Interval]
     marks: list[Mark]
+    moved: int = 0  # running work moved to a cheaper robot that joined (rebid_on_join)
 
     def to_json(self) -> bytes:
         return msgspec.json.format(msgspec.json.encode(self), indent=2)
@@ -141,6 +142,7 @@ def collect(
         timeline,
         # Team changes only: "changed" (a member's capabilities changed) is no mark.
         [Mark(round(t - started, 3), ev, robot) for t, ev, robot in marks if ev != "changed"],
+        operator.mission_control.stats.moved,
     )
 
 

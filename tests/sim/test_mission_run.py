@@ -149,6 +149,7 @@ async def test_dynamic_team_mission_survives_joins_leaves_and_failures() -> None
     assert result.reassignments > 0
     assert any(r != "husky1" for r in explore[1:])
     assert result.failures_survived == 2
+    assert result.moved == 0  # the default policy never moves healthy work
     # Present only between join and leave; away while failed.
     assert result.robots["bebop1"].present_s == pytest.approx(370.0)
     assert result.robots["husky1"].present_s == pytest.approx(result.mission_time_s - 200.0)
@@ -161,6 +162,26 @@ async def test_dynamic_team_mission_survives_joins_leaves_and_failures() -> None
             assert iv.end <= down + 0.5, iv
             if iv.end > down - 0.5:
                 assert not iv.ok, iv
+
+
+async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
+    # No failure this time: husky1 is healthy and exploring when the Bebop joins at t=30.
+    s = msgspec.structs.replace(
+        load_scenario(DYNAMIC),
+        rebid_on_join=0.25,
+        events=[e for e in load_scenario(DYNAMIC).events if e.kind != "fail"],
+    )
+    with anyio.fail_after(30):
+        result = await run_scenario(s)
+    assert_sound(result, s)
+    assert result.moved >= 1
+    assert result.reassignments == 0  # a move is no loss
+    explore = next(v for k, v in result.assignments.items() if k.endswith("/explore"))
+    assert explore[:2] == ["husky1", "bebop1"]
+    # husky1's exploration was cut short by the move, not finished.
+    husky_explores = [i for i in result.timeline if i.robot == "husky1" and i.kind == "explore"]
+    assert husky_explores
+    assert not husky_explores[0].ok
 
 
 async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
