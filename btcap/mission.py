@@ -5,7 +5,8 @@ into an auction and the winner into an :class:`~btcap.capability.Execution`. On 
 executor side it bids, accepts or declines awards, and runs accepted implementations in
 the robot's :class:`~btcap.slot.RemoteCapabilitySlot` (or, when the origin wins its own
 auction, hands the run straight to the capability node). Every robot has one body, so it
-runs at most one execution at a time, local or remote.
+runs at most one execution at a time, local or remote; with ``queue_after_current`` it
+may hold one more, accepted and waiting for the body.
 """
 
 from __future__ import annotations
@@ -74,6 +75,9 @@ class MissionConfig:
     #: bid the current executor won with (0.25: a quarter cheaper). None, the default:
     #: healthy work is never moved by a join.
     rebid_on_join: float | None = None
+    #: A busy robot also bids for one more execution, to start when its current work
+    #: ends, at its current bid plus the new one. Off: a busy robot declines to bid.
+    queue_after_current: bool = False
 
 
 @dataclass(slots=True)
@@ -149,6 +153,8 @@ class LocalExecution(_OriginExecution):
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
         if self.replacement is not None:
             return None, {}  # moved: the node adopts the replacement
+        if self._mc.occupied != self.id:
+            return State.ASSIGNED, {}  # queued behind this robot's current work
         state, outputs = self.run.step(inputs)
         if state is State.SUCCEEDED:
             self._mc.repository.record_success(self.run.implementation.interface.name)
@@ -234,6 +240,9 @@ class MissionControl(Actor):
         self.stats = MissionStats()
         self.slot: RemoteCapabilitySlot | None = None
         self.occupied: str | None = None  # the execution using this robot's body
+        self.queued: str | None = None  # accepted, to start when the body is free
+        self._occupied_cost = 0.0  # what the robot bid for them: queued bids add it
+        self._queued_cost = 0.0
         self.origin_executions: dict[str, RemoteExecution] = {}
         # Every execution a capability node of this robot holds, local or remote.
         self.active: dict[str, LocalExecution | RemoteExecution] = {}
@@ -481,8 +490,11 @@ class MissionControl(Actor):
         impls = self.repository.local_implementations(cfb.interface, cfb.identity)
         if not impls:
             return NoBid(cfb.auction, self.robot, "no matching implementation")
+        wait = 0.0
         if self.occupied is not None:
-            return NoBid(cfb.auction, self.robot, "busy")
+            if not self.config.queue_after_current or self.queued is not None:
+                return NoBid(cfb.auction, self.robot, "busy")
+            wait = self._occupied_cost
         if self.slot is None and cfb.auctioneer != self.robot:
             return NoBid(cfb.auction, self.robot, "no remote capability slot")  # award would fail
         try:
@@ -510,7 +522,7 @@ class MissionControl(Actor):
                 best = (cost, impl.name)
         if best is None:
             return NoBid(cfb.auction, self.robot, "; ".join(reasons))
-        return Bid(cfb.auction, self.robot, best[0], best[1])
+        return Bid(cfb.auction, self.robot, wait + best[0], best[1])
 
     @handler
     def on_call_for_bids(self, msg: CallForBids) -> None:
@@ -528,7 +540,8 @@ class MissionControl(Actor):
             self.stats.declined += 1
             return AwardReply(msg.execution, self.robot, False, reason)
 
-        if self.occupied is not None:
+        queue = self.occupied is not None
+        if queue and (not self.config.queue_after_current or self.queued is not None):
             return decline(f"busy with {self.occupied}")
         impl = next(
             (
@@ -548,6 +561,7 @@ class MissionControl(Actor):
             return decline("no remote capability slot")
         try:
             inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
+            cost = self._cost_of(impl, inputs)
             run = self._take_run(impl)
             # Its nodes become actors of this robot, at a path unique to the execution.
             run.tree.name = msg.execution.replace("/", ".")
@@ -561,12 +575,13 @@ class MissionControl(Actor):
         hosted = Hosted(msg.execution, msg.origin, run, inputs, self.system.clock.now())
         refused: str | None = None
         try:
-            # Set up now, so an implementation that cannot start is declined, not run.
-            if remote:
+            # Set up now, so an implementation that cannot start is declined, not run
+            # (a queued remote run is set up when the slot takes it).
+            if not remote:
+                run.tree.setup()
+            elif not queue:
                 assert self.slot is not None
                 refused = self.slot.load(hosted)
-            else:
-                run.tree.setup()
         except Exception as exc:
             refused = f"setup of {impl.name!r} failed: {exc}"
         if refused is not None:
@@ -577,8 +592,33 @@ class MissionControl(Actor):
             self.stats.hosted += 1
         else:
             self._local_runs[msg.execution] = run
-        self.occupied = msg.execution
+        if queue:
+            self.queued, self._queued_cost = msg.execution, cost
+        else:
+            self.occupied, self._occupied_cost = msg.execution, cost
         return AwardReply(msg.execution, self.robot, True)
+
+    def _cost_of(self, impl: Implementation, inputs: Mapping[str, Any]) -> float:
+        try:
+            return impl.cost(inputs) or 0.0
+        except Exception:  # it bid before: a failing estimate only loses queue precision
+            return 0.0
+
+    def _start_queued(self) -> None:
+        """The body is free: the queued execution takes it."""
+        eid, self.queued = self.queued, None
+        self.occupied, self._occupied_cost = eid, self._queued_cost
+        h = self.hosted.get(eid) if eid is not None else None
+        if h is None:
+            return  # a local run: its capability node starts ticking it
+        assert self.slot is not None
+        try:
+            refused = self.slot.load(h)
+        except Exception as exc:
+            refused = f"setup of {h.run.implementation.name!r} failed: {exc}"
+        if refused is not None:
+            self._to_mc(h.origin, ExecutionStatus(h.id, self.robot, _LOST, {}, h.seq, refused))
+            self._drop_hosted(h, refused)
 
     def _take_run(self, impl: Implementation) -> ImplementationRun:
         """A fresh instance, built ahead of the award when possible (building costs more
@@ -632,8 +672,9 @@ class MissionControl(Actor):
         h = self.hosted.get(msg.execution)
         if h is not None:
             h.paused = True
-            h.run.pause()
-            h.state = State.PAUSED
+            if h.id != self.queued:  # a queued run has not started: nothing to pause
+                h.run.pause()
+                h.state = State.PAUSED
 
     @handler
     def on_cancel(self, msg: CancelExecution) -> None:
@@ -666,9 +707,13 @@ class MissionControl(Actor):
 
     def _release(self, execution: str, run: ImplementationRun) -> None:
         self._local_runs.pop(execution, None)
+        if self.queued == execution:
+            self.queued = None
+        self._close(run)
         if self.occupied == execution:
             self.occupied = None
-        self._close(run)
+            if self.queued is not None and self._system is not None and self.system.running:
+                self._start_queued()
 
     def _close(self, run: ImplementationRun) -> None:
         # Shut the nodes down at once, so nothing of the run works on (also when the

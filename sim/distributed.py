@@ -56,6 +56,7 @@ class ProcessHost:
             "auction_window_s": t.auction_window_s,
             "award_timeout_s": t.award_timeout_s,
             "rebid_on_join": t.rebid_on_join,
+            "queue_after_current": t.queue_after_current,
         }
         self._scenario = msgspec.to_builtins(s)
 

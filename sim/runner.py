@@ -61,7 +61,8 @@ def agent_config(s: Scenario) -> AgentConfig:
         keepalive_s=t.keepalive_s,
         auction_window_s=t.auction_window_s,
         award_timeout_s=t.award_timeout_s,
-        rebid_on_join=s.rebid_on_join,
+        rebid_on_join=s.allocation.rebid_on_join,
+        queue_after_current=s.allocation.queue_after_current,
     )
 
 

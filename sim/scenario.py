@@ -12,6 +12,7 @@ from sim.model import RobotModel, load_team, paper_team
 
 __all__ = [
     "AgentTiming",
+    "Allocation",
     "CaveSpec",
     "Event",
     "MapSpec",
@@ -78,6 +79,15 @@ class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     award_timeout_s: float = 10.0
 
 
+class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """Optional policies of the auctions (see :class:`btcap.mission.MissionConfig`)."""
+
+    #: Move running work to a joining robot that bids this fraction cheaper (None: never).
+    rebid_on_join: float | None = None
+    #: A busy robot bids for one more task, to start after its current one.
+    queue_after_current: bool = False
+
+
 class Scenario(msgspec.Struct, forbid_unknown_fields=True):
     """One mission: who takes part, what happens to them, and how fast time runs."""
 
@@ -95,8 +105,7 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
     events: list[Event] = []
     sim: SimSettings = SimSettings()
     agent: AgentTiming = AgentTiming()
-    #: Move running work to a joining robot that bids this fraction cheaper (None: never).
-    rebid_on_join: float | None = None
+    allocation: Allocation = Allocation()
     source: str = "<scenario>"
 
     def models(self) -> dict[str, RobotModel]:
@@ -168,8 +177,9 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
     if not 0 <= s.sim.delay_jitter <= 1:
         raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
-    if s.rebid_on_join is not None and not 0 < s.rebid_on_join < 1:
-        raise bad("rebid_on_join", f"expected a fraction within (0, 1), got {s.rebid_on_join}")
+    margin = s.allocation.rebid_on_join
+    if margin is not None and not 0 < margin < 1:
+        raise bad("allocation.rebid_on_join", f"expected a fraction within (0, 1), got {margin}")
     t = s.agent
     for name in AgentTiming.__struct_fields__:
         if not getattr(t, name) > 0:

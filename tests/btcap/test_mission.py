@@ -56,6 +56,7 @@ def _no_trace(agent: Agent) -> bool:
     slot = mc.slot
     return (
         mc.occupied is None
+        and mc.queued is None
         and not mc.hosted
         and not mc._local_runs
         and not mc.origin_executions
@@ -388,6 +389,86 @@ async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -
             await tree.shutdown()
 
 
+# -- queueing work after the current work -------------------------------------------------
+
+
+@pytest.mark.parametrize("executor", ["a", "b"])
+async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
+    executor: str,
+) -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        other = "b" if executor == "a" else "a"
+        async with team(queue_after_current=True) as t:
+            cost = {executor: 1.0, other: 5.0}
+            a = await t.add("a", [count_impl("a", cost["a"], probe)])
+            await t.add("b", [count_impl("b", cost["b"], probe)])
+            await t.converged()
+            mc = t[executor].mission_control
+            first, second, third = _count("first"), _count("second"), _count("third")
+            tree1 = a.mission(Sequence("root1", children=[first]))
+            await _running_on(tree1, first, executor)
+            # Busy, the executor bids 1 + 1 = 2 < 5 and takes the second as queued work.
+            tree2 = a.mission(Sequence("root2", children=[second]))
+            await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
+            assert second.assignments == [executor]
+            assert mc.queued is not None
+            # Its queue is full: the third goes to the other robot.
+            tree3 = a.mission(Sequence("root3", children=[third]))
+            await _running_on(tree3, third, other)
+            for _ in range(20):  # the queued run waits; it is never ticked beside the first
+                tree1.tick()
+                tree2.tick()
+                assert second.state is State.ASSIGNED
+                await anyio.sleep(0.005)
+            assert len([r for r, _x in probe.first_x.values() if r == executor]) == 1
+            second.set_input("x", 9)
+            tree2.tick()
+            first.set_input("stop", True)
+            assert await tick_until(tree1, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await _running_on(tree2, second, executor)
+            assert [x for r, x in probe.first_x.values() if r == executor] == [1, 9]
+            assert mc.queued is None
+            for node, tree in ((second, tree2), (third, tree3)):
+                node.set_input("stop", True)
+                assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                await tree.shutdown()
+            await tree1.shutdown()
+            assert probe.violations == []
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+
+
+@pytest.mark.parametrize("executor", ["a", "b"])
+async def test_a_queued_execution_cancelled_before_it_starts_leaves_no_trace(
+    executor: str,
+) -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(queue_after_current=True) as t:
+            other = "b" if executor == "a" else "a"
+            cost = {executor: 1.0, other: 5.0}
+            a = await t.add("a", [count_impl("a", cost["a"], probe)])
+            await t.add("b", [count_impl("b", cost["b"], probe)])
+            await t.converged()
+            mc = t[executor].mission_control
+            first, second = _count("first"), _count("second")
+            tree1 = a.mission(Sequence("root1", children=[first]))
+            await _running_on(tree1, first, executor)
+            tree2 = a.mission(Sequence("root2", children=[second]))
+            await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
+            tree2.untick()  # a queued run pauses without harm
+            tree2.reset()
+            await until(lambda: mc.queued is None, "the queued run to go")
+            await tick_until(tree1, lambda _s: first.outputs["ticks"] > 3, "first still runs")
+            first.set_input("stop", True)
+            assert await tick_until(tree1, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree1.shutdown()
+            await tree2.shutdown()
+            assert len(probe.first_x) == 1  # the queued run never ran
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+            assert sum(probe.live(r) for r in "ab") == 0
+
+
 # -- preconditions ------------------------------------------------------------------------
 
 FIRST = CapabilityInterface(
@@ -575,12 +656,14 @@ def _check_exclusive(t: Team, trees: list[Tree], probe: Probe) -> None:
             for n in tree.nodes()
             if isinstance(n, Capability) and isinstance(n.execution, LocalExecution)
         ]
-        busy = len(mc.hosted) + len(mc._local_runs) + len(local_nodes)
-        assert busy <= 1, f"{robot} runs {busy} executions at once"
-        if busy:
+        # One running; with queueing, one more accepted and waiting.
+        held = len(mc.hosted) + len(mc._local_runs) + len(local_nodes)
+        most = 2 if mc.config.queue_after_current else 1
+        assert held <= most, f"{robot} holds {held} executions at once"
+        if held:
             assert mc.occupied is not None
         for eid in mc.hosted:
-            assert mc.occupied == eid
+            assert eid in (mc.occupied, mc.queued)
             assert eid not in where, f"{eid} hosted on {where[eid]} and {robot}"
             where[eid] = robot
     for tree in trees:
@@ -590,10 +673,12 @@ def _check_exclusive(t: Team, trees: list[Tree], probe: Probe) -> None:
                 assert where.get(ex.id, ex.robot) == ex.robot
 
 
-async def _storm(costs: list[float], durations: list[int], load: list[tuple[int, int]]) -> None:
+async def _storm(
+    costs: list[float], durations: list[int], load: list[tuple[int, int]], queue: bool
+) -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team() as t:
+        async with team(queue_after_current=queue) as t:
             robots = [f"r{i}" for i in range(len(costs))]
             for robot, cost, after in zip(robots, costs, durations, strict=True):
                 await t.add(robot, [count_impl(robot, cost, probe, after=after)])
@@ -628,11 +713,12 @@ async def _storm(costs: list[float], durations: list[int], load: list[tuple[int,
     costs=st.lists(st.sampled_from([0.5, 1.0, 2.0]), min_size=2, max_size=3),
     durations=st.lists(st.integers(1, 4), min_size=3, max_size=3),
     load=st.lists(st.tuples(st.integers(0, 2), st.integers(1, 3)), min_size=1, max_size=3),
+    queue=st.booleans(),
 )
 def test_no_robot_ever_runs_two_executions_at_once(
-    costs: list[float], durations: list[int], load: list[tuple[int, int]]
+    costs: list[float], durations: list[int], load: list[tuple[int, int]], queue: bool
 ) -> None:
-    asyncio.run(_storm(costs, durations[: len(costs)], load))
+    asyncio.run(_storm(costs, durations[: len(costs)], load, queue))
 
 
 # -- results ----------------------------------------------------------------------------------

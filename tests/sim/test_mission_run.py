@@ -18,7 +18,7 @@ import pytest
 from actors import ManualClock
 from sim.metrics import Interval, MissionResult
 from sim.runner import Progress, run_scenario
-from sim.scenario import Scenario, load_scenario
+from sim.scenario import Allocation, Scenario, load_scenario
 from sim.store import MissionState
 
 DATA = Path(__file__).parent / "data"
@@ -168,7 +168,7 @@ async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
     # No failure this time: husky1 is healthy and exploring when the Bebop joins at t=30.
     s = msgspec.structs.replace(
         load_scenario(DYNAMIC),
-        rebid_on_join=0.25,
+        allocation=Allocation(rebid_on_join=0.25),
         events=[e for e in load_scenario(DYNAMIC).events if e.kind != "fail"],
     )
     with anyio.fail_after(30):

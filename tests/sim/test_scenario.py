@@ -317,8 +317,9 @@ def test_bad_map_spec(tmp_path: Path, map_spec: str, fragment: str) -> None:
         ("seed: 3", "seed: 3\nagent: {auction_window_s: -1}", "agent.auction_window_s"),
         ("seed: 3", "seed: 3\nsim: {step_s: 0}", "sim.step_s"),
         ("seed: 3", "seed: 3\nsim: {delay_jitter: 1.5}", "sim.delay_jitter"),
-        ("seed: 3", "seed: 3\nrebid_on_join: 1.0", "rebid_on_join"),
-        ("seed: 3", "seed: 3\nrebid_on_join: 0", "rebid_on_join"),
+        ("seed: 3", "seed: 3\nallocation: {rebid_on_join: 1.0}", "allocation.rebid_on_join"),
+        ("seed: 3", "seed: 3\nallocation: {rebid_on_join: 0}", "allocation.rebid_on_join"),
+        ("seed: 3", "seed: 3\nallocation: {queue: true}", "allocation"),
     ],
 )
 def test_bad_values(tmp_path: Path, old: str, new: str, field: str) -> None:
