@@ -233,6 +233,13 @@ class Team:
     def __getitem__(self, robot: str) -> Agent:
         return self.agents[robot]
 
+    async def origin_and_executor(self, probe: Probe) -> tuple[Agent, Agent]:
+        """Robot "a" with no implementation and "b" running COUNT for it, converged."""
+        a = await self.add("a")
+        b = await self.add("b", [count_impl("b", 1.0, probe)])
+        await self.converged()
+        return a, b
+
     async def converged(self, identity: str = COUNT.identity) -> None:
         """Every agent sees every other as alive, and knows what each provides."""
         robots = set(self.agents)

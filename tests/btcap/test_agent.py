@@ -149,9 +149,7 @@ async def test_cancelling_a_running_mission_releases_the_executor() -> None:
     with anyio.fail_after(10):
         probe = Probe()
         async with team() as t:
-            a = await t.add("a")
-            b = await t.add("b", [count_impl("b", 1.0, probe)])
-            await t.converged()
+            a, b = await t.origin_and_executor(probe)
             node = COUNT.node_type()("count", inputs={"x": 1})
             task = asyncio.get_running_loop().create_task(
                 a.run_mission(Sequence("root", children=[node]))

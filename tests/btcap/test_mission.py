@@ -119,9 +119,7 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
     with anyio.fail_after(10):
         probe = Probe()
         async with team() as t:
-            a = await t.add("a")
-            b = await t.add("b", [count_impl("b", 1.0, probe)])
-            await t.converged()
+            a, b = await t.origin_and_executor(probe)
             node = _count()
             tree = a.mission(Sequence("root", children=[node]))
             await _running_on(tree, node, "b")
@@ -181,9 +179,7 @@ async def test_reset_and_shutdown_cancel_the_remote_run_without_trace() -> None:
     with anyio.fail_after(10):
         probe = Probe()
         async with team() as t:
-            a = await t.add("a")
-            b = await t.add("b", [count_impl("b", 1.0, probe)])
-            await t.converged()
+            a, b = await t.origin_and_executor(probe)
             node = _count()
             tree = a.mission(Sequence("root", children=[node]))
             await _running_on(tree, node, "b")

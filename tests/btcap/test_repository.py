@@ -89,9 +89,7 @@ async def test_success_is_gossiped_for_remote_preconditions() -> None:
     with anyio.fail_after(10):
         probe = Probe()
         async with team() as t:
-            a = await t.add("a")
-            b = await t.add("b", [count_impl("b", 1.0, probe)])
-            await t.converged()
+            a, b = await t.origin_and_executor(probe)
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED

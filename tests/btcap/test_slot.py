@@ -35,9 +35,7 @@ async def test_remote_run_in_a_slot_leaves_no_trace() -> None:
     with anyio.fail_after(10):
         probe = Probe()
         async with team() as t:
-            a = await t.add("a")
-            b = await t.add("b", [count_impl("b", 1.0, probe)])
-            await t.converged()
+            a, b = await t.origin_and_executor(probe)
             slot = b.mission_control.slot
             assert isinstance(slot, RemoteCapabilitySlot)
             node = COUNT.node_type()("count", inputs={"x": 2})
