@@ -381,6 +381,7 @@ class MissionControl(Actor):
                 ex.id not in self.active
                 or ex.replacement is not None
                 or ex.robot == robot
+                or node.state is State.PAUSED  # no work may start for a paused node
                 or node.options["local_only"]
                 or robot not in self.repository.providers(iface.identity)
             ):
