@@ -34,6 +34,7 @@ class AssignmentTask:
     origin: str
     lease_s: float
     reserve: float | None = None  # award only bids cheaper than this (moving running work)
+    paused: bool = False  # the winner holds the run until its first inputs
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,6 +136,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 task.origin,
                 me,
                 task.lease_s,
+                task.paused,
             )
             try:
                 reply = await system.ref(f"{bid.robot}/mission_control").ask(

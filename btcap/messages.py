@@ -95,7 +95,8 @@ class NoBid(Message):
 
 
 class Award(Message):
-    """You won: start ``implementation`` now as execution ``execution``."""
+    """You won: start ``implementation`` now as execution ``execution`` (or, ``paused``,
+    when its first inputs arrive: work being moved must not run twice)."""
 
     auction: str
     execution: str
@@ -105,6 +106,7 @@ class Award(Message):
     origin: str
     reply_to: str
     lease_s: float
+    paused: bool = False
 
 
 class AwardReply(Message):

@@ -14,7 +14,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -131,7 +131,14 @@ class _OriginExecution:
     def hand_over(self) -> RemoteExecution | None:
         """The execution taking over from this one, now the caller's to hold."""
         nxt, self.replacement = self.replacement, None
-        return nxt
+        return nxt if nxt is not None and not nxt.lost else None
+
+    def _moving(self) -> bool:
+        """A replacement waits to be adopted (one lost on the way is forgotten)."""
+        nxt = self.replacement
+        if nxt is not None and nxt.lost:
+            self.replacement = nxt = None
+        return nxt is not None
 
 
 class LocalExecution(_OriginExecution):
@@ -151,7 +158,7 @@ class LocalExecution(_OriginExecution):
         self.run = run
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
-        if self.replacement is not None:
+        if self.replacement is not None and self._moving():
             return None, {}  # moved: the node adopts the replacement
         if self._mc.occupied != self.id:
             return State.ASSIGNED, {}  # queued behind this robot's current work
@@ -162,6 +169,8 @@ class LocalExecution(_OriginExecution):
 
     def pause(self) -> None:
         self.run.pause()
+        if self.replacement is not None:
+            self.replacement.pause()
 
     def cancel(self, reason: str) -> None:
         self._mc._ended(self, reason)
@@ -186,7 +195,9 @@ class RemoteExecution(_OriginExecution):
         self.last_heard = mc.system.clock.now()
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
-        if self.lost or (self.replacement is not None and self.state not in DONE):
+        if self.lost or (
+            self.replacement is not None and self.state not in DONE and self._moving()
+        ):
             return None, {}  # lost, or moved: the node adopts the replacement
         self.seq += 1
         self._mc._to_mc(self.robot, ExecutionInputs(self.id, self.seq, dict(inputs)))
@@ -195,11 +206,17 @@ class RemoteExecution(_OriginExecution):
     def pause(self) -> None:
         if not self.lost:
             self._mc._to_mc(self.robot, PauseExecution(self.id))
+        if self.replacement is not None:
+            self.replacement.pause()
 
     def cancel(self, reason: str) -> None:
         self._mc._ended(self, reason)
         if not self.lost:
             self._mc._to_mc(self.robot, CancelExecution(self.id, reason))
+
+
+def _paused(node: Capability) -> bool:
+    return node.state is State.PAUSED
 
 
 @dataclass(slots=True)
@@ -251,17 +268,20 @@ class MissionControl(Actor):
         self._finished: OrderedDict[str, ExecutionStatus] = OrderedDict()
         self._ids = itertools.count(1)
         self._spares: dict[tuple[str, str], ImplementationRun] = {}
+        self._unsubscribe: Callable[[], None] | None = None
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
         self.team.subscribe(self._on_team)
         if self.config.rebid_on_join is not None:
-            self.repository.subscribe(self._on_new_member)
+            self._unsubscribe = self.repository.subscribe(self._on_new_member)
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
     def on_stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
         # The robot is going away: what it runs for others or itself stops with it.
-        for h in list(self.hosted.values()):
+        for h in self._hosted_queued_first():
             self._drop_hosted(h, "robot stopping")
         for execution, run in list(self._local_runs.items()):
             self._release(execution, run)
@@ -277,7 +297,7 @@ class MissionControl(Actor):
         for ex in list(self.origin_executions.values()):
             if ex.robot == robot:
                 self._lose(ex, f"robot {robot} {event.value}")
-        for h in list(self.hosted.values()):
+        for h in self._hosted_queued_first():
             if h.origin == robot:
                 self._drop_hosted(h, f"origin {robot} {event.value}")
 
@@ -295,13 +315,17 @@ class MissionControl(Actor):
                     by_robot.setdefault(ex.robot, []).append(ex.id)
             # The executor gives up a little before the origin re-assigns, so the two
             # runs of a partitioned execution never overlap.
-            for h in list(self.hosted.values()):
+            for h in self._hosted_queued_first():
                 if now - h.last_heard > 0.8 * cfg.lease_s:
                     self._drop_hosted(h, "origin lease lapsed")
                 else:
                     by_robot.setdefault(h.origin, []).append(h.id)
             for robot, ids in by_robot.items():
                 self._to_mc(robot, KeepAlive(self.robot, ids))
+
+    def _hosted_queued_first(self) -> list[Hosted]:
+        """Dropping several, the queued one goes first: it must not start on the way."""
+        return sorted(self.hosted.values(), key=lambda h: h.id != self.queued)
 
     def _lose(self, ex: RemoteExecution, why: str) -> None:
         if ex.lost:
@@ -381,7 +405,7 @@ class MissionControl(Actor):
                 ex.id not in self.active
                 or ex.replacement is not None
                 or ex.robot == robot
-                or node.state is State.PAUSED  # no work may start for a paused node
+                or _paused(node)  # no work may start for a paused node
                 or node.options["local_only"]
                 or robot not in self.repository.providers(iface.identity)
             ):
@@ -396,12 +420,19 @@ class MissionControl(Actor):
                 self.robot,
                 self.config.lease_s,
                 reserve=ex.cost * (1.0 - margin),
+                paused=True,  # it starts with the node's next inputs, as the old run stops
             )
             won = await self.strategy.assign(task)
             if won is None:
                 continue
             new = self._remote(execution, won.robot, node, won.cost)
-            if ex.id not in self.active:  # it ended while we asked
+            # Meanwhile the work may have ended, been paused, or been moved elsewhere.
+            if (
+                ex.id not in self.active
+                or ex.replacement is not None
+                or node.execution is not ex
+                or _paused(node)
+            ):
                 new.cancel("no longer needed")
                 continue
             ex.replacement = new
@@ -573,7 +604,9 @@ class MissionControl(Actor):
                     "mission.build_failed", robot=self.robot, implementation=impl.name, exc_info=exc
                 )
             return decline(str(exc))
-        hosted = Hosted(msg.execution, msg.origin, run, inputs, self.system.clock.now())
+        hosted = Hosted(
+            msg.execution, msg.origin, run, inputs, self.system.clock.now(), paused=msg.paused
+        )
         refused: str | None = None
         try:
             # Set up now, so an implementation that cannot start is declined, not run

@@ -4,6 +4,7 @@ joins, preconditions, and hostile or stray protocol messages."""
 from __future__ import annotations
 
 import asyncio
+from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
@@ -25,6 +26,7 @@ from structlog.testing import capture_logs
 
 from btcap import AlwaysFailure, Leaf, Parallel, Sequence, State, Tree
 from btcap.agent import Agent
+from btcap.assignment import Assigned, AssignmentTask
 from btcap.capability import (
     Capability,
     CapabilityInterface,
@@ -44,7 +46,7 @@ from btcap.messages import (
     NoBid,
     PauseExecution,
 )
-from btcap.mission import LocalExecution, RemoteExecution
+from btcap.mission import LocalExecution, MissionControl, RemoteExecution
 
 
 def _count(name: str = "count", **inputs: Any) -> Capability:
@@ -382,6 +384,116 @@ async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -
             assert c.mission_control.occupied is not None
             tree.reset()
             await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+            await tree.shutdown()
+
+
+def _slow_offers(mc: MissionControl, before: float = 0.0, after: float = 0.0) -> Counter[str]:
+    """Stretch the offers of running work (auctions with a reserve) in wall time, as a far
+    robot would; counts the offers "started" and "finished"."""
+    real = mc.strategy.assign
+    offers: Counter[str] = Counter()
+
+    async def assign(task: AssignmentTask) -> Assigned | None:
+        if task.reserve is None:
+            return await real(task)
+        offers["started"] += 1
+        await asyncio.sleep(before)
+        won = await real(task)
+        await asyncio.sleep(after)
+        offers["finished"] += 1
+        return won
+
+    mc.strategy.assign = assign  # type: ignore[method-assign]
+    return offers
+
+
+async def _moving_team(t: Team, probe: Probe) -> tuple[Agent, Capability, Tree]:
+    """a (origin) with its capability running on b (bid 3.0)."""
+    a = await t.add("a", [count_impl("a", 5.0, probe)])
+    await t.add("b", [count_impl("b", 3.0, probe)])
+    await t.converged()
+    node = _count()
+    tree = a.mission(Sequence("root", children=[node]))
+    await _running_on(tree, node, "b")
+    return a, node, tree
+
+
+async def test_two_robots_joining_at_once_take_the_work_over_only_once() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(rebid_on_join=0.25) as t:
+            a, node, tree = await _moving_team(t, probe)
+            offers = _slow_offers(a.mission_control, after=0.05)
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await t.add("d", [count_impl("d", 1.0, probe)])
+            await until(lambda: offers["started"] == 2, "offers to both joiners")
+            await tick_until(
+                tree,
+                lambda _s: node.execution is not None and node.execution.robot in ("c", "d"),
+                "the work on a joiner",
+            )
+            await until(lambda: offers["finished"] == 2, "both offers to end")
+            for _ in range(3):  # the second offer's award is withdrawn
+                tree.tick()
+                await anyio.sleep(0.005)
+            assert len(node.assignments) == 2
+            assert node.assignments[0] == "b"
+            assert a.mission_control.stats.moved == 1
+            for _ in range(20):
+                tree.tick()
+                await anyio.sleep(0.005)
+            busy = [r for r in "bcd" if t[r].mission_control.occupied is not None]
+            assert busy == node.assignments[1:]
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree.shutdown()
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+
+
+@pytest.mark.parametrize("when", ["during the offer", "before the hand-over"])
+async def test_no_moved_work_runs_for_a_paused_capability(when: str) -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(rebid_on_join=0.25) as t:
+            a, node, tree = await _moving_team(t, probe)
+            offers = _slow_offers(a.mission_control, before=0.05)
+            c = await t.add("c", [count_impl("c", 1.0, probe)])
+            if when == "during the offer":
+                await until(lambda: offers["started"] == 1, "the offer to c")
+                tree.untick()
+                await until(lambda: offers["finished"] == 1, "the offer to end")
+            else:
+                await until(lambda: a.mission_control.stats.moved == 1, "the move")
+                tree.untick()
+            await anyio.sleep(0.1)  # a few of c's host ticks (10 ms each)
+            assert probe.ticks["c"] == 0
+            assert node.state is State.PAUSED
+            # Ticking again resumes the work (on c if it was moved) and it completes.
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree.shutdown()
+            await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
+            assert c.mission_control.occupied is None
+
+
+async def test_a_replacement_lost_before_the_hand_over_leaves_the_work_where_it_was() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(rebid_on_join=0.25) as t:
+            a, node, tree = await _moving_team(t, probe)
+            running = node.execution
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await until(lambda: a.mission_control.stats.moved == 1, "the move")
+            await t.remove("c")  # the joiner goes before the node adopted its work
+            await until(lambda: a.mission_control.stats.lost == 1, "c's run lost")
+            for _ in range(10):
+                tree.tick()
+                await anyio.sleep(0.005)
+            assert node.execution is running  # b's healthy run goes on
+            assert node.assignments == ["b"]
+            assert probe.live("b") == 1
+            node.set_input("stop", True)
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             await tree.shutdown()
 
 
