@@ -42,7 +42,9 @@ def config(**over: Any) -> AgentConfig:
         "failure_timeout_s": 2.0,
         "lease_s": 2.0,
         "keepalive_s": 0.2,
-        "auction_window_s": 1.0,
+        # Auctions close as soon as everyone answered; the window only bounds silence, so
+        # it is long enough that a loaded machine never turns a late answer into none.
+        "auction_window_s": 20.0,
         "award_timeout_s": 1.0,
     }
     base.update(over)

@@ -90,7 +90,13 @@ async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
                 host=AlwaysRunning("busy"),
             )
             async with c:
-                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "c"})
+                await until(
+                    lambda: (
+                        a.repository.providers(COUNT.identity) == {"a", "c"}
+                        and "c" in a.team.alive()
+                    ),
+                    "a to know c",
+                )
                 assert c.mission_control.slot is None
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(Sequence("root", children=[node]))
