@@ -52,6 +52,9 @@ __all__ = ["run"]
 
 BIDDERS = (1, 3, 10, 50)
 WINDOW_S = 5.0  # long, so an auction that did not close early would show
+# Heartbeats every second, as a deployed team would run: with 51 agents on two cores, the
+# default 0.1 s (all-to-all, 25 000 messages a second) would be most of what they do.
+TEAM_TIMING = {"heartbeat_s": 1.0, "failure_timeout_s": 5.0}
 MISSION_TICK_HZ = 100.0  # how often the origin ticks its tree while waiting for fail-over
 _INPUTS = {"value": 1, "stop": False}
 _LOCAL = "127.0.0.1"
@@ -153,7 +156,7 @@ def _bidder_names(n: int) -> list[str]:
 
 
 def _origin_config() -> AgentConfig:
-    return AgentConfig(auction_window_s=WINDOW_S)
+    return AgentConfig(auction_window_s=WINDOW_S, **TEAM_TIMING)
 
 
 async def _bench_inproc(
@@ -168,6 +171,7 @@ async def _bench_inproc(
             transport=net.transport(name),
             registry=protocol_registry(),
             implementations=implementations(name, cost=1.0 + i),
+            config=AgentConfig(**TEAM_TIMING),
         )
         for i, name in enumerate(names)
     ]
@@ -214,7 +218,10 @@ async def _bench_zmq(
     groups: list[list[AgentSpec]] = [[] for _ in range(processes)]
     for i, name in enumerate(names):
         spec = AgentSpec(
-            robot=name, factory="btcap.demo:implementations", factory_args={"cost": 1.0 + i}
+            robot=name,
+            factory="btcap.demo:implementations",
+            factory_args={"cost": 1.0 + i},
+            config={**TEAM_TIMING},
         )
         groups[i % processes].append(spec)
     procs = spawn_agents(groups, timeout=60.0)
