@@ -215,10 +215,6 @@ class RemoteExecution(_OriginExecution):
             self._mc._to_mc(self.robot, CancelExecution(self.id, reason))
 
 
-def _paused(node: Capability) -> bool:
-    return node.state is State.PAUSED
-
-
 @dataclass(slots=True)
 class Hosted:
     """A run this robot executes for another robot's capability node."""
@@ -393,6 +389,17 @@ class MissionControl(Actor):
         if self.active and robot != self.robot:
             self.start_task(self._offer_to(robot), name=f"offer work to {robot}")
 
+    def _movable(self, ex: LocalExecution | RemoteExecution) -> bool:
+        """Running work its node holds, not being moved, and not paused (no work may start
+        for a paused node)."""
+        node = ex.node
+        return (
+            ex.id in self.active
+            and ex.replacement is None
+            and node.execution is ex
+            and node.state is not State.PAUSED
+        )
+
     async def _offer_to(self, robot: str) -> None:
         """Auction running work, costliest first, to ``robot`` alone with the current bid
         less the margin as reserve; the first award it accepts moves that work."""
@@ -402,10 +409,8 @@ class MissionControl(Actor):
             node = ex.node
             iface = type(node).INTERFACE
             if (
-                ex.id not in self.active
-                or ex.replacement is not None
+                not self._movable(ex)
                 or ex.robot == robot
-                or _paused(node)  # no work may start for a paused node
                 or node.options["local_only"]
                 or robot not in self.repository.providers(iface.identity)
             ):
@@ -426,13 +431,7 @@ class MissionControl(Actor):
             if won is None:
                 continue
             new = self._remote(execution, won.robot, node, won.cost)
-            # Meanwhile the work may have ended, been paused, or been moved elsewhere.
-            if (
-                ex.id not in self.active
-                or ex.replacement is not None
-                or node.execution is not ex
-                or _paused(node)
-            ):
+            if not self._movable(ex):  # it ended, paused or moved while we asked
                 new.cancel("no longer needed")
                 continue
             ex.replacement = new
