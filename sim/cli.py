@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import msgspec
 from rich.console import Console, Group
 from rich.live import Live
 from rich.table import Table
@@ -44,6 +45,17 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--distributed", action="store_true", help="every robot in its own OS process (ZeroMQ)"
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
+    p.add_argument(
+        "--rebid-on-join",
+        type=float,
+        metavar="FRACTION",
+        help="move running work to a joining robot that bids this fraction cheaper",
+    )
+    p.add_argument(
+        "--queue-after-current",
+        action="store_true",
+        help="busy robots bid for one more task, to start after their current one",
+    )
     p.add_argument("--quiet", action="store_true", help="no live display")
     p.set_defaults(handler=run_command)
 
@@ -148,9 +160,16 @@ def run_command(args: argparse.Namespace) -> int:
         scenarios = [resolve_scenario(n) for n in names]
     except ScenarioError as exc:  # a usage problem: the message names file and field
         raise CliError(str(exc)) from None
-    if args.speedup is not None:
-        for s in scenarios:
+    margin = args.rebid_on_join
+    if margin is not None and not 0 < margin < 1:
+        raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
+    for s in scenarios:
+        if args.speedup is not None:
             s.speedup = args.speedup
+        if margin is not None:
+            s.allocation = msgspec.structs.replace(s.allocation, rebid_on_join=margin)
+        if args.queue_after_current:
+            s.allocation = msgspec.structs.replace(s.allocation, queue_after_current=True)
     out = _out_dir(args, "compare" if args.compare else scenarios[0].name)
     results: list[MissionResult] = []
     for s in scenarios:

@@ -87,3 +87,29 @@ def test_resolve_scenario() -> None:
 def test_run_is_a_command(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "--help"]) == 0
     assert "--speedup" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("margin", ["0", "1", "-0.2", "nan"])
+def test_rebid_margin_must_be_a_fraction(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, margin: str
+) -> None:
+    argv = ["run", str(SMALL), f"--rebid-on-join={margin}", "--out", str(tmp_path / "o")]
+    usage_error(capsys, argv, "--rebid-on-join", "(0, 1)")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_allocation_policies_from_the_command_line(tmp_path: Path) -> None:
+    # The dynamic test scenario without its failure: husky1 is exploring, healthy, when
+    # the Bebop joins; only the command-line policy moves that work.
+    text = (SMALL.parent / "dynamic.yaml").read_text()
+    scenario = tmp_path / "joins.yaml"
+    scenario.write_text(
+        text.replace("  - {at: 20, robot: husky1, kind: fail, duration: 200}\n", "")
+    )
+    out = tmp_path / "out"
+    argv = ["run", str(scenario), "--rebid-on-join", "0.25", "--queue-after-current"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    result = msgspec.json.decode((out / "result.json").read_bytes(), type=MissionResult)
+    assert result.completed
+    assert result.moved >= 1
