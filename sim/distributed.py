@@ -21,7 +21,7 @@ from btcap.launch import AgentProcess, AgentSpec
 from sim.capabilities import RobotSetup, robot_setup
 from sim.grid import GridMap
 from sim.metrics import MissionResult
-from sim.runner import Progress, agent_config, run_scenario
+from sim.runner import Progress, agent_options, run_scenario
 from sim.scenario import Scenario
 from transports import MessageRegistry, Transport, ZmqTransport
 
@@ -46,18 +46,7 @@ class ProcessHost:
         self.started: dict[str, AgentProcess] = {}  # every process ever started, by robot
         self._frozen: set[str] = set()
         self._pending: set[asyncio.Task[object]] = set()
-        t = agent_config(s)
-        self._config = {
-            "tick_hz": t.tick_hz,
-            "heartbeat_s": t.heartbeat_s,
-            "failure_timeout_s": t.failure_timeout_s,
-            "lease_s": t.lease_s,
-            "keepalive_s": t.keepalive_s,
-            "auction_window_s": t.auction_window_s,
-            "award_timeout_s": t.award_timeout_s,
-            "rebid_on_join": t.rebid_on_join,
-            "queue_after_current": t.queue_after_current,
-        }
+        self._config = agent_options(s)
         self._scenario = msgspec.to_builtins(s)
 
     def transport(self, system_id: str) -> Transport:

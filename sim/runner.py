@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+import msgspec
 import numpy as np
 import structlog
 
@@ -37,6 +38,7 @@ __all__ = [
     "Progress",
     "RobotHost",
     "agent_config",
+    "agent_options",
     "registry",
     "run_scenario",
 ]
@@ -51,19 +53,14 @@ def registry() -> MessageRegistry:
     return reg
 
 
+def agent_options(s: Scenario) -> dict[str, Any]:
+    """The scenario's ``agent:`` and ``allocation:`` blocks as AgentConfig keywords (their
+    fields are named alike, so a new setting needs no mapping here)."""
+    return {**msgspec.structs.asdict(s.agent), **msgspec.structs.asdict(s.allocation)}
+
+
 def agent_config(s: Scenario) -> AgentConfig:
-    t = s.agent
-    return AgentConfig(
-        tick_hz=t.tick_hz,
-        heartbeat_s=t.heartbeat_s,
-        failure_timeout_s=t.failure_timeout_s,
-        lease_s=t.lease_s,
-        keepalive_s=t.keepalive_s,
-        auction_window_s=t.auction_window_s,
-        award_timeout_s=t.award_timeout_s,
-        rebid_on_join=s.allocation.rebid_on_join,
-        queue_after_current=s.allocation.queue_after_current,
-    )
+    return AgentConfig(**agent_options(s))
 
 
 @dataclass
