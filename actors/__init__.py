@@ -1,8 +1,8 @@
 """The actor runtime: typed actors, addresses, tell/ask, supervision, dead letters."""
 
-from actors.actor import Actor, Reply, Supervision, handler
-from actors.clock import Clock, ManualClock, TimeSource
-from actors.errors import (
+from btcap.actors.actor import Actor, Reply, Supervision, handler
+from btcap.actors.clock import Clock, ManualClock, TimeSource
+from btcap.actors.errors import (
     ActorError,
     ActorFailed,
     AskTimeout,
@@ -10,10 +10,10 @@ from actors.errors import (
     MailboxFull,
     SystemClosed,
 )
-from actors.log import configure_logging
-from actors.ref import ActorRef
-from actors.system import ActorSystem, Failure, SystemStats, runtime_messages
-from transports.message import Address, Message
+from btcap.actors.log import configure_logging
+from btcap.actors.ref import ActorRef
+from btcap.actors.system import ActorSystem, Failure, SystemStats, runtime_messages
+from btcap.transports.message import Address, Message
 
 __all__ = [
     "Actor",

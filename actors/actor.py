@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, overload
 
 import structlog
 
-from actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
-from transports.message import Address
+from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
+from btcap.transports.message import Address
 
 if TYPE_CHECKING:
-    from actors.ref import ActorRef
-    from actors.system import ActorSystem
+    from btcap.actors.ref import ActorRef
+    from btcap.actors.system import ActorSystem
 
 __all__ = ["Actor", "Reply", "Supervision", "handler"]
 
@@ -191,7 +191,7 @@ class Actor:
 
     @property
     def ref(self) -> ActorRef[Any]:
-        from actors.ref import ActorRef
+        from btcap.actors.ref import ActorRef
 
         return ActorRef(self.address, self.system, self)
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import asyncio
 from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
 
-from transports.message import Address
+from btcap.transports.message import Address
 
 if TYPE_CHECKING:
-    from actors.actor import Actor
-    from actors.system import ActorSystem
+    from btcap.actors.actor import Actor
+    from btcap.actors.system import ActorSystem
 
 __all__ = ["ActorRef"]
 

@@ -14,13 +14,13 @@ import anyio
 import structlog
 from anyio.abc import TaskGroup
 
-from actors.actor import Actor, Reply
-from actors.clock import Clock, TimeSource
-from actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
-from actors.ref import ActorRef
-from transports.base import BROADCAST, Transport
-from transports.codec import CodecError, Envelope, Kind
-from transports.message import Address, Message, MessageRegistry
+from btcap.actors.actor import Actor, Reply
+from btcap.actors.clock import Clock, TimeSource
+from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
+from btcap.actors.ref import ActorRef
+from btcap.transports.base import BROADCAST, Transport
+from btcap.transports.codec import CodecError, Envelope, Kind
+from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
 

@@ -1,4 +1,4 @@
-"""``python -m bench NAME [--quick]``: run one benchmark (or ``all``) and write its JSON."""
+"""``python -m btcap.bench NAME [--quick]``: run one benchmark (or ``all``) and write its JSON."""
 
 from __future__ import annotations
 
@@ -11,16 +11,16 @@ BENCHES = ("tick", "transport", "auction", "sim", "allocation")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m btcap.bench", description=__doc__)
     parser.add_argument("name", choices=(*BENCHES, "all"), help="which benchmark to run")
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args = parser.parse_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
     for name in names:
         try:
-            module = importlib.import_module(f"bench.{name}")
+            module = importlib.import_module(f"btcap.bench.{name}")
         except ModuleNotFoundError as exc:
-            if exc.name == f"bench.{name}":
+            if exc.name == f"btcap.bench.{name}":
                 print(f"bench {name}: not available yet", file=sys.stderr)
                 continue
             raise

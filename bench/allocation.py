@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from bench.common import write_result
-from btcap.auction import Auction
-from btcap.messages import Bid
-from sim.distance import DistanceCache, path_length
-from sim.grid import GridMap
+from btcap.bench.common import write_result
+from btcap.sim.distance import DistanceCache, path_length
+from btcap.sim.grid import GridMap
+from btcap.team.core.auction import Auction
+from btcap.team.messages import Bid
 
 __all__ = ["run"]
 

@@ -19,9 +19,9 @@
   arrived back).
 - **failover_s**: the executing robot's process is SIGKILLed; timed until the capability
   runs again on another robot (its execution is set, on another robot, and running), at
-  speed-up 1 with the default :class:`~btcap.agent.AgentConfig`.
+  speed-up 1 with the default :class:`~btcap.team.agent.AgentConfig`.
 
-Run ``python -m bench auction [--quick]`` or ``python -m bench.auction [--quick]``.
+Run ``python -m btcap.bench auction [--quick]`` or ``python -m btcap.bench.auction [--quick]``.
 """
 
 from __future__ import annotations
@@ -35,18 +35,18 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from actors import Address, configure_logging
-from bench.common import percentiles, write_result
 from btcap import Sequence as SequenceNode
-from btcap.agent import Agent, AgentConfig
-from btcap.assignment import AssignmentTask
-from btcap.demo import ECHO, implementations
-from btcap.launch import AgentSpec, spawn_agents
-from btcap.messages import CancelExecution
-from btcap.mission import MissionControl, RemoteExecution
-from btcap.protocol import protocol_registry
-from btcap.state import State
-from transports import InProcessNetwork, ZmqTransport
+from btcap.actors import Address, configure_logging
+from btcap.bench.common import percentiles, write_result
+from btcap.bt.state import State
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.assignment import AssignmentTask
+from btcap.team.demo import ECHO, implementations
+from btcap.team.launch import AgentSpec, spawn_agents
+from btcap.team.messages import CancelExecution
+from btcap.team.mission import MissionControl, RemoteExecution
+from btcap.team.protocol import protocol_registry
+from btcap.transports import InProcessNetwork, ZmqTransport
 
 __all__ = ["run"]
 
@@ -219,7 +219,7 @@ async def _bench_zmq(
     for i, name in enumerate(names):
         spec = AgentSpec(
             robot=name,
-            factory="btcap.demo:implementations",
+            factory="btcap.team.demo:implementations",
             factory_args={"cost": 1.0 + i},
             config={**TEAM_TIMING},
         )
@@ -242,7 +242,7 @@ async def _bench_zmq(
 
 def _executor_spec(i: int) -> AgentSpec:
     return AgentSpec(
-        robot=f"x{i}", factory="btcap.demo:implementations", factory_args={"cost": 1.0 + i}
+        robot=f"x{i}", factory="btcap.team.demo:implementations", factory_args={"cost": 1.0 + i}
     )
 
 
@@ -410,7 +410,7 @@ def run(quick: bool = False) -> dict[str, Any]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.auction", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m btcap.bench.auction", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer rounds, for CI smoke runs")
     args = parser.parse_args(argv)
     run(quick=args.quick)

@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from bench.common import RESULTS
-from sim import GridMap, World, distance_field
+from btcap.bench.common import RESULTS
+from btcap.sim import GridMap, World, distance_field
 
 __all__ = ["run"]
 
@@ -150,7 +150,7 @@ def _print_table(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.sim", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m btcap.bench.sim", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer repeats (< 20 s)")
     args = parser.parse_args(argv)
     run(quick=args.quick)

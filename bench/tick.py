@@ -29,7 +29,7 @@ tree (a flat Sequence of 9,999 leaves; btcap ``Tree`` + ``setup()``, py_trees
 ``BehaviourTree`` + ``setup()``), divided by 10,000. Node names are created before
 tracing starts, so neither library is charged for them.
 
-Run ``python -m bench tick [--quick]`` or ``python -m bench.tick [--quick]``.
+Run ``python -m btcap.bench tick [--quick]`` or ``python -m btcap.bench.tick [--quick]``.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ from typing import Any
 import py_trees
 
 import btcap
-from bench.common import percentiles, write_result
+from btcap.bench.common import percentiles, write_result
 
 __all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
 
@@ -349,7 +349,7 @@ def run(quick: bool = False) -> dict[str, Any]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.tick", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m btcap.bench.tick", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer ticks, for CI smoke runs")
     args = parser.parse_args(argv)
     run(quick=args.quick)

@@ -1,13 +1,13 @@
 """Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
 
-The ipc and tcp peers run in another OS process (``python -m bench.transport --peer``).
+The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport --peer``).
 Two peer figures are measured in the same run: pyzmq's own asyncio DEALER/ROUTER echo
 over tcp (``raw_zmq_tcp``, what the runtime is compared to as a ratio) and blocking
 pyzmq on both sides (``raw_zmq_tcp_blocking``, the floor with no event loop at all).
 All scenarios are set up at once and measured in interleaved rounds, so a machine whose
 load drifts during the run still gives every scenario the same conditions.
 
-Run ``python -m bench transport [--quick]`` or ``python -m bench.transport [--quick]``.
+Run ``python -m btcap.bench transport [--quick]`` or ``python -m btcap.bench.transport [--quick]``.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ import msgspec
 import zmq
 import zmq.asyncio
 
-from actors import Actor, ActorSystem, Address, Message, configure_logging, handler
-from bench.common import percentiles, write_result
-from transports import InProcessNetwork, MessageRegistry, ZmqTransport
+from btcap.actors import Actor, ActorSystem, Address, Message, configure_logging, handler
+from btcap.bench.common import percentiles, write_result
+from btcap.transports import InProcessNetwork, MessageRegistry, ZmqTransport
 
 __all__ = ["Ping", "Pong", "run"]
 
@@ -194,7 +194,7 @@ async def _measure(ask: Ask, count: int, samples: list[float]) -> None:
 def _child(*args: str) -> Iterator[str]:
     """Run a peer process; yield the endpoint it bound; stop it (stdin EOF) on exit."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "bench.transport", *args],
+        [sys.executable, "-m", "btcap.bench.transport", *args],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
@@ -364,7 +364,7 @@ def run(quick: bool = False) -> dict[str, Any]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bench.transport", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m btcap.bench.transport", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer samples, for CI smoke runs")
     role = parser.add_mutually_exclusive_group()
     role.add_argument("--peer", metavar="BIND", help="(internal) serve an echo actor system")

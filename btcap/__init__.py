@@ -1,6 +1,6 @@
 """btcap: behavior trees whose capability nodes are auctioned to the best robot at run time."""
 
-from btcap.composites import (
+from btcap.bt.composites import (
     Fallback,
     FallbackWithMemory,
     IfThenElse,
@@ -9,7 +9,7 @@ from btcap.composites import (
     SequenceWithMemory,
     Switch,
 )
-from btcap.decorators import (
+from btcap.bt.decorators import (
     Decorator,
     Delay,
     FailureIsRunning,
@@ -27,7 +27,7 @@ from btcap.decorators import (
     Throttle,
     Timeout,
 )
-from btcap.files import (
+from btcap.bt.files import (
     TreeFile,
     TreeFileError,
     dump_tree,
@@ -37,7 +37,7 @@ from btcap.files import (
     save_tree,
     validate_file,
 )
-from btcap.leaves import (
+from btcap.bt.leaves import (
     Action,
     AlwaysFailure,
     AlwaysRunning,
@@ -48,14 +48,14 @@ from btcap.leaves import (
     Log,
     Wait,
 )
-from btcap.node import Leaf, Node, Observer
-from btcap.ports import Port
-from btcap.protocol import protocol_registry
-from btcap.registry import NodeRegistry, RegistryError, default_registry
-from btcap.render import render_dot, render_text
-from btcap.state import IllegalTransition, State, TreeError
-from btcap.tree import Subtree, Tree, Wire
-from btcap.utility import Utility
+from btcap.bt.node import Leaf, Node, Observer
+from btcap.bt.ports import Port
+from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
+from btcap.bt.render import render_dot, render_text
+from btcap.bt.state import IllegalTransition, State, TreeError
+from btcap.bt.tree import Subtree, Tree, Wire
+from btcap.bt.utility import Utility
+from btcap.team.protocol import protocol_registry
 
 __version__ = "0.1.0"
 

@@ -3,7 +3,7 @@
 Adding a command: write a module with ``add_parser(subparsers)`` that adds its parser
 and sets ``handler=fn`` (``fn(args) -> int`` exit code) via ``set_defaults``, then list
 it in :func:`_command_modules`. Handlers raise :class:`CliError` for usage problems
-(exit 2) and may let :class:`~btcap.state.TreeError` escape (printed, exit 1).
+(exit 2) and may let :class:`~btcap.bt.state.TreeError` escape (printed, exit 1).
 
 This is the only place (with the benchmarks) that configures logging.
 """
@@ -17,12 +17,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Protocol
 
-from actors import configure_logging
-from btcap.files import file_info, load_tree, validate_file
-from btcap.ports import type_name
-from btcap.registry import NodeRegistry, default_registry
-from btcap.render import render_dot, render_text
-from btcap.state import TreeError
+from btcap.actors import configure_logging
+from btcap.bt.files import file_info, load_tree, validate_file
+from btcap.bt.ports import type_name
+from btcap.bt.registry import NodeRegistry, default_registry
+from btcap.bt.render import render_dot, render_text
+from btcap.bt.state import TreeError
 
 __all__ = ["CliError", "build_parser", "main"]
 

@@ -6,10 +6,10 @@ Run: .venv/bin/python examples/two_robots.py
 import asyncio
 
 from btcap import Sequence, State
-from btcap.agent import Agent
-from btcap.demo import ECHO, implementations
-from btcap.protocol import protocol_registry
-from transports import InProcessNetwork
+from btcap.team.agent import Agent
+from btcap.team.demo import ECHO, implementations
+from btcap.team.protocol import protocol_registry
+from btcap.transports import InProcessNetwork
 
 
 async def main() -> None:

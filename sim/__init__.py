@@ -1,6 +1,6 @@
 """Simulation: a vectorised numpy grid world (cave maps, distance fields, moving robots)."""
 
-from sim.distance import (
+from btcap.sim.distance import (
     UNREACHABLE,
     Cell,
     CellLike,
@@ -9,8 +9,8 @@ from sim.distance import (
     distance_field,
     path_length,
 )
-from sim.grid import GridMap, MapError
-from sim.world import World
+from btcap.sim.grid import GridMap, MapError
+from btcap.sim.world import World
 
 __all__ = [
     "UNREACHABLE",

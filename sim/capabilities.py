@@ -13,14 +13,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from actors import Actor
 from btcap import Port, SequenceWithMemory, Tree
-from btcap.capability import CapabilityInterface, Implementation
-from sim.distance import Cell, DistanceCache, path_length
-from sim.grid import GridMap
-from sim.leaves import MoveToLeaf, OperateLeaf
-from sim.model import RobotModel
-from sim.robot import Body
+from btcap.actors import Actor
+from btcap.sim.distance import Cell, DistanceCache, path_length
+from btcap.sim.grid import GridMap
+from btcap.sim.leaves import MoveToLeaf, OperateLeaf
+from btcap.sim.model import RobotModel
+from btcap.sim.robot import Body
+from btcap.team.capability import CapabilityInterface, Implementation
 
 __all__ = [
     "DECONTAMINATE",

@@ -16,10 +16,10 @@ from rich.live import Live
 from rich.table import Table
 
 from btcap.cli import CliError
-from sim.metrics import MissionResult
-from sim.plots import plot_timeline
-from sim.runner import Progress, run_scenario
-from sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from btcap.sim.metrics import MissionResult
+from btcap.sim.plots import plot_timeline
+from btcap.sim.runner import Progress, run_scenario
+from btcap.sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 __all__ = ["add_parser", "resolve_scenario", "run_command"]
 
@@ -136,7 +136,7 @@ def _write(result: MissionResult, out: Path) -> None:
 
 async def _run_one(s: Scenario, console: Console, quiet: bool, distributed: bool) -> MissionResult:
     if distributed:
-        from sim.distributed import run_distributed
+        from btcap.sim.distributed import run_distributed
 
         runner = run_distributed
     else:

@@ -16,14 +16,14 @@ from typing import Any
 
 import msgspec
 
-from actors import TimeSource
-from btcap.launch import AgentProcess, AgentSpec
-from sim.capabilities import RobotSetup, robot_setup
-from sim.grid import GridMap
-from sim.metrics import MissionResult
-from sim.runner import Progress, agent_options, run_scenario
-from sim.scenario import Scenario
-from transports import MessageRegistry, Transport, ZmqTransport
+from btcap.actors import TimeSource
+from btcap.sim.capabilities import RobotSetup, robot_setup
+from btcap.sim.grid import GridMap
+from btcap.sim.metrics import MissionResult
+from btcap.sim.runner import Progress, agent_options, run_scenario
+from btcap.sim.scenario import Scenario
+from btcap.team.launch import AgentProcess, AgentSpec
+from btcap.transports import MessageRegistry, Transport, ZmqTransport
 
 __all__ = ["ProcessHost", "robot_factory", "run_distributed"]
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sim.distance import Cell, CellLike, as_cell, distance_field
+from btcap.sim.distance import Cell, CellLike, as_cell, distance_field
 
 __all__ = ["GridMap", "MapError"]
 

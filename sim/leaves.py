@@ -9,11 +9,11 @@ from __future__ import annotations
 import asyncio
 from typing import Any, ClassVar
 
-from actors import ActorError
 from btcap import Leaf, Port, State
-from btcap.state import TreeError
-from sim.messages import Claim, ClaimReply, MoveTo, Operate, SimResult, StopRobot
-from transports import Address
+from btcap.actors import ActorError
+from btcap.bt.state import TreeError
+from btcap.sim.messages import Claim, ClaimReply, MoveTo, Operate, SimResult, StopRobot
+from btcap.transports import Address
 
 __all__ = ["ClaimWork", "MoveToLeaf", "OperateLeaf"]
 

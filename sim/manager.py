@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 import structlog
 
-from actors import Actor, TimeSource, handler
-from sim.distance import Cell
-from sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
-from sim.model import RobotModel
-from sim.store import MissionState
-from sim.world import World
-from transports import Address
+from btcap.actors import Actor, TimeSource, handler
+from btcap.sim.distance import Cell
+from btcap.sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
+from btcap.sim.model import RobotModel
+from btcap.sim.store import MissionState
+from btcap.sim.world import World
+from btcap.transports import Address
 
 __all__ = ["SimConfig", "SimEvent", "SimulationManager"]
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from actors import Message
+from btcap.actors import Message
 
 __all__ = [
     "SIM_MESSAGES",

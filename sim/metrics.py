@@ -7,13 +7,13 @@ from typing import TYPE_CHECKING, Any
 import msgspec
 
 from btcap import State, Tree
-from btcap.capability import Capability
+from btcap.team.capability import Capability
 
 if TYPE_CHECKING:
-    from btcap.agent import Agent
-    from sim.manager import SimulationManager
-    from sim.scenario import Scenario
-    from sim.store import MissionState
+    from btcap.sim.manager import SimulationManager
+    from btcap.sim.scenario import Scenario
+    from btcap.sim.store import MissionState
+    from btcap.team.agent import Agent
 
 __all__ = ["Interval", "Mark", "MissionResult", "RobotStats", "collect"]
 

@@ -14,8 +14,8 @@ from btcap import (
     SequenceWithMemory,
     Tree,
 )
-from sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY
-from sim.leaves import ClaimWork
+from btcap.sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY
+from btcap.sim.leaves import ClaimWork
 
 __all__ = ["mission_tree"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.metrics import MissionResult
+from btcap.sim.metrics import MissionResult
 
 __all__ = ["plot_timeline"]
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from actors import Actor, handler
-from sim.distance import Cell
-from sim.messages import PositionUpdate
+from btcap.actors import Actor, handler
+from btcap.sim.distance import Cell
+from btcap.sim.messages import PositionUpdate
 
 __all__ = ["Body"]
 

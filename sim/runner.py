@@ -16,21 +16,21 @@ import msgspec
 import numpy as np
 import structlog
 
-from actors import ActorSystem, Clock, TimeSource
 from btcap import State, Tree
-from btcap.agent import Agent, AgentConfig
-from btcap.capability import Capability
-from btcap.protocol import protocol_registry
-from sim.capabilities import robot_setup
-from sim.grid import GridMap
-from sim.manager import SimConfig, SimulationManager
-from sim.messages import SIM_MESSAGES
-from sim.metrics import MissionResult, collect
-from sim.mission import mission_tree
-from sim.model import RobotModel
-from sim.scenario import Event, Scenario, check_scenario
-from sim.store import MissionState, ObjectStore
-from transports import InProcessNetwork, MessageRegistry, Transport
+from btcap.actors import ActorSystem, Clock, TimeSource
+from btcap.sim.capabilities import robot_setup
+from btcap.sim.grid import GridMap
+from btcap.sim.manager import SimConfig, SimulationManager
+from btcap.sim.messages import SIM_MESSAGES
+from btcap.sim.metrics import MissionResult, collect
+from btcap.sim.mission import mission_tree
+from btcap.sim.model import RobotModel
+from btcap.sim.scenario import Event, Scenario, check_scenario
+from btcap.sim.store import MissionState, ObjectStore
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.capability import Capability
+from btcap.team.protocol import protocol_registry
+from btcap.transports import InProcessNetwork, MessageRegistry, Transport
 
 __all__ = [
     "HostFactory",

@@ -7,8 +7,8 @@ from typing import Literal
 
 import msgspec
 
-from sim.grid import GridMap, MapError
-from sim.model import RobotModel, load_team, paper_team
+from btcap.sim.grid import GridMap, MapError
+from btcap.sim.model import RobotModel, load_team, paper_team
 
 __all__ = [
     "AgentTiming",
@@ -80,7 +80,7 @@ class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
 
 
 class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Optional policies of the auctions (see :class:`btcap.mission.MissionConfig`)."""
+    """Optional policies of the auctions (see :class:`btcap.team.mission.MissionConfig`)."""
 
     #: Move running work to a joining robot that bids this fraction cheaper (None: never).
     rebid_on_join: float | None = None

@@ -14,10 +14,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from actors import Actor, handler
-from sim.distance import Cell
-from sim.grid import GridMap
-from sim.messages import Claim, ClaimReply
+from btcap.actors import Actor, handler
+from btcap.sim.distance import Cell
+from btcap.sim.grid import GridMap
+from btcap.sim.messages import Claim, ClaimReply
 
 __all__ = ["Goal", "MissionState", "ObjectStore", "SimObject"]
 

@@ -17,8 +17,8 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sim.distance import Cell, CellLike, DistanceCache, as_cell
-from sim.grid import GridMap
+from btcap.sim.distance import Cell, CellLike, DistanceCache, as_cell
+from btcap.sim.grid import GridMap
 
 __all__ = ["World"]
 

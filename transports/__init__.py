@@ -1,10 +1,10 @@
 """Moving typed envelopes between actor systems: codec, in-process and ZeroMQ transports."""
 
-from transports.base import BROADCAST, Deliver, Transport, TransportStats
-from transports.codec import Codec, CodecError, Envelope, Kind
-from transports.inprocess import InProcessNetwork, InProcessTransport
-from transports.message import Address, Message, MessageRegistry
-from transports.zeromq import ZmqTransport
+from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
+from btcap.transports.codec import Codec, CodecError, Envelope, Kind
+from btcap.transports.inprocess import InProcessNetwork, InProcessTransport
+from btcap.transports.message import Address, Message, MessageRegistry
+from btcap.transports.zeromq import ZmqTransport
 
 __all__ = [
     "BROADCAST",

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 from anyio.abc import TaskStatus
 
-from transports.codec import Envelope
+from btcap.transports.codec import Envelope
 
 __all__ = ["BROADCAST", "Deliver", "Transport", "TransportStats"]
 

@@ -7,7 +7,7 @@ from typing import Any, Union
 
 import msgspec
 
-from transports.message import Address, Message, MessageRegistry
+from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["Codec", "CodecError", "Envelope", "Kind"]
 

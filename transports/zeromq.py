@@ -29,9 +29,9 @@ import zmq
 import zmq.asyncio
 from anyio.abc import TaskStatus
 
-from transports.base import BROADCAST, Deliver, Transport, TransportStats
-from transports.codec import Codec, CodecError, Envelope
-from transports.message import MessageRegistry
+from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
+from btcap.transports.codec import Codec, CodecError, Envelope
+from btcap.transports.message import MessageRegistry
 
 __all__ = ["ZmqTransport"]
 

@@ -9,7 +9,7 @@ import time
 import anyio
 import pytest
 
-from actors import ActorSystem, Clock, ManualClock, TimeSource
+from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
 
 
 async def _sleeper(

@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from structlog.testing import capture_logs
 
-from actors import (
+from btcap.actors import (
     Actor,
     ActorSystem,
     Address,
@@ -24,7 +24,7 @@ from actors import (
     configure_logging,
     handler,
 )
-from transports import InProcessNetwork
+from btcap.transports import InProcessNetwork
 
 
 class Ping(Message):

@@ -8,7 +8,7 @@ import random
 import anyio
 import pytest
 
-from actors import (
+from btcap.actors import (
     Actor,
     ActorFailed,
     ActorSystem,

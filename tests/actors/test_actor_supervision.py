@@ -9,7 +9,7 @@ import anyio
 import pytest
 from structlog.testing import capture_logs
 
-from actors import (
+from btcap.actors import (
     Actor,
     ActorError,
     ActorFailed,

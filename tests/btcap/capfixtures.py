@@ -11,14 +11,14 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from actors import Actor, ActorSystem, Clock
 from btcap import Leaf, Port, Sequence, State, Tree
-from btcap.agent import Agent, AgentConfig
-from btcap.capability import CapabilityInterface, Implementation, Precondition
-from btcap.protocol import protocol_registry
-from btcap.repository import CapabilityRepository
-from btcap.team import Membership
-from transports import InProcessNetwork
+from btcap.actors import Actor, ActorSystem, Clock
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.capability import CapabilityInterface, Implementation, Precondition
+from btcap.team.membership import Membership
+from btcap.team.protocol import protocol_registry
+from btcap.team.repository import CapabilityRepository
+from btcap.transports import InProcessNetwork
 
 #: Clock seconds run SPEEDUP times faster than the wall in these tests.
 SPEEDUP = 10.0

@@ -12,9 +12,10 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import Sequence, State
-from btcap.agent import Agent, AgentConfig
-from btcap.assignment import SingleItemAuction
-from btcap.messages import (
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.assignment import SingleItemAuction
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import (
     CAPABILITY_MESSAGES,
     Award,
     AwardReply,
@@ -31,11 +32,10 @@ from btcap.messages import (
     RepositoryQuery,
     RepositoryState,
 )
-from btcap.mission import MissionConfig, MissionControl
-from btcap.protocol import protocol_registry
-from btcap.repository import CapabilityRepository
-from btcap.team import Membership, TeamEvent
-from transports import Address, Codec, Envelope, Kind, Message
+from btcap.team.mission import MissionConfig, MissionControl
+from btcap.team.protocol import protocol_registry
+from btcap.team.repository import CapabilityRepository
+from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 # -- protocol -----------------------------------------------------------------------------
 

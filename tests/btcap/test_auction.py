@@ -11,10 +11,10 @@ from capfixtures import COUNT, Probe, count_impl, silent_member, team, tick_unti
 from hypothesis import given
 from hypothesis import strategies as st
 
-from actors import Actor, handler
 from btcap import Sequence, State
-from btcap.auction import Auction
-from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
+from btcap.actors import Actor, handler
+from btcap.team.core.auction import Auction
+from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 
 # -- sans-IO ------------------------------------------------------------------------------
 

@@ -9,15 +9,15 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
-from btcap.capability import (
+from btcap.bt.utility import CANNOT
+from btcap.team.capability import (
     Capability,
     CapabilityInterface,
     Implementation,
     InputBridge,
     OutputBridge,
 )
-from btcap.mission import LocalExecution
-from btcap.utility import CANNOT
+from btcap.team.mission import LocalExecution
 
 # -- interfaces --------------------------------------------------------------------------
 

@@ -8,8 +8,8 @@ import anyio
 import pytest
 
 from btcap import Sequence, State
-from btcap.agent import Agent
-from btcap.capfiles import CapabilityFileError, load_implementation, load_interfaces
+from btcap.team.agent import Agent
+from btcap.team.capfiles import CapabilityFileError, load_implementation, load_interfaces
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "capabilities"
 

@@ -8,7 +8,6 @@ import anyio
 import pytest
 from structlog.testing import capture_logs
 
-from actors import ManualClock
 from btcap import (
     Delay,
     FailureIsRunning,
@@ -31,7 +30,8 @@ from btcap import (
     TreeError,
 )
 from btcap import State as St
-from btcap.decorators import Decorator
+from btcap.actors import ManualClock
+from btcap.bt.decorators import Decorator
 
 S, F, R = St.SUCCEEDED, St.FAILED, St.RUNNING
 

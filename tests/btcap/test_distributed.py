@@ -1,7 +1,7 @@
 """Robots in separate OS processes over ZeroMQ tcp loopback.
 
 The origin (the robot whose tree holds the capability node) runs in the test's event loop;
-the executors are child processes started with :mod:`btcap.launch` running the demo
+the executors are child processes started with :mod:`btcap.team.launch` running the demo
 ``Echo`` capability, each bidding a fixed cost. Every child is killed at teardown.
 """
 
@@ -21,15 +21,15 @@ import pytest
 import zmq
 
 from btcap import Sequence as SequenceNode
-from btcap.agent import Agent
-from btcap.capability import Capability
-from btcap.demo import ECHO
-from btcap.launch import AgentProcess, AgentSpec, spawn_agents
-from btcap.mission import RemoteExecution
-from btcap.protocol import protocol_registry
-from btcap.state import State
-from btcap.tree import Tree
-from transports import ZmqTransport
+from btcap.bt.state import State
+from btcap.bt.tree import Tree
+from btcap.team.agent import Agent
+from btcap.team.capability import Capability
+from btcap.team.demo import ECHO
+from btcap.team.launch import AgentProcess, AgentSpec, spawn_agents
+from btcap.team.mission import RemoteExecution
+from btcap.team.protocol import protocol_registry
+from btcap.transports import ZmqTransport
 
 pytestmark = pytest.mark.slow
 
@@ -39,7 +39,7 @@ TICK_S = 0.01  # the origin ticks its mission trees at 100 Hz while waiting
 
 def spec(robot: str, cost: float, **kw: Any) -> AgentSpec:
     return AgentSpec(
-        robot=robot, factory="btcap.demo:implementations", factory_args={"cost": cost}, **kw
+        robot=robot, factory="btcap.team.demo:implementations", factory_args={"cost": cost}, **kw
     )
 
 

@@ -9,9 +9,9 @@ from types import ModuleType
 import anyio
 import msgspec
 
-from actors import Clock
 from btcap import State
-from btcap.files import dump_tree, load_tree
+from btcap.actors import Clock
+from btcap.bt.files import dump_tree, load_tree
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -13,8 +13,7 @@ from typing import Any
 import pytest
 from structlog.testing import capture_logs
 
-import btcap.files
-from actors import ManualClock
+import btcap.bt.files
 from btcap import (
     Action,
     Constant,
@@ -39,7 +38,8 @@ from btcap import (
     save_tree,
     validate_file,
 )
-from btcap.files import PublicSpec, file_info, read_tree_file
+from btcap.actors import ManualClock
+from btcap.bt.files import PublicSpec, file_info, read_tree_file
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "trees"
 
@@ -197,7 +197,7 @@ async def test_example_patrol_runs_to_success() -> None:
 
 
 def test_the_module_docstring_example_is_a_valid_file() -> None:
-    doc = btcap.files.__doc__ or ""
+    doc = btcap.bt.files.__doc__ or ""
     example = textwrap.dedent(doc.split("::\n\n", 1)[1].split("\n\n", 1)[0])
     tree = loads_tree(example)
     assert tree.tick() is State.SUCCEEDED

@@ -9,7 +9,6 @@ import anyio
 import pytest
 from structlog.testing import capture_logs
 
-from actors import ManualClock
 from btcap import (
     Action,
     AlwaysFailure,
@@ -27,6 +26,7 @@ from btcap import (
     TreeError,
     Wait,
 )
+from btcap.actors import ManualClock
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 

@@ -25,16 +25,16 @@ from hypothesis import strategies as st
 from structlog.testing import capture_logs
 
 from btcap import AlwaysFailure, Leaf, Parallel, Sequence, State, Tree
-from btcap.agent import Agent
-from btcap.assignment import Assigned, AssignmentTask
-from btcap.capability import (
+from btcap.team.agent import Agent
+from btcap.team.assignment import Assigned, AssignmentTask
+from btcap.team.capability import (
     Capability,
     CapabilityInterface,
     Implementation,
     Precondition,
     Scope,
 )
-from btcap.messages import (
+from btcap.team.messages import (
     Award,
     AwardReply,
     Bid,
@@ -46,7 +46,7 @@ from btcap.messages import (
     NoBid,
     PauseExecution,
 )
-from btcap.mission import LocalExecution, MissionControl, RemoteExecution
+from btcap.team.mission import LocalExecution, MissionControl, RemoteExecution
 
 
 def _count(name: str = "count", **inputs: Any) -> Capability:
@@ -687,7 +687,7 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             real = node.execution
             assert real is not None
             send = x.system.tell
-            from transports import Address
+            from btcap.transports import Address
 
             a_mc, b_mc = Address("a", "mission_control"), Address("b", "mission_control")
             stray: list[tuple[Address, Any]] = [

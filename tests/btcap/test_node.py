@@ -20,7 +20,7 @@ from btcap import (
     Tree,
     TreeError,
 )
-from btcap.protocol import (
+from btcap.bt.messages import (
     NODE_MESSAGES,
     NodeStatus,
     Reset,
@@ -28,9 +28,9 @@ from btcap.protocol import (
     Shutdown,
     Tick,
     Untick,
-    protocol_registry,
 )
-from transports import Address, Codec, Envelope, Kind, Message
+from btcap.team.protocol import protocol_registry
+from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 
 class Fixed(Leaf):

@@ -18,8 +18,8 @@ from btcap import (
     Tree,
     TreeError,
 )
-from btcap.node import declared_ports
-from btcap.ports import NO_DEFAULT, assignable, check_value, normalize_ports, type_name
+from btcap.bt.node import declared_ports
+from btcap.bt.ports import NO_DEFAULT, assignable, check_value, normalize_ports, type_name
 
 
 class Sink(Leaf):

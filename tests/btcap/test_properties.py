@@ -32,9 +32,9 @@ from btcap import (
     Tree,
     protocol_registry,
 )
-from btcap.protocol import NodeStatus, Tick
-from btcap.state import ACTIVE
-from transports import Codec, Message
+from btcap.bt.messages import NodeStatus, Tick
+from btcap.bt.state import ACTIVE
+from btcap.transports import Codec, Message
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 

@@ -18,12 +18,10 @@ from btcap import (
     Sequence,
     State,
     TreeError,
-    composites,
-    decorators,
     default_registry,
-    leaves,
 )
-from btcap.registry import ENTRY_POINT_GROUP
+from btcap.bt import composites, decorators, leaves
+from btcap.bt.registry import ENTRY_POINT_GROUP
 
 
 class Battery(Leaf):
@@ -113,7 +111,7 @@ def test_duplicate_names_are_rejected_naming_both_classes() -> None:
         def on_tick(self) -> State:
             return State.SUCCEEDED
 
-    with pytest.raises(RegistryError, match=r"'Sequence' is already registered.*btcap\.composites"):
+    with pytest.raises(RegistryError, match=r"'Sequence' is already registered.*btcap\.bt\.composites"):
         reg.register(Sequence)
 
 

@@ -7,9 +7,9 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import Sequence, State, TreeError
-from btcap.capability import CapabilityInterface
-from btcap.messages import RepositoryQuery, RepositoryState
-from btcap.repository import CapabilityRepository
+from btcap.team.capability import CapabilityInterface
+from btcap.team.messages import RepositoryQuery, RepositoryState
+from btcap.team.repository import CapabilityRepository
 
 OTHER = CapabilityInterface("Other", inputs={"x": int, "stop": bool}, outputs={"y": int})
 

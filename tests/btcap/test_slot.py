@@ -11,10 +11,10 @@ from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 from structlog.testing import capture_logs
 
 from btcap import AlwaysRunning, Leaf, Parallel, Sequence, State, Tree, TreeError
-from btcap.agent import Agent
-from btcap.capability import Implementation
-from btcap.mission import Hosted
-from btcap.slot import RemoteCapabilitySlot
+from btcap.team.agent import Agent
+from btcap.team.capability import Implementation
+from btcap.team.mission import Hosted
+from btcap.team.slot import RemoteCapabilitySlot
 
 
 def _trees(agent: Agent) -> list[str]:

@@ -10,10 +10,10 @@ import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, team, until
 
-from actors import ActorSystem, ManualClock
-from btcap.messages import Goodbye, Heartbeat
-from btcap.protocol import protocol_registry
-from btcap.team import Membership, TeamEvent
+from btcap.actors import ActorSystem, ManualClock
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import Goodbye, Heartbeat
+from btcap.team.protocol import protocol_registry
 
 
 @asynccontextmanager

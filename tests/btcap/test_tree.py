@@ -9,7 +9,6 @@ import anyio
 import pytest
 from structlog.testing import capture_logs
 
-from actors import ActorFailed, ActorSystem, Clock, ManualClock
 from btcap import (
     Action,
     AlwaysFailure,
@@ -32,8 +31,9 @@ from btcap import (
     Wait,
     protocol_registry,
 )
-from btcap.protocol import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
-from transports import InProcessNetwork
+from btcap.actors import ActorFailed, ActorSystem, Clock, ManualClock
+from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
+from btcap.transports import InProcessNetwork
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 

@@ -22,7 +22,7 @@ from btcap import (
     Tree,
     Utility,
 )
-from btcap.utility import CANNOT, fallback_utility, parallel_utility, sequence_utility
+from btcap.bt.utility import CANNOT, fallback_utility, parallel_utility, sequence_utility
 
 A = Utility(True, 1.0, 2.0, 0.5, 1.0)
 B = Utility(True, 3.0, 4.0, 1.0, 2.0)

@@ -9,9 +9,9 @@ import pytest
 
 import btcap.cli
 from btcap.cli import main
-from sim.cli import resolve_scenario
-from sim.metrics import MissionResult
-from sim.scenario import ScenarioError
+from btcap.sim.cli import resolve_scenario
+from btcap.sim.metrics import MissionResult
+from btcap.sim.scenario import ScenarioError
 
 SMALL = Path(__file__).parent / "data" / "small.yaml"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

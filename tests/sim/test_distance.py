@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
-from sim import DistanceCache, GridMap, as_cell, distance_field, path_length
+from btcap.sim import DistanceCache, GridMap, as_cell, distance_field, path_length
 
 
 def plain_bfs(free: NDArray[np.bool_], goal: tuple[int, int]) -> NDArray[np.int32]:

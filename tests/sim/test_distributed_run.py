@@ -7,8 +7,8 @@ from pathlib import Path
 import anyio
 import pytest
 
-from sim.distributed import ProcessHost, run_distributed
-from sim.scenario import load_scenario
+from btcap.sim.distributed import ProcessHost, run_distributed
+from btcap.sim.scenario import load_scenario
 
 DATA = Path(__file__).resolve().parent / "data"
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from sim import GridMap, MapError, distance_field
+from btcap.sim import GridMap, MapError, distance_field
 
 FOUR = ndimage.generate_binary_structure(2, 1)
 

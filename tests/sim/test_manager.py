@@ -13,13 +13,13 @@ import anyio
 import numpy as np
 import pytest
 
-from actors import ActorRef, ActorSystem, ManualClock
-from sim import GridMap
-from sim.manager import SimConfig, SimulationManager
-from sim.messages import MoveTo, Operate, SimResult, StopRobot
-from sim.model import OperationModel, RobotModel
-from sim.robot import Body
-from sim.store import MissionState, SimObject
+from btcap.actors import ActorRef, ActorSystem, ManualClock
+from btcap.sim import GridMap
+from btcap.sim.manager import SimConfig, SimulationManager
+from btcap.sim.messages import MoveTo, Operate, SimResult, StopRobot
+from btcap.sim.model import OperationModel, RobotModel
+from btcap.sim.robot import Body
+from btcap.sim.store import MissionState, SimObject
 
 # A 3 x 40 corridor, robots start at the left end, decontamination at the right end.
 GRID = GridMap.from_array(np.ones((3, 40), dtype=bool), start=(1, 0), decon_area=(1, 39))

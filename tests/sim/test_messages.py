@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.messages import SIM_MESSAGES
-from sim.runner import registry
-from transports import Address, Codec, Envelope, Kind, Message
+from btcap.sim.messages import SIM_MESSAGES
+from btcap.sim.runner import registry
+from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 CODEC = Codec(registry())
 INT64 = st.integers(-(2**63), 2**63 - 1)

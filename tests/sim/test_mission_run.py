@@ -15,11 +15,11 @@ import msgspec
 import numpy as np
 import pytest
 
-from actors import ManualClock
-from sim.metrics import Interval, MissionResult
-from sim.runner import Progress, run_scenario
-from sim.scenario import Allocation, Scenario, load_scenario
-from sim.store import MissionState
+from btcap.actors import ManualClock
+from btcap.sim.metrics import Interval, MissionResult
+from btcap.sim.runner import Progress, run_scenario
+from btcap.sim.scenario import Allocation, Scenario, load_scenario
+from btcap.sim.store import MissionState
 
 DATA = Path(__file__).parent / "data"
 SMALL = DATA / "small.yaml"
@@ -207,7 +207,7 @@ ALLOCATION_SCRIPT = """
 import asyncio, json, sys
 sys.path.insert(0, sys.argv[1])
 from test_mission_run import DYNAMIC, run_manual
-from sim.scenario import load_scenario
+from btcap.sim.scenario import load_scenario
 r = asyncio.run(run_manual(load_scenario(DYNAMIC)))
 print(json.dumps([r.assignments, [(i.robot, i.kind, i.target, i.start) for i in r.timeline]]))
 """

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from sim.metrics import Interval, Mark, MissionResult, RobotStats
-from sim.plots import plot_timeline
+from btcap.sim.metrics import Interval, Mark, MissionResult, RobotStats
+from btcap.sim.plots import plot_timeline
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

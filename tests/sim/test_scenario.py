@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim import GridMap
-from sim.model import TeamFileError, load_team, paper_team
-from sim.scenario import (
+from btcap.sim import GridMap
+from btcap.sim.model import TeamFileError, load_team, paper_team
+from btcap.sim.scenario import (
     CaveSpec,
     Event,
     MapSpec,

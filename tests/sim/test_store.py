@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim import GridMap
-from sim.messages import Claim, ClaimReply
-from sim.store import MissionState, ObjectStore, SimObject
+from btcap.sim import GridMap
+from btcap.sim.messages import Claim, ClaimReply
+from btcap.sim.store import MissionState, ObjectStore, SimObject
 
 # A 5 x 30 corridor: start on the left, decontamination area on the right.
 CORRIDOR = GridMap.from_array(np.ones((5, 30), dtype=bool), start=(2, 0), decon_area=(2, 29))

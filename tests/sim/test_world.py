@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
-from sim import DistanceCache, GridMap, World, distance_field
+from btcap.sim import DistanceCache, GridMap, World, distance_field
 
 CORRIDOR = GridMap.from_array(np.ones((1, 10), dtype=bool), start=(0, 0), decon_area=(0, 9))
 SPLIT = GridMap.from_array(

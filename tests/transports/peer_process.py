@@ -16,8 +16,8 @@ import os
 import sys
 from collections.abc import Sequence
 
-from actors import Actor, ActorSystem, Address, Message, configure_logging, handler
-from transports import MessageRegistry, ZmqTransport
+from btcap.actors import Actor, ActorSystem, Address, Message, configure_logging, handler
+from btcap.transports import MessageRegistry, ZmqTransport
 
 __all__ = ["READY", "Echo", "EchoActor", "Echoed", "Relay", "main", "messages"]
 

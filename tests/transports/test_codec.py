@@ -10,8 +10,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from actors import Failure, runtime_messages
-from transports import Address, Codec, CodecError, Envelope, Kind, Message, MessageRegistry
+from btcap.actors import Failure, runtime_messages
+from btcap.transports import Address, Codec, CodecError, Envelope, Kind, Message, MessageRegistry
 
 # -- message types of several shapes ------------------------------------------------------
 

@@ -11,7 +11,7 @@ import anyio
 import pytest
 from structlog.testing import capture_logs
 
-from actors import (
+from btcap.actors import (
     Actor,
     ActorFailed,
     ActorSystem,
@@ -23,7 +23,7 @@ from actors import (
     handler,
     runtime_messages,
 )
-from transports import CodecError, InProcessNetwork, MessageRegistry
+from btcap.transports import CodecError, InProcessNetwork, MessageRegistry
 
 
 @pytest.fixture(autouse=True)

@@ -25,9 +25,9 @@ from anyio.abc import Process
 from anyio.streams.buffered import BufferedByteReceiveStream
 from structlog.testing import capture_logs
 
-from actors import Actor, ActorSystem, Address, DeadLetter, Message, handler
+from btcap.actors import Actor, ActorSystem, Address, DeadLetter, Message, handler
+from btcap.transports import BROADCAST, Envelope, Kind, MessageRegistry, ZmqTransport
 from tests.transports.peer_process import READY, Echo, EchoActor, Echoed, Relay, messages
-from transports import BROADCAST, Envelope, Kind, MessageRegistry, ZmqTransport
 
 PEER_SCRIPT = Path(__file__).with_name("peer_process.py")
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from btcap.node import Leaf
-from btcap.state import State, TreeError
+from btcap.bt.node import Leaf
+from btcap.bt.state import State, TreeError
 
 if TYPE_CHECKING:
-    from btcap.mission import Hosted, MissionControl
+    from btcap.team.mission import Hosted, MissionControl
 
 __all__ = ["RemoteCapabilitySlot"]
 
@@ -31,7 +31,7 @@ class RemoteCapabilitySlot(Leaf):
         super().__init__(name, **kwargs)  # type: ignore[arg-type]
 
     def on_setup(self) -> None:
-        from btcap.mission import MissionControl
+        from btcap.team.mission import MissionControl
 
         system = self.tree.system
         mc = system.lookup(MissionControl.PATH) if system is not None else None

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from btcap.messages import Bid, NoBid
+from btcap.team.messages import Bid, NoBid
 
 __all__ = ["Auction", "AuctionOutcome"]
 

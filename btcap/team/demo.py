@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.capability import CapabilityInterface, Implementation
-from btcap.composites import Sequence
-from btcap.node import Leaf
-from btcap.ports import Port
-from btcap.state import State
-from btcap.tree import Tree
+from btcap.bt.composites import Sequence
+from btcap.bt.node import Leaf
+from btcap.bt.ports import Port
+from btcap.bt.state import State
+from btcap.bt.tree import Tree
+from btcap.team.capability import CapabilityInterface, Implementation
 
 __all__ = ["ECHO", "EchoLeaf", "implementations"]
 

@@ -9,24 +9,24 @@ from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
-from actors import Actor, ActorSystem, TimeSource
-from btcap.assignment import SingleItemAuction
-from btcap.capability import Implementation
-from btcap.mission import MissionConfig, MissionControl
-from btcap.node import Node
-from btcap.protocol import protocol_registry
-from btcap.repository import CapabilityRepository
-from btcap.slot import RemoteCapabilitySlot
-from btcap.state import DONE, State
-from btcap.team import Membership
-from btcap.tree import Tree
-from transports import MessageRegistry, Transport
+from btcap.actors import Actor, ActorSystem, TimeSource
+from btcap.bt.node import Node
+from btcap.bt.state import DONE, State
+from btcap.bt.tree import Tree
+from btcap.team.assignment import SingleItemAuction
+from btcap.team.capability import Implementation
+from btcap.team.membership import Membership
+from btcap.team.mission import MissionConfig, MissionControl
+from btcap.team.protocol import protocol_registry
+from btcap.team.repository import CapabilityRepository
+from btcap.team.slot import RemoteCapabilitySlot
+from btcap.transports import MessageRegistry, Transport
 
 __all__ = ["Agent", "AgentConfig"]
 
 
 class AgentConfig(MissionConfig):
-    """Timing of one robot, in clock seconds (see :class:`~btcap.mission.MissionConfig`)."""
+    """Timing of one robot, in clock seconds (see :class:`~btcap.team.mission.MissionConfig`)."""
 
     __slots__ = ("failure_timeout_s", "heartbeat_s", "tick_hz")
 

@@ -3,7 +3,7 @@
 A registry is a plain object: :func:`default_registry` builds a fresh one holding every
 built-in node plus the node packages installed under the ``btcap.nodes`` entry-point
 group. It also names the types that ports carry (``"list[float]"``, ``"int | None"``), so
-type-valued options such as :class:`~btcap.leaves.Constant`'s ``type`` fit in a file.
+type-valued options such as :class:`~btcap.bt.leaves.Constant`'s ``type`` fit in a file.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from collections.abc import Iterable, Iterator, Mapping
 from importlib import metadata
 from typing import Any
 
-from btcap import composites, decorators, leaves
-from btcap.node import Node
-from btcap.state import TreeError
+from btcap.bt import composites, decorators, leaves
+from btcap.bt.node import Node
+from btcap.bt.state import TreeError
 
 __all__ = [
     "ENTRY_POINT_GROUP",

@@ -6,14 +6,14 @@ import asyncio
 from collections.abc import Callable, Collection, Coroutine, Iterator
 from typing import TYPE_CHECKING, Any
 
-from actors import Clock, TimeSource
-from btcap.node import Node, Observer
-from btcap.ports import PortMap, assignable, type_name
-from btcap.state import ACTIVE, DONE, State, TreeError
-from btcap.utility import Utility
+from btcap.actors import Clock, TimeSource
+from btcap.bt.node import Node, Observer
+from btcap.bt.ports import PortMap, assignable, type_name
+from btcap.bt.state import ACTIVE, DONE, State, TreeError
+from btcap.bt.utility import Utility
 
 if TYPE_CHECKING:
-    from actors import ActorSystem
+    from btcap.actors import ActorSystem
 
 __all__ = ["Subtree", "Tree", "Wire"]
 

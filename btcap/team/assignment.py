@@ -11,15 +11,15 @@ from typing import Any
 
 import structlog
 
-from actors import Actor, ActorError, TimeSource, handler
-from btcap.auction import Auction, AuctionOutcome
-from btcap.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
-from btcap.team import Membership, TeamEvent
-from transports import Address
+from btcap.actors import Actor, ActorError, TimeSource, handler
+from btcap.team.core.auction import Auction, AuctionOutcome
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
+from btcap.transports import Address
 
 __all__ = ["Assigned", "AssignmentStrategy", "AssignmentTask", "AuctionStats", "SingleItemAuction"]
 
-log = structlog.get_logger("btcap.assignment")
+log = structlog.get_logger("btcap.team.assignment")
 
 
 @dataclass(frozen=True, slots=True)

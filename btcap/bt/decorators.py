@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.node import Node
-from btcap.ports import Port
-from btcap.state import ACTIVE, State, TreeError
-from btcap.utility import Utility
+from btcap.bt.node import Node
+from btcap.bt.ports import Port
+from btcap.bt.state import ACTIVE, State, TreeError
+from btcap.bt.utility import Utility
 
 __all__ = [
     "Decorator",

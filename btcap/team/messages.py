@@ -1,6 +1,6 @@
 """Messages of the capability layer: team membership, repository gossip, auctions, executions.
 
-Every type here is registered by :func:`btcap.protocol.protocol_registry`, so it travels
+Every type here is registered by :func:`btcap.team.protocol.protocol_registry`, so it travels
 between robots over any transport. Values of capability ports travel as ``Any`` and are
 converted back to their declared types on arrival.
 """
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from btcap.state import State
-from transports import Message
+from btcap.bt.state import State
+from btcap.transports import Message
 
 __all__ = [
     "CAPABILITY_MESSAGES",

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import structlog
 
-from actors import Actor, handler
-from btcap.messages import Goodbye, Heartbeat
+from btcap.actors import Actor, handler
+from btcap.team.messages import Goodbye, Heartbeat
 
 __all__ = ["Member", "Membership", "TeamEvent"]
 

@@ -1,6 +1,6 @@
 """Ready-made leaves: actions from async callables, conditions, constants, waits, logs.
 
-Write your own leaf by subclassing :class:`~btcap.node.Leaf`::
+Write your own leaf by subclassing :class:`~btcap.bt.node.Leaf`::
 
     class Battery(Leaf):
         \"\"\"Succeeds while the battery holds enough charge.\"\"\"
@@ -23,9 +23,9 @@ from typing import Any, ClassVar
 
 import structlog
 
-from btcap.node import Leaf
-from btcap.ports import Port, check_value, normalize_ports
-from btcap.state import State, TreeError
+from btcap.bt.node import Leaf
+from btcap.bt.ports import Port, check_value, normalize_ports
+from btcap.bt.state import State, TreeError
 
 __all__ = [
     "Action",
@@ -43,7 +43,7 @@ _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
 
-log = structlog.get_logger("btcap.tree")
+log = structlog.get_logger("btcap.bt.tree")
 
 
 class AlwaysSuccess(Leaf):

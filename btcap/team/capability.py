@@ -16,15 +16,15 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import msgspec
 
-from btcap.node import Leaf, Node
-from btcap.ports import Port, PortMap, check_value, normalize_ports, type_name
-from btcap.state import DONE, State, TreeError
-from btcap.tree import Tree
-from btcap.utility import Utility
+from btcap.bt.node import Leaf, Node
+from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_name
+from btcap.bt.state import DONE, State, TreeError
+from btcap.bt.tree import Tree
+from btcap.bt.utility import Utility
 
 if TYPE_CHECKING:
-    from actors import TimeSource
-    from btcap.mission import AssignmentRequest, MissionControl
+    from btcap.actors import TimeSource
+    from btcap.team.mission import AssignmentRequest, MissionControl
 
 __all__ = [
     "Capability",
@@ -333,7 +333,7 @@ class Capability(Node):
         return self._exec
 
     def _mission_control(self) -> MissionControl:
-        from btcap.mission import MissionControl
+        from btcap.team.mission import MissionControl
 
         system = self.tree.system
         mc = system.lookup(MissionControl.PATH) if system is not None else None

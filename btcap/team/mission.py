@@ -1,9 +1,9 @@
 """Mission control: serves capability nodes, runs executions, holds their leases.
 
 On the origin side (the robot whose tree holds the capability node) it turns a request
-into an auction and the winner into an :class:`~btcap.capability.Execution`. On the
+into an auction and the winner into an :class:`~btcap.team.capability.Execution`. On the
 executor side it bids, accepts or declines awards, and runs accepted implementations in
-the robot's :class:`~btcap.slot.RemoteCapabilitySlot` (or, when the origin wins its own
+the robot's :class:`~btcap.team.slot.RemoteCapabilitySlot` (or, when the origin wins its own
 auction, hands the run straight to the capability node). Every robot has one body, so it
 runs at most one execution at a time, local or remote; with ``queue_after_current`` it
 may hold one more, accepted and waiting for the body.
@@ -20,16 +20,18 @@ from typing import TYPE_CHECKING, Any
 
 import structlog
 
-from actors import Actor, handler
-from btcap.assignment import AssignmentStrategy, AssignmentTask
-from btcap.capability import (
+from btcap.actors import Actor, handler
+from btcap.bt.state import DONE, State, TreeError
+from btcap.team.assignment import AssignmentStrategy, AssignmentTask
+from btcap.team.capability import (
     Capability,
     Implementation,
     ImplementationRun,
     Precondition,
     Scope,
 )
-from btcap.messages import (
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import (
     Award,
     AwardReply,
     Bid,
@@ -41,13 +43,11 @@ from btcap.messages import (
     NoBid,
     PauseExecution,
 )
-from btcap.repository import CapabilityRepository
-from btcap.state import DONE, State, TreeError
-from btcap.team import Membership, TeamEvent
-from transports import Address
+from btcap.team.repository import CapabilityRepository
+from btcap.transports import Address
 
 if TYPE_CHECKING:
-    from btcap.slot import RemoteCapabilitySlot
+    from btcap.team.slot import RemoteCapabilitySlot
 
 __all__ = [
     "AssignmentRequest",
@@ -58,7 +58,7 @@ __all__ = [
     "RemoteExecution",
 ]
 
-log = structlog.get_logger("btcap.mission")
+log = structlog.get_logger("btcap.team.mission")
 
 _LOST = State.SHUTDOWN  # an executor answers an unknown execution with this state
 

@@ -11,12 +11,12 @@ import typing
 from collections.abc import Iterator
 from typing import Any
 
-from btcap.composites import Composite
-from btcap.decorators import Decorator
-from btcap.node import Node
-from btcap.ports import type_name
-from btcap.state import State
-from btcap.tree import Subtree, Tree
+from btcap.bt.composites import Composite
+from btcap.bt.decorators import Decorator
+from btcap.bt.node import Node
+from btcap.bt.ports import type_name
+from btcap.bt.state import State
+from btcap.bt.tree import Subtree, Tree
 
 __all__ = ["render_dot", "render_text"]
 

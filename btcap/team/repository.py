@@ -6,15 +6,15 @@ from collections.abc import Callable, Iterable
 
 import structlog
 
-from actors import Actor, handler
-from btcap.capability import CapabilityInterface, Implementation
-from btcap.messages import RepositoryQuery, RepositoryState
-from btcap.state import TreeError
-from btcap.team import Membership, TeamEvent
+from btcap.actors import Actor, handler
+from btcap.bt.state import TreeError
+from btcap.team.capability import CapabilityInterface, Implementation
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import RepositoryQuery, RepositoryState
 
 __all__ = ["CapabilityRepository"]
 
-log = structlog.get_logger("btcap.repository")
+log = structlog.get_logger("btcap.team.repository")
 
 
 class CapabilityRepository(Actor):

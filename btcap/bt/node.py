@@ -1,7 +1,7 @@
 """The node model: every BT node is an actor with typed ports and a small life cycle.
 
 Ticking a local tree is a chain of plain method calls (the actor runtime's fast path);
-the same actions are also messages (:mod:`btcap.protocol`) so a node can be driven from
+the same actions are also messages (:mod:`btcap.bt.messages`) so a node can be driven from
 another actor or another process.
 """
 
@@ -13,17 +13,17 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import structlog
 
-from actors import Actor, handler
-from btcap.ports import PortMap, check_value, normalize_ports, type_name
-from btcap.protocol import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
-from btcap.state import ACTIVE, IllegalTransition, State, TreeError
-from btcap.utility import Utility
+from btcap.actors import Actor, handler
+from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
+from btcap.bt.ports import PortMap, check_value, normalize_ports, type_name
+from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
+from btcap.bt.utility import Utility
 
 if TYPE_CHECKING:
     import asyncio
 
-    from actors import TimeSource
-    from btcap.tree import Tree
+    from btcap.actors import TimeSource
+    from btcap.bt.tree import Tree
 
 __all__ = ["Leaf", "Node", "Observer"]
 
@@ -43,7 +43,7 @@ class Node(Actor):
     """Base class of every node.
 
     Subclasses declare ports as class attributes (``INPUTS``, ``OUTPUTS``, ``OPTIONS``:
-    dicts of name to type or :class:`~btcap.ports.Port`) and implement :meth:`on_tick`;
+    dicts of name to type or :class:`~btcap.bt.ports.Port`) and implement :meth:`on_tick`;
     they may override :meth:`on_setup`, :meth:`on_untick`, :meth:`on_reset`,
     :meth:`on_shutdown` and :meth:`utility`. Options are keyword arguments of the
     constructor and are checked against their declared types.

@@ -9,7 +9,7 @@ from typing import Any
 
 import msgspec
 
-from btcap.state import TreeError
+from btcap.bt.state import TreeError
 
 __all__ = ["NO_DEFAULT", "Port", "PortMap", "assignable", "check_value", "type_name"]
 

@@ -1,21 +1,20 @@
-"""btcap's typed protocol messages; every one of them survives the codec."""
+"""The node actions as typed messages, so a node can be driven from another process."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from actors import Message, runtime_messages
-from btcap.state import State
-from transports import MessageRegistry
+from btcap.actors import Message
+from btcap.bt.state import State
 
 __all__ = [
+    "NODE_MESSAGES",
     "NodeStatus",
     "Reset",
     "Setup",
     "Shutdown",
     "Tick",
     "Untick",
-    "protocol_registry",
 ]
 
 
@@ -49,12 +48,3 @@ class NodeStatus(Message):
 
 
 NODE_MESSAGES: tuple[type[Message], ...] = (Setup, Tick, Untick, Reset, Shutdown, NodeStatus)
-
-
-def protocol_registry() -> MessageRegistry:
-    """A fresh registry with every message btcap and its runtime speak."""
-    from btcap.messages import CAPABILITY_MESSAGES
-
-    reg = runtime_messages()
-    reg.register(*NODE_MESSAGES, *CAPABILITY_MESSAGES)
-    return reg

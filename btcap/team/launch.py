@@ -1,6 +1,6 @@
 """Run robots as separate OS processes talking ZeroMQ: one or more :class:`Agent` per process.
 
-``python -m btcap.launch SPEC_JSON`` runs the agent described by an :class:`AgentSpec`
+``python -m btcap.team.launch SPEC_JSON`` runs the agent described by an :class:`AgentSpec`
 (a JSON object), or several agents in one process (a JSON array of specs, each with its
 own actor system, transport and port), until stdin closes or it is terminated. For every
 agent, once it listens, the process prints one stdout line: a JSON object with the robot
@@ -31,11 +31,11 @@ from typing import Any
 
 import msgspec
 
-from actors import Clock, configure_logging
-from btcap.agent import Agent, AgentConfig
-from btcap.capability import Implementation
-from btcap.protocol import protocol_registry
-from transports import ZmqTransport
+from btcap.actors import Clock, configure_logging
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.capability import Implementation
+from btcap.team.protocol import protocol_registry
+from btcap.transports import ZmqTransport
 
 __all__ = [
     "AgentProcess",
@@ -193,7 +193,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 1:
         print(
-            "usage: python -m btcap.launch SPEC_JSON  (one spec object or an array)",
+            "usage: python -m btcap.team.launch SPEC_JSON  (one spec object or an array)",
             file=sys.stderr,
         )
         return 2
@@ -245,7 +245,7 @@ class AgentProcess:
         env.setdefault("PYTHONUNBUFFERED", "1")
         arg = msgspec.json.encode(spec if isinstance(spec, AgentSpec) else self.specs)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "btcap.launch", arg.decode()],
+            [sys.executable, "-m", "btcap.team.launch", arg.decode()],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=stderr,

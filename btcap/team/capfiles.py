@@ -31,12 +31,12 @@ from typing import Any
 
 import msgspec
 
-from btcap.capability import BidFunction, CapabilityInterface, Implementation, Precondition
-from btcap.files import load_tree
-from btcap.ports import Port
-from btcap.registry import NodeRegistry, default_registry
-from btcap.state import TreeError
-from btcap.tree import Tree
+from btcap.bt.files import load_tree
+from btcap.bt.ports import Port
+from btcap.bt.registry import NodeRegistry, default_registry
+from btcap.bt.state import TreeError
+from btcap.bt.tree import Tree
+from btcap.team.capability import BidFunction, CapabilityInterface, Implementation, Precondition
 
 __all__ = [
     "CapabilityFileError",

@@ -40,14 +40,14 @@ import msgspec.json
 import msgspec.yaml
 import yaml
 
-from btcap.node import Node
-from btcap.ports import Port, check_value, type_name
-from btcap.registry import NodeRegistry, RegistryError, default_registry
-from btcap.state import TreeError
-from btcap.tree import Subtree, Tree
+from btcap.bt.node import Node
+from btcap.bt.ports import Port, check_value, type_name
+from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
+from btcap.bt.state import TreeError
+from btcap.bt.tree import Subtree, Tree
 
 if typing.TYPE_CHECKING:
-    from actors import TimeSource
+    from btcap.actors import TimeSource
 
 __all__ = [
     "SCHEMA_VERSION",
