@@ -111,7 +111,9 @@ def test_duplicate_names_are_rejected_naming_both_classes() -> None:
         def on_tick(self) -> State:
             return State.SUCCEEDED
 
-    with pytest.raises(RegistryError, match=r"'Sequence' is already registered.*btcap\.bt\.composites"):
+    with pytest.raises(
+        RegistryError, match=r"'Sequence' is already registered.*btcap\.bt\.composites"
+    ):
         reg.register(Sequence)
 
 
