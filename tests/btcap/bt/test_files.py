@@ -41,7 +41,7 @@ from btcap import (
 from btcap.actors import ManualClock
 from btcap.bt.files import PublicSpec, file_info, read_tree_file
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "trees"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "trees"
 
 
 class Move(Leaf):

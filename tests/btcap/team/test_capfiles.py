@@ -11,7 +11,7 @@ from btcap import Sequence, State
 from btcap.team.agent import Agent
 from btcap.team.capfiles import CapabilityFileError, load_implementation, load_interfaces
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "capabilities"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "capabilities"
 
 
 def test_interfaces_load_with_typed_ports() -> None:
