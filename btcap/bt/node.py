@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Coroutine, Iterator, Sequence
 from types import FunctionType
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import structlog
 
@@ -22,15 +22,34 @@ from btcap.bt.utility import Utility
 if TYPE_CHECKING:
     import asyncio
 
-    from btcap.actors import TimeSource
-    from btcap.bt.tree import Tree
+    from btcap.actors import ActorSystem, TimeSource
 
-__all__ = ["Leaf", "Node", "Observer"]
+__all__ = ["Leaf", "Node", "Observer", "TreeHost"]
 
 log = structlog.get_logger("btcap")
 
 #: Called as ``observer(node, old_state, new_state)`` whenever a node changes state.
 Observer = Callable[["Node", State, State], None]
+
+
+class TreeHost(Protocol):
+    """What a node needs from the tree that owns it; :class:`~btcap.bt.tree.Tree` is one.
+
+    Declared here so this module needs nothing from the tree module, which builds on it.
+    """
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def clock(self) -> TimeSource: ...
+    @property
+    def system(self) -> ActorSystem | None: ...
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]: ...
+    def _adopt(self, node: Node) -> None: ...
+    def _release(self, node: Node) -> None: ...
+
 
 _UNINIT = State.UNINITIALIZED
 _SHUTDOWN = State.SHUTDOWN
@@ -104,7 +123,7 @@ class Node(Actor):
         self.state = _UNINIT
         self.error: BaseException | None = None
         self.parent_node: Node | None = None
-        self._tree: Tree | None = None
+        self._tree: TreeHost | None = None
         self._watch: Observer | None = None
         self._pulls: list[tuple[str, Node, str]] | None = None
         self._ready = False
@@ -219,7 +238,7 @@ class Node(Actor):
             yield from c.walk()
 
     @property
-    def tree(self) -> Tree:
+    def tree(self) -> TreeHost:
         if self._tree is None:
             raise TreeError(f"node {self.name!r} is not part of a Tree")
         return self._tree
