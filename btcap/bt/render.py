@@ -13,6 +13,7 @@ from typing import Any
 
 from btcap.bt.composites import Composite
 from btcap.bt.decorators import Decorator
+from btcap.bt.describe import NodeDescription, describe, wire_sources
 from btcap.bt.node import Node
 from btcap.bt.ports import type_name
 from btcap.bt.state import State
@@ -47,36 +48,17 @@ def _fmt(value: Any, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _differs(value: Any, default: Any) -> bool:
-    try:
-        return not (bool(value == default) and type(value) is type(default))
-    except Exception:
-        return True
+def _options(about: NodeDescription) -> list[str]:
+    return [f"{key}={_fmt(value)}" for key, value in about.options.items()]
 
 
-def _options(node: Node) -> list[str]:
-    out = []
-    for key, port in type(node).OPTIONS.items():
-        value = node.options.get(key)
-        if port.required or _differs(value, port.default_value()):
-            out.append(f"{key}={_fmt(value)}")
-    return out
-
-
-def _wired_inputs(tree: Tree) -> dict[tuple[int, str], str]:
-    return {(id(w.target), w.target_port): f"{w.source.path}.{w.source_port}" for w in tree.wires}
-
-
-def _detail_lines(
-    node: Node, tree: Tree, wired: dict[tuple[int, str], str], states: bool
-) -> list[str]:
+def _detail_lines(node: Node, about: NodeDescription, states: bool) -> list[str]:
     lines = []
-    for key, port in node.input_ports.items():
-        src = wired.get((id(node), key))
-        if src is not None:
-            lines.append(f"in  {key} <- {src}")
-        elif _differs(node.inputs.get(key), port.default_value()):
-            lines.append(f"in  {key} = {_fmt(node.inputs.get(key))}")
+    for key in node.input_ports:
+        if key in about.wired:
+            lines.append(f"in  {key} <- {about.wired[key]}")
+        elif key in about.inputs:
+            lines.append(f"in  {key} = {_fmt(about.inputs[key])}")
     if states:
         for key, value in node.outputs.items():
             if value is not None:
@@ -86,13 +68,13 @@ def _detail_lines(
     return lines
 
 
-def _head(node: Node, states: bool) -> str:
+def _head(node: Node, about: NodeDescription, states: bool) -> str:
     kind = type(node).__name__
     if isinstance(node, Subtree):
         head = f"{kind} {node.name!r} (tree {node.inner.name!r})"
     else:
         head = f"{kind} {node.name!r}"
-    opts = _options(node) if not isinstance(node, Subtree) else []
+    opts = _options(about) if not isinstance(node, Subtree) else []
     if opts:
         head += "  " + " ".join(opts)
     if states:
@@ -105,24 +87,25 @@ def render_text(tree: Tree, *, states: bool | None = None) -> str:
     show = _ticked(tree) if states is None else states
     n_nodes = sum(1 for _ in tree.nodes())
     lines = [f"tree {tree.name!r}: {n_nodes} nodes, {len(tree.wires)} wires"]
-    lines.extend(_text_lines(tree, tree.root, "", "", show))
+    lines.extend(_text_lines(wire_sources(tree), tree.root, "", "", show))
     return "\n".join(lines) + "\n"
 
 
-def _text_lines(tree: Tree, node: Node, first: str, rest: str, states: bool) -> Iterator[str]:
-    wired = _wired_inputs(tree)
-    yield first + _head(node, states)
-    kids: list[tuple[Tree, Node]] = [(tree, c) for c in node.children]
+def _text_lines(
+    wires: dict[tuple[int, str], str], node: Node, first: str, rest: str, states: bool
+) -> Iterator[str]:
+    about = describe(node, wires)
+    yield first + _head(node, about, states)
+    kids = [(wires, c) for c in node.children]
     if isinstance(node, Subtree):
-        kids.append((node.inner, node.inner.root))
-    details = _detail_lines(node, tree, wired, states)
+        kids.append((wire_sources(node.inner), node.inner.root))
     bar = "│   " if kids else "    "
-    for line in details:
+    for line in _detail_lines(node, about, states):
         yield rest + bar + "· " + line
-    for i, (t, child) in enumerate(kids):
+    for i, (w, child) in enumerate(kids):
         last = i == len(kids) - 1
         yield from _text_lines(
-            t,
+            w,
             child,
             rest + ("└── " if last else "├── "),
             rest + ("    " if last else "│   "),
@@ -167,9 +150,10 @@ def _dot_tree(tree: Tree, prefix: str, out: list[str], indent: str, states: bool
     def ident(node: Node) -> str:
         return _q(prefix + node.path)
 
+    wires = wire_sources(tree)
     for node in tree.nodes():
         shape, style = _shape(node)
-        label = [type(node).__name__, node.name, *_options(node)]
+        label = [type(node).__name__, node.name, *_options(describe(node, wires))]
         if states:
             label.append(f"[{node.state.value}]")
         colour = _STATE_COLOURS[node.state] if states else "white"
