@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 from structlog.testing import capture_logs
 
+import btcap
 import btcap.bt.files
 from btcap import (
     Action,
@@ -35,6 +36,7 @@ from btcap import (
     dumps_tree,
     load_tree,
     loads_tree,
+    render_text,
     save_tree,
     validate_file,
 )
@@ -169,6 +171,28 @@ def test_defaults_are_left_out_and_wired_inputs_are_wires(registry: NodeRegistry
     assert near.public.inputs == {"distance": "cmp.a"}
     assert near.root is not None
     assert near.root.inputs == {"b": 10.0}  # the public input 'a' is not a constant
+
+
+def test_the_outline_shows_exactly_the_settings_a_file_writes(registry: NodeRegistry) -> None:
+    tree = loads_tree(MISSION, registry=registry)
+    tree.tick()
+    spec = dump_tree(tree, registry)
+    lines = render_text(tree, states=False).splitlines()
+    retry, move = spec.root.children[1], spec.root.children[1].children[0]
+    assert "├── Retry 'retry'  retries=3" in lines
+    assert retry.options == {"retries": 3}
+    assert any(line.endswith("└── Move 'move'  speed=2.5") for line in lines)
+    assert move.options == {"speed": 2.5}
+    assert any(line.endswith("· in  goal <- root/goal.value") for line in lines)
+    assert move.inputs == {}  # wired, so a wire and not a value, in the file as on screen
+    assert any(line.endswith("· in  b = 10.0") for line in lines)
+
+
+def test_every_name_of_the_files_package_resolves_and_matches_btcap() -> None:
+    for name in btcap.bt.files.__all__:
+        value = getattr(btcap.bt.files, name)
+        if name in btcap.__all__:
+            assert getattr(btcap, name) is value, name
 
 
 def test_example_files_load_and_match(tmp_path: Path) -> None:
