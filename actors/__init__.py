@@ -1,6 +1,7 @@
 """The actor runtime: typed actors, addresses, tell/ask, supervision, dead letters."""
 
-from btcap.actors.actor import Actor, Reply, Supervision, handler
+from btcap.actors.actor import Actor
+from btcap.actors.cell import ActorCell, Reply, Supervision, handler
 from btcap.actors.clock import Clock, ManualClock, TimeSource
 from btcap.actors.errors import (
     ActorError,
@@ -17,6 +18,7 @@ from btcap.transports.message import Address, Message
 
 __all__ = [
     "Actor",
+    "ActorCell",
     "ActorError",
     "ActorFailed",
     "ActorRef",

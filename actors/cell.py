@@ -1,4 +1,9 @@
-"""The actor base class: typed handlers, one message at a time, a direct-call fast path."""
+"""The runtime side of an actor: handler tables, mailbox, the direct-call fast path, supervision.
+
+:class:`ActorCell` knows its system only through :class:`Host`, the few things a cell needs
+from it, so this module sits below ``ref`` and ``system``; the user-facing
+:class:`~btcap.actors.actor.Actor` adds the typed ``system`` and ``ref`` above them.
+"""
 
 from __future__ import annotations
 
@@ -9,20 +14,15 @@ import types as types_mod
 import typing
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
-from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, overload
-
-import structlog
+from typing import Any, ClassVar, Protocol, TypeVar, overload
 
 from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
+from btcap.transports.log import get_logger
 from btcap.transports.message import Address
 
-if TYPE_CHECKING:
-    from btcap.actors.ref import ActorRef
-    from btcap.actors.system import ActorSystem
+__all__ = ["ActorCell", "Host", "Reply", "Supervision", "handler"]
 
-__all__ = ["Actor", "Reply", "Supervision", "handler"]
-
-log = structlog.get_logger("actors")
+log = get_logger("btcap.actors")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -77,7 +77,7 @@ class _Handler:
         self.is_async = inspect.iscoroutinefunction(fn)
 
 
-def _collect_handlers(cls: type[Actor]) -> dict[type[Any], _Handler]:
+def _collect_handlers(cls: type[ActorCell]) -> dict[type[Any], _Handler]:
     table: dict[type[Any], _Handler] = {}
     for klass in reversed(cls.__mro__):
         for name, fn in vars(klass).items():
@@ -131,6 +131,7 @@ _RUNTIME_NAMES = frozenset(
         "_enqueue",
         "_failed",
         "_handler_for",
+        "_live_host",
         "_receive",
         "_schedule_drain",
         "_unhandled",
@@ -138,10 +139,39 @@ _RUNTIME_NAMES = frozenset(
 )
 
 
-class Actor:
-    """Base class of everything addressable: BT nodes, slots, repositories, auctioneers.
+class Host(Protocol):
+    """What a cell and a ref need from the system they live in (``ActorSystem`` is one).
 
-    An actor handles one message at a time, in arrival order per sender. When it is idle,
+    The underscored members are the runtime's own contract between a cell and its system.
+    """
+
+    id: str
+    mailbox_size: int
+    _closing: bool
+
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]: ...
+
+    def stop(self, target: ActorCell) -> None: ...
+
+    def tell(self, address: Address, msg: Any, *, sender: Address | None = None) -> None: ...
+
+    async def ask(self, address: Address, msg: Any, *, timeout: float | None = None) -> Any: ...
+
+    async def await_deferred(
+        self, address: Address, msg: Any, fut: asyncio.Future[Any], timeout: float | None
+    ) -> Any: ...
+
+    def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None: ...
+
+    def _escalated(self, where: Address | None, exc: BaseException) -> None: ...
+
+
+class ActorCell:
+    """The runtime state and delivery of an actor; subclass :class:`Actor`, not this.
+
+    A cell handles one message at a time, in arrival order per sender. When it is idle,
     a local sender's message is handled by a direct call (no queue, no task switch); when
     it is busy, or the handler is async, the message waits in a bounded mailbox drained by
     a task of the system. A handler may return an ``asyncio.Future`` to reply later.
@@ -164,11 +194,11 @@ class Actor:
             )
 
     def __init__(self) -> None:
-        self._system: ActorSystem | None = None
+        self._system: Host | None = None
         self._address: Address | None = None
         self._busy = False
         self._mailbox: deque[tuple[Any, Reply | None]] | None = None
-        self._parent: Actor | None = None
+        self._parent: ActorCell | None = None
         self._restarts = 0
         self._tasks: set[asyncio.Task[Any]] | None = None
 
@@ -180,23 +210,16 @@ class Actor:
         return self._address
 
     @property
-    def system(self) -> ActorSystem:
+    def spawned(self) -> bool:
+        return self._system is not None
+
+    def _live_host(self) -> Host:
         if self._system is None:
             raise RuntimeError(f"{type(self).__name__} is not spawned in an actor system")
         return self._system
 
     @property
-    def spawned(self) -> bool:
-        return self._system is not None
-
-    @property
-    def ref(self) -> ActorRef[Any]:
-        from btcap.actors.ref import ActorRef
-
-        return ActorRef(self.address, self.system, self)
-
-    @property
-    def parent(self) -> Actor | None:
+    def parent(self) -> ActorCell | None:
         return self._parent
 
     # -- hooks ----------------------------------------------------------------------
@@ -214,7 +237,7 @@ class Actor:
         self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
     ) -> asyncio.Task[Any]:
         """Run ``coro`` as a task owned by this actor: cancelled when the actor stops."""
-        task = self.system.start_task(coro, name=name or f"{self.address}")
+        task = self._live_host().start_task(coro, name=name or f"{self.address}")
         if self._tasks is None:
             self._tasks = set()
         self._tasks.add(task)
@@ -304,7 +327,7 @@ class Actor:
             self._schedule_drain()
 
     def _schedule_drain(self) -> None:
-        system = self.system
+        system = self._live_host()
         if system._closing:
             return  # the closing system stops this actor, which fails what is queued
         self._busy = True

@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
+from typing import Any, Generic, TypeVar, overload
 
+from btcap.actors.cell import ActorCell, Host
 from btcap.transports.message import Address
-
-if TYPE_CHECKING:
-    from btcap.actors.actor import Actor
-    from btcap.actors.system import ActorSystem
 
 __all__ = ["ActorRef"]
 
-A = TypeVar("A", bound="Actor")
+A = TypeVar("A", bound=ActorCell)
 R = TypeVar("R")
 
 
@@ -22,7 +19,7 @@ class ActorRef(Generic[A]):
 
     __slots__ = ("_local", "_system", "address")
 
-    def __init__(self, address: Address, system: ActorSystem, local: A | None = None) -> None:
+    def __init__(self, address: Address, system: Host, local: A | None = None) -> None:
         self.address = address
         self._system = system
         self._local = local

@@ -11,22 +11,22 @@ from types import TracebackType
 from typing import Any, TypeVar
 
 import anyio
-import structlog
 from anyio.abc import TaskGroup
 
-from btcap.actors.actor import Actor, Reply
+from btcap.actors.cell import ActorCell, Reply
 from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
+from btcap.transports.log import get_logger
 from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
 
-log = structlog.get_logger("actors")
+log = get_logger("btcap.actors")
 
-A = TypeVar("A", bound=Actor)
+A = TypeVar("A", bound=ActorCell)
 
 
 class Failure(Message):
@@ -84,7 +84,7 @@ class ActorSystem:
         self.ask_timeout = ask_timeout
         self.stats = SystemStats()
         self.address = Address(self.id, "$system")
-        self._actors: dict[str, Actor] = {}
+        self._actors: dict[str, ActorCell] = {}
         self._names = itertools.count(1)
         self._corr = itertools.count(1)
         self._pending: dict[int, tuple[str, asyncio.Future[Any]]] = {}  # corr -> (peer, reply)
@@ -176,7 +176,7 @@ class ActorSystem:
 
     # -- actors -----------------------------------------------------------------------
     def spawn(
-        self, actor: A, name: str | None = None, *, parent: Actor | None = None
+        self, actor: A, name: str | None = None, *, parent: ActorCell | None = None
     ) -> ActorRef[A]:
         """Give ``actor`` an address in this system and start it."""
         if actor._system is not None:
@@ -206,7 +206,7 @@ class ActorSystem:
             raise
         return ActorRef(actor._address, self, actor)
 
-    def stop(self, target: Actor | ActorRef[Any]) -> None:
+    def stop(self, target: ActorCell | ActorRef[Any]) -> None:
         """Stop an actor and its children; queued asks fail with :class:`DeadLetter`."""
         actor = target._local if isinstance(target, ActorRef) else target
         if actor is None or actor._system is not self:
@@ -236,7 +236,7 @@ class ActorSystem:
             for task in list(actor._tasks):
                 task.cancel()
 
-    def lookup(self, path: str) -> Actor | None:
+    def lookup(self, path: str) -> ActorCell | None:
         return self._actors.get(path)
 
     def ref(self, address: Address | str) -> ActorRef[Any]:
