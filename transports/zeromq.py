@@ -24,18 +24,18 @@ import sys
 import uuid
 from typing import Any
 
-import structlog
 import zmq
 import zmq.asyncio
 from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
+from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
 
 __all__ = ["ZmqTransport"]
 
-log = structlog.get_logger("transports")
+log = get_logger("btcap.transports")
 
 _MSG = b"M"
 _HELLO = b"H"

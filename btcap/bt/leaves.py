@@ -21,11 +21,10 @@ import operator
 from collections.abc import Awaitable, Callable
 from typing import Any, ClassVar
 
-import structlog
-
 from btcap.bt.node import Leaf
 from btcap.bt.ports import Port, check_value, normalize_ports
 from btcap.bt.state import State, TreeError
+from btcap.transports.log import get_logger
 
 __all__ = [
     "Action",
@@ -43,7 +42,7 @@ _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
 
-log = structlog.get_logger("btcap.bt.tree")
+log = get_logger("btcap.bt.tree")
 
 
 class AlwaysSuccess(Leaf):

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import subprocess
-import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -21,7 +19,6 @@ from btcap.actors import (
     DeadLetter,
     Message,
     SystemClosed,
-    configure_logging,
     handler,
 )
 from btcap.transports import InProcessNetwork
@@ -370,20 +367,3 @@ async def test_aclose_is_idempotent_and_a_system_cannot_be_entered_twice() -> No
             await system.aclose()
             await system.aclose()
             assert not system.running
-
-
-# -- rule 7: a library first ----------------------------------------------------------------
-
-
-def test_importing_the_runtime_configures_no_logging() -> None:
-    code = (
-        "import logging, structlog, actors, transports\n"
-        "assert not structlog.is_configured()\n"
-        "assert logging.getLogger().handlers == []\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=30)
-
-
-def test_configure_logging_rejects_unknown_levels() -> None:
-    with pytest.raises(ValueError, match="log level 'loud'"):
-        configure_logging("loud")
