@@ -56,7 +56,13 @@ class Clock:
 
 
 class ManualClock:
-    """A clock that advances only through :meth:`advance`, waking sleepers in order."""
+    """A clock that advances only through :meth:`advance`, waking sleepers in order.
+
+    Between two wake-ups :meth:`advance` lets the event loop run until nothing is ready
+    to run, however many hand-offs the woken work makes, so a test sees the effects of
+    each deadline before time moves on. Work that waits on real I/O or on another
+    thread is not waited for: that is not something virtual time can settle.
+    """
 
     def __init__(self, start: float = 0.0) -> None:
         self._now = float(start)
@@ -85,18 +91,63 @@ class ManualClock:
         await fut
 
     async def advance(self, seconds: float) -> None:
-        """Move time forward, letting each woken sleeper run before time moves on."""
+        """Move time forward by ``seconds``, waking each sleeper at its own deadline.
+
+        Runs what is ready before time moves, and after each wake-up lets the woken
+        work settle before the next deadline, so a sleeper that sleeps again within the
+        interval wakes again in this call.
+        """
+        if not seconds >= 0:
+            raise ValueError(f"advance by {seconds!r}: expected seconds >= 0")
         target = self._now + seconds
+        await _settle()
         while self._sleepers and self._sleepers[0][0] <= target:
             deadline, _, fut = heapq.heappop(self._sleepers)
+            if fut.done():  # its sleeper was cancelled
+                continue
             self._now = max(self._now, deadline)
-            if not fut.done():
-                fut.set_result(None)
-            for _ in range(3):
-                await asyncio.sleep(0)
+            fut.set_result(None)
+            await _settle()
         self._now = target
-        await asyncio.sleep(0)
+        await _settle()
 
     @property
     def pending(self) -> int:
         return sum(1 for _, _, f in self._sleepers if not f.done())
+
+
+_SETTLE_ROUNDS = 100_000
+"""Loop iterations :func:`_settle` allows before it calls the work a busy loop."""
+
+
+async def _settle() -> None:
+    """Return once the running event loop has nothing ready to run but this task.
+
+    Yields one loop iteration at a time until no callback is ready and no timer is
+    due. asyncio offers no public way to ask that, so this reads the stdlib loop's
+    ready queue and timer heap (``BaseEventLoop._ready`` and ``_scheduled``, stable
+    since Python 3.4; aiotools' VirtualClock and looptime reach into the same loop
+    internals). A loop without them, such as uvloop's, is refused with a clear error
+    rather than guessed at with a fixed number of yields.
+    """
+    loop = asyncio.get_running_loop()
+    ready = getattr(loop, "_ready", None)
+    scheduled = getattr(loop, "_scheduled", None)
+    if ready is None or scheduled is None:
+        raise TypeError(
+            f"ManualClock needs the standard asyncio event loop, not {type(loop).__name__}: "
+            "it waits until the loop has nothing ready to run"
+        )
+    for _ in range(_SETTLE_ROUNDS):
+        await asyncio.sleep(0)
+        if not ready and not _timer_due(loop, scheduled):
+            return
+    raise RuntimeError(
+        f"the event loop never settled within {_SETTLE_ROUNDS} iterations: some task "
+        "keeps yielding without waiting on anything (a busy loop?)"
+    )
+
+
+def _timer_due(loop: asyncio.AbstractEventLoop, scheduled: list[asyncio.TimerHandle]) -> bool:
+    now = loop.time()
+    return any(h.when() <= now and not h.cancelled() for h in scheduled)

@@ -9,7 +9,16 @@ import time
 import anyio
 import pytest
 
-from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
+from btcap.actors import (
+    Actor,
+    ActorRef,
+    ActorSystem,
+    Clock,
+    ManualClock,
+    Message,
+    TimeSource,
+    handler,
+)
 
 
 async def _sleeper(
@@ -81,6 +90,130 @@ async def test_manual_clock_past_deadlines_and_cancelled_sleepers() -> None:
         assert clock.now() == 7.0
     assert clock.speedup == math.inf
     assert clock.to_wall(100.0) == 0.0
+
+
+class Hop(Message):
+    left: int
+
+
+class Relay(Actor):
+    """Passes a hop on to the next relay through an async handler (a mailbox and a task)."""
+
+    def __init__(self, journal: list[str]) -> None:
+        super().__init__()
+        self.journal = journal
+        self.next: ActorRef[Relay] | None = None
+
+    @handler
+    async def on_hop(self, msg: Hop) -> None:
+        await asyncio.sleep(0)
+        self.journal.append(self.address.path)
+        if self.next is not None:
+            self.next.tell(Hop(msg.left - 1))
+
+
+async def _handoffs(clock: ManualClock, hops: int, done: list[float]) -> None:
+    """Wakes, then passes a token through ``hops`` queues and tasks before recording."""
+    queues: list[asyncio.Queue[int]] = [asyncio.Queue() for _ in range(hops + 1)]
+
+    async def relay(i: int) -> None:
+        await queues[i + 1].put(await queues[i].get())
+
+    async with anyio.create_task_group() as tg:
+        for i in range(hops):
+            tg.start_soon(relay, i)
+        await clock.sleep(1.0)
+        await queues[0].put(1)
+        await queues[hops].get()
+        done.append(clock.now())
+
+
+async def test_advance_waits_for_a_long_chain_of_handoffs_after_a_wake_up() -> None:
+    clock = ManualClock()
+    done: list[float] = []
+    with anyio.fail_after(2):
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(_handoffs, clock, 10, done)
+            tg.start_soon(_handoffs, clock, 30, done)
+            await clock.advance(1.0)  # no sleep(0) here: advance waits for both chains
+            assert done == [1.0, 1.0]
+
+
+async def test_work_woken_at_one_deadline_settles_before_the_next_deadline() -> None:
+    clock = ManualClock()
+    seen: list[tuple[str, float]] = []
+
+    async def chain_then_sleep() -> None:
+        await clock.sleep(1.0)
+        for _ in range(20):  # many yields between the wake-up and the next sleep
+            await asyncio.sleep(0)
+        await clock.sleep(1.0)  # registered at t=1: due at 2, before "late" at 2.5
+        seen.append(("chained", clock.now()))
+
+    async def late() -> None:
+        await clock.sleep(2.5)
+        seen.append(("late", clock.now()))
+
+    with anyio.fail_after(2):
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(chain_then_sleep)
+            tg.start_soon(late)
+            await clock.advance(3.0)
+    assert seen == [("chained", 2.0), ("late", 2.5)]
+
+
+async def test_advance_waits_for_actors_passing_mail_along_a_chain() -> None:
+    clock = ManualClock()
+    journal: list[str] = []
+    with anyio.fail_after(2):
+        async with ActorSystem("s", clock=clock) as system:
+            relays = [Relay(journal) for _ in range(10)]
+            refs = [system.spawn(r, f"r{i}") for i, r in enumerate(relays)]
+            for relay, after in zip(relays, refs[1:], strict=False):
+                relay.next = after
+
+            async def kick_off() -> None:
+                await clock.sleep(5.0)
+                refs[0].tell(Hop(10))
+
+            system.start_task(kick_off())
+            await clock.advance(5.0)
+            assert journal == [f"r{i}" for i in range(10)]
+
+
+async def test_work_started_before_advancing_runs_before_time_moves() -> None:
+    clock = ManualClock()
+    woke: list[float] = []
+
+    async def later() -> None:
+        for _ in range(10):
+            await asyncio.sleep(0)
+        await clock.sleep(1.0)  # registered only after ten yields, at t=0
+        woke.append(clock.now())
+
+    with anyio.fail_after(2):
+        task = asyncio.create_task(later())
+        await clock.advance(1.0)
+        assert woke == [1.0]
+        await task
+
+
+async def test_advance_refuses_a_busy_loop_and_negative_time() -> None:
+    clock = ManualClock()
+
+    async def spin() -> None:
+        while True:  # noqa: ASYNC110 - the busy loop advance must refuse
+            await asyncio.sleep(0)
+
+    with anyio.fail_after(10):
+        task = asyncio.create_task(spin())
+        try:
+            with pytest.raises(RuntimeError, match="never settled"):
+                await clock.advance(1.0)
+        finally:
+            task.cancel()
+        with pytest.raises(ValueError, match="advance by -1"):
+            await clock.advance(-1)
 
 
 async def test_sped_up_clock_sleeps_a_fraction_of_the_wall_time() -> None:
