@@ -20,8 +20,6 @@ which is most of what a round trip costs in Python.
 from __future__ import annotations
 
 import asyncio
-import sys
-import uuid
 from typing import Any
 
 import zmq
@@ -32,6 +30,7 @@ from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
+from btcap.transports.zmq_sockets import EVENTS, NOBLOCK, POLLIN, Monitor, check_id, open_dealer
 
 __all__ = ["ZmqTransport"]
 
@@ -41,29 +40,12 @@ _MSG = b"M"
 _HELLO = b"H"
 _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
-# Plain ints: pyzmq's flag enums cost an enum call on every use.
-_NOBLOCK = int(zmq.NOBLOCK)
-_EVENTS = int(zmq.EVENTS)
-_POLLIN = int(zmq.POLLIN)
 _SCHEMES = ("tcp://", "ipc://", "inproc://")
-_SEND_HWM = 10_000
 _RECV_HWM = 10_000
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
 _COPY_THRESHOLD = 65_536
 """Smaller payloads are copied into the frame (cheaper than tracking a zero-copy buffer)."""
-
-
-def _check_id(system_id: str) -> str | None:
-    """Why ``system_id`` cannot name a system, or None if it can."""
-    if not system_id or system_id == BROADCAST or "/" in system_id:
-        return "expected a non-empty id without '/' that is not '*'"
-    raw = system_id.encode()
-    if len(raw) > 255:
-        return "longer than 255 bytes"
-    if raw[0] == 0:
-        return "starts with a NUL byte (reserved for ids zmq makes up)"
-    return None
 
 
 class ZmqTransport(Transport):
@@ -94,7 +76,7 @@ class ZmqTransport(Transport):
         advertise: str | None = None,
         context: zmq.Context[Any] | None = None,
     ) -> None:
-        if (why := _check_id(system_id)) is not None:
+        if (why := check_id(system_id)) is not None:
             raise ValueError(f"system id {system_id!r}: {why}")
         if not bind.startswith(_SCHEMES):
             raise ValueError(f"cannot bind {bind!r}: expected tcp://, ipc:// or inproc://")
@@ -132,7 +114,7 @@ class ZmqTransport(Transport):
         self._endpoints: dict[str, str] = {}
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
-        self._monitors: dict[str, _Monitor] = {}
+        self._monitors: dict[str, Monitor] = {}
         self.hellos = 0
         """Hellos taken (new, moved or known peers): with ``stats.received``,
         ``stats.malformed`` and ``stats.unknown_peer`` every inbound frame is counted once."""
@@ -153,7 +135,7 @@ class ZmqTransport(Transport):
     # -- peers ------------------------------------------------------------------------
     def add_peer(self, system_id: str, endpoint: str) -> None:
         """Connect to a peer and say hello (idempotent; a new endpoint replaces the old)."""
-        if (why := _check_id(system_id)) is not None:
+        if (why := check_id(system_id)) is not None:
             raise ValueError(f"peer id {system_id!r}: {why}")
         self._connect(system_id, endpoint)
         self._configured.add(system_id)
@@ -165,31 +147,7 @@ class ZmqTransport(Transport):
             return
         if not endpoint.startswith(_SCHEMES):
             raise ValueError(f"peer {system_id}: endpoint {endpoint!r} is not tcp/ipc/inproc")
-        sock: zmq.Socket[bytes] = self._ctx.socket(zmq.DEALER)
-        sock.setsockopt(zmq.LINGER, 0)
-        sock.setsockopt(zmq.ROUTING_ID, self._id)
-        sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
-        monitor = None
-        if not endpoint.startswith("inproc://"):
-            # A peer that restarts on the same endpoint gets our DEALER back by zmq's
-            # reconnect, but has forgotten us: a monitor tells us to say hello again.
-            # It must watch before connecting, or the first connection may go unseen.
-            # (pyzmq names monitors after the socket's fd, which a closed one may still
-            # hold while zmq reaps it: a fresh name never collides.)
-            name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
-            try:
-                events = sock.get_monitor_socket(zmq.EVENT_CONNECTED, addr=name)
-            except zmq.ZMQError as exc:
-                log.warning("transport.no_monitor", peer=system_id, error=str(exc))
-            else:
-                monitor = _Monitor(system_id, sock, events)
-        try:
-            sock.connect(endpoint)
-        except zmq.ZMQError as exc:
-            if monitor is not None:
-                monitor.close()
-            sock.close(0)
-            raise ValueError(f"peer {system_id}: cannot connect to {endpoint!r}: {exc}") from None
+        sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint)
         self.remove_peer(system_id)
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
@@ -201,7 +159,7 @@ class ZmqTransport(Transport):
             if self._loop is not None:
                 self._watch(monitor)
 
-    def _watch(self, monitor: _Monitor) -> None:
+    def _watch(self, monitor: Monitor) -> None:
         assert self._loop is not None
         self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
         # Events that came before we watched have already reset the descriptor.
@@ -245,7 +203,7 @@ class ZmqTransport(Transport):
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
         frame = kind + data
         try:
-            sock.send(frame, _NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
+            sock.send(frame, NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
         except zmq.Again:
             self.stats.undeliverable += 1
             self.stats.drop(f"peer {sid} backed up")
@@ -295,7 +253,7 @@ class ZmqTransport(Transport):
         try:
             for _ in range(_BATCH):
                 try:
-                    frames = router.recv_multipart(_NOBLOCK)
+                    frames = router.recv_multipart(NOBLOCK)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
@@ -307,7 +265,7 @@ class ZmqTransport(Transport):
                 if self._deliver is None:  # closed by whoever we delivered to
                     return
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
-                if not router.getsockopt(_EVENTS) & _POLLIN:  # type: ignore[operator]
+                if not router.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
                     return
         except zmq.ZMQError as exc:
             if not self._closed:
@@ -317,7 +275,7 @@ class ZmqTransport(Transport):
         if self._loop is not None:
             self._loop.call_soon(self._on_readable)
 
-    def _on_monitor(self, monitor: _Monitor) -> None:
+    def _on_monitor(self, monitor: Monitor) -> None:
         try:
             for _ in range(_BATCH):
                 if monitor.closed or not monitor.pending():
@@ -374,7 +332,7 @@ class ZmqTransport(Transport):
         except UnicodeDecodeError:
             self._malformed("bad hello", ident, "id or endpoint not UTF-8")
             return
-        if (why := _check_id(peer)) is not None:
+        if (why := check_id(peer)) is not None:
             self._malformed("bad hello", ident, why)
             return
         if not endpoint.startswith(_SCHEMES) or len(endpoint) > 1024:
@@ -443,37 +401,3 @@ class ZmqTransport(Transport):
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
         self._router.close(0)
-
-
-class _Monitor:
-    """Connection events of one DEALER, read from its zmq monitor socket."""
-
-    __slots__ = ("closed", "connects", "dealer", "fd", "peer", "socket")
-
-    def __init__(self, peer: str, dealer: zmq.Socket[bytes], socket: zmq.Socket[bytes]) -> None:
-        self.peer = peer
-        self.dealer = dealer
-        self.socket = socket
-        fd = socket.getsockopt(zmq.FD)
-        assert isinstance(fd, int)
-        self.fd = fd
-        self.connects = 0
-        self.closed = False
-
-    def pending(self) -> bool:
-        return bool(self.socket.getsockopt(_EVENTS) & _POLLIN)  # type: ignore[operator]
-
-    def connected(self) -> bool:
-        """Read one event; True (and counted) if it is a new connection."""
-        frames = self.socket.recv_multipart(_NOBLOCK)
-        if len(frames) == 2 and len(frames[0]) == 6:
-            event = int.from_bytes(frames[0][:2], sys.byteorder)
-            if event == zmq.EVENT_CONNECTED:
-                self.connects += 1
-                return True
-        return False
-
-    def close(self) -> None:
-        self.closed = True
-        self.dealer.disable_monitor()
-        self.socket.close(0)
