@@ -1,9 +1,13 @@
 """Control flow: Sequence, Fallback (reactive and with memory), Parallel, IfThenElse, Switch.
 
 Reactive composites tick from their first child every tick, so a condition that stops
-holding pre-empts the work after it. Children that were active and are no longer ticked
-are unticked. A child that is UNASSIGNED, ASSIGNED or PAUSED counts as RUNNING, and a
-child in ERROR counts as FAILED (the child keeps its error for inspection).
+holding pre-empts the work after it. A child that is UNASSIGNED, ASSIGNED or PAUSED counts
+as RUNNING, and a child in ERROR counts as FAILED (the child keeps its error).
+
+Halting: a composite that stops ticking an active child unticks it in that same tick, so
+after every tick only nodes ticked in it are active (:mod:`btcap.bt.invariants` checks
+this). Untick keeps progress (memory positions, a Parallel's finished children) and
+:meth:`~btcap.bt.node.Node.reset` forgets it; see the README's node list for the rule.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
-from btcap.bt.state import ACTIVE, State, TreeError
+from btcap.bt.state import State, TreeError
 from btcap.bt.utility import Utility, fallback_utility, parallel_utility, sequence_utility
 
 __all__ = [
@@ -29,7 +33,14 @@ _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
-_IDLE = State.IDLE
+#: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
+
+
+def _halt(node: Node) -> None:
+    """Untick ``node`` if it has work in progress."""
+    if node.state in _ACTIVE:
+        node.untick()
 
 
 class Composite(Node):
@@ -46,9 +57,7 @@ class Composite(Node):
         """Untick children after ``index`` that were ticked last time and are still active."""
         children = self.children
         for i in range(index + 1, min(self._high, len(children) - 1) + 1):
-            c = children[i]
-            if c.state in ACTIVE:
-                c.untick()
+            _halt(children[i])
         self._high = index
 
     def on_reset(self) -> None:
@@ -108,6 +117,8 @@ class Fallback(Composite):
 
 
 class _Memory(Composite):
+    """Resumes at the child it stopped at; the position survives an untick, not a reset."""
+
     __slots__ = ("_current",)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -118,22 +129,6 @@ class _Memory(Composite):
         super().on_reset()
         self._current = 0
 
-    def _step(self, stop_on: State, done: State, other: State) -> State:
-        children = self.children
-        while self._current < len(children):
-            s = children[self._current].tick()
-            if s is _ERROR:
-                s = _FAILED
-            if s is stop_on:
-                self._current = 0
-                return stop_on
-            if s is done:
-                self._current += 1
-                continue
-            return _RUNNING
-        self._current = 0
-        return other
-
 
 class SequenceWithMemory(_Memory):
     """Like :class:`Sequence`, but children that succeeded are not ticked again."""
@@ -141,7 +136,21 @@ class SequenceWithMemory(_Memory):
     __slots__ = ()
 
     def on_tick(self) -> State:
-        return self._step(_FAILED, _SUCCEEDED, _SUCCEEDED)
+        children = self.children
+        i = self._current
+        n = len(children)
+        while i < n:
+            s = children[i].tick()
+            if s is _SUCCEEDED:
+                i += 1
+            elif s is _FAILED or s is _ERROR:
+                self._current = 0
+                return _FAILED
+            else:
+                self._current = i
+                return _RUNNING
+        self._current = 0
+        return _SUCCEEDED
 
     def utility(self) -> Utility:
         return sequence_utility([c.utility() for c in self.children])
@@ -153,78 +162,133 @@ class FallbackWithMemory(_Memory):
     __slots__ = ()
 
     def on_tick(self) -> State:
-        return self._step(_SUCCEEDED, _FAILED, _FAILED)
+        children = self.children
+        i = self._current
+        n = len(children)
+        while i < n:
+            s = children[i].tick()
+            if s is _FAILED or s is _ERROR:
+                i += 1
+            elif s is _SUCCEEDED:
+                self._current = 0
+                return _SUCCEEDED
+            else:
+                self._current = i
+                return _RUNNING
+        self._current = 0
+        return _FAILED
 
     def utility(self) -> Utility:
         return fallback_utility([c.utility() for c in self.children])
 
 
 class Parallel(Composite):
-    """Ticks all unfinished children each tick.
+    """Ticks every unfinished child each tick, then decides, as BehaviorTree.CPP's
+    ``ParallelNode`` (v4) does:
 
-    Succeeds once ``success_threshold`` children succeeded (default: all of them); fails
-    once ``failure_threshold`` children failed (default: as soon as success has become
-    impossible). Children still running at that point are unticked; the finished ones
-    are reset when the Parallel is ticked again afterwards.
+    - it succeeds once ``success_threshold`` children have succeeded (default: all);
+    - it fails once ``failure_threshold`` children have failed, or as soon as success has
+      become impossible (default: only then);
+    - when both are reached in the same tick, failure wins;
+    - a negative threshold counts from the number of children: -1 is all, -2 all but one;
+    - a threshold that can never be met is a :class:`TreeError` naming the node when the
+      tree is validated, set up or loaded from a file;
+    - once decided, children still running are unticked in that same tick.
+
+    A finished child is not ticked again while the Parallel runs; an untick keeps those
+    results. Ticked again after its own result, the Parallel resets its children and
+    starts over.
     """
 
-    __slots__ = ("_results",)
+    __slots__ = ("_bad", "_fail_at", "_need", "_ok", "_pending", "_restart", "_size")
     OPTIONS: ClassVar[Any] = {
-        "success_threshold": Port(int | None, None, "children that must succeed (default all)"),
-        "failure_threshold": Port(int | None, None, "children whose failure fails it"),
+        "success_threshold": Port(int, -1, "children that must succeed (negative: n + 1 + t)"),
+        "failure_threshold": Port(
+            int | None, None, "children whose failure fails it (default: when success is lost)"
+        ),
     }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._results: list[State | None] = []
+        self._size = -1  # number of children the thresholds below were computed for
+        self._need = self._fail_at = 0
+        self._ok = self._bad = 0
+        self._pending: list[Node] | None = None  # unfinished children; None: start afresh
+        self._restart = False  # finished: reset the children before starting again
 
-    def _thresholds(self) -> tuple[int, int]:
+    def thresholds(self) -> tuple[int, int]:
+        """(successes needed, failures that fail it) for the current children.
+
+        Failing when success has become impossible is a failure count too, ``n - need + 1``,
+        so the smaller of the two is returned. Raises TreeError if either can never be met.
+        """
         n = len(self.children)
         ok = self.options["success_threshold"]
-        ok = n if ok is None else ok
-        bad = self.options["failure_threshold"]
-        bad = n - ok + 1 if bad is None else bad
-        if not 0 <= ok <= n or bad < 1:
+        need = ok if ok >= 0 else n + 1 + ok
+        if not 0 <= need <= n:
             raise TreeError(
-                f"Parallel {self.name!r}: success_threshold must be within 0..{n} and "
-                f"failure_threshold >= 1 (got {ok}, {bad})"
+                f"node {self.path!r} (Parallel): success_threshold {ok} can never be met with "
+                f"{n} children (expected {-n - 1}..{n})"
             )
-        return ok, bad
+        lost = n - need + 1
+        bad = self.options["failure_threshold"]
+        if bad is None:
+            return need, lost
+        fail_at = bad if bad >= 0 else n + 1 + bad
+        if not 1 <= fail_at <= n:
+            raise TreeError(
+                f"node {self.path!r} (Parallel): failure_threshold {bad} can never be met with "
+                f"{n} children (expected 1..{n} or -{n}..-1)"
+            )
+        return need, min(fail_at, lost)
+
+    def check_children(self) -> None:
+        self.thresholds()
 
     def on_setup(self) -> None:
-        self._thresholds()
+        self.thresholds()
 
     def on_tick(self) -> State:
-        ok_needed, bad_needed = self._thresholds()
         children = self.children
-        if len(self._results) != len(children) or all(r is not None for r in self._results):
-            if any(r is not None for r in self._results):
+        if len(children) != self._size:
+            self._need, self._fail_at = self.thresholds()
+            self._size = len(children)
+        pending = self._pending
+        if pending is None:
+            if self._restart:
                 for c in children:
                     c.reset()
-            self._results = [None] * len(children)
-        results = self._results
-        ok = bad = 0
-        for i, c in enumerate(children):
-            r = results[i]
-            if r is None:
-                s = c.tick()
-                if s is _SUCCEEDED or s is _FAILED or s is _ERROR:
-                    r = results[i] = _FAILED if s is _ERROR else s
-            if r is _SUCCEEDED:
+                self._restart = False
+            pending = children
+            ok = bad = 0
+        else:
+            ok, bad = self._ok, self._bad
+        running: list[Node] = []
+        for c in pending:
+            s = c.tick()
+            if s is _SUCCEEDED:
                 ok += 1
-            elif r is _FAILED:
+            elif s is _FAILED or s is _ERROR:
                 bad += 1
-        if ok >= ok_needed or bad >= bad_needed:
-            for c in children:
-                if c.state in ACTIVE:
-                    c.untick()
-            self._results = [_SUCCEEDED] * len(children)
-            return _SUCCEEDED if ok >= ok_needed else _FAILED
-        return _RUNNING
+            else:
+                running.append(c)
+        if bad >= self._fail_at:
+            result = _FAILED
+        elif ok >= self._need:
+            result = _SUCCEEDED
+        else:
+            self._pending, self._ok, self._bad = running, ok, bad
+            return _RUNNING
+        for c in running:
+            _halt(c)
+        self._pending = None
+        self._restart = True
+        return result
 
     def on_reset(self) -> None:
         super().on_reset()
-        self._results = []
+        self._pending = None
+        self._restart = False
 
     def utility(self) -> Utility:
         return parallel_utility([c.utility() for c in self.children])
@@ -251,17 +315,15 @@ class IfThenElse(Composite):
         otherwise = rest[0] if rest else None
         s = cond.tick()
         if s is _SUCCEEDED:
-            if otherwise is not None and otherwise.state in ACTIVE:
-                otherwise.untick()
+            if otherwise is not None:
+                _halt(otherwise)
             return _collapse(then.tick())
         if s is _FAILED or s is _ERROR:
-            if then.state in ACTIVE:
-                then.untick()
+            _halt(then)
             return _collapse(otherwise.tick()) if otherwise is not None else _FAILED
         # The condition is undecided: neither branch may keep working meanwhile.
         for branch in self.children[1:]:
-            if branch.state in ACTIVE:
-                branch.untick()
+            _halt(branch)
         return _RUNNING
 
     def utility(self) -> Utility:
@@ -288,12 +350,15 @@ class Switch(Composite):
         super().__init__(*args, **kwargs)
         self._active: Node | None = None
 
-    def on_setup(self) -> None:
+    def check_children(self) -> None:
         n, k = len(self.children), len(self.options["cases"])
         if k not in (n, n - 1):
             raise TreeError(
                 f"Switch {self.name!r}: {k} cases for {n} children; expected {n} or {n - 1}"
             )
+
+    def on_setup(self) -> None:
+        self.check_children()
 
     def on_tick(self) -> State:
         value = self.inputs["value"]
@@ -303,8 +368,8 @@ class Switch(Composite):
             chosen: Node | None = children[cases.index(value)]
         except ValueError:
             chosen = children[-1] if len(cases) < len(children) else None
-        if self._active is not None and self._active is not chosen and self._active.state in ACTIVE:
-            self._active.untick()
+        if self._active is not None and self._active is not chosen:
+            _halt(self._active)
         self._active = chosen
         if chosen is None:
             return _FAILED

@@ -1,15 +1,19 @@
 """Decorators: one child, its result remapped, repeated, retried, timed or rate-limited.
 
-Durations are clock seconds (see :class:`actors.Clock`), never wall-clock sleeps.
+Durations are clock seconds (see :class:`actors.Clock`), never wall-clock sleeps. A
+decorator that gives a result while its child is still running unticks the child in that
+same tick. Counts survive an untick and are forgotten on reset (the README's node list
+states the rule for every node).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
-from btcap.bt.state import ACTIVE, State, TreeError
+from btcap.bt.state import State, TreeError
 from btcap.bt.utility import Utility
 
 __all__ = [
@@ -36,6 +40,8 @@ _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
+#: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
 def _result(s: State) -> State:
@@ -51,6 +57,9 @@ class Decorator(Node):
     __slots__ = ()
     MIN_CHILDREN: ClassVar[int] = 1
     MAX_CHILDREN: ClassVar[int | None] = 1
+    #: True if the node leaves its running child unticked on some ticks by design (a
+    #: Throttle between its child's ticks); the halting invariant allows that below it.
+    HOLDS_RUNNING_CHILD: ClassVar[bool] = False
 
     def on_setup(self) -> None:
         if len(self.children) != 1:
@@ -64,15 +73,42 @@ class Decorator(Node):
         return self.children[0].utility() if self.children else Utility()
 
 
+def _remapper(table: dict[State, State]) -> Callable[[Remap], State]:
+    """An ``on_tick`` for one MAP, with the three outcomes bound (no lookup per tick)."""
+    on_success, on_failure, on_running = (table.get(s, s) for s in (_SUCCEEDED, _FAILED, _RUNNING))
+    halts = on_running is not _RUNNING
+
+    def on_tick(self: Remap) -> State:
+        child = self.children[0]
+        s = child.tick()
+        if s is _SUCCEEDED:
+            return on_success
+        if s is _FAILED or s is _ERROR:
+            return on_failure
+        if halts and s in _ACTIVE:
+            child.untick()  # it counts as finished: nobody would tick or halt it later
+        return on_running
+
+    return on_tick
+
+
 class Remap(Decorator):
-    """Maps the child's succeeded/failed/running to other states (see the subclasses)."""
+    """Maps the child's succeeded/failed/running to other states (see the subclasses).
+
+    When running is mapped to a result, the running child is unticked in that same tick:
+    the parent takes the result as final and will neither tick nor halt the child later.
+    """
 
     __slots__ = ()
     MAP: ClassVar[dict[State, State]] = {}
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "on_tick" not in cls.__dict__:
+            cls.on_tick = _remapper(cls.MAP)  # type: ignore[method-assign,assignment]
+
     def on_tick(self) -> State:
-        s = _result(self.children[0].tick())
-        return self.MAP.get(s, s)
+        return _remapper(self.MAP)(self)
 
 
 class Inverter(Remap):
@@ -97,14 +133,14 @@ class ForceFailure(Remap):
 
 
 class RunningIsSuccess(Remap):
-    """Do not wait for the child: running counts as success."""
+    """Do not wait for the child: running counts as success (and the child is unticked)."""
 
     __slots__ = ()
     MAP: ClassVar[dict[State, State]] = {_RUNNING: _SUCCEEDED}
 
 
 class RunningIsFailure(Remap):
-    """Running counts as failure."""
+    """Running counts as failure (and the child is unticked)."""
 
     __slots__ = ()
     MAP: ClassVar[dict[State, State]] = {_RUNNING: _FAILED}
@@ -125,6 +161,9 @@ class FailureIsRunning(Remap):
 
 
 class _Counting(Decorator):
+    """Counts attempts; the count survives an untick (a paused branch resumes where it was)
+    and is forgotten on reset or once the decorator gives its result."""
+
     __slots__ = ("count",)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -134,11 +173,6 @@ class _Counting(Decorator):
     def on_reset(self) -> None:
         self.count = 0
 
-    def _again(self) -> State:
-        """Reset the child so the next tick starts it afresh."""
-        self.children[0].reset()
-        return _RUNNING
-
 
 class Retry(_Counting):
     """Re-runs a failing child up to ``retries`` more times; fails after that."""
@@ -147,16 +181,19 @@ class Retry(_Counting):
     OPTIONS: ClassVar[Any] = {"retries": Port(int, 1, "extra attempts after a failure")}
 
     def on_tick(self) -> State:
-        s = _result(self.children[0].tick())
-        if s is not _FAILED:
-            if s is _SUCCEEDED:
-                self.count = 0
+        child = self.children[0]
+        s = child.tick()
+        if s is _SUCCEEDED:
+            self.count = 0
             return s
+        if s is not _FAILED and s is not _ERROR:
+            return _RUNNING
         if self.count >= self.options["retries"]:
             self.count = 0
             return _FAILED
         self.count += 1
-        return self._again()
+        child.reset()  # the next tick starts a fresh attempt
+        return _RUNNING
 
 
 class Repeat(_Counting):
@@ -166,17 +203,20 @@ class Repeat(_Counting):
     OPTIONS: ClassVar[Any] = {"times": Port(int, 1, "successes needed; -1 repeats forever")}
 
     def on_tick(self) -> State:
-        s = _result(self.children[0].tick())
+        child = self.children[0]
+        s = child.tick()
         if s is not _SUCCEEDED:
-            if s is _FAILED:
+            if s is _FAILED or s is _ERROR:
                 self.count = 0
-            return s
+                return _FAILED
+            return _RUNNING
         self.count += 1
         times = self.options["times"]
         if 0 <= times <= self.count:
             self.count = 0
             return _SUCCEEDED
-        return self._again()
+        child.reset()
+        return _RUNNING
 
 
 class RepeatUntilSuccess(_Counting):
@@ -186,7 +226,8 @@ class RepeatUntilSuccess(_Counting):
     OPTIONS: ClassVar[Any] = {"max_attempts": Port(int | None, None, "give up after this many")}
 
     def on_tick(self) -> State:
-        s = _result(self.children[0].tick())
+        child = self.children[0]
+        s = _result(child.tick())
         if s is not _FAILED:
             if s is _SUCCEEDED:
                 self.count = 0
@@ -196,7 +237,8 @@ class RepeatUntilSuccess(_Counting):
         if limit is not None and self.count >= limit:
             self.count = 0
             return _FAILED
-        return self._again()
+        child.reset()
+        return _RUNNING
 
 
 class RepeatUntilFailure(_Counting):
@@ -206,7 +248,8 @@ class RepeatUntilFailure(_Counting):
     OPTIONS: ClassVar[Any] = {"max_attempts": Port(int | None, None, "give up after this many")}
 
     def on_tick(self) -> State:
-        s = _result(self.children[0].tick())
+        child = self.children[0]
+        s = _result(child.tick())
         if s is _FAILED:
             self.count = 0
             return _SUCCEEDED
@@ -217,7 +260,8 @@ class RepeatUntilFailure(_Counting):
         if limit is not None and self.count >= limit:
             self.count = 0
             return _FAILED
-        return self._again()
+        child.reset()
+        return _RUNNING
 
 
 class _Timed(Decorator):
@@ -232,7 +276,11 @@ class _Timed(Decorator):
 
 
 class Timeout(_Timed):
-    """Fails (and unticks the child) if it has not finished within ``seconds``."""
+    """Fails (and unticks the child) if it has not finished within ``seconds``.
+
+    On expiry the child is not ticked again (as BehaviorTree.CPP does). An untick restarts
+    the period: time spent paused does not count against the child.
+    """
 
     __slots__ = ()
     OPTIONS: ClassVar[Any] = {"seconds": Port(float, description="clock seconds allowed")}
@@ -243,7 +291,7 @@ class Timeout(_Timed):
             self._since = now
         if now - self._since >= self.options["seconds"]:
             child = self.children[0]
-            if child.state in ACTIVE:
+            if child.state in _ACTIVE:
                 child.untick()
             self._since = None
             return _FAILED
@@ -258,7 +306,10 @@ class Timeout(_Timed):
 
 
 class Delay(_Timed):
-    """Waits ``seconds`` after it is first ticked, then ticks the child."""
+    """Waits ``seconds`` after it is first ticked, then ticks the child.
+
+    An untick keeps the time already waited, like any other progress.
+    """
 
     __slots__ = ()
     OPTIONS: ClassVar[Any] = {"seconds": Port(float, description="clock seconds to wait")}
@@ -276,9 +327,14 @@ class Delay(_Timed):
 
 
 class Throttle(_Timed):
-    """Ticks the child at most ``rate_hz`` times per clock second, else repeats its state."""
+    """Ticks the child at most ``rate_hz`` times per clock second, else repeats its state.
+
+    Between its ticks a running child stays running, unticked: the Throttle holds it and
+    unticks it when it is unticked itself.
+    """
 
     __slots__ = ("_last",)
+    HOLDS_RUNNING_CHILD: ClassVar[bool] = True
     OPTIONS: ClassVar[Any] = {"rate_hz": Port(float, description="ticks per clock second")}
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

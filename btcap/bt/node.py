@@ -11,13 +11,12 @@ from collections.abc import Callable, Coroutine, Iterator, Sequence
 from types import FunctionType
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
-import structlog
-
 from btcap.actors import Actor, handler
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_value, normalize_ports, type_name
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.bt.utility import Utility
+from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:
     import asyncio
@@ -26,7 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Leaf", "Node", "Observer", "TreeHost"]
 
-log = structlog.get_logger("btcap")
+log = get_logger("btcap")
 
 #: Called as ``observer(node, old_state, new_state)`` whenever a node changes state.
 Observer = Callable[["Node", State, State], None]
@@ -148,6 +147,13 @@ class Node(Actor):
     # -- declaration ------------------------------------------------------------------
     def declare_ports(self) -> None:
         """Override to compute ``input_ports``/``output_ports`` from options."""
+
+    def check_children(self) -> None:
+        """Raise TreeError if the options cannot work with the current children.
+
+        Called when a tree is validated or loaded, so a node whose configuration depends on
+        its children (a Parallel's thresholds) is rejected before it ever ticks.
+        """
 
     def _check_options(self, given: dict[str, Any]) -> dict[str, Any]:
         spec = type(self).OPTIONS
@@ -283,6 +289,9 @@ class Node(Actor):
         try:
             new = self.on_tick()
         except Exception as exc:
+            for c in self.children:  # a failed node ticks them no more: halt them now
+                if c.state in ACTIVE:
+                    c.untick()
             return self._fail(exc, "tick")
         if new.__class__ is not State:
             return self._fail(TypeError(f"on_tick returned {new!r}, expected a State"), "tick")

@@ -163,7 +163,8 @@ class Tree:
         wire.target._regate()
 
     def validate(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
-        """Check child counts and that every required input has a value or a wire.
+        """Check children (counts, :meth:`Node.check_children`) and that every required input
+        has a value or a wire.
 
         ``provided`` lists inputs fed from outside, e.g. a :class:`Subtree`'s public inputs.
         """
@@ -178,6 +179,7 @@ class Tree:
                     f"node {n.path!r} ({cls.__name__}) has {k} children; expected "
                     f"{cls.MIN_CHILDREN} to {most}"
                 )
+            n.check_children()
             for key, port in n.input_ports.items():
                 if port.required and n.inputs.get(key) is None and (id(n), key) not in wired:
                     raise TreeError(f"node {n.path!r}: input {key!r} needs a value or a wire")

@@ -385,6 +385,11 @@ class Builder:
                 continue
             seen.add(child.name)
             node.add_child(child)
+        if attach:
+            try:
+                node.check_children()
+            except TreeError as exc:
+                self.fail(f"{loc}: {_strip_self(str(exc), node.name, spec.type)}")
 
 
 def _under(path: str, failed: list[str]) -> bool:

@@ -1,7 +1,11 @@
-"""Decorators: remapping, retrying, repeating, timing (on a ManualClock) and running once."""
+"""Decorators: remapping, retrying, repeating, timing (on a ManualClock) and running once.
+
+Every tick goes through ``tick_checked`` (the halting invariant holds after each one).
+"""
 
 from __future__ import annotations
 
+import asyncio
 from typing import Any
 
 import anyio
@@ -9,8 +13,10 @@ import pytest
 from structlog.testing import capture_logs
 
 from btcap import (
+    Action,
     Delay,
     FailureIsRunning,
+    Fallback,
     ForceFailure,
     ForceSuccess,
     Inverter,
@@ -23,6 +29,7 @@ from btcap import (
     RunningIsFailure,
     RunningIsSuccess,
     RunOnce,
+    SequenceWithMemory,
     SuccessIsRunning,
     Throttle,
     Timeout,
@@ -32,17 +39,20 @@ from btcap import (
 from btcap import State as St
 from btcap.actors import ManualClock
 from btcap.bt.decorators import Decorator
+from btcap.bt.invariants import tick_checked as tick
 
 S, F, R = St.SUCCEEDED, St.FAILED, St.RUNNING
 
 
 class Leafy(Leaf):
-    """Returns the next scripted result (the last one repeats); counts ticks and resets."""
+    """Returns the next scripted result (the last one repeats); counts ticks, unticks and
+    resets."""
 
     def __init__(self, *script: St, name: str = "child") -> None:
         super().__init__(name)
         self.script = list(script)
         self.ticks = 0
+        self.unticks = 0
         self.resets = 0
 
     def on_tick(self) -> St:
@@ -51,12 +61,15 @@ class Leafy(Leaf):
             return self.script.pop(0)
         return self.script[0]
 
+    def on_untick(self) -> None:
+        self.unticks += 1
+
     def on_reset(self) -> None:
         self.resets += 1
 
 
 def run(tree: Tree, n: int) -> list[St]:
-    return [tree.tick() for _ in range(n)]
+    return [tick(tree) for _ in range(n)]
 
 
 # -- remapping --------------------------------------------------------------------------
@@ -87,8 +100,48 @@ SEEN = {
 def test_remapping_decorators(kind: type[Decorator], child_state: St) -> None:
     child = Leafy(child_state)
     tree = Tree(kind("dec", children=[child]))
-    assert tree.tick() is REMAPS[kind][SEEN[child_state]]
-    assert child.state is child_state
+    result = tick(tree)
+    assert result is REMAPS[kind][SEEN[child_state]]
+    active = child_state in (R, St.UNASSIGNED, St.ASSIGNED)
+    # A result given for a child still at work ends that work: the child is unticked.
+    assert child.state is (St.PAUSED if active and result is not R else child_state)
+
+
+@pytest.mark.parametrize("kind", [RunningIsSuccess, RunningIsFailure])
+def test_running_is_result_unticks_the_child_the_same_tick(kind: type[Decorator]) -> None:
+    # Fallback(a, RunningIsSuccess(b)), a failing, b running: b must not stay RUNNING
+    # after its branch gave a result (it used to, neither ticked nor halted).
+    a, b = Leafy(F, name="a"), Leafy(R, name="b")
+    dec = kind("dec", children=[b])
+    tree = Tree(SequenceWithMemory("root", children=[Fallback("fb", children=[a, dec])]))
+    expected = S if kind is RunningIsSuccess else F
+    assert tick(tree) is expected
+    assert b.state is St.PAUSED
+    assert b.unticks == 1
+    assert tick(tree) is expected  # ticked again: b resumes and is unticked again
+    assert (b.ticks, b.unticks) == (2, 2)
+
+
+async def test_running_is_success_cancels_the_abandoned_action() -> None:
+    with anyio.fail_after(5):
+        seen: list[str] = []
+
+        async def work() -> None:
+            await asyncio.sleep(0)
+            seen.append("ran to completion")
+
+        act = Action(work, "act")
+        tree = Tree(
+            SequenceWithMemory(
+                "root", children=[RunningIsSuccess("dec", children=[act]), Leafy(R, name="next")]
+            )
+        )
+        assert tick(tree) is R
+        for _ in range(5):
+            await asyncio.sleep(0)
+        assert seen == []  # its branch moved on: the work was cancelled, not left running
+        assert act.state is St.PAUSED
+        await tree.shutdown()
 
 
 def test_decorator_counts_error_of_a_raising_child_as_failure() -> None:
@@ -98,7 +151,7 @@ def test_decorator_counts_error_of_a_raising_child_as_failure() -> None:
 
     tree = Tree(Inverter("inv", children=[Boom("boom")]))
     with capture_logs():
-        assert tree.tick() is S
+        assert tick(tree) is S
     assert tree.errors()[0].name == "boom"
 
 
@@ -109,7 +162,7 @@ def test_decorators_need_exactly_one_child(kind: type[Node]) -> None:
         kind("d", children=[Leafy(S, name="a"), Leafy(S, name="b")], **opts)
     tree = Tree(kind("d", **opts))
     with pytest.raises(TreeError, match="has 0 children; expected 1 to 1"):
-        tree.tick()
+        tick(tree)
 
 
 def test_decorator_child_property() -> None:
@@ -182,7 +235,7 @@ def test_repeat_waits_for_a_running_child_and_fails_on_failure() -> None:
 
 
 def test_repeat_default_once() -> None:
-    assert Tree(Repeat("rep", children=[Leafy(S)])).tick() is S
+    assert tick(Tree(Repeat("rep", children=[Leafy(S)]))) is S
 
 
 def test_repeat_forever() -> None:
@@ -225,9 +278,40 @@ def test_repeat_until_failure_max_attempts() -> None:
 
 def test_counts_are_forgotten_on_reset() -> None:
     tree = Tree(Repeat("rep", children=[Leafy(S)], times=2))
-    assert tree.tick() is R
+    assert tick(tree) is R
     tree.reset()
     assert run(tree, 2) == [R, S]
+
+
+def test_retry_keeps_its_count_across_an_untick_and_forgets_it_on_reset() -> None:
+    child = Leafy(F, R)
+    tree = Tree(Retry("retry", children=[child], retries=1))
+    assert run(tree, 2) == [R, R]  # one retry used, the second attempt running
+    tree.untick()
+    assert child.state is St.PAUSED
+    child.script = [F]
+    assert tick(tree) is F  # resumed: the used retry still counts
+    child.script = [F, R]
+    assert run(tree, 2) == [R, R]
+    tree.untick()
+    tree.reset()  # restart: the full budget again
+    child.script = [F]
+    assert run(tree, 2) == [R, F]
+
+
+def test_repeat_keeps_its_count_across_an_untick_and_forgets_it_on_reset() -> None:
+    child = Leafy(S, S, R)
+    tree = Tree(Repeat("rep", children=[child], times=3))
+    assert run(tree, 3) == [R, R, R]  # two successes counted, the third run going on
+    tree.untick()
+    child.script = [S]
+    assert tick(tree) is S  # resumed: the third success completes it
+    child.script = [S, S, R]
+    assert run(tree, 3) == [R, R, R]
+    tree.untick()
+    tree.reset()
+    child.script = [S]
+    assert run(tree, 3) == [R, R, S]
 
 
 @pytest.mark.parametrize(
@@ -247,18 +331,18 @@ async def test_timeout_fails_and_unticks_a_slow_child() -> None:
         clock = ManualClock()
         child = Leafy(R)
         tree = Tree(Timeout("to", children=[child], seconds=2), clock=clock)
-        assert tree.tick() is R
+        assert tick(tree) is R
         await clock.advance(1.9)
-        assert tree.tick() is R
+        assert tick(tree) is R
         assert child.ticks == 2
         await clock.advance(0.1)
-        assert tree.tick() is F
+        assert tick(tree) is F
         assert child.state is St.PAUSED
         assert child.ticks == 2
         # A new tick starts a new period.
-        assert tree.tick() is R
+        assert tick(tree) is R
         await clock.advance(1.0)
-        assert tree.tick() is R
+        assert tick(tree) is R
 
 
 async def test_timeout_passes_a_timely_result_through() -> None:
@@ -266,28 +350,28 @@ async def test_timeout_passes_a_timely_result_through() -> None:
         clock = ManualClock()
         child = Leafy(R, R, S)
         tree = Tree(Timeout("to", children=[child], seconds=2), clock=clock)
-        assert tree.tick() is R
+        assert tick(tree) is R
         await clock.advance(1.5)
-        assert tree.tick() is R
-        assert tree.tick() is S
+        assert tick(tree) is R
+        assert tick(tree) is S
         await clock.advance(1.0)  # the period started over when the child finished
         child.script = [F]
-        assert tree.tick() is F
+        assert tick(tree) is F
 
 
 async def test_timeout_restarts_after_untick_and_reset() -> None:
     with anyio.fail_after(5):
         clock = ManualClock()
         tree = Tree(Timeout("to", children=[Leafy(R)], seconds=2), clock=clock)
-        tree.tick()
+        tick(tree)
         await clock.advance(1.5)
         tree.untick()
-        assert tree.tick() is R
+        assert tick(tree) is R
         await clock.advance(1.5)
-        assert tree.tick() is R
+        assert tick(tree) is R
         tree.reset()
         await clock.advance(1.9)
-        assert tree.tick() is R
+        assert tick(tree) is R
 
 
 async def test_delay_waits_before_ticking_the_child() -> None:
@@ -295,16 +379,16 @@ async def test_delay_waits_before_ticking_the_child() -> None:
         clock = ManualClock()
         child = Leafy(S)
         tree = Tree(Delay("delay", children=[child], seconds=1.5), clock=clock)
-        assert tree.tick() is R
+        assert tick(tree) is R
         await clock.advance(1.0)
-        assert tree.tick() is R
+        assert tick(tree) is R
         assert child.ticks == 0
         await clock.advance(0.5)
-        assert tree.tick() is S
+        assert tick(tree) is S
         assert child.ticks == 1
-        assert tree.tick() is R  # the next run waits again
+        assert tick(tree) is R  # the next run waits again
         await clock.advance(1.5)
-        assert tree.tick() is S
+        assert tick(tree) is S
 
 
 async def test_delay_keeps_ticking_a_running_child() -> None:
@@ -312,20 +396,33 @@ async def test_delay_keeps_ticking_a_running_child() -> None:
         clock = ManualClock()
         child = Leafy(R, R, F)
         tree = Tree(Delay("delay", children=[child], seconds=1), clock=clock)
-        tree.tick()
+        tick(tree)
         await clock.advance(1)
         assert run(tree, 3) == [R, R, F]
+
+
+async def test_delay_keeps_the_time_waited_across_an_untick() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(S)
+        tree = Tree(Delay("delay", children=[child], seconds=1), clock=clock)
+        assert tick(tree) is R
+        await clock.advance(0.6)
+        tree.untick()
+        await clock.advance(0.4)
+        assert tick(tree) is S
+        assert child.ticks == 1
 
 
 async def test_delay_forgets_on_reset() -> None:
     with anyio.fail_after(5):
         clock = ManualClock()
         tree = Tree(Delay("delay", children=[Leafy(S)], seconds=1), clock=clock)
-        tree.tick()
+        tick(tree)
         await clock.advance(0.9)
         tree.reset()
         await clock.advance(0.2)
-        assert tree.tick() is R
+        assert tick(tree) is R
 
 
 async def test_throttle_limits_child_ticks_and_repeats_its_state() -> None:
@@ -333,18 +430,18 @@ async def test_throttle_limits_child_ticks_and_repeats_its_state() -> None:
         clock = ManualClock()
         child = Leafy(R, S)
         tree = Tree(Throttle("thr", children=[child], rate_hz=2), clock=clock)
-        assert tree.tick() is R
-        assert tree.tick() is R
+        assert tick(tree) is R
+        assert tick(tree) is R
         await clock.advance(0.4)
-        assert tree.tick() is R
+        assert tick(tree) is R
         assert child.ticks == 1
         await clock.advance(0.1)
-        assert tree.tick() is S
+        assert tick(tree) is S
         assert child.ticks == 2
-        assert tree.tick() is S  # repeated without a tick
+        assert tick(tree) is S  # repeated without a tick
         assert child.ticks == 2
         await clock.advance(0.5)
-        tree.tick()
+        tick(tree)
         assert child.ticks == 3
 
 
@@ -373,5 +470,5 @@ def test_run_once_keeps_the_first_result(result: St) -> None:
     assert run(tree, 4) == [R, result, result, result]
     assert child.ticks == 2
     tree.reset()
-    assert tree.tick() is child.script[0]
+    assert tick(tree) is child.script[0]
     assert child.ticks == 3
