@@ -11,6 +11,12 @@ with ``memory=False``):
   under a Fallback), and a composite's result is then its last child's, so each last
   child passes on what its parent must return. No decorators are needed; the root
   succeeds.
+- ``mixed`` and ``mixed_parallel``: 12 seeded random trees each (:mod:`.mixed_trees`:
+  reactive and memory composites, decorators, scripted condition and action leaves; the
+  second also with Parallels), the same trees in both libraries. One run resets every
+  tree (untimed), then ticks each of them for 16 steps; the time of a run is divided by
+  the number of nodes that library actually ticked in it (counted beforehand, the same on
+  every run since runs start from reset).
 
 Before timing, ticks per node are counted in both libraries (py_trees: the nodes its
 ``tick()`` generator yields; btcap: calls of each node class's ``tick`` seen by a profile
@@ -51,11 +57,14 @@ import py_trees
 
 import btcap
 from btcap.bench.common import percentiles, write_result
+from btcap.bench.mixed_trees import MixedRun, MixedSpec, btcap_run, mixed_spec, py_trees_run
 
 __all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
 
 LIBS = ("btcap", "py_trees")
-SHAPES = ("flat", "balanced")
+SHAPES = ("flat", "balanced", "mixed", "mixed_parallel")
+MIXED_TREES = 12
+MIXED_SEED = 1
 FLAT_LEAVES = 1000
 BALANCED_FANOUT = (5, 5, 6, 6)
 MEMORY_NODES = 10_000
@@ -245,6 +254,38 @@ def time_shape(
     return samples
 
 
+def time_runs(
+    runs: dict[str, MixedRun], warmup: int, count: int, block_s: float = BLOCK_S
+) -> dict[str, dict[str, list[float]]]:
+    """Per-run ns (``wall``, ``cpu``) per library, each run from reset (reset not timed).
+
+    Libraries take turns in blocks of about ``block_s`` seconds, as in :func:`time_shape`.
+    """
+    wall_clock, cpu_clock = time.perf_counter_ns, time.thread_time_ns
+    per_block: dict[str, int] = {}
+    for lib, r in runs.items():
+        t0 = time.perf_counter()
+        for _ in range(warmup):
+            r.reset()
+            r.run()
+        per_block[lib] = max(1, round(block_s * warmup / (time.perf_counter() - t0)))
+    samples: dict[str, dict[str, list[float]]] = {lib: {"wall": [], "cpu": []} for lib in runs}
+    gc.collect()
+    while any(len(samples[lib]["wall"]) < count for lib in runs):
+        for lib, r in runs.items():
+            wall, cpu = samples[lib]["wall"], samples[lib]["cpu"]
+            for _ in range(per_block[lib]):
+                r.reset()
+                c0 = cpu_clock()
+                t0 = wall_clock()
+                r.run()
+                t1 = wall_clock()
+                c1 = cpu_clock()
+                wall.append(t1 - t0)
+                cpu.append(c1 - c0)
+    return samples
+
+
 def memory_per_node(build: Callable[[], object], nodes: int) -> float:
     """Traced bytes still held after ``build()``, divided by ``nodes``."""
     gc.collect()
@@ -279,24 +320,36 @@ def _build_py_trees_for_memory(spec: Spec) -> Callable[[], object]:
 def _table(data: dict[str, Any]) -> str:
     us, p99, cpu = data["us_per_node"], data["us_per_node_p99"], data["cpu_us_per_node"]
     lines = [
-        f"{'us per node':<11} {'nodes':>5} {'btcap p50':>9} {'p99':>6} {'py_trees p50':>12} "
+        f"{'us per node':<14} {'nodes':>5} {'btcap p50':>9} {'p99':>6} {'py_trees p50':>12} "
         f"{'p99':>6} {'speed-up':>8} {'cpu time speed-up':>17}",
-        "-" * 80,
+        "-" * 83,
     ]
     for shape in SHAPES:
         lines.append(
-            f"{shape:<11} {data['nodes'][shape]:>5} {us['btcap'][shape]:>9.3f} "
+            f"{shape:<14} {data['nodes'][shape]:>5} {us['btcap'][shape]:>9.3f} "
             f"{p99['btcap'][shape]:>6.2f} {us['py_trees'][shape]:>12.3f} "
             f"{p99['py_trees'][shape]:>6.2f} {data['speedup'][shape]:>7.1f}x "
             f"{data['cpu_speedup'][shape]:>8.1f}x ({cpu['btcap'][shape]:.3f}"
             f" vs {cpu['py_trees'][shape]:.2f})"
         )
+    t = data["nodes_ticked_per_sample"]
+    lines.append(
+        "mixed shapes: nodes = all nodes of the trees; per run btcap ticked "
+        + ", ".join(f"{t['btcap'][s]} ({s})" for s in SHAPES[2:])
+        + " nodes, py_trees "
+        + ", ".join(f"{t['py_trees'][s]} ({s})" for s in SHAPES[2:])
+    )
     b = data["bytes_per_node"]
     lines.append(
         f"memory, {data['memory_nodes']} nodes: btcap {b['btcap']:.0f} B/node, "
         f"py_trees {b['py_trees']:.0f} B/node ({b['py_trees'] / b['btcap']:.2f}x)"
     )
     return "\n".join(lines)
+
+
+def _mixed_runs(shape: str) -> dict[str, MixedRun]:
+    specs = _mixed_specs(shape)
+    return {"btcap": btcap_run(specs), "py_trees": py_trees_run(specs)}
 
 
 def run(quick: bool = False) -> dict[str, Any]:
@@ -308,14 +361,30 @@ def run(quick: bool = False) -> dict[str, Any]:
     cpu_us: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
     ticked: dict[str, dict[str, int]] = {lib: {} for lib in LIBS}
     nodes: dict[str, int] = {}
+    per_lib_nodes: dict[str, dict[str, int]] = {lib: {} for lib in LIBS}
+    all_samples: dict[str, dict[str, dict[str, list[float]]]] = {}
     for shape, spec in specs.items():
         n = nodes[shape] = _count(spec)
         tree = _btcap_tree(spec)
         root = _py_trees_root(spec)
         verify_btcap(spec, tree)
         verify_py_trees(spec, root)
-        samples = time_shape({"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count)
+        all_samples[shape] = time_shape(
+            {"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count
+        )
         for lib in LIBS:
+            per_lib_nodes[lib][shape] = n
+    for shape in ("mixed", "mixed_parallel"):
+        runs = _mixed_runs(shape)
+        for lib, r in runs.items():
+            first, again = r.ticked(), r.ticked()
+            assert first == again, f"{lib} {shape}: {first} then {again} nodes ticked from reset"
+            per_lib_nodes[lib][shape] = first
+        nodes[shape] = sum(len(list(s.walk())) for s in _mixed_specs(shape))
+        all_samples[shape] = time_runs(runs, max(2, warmup // 10), max(20, count // 10))
+    for shape, samples in all_samples.items():
+        for lib in LIBS:
+            n = per_lib_nodes[lib][shape]
             p = percentiles([s / 1000.0 / n for s in samples[lib]["wall"]])
             us[lib][shape], us99[lib][shape] = p["p50"], p["p99"]
             cpu_us[lib][shape] = percentiles([s / 1000.0 / n for s in samples[lib]["cpu"]])["p50"]
@@ -334,8 +403,9 @@ def run(quick: bool = False) -> dict[str, Any]:
         "cpu_speedup": {s: cpu_us["py_trees"][s] / cpu_us["btcap"][s] for s in SHAPES},
         "bytes_per_node": bytes_per_node,
         "nodes": nodes,
+        "nodes_ticked_per_sample": per_lib_nodes,
         "memory_nodes": MEMORY_NODES,
-        "ticks": ticked,
+        "samples": ticked,
         "warmup": warmup,
         "quick": quick,
         "py_trees_version": version("py_trees"),
@@ -346,6 +416,11 @@ def run(quick: bool = False) -> dict[str, Any]:
     path = write_result("tick", data)
     print(f"wrote {path}")
     return data
+
+
+def _mixed_specs(shape: str) -> list[MixedSpec]:
+    parallel = shape == "mixed_parallel"
+    return [mixed_spec(MIXED_SEED + i, parallel=parallel) for i in range(MIXED_TREES)]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -196,8 +196,8 @@ class Parallel(Composite):
     - once decided, children still running are unticked in that same tick.
 
     A finished child is not ticked again while the Parallel runs; an untick keeps those
-    results. Ticked again after its own result, the Parallel resets its children and
-    starts over.
+    results. Ticked again after its own result, the Parallel starts over: children it
+    halted (or that erred) are reset first, finished ones start afresh when ticked.
     """
 
     __slots__ = ("_bad", "_fail_at", "_need", "_ok", "_pending", "_restart", "_size")
@@ -255,9 +255,10 @@ class Parallel(Composite):
             self._size = len(children)
         pending = self._pending
         if pending is None:
-            if self._restart:
+            if self._restart:  # children it halted (or that erred) start afresh, not resume
                 for c in children:
-                    c.reset()
+                    if c.state is not _SUCCEEDED and c.state is not _FAILED:
+                        c.reset()
                 self._restart = False
             pending = children
             ok = bad = 0

@@ -73,6 +73,10 @@ class Decorator(Node):
         return self.children[0].utility() if self.children else Utility()
 
 
+#: The ``on_tick`` functions made by :func:`_remapper`, so subclasses get their own.
+_GENERATED: set[Callable[..., State]] = set()
+
+
 def _remapper(table: dict[State, State]) -> Callable[[Remap], State]:
     """An ``on_tick`` for one MAP, with the three outcomes bound (no lookup per tick)."""
     on_success, on_failure, on_running = (table.get(s, s) for s in (_SUCCEEDED, _FAILED, _RUNNING))
@@ -104,8 +108,11 @@ class Remap(Decorator):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "on_tick" not in cls.__dict__:
-            cls.on_tick = _remapper(cls.MAP)  # type: ignore[method-assign,assignment]
+        inherited = cls.on_tick
+        if inherited is Remap.on_tick or inherited in _GENERATED:  # not written by hand
+            generated = _remapper(cls.MAP)
+            _GENERATED.add(generated)
+            cls.on_tick = generated  # type: ignore[method-assign,assignment]
 
     def on_tick(self) -> State:
         return _remapper(self.MAP)(self)

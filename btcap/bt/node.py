@@ -55,6 +55,8 @@ _SHUTDOWN = State.SHUTDOWN
 _IDLE = State.IDLE
 _PAUSED = State.PAUSED
 _ERROR = State.ERROR
+#: ``ACTIVE`` as a tuple: ``in`` compares by identity, without Enum's Python-level __hash__.
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
 class Node(Actor):
@@ -290,7 +292,7 @@ class Node(Actor):
             new = self.on_tick()
         except Exception as exc:
             for c in self.children:  # a failed node ticks them no more: halt them now
-                if c.state in ACTIVE:
+                if c.state in _ACTIVE:
                     c.untick()
             return self._fail(exc, "tick")
         if new.__class__ is not State:
@@ -311,7 +313,12 @@ class Node(Actor):
         self._gate = None if self._ready and self._pulls is None else True
 
     def untick(self) -> None:
-        """Stop background work but keep progress: active nodes pause, others go idle."""
+        """Stop background work but keep progress: active nodes pause, others go idle.
+
+        Progress is what a later tick resumes: memory positions, a Parallel's finished
+        children, Retry/Repeat counts, the time a Delay waited (a Timeout's period restarts).
+        :meth:`reset` forgets it, and is the way to start over.
+        """
         if not self._ready:
             self._not_ready("untick")
         try:
@@ -319,14 +326,15 @@ class Node(Actor):
         except Exception as exc:
             self._fail(exc, "untick")
             return
-        self._set(_PAUSED if self.state in ACTIVE or self.state is _PAUSED else _IDLE)
+        self._set(_PAUSED if self.state in _ACTIVE or self.state is _PAUSED else _IDLE)
 
     def reset(self) -> None:
         """Back to idle: outputs cleared, background work cancelled, children reset."""
         if not self._ready:
             self._not_ready("reset")
         for c in self.children:
-            c.reset()
+            if c.state is not _IDLE:  # an idle child was not ticked since its setup or reset
+                c.reset()
         self.error = None
         try:
             self.on_reset()
@@ -386,7 +394,7 @@ class Node(Actor):
     def on_untick(self) -> None:
         """Pause background work; the default unticks active children."""
         for c in self.children:
-            if c.state in ACTIVE:
+            if c.state in _ACTIVE:
                 c.untick()
 
     def on_reset(self) -> None:

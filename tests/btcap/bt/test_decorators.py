@@ -38,7 +38,7 @@ from btcap import (
 )
 from btcap import State as St
 from btcap.actors import ManualClock
-from btcap.bt.decorators import Decorator
+from btcap.bt.decorators import Decorator, Remap
 from btcap.bt.invariants import tick_checked as tick
 
 S, F, R = St.SUCCEEDED, St.FAILED, St.RUNNING
@@ -142,6 +142,25 @@ async def test_running_is_success_cancels_the_abandoned_action() -> None:
         assert seen == []  # its branch moved on: the work was cancelled, not left running
         assert act.state is St.PAUSED
         await tree.shutdown()
+
+
+def test_own_remaps_and_hand_written_ticks_of_remap_subclasses() -> None:
+    class WaitingIsFailure(Remap):
+        MAP = {R: F, F: S}
+
+    class LoudInverter(Inverter):
+        def on_tick(self) -> St:
+            self.seen = super().on_tick()
+            return self.seen
+
+    class Sub(WaitingIsFailure): ...
+
+    child = Leafy(R)
+    assert tick(Tree(Sub("d", children=[child]))) is F
+    assert child.state is St.PAUSED
+    loud = LoudInverter("inv", children=[Leafy(S)])
+    assert tick(Tree(loud)) is F
+    assert loud.seen is F
 
 
 def test_decorator_counts_error_of_a_raising_child_as_failure() -> None:
