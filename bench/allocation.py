@@ -21,6 +21,7 @@ from btcap.bench.common import write_result
 from btcap.sim.distance import DistanceCache, path_length
 from btcap.sim.grid import GridMap
 from btcap.team.core.auction import Auction
+from btcap.team.core.ids import AuctionId
 from btcap.team.messages import Bid
 
 __all__ = ["run"]
@@ -48,7 +49,7 @@ def _auction_total(cost: np.ndarray[Any, np.dtype[np.float64]]) -> float:
     free = set(range(robots))
     total = 0.0
     for t in range(tasks):
-        a = Auction(f"a{t}", "Task", frozenset(f"r{r}" for r in range(robots)), 1.0)
+        a = Auction(AuctionId("bench", t), "Task", frozenset(f"r{r}" for r in range(robots)), 1.0)
         for r in range(robots):
             if r in free:
                 a.offer(Bid(a.id, f"r{r}", float(cost[r, t]), "impl"))

@@ -41,11 +41,13 @@ from btcap.bench.common import percentiles, write_result
 from btcap.bt.state import State
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.assignment import AssignmentTask
+from btcap.team.core.ids import ExecutionId
 from btcap.team.demo import ECHO, implementations
 from btcap.team.launch import AgentSpec, spawn_agents
 from btcap.team.messages import CancelExecution
-from btcap.team.mission import MissionControl, RemoteExecution
+from btcap.team.mission import MissionControl
 from btcap.team.protocol import protocol_registry
+from btcap.team.proxies import RemoteExecution
 from btcap.transports import InProcessNetwork, ZmqTransport
 
 __all__ = ["run"]
@@ -54,7 +56,7 @@ BIDDERS = (1, 3, 10, 50)
 WINDOW_S = 5.0  # long, so an auction that did not close early would show
 # Heartbeats every second, as a deployed team would run: with 51 agents on two cores, the
 # default 0.1 s (all-to-all, 25 000 messages a second) would be most of what they do.
-TEAM_TIMING = {"heartbeat_s": 1.0, "failure_timeout_s": 5.0}
+TEAM_TIMING: dict[str, Any] = {"heartbeat_s": 1.0, "failure_timeout_s": 5.0}
 MISSION_TICK_HZ = 100.0  # how often the origin ticks its tree while waiting for fail-over
 _INPUTS = {"value": 1, "stop": False}
 _LOCAL = "127.0.0.1"
@@ -131,10 +133,8 @@ async def _rounds(
     early = 0
     clock = time.perf_counter_ns
     for i in range(warmup + count):
-        execution = f"{origin.robot}:bench:{len(bidders)}:{next(ids)}"
-        task = AssignmentTask(
-            execution, ECHO.name, identity, _INPUTS, candidates, origin.robot, lease_s
-        )
+        execution = ExecutionId(origin.robot, f"bench/{len(bidders)}", next(ids))
+        task = AssignmentTask(execution, ECHO.name, identity, _INPUTS, candidates, lease_s)
         closes = auctioneer.stats.early_closes
         if i == warmup:
             gc.collect()
@@ -316,9 +316,9 @@ async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[f
         node.set_input("value", i)
         t0 = clock()
         tree.tick()
-        n = ex.seq
+        n = ex.tracked.seq
         # Spin: the status comes back within a fraction of a millisecond.
-        while ex.acked < n:  # noqa: ASYNC110 - a spin is the measurement
+        while ex.tracked.acked < n:  # noqa: ASYNC110 - a spin is the measurement
             await asyncio.sleep(0)
         if i >= warmup:
             samples.append((clock() - t0) / 1e6)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import weakref
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
@@ -14,9 +15,10 @@ from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.team.assignment import SingleItemAuction
-from btcap.team.capability import Implementation
+from btcap.team.config import MissionConfig
+from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership
-from btcap.team.mission import MissionConfig, MissionControl
+from btcap.team.mission import MissionControl
 from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
 from btcap.team.slot import RemoteCapabilitySlot
@@ -25,23 +27,13 @@ from btcap.transports import MessageRegistry, Transport
 __all__ = ["Agent", "AgentConfig"]
 
 
+@dataclass(slots=True, kw_only=True)
 class AgentConfig(MissionConfig):
-    """Timing of one robot, in clock seconds (see :class:`~btcap.team.mission.MissionConfig`)."""
+    """Timing of one robot, in clock seconds (see :class:`~btcap.team.config.MissionConfig`)."""
 
-    __slots__ = ("failure_timeout_s", "heartbeat_s", "tick_hz")
-
-    def __init__(
-        self,
-        *,
-        tick_hz: float = 10.0,
-        heartbeat_s: float = 0.1,
-        failure_timeout_s: float = 0.5,
-        **mission: Any,
-    ) -> None:
-        super().__init__(**mission)
-        self.tick_hz = tick_hz
-        self.heartbeat_s = heartbeat_s
-        self.failure_timeout_s = failure_timeout_s
+    tick_hz: float = 10.0
+    heartbeat_s: float = 0.1
+    failure_timeout_s: float = 0.5
 
 
 class Agent:

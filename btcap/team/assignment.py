@@ -5,33 +5,34 @@ from __future__ import annotations
 import abc
 import asyncio
 import itertools
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import structlog
-
 from btcap.actors import Actor, ActorError, TimeSource, handler
+from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
+from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 from btcap.transports import Address
+from btcap.transports.log import get_logger
 
 __all__ = ["Assigned", "AssignmentStrategy", "AssignmentTask", "AuctionStats", "SingleItemAuction"]
 
-log = structlog.get_logger("btcap.team.assignment")
+log = get_logger("btcap.team.assignment")
 
 
 @dataclass(frozen=True, slots=True)
 class AssignmentTask:
     """One capability execution to place on a robot."""
 
-    execution: str
+    execution: ExecutionId
     interface: str
     identity: str
     inputs: Mapping[str, Any]
     candidates: frozenset[str]
-    origin: str
     lease_s: float
     reserve: float | None = None  # award only bids cheaper than this (moving running work)
     paused: bool = False  # the winner holds the run until its first inputs
@@ -85,9 +86,10 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         self.window_s = window_s
         self.award_timeout_s = award_timeout_s
         self.stats = AuctionStats()
-        self._open: dict[str, tuple[Auction, asyncio.Event]] = {}
+        self._open: dict[AuctionId, tuple[Auction, asyncio.Event]] = {}
+        #: The latest auctions' outcomes, newest last (for monitoring and tests).
+        self.outcomes: deque[AuctionOutcome] = deque(maxlen=64)
         self._ids = itertools.count(1)
-        self.last_outcome: AuctionOutcome | None = None
 
     def on_start(self) -> None:
         team = self.system.lookup(Membership.PATH)
@@ -105,47 +107,42 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     async def assign(self, task: AssignmentTask) -> Assigned | None:
         system = self.system
         clock = system.clock
-        auction_id = f"{self.robot}:{next(self._ids)}"
+        auction_id = AuctionId(self.robot, next(self._ids))
         auction = Auction(auction_id, task.interface, task.candidates, clock.now() + self.window_s)
         done = asyncio.Event()
         self._open[auction_id] = (auction, done)
         self.stats.auctions += 1
-        me = str(self.address)
         try:
-            cfb = CallForBids(
-                auction_id, task.interface, task.identity, dict(task.inputs), self.robot, me
-            )
+            cfb = CallForBids(auction_id, task.interface, task.identity, dict(task.inputs))
             for robot in sorted(task.candidates):
-                system.tell(Address(robot, "mission_control"), cfb, sender=self.address)
+                system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
             if not auction.closed(clock.now()):
                 await _wait(done, clock, self.window_s)
             if auction.answered_all:
                 self.stats.early_closes += 1
         finally:
             del self._open[auction_id]
-        outcome = self.last_outcome = auction.outcome()
-        for bid in outcome.ranking:
-            if task.reserve is not None and bid.cost >= task.reserve:
-                break  # the ranking is cheapest first: nobody else beats the reserve
+        outcome = auction.outcome()
+        self.outcomes.append(outcome)
+        for bid in outcome.awardable(task.reserve):
             award = Award(
                 auction_id,
                 task.execution,
                 task.interface,
                 bid.implementation,
                 dict(task.inputs),
-                task.origin,
-                me,
                 task.lease_s,
                 task.paused,
             )
+            executor = system.ref(Address(bid.robot, ASSIGNER_PATH))
             try:
-                reply = await system.ref(f"{bid.robot}/mission_control").ask(
+                reply = await executor.ask(
                     award, expect=AwardReply, timeout=_wall(clock, self.award_timeout_s)
                 )
             except (ActorError, TypeError, asyncio.CancelledError) as exc:
                 # The robot may still take the award after we gave up waiting (or were
                 # cancelled): withdraw it, so the task never runs twice at once.
-                system.ref(f"{bid.robot}/mission_control").tell(
+                executor.tell(
                     CancelExecution(task.execution, "award withdrawn"), sender=self.address
                 )
                 if isinstance(exc, asyncio.CancelledError):
@@ -169,7 +166,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         if entry is None:
             return  # late: the auction has closed
         auction, done = entry
-        auction.offer(msg)
+        auction.offer(msg, sender=msg.robot)
         if auction.answered_all:
             done.set()
 

@@ -1,42 +1,33 @@
-"""Capabilities: abstract skills (interfaces), their BT implementations, IO bridges, and
-the capability node that binds an interface to the best implementation in the team.
+"""Capabilities: abstract skills (interfaces), the IO bridges inside their
+implementations, and the capability node that binds an interface at run time to the
+best implementation in the team.
 
-An implementation is a subtree with an :class:`InputBridge` (whose outputs are the
-capability's inputs) and optionally an :class:`OutputBridge` (whose inputs become the
-capability's outputs). Each execution builds a fresh instance of that subtree, so it
-leaves no trace when it ends.
+The node needs only an :class:`Assigner` from its robot (mission control); it never
+imports it, so the layers stay one-way.
 """
 
 from __future__ import annotations
 
-import enum
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
-
-import msgspec
+from collections.abc import Mapping
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_name
 from btcap.bt.state import DONE, State, TreeError
-from btcap.bt.tree import Tree
 from btcap.bt.utility import Utility
-
-if TYPE_CHECKING:
-    from btcap.actors import TimeSource
-    from btcap.team.mission import AssignmentRequest, MissionControl
+from btcap.team.execution import AssignmentRequest, Execution
 
 __all__ = [
+    "ASSIGNER_PATH",
+    "Assigner",
     "Capability",
     "CapabilityInterface",
-    "Execution",
-    "Implementation",
-    "ImplementationRun",
     "InputBridge",
     "OutputBridge",
-    "Precondition",
-    "Scope",
 ]
+
+#: Where a robot's actor system runs its :class:`Assigner` (mission control).
+ASSIGNER_PATH = "mission_control"
 
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
@@ -170,126 +161,18 @@ class OutputBridge(_Bridge):
         return _SUCCEEDED
 
 
-class Scope(enum.Enum):
-    LOCAL = "local"
-    REMOTE = "remote"
+@runtime_checkable
+class Assigner(Protocol):
+    """What a capability node needs from its robot: an executor for its inputs."""
 
-
-class Precondition(msgspec.Struct, frozen=True):
-    """``capability`` must have succeeded on this robot (LOCAL) or on any member (REMOTE)."""
-
-    capability: str
-    scope: Scope = Scope.LOCAL
-
-
-BidFunction = Callable[[Mapping[str, Any]], float | None]
-
-
-class ImplementationRun:
-    """One live instance of an implementation: a fresh tree plus its bridges."""
-
-    __slots__ = ("implementation", "input_bridge", "output_bridge", "tree")
-
-    def __init__(self, implementation: Implementation, tree: Tree) -> None:
-        self.implementation = implementation
-        self.tree = tree
-        ins = [n for n in tree.nodes() if isinstance(n, InputBridge)]
-        outs = [n for n in tree.nodes() if isinstance(n, OutputBridge)]
-        iface = implementation.interface
-        if len(ins) > 1 or len(outs) > 1:
-            raise TreeError(
-                f"implementation {implementation.name!r}: at most one bridge of each kind"
-            )
-        if iface.inputs and not ins:
-            raise TreeError(f"implementation {implementation.name!r}: inputs need an InputBridge")
-        if iface.outputs and not outs:
-            raise TreeError(f"implementation {implementation.name!r}: outputs need an OutputBridge")
-        for b in (*ins, *outs):
-            if b.interface.identity != iface.identity:
-                raise TreeError(
-                    f"implementation {implementation.name!r}: bridge {b.path!r} is for "
-                    f"{b.interface.identity}, expected {iface.identity}"
-                )
-        self.input_bridge = ins[0] if ins else None
-        self.output_bridge = outs[0] if outs else None
-
-    def step(self, inputs: Mapping[str, Any]) -> tuple[State, dict[str, Any]]:
-        """Feed inputs, tick once, collect outputs: the per-tick IO bridge."""
-        if self.input_bridge is not None:
-            self.input_bridge.feed(inputs)
-        state = self.tree.tick()
-        out = self.output_bridge
-        if out is None:
-            return state, {}
-        # Outputs flow back every tick, even while the bridge itself is not reached yet.
-        values = out.inputs
-        for key, src, port in out._pulls or ():
-            values[key] = src.outputs[port]
-        return state, dict(values)
-
-    def pause(self) -> None:
-        self.tree.untick()
-
-    async def close(self) -> None:
-        await self.tree.shutdown()
-
-
-@dataclass(slots=True)
-class Implementation:
-    """A way to run an interface on one robot.
-
-    ``build`` makes a fresh root node (or Tree) for every execution. ``bid`` adds an
-    implementation-specific cost for given inputs (e.g. path length x cost factor +
-    duration) to the subtree's utility; returning ``None`` means "cannot do these inputs".
-    """
-
-    name: str
-    interface: CapabilityInterface
-    build: Callable[[], Node | Tree]
-    preconditions: tuple[Precondition, ...] = ()
-    bid: BidFunction | None = None
-    _utility: Utility | None = field(default=None, repr=False)
-
-    def instantiate(self, clock: TimeSource | None = None) -> ImplementationRun:
-        made = self.build()
-        tree = made if isinstance(made, Tree) else Tree(made, name=self.name, clock=clock)
-        if clock is not None:
-            tree.clock = clock
-        return ImplementationRun(self, tree)
-
-    def utility(self) -> Utility:
-        if self._utility is None:
-            made = self.build()
-            self._utility = (made if isinstance(made, Tree) else Tree(made)).utility()
-        return self._utility
-
-    def cost(self, inputs: Mapping[str, Any]) -> float | None:
-        """The bid for these inputs, or None if this implementation cannot run them."""
-        u = self.utility()
-        if not u.can_execute:
-            return None
-        extra = self.bid(inputs) if self.bid is not None else 0.0
-        if extra is None:
-            return None
-        return u.expected_cost + float(extra)
-
-
-class Execution(Protocol):
-    """The origin side of a running implementation, local or on another robot."""
-
-    id: str
-    robot: str
-
-    def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
-        """Send inputs, return the latest (state, outputs); state None: the executor is lost
-        or the work moved (see :meth:`hand_over`)."""
-
-    def pause(self) -> None: ...
-
-    def cancel(self, reason: str) -> None: ...
-
-    def hand_over(self) -> Execution | None:
-        """The execution that takes over from this one (work moved to a cheaper robot)."""
+    def request_assignment(
+        self,
+        node: Capability,
+        inputs: dict[str, Any],
+        *,
+        local_only: bool = False,
+        exclude: frozenset[str] = frozenset(),
+    ) -> AssignmentRequest: ...
 
 
 class Capability(Node):
@@ -332,12 +215,10 @@ class Capability(Node):
     def execution(self) -> Execution | None:
         return self._exec
 
-    def _mission_control(self) -> MissionControl:
-        from btcap.team.mission import MissionControl
-
+    def _mission_control(self) -> Assigner:
         system = self.tree.system
-        mc = system.lookup(MissionControl.PATH) if system is not None else None
-        if not isinstance(mc, MissionControl):
+        mc = system.lookup(ASSIGNER_PATH) if system is not None else None
+        if not isinstance(mc, Assigner):
             raise TreeError(
                 f"capability {self.path!r}: the tree must be attached to a robot's actor "
                 f"system running MissionControl (use btcap.Agent)"

@@ -3,34 +3,17 @@ failures are detected here and reported to local listeners."""
 
 from __future__ import annotations
 
-import enum
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-
-import structlog
 
 from btcap.actors import Actor, handler
+from btcap.team.core.members import Member, MemberTable, TeamEvent
 from btcap.team.messages import Goodbye, Heartbeat
+from btcap.transports.log import get_logger
 
 __all__ = ["Member", "Membership", "TeamEvent"]
 
-log = structlog.get_logger("btcap.team")
-
-
-class TeamEvent(enum.Enum):
-    JOINED = "joined"
-    LEFT = "left"
-    FAILED = "failed"
-    CHANGED = "changed"  # its capabilities changed (new repository version)
-
-
-@dataclass(slots=True)
-class Member:
-    robot: str
-    incarnation: int
-    last_seen: float
-    repo_version: int
+log = get_logger("btcap.team")
 
 
 Listener = Callable[[TeamEvent, str], None]
@@ -39,9 +22,8 @@ Listener = Callable[[TeamEvent, str], None]
 class Membership(Actor):
     """Heartbeats out, heartbeats in, and a failure detector on clock time.
 
-    A robot is a member from its first heartbeat until its :class:`Goodbye` or until no
-    heartbeat came for ``failure_timeout`` clock seconds. A robot that restarts (new
-    incarnation) counts as failed and joined again, so its old executions are not trusted.
+    The decisions are :class:`~btcap.team.core.members.MemberTable`'s; this actor sends
+    the heartbeats and tells local listeners what changed.
     """
 
     PATH = "team"
@@ -62,21 +44,23 @@ class Membership(Actor):
         self.heartbeat_s = heartbeat_s
         self.failure_timeout_s = failure_timeout_s
         self._repo_version = repo_version
-        self.members: dict[str, Member] = {}
+        self.table = MemberTable(robot, failure_timeout_s)
         self._listeners: list[Listener] = []
-        self.history: list[tuple[float, TeamEvent, str]] = []
 
     # -- observing --------------------------------------------------------------------
     def subscribe(self, listener: Listener) -> Callable[[], None]:
         self._listeners.append(listener)
         return lambda: self._listeners.remove(listener) if listener in self._listeners else None
 
+    @property
+    def members(self) -> dict[str, Member]:
+        return self.table.members
+
     def alive(self) -> frozenset[str]:
         """Every live member, this robot included."""
-        return frozenset(self.members) | {self.robot}
+        return self.table.alive()
 
     def _emit(self, event: TeamEvent, robot: str) -> None:
-        self.history.append((self.system.clock.now(), event, robot))
         log.info("team.event", robot=self.robot, change=event.value, member=robot)
         for listener in list(self._listeners):
             try:
@@ -108,35 +92,21 @@ class Membership(Actor):
 
     def check(self, now: float) -> None:
         """Declare members failed whose heartbeats stopped."""
-        for robot, m in list(self.members.items()):
-            if now - m.last_seen > self.failure_timeout_s:
-                del self.members[robot]
-                self._emit(TeamEvent.FAILED, robot)
+        for robot in self.table.expire(now):
+            self._emit(TeamEvent.FAILED, robot)
 
     # -- messages ---------------------------------------------------------------------
     @handler
     def on_heartbeat(self, msg: Heartbeat) -> None:
-        if msg.robot == self.robot:
-            return
-        now = self.system.clock.now()
-        m = self.members.get(msg.robot)
-        if m is not None and m.incarnation != msg.incarnation:
-            del self.members[msg.robot]
-            self._emit(TeamEvent.FAILED, msg.robot)
-            m = None
-        if m is None:
-            self.members[msg.robot] = Member(msg.robot, msg.incarnation, now, msg.repo_version)
-            self._emit(TeamEvent.JOINED, msg.robot)
+        events = self.table.heartbeat(
+            msg.robot, msg.incarnation, msg.repo_version, self.system.clock.now()
+        )
+        for event in events:
+            self._emit(event, msg.robot)
+        if TeamEvent.JOINED in events:
             self.beat_now()  # let the newcomer know us without waiting a period
-            return
-        m.last_seen = now
-        if m.repo_version != msg.repo_version:
-            m.repo_version = msg.repo_version
-            self._emit(TeamEvent.CHANGED, msg.robot)
 
     @handler
     def on_goodbye(self, msg: Goodbye) -> None:
-        m = self.members.get(msg.robot)
-        if m is not None and m.incarnation == msg.incarnation:
-            del self.members[msg.robot]
+        if self.table.goodbye(msg.robot, msg.incarnation):
             self._emit(TeamEvent.LEFT, msg.robot)

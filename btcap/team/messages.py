@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from btcap.bt.state import State
+from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.transports import Message
 
 __all__ = [
@@ -39,7 +40,6 @@ class Heartbeat(Message):
     robot: str
     incarnation: int
     repo_version: int
-    endpoint: str = ""
 
 
 class Goodbye(Message):
@@ -67,20 +67,19 @@ class RepositoryQuery(Message):
 
 # -- auctions ----------------------------------------------------------------------------
 class CallForBids(Message):
-    """Who can run ``interface`` with these inputs, and at what cost?"""
+    """Who can run ``interface`` with these inputs, and at what cost? Answers go to the
+    auctioneer named in the auction's id."""
 
-    auction: str
+    auction: AuctionId
     interface: str
     identity: str
     inputs: dict[str, Any]
-    auctioneer: str
-    reply_to: str
 
 
 class Bid(Message):
     """A cost (lower is better) for running the capability with one implementation."""
 
-    auction: str
+    auction: AuctionId
     robot: str
     cost: float
     implementation: str
@@ -89,22 +88,22 @@ class Bid(Message):
 class NoBid(Message):
     """A decline, so the auction can close before its window ends."""
 
-    auction: str
+    auction: AuctionId
     robot: str
     reason: str
 
 
 class Award(Message):
     """You won: start ``implementation`` now as execution ``execution`` (or, ``paused``,
-    when its first inputs arrive: work being moved must not run twice)."""
+    when its first inputs arrive: work being moved must not run twice). The run is the
+    origin's, named in ``execution``; the executor gives it up when no word came from the
+    origin for ``lease_s`` (a little before the origin re-assigns it)."""
 
-    auction: str
-    execution: str
+    auction: AuctionId
+    execution: ExecutionId
     interface: str
     implementation: str
     inputs: dict[str, Any]
-    origin: str
-    reply_to: str
     lease_s: float
     paused: bool = False
 
@@ -112,7 +111,7 @@ class Award(Message):
 class AwardReply(Message):
     """Whether the winner took the award (it may have become busy since it bid)."""
 
-    execution: str
+    execution: ExecutionId
     robot: str
     accepted: bool
     reason: str = ""
@@ -122,7 +121,7 @@ class AwardReply(Message):
 class ExecutionInputs(Message):
     """The capability's latest inputs, sent every tick of the capability node."""
 
-    execution: str
+    execution: ExecutionId
     seq: int
     inputs: dict[str, Any]
 
@@ -130,7 +129,7 @@ class ExecutionInputs(Message):
 class ExecutionStatus(Message):
     """The implementation's root state and outputs, sent back every tick of the slot."""
 
-    execution: str
+    execution: ExecutionId
     robot: str
     state: State
     outputs: dict[str, Any]
@@ -141,13 +140,13 @@ class ExecutionStatus(Message):
 class PauseExecution(Message):
     """The capability node was unticked: pause the implementation, keep it."""
 
-    execution: str
+    execution: ExecutionId
 
 
 class CancelExecution(Message):
     """The capability node was reset or shut down: stop and remove the implementation."""
 
-    execution: str
+    execution: ExecutionId
     reason: str = ""
 
 
@@ -155,7 +154,7 @@ class KeepAlive(Message):
     """Renews the leases of these executions (sent while no tick traffic flows)."""
 
     robot: str
-    executions: list[str]
+    executions: list[ExecutionId]
 
 
 CAPABILITY_MESSAGES: tuple[type[Message], ...] = (

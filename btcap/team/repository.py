@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-import structlog
-
 from btcap.actors import Actor, handler
 from btcap.bt.state import TreeError
-from btcap.team.capability import CapabilityInterface, Implementation
+from btcap.team.capability import CapabilityInterface
+from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import RepositoryQuery, RepositoryState
+from btcap.transports.log import get_logger
 
 __all__ = ["CapabilityRepository"]
 
-log = structlog.get_logger("btcap.team.repository")
+log = get_logger("btcap.team.repository")
 
 
 class CapabilityRepository(Actor):

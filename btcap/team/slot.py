@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol, runtime_checkable
 
 from btcap.bt.node import Leaf
 from btcap.bt.state import State, TreeError
+from btcap.team.capability import ASSIGNER_PATH
+from btcap.team.core.hosting import Hosted
+from btcap.team.core.ids import ExecutionId
+from btcap.team.implementation import ImplementationRun
 
-if TYPE_CHECKING:
-    from btcap.team.mission import Hosted, MissionControl
-
-__all__ = ["RemoteCapabilitySlot"]
+__all__ = ["RemoteCapabilitySlot", "SlotHost"]
 
 _RUNNING = State.RUNNING
+
+
+@runtime_checkable
+class SlotHost(Protocol):
+    """What the slot needs from its robot's mission control."""
+
+    def attach_slot(self, slot: RemoteCapabilitySlot) -> None: ...
+
+    def hosted_ticked(
+        self, hosted: Hosted[ImplementationRun], state: State, outputs: dict[str, Any]
+    ) -> None: ...
 
 
 class RemoteCapabilitySlot(Leaf):
@@ -23,43 +35,41 @@ class RemoteCapabilitySlot(Leaf):
     and dropped, leaving nothing behind. The slot itself keeps running as a service.
     """
 
-    __slots__ = ("_mc", "current")
+    __slots__ = ("_host", "current")
 
     def __init__(self, name: str | None = "slot", **kwargs: object) -> None:
-        self.current: Hosted | None = None
-        self._mc: MissionControl | None = None
+        self.current: Hosted[ImplementationRun] | None = None
+        self._host: SlotHost | None = None
         super().__init__(name, **kwargs)  # type: ignore[arg-type]
 
     def on_setup(self) -> None:
-        from btcap.team.mission import MissionControl
-
         system = self.tree.system
-        mc = system.lookup(MissionControl.PATH) if system is not None else None
-        if not isinstance(mc, MissionControl):
+        host = system.lookup(ASSIGNER_PATH) if system is not None else None
+        if not isinstance(host, SlotHost):
             raise TreeError(f"slot {self.path!r}: the tree must be attached to a robot's system")
-        mc.attach_slot(self)
-        self._mc = mc
+        host.attach_slot(self)
+        self._host = host
 
-    def load(self, hosted: Hosted) -> str | None:
+    def load(self, hosted: Hosted[ImplementationRun]) -> str | None:
         """Take a run, or say why not."""
         if self.current is not None:
-            return f"slot busy with {self.current.id}"
+            return f"slot busy with {self.current.execution}"
         if not self._ready:
             return "slot not set up"
         hosted.run.tree.setup()
         self.current = hosted
         return None
 
-    def unload(self, hosted: Hosted) -> None:
-        if self.current is hosted:
+    def unload(self, execution: ExecutionId) -> None:
+        if self.current is not None and self.current.execution == execution:
             self.current = None
 
     def on_tick(self) -> State:
         h = self.current
-        if h is None or h.paused or self._mc is None:
+        if h is None or h.paused or self._host is None:
             return _RUNNING
         state, outputs = h.run.step(h.inputs)
-        self._mc.hosted_ticked(h, state, outputs)
+        self._host.hosted_ticked(h, state, outputs)
         return _RUNNING
 
     def on_untick(self) -> None:

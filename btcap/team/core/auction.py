@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from btcap.team.core.ids import AuctionId
 from btcap.team.messages import Bid, NoBid
 
 __all__ = ["Auction", "AuctionOutcome"]
@@ -24,35 +25,39 @@ class AuctionOutcome:
     declined: dict[str, str]
     silent: frozenset[str]
 
+    def awardable(self, reserve: float | None = None) -> list[Bid]:
+        """The bids to award in turn, cheapest first; with a reserve, only those below it
+        (moving running work must pay off)."""
+        if reserve is None:
+            return list(self.ranking)
+        return [b for b in self.ranking if b.cost < reserve]
+
 
 @dataclass(slots=True)
 class Auction:
     """One call for bids and the answers to it."""
 
-    id: str
+    id: AuctionId
     interface: str
     invited: frozenset[str]
     deadline: float
     bids: dict[str, Bid] = field(default_factory=dict)
     declined: dict[str, str] = field(default_factory=dict)
-    gone: set[str] = field(default_factory=set)
-    rejected: int = 0
     _pending: set[str] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._pending = set(self.invited)
 
-    def offer(self, answer: Bid | NoBid) -> bool:
-        """Record a bid or decline; answers from robots not invited, late or twice are ignored.
+    def offer(self, answer: Bid | NoBid, sender: str | None = None) -> bool:
+        """Record a bid or decline; answers from robots not invited, late, twice, or
+        sent by another robot than the one they speak for are ignored.
 
         Returns whether the answer was taken.
         """
         robot = answer.robot
         if answer.auction != self.id or robot not in self.invited:
-            self.rejected += 1
             return False
-        if robot in self.bids or robot in self.declined:
-            self.rejected += 1
+        if (sender is not None and sender != robot) or robot in self.bids or robot in self.declined:
             return False
         self._pending.discard(robot)
         if isinstance(answer, Bid):
@@ -66,7 +71,6 @@ class Auction:
 
     def member_lost(self, robot: str) -> None:
         """A robot left or failed: stop waiting for it."""
-        self.gone.add(robot)
         self._pending.discard(robot)
 
     @property

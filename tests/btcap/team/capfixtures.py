@@ -14,8 +14,9 @@ from typing import Any
 from btcap import Leaf, Port, Sequence, State, Tree
 from btcap.actors import Actor, ActorSystem, Clock
 from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import CapabilityInterface, Implementation, Precondition
-from btcap.team.membership import Membership
+from btcap.team.capability import CapabilityInterface
+from btcap.team.implementation import Implementation, Precondition
+from btcap.team.membership import Membership, TeamEvent
 from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
 from btcap.transports import InProcessNetwork
@@ -194,6 +195,8 @@ class Team:
         self.clock = Clock(speedup=speedup)
         self.cfg = cfg
         self.agents: dict[str, Agent] = {}
+        #: What each agent's membership reported, in order (robot -> [(event, member)]).
+        self.events: dict[str, list[tuple[TeamEvent, str]]] = {}
         self._lives: dict[str, tuple[asyncio.Event, asyncio.Task[None]]] = {}
 
     async def add(self, robot: str, impls: Iterable[Implementation] = (), **cfg: Any) -> Agent:
@@ -204,6 +207,8 @@ class Team:
             implementations=impls,
             config=config(**{**self.cfg, **cfg}),
         )
+        log = self.events.setdefault(robot, [])
+        agent.team.subscribe(lambda event, member: log.append((event, member)))
         ready, stop = asyncio.Event(), asyncio.Event()
 
         async def life() -> None:
@@ -220,6 +225,10 @@ class Team:
         self.agents[robot] = agent
         self._lives[robot] = (stop, task)
         return agent
+
+    def seen(self, robot: str, member: str) -> list[TeamEvent]:
+        """What ``robot``'s membership reported of ``member`` so far."""
+        return [e for e, r in self.events[robot] if r == member]
 
     async def remove(self, robot: str) -> None:
         """The robot leaves on purpose (its agent exits, saying goodbye)."""

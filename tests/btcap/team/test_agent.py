@@ -14,6 +14,7 @@ from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 from btcap import Sequence, State
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.assignment import SingleItemAuction
+from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import (
     CAPABILITY_MESSAGES,
@@ -39,8 +40,12 @@ from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 # -- protocol -----------------------------------------------------------------------------
 
+A1 = AuctionId("a", 1)
+E1 = ExecutionId("a", "root/count", 1)
+E2 = ExecutionId("a", "root/other", 2)
+
 SAMPLES: dict[type[Message], list[Message]] = {
-    Heartbeat: [Heartbeat("husky1", 2**62, 7), Heartbeat("b", 1, 0, "tcp://127.0.0.1:5555")],
+    Heartbeat: [Heartbeat("husky1", 2**62, 7), Heartbeat("b", 1, 0)],
     Goodbye: [Goodbye("husky1", 123)],
     RepositoryState: [
         RepositoryState("a", 3, {"Count": COUNT.identity}, ["Count", "Explore"]),
@@ -48,26 +53,22 @@ SAMPLES: dict[type[Message], list[Message]] = {
     ],
     RepositoryQuery: [RepositoryQuery("spot")],
     CallForBids: [
-        CallForBids(
-            "a:1",
-            "Count",
-            COUNT.identity,
-            {"x": 3, "goal": [1.5, 2.0], "n": None},
-            "a",
-            "a/auctioneer",
-        )
+        CallForBids(A1, "Count", COUNT.identity, {"x": 3, "goal": [1.5, 2.0], "n": None})
     ],
-    Bid: [Bid("a:1", "b", 2.5, "count-b"), Bid("a:1", "b", 0.0, "i")],
-    NoBid: [NoBid("a:1", "c", "busy"), NoBid("a:1", "c", "")],
-    Award: [Award("a:1", "a:root/count:1", "Count", "count-b", {"x": 3}, "a", "a/auctioneer", 1.0)],
-    AwardReply: [AwardReply("a:root/count:1", "b", True), AwardReply("e", "b", False, "busy")],
-    ExecutionInputs: [ExecutionInputs("a:root/count:1", 42, {"x": -3, "stop": True})],
+    Bid: [Bid(A1, "b", 2.5, "count-b"), Bid(A1, "b", 0.0, "i")],
+    NoBid: [NoBid(A1, "c", "busy"), NoBid(A1, "c", "")],
+    Award: [
+        Award(A1, E1, "Count", "count-b", {"x": 3}, 1.0),
+        Award(A1, E1, "Count", "count-b", {}, 0.5, paused=True),
+    ],
+    AwardReply: [AwardReply(E1, "b", True), AwardReply(E2, "b", False, "busy")],
+    ExecutionInputs: [ExecutionInputs(E1, 42, {"x": -3, "stop": True})],
     ExecutionStatus: [
-        ExecutionStatus("e", "b", state, {"y": 1, "robot": "b"}, 9, "detail") for state in State
+        ExecutionStatus(E1, "b", state, {"y": 1, "robot": "b"}, 9, "detail") for state in State
     ],
-    PauseExecution: [PauseExecution("e")],
-    CancelExecution: [CancelExecution("e"), CancelExecution("e", "reset")],
-    KeepAlive: [KeepAlive("b", ["e1", "e2"]), KeepAlive("b", [])],
+    PauseExecution: [PauseExecution(E1)],
+    CancelExecution: [CancelExecution(E1), CancelExecution(E2, "reset")],
+    KeepAlive: [KeepAlive("b", [E1, E2]), KeepAlive("b", [])],
 }
 
 
@@ -91,7 +92,7 @@ def test_capability_messages_round_trip_through_the_codec(msg: Message) -> None:
 
 def test_nan_cost_survives_the_codec_as_nan() -> None:
     codec = Codec(protocol_registry())
-    back = codec.decode_message(codec.encode_message(Bid("a:1", "b", math.nan, "i")))
+    back = codec.decode_message(codec.encode_message(Bid(A1, "b", math.nan, "i")))
     assert isinstance(back, Bid)
     assert math.isnan(back.cost)
 
@@ -159,7 +160,9 @@ async def test_cancelling_a_running_mission_releases_the_executor() -> None:
             with pytest.raises(asyncio.CancelledError):
                 await task
             await until(
-                lambda: not b.mission_control.hosted and b.mission_control.occupied is None,
+                lambda: (
+                    not b.mission_control.host.hosted and b.mission_control.body.running is None
+                ),
                 "b to be released",
             )
             await until(lambda: probe.live("b") == 0, "b's run to be shut down")
@@ -182,9 +185,9 @@ async def test_an_agent_leaving_mid_work_cleans_up_both_sides() -> None:
             assert {n1.assignments[0], n2.assignments[0]} == {"a", "b"}
             # The origin leaves (its trees are left running): b drops what it ran for a.
             await t.remove("a")
-            await until(lambda: not b.mission_control.hosted, "b to drop a's run")
-            assert b.mission_control.occupied is None
-            assert [e for _, e, r in b.team.history if r == "a"][-1] is TeamEvent.LEFT
+            await until(lambda: not b.mission_control.host.hosted, "b to drop a's run")
+            assert b.mission_control.body.running is None
+            assert t.seen("b", "a")[-1] is TeamEvent.LEFT
             await until(lambda: probe.live("a") == 0 and probe.live("b") == 0, "no live runs")
 
 

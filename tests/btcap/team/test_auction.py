@@ -14,23 +14,28 @@ from hypothesis import strategies as st
 from btcap import Sequence, State
 from btcap.actors import Actor, handler
 from btcap.team.core.auction import Auction
+from btcap.team.core.ids import AuctionId
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
+from btcap.transports import Address
 
 # -- sans-IO ------------------------------------------------------------------------------
 
 
+A1 = AuctionId("a", 1)
+
+
 def _auction(*robots: str, deadline: float = 10.0) -> Auction:
-    return Auction("a:1", "Count", frozenset(robots), deadline)
+    return Auction(A1, "Count", frozenset(robots), deadline)
 
 
 def test_closes_early_when_every_invited_robot_answered() -> None:
     auc = _auction("a", "b", "c")
     assert not auc.closed(0.0)
-    assert auc.offer(Bid("a:1", "a", 3.0, "i"))
-    assert auc.offer(NoBid("a:1", "b", "busy"))
+    assert auc.offer(Bid(A1, "a", 3.0, "i"))
+    assert auc.offer(NoBid(A1, "b", "busy"))
     assert auc.waiting_for == {"c"}
     assert not auc.closed(9.9)
-    assert auc.offer(Bid("a:1", "c", 1.0, "j"))
+    assert auc.offer(Bid(A1, "c", 1.0, "j"))
     assert auc.closed(0.0)
     out = auc.outcome()
     assert [b.robot for b in out.ranking] == ["c", "a"]
@@ -40,7 +45,7 @@ def test_closes_early_when_every_invited_robot_answered() -> None:
 
 def test_closes_at_the_window_when_someone_is_silent() -> None:
     auc = _auction("a", "b", deadline=5.0)
-    auc.offer(Bid("a:1", "a", 1.0, "i"))
+    auc.offer(Bid(A1, "a", 1.0, "i"))
     assert not auc.closed(4.99)
     assert auc.closed(5.0)
     out = auc.outcome()
@@ -50,7 +55,7 @@ def test_closes_at_the_window_when_someone_is_silent() -> None:
 
 def test_member_loss_closes_it() -> None:
     auc = _auction("a", "b")
-    auc.offer(Bid("a:1", "a", 1.0, "i"))
+    auc.offer(Bid(A1, "a", 1.0, "i"))
     auc.member_lost("z")  # not invited: changes nothing
     assert not auc.closed(0.0)
     auc.member_lost("b")
@@ -67,7 +72,7 @@ def test_nobody_invited_is_closed_at_once_with_no_winner() -> None:
 def test_ranking_by_cost_then_robot_id() -> None:
     auc = _auction("a", "b", "c", "d")
     for robot, cost in (("d", 2.0), ("b", 1.0), ("c", 2.0), ("a", 2.0)):
-        auc.offer(Bid("a:1", robot, cost, f"impl-{robot}"))
+        auc.offer(Bid(A1, robot, cost, f"impl-{robot}"))
     assert [b.robot for b in auc.outcome().ranking] == ["b", "a", "c", "d"]
 
 
@@ -77,7 +82,7 @@ def test_ranking_does_not_depend_on_arrival_order(costs: dict[str, float]) -> No
     for order in (sorted(costs), sorted(costs, reverse=True)):
         auc = _auction(*costs)
         for robot in order:
-            auc.offer(Bid("a:1", robot, costs[robot], "i"))
+            auc.offer(Bid(A1, robot, costs[robot], "i"))
         ranks.append([b.robot for b in auc.outcome().ranking])
     assert ranks[0] == ranks[1] == sorted(costs, key=lambda r: (costs[r], r))
 
@@ -85,8 +90,8 @@ def test_ranking_does_not_depend_on_arrival_order(costs: dict[str, float]) -> No
 @pytest.mark.parametrize("cost", [math.nan, math.inf, -math.inf, -0.5])
 def test_invalid_costs_become_declines(cost: float) -> None:
     auc = _auction("a", "b")
-    assert auc.offer(Bid("a:1", "a", cost, "i"))
-    auc.offer(Bid("a:1", "b", 4.0, "j"))
+    assert auc.offer(Bid(A1, "a", cost, "i"))
+    auc.offer(Bid(A1, "b", 4.0, "j"))
     out = auc.outcome()
     assert [b.robot for b in out.ranking] == ["b"]
     assert "invalid cost" in out.declined["a"]
@@ -95,18 +100,17 @@ def test_invalid_costs_become_declines(cost: float) -> None:
 
 def test_zero_cost_is_a_valid_bid() -> None:
     auc = _auction("a")
-    auc.offer(Bid("a:1", "a", 0.0, "i"))
+    auc.offer(Bid(A1, "a", 0.0, "i"))
     assert [b.cost for b in auc.outcome().ranking] == [0.0]
 
 
 def test_late_duplicate_and_foreign_answers_are_ignored() -> None:
     auc = _auction("a", "b")
-    assert auc.offer(Bid("a:1", "a", 2.0, "i"))
-    assert not auc.offer(Bid("a:1", "a", 0.1, "i"))  # a second answer from a
-    assert not auc.offer(NoBid("a:1", "a", "changed my mind"))
-    assert not auc.offer(Bid("a:2", "b", 0.1, "j"))  # another auction's bid
-    assert not auc.offer(Bid("a:1", "zed", 0.1, "k"))  # never invited
-    assert auc.rejected == 4
+    assert auc.offer(Bid(A1, "a", 2.0, "i"))
+    assert not auc.offer(Bid(A1, "a", 0.1, "i"))  # a second answer from a
+    assert not auc.offer(NoBid(A1, "a", "changed my mind"))
+    assert not auc.offer(Bid(AuctionId("a", 2), "b", 0.1, "j"))  # another auction's bid
+    assert not auc.offer(Bid(A1, "zed", 0.1, "k"))  # never invited
     assert auc.waiting_for == {"b"}
     assert [(b.robot, b.cost) for b in auc.outcome().ranking] == [("a", 2.0)]
 
@@ -128,7 +132,7 @@ async def test_auction_between_agents_closes_early_and_cheapest_wins() -> None:
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert [(b.robot, b.cost) for b in out.ranking] == [("b", 2.0), ("c", 3.0), ("a", 5.0)]
             assert out.silent == frozenset()
@@ -171,7 +175,7 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
                 start = t.clock.now()
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert t.clock.now() - start >= 2.0  # the auction waited its whole window
-                out = a.auctioneer.last_outcome
+                out = a.auctioneer.outcomes[-1]
                 assert out is not None
                 assert out.silent == {"s"}
                 assert [b.robot for b in out.ranking] == ["a"]
@@ -201,7 +205,7 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
                 await until(lambda: auction.waiting_for == {"s"}, "a's own bid")
             # s said goodbye: the auction stops waiting for it, long before its window.
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert out.silent == frozenset()
             assert node.assignments == ["a"]
@@ -220,7 +224,7 @@ async def test_invalid_bids_from_a_robot_are_declines_and_the_next_wins() -> Non
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["a"]
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert set(out.declined) == {"n", "m"}
             assert all("invalid cost" in why for why in out.declined.values())
@@ -237,7 +241,7 @@ async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
             node = COUNT.node_type()("count", inputs={"x": 11, "stop": True})
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert "cannot execute" in out.declined["b"]
             assert node.assignments == ["a"]
@@ -314,7 +318,9 @@ class SlowExecutor(Actor):
 
     @handler
     def on_call(self, msg: CallForBids) -> None:
-        self.system.ref(msg.reply_to).tell(Bid(msg.auction, self.robot, self.cost, "count-f"))
+        self.system.ref(Address(msg.auction.auctioneer, "auctioneer")).tell(
+            Bid(msg.auction, self.robot, self.cost, "count-f")
+        )
 
     @handler
     async def on_award(self, msg: Award) -> AwardReply:
@@ -382,6 +388,6 @@ async def test_an_award_in_flight_is_withdrawn_when_the_capability_is_reset() ->
                 assert slow.cancels[0].execution == slow.awards[0].execution
                 assert node.assignments == []
                 assert node.execution is None
-                assert a.mission_control.occupied is None
-                assert not a.mission_control.origin_executions
+                assert a.mission_control.body.running is None
+                assert not a.mission_control.origin.tracked
                 await tree.shutdown()

@@ -10,13 +10,8 @@ from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
 from btcap.bt.utility import CANNOT
-from btcap.team.capability import (
-    Capability,
-    CapabilityInterface,
-    Implementation,
-    InputBridge,
-    OutputBridge,
-)
+from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
+from btcap.team.implementation import Implementation
 from btcap.team.mission import LocalExecution
 
 # -- interfaces --------------------------------------------------------------------------
@@ -168,9 +163,9 @@ async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
             ex = node.execution
             assert isinstance(ex, LocalExecution)
             assert ex.robot == "a"
-            assert a.mission_control.occupied == ex.id
+            assert a.mission_control.body.running == ex.id
             assert node.assignments == ["a"]
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert [b.robot for b in out.ranking] == ["a"]
             # Every tick: the input goes in, the implementation ticks, the output comes back.
@@ -184,7 +179,7 @@ async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
             assert tree.tick() is State.SUCCEEDED
             assert node.outputs["ticks"] == 5
             assert node.execution is None
-            assert a.mission_control.occupied is None
+            assert a.mission_control.body.running is None
             assert "Count" in a.repository.succeeded
             await until(lambda: probe.live("a") == 0, "the run to be shut down")
             # The result is kept until reset: ticking again does not re-run.
@@ -204,18 +199,18 @@ async def test_local_execution_pause_and_reset_release_the_robot() -> None:
             tree.untick()
             assert node.state is State.PAUSED
             assert probe.unticks["a"] == 1
-            assert a.mission_control.occupied is not None  # paused work keeps the robot
+            assert a.mission_control.body.running is not None  # paused work keeps the robot
             assert tree.tick() is State.RUNNING
             tree.reset()
             assert node.execution is None
             assert node.state in {State.IDLE}
-            assert a.mission_control.occupied is None
+            assert a.mission_control.body.running is None
             await until(lambda: probe.live("a") == 0, "the run to be shut down")
             # Reset forgets the result: the next tick runs a fresh auction and execution.
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running again")
             assert node.assignments == ["a", "a"]
             await tree.shutdown()
-            assert a.mission_control.occupied is None
+            assert a.mission_control.body.running is None
             await until(lambda: probe.live("a") == 0, "the second run to be shut down")
 
 

@@ -26,9 +26,10 @@ from btcap.bt.tree import Tree
 from btcap.team.agent import Agent
 from btcap.team.capability import Capability
 from btcap.team.demo import ECHO
-from btcap.team.launch import AgentProcess, AgentSpec, spawn_agents
+from btcap.team.launch import AgentProcess, AgentSpec, main, spawn_agents
 from btcap.team.mission import RemoteExecution
 from btcap.team.protocol import protocol_registry
+from btcap.team.spawn import AsyncAgentProcess, open_agent, open_agents
 from btcap.transports import ZmqTransport
 
 pytestmark = pytest.mark.slow
@@ -50,17 +51,15 @@ def logs(tmp_path: Path) -> Path:
 
 @pytest.fixture
 async def spawn(logs: Path) -> AsyncIterator[Callable[..., Any]]:
-    """Start child robots in parallel, off the event loop (so the origin keeps beating).
+    """Start child robots in parallel without blocking the loop (the origin keeps beating).
 
     Children log to ``logs``; every one is killed at teardown, whatever happened.
     """
-    started: list[AgentProcess] = []
+    started: list[AsyncAgentProcess] = []
     log_file = logs.open("ab")
 
-    async def start(*groups: AgentSpec | Sequence[AgentSpec]) -> list[AgentProcess]:
-        procs = await asyncio.to_thread(
-            spawn_agents, list(groups), timeout=30.0, stderr=log_file.fileno()
-        )
+    async def start(*groups: AgentSpec | Sequence[AgentSpec]) -> list[AsyncAgentProcess]:
+        procs = await open_agents(list(groups), timeout=30.0, stderr=log_file.fileno())
         started.extend(procs)
         return procs
 
@@ -68,7 +67,7 @@ async def spawn(logs: Path) -> AsyncIterator[Callable[..., Any]]:
         yield start
     finally:
         for p in started:
-            p.kill()
+            await p.kill()
         log_file.close()
 
 
@@ -77,7 +76,7 @@ def origin_agent(peers: dict[str, str]) -> Agent:
     return Agent("origin", transport=ZmqTransport("origin", LOCAL, reg, peers=peers), registry=reg)
 
 
-def peers_of(procs: Sequence[AgentProcess]) -> dict[str, str]:
+def peers_of(procs: Sequence[AsyncAgentProcess]) -> dict[str, str]:
     return {robot: ep for p in procs for robot, ep in p.endpoints.items()}
 
 
@@ -109,7 +108,7 @@ def running_on(node: Capability, robot: str) -> Callable[[], bool]:
 
 
 def acked(ex: RemoteExecution, seq: int) -> Callable[[], bool]:
-    return lambda: ex.acked >= seq
+    return lambda: ex.tracked.acked >= seq
 
 
 def output_is(node: Capability, value: int) -> Callable[[], bool]:
@@ -123,7 +122,7 @@ async def echo_follows(tree: Tree, node: Capability, values: Sequence[int], robo
     for value in values:
         node.set_input("value", value)
         tree.tick()
-        sent = ex.seq
+        sent = ex.tracked.seq
         await until(None, acked(ex, sent))  # inputs out, status back
         await until(tree, output_is(node, value))
         assert node.outputs["robot"] == robot
@@ -165,7 +164,7 @@ async def test_killed_executor_is_replaced_and_tree_succeeds(spawn: Any) -> None
             node.set_input("value", 99)
             tree.tick()
 
-            by_robot["r1"].kill()  # mid-task, without a word
+            await by_robot["r1"].kill()  # mid-task, without a word
             killed = time.monotonic()
             await until(tree, running_on(node, "r2"))
             # Re-assigned with its latest inputs, well within the failure budget.
@@ -203,8 +202,8 @@ async def test_late_joiner_wins_next_auction_without_cancelling_healthy_work(
 
             tree_b, node_b = echo_mission(origin, "b")
             await until(tree_b, running_on(node_b, "r1"))
-            assert origin.auctioneer.last_outcome is not None
-            ranking = [bid.robot for bid in origin.auctioneer.last_outcome.ranking]
+            assert origin.auctioneer.outcomes
+            ranking = [bid.robot for bid in origin.auctioneer.outcomes[-1].ranking]
             assert ranking == ["r1", "r3"]  # r2 is busy and declined
 
             await echo_follows(tree_a, node_a, [11, 12], "r2")
@@ -306,3 +305,66 @@ def test_many_agents_share_one_process(tmp_path: Path) -> None:
         finally:
             proc.stop()
         assert proc.proc.returncode == 0
+
+
+def test_spawn_agents_starts_groups_in_parallel() -> None:
+    """The blocking API, for scripts and benchmarks: one process per group."""
+    procs = spawn_agents([spec("s1", 1.0), [spec("s2", 2.0), spec("s3", 3.0)]], timeout=30.0)
+    try:
+        assert [p.robots for p in procs] == [["s1"], ["s2", "s3"]]
+        assert all(p.alive() for p in procs)
+    finally:
+        for p in procs:
+            p.stop()
+    assert [p.proc.returncode for p in procs] == [0, 0]
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ('{"robot": "r1", "colour": "red"}', "colour"),
+        ('[{"robot": "r1"}, {"robot": "r2", "peer": {}}]', "peer"),
+        ('{"robot": "r1", "config": {"tick_hzz": 5}}', "tick_hzz"),
+        (
+            '{"robot": "r1", "factory": "btcap.team.demo:implementations",'
+            ' "factory_args": {"price": 1}}',
+            "price",
+        ),
+        ('{"robot": "r1", "factory": "btcap.team.demo:nothing"}', "nothing"),
+        ('{"robot": "r1", "log_level": "loud"}', "log_level"),
+    ],
+)
+def test_a_bad_spec_is_refused_naming_the_key(
+    capsys: pytest.CaptureFixture[str], text: str, key: str
+) -> None:
+    assert main([text]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("agent spec: ")
+    assert key in err
+    assert "Traceback" not in err
+
+
+def test_a_bad_config_key_fails_before_any_process_starts() -> None:
+    with pytest.raises(ValueError, match="tick_hzz"):
+        AgentProcess(AgentSpec(robot="r1", config={"tick_hzz": 5.0}))
+
+
+async def test_an_agent_that_fails_is_named_and_stops_its_process(logs: Path) -> None:
+    """One agent of a process cannot bind: it is logged and printed with its robot, its
+    neighbour is stopped, and the process exits with status 1 (no hang, no silence)."""
+    bad = spec("g1", 1.0, bind="tcp://no-such-interface:*")
+    exited = pytest.raises(RuntimeError, match=r"\['g0', 'g1'\] exited \(code 1\)")
+    with logs.open("ab") as log_file, anyio.fail_after(30), exited:
+        await open_agent([spec("g0", 1.0), bad], timeout=30.0, stderr=log_file.fileno())
+    text = await anyio.Path(logs).read_text()
+    assert "launch.agent_failed" in text
+    assert "agent g1: ValueError: cannot bind 'tcp://no-such-interface:*'" in text
+
+
+async def test_open_agent_stops_politely_and_reports_the_exit_code() -> None:
+    with anyio.fail_after(30):
+        async with await open_agent(spec("q1", 1.0), timeout=30.0) as proc:
+            assert proc.alive()
+            assert proc.endpoint.startswith("tcp://127.0.0.1:")
+        assert proc.returncode == 0
+        assert not proc.alive()

@@ -51,7 +51,6 @@ async def test_heartbeats_join_change_and_restart() -> None:
             tell(m.address, Heartbeat("x", 2, 0))
             assert events[-2:] == [(TeamEvent.FAILED, "x"), (TeamEvent.JOINED, "x")]
             assert m.members["x"].incarnation == 2
-            assert [e for _, e, _ in m.history] == [e for e, _ in events]
 
 
 async def test_goodbye_of_the_current_incarnation_only() -> None:
@@ -96,10 +95,6 @@ async def test_a_failing_listener_does_not_stop_the_others() -> None:
             assert bad not in m._listeners
 
 
-def _events(agent_team: Membership, robot: str) -> list[TeamEvent]:
-    return [e for _, e, r in agent_team.history if r == robot]
-
-
 async def test_join_leave_and_failure_between_agents() -> None:
     with anyio.fail_after(10):
         async with team() as t:
@@ -107,20 +102,20 @@ async def test_join_leave_and_failure_between_agents() -> None:
             await t.add("b")
             await t.add("c")
             await t.converged()
-            assert _events(a.team, "b") == [TeamEvent.JOINED]
+            assert t.seen("a", "b") == [TeamEvent.JOINED]
             # b leaves on purpose: everyone knows at once (no timeout needed).
             await t.remove("b")
             await until(lambda: a.team.alive() == {"a", "c"} and t["c"].team.alive() == {"a", "c"})
-            assert _events(a.team, "b") == [TeamEvent.JOINED, TeamEvent.LEFT]
+            assert t.seen("a", "b") == [TeamEvent.JOINED, TeamEvent.LEFT]
             # c goes silent: after the failure timeout it counts as failed, and c sees a fail.
             t.net.isolate("c")
             await until(lambda: a.team.alive() == {"a"} and t["c"].team.alive() == {"c"})
-            assert _events(a.team, "c") == [TeamEvent.JOINED, TeamEvent.FAILED]
-            assert _events(t["c"].team, "a") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            assert t.seen("c", "a") == [TeamEvent.JOINED, TeamEvent.FAILED]
             # Healed, it joins again.
             t.net.heal("c")
             await until(lambda: a.team.alive() == {"a", "c"})
-            assert _events(a.team, "c") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
 
 
 async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
@@ -143,7 +138,7 @@ async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
             b2 = await t.add("b")
             assert b2.team.incarnation != old
             await until(lambda: a.team.members["b"].incarnation == b2.team.incarnation)
-            joins = [e for e in _events(a.team, "b") if e is not TeamEvent.CHANGED]
+            joins = [e for e in t.seen("a", "b") if e is not TeamEvent.CHANGED]
             assert joins == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
             # What the old incarnation could do and did is forgotten; the new one is learnt.
             await until(lambda: "b" in a.repository.team)

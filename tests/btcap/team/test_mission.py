@@ -27,13 +27,9 @@ from structlog.testing import capture_logs
 from btcap import AlwaysFailure, Leaf, Parallel, Sequence, State, Tree
 from btcap.team.agent import Agent
 from btcap.team.assignment import Assigned, AssignmentTask
-from btcap.team.capability import (
-    Capability,
-    CapabilityInterface,
-    Implementation,
-    Precondition,
-    Scope,
-)
+from btcap.team.capability import Capability, CapabilityInterface
+from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.implementation import Implementation, Precondition, Scope
 from btcap.team.messages import (
     Award,
     AwardReply,
@@ -57,11 +53,11 @@ def _no_trace(agent: Agent) -> bool:
     mc = agent.mission_control
     slot = mc.slot
     return (
-        mc.occupied is None
-        and mc.queued is None
-        and not mc.hosted
-        and not mc._local_runs
-        and not mc.origin_executions
+        mc.body.running is None
+        and mc.body.queued is None
+        and not mc.host.hosted
+        and not mc.executor.local_runs
+        and not mc.origin.tracked
         and not mc.active
         and (slot is None or slot.current is None)
     )
@@ -98,9 +94,11 @@ async def test_remote_execution_streams_io_both_ways_every_tick() -> None:
             await _running_on(tree, node, "b")
             ex = node.execution
             assert isinstance(ex, RemoteExecution)
-            assert b.mission_control.occupied == ex.id == next(iter(b.mission_control.hosted))
-            assert a.mission_control.occupied is None  # the origin's body is free
-            assert a.mission_control.origin_executions == {ex.id: ex}
+            assert (
+                b.mission_control.body.running == ex.id == next(iter(b.mission_control.host.hosted))
+            )
+            assert a.mission_control.body.running is None  # the origin's body is free
+            assert a.mission_control.origin.tracked == {ex.id: ex.tracked}
             # Change the input on the origin while b runs: b's output follows.
             for x in (4, 7, -3):
                 node.set_input("x", x)
@@ -125,7 +123,7 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
             node = _count()
             tree = a.mission(Sequence("root", children=[node]))
             await _running_on(tree, node, "b")
-            hosted = next(iter(b.mission_control.hosted.values()))
+            hosted = next(iter(b.mission_control.host.hosted.values()))
             tree.untick()
             assert node.state is State.PAUSED
             await until(lambda: probe.unticks["b"] == 1 and hosted.paused, "b to pause")
@@ -135,9 +133,9 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
             for _ in range(80):  # 0.4 s of wall time = 4 clock s, twice the lease
                 await anyio.sleep(0.005)
             assert probe.ticks["b"] == frozen
-            assert b.mission_control.hosted == {hosted.id: hosted}
+            assert b.mission_control.host.hosted == {hosted.execution: hosted}
             assert node.execution is not None
-            assert node.execution.id == hosted.id
+            assert node.execution.id == hosted.execution
             # Ticking again resumes the same run.
             await tick_until(tree, lambda _s: probe.ticks["b"] > frozen + 2, "b to resume")
             assert not hosted.paused
@@ -282,7 +280,7 @@ async def test_lease_lapse_without_membership_failure_reassigns() -> None:
             node = _count()
             tree = a.mission(Sequence("root", children=[node]))
             await _running_on(tree, node, "b")
-            b.mission_control._to_mc = lambda robot, msg: None  # type: ignore[method-assign]
+            b.mission_control.send = lambda robot, msg: None  # type: ignore[method-assign]
             await _running_on(tree, node, "a")
             assert node.assignments == ["b", "a"]
             assert a.mission_control.stats.lost == 1
@@ -301,14 +299,14 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             first = _count("first")
             tree = a.mission(root_node := Sequence("root", children=[first]))
             await _running_on(tree, first, "b")
-            hosted = set(b.mission_control.hosted)
+            hosted = set(b.mission_control.host.hosted)
             await t.add("c", [count_impl("c", 1.0, probe)])
             await t.converged()
             for _ in range(40):  # keep working for a while with c in the team
                 tree.tick()
                 await anyio.sleep(0.005)
             assert first.assignments == ["b"]
-            assert set(b.mission_control.hosted) == hosted
+            assert set(b.mission_control.host.hosted) == hosted
             assert probe.ticks["c"] == 0
             first.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -351,7 +349,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
                 await tick_until(tree, _output_is(node, "y", 700), "c's outputs")
                 old = t[executor]
                 await until(lambda: probe.live(executor) == 0, "the old run to shut down")
-                assert old.mission_control.occupied is None
+                assert old.mission_control.body.running is None
                 assert (a.mission_control.stats.moved, a.mission_control.stats.lost) == (1, 0)
             else:
                 for _ in range(40):  # keep working with c in the team
@@ -359,7 +357,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
                     await anyio.sleep(0.005)
                 assert node.assignments == [executor]
                 assert probe.ticks["c"] == 0
-                assert c.mission_control.occupied is None
+                assert c.mission_control.body.running is None
                 assert a.mission_control.stats.moved == 0
             node.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -381,7 +379,7 @@ async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -
             c = await t.add("c", [count_impl("c", 1.0, probe)])
             # Stop ticking: the replacement is made but never adopted by the node.
             await until(lambda: a.mission_control.stats.moved == 1, "the move to c")
-            assert c.mission_control.occupied is not None
+            assert c.mission_control.body.running is not None
             tree.reset()
             await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
             await tree.shutdown()
@@ -442,7 +440,7 @@ async def test_two_robots_joining_at_once_take_the_work_over_only_once() -> None
             for _ in range(20):
                 tree.tick()
                 await anyio.sleep(0.005)
-            busy = [r for r in "bcd" if t[r].mission_control.occupied is not None]
+            busy = [r for r in "bcd" if t[r].mission_control.body.running is not None]
             assert busy == node.assignments[1:]
             node.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -473,7 +471,7 @@ async def test_no_moved_work_runs_for_a_paused_capability(when: str) -> None:
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             await tree.shutdown()
             await until(lambda: all(_no_trace(x) for x in t.agents.values()), "no trace")
-            assert c.mission_control.occupied is None
+            assert c.mission_control.body.running is None
 
 
 async def test_a_replacement_lost_before_the_hand_over_leaves_the_work_where_it_was() -> None:
@@ -520,7 +518,7 @@ async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
             tree2 = a.mission(Sequence("root2", children=[second]))
             await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
             assert second.assignments == [executor]
-            assert mc.queued is not None
+            assert mc.body.queued is not None
             # Its queue is full: the third goes to the other robot.
             tree3 = a.mission(Sequence("root3", children=[third]))
             await _running_on(tree3, third, other)
@@ -536,7 +534,7 @@ async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
             assert await tick_until(tree1, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             await _running_on(tree2, second, executor)
             assert [x for r, x in probe.first_x.values() if r == executor] == [1, 9]
-            assert mc.queued is None
+            assert mc.body.queued is None
             for node, tree in ((second, tree2), (third, tree3)):
                 node.set_input("stop", True)
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -566,7 +564,7 @@ async def test_a_queued_execution_cancelled_before_it_starts_leaves_no_trace(
             await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
             tree2.untick()  # a queued run pauses without harm
             tree2.reset()
-            await until(lambda: mc.queued is None, "the queued run to go")
+            await until(lambda: mc.body.queued is None, "the queued run to go")
             await tick_until(tree1, lambda _s: first.outputs["ticks"] > 3, "first still runs")
             first.set_input("stop", True)
             assert await tick_until(tree1, lambda s: s is not State.RUNNING) is State.SUCCEEDED
@@ -604,7 +602,7 @@ async def test_local_precondition_needs_success_on_this_robot() -> None:
             tree = a.mission(Sequence("root", children=[n1]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert n1.assignments == ["a"]
-            out = a.auctioneer.last_outcome
+            out = a.auctioneer.outcomes[-1]
             assert out is not None
             assert "precondition First (local) not met" in out.declined["b"]
             # First succeeds on a (cheaper there): b's precondition is still unmet.
@@ -659,11 +657,12 @@ async def test_preconditions_are_checked_again_at_award() -> None:
             await t.converged()
             b.repository.team["a"].succeeded.append("First")
             mc = b.mission_control
-            cfb = CallForBids("a:9", "Count", COUNT.identity, {"x": 1}, "a", "a/auctioneer")
-            assert isinstance(mc.evaluate(cfb), Bid)
+            cfb = CallForBids(AuctionId("a", 9), "Count", COUNT.identity, {"x": 1})
+            assert isinstance(mc.executor.evaluate(cfb), Bid)
             # The member that had done it left before the award came.
             b.repository.team.pop("a")
-            award = Award("a:9", "a:root:9", "Count", "count-b", {"x": 1}, "a", "a/auctioneer", 1.0)
+            execution = ExecutionId("a", "root", 9)
+            award = Award(AuctionId("a", 9), execution, "Count", "count-b", {"x": 1}, 1.0)
             reply = await b.mission_control.ref.ask(award, expect=AwardReply)
             assert not reply.accepted
             assert "precondition First (remote)" in reply.reason
@@ -690,37 +689,36 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             from btcap.transports import Address
 
             a_mc, b_mc = Address("a", "mission_control"), Address("b", "mission_control")
+            foreign = ExecutionId("x", "root", 1)
+            z1, z2 = AuctionId("z", 1), AuctionId("z", 2)
             stray: list[tuple[Address, Any]] = [
-                (Address("a", "auctioneer"), Bid("a:999", "x", 0.0, "count-x")),
-                (Address("a", "auctioneer"), NoBid("nope", "x", "")),
-                (a_mc, ExecutionStatus("x:root:1", "x", State.SUCCEEDED, {"y": 1})),
+                (Address("a", "auctioneer"), Bid(AuctionId("a", 999), "x", 0.0, "count-x")),
+                (Address("a", "auctioneer"), NoBid(z1, "x", "")),
+                (a_mc, ExecutionStatus(foreign, "x", State.SUCCEEDED, {"y": 1})),
                 # A real execution, but reported by a robot that does not run it.
                 (a_mc, ExecutionStatus(real.id, "x", State.SUCCEEDED, {"y": 666})),
                 (a_mc, ExecutionStatus(real.id, "x", State.SHUTDOWN, {})),
-                (a_mc, KeepAlive("x", [real.id, "bogus"])),
-                (b_mc, ExecutionInputs("x:root:1", 1, {"x": 5})),
-                (b_mc, ExecutionInputs("", 1, {})),
+                (a_mc, KeepAlive("x", [real.id, foreign])),
+                (b_mc, ExecutionInputs(foreign, 1, {"x": 5})),
+                (b_mc, ExecutionInputs(ExecutionId("", "", 0), 1, {})),
                 (b_mc, ExecutionInputs(real.id, 10**6, {"x": "not an int"})),
-                (b_mc, PauseExecution("x:root:1")),
-                (b_mc, CancelExecution("x:root:1", "stray")),
-                (b_mc, KeepAlive("x", ["x:root:1"])),
-                (a_mc, CallForBids("z:1", "Nope", "Nope()->()", {}, "x", "x/auctioneer")),
-                (
-                    a_mc,
-                    CallForBids("z:2", "Count", COUNT.identity, {"x": "bad"}, "x", "x/auctioneer"),
-                ),
-                (a_mc, AwardReply("a:1", "x", True)),
+                (b_mc, PauseExecution(foreign)),
+                (b_mc, CancelExecution(foreign, "stray")),
+                (b_mc, KeepAlive("x", [foreign])),
+                (a_mc, CallForBids(z1, "Nope", "Nope()->()", {})),
+                (a_mc, CallForBids(z2, "Count", COUNT.identity, {"x": "bad"})),
+                (a_mc, AwardReply(ExecutionId("a", "root", 1), "x", True)),
             ]
             for address, msg in stray:
                 send(address, msg)
             # An award for an implementation the robot does not have is declined.
-            award = Award(
-                "x:1", "x:root:1", "Count", "no-such-impl", {"x": 1}, "x", "x/auctioneer", 1.0
-            )
+            award = Award(AuctionId("x", 1), foreign, "Count", "no-such-impl", {"x": 1}, 1.0)
             reply = await x.system.ref("a/mission_control").ask(award, expect=AwardReply)
             assert not reply.accepted
             assert "no implementation" in reply.reason
-            award2 = Award("x:2", "x:root:2", "Nope", "count-a", {}, "x", "x/auctioneer", 1.0)
+            award2 = Award(
+                AuctionId("x", 2), ExecutionId("x", "root", 2), "Nope", "count-a", {}, 1.0
+            )
             reply = await x.system.ref("a/mission_control").ask(award2, expect=AwardReply)
             assert not reply.accepted
             # The real execution was not disturbed and still finishes on b.
@@ -765,13 +763,13 @@ def _check_exclusive(t: Team, trees: list[Tree], probe: Probe) -> None:
             if isinstance(n, Capability) and isinstance(n.execution, LocalExecution)
         ]
         # One running; with queueing, one more accepted and waiting.
-        held = len(mc.hosted) + len(mc._local_runs) + len(local_nodes)
+        held = len(mc.host.hosted) + len(mc.executor.local_runs) + len(local_nodes)
         most = 2 if mc.config.queue_after_current else 1
         assert held <= most, f"{robot} holds {held} executions at once"
         if held:
-            assert mc.occupied is not None
-        for eid in mc.hosted:
-            assert eid in (mc.occupied, mc.queued)
+            assert mc.body.running is not None
+        for eid in mc.host.hosted:
+            assert eid in (mc.body.running, mc.body.queued)
             assert eid not in where, f"{eid} hosted on {where[eid]} and {robot}"
             where[eid] = robot
     for tree in trees:

@@ -12,8 +12,9 @@ from structlog.testing import capture_logs
 
 from btcap import AlwaysRunning, Leaf, Parallel, Sequence, State, Tree, TreeError
 from btcap.team.agent import Agent
-from btcap.team.capability import Implementation
-from btcap.team.mission import Hosted
+from btcap.team.core.hosting import Hosted
+from btcap.team.core.ids import ExecutionId
+from btcap.team.implementation import Implementation, ImplementationRun
 from btcap.team.slot import RemoteCapabilitySlot
 
 
@@ -42,7 +43,7 @@ async def test_remote_run_in_a_slot_leaves_no_trace() -> None:
             tree = a.mission(Sequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             assert slot.current is not None
-            assert slot.current.id == node.execution.id  # type: ignore[union-attr]
+            assert slot.current.execution == node.execution.id  # type: ignore[union-attr]
             assert len(_trees(b)) == 1  # the run's nodes are actors of b while it runs
             assert slot.state is State.RUNNING  # the slot itself is a service: always running
             node.set_input("stop", True)
@@ -60,16 +61,16 @@ async def test_slot_refuses_a_second_run_and_runs_only_once_set_up() -> None:
             slot = b.mission_control.slot
             assert slot is not None
 
-            def hosted(i: int) -> Hosted:
+            def hosted(i: int) -> Hosted[ImplementationRun]:
                 run = count_impl("b", 1.0, probe).instantiate(b.clock)
-                return Hosted(f"x:{i}", "x", run, {"x": 1, "stop": False}, 0.0)
+                return Hosted(ExecutionId("x", "root", i), run, {"x": 1, "stop": False}, 1.0, 0.0)
 
             first = hosted(1)
             assert slot.load(first) is None
-            assert slot.load(hosted(2)) == "slot busy with x:1"
-            slot.unload(hosted(3))  # not the current one: no effect
+            assert slot.load(hosted(2)) == "slot busy with x:root#1"
+            slot.unload(ExecutionId("x", "root", 3))  # not the current one: no effect
             assert slot.current is first
-            slot.unload(first)
+            slot.unload(first.execution)
             assert slot.current is None
             await first.run.close()
             # A slot that is not set up (its tree shut down) takes nothing.
@@ -102,7 +103,7 @@ async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
                 tree = a.mission(Sequence("root", children=[node]))
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert node.assignments == ["a"]
-                out = a.auctioneer.last_outcome
+                out = a.auctioneer.outcomes[-1]
                 assert out is not None
                 assert out.declined["c"] == "no remote capability slot"
                 # c itself may still run it locally.
@@ -214,8 +215,8 @@ async def test_an_implementation_that_cannot_start_is_declined_not_fatal(how: st
             assert b.system.lookup("mission_control") is mc
             assert mc._restarts == 0
             assert mc.stats.declined == 12
-            assert mc.occupied is None
-            assert not mc.hosted
+            assert mc.body.running is None
+            assert not mc.host.hosted
             await until(lambda: not _trees(b), "no leftover actors on b")
             # The same holds for b's own capabilities.
             own = COUNT.node_type()("own", inputs={"x": 1, "stop": True})

@@ -1,0 +1,39 @@
+"""Settings and counters of a robot's mission control."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["MissionConfig", "MissionStats"]
+
+
+@dataclass(slots=True, kw_only=True)
+class MissionConfig:
+    """Protocol timing in clock seconds, and the allocation policies."""
+
+    #: How long an execution lives without word from the other side. The origin grants
+    #: it with every award; the executor gives the run up after ``0.8 * lease_s``.
+    lease_s: float = 1.0
+    keepalive_s: float = 0.2
+    auction_window_s: float = 1.0
+    award_timeout_s: float = 0.5
+    #: Move running work to a robot that joins and bids at least this fraction below the
+    #: bid the current executor won with (0.25: a quarter cheaper). None, the default:
+    #: healthy work is never moved by a join.
+    rebid_on_join: float | None = None
+    #: A busy robot also bids for one more execution, to start when its current work
+    #: ends, at its current bid plus the new one. Off: a busy robot declines to bid.
+    queue_after_current: bool = False
+
+
+@dataclass(slots=True)
+class MissionStats:
+    requests: int = 0
+    assigned: int = 0
+    unassigned: int = 0
+    lost: int = 0
+    hosted: int = 0
+    declined: int = 0
+    moved: int = 0
+    refused: int = 0  #: messages a peer had no right to send, or that made no sense
+    errors: int = 0  #: failures of this robot's own code (bid functions, builds), logged

@@ -1,0 +1,72 @@
+"""A robot's answer to a call for bids: the cheapest implementation it may run now."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, TypeVar
+
+from btcap.team.messages import Bid, CallForBids, NoBid
+
+__all__ = ["Bidder", "Evaluation", "evaluate"]
+
+
+class Bidder(Protocol):
+    """What bidding needs of an implementation (see ``btcap.team.interface``)."""
+
+    @property
+    def name(self) -> str: ...
+
+    def cost(self, inputs: Mapping[str, Any]) -> float | None: ...
+
+
+B = TypeVar("B", bound=Bidder)
+
+
+@dataclass(slots=True)
+class Evaluation:
+    """The answer, and the bid functions that raised (the shell logs them)."""
+
+    answer: Bid | NoBid
+    errors: list[tuple[str, Exception]] = field(default_factory=list)
+
+
+def evaluate(
+    cfb: CallForBids,
+    robot: str,
+    implementations: Sequence[B],
+    inputs: Mapping[str, Any],
+    *,
+    wait: float | None,
+    unmet: Callable[[B], str | None],
+) -> Evaluation:
+    """Bid ``wait`` (what the body must finish first; None: busy) plus the cheapest cost.
+
+    ``unmet`` says why an implementation's preconditions do not hold. Ties go to the
+    implementation whose name sorts first, so the same robot always bids the same way.
+    """
+    if not implementations:
+        return Evaluation(NoBid(cfb.auction, robot, "no matching implementation"))
+    if wait is None:
+        return Evaluation(NoBid(cfb.auction, robot, "busy"))
+    best: tuple[float, str] | None = None
+    reasons: list[str] = []
+    errors: list[tuple[str, Exception]] = []
+    for impl in implementations:
+        why = unmet(impl)
+        if why is not None:
+            reasons.append(why)
+            continue
+        try:
+            cost = impl.cost(inputs)
+        except Exception as exc:  # a user's bid function: it must not silence the robot
+            errors.append((impl.name, exc))
+            reasons.append(f"{impl.name}: bid failed ({type(exc).__name__})")
+            continue
+        if cost is None:
+            reasons.append(f"{impl.name}: cannot execute")
+        elif best is None or (cost, impl.name) < best:
+            best = (cost, impl.name)
+    if best is None:
+        return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
+    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1]), errors)

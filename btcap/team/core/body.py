@@ -1,0 +1,68 @@
+"""The robot's one body: it runs at most one execution, and may hold one more queued."""
+
+from __future__ import annotations
+
+from btcap.team.core.ids import ExecutionId
+
+__all__ = ["Body"]
+
+
+class Body:
+    """Idle, running one execution, or (with ``queue_after_current``) running one with one
+    more accepted and waiting. Local and remote executions share it: a robot that drives
+    for its own tree cannot drive for another's at the same time."""
+
+    __slots__ = ("_queued_cost", "_running_cost", "queue_after_current", "queued", "running")
+
+    def __init__(self, *, queue_after_current: bool = False) -> None:
+        self.queue_after_current = queue_after_current
+        self.running: ExecutionId | None = None
+        self.queued: ExecutionId | None = None
+        self._running_cost = 0.0
+        self._queued_cost = 0.0
+
+    @property
+    def idle(self) -> bool:
+        return self.running is None
+
+    def holds(self, execution: ExecutionId) -> bool:
+        return execution == self.running or execution == self.queued
+
+    def wait_cost(self) -> float | None:
+        """What a new task waits behind: 0 when idle, the current bid when it could be
+        queued, None when the body can take no more (a busy robot does not bid)."""
+        if self.running is None:
+            return 0.0
+        if self.queue_after_current and self.queued is None:
+            return self._running_cost
+        return None
+
+    def busy_reason(self) -> str | None:
+        """Why an award must be declined now, or None if the body can take it."""
+        if self.wait_cost() is None:
+            return f"busy with {self.running}"
+        return None
+
+    def take(self, execution: ExecutionId, cost: float) -> bool:
+        """Reserve the body for ``execution``; True if it runs now, False if it is queued.
+
+        The caller checked :meth:`busy_reason` first.
+        """
+        if self.running is None:
+            self.running, self._running_cost = execution, cost
+            return True
+        if self.queue_after_current and self.queued is None:
+            self.queued, self._queued_cost = execution, cost
+            return False
+        raise RuntimeError(f"body busy with {self.running} and {self.queued}")
+
+    def release(self, execution: ExecutionId) -> ExecutionId | None:
+        """``execution`` ended or was dropped; returns the queued one that now runs, if any."""
+        if execution == self.queued:
+            self.queued = None
+            return None
+        if execution != self.running:
+            return None
+        self.running, self.queued = self.queued, None
+        self._running_cost = self._queued_cost
+        return self.running

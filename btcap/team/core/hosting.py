@@ -1,0 +1,199 @@
+"""The executor's side: runs this robot hosts for other robots, their leases and its body.
+
+An award is taken only from the origin of its execution (who is also its auctioneer)
+and only while the body can take it. The origin renews a hosted run's lease with every
+input it sends and with keep-alives; when no word came for the award's ``lease_s`` times
+``give_up`` the run is dropped — a little before the origin re-assigns it, so the two
+runs of a partitioned execution never overlap. Only the origin may tick, pause or cancel
+its run, and finished runs keep their final status for a while, so a late input is
+answered with the result rather than with "unknown".
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+from btcap.bt.state import DONE, State
+from btcap.team.core.body import Body
+from btcap.team.core.effects import Drop, Effect, Pause, Refused, Send, Start
+from btcap.team.core.ids import ExecutionId
+from btcap.team.core.origin import LOST
+from btcap.team.messages import (
+    Award,
+    CancelExecution,
+    ExecutionInputs,
+    ExecutionStatus,
+    KeepAlive,
+    PauseExecution,
+)
+
+__all__ = ["HostLeases", "Hosted"]
+
+R = TypeVar("R")
+
+#: Final statuses kept to answer late inputs; older ones are forgotten first.
+FINISHED_KEPT = 256
+
+
+@dataclass(slots=True)
+class Hosted(Generic[R]):
+    """A run this robot executes for another robot's capability node."""
+
+    execution: ExecutionId
+    run: R
+    inputs: dict[str, Any]
+    lease_s: float
+    last_heard: float
+    state: State = State.ASSIGNED
+    outputs: dict[str, Any] = field(default_factory=dict)
+    paused: bool = False
+    seq: int = 0
+
+    @property
+    def origin(self) -> str:
+        return self.execution.origin
+
+
+class HostLeases(Generic[R]):
+    """Hosted runs and the body they share with this robot's own runs."""
+
+    def __init__(self, robot: str, body: Body, *, give_up: float = 0.8) -> None:
+        self.robot = robot
+        self.body = body
+        self.give_up = give_up
+        self.hosted: dict[ExecutionId, Hosted[R]] = {}
+        self.finished: OrderedDict[ExecutionId, ExecutionStatus] = OrderedDict()
+
+    # -- awards -----------------------------------------------------------------------
+    def refuse_award(self, sender: str, award: Award) -> str | None:
+        """Why ``award`` must be declined before anything is built, or None."""
+        execution = award.execution
+        if sender != execution.origin or award.auction.auctioneer != sender:
+            return f"award of {execution} from {sender}: only its origin awards it"
+        if self.body.holds(execution) or execution in self.finished:
+            return f"{execution} was awarded before"
+        return self.body.busy_reason()
+
+    def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:
+        """Take a remote award (checked with :meth:`refuse_award`); True if it runs now."""
+        self.hosted[award.execution] = Hosted(
+            award.execution, run, inputs, award.lease_s * self.give_up, now, paused=award.paused
+        )
+        return self.body.take(award.execution, cost)
+
+    # -- the origin's messages -----------------------------------------------------------
+    def inputs(
+        self,
+        sender: str,
+        msg: ExecutionInputs,
+        now: float,
+        convert: Callable[[Hosted[R], dict[str, Any]], dict[str, Any] | str],
+    ) -> list[Effect]:
+        """New inputs (``convert`` types them, or says what is wrong); answered at once."""
+        execution = msg.execution
+        if sender != execution.origin:
+            return [Refused(sender, msg, f"inputs for {execution}, whose origin is another")]
+        h = self.hosted.get(execution)
+        if h is None:
+            final = self.finished.get(execution) or ExecutionStatus(
+                execution, self.robot, LOST, {}, msg.seq, "unknown execution"
+            )
+            return [Send(sender, final)]
+        inputs = convert(h, msg.inputs)
+        if isinstance(inputs, str):  # changes nothing: a bad seq must not hide later inputs
+            return [Refused(sender, msg, inputs)]
+        h.last_heard = max(h.last_heard, now)
+        h.paused = False
+        if msg.seq > h.seq:
+            h.seq, h.inputs = msg.seq, inputs
+        return [Send(sender, self.status(h))]
+
+    def pause(self, sender: str, msg: PauseExecution) -> list[Effect]:
+        h = self.hosted.get(msg.execution)
+        if h is None or sender != h.origin:
+            return [] if h is None else [Refused(sender, msg, "pause from another than origin")]
+        h.paused = True
+        if self.body.running != h.execution:
+            return []  # a queued run has not started: nothing to pause
+        h.state = State.PAUSED
+        return [Pause(h.execution)]
+
+    def cancel(self, sender: str, msg: CancelExecution) -> list[Effect]:
+        execution = msg.execution
+        if sender != execution.origin:
+            return [Refused(sender, msg, f"cancel of {execution} from another than its origin")]
+        if execution not in self.hosted:
+            return []
+        return self.drop(execution, msg.reason or "cancelled")
+
+    def keepalive(self, sender: str, msg: KeepAlive, now: float) -> None:
+        for execution in msg.executions:
+            h = self.hosted.get(execution)
+            if h is not None and h.origin == sender:
+                h.last_heard = max(h.last_heard, now)
+
+    # -- the run ----------------------------------------------------------------------
+    def status(self, h: Hosted[R]) -> ExecutionStatus:
+        return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq)
+
+    def ticked(self, execution: ExecutionId, state: State, outputs: dict[str, Any]) -> list[Effect]:
+        """The slot ticked the run: report it; a finished run is kept as a final status."""
+        h = self.hosted.get(execution)
+        if h is None:
+            return []
+        h.state, h.outputs = state, outputs
+        report = self.status(h)
+        out: list[Effect] = [Send(h.origin, report)]
+        if state in DONE:
+            self.finished[execution] = report
+            while len(self.finished) > FINISHED_KEPT:
+                self.finished.popitem(last=False)
+            out += self.drop(execution, "finished")
+        return out
+
+    def failed_to_start(self, execution: ExecutionId, why: str) -> list[Effect]:
+        """The queued run could not be set up when the body came free: tell its origin."""
+        h = self.hosted.get(execution)
+        if h is None:
+            return []
+        lost = ExecutionStatus(execution, self.robot, LOST, {}, h.seq, why)
+        return [Send(h.origin, lost), *self.drop(execution, why)]
+
+    # -- ending -----------------------------------------------------------------------
+    def release(self, execution: ExecutionId) -> list[Effect]:
+        """A run of this robot's body ended (hosted or its own): the queued one starts."""
+        nxt = self.body.release(execution)
+        return [Start(nxt)] if nxt is not None else []
+
+    def drop(self, execution: ExecutionId, why: str) -> list[Effect]:
+        h = self.hosted.pop(execution, None)
+        if h is None:
+            return []
+        return [Drop(execution, why, h.run), *self.release(execution)]
+
+    def _drop_all(self, executions: list[ExecutionId], why: str) -> list[Effect]:
+        # The queued one first: it must not start on the way.
+        executions.sort(key=lambda e: e != self.body.queued)
+        out: list[Effect] = []
+        for execution in executions:
+            out += self.drop(execution, why)
+        return out
+
+    def origin_gone(self, robot: str, why: str) -> list[Effect]:
+        return self._drop_all([e for e, h in self.hosted.items() if h.origin == robot], why)
+
+    def expire(self, now: float) -> list[Effect]:
+        late = [e for e, h in self.hosted.items() if now - h.last_heard > h.lease_s]
+        return self._drop_all(late, "origin lease lapsed")
+
+    def drop_all(self, why: str) -> list[Effect]:
+        return self._drop_all(list(self.hosted), why)
+
+    def keepalives(self) -> list[Send]:
+        by_robot: dict[str, list[ExecutionId]] = {}
+        for e, h in self.hosted.items():
+            by_robot.setdefault(h.origin, []).append(e)
+        return [Send(r, KeepAlive(self.robot, ids)) for r, ids in sorted(by_robot.items())]

@@ -1,0 +1,125 @@
+"""The origin's lease table: executions its capability nodes run on other robots.
+
+Every remote execution holds a lease that any word from its executor renews (a status,
+or a keep-alive while no tick traffic flows). A lapsed lease, the executor leaving the
+team, or the executor saying it no longer has the run makes the execution *lost*: the
+capability node then re-assigns the work with its latest inputs. Only an execution's
+executor may report on it; a report on an execution this robot gave up on is answered
+with a cancel, so a robot declared dead that comes back stops its stale run. (A report
+that overtakes the award's acceptance is simply early, and ignored.)
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Any
+
+from btcap.bt.state import DONE, State
+from btcap.team.core.effects import Effect, Lost, Refused, Send
+from btcap.team.core.ids import ExecutionId
+from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive
+
+__all__ = ["ENDED_KEPT", "LOST", "OriginLeases", "Tracked"]
+
+#: Executions given up on that are remembered, to stop their runs if they report again.
+ENDED_KEPT = 1024
+
+#: The state an executor reports for an execution it does not (or no longer) have.
+LOST = State.SHUTDOWN
+
+
+@dataclass(slots=True)
+class Tracked:
+    """What the origin knows of one remote execution (read by its capability node)."""
+
+    execution: ExecutionId
+    executor: str
+    lease_s: float
+    last_heard: float
+    state: State = State.ASSIGNED
+    outputs: dict[str, Any] = field(default_factory=dict)
+    seq: int = 0  # the latest inputs sent
+    acked: int = 0  # the latest inputs the executor confirmed
+    detail: str = ""
+    lost: bool = False
+
+
+class OriginLeases:
+    """Leases of the remote executions one robot started, decided on explicit time."""
+
+    def __init__(self, robot: str) -> None:
+        self.robot = robot
+        self.tracked: dict[ExecutionId, Tracked] = {}
+        self._ended: OrderedDict[ExecutionId, None] = OrderedDict()
+
+    def track(self, execution: ExecutionId, executor: str, lease_s: float, now: float) -> Tracked:
+        """The award was accepted: the lease starts now."""
+        t = Tracked(execution, executor, lease_s, now)
+        self.tracked[execution] = t
+        return t
+
+    def forget(self, execution: ExecutionId) -> None:
+        """The node let the execution go (finished, cancelled, moved)."""
+        if self.tracked.pop(execution, None) is not None:
+            self._end(execution)
+
+    def status(self, sender: str, msg: ExecutionStatus, now: float) -> list[Effect]:
+        t = self.tracked.get(msg.execution)
+        if t is None:
+            if msg.execution.origin != self.robot:
+                return [Refused(sender, msg, f"status of {msg.execution}, not ours")]
+            if msg.execution not in self._ended or msg.state in DONE or msg.state is LOST:
+                return []  # early (before the accept), a duplicate result, or a goodbye
+            # A run we gave up on (its executor was declared dead, or we moved it) goes on:
+            # tell it to stop now rather than at the end of its lease.
+            return [Send(sender, CancelExecution(msg.execution, "no longer assigned to you"))]
+        if sender != t.executor:
+            return [Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")]
+        t.last_heard = max(t.last_heard, now)
+        if msg.state is LOST:
+            return self._lose(t, f"executor no longer has it ({msg.detail})")
+        t.state = msg.state
+        t.outputs = msg.outputs
+        t.acked = max(t.acked, msg.seq)
+        t.detail = msg.detail
+        if msg.state in DONE:  # the result is taken once; duplicates are ignored
+            del self.tracked[t.execution]
+            self._end(t.execution)
+        return []
+
+    def keepalive(self, sender: str, executions: list[ExecutionId], now: float) -> None:
+        for execution in executions:
+            t = self.tracked.get(execution)
+            if t is not None and t.executor == sender:
+                t.last_heard = max(t.last_heard, now)
+
+    def member_gone(self, robot: str, why: str) -> list[Effect]:
+        out: list[Effect] = []
+        for t in [t for t in self.tracked.values() if t.executor == robot]:
+            out += self._lose(t, why)
+        return out
+
+    def expire(self, now: float) -> list[Effect]:
+        out: list[Effect] = []
+        for t in [t for t in self.tracked.values() if now - t.last_heard > t.lease_s]:
+            out += self._lose(t, "lease lapsed")
+        return out
+
+    def keepalives(self) -> list[Send]:
+        """One keep-alive per executor, naming every execution it runs for us."""
+        by_robot: dict[str, list[ExecutionId]] = {}
+        for t in self.tracked.values():
+            by_robot.setdefault(t.executor, []).append(t.execution)
+        return [Send(r, KeepAlive(self.robot, ids)) for r, ids in sorted(by_robot.items())]
+
+    def _lose(self, t: Tracked, why: str) -> list[Effect]:
+        del self.tracked[t.execution]
+        self._end(t.execution)
+        t.lost = True
+        return [Lost(t.execution, t.executor, why)]
+
+    def _end(self, execution: ExecutionId) -> None:
+        self._ended[execution] = None
+        while len(self._ended) > ENDED_KEPT:
+            self._ended.popitem(last=False)

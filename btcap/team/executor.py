@@ -1,0 +1,151 @@
+"""The executor's side of mission control: bids, awards and the runs it hosts.
+
+Decisions about leases and the body are the core's (:mod:`btcap.team.core`); this part
+knows the robot's implementations, builds runs and loads them into the slot.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from btcap.bt.state import TreeError
+from btcap.team.config import MissionStats
+from btcap.team.core.bidding import evaluate
+from btcap.team.core.body import Body
+from btcap.team.core.effects import Effect
+from btcap.team.core.hosting import Hosted, HostLeases
+from btcap.team.core.ids import ExecutionId
+from btcap.team.implementation import Implementation, ImplementationRun, Precondition, Scope
+from btcap.team.messages import Award, Bid, CallForBids, NoBid
+from btcap.team.repository import CapabilityRepository
+from btcap.team.runs import RunFactory
+from btcap.team.slot import RemoteCapabilitySlot
+from btcap.transports.log import get_logger
+
+__all__ = ["ExecutorSide"]
+
+log = get_logger("btcap.mission")
+
+
+class ExecutorSide:
+    """Bidding and taking awards for one robot, local runs and hosted ones alike."""
+
+    def __init__(
+        self,
+        robot: str,
+        repository: CapabilityRepository,
+        body: Body,
+        stats: MissionStats,
+        now: Callable[[], float],
+    ) -> None:
+        self.robot = robot
+        self.repository = repository
+        self.body = body
+        self.stats = stats
+        self.now = now
+        self.host: HostLeases[ImplementationRun] = HostLeases(robot, body)
+        self.slot: RemoteCapabilitySlot | None = None
+        self.runs: RunFactory | None = None
+        #: Runs of this robot's own capability nodes, awarded and not yet adopted.
+        self.local_runs: dict[ExecutionId, ImplementationRun] = {}
+
+    def unmet(self, preconditions: tuple[Precondition, ...]) -> str | None:
+        for p in preconditions:
+            ok = (
+                p.capability in self.repository.succeeded
+                if p.scope is Scope.LOCAL
+                else self.repository.succeeded_anywhere(p.capability)
+            )
+            if not ok:
+                return f"precondition {p.capability} ({p.scope.value}) not met"
+        return None
+
+    def evaluate(self, cfb: CallForBids) -> Bid | NoBid:
+        """This robot's answer to a call for bids (reserves nothing)."""
+        impls = self.repository.local_implementations(cfb.interface, cfb.identity)
+        wait = self.body.wait_cost()
+        if not impls or wait is None:
+            return NoBid(cfb.auction, self.robot, "busy" if impls else "no matching implementation")
+        if self.slot is None and cfb.auction.auctioneer != self.robot:
+            return NoBid(cfb.auction, self.robot, "no remote capability slot")
+        try:
+            inputs = impls[0].interface.convert_inputs(cfb.inputs, f"call for bids {cfb.auction}")
+        except TreeError as exc:
+            return NoBid(cfb.auction, self.robot, str(exc))
+        ev = evaluate(
+            cfb, self.robot, impls, inputs, wait=wait, unmet=lambda i: self.unmet(i.preconditions)
+        )
+        for name, err in ev.errors:
+            self.stats.errors += 1
+            log.error("mission.bid_failed", robot=self.robot, implementation=name, exc_info=err)
+        return ev.answer
+
+    def _implementation(self, msg: Award) -> Implementation | str:
+        impls = self.repository.local_implementations(msg.interface)
+        impl = next((i for i in impls if i.name == msg.implementation), None)
+        if impl is None:
+            return f"no implementation {msg.implementation!r}"
+        if msg.execution.origin != self.robot and self.slot is None:
+            return "no remote capability slot"
+        return self.unmet(impl.preconditions) or impl
+
+    def accept(self, sender: str, msg: Award) -> str | None:
+        """Take the award, or say why not; nothing is held after a refusal."""
+        impl = self.host.refuse_award(sender, msg) or self._implementation(msg)
+        if isinstance(impl, str):
+            return impl
+        assert self.runs is not None
+        try:
+            inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
+            cost = impl.cost(inputs)
+            if cost is None:
+                return f"{impl.name} cannot execute these inputs"
+            run = self.runs.take(impl, msg.execution)
+        except Exception as exc:  # a broken implementation declines, never kills the actor
+            if not isinstance(exc, TreeError | ValueError):
+                self.stats.errors += 1
+                log.error(
+                    "mission.build_failed", robot=self.robot, implementation=impl.name, exc_info=exc
+                )
+            return str(exc)
+        if msg.execution.origin != self.robot:
+            if self.host.admit(msg, run, inputs, cost, self.now()):
+                why = self.load(msg.execution)
+                if why is not None:
+                    self.host.drop(msg.execution, why)
+                    self.runs.close(run)
+                    return why
+            self.stats.hosted += 1
+            return None
+        self.body.take(msg.execution, cost)
+        self.local_runs[msg.execution] = run
+        try:
+            run.tree.setup()
+        except Exception as exc:
+            self.local_runs.pop(msg.execution)
+            self.body.release(msg.execution)
+            self.runs.close(run)
+            return f"setup of {impl.name!r} failed: {exc}"
+        return None
+
+    def load(self, execution: ExecutionId) -> str | None:
+        """Put a hosted run that now has the body into the slot, or say why it cannot."""
+        h = self.host.hosted[execution]
+        try:
+            return self.slot.load(h) if self.slot is not None else "no remote capability slot"
+        except Exception as exc:
+            return f"setup of {h.run.implementation.name!r} failed: {exc}"
+
+    def start(self, execution: ExecutionId) -> list[Effect]:
+        """The body came free for a queued run (a local one is ticked by its own node)."""
+        if execution not in self.host.hosted:
+            return []
+        why = self.load(execution)
+        return [] if why is None else self.host.failed_to_start(execution, why)
+
+    def convert(self, h: Hosted[ImplementationRun], values: dict[str, Any]) -> dict[str, Any] | str:
+        try:
+            return h.run.implementation.interface.convert_inputs(values, f"execution {h.execution}")
+        except TreeError as exc:
+            return str(exc)

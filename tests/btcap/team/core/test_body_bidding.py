@@ -1,0 +1,92 @@
+"""The body and bid evaluation."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import pytest
+
+from btcap.team.core.auction import Auction
+from btcap.team.core.bidding import evaluate
+from btcap.team.core.body import Body
+from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.messages import Bid, CallForBids, NoBid
+
+A1 = AuctionId("a", 1)
+CFB = CallForBids(A1, "Count", "Count()->()", {})
+
+
+@dataclass
+class Impl:
+    name: str
+    price: float | None
+    needs: str | None = None
+    broken: bool = False
+
+    def cost(self, inputs: Mapping[str, Any]) -> float | None:
+        if self.broken:
+            raise ZeroDivisionError("bid")
+        return self.price
+
+
+def unmet(impl: Impl) -> str | None:
+    return impl.needs
+
+
+def test_the_cheapest_allowed_implementation_bids_with_the_wait() -> None:
+    impls = [Impl("dear", 5.0), Impl("cheap", 1.0, needs="precondition x"), Impl("ok", 2.0)]
+    ev = evaluate(CFB, "b", impls, {}, wait=3.0, unmet=unmet)
+    assert ev.answer == Bid(A1, "b", 5.0, "ok")
+
+
+def test_ties_go_to_the_first_name_and_broken_bid_functions_are_reported() -> None:
+    impls = [Impl("z", 1.0), Impl("broken", 0.1, broken=True), Impl("m", 1.0)]
+    ev = evaluate(CFB, "b", impls, {}, wait=0.0, unmet=unmet)
+    assert ev.answer == Bid(A1, "b", 1.0, "m")
+    assert [name for name, _ in ev.errors] == ["broken"]
+
+
+def test_nobody_can_bid_says_why() -> None:
+    impls = [Impl("x", None), Impl("y", 1.0, needs="precondition p (local) not met")]
+    ev = evaluate(CFB, "b", impls, {}, wait=0.0, unmet=unmet)
+    assert isinstance(ev.answer, NoBid)
+    assert ev.answer.reason == "x: cannot execute; precondition p (local) not met"
+    assert evaluate(CFB, "b", [], {}, wait=0.0, unmet=unmet).answer.reason == (  # type: ignore[union-attr]
+        "no matching implementation"
+    )
+
+
+def test_body_runs_one_and_queues_at_most_one() -> None:
+    e1, e2, e3 = (ExecutionId("a", "n", i) for i in (1, 2, 3))
+    body = Body()
+    assert body.wait_cost() == 0.0
+    assert body.take(e1, 4.0)
+    assert body.wait_cost() is None
+    assert body.busy_reason() is not None
+    assert body.release(e1) is None
+    assert body.idle
+    queue = Body(queue_after_current=True)
+    queue.take(e1, 4.0)
+    assert queue.wait_cost() == 4.0
+    assert queue.take(e2, 1.0) is False
+    assert queue.wait_cost() is None
+    with pytest.raises(RuntimeError):
+        queue.take(e3, 1.0)
+    assert queue.release(e1) == e2
+    assert queue.running == e2
+    assert queue.wait_cost() == 1.0
+
+
+def test_auction_answers_only_from_the_robot_they_speak_for() -> None:
+    a = Auction(A1, "Count", frozenset({"b", "c"}), deadline=1.0)
+    assert not a.offer(Bid(A1, "b", 0.0, "i"), sender="mallory")
+    assert not a.offer(Bid(AuctionId("a", 2), "b", 0.0, "i"), sender="b")
+    assert a.offer(Bid(A1, "b", 3.0, "i"), sender="b")
+    assert not a.offer(Bid(A1, "b", 0.0, "i"), sender="b")  # once
+    assert not a.closed(0.5)
+    assert a.offer(NoBid(A1, "c", "busy"), sender="c")
+    assert a.closed(0.5)
+    assert [b.robot for b in a.outcome().awardable()] == ["b"]
+    assert a.outcome().awardable(reserve=3.0) == []
