@@ -281,7 +281,8 @@ class Parallel(Composite):
             self._pending, self._ok, self._bad = running, ok, bad
             return _RUNNING
         for c in running:
-            _halt(c)
+            if c.state in _ACTIVE:
+                c.untick()
         self._pending = None
         self._restart = True
         return result

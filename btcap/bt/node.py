@@ -326,7 +326,10 @@ class Node(Actor):
         except Exception as exc:
             self._fail(exc, "untick")
             return
-        self._set(_PAUSED if self.state in _ACTIVE or self.state is _PAUSED else _IDLE)
+        prev = self.state  # _set, inlined: halting is on the tick path
+        self.state = new = _PAUSED if prev in _ACTIVE or prev is _PAUSED else _IDLE
+        if self._watch is not None and new is not prev:
+            self._watch(self, prev, new)
 
     def reset(self) -> None:
         """Back to idle: outputs cleared, background work cancelled, children reset."""
@@ -343,7 +346,10 @@ class Node(Actor):
             return
         for key in self.outputs:
             self.outputs[key] = None
-        self._set(_IDLE)
+        prev = self.state  # _set, inlined: a Parallel starting over resets on the tick path
+        self.state = _IDLE
+        if self._watch is not None and prev is not _IDLE:
+            self._watch(self, prev, _IDLE)
 
     def shutdown(self) -> None:
         """Release everything; the node may be set up again later."""
