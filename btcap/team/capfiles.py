@@ -24,7 +24,6 @@ inputs and returning a cost or None)::
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -36,7 +35,9 @@ from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.state import TreeError
 from btcap.bt.tree import Tree
-from btcap.team.capability import BidFunction, CapabilityInterface, Implementation, Precondition
+from btcap.team.capability import CapabilityInterface
+from btcap.team.implementation import BidFunction, Implementation, Precondition
+from btcap.team.loader import load_callable
 
 __all__ = [
     "CapabilityFileError",
@@ -142,16 +143,10 @@ def register_interfaces(registry: NodeRegistry, interfaces: Iterable[CapabilityI
 
 
 def _load_bid(ref: str, where: str) -> BidFunction:
-    module, sep, attr = ref.partition(":")
-    if not sep:
-        raise CapabilityFileError(f"{where}: bid: expected 'package.module:function', got {ref!r}")
     try:
-        fn = getattr(importlib.import_module(module), attr)
-    except (ImportError, AttributeError) as exc:
-        raise CapabilityFileError(f"{where}: bid: {ref!r}: {exc}") from None
-    if not callable(fn):
-        raise CapabilityFileError(f"{where}: bid: {ref!r} is not callable")
-    return fn  # type: ignore[no-any-return]
+        return load_callable(ref)
+    except ValueError as exc:
+        raise CapabilityFileError(f"{where}: bid: {exc}") from None
 
 
 def load_implementation(

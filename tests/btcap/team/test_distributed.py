@@ -27,8 +27,8 @@ from btcap.team.agent import Agent
 from btcap.team.capability import Capability
 from btcap.team.demo import ECHO
 from btcap.team.launch import AgentProcess, AgentSpec, main, spawn_agents
-from btcap.team.mission import RemoteExecution
 from btcap.team.protocol import protocol_registry
+from btcap.team.proxies import RemoteExecution
 from btcap.team.spawn import AsyncAgentProcess, open_agent, open_agents
 from btcap.transports import ZmqTransport
 

@@ -1,0 +1,64 @@
+"""What starts one robot in a launch process, checked before any process is started.
+
+Shared by the parent side (:mod:`btcap.team.spawn`) and the child side
+(:mod:`btcap.team.launch`), so a bad spec fails in the parent with the same message the
+child would print.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+import msgspec
+
+from btcap.team.agent import AgentConfig
+
+__all__ = ["AgentSpec", "agent_config", "check_specs"]
+
+
+class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
+    """Everything needed to start one robot in a child process.
+
+    ``factory`` (``"package.module:function"``, called with the robot and
+    ``factory_args``) returns the robot's implementations, or an object with
+    ``implementations`` and ``actors``; ``registry`` names a function returning the
+    :class:`~transports.MessageRegistry` it speaks; ``config`` holds
+    :class:`~btcap.team.agent.AgentConfig` keywords.
+    """
+
+    robot: str
+    bind: str = "tcp://127.0.0.1:*"
+    peers: dict[str, str] = {}
+    factory: str = ""
+    factory_args: dict[str, Any] = {}
+    speedup: float = 1.0
+    config: dict[str, float | bool | None] = {}
+    log_level: str = "warning"
+    registry: str = ""
+
+
+def agent_config(spec: AgentSpec) -> AgentConfig:
+    """The spec's ``config`` as an AgentConfig; ValueError naming an unknown key."""
+    options: dict[str, Any] = dict(spec.config)  # None only where AgentConfig allows it
+    try:
+        return AgentConfig(**options)
+    except TypeError as exc:  # "... unexpected keyword argument 'key'"
+        raise ValueError(f"agent spec {spec.robot!r}: config: {exc}") from None
+
+
+def check_specs(specs: Sequence[AgentSpec]) -> None:
+    """The specs of one process: at least one, distinct robots, valid config and log level."""
+    if not specs:
+        raise ValueError("no agent specs given")
+    robots = [s.robot for s in specs]
+    if len(set(robots)) != len(robots):
+        raise ValueError(f"robot ids must differ within one process: {robots}")
+    for s in specs:
+        agent_config(s)
+        if not isinstance(logging.getLevelName(s.log_level.upper()), int):
+            raise ValueError(
+                f"agent spec {s.robot!r}: log_level: {s.log_level!r}; "
+                "expected debug, info, warning or error"
+            )
