@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import sys
 from collections.abc import Sequence
 
 BENCHES = ("tick", "transport", "auction", "sim", "allocation")
@@ -17,14 +16,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
     for name in names:
-        try:
-            module = importlib.import_module(f"btcap.bench.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"btcap.bench.{name}":
-                print(f"bench {name}: not available yet", file=sys.stderr)
-                continue
-            raise
-        module.run(quick=args.quick)
+        importlib.import_module(f"btcap.bench.{name}").run(quick=args.quick)
     return 0
 
 

@@ -20,7 +20,8 @@ from btcap.sim.grid import GridMap
 from btcap.sim.leaves import MoveToLeaf, OperateLeaf
 from btcap.sim.model import RobotModel
 from btcap.sim.robot import Body
-from btcap.team.capability import CapabilityInterface, Implementation
+from btcap.team.capability import CapabilityInterface
+from btcap.team.implementation import Implementation
 
 __all__ = [
     "DECONTAMINATE",
@@ -60,6 +61,29 @@ class RobotSetup:
     actors: dict[str, Actor]
 
 
+@dataclass(frozen=True, slots=True)
+class _Operation:
+    """How one capability is implemented: drive to ``goal``, then ask the manager for ``op``
+    (on the object in input ``target``, if any), bridging output ``result`` back."""
+
+    interface: CapabilityInterface
+    op: str  # the manager's operation, and the robot model's field
+    leaf: str  # the name of the operate leaf in the implementation tree
+    goal: str
+    target: str | None = None
+    result: str | None = None
+    then_decon: bool = False  # the robot goes on to the decontamination area
+
+
+_OPERATIONS = (
+    _Operation(EXPLORE, "explore", "explore", goal="goal", result="found"),
+    _Operation(IDENTIFY, "identify", "identify", goal="at", target="object", result="contaminated"),
+    _Operation(
+        DECONTAMINATE, "decontaminate", "carry", goal="at", target="object", then_decon=True
+    ),
+)
+
+
 def _target(inputs: Mapping[str, Any], key: str) -> Cell | None:
     value = inputs.get(key)
     if value is None:
@@ -78,77 +102,34 @@ def robot_setup(
     def travel(a: Cell, b: Cell) -> float:
         return path_length(cache.get(b), a, grid.cell_size_m) * cf
 
-    impls: list[Implementation] = []
+    def implementation(o: _Operation) -> Implementation:
+        duration = model.operation(o.op).duration_s
 
-    if model.explore is not None:
-        duration = model.explore.duration_s
-
-        def bid_explore(inputs: Mapping[str, Any]) -> float | None:
-            goal = _target(inputs, "goal")
-            if goal is None or not grid.is_free(goal):
+        def bid(inputs: Mapping[str, Any]) -> float | None:
+            at = _target(inputs, o.goal)
+            if at is None or not grid.is_free(at):
                 return None
-            cost = travel(body.position, goal) + duration
+            cost = travel(body.position, at) + duration
+            if o.then_decon:
+                cost += travel(at, grid.decon_area)
             return cost if math.isfinite(cost) else None
 
-        def build_explore() -> Tree:
-            i, o = EXPLORE.bridge_types()
-            bi, bo = i(name="inputs"), o(name="outputs")
-            move = MoveToLeaf("drive", robot=robot, manager=manager)
-            op = OperateLeaf("explore", robot=robot, manager=manager, op="explore")
-            tree = Tree(SequenceWithMemory("explore", children=[bi, move, op, bo]))
-            tree.wire(bi, "goal", move, "goal")
-            tree.wire(op, "found", bo, "found")
-            return tree
-
-        impls.append(Implementation(f"explore-{robot}", EXPLORE, build_explore, bid=bid_explore))
-
-    if model.identify is not None:
-        duration_i = model.identify.duration_s
-
-        def bid_identify(inputs: Mapping[str, Any]) -> float | None:
-            at = _target(inputs, "at")
-            if at is None:
-                return None
-            cost = travel(body.position, at) + duration_i
-            return cost if math.isfinite(cost) else None
-
-        def build_identify() -> Tree:
-            i, o = IDENTIFY.bridge_types()
-            bi, bo = i(name="inputs"), o(name="outputs")
-            move = MoveToLeaf("drive", robot=robot, manager=manager)
-            op = OperateLeaf("identify", robot=robot, manager=manager, op="identify")
-            tree = Tree(SequenceWithMemory("identify", children=[bi, move, op, bo]))
-            tree.wire(bi, "at", move, "goal")
-            tree.wire(bi, "object", op, "target")
-            tree.wire(op, "contaminated", bo, "contaminated")
-            return tree
-
-        impls.append(
-            Implementation(f"identify-{robot}", IDENTIFY, build_identify, bid=bid_identify)
-        )
-
-    if model.decontaminate is not None:
-        duration_d = model.decontaminate.duration_s
-
-        def bid_decon(inputs: Mapping[str, Any]) -> float | None:
-            at = _target(inputs, "at")
-            if at is None:
-                return None
-            cost = travel(body.position, at) + travel(at, grid.decon_area) + duration_d
-            return cost if math.isfinite(cost) else None
-
-        def build_decon() -> Tree:
-            i, _o = DECONTAMINATE.bridge_types()
+        def build() -> Tree:
+            i, out = o.interface.bridge_types()
             bi = i(name="inputs")
             move = MoveToLeaf("drive", robot=robot, manager=manager)
-            op = OperateLeaf("carry", robot=robot, manager=manager, op="decontaminate")
-            tree = Tree(SequenceWithMemory("decontaminate", children=[bi, move, op]))
-            tree.wire(bi, "at", move, "goal")
-            tree.wire(bi, "object", op, "target")
+            leaf = OperateLeaf(o.leaf, robot=robot, manager=manager, op=o.op)
+            bo = out(name="outputs") if o.result is not None else None
+            children = [bi, move, leaf] if bo is None else [bi, move, leaf, bo]
+            tree = Tree(SequenceWithMemory(o.op, children=children))
+            tree.wire(bi, o.goal, move, "goal")
+            if o.target is not None:
+                tree.wire(bi, o.target, leaf, "target")
+            if bo is not None and o.result is not None:
+                tree.wire(leaf, o.result, bo, o.result)
             return tree
 
-        impls.append(
-            Implementation(f"decontaminate-{robot}", DECONTAMINATE, build_decon, bid=bid_decon)
-        )
+        return Implementation(f"{o.op}-{robot}", o.interface, build, bid=bid)
 
+    impls = [implementation(o) for o in _OPERATIONS if model.can(o.op)]
     return RobotSetup(impls, {Body.PATH: body})

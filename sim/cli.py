@@ -14,6 +14,7 @@ import msgspec
 from rich.console import Console, Group
 from rich.live import Live
 from rich.table import Table
+from rich.text import Text
 
 from btcap.cli import CliError
 from btcap.sim.metrics import MissionResult
@@ -103,13 +104,21 @@ def summary_table(results: list[MissionResult]) -> Group:
         ),
         ("decontaminated", [f"{r.summary['decontaminated']:.0f}" for r in results]),
         ("auctions", [str(r.auctions) for r in results]),
-        ("re-assignments", [str(r.reassignments) for r in results]),
+        ("executions lost", [str(r.executions_lost) for r in results]),
+        ("re-assigned", [str(r.reassigned) for r in results]),
         ("moved to joiners", [str(r.moved) for r in results]),
-        ("failures survived", [str(r.failures_survived) for r in results]),
+        ("robot failures", [str(r.robot_failures) for r in results]),
+        ("robots left", [str(r.robots_left) for r in results]),
+        ("robot errors", [str(len(r.errors)) for r in results]),
     ]
     for label, cells in rows:
         head.add_row(label, *cells)
     parts: list[Any] = [head]
+    for r in results:
+        for e in r.errors:
+            parts.append(Text(f"{r.scenario}: {e.robot} at {e.time:.0f} s: {e.error}", "red"))
+        if r.timed_out:
+            parts.append(Text(f"{r.scenario}: stopped at its time limit", "red"))
     for r in results:
         t = Table(title=f"{r.scenario}: robots")
         for col in ("robot", "model", "utilisation", "tasks", "distance [m]"):

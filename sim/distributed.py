@@ -8,21 +8,24 @@ terminated and says goodbye; one that *joins* is started.
 
 from __future__ import annotations
 
-import asyncio
-import os
 import signal
 from collections.abc import Callable
+from contextlib import AsyncExitStack
 from typing import Any
 
+import anyio
+import anyio.abc
 import msgspec
 
 from btcap.actors import TimeSource
 from btcap.sim.capabilities import RobotSetup, robot_setup
 from btcap.sim.grid import GridMap
-from btcap.sim.metrics import MissionResult
-from btcap.sim.runner import Progress, agent_options, run_scenario
+from btcap.sim.hosts import agent_options, record_error
+from btcap.sim.metrics import MissionResult, RobotError
+from btcap.sim.runner import Progress, run_scenario
 from btcap.sim.scenario import Scenario
-from btcap.team.launch import AgentProcess, AgentSpec
+from btcap.team.launch import AgentSpec
+from btcap.team.spawn import AsyncAgentProcess, open_agent
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 
 __all__ = ["ProcessHost", "robot_factory", "run_distributed"]
@@ -36,73 +39,108 @@ def robot_factory(robot: str, scenario: dict[str, Any]) -> RobotSetup:
 
 
 class ProcessHost:
-    """Robots as child processes; see the module docstring."""
+    """Robots as child processes; see the module docstring.
 
-    def __init__(self, s: Scenario, clock: TimeSource, reg: MessageRegistry, grid: GridMap) -> None:
+    Each process is watched by a task of the host's task group: one that does not come
+    up, or exits without being asked to, is recorded in ``errors`` (its log lines are on
+    our stderr, or in ``stderr`` when given).
+    """
+
+    def __init__(
+        self,
+        s: Scenario,
+        clock: TimeSource,
+        reg: MessageRegistry,
+        grid: GridMap,
+        *,
+        stderr: int | None = None,
+    ) -> None:
         self.s = s
+        self.clock = clock
         self.reg = reg
+        self.errors: list[RobotError] = []
+        self.started: dict[str, AsyncAgentProcess] = {}  # every process that came up, by robot
+        self._stderr = stderr
         self._endpoints: dict[str, str] = {}
-        self._procs: dict[str, AgentProcess] = {}
-        self.started: dict[str, AgentProcess] = {}  # every process ever started, by robot
+        self._procs: dict[str, AsyncAgentProcess] = {}
+        self._leaving: set[AsyncAgentProcess] = set()
         self._frozen: set[str] = set()
-        self._pending: set[asyncio.Task[object]] = set()
         self._config = agent_options(s)
         self._scenario = msgspec.to_builtins(s)
+        self._stack = AsyncExitStack()
+        self._tg: anyio.abc.TaskGroup | None = None
+
+    async def __aenter__(self) -> ProcessHost:
+        self._tg = await self._stack.enter_async_context(anyio.create_task_group())
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        for name in list(self._frozen):
+            self.recover(name)
+        for name in list(self._procs):
+            self.leave(name)
+        if self._tg is not None:  # stops run shielded; robots still starting are killed
+            self._tg.cancel_scope.cancel()
+        await self._stack.aclose()
+        self._tg = None
 
     def transport(self, system_id: str) -> Transport:
         t = ZmqTransport(system_id, "tcp://127.0.0.1:*", self.reg, peers=dict(self._endpoints))
         self._endpoints[system_id] = t.endpoint
         return t
 
-    def _later(self, fn: Callable[[], object]) -> None:
-        task = asyncio.get_running_loop().create_task(asyncio.to_thread(fn))
-        self._pending.add(task)
-        task.add_done_callback(self._pending.discard)
+    def _task(self, fn: Callable[..., Any], *args: Any, name: str) -> None:
+        if self._tg is None:
+            raise RuntimeError("ProcessHost: start robots inside `async with host`")
+        self._tg.start_soon(fn, *args, name=name)
 
     def start(self, name: str) -> None:
         spec = AgentSpec(
             robot=name,
             peers=dict(self._endpoints),
-            factory="sim.distributed:robot_factory",
+            factory="btcap.sim.distributed:robot_factory",
             factory_args={"scenario": self._scenario},
             speedup=self.s.speedup,
             config=self._config,
-            registry="sim.runner:registry",
+            registry="btcap.sim.hosts:registry",
             log_level="error",
         )
-        proc = AgentProcess(spec, wait=False)
+        self._task(self._life, name, spec, name=f"robot {name}")
+
+    async def _life(self, name: str, spec: AgentSpec) -> None:
+        try:
+            proc = await open_agent(spec, stderr=self._stderr)
+        except Exception as exc:  # it never came up: exited, timed out, could not start
+            record_error(self.errors, self.clock.now(), name, exc)
+            return
         self._procs[name] = proc
         self.started[name] = proc
-        self._later(proc.wait_ready)
+        code = await proc.wait()
+        if self._procs.get(name) is proc:
+            del self._procs[name]
+        if proc not in self._leaving:
+            record_error(self.errors, self.clock.now(), name, f"process exited with code {code}")
 
     def leave(self, name: str) -> None:
         proc = self._procs.pop(name, None)
         if proc is not None:
-            self._later(proc.stop)
-
-    def _signal(self, name: str, sig: signal.Signals) -> None:
-        proc = self._procs.get(name)
-        if proc is not None and proc.alive():
-            os.kill(proc.pid, sig)
+            self._leaving.add(proc)
+            self._task(proc.stop, name=f"stop {name}")
 
     def fail(self, name: str) -> None:
-        self._signal(name, signal.SIGSTOP)
-        self._frozen.add(name)
+        proc = self._procs.get(name)
+        if proc is not None:
+            proc.send_signal(signal.SIGSTOP)
+            self._frozen.add(name)
 
     def recover(self, name: str) -> None:
-        self._signal(name, signal.SIGCONT)
+        proc = self._procs.get(name)
+        if proc is not None:
+            proc.send_signal(signal.SIGCONT)
         self._frozen.discard(name)
 
     def present(self) -> set[str]:
         return {n for n, p in self._procs.items() if p.alive()} - self._frozen
-
-    async def aclose(self) -> None:
-        for name in list(self._frozen):
-            self.recover(name)
-        procs = list(self._procs.values())
-        self._procs.clear()
-        await asyncio.gather(*self._pending, return_exceptions=True)
-        await asyncio.gather(*(asyncio.to_thread(p.stop) for p in procs), return_exceptions=True)
 
 
 async def run_distributed(

@@ -9,12 +9,10 @@ deferred replies, so the manager serves every robot at once.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import structlog
 
 from btcap.actors import Actor, TimeSource, handler
 from btcap.sim.distance import Cell
@@ -23,10 +21,11 @@ from btcap.sim.model import RobotModel
 from btcap.sim.store import MissionState
 from btcap.sim.world import World
 from btcap.transports import Address
+from btcap.transports.log import get_logger
 
 __all__ = ["SimConfig", "SimEvent", "SimulationManager"]
 
-log = structlog.get_logger("sim")
+log = get_logger("btcap.sim")
 
 
 @dataclass(slots=True)
@@ -87,7 +86,6 @@ class SimulationManager(Actor):
         self.rng = np.random.default_rng(self.config.seed)
         self.robots: dict[str, _Robot] = {}
         self.events: list[SimEvent] = []
-        self.on_change: Callable[[], None] | None = None
         self._clock: TimeSource | None = None
 
     def add_robot(self, name: str, model: RobotModel, cell: Cell | None = None) -> None:
@@ -134,7 +132,6 @@ class SimulationManager(Actor):
         if r.carrying >= 0:
             self.state.drop(r.carrying, self.position(name))
             r.carrying = -1
-        self._changed()
 
     def robot_up(self, name: str) -> None:
         r = self.robots[name]
@@ -281,7 +278,6 @@ class SimulationManager(Actor):
         self._close(op.event, result.ok, result.detail)
         if op.event.kind == "decontaminate":
             self._tell_position(r)  # carrying moved the robot
-        self._changed()
 
     # -- timeline ---------------------------------------------------------------------
     def _event(self, robot: str, kind: str, *, target: int = -1, detail: str = "") -> SimEvent:
@@ -295,10 +291,6 @@ class SimulationManager(Actor):
             e.ok = ok
             if detail:
                 e.detail = detail
-
-    def _changed(self) -> None:
-        if self.on_change is not None:
-            self.on_change()
 
     def snapshot(self) -> dict[str, Any]:
         return {

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections import Counter
+from typing import TYPE_CHECKING
 
 import msgspec
 
-from btcap import State, Tree
+from btcap import Node, State, Tree
+from btcap.bt.state import DONE
 from btcap.team.capability import Capability
 
 if TYPE_CHECKING:
@@ -15,7 +17,15 @@ if TYPE_CHECKING:
     from btcap.sim.store import MissionState
     from btcap.team.agent import Agent
 
-__all__ = ["Interval", "Mark", "MissionResult", "RobotStats", "collect"]
+__all__ = [
+    "Interval",
+    "Mark",
+    "MissionLog",
+    "MissionResult",
+    "RobotError",
+    "RobotStats",
+    "collect",
+]
 
 
 class Interval(msgspec.Struct):
@@ -30,11 +40,23 @@ class Interval(msgspec.Struct):
 
 
 class Mark(msgspec.Struct):
-    """A team change on the timeline: joined, left, failed, down (sim failure), up."""
+    """A team change on the timeline: joined, left, failed, down (sim failure), up, crashed."""
 
     time: float
     event: str
     robot: str
+
+
+class RobotError(msgspec.Struct):
+    """A robot that crashed (its runtime raised, its process died) or never came up.
+
+    ``time`` is clock time while the mission runs and seconds since it started in a
+    :class:`MissionResult`.
+    """
+
+    time: float
+    robot: str
+    error: str
 
 
 class RobotStats(msgspec.Struct):
@@ -47,21 +69,71 @@ class RobotStats(msgspec.Struct):
 
 
 class MissionResult(msgspec.Struct):
+    """A mission run. ``executions_lost``: executions whose executor was lost (it failed,
+    left or crashed); ``reassigned``: capability runs that moved to another robot after
+    such a loss; ``moved``: running work moved to a cheaper robot that joined
+    (``rebid_on_join``); ``robot_failures`` and ``robots_left``: the scenario's fail and
+    leave events that happened while the mission ran, whether or not the robot was busy;
+    ``errors``: robots that crashed; ``timed_out``: the time limit ended the run."""
+
     scenario: str
     completed: bool
     mission_time_s: float
     summary: dict[str, float]
     robots: dict[str, RobotStats]
     auctions: int
-    reassignments: int
-    failures_survived: int
+    executions_lost: int
+    reassigned: int
+    robot_failures: int
+    robots_left: int
     assignments: dict[str, list[str]]
     timeline: list[Interval]
     marks: list[Mark]
-    moved: int = 0  # running work moved to a cheaper robot that joined (rebid_on_join)
+    moved: int = 0
+    errors: list[RobotError] = []
+    timed_out: bool = False
 
     def to_json(self) -> bytes:
         return msgspec.json.format(msgspec.json.encode(self), indent=2)
+
+
+class MissionLog:
+    """What the runner sees while a mission runs, beside the simulation's own record.
+
+    Team marks and the scenario events applied, and, as an observer of the mission tree
+    (``tree.observe(log)``), re-assignments: a capability that had an executor and falls
+    back to unassigned lost it; if it is next assigned to another robot, that run was
+    re-assigned. A move to a joiner never passes through unassigned, so it is no loss.
+    """
+
+    def __init__(self) -> None:
+        self.marks: list[tuple[float, str, str]] = []
+        self.applied: Counter[str] = Counter()
+        self.reassigned = 0
+        self._holder: dict[int, str] = {}
+        self._lost: dict[int, str] = {}
+
+    def mark(self, time: float, event: str, robot: str) -> None:
+        self.marks.append((time, event, robot))
+
+    def __call__(self, node: Node, old: State, new: State) -> None:
+        if not isinstance(node, Capability):
+            return
+        key = id(node)
+        if new is State.UNASSIGNED:
+            holder = self._holder.pop(key, None)
+            if holder is not None:
+                self._lost[key] = holder
+        elif new in (State.ASSIGNED, State.RUNNING):
+            ex = node.execution
+            if ex is not None:
+                lost = self._lost.pop(key, None)
+                if lost is not None and ex.robot != lost:
+                    self.reassigned += 1
+                self._holder[key] = ex.robot
+        elif new is not State.PAUSED:  # the run ended (done, reset or shut down)
+            self._holder.pop(key, None)
+            self._lost.pop(key, None)
 
 
 def _present_s(s: Scenario, robot: str, end: float) -> float:
@@ -89,10 +161,11 @@ def collect(
     manager: SimulationManager,
     tree: Tree,
     operator: Agent,
+    log: MissionLog,
+    errors: list[RobotError],
     started: float,
     ended: float,
     final: State,
-    marks: list[tuple[float, str, str]],
 ) -> MissionResult:
     """Gather the result of a finished (or timed-out) run."""
     duration = ended - started
@@ -127,24 +200,24 @@ def collect(
             round(float(manager.world.travelled_m[idx]), 2),
         )
     assignments = {n.path: list(n.assignments) for n in tree.nodes() if isinstance(n, Capability)}
-    survived = sum(1 for e in s.events if e.kind in ("fail", "leave") and e.at < duration)
-    completed = final is State.SUCCEEDED and state.mission_complete
     return MissionResult(
-        s.name,
-        completed,
-        round(duration, 3),
-        {k: float(v) for k, v in state.summary().items()},
-        robots,
-        operator.auctioneer.stats.auctions,
-        operator.mission_control.stats.lost,
-        survived if completed else 0,
-        assignments,
-        timeline,
+        scenario=s.name,
+        completed=final is State.SUCCEEDED and state.mission_complete,
+        mission_time_s=round(duration, 3),
+        summary={k: float(v) for k, v in state.summary().items()},
+        robots=robots,
+        auctions=operator.auctioneer.stats.auctions,
+        executions_lost=operator.mission_control.stats.lost,
+        reassigned=log.reassigned,
+        robot_failures=log.applied["fail"],
+        robots_left=log.applied["leave"],
+        assignments=assignments,
+        timeline=timeline,
         # Team changes only: "changed" (a member's capabilities changed) is no mark.
-        [Mark(round(t - started, 3), ev, robot) for t, ev, robot in marks if ev != "changed"],
-        operator.mission_control.stats.moved,
+        marks=[
+            Mark(round(t - started, 3), ev, robot) for t, ev, robot in log.marks if ev != "changed"
+        ],
+        moved=operator.mission_control.stats.moved,
+        errors=[RobotError(round(e.time - started, 3), e.robot, e.error) for e in errors],
+        timed_out=final not in DONE,
     )
-
-
-def as_dict(result: MissionResult) -> dict[str, Any]:
-    return msgspec.to_builtins(result)  # type: ignore[no-any-return]

@@ -1,66 +1,41 @@
 """Run a scenario: the simulation, an operator holding the mission tree, and the robots.
 
-In-process mode puts every robot's actor system on one :class:`InProcessNetwork`;
-distributed mode starts each robot in its own OS process over ZeroMQ (see
-:mod:`sim.distributed`). Both record the same :class:`~sim.metrics.MissionResult`.
+In-process mode puts every robot's actor system on one :class:`InProcessNetwork` (see
+:class:`~btcap.sim.hosts.InProcessHost`); distributed mode starts each robot in its own
+OS process over ZeroMQ (see :mod:`btcap.sim.distributed`). Both record the same
+:class:`~btcap.sim.metrics.MissionResult`, including every robot that crashed.
 """
 
 from __future__ import annotations
 
-import asyncio
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
-import msgspec
+import anyio
 import numpy as np
-import structlog
 
 from btcap import State, Tree
 from btcap.actors import ActorSystem, Clock, TimeSource
-from btcap.sim.capabilities import robot_setup
+from btcap.bt.state import DONE
 from btcap.sim.grid import GridMap
+from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
-from btcap.sim.messages import SIM_MESSAGES
-from btcap.sim.metrics import MissionResult, collect
+from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
-from btcap.sim.model import RobotModel
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
-from btcap.team.agent import Agent, AgentConfig
+from btcap.team.agent import Agent
 from btcap.team.capability import Capability
-from btcap.team.protocol import protocol_registry
-from btcap.transports import InProcessNetwork, MessageRegistry, Transport
+from btcap.transports import MessageRegistry
+from btcap.transports.log import get_logger
 
-__all__ = [
-    "HostFactory",
-    "InProcessHost",
-    "Progress",
-    "RobotHost",
-    "agent_config",
-    "agent_options",
-    "registry",
-    "run_scenario",
-]
+__all__ = ["HostFactory", "Progress", "run_scenario"]
 
-log = structlog.get_logger("sim")
+log = get_logger("btcap.sim")
 
-
-def registry() -> MessageRegistry:
-    """Every message of btcap plus the simulation's."""
-    reg = protocol_registry()
-    reg.register(*SIM_MESSAGES)
-    return reg
-
-
-def agent_options(s: Scenario) -> dict[str, Any]:
-    """The scenario's ``agent:`` and ``allocation:`` blocks as AgentConfig keywords (their
-    fields are named alike, so a new setting needs no mapping here)."""
-    return {**msgspec.structs.asdict(s.agent), **msgspec.structs.asdict(s.allocation)}
-
-
-def agent_config(s: Scenario) -> AgentConfig:
-    return AgentConfig(**agent_options(s))
+#: Wall seconds the robots present at the start have to join the team.
+TEAM_FORMS_S = 60.0
 
 
 @dataclass
@@ -71,103 +46,6 @@ class Progress:
     summary: dict[str, Any] = field(default_factory=dict)
     tasks: dict[str, str] = field(default_factory=dict)
     present: dict[str, bool] = field(default_factory=dict)
-
-
-@dataclass
-class _World:
-    scenario: Scenario
-    clock: TimeSource
-    state: MissionState
-    manager: SimulationManager
-    models: dict[str, RobotModel]
-    marks: list[tuple[float, str, str]] = field(default_factory=list)
-
-
-class RobotHost(Protocol):
-    """Where robots live: tasks in this process, or OS processes (see sim.distributed)."""
-
-    def transport(self, system_id: str) -> Transport: ...
-
-    def start(self, name: str) -> None: ...
-
-    def leave(self, name: str) -> None: ...
-
-    def fail(self, name: str) -> None: ...
-
-    def recover(self, name: str) -> None: ...
-
-    def present(self) -> set[str]: ...
-
-    async def aclose(self) -> None: ...
-
-
-class InProcessHost:
-    """Every robot an :class:`Agent` in this event loop, on one in-process network."""
-
-    def __init__(self, s: Scenario, clock: TimeSource, reg: MessageRegistry, grid: GridMap) -> None:
-        self.s = s
-        self.clock = clock
-        self.reg = reg
-        self.grid = grid
-        self.net = InProcessNetwork(reg)
-        self.cfg = agent_config(s)
-        self.models = s.models()
-        self._tasks: dict[str, asyncio.Task[None]] = {}
-        self._stop: dict[str, asyncio.Event] = {}
-        self._up: set[str] = set()
-
-    def transport(self, system_id: str) -> Transport:
-        return self.net.transport(system_id)
-
-    async def _life(self, name: str, stop: asyncio.Event) -> None:
-        setup = robot_setup(name, self.models[_model_of(self.s, name)], self.grid)
-        async with Agent(
-            name,
-            transport=self.net.transport(name),
-            clock=self.clock,
-            config=self.cfg,
-            registry=self.reg,
-            implementations=setup.implementations,
-            actors=setup.actors,
-        ):
-            self._up.add(name)
-            try:
-                await stop.wait()
-            finally:
-                self._up.discard(name)
-
-    def start(self, name: str) -> None:
-        stop = self._stop[name] = asyncio.Event()
-        before = self._tasks.get(name)
-        self._tasks[name] = asyncio.get_running_loop().create_task(self._rejoin(name, stop, before))
-
-    async def _rejoin(
-        self, name: str, stop: asyncio.Event, before: asyncio.Task[None] | None
-    ) -> None:
-        if before is not None:  # a robot that left must be gone before it comes back
-            await asyncio.gather(before, return_exceptions=True)
-        await self._life(name, stop)
-
-    def leave(self, name: str) -> None:
-        ev = self._stop.get(name)
-        if ev is not None:
-            ev.set()
-
-    def fail(self, name: str) -> None:
-        self.net.isolate(name)
-        self._up.discard(name)
-
-    def recover(self, name: str) -> None:
-        self.net.heal(name)
-        self._up.add(name)
-
-    def present(self) -> set[str]:
-        return set(self._up)
-
-    async def aclose(self) -> None:
-        for ev in self._stop.values():
-            ev.set()
-        await asyncio.gather(*self._tasks.values(), return_exceptions=True)
 
 
 HostFactory = Callable[[Scenario, TimeSource, MessageRegistry, GridMap], RobotHost]
@@ -184,7 +62,8 @@ async def run_scenario(
     """Run the mission until it completes or its time limit passes.
 
     Robots are hosted in this process unless ``host`` says otherwise (see
-    :func:`sim.distributed.run_distributed`).
+    :func:`sim.distributed.run_distributed`). A robot that crashes is logged, taken out
+    of the simulation and listed in the result's ``errors``; the mission goes on.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -199,122 +78,142 @@ async def run_scenario(
     models = s.models()
     for r in s.robots:
         manager.add_robot(r.name, models[r.model])
-    w = _World(s, clock, state, manager, models)
+    mlog = MissionLog()
     cfg = agent_config(s)
-    robots: RobotHost = (host or InProcessHost)(s, clock, reg, grid)
-    try:
-        async with ActorSystem(
-            "sim", transport=robots.transport("sim"), registry=reg, clock=clock
-        ) as simsys:
-            simsys.spawn(manager, SimulationManager.PATH)
-            simsys.spawn(ObjectStore(state), ObjectStore.PATH)
-            async with Agent(
-                "operator",
-                transport=robots.transport("operator"),
-                clock=clock,
-                config=cfg,
-                registry=reg,
-            ) as operator:
-                operator.team.subscribe(
-                    lambda ev, robot: w.marks.append((clock.now(), ev.value, robot))
-                )
-                for r in s.initially_present():
-                    manager.robot_up(r.name)
-                    robots.start(r.name)
-                expected = len(s.initially_present())
-                await _until(lambda: len(operator.team.members) >= expected, 60.0)
+    async with (
+        (host or InProcessHost)(s, clock, reg, grid) as robots,
+        ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as simsys,
+    ):
+        simsys.spawn(manager, SimulationManager.PATH)
+        simsys.spawn(ObjectStore(state), ObjectStore.PATH)
+        async with Agent(
+            "operator",
+            transport=robots.transport("operator"),
+            clock=clock,
+            config=cfg,
+            registry=reg,
+        ) as operator:
+            operator.team.subscribe(lambda ev, robot: mlog.mark(clock.now(), ev.value, robot))
+            for r in s.initially_present():
+                manager.robot_up(r.name)
+                robots.start(r.name)
+            await _team_forms(operator, {r.name for r in s.initially_present()}, robots, clock)
 
-                def apply(e: Event) -> None:
-                    if e.kind == "join":
+            def apply(e: Event) -> None:
+                mlog.applied[e.kind] += 1
+                if e.kind == "join":
+                    manager.robot_up(e.robot)
+                    robots.start(e.robot)
+                elif e.kind == "leave":
+                    manager.robot_down(e.robot)
+                    robots.leave(e.robot)
+                elif e.kind == "fail":
+                    robots.fail(e.robot)
+                    manager.robot_down(e.robot)
+                    mlog.mark(clock.now(), "down", e.robot)
+
+                    async def recover() -> None:
+                        await clock.sleep(e.duration)
+                        robots.recover(e.robot)
                         manager.robot_up(e.robot)
-                        robots.start(e.robot)
-                    elif e.kind == "leave":
-                        manager.robot_down(e.robot)
-                        robots.leave(e.robot)
-                    elif e.kind == "fail":
-                        robots.fail(e.robot)
-                        manager.robot_down(e.robot)
-                        w.marks.append((clock.now(), "down", e.robot))
+                        mlog.mark(clock.now(), "up", e.robot)
 
-                        async def recover() -> None:
-                            await clock.sleep(e.duration)
-                            robots.recover(e.robot)
-                            manager.robot_up(e.robot)
-                            w.marks.append((clock.now(), "up", e.robot))
+                    simsys.start_task(recover(), name=f"recover {e.robot}")
 
-                        simsys.start_task(recover(), name=f"recover {e.robot}")
+            async def events() -> None:
+                t0 = clock.now()
+                for e in sorted(s.events, key=lambda e: e.at):
+                    await clock.sleep_until(t0 + e.at)
+                    apply(e)
 
-                async def events() -> None:
-                    t0 = clock.now()
-                    for e in sorted(s.events, key=lambda e: e.at):
-                        await clock.sleep_until(t0 + e.at)
-                        apply(e)
-
-                tree = mission_tree(object_workers=s.object_workers)
-                operator.mission(tree)
-                started = clock.now()
-                ev_task = simsys.start_task(events(), name="scenario events")
-                final = await _run_mission(
-                    tree, w, started, cfg.tick_hz, on_progress, progress_every_s, robots
-                )
-                ev_task.cancel()
-                result = collect(
-                    s, w.state, manager, tree, operator, started, clock.now(), final, w.marks
-                )
-                await tree.shutdown()
-    finally:
-        await robots.aclose()
+            tree = mission_tree(object_workers=s.object_workers)
+            operator.mission(tree)
+            tree.observe(mlog)
+            started = clock.now()
+            ev_task = simsys.start_task(events(), name="scenario events")
+            watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
+            final = await tree.run(cfg.tick_hz, until=watch)
+            ev_task.cancel()
+            if final not in DONE:
+                log.warning("sim.time_limit", scenario=s.name, limit_s=s.time_limit_s)
+            result = collect(
+                s, state, manager, tree, operator, mlog, robots.errors, started, clock.now(), final
+            )
+            await tree.shutdown()
     return result
 
 
-def _model_of(s: Scenario, name: str) -> str:
-    return next(r.model for r in s.robots if r.name == name)
+async def _team_forms(
+    operator: Agent, expected: set[str], robots: RobotHost, clock: TimeSource
+) -> None:
+    """Wait until the robots present at the start are team members (or crashed); a robot
+    still missing after :data:`TEAM_FORMS_S` is an error of the run, not a silent wait."""
+
+    def missing() -> set[str]:
+        crashed = {e.robot for e in robots.errors}
+        return expected - crashed - operator.team.alive()
+
+    with anyio.move_on_after(TEAM_FORMS_S):
+        while missing():  # noqa: ASYNC110 - two sources: team events and host crashes
+            await anyio.sleep(0.01)
+        return
+    for robot in sorted(missing()):
+        log.error("sim.robot_absent", robot=robot, waited_s=TEAM_FORMS_S)
+        robots.errors.append(
+            RobotError(clock.now(), robot, f"did not join the team within {TEAM_FORMS_S:g} s")
+        )
 
 
-async def _until(cond: Callable[[], bool], limit_s: float) -> None:
-    for _ in range(int(limit_s / 0.01)):
-        if cond():
-            return
-        await asyncio.sleep(0.01)
+class _Watch:
+    """Tree.run's stop condition for a mission, called after every tick: reports
+    progress, takes crashed robots out of the simulation, and stops at a result or at
+    the scenario's time limit."""
 
+    def __init__(
+        self,
+        tree: Tree,
+        s: Scenario,
+        manager: SimulationManager,
+        robots: RobotHost,
+        mlog: MissionLog,
+        started: float,
+        on_progress: Callable[[Progress], None] | None,
+        every_s: float,
+    ) -> None:
+        self.tree = tree
+        self.s = s
+        self.manager = manager
+        self.robots = robots
+        self.mlog = mlog
+        self.started = started
+        self.on_progress = on_progress
+        self.every_s = every_s
+        self.next_report = 0.0
+        self.crashes_seen = 0
 
-async def _run_mission(
-    tree: Tree,
-    w: _World,
-    started: float,
-    rate_hz: float,
-    on_progress: Callable[[Progress], None] | None,
-    every_s: float,
-    robots: RobotHost,
-) -> State:
-    clock = w.clock
-    limit = w.scenario.time_limit_s
-    period = 1.0 / rate_hz
-    deadline = clock.now()
-    next_report = 0.0
-    state = State.RUNNING
-    loop = asyncio.get_running_loop()
-    while True:
-        state = tree.tick()
-        now = clock.now()
-        if on_progress is not None and loop.time() >= next_report:
-            next_report = loop.time() + every_s
-            on_progress(_progress(tree, w, now - started, robots))
-        if state in (State.SUCCEEDED, State.FAILED, State.ERROR) or now - started > limit:
-            if on_progress is not None:
-                on_progress(_progress(tree, w, now - started, robots))
-            return state
-        deadline += period
-        if deadline < now - period:
-            deadline = now
-        await clock.sleep_until(deadline)
+    def __call__(self, state: State) -> bool:
+        now = self.tree.clock.now() - self.started
+        errors = self.robots.errors
+        while self.crashes_seen < len(errors):
+            e = errors[self.crashes_seen]
+            self.crashes_seen += 1
+            if e.robot in self.manager.robots:
+                self.manager.robot_down(e.robot)  # a crashed robot does no more work
+                self.mlog.mark(e.time, "crashed", e.robot)
+        done = state in DONE or now > self.s.time_limit_s
+        if self.on_progress is not None:
+            wall = anyio.current_time()
+            if done or wall >= self.next_report:
+                self.next_report = wall + self.every_s
+                self.on_progress(self._progress(now))
+        return done
 
-
-def _progress(tree: Tree, w: _World, t: float, robots: RobotHost) -> Progress:
-    tasks: dict[str, str] = {}
-    for n in tree.nodes():
-        if isinstance(n, Capability) and n.execution is not None:
-            tasks[n.execution.robot] = f"{type(n).INTERFACE.name} ({n.path.rsplit('/', 2)[-2]})"
-    up = robots.present()
-    present = {r.name: r.name in up and w.manager.robots[r.name].up for r in w.scenario.robots}
-    return Progress(t, w.state.summary(), tasks, present)
+    def _progress(self, t: float) -> Progress:
+        tasks: dict[str, str] = {}
+        for n in self.tree.nodes():
+            if isinstance(n, Capability) and n.execution is not None:
+                where = n.path.rsplit("/", 2)[-2]
+                tasks[n.execution.robot] = f"{type(n).INTERFACE.name} ({where})"
+        up = self.robots.present()
+        present = {r.name: r.name in up and self.manager.robots[r.name].up for r in self.s.robots}
+        return Progress(t, self.manager.state.summary(), tasks, present)

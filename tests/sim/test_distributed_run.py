@@ -2,42 +2,79 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import anyio
 import pytest
 
+from btcap.actors import TimeSource
 from btcap.sim.distributed import ProcessHost, run_distributed
-from btcap.sim.scenario import load_scenario
+from btcap.sim.grid import GridMap
+from btcap.sim.runner import Progress, run_scenario
+from btcap.sim.scenario import Scenario, load_scenario
+from btcap.transports import MessageRegistry
 
 DATA = Path(__file__).resolve().parent / "data"
 
 pytestmark = pytest.mark.slow
 
 
+class Hosts:
+    """A host factory that keeps the hosts it made, to look at their processes."""
+
+    def __init__(self) -> None:
+        self.made: list[ProcessHost] = []
+
+    def __call__(
+        self, s: Scenario, clock: TimeSource, reg: MessageRegistry, grid: GridMap
+    ) -> ProcessHost:
+        host = ProcessHost(s, clock, reg, grid)
+        self.made.append(host)
+        return host
+
+
 async def test_small_mission_completes_with_robots_in_separate_processes() -> None:
     s = load_scenario(DATA / "small.yaml")
-    hosts: list[ProcessHost] = []
-    real_init = ProcessHost.__init__
-
-    def spy(self: ProcessHost, *args: object, **kwargs: object) -> None:
-        real_init(self, *args, **kwargs)  # type: ignore[arg-type]
-        hosts.append(self)
-
+    hosts = Hosts()
     with anyio.fail_after(60):
-        mp = pytest.MonkeyPatch()
-        mp.setattr(ProcessHost, "__init__", spy)
-        try:
-            result = await run_distributed(s)
-        finally:
-            mp.undo()
+        result = await run_scenario(s, host=hosts)
     assert result.completed
+    assert result.errors == []
     assert result.summary["found"] == s.objects
     # Every robot ran in a child process, and every child is gone afterwards.
-    (host,) = hosts
+    (host,) = hosts.made
     assert sorted(host.started) == ["bebop1", "husky1", "spot1"]
     assert all(not p.alive() for p in host.started.values())
     # Work was spread over the team as in-process runs spread it.
     kinds = {(i.robot, i.kind) for i in result.timeline if i.kind != "move" and i.ok}
     assert ("bebop1", "explore") in kinds
     assert any(k == "decontaminate" for _, k in kinds)
+
+
+async def test_a_robot_process_that_dies_is_reported_and_the_team_finishes() -> None:
+    s = load_scenario(DATA / "small.yaml")
+    hosts = Hosts()
+    killed: list[float] = []
+
+    def kill_bebop(p: Progress) -> None:
+        bebop = hosts.made[0].started.get("bebop1")
+        if not killed and p.time > 0 and bebop is not None:
+            bebop.send_signal(signal.SIGKILL)  # the Bebop's computer dies mid-mission
+            killed.append(p.time)
+
+    with anyio.fail_after(60):
+        result = await run_scenario(s, host=hosts, on_progress=kill_bebop)
+    assert killed
+    assert [(e.robot, e.error) for e in result.errors] == [
+        ("bebop1", f"process exited with code {-signal.SIGKILL}")
+    ]
+    assert ("crashed", "bebop1") in [(m.event, m.robot) for m in result.marks]
+    assert result.completed  # the Husky explores what the Bebop would have
+
+
+async def test_run_distributed_is_run_scenario_with_process_hosts() -> None:
+    with anyio.fail_after(60):
+        result = await run_distributed(load_scenario(DATA / "small.yaml"))
+    assert result.completed
+    assert result.errors == []

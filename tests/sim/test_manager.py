@@ -435,14 +435,6 @@ async def test_robot_down_during_an_operation_fails_it() -> None:
         assert explore.end is not None
 
 
-async def test_on_change_is_called_when_the_state_changes() -> None:
-    async with simulation() as sim:
-        calls: list[int] = []
-        sim.manager.on_change = lambda: calls.append(1)
-        await sim.run(sim.ask(Operate("r1", "identify", 0)))
-        assert calls
-
-
 async def test_walls_make_moves_take_the_long_way() -> None:
     clock = ManualClock()
     manager = SimulationManager(MissionState(WALLED, []), config())

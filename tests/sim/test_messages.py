@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from btcap.sim.hosts import registry
 from btcap.sim.messages import SIM_MESSAGES
-from btcap.sim.runner import registry
 from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 CODEC = Codec(registry())
