@@ -267,3 +267,14 @@ async def test_same_seed_same_world_on_a_real_clock() -> None:
     with anyio.fail_after(30):
         result = await run_scenario(load_scenario(SMALL))
     assert_sound(result, s)
+
+
+async def test_a_run_stopped_by_its_time_limit_says_so() -> None:
+    s = load_scenario(SMALL)
+    s.time_limit_s = 30.0
+    with anyio.fail_after(30):
+        result = await run_scenario(s)
+    assert result.timed_out
+    assert not result.completed
+    assert 30.0 < result.mission_time_s < 40.0
+    assert result.errors == []
