@@ -13,7 +13,7 @@ from btcap.bt.state import TreeError
 from btcap.team.config import MissionStats
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
-from btcap.team.core.effects import Effect
+from btcap.team.core.effects import Drop, Effect
 from btcap.team.core.hosting import Hosted, HostLeases
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation, ImplementationRun, Precondition, Scope
@@ -49,6 +49,11 @@ class ExecutorSide:
         self.runs: RunFactory | None = None
         #: Runs of this robot's own capability nodes, awarded and not yet adopted.
         self.local_runs: dict[ExecutionId, ImplementationRun] = {}
+
+    def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
+        if self.slot is not None and self.slot is not slot:
+            raise TreeError(f"robot {self.robot} already has a remote capability slot")
+        self.slot = slot
 
     def unmet(self, preconditions: tuple[Precondition, ...]) -> str | None:
         for p in preconditions:
@@ -143,6 +148,17 @@ class ExecutorSide:
             return []
         why = self.load(execution)
         return [] if why is None else self.host.failed_to_start(execution, why)
+
+    def drop(self, e: Drop) -> None:
+        """Stop and remove a run the core dropped."""
+        if self.slot is not None:
+            self.slot.unload(e.execution)
+        log.info("mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why)
+        self.close(e.run)
+
+    def close(self, run: ImplementationRun) -> None:
+        if self.runs is not None:
+            self.runs.close(run)
 
     def convert(self, h: Hosted[ImplementationRun], values: dict[str, Any]) -> dict[str, Any] | str:
         try:

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from btcap.actors import Actor, handler
-from btcap.bt.state import DONE, State, TreeError
+from btcap.bt.state import DONE, State
 from btcap.team.assignment import AssignmentStrategy, AssignmentTask, SingleItemAuction
 from btcap.team.capability import ASSIGNER_PATH, Capability
 from btcap.team.config import MissionConfig, MissionStats
@@ -24,7 +24,7 @@ from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Lost, Pause, Send, Start
 from btcap.team.core.hosting import Hosted
 from btcap.team.core.ids import ExecutionId
-from btcap.team.core.origin import OriginLeases
+from btcap.team.core.origin import OriginLeases, merge_keepalives
 from btcap.team.execution import AssignmentRequest
 from btcap.team.executor import ExecutorSide
 from btcap.team.implementation import ImplementationRun
@@ -109,9 +109,7 @@ class MissionControl(Actor):
             self.release(execution, run)
 
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
-        if self.executor.slot is not None and self.executor.slot is not slot:
-            raise TreeError(f"robot {self.robot} already has a remote capability slot")
-        self.executor.slot = slot
+        self.executor.attach_slot(slot)
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
@@ -134,11 +132,9 @@ class MissionControl(Actor):
         per peer."""
         self._perform(self.origin.expire(now))
         self._perform(self.host.expire(now))
-        ids: dict[str, list[ExecutionId]] = {}
-        for send in (*self.origin.keepalives(), *self.host.keepalives()):
-            ids.setdefault(send.to, []).extend(send.message.executions)
-        for robot, executions in ids.items():
-            self.send(robot, KeepAlive(self.robot, executions))
+        self._perform(
+            merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
+        )
 
     # -- performing the core's decisions ------------------------------------------------
     def send(self, robot: str, msg: Any) -> None:
@@ -151,42 +147,26 @@ class MissionControl(Actor):
             elif isinstance(e, Lost):
                 self.active.pop(e.execution, None)
                 self.stats.lost += 1
-                log.warning(
-                    "mission.execution_lost",
-                    robot=self.robot,
-                    execution=str(e.execution),
-                    executor=e.executor,
-                    why=e.why,
-                )
+                where = {"execution": str(e.execution), "executor": e.executor}
+                log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
             elif isinstance(e, Drop):
                 if self.executor.slot is not None:
                     self.executor.slot.unload(e.execution)
-                log.info(
-                    "mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why
-                )
-                self._close(e.run)
             elif isinstance(e, Pause):
                 self.host.hosted[e.execution].run.pause()
             elif isinstance(e, Start):
                 self._perform(self.executor.start(e.execution))
             else:
                 self.stats.refused += 1
+                kind = type(e.message).__name__
                 log.warning(
-                    "mission.refused",
-                    robot=self.robot,
-                    sender=e.sender,
-                    message=type(e.message).__name__,
-                    why=e.why,
+                    "mission.refused", robot=self.robot, sender=e.sender, message=kind, why=e.why
                 )
-
-    def _close(self, run: ImplementationRun) -> None:
-        if self.executor.runs is not None:
-            self.executor.runs.close(run)
 
     def release(self, execution: ExecutionId, run: ImplementationRun) -> None:
         """A run of this robot's own capability nodes ended or was dropped."""
         self.executor.local_runs.pop(execution, None)
-        self._close(run)
+        self.executor.close(run)
         effects = self.host.release(execution)
         if self._system is not None and self.system.running:
             self._perform(effects)

@@ -20,7 +20,7 @@ from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.ids import ExecutionId
 from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive
 
-__all__ = ["ENDED_KEPT", "LOST", "OriginLeases", "Tracked"]
+__all__ = ["ENDED_KEPT", "LOST", "OriginLeases", "Tracked", "merge_keepalives"]
 
 #: Executions given up on that are remembered, to stop their runs if they report again.
 ENDED_KEPT = 1024
@@ -123,3 +123,12 @@ class OriginLeases:
         self._ended[execution] = None
         while len(self._ended) > ENDED_KEPT:
             self._ended.popitem(last=False)
+
+
+def merge_keepalives(robot: str, *groups: list[Send]) -> list[Send]:
+    """One keep-alive per peer, for the executions of both sides shared with it."""
+    ids: dict[str, list[ExecutionId]] = {}
+    for group in groups:
+        for send in group:
+            ids.setdefault(send.to, []).extend(send.message.executions)
+    return [Send(peer, KeepAlive(robot, executions)) for peer, executions in ids.items()]
