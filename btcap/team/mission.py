@@ -150,18 +150,15 @@ class MissionControl(Actor):
                 where = {"execution": str(e.execution), "executor": e.executor}
                 log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
             elif isinstance(e, Drop):
-                if self.executor.slot is not None:
-                    self.executor.slot.unload(e.execution)
+                self.executor.drop(e)
             elif isinstance(e, Pause):
                 self.host.hosted[e.execution].run.pause()
             elif isinstance(e, Start):
                 self._perform(self.executor.start(e.execution))
             else:
                 self.stats.refused += 1
-                kind = type(e.message).__name__
-                log.warning(
-                    "mission.refused", robot=self.robot, sender=e.sender, message=kind, why=e.why
-                )
+                what = {"sender": e.sender, "message": type(e.message).__name__, "why": e.why}
+                log.warning("mission.refused", robot=self.robot, **what)
 
     def release(self, execution: ExecutionId, run: ImplementationRun) -> None:
         """A run of this robot's own capability nodes ended or was dropped."""
