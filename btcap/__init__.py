@@ -1,4 +1,8 @@
-"""btcap: behavior trees whose capability nodes are auctioned to the best robot at run time."""
+"""btcap: behavior trees whose capability nodes are auctioned to the best robot at run time.
+
+The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
+:mod:`btcap.team`; what most programs need is re-exported here.
+"""
 
 from btcap.bt.composites import (
     Fallback,
@@ -55,20 +59,33 @@ from btcap.bt.render import render_dot, render_text
 from btcap.bt.state import IllegalTransition, State, TreeError
 from btcap.bt.tree import Subtree, Tree, Wire
 from btcap.bt.utility import Utility
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
+from btcap.team.capfiles import load_implementation, load_interfaces
+from btcap.team.config import MissionConfig
+from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.implementation import Implementation, Precondition, Scope
 from btcap.team.protocol import protocol_registry
+from btcap.team.slot import RemoteCapabilitySlot
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Action",
+    "Agent",
+    "AgentConfig",
     "AlwaysFailure",
     "AlwaysRunning",
     "AlwaysSuccess",
+    "AuctionId",
+    "Capability",
+    "CapabilityInterface",
     "Compare",
     "Condition",
     "Constant",
     "Decorator",
     "Delay",
+    "ExecutionId",
     "FailureIsRunning",
     "Fallback",
     "FallbackWithMemory",
@@ -76,15 +93,21 @@ __all__ = [
     "ForceSuccess",
     "IfThenElse",
     "IllegalTransition",
+    "Implementation",
+    "InputBridge",
     "Inverter",
     "Leaf",
     "Log",
+    "MissionConfig",
     "Node",
     "NodeRegistry",
     "Observer",
+    "OutputBridge",
     "Parallel",
     "Port",
+    "Precondition",
     "RegistryError",
+    "RemoteCapabilitySlot",
     "Repeat",
     "RepeatUntilFailure",
     "RepeatUntilSuccess",
@@ -92,6 +115,7 @@ __all__ = [
     "RunOnce",
     "RunningIsFailure",
     "RunningIsSuccess",
+    "Scope",
     "Sequence",
     "SequenceWithMemory",
     "State",
@@ -110,6 +134,8 @@ __all__ = [
     "default_registry",
     "dump_tree",
     "dumps_tree",
+    "load_implementation",
+    "load_interfaces",
     "load_tree",
     "loads_tree",
     "protocol_registry",
