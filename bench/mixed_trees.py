@@ -40,8 +40,14 @@ __all__ = [
 STEPS = 16
 _S, _F, _R = "S", "F", "R"
 _COMPOSITES = ("sequence", "fallback", "sequence_memory", "fallback_memory")
-_DECORATORS = ("inverter", "force_success", "force_failure", "running_is_success", "retry")
-_DECORATORS += ("repeat",)
+_DECORATORS = (
+    "inverter",
+    "force_success",
+    "force_failure",
+    "running_is_success",
+    "retry",
+    "repeat",
+)
 _PARALLELS = ("parallel_all", "parallel_one")
 
 
@@ -64,7 +70,7 @@ class MixedSpec:
 def _script(rng: random.Random) -> str:
     if rng.random() < 0.4:  # a condition: holds most of the time
         return "".join(_F if rng.random() < 0.15 else _S for _ in range(STEPS))
-    out = []  # an action: runs a few ticks, then succeeds (mostly) or fails
+    out: list[str] = []  # an action: runs a few ticks, then succeeds (mostly) or fails
     while len(out) < STEPS:
         out += [_R] * rng.randint(1, 4) + [_F if rng.random() < 0.2 else _S]
     return "".join(out[:STEPS])
@@ -127,7 +133,7 @@ class Scripted(btcap.Leaf):
         return self.script[self.step.now]
 
 
-class PtScripted(py_trees.behaviour.Behaviour):  # type: ignore[misc]
+class PtScripted(py_trees.behaviour.Behaviour):
     """The same leaf for py_trees."""
 
     def __init__(self, name: str, script: str, step: Stepper) -> None:
