@@ -35,7 +35,7 @@ class CapabilityRepository(Actor):
         self.implementations: dict[str, list[Implementation]] = {}
         self.succeeded: set[str] = set()
         self.team: dict[str, RepositoryState] = {}
-        self._unsubscribe: object = None
+        self._unsubscribe: Callable[[], None] | None = None
         self._listeners: list[Callable[[str], None]] = []
 
     # -- local content ----------------------------------------------------------------
@@ -126,6 +126,11 @@ class CapabilityRepository(Actor):
         team = self.system.lookup(Membership.PATH)
         if isinstance(team, Membership):
             self._unsubscribe = team.subscribe(self._on_team)
+
+    def on_stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         system = self.system

@@ -7,8 +7,10 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import Sequence, State, TreeError
+from btcap.actors import ActorSystem
 from btcap.team.capability import CapabilityInterface
-from btcap.team.messages import RepositoryQuery, RepositoryState
+from btcap.team.membership import Membership
+from btcap.team.messages import Heartbeat, RepositoryQuery, RepositoryState
 from btcap.team.repository import CapabilityRepository
 
 OTHER = CapabilityInterface("Other", inputs={"x": int, "stop": bool}, outputs={"y": int})
@@ -117,3 +119,21 @@ async def test_stale_and_self_states_are_ignored() -> None:
             tell(a.repository.address, RepositoryQuery("a"))
             tell(a.repository.address, RepositoryQuery("b"))
             await until(lambda: "a" in b.repository.team)
+
+
+async def test_a_stopped_repository_no_longer_listens_to_the_team(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    with anyio.fail_after(5):
+        async with ActorSystem("a") as system:
+            members = Membership("a")
+            system.spawn(members, Membership.PATH)
+            repo = CapabilityRepository("a")
+            system.spawn(repo, CapabilityRepository.PATH)
+            seen: list[str] = []
+            members.subscribe(lambda event, robot: seen.append(robot))
+            system.stop(repo)
+            system.tell(members.address, Heartbeat("b", 1, 0))
+            assert seen == ["b"]  # the team still reports, to its other listener only
+            # A stopped repository still subscribed would fail in its listener.
+            assert "listener_failed" not in caplog.text
