@@ -194,12 +194,14 @@ class _Watch:
     def __call__(self, state: State) -> bool:
         now = self.tree.clock.now() - self.started
         errors = self.robots.errors
-        while self.crashes_seen < len(errors):
-            e = errors[self.crashes_seen]
-            self.crashes_seen += 1
-            if e.robot in self.manager.robots:
-                self.manager.robot_down(e.robot)  # a crashed robot does no more work
-                self.mlog.mark(e.time, "crashed", e.robot)
+        if self.crashes_seen < len(errors):
+            present = self.robots.present()
+            for e in errors[self.crashes_seen :]:
+                # A crashed robot does no more work; one only slow to join is still there.
+                if e.robot not in present:
+                    self.manager.robot_down(e.robot)
+                    self.mlog.mark(e.time, "crashed", e.robot)
+            self.crashes_seen = len(errors)
         done = state in DONE or now > self.s.time_limit_s
         if self.on_progress is not None:
             wall = anyio.current_time()
