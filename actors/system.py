@@ -6,6 +6,7 @@ import asyncio
 import itertools
 import uuid
 from collections.abc import Coroutine
+from dataclasses import dataclass, field
 from functools import partial
 from types import TracebackType
 from typing import Any, TypeVar
@@ -41,15 +42,13 @@ def runtime_messages() -> MessageRegistry:
     return MessageRegistry([Failure])
 
 
+@dataclass(slots=True)
 class SystemStats:
     """Counters of what could not be delivered, by reason."""
 
-    __slots__ = ("dead_letters", "dropped", "escalations")
-
-    def __init__(self) -> None:
-        self.dead_letters = 0
-        self.escalations = 0
-        self.dropped: dict[str, int] = {}
+    dead_letters: int = 0
+    escalations: int = 0
+    dropped: dict[str, int] = field(default_factory=dict)
 
 
 class ActorSystem:
@@ -160,10 +159,11 @@ class ActorSystem:
     def start_task(
         self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
     ) -> asyncio.Task[Any]:
-        """Run a task owned by the system: cancelled and awaited when the system closes."""
-        if self._closing:
+        """A task of the running system, cancelled and awaited when it closes (not a task
+        group's: one failure must not cancel its siblings, and callers read its error)."""
+        if self._tg is None or self._closing:
             coro.close()
-            raise SystemClosed(f"actor system {self.id} is shutting down")
+            raise SystemClosed(f"actor system {self.id} is not running")
         task = asyncio.get_running_loop().create_task(coro, name=name)
         self._tasks.add(task)
         task.add_done_callback(self._task_done)

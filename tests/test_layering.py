@@ -189,3 +189,16 @@ def test_the_checker_catches_what_it_is_for() -> None:
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _layer("btcap.actors.system") < _layer("btcap.bt.node") < _layer("btcap.team.agent")
     assert _layer("btcap.team.agent") < _layer("btcap") < _layer("btcap.sim.runner")
+
+
+#: Modules are kept small enough to read in one sitting.
+MAX_LINES = 450
+
+
+def test_no_module_is_too_long_to_read() -> None:
+    long = {
+        mod: n
+        for mod, path in MODULES.items()
+        if (n := len(path.read_text().splitlines())) > MAX_LINES
+    }
+    assert not long, f"modules over {MAX_LINES} lines: {long}"

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 from btcap.actors import Actor, handler
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
-from btcap.bt.ports import PortMap, check_value, normalize_ports, type_name
+from btcap.bt.ports import PortMap, check_options, check_value, normalize_ports
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
@@ -158,25 +158,7 @@ class Node(Actor):
         """
 
     def _check_options(self, given: dict[str, Any]) -> dict[str, Any]:
-        spec = type(self).OPTIONS
-        unknown = set(given) - set(spec)
-        if unknown:
-            raise TreeError(
-                f"node {self.name!r} ({type(self).__name__}): unknown option(s) "
-                f"{', '.join(sorted(unknown))}; expected {', '.join(sorted(spec)) or 'none'}"
-            )
-        out: dict[str, Any] = {}
-        for key, port in spec.items():
-            if key in given:
-                out[key] = check_value(given[key], port.type, f"node {self.name!r} option {key!r}")
-            elif port.required:
-                raise TreeError(
-                    f"node {self.name!r} ({type(self).__name__}): option {key!r} "
-                    f"({type_name(port.type)}) is required"
-                )
-            else:
-                out[key] = port.default_value()
-        return out
+        return check_options(type(self).OPTIONS, given, self.name, type(self).__name__)
 
     def set_input(self, key: str, value: Any) -> None:
         """Give an input a constant value (checked against its type)."""
@@ -449,9 +431,8 @@ class Node(Actor):
 
 
 def _own_copy(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """``fn`` with a code object of its own, so CPython's specialising interpreter (3.11+)
-    keeps separate, monomorphic inline caches for it instead of sharing them (and missing)
-    across every node class."""
+    """``fn`` with a code object of its own, so CPython's specialising interpreter keeps
+    monomorphic inline caches per node class instead of sharing (and missing) them."""
     copy = FunctionType(fn.__code__.replace(), fn.__globals__, fn.__name__, fn.__defaults__)
     copy.__qualname__, copy.__doc__ = fn.__qualname__, fn.__doc__
     copy.__kwdefaults__, copy.__annotations__ = fn.__kwdefaults__, fn.__annotations__

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import types
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,7 +12,15 @@ import msgspec
 
 from btcap.bt.state import TreeError
 
-__all__ = ["NO_DEFAULT", "Port", "PortMap", "assignable", "check_value", "type_name"]
+__all__ = [
+    "NO_DEFAULT",
+    "Port",
+    "PortMap",
+    "assignable",
+    "check_options",
+    "check_value",
+    "type_name",
+]
 
 
 class _NoDefault:
@@ -115,3 +124,24 @@ def check_value(value: Any, t: Any, where: str) -> Any:
         raise TreeError(
             f"{where}: expected {type_name(t)}, got {type(value).__qualname__} {value!r} ({exc})"
         ) from None
+
+
+def check_options(spec: PortMap, given: Mapping[str, Any], node: str, kind: str) -> dict[str, Any]:
+    """Node ``node``'s options (of class ``kind``) checked against ``spec``, defaults filled."""
+    unknown = set(given) - set(spec)
+    if unknown:
+        raise TreeError(
+            f"node {node!r} ({kind}): unknown option(s) {', '.join(sorted(unknown))}; "
+            f"expected {', '.join(sorted(spec)) or 'none'}"
+        )
+    out: dict[str, Any] = {}
+    for key, port in spec.items():
+        if key in given:
+            out[key] = check_value(given[key], port.type, f"node {node!r} option {key!r}")
+        elif port.required:
+            raise TreeError(
+                f"node {node!r} ({kind}): option {key!r} ({type_name(port.type)}) is required"
+            )
+        else:
+            out[key] = port.default_value()
+    return out
