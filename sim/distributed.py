@@ -25,7 +25,7 @@ from btcap.sim.metrics import MissionResult, RobotError
 from btcap.sim.runner import Progress, run_scenario
 from btcap.sim.scenario import Scenario
 from btcap.team.launch import AgentSpec
-from btcap.team.spawn import AsyncAgentProcess, open_agent
+from btcap.team.spawn import AsyncAgentProcess
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 
 __all__ = ["ProcessHost", "robot_factory", "run_distributed"]
@@ -59,7 +59,7 @@ class ProcessHost:
         self.clock = clock
         self.reg = reg
         self.errors: list[RobotError] = []
-        self.started: dict[str, AsyncAgentProcess] = {}  # every process that came up, by robot
+        self.started: dict[str, AsyncAgentProcess] = {}  # every process started, by robot
         self._stderr = stderr
         self._endpoints: dict[str, str] = {}
         self._procs: dict[str, AsyncAgentProcess] = {}
@@ -109,16 +109,23 @@ class ProcessHost:
 
     async def _life(self, name: str, spec: AgentSpec) -> None:
         try:
-            proc = await open_agent(spec, stderr=self._stderr)
-        except Exception as exc:  # it never came up: exited, timed out, could not start
+            proc = await AsyncAgentProcess.spawn(spec, stderr=self._stderr)
+        except OSError as exc:
             record_error(self.errors, self.clock.now(), name, exc)
             return
+        # Known at once, so a robot that leaves or fails while it starts is stopped or frozen.
         self._procs[name] = proc
         self.started[name] = proc
+        try:
+            await proc.wait_ready()
+        except Exception as exc:  # it never came up: exited, or timed out
+            if proc not in self._leaving:
+                record_error(self.errors, self.clock.now(), name, exc)
+            await proc.kill()
         code = await proc.wait()
         if self._procs.get(name) is proc:
             del self._procs[name]
-        if proc not in self._leaving:
+        if proc not in self._leaving and proc.ready:
             record_error(self.errors, self.clock.now(), name, f"process exited with code {code}")
 
     def leave(self, name: str) -> None:
@@ -140,7 +147,7 @@ class ProcessHost:
         self._frozen.discard(name)
 
     def present(self) -> set[str]:
-        return {n for n, p in self._procs.items() if p.alive()} - self._frozen
+        return {n for n, p in self._procs.items() if p.ready and p.alive()} - self._frozen
 
 
 async def run_distributed(

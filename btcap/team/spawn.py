@@ -207,7 +207,8 @@ def spawn_agents(
 
 
 class AsyncAgentProcess:
-    """A launch process driven from an event loop; get one from :func:`open_agent`.
+    """A launch process driven from an event loop; get one from :func:`open_agent`, or from
+    :meth:`spawn` and then :meth:`wait_ready` to signal it while it starts.
 
     Same properties as :class:`AgentProcess`; waiting, stopping and killing are awaited.
     ``async with`` stops it on exit.
@@ -220,18 +221,34 @@ class AsyncAgentProcess:
         self._said = _Announcements(specs)
         self.endpoints = self._said.endpoints
 
-    async def _wait_ready(self, limit: float) -> None:
+    @classmethod
+    async def spawn(cls, spec: Specs, *, stderr: int | None = None) -> AsyncAgentProcess:
+        """Start the process and return at once; its agents are not listening yet."""
+        specs = _specs(spec)
+        process = await anyio.open_process(
+            _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
+        )
+        return cls(specs, process)
+
+    @property
+    def ready(self) -> bool:
+        """Every agent announced its endpoint."""
+        return self._said.complete
+
+    async def wait_ready(self, timeout: float = 20.0) -> dict[str, str]:
+        """Until every agent announced its endpoint; returns ``endpoints``. TimeoutError, or
+        RuntimeError if the process exits first (the process is left as it is)."""
         stdout = self.process.stdout
         assert stdout is not None
-        with anyio.move_on_after(limit):
+        with anyio.move_on_after(timeout):
             while not self._said.complete:
                 try:
                     chunk = await stdout.receive()
                 except anyio.EndOfStream:
                     raise self._said.exited(await self.process.wait()) from None
                 self._said.feed(chunk)
-            return
-        raise self._said.timed_out(limit)
+            return self.endpoints
+        raise self._said.timed_out(timeout)
 
     @property
     def robot(self) -> str:
@@ -294,13 +311,9 @@ async def open_agent(
 ) -> AsyncAgentProcess:
     """Start one process (a spec, or a list of specs sharing it) and wait until every agent
     listens; on failure or cancellation the process is killed."""
-    specs = _specs(spec)
-    process = await anyio.open_process(
-        _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
-    )
-    proc = AsyncAgentProcess(specs, process)
+    proc = await AsyncAgentProcess.spawn(spec, stderr=stderr)
     try:
-        await proc._wait_ready(timeout)
+        await proc.wait_ready(timeout)
     except BaseException:
         await proc.kill()
         raise

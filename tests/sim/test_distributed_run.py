@@ -6,13 +6,14 @@ import signal
 from pathlib import Path
 
 import anyio
+import msgspec
 import pytest
 
 from btcap.actors import TimeSource
 from btcap.sim.distributed import ProcessHost, run_distributed
 from btcap.sim.grid import GridMap
 from btcap.sim.runner import Progress, run_scenario
-from btcap.sim.scenario import Scenario, load_scenario
+from btcap.sim.scenario import Event, Scenario, load_scenario
 from btcap.transports import MessageRegistry
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -78,3 +79,23 @@ async def test_run_distributed_is_run_scenario_with_process_hosts() -> None:
         result = await run_distributed(load_scenario(DATA / "small.yaml"))
     assert result.completed
     assert result.errors == []
+
+
+async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> None:
+    """The Bebop joins and leaves a millisecond of wall time later, long before its
+    process listens: it is stopped then, not left running until the mission ends."""
+    s = msgspec.structs.replace(
+        load_scenario(DATA / "dynamic.yaml"),
+        events=[
+            Event(at=30, robot="bebop1", kind="join"),
+            Event(at=31, robot="bebop1", kind="leave"),
+        ],
+    )
+    hosts = Hosts()
+    with anyio.fail_after(60):
+        result = await run_scenario(s, host=hosts)
+    assert result.completed
+    assert result.errors == []
+    assert (result.robot_failures, result.robots_left) == (0, 1)
+    assert not [i for i in result.timeline if i.robot == "bebop1"]
+    assert not hosts.made[0].started["bebop1"].alive()
