@@ -177,7 +177,16 @@ class ActorCell:
     a task of the system. A handler may return an ``asyncio.Future`` to reply later.
     """
 
-    __slots__ = ("_address", "_busy", "_mailbox", "_parent", "_restarts", "_system", "_tasks")
+    __slots__ = (
+        "_address",
+        "_busy",
+        "_mailbox",
+        "_parent",
+        "_restarts",
+        "_sender",
+        "_system",
+        "_tasks",
+    )
 
     supervision: ClassVar[Supervision] = Supervision.RESTART
     max_restarts: ClassVar[int] = 10
@@ -197,12 +206,20 @@ class ActorCell:
         self._system: Host | None = None
         self._address: Address | None = None
         self._busy = False
-        self._mailbox: deque[tuple[Any, Reply | None]] | None = None
+        self._mailbox: deque[tuple[Any, Reply | None, str | None]] | None = None
+        self._sender: str | None = None
         self._parent: ActorCell | None = None
         self._restarts = 0
         self._tasks: set[asyncio.Task[Any]] | None = None
 
     # -- identity -------------------------------------------------------------------
+    @property
+    def sender(self) -> str:
+        """The system the message being handled came from, as its transport authenticated
+        it (not what the message says about itself); this system's id for local mail."""
+        sender = self._sender
+        return self._live_host().id if sender is None else sender
+
     @property
     def address(self) -> Address:
         if self._address is None:
@@ -259,19 +276,23 @@ class ActorCell:
                     break
         return h
 
-    def _receive(self, msg: Any, reply: Reply | None) -> None:
-        """Deliver a message: handle it now if idle and sync, else queue it."""
+    def _receive(self, msg: Any, reply: Reply | None, sender: str | None = None) -> None:
+        """Deliver a message: handle it now if idle and sync, else queue it.
+
+        ``sender`` is the system the transport authenticated (None: this system).
+        """
         if self._busy or self._mailbox:
-            self._enqueue(msg, reply)
+            self._enqueue(msg, reply, sender)
             return
         h = self._handler_for(type(msg))
         if h is None:
             self._unhandled(msg, reply)
             return
         if h.is_async:
-            self._enqueue(msg, reply)
+            self._enqueue(msg, reply, sender)
             return
         self._busy = True
+        self._sender = sender
         try:
             result = h.fn(self, msg)
         except Exception as exc:
@@ -291,6 +312,7 @@ class ActorCell:
             err = self._unhandled(msg, None)
             raise err
         self._busy = True
+        self._sender = None
         try:
             return h.fn(self, msg)
         except Exception as exc:
@@ -308,7 +330,7 @@ class ActorCell:
         h = self._handler_for(type(msg))
         return h is not None and not h.is_async
 
-    def _enqueue(self, msg: Any, reply: Reply | None) -> None:
+    def _enqueue(self, msg: Any, reply: Reply | None, sender: str | None = None) -> None:
         system = self._system
         if system is None:
             if reply is not None:
@@ -322,7 +344,7 @@ class ActorCell:
             if reply is not None:
                 reply(None, MailboxFull(f"mailbox of {self._address} is full"))
             return
-        box.append((msg, reply))
+        box.append((msg, reply, sender))
         if not self._busy:
             self._schedule_drain()
 
@@ -337,7 +359,7 @@ class ActorCell:
         box = self._mailbox
         try:
             while box and self._system is not None:
-                msg, reply = box.popleft()
+                msg, reply, self._sender = box.popleft()
                 h = self._handler_for(type(msg))
                 if h is None:
                     self._unhandled(msg, reply)

@@ -229,7 +229,7 @@ class ActorSystem:
                 if self._closing
                 else DeadLetter(f"{actor.address} was stopped")
             )
-            for _msg, reply in box:
+            for _msg, reply, _sender in box:
                 if reply is not None:
                     reply(None, gone)
         if actor._tasks:
@@ -380,10 +380,8 @@ class ActorSystem:
                     env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
                 )
             return
-        if kind is Kind.ASK:
-            actor._receive(env.msg, partial(self._reply_remote, env))
-        else:
-            actor._receive(env.msg, None)
+        reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
+        actor._receive(env.msg, reply, env.sender.system)
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
         me = Address(self.id, env.recipient.path)

@@ -48,6 +48,10 @@ class InProcessNetwork:
         if src.system_id in self._cut:
             src.stats.drop("isolated")
             return
+        if env.sender.system != src.system_id:
+            # The network knows who sends: a system may not speak as another.
+            src.stats.drop("forged sender")
+            return
         target = env.recipient.system
         if target == BROADCAST:
             dests = [t for sid, t in self._members.items() if sid != src.system_id]

@@ -21,7 +21,7 @@ from typing import Any
 import structlog
 from structlog.stdlib import LOG_KWARG_NAMES, filter_by_level
 
-__all__ = ["get_logger"]
+__all__ = ["get_logger", "worth_logging"]
 
 # The documented habit of libraries: without it, Python's last-resort handler would
 # print btcap's warnings to stderr in a program that configured no logging.
@@ -57,3 +57,9 @@ def get_logger(name: str) -> Any:
     return structlog.wrap_logger(
         logging.getLogger(name), wrapper_class=_Logger, cache_logger_on_first_use=False
     )
+
+
+def worth_logging(count: int) -> bool:
+    """Whether the ``count``-th occurrence of one kind of bad input gets a log line: the
+    first ten, then every power of two, so a flood of junk is not a flood of lines."""
+    return count <= 10 or count & (count - 1) == 0

@@ -28,7 +28,7 @@ from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import MessageRegistry
 from btcap.transports.zmq_sockets import EVENTS, NOBLOCK, POLLIN, Monitor, check_id, open_dealer
 
@@ -371,7 +371,7 @@ class ZmqTransport(Transport):
         n = stats.by_reason[reason]
         # A flood of junk must not become a flood of log lines: log the first few of
         # each reason, then every power of two.
-        if n <= 10 or n & (n - 1) == 0:
+        if worth_logging(n):
             log.warning(
                 "transport.dropped",
                 system=self.system_id,

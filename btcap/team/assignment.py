@@ -6,7 +6,7 @@ import abc
 import asyncio
 import itertools
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -90,11 +90,17 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         #: The latest auctions' outcomes, newest last (for monitoring and tests).
         self.outcomes: deque[AuctionOutcome] = deque(maxlen=64)
         self._ids = itertools.count(1)
+        self._unsubscribe: Callable[[], None] | None = None
 
     def on_start(self) -> None:
         team = self.system.lookup(Membership.PATH)
         if isinstance(team, Membership):
-            team.subscribe(self._on_team)
+            self._unsubscribe = team.subscribe(self._on_team)
+
+    def on_stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
@@ -166,7 +172,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         if entry is None:
             return  # late: the auction has closed
         auction, done = entry
-        auction.offer(msg, sender=msg.robot)
+        auction.offer(msg, sender=self.sender)
         if auction.answered_all:
             done.set()
 

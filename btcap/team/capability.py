@@ -105,13 +105,19 @@ class CapabilityInterface:
 
     def convert_inputs(self, values: Mapping[str, Any], where: str) -> dict[str, Any]:
         """Inputs from the wire, back to their declared types (missing ones: None)."""
-        out: dict[str, Any] = {}
-        for key, port in self.inputs.items():
-            value = values.get(key)
-            out[key] = (
-                None if value is None else check_value(value, port.type, f"{where} input {key!r}")
-            )
-        return out
+        return _convert(self.inputs, values, f"{where} input")
+
+    def convert_outputs(self, values: Mapping[str, Any], where: str) -> dict[str, Any]:
+        """Outputs from the wire, back to their declared types (missing ones: None)."""
+        return _convert(self.outputs, values, f"{where} output")
+
+
+def _convert(ports: PortMap, values: Mapping[str, Any], where: str) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, port in ports.items():
+        value = values.get(key)
+        out[key] = None if value is None else check_value(value, port.type, f"{where} {key!r}")
+    return out
 
 
 class _Bridge(Leaf):

@@ -147,7 +147,7 @@ class ExecutorSide:
         if execution not in self.host.hosted:
             return []
         why = self.load(execution)
-        return [] if why is None else self.host.failed_to_start(execution, why)
+        return [] if why is None else self.host.give_up(execution, why)
 
     def drop(self, e: Drop) -> None:
         """Stop and remove a run the core dropped."""

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from btcap.actors import Actor, handler
 from btcap.team.core.members import Member, MemberTable, TeamEvent
 from btcap.team.messages import Goodbye, Heartbeat
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["Member", "Membership", "TeamEvent"]
 
@@ -45,6 +45,7 @@ class Membership(Actor):
         self.failure_timeout_s = failure_timeout_s
         self._repo_version = repo_version
         self.table = MemberTable(robot, failure_timeout_s)
+        self.refused = 0  #: heartbeats and goodbyes sent in another robot's name
         self._listeners: list[Listener] = []
 
     # -- observing --------------------------------------------------------------------
@@ -96,8 +97,26 @@ class Membership(Actor):
             self._emit(TeamEvent.FAILED, robot)
 
     # -- messages ---------------------------------------------------------------------
+    def _speaks_for_itself(self, robot: str, msg: Heartbeat | Goodbye) -> bool:
+        """A robot speaks only for itself: the transport authenticated the sender."""
+        if robot == self.sender:
+            return True
+        self.refused += 1
+        if worth_logging(self.refused):
+            log.warning(
+                "team.refused",
+                robot=self.robot,
+                sender=self.sender,
+                message=type(msg).__name__,
+                claims=robot[:64],
+                count=self.refused,
+            )
+        return False
+
     @handler
     def on_heartbeat(self, msg: Heartbeat) -> None:
+        if not self._speaks_for_itself(msg.robot, msg):
+            return
         events = self.table.heartbeat(
             msg.robot, msg.incarnation, msg.repo_version, self.system.clock.now()
         )
@@ -108,5 +127,7 @@ class Membership(Actor):
 
     @handler
     def on_goodbye(self, msg: Goodbye) -> None:
-        if self.table.goodbye(msg.robot, msg.incarnation):
+        if self._speaks_for_itself(msg.robot, msg) and self.table.goodbye(
+            msg.robot, msg.incarnation
+        ):
             self._emit(TeamEvent.LEFT, msg.robot)

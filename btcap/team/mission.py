@@ -5,26 +5,25 @@ into an auction and the winner into an execution handle; on the executor side it
 accepts or declines awards, and runs accepted implementations in the robot's
 :class:`~btcap.team.slot.RemoteCapabilitySlot` (or hands a run it won for itself straight
 to the capability node). What to do is decided by :mod:`btcap.team.core` (leases, body,
-bidding) on explicit time; this shell feeds it messages and performs its effects.
+bidding) on explicit time; this shell feeds it messages, each with the sender its
+transport authenticated, and performs its effects.
 """
 
 from __future__ import annotations
 
-import asyncio
-import itertools
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from btcap.actors import Actor, handler
-from btcap.bt.state import DONE, State
-from btcap.team.assignment import AssignmentStrategy, AssignmentTask, SingleItemAuction
+from btcap.actors import Actor, Supervision, handler
+from btcap.bt.state import State
+from btcap.team.assignment import AssignmentStrategy, SingleItemAuction
 from btcap.team.capability import ASSIGNER_PATH, Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.body import Body
-from btcap.team.core.effects import Drop, Effect, Lost, Pause, Send, Start
+from btcap.team.core.effects import Drop, Effect, Lost, Pause, Refused, Send, Start
 from btcap.team.core.hosting import Hosted
 from btcap.team.core.ids import ExecutionId
-from btcap.team.core.origin import OriginLeases, merge_keepalives
+from btcap.team.core.origin import merge_keepalives
 from btcap.team.execution import AssignmentRequest
 from btcap.team.executor import ExecutorSide
 from btcap.team.implementation import ImplementationRun
@@ -40,24 +39,24 @@ from btcap.team.messages import (
     PauseExecution,
 )
 from btcap.team.moving import JoinOffers
-from btcap.team.proxies import LocalExecution, RemoteExecution
+from btcap.team.origin_side import Handle, OriginSide
 from btcap.team.repository import CapabilityRepository
 from btcap.team.runs import RunFactory
 from btcap.team.slot import RemoteCapabilitySlot
 from btcap.transports import Address
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["MissionConfig", "MissionControl", "MissionStats"]
 
 log = get_logger("btcap.mission")
-
-Handle = LocalExecution | RemoteExecution
 
 
 class MissionControl(Actor):
     """One per robot; see the module docstring."""
 
     PATH = ASSIGNER_PATH
+    #: A peer's bad message must never stop a robot's mission control.
+    supervision = Supervision.RESUME
 
     def __init__(
         self,
@@ -72,17 +71,28 @@ class MissionControl(Actor):
         self.robot = robot
         self.repository = repository
         self.team = team
-        self.strategy = strategy
         self.config = config or MissionConfig()
         self.stats = MissionStats()
         self.body = Body(queue_after_current=self.config.queue_after_current)
-        self.origin = OriginLeases(robot)
         self.executor = ExecutorSide(robot, repository, self.body, self.stats, self._now)
         self.host = self.executor.host
+        self.origin_side = OriginSide(
+            robot,
+            config=self.config,
+            stats=self.stats,
+            strategy=strategy,
+            repository=repository,
+            team=team,
+            executor=self.executor,
+            send=self.send,
+            perform=self._perform,
+            start_task=self.start_task,
+            now=self._now,
+        )
+        self.origin = self.origin_side.leases
         #: Every execution a capability node of this robot holds, local or remote.
-        self.active: dict[ExecutionId, Handle] = {}
-        self._ids = itertools.count(1)
-        self._offers = JoinOffers(self)
+        self.active: dict[ExecutionId, Handle] = self.origin_side.active
+        self._offers = JoinOffers(self.origin_side)
         self._unsubscribe: list[Callable[[], None]] = []
 
     def _now(self) -> float:
@@ -91,6 +101,10 @@ class MissionControl(Actor):
     @property
     def slot(self) -> RemoteCapabilitySlot | None:
         return self.executor.slot
+
+    @property
+    def strategy(self) -> AssignmentStrategy:
+        return self.origin_side.strategy
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
@@ -106,7 +120,7 @@ class MissionControl(Actor):
         # The robot is going away: what it runs for others or itself stops with it.
         self._perform(self.host.drop_all("robot stopping"))
         for execution, run in list(self.executor.local_runs.items()):
-            self.release(execution, run)
+            self.origin_side.release(execution, run)
 
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         self.executor.attach_slot(slot)
@@ -132,44 +146,52 @@ class MissionControl(Actor):
         per peer."""
         self._perform(self.origin.expire(now))
         self._perform(self.host.expire(now))
-        self._perform(
-            merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
-        )
+        renew = merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
+        self._perform(renew)
 
     # -- performing the core's decisions ------------------------------------------------
     def send(self, robot: str, msg: Any) -> None:
         self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
 
     def _perform(self, effects: Iterable[Effect]) -> None:
+        if self._system is None or not self.system.running:
+            # Stopping: the runs are closed, nobody is told and nothing new starts.
+            for e in effects:
+                if isinstance(e, Drop):
+                    self.executor.drop(e)
+            return
         for e in effects:
-            if isinstance(e, Send):
-                self.send(e.to, e.message)
-            elif isinstance(e, Lost):
-                self.active.pop(e.execution, None)
-                self.stats.lost += 1
-                where = {"execution": str(e.execution), "executor": e.executor}
-                log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
-            elif isinstance(e, Drop):
-                self.executor.drop(e)
-            elif isinstance(e, Pause):
-                self.host.hosted[e.execution].run.pause()
-            elif isinstance(e, Start):
-                self._perform(self.executor.start(e.execution))
-            else:
-                self.stats.refused += 1
-                what = {"sender": e.sender, "message": type(e.message).__name__, "why": e.why}
-                log.warning("mission.refused", robot=self.robot, **what)
+            try:
+                self._do(e)
+            except Exception as exc:  # one effect failing must not skip the others
+                self.stats.errors += 1
+                log.error("mission.effect_failed", robot=self.robot, effect=repr(e), exc_info=exc)
+                if isinstance(e, Send) and isinstance(e.message, ExecutionStatus):
+                    why = f"its status cannot be sent: {exc}"
+                    self._perform(self.host.unsendable(e.message.execution, why))
 
-    def release(self, execution: ExecutionId, run: ImplementationRun) -> None:
-        """A run of this robot's own capability nodes ended or was dropped."""
-        self.executor.local_runs.pop(execution, None)
-        self.executor.close(run)
-        effects = self.host.release(execution)
-        if self._system is not None and self.system.running:
-            self._perform(effects)
+    def _do(self, e: Effect) -> None:
+        if isinstance(e, Send):
+            self.send(e.to, e.message)
+        elif isinstance(e, Lost):
+            self.active.pop(e.execution, None)
+            self.stats.lost += 1
+            where = {"execution": str(e.execution), "executor": e.executor}
+            log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
+        elif isinstance(e, Drop):
+            self.executor.drop(e)
+        elif isinstance(e, Pause):
+            self.host.hosted[e.execution].run.pause()
+        elif isinstance(e, Start):
+            self._perform(self.executor.start(e.execution))
+        elif isinstance(e, Refused):
+            self.refused(e.sender, e.message, e.why)
 
-    def record_success(self, capability: str) -> None:
-        self.repository.record_success(capability)
+    def refused(self, sender: str, msg: Any, why: str) -> None:
+        self.stats.refused += 1
+        if worth_logging(self.stats.refused):
+            what = {"sender": sender, "message": type(msg).__name__, "why": why}
+            log.warning("mission.refused", robot=self.robot, count=self.stats.refused, **what)
 
     # -- origin side ------------------------------------------------------------------
     def request_assignment(
@@ -181,93 +203,33 @@ class MissionControl(Actor):
         exclude: frozenset[str] = frozenset(),
     ) -> AssignmentRequest:
         """Start finding an executor for ``node``; never blocks the tick."""
-        req = AssignmentRequest()
-        self.stats.requests += 1
-        iface = type(node).INTERFACE
-        providers = self.repository.providers(iface.identity)
-        candidates = {self.robot} & providers if local_only else providers & self.team.alive()
-        candidates -= exclude
-        if not candidates:
-            req.done = True
-            self.stats.unassigned += 1
-            return req
-        execution = self.new_execution(node)
-        task = AssignmentTask(
-            execution,
-            iface.name,
-            iface.identity,
-            inputs,
-            frozenset(candidates),
-            self.config.lease_s,
+        return self.origin_side.request_assignment(
+            node, inputs, local_only=local_only, exclude=exclude
         )
-        req.task = self.start_task(self._assign(req, task, node), name=f"assign {execution}")
-        return req
-
-    def new_execution(self, node: Capability) -> ExecutionId:
-        return ExecutionId(self.robot, node.path, next(self._ids))
-
-    def remote(
-        self, execution: ExecutionId, robot: str, node: Capability, cost: float
-    ) -> RemoteExecution:
-        """The handle of an execution ``robot`` accepted; its lease starts now."""
-        tracked = self.origin.track(execution, robot, self.config.lease_s, self._now())
-        return RemoteExecution(self, tracked, node, cost)
-
-    def let_go(self, ex: Handle, reason: str) -> None:
-        """The node let ``ex`` go; a replacement it never adopted goes with it."""
-        self.origin.forget(ex.id)
-        self.active.pop(ex.id, None)
-        if ex.replacement is not None:
-            ex.replacement.cancel(reason)
-            ex.replacement = None
-
-    async def _assign(self, req: AssignmentRequest, task: AssignmentTask, node: Capability) -> None:
-        try:
-            won = await self.strategy.assign(task)
-        except asyncio.CancelledError:
-            run = self.executor.local_runs.get(task.execution)
-            if run is not None:  # this robot took the award as the request was cancelled
-                self.release(task.execution, run)
-            raise
-        finally:
-            req.done = True
-        if won is None:
-            self.stats.unassigned += 1
-            return
-        self.stats.assigned += 1
-        if won.robot == self.robot:
-            run = self.executor.local_runs.pop(task.execution)
-            ex: Handle = LocalExecution(self, task.execution, run, node, won.cost)
-        else:
-            ex = self.remote(task.execution, won.robot, node, won.cost)
-        self.active[ex.id] = ex
-        req.execution = ex
-        if req.cancelled:
-            ex.cancel("request cancelled")
-            req.execution = None
 
     @handler
     def on_status(self, msg: ExecutionStatus) -> None:
-        # The sender is who the message says until the transport authenticates peers.
-        self._perform(self.origin.status(msg.robot, msg, self._now()))
-        if msg.state in DONE and msg.execution not in self.origin.tracked:
-            self.active.pop(msg.execution, None)
+        self.origin_side.status(self.sender, msg)
 
     @handler
     def on_keepalive(self, msg: KeepAlive) -> None:
         now = self._now()
-        self.origin.keepalive(msg.robot, msg.executions, now)
-        self.host.keepalive(msg.robot, msg, now)
+        self.origin.keepalive(self.sender, msg.executions, now)
+        self.host.keepalive(self.sender, msg, now)
 
     # -- executor side ----------------------------------------------------------------
     @handler
     def on_call_for_bids(self, msg: CallForBids) -> None:
-        to = Address(msg.auction.auctioneer, SingleItemAuction.PATH)
+        auctioneer = msg.auction.auctioneer
+        if self.sender != auctioneer:  # nobody may have our bids sent to a third robot
+            self.refused(self.sender, msg, f"call for bids of {auctioneer}'s auction")
+            return
+        to = Address(auctioneer, SingleItemAuction.PATH)
         self.system.tell(to, self.executor.evaluate(msg), sender=self.address)
 
     @handler
     def on_award(self, msg: Award) -> AwardReply:
-        why = self.executor.accept(msg.auction.auctioneer, msg)
+        why = self.executor.accept(self.sender, msg)
         if why is None:
             return AwardReply(msg.execution, self.robot, True)
         self.stats.declined += 1
@@ -276,15 +238,17 @@ class MissionControl(Actor):
     @handler
     def on_inputs(self, msg: ExecutionInputs) -> None:
         now = self._now()
-        self._perform(self.host.inputs(msg.execution.origin, msg, now, self.executor.convert))
+        self._perform(self.host.inputs(self.sender, msg, now, self.executor.convert))
 
     @handler
     def on_pause(self, msg: PauseExecution) -> None:
-        self._perform(self.host.pause(msg.execution.origin, msg))
+        self._perform(self.host.pause(self.sender, msg))
 
     @handler
     def on_cancel(self, msg: CancelExecution) -> None:
-        self._perform(self.host.cancel(msg.execution.origin, msg))
+        if msg.execution.origin == self.robot == self.sender:
+            self.origin_side.withdrawn(msg.execution)  # our own auctioneer withdrew it
+        self._perform(self.host.cancel(self.sender, msg))
 
     def hosted_ticked(
         self, hosted: Hosted[ImplementationRun], state: State, outputs: dict[str, Any]

@@ -20,10 +20,10 @@ from btcap.team.core.origin import Tracked
 from btcap.team.implementation import ImplementationRun
 from btcap.team.messages import CancelExecution, ExecutionInputs, PauseExecution
 
-__all__ = ["LocalExecution", "OriginSide", "RemoteExecution"]
+__all__ = ["HandleOwner", "LocalExecution", "RemoteExecution"]
 
 
-class OriginSide(Protocol):
+class HandleOwner(Protocol):
     """What the handles need from their robot's mission control."""
 
     robot: str
@@ -42,7 +42,7 @@ class _Handle:
     __slots__ = ("_side", "cost", "id", "node", "replacement", "robot")
 
     def __init__(
-        self, side: OriginSide, execution: ExecutionId, robot: str, node: Capability, cost: float
+        self, side: HandleOwner, execution: ExecutionId, robot: str, node: Capability, cost: float
     ) -> None:
         self._side = side
         self.id = execution
@@ -71,7 +71,7 @@ class LocalExecution(_Handle):
 
     def __init__(
         self,
-        side: OriginSide,
+        side: HandleOwner,
         execution: ExecutionId,
         run: ImplementationRun,
         node: Capability,
@@ -109,7 +109,7 @@ class RemoteExecution(_Handle):
 
     __slots__ = ("tracked",)
 
-    def __init__(self, side: OriginSide, tracked: Tracked, node: Capability, cost: float) -> None:
+    def __init__(self, side: HandleOwner, tracked: Tracked, node: Capability, cost: float) -> None:
         super().__init__(side, tracked.execution, tracked.executor, node, cost)
         self.tracked = tracked
 

@@ -10,7 +10,8 @@ from btcap.team.capability import CapabilityInterface
 from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import RepositoryQuery, RepositoryState
-from btcap.transports.log import get_logger
+from btcap.transports import Address
+from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["CapabilityRepository"]
 
@@ -36,6 +37,8 @@ class CapabilityRepository(Actor):
         self.succeeded: set[str] = set()
         self.team: dict[str, RepositoryState] = {}
         self._unsubscribe: Callable[[], None] | None = None
+        self._team: Membership | None = None
+        self.refused = 0  #: states from non-members, or for another robot
         self._listeners: list[Callable[[str], None]] = []
 
     # -- local content ----------------------------------------------------------------
@@ -125,6 +128,7 @@ class CapabilityRepository(Actor):
     def on_start(self) -> None:
         team = self.system.lookup(Membership.PATH)
         if isinstance(team, Membership):
+            self._team = team
             self._unsubscribe = team.subscribe(self._on_team)
 
     def on_stop(self) -> None:
@@ -145,7 +149,18 @@ class CapabilityRepository(Actor):
 
     @handler
     def on_state(self, msg: RepositoryState) -> None:
-        if msg.robot == self.robot:
+        sender = self.sender
+        if msg.robot != sender or sender == self.robot or sender not in self._alive():
+            # Only members, each for itself: what nobody vouched for is not held.
+            self.refused += 1
+            if worth_logging(self.refused):
+                log.warning(
+                    "repository.refused",
+                    robot=self.robot,
+                    sender=sender,
+                    claims=msg.robot[:64],
+                    count=self.refused,
+                )
             return
         known = self.team.get(msg.robot)
         if known is None or msg.version >= known.version:
@@ -159,5 +174,9 @@ class CapabilityRepository(Actor):
 
     @handler
     def on_query(self, msg: RepositoryQuery) -> None:
-        if msg.robot != self.robot:
-            self.system.ref(f"{msg.robot}/{self.PATH}").tell(self.state())
+        sender = self.sender  # answered to who asked, whatever name the query carries
+        if sender != self.robot and sender in self._alive():
+            self.system.ref(Address(sender, self.PATH)).tell(self.state())
+
+    def _alive(self) -> frozenset[str]:
+        return self._team.alive() if self._team is not None else frozenset()

@@ -3,7 +3,7 @@
 An award is taken only from the origin of its execution (who is also its auctioneer)
 and only while the body can take it. The origin renews a hosted run's lease with every
 input it sends and with keep-alives; when no word came for the award's ``lease_s`` times
-``give_up`` the run is dropped — a little before the origin re-assigns it, so the two
+``lease_share`` the run is dropped — a little before the origin re-assigns it, so the two
 runs of a partitioned execution never overlap. Only the origin may tick, pause or cancel
 its run, and finished runs keep their final status for a while, so a late input is
 answered with the result rather than with "unknown".
@@ -11,6 +11,7 @@ answered with the result rather than with "unknown".
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -60,10 +61,10 @@ class Hosted(Generic[R]):
 class HostLeases(Generic[R]):
     """Hosted runs and the body they share with this robot's own runs."""
 
-    def __init__(self, robot: str, body: Body, *, give_up: float = 0.8) -> None:
+    def __init__(self, robot: str, body: Body, *, lease_share: float = 0.8) -> None:
         self.robot = robot
         self.body = body
-        self.give_up = give_up
+        self.lease_share = lease_share
         self.hosted: dict[ExecutionId, Hosted[R]] = {}
         self.finished: OrderedDict[ExecutionId, ExecutionStatus] = OrderedDict()
 
@@ -75,12 +76,14 @@ class HostLeases(Generic[R]):
             return f"award of {execution} from {sender}: only its origin awards it"
         if self.body.holds(execution) or execution in self.finished:
             return f"{execution} was awarded before"
+        if not math.isfinite(award.lease_s) or award.lease_s <= 0:
+            return f"award of {execution}: lease_s {award.lease_s!r}, expected a positive number"
         return self.body.busy_reason()
 
     def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:
         """Take a remote award (checked with :meth:`refuse_award`); True if it runs now."""
         self.hosted[award.execution] = Hosted(
-            award.execution, run, inputs, award.lease_s * self.give_up, now, paused=award.paused
+            award.execution, run, inputs, award.lease_s * self.lease_share, now, paused=award.paused
         )
         return self.body.take(award.execution, cost)
 
@@ -106,9 +109,8 @@ class HostLeases(Generic[R]):
         if isinstance(inputs, str):  # changes nothing: a bad seq must not hide later inputs
             return [Refused(sender, msg, inputs)]
         h.last_heard = max(h.last_heard, now)
-        h.paused = False
-        if msg.seq > h.seq:
-            h.seq, h.inputs = msg.seq, inputs
+        if msg.seq > h.seq:  # an older input overtaken by a pause must not resume the run
+            h.seq, h.inputs, h.paused = msg.seq, inputs, False
         return [Send(sender, self.status(h))]
 
     def pause(self, sender: str, msg: PauseExecution) -> list[Effect]:
@@ -154,13 +156,26 @@ class HostLeases(Generic[R]):
             out += self.drop(execution, "finished")
         return out
 
-    def failed_to_start(self, execution: ExecutionId, why: str) -> list[Effect]:
-        """The queued run could not be set up when the body came free: tell its origin."""
+    def give_up(self, execution: ExecutionId, why: str, state: State = LOST) -> list[Effect]:
+        """The run cannot go on here (its setup failed, its status cannot be sent): tell the
+        origin, with ``state`` LOST to have it re-assigned or FAILED to end it, and drop it."""
         h = self.hosted.get(execution)
         if h is None:
             return []
-        lost = ExecutionStatus(execution, self.robot, LOST, {}, h.seq, why)
-        return [Send(h.origin, lost), *self.drop(execution, why)]
+        final = ExecutionStatus(execution, self.robot, state, {}, h.seq, why)
+        return [Send(h.origin, final), *self.drop(execution, why)]
+
+    def unsendable(self, execution: ExecutionId, why: str) -> list[Effect]:
+        """A status of the run could not be sent (its outputs do not encode): the run
+        fails, and its origin hears that instead, now and when it asks again."""
+        if execution in self.hosted:
+            return self.give_up(execution, why, State.FAILED)
+        final = self.finished.get(execution)
+        if final is None or final.detail == why:
+            return []
+        failed = ExecutionStatus(execution, self.robot, State.FAILED, {}, final.seq, why)
+        self.finished[execution] = failed
+        return [Send(execution.origin, failed)]
 
     # -- ending -----------------------------------------------------------------------
     def release(self, execution: ExecutionId) -> list[Effect]:

@@ -27,10 +27,11 @@ class MemberTable:
     """The failure detector of one robot, fed heartbeats and goodbyes.
 
     A robot is a member from its first heartbeat until its goodbye or until no heartbeat
-    came for ``failure_timeout`` seconds. A robot that restarts (new incarnation) counts as
-    failed and joined again, so nothing of its old life is trusted; a robot declared failed
-    whose heartbeat arrives later simply joins again (its old executions were re-assigned
-    when it failed, and their late reports are refused by the lease tables).
+    came for ``failure_timeout`` seconds. A robot that restarts (a new, larger incarnation)
+    counts as failed and joined again, so nothing of its old life is trusted; a robot
+    declared failed whose heartbeat arrives later simply joins again (its old executions
+    were re-assigned when it failed, and their late reports are refused by the lease
+    tables).
     """
 
     def __init__(self, robot: str, failure_timeout_s: float, *, max_members: int = 1024) -> None:
@@ -51,6 +52,8 @@ class MemberTable:
             return []
         events: list[TeamEvent] = []
         m = self.members.get(robot)
+        if m is not None and incarnation < m.incarnation:
+            return events  # a late word from before its restart (incarnations only grow)
         if m is not None and m.incarnation != incarnation:
             del self.members[robot]
             events.append(TeamEvent.FAILED)

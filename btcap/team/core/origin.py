@@ -12,6 +12,7 @@ that overtakes the award's acceptance is simply early, and ignored.)
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -64,7 +65,15 @@ class OriginLeases:
         if self.tracked.pop(execution, None) is not None:
             self._end(execution)
 
-    def status(self, sender: str, msg: ExecutionStatus, now: float) -> list[Effect]:
+    def status(
+        self,
+        sender: str,
+        msg: ExecutionStatus,
+        now: float,
+        convert: Callable[[Tracked, dict[str, Any]], dict[str, Any] | str] = lambda t, v: v,
+    ) -> list[Effect]:
+        """A report from ``sender``; ``convert`` types its outputs or says what is wrong
+        (a report with wrong outputs changes nothing, not even the lease)."""
         t = self.tracked.get(msg.execution)
         if t is None:
             if msg.execution.origin != self.robot:
@@ -76,11 +85,14 @@ class OriginLeases:
             return [Send(sender, CancelExecution(msg.execution, "no longer assigned to you"))]
         if sender != t.executor:
             return [Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")]
-        t.last_heard = max(t.last_heard, now)
         if msg.state is LOST:
             return self._lose(t, f"executor no longer has it ({msg.detail})")
+        outputs = convert(t, msg.outputs)
+        if isinstance(outputs, str):
+            return [Refused(sender, msg, outputs)]
+        t.last_heard = max(t.last_heard, now)
         t.state = msg.state
-        t.outputs = msg.outputs
+        t.outputs = outputs
         t.acked = max(t.acked, msg.seq)
         t.detail = msg.detail
         if msg.state in DONE:  # the result is taken once; duplicates are ignored
@@ -117,7 +129,10 @@ class OriginLeases:
         del self.tracked[t.execution]
         self._end(t.execution)
         t.lost = True
-        return [Lost(t.execution, t.executor, why)]
+        # Best effort: if only its reports were lost, the old run must not go on beside
+        # the one the node starts next.
+        stop = Send(t.executor, CancelExecution(t.execution, f"re-assigned: {why}"))
+        return [Lost(t.execution, t.executor, why), stop]
 
     def _end(self, execution: ExecutionId) -> None:
         self._ended[execution] = None

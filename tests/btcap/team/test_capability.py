@@ -12,7 +12,7 @@ from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
 from btcap.bt.utility import CANNOT
 from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
 from btcap.team.implementation import Implementation
-from btcap.team.mission import LocalExecution
+from btcap.team.proxies import LocalExecution
 
 # -- interfaces --------------------------------------------------------------------------
 

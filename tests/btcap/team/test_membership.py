@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from contextlib import AsyncExitStack, asynccontextmanager
 from typing import Any
 
 import anyio
@@ -14,19 +14,37 @@ from btcap.actors import ActorSystem, ManualClock
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import Goodbye, Heartbeat
 from btcap.team.protocol import protocol_registry
+from btcap.transports import Address, InProcessNetwork
+
+
+class Peers:
+    """Robots x and y as actor systems of their own: what they send, the network
+    delivers with their authenticated name, whatever the message claims."""
+
+    def __init__(self, m: Membership, clock: ManualClock, systems: dict[str, ActorSystem]):
+        self.m, self.clock, self.systems = m, clock, systems
+
+    async def send(self, sender: str, msg: Heartbeat | Goodbye) -> None:
+        self.systems[sender].tell(Address("me", Membership.PATH), msg)
+        await self.clock.advance(0)  # the network delivers on the next loop turn
 
 
 @asynccontextmanager
-async def membership(
-    **kw: Any,
-) -> AsyncIterator[tuple[Membership, ManualClock, list[tuple[TeamEvent, str]]]]:
+async def membership(**kw: Any) -> AsyncIterator[tuple[Peers, list[tuple[TeamEvent, str]]]]:
     clock = ManualClock()
-    async with ActorSystem("me", registry=protocol_registry(), clock=clock) as system:
+    net = InProcessNetwork(protocol_registry())
+    async with AsyncExitStack() as stack:
+        systems = {
+            name: await stack.enter_async_context(
+                ActorSystem(name, transport=net.transport(name), clock=clock)
+            )
+            for name in ("me", "x", "y")
+        }
         m = Membership("me", **kw)
-        system.spawn(m, Membership.PATH)
+        systems["me"].spawn(m, Membership.PATH)
         events: list[tuple[TeamEvent, str]] = []
         m.subscribe(lambda e, r: events.append((e, r)))
-        yield m, clock, events
+        yield Peers(m, clock, systems), events
 
 
 def test_failure_timeout_must_exceed_the_heartbeat() -> None:
@@ -36,63 +54,74 @@ def test_failure_timeout_must_exceed_the_heartbeat() -> None:
 
 async def test_heartbeats_join_change_and_restart() -> None:
     with anyio.fail_after(5):
-        async with membership() as (m, _clock, events):
-            tell = m.system.tell
-            tell(m.address, Heartbeat("me", m.incarnation, 0))  # my own echo: ignored
+        async with membership() as (p, events):
+            m = p.m
+            m.system.tell(m.address, Heartbeat("me", m.incarnation, 0))  # my own: ignored
+            await p.clock.advance(0)
             assert events == []
             assert m.alive() == {"me"}
-            tell(m.address, Heartbeat("x", 1, 0))
-            tell(m.address, Heartbeat("x", 1, 0))  # nothing new
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Heartbeat("x", 1, 0))  # nothing new
             assert events == [(TeamEvent.JOINED, "x")]
             assert m.alive() == {"me", "x"}
-            tell(m.address, Heartbeat("x", 1, 3))
+            await p.send("x", Heartbeat("x", 1, 3))
             assert events[-1] == (TeamEvent.CHANGED, "x")
             # A new incarnation: the old one failed, the new one joined.
-            tell(m.address, Heartbeat("x", 2, 0))
+            await p.send("x", Heartbeat("x", 2, 0))
             assert events[-2:] == [(TeamEvent.FAILED, "x"), (TeamEvent.JOINED, "x")]
             assert m.members["x"].incarnation == 2
 
 
+async def test_a_robot_speaks_only_for_itself() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("y", Heartbeat("z", 1, 0))  # y in z's name: no z joins
+            await p.send("y", Goodbye("x", 1))  # y in x's name: x stays
+            assert events == [(TeamEvent.JOINED, "x")]
+            assert p.m.alive() == {"me", "x"}
+            assert p.m.refused == 2
+
+
 async def test_goodbye_of_the_current_incarnation_only() -> None:
     with anyio.fail_after(5):
-        async with membership() as (m, _clock, events):
-            tell = m.system.tell
-            tell(m.address, Heartbeat("x", 2, 0))
-            tell(m.address, Goodbye("x", 1))  # from an old incarnation
-            tell(m.address, Goodbye("y", 1))  # from a stranger
-            assert m.alive() == {"me", "x"}
-            tell(m.address, Goodbye("x", 2))
+        async with membership() as (p, events):
+            await p.send("x", Heartbeat("x", 2, 0))
+            await p.send("x", Goodbye("x", 1))  # from an old incarnation
+            await p.send("y", Goodbye("y", 1))  # from a stranger
+            assert p.m.alive() == {"me", "x"}
+            await p.send("x", Goodbye("x", 2))
             assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.LEFT, "x")]
-            assert m.alive() == {"me"}
+            assert p.m.alive() == {"me"}
 
 
 async def test_silence_beyond_the_failure_timeout_is_a_failure() -> None:
     with anyio.fail_after(5):
-        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (m, clock, events):
-            m.system.tell(m.address, Heartbeat("x", 1, 0))
-            await clock.advance(0.4)
-            m.system.tell(m.address, Heartbeat("x", 1, 0))  # renews
-            await clock.advance(0.5)
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.clock.advance(0.4)
+            await p.send("x", Heartbeat("x", 1, 0))  # renews
+            await p.clock.advance(0.5)
             assert events == [(TeamEvent.JOINED, "x")]
-            await clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
+            await p.clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
             assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
-            assert m.alive() == {"me"}
+            assert p.m.alive() == {"me"}
 
 
 async def test_a_failing_listener_does_not_stop_the_others() -> None:
     with anyio.fail_after(5):
-        async with membership() as (m, _clock, events):
+        async with membership() as (p, events):
 
             def bad(_e: TeamEvent, _r: str) -> None:
                 raise RuntimeError("listener bug")
 
-            unsubscribe = m.subscribe(bad)
-            m.subscribe(lambda e, r: events.append((e, r)))
-            m.system.tell(m.address, Heartbeat("x", 1, 0))
+            unsubscribe = p.m.subscribe(bad)
+            p.m.subscribe(lambda e, r: events.append((e, r)))
+            await p.send("x", Heartbeat("x", 1, 0))
             assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.JOINED, "x")]
             unsubscribe()
             unsubscribe()  # twice is harmless
-            assert bad not in m._listeners
+            assert bad not in p.m._listeners
 
 
 async def test_join_leave_and_failure_between_agents() -> None:

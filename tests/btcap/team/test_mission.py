@@ -42,7 +42,8 @@ from btcap.team.messages import (
     NoBid,
     PauseExecution,
 )
-from btcap.team.mission import LocalExecution, MissionControl, RemoteExecution
+from btcap.team.mission import MissionControl
+from btcap.team.proxies import LocalExecution, RemoteExecution
 
 
 def _count(name: str = "count", **inputs: Any) -> Capability:
@@ -652,7 +653,7 @@ async def test_preconditions_are_checked_again_at_award() -> None:
         probe = Probe()
         need = (Precondition("First", Scope.REMOTE),)
         async with team() as t:
-            await t.add("a")
+            a = await t.add("a")
             b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
             await t.converged()
             b.repository.team["a"].succeeded.append("First")
@@ -663,7 +664,7 @@ async def test_preconditions_are_checked_again_at_award() -> None:
             b.repository.team.pop("a")
             execution = ExecutionId("a", "root", 9)
             award = Award(AuctionId("a", 9), execution, "Count", "count-b", {"x": 1}, 1.0)
-            reply = await b.mission_control.ref.ask(award, expect=AwardReply)
+            reply = await a.system.ref("b/mission_control").ask(award, expect=AwardReply)
             assert not reply.accepted
             assert "precondition First (remote)" in reply.reason
             assert _no_trace(b)

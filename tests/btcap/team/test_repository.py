@@ -11,7 +11,9 @@ from btcap.actors import ActorSystem
 from btcap.team.capability import CapabilityInterface
 from btcap.team.membership import Membership
 from btcap.team.messages import Heartbeat, RepositoryQuery, RepositoryState
+from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
+from btcap.transports import Address, InProcessNetwork
 
 OTHER = CapabilityInterface("Other", inputs={"x": int, "stop": bool}, outputs={"y": int})
 
@@ -109,23 +111,48 @@ async def test_stale_and_self_states_are_ignored() -> None:
             await t.converged()
             await until(lambda: "b" in a.repository.team)
             known = a.repository.team["b"]
-            tell = a.system.tell
-            tell(a.repository.address, RepositoryState("b", known.version - 1, {"X": "X()->()"}))
-            tell(a.repository.address, RepositoryState("a", 99, {"X": "X()->()"}))
+            to_a = Address("a", CapabilityRepository.PATH)
+            b.system.tell(to_a, RepositoryState("b", known.version - 1, {"X": "X()->()"}))
+            b.system.tell(to_a, RepositoryState("a", 99, {"X": "X()->()"}))  # not b's to say
+            await until(lambda: a.repository.refused == 1, "the state in a's name refused")
             assert a.repository.team["b"] == known
             assert "a" not in a.repository.team
-            # A query is answered with the full state, a query naming oneself is not.
+            # A query is answered, with the full state, to who asked (not whom it names).
             b.repository.team.pop("a")
-            tell(a.repository.address, RepositoryQuery("a"))
-            tell(a.repository.address, RepositoryQuery("b"))
+            a.system.tell(to_a, RepositoryQuery("b"))  # a asking itself: not answered
+            b.system.tell(to_a, RepositoryQuery("zed"))
             await until(lambda: "a" in b.repository.team)
+
+
+async def test_states_only_from_members_each_for_itself() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b")
+            await t.converged()
+            await until(lambda: "b" in a.repository.team)
+            joined: list[str] = []
+            a.repository.subscribe(joined.append)
+            to_a = Address("a", CapabilityRepository.PATH)
+            # A system on the network that never joined the team is not held, however many.
+            async with ActorSystem("ghost", transport=t.net.transport("ghost")) as ghost:
+                for i in range(50):
+                    ghost.tell(to_a, RepositoryState("ghost", i, {"Count": COUNT.identity}))
+                b.system.tell(to_a, RepositoryState("c", 1, {"Count": COUNT.identity}))
+                await until(lambda: a.repository.refused == 51, "all refused")
+            assert set(a.repository.team) == {"b"}
+            assert joined == []
 
 
 async def test_a_stopped_repository_no_longer_listens_to_the_team(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     with anyio.fail_after(5):
-        async with ActorSystem("a") as system:
+        net = InProcessNetwork(protocol_registry())
+        async with (
+            ActorSystem("a", transport=net.transport("a")) as system,
+            ActorSystem("b", transport=net.transport("b")) as other,
+        ):
             members = Membership("a")
             system.spawn(members, Membership.PATH)
             repo = CapabilityRepository("a")
@@ -133,7 +160,7 @@ async def test_a_stopped_repository_no_longer_listens_to_the_team(
             seen: list[str] = []
             members.subscribe(lambda event, robot: seen.append(robot))
             system.stop(repo)
-            system.tell(members.address, Heartbeat("b", 1, 0))
-            assert seen == ["b"]  # the team still reports, to its other listener only
+            other.tell(members.address, Heartbeat("b", 1, 0))
+            await until(lambda: seen == ["b"], "b to join")  # reported to the other listener
             # A stopped repository still subscribed would fail in its listener.
             assert "listener_failed" not in caplog.text

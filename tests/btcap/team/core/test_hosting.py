@@ -175,7 +175,7 @@ def test_a_queued_run_that_cannot_start_tells_its_origin() -> None:
     take(hl, E2)
     hl.ticked(E1, State.SUCCEEDED, {})
     lost = ExecutionStatus(E2, "b", LOST, {}, 0, "slot broken")
-    assert hl.failed_to_start(E2, "slot broken") == [
+    assert hl.give_up(E2, "slot broken") == [
         Send("a", lost),
         Drop(E2, "slot broken", "run-2"),
     ]

@@ -52,3 +52,12 @@ def test_own_heartbeats_are_ignored_and_the_table_is_bounded() -> None:
     assert len(t.members) == 3
     t.expire(1.0)
     assert t.heartbeat("real", 1, 0, now=1.0) == [TeamEvent.JOINED]
+
+
+def test_a_late_heartbeat_of_an_older_incarnation_changes_nothing() -> None:
+    t = MemberTable("a", failure_timeout_s=0.5)
+    t.heartbeat("b", 100, 0, now=0.0)
+    assert t.heartbeat("b", 200, 0, now=0.1) == [TeamEvent.FAILED, TeamEvent.JOINED]
+    assert t.heartbeat("b", 100, 0, now=0.15) == []  # from before the restart, delivered late
+    assert t.heartbeat("b", 200, 0, now=0.2) == []
+    assert t.members["b"].incarnation == 200

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 from btcap.bt.state import State
-from btcap.team.core.effects import Lost, Refused, Send
+from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.ids import ExecutionId
 from btcap.team.core.origin import ENDED_KEPT, LOST, OriginLeases
 from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive
 
 E1 = ExecutionId("a", "root/count", 1)
 E2 = ExecutionId("a", "root/other", 2)
+
+
+def lost(execution: ExecutionId, executor: str, why: str) -> list[Effect]:
+    """What losing an execution decides: re-assign it, and stop the old run if it hears."""
+    stop = CancelExecution(execution, f"re-assigned: {why}")
+    return [Lost(execution, executor, why), Send(executor, stop)]
 
 
 def status(execution: ExecutionId, robot: str, state: State, seq: int = 0) -> ExecutionStatus:
@@ -22,7 +28,7 @@ def test_reports_renew_the_lease_and_silence_loses_it_once() -> None:
     assert o.status("b", status(E1, "b", State.RUNNING, 3), now=0.9) == []
     assert (t.state, t.outputs, t.acked) == (State.RUNNING, {"y": 3}, 3)
     assert o.expire(1.8) == []  # renewed at 0.9: lapses only after 1.9
-    assert o.expire(1.91) == [Lost(E1, "b", "lease lapsed")]
+    assert o.expire(1.91) == lost(E1, "b", "lease lapsed")
     assert t.lost
     assert E1 not in o.tracked
     assert o.expire(5.0) == []
@@ -36,7 +42,7 @@ def test_only_the_executor_reports_on_an_execution() -> None:
     assert isinstance(refused, Refused)
     assert refused.sender == "mallory"
     assert t.state is State.ASSIGNED  # nothing taken from it
-    assert o.expire(1.01) == [Lost(E1, "b", "lease lapsed")]  # and the lease was not renewed
+    assert o.expire(1.01) == lost(E1, "b", "lease lapsed")  # and the lease was not renewed
 
 
 def test_keepalives_renew_only_from_the_executor() -> None:
@@ -44,7 +50,7 @@ def test_keepalives_renew_only_from_the_executor() -> None:
     o.track(E1, "b", 1.0, now=0.0)
     o.track(E2, "c", 1.0, now=0.0)
     o.keepalive("b", [E1, E2], now=0.8)  # b may not renew c's execution
-    assert o.expire(1.5) == [Lost(E2, "c", "lease lapsed")]
+    assert o.expire(1.5) == lost(E2, "c", "lease lapsed")
     assert o.keepalives() == [Send("b", KeepAlive("a", [E1]))]
 
 
@@ -62,17 +68,16 @@ def test_a_duplicate_result_is_taken_once() -> None:
 def test_the_executor_saying_it_lost_the_run_loses_it() -> None:
     o = OriginLeases("a")
     o.track(E1, "b", 1.0, now=0.0)
-    lost = ExecutionStatus(E1, "b", LOST, {}, 0, "unknown execution")
-    assert o.status("b", lost, now=0.1) == [
-        Lost(E1, "b", "executor no longer has it (unknown execution)")
-    ]
+    gone = ExecutionStatus(E1, "b", LOST, {}, 0, "unknown execution")
+    why = "executor no longer has it (unknown execution)"
+    assert o.status("b", gone, now=0.1) == lost(E1, "b", why)
 
 
 def test_a_robot_declared_dead_that_reports_again_is_told_to_stop() -> None:
     o = OriginLeases("a")
     o.track(E1, "b", 1.0, now=0.0)
     o.track(E2, "c", 1.0, now=0.0)
-    assert o.member_gone("b", "robot b failed") == [Lost(E1, "b", "robot b failed")]
+    assert o.member_gone("b", "robot b failed") == lost(E1, "b", "robot b failed")
     assert set(o.tracked) == {E2}
     # b was only slow: its heartbeat and its run's report come back after all.
     [stop] = o.status("b", status(E1, "b", State.RUNNING, 9), now=0.3)
@@ -105,3 +110,29 @@ def test_executions_given_up_on_are_remembered_boundedly() -> None:
     oldest, newest = ExecutionId("a", "n", 0), ExecutionId("a", "n", ENDED_KEPT + 4)
     assert o.status("b", status(oldest, "b", State.RUNNING), now=0.0) == []
     assert o.status("b", status(newest, "b", State.RUNNING), now=0.0) != []
+
+
+def test_outputs_are_typed_on_arrival_and_bad_ones_change_nothing() -> None:
+    def convert(t: object, values: dict[str, object]) -> dict[str, object] | str:
+        y = values.get("y")
+        return {"y": int(y)} if isinstance(y, int | float) else f"output 'y': {y!r} is no int"
+
+    o = OriginLeases("a")
+    t = o.track(E1, "b", 1.0, now=0.0)
+    assert o.status("b", ExecutionStatus(E1, "b", State.RUNNING, {"y": 2.0}, 1), 0.5, convert) == []
+    assert t.outputs == {"y": 2}
+    [refused] = o.status(
+        "b", ExecutionStatus(E1, "b", State.SUCCEEDED, {"y": "x"}, 2), 0.9, convert
+    )
+    assert isinstance(refused, Refused)
+    assert (t.state, t.outputs) == (State.RUNNING, {"y": 2})
+    assert o.expire(1.6) != []  # the bad report did not renew the lease (0.5 + 1.0 < 1.6)
+
+
+def test_losing_an_execution_tells_its_old_executor_to_stop() -> None:
+    """Its reports may have been lost while it still hears us: it must not run on beside
+    the executor the node picks next."""
+    o = OriginLeases("a")
+    o.track(E1, "b", 1.0, now=0.0)
+    effects = o.expire(1.01)
+    assert Send("b", CancelExecution(E1, "re-assigned: lease lapsed")) in effects

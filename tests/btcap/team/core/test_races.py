@@ -22,6 +22,12 @@ from btcap.team.messages import (
 E1 = ExecutionId("a", "root/count", 1)
 
 
+def lost(execution: ExecutionId, executor: str, why: str) -> list[Effect]:
+    """What losing an execution decides: re-assign it, and stop the old run if it hears."""
+    stop = CancelExecution(execution, f"re-assigned: {why}")
+    return [Lost(execution, executor, why), Send(executor, stop)]
+
+
 def same(h: Hosted[str], values: dict[str, Any]) -> dict[str, Any] | str:
     return dict(values)
 
@@ -52,9 +58,9 @@ def test_award_and_lease_expiry_crossing() -> None:
     assert host.body.idle  # b no longer runs it ...
     assert origin.expire(0.85) == []  # ... while a still believes it does
     answer = host.inputs("a", ExecutionInputs(E1, 1, {}), 0.9, same)
-    assert deliver_to_origin(origin, answer, 0.9) == [
-        Lost(E1, "b", "executor no longer has it (unknown execution)")
-    ]
+    assert deliver_to_origin(origin, answer, 0.9) == lost(
+        E1, "b", "executor no longer has it (unknown execution)"
+    )
 
 
 def test_a_decline_after_the_auctioneer_timed_out() -> None:
@@ -83,7 +89,7 @@ def test_a_heartbeat_from_a_robot_already_declared_dead() -> None:
     host.admit(award, "run", {}, 1.0, now=0.0)
     origin.track(E1, "b", 2.0, now=0.0)
     assert members.expire(0.6) == ["b"]
-    assert origin.member_gone("b", "robot b failed") == [Lost(E1, "b", "robot b failed")]
+    assert origin.member_gone("b", "robot b failed") == lost(E1, "b", "robot b failed")
     members.heartbeat("b", 7, 0, now=0.7)
     assert "b" in members.alive()
     report = host.ticked(E1, State.RUNNING, {"y": 1})
