@@ -110,6 +110,12 @@ def test_agent_config_carries_mission_and_robot_timing() -> None:
         AgentConfig(tick_rate=5.0)
 
 
+def test_agent_configs_compare_by_every_field() -> None:
+    assert AgentConfig(tick_hz=5) != AgentConfig(tick_hz=50)
+    assert AgentConfig(heartbeat_s=0.2, lease_s=2.0) == AgentConfig(heartbeat_s=0.2, lease_s=2.0)
+    assert AgentConfig(lease_s=2.0) != AgentConfig(lease_s=3.0)
+
+
 async def test_agent_wires_one_robot() -> None:
     with anyio.fail_after(10):
         probe = Probe()
