@@ -40,7 +40,7 @@ from btcap.actors import Address, configure_logging
 from btcap.bench.common import percentiles, write_result
 from btcap.bt.state import State
 from btcap.team.agent import Agent, AgentConfig
-from btcap.team.assignment import AssignmentTask
+from btcap.team.assignment import Assigned, AssignmentTask
 from btcap.team.core.ids import ExecutionId
 from btcap.team.demo import ECHO, implementations
 from btcap.team.launch import AgentSpec, spawn_agents
@@ -141,7 +141,7 @@ async def _rounds(
         t0 = clock()
         won = await auctioneer.assign(task)
         t1 = clock()
-        if won is None:
+        if not isinstance(won, Assigned):
             raise RuntimeError(f"bench auction: round {i} with {len(bidders)} bidders unassigned")
         # Free the winner: the cancel travels ahead of the next call for bids.
         system.tell(Address(won.robot, MissionControl.PATH), CancelExecution(execution, "bench"))

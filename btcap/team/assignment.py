@@ -19,7 +19,14 @@ from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecu
 from btcap.transports import Address
 from btcap.transports.log import get_logger
 
-__all__ = ["Assigned", "AssignmentStrategy", "AssignmentTask", "AuctionStats", "SingleItemAuction"]
+__all__ = [
+    "Assigned",
+    "AssignmentStrategy",
+    "AssignmentTask",
+    "AuctionStats",
+    "SingleItemAuction",
+    "Unassigned",
+]
 
 log = get_logger("btcap.team.assignment")
 
@@ -47,6 +54,13 @@ class Assigned:
     cost: float
 
 
+@dataclass(frozen=True, slots=True)
+class Unassigned:
+    """Nobody took the task, and why, robot by robot (for the log and the user)."""
+
+    reasons: Mapping[str, str]
+
+
 @dataclass(slots=True)
 class AuctionStats:
     auctions: int = 0
@@ -60,8 +74,8 @@ class AssignmentStrategy(abc.ABC):
     """Chooses the executor of a capability among candidate robots."""
 
     @abc.abstractmethod
-    async def assign(self, task: AssignmentTask) -> Assigned | None:
-        """Find a robot that accepted to run ``task`` now, or None."""
+    async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
+        """Find a robot that accepted to run ``task`` now, or say why none did."""
 
 
 def _wall(clock: TimeSource, seconds: float, floor: float = 0.05) -> float:
@@ -110,7 +124,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 if auction.closed(now):
                     done.set()
 
-    async def assign(self, task: AssignmentTask) -> Assigned | None:
+    async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
         system = self.system
         clock = system.clock
         auction_id = AuctionId(self.robot, next(self._ids))
@@ -130,6 +144,11 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             del self._open[auction_id]
         outcome = auction.outcome()
         self.outcomes.append(outcome)
+        reasons = dict(outcome.declined)
+        reasons.update((robot, "no answer") for robot in outcome.silent)
+        for bid in outcome.ranking:
+            if task.reserve is not None and bid.cost >= task.reserve:
+                reasons[bid.robot] = f"bid {bid.cost:g} not below {task.reserve:g}"
         for bid in outcome.awardable(task.reserve):
             award = Award(
                 auction_id,
@@ -155,16 +174,18 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                     raise
                 log.info("auction.award_lost", auction=auction_id, robot=bid.robot, error=str(exc))
                 self.stats.declined_awards += 1
+                reasons[bid.robot] = f"no answer to the award ({exc})"
                 continue
             if reply.accepted:
                 self.stats.awarded += 1
                 return Assigned(bid.robot, bid.implementation, bid.cost)
             self.stats.declined_awards += 1
+            reasons[bid.robot] = f"declined the award: {reply.reason}"
             log.info(
                 "auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason
             )
         self.stats.unassigned += 1
-        return None
+        return Unassigned(reasons)
 
     @handler(Bid, NoBid)
     def on_answer(self, msg: Bid | NoBid) -> None:

@@ -16,6 +16,7 @@ from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_nam
 from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.team.execution import AssignmentRequest, Execution
+from btcap.transports.log import get_logger
 
 __all__ = [
     "ASSIGNER_PATH",
@@ -25,6 +26,8 @@ __all__ = [
     "InputBridge",
     "OutputBridge",
 ]
+
+log = get_logger("btcap.capability")
 
 #: Where a robot's actor system runs its :class:`Assigner` (mission control).
 ASSIGNER_PATH = "mission_control"
@@ -190,13 +193,30 @@ class Capability(Node):
     goes back to unassigned and is re-assigned with its latest inputs, and it moves only
     when mission control's optional ``rebid_on_join`` policy found a cheaper robot.
     ``local_only`` restricts the auction to this robot.
+
+    While nobody can take it, it stays unassigned (the team may change) and says so: a
+    warning with each robot's reason after the first failed auction, then after the 2nd,
+    4th, 8th... ``assignment_timeout_s`` (clock seconds, 0: wait for ever) turns a wait
+    that long into a failure the tree can handle.
     """
 
-    __slots__ = ("_exclude", "_exec", "_request", "_result", "_retry_at", "assignments")
+    __slots__ = (
+        "_exclude",
+        "_exec",
+        "_request",
+        "_result",
+        "_retry_at",
+        "_waiting_since",
+        "_waits",
+        "assignments",
+    )
     INTERFACE: ClassVar[CapabilityInterface]
     OPTIONS: ClassVar[Any] = {
         "local_only": Port(bool, False, "only this robot may run it"),
         "retry_s": Port(float, 1.0, "clock seconds between auctions when nobody could run it"),
+        "assignment_timeout_s": Port(
+            float, 0.0, "fail after this many clock seconds unassigned (0: wait for ever)"
+        ),
     }
 
     def __init__(self, name: str | None = None, **kwargs: Any) -> None:
@@ -205,6 +225,8 @@ class Capability(Node):
         self._result: State | None = None
         self._retry_at = 0.0
         self._exclude: frozenset[str] = frozenset()
+        self._waits = 0  # auctions in a row that found nobody
+        self._waiting_since: float | None = None
         self.assignments: list[str] = []  # robots that ran it, in order (for metrics)
         super().__init__(name, **kwargs)
 
@@ -265,6 +287,13 @@ class Capability(Node):
         req = self._request
         if req is None:
             now = self.clock.now()
+            since = self._waiting_since
+            if since is None:
+                self._waiting_since = since = now
+            timeout = self.options["assignment_timeout_s"]
+            if timeout > 0 and now - since >= timeout:
+                self._give_up(now - since)
+                return _FAILED
             if now < self._retry_at:
                 return _UNASSIGNED
             self._request = self._mission_control().request_assignment(
@@ -280,10 +309,30 @@ class Capability(Node):
         if req.execution is None:
             self._retry_at = self.clock.now() + self.options["retry_s"]
             self._exclude = frozenset()
+            self._waits += 1
+            if self._waits & (self._waits - 1) == 0:  # the 1st, 2nd, 4th, 8th ... time
+                iface = type(self).INTERFACE.name
+                log.warning(
+                    "capability.unassigned",
+                    node=self.path,
+                    capability=iface,
+                    auctions=self._waits,
+                    why=req.why,
+                )
             return _UNASSIGNED
         self._exec = req.execution
+        self._waits, self._waiting_since = 0, None
         self.assignments.append(req.execution.robot)
         return _ASSIGNED
+
+    def _give_up(self, waited: float) -> None:
+        self._result = _FAILED
+        log.warning(
+            "capability.assignment_timeout",
+            node=self.path,
+            capability=type(self).INTERFACE.name,
+            waited_s=round(waited, 3),
+        )
 
     def _drop(self, reason: str) -> None:
         if self._request is not None:
@@ -307,6 +356,7 @@ class Capability(Node):
         self._result = None
         self._retry_at = 0.0
         self._exclude = frozenset()
+        self._waits, self._waiting_since = 0, None
 
     def on_shutdown(self) -> None:
         self._drop("shutdown")

@@ -33,13 +33,15 @@ class Execution(Protocol):
 class AssignmentRequest:
     """An assignment in progress; the capability node polls ``done`` on its ticks."""
 
-    __slots__ = ("cancelled", "done", "execution", "task")
+    __slots__ = ("cancelled", "done", "execution", "task", "why")
 
     def __init__(self) -> None:
         self.done = False
         self.cancelled = False
         self.execution: Execution | None = None
         self.task: asyncio.Task[Any] | None = None
+        #: Done without an execution: why each robot could not take it (robot -> reason).
+        self.why: dict[str, str] = {}
 
     def cancel(self) -> None:
         self.cancelled = True

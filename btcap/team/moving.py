@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 from btcap.bt.state import State
-from btcap.team.assignment import AssignmentStrategy, AssignmentTask
+from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.ids import ExecutionId
@@ -92,7 +92,7 @@ class JoinOffers:
                 paused=True,  # it starts with the node's next inputs, as the old run stops
             )
             won = await mc.strategy.assign(task)
-            if won is None:
+            if not isinstance(won, Assigned):
                 continue
             new = mc.remote(task.execution, won.robot, node, won.cost)
             if not self.movable(ex):  # it ended, paused or moved while we asked

@@ -13,7 +13,7 @@ from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from btcap.bt.state import DONE, TreeError
-from btcap.team.assignment import AssignmentStrategy, AssignmentTask
+from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.body import Body
@@ -88,6 +88,10 @@ class OriginSide:
         candidates -= exclude
         if not candidates:
             req.done = True
+            req.why = {
+                "team": f"no live member{' but excluded ones' if exclude else ''} "
+                f"implements {iface.name}"
+            }
             self.stats.unassigned += 1
             return req
         execution = self.new_execution(node)
@@ -143,9 +147,10 @@ class OriginSide:
             raise
         finally:
             req.done = True
-        if won is None or won.robot != self.robot:
+        if not isinstance(won, Assigned) or won.robot != self.robot:
             self.withdrawn(task.execution)  # a self-award it gave up on, then took
-        if won is None:
+        if not isinstance(won, Assigned):
+            req.why = dict(won.reasons)
             self.stats.unassigned += 1
             return
         self.stats.assigned += 1

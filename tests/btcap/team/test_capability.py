@@ -7,11 +7,12 @@ from typing import Any
 import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
+from structlog.testing import capture_logs
 
 from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
 from btcap.bt.utility import CANNOT
 from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
-from btcap.team.implementation import Implementation
+from btcap.team.implementation import Implementation, Precondition, Scope
 from btcap.team.proxies import LocalExecution
 
 # -- interfaces --------------------------------------------------------------------------
@@ -54,7 +55,7 @@ def test_node_type_is_a_cached_capability_subclass_with_the_interface_ports() ->
     assert set(node.input_ports) == {"x", "stop"}
     assert set(node.output_ports) == {"y", "ticks", "robot"}
     assert node.inputs == {"x": 3, "stop": False}
-    assert node.options == {"local_only": False, "retry_s": 1.0}
+    assert node.options == {"local_only": False, "retry_s": 1.0, "assignment_timeout_s": 0.0}
     assert node.execution is None
     with pytest.raises(TreeError, match="unknown option"):
         cls("c", speed=2.0)
@@ -235,3 +236,54 @@ async def test_local_only_never_leaves_the_robot_and_waits_when_it_cannot() -> N
                 assert lonely.state is State.UNASSIGNED
             assert c.mission_control.stats.unassigned >= 1
             await tree2.shutdown()
+
+
+# -- nobody can do it ------------------------------------------------------------------------
+
+
+async def test_a_capability_nobody_can_run_says_why_at_a_falling_rate() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        need = (Precondition("Scan", Scope.LOCAL),)
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1}, retry_s=0.1)
+            tree = a.mission(Sequence("root", children=[node]))
+            with capture_logs() as logs:
+                await tick_until(tree, lambda _s: node._waits >= 5, "five empty auctions")
+            waits = [e for e in logs if e["event"] == "capability.unassigned"]
+            assert [e["auctions"] for e in waits] == [1, 2, 4]
+            assert waits[0]["why"] == {"b": "precondition Scan (local) not met"}
+            assert node.state is State.UNASSIGNED
+            await tree.shutdown()
+
+
+async def test_no_implementation_in_the_team_is_named() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            with capture_logs() as logs:
+                tree.tick()
+                tree.tick()
+            [wait] = [e for e in logs if e["event"] == "capability.unassigned"]
+            assert wait["why"] == {"team": "no live member implements Count"}
+            await tree.shutdown()
+
+
+async def test_an_assignment_timeout_turns_the_wait_into_a_failure() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            node = COUNT.node_type()("count", inputs={"x": 1}, assignment_timeout_s=1.0)
+            tree = a.mission(Sequence("root", children=[node]))
+            start = a.clock.now()
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
+            assert a.clock.now() - start >= 1.0
+            assert tree.tick() is State.FAILED  # kept until reset
+            tree.reset()
+            assert tree.tick() is State.RUNNING  # waits (and counts) afresh
+            await tree.shutdown()
