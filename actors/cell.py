@@ -17,7 +17,7 @@ from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, ClassVar, Protocol, TypeVar, overload
 
 from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address
 
 __all__ = ["ActorCell", "Host", "Reply", "Supervision", "handler"]
@@ -164,6 +164,8 @@ class Host(Protocol):
     ) -> Any: ...
 
     def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None: ...
+
+    def _count_failure(self, kind: str) -> int: ...
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None: ...
 
@@ -400,14 +402,21 @@ class ActorCell:
     def _failed(self, exc: Exception, msg: Any, reply: Reply | None) -> None:
         system = self._system
         policy = type(self).supervision
-        log.error(
-            "actor.handler_failed",
-            system=system.id if system else None,
-            actor=str(self._address),
-            message=type(msg).__qualname__,
-            policy=policy.value,
-            exc_info=exc,
-        )
+        kind = f"{type(self).__qualname__}: {type(msg).__qualname__}: {type(exc).__qualname__}"
+        # The first failure of a kind carries its traceback; repeats (a peer sending the
+        # same bad message again and again) are counted and get one rate-limited line.
+        n = system._count_failure(kind) if system is not None else 1
+        if worth_logging(n):
+            log.error(
+                "actor.handler_failed",
+                system=system.id if system else None,
+                actor=str(self._address),
+                message=type(msg).__qualname__,
+                policy=policy.value,
+                sender=self._sender,
+                count=n,
+                **({"exc_info": exc} if n == 1 else {"error": str(exc)[:200]}),
+            )
         if reply is not None:
             reply(None, self._as_failure(exc))
         if system is None:

@@ -20,7 +20,7 @@ from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter,
 from btcap.actors.ref import ActorRef
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
@@ -49,6 +49,9 @@ class SystemStats:
     dead_letters: int = 0
     escalations: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
+    failures: dict[str, int] = field(default_factory=dict)
+    """Handler failures by ``Actor class: message type: error type`` (bounded by the code,
+    not by what peers send)."""
 
 
 class ActorSystem:
@@ -404,20 +407,35 @@ class ActorSystem:
             self._count_drop("reply_unencodable", env.sender, failure)
 
     # -- accounting -------------------------------------------------------------------
+    # A peer can send any number of these: each is counted, and logged only while
+    # worth_logging says so, so a flood costs a counter, not a flood of lines.
     def _dead_letter(self, address: Address, msg: Any, *, origin: Address | None = None) -> None:
-        self.stats.dead_letters += 1
-        self._log.info(
-            "actors.dead_letter",
-            to=str(address),
-            message=type(msg).__qualname__,
-            origin=str(origin) if origin else None,
-        )
+        n = self.stats.dead_letters = self.stats.dead_letters + 1
+        if worth_logging(n):
+            self._log.info(
+                "actors.dead_letter",
+                to=str(address),
+                message=type(msg).__qualname__,
+                origin=str(origin) if origin else None,
+                count=n,
+            )
 
     def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None:
-        self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
-        # A reply after its ask timed out or was cancelled is routine, not a fault.
-        emit = self._log.info if reason == "late_reply" else self._log.warning
-        emit("actors.dropped", reason=reason, to=str(address), message=type(msg).__qualname__)
+        n = self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
+        if worth_logging(n):
+            # A reply after its ask timed out or was cancelled is routine, not a fault.
+            emit = self._log.info if reason == "late_reply" else self._log.warning
+            emit(
+                "actors.dropped",
+                reason=reason,
+                to=str(address),
+                message=type(msg).__qualname__,
+                count=n,
+            )
+
+    def _count_failure(self, kind: str) -> int:
+        n = self.stats.failures[kind] = self.stats.failures.get(kind, 0) + 1
+        return n
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None:
         self.stats.escalations += 1

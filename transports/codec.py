@@ -74,6 +74,8 @@ class Codec:
             return self._encoder.encode(env)
         except (msgspec.EncodeError, TypeError, OverflowError) as exc:  # e.g. an int > 64 bit
             raise CodecError(f"{type(msg).__qualname__} cannot be encoded: {exc}") from None
+        except RecursionError:
+            raise CodecError(f"{type(msg).__qualname__} is nested too deeply") from None
 
     def decode(self, data: bytes | memoryview) -> Envelope:
         decoder = self._refresh()
@@ -81,6 +83,10 @@ class Codec:
             kind, sender, recipient, msg, corr = decoder.decode(data)
         except (msgspec.DecodeError, UnicodeDecodeError) as exc:  # bad UTF-8 is not wrapped
             raise CodecError(str(exc)) from None
+        except RecursionError:
+            # msgspec stops at the interpreter's recursion limit; without this a hostile
+            # frame would reach the receiver as an unexpected error, traceback and all.
+            raise CodecError("nested too deeply") from None
         return Envelope(kind, sender, recipient, msg, corr)
 
     def encode_message(self, msg: Message) -> bytes:
