@@ -1,0 +1,354 @@
+"""One robot's configuration file (``btcap agent CONFIG``), checked before anything starts.
+
+A versioned YAML (or JSON) file; paths in it are relative to the file::
+
+    btcap: 1
+    robot: alpha
+    capabilities:
+      interfaces: [../capabilities/interfaces.yaml]
+      implementations: [../capabilities/greet.yaml]
+    network:
+      bind: tcp://0.0.0.0:7001           # where to listen
+      advertise: tcp://10.0.0.1:7001     # what peers dial (required for a wildcard bind)
+      seeds: [{robot: beta, endpoint: tcp://10.0.0.2:7002}]
+    keys: {public: keys/alpha.key, secret: keys/alpha.key_secret, trusted: keys/team}
+    timing: {tick_hz: 10, heartbeat_s: 0.1, failure_timeout_s: 0.5, lease_s: 1.0}
+    allocation: {rebid_on_join: 0.25}
+
+Every error is an :class:`AgentConfigError` naming the file and the field. Without
+``keys`` an agent may only bind a loopback (or ipc/inproc) address, unless the caller
+explicitly allows an insecure bind.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import msgspec
+
+from btcap.bt.registry import NodeRegistry
+from btcap.bt.state import TreeError
+from btcap.team.agent import AgentConfig
+from btcap.team.capability import CapabilityInterface
+from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
+from btcap.team.implementation import Implementation
+from btcap.transports import MessageRegistry, ZmqTransport
+from btcap.transports.zmq_sockets import check_id
+
+__all__ = [
+    "AgentConfigError",
+    "AgentFile",
+    "Allocation",
+    "Capabilities",
+    "Keys",
+    "Network",
+    "RobotConfig",
+    "Seed",
+    "Timing",
+    "load_agent_file",
+]
+
+_Positive = Annotated[float, msgspec.Meta(gt=0)]
+_SCHEMES = ("tcp://", "ipc://", "inproc://")
+_WILDCARDS = ("*", "0.0.0.0", "::", "[::]")
+
+
+class AgentConfigError(TreeError):
+    """An agent configuration file is invalid; the message names the file and the field."""
+
+
+class Seed(msgspec.Struct, forbid_unknown_fields=True):
+    """A teammate to dial at start; the rest of the team is learnt from the seeds."""
+
+    robot: str
+    endpoint: str
+
+
+class Network(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    bind: str = "tcp://127.0.0.1:*"
+    #: What peers connect to; required when ``bind`` is a wildcard address.
+    advertise: str | None = None
+    seeds: list[Seed] = []
+    max_peers: Annotated[int, msgspec.Meta(gt=0)] = 1024
+
+
+class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """CURVE key files in ZeroMQ's certificate format (``btcap keys new``)."""
+
+    public: Path
+    secret: Path
+    #: A directory of the public keys of the robots allowed to talk to this one.
+    trusted: Path
+
+
+class Capabilities(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """Interface files, and the implementation files this robot runs (none: an operator)."""
+
+    interfaces: list[Path] = []
+    implementations: list[Path] = []
+
+
+_DEFAULTS = AgentConfig()
+
+
+class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """Rates and timeouts (:class:`~btcap.team.agent.AgentConfig`), plus the clock speed-up."""
+
+    tick_hz: _Positive = _DEFAULTS.tick_hz
+    heartbeat_s: _Positive = _DEFAULTS.heartbeat_s
+    failure_timeout_s: _Positive = _DEFAULTS.failure_timeout_s
+    lease_s: _Positive = _DEFAULTS.lease_s
+    keepalive_s: _Positive = _DEFAULTS.keepalive_s
+    auction_window_s: _Positive = _DEFAULTS.auction_window_s
+    award_timeout_s: _Positive = _DEFAULTS.award_timeout_s
+    speedup: _Positive = 1.0
+
+
+class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """The allocation policies of :class:`~btcap.team.config.MissionConfig`."""
+
+    rebid_on_join: Annotated[float, msgspec.Meta(gt=0, lt=1)] | None = None
+    queue_after_current: bool = False
+
+
+class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """The schema of a configuration file."""
+
+    btcap: int
+    robot: str
+    capabilities: Capabilities = msgspec.field(default_factory=Capabilities)
+    network: Network = msgspec.field(default_factory=Network)
+    keys: Keys | None = None
+    timing: Timing = msgspec.field(default_factory=Timing)
+    allocation: Allocation = msgspec.field(default_factory=Allocation)
+
+
+@dataclass(frozen=True, slots=True)
+class RobotConfig:
+    """A checked configuration file (paths resolved) and what it builds."""
+
+    path: Path
+    spec: AgentFile
+
+    @property
+    def robot(self) -> str:
+        return self.spec.robot
+
+    @property
+    def network(self) -> Network:
+        return self.spec.network
+
+    @property
+    def keys(self) -> Keys | None:
+        return self.spec.keys
+
+    @property
+    def seeds(self) -> dict[str, str]:
+        return {s.robot: s.endpoint for s in self.spec.network.seeds}
+
+    def agent_config(self) -> AgentConfig:
+        options = msgspec.structs.asdict(self.spec.timing)
+        del options["speedup"]
+        a = self.spec.allocation
+        return AgentConfig(
+            **options, rebid_on_join=a.rebid_on_join, queue_after_current=a.queue_after_current
+        )
+
+    def load_capabilities(
+        self, registry: NodeRegistry, *, implementations: bool = True
+    ) -> tuple[list[CapabilityInterface], list[Implementation]]:
+        """The interfaces (registered in ``registry`` so tree files can use them) and, if
+        asked, this robot's implementations; errors name this file, the field and the
+        capability file."""
+        caps = self.spec.capabilities
+        interfaces: list[CapabilityInterface] = []
+        for i, path in enumerate(caps.interfaces):
+            try:
+                interfaces.extend(load_interfaces(path, registry))
+            except TreeError as exc:
+                raise self.error(f"capabilities.interfaces[{i}]", str(exc)) from None
+        register_interfaces(registry, interfaces)
+        impls: list[Implementation] = []
+        for i, path in enumerate(caps.implementations if implementations else []):
+            try:
+                impls.append(load_implementation(path, interfaces, registry))
+            except TreeError as exc:
+                raise self.error(f"capabilities.implementations[{i}]", str(exc)) from None
+        return interfaces, impls
+
+    def check_secure(self, *, insecure: bool = False) -> None:
+        """Refuse a bind beyond this host without keys, unless ``insecure`` is explicit."""
+        bind = self.spec.network.bind
+        if self.spec.keys is None and not insecure and not _local(bind):
+            raise self.error(
+                "network.bind",
+                f"{bind!r} is reachable from other hosts but no keys are configured; "
+                "add keys, bind a loopback address, or pass --insecure",
+            )
+
+    def transport(
+        self, registry: MessageRegistry, *, robot: str | None = None, ephemeral: bool = False
+    ) -> ZmqTransport:
+        """A transport bound as configured (or, ``ephemeral``, on the same host with a port
+        the system picks, for a short-lived observer beside a running robot) that dials
+        the seeds. Keys are not passed yet: the transport has no CURVE parameters."""
+        net = self.spec.network
+        bind, advertise = net.bind, net.advertise
+        if ephemeral:
+            bind, advertise = _ephemeral(bind, advertise, robot or self.robot), None
+        try:
+            return ZmqTransport(
+                robot or self.robot,
+                bind,
+                registry,
+                peers=self.seeds,
+                max_peers=net.max_peers,
+                advertise=advertise,
+            )
+        except ValueError as exc:
+            raise self.error("network.bind", str(exc)) from None
+
+    def error(self, field: str, why: str) -> AgentConfigError:
+        return AgentConfigError(f"{self.path}: {field}: {why}")
+
+
+def load_agent_file(path: str | Path) -> RobotConfig:
+    """Read and check a configuration file; relative paths in it become absolute."""
+    file = Path(path)
+    try:
+        data = file.read_bytes()
+    except OSError as exc:
+        raise AgentConfigError(f"{file}: cannot read ({exc.strerror or exc})") from None
+    try:
+        raw = msgspec.json.decode(data) if file.suffix == ".json" else msgspec.yaml.decode(data)
+    except msgspec.DecodeError as exc:
+        raise AgentConfigError(f"{file}: not valid YAML/JSON ({exc})") from None
+    if not isinstance(raw, dict):
+        raise AgentConfigError(f"{file}: expected a mapping with 'btcap: 1' and 'robot'")
+    version = raw.get("btcap")
+    if version is not None and version != 1:
+        raise AgentConfigError(f"{file}: btcap: version {version!r}; expected 1")
+    try:
+        spec = msgspec.convert(raw, AgentFile, dec_hook=_paths)
+    except msgspec.ValidationError as exc:
+        raise AgentConfigError(f"{file}: {_field_first(str(exc))}") from None
+    config = RobotConfig(file, spec)
+    _check(config, file.parent)
+    return config
+
+
+def _paths(kind: type[Any], value: Any) -> Any:
+    if kind is Path and isinstance(value, str):
+        return Path(value)
+    raise NotImplementedError
+
+
+def _field_first(message: str) -> str:
+    """msgspec's "Expected `int`, got `str` - at `$.timing.tick_hz`" as
+    "timing.tick_hz: Expected `int`, got `str`"."""
+    what, sep, where = message.rpartition(" - at `$")
+    if not sep:
+        return message
+    field = where.rstrip("`").lstrip(".")
+    return f"{field}: {what}" if field else what
+
+
+def _check(config: RobotConfig, base: Path) -> None:
+    spec = config.spec
+    if (why := check_id(spec.robot)) is not None:
+        raise config.error("robot", f"{spec.robot!r}: {why}")
+    net = spec.network
+    if not net.bind.startswith(_SCHEMES):
+        raise config.error("network.bind", f"{net.bind!r}: expected tcp://, ipc:// or inproc://")
+    if net.advertise is not None:
+        if not net.advertise.startswith(_SCHEMES) or "*" in net.advertise:
+            raise config.error(
+                "network.advertise",
+                f"{net.advertise!r}: expected a tcp://, ipc:// or inproc:// endpoint "
+                "with a host and port peers can dial",
+            )
+    elif _host(net.bind) in _WILDCARDS:
+        raise config.error(
+            "network.advertise",
+            f"required when binding the wildcard address {net.bind!r}: "
+            "the endpoint other hosts reach this robot at",
+        )
+    seen: set[str] = set()
+    for i, seed in enumerate(net.seeds):
+        if (why := check_id(seed.robot)) is not None:
+            raise config.error(f"network.seeds[{i}].robot", f"{seed.robot!r}: {why}")
+        if seed.robot == spec.robot:
+            raise config.error(f"network.seeds[{i}].robot", f"{seed.robot!r} is this robot")
+        if seed.robot in seen:
+            raise config.error(f"network.seeds[{i}].robot", f"{seed.robot!r} is listed twice")
+        seen.add(seed.robot)
+        if not seed.endpoint.startswith(_SCHEMES) or "*" in seed.endpoint:
+            raise config.error(
+                f"network.seeds[{i}].endpoint",
+                f"{seed.endpoint!r}: expected a tcp://, ipc:// or inproc:// endpoint",
+            )
+    t = spec.timing
+    if t.failure_timeout_s <= t.heartbeat_s:
+        raise config.error("timing.failure_timeout_s", "must exceed timing.heartbeat_s")
+    if t.keepalive_s >= t.lease_s:
+        raise config.error("timing.keepalive_s", "must be below timing.lease_s")
+    caps = spec.capabilities
+    caps.interfaces = _files(config, base, "capabilities.interfaces", caps.interfaces)
+    caps.implementations = _files(
+        config, base, "capabilities.implementations", caps.implementations
+    )
+    if spec.keys is not None:
+        _check_keys(config, spec.keys, base)
+
+
+def _files(config: RobotConfig, base: Path, field: str, paths: list[Path]) -> list[Path]:
+    out = []
+    for i, path in enumerate(paths):
+        full = (base / path).resolve()
+        if not full.is_file():
+            raise config.error(f"{field}[{i}]", f"{full}: no such file")
+        out.append(full)
+    return out
+
+
+def _check_keys(config: RobotConfig, keys: Keys, base: Path) -> None:
+    for name in ("public", "secret", "trusted"):
+        path = (base / getattr(keys, name)).resolve()
+        want_dir = name == "trusted"
+        if not (path.is_dir() if want_dir else path.is_file()):
+            what = "directory" if want_dir else "file"
+            raise config.error(f"keys.{name}", f"{path}: no such {what}")
+        setattr(keys, name, path)
+
+
+def _host(endpoint: str) -> str:
+    if not endpoint.startswith("tcp://"):
+        return ""
+    netloc = endpoint[len("tcp://") :]
+    host, _, _port = netloc.rpartition(":")
+    return host
+
+
+def _ephemeral(bind: str, advertise: str | None, robot: str) -> str:
+    if bind.startswith("tcp://"):
+        host = _host(bind)
+        if host in _WILDCARDS and advertise is not None:
+            host = _host(advertise)
+        return f"tcp://{host}:*"
+    return f"{bind}-{robot}"  # ipc:// and inproc:// name a path or a label
+
+
+def _local(bind: str) -> bool:
+    """Whether only this host can reach ``bind`` (ipc, inproc, or a loopback address)."""
+    if not bind.startswith("tcp://"):
+        return True
+    host = _host(bind).strip("[]")
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # an interface name or a host name: may reach other hosts

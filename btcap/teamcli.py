@@ -1,0 +1,237 @@
+"""``btcap agent``, ``btcap team status`` and ``btcap mission run``: one robot per host.
+
+Each reads an agent configuration file (:mod:`btcap.team.agentconfig`); a bad file exits
+with status 2 and a message naming the file and the field. SIGINT and SIGTERM end each
+command cleanly: the robot says goodbye, so the team re-assigns its work at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import TypeVar
+
+import anyio
+
+from btcap.bt.files import load_tree
+from btcap.bt.registry import NodeRegistry, default_registry
+from btcap.bt.state import TreeError
+from btcap.cli import CliError
+from btcap.team.agent import Agent
+from btcap.team.agentconfig import AgentConfigError, RobotConfig, load_agent_file
+from btcap.team.deploy import (
+    MemberView,
+    MissionReport,
+    observe_team,
+    open_agent,
+    run_mission_file,
+    wait_for_team,
+)
+
+__all__ = ["add_parser"]
+
+T = TypeVar("T")
+_STOP = (signal.SIGINT, signal.SIGTERM)
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``agent``, ``team status`` and ``mission run``."""
+    p = subparsers.add_parser(
+        "agent",
+        help="run one robot from its configuration file until SIGINT or SIGTERM",
+        description="Run one robot in the foreground; it leaves the team cleanly when "
+        "stopped with SIGINT or SIGTERM. Prints one line once it listens.",
+    )
+    p.add_argument("config", metavar="CONFIG", type=Path)
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a bind reachable from other hosts without keys",
+    )
+    p.set_defaults(handler=_agent)
+
+    team = subparsers.add_parser("team", help="look at a running team")
+    team_cmds = team.add_subparsers(dest="team_command", metavar="SUBCOMMAND")
+    p = team_cmds.add_parser(
+        "status",
+        help="join briefly and print the members, their capabilities and heartbeats",
+    )
+    _join_options(p, default_wait=3.0)
+    p.set_defaults(handler=_status)
+
+    mission = subparsers.add_parser("mission", help="run missions on a running team")
+    mission_cmds = mission.add_subparsers(dest="mission_command", metavar="SUBCOMMAND")
+    p = mission_cmds.add_parser(
+        "run",
+        help="join the team as an operator and tick a mission tree to its end",
+        description="Exit status 0 if the mission succeeded, 1 if it failed or timed out.",
+    )
+    p.add_argument("tree", metavar="TREE", type=Path)
+    _join_options(p, default_wait=10.0)
+    p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
+    p.set_defaults(handler=_mission)
+
+
+def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
+    p.add_argument("--config", required=True, type=Path, help="agent configuration file")
+    p.add_argument(
+        "--wait",
+        type=float,
+        default=default_wait,
+        help=f"seconds to wait for the seeds to answer (default {default_wait})",
+    )
+    p.add_argument("--as", dest="robot", default=None, help="robot name to join as")
+
+
+def _config(path: Path) -> RobotConfig:
+    try:
+        return load_agent_file(path)
+    except AgentConfigError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _registry(args: argparse.Namespace) -> NodeRegistry:
+    return default_registry(plugins=not args.no_plugins)
+
+
+def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
+    """Run ``work`` in a fresh event loop; SIGINT or SIGTERM cancel it (None)."""
+    result: list[T] = []
+
+    async def main() -> None:
+        with anyio.open_signal_receiver(*_STOP) as signals:
+            async with anyio.create_task_group() as tg:
+
+                async def run() -> None:
+                    result.append(await work())
+                    tg.cancel_scope.cancel()
+
+                tg.start_soon(run)
+                async for sig in signals:
+                    print(f"btcap: {signal.Signals(sig).name}, leaving the team", file=sys.stderr)
+                    tg.cancel_scope.cancel()
+                    break
+
+    anyio.run(main)
+    return result[0] if result else None
+
+
+# -- btcap agent -------------------------------------------------------------------------
+def _agent(args: argparse.Namespace) -> int:
+    config = _config(args.config)
+    try:
+        config.check_secure(insecure=args.insecure)
+    except AgentConfigError as exc:
+        raise CliError(str(exc)) from None
+    registry = _registry(args)
+
+    async def serve() -> None:
+        async with open_agent(config, registry) as agent:
+            transport = agent.system.transport
+            endpoint = getattr(transport, "endpoint", "?")
+            print(f"agent {agent.robot} listening on {endpoint}", flush=True)
+            await anyio.sleep_forever()
+
+    _until_stopped(serve)
+    return 0
+
+
+# -- btcap team status -------------------------------------------------------------------
+def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
+    return str(args.robot or f"{config.robot}-{role}-{os.getpid()}")
+
+
+def _status(args: argparse.Namespace) -> int:
+    config = _config(args.config)
+    registry = _registry(args)
+    robot = _observer(args, config, "status")
+
+    async def look() -> tuple[bool, list[MemberView]]:
+        async with open_agent(
+            config, registry, robot=robot, implementations=False, ephemeral=True
+        ) as agent:
+            complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
+            return complete, observe_team(agent)
+
+    seen = _until_stopped(look)
+    if seen is None:
+        return 130
+    complete, members = seen
+    _print_team(robot, members)
+    missing = sorted(set(config.seeds) - {m.robot for m in members})
+    for seed in missing:
+        print(f"btcap: seed {seed} did not answer within {args.wait} s", file=sys.stderr)
+    return 0 if members and complete else 1
+
+
+def _print_team(robot: str, members: list[MemberView]) -> None:
+    print(f"team seen by {robot}: {len(members)} member(s)")
+    rows = [("robot", "heartbeat", "capabilities", "completed")]
+    for m in members:
+        caps = "(not known yet)" if m.capabilities is None else ", ".join(sorted(m.capabilities))
+        rows.append(
+            (m.robot, f"{m.heartbeat_age_s:.2f} s ago", caps or "-", ", ".join(m.succeeded) or "-")
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for r in rows:
+        print("  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True)).rstrip())
+
+
+# -- btcap mission run -------------------------------------------------------------------
+def _mission(args: argparse.Namespace) -> int:
+    config = _config(args.config)
+    registry = _registry(args)
+    try:
+        config.load_capabilities(registry, implementations=False)
+    except AgentConfigError as exc:
+        raise CliError(str(exc)) from None
+    if not args.tree.is_file():
+        raise CliError(f"{args.tree}: no such file")
+    load_tree(args.tree, registry)  # a bad tree fails before joining (TreeError: exit 1)
+    robot = args.robot or config.robot
+
+    async def run() -> MissionReport:
+        async with open_agent(config, registry, robot=robot) as agent:
+            await _join(agent, config, args.wait)
+            return await run_mission_file(
+                agent, args.tree, registry, timeout_s=args.timeout, progress=_say
+            )
+
+    try:
+        report = _until_stopped(run)
+    except TreeError as exc:
+        raise CliError(str(exc), code=1) from None
+    if report is None:
+        print("mission interrupted", file=sys.stderr)
+        return 130
+    _print_summary(report)
+    return 0 if report.succeeded else 1
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
+    complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
+    members = ", ".join(sorted(agent.team.members)) or "nobody"
+    print(f"{agent.robot} joined the team: {members}", flush=True)
+    if not complete:
+        missing = sorted(set(config.seeds) - set(agent.team.members))
+        print(
+            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s; going on",
+            file=sys.stderr,
+        )
+
+
+def _print_summary(report: MissionReport) -> None:
+    outcome = "timed out" if report.timed_out else report.state.value
+    print(f"mission {outcome} after {report.elapsed_s:.2f} s")
+    for cap in report.capabilities:
+        robots = " -> ".join(cap.robots) or "nobody"
+        outputs = ", ".join(f"{k}={v!r}" for k, v in cap.outputs.items())
+        print(f"  {cap.path}: {cap.state.value} on {robots}" + (f" ({outputs})" if outputs else ""))

@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Three robots and an operator on one machine, standing in for four hosts: the robots
+# bind 127.0.0.1, 127.0.0.2 and 127.0.0.3 (all loopback on Linux). Starts each robot as
+# its own process, runs mission.yaml from the operator's config to its end, stops
+# everything, and exits 0 only if the mission succeeded.
+#
+#   examples/team/run-local.sh            # from anywhere; BTCAP=... to pick the command
+set -euo pipefail
+
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd "$here/../.." && pwd)"
+if [[ -n "${BTCAP:-}" ]]; then
+    read -r -a btcap <<< "$BTCAP"
+elif [[ -x "$root/.venv/bin/btcap" ]]; then
+    btcap=("$root/.venv/bin/btcap")
+else
+    btcap=(python3 -m btcap)
+fi
+
+work="$(mktemp -d "${TMPDIR:-/tmp}/btcap-team.XXXXXX")"
+pids=()
+cleanup() {
+    for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+    for pid in "${pids[@]}"; do
+        for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+        kill -KILL "$pid" 2>/dev/null || true
+        wait "$pid" 2>/dev/null || true
+    done
+    rm -rf "$work"
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+# Keys for every robot, in ZeroMQ's certificate format (once `btcap keys` is available).
+if "${btcap[@]}" keys new --help > /dev/null 2>&1; then
+    for robot in alpha beta gamma operator; do
+        "${btcap[@]}" keys new "$robot" --dir "$work/keys" > /dev/null
+    done
+    echo "keys written to $work/keys"
+fi
+
+for robot in alpha beta gamma; do
+    "${btcap[@]}" agent "$here/$robot.yaml" > "$work/$robot.out" 2> "$work/$robot.log" &
+    pids+=("$!")
+done
+
+# Each agent prints one line once it listens.
+robots=(alpha beta gamma)
+for i in "${!robots[@]}"; do
+    robot="${robots[$i]}"
+    for _ in $(seq 300); do
+        grep -q "listening" "$work/$robot.out" 2>/dev/null && break
+        kill -0 "${pids[$i]}" 2>/dev/null || break
+        sleep 0.1
+    done
+    if ! grep -q "listening" "$work/$robot.out" 2>/dev/null; then
+        echo "agent $robot did not start:" >&2
+        cat "$work/$robot.log" >&2
+        exit 1
+    fi
+    cat "$work/$robot.out"
+done
+
+status=0
+"${btcap[@]}" mission run "$here/mission.yaml" --config "$here/operator.yaml" --timeout 60 \
+    || status=$?
+exit "$status"
