@@ -121,17 +121,32 @@ class SimulationManager(Actor):
                     self._end_move(r, True, "arrived")
 
     # -- failures (driven by scenarios) -----------------------------------------------
-    def robot_down(self, name: str) -> None:
+    def robot_down(self, name: str, why: str = "robot down") -> None:
         """The robot fails: it stops, drops what it carries, its operations fail."""
         r = self.robots[name]
         r.up = False
         self.world.deactivate(r.index)
         if r.move is not None:
-            self._end_move(r, False, "robot down")
-        self._abort(r, "robot down")
+            self._end_move(r, False, why)
+        self._abort(r, why)
         if r.carrying >= 0:
             self.state.drop(r.carrying, self.position(name))
             r.carrying = -1
+
+    def team_verdict(self, name: str, gone: bool, *, present: bool = True) -> None:
+        """What the team decided about ``name`` (from its membership): a robot declared
+        failed or gone is taken down here too, so no operation of it completes and its body
+        stays where it was; one that is back (and ``present``, i.e. not taken out by the
+        scenario) works again. Names that are not simulated robots are ignored."""
+        r = self.robots.get(name)
+        if r is None:
+            return
+        if gone:
+            if r.up:
+                log.info("sim.robot_gone", robot=name, busy=len(r.busy), moving=r.move is not None)
+                self.robot_down(name, "declared gone by the team")
+        elif present and not r.up:
+            self.robot_up(name)
 
     def robot_up(self, name: str) -> None:
         r = self.robots[name]

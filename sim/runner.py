@@ -27,6 +27,7 @@ from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
 from btcap.team.agent import Agent
 from btcap.team.capability import Capability
+from btcap.team.membership import TeamEvent
 from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
@@ -94,6 +95,15 @@ async def run_scenario(
             registry=reg,
         ) as operator:
             operator.team.subscribe(lambda ev, robot: mlog.mark(clock.now(), ev.value, robot))
+
+            def verdict(ev: TeamEvent, robot: str) -> None:
+                # The sim follows the team: the lease's expiry and the sim's view agree.
+                if ev is TeamEvent.FAILED or ev is TeamEvent.LEFT:
+                    manager.team_verdict(robot, gone=True)
+                elif ev is TeamEvent.JOINED:
+                    manager.team_verdict(robot, gone=False, present=robot in robots.present())
+
+            operator.team.subscribe(verdict)
             for r in s.initially_present():
                 manager.robot_up(r.name)
                 robots.start(r.name)
