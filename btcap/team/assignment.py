@@ -10,7 +10,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from btcap.actors import Actor, ActorError, TimeSource, handler
+from btcap.actors import Actor, ActorError, ActorRef, AskTimeout, TimeSource, handler
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.ids import AuctionId, ExecutionId
@@ -78,8 +78,25 @@ class AssignmentStrategy(abc.ABC):
         """Find a robot that accepted to run ``task`` now, or say why none did."""
 
 
-def _wall(clock: TimeSource, seconds: float, floor: float = 0.05) -> float:
-    return max(clock.to_wall(seconds), floor)
+async def _ask_within(
+    ref: ActorRef[Any], msg: Award, clock: TimeSource, seconds: float
+) -> AwardReply:
+    """The award's reply, or AskTimeout after ``seconds`` of clock time: a real clock
+    gives the ask a wall-time limit; a virtual one races it against the clock, so a
+    virtual-time run never mixes in real timers."""
+    wall = clock.to_wall(seconds)
+    if wall > 0:
+        return await ref.ask(msg, expect=AwardReply, timeout=max(wall, 0.05))
+    ask = asyncio.ensure_future(ref.ask(msg, expect=AwardReply, timeout=None))
+    timer = asyncio.ensure_future(clock.sleep(seconds))
+    try:
+        await asyncio.wait((ask, timer), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        timer.cancel()
+    if not ask.done():
+        ask.cancel()
+        raise AskTimeout(f"no reply from {ref.address} to the award within {seconds} clock s")
+    return ask.result()
 
 
 class SingleItemAuction(Actor, AssignmentStrategy):
@@ -161,9 +178,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             )
             executor = system.ref(Address(bid.robot, ASSIGNER_PATH))
             try:
-                reply = await executor.ask(
-                    award, expect=AwardReply, timeout=_wall(clock, self.award_timeout_s)
-                )
+                reply = await _ask_within(executor, award, clock, self.award_timeout_s)
             except (ActorError, TypeError, asyncio.CancelledError) as exc:
                 # The robot may still take the award after we gave up waiting (or were
                 # cancelled): withdraw it, so the task never runs twice at once.

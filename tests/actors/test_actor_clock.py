@@ -251,3 +251,46 @@ def test_both_clocks_are_time_sources_and_systems_use_the_one_given() -> None:
     assert isinstance(Clock(), TimeSource)
     assert ActorSystem("s", clock=manual).clock is manual
     assert isinstance(ActorSystem("s").clock, Clock)
+
+
+async def test_autojump_skips_to_each_deadline_as_soon_as_all_wait() -> None:
+    clock = ManualClock()
+    woke: list[tuple[str, float]] = []
+
+    async def sleeper(name: str, period: float, times: int) -> None:
+        for _ in range(times):
+            await clock.sleep(period)
+            woke.append((name, clock.now()))
+
+    with anyio.fail_after(5):
+        async with clock.autojump(), anyio.create_task_group() as tg:
+            tg.start_soon(sleeper, "slow", 1000.0, 3)
+            tg.start_soon(sleeper, "fast", 400.0, 5)
+    assert woke == [
+        ("fast", 400.0),
+        ("fast", 800.0),
+        ("slow", 1000.0),
+        ("fast", 1200.0),
+        ("fast", 1600.0),
+        ("slow", 2000.0),
+        ("fast", 2000.0),
+        ("slow", 3000.0),
+    ]
+
+
+async def test_autojump_waits_for_real_io_when_nobody_sleeps_on_the_clock() -> None:
+    clock = ManualClock()
+    with anyio.fail_after(5):
+        async with clock.autojump():
+            await asyncio.sleep(0.02)  # real time: the clock has nothing to jump to
+            assert clock.now() == 0.0
+            await clock.sleep(5.0)
+            assert clock.now() == 5.0
+
+
+async def test_autojump_stops_with_its_block() -> None:
+    clock = ManualClock()
+    async with clock.autojump():
+        pass
+    tasks = {t.get_name() for t in asyncio.all_tasks()}
+    assert "autojump" not in tasks

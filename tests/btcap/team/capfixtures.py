@@ -4,6 +4,7 @@ an in-process network, and bounded polling (never fixed long sleeps)."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 from collections import Counter
 from collections.abc import AsyncIterator, Callable, Iterable, Iterator, Mapping
@@ -12,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from btcap import Leaf, Port, Sequence, State, Tree
-from btcap.actors import Actor, ActorSystem, Clock
+from btcap.actors import Actor, ActorSystem, Clock, ManualClock, TimeSource
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.capability import CapabilityInterface
 from btcap.team.implementation import Implementation, Precondition
@@ -164,24 +165,38 @@ def count_impl(
     )
 
 
+#: The manual clock of the team a test runs, if any: time then passes only in ``step``.
+_manual: ManualClock | None = None
+
+
+async def step(wall: float = 0.005) -> None:
+    """Let ``wall`` seconds pass as the team sees them. On a team's manual clock that is
+    ``wall * SPEEDUP`` clock seconds, which autojump skips as soon as everything else
+    waits too: the outcome never depends on how loaded the machine is."""
+    if _manual is None:
+        await asyncio.sleep(wall)
+    else:
+        await _manual.sleep(wall * SPEEDUP)
+
+
 async def until(cond: Callable[[], bool], what: str = "condition", *, limit: int = 2000) -> None:
-    """Poll ``cond`` every 5 ms (bounded); the test's fail_after is the real limit."""
+    """Check ``cond`` every step (bounded); the test's fail_after is the real limit."""
     for _ in range(limit):
         if cond():
             return
-        await asyncio.sleep(0.005)
+        await step()
     raise AssertionError(f"timed out waiting for {what}")
 
 
 async def tick_until(
     tree: Tree, cond: Callable[[State], bool], what: str = "state", *, limit: int = 2000
 ) -> State:
-    """Tick ``tree`` every 5 ms until ``cond(state)``; returns that state."""
+    """Tick ``tree`` every step until ``cond(state)``; returns that state."""
     for _ in range(limit):
         state = tree.tick()
         if cond(state):
             return state
-        await asyncio.sleep(0.005)
+        await step()
     raise AssertionError(f"tree {tree.name!r}: timed out waiting for {what} (last {state})")
 
 
@@ -190,9 +205,9 @@ class Team:
     holds a task group, so systems sharing one task must exit in reverse order), so any
     robot can leave at any time."""
 
-    def __init__(self, *, speedup: float = SPEEDUP, **cfg: Any) -> None:
+    def __init__(self, *, real_time: bool = False, **cfg: Any) -> None:
         self.net = InProcessNetwork(protocol_registry())
-        self.clock = Clock(speedup=speedup)
+        self.clock: TimeSource = Clock(speedup=SPEEDUP) if real_time else ManualClock()
         self.cfg = cfg
         self.agents: dict[str, Agent] = {}
         #: What each agent's membership reported, in order (robot -> [(event, member)]).
@@ -273,11 +288,20 @@ class Team:
 
 @asynccontextmanager
 async def team(**cfg: Any) -> AsyncIterator[Team]:
+    """Agents on a manual clock (``real_time=True``: a sped-up wall clock, for the few
+    tests whose subject is wall-clock behaviour)."""
+    global _manual
     t = Team(**cfg)
-    try:
-        yield t
-    finally:
-        await t.close()
+    async with contextlib.AsyncExitStack() as stack:
+        if isinstance(t.clock, ManualClock):
+            _manual = await stack.enter_async_context(t.clock.autojump())
+        try:
+            yield t
+        finally:
+            try:
+                await t.close()
+            finally:
+                _manual = None
 
 
 @asynccontextmanager
@@ -285,7 +309,7 @@ async def silent_member(
     net: InProcessNetwork,
     robot: str,
     impls: Iterable[Implementation],
-    clock: Clock,
+    clock: TimeSource,
     actors: Mapping[str, Actor] | None = None,
     **cfg: Any,
 ) -> AsyncIterator[ActorSystem]:

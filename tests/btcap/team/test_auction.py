@@ -7,7 +7,7 @@ import math
 
 import anyio
 import pytest
-from capfixtures import COUNT, Probe, count_impl, silent_member, team, tick_until, until
+from capfixtures import COUNT, Probe, count_impl, silent_member, step, team, tick_until, until
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -286,7 +286,7 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                     tc.tick()
                     if na.state is State.RUNNING and nc.state is State.RUNNING:
                         break
-                    await anyio.sleep(0.005)
+                    await step(0.005)
                 robots = sorted([*na.assignments, *nc.assignments])
                 assert "b" in robots
                 assert len(robots) == 2

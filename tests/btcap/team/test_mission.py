@@ -16,6 +16,7 @@ from capfixtures import (
     Team,
     count_impl,
     silent_member,
+    step,
     team,
     tick_until,
     until,
@@ -132,7 +133,7 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
             assert hosted.state is State.PAUSED
             # Paused, not gone: the lease is kept alive without ticks.
             for _ in range(80):  # 0.4 s of wall time = 4 clock s, twice the lease
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert probe.ticks["b"] == frozen
             assert b.mission_control.host.hosted == {hosted.execution: hosted}
             assert node.execution is not None
@@ -305,7 +306,7 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             await t.converged()
             for _ in range(40):  # keep working for a while with c in the team
                 tree.tick()
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert first.assignments == ["b"]
             assert set(b.mission_control.host.hosted) == hosted
             assert probe.ticks["c"] == 0
@@ -355,7 +356,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
             else:
                 for _ in range(40):  # keep working with c in the team
                     tree.tick()
-                    await anyio.sleep(0.005)
+                    await step(0.005)
                 assert node.assignments == [executor]
                 assert probe.ticks["c"] == 0
                 assert c.mission_control.body.running is None
@@ -396,9 +397,9 @@ def _slow_offers(mc: MissionControl, before: float = 0.0, after: float = 0.0) ->
         if task.reserve is None:
             return await real(task)
         offers["started"] += 1
-        await asyncio.sleep(before)
+        await step(before)
         won = await real(task)
-        await asyncio.sleep(after)
+        await step(after)
         offers["finished"] += 1
         return won
 
@@ -434,13 +435,13 @@ async def test_two_robots_joining_at_once_take_the_work_over_only_once() -> None
             await until(lambda: offers["finished"] == 2, "both offers to end")
             for _ in range(3):  # the second offer's award is withdrawn
                 tree.tick()
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert len(node.assignments) == 2
             assert node.assignments[0] == "b"
             assert a.mission_control.stats.moved == 1
             for _ in range(20):
                 tree.tick()
-                await anyio.sleep(0.005)
+                await step(0.005)
             busy = [r for r in "bcd" if t[r].mission_control.body.running is not None]
             assert busy == node.assignments[1:]
             node.set_input("stop", True)
@@ -464,7 +465,7 @@ async def test_no_moved_work_runs_for_a_paused_capability(when: str) -> None:
             else:
                 await until(lambda: a.mission_control.stats.moved == 1, "the move")
                 tree.untick()
-            await anyio.sleep(0.1)  # a few of c's host ticks (10 ms each)
+            await step(0.1)  # a few of c's host ticks (10 ms each)
             assert probe.ticks["c"] == 0
             assert node.state is State.PAUSED
             # Ticking again resumes the work (on c if it was moved) and it completes.
@@ -487,7 +488,7 @@ async def test_a_replacement_lost_before_the_hand_over_leaves_the_work_where_it_
             await until(lambda: a.mission_control.stats.lost == 1, "c's run lost")
             for _ in range(10):
                 tree.tick()
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert node.execution is running  # b's healthy run goes on
             assert node.assignments == ["b"]
             assert probe.live("b") == 1
@@ -527,7 +528,7 @@ async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
                 tree1.tick()
                 tree2.tick()
                 assert second.state is State.ASSIGNED
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert len([r for r, _x in probe.first_x.values() if r == executor]) == 1
             second.set_input("x", 9)
             tree2.tick()
@@ -725,7 +726,7 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             # The real execution was not disturbed and still finishes on b.
             for _ in range(20):
                 tree.tick()
-                await anyio.sleep(0.005)
+                await step(0.005)
             assert node.execution is real
             assert node.state is State.RUNNING
             assert node.outputs["y"] != 666
@@ -804,7 +805,7 @@ async def _storm(
                 _check_exclusive(t, trees, probe)
                 if not pending:
                     break
-                await anyio.sleep(0.005)
+                await step(0.005)
                 _check_exclusive(t, trees, probe)
             assert all(n.state is State.SUCCEEDED for n in nodes)
             # (A loaded machine may stall long enough for a lease to lapse: then a
