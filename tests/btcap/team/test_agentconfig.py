@@ -1,0 +1,195 @@
+"""Agent configuration files: every bad field is named, good files build what they say."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from btcap.bt.registry import default_registry
+from btcap.team.agent import AgentConfig
+from btcap.team.agentconfig import AgentConfigError, Timing, load_agent_file
+
+ROOT = Path(__file__).resolve().parents[3]
+CAPS = ROOT / "examples" / "capabilities"
+TEAM = ROOT / "examples" / "team"
+
+GOOD = f"""\
+btcap: 1
+robot: alpha
+capabilities:
+  interfaces: [{CAPS / "interfaces.yaml"}]
+  implementations: [{CAPS / "greet.yaml"}]
+network:
+  bind: tcp://127.0.0.1:*
+  seeds: [{{robot: beta, endpoint: "tcp://127.0.0.2:7102"}}]
+timing: {{tick_hz: 20, heartbeat_s: 0.2, failure_timeout_s: 2.0, lease_s: 3.0, speedup: 2}}
+allocation: {{rebid_on_join: 0.25}}
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "robot.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_good_file_gives_the_robot_its_settings(tmp_path: Path) -> None:
+    config = load_agent_file(_write(tmp_path, GOOD))
+    assert config.robot == "alpha"
+    assert config.seeds == {"beta": "tcp://127.0.0.2:7102"}
+    assert config.spec.timing.speedup == 2
+    assert config.agent_config() == AgentConfig(
+        tick_hz=20, heartbeat_s=0.2, failure_timeout_s=2.0, lease_s=3.0, rebid_on_join=0.25
+    )
+    registry = default_registry(plugins=False)
+    interfaces, impls = config.load_capabilities(registry)
+    assert [i.name for i in interfaces] == ["Greet"]
+    assert [i.name for i in impls] == ["greet-by-log"]
+    assert "Greet" in registry  # mission trees can use the capability node type
+
+
+def test_timing_covers_every_field_of_agent_config() -> None:
+    """A timing added to AgentConfig must be settable from files too (or this fails)."""
+    own = set(msgspec.structs.asdict(Timing())) - {"speedup"}
+    wanted = {f.name for f in dataclasses.fields(AgentConfig)}
+    wanted -= {"rebid_on_join", "queue_after_current"}  # the allocation section
+    assert own == wanted
+    assert msgspec.structs.asdict(Timing()) | {"speedup": 1.0} == {
+        **{k: getattr(AgentConfig(), k) for k in wanted},
+        "speedup": 1.0,
+    }
+
+
+def test_paths_are_relative_to_the_file() -> None:
+    config = load_agent_file(TEAM / "alpha.yaml")
+    assert config.spec.capabilities.interfaces == [CAPS / "interfaces.yaml"]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needle"),
+    [
+        ("btcap: 1", "btcap: 2", "btcap: version 2"),
+        ("robot: alpha", "robot: a/b", "robot:"),
+        ("robot: alpha", "robot: 7", "robot: Expected `str`"),
+        ("robot: alpha\n", "", "missing required field `robot`"),
+        ("btcap: 1\n", "colour: red\nbtcap: 1\n", "unknown field `colour`"),
+        ("  bind: tcp", "  port: 1\n  bind: tcp", "network: Object contains unknown field `port`"),
+        ("bind: tcp://127.0.0.1:*", "bind: udp://x:1", "network.bind:"),
+        ("bind: tcp://127.0.0.1:*", "bind: tcp://0.0.0.0:7000", "network.advertise: required"),
+        (
+            "bind: tcp://127.0.0.1:*",
+            "bind: tcp://0.0.0.0:7000\n  advertise: tcp://10.0.0.1:*",
+            "network.advertise:",
+        ),
+        ("robot: beta,", "robot: alpha,", "network.seeds[0].robot: 'alpha' is this robot"),
+        ("robot: beta,", "robot: '*',", "network.seeds[0].robot"),
+        ('"tcp://127.0.0.2:7102"', '"127.0.0.2:7102"', "network.seeds[0].endpoint"),
+        (
+            '"tcp://127.0.0.2:7102"}]',
+            '"tcp://h:1"}, {robot: b}]',
+            "network.seeds[1]: Object missing required field `endpoint`",
+        ),
+        ("endpoint:", "ednpoint:", "network.seeds[0]: Object contains unknown field `ednpoint`"),
+        ("tick_hz: 20", "tick_hz: 0", "timing.tick_hz: Expected `float` > 0.0"),
+        ("tick_hz: 20", "tick_hz: fast", "timing.tick_hz: Expected `float`, got `str`"),
+        ("tick_hz: 20", "tick_hz: 20, tick_rate: 3", "timing: Object contains unknown field"),
+        ("failure_timeout_s: 2.0", "failure_timeout_s: 0.1", "timing.failure_timeout_s: must"),
+        ("lease_s: 3.0", "lease_s: 3.0, keepalive_s: 4", "timing.keepalive_s: must"),
+        ("rebid_on_join: 0.25", "rebid_on_join: 2", "allocation.rebid_on_join"),
+        ("interfaces.yaml", "nope.yaml", "capabilities.interfaces[0]:"),
+        ("greet.yaml", "nope.yaml", "capabilities.implementations[0]:"),
+        ("implementations:", "implementation:", "capabilities: Object contains unknown field"),
+        (
+            "allocation:",
+            "keys: {public: a.key, secret: a.key_secret, trusted: t}\nallocation:",
+            "keys.public: ",
+        ),
+        ("allocation:", "keys: {public: a.key}\nallocation:", "keys: Object missing required"),
+    ],
+)
+def test_bad_fields_are_named_with_the_file(
+    tmp_path: Path, old: str, new: str, needle: str
+) -> None:
+    assert old in GOOD
+    path = _write(tmp_path, GOOD.replace(old, new, 1))
+    with pytest.raises(AgentConfigError) as err:
+        load_agent_file(path)
+    assert str(err.value).startswith(f"{path}: ")
+    assert needle in str(err.value)
+
+
+def test_missing_key_files_are_named(tmp_path: Path) -> None:
+    (tmp_path / "keys").mkdir()
+    (tmp_path / "keys" / "alpha.key").write_text("public")
+    text = GOOD + "keys: {public: keys/alpha.key, secret: keys/alpha.key_secret, trusted: keys}\n"
+    with pytest.raises(AgentConfigError, match=r"keys\.secret: .*alpha\.key_secret: no such file"):
+        load_agent_file(_write(tmp_path, text))
+    (tmp_path / "keys" / "alpha.key_secret").write_text("secret")
+    config = load_agent_file(_write(tmp_path, text))
+    assert config.keys is not None
+    assert config.keys.trusted == tmp_path / "keys"
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["", "[1, 2]\n", "btcap: 1\nrobot: [\n", "\tbad"],
+)
+def test_files_that_are_not_a_config_say_so(tmp_path: Path, text: str) -> None:
+    path = _write(tmp_path, text)
+    with pytest.raises(AgentConfigError, match=str(path)):
+        load_agent_file(path)
+
+
+def test_an_unreadable_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(AgentConfigError, match=r"missing\.yaml: cannot read"):
+        load_agent_file(tmp_path / "missing.yaml")
+
+
+def test_capability_file_errors_name_the_config_field_and_the_capability_file(
+    tmp_path: Path,
+) -> None:
+    impl = _write(tmp_path, "btcap_implementation: 1\nname: x\ninterface: Nope\ntree: t.yaml\n")
+    path = _write(tmp_path, GOOD.replace(str(CAPS / "greet.yaml"), str(impl)), "cfg.yaml")
+    config = load_agent_file(path)
+    with pytest.raises(AgentConfigError) as err:
+        config.load_capabilities(default_registry(plugins=False))
+    message = str(err.value)
+    assert message.startswith(f"{path}: capabilities.implementations[0]: {impl}: interface")
+    # an operator loads only the interfaces
+    interfaces, impls = config.load_capabilities(
+        default_registry(plugins=False), implementations=False
+    )
+    assert (len(interfaces), impls) == (1, [])
+
+
+@pytest.mark.parametrize(
+    ("bind", "keys", "insecure", "ok"),
+    [
+        ("tcp://127.0.0.1:*", False, False, True),
+        ("tcp://127.0.0.3:7000", False, False, True),
+        ("tcp://[::1]:7000", False, False, True),
+        ("tcp://localhost:7000", False, False, True),
+        ("ipc:///tmp/x.sock", False, False, True),
+        ("tcp://192.168.1.5:7000", False, False, False),
+        ("tcp://eth0:7000", False, False, False),
+        ("tcp://192.168.1.5:7000", False, True, True),
+        ("tcp://192.168.1.5:7000", True, False, True),
+    ],
+)
+def test_without_keys_only_a_loopback_bind_is_allowed(
+    tmp_path: Path, bind: str, keys: bool, insecure: bool, ok: bool
+) -> None:
+    text = GOOD.replace("tcp://127.0.0.1:*", bind)
+    if keys:
+        for name in ("a.key", "a.key_secret"):
+            (tmp_path / name).write_text(name)
+        text += "keys: {public: a.key, secret: a.key_secret, trusted: .}\n"
+    config = load_agent_file(_write(tmp_path, text))
+    if ok:
+        config.check_secure(insecure=insecure)
+    else:
+        with pytest.raises(AgentConfigError, match=r"network\.bind: .*--insecure"):
+            config.check_secure(insecure=insecure)

@@ -1,0 +1,197 @@
+"""``btcap agent``, ``btcap team status`` and ``btcap mission run``, on loopback only."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+import anyio
+import anyio.abc
+import pytest
+
+from btcap.bt.registry import default_registry
+from btcap.cli import main
+from btcap.team.agentconfig import load_agent_file
+from btcap.team.deploy import open_agent, run_mission_file, wait_for_team
+
+ROOT = Path(__file__).resolve().parents[2]
+CAPS = ROOT / "examples" / "capabilities"
+TEAM = ROOT / "examples" / "team"
+
+
+def _config(tmp_path: Path, robot: str, *, impl: Path | None, seeds: list[str]) -> Path:
+    """A robot on an ipc socket in ``tmp_path``; long leases and failure timeouts, so only
+    a goodbye can explain a quick re-assignment."""
+    seed_lines = "".join(
+        f'    - {{robot: {r}, endpoint: "ipc://{tmp_path}/{r}.sock"}}\n' for r in seeds
+    )
+    path = tmp_path / f"{robot}.yaml"
+    path.write_text(
+        f"btcap: 1\nrobot: {robot}\n"
+        f"capabilities:\n  interfaces: [{CAPS / 'interfaces.yaml'}]\n"
+        + (f"  implementations: [{impl}]\n" if impl else "")
+        + f"network:\n  bind: ipc://{tmp_path}/{robot}.sock\n"
+        + (f"  seeds:\n{seed_lines}" if seeds else "")
+        + "timing: {tick_hz: 20, heartbeat_s: 0.1, failure_timeout_s: 30,"
+        " lease_s: 30, keepalive_s: 0.2}\n"
+    )
+    return path
+
+
+def _slow_greet(tmp_path: Path, name: str, cost: float) -> Path:
+    tree = tmp_path / f"{name}_tree.yaml"
+    tree.write_text(
+        "btcap: 1\nname: slow\nroot:\n  type: SequenceWithMemory\n  name: g\n  children:\n"
+        "    - {type: GreetInputs, name: inputs}\n"
+        "    - {type: Wait, name: think, options: {seconds: 2.0}}\n"
+        "    - {type: GreetOutputs, name: outputs}\n"
+        "wires:\n  - {from: g/inputs.who, to: g/outputs.said}\n"
+    )
+    impl = tmp_path / f"{name}.yaml"
+    impl.write_text(
+        f"btcap_implementation: 1\nname: {name}\ninterface: Greet\n"
+        f"tree: {tree.name}\ncost: {cost}\n"
+    )
+    return impl
+
+
+def _btcap(*args: str) -> list[str]:
+    return [sys.executable, "-m", "btcap", *args]
+
+
+@asynccontextmanager
+async def _agent(config: Path) -> AsyncIterator[anyio.abc.Process]:
+    """``btcap agent CONFIG`` in its own process, once it listens; stopped on exit."""
+    proc = await anyio.open_process(
+        _btcap("agent", str(config)), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL
+    )
+    try:
+        assert proc.stdout is not None
+        said = b""
+        while b"listening" not in said:
+            said += await proc.stdout.receive()
+        yield proc
+    finally:
+        with anyio.CancelScope(shield=True):
+            if proc.returncode is None:
+                proc.kill()
+            await proc.aclose()
+
+
+def test_bad_config_exits_2_naming_the_field(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text("btcap: 1\nrobot: r\ntiming: {tick_hz: -1}\n")
+    for argv in (["agent", str(path)], ["team", "status", "--config", str(path)]):
+        assert main(argv) == 2
+        assert f"{path}: timing.tick_hz" in capsys.readouterr().err
+
+
+def test_agent_refuses_a_bind_beyond_this_host_without_keys(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "open.yaml"
+    path.write_text(
+        "btcap: 1\nrobot: r\nnetwork: {bind: 'tcp://0.0.0.0:7000', advertise: "
+        "'tcp://192.0.2.1:7000'}\n"
+    )
+    assert main(["agent", str(path)]) == 2
+    assert "network.bind" in capsys.readouterr().err
+
+
+def test_alone_status_fails_and_a_mission_times_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    operator = _config(tmp_path, "operator", impl=None, seeds=["ghost"])
+    assert main(["team", "status", "--config", str(operator), "--wait", "0.3"]) == 1
+    out = capsys.readouterr()
+    assert "0 member(s)" in out.out
+    assert "seed ghost did not answer" in out.err
+    code = main(
+        [
+            "mission",
+            "run",
+            str(TEAM / "mission.yaml"),
+            "--config",
+            str(operator),
+            "--wait",
+            "0.2",
+            "--timeout",
+            "0.5",
+        ]
+    )
+    out = capsys.readouterr()
+    assert code == 1
+    assert "mission timed out" in out.out
+    assert "greetings/ada: unassigned on nobody" in out.out
+
+
+def test_a_bad_mission_tree_fails_before_joining(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    operator = _config(tmp_path, "operator", impl=None, seeds=[])
+    tree = tmp_path / "tree.yaml"
+    tree.write_text("btcap: 1\nroot: {type: Greeet, name: g}\n")
+    assert main(["mission", "run", str(tree), "--config", str(operator)]) == 1
+    assert "Greeet" in capsys.readouterr().err
+    assert main(["mission", "run", str(tmp_path / "none.yaml"), "--config", str(operator)]) == 2
+
+
+@pytest.mark.slow
+async def test_a_stopped_agent_says_goodbye_and_its_work_moves_at_once(tmp_path: Path) -> None:
+    """SIGTERM on the executor: the origin re-assigns without waiting for the 30 s lease
+    or failure timeout, because the agent left the team with a goodbye."""
+    cheap = _config(tmp_path, "cheap", impl=_slow_greet(tmp_path, "cheap-greet", 1.0), seeds=[])
+    dear = _config(tmp_path, "dear", impl=_slow_greet(tmp_path, "dear-greet", 5.0), seeds=[])
+    operator = _config(tmp_path, "operator", impl=None, seeds=["cheap", "dear"])
+    mission = tmp_path / "mission.yaml"
+    mission.write_text("btcap: 1\nroot: {type: Greet, name: hello, inputs: {who: Ada}}\n")
+    registry = default_registry(plugins=False)
+    with anyio.fail_after(40):
+        async with _agent(cheap) as cheap_proc, _agent(dear):
+            status = await anyio.run_process(
+                _btcap("team", "status", "--config", str(operator), "--wait", "5"), check=False
+            )
+            shown = status.stdout.decode()
+            assert status.returncode == 0, status.stderr.decode()
+            assert "2 member(s)" in shown
+            assert {"cheap", "dear", "Greet"} <= set(shown.split())
+
+            config = load_agent_file(operator)
+            async with open_agent(config, registry) as agent:
+                assert await wait_for_team(agent, ["cheap", "dear"], timeout_s=10)
+
+                def progress(line: str) -> None:
+                    if "running on cheap" in line:
+                        cheap_proc.send_signal(signal.SIGTERM)
+
+                report = await run_mission_file(agent, mission, registry, progress=progress)
+            assert await cheap_proc.wait() == 0  # it stopped cleanly
+    assert report.succeeded
+    (hello,) = report.capabilities
+    assert hello.robots == ["cheap", "dear"]
+    assert hello.outputs == {"said": "Ada"}
+    assert report.elapsed_s < 10  # the dear robot's 2 s of work, not a 30 s timeout
+
+
+@pytest.mark.slow
+def test_the_example_team_script_runs_its_mission() -> None:
+    env = dict(os.environ, BTCAP=f"{sys.executable} -m btcap")
+    done = subprocess.run(
+        ["bash", str(TEAM / "run-local.sh")],
+        capture_output=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
+    out = done.stdout.decode()
+    assert done.returncode == 0, out + done.stderr.decode()
+    assert "mission succeeded" in out
+    for robot in ("alpha", "beta", "gamma"):
+        assert f"agent {robot} listening on tcp://127.0.0." in out
