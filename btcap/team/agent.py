@@ -69,6 +69,7 @@ class Agent:
             heartbeat_s=cfg.heartbeat_s,
             failure_timeout_s=cfg.failure_timeout_s,
             repo_version=lambda: self.repository.version,
+            busy=lambda: not self.mission_control.body.idle,
         )
         self.auctioneer = SingleItemAuction(
             robot, window_s=cfg.auction_window_s, award_timeout_s=cfg.award_timeout_s

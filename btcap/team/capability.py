@@ -172,7 +172,10 @@ class OutputBridge(_Bridge):
 
 @runtime_checkable
 class Assigner(Protocol):
-    """What a capability node needs from its robot: an executor for its inputs."""
+    """What a capability node needs from its robot: an executor for its inputs, and a
+    count of the team changes that may let waiting work go (a robot came free, joined)."""
+
+    changes: int
 
     def request_assignment(
         self,
@@ -206,6 +209,7 @@ class Capability(Node):
         "_request",
         "_result",
         "_retry_at",
+        "_seen_changes",
         "_waiting_since",
         "_waits",
         "assignments",
@@ -213,7 +217,12 @@ class Capability(Node):
     INTERFACE: ClassVar[CapabilityInterface]
     OPTIONS: ClassVar[Any] = {
         "local_only": Port(bool, False, "only this robot may run it"),
-        "retry_s": Port(float, 1.0, "clock seconds between auctions when nobody could run it"),
+        "retry_s": Port(
+            float,
+            10.0,
+            "clock seconds before auctioning again when nobody could run it and "
+            "nothing changed in the team (a robot coming free or joining retries at once)",
+        ),
         "assignment_timeout_s": Port(
             float, 0.0, "fail after this many clock seconds unassigned (0: wait for ever)"
         ),
@@ -224,6 +233,7 @@ class Capability(Node):
         self._request: AssignmentRequest | None = None
         self._result: State | None = None
         self._retry_at = 0.0
+        self._seen_changes = 0
         self._exclude: frozenset[str] = frozenset()
         self._waits = 0  # auctions in a row that found nobody
         self._waiting_since: float | None = None
@@ -294,9 +304,11 @@ class Capability(Node):
             if timeout > 0 and now - since >= timeout:
                 self._give_up(now - since)
                 return _FAILED
-            if now < self._retry_at:
-                return _UNASSIGNED
-            self._request = self._mission_control().request_assignment(
+            mc = self._mission_control()
+            if now < self._retry_at and mc.changes == self._seen_changes:
+                return _UNASSIGNED  # nothing changed since nobody could take it
+            self._seen_changes = mc.changes
+            self._request = mc.request_assignment(
                 self,
                 dict(self.inputs),
                 local_only=self.options["local_only"],

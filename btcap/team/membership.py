@@ -35,6 +35,7 @@ class Membership(Actor):
         heartbeat_s: float = 0.1,
         failure_timeout_s: float = 0.5,
         repo_version: Callable[[], int] = lambda: 0,
+        busy: Callable[[], bool] = lambda: False,
     ) -> None:
         super().__init__()
         if failure_timeout_s <= heartbeat_s:
@@ -44,6 +45,7 @@ class Membership(Actor):
         self.heartbeat_s = heartbeat_s
         self.failure_timeout_s = failure_timeout_s
         self._repo_version = repo_version
+        self._body_busy = busy
         self.table = MemberTable(robot, failure_timeout_s)
         self.refused = 0  #: heartbeats and goodbyes sent in another robot's name
         self._listeners: list[Listener] = []
@@ -62,7 +64,8 @@ class Membership(Actor):
         return self.table.alive()
 
     def _emit(self, event: TeamEvent, robot: str) -> None:
-        log.info("team.event", robot=self.robot, change=event.value, member=robot)
+        emit = log.debug if event is TeamEvent.FREED else log.info  # routine, not a change
+        emit("team.event", robot=self.robot, change=event.value, member=robot)
         for listener in list(self._listeners):
             try:
                 listener(event, robot)
@@ -81,7 +84,8 @@ class Membership(Actor):
     def beat_now(self) -> None:
         """Send a heartbeat at once (after a capability change, or to speed up joins)."""
         self.system.broadcast(
-            self.PATH, Heartbeat(self.robot, self.incarnation, self._repo_version())
+            self.PATH,
+            Heartbeat(self.robot, self.incarnation, self._repo_version(), self._body_busy()),
         )
 
     async def _beat(self) -> None:
@@ -117,9 +121,8 @@ class Membership(Actor):
     def on_heartbeat(self, msg: Heartbeat) -> None:
         if not self._speaks_for_itself(msg.robot, msg):
             return
-        events = self.table.heartbeat(
-            msg.robot, msg.incarnation, msg.repo_version, self.system.clock.now()
-        )
+        now = self.system.clock.now()
+        events = self.table.heartbeat(msg.robot, msg.incarnation, msg.repo_version, now, msg.busy)
         for event in events:
             self._emit(event, msg.robot)
         if TeamEvent.JOINED in events:

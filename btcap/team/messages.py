@@ -35,11 +35,13 @@ __all__ = [
 # -- team --------------------------------------------------------------------------------
 class Heartbeat(Message):
     """I am alive; ``incarnation`` changes when a robot restarts, ``repo_version`` when its
-    capabilities change (peers then ask for the new :class:`RepositoryState`)."""
+    capabilities change (peers then ask for the new :class:`RepositoryState`); ``busy``
+    says whether its body is taken (a robot coming free is news for waiting work)."""
 
     robot: str
     incarnation: int
     repo_version: int
+    busy: bool = False
 
 
 class Goodbye(Message):

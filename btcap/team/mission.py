@@ -73,7 +73,10 @@ class MissionControl(Actor):
         self.team = team
         self.config = config or MissionConfig()
         self.stats = MissionStats()
-        self.body = Body(queue_after_current=self.config.queue_after_current)
+        self.body = Body(queue_after_current=self.config.queue_after_current, on_free=self._freed)
+        #: Grows whenever waiting work may now find a robot (one came free, joined or
+        #: changed): capability nodes waiting for one auction again at once.
+        self.changes = 0
         self.executor = ExecutorSide(robot, repository, self.body, self.stats, self._now)
         self.host = self.executor.host
         self.origin_side = OriginSide(
@@ -125,7 +128,14 @@ class MissionControl(Actor):
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         self.executor.attach_slot(slot)
 
+    def _freed(self) -> None:
+        self.changes += 1
+        if self._system is not None and self.system.running:
+            self.team.beat_now()  # the team hears at once that this robot is free
+
     def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event in (TeamEvent.JOINED, TeamEvent.CHANGED, TeamEvent.FREED):
+            self.changes += 1
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
             why = f"robot {robot} {event.value}"
             self._perform(self.origin.member_gone(robot, why))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from btcap.team.core.ids import ExecutionId
 
 __all__ = ["Body"]
@@ -12,10 +14,21 @@ class Body:
     more accepted and waiting. Local and remote executions share it: a robot that drives
     for its own tree cannot drive for another's at the same time."""
 
-    __slots__ = ("_queued_cost", "_running_cost", "queue_after_current", "queued", "running")
+    __slots__ = (
+        "_queued_cost",
+        "_running_cost",
+        "on_free",
+        "queue_after_current",
+        "queued",
+        "running",
+    )
 
-    def __init__(self, *, queue_after_current: bool = False) -> None:
+    def __init__(
+        self, *, queue_after_current: bool = False, on_free: Callable[[], None] | None = None
+    ) -> None:
         self.queue_after_current = queue_after_current
+        #: Called when the body comes free (news for work waiting for a robot).
+        self.on_free = on_free
         self.running: ExecutionId | None = None
         self.queued: ExecutionId | None = None
         self._running_cost = 0.0
@@ -65,4 +78,6 @@ class Body:
             return None
         self.running, self.queued = self.queued, None
         self._running_cost = self._queued_cost
+        if self.running is None and self.on_free is not None:
+            self.on_free()
         return self.running

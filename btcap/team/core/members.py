@@ -13,6 +13,7 @@ class TeamEvent(enum.Enum):
     LEFT = "left"
     FAILED = "failed"
     CHANGED = "changed"  # its capabilities changed (new repository version)
+    FREED = "freed"  # its body came free: waiting work may go to it now
 
 
 @dataclass(slots=True)
@@ -21,6 +22,7 @@ class Member:
     incarnation: int
     last_seen: float
     repo_version: int
+    busy: bool = False
 
 
 class MemberTable:
@@ -45,7 +47,7 @@ class MemberTable:
         return frozenset(self.members) | {self.robot}
 
     def heartbeat(
-        self, robot: str, incarnation: int, repo_version: int, now: float
+        self, robot: str, incarnation: int, repo_version: int, now: float, busy: bool = False
     ) -> list[TeamEvent]:
         """What a heartbeat from ``robot`` changes, in order."""
         if robot == self.robot:
@@ -61,13 +63,17 @@ class MemberTable:
         if m is None:
             if len(self.members) >= self.max_members:
                 return events  # full: a real member gets in once a silent one times out
-            self.members[robot] = Member(robot, incarnation, now, repo_version)
+            self.members[robot] = Member(robot, incarnation, now, repo_version, busy)
             events.append(TeamEvent.JOINED)
             return events
         m.last_seen = max(m.last_seen, now)
         if m.repo_version != repo_version:
             m.repo_version = repo_version
             events.append(TeamEvent.CHANGED)
+        if m.busy != busy:
+            m.busy = busy
+            if not busy:
+                events.append(TeamEvent.FREED)
         return events
 
     def goodbye(self, robot: str, incarnation: int) -> bool:

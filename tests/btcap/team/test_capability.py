@@ -9,7 +9,7 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 from structlog.testing import capture_logs
 
-from btcap import AlwaysSuccess, Sequence, State, Tree, TreeError
+from btcap import AlwaysSuccess, Parallel, Sequence, State, Tree, TreeError
 from btcap.bt.utility import CANNOT
 from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
 from btcap.team.implementation import Implementation, Precondition, Scope
@@ -55,7 +55,7 @@ def test_node_type_is_a_cached_capability_subclass_with_the_interface_ports() ->
     assert set(node.input_ports) == {"x", "stop"}
     assert set(node.output_ports) == {"y", "ticks", "robot"}
     assert node.inputs == {"x": 3, "stop": False}
-    assert node.options == {"local_only": False, "retry_s": 1.0, "assignment_timeout_s": 0.0}
+    assert node.options == {"local_only": False, "retry_s": 10.0, "assignment_timeout_s": 0.0}
     assert node.execution is None
     with pytest.raises(TreeError, match="unknown option"):
         cls("c", speed=2.0)
@@ -286,4 +286,27 @@ async def test_an_assignment_timeout_turns_the_wait_into_a_failure() -> None:
             assert tree.tick() is State.FAILED  # kept until reset
             tree.reset()
             assert tree.tick() is State.RUNNING  # waits (and counts) afresh
+            await tree.shutdown()
+
+
+async def test_waiting_work_goes_to_a_robot_the_moment_it_comes_free() -> None:
+    """No retry timer: the robot's heartbeat says it came free, and the waiting capability
+    auctions again at once (retry_s is only a fallback when nothing changes)."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            first = COUNT.node_type()("first", inputs={"x": 1})
+            second = COUNT.node_type()("second", inputs={"x": 2}, retry_s=1000.0)
+            tree = a.mission(Parallel("both", children=[first, second]))
+            await tick_until(tree, lambda _s: first.state is State.RUNNING, "first runs")
+            await tick_until(tree, lambda _s: second._waits >= 1, "second found b busy")
+            first.set_input("stop", True)
+            await tick_until(tree, lambda _s: first.state is State.SUCCEEDED, "first done")
+            freed = a.clock.now()
+            await tick_until(tree, lambda _s: second.state is State.RUNNING, "second runs")
+            assert a.clock.now() - freed < 1.0  # a heartbeat or two, not 1000 s
+            assert b.mission_control.stats.hosted == 2
             await tree.shutdown()

@@ -90,3 +90,15 @@ def test_auction_answers_only_from_the_robot_they_speak_for() -> None:
     assert a.closed(0.5)
     assert [b.robot for b in a.outcome().awardable()] == ["b"]
     assert a.outcome().awardable(reserve=3.0) == []
+
+
+def test_the_body_says_when_it_comes_free() -> None:
+    freed: list[int] = []
+    body = Body(queue_after_current=True, on_free=lambda: freed.append(1))
+    e1, e2 = ExecutionId("a", "n", 1), ExecutionId("a", "n", 2)
+    body.take(e1, 1.0)
+    body.take(e2, 1.0)
+    body.release(e1)  # the queued one takes over: not free
+    assert freed == []
+    body.release(e2)
+    assert freed == [1]

@@ -61,3 +61,12 @@ def test_a_late_heartbeat_of_an_older_incarnation_changes_nothing() -> None:
     assert t.heartbeat("b", 100, 0, now=0.15) == []  # from before the restart, delivered late
     assert t.heartbeat("b", 200, 0, now=0.2) == []
     assert t.members["b"].incarnation == 200
+
+
+def test_a_member_coming_free_is_news() -> None:
+    t = MemberTable("a", failure_timeout_s=0.5)
+    t.heartbeat("b", 1, 0, now=0.0, busy=True)
+    assert t.heartbeat("b", 1, 0, now=0.1, busy=True) == []
+    assert t.heartbeat("b", 1, 0, now=0.2, busy=False) == [TeamEvent.FREED]
+    assert t.heartbeat("b", 1, 0, now=0.3, busy=False) == []
+    assert t.heartbeat("b", 1, 0, now=0.4, busy=True) == []  # taken again: no news
