@@ -116,21 +116,26 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
                     tg.cancel_scope.cancel()
                     break
 
-    anyio.run(main)
+    try:
+        try:
+            anyio.run(main)
+        except BaseExceptionGroup as group:
+            leaf: BaseException = group
+            while isinstance(leaf, BaseExceptionGroup) and len(leaf.exceptions) == 1:
+                leaf = leaf.exceptions[0]  # one failure: raise it as it is
+            raise leaf from None
+    except AgentConfigError as exc:  # found once joining: bad keys, a bind refused
+        raise CliError(str(exc)) from None
     return result[0] if result else None
 
 
 # -- btcap agent -------------------------------------------------------------------------
 def _agent(args: argparse.Namespace) -> int:
     config = _config(args.config)
-    try:
-        config.check_secure(insecure=args.insecure)
-    except AgentConfigError as exc:
-        raise CliError(str(exc)) from None
     registry = _registry(args)
 
     async def serve() -> None:
-        async with open_agent(config, registry) as agent:
+        async with open_agent(config, registry, insecure=args.insecure) as agent:
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
             print(f"agent {agent.robot} listening on {endpoint}", flush=True)
@@ -142,7 +147,10 @@ def _agent(args: argparse.Namespace) -> int:
 
 # -- btcap team status -------------------------------------------------------------------
 def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
-    return str(args.robot or f"{config.robot}-{role}-{os.getpid()}")
+    """Without keys, a name of its own; with keys, the name its key certifies."""
+    if args.robot or config.keys is not None:
+        return str(args.robot or config.robot)
+    return f"{config.robot}-{role}-{os.getpid()}"
 
 
 def _status(args: argparse.Namespace) -> int:

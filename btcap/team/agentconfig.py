@@ -11,18 +11,17 @@ A versioned YAML (or JSON) file; paths in it are relative to the file::
       bind: tcp://0.0.0.0:7001           # where to listen
       advertise: tcp://10.0.0.1:7001     # what peers dial (required for a wildcard bind)
       seeds: [{robot: beta, endpoint: tcp://10.0.0.2:7002}]
-    keys: {public: keys/alpha.key, secret: keys/alpha.key_secret, trusted: keys/team}
+    keys: {secret: keys/alpha.key_secret, trusted: keys/team}
     timing: {tick_hz: 10, heartbeat_s: 0.1, failure_timeout_s: 0.5, lease_s: 1.0}
     allocation: {rebid_on_join: 0.25}
 
 Every error is an :class:`AgentConfigError` naming the file and the field. Without
-``keys`` an agent may only bind a loopback (or ipc/inproc) address, unless the caller
+``keys`` the transport binds only a loopback (or ipc/inproc) address, unless the caller
 explicitly allows an insecure bind.
 """
 
 from __future__ import annotations
 
-import ipaddress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
@@ -36,6 +35,7 @@ from btcap.team.capability import CapabilityInterface
 from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
 from btcap.team.implementation import Implementation
 from btcap.transports import MessageRegistry, ZmqTransport
+from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_id
 
 __all__ = [
@@ -78,9 +78,10 @@ class Network(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
 class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """CURVE key files in ZeroMQ's certificate format (``btcap keys new``)."""
 
-    public: Path
+    #: This robot's secret certificate ``NAME.key_secret`` (it holds the public key too).
     secret: Path
-    #: A directory of the public keys of the robots allowed to talk to this one.
+    #: A directory of the team's public certificates ``NAME.key``, this robot's included:
+    #: only robots whose key is there get through the handshake.
     trusted: Path
 
 
@@ -179,26 +180,33 @@ class RobotConfig:
                 raise self.error(f"capabilities.implementations[{i}]", str(exc)) from None
         return interfaces, impls
 
-    def check_secure(self, *, insecure: bool = False) -> None:
-        """Refuse a bind beyond this host without keys, unless ``insecure`` is explicit."""
-        bind = self.spec.network.bind
-        if self.spec.keys is None and not insecure and not _local(bind):
-            raise self.error(
-                "network.bind",
-                f"{bind!r} is reachable from other hosts but no keys are configured; "
-                "add keys, bind a loopback address, or pass --insecure",
-            )
-
     def transport(
-        self, registry: MessageRegistry, *, robot: str | None = None, ephemeral: bool = False
+        self,
+        registry: MessageRegistry,
+        *,
+        robot: str | None = None,
+        ephemeral: bool = False,
+        insecure: bool = False,
     ) -> ZmqTransport:
         """A transport bound as configured (or, ``ephemeral``, on the same host with a port
         the system picks, for a short-lived observer beside a running robot) that dials
-        the seeds. Keys are not passed yet: the transport has no CURVE parameters."""
+        the seeds. With keys it is CURVE-encrypted; without, it binds only where this host
+        alone can reach it, unless ``insecure``."""
         net = self.spec.network
         bind, advertise = net.bind, net.advertise
         if ephemeral:
             bind, advertise = _ephemeral(bind, advertise, robot or self.robot), None
+        keys: KeyPair | None = None
+        trusted: TeamKeys | None = None
+        if self.keys is not None:
+            try:
+                keys = KeyPair.load(self.keys.secret)
+            except (OSError, ValueError) as exc:
+                raise self.error("keys.secret", str(exc)) from None
+            try:
+                trusted = TeamKeys.load(self.keys.trusted)
+            except (OSError, ValueError) as exc:
+                raise self.error("keys.trusted", str(exc)) from None
         try:
             return ZmqTransport(
                 robot or self.robot,
@@ -207,9 +215,13 @@ class RobotConfig:
                 peers=self.seeds,
                 max_peers=net.max_peers,
                 advertise=advertise,
+                keys=keys,
+                trusted=trusted,
+                insecure=insecure,
             )
         except ValueError as exc:
-            raise self.error("network.bind", str(exc)) from None
+            field = "keys" if keys is not None and "key" in str(exc) else "network.bind"
+            raise self.error(field, str(exc)) from None
 
     def error(self, field: str, why: str) -> AgentConfigError:
         return AgentConfigError(f"{self.path}: {field}: {why}")
@@ -315,7 +327,7 @@ def _files(config: RobotConfig, base: Path, field: str, paths: list[Path]) -> li
 
 
 def _check_keys(config: RobotConfig, keys: Keys, base: Path) -> None:
-    for name in ("public", "secret", "trusted"):
+    for name in ("secret", "trusted"):
         path = (base / getattr(keys, name)).resolve()
         want_dir = name == "trusted"
         if not (path.is_dir() if want_dir else path.is_file()):
@@ -339,16 +351,3 @@ def _ephemeral(bind: str, advertise: str | None, robot: str) -> str:
             host = _host(advertise)
         return f"tcp://{host}:*"
     return f"{bind}-{robot}"  # ipc:// and inproc:// name a path or a label
-
-
-def _local(bind: str) -> bool:
-    """Whether only this host can reach ``bind`` (ipc, inproc, or a loopback address)."""
-    if not bind.startswith("tcp://"):
-        return True
-    host = _host(bind).strip("[]")
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False  # an interface name or a host name: may reach other hosts

@@ -44,13 +44,15 @@ async def open_agent(
     robot: str | None = None,
     implementations: bool = True,
     ephemeral: bool = False,
+    insecure: bool = False,
 ) -> AsyncIterator[Agent]:
     """The configured robot, in the team while the block runs; it says goodbye on exit, so
     the team re-assigns its work at once. ``robot``/``ephemeral``/``implementations=False``
-    make a short-lived observer or operator from the same file."""
+    make a short-lived observer or operator from the same file; ``insecure`` allows a
+    keyless bind other hosts can reach."""
     _, impls = config.load_capabilities(registry, implementations=implementations)
     messages = protocol_registry()
-    transport = config.transport(messages, robot=robot, ephemeral=ephemeral)
+    transport = config.transport(messages, robot=robot, ephemeral=ephemeral, insecure=insecure)
     agent = Agent(
         robot or config.robot,
         transport=transport,

@@ -11,6 +11,7 @@ import pytest
 from btcap.bt.registry import default_registry
 from btcap.team.agent import AgentConfig
 from btcap.team.agentconfig import AgentConfigError, Timing, load_agent_file
+from btcap.team.protocol import protocol_registry
 
 ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"
@@ -102,12 +103,13 @@ def test_paths_are_relative_to_the_file() -> None:
         ("interfaces.yaml", "nope.yaml", "capabilities.interfaces[0]:"),
         ("greet.yaml", "nope.yaml", "capabilities.implementations[0]:"),
         ("implementations:", "implementation:", "capabilities: Object contains unknown field"),
+        ("allocation:", "keys: {secret: a.key_secret, trusted: t}\nallocation:", "keys.secret: "),
         (
             "allocation:",
-            "keys: {public: a.key, secret: a.key_secret, trusted: t}\nallocation:",
-            "keys.public: ",
+            "keys: {secret: a.key_secret}\nallocation:",
+            "keys: Object missing required",
         ),
-        ("allocation:", "keys: {public: a.key}\nallocation:", "keys: Object missing required"),
+        ("allocation:", "keys: {public: a.key}\nallocation:", "keys: Object contains unknown"),
     ],
 )
 def test_bad_fields_are_named_with_the_file(
@@ -122,11 +124,10 @@ def test_bad_fields_are_named_with_the_file(
 
 
 def test_missing_key_files_are_named(tmp_path: Path) -> None:
-    (tmp_path / "keys").mkdir()
-    (tmp_path / "keys" / "alpha.key").write_text("public")
-    text = GOOD + "keys: {public: keys/alpha.key, secret: keys/alpha.key_secret, trusted: keys}\n"
+    text = GOOD + "keys: {secret: keys/alpha.key_secret, trusted: keys}\n"
     with pytest.raises(AgentConfigError, match=r"keys\.secret: .*alpha\.key_secret: no such file"):
         load_agent_file(_write(tmp_path, text))
+    (tmp_path / "keys").mkdir()
     (tmp_path / "keys" / "alpha.key_secret").write_text("secret")
     config = load_agent_file(_write(tmp_path, text))
     assert config.keys is not None
@@ -165,31 +166,26 @@ def test_capability_file_errors_name_the_config_field_and_the_capability_file(
     assert (len(interfaces), impls) == (1, [])
 
 
-@pytest.mark.parametrize(
-    ("bind", "keys", "insecure", "ok"),
-    [
-        ("tcp://127.0.0.1:*", False, False, True),
-        ("tcp://127.0.0.3:7000", False, False, True),
-        ("tcp://[::1]:7000", False, False, True),
-        ("tcp://localhost:7000", False, False, True),
-        ("ipc:///tmp/x.sock", False, False, True),
-        ("tcp://192.168.1.5:7000", False, False, False),
-        ("tcp://eth0:7000", False, False, False),
-        ("tcp://192.168.1.5:7000", False, True, True),
-        ("tcp://192.168.1.5:7000", True, False, True),
-    ],
-)
-def test_without_keys_only_a_loopback_bind_is_allowed(
-    tmp_path: Path, bind: str, keys: bool, insecure: bool, ok: bool
-) -> None:
-    text = GOOD.replace("tcp://127.0.0.1:*", bind)
-    if keys:
-        for name in ("a.key", "a.key_secret"):
-            (tmp_path / name).write_text(name)
-        text += "keys: {public: a.key, secret: a.key_secret, trusted: .}\n"
+def test_keys_make_an_encrypted_transport_and_bad_key_files_are_named(tmp_path: Path) -> None:
+    zmq_auth = pytest.importorskip("zmq.auth")
+    keys = tmp_path / "keys"
+    keys.mkdir()
+    for robot in ("alpha", "beta"):  # the seed's key too: only the team is dialled
+        zmq_auth.create_certificates(str(keys), robot)
+    text = GOOD + "keys: {secret: keys/alpha.key_secret, trusted: keys}\n"
     config = load_agent_file(_write(tmp_path, text))
-    if ok:
-        config.check_secure(insecure=insecure)
-    else:
-        with pytest.raises(AgentConfigError, match=r"network\.bind: .*--insecure"):
-            config.check_secure(insecure=insecure)
+    transport = config.transport(protocol_registry())
+    try:
+        assert transport.curve is not None
+    finally:
+        transport.close()
+    (keys / "alpha.key_secret").write_text("not a certificate")
+    with pytest.raises(AgentConfigError, match=r"keys\.secret: "):
+        load_agent_file(_write(tmp_path, text)).transport(protocol_registry())
+
+
+def test_a_keyless_bind_other_hosts_reach_is_refused_naming_the_field(tmp_path: Path) -> None:
+    text = GOOD.replace("tcp://127.0.0.1:*", "tcp://0.0.0.0:*\n  advertise: tcp://192.0.2.1:7")
+    config = load_agent_file(_write(tmp_path, text))
+    with pytest.raises(AgentConfigError, match=r"network\.bind: .*without keys"):
+        config.transport(protocol_registry())
