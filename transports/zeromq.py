@@ -1,25 +1,24 @@
 """ZeroMQ transport: one ROUTER bound per system, one DEALER per peer.
 
-A DEALER whose routing id is the sending system's id sends one frame per message: a kind
-byte followed by the payload, so the receiving ROUTER sees ``[system_id, kind+payload]``:
-
-- kind ``M``: the payload is a codec-encoded :class:`~transports.codec.Envelope`;
-- kind ``H``: the payload is the sender's endpoint (UTF-8): a hello that lets a system
-  that joins later be answered without anyone configuring it.
+A DEALER whose routing id is the sender's system id sends one frame per message, a kind
+byte and a payload: ``M`` + a codec-encoded envelope, or ``H`` + the sender's endpoint
+(a hello, so a system that joins later is answered without anyone configuring it).
 
 Anything else, a message from a peer that never said hello, or an envelope whose sender
-does not match the routing id is dropped, logged and counted; the receiver goes on.
+does not match the peer is dropped, logged and counted; the receiver goes on.
 
-All sockets are plain (non-asyncio) pyzmq sockets. Sends never block (``NOBLOCK``), and
-receiving is a reader callback on the ROUTER's file descriptor that drains the socket and
-hands envelopes straight to the actor system: no futures and no task switch per message.
-One frame instead of two saves a ``recv``/``send`` and a ``RCVMORE`` query per message,
-which is most of what a round trip costs in Python.
+With keys, the peer is the member ZAP authenticated (:mod:`~btcap.transports.security`).
+
+Sockets are plain pyzmq ones: sends never block (``NOBLOCK``), and a reader callback on
+the ROUTER's descriptor drains it and hands envelopes straight to the actor system (no
+futures, no task switch per message). One frame per message, not two, saves a ``recv``,
+a ``send`` and a ``RCVMORE`` query: most of what a round trip costs in Python.
 """
 
 from __future__ import annotations
 
 import asyncio
+import os
 from typing import Any
 
 import zmq
@@ -28,9 +27,28 @@ from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
-from btcap.transports.log import get_logger, worth_logging
+from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
-from btcap.transports.zmq_sockets import EVENTS, NOBLOCK, POLLIN, Monitor, check_id, open_dealer
+from btcap.transports.security import (
+    DEFAULT_MAX_MESSAGE_BYTES,
+    KeyPair,
+    TeamKeys,
+    authenticated,
+    curve_for,
+)
+from btcap.transports.zmq_sockets import (
+    EVENTS,
+    NOBLOCK,
+    POLLIN,
+    SCHEMES,
+    Monitor,
+    check_id,
+    fd_of,
+    open_dealer,
+    open_router,
+    parse_hello,
+    reject,
+)
 
 __all__ = ["ZmqTransport"]
 
@@ -40,8 +58,6 @@ _MSG = b"M"
 _HELLO = b"H"
 _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
-_SCHEMES = ("tcp://", "ipc://", "inproc://")
-_RECV_HWM = 10_000
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
 _COPY_THRESHOLD = 65_536
@@ -62,6 +78,17 @@ class ZmqTransport(Transport):
     ``inproc://`` endpoints only reach transports on the same zmq context (by default the
     process-wide ``zmq.asyncio.Context.instance()``). Use a transport from one thread,
     the one running its event loop.
+
+    Security: ``keys`` (a :class:`KeyPair` or the path of a secret certificate
+    ``NAME.key_secret``) and ``trusted`` (a :class:`TeamKeys` or a directory of public
+    certificates ``NAME.key`` holding this system's own under its id) go together: tcp
+    and ipc traffic is then CURVE-encrypted, only members on the allow-list complete a
+    handshake, a peer is the member its key names, and only a member's hello opens a
+    connection back. Such a transport runs its own ZAP handler in a zmq context of its
+    own (a ``context`` given must not serve another secure transport; ``inproc://`` is
+    refused). Without keys it binds loopback/ipc/inproc only unless ``insecure=True``.
+    ``max_message_bytes`` bounds a frame: libzmq cuts off a connection that sends a
+    bigger one before allocating it (see :attr:`disconnects`); bigger sends are refused.
     """
 
     def __init__(
@@ -75,38 +102,45 @@ class ZmqTransport(Transport):
         max_peers: int = 1024,
         advertise: str | None = None,
         context: zmq.Context[Any] | None = None,
+        keys: KeyPair | str | os.PathLike[str] | None = None,
+        trusted: TeamKeys | str | os.PathLike[str] | None = None,
+        insecure: bool = False,
+        max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES,
     ) -> None:
         if (why := check_id(system_id)) is not None:
             raise ValueError(f"system id {system_id!r}: {why}")
-        if not bind.startswith(_SCHEMES):
+        if not bind.startswith(SCHEMES):
             raise ValueError(f"cannot bind {bind!r}: expected tcp://, ipc:// or inproc://")
-        if advertise is not None and not advertise.startswith(_SCHEMES):
+        if advertise is not None and not advertise.startswith(SCHEMES):
             raise ValueError(f"advertise {advertise!r}: expected tcp://, ipc:// or inproc://")
+        if max_message_bytes < 1024:
+            raise ValueError(f"max_message_bytes {max_message_bytes}: expected at least 1024")
+        self.curve = curve_for(system_id, bind, keys, trusted, insecure)
+        """CURVE keys and allow-list, or None for a plain (loopback unless insecure) one."""
+        self.max_message_bytes = max_message_bytes
         self.system_id = system_id
         self.stats = TransportStats()
         self.codec = Codec(registry)
         self.accept_hello = accept_hello
         self.max_peers = max_peers
         self._id = system_id.encode()
+        self._own_ctx = self.curve is not None and context is None
         base = context if context is not None else zmq.asyncio.Context.instance()
         # Plain sockets on the same underlying context (so inproc:// still connects):
         # sends are non-blocking C calls and receiving is our own reader callback.
-        self._ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context.shadow(base.underlying)
-        self._router: zmq.Socket[bytes] = self._ctx.socket(zmq.ROUTER)
-        self._router.setsockopt(zmq.LINGER, 0)
-        self._router.setsockopt(zmq.RCVHWM, _RECV_HWM)
-        # A peer that reconnects with the same id (after a network blip or a restart)
-        # takes over its old connection instead of being silently ignored.
-        self._router.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        self._ctx: zmq.Context[zmq.Socket[bytes]] = (
+            zmq.Context() if self._own_ctx else zmq.Context.shadow(base.underlying)
+        )
         try:
-            self._router.bind(bind)
-        except zmq.ZMQError as exc:
-            self._router.close(0)
-            raise ValueError(f"cannot bind {bind!r}: {exc}") from None
+            self._router, self._events = open_router(
+                self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id
+            )
+        except ValueError:
+            if self._own_ctx:
+                self._ctx.term()
+            raise
         bound = self._router.getsockopt_string(zmq.LAST_ENDPOINT)
-        fd = self._router.getsockopt(zmq.FD)
-        assert isinstance(fd, int)
-        self._fd = fd
+        self._fd = fd_of(self._router)
         self.endpoint: str = advertise or bound
         """Where peers reach this system: ``advertise`` if given, else what was bound."""
         self.bound_endpoint: str = bound
@@ -116,8 +150,7 @@ class ZmqTransport(Transport):
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
         self.hellos = 0
-        """Hellos taken (new, moved or known peers): with ``stats.received``,
-        ``stats.malformed`` and ``stats.unknown_peer`` every inbound frame is counted once."""
+        """Hellos taken (new, moved or known peers); ``stats`` counts the other frames."""
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -128,6 +161,11 @@ class ZmqTransport(Transport):
         except BaseException:
             self.close()
             raise
+
+    @property
+    def disconnects(self) -> int:
+        """Inbound connections closed: by peers, or by libzmq for an oversized frame."""
+        return self._events.disconnects
 
     def __repr__(self) -> str:
         return f"ZmqTransport({self.system_id!r}, {self.endpoint!r}, peers={len(self._dealers)})"
@@ -145,9 +183,9 @@ class ZmqTransport(Transport):
             raise RuntimeError(f"transport of {self.system_id} is closed")
         if system_id == self.system_id or self._endpoints.get(system_id) == endpoint:
             return
-        if not endpoint.startswith(_SCHEMES):
+        if not endpoint.startswith(SCHEMES):
             raise ValueError(f"peer {system_id}: endpoint {endpoint!r} is not tcp/ipc/inproc")
-        sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint)
+        sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint, self.curve)
         self.remove_peer(system_id)
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
@@ -202,6 +240,11 @@ class ZmqTransport(Transport):
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
         frame = kind + data
+        if len(frame) > self.max_message_bytes:
+            # The peer would drop the connection (and what is queued behind the frame).
+            self.stats.undeliverable += 1
+            self._reject("too large to send", sid.encode(), f"{len(frame)} bytes")
+            return
         try:
             sock.send(frame, NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
         except zmq.Again:
@@ -215,16 +258,15 @@ class ZmqTransport(Transport):
 
     # -- receiving --------------------------------------------------------------------
     async def serve(self, deliver: Deliver, *, task_status: TaskStatus[None]) -> None:
-        """Hand every valid envelope to ``deliver`` until cancelled or closed.
-
-        ``deliver`` is called from a reader callback of the running asyncio loop, so it
-        must not block; exceptions it raises are logged and the receiver goes on.
-        """
+        """Hand every valid envelope to ``deliver`` (called from a reader callback: it must
+        not block; what it raises is logged) until cancelled or closed."""
         if self._closed:
             raise RuntimeError(f"transport of {self.system_id} is closed")
         if self._deliver is not None:
             raise RuntimeError(f"transport of {self.system_id} is already serving")
         loop = asyncio.get_running_loop()
+        if self.curve is not None:
+            self.curve.start(self._ctx)
         try:
             loop.add_reader(self._fd, self._on_readable)
         except NotImplementedError:
@@ -235,8 +277,10 @@ class ZmqTransport(Transport):
         self._loop = loop
         self._deliver = deliver
         self._stopped = loop.create_future()
+        loop.add_reader(self._events.fd, self._on_events)
         # zmq's descriptors are edge-triggered: drain what arrived before we watched them.
         loop.call_soon(self._on_readable)
+        loop.call_soon(self._on_events)
         for monitor in self._monitors.values():
             self._watch(monitor)
         task_status.started()
@@ -250,14 +294,19 @@ class ZmqTransport(Transport):
         if deliver is None:
             return
         router = self._router
+        secure = self.curve is not None
         try:
             for _ in range(_BATCH):
                 try:
-                    frames = router.recv_multipart(NOBLOCK)
+                    if secure:
+                        frames = self._authenticated(router.recv_multipart(NOBLOCK, copy=False))
+                    else:
+                        frames = router.recv_multipart(NOBLOCK)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
-                    self._handle(frames, deliver)
+                    if frames:
+                        self._handle(frames, deliver)
                 except Exception as exc:  # a bug here must not stall the receiver
                     self.stats.malformed += 1
                     self.stats.drop("receiver error")
@@ -275,6 +324,10 @@ class ZmqTransport(Transport):
         if self._loop is not None:
             self._loop.call_soon(self._on_readable)
 
+    def _on_events(self) -> None:
+        if not self._closed and self._events.drain(_BATCH) and self._loop is not None:
+            self._loop.call_soon(self._on_events)
+
     def _on_monitor(self, monitor: Monitor) -> None:
         try:
             for _ in range(_BATCH):
@@ -288,6 +341,13 @@ class ZmqTransport(Transport):
             return
         if self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
+
+    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
+        member, problem = authenticated(frames)
+        if problem:
+            self._malformed(problem, member, "not the member ZAP admitted")
+            return []
+        return [member, *(f.bytes for f in frames[1:])]
 
     def _handle(self, frames: list[bytes], deliver: Deliver) -> None:
         if len(frames) != 2:
@@ -327,19 +387,9 @@ class ZmqTransport(Transport):
 
     def _hello(self, ident: bytes, payload: bytes) -> None:
         try:
-            peer = ident.decode()
-            endpoint = payload.decode()
-        except UnicodeDecodeError:
-            self._malformed("bad hello", ident, "id or endpoint not UTF-8")
-            return
-        if (why := check_id(peer)) is not None:
-            self._malformed("bad hello", ident, why)
-            return
-        if not endpoint.startswith(_SCHEMES) or len(endpoint) > 1024:
-            self._malformed("bad hello", ident, f"endpoint {endpoint[:80]!r}")
-            return
-        if peer == self.system_id:
-            self._malformed("bad hello", ident, "another system uses our id")
+            peer, endpoint = parse_hello(ident, payload, self.system_id)
+        except ValueError as exc:
+            self._malformed("bad hello", ident, str(exc))
             return
         known = self._endpoints.get(peer)
         if known != endpoint and peer not in self._configured:
@@ -350,7 +400,11 @@ class ZmqTransport(Transport):
             if known is None and len(self._dealers) >= self.max_peers:
                 # Every peer costs sockets: a flood of made-up ids must not exhaust them.
                 self.stats.unknown_peer += 1
-                self._reject("too many peers", ident, f"already {len(self._dealers)}")
+                self._reject(
+                    "too many peers",
+                    ident,
+                    f"already {len(self._dealers)}",
+                )
                 return
             try:
                 self._connect(peer, endpoint)
@@ -366,20 +420,7 @@ class ZmqTransport(Transport):
         self._reject(reason, ident, detail)
 
     def _reject(self, reason: str, ident: bytes, detail: str) -> None:
-        stats = self.stats
-        stats.drop(reason)
-        n = stats.by_reason[reason]
-        # A flood of junk must not become a flood of log lines: log the first few of
-        # each reason, then every power of two.
-        if worth_logging(n):
-            log.warning(
-                "transport.dropped",
-                system=self.system_id,
-                peer=ident[:64].decode(errors="replace"),
-                reason=reason,
-                detail=detail,
-                count=n,
-            )
+        reject(self.stats, self.system_id, reason, ident, detail)
 
     # -- shutting down ----------------------------------------------------------------
     @property
@@ -397,7 +438,13 @@ class ZmqTransport(Transport):
         loop, self._loop = self._loop, None
         if loop is not None and not loop.is_closed():
             loop.remove_reader(self._fd)
+            loop.remove_reader(self._events.fd)
+        self._events.close()
         stopped, self._stopped = self._stopped, None
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
         self._router.close(0)
+        if self.curve is not None:
+            self.curve.stop()
+        if self._own_ctx:
+            self._ctx.term()

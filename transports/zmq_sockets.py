@@ -12,11 +12,26 @@ import uuid
 from typing import Any
 
 import zmq
+from zmq.utils.monitor import parse_monitor_message
 
-from btcap.transports.base import BROADCAST
-from btcap.transports.log import get_logger
+from btcap.transports.base import BROADCAST, TransportStats
+from btcap.transports.log import get_logger, worth_logging
+from btcap.transports.security import Curve
 
-__all__ = ["EVENTS", "NOBLOCK", "POLLIN", "Monitor", "check_id", "open_dealer"]
+__all__ = [
+    "EVENTS",
+    "NOBLOCK",
+    "POLLIN",
+    "SCHEMES",
+    "Monitor",
+    "RouterEvents",
+    "check_id",
+    "fd_of",
+    "open_dealer",
+    "open_router",
+    "parse_hello",
+    "reject",
+]
 
 log = get_logger("btcap.transports")
 
@@ -24,7 +39,12 @@ log = get_logger("btcap.transports")
 NOBLOCK = int(zmq.NOBLOCK)
 EVENTS = int(zmq.EVENTS)
 POLLIN = int(zmq.POLLIN)
+SCHEMES = ("tcp://", "ipc://", "inproc://")
+_RECV_HWM = 10_000
 _SEND_HWM = 10_000
+_DEALER_MAX_IN = 16_384
+"""A DEALER only sends: peers never answer on it, so anything beyond a handshake that
+arrives there is junk, and libzmq drops the connection instead of queueing it."""
 
 
 def check_id(system_id: str) -> str | None:
@@ -39,14 +59,94 @@ def check_id(system_id: str) -> str | None:
     return None
 
 
+def fd_of(sock: zmq.Socket[bytes]) -> int:
+    fd = sock.getsockopt(zmq.FD)
+    assert isinstance(fd, int)
+    return fd
+
+
+def open_router(
+    ctx: zmq.Context[Any],
+    bind: str,
+    curve: Curve | None,
+    max_message_bytes: int,
+    stats: TransportStats,
+    system: str,
+) -> tuple[zmq.Socket[bytes], RouterEvents]:
+    """The ROUTER a transport receives on, bound to ``bind``, with its event monitor."""
+    sock: zmq.Socket[bytes] = ctx.socket(zmq.ROUTER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
+    sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
+    if curve is not None:
+        curve.server(sock)
+    # A peer that reconnects with the same id (after a network blip or a restart)
+    # takes over its old connection instead of being silently ignored.
+    sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+    name = f"inproc://zmq-transport-router-{uuid.uuid4().hex}"
+    events = RouterEvents(sock, name, stats, system)
+    try:
+        sock.bind(bind)
+    except zmq.ZMQError as exc:
+        events.close()
+        sock.close(0)
+        raise ValueError(f"cannot bind {bind!r}: {exc}") from None
+    return sock, events
+
+
+def reject(stats: TransportStats, system: str, reason: str, ident: bytes, detail: str) -> None:
+    """Count a dropped input; log it while :func:`worth_logging` says so (a flood of junk
+    must not become a flood of log lines)."""
+    stats.drop(reason)
+    n = stats.by_reason[reason]
+    if worth_logging(n):
+        log.warning(
+            "transport.dropped",
+            system=system,
+            peer=ident[:64].decode(errors="replace"),
+            reason=reason,
+            detail=detail,
+            count=n,
+        )
+
+
+def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
+    """The peer id and endpoint a hello announces; ValueError says what is wrong."""
+    try:
+        peer = ident.decode()
+        endpoint = payload.decode()
+    except UnicodeDecodeError:
+        raise ValueError("id or endpoint not UTF-8") from None
+    if (why := check_id(peer)) is not None:
+        raise ValueError(why)
+    if not endpoint.startswith(SCHEMES) or len(endpoint) > 1024:
+        raise ValueError(f"endpoint {endpoint[:80]!r}")
+    if peer == own_id:
+        raise ValueError("another system uses our id")
+    return peer, endpoint
+
+
 def open_dealer(
-    ctx: zmq.Context[Any], own_id: bytes, peer: str, endpoint: str
+    ctx: zmq.Context[Any], own_id: bytes, peer: str, endpoint: str, curve: Curve | None = None
 ) -> tuple[zmq.Socket[bytes], Monitor | None]:
-    """A DEALER connected to ``peer`` at ``endpoint``, with its monitor (none for inproc)."""
+    """A DEALER connected to ``peer`` at ``endpoint``, with its monitor (none for inproc).
+
+    With ``curve`` it only completes a handshake with a server holding ``peer``'s key.
+    """
+    if curve is not None and endpoint.startswith("inproc://"):
+        raise ValueError(f"peer {peer}: cannot reach {endpoint!r} with keys (not encrypted)")
     sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.ROUTING_ID, own_id)
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
+    sock.setsockopt(zmq.RCVHWM, 1)
+    sock.setsockopt(zmq.MAXMSGSIZE, _DEALER_MAX_IN)
+    if curve is not None:
+        try:
+            curve.client(sock, peer)
+        except ValueError:
+            sock.close(0)
+            raise
     monitor = None
     if not endpoint.startswith("inproc://"):
         # A peer that restarts on the same endpoint gets our DEALER back by zmq's
@@ -80,9 +180,7 @@ class Monitor:
         self.peer = peer
         self.dealer = dealer
         self.socket = socket
-        fd = socket.getsockopt(zmq.FD)
-        assert isinstance(fd, int)
-        self.fd = fd
+        self.fd = fd_of(socket)
         self.connects = 0
         self.closed = False
 
@@ -102,4 +200,67 @@ class Monitor:
     def close(self) -> None:
         self.closed = True
         self.dealer.disable_monitor()
+        self.socket.close(0)
+
+
+_REFUSED = int(zmq.EVENT_HANDSHAKE_FAILED_AUTH)
+# Not EVENT_HANDSHAKE_FAILED_NO_DETAIL: with it watched, libzmq 4.3.5 leaves a handshake
+# that fails for want of a ZAP handler (a transport not yet serving) hanging for good
+# instead of closing it, and the peer never retries.
+_FAILED = int(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
+_DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
+
+
+class RouterEvents:
+    """What libzmq did to inbound connections without telling the ROUTER's reader.
+
+    Refused handshakes (a key not on the allow-list) and failed ones (wrong mechanism,
+    junk) never become messages, and neither does a frame over ``MAXMSGSIZE``: libzmq
+    drops that connection, which shows only as a disconnect.
+    """
+
+    __slots__ = ("disconnects", "fd", "router", "socket", "stats", "system")
+
+    def __init__(
+        self, router: zmq.Socket[bytes], name: str, stats: TransportStats, system: str
+    ) -> None:
+        self.router = router
+        self.stats = stats
+        self.system = system
+        self.disconnects = 0
+        self.socket: zmq.Socket[bytes] = router.get_monitor_socket(
+            _REFUSED | _FAILED | _DISCONNECTED, addr=name
+        )
+        self.fd = fd_of(self.socket)
+
+    def drain(self, limit: int) -> bool:
+        """Count up to ``limit`` events; True if more are queued.
+
+        Refused handshakes (a key not on the allow-list) are unknown peers; disconnects
+        are counted in :attr:`disconnects` and logged now and then.
+        """
+        sock = self.socket
+        for _ in range(limit):
+            if not sock.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
+                return False
+            event = parse_monitor_message(sock.recv_multipart(NOBLOCK))
+            kind, value = int(event["event"]), event["value"]
+            if kind == _REFUSED:
+                self.stats.unknown_peer += 1
+                reject(self.stats, self.system, "handshake refused", b"", f"ZAP status {value}")
+            elif kind == _FAILED:
+                reject(self.stats, self.system, "handshake failed", b"", f"error {value}")
+            elif kind == _DISCONNECTED:
+                self.disconnects += 1
+                if worth_logging(self.disconnects):
+                    log.info(
+                        "transport.disconnected",
+                        system=self.system,
+                        detail="a peer left, or sent more than max_message_bytes",
+                        count=self.disconnects,
+                    )
+        return True
+
+    def close(self) -> None:
+        self.router.disable_monitor()
         self.socket.close(0)

@@ -1,0 +1,261 @@
+"""CURVE keys, the team's allow-list and ZAP authentication for :mod:`btcap.transports.zeromq`.
+
+Keys live in ZeroMQ's certificate files (``zmq.auth.create_certificates``): a robot keeps
+its secret certificate ``NAME.key_secret``; the team shares a directory of public
+certificates ``NAME.key``, one per member, and the file name is the member's name. A peer
+is who its key says: pyzmq's asyncio authenticator admits only keys on the allow-list and
+stamps every message from that connection with the member's name as its ``User-Id``,
+which the transport compares with what the message claims.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import zmq
+import zmq.auth
+from zmq.auth.asyncio import AsyncioAuthenticator
+from zmq.utils import z85
+
+__all__ = [
+    "DEFAULT_MAX_MESSAGE_BYTES",
+    "ZAP_DOMAIN",
+    "Curve",
+    "KeyPair",
+    "TeamKeys",
+    "authenticated",
+    "curve_for",
+    "is_loopback",
+]
+
+DEFAULT_MAX_MESSAGE_BYTES = 4 * 1024 * 1024
+"""Largest frame a transport accepts (and sends): libzmq drops a connection that sends
+a bigger one as soon as it reads the frame's length, before allocating it."""
+ZAP_DOMAIN = "btcap"
+"""Without a ZAP domain libzmq would encrypt but never ask the authenticator."""
+_KEY_LEN = 40  # a z85-encoded 32-byte CURVE key
+
+
+def _check_key(key: bytes, where: str) -> bytes:
+    try:
+        if len(key) == _KEY_LEN and len(z85.decode(key)) == 32:
+            return key
+    except (ValueError, KeyError, TypeError):
+        pass
+    raise ValueError(f"{where}: not a z85-encoded CURVE key")
+
+
+@dataclass(frozen=True, slots=True, repr=False)
+class KeyPair:
+    """One robot's CURVE key pair (z85-encoded, as in certificate files)."""
+
+    public: bytes
+    secret: bytes
+
+    def __post_init__(self) -> None:
+        _check_key(self.public, "public key")
+        _check_key(self.secret, "secret key")
+
+    def __repr__(self) -> str:  # never print a secret key into a log
+        return f"KeyPair(public={self.public.decode()!r})"
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> KeyPair:
+        """Read a secret certificate (``NAME.key_secret``, from ``btcap keys new``)."""
+        public, secret = _load(Path(path))
+        if secret is None:
+            raise ValueError(f"{path}: holds no secret key (use the .key_secret file)")
+        return cls(_check_key(public, str(path)), _check_key(secret, str(path)))
+
+
+def _load(path: Path) -> tuple[bytes, bytes | None]:
+    if not path.is_file():
+        raise ValueError(f"{path}: no such certificate file")
+    try:
+        return zmq.auth.load_certificate(path)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a ZeroMQ certificate ({exc})") from None
+
+
+class TeamKeys:
+    """The allow-list: member name -> public key. Only these may talk to a secure transport."""
+
+    __slots__ = ("_by_key", "_by_name")
+
+    def __init__(self, members: Mapping[str, bytes]) -> None:
+        self._by_name: dict[str, bytes] = {}
+        self._by_key: dict[bytes, str] = {}
+        for name, key in members.items():
+            _check_key(key, f"member {name!r}")
+            other = self._by_key.get(key)
+            if other is not None:
+                raise ValueError(f"members {other!r} and {name!r} have the same public key")
+            self._by_name[name] = key
+            self._by_key[key] = name
+
+    @classmethod
+    def load(cls, directory: str | os.PathLike[str]) -> TeamKeys:
+        """Every ``NAME.key`` public certificate in ``directory`` (names from file names)."""
+        folder = Path(directory)
+        if not folder.is_dir():
+            raise ValueError(f"{folder}: no such directory of public certificates")
+        members = {p.stem: _load(p)[0] for p in sorted(folder.glob("*.key")) if p.is_file()}
+        if not members:
+            raise ValueError(f"{folder}: holds no public certificates (NAME.key files)")
+        try:
+            return cls(members)
+        except ValueError as exc:
+            raise ValueError(f"{folder}: {exc}") from None
+
+    def key_of(self, name: str) -> bytes | None:
+        return self._by_name.get(name)
+
+    def name_of(self, key: bytes) -> str | None:
+        """The member holding ``key`` (z85-encoded), or None for a stranger."""
+        return self._by_key.get(key)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._by_name
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._by_name)
+
+    def __len__(self) -> int:
+        return len(self._by_name)
+
+    def __repr__(self) -> str:
+        return f"TeamKeys({sorted(self._by_name)})"
+
+
+class _TeamAuthenticator(AsyncioAuthenticator):
+    """pyzmq's ZAP handler, admitting the team's keys and naming peers after them."""
+
+    def __init__(self, context: zmq.Context[Any], team: TeamKeys) -> None:
+        super().__init__(context)
+        self.team = team
+        self.configure_curve_callback(ZAP_DOMAIN, self)
+
+    def callback(self, domain: str, key: bytes) -> bool:
+        """The credentials check pyzmq calls with the client's z85 key."""
+        return self.team.name_of(key) is not None
+
+    def curve_user_id(self, client_public_key: bytes) -> str:
+        name = self.team.name_of(z85.encode(client_public_key))
+        assert name is not None  # only called for keys the callback admitted
+        return name
+
+
+class Curve:
+    """CURVE for one transport: its server socket, its client sockets, its ZAP handler.
+
+    ZAP handlers are per zmq context (one ``inproc://zeromq.zap.01`` each), so a secure
+    transport wants a context of its own.
+    """
+
+    __slots__ = ("_auth", "keys", "team")
+
+    def __init__(self, system_id: str, keys: KeyPair, team: TeamKeys) -> None:
+        if team.key_of(system_id) != keys.public:
+            raise ValueError(
+                f"system {system_id!r}: its public key is not the team's certificate "
+                f"{system_id}.key (peers would refuse it): check the keys and the system id"
+            )
+        self.keys = keys
+        self.team = team
+        self._auth: _TeamAuthenticator | None = None
+
+    def server(self, sock: zmq.Socket[bytes]) -> None:
+        sock.setsockopt(zmq.CURVE_SERVER, 1)
+        sock.setsockopt(zmq.CURVE_SECRETKEY, self.keys.secret)
+        sock.setsockopt(zmq.CURVE_PUBLICKEY, self.keys.public)
+        sock.setsockopt(zmq.ZAP_DOMAIN, ZAP_DOMAIN.encode())
+        # Until the authenticator runs, handshakes fail (and peers retry) rather than
+        # being let in unauthenticated.
+        sock.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)
+
+    def client(self, sock: zmq.Socket[bytes], peer: str) -> None:
+        """Make ``sock`` talk to ``peer`` only if the server holds that member's key."""
+        server_key = self.team.key_of(peer)
+        if server_key is None:
+            raise ValueError(f"peer {peer!r} has no public key in the team's certificates")
+        sock.setsockopt(zmq.CURVE_SERVERKEY, server_key)
+        sock.setsockopt(zmq.CURVE_SECRETKEY, self.keys.secret)
+        sock.setsockopt(zmq.CURVE_PUBLICKEY, self.keys.public)
+
+    def start(self, context: zmq.Context[Any]) -> None:
+        """Run the ZAP handler on the running asyncio loop."""
+        if self._auth is not None:
+            return
+        auth = _TeamAuthenticator(context, self.team)
+        try:
+            auth.start()
+        except zmq.ZMQError as exc:
+            auth.stop()
+            raise RuntimeError(
+                f"cannot start ZAP authentication ({exc}): another secure transport "
+                "shares this zmq context; give each its own"
+            ) from None
+        self._auth = auth
+
+    def stop(self) -> None:
+        auth, self._auth = self._auth, None
+        if auth is not None:
+            auth.stop()
+
+
+def authenticated(frames: list[zmq.Frame]) -> tuple[bytes, str]:
+    """The routing id of a received message, and what is wrong with it ("" if nothing).
+
+    The routing id is the sender's choice; the ``User-Id`` is what ZAP authenticated.
+    """
+    ident = frames[0].bytes
+    try:
+        user = frames[-1].get("User-Id")
+    except zmq.ZMQError:  # not past ZAP: never trust a missing stamp
+        return ident, "unauthenticated"
+    return ident, "" if ident == str(user).encode() else "identity mismatch"
+
+
+def is_loopback(endpoint: str) -> bool:
+    """Whether only this host can reach ``endpoint`` (ipc, inproc or a loopback tcp one)."""
+    if endpoint.startswith(("ipc://", "inproc://")):
+        return True
+    if not endpoint.startswith("tcp://"):
+        return False
+    host = endpoint[len("tcp://") :].rpartition(":")[0].strip("[]")
+    if host in ("localhost", "lo"):
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a wildcard, a host name or an interface name
+        return False
+
+
+def curve_for(
+    system_id: str,
+    bind: str,
+    keys: KeyPair | str | os.PathLike[str] | None,
+    trusted: TeamKeys | str | os.PathLike[str] | None,
+    insecure: bool,
+) -> Curve | None:
+    """A transport's CURVE set-up from keys or key files, or None after checking that a
+    keyless transport binds only where this host alone can reach it."""
+    if keys is None and trusted is None:
+        if not insecure and not is_loopback(bind):
+            raise ValueError(
+                f"cannot bind {bind!r} without keys: other hosts could reach it; pass "
+                "keys= and trusted=, bind a loopback address, or pass insecure=True"
+            )
+        return None
+    if keys is None or trusted is None:
+        raise ValueError(f"system {system_id!r}: keys and trusted go together (CURVE)")
+    if bind.startswith("inproc://"):
+        raise ValueError(f"cannot bind {bind!r} with keys: inproc:// is not encrypted")
+    pair = keys if isinstance(keys, KeyPair) else KeyPair.load(keys)
+    team = trusted if isinstance(trusted, TeamKeys) else TeamKeys.load(trusted)
+    return Curve(system_id, pair, team)
