@@ -5,6 +5,7 @@ from __future__ import annotations
 import abc
 import asyncio
 import itertools
+import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -99,6 +100,22 @@ async def _ask_within(
     return ask.result()
 
 
+@dataclass(slots=True, eq=False)
+class _Closed:
+    """A closed auction waiting for its turn to award."""
+
+    outcome: AuctionOutcome
+    reserve: float | None
+    turn: asyncio.Event
+
+    def best(self, taken: set[str]) -> tuple[float, str]:
+        """Its cheapest bid from a robot not taken in this batch (for the order)."""
+        for bid in self.outcome.awardable(self.reserve):
+            if bid.robot not in taken:
+                return (bid.cost, bid.robot)
+        return (math.inf, "")
+
+
 class SingleItemAuction(Actor, AssignmentStrategy):
     """Call for bids, close early, award the cheapest bidder, fall through on declines.
 
@@ -107,6 +124,10 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     ``window_s`` clock seconds have passed. Awards are asks: a winner that became busy
     declines and the award goes to the next-best bid. A task with a ``reserve`` is
     awarded only to a bid below it.
+
+    Auctions that run at the same time for the same robots award one after the other,
+    the globally cheapest robot-task pair first (the paper's greedy rule): a robot that
+    comes free gets the task best for the team, not the one whose auction closed first.
     """
 
     PATH = "auctioneer"
@@ -118,6 +139,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         self.award_timeout_s = award_timeout_s
         self.stats = AuctionStats()
         self._open: dict[AuctionId, tuple[Auction, asyncio.Event]] = {}
+        self._closed: list[_Closed] = []  # waiting for their turn to award
+        self._awarding: _Closed | None = None
+        self._taken: set[str] = set()  # robots that accepted in this batch
         #: The latest auctions' outcomes, newest last (for monitoring and tests).
         self.outcomes: deque[AuctionOutcome] = deque(maxlen=64)
         self._ids = itertools.count(1)
@@ -155,12 +179,53 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
             if not auction.closed(clock.now()):
                 await _wait(done, clock, self.window_s)
-            if auction.answered_all:
-                self.stats.early_closes += 1
-        finally:
+        except BaseException:
             del self._open[auction_id]
+            self._next_turn()  # others may have waited for this one
+            raise
+        if auction.answered_all:
+            self.stats.early_closes += 1
+        # Leaving the open auctions and joining the closed ones in one step: a closed
+        # auction never takes its turn while a competitor is between the two.
+        del self._open[auction_id]
         outcome = auction.outcome()
         self.outcomes.append(outcome)
+        mine = _Closed(outcome, task.reserve, asyncio.Event())
+        self._closed.append(mine)
+        try:
+            self._next_turn()
+            await mine.turn.wait()
+            won = await self._award(task, auction_id, outcome)
+            if isinstance(won, Assigned):
+                self._taken.add(won.robot)
+            return won
+        finally:
+            if mine in self._closed:
+                self._closed.remove(mine)
+            if self._awarding is mine:
+                self._awarding = None
+            if not self._closed:
+                self._taken.clear()
+            self._next_turn()
+
+    def _next_turn(self) -> None:
+        """Let the closed auction with the cheapest free bid award, once no auction still
+        collecting bids competes with the waiting ones for a robot."""
+        if self._awarding is not None or not self._closed:
+            return
+        wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
+        if any(wanted & a.invited for a, _done in self._open.values()):
+            return  # its bids may be cheaper: wait for it to close
+        nxt = min(self._closed, key=lambda c: c.best(self._taken))
+        self._closed.remove(nxt)
+        self._awarding = nxt
+        nxt.turn.set()
+
+    async def _award(
+        self, task: AssignmentTask, auction_id: AuctionId, outcome: AuctionOutcome
+    ) -> Assigned | Unassigned:
+        system = self.system
+        clock = system.clock
         reasons = dict(outcome.declined)
         reasons.update((robot, "no answer") for robot in outcome.silent)
         for bid in outcome.ranking:

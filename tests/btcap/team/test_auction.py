@@ -11,7 +11,7 @@ from capfixtures import COUNT, Probe, count_impl, silent_member, step, team, tic
 from hypothesis import given
 from hypothesis import strategies as st
 
-from btcap import Sequence, State
+from btcap import Parallel, Sequence, State
 from btcap.actors import Actor, handler
 from btcap.team.core.auction import Auction
 from btcap.team.core.ids import AuctionId
@@ -391,3 +391,21 @@ async def test_an_award_in_flight_is_withdrawn_when_the_capability_is_reset() ->
                 assert a.mission_control.body.running is None
                 assert not a.mission_control.origin.tracked
                 await tree.shutdown()
+
+
+async def test_simultaneous_auctions_award_the_cheapest_pair_first() -> None:
+    """Two tasks wait for the one robot: it gets the one it does cheapest, although the
+    other's auction was opened (and closed) first."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", lambda inputs: float(inputs["x"]), probe)])
+            await t.converged()
+            far = COUNT.node_type()("far", inputs={"x": 5})
+            near = COUNT.node_type()("near", inputs={"x": 1})
+            tree = a.mission(Parallel("both", children=[far, near]))
+            await tick_until(tree, lambda _s: State.RUNNING in (far.state, near.state), "one")
+            assert (near.state, far.state) == (State.RUNNING, State.UNASSIGNED)
+            assert [o.ranking[0].cost for o in a.auctioneer.outcomes] == [5.0, 1.0]
+            await tree.shutdown()
