@@ -6,10 +6,12 @@ import argparse
 import asyncio
 import json
 import math
+import signal
 import time
 from pathlib import Path
 from typing import Any
 
+import anyio
 import msgspec
 from rich.console import Console, Group
 from rich.live import Live
@@ -119,6 +121,8 @@ def summary_table(results: list[MissionResult]) -> Group:
             parts.append(Text(f"{r.scenario}: {e.robot} at {e.time:.0f} s: {e.error}", "red"))
         if r.timed_out:
             parts.append(Text(f"{r.scenario}: stopped at its time limit", "red"))
+        if r.interrupted:
+            parts.append(Text(f"{r.scenario}: interrupted before the end", "red"))
     for r in results:
         t = Table(title=f"{r.scenario}: robots")
         for col in ("robot", "model", "utilisation", "tasks", "distance [m]"):
@@ -143,21 +147,67 @@ def _write(result: MissionResult, out: Path) -> None:
     plot_timeline(result, out / "timeline.png")
 
 
-async def _run_one(s: Scenario, console: Console, quiet: bool, distributed: bool) -> MissionResult:
+#: What ``btcap run`` exits with when a signal stopped it (128 + the signal's number).
+_STOPPED_BY = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+class _Stopper:
+    """SIGINT and SIGTERM end the run early, still with a result (marked ``interrupted``);
+    a second signal acts as it would without us. Installed for the whole command, so a
+    signal between two scenarios, or before the first starts, is not lost."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._event: anyio.Event | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._saved: dict[int, Any] = {}
+
+    def __enter__(self) -> _Stopper:
+        for sig in _STOPPED_BY:
+            self._saved[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._restore()
+
+    def _restore(self) -> None:
+        saved, self._saved = self._saved, {}
+        for sig, old in saved.items():
+            signal.signal(sig, old)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.signum = signum
+        self._restore()
+        if self._loop is not None and self._event is not None:
+            self._loop.call_soon_threadsafe(self._event.set)
+
+    def event(self) -> anyio.Event:
+        """The stop event of the scenario about to run in this event loop."""
+        self._loop = asyncio.get_running_loop()
+        self._event = anyio.Event()
+        if self.signum is not None:
+            self._event.set()
+        return self._event
+
+
+async def _run_one(
+    s: Scenario, console: Console, quiet: bool, distributed: bool, stopper: _Stopper
+) -> MissionResult:
     if distributed:
         from btcap.sim.distributed import run_distributed
 
         runner = run_distributed
     else:
         runner = run_scenario
+    stop = stopper.event()
     if quiet or not console.is_terminal:
-        return await runner(s)
+        return await runner(s, stop=stop)
     with Live(console=console, refresh_per_second=8, transient=True) as live:
 
         def show(p: Progress) -> None:
             live.update(_progress_view(p, s.name))
 
-        return await runner(s, on_progress=show)
+        return await runner(s, on_progress=show, stop=stop)
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -181,14 +231,18 @@ def run_command(args: argparse.Namespace) -> int:
             s.allocation = msgspec.structs.replace(s.allocation, queue_after_current=True)
     out = _out_dir(args, "compare" if args.compare else scenarios[0].name)
     results: list[MissionResult] = []
-    for s in scenarios:
-        console.print(f"running [bold]{s.name}[/bold] (speed-up {s.speedup:g}x) ...")
-        result = asyncio.run(_run_one(s, console, args.quiet, args.distributed))
-        results.append(result)
-        try:
-            _write(result, out / s.name if args.compare else out)
-        except OSError as exc:
-            raise CliError(f"cannot write results to {out}: {exc.strerror or exc}") from None
+    with _Stopper() as stopper:
+        for s in scenarios:
+            console.print(f"running [bold]{s.name}[/bold] (speed-up {s.speedup:g}x) ...")
+            result = asyncio.run(_run_one(s, console, args.quiet, args.distributed, stopper))
+            results.append(result)
+            try:
+                _write(result, out / s.name if args.compare else out)
+            except OSError as exc:
+                raise CliError(f"cannot write results to {out}: {exc.strerror or exc}") from None
+            if stopper.signum is not None:
+                console.print(f"interrupted by {signal.Signals(stopper.signum).name}")
+                break
     console.print(summary_table(results))
     if args.compare:
         (out / "compare.json").write_text(
@@ -202,4 +256,6 @@ def run_command(args: argparse.Namespace) -> int:
             + "\n"
         )
     console.print(f"results written to [bold]{out}[/bold] (result.json, timeline.png)")
+    if stopper.signum is not None:
+        return _STOPPED_BY[signal.Signals(stopper.signum)]
     return 0 if all(r.completed for r in results) else 1

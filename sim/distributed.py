@@ -151,7 +151,10 @@ class ProcessHost:
 
 
 async def run_distributed(
-    scenario: Scenario, *, on_progress: Callable[[Progress], None] | None = None
+    scenario: Scenario,
+    *,
+    on_progress: Callable[[Progress], None] | None = None,
+    stop: anyio.Event | None = None,
 ) -> MissionResult:
     """Run the scenario with every robot in its own OS process."""
-    return await run_scenario(scenario, on_progress=on_progress, host=ProcessHost)
+    return await run_scenario(scenario, on_progress=on_progress, host=ProcessHost, stop=stop)

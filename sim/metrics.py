@@ -92,6 +92,8 @@ class MissionResult(msgspec.Struct):
     moved: int = 0
     errors: list[RobotError] = []
     timed_out: bool = False
+    interrupted: bool = False
+    """Stopped early by the user (SIGINT or SIGTERM): the figures are what was done so far."""
 
     def to_json(self) -> bytes:
         return msgspec.json.format(msgspec.json.encode(self), indent=2)
@@ -166,8 +168,10 @@ def collect(
     started: float,
     ended: float,
     final: State,
+    *,
+    interrupted: bool = False,
 ) -> MissionResult:
-    """Gather the result of a finished (or timed-out) run."""
+    """Gather the result of a finished, timed-out or interrupted run."""
     duration = ended - started
     timeline = [
         Interval(
@@ -219,5 +223,6 @@ def collect(
         ],
         moved=operator.mission_control.stats.moved,
         errors=[RobotError(round(e.time - started, 3), e.robot, e.error) for e in errors],
-        timed_out=final not in DONE,
+        timed_out=final not in DONE and not interrupted,
+        interrupted=interrupted,
     )

@@ -59,8 +59,10 @@ async def run_scenario(
     progress_every_s: float = 0.1,
     clock: TimeSource | None = None,
     host: HostFactory | None = None,
+    stop: anyio.Event | None = None,
 ) -> MissionResult:
-    """Run the mission until it completes or its time limit passes.
+    """Run the mission until it completes, its time limit passes or ``stop`` is set (the
+    result then says ``interrupted``).
 
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`). A robot that crashes is logged, taken out
@@ -107,7 +109,10 @@ async def run_scenario(
             for r in s.initially_present():
                 manager.robot_up(r.name)
                 robots.start(r.name)
-            await _team_forms(operator, {r.name for r in s.initially_present()}, robots, clock)
+            stop = stop or anyio.Event()
+            await _team_forms(
+                operator, {r.name for r in s.initially_present()}, robots, clock, stop
+            )
 
             def apply(e: Event) -> None:
                 mlog.applied[e.kind] += 1
@@ -142,19 +147,32 @@ async def run_scenario(
             started = clock.now()
             ev_task = simsys.start_task(events(), name="scenario events")
             watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
+            watch.stop = stop
             final = await tree.run(cfg.tick_hz, until=watch)
             ev_task.cancel()
-            if final not in DONE:
+            if stop.is_set():
+                log.warning("sim.interrupted", scenario=s.name)
+            elif final not in DONE:
                 log.warning("sim.time_limit", scenario=s.name, limit_s=s.time_limit_s)
             result = collect(
-                s, state, manager, tree, operator, mlog, robots.errors, started, clock.now(), final
+                s,
+                state,
+                manager,
+                tree,
+                operator,
+                mlog,
+                robots.errors,
+                started,
+                clock.now(),
+                final,
+                interrupted=stop.is_set() and final not in DONE,
             )
             await tree.shutdown()
     return result
 
 
 async def _team_forms(
-    operator: Agent, expected: set[str], robots: RobotHost, clock: TimeSource
+    operator: Agent, expected: set[str], robots: RobotHost, clock: TimeSource, stop: anyio.Event
 ) -> None:
     """Wait until the robots present at the start are team members (or crashed); a robot
     still missing after :data:`TEAM_FORMS_S` is an error of the run, not a silent wait."""
@@ -164,7 +182,7 @@ async def _team_forms(
         return expected - crashed - operator.team.alive()
 
     with anyio.move_on_after(TEAM_FORMS_S):
-        while missing():  # noqa: ASYNC110 - two sources: team events and host crashes
+        while missing() and not stop.is_set():  # noqa: ASYNC110 - team events, crashes, stop
             await anyio.sleep(0.01)
         return
     for robot in sorted(missing()):
@@ -200,6 +218,7 @@ class _Watch:
         self.every_s = every_s
         self.next_report = 0.0
         self.crashes_seen = 0
+        self.stop: anyio.Event | None = None
 
     def __call__(self, state: State) -> bool:
         now = self.tree.clock.now() - self.started
@@ -213,6 +232,7 @@ class _Watch:
                     self.mlog.mark(e.time, "crashed", e.robot)
             self.crashes_seen = len(errors)
         done = state in DONE or now > self.s.time_limit_s
+        done = done or (self.stop is not None and self.stop.is_set())
         if self.on_progress is not None:
             wall = anyio.current_time()
             if done or wall >= self.next_report:
