@@ -33,6 +33,7 @@ trap 'exit 130' INT TERM
 
 # Keys for every robot, in ZeroMQ's certificate format (once `btcap keys` is available).
 if "${btcap[@]}" keys new --help > /dev/null 2>&1; then
+    mkdir -p "$work/keys"
     for robot in alpha beta gamma operator; do
         "${btcap[@]}" keys new "$robot" --dir "$work/keys" > /dev/null
     done
