@@ -38,7 +38,8 @@ class CapabilityRepository(Actor):
         self.team: dict[str, RepositoryState] = {}
         self._unsubscribe: Callable[[], None] | None = None
         self._team: Membership | None = None
-        self.refused = 0  #: states from non-members, or for another robot
+        self.refused = 0  #: states sent in another robot's name
+        self.early = 0  #: states from robots not (yet) members, dropped
         self._listeners: list[Callable[[str], None]] = []
 
     # -- local content ----------------------------------------------------------------
@@ -150,8 +151,8 @@ class CapabilityRepository(Actor):
     @handler
     def on_state(self, msg: RepositoryState) -> None:
         sender = self.sender
-        if msg.robot != sender or sender == self.robot or sender not in self._alive():
-            # Only members, each for itself: what nobody vouched for is not held.
+        if msg.robot != sender or sender == self.robot:
+            # Each robot speaks for itself only.
             self.refused += 1
             if worth_logging(self.refused):
                 log.warning(
@@ -161,6 +162,12 @@ class CapabilityRepository(Actor):
                     claims=msg.robot[:64],
                     count=self.refused,
                 )
+            return
+        if sender not in self._alive():
+            # Not (yet) a member: nothing is held for it. A joining robot's state often
+            # overtakes its first heartbeat; the join then asks for it again.
+            self.early += 1
+            log.debug("repository.not_a_member", robot=self.robot, sender=sender)
             return
         known = self.team.get(msg.robot)
         if known is None or msg.version >= known.version:

@@ -139,7 +139,9 @@ async def test_states_only_from_members_each_for_itself() -> None:
                 for i in range(50):
                     ghost.tell(to_a, RepositoryState("ghost", i, {"Count": COUNT.identity}))
                 b.system.tell(to_a, RepositoryState("c", 1, {"Count": COUNT.identity}))
-                await until(lambda: a.repository.refused == 51, "all refused")
+                await until(
+                    lambda: (a.repository.early, a.repository.refused) == (50, 1), "all dropped"
+                )
             assert set(a.repository.team) == {"b"}
             assert joined == []
 
