@@ -4,10 +4,12 @@ from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope, Kind
 from btcap.transports.inprocess import InProcessNetwork, InProcessTransport
 from btcap.transports.message import Address, Message, MessageRegistry
+from btcap.transports.security import DEFAULT_MAX_MESSAGE_BYTES, KeyPair, TeamKeys
 from btcap.transports.zeromq import ZmqTransport
 
 __all__ = [
     "BROADCAST",
+    "DEFAULT_MAX_MESSAGE_BYTES",
     "Address",
     "Codec",
     "CodecError",
@@ -15,9 +17,11 @@ __all__ = [
     "Envelope",
     "InProcessNetwork",
     "InProcessTransport",
+    "KeyPair",
     "Kind",
     "Message",
     "MessageRegistry",
+    "TeamKeys",
     "Transport",
     "TransportStats",
     "ZmqTransport",

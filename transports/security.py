@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ __all__ = [
     "authenticated",
     "curve_for",
     "is_loopback",
+    "write_key_pair",
 ]
 
 DEFAULT_MAX_MESSAGE_BYTES = 4 * 1024 * 1024
@@ -71,6 +73,33 @@ class KeyPair:
         if secret is None:
             raise ValueError(f"{path}: holds no secret key (use the .key_secret file)")
         return cls(_check_key(public, str(path)), _check_key(secret, str(path)))
+
+
+def write_key_pair(directory: str | os.PathLike[str], name: str) -> tuple[Path, Path]:
+    """Write ``NAME.key`` (public, for the team's directory) and ``NAME.key_secret``
+    (readable by its owner only) with ``zmq.auth.create_certificates``; never overwrite."""
+    folder = Path(directory)
+    if not name or name != Path(name).name or name.startswith(".") or "/" in name:
+        raise ValueError(f"key name {name!r}: expected a plain robot name")
+    if not folder.is_dir():
+        raise ValueError(f"{folder}: no such directory")
+    public, secret = folder / f"{name}.key", folder / f"{name}.key_secret"
+    for path in (public, secret):
+        if path.exists():
+            raise ValueError(f"{path}: already exists (not overwritten)")
+    done: list[Path] = []
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".btcap-keys-") as tmp:
+        made = zmq.auth.create_certificates(tmp, name, metadata={"name": name})
+        os.chmod(made[1], 0o600)
+        try:
+            for src, dst in zip(made, (public, secret), strict=True):
+                os.link(src, dst)  # unlike a rename, fails if dst appeared meanwhile
+                done.append(dst)
+        except FileExistsError as exc:
+            for path in done:
+                path.unlink()
+            raise ValueError(f"{exc.filename}: already exists (not overwritten)") from None
+    return public, secret
 
 
 def _load(path: Path) -> tuple[bytes, bytes | None]:

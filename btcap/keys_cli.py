@@ -1,0 +1,48 @@
+"""``btcap keys new NAME --dir DIR``: a robot's CURVE key pair in ZeroMQ's certificate format.
+
+Give ``NAME.key_secret`` to robot NAME only; copy ``NAME.key`` into the team's directory
+of public certificates (the allow-list every member's transport loads as ``trusted``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from btcap.cli import CliError
+from btcap.transports.security import write_key_pair
+
+__all__ = ["add_parser"]
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``btcap keys`` and ``btcap keys new``."""
+    keys = subparsers.add_parser(
+        "keys", help="make CURVE keys for a team", description="Make CURVE keys for a team."
+    )
+    keys.set_defaults(handler=lambda args: _help(keys))
+    cmds = keys.add_subparsers(dest="keys_command", metavar="SUBCOMMAND")
+    p = cmds.add_parser(
+        "new",
+        help="write NAME.key (public) and NAME.key_secret (secret); never overwrites",
+        description=__doc__,
+    )
+    p.add_argument("name", metavar="NAME", help="the robot's name (its system id)")
+    p.add_argument("--dir", type=Path, default=Path("."), help="where to write (default: .)")
+    p.set_defaults(handler=_new)
+
+
+def _help(parser: argparse.ArgumentParser) -> int:
+    parser.print_help(sys.stderr)
+    return 2
+
+
+def _new(args: argparse.Namespace) -> int:
+    try:
+        public, secret = write_key_pair(args.dir, args.name)
+    except (ValueError, OSError) as exc:
+        raise CliError(str(exc)) from None
+    print(f"wrote {public} (public: share it with the team)")
+    print(f"wrote {secret} (secret: keep it on {args.name} only)")
+    return 0
