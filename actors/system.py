@@ -49,9 +49,7 @@ class SystemStats:
     dead_letters: int = 0
     escalations: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
-    failures: dict[str, int] = field(default_factory=dict)
-    """Handler failures by ``Actor class: message type: error type`` (bounded by the code,
-    not by what peers send)."""
+    failures: dict[str, int] = field(default_factory=dict)  # "Actor: Message: Error" -> count
 
 
 class ActorSystem:
@@ -373,15 +371,13 @@ class ActorSystem:
         if actor is None:
             if env.recipient.system == BROADCAST:
                 # A broadcast reaches systems that do not host that service: not an error.
-                self.stats.dropped["broadcast_unhandled"] = (
-                    self.stats.dropped.get("broadcast_unhandled", 0) + 1
-                )
+                dropped = self.stats.dropped
+                dropped["broadcast_unhandled"] = dropped.get("broadcast_unhandled", 0) + 1
                 return
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
             if kind is Kind.ASK:
-                self._reply_remote(
-                    env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
-                )
+                gone = DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
+                self._reply_remote(env, None, gone)
             return
         reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
         actor._receive(env.msg, reply, env.sender.system)
@@ -407,34 +403,22 @@ class ActorSystem:
             self._count_drop("reply_unencodable", env.sender, failure)
 
     # -- accounting -------------------------------------------------------------------
-    # A peer can send any number of these: each is counted, and logged only while
-    # worth_logging says so, so a flood costs a counter, not a flood of lines.
+    # Peers can send these without limit: always counted, logged while worth_logging says.
     def _dead_letter(self, address: Address, msg: Any, *, origin: Address | None = None) -> None:
         n = self.stats.dead_letters = self.stats.dead_letters + 1
         if worth_logging(n):
-            self._log.info(
-                "actors.dead_letter",
-                to=str(address),
-                message=type(msg).__qualname__,
-                origin=str(origin) if origin else None,
-                count=n,
-            )
+            via, name = (str(origin) if origin else None), type(msg).__qualname__
+            self._log.info("actors.dead_letter", to=str(address), message=name, origin=via, count=n)
 
     def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None:
         n = self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
         if worth_logging(n):
-            # A reply after its ask timed out or was cancelled is routine, not a fault.
-            emit = self._log.info if reason == "late_reply" else self._log.warning
-            emit(
-                "actors.dropped",
-                reason=reason,
-                to=str(address),
-                message=type(msg).__qualname__,
-                count=n,
-            )
+            emit = self._log.info if reason == "late_reply" else self._log.warning  # routine
+            name = type(msg).__qualname__
+            emit("actors.dropped", reason=reason, to=str(address), message=name, count=n)
 
     def _count_failure(self, kind: str) -> int:
-        n = self.stats.failures[kind] = self.stats.failures.get(kind, 0) + 1
+        self.stats.failures[kind] = n = self.stats.failures.get(kind, 0) + 1
         return n
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None:
