@@ -32,7 +32,8 @@ import zmq.asyncio
 
 from btcap.actors import Actor, ActorSystem, Address, Message, configure_logging, handler
 from btcap.bench.common import percentiles, write_result
-from btcap.transports import InProcessNetwork, MessageRegistry, ZmqTransport
+from btcap.transports import InProcessNetwork, KeyPair, MessageRegistry, ZmqTransport
+from btcap.transports.security import write_key_pair
 
 __all__ = ["Ping", "Pong", "run"]
 
@@ -42,7 +43,9 @@ SCENARIOS = (
     "zmq_inproc",
     "zmq_ipc",
     "zmq_tcp",
+    "zmq_tcp_curve",
     "raw_zmq_tcp",
+    "raw_zmq_tcp_curve",
     "raw_zmq_tcp_blocking",
 )
 _READY = "READY "
@@ -123,12 +126,30 @@ async def _zmq_inproc() -> AsyncIterator[Ask]:
         yield ask
 
 
+def _make_keys(folder: str) -> None:
+    """Key pairs for the CURVE scenarios; ``folder/team`` is their allow-list."""
+    os.mkdir(f"{folder}/team")
+    for name in ("main-curve", "peer"):
+        public, _ = write_key_pair(folder, name)
+        shutil.copy(public, f"{folder}/team")
+
+
+def _secure(name: str, keys: str | None) -> dict[str, Any]:
+    if keys is None:
+        return {}
+    return {"keys": f"{keys}/{name}.key_secret", "trusted": f"{keys}/team"}
+
+
 @contextlib.asynccontextmanager
-async def _zmq_remote(system_id: str, bind: str, peer_bind: str) -> AsyncIterator[Ask]:
-    """Our system here, the echo actor's system in another OS process."""
-    with _child("--peer", peer_bind) as endpoint:
+async def _zmq_remote(
+    system_id: str, bind: str, peer_bind: str, keys: str | None = None
+) -> AsyncIterator[Ask]:
+    """Our system here, the echo actor's system in another OS process (CURVE with keys)."""
+    with _child("--peer", peer_bind, *(("--keys", keys) if keys else ())) as endpoint:
         reg = _registry()
-        transport = ZmqTransport(system_id, bind, reg, peers={"peer": endpoint})
+        transport = ZmqTransport(
+            system_id, bind, reg, peers={"peer": endpoint}, **_secure(system_id, keys)
+        )
         async with ActorSystem(transport=transport, registry=reg) as system:
             ref = system.ref(Address("peer", "echo"))
 
@@ -139,11 +160,18 @@ async def _zmq_remote(system_id: str, bind: str, peer_bind: str) -> AsyncIterato
 
 
 @contextlib.asynccontextmanager
-async def _raw_zmq_tcp() -> AsyncIterator[Ask]:
-    """The peer figure: pyzmq's own asyncio sockets, DEALER here, ROUTER echo there."""
-    with _child("--raw-peer", "tcp://127.0.0.1:*") as endpoint:
+async def _raw_zmq_tcp(keys: str | None = None) -> AsyncIterator[Ask]:
+    """The peer figure: pyzmq's own asyncio sockets, DEALER here, ROUTER echo there
+    (with ``keys``, CURVE-encrypted; no ZAP, which costs only at the handshake)."""
+    args = ("--keys", keys) if keys else ()
+    with _child("--raw-peer", "tcp://127.0.0.1:*", *args) as endpoint:
         sock = zmq.asyncio.Context.instance().socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
+        if keys is not None:
+            mine, server = KeyPair.load(f"{keys}/main-curve.key_secret"), _peer_keys(keys)
+            sock.setsockopt(zmq.CURVE_SERVERKEY, server.public)
+            sock.setsockopt(zmq.CURVE_PUBLICKEY, mine.public)
+            sock.setsockopt(zmq.CURVE_SECRETKEY, mine.secret)
         sock.connect(endpoint)
         payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
         try:
@@ -234,9 +262,13 @@ async def _until_stdin_closes() -> None:
         loop.remove_reader(fd)
 
 
-async def _serve_peer(bind: str) -> None:
+def _peer_keys(keys: str) -> KeyPair:
+    return KeyPair.load(f"{keys}/peer.key_secret")
+
+
+async def _serve_peer(bind: str, keys: str | None) -> None:
     reg = _registry()
-    transport = ZmqTransport("peer", bind, reg)
+    transport = ZmqTransport("peer", bind, reg, **_secure("peer", keys))
     async with ActorSystem(transport=transport, registry=reg) as system:
         system.spawn(Echo(), "echo")
         print(_READY + transport.endpoint, flush=True)
@@ -264,10 +296,14 @@ def _serve_raw_peer_blocking(bind: str) -> None:
         ctx.term()
 
 
-async def _serve_raw_peer(bind: str) -> None:
+async def _serve_raw_peer(bind: str, keys: str | None) -> None:
     ctx = zmq.asyncio.Context.instance()
     sock = ctx.socket(zmq.ROUTER)
     sock.setsockopt(zmq.LINGER, 0)
+    if keys is not None:
+        pair = _peer_keys(keys)
+        sock.setsockopt(zmq.CURVE_SERVER, 1)
+        sock.setsockopt(zmq.CURVE_SECRETKEY, pair.secret)
     sock.bind(bind)
     print(_READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
 
@@ -296,6 +332,7 @@ async def _run_all(warmup: int, count: int, rounds: int) -> dict[str, dict[str, 
     conditions, so the ratios to the raw pyzmq figure hold even when absolutes move.
     """
     tmp = tempfile.mkdtemp(prefix="btcap-bench-")
+    _make_keys(tmp)
     try:
         async with contextlib.AsyncExitStack() as stack:
             scenarios: dict[str, Callable[[], contextlib.AbstractAsyncContextManager[Ask]]] = {
@@ -306,7 +343,9 @@ async def _run_all(warmup: int, count: int, rounds: int) -> dict[str, dict[str, 
                     "main-ipc", f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock"
                 ),
                 "zmq_tcp": lambda: _zmq_remote("main-tcp", _TCP, _TCP),
+                "zmq_tcp_curve": lambda: _zmq_remote("main-curve", _TCP, _TCP, tmp),
                 "raw_zmq_tcp": _raw_zmq_tcp,
+                "raw_zmq_tcp_curve": lambda: _raw_zmq_tcp(tmp),
                 "raw_zmq_tcp_blocking": _raw_zmq_tcp_blocking,
             }
             asks = {
@@ -335,6 +374,8 @@ def _table(ask_us: dict[str, dict[str, float]]) -> str:
     for name in SCENARIOS:
         p = ask_us[name]
         lines.append(f"{name:<22} {p['p50']:>9.1f} {p['p99']:>9.1f} {p['p50'] / raw:>14.2f}")
+    curve = ask_us["zmq_tcp_curve"]["p50"] / ask_us["raw_zmq_tcp_curve"]["p50"]
+    lines.append(f"zmq_tcp_curve / raw_zmq_tcp_curve (p50): {curve:.2f}")
     return "\n".join(lines)
 
 
@@ -349,6 +390,8 @@ def run(quick: bool = False) -> dict[str, Any]:
         "ratio_to_raw_zmq_tcp": {
             name: ask_us[name]["p50"] / ask_us["raw_zmq_tcp"]["p50"] for name in SCENARIOS
         },
+        "curve_ratio_to_raw_zmq_tcp_curve": ask_us["zmq_tcp_curve"]["p50"]
+        / ask_us["raw_zmq_tcp_curve"]["p50"],
         "samples": count,
         "warmup": warmup,
         "quick": quick,
@@ -369,15 +412,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     role = parser.add_mutually_exclusive_group()
     role.add_argument("--peer", metavar="BIND", help="(internal) serve an echo actor system")
     role.add_argument("--raw-peer", metavar="BIND", help="(internal) serve a raw zmq echo")
+    parser.add_argument("--keys", metavar="DIR", help="(internal) CURVE keys of a peer")
     role.add_argument(
         "--raw-peer-blocking", metavar="BIND", help="(internal) serve a blocking zmq echo"
     )
     args = parser.parse_args(argv)
     if args.peer:
         configure_logging("warning")  # to stderr: stdout carries the READY line
-        asyncio.run(_serve_peer(args.peer))
+        asyncio.run(_serve_peer(args.peer, args.keys))
     elif args.raw_peer:
-        asyncio.run(_serve_raw_peer(args.raw_peer))
+        asyncio.run(_serve_raw_peer(args.raw_peer, args.keys))
     elif args.raw_peer_blocking:
         _serve_raw_peer_blocking(args.raw_peer_blocking)
     else:
