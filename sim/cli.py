@@ -8,6 +8,7 @@ import json
 import math
 import signal
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from rich.text import Text
 from btcap.cli import CliError
 from btcap.sim.metrics import MissionResult
 from btcap.sim.plots import plot_timeline
-from btcap.sim.runner import Progress, run_scenario
+from btcap.sim.runner import Progress, run_fast, run_scenario
 from btcap.sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 __all__ = ["add_parser", "resolve_scenario", "run_command"]
@@ -48,6 +49,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--distributed", action="store_true", help="every robot in its own OS process (ZeroMQ)"
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
+    p.add_argument(
+        "--fast",
+        action="store_true",
+        help="virtual time that jumps whenever every robot waits: as fast as the computation "
+        "allows, and the same scenario and seed give the same result",
+    )
     p.add_argument(
         "--rebid-on-join",
         type=float,
@@ -191,14 +198,13 @@ class _Stopper:
 
 
 async def _run_one(
-    s: Scenario, console: Console, quiet: bool, distributed: bool, stopper: _Stopper
+    s: Scenario, console: Console, quiet: bool, distributed: bool, fast: bool, stopper: _Stopper
 ) -> MissionResult:
+    runner: Callable[..., Awaitable[MissionResult]] = run_fast if fast else run_scenario
     if distributed:
         from btcap.sim.distributed import run_distributed
 
         runner = run_distributed
-    else:
-        runner = run_scenario
     stop = stopper.event()
     if quiet or not console.is_terminal:
         return await runner(s, stop=stop)
@@ -219,6 +225,10 @@ def run_command(args: argparse.Namespace) -> int:
         scenarios = [resolve_scenario(n) for n in names]
     except ScenarioError as exc:  # a usage problem: the message names file and field
         raise CliError(str(exc)) from None
+    if args.fast and (args.distributed or args.speedup is not None):
+        raise CliError(
+            "--fast runs in one process on virtual time: not with --distributed or --speedup"
+        )
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
@@ -233,8 +243,11 @@ def run_command(args: argparse.Namespace) -> int:
     results: list[MissionResult] = []
     with _Stopper() as stopper:
         for s in scenarios:
-            console.print(f"running [bold]{s.name}[/bold] (speed-up {s.speedup:g}x) ...")
-            result = asyncio.run(_run_one(s, console, args.quiet, args.distributed, stopper))
+            pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
+            console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
+            result = asyncio.run(
+                _run_one(s, console, args.quiet, args.distributed, args.fast, stopper)
+            )
             results.append(result)
             try:
                 _write(result, out / s.name if args.compare else out)

@@ -113,3 +113,20 @@ def test_allocation_policies_from_the_command_line(tmp_path: Path) -> None:
     result = msgspec.json.decode((out / "result.json").read_bytes(), type=MissionResult)
     assert result.completed
     assert result.moved >= 1
+
+
+@pytest.mark.parametrize("extra", [["--distributed"], ["--speedup", "5"]])
+def test_fast_mode_is_one_process_on_virtual_time(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, extra: list[str]
+) -> None:
+    argv = ["run", str(SMALL), "--fast", *extra, "--out", str(tmp_path / "o"), "--quiet"]
+    usage_error(capsys, argv, "--fast")
+    assert not (tmp_path / "o").exists()
+
+
+def test_fast_mode_writes_the_same_result_twice(tmp_path: Path) -> None:
+    for out in ("a", "b"):
+        assert main(["run", str(SMALL), "--fast", "--out", str(tmp_path / out), "--quiet"]) == 0
+    first, second = ((tmp_path / out / "result.json").read_bytes() for out in ("a", "b"))
+    assert first == second
+    assert msgspec.json.decode(first, type=MissionResult).completed

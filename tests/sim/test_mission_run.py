@@ -15,9 +15,8 @@ import msgspec
 import numpy as np
 import pytest
 
-from btcap.actors import ManualClock
 from btcap.sim.metrics import Interval, MissionResult
-from btcap.sim.runner import Progress, run_scenario
+from btcap.sim.runner import run_fast, run_scenario
 from btcap.sim.scenario import Allocation, Scenario, load_scenario
 from btcap.sim.store import MissionState
 
@@ -34,36 +33,6 @@ def ground_truth(s: Scenario) -> list[tuple[tuple[int, int], bool]]:
         s.grid(), s.objects, s.contaminated_share, np.random.default_rng(s.seed)
     )
     return [(o.cell, o.contaminated) for o in state.objects]
-
-
-async def run_manual(s: Scenario, *, step_s: float = 1.0, yields: int = 5) -> MissionResult:
-    """Run on a manual clock, advanced in fixed steps with a fixed number of loop turns.
-
-    Time starts moving with the mission's first tick (the team forms while it stands
-    still), and every step lets the event loop turn the same number of times, so two runs
-    see the same interleaving.
-    """
-    clock = ManualClock()
-    ticking = asyncio.Event()
-    finished = False
-
-    def progress(_p: Progress) -> None:
-        ticking.set()
-
-    async def drive() -> None:
-        await ticking.wait()
-        while not finished:
-            await clock.advance(step_s)
-            for _ in range(yields):
-                await asyncio.sleep(0)
-
-    driver = asyncio.ensure_future(drive())
-    try:
-        return await run_scenario(s, clock=clock, on_progress=progress)
-    finally:
-        finished = True
-        ticking.set()
-        await driver
 
 
 def assert_sound(result: MissionResult, s: Scenario) -> None:
@@ -192,8 +161,8 @@ async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
 async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
     s = load_scenario(DYNAMIC)
     with anyio.fail_after(40):
-        first = await run_manual(s)
-        second = await run_manual(load_scenario(DYNAMIC))
+        first = await run_fast(s)
+        second = await run_fast(load_scenario(DYNAMIC))
     assert_sound(first, s)
 
     def allocation(r: MissionResult) -> list[tuple[str, str, int, float, float, bool]]:
@@ -212,9 +181,10 @@ async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
 ALLOCATION_SCRIPT = """
 import asyncio, json, sys
 sys.path.insert(0, sys.argv[1])
-from test_mission_run import DYNAMIC, run_manual
+from test_mission_run import DYNAMIC
+from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
-r = asyncio.run(run_manual(load_scenario(DYNAMIC)))
+r = asyncio.run(run_fast(load_scenario(DYNAMIC)))
 print(json.dumps([r.assignments, [(i.robot, i.kind, i.target, i.start) for i in r.timeline]]))
 """
 
@@ -247,7 +217,7 @@ async def test_failed_work_is_retried_and_objects_are_identified_once() -> None:
     s = load_scenario(SMALL)
     s.sim = msgspec.structs.replace(s.sim, failure_chance=0.6)
     with anyio.fail_after(40):
-        result = await run_manual(s)
+        result = await run_fast(s)
     assert_sound(result, s)
     failed = Counter(i.kind for i in result.timeline if not i.ok)
     assert failed["decontaminate"] > 0
@@ -278,3 +248,11 @@ async def test_a_run_stopped_by_its_time_limit_says_so() -> None:
     assert not result.completed
     assert 30.0 < result.mission_time_s < 40.0
     assert result.errors == []
+
+
+async def test_fast_mode_gives_the_same_result_to_the_byte() -> None:
+    with anyio.fail_after(30):
+        first = await run_fast(load_scenario(DYNAMIC))
+        second = await run_fast(load_scenario(DYNAMIC))
+    assert first.completed
+    assert first.to_json() == second.to_json()
