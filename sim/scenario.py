@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Literal
 
@@ -82,7 +83,13 @@ class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
 class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     """Optional policies of the auctions (see :class:`btcap.team.mission.MissionConfig`)."""
 
-    #: Move running work to a joining robot that bids this fraction cheaper (None: never).
+    #: Re-evaluate running work this often (clock seconds) and when the team changes;
+    #: None: running work never moves.
+    reevaluate_s: float | None = 30.0
+    #: Work moves only to a robot bidding at least this fraction below what the current
+    #: executor now bids to finish it.
+    move_margin: float = 0.2
+    #: Older name of ``move_margin`` for joins (None: ``move_margin`` applies).
     rebid_on_join: float | None = None
     #: A busy robot bids for one more task, to start after its current one.
     queue_after_current: bool = False
@@ -177,6 +184,13 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
     if not 0 <= s.sim.delay_jitter <= 1:
         raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
+    every = s.allocation.reevaluate_s
+    if every is not None and not (math.isfinite(every) and every > 0):
+        raise bad("allocation.reevaluate_s", f"expected seconds > 0 or null, got {every}")
+    if not 0 <= s.allocation.move_margin < 1:
+        raise bad(
+            "allocation.move_margin", f"expected within [0, 1), got {s.allocation.move_margin}"
+        )
     margin = s.allocation.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise bad("allocation.rebid_on_join", f"expected a fraction within (0, 1), got {margin}")

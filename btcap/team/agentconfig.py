@@ -111,6 +111,9 @@ class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
 class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """The allocation policies of :class:`~btcap.team.config.MissionConfig`."""
 
+    #: Re-evaluate running work this often (clock seconds); null: never move running work.
+    reevaluate_s: _Positive | None = _DEFAULTS.reevaluate_s
+    move_margin: Annotated[float, msgspec.Meta(ge=0, lt=1)] = _DEFAULTS.move_margin
     rebid_on_join: Annotated[float, msgspec.Meta(gt=0, lt=1)] | None = None
     queue_after_current: bool = False
 
@@ -153,10 +156,7 @@ class RobotConfig:
     def agent_config(self) -> AgentConfig:
         options = msgspec.structs.asdict(self.spec.timing)
         del options["speedup"]
-        a = self.spec.allocation
-        return AgentConfig(
-            **options, rebid_on_join=a.rebid_on_join, queue_after_current=a.queue_after_current
-        )
+        return AgentConfig(**options, **msgspec.structs.asdict(self.spec.allocation))
 
     def load_capabilities(
         self, registry: NodeRegistry, *, implementations: bool = True

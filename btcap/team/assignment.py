@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import dataclasses
 import itertools
 import math
 from collections import deque
@@ -11,7 +12,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from btcap.actors import Actor, ActorError, ActorRef, AskTimeout, TimeSource, handler
+from btcap.actors import (
+    Actor,
+    ActorError,
+    ActorRef,
+    AskTimeout,
+    Supervision,
+    TimeSource,
+    handler,
+)
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.ids import AuctionId, ExecutionId
@@ -44,6 +53,11 @@ class AssignmentTask:
     lease_s: float
     reserve: float | None = None  # award only bids cheaper than this (moving running work)
     paused: bool = False  # the winner holds the run until its first inputs
+    #: Re-evaluating running work: the execution and the robot running it (it bids what
+    #: finishing would cost, is never awarded, and others must beat its bid by ``margin``).
+    holder: ExecutionId | None = None
+    holder_robot: str | None = None
+    margin: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +91,20 @@ class AssignmentStrategy(abc.ABC):
     @abc.abstractmethod
     async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
         """Find a robot that accepted to run ``task`` now, or say why none did."""
+
+
+def _against_holder(task: AssignmentTask, outcome: AuctionOutcome) -> AssignmentTask:
+    """Re-evaluation: others must beat the holder's fresh bid by the margin (the holder
+    itself is never awarded its own work again)."""
+    if task.holder_robot is None:
+        return task
+    held = next((b.cost for b in outcome.ranking if b.robot == task.holder_robot), None)
+    if held is None:  # no fresh bid to compare with: the work stays where it is
+        return dataclasses.replace(task, reserve=0.0)
+    beat = held * (1.0 - task.margin)
+    return dataclasses.replace(
+        task, reserve=beat if task.reserve is None else min(task.reserve, beat)
+    )
 
 
 async def _ask_within(
@@ -131,6 +159,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     """
 
     PATH = "auctioneer"
+    #: A peer's bad answer must never stop a robot's auctioneer.
+    supervision = Supervision.RESUME
 
     def __init__(self, robot: str, *, window_s: float = 1.0, award_timeout_s: float = 0.5) -> None:
         super().__init__()
@@ -174,7 +204,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         self._open[auction_id] = (auction, done)
         self.stats.auctions += 1
         try:
-            cfb = CallForBids(auction_id, task.interface, task.identity, dict(task.inputs))
+            cfb = CallForBids(
+                auction_id, task.interface, task.identity, dict(task.inputs), task.holder
+            )
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
             if not auction.closed(clock.now()):
@@ -190,6 +222,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         del self._open[auction_id]
         outcome = auction.outcome()
         self.outcomes.append(outcome)
+        task = _against_holder(task, outcome)
         mine = _Closed(outcome, task.reserve, asyncio.Event())
         self._closed.append(mine)
         try:

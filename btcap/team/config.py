@@ -17,9 +17,14 @@ class MissionConfig:
     keepalive_s: float = 0.2
     auction_window_s: float = 1.0
     award_timeout_s: float = 0.5
-    #: Move running work to a robot that joins and bids at least this fraction below the
-    #: bid the current executor won with (0.25: a quarter cheaper). None, the default:
-    #: healthy work is never moved by a join.
+    #: Running work is re-evaluated every ``reevaluate_s`` clock seconds and whenever the
+    #: team changes (a robot joins, comes free or changes): it moves to another robot only
+    #: if that one bids at least ``move_margin`` below what the current executor now bids
+    #: to finish it (0.2: a fifth cheaper), which covers the cost of switching and keeps
+    #: two near-equal robots from passing work back and forth. None: never moved.
+    reevaluate_s: float | None = 30.0
+    move_margin: float = 0.2
+    #: Older name of ``move_margin`` for the join case; when set, it is the margin.
     rebid_on_join: float | None = None
     #: A busy robot also bids for one more execution, to start when its current work
     #: ends, at its current bid plus the new one. Off: a busy robot declines to bid.

@@ -69,7 +69,8 @@ class ExecutorSide:
     def evaluate(self, cfb: CallForBids) -> Bid | NoBid:
         """This robot's answer to a call for bids (reserves nothing)."""
         impls = self.repository.local_implementations(cfb.interface, cfb.identity)
-        wait = self.body.wait_cost()
+        holding = cfb.holder is not None and self.body.holds(cfb.holder)
+        wait = 0.0 if holding else self.body.wait_cost()  # re-evaluated: what is left
         if not impls or wait is None:
             return NoBid(cfb.auction, self.robot, "busy" if impls else "no matching implementation")
         if self.slot is None and cfb.auction.auctioneer != self.robot:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from btcap.actors import Actor, handler
+from btcap.actors import Actor, Supervision, handler
 from btcap.team.core.members import Member, MemberTable, TeamEvent
 from btcap.team.messages import Goodbye, Heartbeat
 from btcap.transports.log import get_logger, worth_logging
@@ -27,6 +27,8 @@ class Membership(Actor):
     """
 
     PATH = "team"
+    #: Input from peers must never stop it (a bug shows as a logged failure, not silence).
+    supervision = Supervision.RESUME
 
     def __init__(
         self,

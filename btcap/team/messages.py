@@ -70,12 +70,14 @@ class RepositoryQuery(Message):
 # -- auctions ----------------------------------------------------------------------------
 class CallForBids(Message):
     """Who can run ``interface`` with these inputs, and at what cost? Answers go to the
-    auctioneer named in the auction's id."""
+    auctioneer named in the auction's id. ``holder``: running work is re-evaluated, and
+    the robot running execution ``holder`` bids what finishing it there would cost."""
 
     auction: AuctionId
     interface: str
     identity: str
     inputs: dict[str, Any]
+    holder: ExecutionId | None = None
 
 
 class Bid(Message):

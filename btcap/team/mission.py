@@ -38,7 +38,7 @@ from btcap.team.messages import (
     KeepAlive,
     PauseExecution,
 )
-from btcap.team.moving import JoinOffers
+from btcap.team.moving import Reevaluation
 from btcap.team.origin_side import Handle, OriginSide
 from btcap.team.repository import CapabilityRepository
 from btcap.team.runs import RunFactory
@@ -95,7 +95,7 @@ class MissionControl(Actor):
         self.origin = self.origin_side.leases
         #: Every execution a capability node of this robot holds, local or remote.
         self.active: dict[ExecutionId, Handle] = self.origin_side.active
-        self._offers = JoinOffers(self.origin_side)
+        self._reevaluation = Reevaluation(self.origin_side)
         self._unsubscribe: list[Callable[[], None]] = []
 
     def _now(self) -> float:
@@ -113,8 +113,11 @@ class MissionControl(Actor):
     def on_start(self) -> None:
         self.executor.runs = RunFactory(self.system)
         self._unsubscribe.append(self.team.subscribe(self._on_team))
-        if self.config.rebid_on_join is not None:
-            self._unsubscribe.append(self.repository.subscribe(self._offers.member_joined))
+        if self.config.reevaluate_s is not None or self.config.rebid_on_join is not None:
+            # A joining robot's capabilities arrive after its join: that is the news.
+            self._unsubscribe.append(self.repository.subscribe(self._news))
+        if self.config.reevaluate_s is not None:
+            self.start_task(self._reevaluate(self.config.reevaluate_s), name="re-evaluation")
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
     def on_stop(self) -> None:
@@ -133,9 +136,19 @@ class MissionControl(Actor):
         if self._system is not None and self.system.running:
             self.team.beat_now()  # the team hears at once that this robot is free
 
+    def _news(self, _robot: str) -> None:
+        self._reevaluation.news()
+
+    async def _reevaluate(self, period: float) -> None:
+        while True:
+            await self.system.clock.sleep(period)
+            self._reevaluation.news()
+
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.JOINED, TeamEvent.CHANGED, TeamEvent.FREED):
             self.changes += 1
+            if self.config.reevaluate_s is not None and event is not TeamEvent.JOINED:
+                self._reevaluation.news()  # (a join is news once its capabilities are known)
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
             why = f"robot {robot} {event.value}"
             self._perform(self.origin.member_gone(robot, why))

@@ -1,10 +1,11 @@
-"""Moving running work to a robot that joins (``MissionConfig.rebid_on_join``).
+"""Re-evaluating running work (the paper's re-auctions during execution, with hysteresis).
 
-When the repository first learns a joining robot's capabilities, running work is
-auctioned to that robot alone, costliest first, with the current bid less the margin as
-reserve; the first award it accepts becomes the work's *replacement*, which the
-capability node adopts on its next tick (the old run is cancelled only then, so there is
-no gap and the same task never runs twice at once).
+Every ``MissionConfig.reevaluate_s`` and whenever the team changes (a robot joins, comes
+free or changes), each running execution of this robot's capability nodes is auctioned
+again: the robot running it bids what finishing there would cost now, and another robot
+wins only with a bid at least ``move_margin`` below that. The winner's run starts paused
+and becomes the work's *replacement*, which the capability node adopts on its next tick;
+the old run is cancelled only then, so there is no gap and the task never runs twice.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from btcap.team.proxies import LocalExecution, RemoteExecution
 from btcap.team.repository import CapabilityRepository
 from btcap.transports.log import get_logger
 
-__all__ = ["JoinOffers"]
+__all__ = ["Reevaluation"]
 
 log = get_logger("btcap.mission")
 
@@ -37,6 +38,8 @@ class Mover(Protocol):
     repository: CapabilityRepository
     active: dict[ExecutionId, Handle]
 
+    def alive(self) -> frozenset[str]: ...
+
     def new_execution(self, node: Capability) -> ExecutionId: ...
 
     def remote(
@@ -46,15 +49,28 @@ class Mover(Protocol):
     def start_task(self, coro: Any, *, name: str | None = None) -> Any: ...
 
 
-class JoinOffers:
-    """Offers running work to robots as they join."""
+class Reevaluation:
+    """One re-evaluation of the running work at a time; news during it asks for another."""
 
     def __init__(self, mc: Mover) -> None:
         self.mc = mc
+        self._running = False
+        self._again = False
 
-    def member_joined(self, robot: str) -> None:
-        if self.mc.active and robot != self.mc.robot:
-            self.mc.start_task(self._offer_to(robot), name=f"offer work to {robot}")
+    @property
+    def margin(self) -> float:
+        cfg = self.mc.config
+        return cfg.rebid_on_join if cfg.rebid_on_join is not None else cfg.move_margin
+
+    def news(self) -> None:
+        """The team changed, or it is time: look at the running work again."""
+        if not self.mc.active:
+            return
+        if self._running:
+            self._again = True
+            return
+        self._running = True
+        self.mc.start_task(self._run(), name=f"re-evaluate {self.mc.robot}")
 
     def movable(self, ex: Handle) -> bool:
         """Running work its node holds, not being moved, and not paused (no work may start
@@ -64,49 +80,58 @@ class JoinOffers:
             ex.id in self.mc.active
             and ex.replacement is None
             and node.execution is ex
-            and node.state is not State.PAUSED
+            and node.state is State.RUNNING
+            and not node.options["local_only"]
         )
 
-    async def _offer_to(self, robot: str) -> None:
+    async def _run(self) -> None:
+        try:
+            while True:
+                self._again = False
+                for ex in sorted(self.mc.active.values(), key=lambda e: (-e.cost, str(e.id))):
+                    if self.movable(ex):
+                        await self._offer(ex)
+                if not self._again:
+                    return
+        finally:
+            self._running = False
+
+    async def _offer(self, ex: Handle) -> None:
         mc = self.mc
-        margin = mc.config.rebid_on_join
-        assert margin is not None
-        for ex in sorted(mc.active.values(), key=lambda e: (-e.cost, str(e.id))):
-            node = ex.node
-            iface = type(node).INTERFACE
-            if (
-                not self.movable(ex)
-                or ex.robot == robot
-                or node.options["local_only"]
-                or robot not in mc.repository.providers(iface.identity)
-            ):
-                continue
-            task = AssignmentTask(
-                mc.new_execution(node),
-                iface.name,
-                iface.identity,
-                dict(node.inputs),
-                frozenset({robot}),
-                mc.config.lease_s,
-                reserve=ex.cost * (1.0 - margin),
-                paused=True,  # it starts with the node's next inputs, as the old run stops
-            )
-            won = await mc.strategy.assign(task)
-            if not isinstance(won, Assigned):
-                continue
-            new = mc.remote(task.execution, won.robot, node, won.cost)
-            if not self.movable(ex):  # it ended, paused or moved while we asked
-                new.cancel("no longer needed")
-                continue
-            ex.replacement = new
-            mc.active[new.id] = new
-            mc.stats.moved += 1
-            log.info(
-                "mission.moving",
-                robot=mc.robot,
-                execution=str(ex.id),
-                to=robot,
-                cost=won.cost,
-                was=ex.cost,
-            )
+        node = ex.node
+        iface = type(node).INTERFACE
+        # Others may take it over; its holder bids what finishing would cost it now.
+        others = (mc.repository.providers(iface.identity) & mc.alive()) - {mc.robot, ex.robot}
+        if not others:
             return
+        candidates = others | {ex.robot}
+        task = AssignmentTask(
+            mc.new_execution(node),
+            iface.name,
+            iface.identity,
+            dict(node.inputs),
+            frozenset(candidates),
+            mc.config.lease_s,
+            paused=True,  # it starts with the node's next inputs, as the old run stops
+            holder=ex.id,
+            holder_robot=ex.robot,
+            margin=self.margin,
+        )
+        won = await mc.strategy.assign(task)
+        if not isinstance(won, Assigned):
+            return
+        new = mc.remote(task.execution, won.robot, node, won.cost)
+        if not self.movable(ex):  # it ended, paused or moved while we asked
+            new.cancel("no longer needed")
+            return
+        ex.replacement = new
+        mc.active[new.id] = new
+        mc.stats.moved += 1
+        log.info(
+            "mission.moving",
+            robot=mc.robot,
+            execution=str(ex.id),
+            frm=ex.robot,
+            to=won.robot,
+            cost=won.cost,
+        )

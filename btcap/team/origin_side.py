@@ -68,6 +68,9 @@ class OriginSide:
         self.active: dict[ExecutionId, Handle] = {}
         self._ids = itertools.count(1)
 
+    def alive(self) -> frozenset[str]:
+        return self.team.alive()
+
     def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> Any:
         return self._start_task(coro, name=name)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-from btcap.actors import Actor, handler
+from btcap.actors import Actor, Supervision, handler
 from btcap.bt.state import TreeError
 from btcap.team.capability import CapabilityInterface
 from btcap.team.implementation import Implementation
@@ -27,6 +27,8 @@ class CapabilityRepository(Actor):
     """
 
     PATH = "repository"
+    #: Input from peers must never stop it (a bug shows as a logged failure, not silence).
+    supervision = Supervision.RESUME
 
     def __init__(self, robot: str) -> None:
         super().__init__()

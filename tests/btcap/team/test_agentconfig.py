@@ -10,7 +10,7 @@ import pytest
 
 from btcap.bt.registry import default_registry
 from btcap.team.agent import AgentConfig
-from btcap.team.agentconfig import AgentConfigError, Timing, load_agent_file
+from btcap.team.agentconfig import AgentConfigError, Allocation, Timing, load_agent_file
 from btcap.team.protocol import protocol_registry
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -56,7 +56,9 @@ def test_timing_covers_every_field_of_agent_config() -> None:
     """A timing added to AgentConfig must be settable from files too (or this fails)."""
     own = set(msgspec.structs.asdict(Timing())) - {"speedup"}
     wanted = {f.name for f in dataclasses.fields(AgentConfig)}
-    wanted -= {"rebid_on_join", "queue_after_current"}  # the allocation section
+    allocation = set(msgspec.structs.asdict(Allocation()))
+    assert allocation <= wanted
+    wanted -= allocation  # the allocation section
     assert own == wanted
     assert msgspec.structs.asdict(Timing()) | {"speedup": 1.0} == {
         **{k: getattr(AgentConfig(), k) for k in wanted},

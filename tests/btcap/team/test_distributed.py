@@ -23,7 +23,7 @@ import zmq
 from btcap import Sequence as SequenceNode
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
-from btcap.team.agent import Agent
+from btcap.team.agent import Agent, AgentConfig
 from btcap.team.capability import Capability
 from btcap.team.demo import ECHO
 from btcap.team.launch import AgentProcess, AgentSpec, main, spawn_agents
@@ -71,9 +71,10 @@ async def spawn(logs: Path) -> AsyncIterator[Callable[..., Any]]:
         log_file.close()
 
 
-def origin_agent(peers: dict[str, str]) -> Agent:
+def origin_agent(peers: dict[str, str], config: AgentConfig | None = None) -> Agent:
     reg = protocol_registry()
-    return Agent("origin", transport=ZmqTransport("origin", LOCAL, reg, peers=peers), registry=reg)
+    transport = ZmqTransport("origin", LOCAL, reg, peers=peers)
+    return Agent("origin", transport=transport, registry=reg, config=config)
 
 
 def peers_of(procs: Sequence[AsyncAgentProcess]) -> dict[str, str]:
@@ -185,7 +186,8 @@ async def test_late_joiner_wins_next_auction_without_cancelling_healthy_work(
 ) -> None:
     with anyio.fail_after(30):
         procs = await spawn(spec("r2", 2.0), spec("r3", 3.0))
-        async with origin_agent(peers_of(procs)) as origin:
+        # With re-evaluation off, a join never moves running work.
+        async with origin_agent(peers_of(procs), AgentConfig(reevaluate_s=None)) as origin:
             await joined(origin, {"r2", "r3"})
             tree_a, node_a = echo_mission(origin, "a")
             await until(tree_a, running_on(node_a, "r2"))

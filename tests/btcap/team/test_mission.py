@@ -294,7 +294,7 @@ async def test_lease_lapse_without_membership_failure_reassigns() -> None:
 async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_auction() -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team() as t:
+        async with team(reevaluate_s=None) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             b = await t.add("b", [count_impl("b", 3.0, probe)])
             await t.converged()
@@ -330,7 +330,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
     # with a 25 % margin a joiner must bid below 2.25 to take the work over.
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(rebid_on_join=0.25) as t:
+        async with team(rebid_on_join=0.25, reevaluate_s=None) as t:
             a = await t.add("a", [count_impl("a", 3.0 if executor == "a" else 5.0, probe)])
             b = await t.add("b", [count_impl("b", 3.0 if executor == "b" else 5.0, probe)])
             await t.converged()
@@ -371,7 +371,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
 async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(rebid_on_join=0.25) as t:
+        async with team(rebid_on_join=0.25, reevaluate_s=None) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             await t.add("b", [count_impl("b", 3.0, probe)])
             await t.converged()
@@ -394,7 +394,7 @@ def _slow_offers(mc: MissionControl, before: float = 0.0, after: float = 0.0) ->
     offers: Counter[str] = Counter()
 
     async def assign(task: AssignmentTask) -> Assigned | None:
-        if task.reserve is None:
+        if task.holder is None:
             return await real(task)
         offers["started"] += 1
         await step(before)
@@ -421,19 +421,19 @@ async def _moving_team(t: Team, probe: Probe) -> tuple[Agent, Capability, Tree]:
 async def test_two_robots_joining_at_once_take_the_work_over_only_once() -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(rebid_on_join=0.25) as t:
+        async with team(rebid_on_join=0.25, reevaluate_s=None) as t:
             a, node, tree = await _moving_team(t, probe)
             offers = _slow_offers(a.mission_control, after=0.05)
             await t.add("c", [count_impl("c", 1.0, probe)])
             await t.add("d", [count_impl("d", 1.0, probe)])
-            await until(lambda: offers["started"] == 2, "offers to both joiners")
+            await until(lambda: offers["started"] >= 1, "an offer to the joiners")
             await tick_until(
                 tree,
                 lambda _s: node.execution is not None and node.execution.robot in ("c", "d"),
                 "the work on a joiner",
             )
-            await until(lambda: offers["finished"] == 2, "both offers to end")
-            for _ in range(3):  # the second offer's award is withdrawn
+            await until(lambda: offers["finished"] == offers["started"], "the offers to end")
+            for _ in range(3):  # a later offer finds the work where it is cheapest now
                 tree.tick()
                 await step(0.005)
             assert len(node.assignments) == 2
@@ -454,7 +454,7 @@ async def test_two_robots_joining_at_once_take_the_work_over_only_once() -> None
 async def test_no_moved_work_runs_for_a_paused_capability(when: str) -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(rebid_on_join=0.25) as t:
+        async with team(rebid_on_join=0.25, reevaluate_s=None) as t:
             a, node, tree = await _moving_team(t, probe)
             offers = _slow_offers(a.mission_control, before=0.05)
             c = await t.add("c", [count_impl("c", 1.0, probe)])
@@ -479,7 +479,7 @@ async def test_no_moved_work_runs_for_a_paused_capability(when: str) -> None:
 async def test_a_replacement_lost_before_the_hand_over_leaves_the_work_where_it_was() -> None:
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(rebid_on_join=0.25) as t:
+        async with team(rebid_on_join=0.25, reevaluate_s=None) as t:
             a, node, tree = await _moving_team(t, probe)
             running = node.execution
             await t.add("c", [count_impl("c", 1.0, probe)])
@@ -507,7 +507,7 @@ async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
     with anyio.fail_after(10):
         probe = Probe()
         other = "b" if executor == "a" else "a"
-        async with team(queue_after_current=True) as t:
+        async with team(queue_after_current=True, reevaluate_s=None) as t:
             cost = {executor: 1.0, other: 5.0}
             a = await t.add("a", [count_impl("a", cost["a"], probe)])
             await t.add("b", [count_impl("b", cost["b"], probe)])

@@ -1,0 +1,77 @@
+"""Running work is re-evaluated: it moves to a clearly cheaper robot, never back and forth
+between near-equal ones, and the hand-over leaves no gap and no double run."""
+
+from __future__ import annotations
+
+import anyio
+from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
+
+from btcap import Parallel, Sequence, State
+
+
+async def test_work_moves_to_a_robot_that_comes_free_and_is_clearly_cheaper() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(reevaluate_s=1000.0) as t:  # only news triggers it here
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 5.0, probe)])
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await t.converged()
+            first = COUNT.node_type()("first", inputs={"x": 1})
+            second = COUNT.node_type()("second", inputs={"x": 2})
+            tree = a.mission(Parallel("both", children=[first, second]))
+            await tick_until(
+                tree, lambda _s: first.state is second.state is State.RUNNING, "both running"
+            )
+            assert {first.assignments[0], second.assignments[0]} == {"b", "c"}
+            on_b = first if first.assignments[0] == "b" else second
+            on_c = second if on_b is first else first
+            on_c.set_input("stop", True)  # c finishes, comes free: news
+            await tick_until(tree, lambda _s: on_b.assignments[-1] == "c", "the move to c")
+            assert on_b.assignments == ["b", "c"]
+            assert a.mission_control.stats.moved == 1
+            # The run continues on c from the latest inputs; b no longer runs it.
+            on_b.set_input("x", 7)
+            await tick_until(tree, lambda _s: on_b.outputs["y"] == 7, "c's outputs")
+            await until(lambda: probe.live("b") == 0, "b's run to be shut down")
+            assert not probe.violations
+            await tree.shutdown()
+
+
+async def test_near_equal_robots_never_pass_the_work_back_and_forth() -> None:
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(reevaluate_s=0.5) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.add("c", [count_impl("c", 1.05, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            for _ in range(400):  # 200 clock seconds: 400 re-evaluations
+                tree.tick()
+                await step(0.05)
+            assert node.assignments == ["b"]
+            assert a.mission_control.stats.moved == 0
+            assert a.auctioneer.stats.auctions > 100  # it did look, every time
+            await tree.shutdown()
+
+
+async def test_without_reevaluation_running_work_stays_where_it_is() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(reevaluate_s=None) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 5.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await t.converged()
+            for _ in range(100):
+                tree.tick()
+                await step(0.05)
+            assert node.assignments == ["b"]
+            await tree.shutdown()
