@@ -48,6 +48,7 @@ from btcap.transports.zmq_sockets import (
     open_router,
     parse_hello,
     reject,
+    remove_ipc_file,
 )
 
 __all__ = ["ZmqTransport"]
@@ -126,8 +127,7 @@ class ZmqTransport(Transport):
         self._id = system_id.encode()
         self._own_ctx = self.curve is not None and context is None
         base = context if context is not None else zmq.asyncio.Context.instance()
-        # Plain sockets on the same underlying context (so inproc:// still connects):
-        # sends are non-blocking C calls and receiving is our own reader callback.
+        # Plain sockets on one context (inproc:// connects); our own reader callback.
         self._ctx: zmq.Context[zmq.Socket[bytes]] = (
             zmq.Context() if self._own_ctx else zmq.Context.shadow(base.underlying)
         )
@@ -422,13 +422,12 @@ class ZmqTransport(Transport):
     def _reject(self, reason: str, ident: bytes, detail: str) -> None:
         reject(self.stats, self.system_id, reason, ident, detail)
 
-    # -- shutting down ----------------------------------------------------------------
     @property
     def closed(self) -> bool:
         return self._closed
 
     def close(self) -> None:
-        """Close every socket and end :meth:`serve` (idempotent; the context stays up)."""
+        """Close every socket, remove an ipc socket file, end :meth:`serve` (idempotent)."""
         if self._closed:
             return
         self._closed = True
@@ -444,6 +443,7 @@ class ZmqTransport(Transport):
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
         self._router.close(0)
+        remove_ipc_file(self.bound_endpoint)
         if self.curve is not None:
             self.curve.stop()
         if self._own_ctx:

@@ -7,6 +7,8 @@ restarted on the same endpoint.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import uuid
 from typing import Any
@@ -264,3 +266,11 @@ class RouterEvents:
     def close(self) -> None:
         self.router.disable_monitor()
         self.socket.close(0)
+
+
+def remove_ipc_file(endpoint: str) -> None:
+    """Delete the socket file of an ``ipc://`` endpoint this process bound (libzmq removes
+    it only later, from its own thread, and not at all if the process exits first)."""
+    if endpoint.startswith("ipc://") and not endpoint.startswith("ipc://@"):
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(endpoint.removeprefix("ipc://"))

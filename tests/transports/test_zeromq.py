@@ -594,3 +594,12 @@ def test_bad_system_ids_are_refused(system_id: str) -> None:
             transport.add_peer("fine", "127.0.0.1:9")
     finally:
         transport.close()
+
+
+async def test_an_ipc_socket_file_is_removed_on_close(tmp_path: Path) -> None:
+    path = tmp_path / "robot.sock"
+    with anyio.fail_after(5):
+        transport = ZmqTransport("a", f"ipc://{path}", registry())
+        assert path.exists()
+        transport.close()
+        assert not path.exists()
