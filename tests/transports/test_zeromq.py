@@ -596,10 +596,9 @@ def test_bad_system_ids_are_refused(system_id: str) -> None:
         transport.close()
 
 
-async def test_an_ipc_socket_file_is_removed_on_close(tmp_path: Path) -> None:
+def test_an_ipc_socket_file_is_removed_on_close(tmp_path: Path) -> None:
     path = tmp_path / "robot.sock"
-    with anyio.fail_after(5):
-        transport = ZmqTransport("a", f"ipc://{path}", registry())
-        assert path.exists()
-        transport.close()
-        assert not path.exists()
+    transport = ZmqTransport("a", f"ipc://{path}", registry())
+    assert path.exists()
+    transport.close()
+    assert not path.exists()
