@@ -64,6 +64,8 @@ class ProcessHost:
         self._endpoints: dict[str, str] = {}
         self._procs: dict[str, AsyncAgentProcess] = {}
         self._leaving: set[AsyncAgentProcess] = set()
+        self._starting: set[str] = set()  # spawned, process not created yet
+        self._left_early: set[str] = set()  # left before its process existed
         self._frozen: set[str] = set()
         self._config = agent_options(s)
         self._scenario = msgspec.to_builtins(s)
@@ -105,6 +107,8 @@ class ProcessHost:
             registry="btcap.sim.hosts:registry",
             log_level="error",
         )
+        self._starting.add(name)
+        self._left_early.discard(name)
         self._task(self._life, name, spec, name=f"robot {name}")
 
     async def _life(self, name: str, spec: AgentSpec) -> None:
@@ -112,6 +116,14 @@ class ProcessHost:
             proc = await AsyncAgentProcess.spawn(spec, stderr=self._stderr)
         except OSError as exc:
             record_error(self.errors, self.clock.now(), name, exc)
+            return
+        finally:
+            self._starting.discard(name)
+        if name in self._left_early:  # it left while its process was being created
+            self._left_early.discard(name)
+            self.started[name] = proc
+            self._leaving.add(proc)
+            await proc.stop()
             return
         # Known at once, so a robot that leaves or fails while it starts is stopped or frozen.
         self._procs[name] = proc
@@ -129,6 +141,8 @@ class ProcessHost:
             record_error(self.errors, self.clock.now(), name, f"process exited with code {code}")
 
     def leave(self, name: str) -> None:
+        if name in self._starting:
+            self._left_early.add(name)
         proc = self._procs.pop(name, None)
         if proc is not None:
             self._leaving.add(proc)
