@@ -115,7 +115,7 @@ def summary_table(results: list[MissionResult]) -> Group:
         ("auctions", [str(r.auctions) for r in results]),
         ("executions lost", [str(r.executions_lost) for r in results]),
         ("re-assigned", [str(r.reassigned) for r in results]),
-        ("moved to joiners", [str(r.moved) for r in results]),
+        ("moved (cheaper)", [str(r.moved) for r in results]),
         ("robot failures", [str(r.robot_failures) for r in results]),
         ("robots left", [str(r.robots_left) for r in results]),
         ("robot errors", [str(len(r.errors)) for r in results]),

@@ -71,8 +71,8 @@ class RobotStats(msgspec.Struct):
 class MissionResult(msgspec.Struct):
     """A mission run. ``executions_lost``: executions whose executor was lost (it failed,
     left or crashed); ``reassigned``: capability runs that moved to another robot after
-    such a loss; ``moved``: running work moved to a cheaper robot that joined
-    (``rebid_on_join``); ``robot_failures`` and ``robots_left``: the scenario's fail and
+    such a loss; ``moved``: running work re-evaluated and moved to a clearly cheaper
+    robot; ``robot_failures`` and ``robots_left``: the scenario's fail and
     leave events that happened while the mission ran, whether or not the robot was busy;
     ``errors``: robots that crashed; ``timed_out``: the time limit ended the run."""
 
