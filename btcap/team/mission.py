@@ -132,9 +132,9 @@ class MissionControl(Actor):
         self.executor.attach_slot(slot)
 
     def _freed(self) -> None:
+        # The team hears it with the next heartbeat (its ``busy`` flag): not a broadcast per
+        # finished task, which would cost every member a message each time.
         self.changes += 1
-        if self._system is not None and self.system.running:
-            self.team.beat_now()  # the team hears at once that this robot is free
 
     def _news(self, _robot: str) -> None:
         self._reevaluation.news()
