@@ -111,19 +111,21 @@ async def _ask_within(
     ref: ActorRef[Any], msg: Award, clock: TimeSource, seconds: float
 ) -> AwardReply:
     """The award's reply, or AskTimeout after ``seconds`` of clock time: a real clock
-    gives the ask a wall-time limit; a virtual one races it against the clock, so a
-    virtual-time run never mixes in real timers."""
+    gives the ask a wall-time limit; on a virtual one the clock decides, racing the ask
+    (whose own wall-time limit, the system's ask timeout, is only a backstop)."""
     wall = clock.to_wall(seconds)
     if wall > 0:
         return await ref.ask(msg, expect=AwardReply, timeout=max(wall, 0.05))
-    ask = asyncio.ensure_future(ref.ask(msg, expect=AwardReply, timeout=None))
+    ask = asyncio.ensure_future(ref.ask(msg, expect=AwardReply))
     timer = asyncio.ensure_future(clock.sleep(seconds))
     try:
         await asyncio.wait((ask, timer), return_when=asyncio.FIRST_COMPLETED)
+        answered = ask.done()
     finally:
         timer.cancel()
-    if not ask.done():
-        ask.cancel()
+        if not ask.done():  # timed out, or we were cancelled: the ask goes too
+            ask.cancel()
+    if not answered:
         raise AskTimeout(f"no reply from {ref.address} to the award within {seconds} clock s")
     return ask.result()
 
@@ -217,13 +219,13 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             raise
         if auction.answered_all:
             self.stats.early_closes += 1
-        # Leaving the open auctions and joining the closed ones in one step: a closed
-        # auction never takes its turn while a competitor is between the two.
-        del self._open[auction_id]
         outcome = auction.outcome()
         self.outcomes.append(outcome)
         task = _against_holder(task, outcome)
         mine = _Closed(outcome, task.reserve, asyncio.Event())
+        # Leaving the open auctions and joining the closed ones in one step: a closed
+        # auction never takes its turn while a competitor is between the two.
+        del self._open[auction_id]
         self._closed.append(mine)
         try:
             self._next_turn()
@@ -264,7 +266,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         for bid in outcome.ranking:
             if task.reserve is not None and bid.cost >= task.reserve:
                 reasons[bid.robot] = f"bid {bid.cost:g} not below {task.reserve:g}"
-        for bid in outcome.awardable(task.reserve):
+        # A robot that took a task in this batch bid as if idle: it waits for the next one.
+        for bid in [b for b in outcome.awardable(task.reserve) if b.robot not in self._taken]:
             award = Award(
                 auction_id,
                 task.execution,

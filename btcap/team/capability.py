@@ -357,11 +357,13 @@ class Capability(Node):
     def on_untick(self) -> None:
         if self._exec is not None:
             self._exec.pause()
-        elif self._request is not None:
+            return
+        if self._request is not None:
             # Paused before an executor was found: no work may start for a paused node,
             # so give the auction up; the next tick starts a fresh one.
             self._request.cancel()
             self._request = None
+        self._waiting_since = None  # paused time is no waiting: the timeout starts again
 
     def on_reset(self) -> None:
         self._drop("reset")

@@ -42,9 +42,7 @@ class Mover(Protocol):
 
     def new_execution(self, node: Capability) -> ExecutionId: ...
 
-    def remote(
-        self, execution: ExecutionId, robot: str, node: Capability, cost: float
-    ) -> RemoteExecution: ...
+    def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle: ...
 
     def start_task(self, coro: Any, *, name: str | None = None) -> Any: ...
 
@@ -100,8 +98,9 @@ class Reevaluation:
         mc = self.mc
         node = ex.node
         iface = type(node).INTERFACE
-        # Others may take it over; its holder bids what finishing would cost it now.
-        others = (mc.repository.providers(iface.identity) & mc.alive()) - {mc.robot, ex.robot}
+        # Others (this robot too) may take it over; its holder bids what finishing would
+        # cost it now.
+        others = (mc.repository.providers(iface.identity) & mc.alive()) - {ex.robot}
         if not others:
             return
         candidates = others | {ex.robot}
@@ -120,7 +119,7 @@ class Reevaluation:
         won = await mc.strategy.assign(task)
         if not isinstance(won, Assigned):
             return
-        new = mc.remote(task.execution, won.robot, node, won.cost)
+        new = mc.handle(task.execution, won, node)  # not ticked until the node adopts it
         if not self.movable(ex):  # it ended, paused or moved while we asked
             new.cancel("no longer needed")
             return

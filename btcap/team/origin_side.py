@@ -119,6 +119,14 @@ class OriginSide:
         tracked = self.leases.track(execution, robot, self.config.lease_s, self.now())
         return RemoteExecution(self, tracked, node, cost)
 
+    def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle:
+        """The handle of an execution ``won.robot`` accepted: this robot's own run, ticked
+        by the node, or a proxy of one on another robot (its lease starts now)."""
+        if won.robot == self.robot:
+            run = self.executor.local_runs.pop(execution)
+            return LocalExecution(self, execution, run, node, won.cost)
+        return self.remote(execution, won.robot, node, won.cost)
+
     def let_go(self, ex: Handle, reason: str) -> None:
         """The node let ``ex`` go; a replacement it never adopted goes with it."""
         self.leases.forget(ex.id)
@@ -157,11 +165,7 @@ class OriginSide:
             self.stats.unassigned += 1
             return
         self.stats.assigned += 1
-        if won.robot == self.robot:
-            run = self.executor.local_runs.pop(task.execution)
-            ex: Handle = LocalExecution(self, task.execution, run, node, won.cost)
-        else:
-            ex = self.remote(task.execution, won.robot, node, won.cost)
+        ex = self.handle(task.execution, won, node)
         self.active[ex.id] = ex
         req.execution = ex
         if req.cancelled:

@@ -49,9 +49,9 @@ class _Handle:
         self.robot = robot
         self.node = node
         self.cost = cost
-        self.replacement: RemoteExecution | None = None
+        self.replacement: LocalExecution | RemoteExecution | None = None
 
-    def hand_over(self) -> RemoteExecution | None:
+    def hand_over(self) -> LocalExecution | RemoteExecution | None:
         """The execution taking over from this one, now the caller's to hold."""
         nxt, self.replacement = self.replacement, None
         return nxt if nxt is not None and not nxt.lost else None

@@ -409,3 +409,21 @@ async def test_simultaneous_auctions_award_the_cheapest_pair_first() -> None:
             assert (near.state, far.state) == (State.RUNNING, State.UNASSIGNED)
             assert [o.ranking[0].cost for o in a.auctioneer.outcomes] == [5.0, 1.0]
             await tree.shutdown()
+
+
+async def test_a_robot_takes_one_task_per_batch_even_with_a_queue() -> None:
+    """b bids 10 for both, c 11: one each. Queued behind its first, b's second would
+    really cost 20, not the 10 it bid while idle."""
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(queue_after_current=True, reevaluate_s=None) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 10.0, probe)])
+            await t.add("c", [count_impl("c", 11.0, probe)])
+            await t.converged()
+            n1 = COUNT.node_type()("n1", inputs={"x": 1})
+            n2 = COUNT.node_type()("n2", inputs={"x": 2})
+            tree = a.mission(Parallel("both", children=[n1, n2]))
+            await tick_until(tree, lambda _s: bool(n1.assignments and n2.assignments), "both")
+            assert sorted(n1.assignments + n2.assignments) == ["b", "c"]
+            await tree.shutdown()

@@ -6,7 +6,7 @@ from typing import Any
 
 import anyio
 import pytest
-from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
+from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 from structlog.testing import capture_logs
 
 from btcap import AlwaysSuccess, Parallel, Sequence, State, Tree, TreeError
@@ -309,4 +309,22 @@ async def test_waiting_work_goes_to_a_robot_the_moment_it_comes_free() -> None:
             await tick_until(tree, lambda _s: second.state is State.RUNNING, "second runs")
             assert a.clock.now() - freed < 1.0  # a heartbeat or two, not 1000 s
             assert b.mission_control.stats.hosted == 2
+            await tree.shutdown()
+
+
+async def test_paused_time_does_not_count_towards_the_assignment_timeout() -> None:
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(reevaluate_s=None) as t:
+            a = await t.add("a")
+            node = COUNT.node_type()("count", inputs={"x": 1}, assignment_timeout_s=5.0)
+            tree = a.mission(Sequence("root", children=[node]))
+            tree.tick()
+            tree.untick()  # paused by its parent for 10 clock seconds
+            for _ in range(200):
+                await step()
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            assert tree.tick() is not State.FAILED  # the wait starts again on resuming
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "assigned to b")
             await tree.shutdown()

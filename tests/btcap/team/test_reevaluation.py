@@ -75,3 +75,23 @@ async def test_without_reevaluation_running_work_stays_where_it_is() -> None:
                 await step(0.05)
             assert node.assignments == ["b"]
             await tree.shutdown()
+
+
+async def test_work_moves_home_when_the_origin_robot_comes_free_and_is_cheaper() -> None:
+    with anyio.fail_after(30):
+        probe = Probe()
+        async with team(reevaluate_s=1.0) as t:
+            a = await t.add(
+                "a", [count_impl("a", lambda i: 1.0 if i["x"] == 1 else 2.0, probe, after=20)]
+            )
+            await t.add("b", [count_impl("b", 10.0, probe)])
+            await t.converged()
+            n1 = COUNT.node_type()("n1", inputs={"x": 1})
+            n2 = COUNT.node_type()("n2", inputs={"x": 2})
+            tree = a.mission(Parallel("both", children=[n1, n2]))
+            await tick_until(tree, lambda _s: n1.state is State.SUCCEEDED, "n1 done on a")
+            await tick_until(tree, lambda _s: n2.assignments[-1:] == ["a"], "n2 moved home")
+            assert n2.assignments == ["b", "a"]
+            await until(lambda: probe.live("b") == 0, "b's run shut down")
+            assert not probe.violations
+            await tree.shutdown()
