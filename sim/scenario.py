@@ -10,6 +10,7 @@ import msgspec
 
 from btcap.sim.grid import GridMap, MapError
 from btcap.sim.model import RobotModel, load_team, paper_team
+from btcap.team.core.planning import STRATEGIES
 
 __all__ = [
     "AgentTiming",
@@ -89,6 +90,8 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     #: Work moves only to a robot bidding at least this fraction below what the current
     #: executor now bids to finish it.
     move_margin: float = 0.2
+    #: ``auction`` (cheapest robot-task pair first), ``optimal`` or ``arrival``.
+    strategy: str = "auction"
     #: Older name of ``move_margin`` for joins (None: ``move_margin`` applies).
     rebid_on_join: float | None = None
     #: A busy robot bids for one more task, to start after its current one.
@@ -184,6 +187,9 @@ def _check(s: Scenario, where: str) -> Scenario:
         raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
     if not 0 <= s.sim.delay_jitter <= 1:
         raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
+    if s.allocation.strategy not in STRATEGIES:
+        got = s.allocation.strategy
+        raise bad("allocation.strategy", f"expected one of {', '.join(STRATEGIES)}, got {got!r}")
     every = s.allocation.reevaluate_s
     if every is not None and not (math.isfinite(every) and every > 0):
         raise bad("allocation.reevaluate_s", f"expected seconds > 0 or null, got {every}")

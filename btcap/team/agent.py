@@ -72,7 +72,10 @@ class Agent:
             busy=lambda: not self.mission_control.body.idle,
         )
         self.auctioneer = SingleItemAuction(
-            robot, window_s=cfg.auction_window_s, award_timeout_s=cfg.award_timeout_s
+            robot,
+            window_s=cfg.auction_window_s,
+            award_timeout_s=cfg.award_timeout_s,
+            strategy=cfg.strategy,
         )
         self.mission_control = MissionControl(
             robot, self.repository, self.team, self.auctioneer, config=cfg

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 
@@ -114,6 +114,7 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     #: Re-evaluate running work this often (clock seconds); null: never move running work.
     reevaluate_s: _Positive | None = _DEFAULTS.reevaluate_s
     move_margin: Annotated[float, msgspec.Meta(ge=0, lt=1)] = _DEFAULTS.move_margin
+    strategy: Literal["auction", "optimal", "arrival"] = "auction"
     rebid_on_join: Annotated[float, msgspec.Meta(gt=0, lt=1)] | None = None
     queue_after_current: bool = False
 

@@ -24,6 +24,7 @@ from btcap.actors import (
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.core.planning import check_strategy, optimal_plan
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 from btcap.transports import Address
@@ -137,13 +138,17 @@ class _Closed:
     outcome: AuctionOutcome
     reserve: float | None
     turn: asyncio.Event
+    plan: str | None = None  # the optimal strategy's robot for it
+
+    def bids(self, taken: set[str]) -> list[Bid]:
+        """What may be awarded, best first: the planned robot, then the cheapest free."""
+        bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
+        return sorted(bids, key=lambda b: b.robot != self.plan)
 
     def best(self, taken: set[str]) -> tuple[float, str]:
-        """Its cheapest bid from a robot not taken in this batch (for the order)."""
-        for bid in self.outcome.awardable(self.reserve):
-            if bid.robot not in taken:
-                return (bid.cost, bid.robot)
-        return (math.inf, "")
+        """The bid it would award first (for the order of turns)."""
+        bids = self.bids(taken)
+        return (bids[0].cost, bids[0].robot) if bids else (math.inf, "")
 
 
 class SingleItemAuction(Actor, AssignmentStrategy):
@@ -164,9 +169,17 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     #: A peer's bad answer must never stop a robot's auctioneer.
     supervision = Supervision.RESUME
 
-    def __init__(self, robot: str, *, window_s: float = 1.0, award_timeout_s: float = 0.5) -> None:
+    def __init__(
+        self,
+        robot: str,
+        *,
+        window_s: float = 1.0,
+        award_timeout_s: float = 0.5,
+        strategy: str = "auction",
+    ) -> None:
         super().__init__()
         self.robot = robot
+        self.strategy = check_strategy(strategy)
         self.window_s = window_s
         self.award_timeout_s = award_timeout_s
         self.stats = AuctionStats()
@@ -230,7 +243,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         try:
             self._next_turn()
             await mine.turn.wait()
-            won = await self._award(task, auction_id, outcome)
+            won = await self._award(task, auction_id, mine)
             if isinstance(won, Assigned):
                 self._taken.add(won.robot)
             return won
@@ -248,26 +261,34 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         collecting bids competes with the waiting ones for a robot."""
         if self._awarding is not None or not self._closed:
             return
-        wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
-        if any(wanted & a.invited for a, _done in self._open.values()):
-            return  # its bids may be cheaper: wait for it to close
-        nxt = min(self._closed, key=lambda c: c.best(self._taken))
+        if self.strategy == "arrival":
+            nxt = self._closed[0]
+        else:
+            wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
+            if any(wanted & a.invited for a, _done in self._open.values()):
+                return  # its bids may be cheaper: wait for it to close
+            if self.strategy == "optimal" and all(c.plan is None for c in self._closed):
+                plan = optimal_plan([c.bids(self._taken) for c in self._closed], self._taken)
+                for closed, robot in zip(self._closed, plan, strict=True):
+                    closed.plan = robot
+            nxt = min(self._closed, key=lambda c: c.best(self._taken))
         self._closed.remove(nxt)
         self._awarding = nxt
         nxt.turn.set()
 
     async def _award(
-        self, task: AssignmentTask, auction_id: AuctionId, outcome: AuctionOutcome
+        self, task: AssignmentTask, auction_id: AuctionId, mine: _Closed
     ) -> Assigned | Unassigned:
         system = self.system
         clock = system.clock
+        outcome = mine.outcome
         reasons = dict(outcome.declined)
         reasons.update((robot, "no answer") for robot in outcome.silent)
         for bid in outcome.ranking:
             if task.reserve is not None and bid.cost >= task.reserve:
                 reasons[bid.robot] = f"bid {bid.cost:g} not below {task.reserve:g}"
         # A robot that took a task in this batch bid as if idle: it waits for the next one.
-        for bid in [b for b in outcome.awardable(task.reserve) if b.robot not in self._taken]:
+        for bid in mine.bids(self._taken):
             award = Award(
                 auction_id,
                 task.execution,

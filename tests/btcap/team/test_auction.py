@@ -427,3 +427,25 @@ async def test_a_robot_takes_one_task_per_batch_even_with_a_queue() -> None:
             await tick_until(tree, lambda _s: bool(n1.assignments and n2.assignments), "both")
             assert sorted(n1.assignments + n2.assignments) == ["b", "c"]
             await tree.shutdown()
+
+
+@pytest.mark.parametrize(("strategy", "total"), [("auction", 101.0), ("optimal", 4.0)])
+async def test_strategies_award_the_same_batch_their_own_way(strategy: str, total: float) -> None:
+    """The classic trap: greedy gives b its cheapest task and c the other at 100; the
+    optimal plan gives each the task that keeps the total least."""
+    costs = {"b": {1: 1.0, 2: 2.0}, "c": {1: 2.0, 2: 100.0}}
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy=strategy, reevaluate_s=None) as t:
+            a = await t.add("a")
+            for robot, by_task in costs.items():
+                bid = lambda inputs, c=by_task: c[inputs["x"]]  # noqa: E731
+                await t.add(robot, [count_impl(robot, bid, probe)])
+            await t.converged()
+            n1 = COUNT.node_type()("n1", inputs={"x": 1})
+            n2 = COUNT.node_type()("n2", inputs={"x": 2})
+            tree = a.mission(Parallel("both", children=[n1, n2]))
+            await tick_until(tree, lambda _s: bool(n1.assignments and n2.assignments), "both")
+            paid = costs[n1.assignments[0]][1] + costs[n2.assignments[0]][2]
+            assert paid == total
+            await tree.shutdown()

@@ -12,6 +12,7 @@ from btcap.team.core.auction import Auction
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
 from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.core.planning import check_strategy, optimal_plan
 from btcap.team.messages import Bid, CallForBids, NoBid
 
 A1 = AuctionId("a", 1)
@@ -102,3 +103,16 @@ def test_the_body_says_when_it_comes_free() -> None:
     assert freed == []
     body.release(e2)
     assert freed == [1]
+
+
+def test_the_optimal_plan_beats_greedy_on_the_classic_trap() -> None:
+    def bid(robot: str, cost: float) -> Bid:
+        return Bid(A1, robot, cost, "i")
+
+    t1 = [bid("b", 1.0), bid("c", 2.0)]
+    t2 = [bid("b", 2.0), bid("c", 100.0)]
+    assert optimal_plan([t1, t2], taken=set()) == ["c", "b"]  # 4, where greedy pays 101
+    assert optimal_plan([t1, t2], taken={"b"}) == ["c", None]
+    assert optimal_plan([[], t2], taken=set()) == [None, "b"]
+    with pytest.raises(ValueError, match="expected one of auction, optimal, arrival"):
+        check_strategy("fastest")
