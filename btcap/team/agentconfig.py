@@ -22,6 +22,7 @@ explicitly allows an insecure bind.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -79,6 +80,7 @@ class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """CURVE key files in ZeroMQ's certificate format (``btcap keys new``)."""
 
     #: This robot's secret certificate ``NAME.key_secret`` (it holds the public key too).
+    #: Key paths may name environment variables (``${BTCAP_KEYS}/alpha.key_secret``).
     secret: Path
     #: A directory of the team's public certificates ``NAME.key``, this robot's included:
     #: only robots whose key is there get through the handshake.
@@ -329,7 +331,11 @@ def _files(config: RobotConfig, base: Path, field: str, paths: list[Path]) -> li
 
 def _check_keys(config: RobotConfig, keys: Keys, base: Path) -> None:
     for name in ("secret", "trusted"):
-        path = (base / getattr(keys, name)).resolve()
+        given = str(getattr(keys, name))
+        expanded = os.path.expandvars(given)  # keys often live outside the repository
+        if "$" in expanded:
+            raise config.error(f"keys.{name}", f"{given}: an environment variable is not set")
+        path = (base / expanded).resolve()
         want_dir = name == "trusted"
         if not (path.is_dir() if want_dir else path.is_file()):
             what = "directory" if want_dir else "file"

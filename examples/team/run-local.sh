@@ -31,14 +31,14 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-# Keys for every robot, in ZeroMQ's certificate format (once `btcap keys` is available).
-if "${btcap[@]}" keys new --help > /dev/null 2>&1; then
-    mkdir -p "$work/keys"
-    for robot in alpha beta gamma operator; do
-        "${btcap[@]}" keys new "$robot" --dir "$work/keys" > /dev/null
-    done
-    echo "keys written to $work/keys"
-fi
+# Keys for every robot, in ZeroMQ's certificate format: the configs name them through
+# $BTCAP_KEYS, and every link of the team is encrypted and authenticated with them.
+export BTCAP_KEYS="$work/keys"
+mkdir -p "$BTCAP_KEYS"
+for robot in alpha beta gamma operator; do
+    "${btcap[@]}" keys new "$robot" --dir "$BTCAP_KEYS" > /dev/null
+done
+echo "keys written to $BTCAP_KEYS"
 
 for robot in alpha beta gamma; do
     "${btcap[@]}" agent "$here/$robot.yaml" > "$work/$robot.out" 2> "$work/$robot.log" &

@@ -12,6 +12,7 @@ from btcap.bt.registry import default_registry
 from btcap.team.agent import AgentConfig
 from btcap.team.agentconfig import AgentConfigError, Allocation, Timing, load_agent_file
 from btcap.team.protocol import protocol_registry
+from btcap.transports.security import write_key_pair
 
 ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"
@@ -66,9 +67,19 @@ def test_timing_covers_every_field_of_agent_config() -> None:
     }
 
 
-def test_paths_are_relative_to_the_file() -> None:
+def test_paths_are_relative_to_the_file_and_key_paths_expand_the_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("BTCAP_KEYS", raising=False)
+    with pytest.raises(AgentConfigError, match=r"keys.secret: .*BTCAP_KEYS.*variable is not set"):
+        load_agent_file(TEAM / "alpha.yaml")
+    for robot in ("alpha", "beta"):
+        write_key_pair(tmp_path, robot)
+    monkeypatch.setenv("BTCAP_KEYS", str(tmp_path))
     config = load_agent_file(TEAM / "alpha.yaml")
     assert config.spec.capabilities.interfaces == [CAPS / "interfaces.yaml"]
+    assert config.spec.keys is not None
+    assert config.spec.keys.secret == tmp_path / "alpha.key_secret"
 
 
 @pytest.mark.parametrize(
