@@ -46,16 +46,22 @@ class TeamFile(msgspec.Struct, forbid_unknown_fields=True):
 
 
 def paper_team() -> dict[str, RobotModel]:
-    """The team of the paper (section IV): Husky, Spot and Bebop."""
+    """The team of the paper (section IV): Husky, Spot and Bebop.
+
+    Cost factors, durations and radii are the paper's table; the speeds are invented
+    here (the paper gives none): they set how long a drive takes, not what it costs.
+    """
     return {
         "husky": RobotModel(
-            cost_factor=2.0,
-            speed_mps=1.0,
-            explore=OperationModel(60.0, 15.0),
-            identify=OperationModel(60.0),
-            decontaminate=OperationModel(8.0),
+            cost_factor=2.0,  # paper
+            speed_mps=1.0,  # invented
+            explore=OperationModel(60.0, 15.0),  # paper: 60 s, 15 m radius
+            identify=OperationModel(60.0),  # paper
+            decontaminate=OperationModel(8.0),  # paper
         ),
+        # paper: cost factor 1.25, Identify 2 s; speed invented
         "spot": RobotModel(cost_factor=1.25, speed_mps=1.5, identify=OperationModel(2.0)),
+        # paper: cost factor 1.0, Explore 10 s with a 30 m radius; speed invented
         "bebop": RobotModel(cost_factor=1.0, speed_mps=3.0, explore=OperationModel(10.0, 30.0)),
     }
 
