@@ -34,7 +34,7 @@ class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
     factory: str = ""
     factory_args: dict[str, Any] = {}
     speedup: float = 1.0
-    config: dict[str, float | bool | None] = {}
+    config: dict[str, float | bool | str | None] = {}
     log_level: str = "warning"
     registry: str = ""
 

@@ -324,7 +324,9 @@ class Capability(Node):
             self._waits += 1
             if self._waits & (self._waits - 1) == 0:  # the 1st, 2nd, 4th, 8th ... time
                 iface = type(self).INTERFACE.name
-                log.warning(
+                # Waiting for a busy robot is routine; nobody able to do it is news.
+                busy = any("busy" in why for why in req.why.values())
+                (log.info if busy else log.warning)(
                     "capability.unassigned",
                     node=self.path,
                     capability=iface,
