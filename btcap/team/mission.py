@@ -91,6 +91,7 @@ class MissionControl(Actor):
             perform=self._perform,
             start_task=self.start_task,
             now=self._now,
+            news=self._freed,
         )
         self.origin = self.origin_side.leases
         #: Every execution a capability node of this robot holds, local or remote.

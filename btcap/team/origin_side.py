@@ -50,6 +50,7 @@ class OriginSide:
         perform: Callable[[Iterable[Effect]], None],
         start_task: Callable[..., asyncio.Task[Any]],
         now: Callable[[], float],
+        news: Callable[[], None] = lambda: None,
     ) -> None:
         self.robot = robot
         self.config = config
@@ -63,6 +64,7 @@ class OriginSide:
         self.perform = perform
         self._start_task = start_task
         self.now = now
+        self.news = news
         self.leases = OriginLeases(robot)
         #: Every execution a capability node of this robot holds, local or remote.
         self.active: dict[ExecutionId, Handle] = {}
@@ -179,6 +181,9 @@ class OriginSide:
             handle = self.active.get(msg.execution)
             if isinstance(handle, RemoteExecution) and handle.tracked.state in DONE:
                 self.active.pop(msg.execution)  # its result was taken
+                # Its executor is free now: work waiting for a robot competes for it at
+                # once, with the task that follows this one (not a heartbeat later).
+                self.news()
 
     def _convert(self, t: Tracked, values: dict[str, Any]) -> dict[str, Any] | str:
         handle = self.active.get(t.execution)

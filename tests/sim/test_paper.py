@@ -140,20 +140,6 @@ class ChoiceLog:
         self.choices.append(Choice(now, task.execution.node, won.cost, costs))
 
 
-FIG4_MEASURED = (
-    "measured 154 of 167 choices cheapest (92.2 %): seed 1 56/60, seed 2 50/57, seed 3 48/50. "
-    "Every miss is a task that became pending as the Husky finished (the Decontaminate "
-    "after its own Identify, or the next Explore goal) and was auctioned and awarded at "
-    "once, while a cheaper task that had waited (the Husky was busy) had not re-auctioned "
-    "yet: waiting work re-auctions when the operator hears the Husky is free (its next "
-    "heartbeat, up to heartbeat_s later) or at its retry_s timer, so the two auctions do "
-    "not overlap and the cheapest-pair-first rule never compares them. E.g. seed 1 "
-    "t=423.6 s Decontaminate 332 taken while Explore cost 134; seed 2 t=281.6 s "
-    "Decontaminate 276 vs Explore 238; seed 3 t=3798.1 s Decontaminate 178 vs Identify 94"
-)
-
-
-@pytest.mark.xfail(strict=True, reason=FIG4_MEASURED)
 async def test_a_single_husky_starts_the_cheapest_available_task(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -271,17 +257,6 @@ async def test_a_failed_husky_loses_its_work_and_gets_work_again_when_it_returns
     assert again[0].start <= back + 5.0
 
 
-HANDOVER_MEASURED = (
-    "measured on seeds 1-5: the work husky2 lost at its failure (660 s) was re-assigned to "
-    "husky1 on seeds 1, 3 and 5; on seeds 2 and 4 it waited for husky2's return (960 s). "
-    "Seed 2 is the greedy rule at work: each time husky1 came free its other loop's task "
-    "was cheaper (224, 168, 102) than the lost Decontaminate (332-368). Seed 4 is not: "
-    "husky1 took Identify 194 at 677.5 s and Decontaminate 184 at 902.5 s while the lost "
-    "Identify cost it 126 and 92 - the race of the Fig. 4 misses"
-)
-
-
-@pytest.mark.xfail(strict=True, reason=HANDOVER_MEASURED)
 async def test_a_failed_huskys_work_is_reassigned_while_it_is_down() -> None:
     for seed in (1, 2, 3, 4, 5):
         result = await mission("huskies-bebop-joins", seed)
