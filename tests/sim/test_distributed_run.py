@@ -99,3 +99,29 @@ async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> Non
     assert (result.robot_failures, result.robots_left) == (0, 1)
     assert not [i for i in result.timeline if i.robot == "bebop1"]
     assert not hosts.made[0].started["bebop1"].alive()
+
+
+async def test_a_frozen_robot_process_is_declared_failed_and_credited_nothing() -> None:
+    """SIGSTOP, unannounced: the team declares the Spot failed, its identification moves
+    to the Husky, and nothing the Spot was doing is recorded as done after the verdict."""
+    s = load_scenario(DATA / "small.yaml")
+    hosts = Hosts()
+    frozen: list[float] = []
+
+    def freeze_spot_mid_task(p: Progress) -> None:
+        if not frozen and "spot1" in p.tasks:  # it holds work
+            hosts.made[0].fail("spot1")  # SIGSTOP; thawed when the run ends
+            frozen.append(p.time)
+
+    with anyio.fail_after(90):
+        result = await run_scenario(
+            s, host=hosts, on_progress=freeze_spot_mid_task, progress_every_s=0.001
+        )
+    assert frozen
+    assert result.completed
+    assert result.executions_lost >= 1
+    verdict = frozen[0] + s.agent.failure_timeout_s + 1.0
+    late = [i for i in result.timeline if i.robot == "spot1" and i.ok and i.end > verdict]
+    assert not late, f"credited to the frozen Spot after {verdict:.1f} s: {late}"
+    identified = [i for i in result.timeline if i.kind == "identify" and i.ok]
+    assert any(i.robot == "husky1" and i.start > frozen[0] for i in identified)
