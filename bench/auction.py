@@ -9,7 +9,9 @@
   execution each round creates is cancelled at once so the next round finds the bidders
   free. All 50 bidders are up throughout; a round with N bidders invites the first N
   (dealt round robin over the processes). ``early_close`` counts the rounds that closed
-  because every invited bidder had answered.
+  because every invited bidder had answered. The tcp rounds run twice: plain
+  (``zmq_tcp``), then with a CURVE key pair for every agent and the team's public keys as
+  each one's allow-list (``zmq_tcp_curve``); the table gives the ratio CURVE / plain.
 - **round_cpu_ms**: CPU time per round (every thread, so ZeroMQ's I/O threads count) of
   this process and of the bidder processes, minus what they burn idle (heartbeats, host
   trees). On a small shared machine this says more than wall time: a 50-bidder round
@@ -31,8 +33,10 @@ import asyncio
 import gc
 import itertools
 import os
+import tempfile
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 from btcap import Sequence as SequenceNode
@@ -48,7 +52,8 @@ from btcap.team.messages import CancelExecution
 from btcap.team.mission import MissionControl
 from btcap.team.protocol import protocol_registry
 from btcap.team.proxies import RemoteExecution
-from btcap.transports import InProcessNetwork, ZmqTransport
+from btcap.transports import InProcessNetwork, KeyPair, TeamKeys, ZmqTransport
+from btcap.transports.security import write_key_pair
 
 __all__ = ["run"]
 
@@ -212,8 +217,10 @@ async def _all_sizes(
 
 
 async def _bench_zmq(
-    warmup: int, count: int, processes: int
+    warmup: int, count: int, processes: int, keys: Path | None = None
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """Rounds over tcp; with ``keys`` (a directory of every agent's certificates, which is
+    also the allow-list) every agent, the origin included, runs CURVE."""
     names = _bidder_names(max(BIDDERS))
     groups: list[list[AgentSpec]] = [[] for _ in range(processes)]
     for i, name in enumerate(names):
@@ -222,13 +229,19 @@ async def _bench_zmq(
             factory="btcap.team.demo:implementations",
             factory_args={"cost": 1.0 + i},
             config={**TEAM_TIMING},
+            keys="" if keys is None else str(keys / f"{name}.key_secret"),
+            trusted="" if keys is None else str(keys),
         )
         groups[i % processes].append(spec)
     procs = spawn_agents(groups, timeout=60.0)
     try:
         peers = {robot: ep for p in procs for robot, ep in p.endpoints.items()}
         reg = protocol_registry()
-        transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
+        pair = None if keys is None else KeyPair.load(keys / "origin.key_secret")
+        team = None if keys is None else TeamKeys.load(keys)
+        transport = ZmqTransport(
+            "origin", f"tcp://{_LOCAL}:*", reg, peers=peers, keys=pair, trusted=team
+        )
         async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
             await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
             return await _all_sizes(o, names, warmup, count, _CpuMeter([p.pid for p in procs]))
@@ -353,6 +366,8 @@ def _table(data: dict[str, Any]) -> str:
         f"{setup['bidder_processes']} processes; load average "
         f"{setup['load_average'][0]:.1f} -> {setup['load_average'][1]:.1f}"
     )
+    lines.append("")
+    lines.append(_curve_table(data))
     t, f = data["remote_tick_ms"], data["failover_s"]
     lines.append(f"remote tick round trip (tcp): p50 {t['p50']:.3f} ms, p99 {t['p99']:.3f} ms")
     lines.append(
@@ -360,6 +375,36 @@ def _table(data: dict[str, Any]) -> str:
         f"({f['repeats']} kills)"
     )
     return "\n".join(lines)
+
+
+def _curve_table(data: dict[str, Any]) -> str:
+    rounds, cpu = data["round_ms"], data["round_cpu_ms"]
+    lines = [
+        "auction round over tcp, plain vs CURVE (ms; cpu = here + bidders, CPU ms per round)",
+        f"{'bidders':>7} | {'plain p50':>9} {'p99':>7} {'cpu':>6} | "
+        f"{'CURVE p50':>9} {'p99':>7} {'cpu':>6} | {'ratio p50':>9} {'p99':>5} {'cpu':>5}",
+    ]
+    for n in BIDDERS:
+        k = str(n)
+        a, b = rounds["zmq_tcp"][k], rounds["zmq_tcp_curve"][k]
+        ca, cb = (
+            c[k]["this_process"] + c[k]["bidder_processes"]
+            for c in (cpu["zmq_tcp"], cpu["zmq_tcp_curve"])
+        )
+        lines.append(
+            f"{n:>7} | {a['p50']:>9.3f} {a['p99']:>7.3f} {ca:>6.2f} | "
+            f"{b['p50']:>9.3f} {b['p99']:>7.3f} {cb:>6.2f} | "
+            f"{b['p50'] / a['p50']:>9.2f} {b['p99'] / a['p99']:>5.2f} {cb / ca:>5.2f}"
+        )
+    return "\n".join(lines)
+
+
+def _team_keys(directory: Path, robots: Sequence[str]) -> Path:
+    """A certificate pair per robot in ``directory``, which doubles as the allow-list
+    (it holds every member's public ``NAME.key``)."""
+    for robot in robots:
+        write_key_pair(directory, robot)
+    return directory
 
 
 async def _run(quick: bool) -> dict[str, Any]:
@@ -370,14 +415,24 @@ async def _run(quick: bool) -> dict[str, Any]:
     load_before = os.getloadavg()[0]
     inproc, inproc_early, inproc_cpu = await _bench_inproc(warmup, count)
     zmq_tcp, zmq_early, zmq_cpu = await _bench_zmq(warmup, count, processes)
+    with tempfile.TemporaryDirectory(prefix="btcap-bench-keys-") as tmp:
+        keys = _team_keys(Path(tmp), ["origin", *_bidder_names(max(BIDDERS))])
+        curve, curve_early, curve_cpu = await _bench_zmq(warmup, count, processes, keys)
     rtt, failover, info = await _bench_remote(tick_warmup, ticks, failovers)
     all_early = all(
-        v["early"] == v["rounds"] for e in (inproc_early, zmq_early) for v in e.values()
+        v["early"] == v["rounds"]
+        for e in (inproc_early, zmq_early, curve_early)
+        for v in e.values()
     )
     return {
-        "round_ms": {"inproc": inproc, "zmq_tcp": zmq_tcp},
-        "round_cpu_ms": {"inproc": inproc_cpu, "zmq_tcp": zmq_cpu},
-        "early_close": {"inproc": inproc_early, "zmq_tcp": zmq_early, "all": all_early},
+        "round_ms": {"inproc": inproc, "zmq_tcp": zmq_tcp, "zmq_tcp_curve": curve},
+        "round_cpu_ms": {"inproc": inproc_cpu, "zmq_tcp": zmq_cpu, "zmq_tcp_curve": curve_cpu},
+        "early_close": {
+            "inproc": inproc_early,
+            "zmq_tcp": zmq_early,
+            "zmq_tcp_curve": curve_early,
+            "all": all_early,
+        },
         "remote_tick_ms": percentiles(rtt),
         "failover_s": {
             "p50": percentiles(failover)["p50"],

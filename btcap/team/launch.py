@@ -33,7 +33,7 @@ import msgspec
 
 from btcap.actors import Clock, configure_logging
 from btcap.team.agent import Agent
-from btcap.team.agentspec import AgentSpec, agent_config, check_specs
+from btcap.team.agentspec import AgentSpec, agent_config, agent_keys, check_specs
 from btcap.team.implementation import Implementation
 from btcap.team.loader import load_callable
 from btcap.team.protocol import protocol_registry
@@ -108,7 +108,10 @@ async def run_agent(spec: AgentSpec, *, ready: Callable[[str], None] | None = No
     else:
         impls = list(made)
     registry = make_registry() if make_registry is not None else protocol_registry()
-    transport = ZmqTransport(spec.robot, spec.bind, registry, peers=dict(spec.peers))
+    keys, trusted = agent_keys(spec)
+    transport = ZmqTransport(
+        spec.robot, spec.bind, registry, peers=dict(spec.peers), keys=keys, trusted=trusted
+    )
     async with Agent(
         spec.robot,
         transport=transport,
