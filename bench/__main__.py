@@ -6,7 +6,7 @@ import argparse
 import importlib
 from collections.abc import Sequence
 
-BENCHES = ("tick", "transport", "auction", "sim", "allocation")
+BENCHES = ("tick", "transport", "auction", "sim", "allocation", "attacks")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -15,9 +15,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args = parser.parse_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
+    failed = False
     for name in names:
-        importlib.import_module(f"btcap.bench.{name}").run(quick=args.quick)
-    return 0
+        # A probe (``attacks``) returns False when a check failed; benchmarks return None.
+        failed |= importlib.import_module(f"btcap.bench.{name}").run(quick=args.quick) is False
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

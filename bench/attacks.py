@@ -1,0 +1,467 @@
+"""Hostile-input probe: bounded attacks from a raw pyzmq client against a team over tcp.
+
+Two agents run in this process over ZeroMQ tcp loopback: ``origin`` ticks an Echo mission
+that runs on ``r1`` (the target), and asks a probe actor on ``r1`` now and then to see
+that ``r1``'s event loop answers. An attacker thread with its own zmq context then sends,
+one attack at a time, what issue 12 section 3 lists: a flood of hellos with distinct ids,
+big fake repository states for invented robots, well-formed messages of unknown types and
+of the wrong schema, and a frame over the size limit. Each check prints one PASS/FAIL
+line with its figures; the whole run is written with :func:`write_result`, and
+:func:`run` returns False when a check failed (``python -m btcap.bench attacks`` then
+exits non-zero).
+
+Run ``python -m btcap.bench attacks [--quick]``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import gc
+import os
+import time
+from collections.abc import AsyncIterator, Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import zmq
+
+from btcap import Sequence as SequenceNode
+from btcap.actors import Actor, Address, Message, handler
+from btcap.bench.common import write_result
+from btcap.bt.state import State
+from btcap.bt.tree import Tree
+from btcap.team.agent import Agent
+from btcap.team.capability import Capability
+from btcap.team.core.members import TeamEvent
+from btcap.team.demo import ECHO, implementations
+from btcap.team.membership import Membership
+from btcap.team.messages import Heartbeat, RepositoryState
+from btcap.team.protocol import protocol_registry
+from btcap.transports import MessageRegistry, ZmqTransport
+from btcap.transports.codec import Codec, Envelope, Kind
+
+__all__ = ["Counts", "Ping", "Pong", "probe", "run"]
+
+_TCP = "tcp://127.0.0.1:*"
+_DEAD = "tcp://127.0.0.1:9"  # discard port: where forged hellos say they live
+_ATTACKER = "mallory"
+MAX_PEERS = 32
+MAX_MESSAGE_BYTES = 1 << 20
+FD_SLACK = 8
+"""Open files allowed above the baseline once an attack is over."""
+RSS_SLACK_MB = 64.0
+"""RSS growth allowed for the fake-state attack (it sends 100 MB in full mode)."""
+ASK_BOUND_S = 0.5
+"""Slowest acceptable ask round trip to the target while it is attacked."""
+TICK_S = 0.01
+
+
+class Ping(Message):
+    seq: int
+
+
+class Pong(Message):
+    seq: int
+
+
+class Bogus(Message):
+    """A type the team never registered."""
+
+    blob: str
+
+
+class WrongState(Message, tag="RepositoryState"):
+    """The team's ``RepositoryState`` tag with fields of the wrong types."""
+
+    robot: int
+    version: str
+
+
+class _Echo(Actor):
+    @handler
+    def ping(self, msg: Ping) -> Pong:
+        return Pong(msg.seq)
+
+
+@dataclass(frozen=True)
+class Counts:
+    """How hard each attack pushes."""
+
+    hellos: int
+    states: int
+    state_bytes: int
+    junk: int
+
+    @classmethod
+    def of(cls, quick: bool) -> Counts:
+        if quick:
+            return cls(hellos=200, states=100, state_bytes=100_000, junk=2_000)
+        return cls(hellos=2_000, states=1_000, state_bytes=100_000, junk=10_000)
+
+
+@dataclass
+class Check:
+    name: str
+    passed: bool
+    figures: dict[str, Any]
+
+
+@dataclass
+class Health:
+    """What the origin saw of the target while it was attacked."""
+
+    failures: list[str] = field(default_factory=list)
+    asks: list[float] = field(default_factory=list)
+    ask_errors: int = 0
+
+
+def open_files() -> int:
+    return len(os.listdir("/proc/self/fd"))
+
+
+def rss_mb() -> float:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS in /proc/self/status")
+
+
+def _registry() -> MessageRegistry:
+    reg = protocol_registry()
+    reg.register(Ping, Pong)
+    return reg
+
+
+def _frame(codec: Codec, msg: Message, path: str, sender: str = _ATTACKER) -> bytes:
+    """A message frame as :mod:`~btcap.transports.zeromq` sends it: ``M`` + envelope."""
+    env = Envelope(Kind.TELL, Address(sender, "x"), Address("r1", path), msg)
+    return b"M" + codec.encode(env)
+
+
+@contextlib.contextmanager
+def _dealer(ctx: zmq.Context[Any], ident: str, endpoint: str) -> Iterator[zmq.Socket[Any]]:
+    """A raw DEALER that has said hello as ``ident`` (the target then knows it as a peer)."""
+    sock = ctx.socket(zmq.DEALER)
+    sock.setsockopt(zmq.ROUTING_ID, ident.encode())
+    sock.setsockopt(zmq.LINGER, 2000)
+    sock.setsockopt(zmq.SNDHWM, 0)
+    sock.connect(endpoint)
+    sock.send(b"H" + _DEAD.encode())
+    try:
+        yield sock
+    finally:
+        sock.close()
+
+
+# -- attacks: plain blocking pyzmq, run in a thread so the team's loop goes on -------------
+
+
+def _hello_flood(endpoint: str, n: int) -> None:
+    for start in range(0, n, 100):
+        # A context per batch: its term() really closes them, so the attacker's own open
+        # files stay bounded (at most 100 sockets at once).
+        ctx: zmq.Context[Any] = zmq.Context()
+        try:
+            for i in range(start, min(n, start + 100)):
+                sock = ctx.socket(zmq.DEALER)
+                sock.setsockopt(zmq.ROUTING_ID, f"ghost-{i}".encode())
+                sock.setsockopt(zmq.LINGER, 1000)
+                sock.connect(endpoint)
+                sock.send(b"H" + _DEAD.encode())
+                sock.close()
+        finally:
+            ctx.term()
+
+
+def _fake_states(endpoint: str, n: int, size: int) -> None:
+    codec = Codec(_registry())
+    filler = "i" * 1000
+    interfaces = {f"Iface{k}": filler for k in range(size // 1000)}
+    ctx: zmq.Context[Any] = zmq.Context()
+    try:
+        with _dealer(ctx, _ATTACKER, endpoint) as sock:
+            for i in range(n):
+                # Half for invented robots, half claiming to be the (non-member) sender.
+                robot = f"ghost-{i}" if i % 2 else _ATTACKER
+                state = RepositoryState(robot, 1, interfaces)
+                sock.send(_frame(codec, state, "repository"))
+    finally:
+        ctx.term()
+
+
+def _junk(endpoint: str, n: int) -> None:
+    reg = _registry()
+    reg.register(Bogus)
+    codec = Codec(reg)
+    # WrongState shares RepositoryState's tag: a registry of its own encodes it.
+    wrong = Codec(MessageRegistry([WrongState]))
+    kinds = [
+        _frame(codec, Bogus("x" * 200), "repository"),
+        _frame(wrong, WrongState(7, "v"), "repository"),
+        _frame(codec, Heartbeat("r1", 1, 1), Membership.PATH),  # forged: claims to be r1
+        _frame(codec, Ping(1), "nobody"),  # no such actor
+    ]
+    ctx: zmq.Context[Any] = zmq.Context()
+    try:
+        with _dealer(ctx, _ATTACKER, endpoint) as sock:
+            for i in range(n):
+                sock.send(kinds[i % len(kinds)])
+    finally:
+        ctx.term()
+
+
+def _oversized(endpoint: str, size: int) -> None:
+    ctx: zmq.Context[Any] = zmq.Context()
+    try:
+        with _dealer(ctx, "bigmouth", endpoint) as sock:
+            sock.send(b"M" + b"\0" * size)
+    finally:
+        ctx.term()
+
+
+# -- the team -------------------------------------------------------------------------------
+
+
+@contextlib.asynccontextmanager
+async def _team() -> AsyncIterator[tuple[Agent, Agent]]:
+    reg_r1, reg_o = _registry(), _registry()
+    t1 = ZmqTransport("r1", _TCP, reg_r1, max_peers=MAX_PEERS, max_message_bytes=MAX_MESSAGE_BYTES)
+    to = ZmqTransport("origin", _TCP, reg_o, peers={"r1": t1.endpoint}, max_peers=MAX_PEERS)
+    r1 = Agent(
+        "r1",
+        transport=t1,
+        registry=reg_r1,
+        implementations=implementations("r1"),
+        actors={"probe": _Echo()},
+    )
+    origin = Agent("origin", transport=to, registry=reg_o)
+    async with r1, origin:
+        yield r1, origin
+
+
+async def _until(cond: Callable[[], bool], timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise TimeoutError("team did not get ready")
+        await asyncio.sleep(TICK_S)
+
+
+async def _tick(tree: Tree, stop: asyncio.Event) -> None:
+    while not stop.is_set():
+        tree.tick()
+        await asyncio.sleep(TICK_S)
+
+
+async def _ask_loop(origin: Agent, health: Health, stop: asyncio.Event) -> None:
+    seq = 0
+    while not stop.is_set():
+        seq += 1
+        t0 = time.perf_counter()
+        try:
+            await origin.system.ask(Address("r1", "probe"), Ping(seq), timeout=2 * ASK_BOUND_S)
+        except Exception:
+            health.ask_errors += 1
+        health.asks.append(time.perf_counter() - t0)
+        await asyncio.sleep(0.05)
+
+
+async def _attack(name: str, fn: Callable[[], None], r1: Agent, health: Health) -> dict[str, Any]:
+    """Run one attack to the end, let the target drain, and return before/after figures."""
+    t1 = _zmq(r1)
+    gc.collect()
+    stats_before = _counters(r1)
+    before = {"fds": open_files(), "rss_mb": rss_mb(), "peers": len(t1.peers())}
+    asks_before, failures_before = len(health.asks), len(health.failures)
+    t0 = time.perf_counter()
+    await asyncio.to_thread(fn)
+    sent_s = time.perf_counter() - t0
+    peak_rss = rss_mb()
+    await asyncio.sleep(0.5)  # the target drains what is queued; lingering sockets close
+    gc.collect()
+    during = health.asks[asks_before:]
+    return {
+        "attack": name,
+        "sent_s": round(sent_s, 3),
+        "fds_before": before["fds"],
+        "fds_after": open_files(),
+        "rss_before_mb": round(before["rss_mb"], 1),
+        "rss_peak_mb": round(peak_rss, 1),
+        "rss_after_mb": round(rss_mb(), 1),
+        "peers_before": before["peers"],
+        "peers_after": len(t1.peers()),
+        "ask_max_ms": round(1000 * max(during, default=0.0), 1),
+        "asks": len(during),
+        "false_failures": health.failures[failures_before:],
+        "stats": {k: v - stats_before.get(k, 0) for k, v in _counters(r1).items()},
+    }
+
+
+def _zmq(agent: Agent) -> ZmqTransport:
+    t = agent.system.transport
+    assert isinstance(t, ZmqTransport)
+    return t
+
+
+def _counters(agent: Agent) -> dict[str, int]:
+    """The target's transport and runtime counters, drop reasons flattened in."""
+    t = _zmq(agent)
+    stats = dataclasses.asdict(t.stats)
+    reasons = stats.pop("by_reason")
+    return {
+        **stats,
+        **{f"dropped:{k}": v for k, v in reasons.items()},
+        "disconnects": t.disconnects,
+        "dead_letters": agent.system.stats.dead_letters,
+        "team_refused": agent.team.refused,
+        **{f"system:{k}": v for k, v in agent.system.stats.dropped.items()},
+    }
+
+
+async def _latecomer(endpoint: str, r1: Agent) -> bool:
+    """Does a robot that says hello after the flood still become a peer of the target?"""
+    ctx: zmq.Context[Any] = zmq.Context()
+    try:
+        with _dealer(ctx, "latecomer", endpoint):
+            with contextlib.suppress(TimeoutError):
+                await _until(lambda: "latecomer" in _zmq(r1).peers(), 2.0)
+            return "latecomer" in _zmq(r1).peers()
+    finally:
+        ctx.term()
+
+
+def _healthy(f: dict[str, Any]) -> bool:
+    return not f["false_failures"] and f["ask_max_ms"] <= 1000 * ASK_BOUND_S
+
+
+async def probe(quick: bool) -> list[Check]:
+    """Run the attacks against a fresh team; one :class:`Check` per attack plus the mission."""
+    counts = Counts.of(quick)
+    health = Health()
+    checks: list[Check] = []
+    async with _team() as (r1, origin):
+        await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
+        origin.team.subscribe(
+            lambda event, robot: (
+                health.failures.append(f"{event.value}:{robot}")
+                if event in (TeamEvent.FAILED, TeamEvent.LEFT)
+                else None
+            )
+        )
+        node = ECHO.node_type()("echo", inputs={"value": 1})
+        assert isinstance(node, Capability)
+        tree = origin.mission(SequenceNode("root", children=[node]))
+        stop = asyncio.Event()
+        background = [
+            asyncio.create_task(_tick(tree, stop)),
+            asyncio.create_task(_ask_loop(origin, health, stop)),
+        ]
+        try:
+            await _until(lambda: node.state is State.RUNNING and node.outputs["value"] == 1, 10.0)
+            endpoint = _zmq(r1).endpoint
+            team_before = dict(r1.repository.team)
+
+            f = await _attack(
+                "fake_states",
+                lambda: _fake_states(endpoint, counts.states, counts.state_bytes),
+                r1,
+                health,
+            )
+            f["team_unchanged"] = r1.repository.team == team_before
+            ok = f["team_unchanged"] and f["rss_after_mb"] - f["rss_before_mb"] <= RSS_SLACK_MB
+            ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
+            checks.append(Check("fake_states", ok and _healthy(f), f))
+
+            f = await _attack("junk", lambda: _junk(endpoint, counts.junk), r1, health)
+            ok = f["stats"]["malformed"] + f["stats"]["received"] >= counts.junk
+            checks.append(Check("junk", ok and _healthy(f), f))
+
+            f = await _attack(
+                "oversized", lambda: _oversized(endpoint, 2 * MAX_MESSAGE_BYTES), r1, health
+            )
+            # Cut off by libzmq before the decoder saw it (it would count as malformed).
+            ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
+            checks.append(Check("oversized", ok and _healthy(f), f))
+
+            f = await _attack(
+                "hello_flood", lambda: _hello_flood(endpoint, counts.hellos), r1, health
+            )
+            f["latecomer_accepted"] = await _latecomer(endpoint, r1)
+            ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
+            ok = ok and f["latecomer_accepted"]
+            checks.append(Check("hello_flood", ok and _healthy(f), f))
+
+            node.set_input("value", 2)
+            await _until(lambda: node.outputs["value"] == 2, 5.0)
+            node.set_input("stop", True)
+            await _until(lambda: tree.root.state is State.SUCCEEDED, 5.0)
+        except TimeoutError:
+            pass
+        finally:
+            stop.set()
+            await asyncio.gather(*background, return_exceptions=True)
+        mission = {
+            "state": tree.root.state.name,
+            "assignments": list(node.assignments),
+            "false_failures": health.failures,
+            "ask_errors": health.ask_errors,
+            "asks": len(health.asks),
+            "ask_max_ms": round(1000 * max(health.asks, default=0.0), 1),
+        }
+        ok = (
+            tree.root.state is State.SUCCEEDED
+            and node.assignments == ["r1"]
+            and not health.failures
+            and health.ask_errors == 0
+        )
+        checks.append(Check("mission", ok, mission))
+    return checks
+
+
+def _line(check: Check) -> str:
+    f = check.figures
+    keys = (
+        "sent_s",
+        "peers_after",
+        "fds_before",
+        "fds_after",
+        "rss_before_mb",
+        "rss_peak_mb",
+        "rss_after_mb",
+        "team_unchanged",
+        "latecomer_accepted",
+        "ask_max_ms",
+        "state",
+        "assignments",
+        "false_failures",
+        "ask_errors",
+    )
+    shown = " ".join(f"{k}={f[k]}" for k in keys if k in f)
+    if "stats" in f:
+        s = f["stats"]
+        shown += " " + " ".join(f"{k}={v}" for k, v in s.items() if v)
+    return f"{'PASS' if check.passed else 'FAIL'} {check.name}: {shown}"
+
+
+def run(quick: bool = False) -> bool:
+    """Run the probe, print a line per check, write ``attacks.json``; True if all passed."""
+    t0 = time.perf_counter()
+    checks = asyncio.run(probe(quick))
+    for check in checks:
+        print(_line(check), flush=True)
+    passed = all(c.passed for c in checks)
+    path = write_result(
+        "attacks",
+        {
+            "quick": quick,
+            "counts": dataclasses.asdict(Counts.of(quick)),
+            "passed": passed,
+            "seconds": round(time.perf_counter() - t0, 2),
+            "checks": {c.name: {"passed": c.passed, **c.figures} for c in checks},
+        },
+    )
+    print(f"{'PASS' if passed else 'FAIL'} attacks: {path}", flush=True)
+    return passed
