@@ -42,6 +42,7 @@ from typing import Any
 from btcap import Sequence as SequenceNode
 from btcap.actors import Address, configure_logging
 from btcap.bench.common import percentiles, write_result
+from btcap.bench.cpumeter import CpuMeter
 from btcap.bt.state import State
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.assignment import Assigned, AssignmentTask
@@ -73,52 +74,6 @@ async def _until(cond: Callable[[], bool], limit: float, what: str) -> None:
         if time.monotonic() > deadline:
             raise TimeoutError(f"bench auction: {what} within {limit} s")
         await asyncio.sleep(0.01)
-
-
-_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
-
-
-def _cpu_of(pid: int) -> float:
-    """CPU seconds (user + system, every thread) a child process used so far (Linux)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            fields = f.read().rsplit(")", 1)[1].split()
-    except OSError:
-        return float("nan")
-    return (int(fields[11]) + int(fields[12])) / _TICK
-
-
-class _CpuMeter:
-    """CPU time per round of this process and of child processes, minus what they burn
-    idle (heartbeats, host trees), so the figure is what the rounds themselves cost."""
-
-    def __init__(self, pids: Sequence[int] = ()) -> None:
-        self.pids = list(pids)
-        self.idle_self = 0.0
-        self.idle_children = 0.0
-
-    def _read(self) -> tuple[float, float, float]:
-        kids = sum(_cpu_of(pid) for pid in self.pids)
-        return time.perf_counter(), time.process_time(), kids
-
-    async def calibrate(self, seconds: float) -> None:
-        w0, s0, c0 = self._read()
-        await asyncio.sleep(seconds)
-        w1, s1, c1 = self._read()
-        self.idle_self = (s1 - s0) / (w1 - w0)
-        self.idle_children = (c1 - c0) / (w1 - w0)
-
-    def start(self) -> None:
-        self._start = self._read()
-
-    def per_round_ms(self, rounds: int) -> dict[str, float]:
-        w1, s1, c1 = self._read()
-        w0, s0, c0 = self._start
-        wall = w1 - w0
-        out = {"this_process": (s1 - s0 - self.idle_self * wall) / rounds * 1e3}
-        if self.pids:
-            out["bidder_processes"] = (c1 - c0 - self.idle_children * wall) / rounds * 1e3
-        return out
 
 
 # -- auction rounds ------------------------------------------------------------------------
@@ -191,14 +146,14 @@ async def _bench_inproc(
         await origin.__aenter__()
         started.append(origin)
         await _until(lambda: set(names) <= origin.team.alive(), 20.0, "bidders joined")
-        return await _all_sizes(origin, names, warmup, count, _CpuMeter())
+        return await _all_sizes(origin, names, warmup, count, CpuMeter())
     finally:
         for a in reversed(started):
             await a.__aexit__(None, None, None)
 
 
 async def _all_sizes(
-    origin: Agent, names: Sequence[str], warmup: int, count: int, cpu: _CpuMeter
+    origin: Agent, names: Sequence[str], warmup: int, count: int, cpu: CpuMeter
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     lat: dict[str, Any] = {}
     early: dict[str, Any] = {}
@@ -244,7 +199,7 @@ async def _bench_zmq(
         )
         async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
             await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
-            return await _all_sizes(o, names, warmup, count, _CpuMeter([p.pid for p in procs]))
+            return await _all_sizes(o, names, warmup, count, CpuMeter([p.pid for p in procs]))
     finally:
         for p in procs:
             p.stop()

@@ -1,0 +1,60 @@
+"""CPU time a benchmark's rounds cost, in this process and in its child processes.
+
+On a small shared machine CPU per round says more than wall time, and only the work the
+rounds add counts: what the processes burn idle (heartbeats, host trees) is measured first
+and taken off.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import time
+from collections.abc import Sequence
+
+__all__ = ["CpuMeter", "cpu_of"]
+
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def cpu_of(pid: int) -> float:
+    """CPU seconds (user + system, every thread) a child process used so far (Linux)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / _TICK
+
+
+class CpuMeter:
+    """CPU time per round of this process and of child processes, minus what they burn
+    idle (heartbeats, host trees), so the figure is what the rounds themselves cost."""
+
+    def __init__(self, pids: Sequence[int] = ()) -> None:
+        self.pids = list(pids)
+        self.idle_self = 0.0
+        self.idle_children = 0.0
+
+    def _read(self) -> tuple[float, float, float]:
+        kids = sum(cpu_of(pid) for pid in self.pids)
+        return time.perf_counter(), time.process_time(), kids
+
+    async def calibrate(self, seconds: float) -> None:
+        w0, s0, c0 = self._read()
+        await asyncio.sleep(seconds)
+        w1, s1, c1 = self._read()
+        self.idle_self = (s1 - s0) / (w1 - w0)
+        self.idle_children = (c1 - c0) / (w1 - w0)
+
+    def start(self) -> None:
+        self._start = self._read()
+
+    def per_round_ms(self, rounds: int) -> dict[str, float]:
+        w1, s1, c1 = self._read()
+        w0, s0, c0 = self._start
+        wall = w1 - w0
+        out = {"this_process": (s1 - s0 - self.idle_self * wall) / rounds * 1e3}
+        if self.pids:
+            out["bidder_processes"] = (c1 - c0 - self.idle_children * wall) / rounds * 1e3
+        return out
