@@ -422,27 +422,10 @@ async def probe(quick: bool) -> list[Check]:
 
 
 def _line(check: Check) -> str:
+    """``PASS name: key=value ...``: the figures, then the counters that moved."""
     f = check.figures
-    keys = (
-        "sent_s",
-        "peers_after",
-        "fds_before",
-        "fds_after",
-        "rss_before_mb",
-        "rss_peak_mb",
-        "rss_after_mb",
-        "team_unchanged",
-        "latecomer_accepted",
-        "ask_max_ms",
-        "state",
-        "assignments",
-        "false_failures",
-        "ask_errors",
-    )
-    shown = " ".join(f"{k}={f[k]}" for k in keys if k in f)
-    if "stats" in f:
-        s = f["stats"]
-        shown += " " + " ".join(f"{k}={v}" for k, v in s.items() if v)
+    shown = " ".join(f"{k}={v}" for k, v in f.items() if k not in ("attack", "stats"))
+    shown += "".join(f" {k}={v}" for k, v in f.get("stats", {}).items() if v)
     return f"{'PASS' if check.passed else 'FAIL'} {check.name}: {shown}"
 
 
