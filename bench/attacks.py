@@ -1,16 +1,11 @@
 """Hostile-input probe: bounded attacks from a raw pyzmq client against a team over tcp.
 
-Two agents run in this process over ZeroMQ tcp loopback: ``origin`` ticks an Echo mission
-that runs on ``r1`` (the target), and asks a probe actor on ``r1`` now and then to see
-that ``r1``'s event loop answers. An attacker thread with its own zmq context then sends,
-one attack at a time, what issue 12 section 3 lists: a flood of hellos with distinct ids,
-big fake repository states for invented robots, well-formed messages of unknown types and
-of the wrong schema, and a frame over the size limit. Each check prints one PASS/FAIL
-line with its figures; the whole run is written with :func:`write_result`, and
-:func:`run` returns False when a check failed (``python -m btcap.bench attacks`` then
-exits non-zero).
-
-Run ``python -m btcap.bench attacks [--quick]``.
+Two agents in this process over tcp loopback: ``origin`` ticks an Echo mission run by
+``r1`` (the target) and keeps asking a probe actor on ``r1``. An attacker thread sends, one
+attack at a time: a flood of hellos with distinct ids, big fake repository states for
+invented robots, messages of unknown types and wrong schemas, and an oversized frame.
+Each check prints a PASS/FAIL line with its figures; :func:`run` returns False if one
+failed (``python -m btcap.bench attacks [--quick]`` then exits non-zero).
 """
 
 from __future__ import annotations
@@ -49,12 +44,10 @@ _DEAD = "tcp://127.0.0.1:9"  # discard port: where forged hellos say they live
 _ATTACKER = "mallory"
 MAX_PEERS = 32
 MAX_MESSAGE_BYTES = 1 << 20
-FD_SLACK = 8
-"""Open files allowed above the baseline once an attack is over."""
-RSS_SLACK_MB = 64.0
-"""RSS growth allowed for the fake-state attack (it sends 100 MB in full mode)."""
-ASK_BOUND_S = 0.5
-"""Slowest acceptable ask round trip to the target while it is attacked."""
+STRANGER_TTL_S = 0.3  # r1 drops a peer that only said hello (teammates beat every 0.1 s)
+FD_SLACK = 8  # open files allowed above the baseline once an attack is over
+RSS_SLACK_MB = 64.0  # RSS growth allowed for the fake states (100 MB sent in full mode)
+ASK_BOUND_S = 0.5  # slowest acceptable ask round trip to the target while attacked
 TICK_S = 0.01
 
 
@@ -228,7 +221,14 @@ def _oversized(endpoint: str, size: int) -> None:
 @contextlib.asynccontextmanager
 async def _team() -> AsyncIterator[tuple[Agent, Agent]]:
     reg_r1, reg_o = _registry(), _registry()
-    t1 = ZmqTransport("r1", _TCP, reg_r1, max_peers=MAX_PEERS, max_message_bytes=MAX_MESSAGE_BYTES)
+    t1 = ZmqTransport(
+        "r1",
+        _TCP,
+        reg_r1,
+        max_peers=MAX_PEERS,
+        max_message_bytes=MAX_MESSAGE_BYTES,
+        stranger_ttl_s=STRANGER_TTL_S,
+    )
     to = ZmqTransport("origin", _TCP, reg_o, peers={"r1": t1.endpoint}, max_peers=MAX_PEERS)
     r1 = Agent(
         "r1",

@@ -42,7 +42,9 @@ from btcap.transports.zmq_sockets import (
     POLLIN,
     SCHEMES,
     Monitor,
+    Strangers,
     check_id,
+    check_transport_args,
     fd_of,
     open_dealer,
     open_router,
@@ -68,28 +70,23 @@ _COPY_THRESHOLD = 65_536
 class ZmqTransport(Transport):
     """Reach peers over ``inproc://``, ``ipc://`` or ``tcp://``.
 
-    ``bind`` may use port ``*`` (``tcp://127.0.0.1:*``); :attr:`endpoint` then tells the
-    port chosen. Bound to a wildcard address (``tcp://0.0.0.0:7000``), pass ``advertise``:
-    the endpoint other hosts should connect to, sent in hellos. ``peers`` maps system ids
-    to endpoints; more can be added at run time, and with ``accept_hello`` (default) any
-    system that says hello becomes a peer, up to ``max_peers``. A peer learnt from a
-    hello that says hello again from a new endpoint (it restarted elsewhere) is
-    reconnected there; endpoints given in ``peers`` or :meth:`add_peer` stay as given.
+    ``bind`` may use port ``*``; :attr:`endpoint` then tells the port chosen. Bound to a
+    wildcard address, pass ``advertise``: the endpoint sent in hellos. ``peers`` maps
+    system ids to endpoints (more via :meth:`add_peer`); with ``accept_hello`` any system
+    that says hello becomes a peer, up to ``max_peers``: one known only from its hello
+    makes room for a newcomer and is dropped after ``stranger_ttl_s`` unless it sent a
+    real message. A hello from a new endpoint (a restart elsewhere) reconnects there.
+    ``inproc://`` only reaches transports on the same zmq context. Use a transport from
+    the thread running its event loop.
 
-    ``inproc://`` endpoints only reach transports on the same zmq context (by default the
-    process-wide ``zmq.asyncio.Context.instance()``). Use a transport from one thread,
-    the one running its event loop.
-
-    Security: ``keys`` (a :class:`KeyPair` or the path of a secret certificate
-    ``NAME.key_secret``) and ``trusted`` (a :class:`TeamKeys` or a directory of public
-    certificates ``NAME.key`` holding this system's own under its id) go together: tcp
-    and ipc traffic is then CURVE-encrypted, only members on the allow-list complete a
-    handshake, a peer is the member its key names, and only a member's hello opens a
-    connection back. Such a transport runs its own ZAP handler in a zmq context of its
-    own (a ``context`` given must not serve another secure transport; ``inproc://`` is
-    refused). Without keys it binds loopback/ipc/inproc only unless ``insecure=True``.
-    ``max_message_bytes`` bounds a frame: libzmq cuts off a connection that sends a
-    bigger one before allocating it (see :attr:`disconnects`); bigger sends are refused.
+    Security: ``keys`` (a :class:`KeyPair` or a secret certificate ``NAME.key_secret``)
+    and ``trusted`` (a :class:`TeamKeys` or a directory of public certificates
+    ``NAME.key``, this system's own included) go together: traffic is CURVE-encrypted,
+    only allow-listed members complete a handshake, a peer is the member its key names,
+    and only a member's hello opens a connection back (a ZAP handler in a zmq context of
+    its own; ``inproc://`` is refused). Without keys it binds loopback/ipc/inproc only
+    unless ``insecure=True``. ``max_message_bytes`` bounds a frame: libzmq cuts off a
+    connection that sends a bigger one (see :attr:`disconnects`).
     """
 
     def __init__(
@@ -107,17 +104,11 @@ class ZmqTransport(Transport):
         trusted: TeamKeys | str | os.PathLike[str] | None = None,
         insecure: bool = False,
         max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES,
+        stranger_ttl_s: float = 30.0,
     ) -> None:
-        if (why := check_id(system_id)) is not None:
-            raise ValueError(f"system id {system_id!r}: {why}")
-        if not bind.startswith(SCHEMES):
-            raise ValueError(f"cannot bind {bind!r}: expected tcp://, ipc:// or inproc://")
-        if advertise is not None and not advertise.startswith(SCHEMES):
-            raise ValueError(f"advertise {advertise!r}: expected tcp://, ipc:// or inproc://")
-        if max_message_bytes < 1024:
-            raise ValueError(f"max_message_bytes {max_message_bytes}: expected at least 1024")
+        check_transport_args(system_id, bind, advertise, max_message_bytes)
+        self._strangers = Strangers(stranger_ttl_s)
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
-        """CURVE keys and allow-list, or None for a plain (loopback unless insecure) one."""
         self.max_message_bytes = max_message_bytes
         self.system_id = system_id
         self.stats = TransportStats()
@@ -142,7 +133,6 @@ class ZmqTransport(Transport):
         bound = self._router.getsockopt_string(zmq.LAST_ENDPOINT)
         self._fd = fd_of(self._router)
         self.endpoint: str = advertise or bound
-        """Where peers reach this system: ``advertise`` if given, else what was bound."""
         self.bound_endpoint: str = bound
         self._dealers: dict[str, zmq.Socket[bytes]] = {}
         self._endpoints: dict[str, str] = {}
@@ -150,7 +140,6 @@ class ZmqTransport(Transport):
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
         self.hellos = 0
-        """Hellos taken (new, moved or known peers); ``stats`` counts the other frames."""
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -208,6 +197,7 @@ class ZmqTransport(Transport):
         sock = self._dealers.pop(system_id, None)
         self._endpoints.pop(system_id, None)
         self._configured.discard(system_id)
+        self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
         monitor = self._monitors.pop(system_id, None)
         if monitor is not None:
@@ -374,6 +364,8 @@ class ZmqTransport(Transport):
                 self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
                 return
             self.stats.received += 1
+            if self._strangers.since:
+                self._strangers.vouched(peer)
             try:
                 deliver(env)
             except Exception as exc:  # a bug above us must not stop the receive loop
@@ -398,22 +390,30 @@ class ZmqTransport(Transport):
                 self._reject("unknown peer", ident, "hello refused")
                 return
             if known is None and len(self._dealers) >= self.max_peers:
-                # Every peer costs sockets: a flood of made-up ids must not exhaust them.
-                self.stats.unknown_peer += 1
-                self._reject(
-                    "too many peers",
-                    ident,
-                    f"already {len(self._dealers)}",
-                )
-                return
+                # Every peer costs sockets: a flood of made-up ids must not exhaust them,
+                # nor keep a real newcomer out. The longest silent stranger makes room.
+                stranger = self._strangers.oldest()
+                if stranger is None:
+                    self.stats.unknown_peer += 1
+                    self._reject("too many peers", ident, f"already {len(self._dealers)}")
+                    return
+                self.remove_peer(stranger)
             try:
                 self._connect(peer, endpoint)
             except (ValueError, RuntimeError) as exc:
                 self._malformed("bad hello", ident, str(exc)[:200])
                 return
+            if known is None and self._loop is not None:
+                now = self._loop.time()
+                self._strangers.met(peer, now)
+                self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
             event = "transport.peer_joined" if known is None else "transport.peer_moved"
             log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         self.hellos += 1
+
+    def _forget(self, peer: str, met: float) -> None:
+        if self._strangers.since.get(peer) == met and not self._closed:
+            self.remove_peer(peer)  # it never said more than hello
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

@@ -274,3 +274,34 @@ def remove_ipc_file(endpoint: str) -> None:
     if endpoint.startswith("ipc://") and not endpoint.startswith("ipc://@"):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(endpoint.removeprefix("ipc://"))
+
+
+def check_transport_args(system_id: str, bind: str, advertise: str | None, max_bytes: int) -> None:
+    """What a ZmqTransport is given, checked before any socket opens."""
+    if (why := check_id(system_id)) is not None:
+        raise ValueError(f"system id {system_id!r}: {why}")
+    if not bind.startswith(SCHEMES):
+        raise ValueError(f"cannot bind {bind!r}: expected tcp://, ipc:// or inproc://")
+    if advertise is not None and not advertise.startswith(SCHEMES):
+        raise ValueError(f"advertise {advertise!r}: expected tcp://, ipc:// or inproc://")
+    if max_bytes < 1024:
+        raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
+
+
+class Strangers:
+    """Peers known only from their hello. Anybody can invent any number of them, so they
+    are the first to go when the peer table is full, and are forgotten after ``ttl``
+    seconds unless they sent a real message (a teammate's heartbeat does at once)."""
+
+    def __init__(self, ttl: float) -> None:
+        self.ttl = ttl
+        self.since: dict[str, float] = {}
+
+    def met(self, peer: str, now: float) -> None:
+        self.since[peer] = now
+
+    def vouched(self, peer: str) -> None:
+        self.since.pop(peer, None)
+
+    def oldest(self) -> str | None:
+        return min(self.since, key=self.since.__getitem__) if self.since else None

@@ -10,12 +10,6 @@ from btcap.bench.attacks import Check, probe
 
 pytestmark = pytest.mark.slow
 
-GHOST_PEERS = (
-    "hole: peers learnt from hellos are never forgotten (transports/zeromq.py _hello, "
-    "len(self._dealers) >= self.max_peers): ghosts fill the table, keep ~3 open files "
-    "each and a real robot saying hello afterwards is refused"
-)
-
 
 @pytest.fixture(scope="module")
 def checks() -> dict[str, Check]:
@@ -29,7 +23,7 @@ def checks() -> dict[str, Check]:
         "fake_states",
         "junk",
         "oversized",
-        pytest.param("hello_flood", marks=pytest.mark.xfail(strict=True, reason=GHOST_PEERS)),
+        "hello_flood",
         "mission",
     ],
 )
