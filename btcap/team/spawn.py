@@ -81,7 +81,29 @@ class _Announcements:
         return RuntimeError(f"agent process {self.robots} exited (code {code}) before it was ready")
 
 
-class AgentProcess:
+class _Launched:
+    """What both process handles tell of the agents they started."""
+
+    def __init__(self, specs: list[AgentSpec]) -> None:
+        self.specs = specs
+        self.spec = specs[0]
+        self._said = _Announcements(specs)
+        self.endpoints = self._said.endpoints
+
+    @property
+    def robot(self) -> str:
+        return self.spec.robot
+
+    @property
+    def robots(self) -> list[str]:
+        return self._said.robots
+
+    @property
+    def endpoint(self) -> str:
+        return self.endpoints[self.spec.robot]
+
+
+class AgentProcess(_Launched):
     """One child process running one or more robots; stop it politely or kill it outright.
 
     ``endpoints`` maps each robot to its bound endpoint; ``robot`` and ``endpoint`` are
@@ -99,10 +121,7 @@ class AgentProcess:
         stderr: int | None = None,
         wait: bool = True,
     ) -> None:
-        self.specs = _specs(spec)
-        self.spec = self.specs[0]
-        self._said = _Announcements(self.specs)
-        self.endpoints = self._said.endpoints
+        super().__init__(_specs(spec))
         self.proc = subprocess.Popen(
             _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
         )
@@ -130,18 +149,6 @@ class AgentProcess:
                 raise self._said.exited(self.proc.returncode)
             self._said.feed(chunk)
         return self.endpoints
-
-    @property
-    def robot(self) -> str:
-        return self.spec.robot
-
-    @property
-    def robots(self) -> list[str]:
-        return self._said.robots
-
-    @property
-    def endpoint(self) -> str:
-        return self.endpoints[self.spec.robot]
 
     @property
     def pid(self) -> int:
@@ -206,7 +213,7 @@ def spawn_agents(
     return procs
 
 
-class AsyncAgentProcess:
+class AsyncAgentProcess(_Launched):
     """A launch process driven from an event loop; get one from :func:`open_agent`, or from
     :meth:`spawn` and then :meth:`wait_ready` to signal it while it starts.
 
@@ -215,11 +222,8 @@ class AsyncAgentProcess:
     """
 
     def __init__(self, specs: list[AgentSpec], process: anyio.abc.Process) -> None:
-        self.specs = specs
-        self.spec = specs[0]
+        super().__init__(specs)
         self.process = process
-        self._said = _Announcements(specs)
-        self.endpoints = self._said.endpoints
 
     @classmethod
     async def spawn(cls, spec: Specs, *, stderr: int | None = None) -> AsyncAgentProcess:
@@ -249,18 +253,6 @@ class AsyncAgentProcess:
                 self._said.feed(chunk)
             return self.endpoints
         raise self._said.timed_out(timeout)
-
-    @property
-    def robot(self) -> str:
-        return self.spec.robot
-
-    @property
-    def robots(self) -> list[str]:
-        return self._said.robots
-
-    @property
-    def endpoint(self) -> str:
-        return self.endpoints[self.spec.robot]
 
     @property
     def pid(self) -> int:

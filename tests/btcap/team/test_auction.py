@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from btcap import Parallel, Sequence, State
 from btcap.actors import Actor, handler
+from btcap.team.agent import Agent
 from btcap.team.core.auction import Auction
 from btcap.team.core.ids import AuctionId
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
@@ -163,13 +164,7 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
         async with team(auction_window_s=2.0) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
-                await until(
-                    lambda: (
-                        a.repository.providers(COUNT.identity) == {"a", "s"}
-                        and "s" in a.team.alive()
-                    ),
-                    "a to know s",
-                )
+                await knows(a, "s")
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(Sequence("root", children=[node]))
                 start = t.clock.now()
@@ -190,13 +185,7 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
         async with team(auction_window_s=1000.0) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
-                await until(
-                    lambda: (
-                        a.repository.providers(COUNT.identity) == {"a", "s"}
-                        and "s" in a.team.alive()
-                    ),
-                    "a to know s",
-                )
+                await knows(a, "s")
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(Sequence("root", children=[node]))
                 tree.tick()
@@ -305,6 +294,15 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                 await tc.shutdown()
 
 
+async def knows(a: Agent, other: str) -> None:
+    """``a`` sees ``other`` alive and offering Count (a member that never answers bids)."""
+
+    def ok() -> bool:
+        return a.repository.providers(COUNT.identity) == {"a", other} and other in a.team.alive()
+
+    await until(ok, f"a to know {other}")
+
+
 class SlowExecutor(Actor):
     """A scripted mission control: bids low, takes its time to answer awards (accepting
     them in the end), and records cancellations."""
@@ -342,13 +340,7 @@ async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder(
             async with silent_member(
                 t.net, "f", [count_impl("f", 1.0, probe)], t.clock, {"mission_control": slow}
             ):
-                await until(
-                    lambda: (
-                        a.repository.providers(COUNT.identity) == {"a", "f"}
-                        and "f" in a.team.alive()
-                    ),
-                    "a to know f",
-                )
+                await knows(a, "f")
                 node = COUNT.node_type()("count", inputs={"x": 1})
                 tree = a.mission(Sequence("root", children=[node]))
                 await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
@@ -371,13 +363,7 @@ async def test_an_award_in_flight_is_withdrawn_when_the_capability_is_reset() ->
             async with silent_member(
                 t.net, "f", [count_impl("f", 1.0, probe)], t.clock, {"mission_control": slow}
             ):
-                await until(
-                    lambda: (
-                        a.repository.providers(COUNT.identity) == {"a", "f"}
-                        and "f" in a.team.alive()
-                    ),
-                    "a to know f",
-                )
+                await knows(a, "f")
                 node = COUNT.node_type()("count", inputs={"x": 1})
                 tree = a.mission(Sequence("root", children=[node]))
                 tree.tick()
