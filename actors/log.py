@@ -9,7 +9,9 @@ is the one-call set-up for programs that want structlog's rendering.
 from __future__ import annotations
 
 import logging
+import os
 import sys
+from typing import TextIO
 
 import structlog
 
@@ -20,12 +22,24 @@ class _Handler(logging.StreamHandler):  # type: ignore[type-arg]
     """The handler configure_logging installs, so calling it again replaces it."""
 
 
+def _colours(stream: TextIO) -> bool:
+    """Colour codes only for a person at a terminal: a redirected log stays plain text.
+    ``NO_COLOR`` and ``FORCE_COLOR`` (https://no-color.org) override the guess."""
+    if os.environ.get("NO_COLOR"):
+        return False
+    if os.environ.get("FORCE_COLOR"):
+        return True
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty is not None and isatty())
+
+
 def configure_logging(level: str | int = "info", *, json: bool = False) -> None:
     """Send log records of ``level`` and above to stderr: readable console lines or JSON.
 
     Sets up the root ``logging`` logger with a structlog formatter, so btcap's events and
     any other library's records come out alike, and configures structlog to hand its
-    events to ``logging``. Meant for a program's entry point: it changes global state.
+    events to ``logging``. Console lines are coloured only when stderr is a terminal.
+    Meant for a program's entry point: it changes global state.
     """
     numeric = logging.getLevelName(level.upper()) if isinstance(level, str) else level
     if not isinstance(numeric, int):
@@ -36,10 +50,13 @@ def configure_logging(level: str | int = "info", *, json: bool = False) -> None:
         structlog.stdlib.add_logger_name,
         timestamper,
     ]
+    stream = sys.stderr
     renderer: structlog.typing.Processor = (
-        structlog.processors.JSONRenderer() if json else structlog.dev.ConsoleRenderer()
+        structlog.processors.JSONRenderer()
+        if json
+        else structlog.dev.ConsoleRenderer(colors=_colours(stream))
     )
-    handler = _Handler(sys.stderr)
+    handler = _Handler(stream)
     handler.setFormatter(
         structlog.stdlib.ProcessorFormatter(
             foreign_pre_chain=shared,  # records of plain ``logging`` loggers

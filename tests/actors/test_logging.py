@@ -172,3 +172,30 @@ def test_every_btcap_logger_goes_through_logging() -> None:
             ):
                 bad.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert not bad, "use btcap.transports.log.get_logger: " + ", ".join(bad)
+
+
+@pytest.mark.usefixtures("unconfigured")
+def test_a_redirected_log_has_no_colour_codes(capsys: pytest.CaptureFixture[str]) -> None:
+    configure_logging("info")
+    logging.getLogger("btcap.test").warning("plain.event")
+    err = capsys.readouterr().err
+    assert "plain.event" in err
+    assert "\x1b[" not in err
+
+
+@pytest.mark.usefixtures("unconfigured")
+@pytest.mark.parametrize(("no_color", "coloured"), [("", True), ("1", False)])
+def test_a_terminal_gets_colours_unless_no_color(
+    monkeypatch: pytest.MonkeyPatch, no_color: str, coloured: bool
+) -> None:
+    monkeypatch.setenv("NO_COLOR", no_color)
+    monkeypatch.delenv("FORCE_COLOR", raising=False)
+    main_fd, tty_fd = os.openpty()
+    with os.fdopen(tty_fd, "w") as tty, os.fdopen(main_fd, "rb", buffering=0) as reader:
+        monkeypatch.setattr(sys, "stderr", tty)
+        configure_logging("info")
+        logging.getLogger("btcap.test").warning("tty.event")
+        tty.flush()
+        seen = reader.read(4096)
+    assert b"tty.event" in seen
+    assert (b"\x1b[" in seen) is coloured
