@@ -238,16 +238,20 @@ class Curve:
 
 
 def authenticated(frames: list[zmq.Frame]) -> tuple[bytes, str]:
-    """The routing id of a received message, and what is wrong with it ("" if nothing).
+    """Who sent a received message, and what is wrong with it ("" if nothing).
 
-    The routing id is the sender's choice; the ``User-Id`` is what ZAP authenticated.
+    The ``User-Id`` is the member ZAP authenticated; the routing id is the sender's
+    choice (its name, a ``/`` and a per-connection suffix), only checked for a lie.
+    On a problem the routing id is returned, for the log.
     """
     ident = frames[0].bytes
     try:
-        user = frames[-1].get("User-Id")
+        user = str(frames[-1].get("User-Id")).encode()
     except zmq.ZMQError:  # not past ZAP: never trust a missing stamp
         return ident, "unauthenticated"
-    return ident, "" if ident == str(user).encode() else "identity mismatch"
+    if ident == user or ident.startswith(user + b"/"):
+        return user, ""
+    return ident, "identity mismatch"
 
 
 def is_loopback(endpoint: str) -> bool:

@@ -213,6 +213,10 @@ class ZmqTransport(Transport):
     def peer_endpoints(self) -> dict[str, str]:
         return dict(self._endpoints)
 
+    def routing_id(self, peer: str) -> bytes:
+        """What our link to ``peer`` is called there: our id (with keys, plus a suffix)."""
+        return bytes(self._dealers[peer].getsockopt(zmq.ROUTING_ID))
+
     # -- sending ----------------------------------------------------------------------
     def send(self, env: Envelope) -> None:
         data = self.codec.encode(env)
@@ -237,12 +241,10 @@ class ZmqTransport(Transport):
             return
         try:
             sock.send(frame, NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
-        except zmq.Again:
+        except zmq.ZMQError as exc:  # zmq.Again: the peer's queue is full
             self.stats.undeliverable += 1
-            self.stats.drop(f"peer {sid} backed up")
-        except zmq.ZMQError as exc:
-            self.stats.undeliverable += 1
-            self.stats.drop(f"peer {sid}: {exc.strerror}")
+            why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
+            self.stats.drop(f"peer {sid} {why}")
         else:
             self.stats.sent += 1
 
@@ -260,10 +262,8 @@ class ZmqTransport(Transport):
         try:
             loop.add_reader(self._fd, self._on_readable)
         except NotImplementedError:
-            raise RuntimeError(
-                "ZmqTransport needs an event loop with add_reader (on Windows, the "
-                "selector event loop)"
-            ) from None
+            msg = "ZmqTransport needs an event loop with add_reader (on Windows: the selector loop)"
+            raise RuntimeError(msg) from None
         self._loop = loop
         self._deliver = deliver
         self._stopped = loop.create_future()

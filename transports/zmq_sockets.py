@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import sys
 import uuid
 from typing import Any
@@ -54,8 +55,8 @@ def check_id(system_id: str) -> str | None:
     if not system_id or system_id == BROADCAST or "/" in system_id:
         return "expected a non-empty id without '/' that is not '*'"
     raw = system_id.encode()
-    if len(raw) > 255:
-        return "longer than 255 bytes"
+    if len(raw) > 240:  # a zmq routing id holds 255, with room for a connection suffix
+        return "longer than 240 bytes"
     if raw[0] == 0:
         return "starts with a NUL byte (reserved for ids zmq makes up)"
     return None
@@ -82,9 +83,12 @@ def open_router(
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
     if curve is not None:
         curve.server(sock)
-    # A peer that reconnects with the same id (after a network blip or a restart)
-    # takes over its old connection instead of being silently ignored.
-    sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+    if curve is None:
+        # A peer that reconnects with the same id (after a network blip or a restart)
+        # takes over its old connection instead of being silently ignored. With keys
+        # every connection has a routing id of its own (see open_dealer) and the member
+        # is who ZAP admitted: handing over would let one member cut another's link.
+        sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
     name = f"inproc://zmq-transport-router-{uuid.uuid4().hex}"
     events = RouterEvents(sock, name, stats, system)
     try:
@@ -139,7 +143,10 @@ def open_dealer(
         raise ValueError(f"peer {peer}: cannot reach {endpoint!r} with keys (not encrypted)")
     sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
-    sock.setsockopt(zmq.ROUTING_ID, own_id)
+    # Without keys the routing id names the sender; with keys ZAP does, and a fresh
+    # suffix per connection keeps a restart from colliding with its old, dead link.
+    routing_id = own_id if curve is None else own_id + b"/" + secrets.token_hex(6).encode()
+    sock.setsockopt(zmq.ROUTING_ID, routing_id)
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
     sock.setsockopt(zmq.MAXMSGSIZE, _DEALER_MAX_IN)

@@ -191,6 +191,36 @@ async def test_a_member_speaking_for_another_is_dropped_and_counted(keys: Path) 
             assert ta.stats.malformed == 3
 
 
+async def test_a_member_cannot_take_over_another_members_connection(keys: Path) -> None:
+    """mallory connects with b's very routing id (as if she had learnt it): her link is
+    refused, b's stays up and b's messages still arrive as b's."""
+    mallory = KeyPair.load(keys / "mallory.key_secret")
+    with anyio.fail_after(10):
+        async with contextlib.AsyncExitStack() as stack:
+            ta = secure("a", keys)
+            await stack.enter_async_context(serving(ta))
+            tb = secure("b", keys, peers={"a": ta.endpoint})
+            b = await stack.enter_async_context(serving(tb))
+            echo = b.ref(Address("a", "echo"))
+            assert await echo.ask(Echo("before")) == Echoed("before", "a")
+            b_id = tb.routing_id("a")
+            assert b_id.startswith(b"b/")
+            assert ta.curve is not None
+            as_b = stack.enter_context(
+                raw_dealer(b_id, ta.endpoint, (mallory, ta.curve.keys.public))
+            )
+            events = as_b.get_monitor_socket(zmq.EVENT_HANDSHAKE_SUCCEEDED)
+            stack.callback(events.close, 0)
+            stack.callback(as_b.disable_monitor)
+            await eventually(lambda: events.poll(0) != 0, "mallory's handshake completes")
+            as_b.send(envelope("b", "a", "I am b"))
+            received = ta.stats.received
+            for i in range(3):
+                assert await echo.ask(Echo(f"after {i}")) == Echoed(f"after {i}", "a")
+            assert ta.stats.received == received + 3
+            assert ta.disconnects == 0
+
+
 async def test_an_oversized_frame_is_cut_off_at_its_header() -> None:
     """A frame header announcing 200 MB closes the connection at once: libzmq never
     allocates or waits for the body (ZMTP 3.0 by hand, so the sender holds no 200 MB)."""
