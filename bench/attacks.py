@@ -3,7 +3,8 @@
 Two agents in this process over tcp loopback: ``origin`` ticks an Echo mission run by
 ``r1`` (the target) and keeps asking a probe actor on ``r1``. An attacker thread sends, one
 attack at a time: a flood of hellos with distinct ids, big fake repository states for
-invented robots, messages of unknown types and wrong schemas, and an oversized frame.
+invented robots, messages of unknown types, wrong schemas or nested 100,000 deep, and
+an oversized frame.
 Each check prints a PASS/FAIL line with its figures; :func:`run` returns False if one
 failed (``python -m btcap.bench attacks [--quick]`` then exits non-zero).
 """
@@ -16,32 +17,38 @@ import dataclasses
 import gc
 import os
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import zmq
 
 from btcap import Sequence as SequenceNode
-from btcap.actors import Actor, Address, Message, handler
+from btcap.actors import Actor, Address, handler
 from btcap.bench.common import write_result
+from btcap.bench.hostile import (
+    Ping,
+    Pong,
+    dealer,
+    fake_states,
+    hello_flood,
+    junk,
+    oversized,
+    registry,
+)
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.team.agent import Agent
 from btcap.team.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
-from btcap.team.membership import Membership
-from btcap.team.messages import Heartbeat, RepositoryState
-from btcap.team.protocol import protocol_registry
-from btcap.transports import MessageRegistry, ZmqTransport
-from btcap.transports.codec import Codec, Envelope, Kind
+from btcap.transports import ZmqTransport
 
-__all__ = ["Counts", "Ping", "Pong", "probe", "run"]
+__all__ = ["Counts", "probe", "run"]
 
 _TCP = "tcp://127.0.0.1:*"
 _DEAD = "tcp://127.0.0.1:9"  # discard port: where forged hellos say they live
-_ATTACKER = "mallory"
+ATTACKER = "mallory"
 MAX_PEERS = 32
 MAX_MESSAGE_BYTES = 1 << 20
 STRANGER_TTL_S = 0.3  # r1 drops a peer that only said hello (teammates beat every 0.1 s)
@@ -49,27 +56,6 @@ FD_SLACK = 8  # open files allowed above the baseline once an attack is over
 RSS_SLACK_MB = 64.0  # RSS growth allowed for the fake states (100 MB sent in full mode)
 ASK_BOUND_S = 0.5  # slowest acceptable ask round trip to the target while attacked
 TICK_S = 0.01
-
-
-class Ping(Message):
-    seq: int
-
-
-class Pong(Message):
-    seq: int
-
-
-class Bogus(Message):
-    """A type the team never registered."""
-
-    blob: str
-
-
-class WrongState(Message, tag="RepositoryState"):
-    """The team's ``RepositoryState`` tag with fields of the wrong types."""
-
-    robot: int
-    version: str
 
 
 class _Echo(Actor):
@@ -122,105 +108,12 @@ def rss_mb() -> float:
     raise RuntimeError("no VmRSS in /proc/self/status")
 
 
-def _registry() -> MessageRegistry:
-    reg = protocol_registry()
-    reg.register(Ping, Pong)
-    return reg
-
-
-def _frame(codec: Codec, msg: Message, path: str, sender: str = _ATTACKER) -> bytes:
-    """A message frame as :mod:`~btcap.transports.zeromq` sends it: ``M`` + envelope."""
-    env = Envelope(Kind.TELL, Address(sender, "x"), Address("r1", path), msg)
-    return b"M" + codec.encode(env)
-
-
-@contextlib.contextmanager
-def _dealer(ctx: zmq.Context[Any], ident: str, endpoint: str) -> Iterator[zmq.Socket[Any]]:
-    """A raw DEALER that has said hello as ``ident`` (the target then knows it as a peer)."""
-    sock = ctx.socket(zmq.DEALER)
-    sock.setsockopt(zmq.ROUTING_ID, ident.encode())
-    sock.setsockopt(zmq.LINGER, 2000)
-    sock.setsockopt(zmq.SNDHWM, 0)
-    sock.connect(endpoint)
-    sock.send(b"H" + _DEAD.encode())
-    try:
-        yield sock
-    finally:
-        sock.close()
-
-
-# -- attacks: plain blocking pyzmq, run in a thread so the team's loop goes on -------------
-
-
-def _hello_flood(endpoint: str, n: int) -> None:
-    for start in range(0, n, 100):
-        # A context per batch: its term() really closes them, so the attacker's own open
-        # files stay bounded (at most 100 sockets at once).
-        ctx: zmq.Context[Any] = zmq.Context()
-        try:
-            for i in range(start, min(n, start + 100)):
-                sock = ctx.socket(zmq.DEALER)
-                sock.setsockopt(zmq.ROUTING_ID, f"ghost-{i}".encode())
-                sock.setsockopt(zmq.LINGER, 1000)
-                sock.connect(endpoint)
-                sock.send(b"H" + _DEAD.encode())
-                sock.close()
-        finally:
-            ctx.term()
-
-
-def _fake_states(endpoint: str, n: int, size: int) -> None:
-    codec = Codec(_registry())
-    filler = "i" * 1000
-    interfaces = {f"Iface{k}": filler for k in range(size // 1000)}
-    ctx: zmq.Context[Any] = zmq.Context()
-    try:
-        with _dealer(ctx, _ATTACKER, endpoint) as sock:
-            for i in range(n):
-                # Half for invented robots, half claiming to be the (non-member) sender.
-                robot = f"ghost-{i}" if i % 2 else _ATTACKER
-                state = RepositoryState(robot, 1, interfaces)
-                sock.send(_frame(codec, state, "repository"))
-    finally:
-        ctx.term()
-
-
-def _junk(endpoint: str, n: int) -> None:
-    reg = _registry()
-    reg.register(Bogus)
-    codec = Codec(reg)
-    # WrongState shares RepositoryState's tag: a registry of its own encodes it.
-    wrong = Codec(MessageRegistry([WrongState]))
-    kinds = [
-        _frame(codec, Bogus("x" * 200), "repository"),
-        _frame(wrong, WrongState(7, "v"), "repository"),
-        _frame(codec, Heartbeat("r1", 1, 1), Membership.PATH),  # forged: claims to be r1
-        _frame(codec, Ping(1), "nobody"),  # no such actor
-    ]
-    ctx: zmq.Context[Any] = zmq.Context()
-    try:
-        with _dealer(ctx, _ATTACKER, endpoint) as sock:
-            for i in range(n):
-                sock.send(kinds[i % len(kinds)])
-    finally:
-        ctx.term()
-
-
-def _oversized(endpoint: str, size: int) -> None:
-    ctx: zmq.Context[Any] = zmq.Context()
-    try:
-        with _dealer(ctx, "bigmouth", endpoint) as sock:
-            sock.send(b"M" + b"\0" * size)
-    finally:
-        ctx.term()
-
-
 # -- the team -------------------------------------------------------------------------------
 
 
 @contextlib.asynccontextmanager
 async def _team() -> AsyncIterator[tuple[Agent, Agent]]:
-    reg_r1, reg_o = _registry(), _registry()
+    reg_r1, reg_o = registry(), registry()
     t1 = ZmqTransport(
         "r1",
         _TCP,
@@ -325,7 +218,7 @@ async def _latecomer(endpoint: str, r1: Agent) -> bool:
     """Does a robot that says hello after the flood still become a peer of the target?"""
     ctx: zmq.Context[Any] = zmq.Context()
     try:
-        with _dealer(ctx, "latecomer", endpoint):
+        with dealer(ctx, "latecomer", endpoint):
             with contextlib.suppress(TimeoutError):
                 await _until(lambda: "latecomer" in _zmq(r1).peers(), 2.0)
             return "latecomer" in _zmq(r1).peers()
@@ -366,7 +259,7 @@ async def probe(quick: bool) -> list[Check]:
 
             f = await _attack(
                 "fake_states",
-                lambda: _fake_states(endpoint, counts.states, counts.state_bytes),
+                lambda: fake_states(endpoint, counts.states, counts.state_bytes),
                 r1,
                 health,
             )
@@ -375,19 +268,19 @@ async def probe(quick: bool) -> list[Check]:
             ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
             checks.append(Check("fake_states", ok and _healthy(f), f))
 
-            f = await _attack("junk", lambda: _junk(endpoint, counts.junk), r1, health)
+            f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health)
             ok = f["stats"]["malformed"] + f["stats"]["received"] >= counts.junk
             checks.append(Check("junk", ok and _healthy(f), f))
 
             f = await _attack(
-                "oversized", lambda: _oversized(endpoint, 2 * MAX_MESSAGE_BYTES), r1, health
+                "oversized", lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES), r1, health
             )
             # Cut off by libzmq before the decoder saw it (it would count as malformed).
             ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
             checks.append(Check("oversized", ok and _healthy(f), f))
 
             f = await _attack(
-                "hello_flood", lambda: _hello_flood(endpoint, counts.hellos), r1, health
+                "hello_flood", lambda: hello_flood(endpoint, counts.hellos), r1, health
             )
             f["latecomer_accepted"] = await _latecomer(endpoint, r1)
             ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
