@@ -7,6 +7,7 @@ import asyncio
 import json
 import math
 import signal
+import tempfile
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
@@ -21,13 +22,16 @@ from rich.text import Text
 
 from btcap.cli import CliError
 from btcap.sim.metrics import MissionResult
-from btcap.sim.plots import plot_timeline
+from btcap.sim.plots import plot_comparison, plot_timeline
 from btcap.sim.runner import Progress, run_fast, run_scenario
 from btcap.sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 __all__ = ["add_parser", "resolve_scenario", "run_command"]
 
 DEFAULT = "full-team"
+
+#: Mission seconds between two progress lines when stdout is not a terminal.
+LINE_EVERY_S = 100.0
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -38,15 +42,29 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "and a JSON result into an output folder.",
     )
     p.add_argument(
-        "scenario",
-        nargs="?",
-        default=DEFAULT,
-        help=f"a scenario file or a built-in name ({', '.join(builtin_scenarios())})",
+        "scenarios",
+        nargs="*",
+        metavar="SCENARIO",
+        help=f"a scenario file or a built-in name ({', '.join(builtin_scenarios())}; "
+        f"default {DEFAULT}); several only with --compare",
     )
-    p.add_argument("--out", type=Path, help="output folder (default: a new folder under runs/)")
-    p.add_argument("--compare", action="store_true", help="run the three built-in scenarios")
     p.add_argument(
-        "--distributed", action="store_true", help="every robot in its own OS process (ZeroMQ)"
+        "--out",
+        type=Path,
+        help="output folder, checked before the run (default: a new folder under runs/)",
+    )
+    p.add_argument(
+        "--compare",
+        action="store_true",
+        help="run the given scenarios (default: every built-in one) one after the other, each "
+        "into OUT/NAME, and draw them side by side in OUT/compare.png",
+    )
+    p.add_argument(
+        "--distributed",
+        action="store_true",
+        help="every robot in its own OS process, talking ZeroMQ over tcp loopback, as on "
+        "separate hosts; the simulation and the mission tree stay in this process (wall "
+        "clock at the scenario's speed-up, so not with --fast)",
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
@@ -81,6 +99,20 @@ def resolve_scenario(ref: str) -> Scenario:
             f"scenario {ref!r}: no such file, and not a built-in ({', '.join(builtins)})"
         )
     return load_scenario(path)
+
+
+def _progress_line(p: Progress, name: str) -> str:
+    """The live table as one plain line, for logs."""
+    s = p.summary
+    robots = ", ".join(
+        f"{robot} {p.tasks.get(robot, 'idle') if up else 'away'}" for robot, up in p.present.items()
+    )
+    return (
+        f"{name} t={p.time:.0f} s: found {s.get('found', 0):.0f}/{s.get('objects', 0):.0f}, "
+        f"identified {s.get('identified', 0):.0f}, decontaminated "
+        f"{s.get('decontaminated', 0):.0f}, explored {100 * float(s.get('coverage', 0)):.0f}%; "
+        f"{robots}"
+    )
 
 
 def _progress_view(p: Progress, name: str) -> Table:
@@ -121,7 +153,7 @@ def summary_table(results: list[MissionResult]) -> Group:
         ("robot errors", [str(len(r.errors)) for r in results]),
     ]
     for label, cells in rows:
-        head.add_row(label, *cells)
+        head.add_row(Text(label), *cells)  # Text: '[s]' is a unit, not rich markup
     parts: list[Any] = [head]
     for r in results:
         for e in r.errors:
@@ -133,7 +165,8 @@ def summary_table(results: list[MissionResult]) -> Group:
     for r in results:
         t = Table(title=f"{r.scenario}: robots")
         for col in ("robot", "model", "utilisation", "tasks", "distance [m]"):
-            t.add_column(col, justify="right" if col in ("utilisation", "distance [m]") else "left")
+            right = col in ("utilisation", "distance [m]")
+            t.add_column(Text(col), justify="right" if right else "left")
         for name, st in r.robots.items():
             tasks = ", ".join(f"{k} {v}" for k, v in sorted(st.tasks.items())) or "-"
             t.add_row(name, st.model, f"{100 * st.utilisation:.0f}%", tasks, f"{st.distance_m:.0f}")
@@ -146,6 +179,18 @@ def _out_dir(args: argparse.Namespace, name: str) -> Path:
         return Path(args.out)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     return Path("runs") / f"{stamp}-{name}"
+
+
+def _check_out(out: Path) -> None:
+    """Refuse an output folder the results could not be written to, before the run."""
+    if out.exists() and not out.is_dir():
+        raise CliError(f"output folder {out}: exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise CliError(f"output folder {out}: cannot write there: {exc.strerror or exc}") from None
 
 
 def _write(result: MissionResult, out: Path) -> None:
@@ -206,8 +251,15 @@ async def _run_one(
 
         runner = run_distributed
     stop = stopper.event()
-    if quiet or not console.is_terminal:
+    if quiet:
         return await runner(s, stop=stop)
+    if not console.is_terminal:  # a log: a line every LINE_EVERY_S of mission time
+
+        def line(p: Progress) -> None:
+            console.print(_progress_line(p, s.name), markup=False, highlight=False, soft_wrap=True)
+
+        every = {"progress_every_s": LINE_EVERY_S, "progress_clock": "mission"}
+        return await runner(s, on_progress=line, stop=stop, **every)
     with Live(console=console, refresh_per_second=8, transient=True) as live:
 
         def show(p: Progress) -> None:
@@ -218,7 +270,12 @@ async def _run_one(
 
 def run_command(args: argparse.Namespace) -> int:
     console = Console()
-    names = list(builtin_scenarios()) if args.compare else [args.scenario]
+    if args.compare:
+        names = args.scenarios or list(builtin_scenarios())
+    elif len(args.scenarios) > 1:
+        raise CliError("run takes one scenario; add --compare to run several side by side")
+    else:
+        names = args.scenarios or [DEFAULT]
     if args.speedup is not None and not (math.isfinite(args.speedup) and args.speedup > 0):
         raise CliError(f"--speedup: expected a number > 0, got {args.speedup:g}")
     try:
@@ -239,7 +296,18 @@ def run_command(args: argparse.Namespace) -> int:
             s.allocation = msgspec.structs.replace(s.allocation, rebid_on_join=margin)
         if args.queue_after_current:
             s.allocation = msgspec.structs.replace(s.allocation, queue_after_current=True)
+    if args.compare:
+        named = [s.name for s in scenarios]
+        twice = sorted({n for n in named if named.count(n) > 1})
+        if twice:
+            raise CliError(
+                f"--compare: two scenarios named {', '.join(twice)}: each one's results go "
+                "into a folder of its name"
+            )
     out = _out_dir(args, "compare" if args.compare else scenarios[0].name)
+    _check_out(out)
+    if args.compare:
+        console.print(f"comparing {len(scenarios)} scenarios: {', '.join(named)}", markup=False)
     results: list[MissionResult] = []
     with _Stopper() as stopper:
         for s in scenarios:
@@ -257,7 +325,10 @@ def run_command(args: argparse.Namespace) -> int:
                 console.print(f"interrupted by {signal.Signals(stopper.signum).name}")
                 break
     console.print(summary_table(results))
+    written = "result.json, timeline.png"
     if args.compare:
+        plot_comparison(results, out / "compare.png")
+        written = "NAME/result.json, NAME/timeline.png, compare.json, compare.png"
         (out / "compare.json").write_text(
             json.dumps(
                 {
@@ -268,7 +339,7 @@ def run_command(args: argparse.Namespace) -> int:
             )
             + "\n"
         )
-    console.print(f"results written to [bold]{out}[/bold] (result.json, timeline.png)")
+    console.print(f"results written to [bold]{out}[/bold] ({written})")
     if stopper.signum is not None:
         return _STOPPED_BY[signal.Signals(stopper.signum)]
     return 0 if all(r.completed for r in results) else 1

@@ -169,6 +169,10 @@ async def run_distributed(
     *,
     on_progress: Callable[[Progress], None] | None = None,
     stop: anyio.Event | None = None,
+    **options: Any,
 ) -> MissionResult:
-    """Run the scenario with every robot in its own OS process."""
-    return await run_scenario(scenario, on_progress=on_progress, host=ProcessHost, stop=stop)
+    """Run the scenario with every robot in its own OS process (``options`` as for
+    :func:`~btcap.sim.runner.run_scenario`)."""
+    return await run_scenario(
+        scenario, on_progress=on_progress, host=ProcessHost, stop=stop, **options
+    )

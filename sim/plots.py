@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from btcap.sim.metrics import MissionResult
 
-__all__ = ["plot_timeline"]
+__all__ = ["plot_comparison", "plot_timeline"]
 
 _COLOURS = {
     "move": "#c8c8c8",
@@ -69,6 +70,61 @@ def plot_timeline(result: MissionResult, path: str | Path) -> Path:
     handles.append(Patch(facecolor="white", edgecolor="black", hatch="//", label="failed"))
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=5, fontsize=8)
     ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out)
+    plt.close(fig)
+    return out
+
+
+def plot_comparison(results: Sequence[MissionResult], path: str | Path) -> Path:
+    """Write a PNG comparing missions side by side (``btcap run --compare``): the mission
+    time of each (hatched if it did not complete) and how busy each of its robots was."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    names = [r.scenario for r in results]
+    fig, (ax_time, ax_busy) = plt.subplots(
+        1, 2, figsize=(4.0 + 2.2 * len(results), 4.5), dpi=110, width_ratios=[1, 2]
+    )
+    for i, r in enumerate(results):
+        ax_time.bar(
+            i,
+            r.mission_time_s,
+            color="#4c72b0",
+            edgecolor="black",
+            linewidth=0.4,
+            hatch=None if r.completed else "//",
+        )
+        label = f"{r.mission_time_s:.0f} s" + ("" if r.completed else "\nNOT completed")
+        ax_time.text(i, r.mission_time_s, label, ha="center", va="bottom", fontsize=8)
+    ax_time.set_xticks(range(len(names)), names, rotation=20, ha="right")
+    ax_time.set_ylabel("mission time [s]")
+    ax_time.margins(y=0.15)
+    models = sorted({st.model for r in results for st in r.robots.values()})
+    colour = {m: plt.get_cmap("tab10")(k % 10) for k, m in enumerate(models)}
+    for i, r in enumerate(results):
+        width = min(0.25, 0.8 / max(1, len(r.robots)))
+        left = i - width * len(r.robots) / 2
+        for j, (robot, st) in enumerate(r.robots.items()):
+            x = left + width * (j + 0.5)
+            ax_busy.bar(x, 100 * st.utilisation, width, color=colour[st.model], edgecolor="black")
+            ax_busy.text(x, 1, robot, rotation=90, ha="center", va="bottom", fontsize=7)
+    ax_busy.set_xticks(range(len(names)), names, rotation=20, ha="right")
+    ax_busy.set_ylabel("utilisation [%]")
+    ax_busy.set_ylim(0, 119)
+    ax_busy.legend(
+        handles=[Patch(facecolor=colour[m], label=m) for m in models],
+        loc="upper center",
+        ncol=len(models),
+        fontsize=8,
+    )
+    for ax in (ax_time, ax_busy):
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle("mission comparison")
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out)

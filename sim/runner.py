@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import anyio
 import numpy as np
@@ -67,12 +67,17 @@ async def run_scenario(
     *,
     on_progress: Callable[[Progress], None] | None = None,
     progress_every_s: float = 0.1,
+    progress_clock: Literal["wall", "mission"] = "wall",
     clock: TimeSource | None = None,
     host: HostFactory | None = None,
     stop: anyio.Event | None = None,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
+
+    ``on_progress`` is called at the end and every ``progress_every_s`` seconds of wall
+    time (for a live display) or, with ``progress_clock="mission"``, of mission time (for
+    log lines, which then fall at the same instants in every run of a seed).
 
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`). A robot that crashes is logged, taken out
@@ -157,6 +162,7 @@ async def run_scenario(
             started = clock.now()
             ev_task = simsys.start_task(events(), name="scenario events")
             watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
+            watch.mission_clock = progress_clock == "mission"
             watch.stop = stop
             final = await tree.run(cfg.tick_hz, until=watch)
             ev_task.cancel()
@@ -232,6 +238,7 @@ class _Watch:
         self.next_report = 0.0
         self.crashes_seen = 0
         self.stop: anyio.Event | None = None
+        self.mission_clock = False
 
     def __call__(self, state: State) -> bool:
         now = self.tree.clock.now() - self.started
@@ -247,9 +254,9 @@ class _Watch:
         done = state in DONE or now > self.s.time_limit_s
         done = done or (self.stop is not None and self.stop.is_set())
         if self.on_progress is not None:
-            wall = anyio.current_time()
-            if done or wall >= self.next_report:
-                self.next_report = wall + self.every_s
+            at = now if self.mission_clock else anyio.current_time()
+            if done or at >= self.next_report:
+                self.next_report = at + self.every_s
                 self.on_progress(self._progress(now))
         return done
 
