@@ -37,7 +37,7 @@ from btcap.transports import InProcessNetwork
 __all__ = ["run"]
 
 TASK = CapabilityInterface("Task", inputs={"task": int}, description="go and do task #task")
-STRATEGIES = ("arrival", "auction", "optimal")
+STRATEGIES = ("arrival", "auction", "sequential", "optimal")
 
 Costs = np.ndarray[Any, np.dtype[np.float64]]
 

@@ -24,7 +24,7 @@ from btcap.actors import (
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.team.core.planning import check_strategy, optimal_plan
+from btcap.team.core.planning import check_strategy, plan, regret
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
 from btcap.transports import Address
@@ -138,7 +138,7 @@ class _Closed:
     outcome: AuctionOutcome
     reserve: float | None
     turn: asyncio.Event
-    plan: str | None = None  # the optimal strategy's robot for it
+    plan: str | None = None  # a planning strategy's robot for it
 
     def bids(self, taken: set[str]) -> list[Bid]:
         """What may be awarded, best first: the planned robot, then the cheapest free."""
@@ -161,8 +161,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
     awarded only to a bid below it.
 
     Auctions that run at the same time for the same robots award one after the other,
-    the globally cheapest robot-task pair first (the paper's greedy rule): a robot that
-    comes free gets the task best for the team, not the one whose auction closed first.
+    in an order (and, for the planning strategies, to robots) chosen from their bids
+    together (see :mod:`btcap.team.core.planning`): a robot that comes free gets the task
+    best for the team, not the one whose auction closed first.
     """
 
     PATH = "auctioneer"
@@ -267,11 +268,15 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
             if any(wanted & a.invited for a, _done in self._open.values()):
                 return  # its bids may be cheaper: wait for it to close
-            if self.strategy == "optimal" and all(c.plan is None for c in self._closed):
-                plan = optimal_plan([c.bids(self._taken) for c in self._closed], self._taken)
-                for closed, robot in zip(self._closed, plan, strict=True):
+            if all(c.plan is None for c in self._closed):
+                batch = [c.bids(self._taken) for c in self._closed]
+                robots = plan(self.strategy, batch, self._taken) or [None] * len(batch)
+                for closed, robot in zip(self._closed, robots, strict=True):
                     closed.plan = robot
-            nxt = min(self._closed, key=lambda c: c.best(self._taken))
+            if self.strategy == "auction":
+                nxt = min(self._closed, key=lambda c: regret(c.bids(self._taken)))
+            else:
+                nxt = min(self._closed, key=lambda c: c.best(self._taken))
         self._closed.remove(nxt)
         self._awarding = nxt
         nxt.turn.set()

@@ -1,26 +1,55 @@
 """How closed auctions competing for the same robots are awarded: the order and, for the
-optimal strategy, who gets what.
+planning strategies, who gets what.
 
-``auction`` (the default) awards the globally cheapest robot-task pair first, then the
-next (sequential single-item auctions over the tasks pending together); ``optimal``
-assigns the batch for the least total cost (the Hungarian method) and awards that plan;
-``arrival`` awards each auction as it closes, to its cheapest bidder (btcap's first
-behaviour, kept as a baseline).
+The auctioneer holds every closed auction of a batch (the auctions that ran at the same
+time for the same robots) until none still collecting bids competes for those robots, so
+it sees the batch's full bid matrix. The strategies differ in what they do with it:
+
+- ``auction`` (the default, the paper's single-item auction with re-auctions): each
+  auction is awarded on its own, to its cheapest bidder still free; the order is by
+  *regret* (the auction whose best free bid is furthest below its second-best goes first,
+  one with a single bidder before all), so a task that would lose much by waiting is not
+  beaten to its robot by one that has an almost-as-good alternative. No robot is ever
+  given a task it did not bid cheapest for among the free ones; what a batch gets wrong,
+  re-evaluation of running work (:mod:`btcap.team.moving`) improves later. Use it by
+  default: it needs no plan and tolerates auctions closing apart.
+- ``sequential`` (sequential single-item auctions over all pending tasks, with
+  improvement): the greedy rule (the globally cheapest robot-task pair first, then the
+  next) gives a first plan, which is then improved by pairwise exchanges (two tasks swap
+  robots) and moves to free robots while the total cost falls; the plan is awarded, and a
+  robot that declines falls through to the task's next bid. A local search, not an
+  optimum. Use it when many tasks are pending at once (missions that start many
+  capabilities together) and the cost of a plan per batch (O(n^2) per step) is
+  acceptable.
+- ``optimal``: the batch's least total cost (the Hungarian method); the quality
+  reference, and a good choice for small teams with one origin.
+- ``arrival``: each auction is awarded as it closes, to its cheapest bidder (btcap's
+  first behaviour, kept as a baseline).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from btcap.team.messages import Bid
 
-__all__ = ["STRATEGIES", "check_strategy", "optimal_plan"]
+__all__ = [
+    "STRATEGIES",
+    "check_strategy",
+    "optimal_plan",
+    "plan",
+    "regret",
+    "sequential_plan",
+]
 
-STRATEGIES = ("auction", "optimal", "arrival")
+STRATEGIES = ("auction", "sequential", "optimal", "arrival")
+
+Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
+Plan = list[str | None]
 
 
 def check_strategy(name: str) -> str:
@@ -29,23 +58,109 @@ def check_strategy(name: str) -> str:
     return name
 
 
-def optimal_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> list[str | None]:
-    """For each task (its awardable bids), the robot that gets it in an assignment of least
-    total cost, each robot at most once and never one already ``taken``; None for a task
-    that gets no robot."""
+def regret(bids: Sequence[Bid]) -> tuple[float, float, str]:
+    """The ``auction`` strategy's turn key of an auction (smallest goes first), given its
+    awardable free bids cheapest first: minus the regret, then the best bid and its robot
+    (ties: the cheapest pair first). No bid: last."""
+    if not bids:
+        return (math.inf, math.inf, "")
+    best = bids[0]
+    loss = bids[1].cost - best.cost if len(bids) > 1 else math.inf
+    return (-loss, best.cost, best.robot)
+
+
+def _matrix(bids: Sequence[Sequence[Bid]], taken: set[str]) -> tuple[list[str], Matrix]:
+    """The robots not ``taken`` that bid, and each task's cost on each (inf: no bid)."""
     robots = sorted({b.robot for task in bids for b in task} - taken)
-    if not robots or not bids:
-        return [None] * len(bids)
     index = {r: i for i, r in enumerate(robots)}
-    big = 1.0 + sum(b.cost for task in bids for b in task if math.isfinite(b.cost))
-    cost = np.full((len(bids), len(robots)), big * 2)
+    cost: Matrix = np.full((len(bids), len(robots)), math.inf)
     for t, task in enumerate(bids):
         for b in task:
             if b.robot in index:
                 cost[t, index[b.robot]] = min(cost[t, index[b.robot]], b.cost)
-    rows, cols = linear_sum_assignment(cost)
-    plan: list[str | None] = [None] * len(bids)
+    return robots, cost
+
+
+def optimal_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
+    """For each task (its awardable bids), the robot that gets it in an assignment of least
+    total cost, each robot at most once and never one already ``taken``; None for a task
+    that gets no robot."""
+    robots, cost = _matrix(bids, taken)
+    if not robots or not bids:
+        return [None] * len(bids)
+    finite = cost[np.isfinite(cost)]
+    big = 2.0 * (1.0 + float(finite.sum()))  # the stand-in for "no bid"
+    rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
+    plan: Plan = [None] * len(bids)
     for t, r in zip(rows, cols, strict=True):
-        if cost[t, r] < big * 2:  # a real bid, not the stand-in for none
+        if math.isfinite(cost[t, r]):
             plan[t] = robots[r]
     return plan
+
+
+def _greedy(cost: Matrix, got: list[int]) -> None:
+    """Give tasks without a robot (-1 in ``got``) free robots in place, the cheapest
+    remaining pair first, ties by task then robot index."""
+    robots = cost.shape[1]
+    used = {r for r in got if r >= 0}
+    for flat in np.argsort(cost, axis=None, kind="stable"):
+        t, r = divmod(int(flat), robots)
+        if not math.isfinite(cost[t, r]):
+            break
+        if got[t] < 0 and r not in used:
+            got[t] = r
+            used.add(r)
+
+
+def _improve(cost: Matrix, got: list[int]) -> None:
+    """Best-improvement local search in place: exchange the robots of two tasks, or move a
+    task to a free robot (and give the robot it left to a task without one), while that
+    lowers the total cost (strictly, so it ends)."""
+    tasks, robots = cost.shape
+    for _step in range(tasks * robots + 1):  # each step lowers the cost; a bound anyway
+        held = [t for t in range(tasks) if got[t] >= 0]
+        if not held:
+            return
+        h = np.array(held)
+        r = np.array([got[t] for t in held])
+        now = cost[h, r]
+        cross = cost[np.ix_(h, r)]  # cross[i, j]: task held[i] on robot r[j]
+        exchange = cross + cross.T - now[:, None] - now[None, :]
+        free = np.setdiff1d(np.arange(robots), r)
+        move = cost[np.ix_(h, free)] - now[:, None] if free.size else np.empty((len(h), 0))
+        gain_x = float(np.min(exchange)) if exchange.size else 0.0
+        gain_m = float(np.min(move)) if move.size else 0.0
+        if min(gain_x, gain_m) >= -1e-9 * max(1.0, float(now.sum())):
+            return
+        if gain_x <= gain_m:
+            i, j = divmod(int(np.argmin(exchange)), len(h))
+            got[held[i]], got[held[j]] = int(r[j]), int(r[i])
+        else:
+            i, k = divmod(int(np.argmin(move)), free.size)
+            got[held[i]] = int(free[k])
+            _greedy(cost, got)
+
+
+def sequential_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
+    """The greedy assignment (cheapest robot-task pair first, then the next), improved by
+    pairwise exchanges and moves to free robots; same contract as :func:`optimal_plan`."""
+    robots, cost = _matrix(bids, taken)
+    if not robots or not bids:
+        return [None] * len(bids)
+    got = [-1] * len(bids)
+    _greedy(cost, got)
+    _improve(cost, got)
+    return [robots[r] if r >= 0 else None for r in got]
+
+
+#: The strategies that plan a whole batch before its first award.
+PLANNERS: dict[str, Callable[[Sequence[Sequence[Bid]], set[str]], Plan]] = {
+    "sequential": sequential_plan,
+    "optimal": optimal_plan,
+}
+
+
+def plan(strategy: str, bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan | None:
+    """The batch's plan under ``strategy``, or None if it awards auction by auction."""
+    planner = PLANNERS.get(strategy)
+    return None if planner is None else planner(bids, taken)

@@ -415,10 +415,14 @@ async def test_a_robot_takes_one_task_per_batch_even_with_a_queue() -> None:
             await tree.shutdown()
 
 
-@pytest.mark.parametrize(("strategy", "total"), [("auction", 101.0), ("optimal", 4.0)])
+@pytest.mark.parametrize(
+    ("strategy", "total"),
+    [("arrival", 101.0), ("auction", 4.0), ("sequential", 4.0), ("optimal", 4.0)],
+)
 async def test_strategies_award_the_same_batch_their_own_way(strategy: str, total: float) -> None:
-    """The classic trap: greedy gives b its cheapest task and c the other at 100; the
-    optimal plan gives each the task that keeps the total least."""
+    """The classic trap: awarded as they close, b gets its cheapest task and c the other
+    at 100; the auction awards the task that would lose most by waiting first (regret),
+    the sequential plan exchanges the greedy pair's robots, the optimal plan is least."""
     costs = {"b": {1: 1.0, 2: 2.0}, "c": {1: 2.0, 2: 100.0}}
     with anyio.fail_after(20):
         probe = Probe()

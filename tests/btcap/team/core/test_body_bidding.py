@@ -114,5 +114,5 @@ def test_the_optimal_plan_beats_greedy_on_the_classic_trap() -> None:
     assert optimal_plan([t1, t2], taken=set()) == ["c", "b"]  # 4, where greedy pays 101
     assert optimal_plan([t1, t2], taken={"b"}) == ["c", None]
     assert optimal_plan([[], t2], taken=set()) == [None, "b"]
-    with pytest.raises(ValueError, match="expected one of auction, optimal, arrival"):
+    with pytest.raises(ValueError, match="expected one of auction, sequential, optimal"):
         check_strategy("fastest")

@@ -1,0 +1,139 @@
+"""Award order and plans of the allocation strategies, on explicit bid matrices."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment
+
+from btcap.team.core.ids import AuctionId
+from btcap.team.core.planning import (
+    STRATEGIES,
+    check_strategy,
+    optimal_plan,
+    plan,
+    regret,
+    sequential_plan,
+)
+from btcap.team.messages import Bid
+
+A1 = AuctionId("a", 1)
+
+
+def bid(robot: str, cost: float) -> Bid:
+    return Bid(A1, robot, cost, "i")
+
+
+def bids_of(cost: np.ndarray, missing: float = math.inf) -> list[list[Bid]]:
+    """Task-major bids from a tasks x robots matrix (robot j is ``r{j:02d}``)."""
+    return [
+        sorted(
+            (bid(f"r{r:02d}", float(c)) for r, c in enumerate(row) if c != missing),
+            key=lambda b: b.cost,
+        )
+        for row in cost
+    ]
+
+
+def total(cost: np.ndarray, robots: list[str | None]) -> float:
+    return sum(float(cost[t, int(r[1:])]) for t, r in enumerate(robots) if r is not None)
+
+
+def greedy_total(cost: np.ndarray) -> float:
+    c = cost.astype(float).copy()
+    paid = 0.0
+    for _ in range(min(c.shape)):
+        t, r = np.unravel_index(int(np.argmin(c)), c.shape)
+        paid += float(c[t, r])
+        c[t, :] = math.inf
+        c[:, r] = math.inf
+    return paid
+
+
+def test_the_plans_escape_the_classic_trap() -> None:
+    t1 = [bid("b", 1.0), bid("c", 2.0)]
+    t2 = [bid("b", 2.0), bid("c", 100.0)]
+    for planner in (optimal_plan, sequential_plan):
+        assert planner([t1, t2], set()) == ["c", "b"]  # 4, where greedy pays 101
+        assert planner([t1, t2], {"b"}) == ["c", None]
+        assert planner([[], t2], set()) == [None, "b"]
+        assert planner([], set()) == []
+    assert plan("auction", [t1, t2], set()) is None
+    assert plan("arrival", [t1, t2], set()) is None
+    assert plan("sequential", [t1, t2], set()) == ["c", "b"]
+
+
+def test_regret_puts_the_task_that_loses_most_by_waiting_first() -> None:
+    t1 = [bid("b", 1.0), bid("c", 2.0)]  # loses 1 if b goes elsewhere
+    t2 = [bid("b", 2.0), bid("c", 100.0)]  # loses 98
+    assert min([t1, t2], key=regret) is t2
+    only = [bid("c", 50.0)]  # a single bidder: it waits or gets it now
+    assert min([t1, t2, only], key=regret) is only
+    # Single bidders each (the lone Husky of Fig. 4): the cheapest task first.
+    assert min([[bid("h", 9.0)], [bid("h", 3.0)]], key=regret) == [bid("h", 3.0)]
+    assert regret([]) > regret(only)
+
+
+def test_sequential_improves_greedy_with_exchanges_and_moves_to_free_robots() -> None:
+    # Greedy: t0->r0 (1), t1->r1 (5), t2->r2 (9) = 15. Exchanging t1 and t2's robots
+    # (r1 on t2: 4, r2 on t1: 6) gives 11; then r3 (free) does t1 for 2: 7.
+    cost = np.array(
+        [
+            [1.0, 8.0, 8.0, 9.0],
+            [9.0, 5.0, 6.0, 8.0],
+            [9.0, 4.0, 9.0, 9.0],
+        ]
+    )
+    cost[1, 3] = 2.0
+    got = sequential_plan(bids_of(cost), set())
+    assert total(cost, got) == pytest.approx(7.0)
+    assert len({r for r in got if r is not None}) == 3
+
+
+def test_sequential_lowers_the_cost_it_does_not_trade_it_for_more_tasks() -> None:
+    # Only r0 can do t0; greedy gives r0 t1 (1 < 3). Moving t1 to r1 (2) would serve t0
+    # too but raise the batch's cost: t0 waits for the next robot that comes free.
+    cost = np.array([[3.0, math.inf], [1.0, 2.0]])
+    assert sequential_plan(bids_of(cost), set()) == [None, "r00"]
+    assert optimal_plan(bids_of(cost), set()) == ["r00", "r01"]  # serves as many as it can
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_sequential_is_a_valid_local_optimum_between_greedy_and_the_optimum(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    tasks, robots = rng.integers(2, 12, size=2)
+    cost = rng.uniform(1.0, 100.0, size=(tasks, robots))
+    cost[rng.random(cost.shape) < 0.2] = math.inf  # some robots cannot do some tasks
+    taken = {f"r{r:02d}" for r in range(robots) if rng.random() < 0.15}
+    got = sequential_plan(bids_of(cost), taken)
+    used = [r for r in got if r is not None]
+    assert len(used) == len(set(used))
+    assert not set(used) & taken
+    assert all(math.isfinite(cost[t, int(r[1:])]) for t, r in enumerate(got) if r)
+    free = [r for r in range(robots) if f"r{r:02d}" not in taken]
+    sub = cost[:, free]
+    finite = np.where(np.isfinite(sub), sub, 1e9)
+    rows, cols = linear_sum_assignment(finite)
+    best = sum(float(sub[t, r]) for t, r in zip(rows, cols, strict=True) if sub[t, r] < 1e9)
+    greedy = greedy_total(np.where(np.isfinite(sub), sub, 1e9)) if sub.size else 0.0
+    served = [t for t, r in enumerate(got) if r is not None]
+    # No pair of served tasks gains from exchanging robots, no task from a free robot.
+    for i in served:
+        ri = int(got[i][1:])  # type: ignore[index]
+        for j in served:
+            rj = int(got[j][1:])  # type: ignore[index]
+            assert cost[i, rj] + cost[j, ri] >= cost[i, ri] + cost[j, rj] - 1e-9
+        for r in free:
+            if f"r{r:02d}" not in used:
+                assert cost[i, r] >= cost[i, ri] - 1e-9
+    if len(served) == min(len(free), tasks) and greedy < 1e9:
+        assert best - 1e-9 <= total(cost, got) <= greedy + 1e-9
+
+
+def test_strategy_names_are_checked() -> None:
+    assert STRATEGIES[:4] == ("auction", "sequential", "optimal", "arrival")
+    assert check_strategy("sequential") == "sequential"
+    with pytest.raises(ValueError, match="'fastest': expected one of auction, sequential"):
+        check_strategy("fastest")
