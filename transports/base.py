@@ -54,3 +54,14 @@ class Transport(abc.ABC):
     @abc.abstractmethod
     def peers(self) -> frozenset[str]:
         """The system ids this transport can currently reach."""
+
+    def introduce(self, system_id: str, endpoint: str) -> bool:
+        """Reach a system a teammate told us of; whether it is (now) reachable.
+
+        Transports that reach every system without being told (in-process) need nothing.
+        """
+        return system_id in self.peers()
+
+    def endpoint_of(self, system_id: str) -> str | None:
+        """Where ``system_id`` (or this system) can be reached, if this transport dials."""
+        return None

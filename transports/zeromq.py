@@ -51,6 +51,7 @@ from btcap.transports.zmq_sockets import (
     parse_hello,
     reject,
     remove_ipc_file,
+    write,
 )
 
 __all__ = ["ZmqTransport"]
@@ -63,8 +64,6 @@ _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
-_COPY_THRESHOLD = 65_536
-"""Smaller payloads are copied into the frame (cheaper than tracking a zero-copy buffer)."""
 
 
 class ZmqTransport(Transport):
@@ -233,20 +232,7 @@ class ZmqTransport(Transport):
         self._write(target, dealer, _MSG, data)
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
-        frame = kind + data
-        if len(frame) > self.max_message_bytes:
-            # The peer would drop the connection (and what is queued behind the frame).
-            self.stats.undeliverable += 1
-            self._reject("too large to send", sid.encode(), f"{len(frame)} bytes")
-            return
-        try:
-            sock.send(frame, NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
-        except zmq.ZMQError as exc:  # zmq.Again: the peer's queue is full
-            self.stats.undeliverable += 1
-            why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
-            self.stats.drop(f"peer {sid} {why}")
-        else:
-            self.stats.sent += 1
+        write(sock, kind + data, self.max_message_bytes, self.stats, self.system_id, sid)
 
     # -- receiving --------------------------------------------------------------------
     async def serve(self, deliver: Deliver, *, task_status: TaskStatus[None]) -> None:
@@ -319,18 +305,12 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_events)
 
     def _on_monitor(self, monitor: Monitor) -> None:
-        try:
-            for _ in range(_BATCH):
-                if monitor.closed or not monitor.pending():
-                    return
-                if monitor.connected() and monitor.connects > 1:
-                    log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)
-                    self._write(monitor.peer, monitor.dealer, _HELLO, self.endpoint.encode())
-        except zmq.ZMQError as exc:
-            log.warning("transport.monitor_failed", peer=monitor.peer, error=str(exc))
-            return
-        if self._loop is not None:
+        if monitor.drain(_BATCH, self._reconnected) and self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
+
+    def _reconnected(self, monitor: Monitor) -> None:
+        log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)
+        self._write(monitor.peer, monitor.dealer, _HELLO, self.endpoint.encode())
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -383,33 +363,51 @@ class ZmqTransport(Transport):
         except ValueError as exc:
             self._malformed("bad hello", ident, str(exc))
             return
+        if self._admit(peer, endpoint, self.accept_hello):
+            self.hellos += 1
+
+    def introduce(self, system_id: str, endpoint: str) -> bool:
+        """Dial a teammate others told us of, as a stranger until it speaks (see class)."""
+        if check_id(system_id) is not None or not endpoint.startswith(SCHEMES):
+            return False
+        return system_id not in self._endpoints and self._admit(system_id, endpoint, True)
+
+    def endpoint_of(self, system_id: str) -> str | None:
+        return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
+
+    def _admit(self, peer: str, endpoint: str, accept: bool) -> bool:
+        """Connect to a peer that announced itself (False: refused, counted and logged).
+
+        Every peer costs sockets: a flood of made-up ids must not exhaust them, nor keep
+        a real newcomer out.
+        """
+        ident = peer.encode()
         known = self._endpoints.get(peer)
-        if known != endpoint and peer not in self._configured:
-            if known is None and not self.accept_hello:
+        if known == endpoint or peer in self._configured:
+            return True
+        if known is None and not accept:
+            self.stats.unknown_peer += 1
+            self._reject("unknown peer", ident, "hello refused")
+            return False
+        if known is None and len(self._dealers) >= self.max_peers:
+            stranger = self._strangers.oldest()  # the longest silent one makes room
+            if stranger is None:
                 self.stats.unknown_peer += 1
-                self._reject("unknown peer", ident, "hello refused")
-                return
-            if known is None and len(self._dealers) >= self.max_peers:
-                # Every peer costs sockets: a flood of made-up ids must not exhaust them,
-                # nor keep a real newcomer out. The longest silent stranger makes room.
-                stranger = self._strangers.oldest()
-                if stranger is None:
-                    self.stats.unknown_peer += 1
-                    self._reject("too many peers", ident, f"already {len(self._dealers)}")
-                    return
-                self.remove_peer(stranger)
-            try:
-                self._connect(peer, endpoint)
-            except (ValueError, RuntimeError) as exc:
-                self._malformed("bad hello", ident, str(exc)[:200])
-                return
-            if known is None and self._loop is not None:
-                now = self._loop.time()
-                self._strangers.met(peer, now)
-                self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
-            event = "transport.peer_joined" if known is None else "transport.peer_moved"
-            log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
-        self.hellos += 1
+                self._reject("too many peers", ident, f"already {len(self._dealers)}")
+                return False
+            self.remove_peer(stranger)
+        try:
+            self._connect(peer, endpoint)
+        except (ValueError, RuntimeError) as exc:
+            self._malformed("bad hello", ident, str(exc)[:200])
+            return False
+        if known is None and self._loop is not None:
+            now = self._loop.time()
+            self._strangers.met(peer, now)
+            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
+        event = "transport.peer_joined" if known is None else "transport.peer_moved"
+        log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
+        return True
 
     def _forget(self, peer: str, met: float) -> None:
         if self._strangers.since.get(peer) == met and not self._closed:

@@ -12,6 +12,7 @@ import os
 import secrets
 import sys
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 import zmq
@@ -116,6 +117,34 @@ def reject(stats: TransportStats, system: str, reason: str, ident: bytes, detail
         )
 
 
+_COPY_THRESHOLD = 65_536
+"""Smaller payloads are copied into the frame (cheaper than tracking a zero-copy buffer)."""
+
+
+def write(
+    sock: zmq.Socket[bytes],
+    frame: bytes,
+    max_bytes: int,
+    stats: TransportStats,
+    system: str,
+    to: str,
+) -> None:
+    """Send one frame to peer ``to`` without blocking; what cannot go is counted."""
+    if len(frame) > max_bytes:
+        # The peer would drop the connection (and what is queued behind the frame).
+        stats.undeliverable += 1
+        reject(stats, system, "too large to send", to.encode(), f"{len(frame)} bytes")
+        return
+    try:
+        sock.send(frame, NOBLOCK, copy=len(frame) < _COPY_THRESHOLD)
+    except zmq.ZMQError as exc:  # zmq.Again: the peer's queue is full
+        stats.undeliverable += 1
+        why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
+        stats.drop(f"peer {to} {why}")
+    else:
+        stats.sent += 1
+
+
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
     """The peer id and endpoint a hello announces; ValueError says what is wrong."""
     try:
@@ -193,18 +222,24 @@ class Monitor:
         self.connects = 0
         self.closed = False
 
-    def pending(self) -> bool:
-        return bool(self.socket.getsockopt(EVENTS) & POLLIN)  # type: ignore[operator]
-
-    def connected(self) -> bool:
-        """Read one event; True (and counted) if it is a new connection."""
-        frames = self.socket.recv_multipart(NOBLOCK)
-        if len(frames) == 2 and len(frames[0]) == 6:
-            event = int.from_bytes(frames[0][:2], sys.byteorder)
-            if event == zmq.EVENT_CONNECTED:
-                self.connects += 1
-                return True
-        return False
+    def drain(self, limit: int, reconnected: Callable[[Monitor], None]) -> bool:
+        """Read up to ``limit`` events, calling ``reconnected`` for every connection after
+        the first (the peer may have restarted and forgotten us); True if more wait."""
+        try:
+            for _ in range(limit):
+                if self.closed or not self.socket.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
+                    return False
+                frames = self.socket.recv_multipart(NOBLOCK)
+                if len(frames) == 2 and len(frames[0]) == 6:
+                    event = int.from_bytes(frames[0][:2], sys.byteorder)
+                    if event == zmq.EVENT_CONNECTED:
+                        self.connects += 1
+                        if self.connects > 1:
+                            reconnected(self)
+        except zmq.ZMQError as exc:
+            log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
+            return False
+        return True
 
     def close(self) -> None:
         self.closed = True
