@@ -1,0 +1,145 @@
+"""Every code block of the README and the guide (docs/) works as written.
+
+The convention (also stated at the top of README.md): ```python blocks run, each as a
+whole program in its own interpreter; ```yaml blocks load as tree files or agent files;
+```sh lines are commands btcap's parser accepts (cheap ones run), make targets or scripts
+of this repository; ```text and ```console blocks are output, shown and not run. A block
+without a tag is an error, so nobody's example silently escapes the test. Blocks that
+only include a file (``--8<-- "examples/..."``) are the examples, tested on their own.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import yaml
+
+import btcap.cli
+from btcap.bt.files import dump_tree, loads_tree
+from btcap.team.agentconfig import load_agent_file
+
+ROOT = Path(__file__).resolve().parent.parent
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+_FENCE = re.compile(r"^```([\w-]*)[^\n]*\n(.*?)^```[ \t]*$", re.M | re.S)
+_SHOWN = {"text", "console"}
+_CHECKED = {"python", "yaml", "sh"}
+#: ``btcap`` subcommands cheap enough to run for real (the rest are parsed only).
+_RUN = {("tree", "validate"), ("tree", "show"), ("tree", "nodes")}
+
+
+@dataclass(frozen=True)
+class Block:
+    page: Path
+    line: int
+    lang: str
+    code: str
+
+    def __str__(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line} ({self.lang or 'no tag'})"
+
+
+def _blocks() -> list[Block]:
+    found = []
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        for m in _FENCE.finditer(text):
+            line = text.count("\n", 0, m.start()) + 1
+            found.append(Block(page, line, m[1], m[2]))
+    return found
+
+
+BLOCKS = _blocks()
+
+
+def _of(lang: str) -> list[Block]:
+    return [b for b in BLOCKS if b.lang == lang and not b.code.lstrip().startswith("--8<--")]
+
+
+@pytest.fixture(autouse=True)
+def no_logging_setup(monkeypatch: pytest.MonkeyPatch) -> None:
+    """main() would configure logging onto this test's captured stderr (see test_cli_run)."""
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+
+
+def test_every_block_says_what_it_is() -> None:
+    untagged = [str(b) for b in BLOCKS if b.lang not in _SHOWN | _CHECKED]
+    assert not untagged, f"tag these blocks python, yaml, sh, text or console: {untagged}"
+    assert len(_of("python")) >= 3
+
+
+@pytest.mark.parametrize("block", _of("python"), ids=str)
+def test_python_block_runs_as_written(block: Block, tmp_path: Path) -> None:
+    """In its own interpreter, from the repository's root, as a reader would paste it."""
+    script = tmp_path / "block.py"
+    script.write_text(block.code, encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, f"{block}:\n{block.code}\n{done.stderr}"
+
+
+@pytest.mark.parametrize("block", _of("yaml"), ids=str)
+def test_yaml_block_loads(block: Block, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = yaml.safe_load(block.code)
+    if "root" in data:  # a tree file: the README's is the quickstart tree of examples/
+        tree = dump_tree(loads_tree(block.code))
+        assert tree.root.name, str(block)
+        return
+    assert "robot" in data, f"{block}: neither a tree file nor an agent file"
+    # An agent file as it would sit in examples/team/, with its teammates' keys made.
+    shutil.copytree(ROOT / "examples" / "capabilities", tmp_path / "capabilities")
+    keys = tmp_path / "keys"
+    keys.mkdir()
+    monkeypatch.setenv("BTCAP_KEYS", str(keys))
+    assert btcap.cli.main(["keys", "new", data["robot"], "--dir", str(keys)]) == 0
+    path = tmp_path / "team" / "robot.yaml"
+    path.parent.mkdir()
+    path.write_text(block.code, encoding="utf-8")
+    assert load_agent_file(path).robot == data["robot"]
+
+
+def _commands(block: Block) -> list[list[str]]:
+    lines = [line.split(" #", 1)[0].strip() for line in block.code.splitlines()]
+    return [shlex.split(line) for line in lines if line and not line.startswith("#")]
+
+
+def _make_targets() -> set[str]:
+    text = (ROOT / "Makefile").read_text()
+    return set(re.findall(r"^([\w-]+):", text, re.M))
+
+
+@pytest.mark.parametrize("block", _of("sh"), ids=str)
+def test_shell_block_commands_exist(
+    block: Block, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(ROOT)
+    for argv in _commands(block):
+        head, args = argv[0], argv[1:]
+        if head == "make":
+            assert set(args) <= _make_targets(), f"{block}: {argv}: no such make target"
+        elif head in ("pip", "python", "python3") or head.endswith("/python"):
+            continue  # the installer's business
+        elif Path(head).name == "btcap":
+            words = tuple(a for a in args if not a.startswith("-"))[:2]
+            if "--help" in args or "--version" in args or words in _RUN:
+                code = btcap.cli.main(args)  # cheap: run it for real
+            else:
+                parser = btcap.cli.build_parser()
+                try:
+                    parser.parse_args(args)
+                    code = 0
+                except SystemExit as exc:
+                    code = exc.code if isinstance(exc.code, int) else 2
+            out, err = capsys.readouterr()
+            assert code == 0, f"{block}: {shlex.join(argv)}: exit {code}\n{out}{err}"
+        else:
+            script = ROOT / head
+            assert script.is_file(), f"{block}: {head}: not a command this test knows"
+            assert script.stat().st_mode & 0o111, f"{block}: {head} is not executable"
