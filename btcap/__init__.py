@@ -59,6 +59,7 @@ from btcap.bt.render import render_dot, render_text
 from btcap.bt.state import IllegalTransition, State, TreeError
 from btcap.bt.tree import Subtree, Tree, Wire
 from btcap.bt.utility import Utility
+from btcap.monitor import Monitor, Replay
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
 from btcap.team.capfiles import load_implementation, load_interfaces
@@ -99,6 +100,7 @@ __all__ = [
     "Leaf",
     "Log",
     "MissionConfig",
+    "Monitor",
     "Node",
     "NodeRegistry",
     "Observer",
@@ -111,6 +113,7 @@ __all__ = [
     "Repeat",
     "RepeatUntilFailure",
     "RepeatUntilSuccess",
+    "Replay",
     "Retry",
     "RunOnce",
     "RunningIsFailure",

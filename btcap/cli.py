@@ -51,7 +51,7 @@ def _command_modules() -> list[str]:
     from importlib.metadata import entry_points
 
     plugins = sorted(ep.value for ep in entry_points(group="btcap.commands"))
-    return ["btcap.cli", "btcap.teamcli", "btcap.keys_cli", *plugins]
+    return ["btcap.cli", "btcap.teamcli", "btcap.keys_cli", "btcap.monitor.cli", *plugins]
 
 
 def _version() -> str:

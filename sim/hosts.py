@@ -8,6 +8,7 @@ are here; robots in their own OS processes are in :mod:`btcap.sim.distributed`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from contextlib import AsyncExitStack
 from typing import Any, Protocol
 
@@ -120,6 +121,8 @@ class InProcessHost:
         self._stop: dict[str, anyio.Event] = {}
         self._gone: dict[str, anyio.Event] = {}
         self._up: set[str] = set()
+        #: Told of every robot's agent when it starts; returns what to undo before it stops.
+        self.on_agent: Callable[[Agent], Callable[[], None]] | None = None
 
     async def __aenter__(self) -> InProcessHost:
         self._tg = await self._stack.enter_async_context(anyio.create_task_group())
@@ -158,12 +161,15 @@ class InProcessHost:
                 registry=self.reg,
                 implementations=setup.implementations,
                 actors=setup.actors,
-            ):
+            ) as agent:
+                undo = self.on_agent(agent) if self.on_agent is not None else None
                 self._up.add(name)
                 try:
                     await stop.wait()
                 finally:
                     self._up.discard(name)
+                    if undo is not None:
+                        undo()
         except Exception as exc:
             record_error(self.errors, self.clock.now(), name, exc)
         finally:

@@ -19,6 +19,7 @@ import numpy as np
 from btcap import State, Tree
 from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
 from btcap.bt.state import DONE
+from btcap.monitor import Monitor
 from btcap.sim.grid import GridMap
 from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
@@ -71,6 +72,7 @@ async def run_scenario(
     clock: TimeSource | None = None,
     host: HostFactory | None = None,
     stop: anyio.Event | None = None,
+    monitor: Monitor | None = None,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
@@ -82,6 +84,10 @@ async def run_scenario(
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`). A robot that crashes is logged, taken out
     of the simulation and listed in the result's ``errors``; the mission goes on.
+
+    A ``monitor`` is shown the operator (its membership view), the mission tree and every
+    robot hosted in this process; it is detached when the mission ends, so it keeps the
+    last states rather than the shutdown.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -103,6 +109,8 @@ async def run_scenario(
         ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as simsys,
     ):
         simsys.spawn(manager, SimulationManager.PATH)
+        if monitor is not None and isinstance(robots, InProcessHost):
+            robots.on_agent = monitor.add_agent
         simsys.spawn(ObjectStore(state), ObjectStore.PATH)
         async with Agent(
             "operator",
@@ -111,6 +119,8 @@ async def run_scenario(
             config=cfg,
             registry=reg,
         ) as operator:
+            if monitor is not None:
+                monitor.add_agent(operator)
             operator.team.subscribe(lambda ev, robot: mlog.mark(clock.now(), ev.value, robot))
 
             def verdict(ev: TeamEvent, robot: str) -> None:
@@ -159,6 +169,8 @@ async def run_scenario(
             tree = mission_tree(object_workers=s.object_workers)
             operator.mission(tree)
             tree.observe(mlog)
+            if monitor is not None:
+                monitor.add_tree(tree, robot="operator")
             started = clock.now()
             ev_task = simsys.start_task(events(), name="scenario events")
             watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
@@ -183,6 +195,8 @@ async def run_scenario(
                 final,
                 interrupted=stop.is_set() and final not in DONE,
             )
+            if monitor is not None:
+                monitor.detach()
             await tree.shutdown()
     return result
 

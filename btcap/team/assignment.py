@@ -34,6 +34,7 @@ __all__ = [
     "Assigned",
     "AssignmentStrategy",
     "AssignmentTask",
+    "AuctionRecord",
     "AuctionStats",
     "SingleItemAuction",
     "Unassigned",
@@ -75,6 +76,24 @@ class Unassigned:
     """Nobody took the task, and why, robot by robot (for the log and the user)."""
 
     reasons: Mapping[str, str]
+
+
+@dataclass(frozen=True, slots=True)
+class AuctionRecord:
+    """An auction as a watcher sees it: reported once when it opens (``outcome`` and
+    ``result`` None) and once when it ends (both set, or ``outcome`` None if it was
+    cancelled while open)."""
+
+    id: AuctionId
+    task: AssignmentTask
+    opened: float
+    closed: float | None = None
+    outcome: AuctionOutcome | None = None
+    result: Assigned | Unassigned | None = None
+
+
+#: Called with every :class:`AuctionRecord` an auctioneer reports.
+AuctionWatcher = Callable[[AuctionRecord], None]
 
 
 @dataclass(slots=True)
@@ -192,6 +211,20 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         self.outcomes: deque[AuctionOutcome] = deque(maxlen=64)
         self._ids = itertools.count(1)
         self._unsubscribe: Callable[[], None] | None = None
+        self._watchers: list[AuctionWatcher] = []
+
+    def watch(self, watcher: AuctionWatcher) -> Callable[[], None]:
+        """Report every auction to ``watcher`` as it opens and ends (for monitors);
+        returns an unsubscribe. A watcher that raises is logged and skipped."""
+        self._watchers.append(watcher)
+        return lambda: self._watchers.remove(watcher) if watcher in self._watchers else None
+
+    def _report(self, record: AuctionRecord) -> None:
+        for watcher in list(self._watchers):
+            try:
+                watcher(record)
+            except Exception as exc:
+                log.error("auction.watcher_failed", robot=self.robot, exc_info=exc)
 
     def on_start(self) -> None:
         team = self.system.lookup(Membership.PATH)
@@ -219,6 +252,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         done = asyncio.Event()
         self._open[auction_id] = (auction, done)
         self.stats.auctions += 1
+        opened = AuctionRecord(auction_id, task, clock.now())
+        if self._watchers:
+            self._report(opened)
         try:
             cfb = CallForBids(
                 auction_id, task.interface, task.identity, dict(task.inputs), task.holder
@@ -230,6 +266,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         except BaseException:
             del self._open[auction_id]
             self._next_turn()  # others may have waited for this one
+            if self._watchers:
+                self._report(dataclasses.replace(opened, closed=clock.now()))
             raise
         if auction.answered_all:
             self.stats.early_closes += 1
@@ -241,6 +279,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         # auction never takes its turn while a competitor is between the two.
         del self._open[auction_id]
         self._closed.append(mine)
+        won: Assigned | Unassigned | None = None
         try:
             self._next_turn()
             await mine.turn.wait()
@@ -249,6 +288,9 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 self._taken.add(won.robot)
             return won
         finally:
+            if self._watchers:  # ``won`` None: cancelled while awarding
+                end = dataclasses.replace(opened, task=task, closed=clock.now(), result=won)
+                self._report(dataclasses.replace(end, outcome=outcome))
             if mine in self._closed:
                 self._closed.remove(mine)
             if self._awarding is mine:

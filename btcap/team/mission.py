@@ -98,6 +98,14 @@ class MissionControl(Actor):
         self.active: dict[ExecutionId, Handle] = self.origin_side.active
         self._reevaluation = Reevaluation(self.origin_side)
         self._unsubscribe: list[Callable[[], None]] = []
+        self._lost_watchers: list[Callable[[Lost], None]] = []
+
+    def watch_lost(self, watcher: Callable[[Lost], None]) -> Callable[[], None]:
+        """Tell ``watcher`` why each execution of this robot's nodes was lost (a monitor
+        shows it as the reason of the re-auction that follows); returns an unsubscribe."""
+        self._lost_watchers.append(watcher)
+        w = self._lost_watchers
+        return lambda: w.remove(watcher) if watcher in w else None
 
     def _now(self) -> float:
         return self.system.clock.now()
@@ -202,6 +210,8 @@ class MissionControl(Actor):
             self.stats.lost += 1
             where = {"execution": str(e.execution), "executor": e.executor}
             log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
+            for watcher in list(self._lost_watchers):
+                watcher(e)
         elif isinstance(e, Drop):
             self.executor.drop(e)
         elif isinstance(e, Pause):

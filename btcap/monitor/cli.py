@@ -1,0 +1,87 @@
+"""``btcap replay FILE``: a recording on the monitor's page; ``--monitor`` parsing."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+from pathlib import Path
+
+from btcap.cli import CliError
+from btcap.monitor.record import RecordError
+from btcap.monitor.replay import Replay
+from btcap.monitor.server import MonitorServer
+
+__all__ = ["DEFAULT_PORT", "add_monitor_option", "add_parser", "parse_address"]
+
+DEFAULT_PORT = 8765
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` (``[::1]:PORT`` for IPv6) as (host, port); host defaults to
+    loopback. Refused with a message naming the value."""
+    host, _, port = text.rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        number = int(port)
+    except ValueError:
+        number = -1
+    if not 0 <= number <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected [HOST:]PORT, a port 0-65535")
+    return host, number
+
+
+def add_monitor_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--monitor",
+        type=parse_address,
+        metavar="[HOST:]PORT",
+        help="serve the live monitor page (loopback unless HOST is given; 0: a free port)",
+    )
+
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "replay",
+        help="replay a recorded run on the monitor page",
+        description="Serve a recording (btcap run writes monitor.jsonl into its output "
+        "folder; --record FILE elsewhere) on the monitor page, with play, pause and seek.",
+    )
+    p.add_argument("file", type=Path, metavar="FILE", help="a recording (JSON Lines)")
+    p.add_argument(
+        "--monitor",
+        type=parse_address,
+        default=("127.0.0.1", DEFAULT_PORT),
+        metavar="[HOST:]PORT",
+        help=f"where to serve the page (default 127.0.0.1:{DEFAULT_PORT})",
+    )
+    p.add_argument("--speed", type=float, help="clock seconds per wall second")
+    p.add_argument("--paused", action="store_true", help="start paused at the beginning")
+    p.set_defaults(handler=replay_command)
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    try:
+        replay = Replay.open(args.file, speed=args.speed)
+    except (RecordError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    replay.playing = not args.paused
+    host, port = args.monitor
+    with contextlib.suppress(KeyboardInterrupt):
+        asyncio.run(_serve(replay, host, port))
+    return 0
+
+
+async def _serve(replay: Replay, host: str, port: int) -> None:
+    server = MonitorServer(replay, host, port)
+    try:
+        await server.start()
+    except OSError as exc:
+        raise CliError(str(exc)) from None
+    print(f"replaying {replay.title} ({replay.end - replay.start:.0f} s) on {server.url}")
+    print("press Ctrl-C to stop", flush=True)
+    try:
+        async with replay:
+            await asyncio.Event().wait()
+    finally:
+        await server.stop()

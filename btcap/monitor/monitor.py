@@ -1,0 +1,309 @@
+"""The live monitor: attach it to your robots' agents and trees, open its page.
+
+::
+
+    async with Monitor(port=8765, record="run.jsonl") as monitor:
+        monitor.add_agent(agent)            # its host tree, team view and auctions
+        monitor.add_tree(mission, robot=agent.robot)
+        ...                                 # http://127.0.0.1:8765/
+
+Changes are collected as they happen and handed on in batches, at most ``batch_hz``
+times a second (wall time), to the picture (:class:`~btcap.monitor.view.TeamView`), the
+recording and every connected page. The page is read-only: it cannot change a robot.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+from collections.abc import Callable
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
+
+from btcap.bt.tree import Tree
+from btcap.monitor.hub import Hub
+from btcap.monitor.record import Recorder
+from btcap.monitor.taps import TreeTap
+from btcap.monitor.view import Event, TeamView
+from btcap.team.agent import Agent
+from btcap.team.assignment import Assigned, AuctionRecord, SingleItemAuction
+from btcap.team.core.effects import Lost
+from btcap.team.membership import TeamEvent
+from btcap.transports.log import get_logger
+
+if TYPE_CHECKING:
+    from btcap.monitor.server import MonitorServer
+
+__all__ = ["Monitor"]
+
+log = get_logger("btcap.monitor")
+
+_STATUS = {TeamEvent.JOINED: "joined", TeamEvent.LEFT: "left", TeamEvent.FAILED: "failed"}
+
+
+class Monitor:
+    """Watches robots' trees, membership and auctions; serves and/or records them.
+
+    ``port`` None serves nothing (record only); 0 picks a free port (see :attr:`url`).
+    ``host`` is loopback unless you say otherwise: the page shows your whole team.
+    """
+
+    def __init__(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int | None = 0,
+        record: str | Path | None = None,
+        batch_hz: float = 20.0,
+        title: str = "btcap team",
+        viewpoint: str | None = None,
+    ) -> None:
+        if not 0 < batch_hz <= 20:
+            raise ValueError(f"batch_hz {batch_hz}: expected a rate in (0, 20] per second")
+        self.view = TeamView()
+        self.batch_s = 1.0 / batch_hz
+        self.title = title
+        self.viewpoint = viewpoint
+        self._hub = Hub()
+        self._address = (host, port)
+        self._server: MonitorServer | None = None
+        self._recorder = Recorder(Path(record)) if record is not None else None
+        self._pending: list[Event] = []
+        self._taps: list[TreeTap] = []
+        self._status: dict[str, str] = {}
+        self._last_join: tuple[float, str] | None = None
+        self._lost: dict[str, str] = {}  # execution -> why it was lost
+        self._ended: dict[str, tuple[str, str | None]] = {}  # node -> (result, why)
+        self._asked: dict[str, float] = {}  # node -> when its last auction opened
+        self._detach: list[Callable[[], None]] = []
+        self._task: asyncio.Task[None] | None = None
+        if port is not None and not _loopback(host):
+            log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
+
+    # -- life cycle -------------------------------------------------------------------
+    async def start(self) -> None:
+        host, port = self._address
+        if port is not None:
+            from btcap.monitor.server import MonitorServer  # aiohttp only when serving
+
+            self._server = MonitorServer(self, host, port)
+            await self._server.start()
+        self._task = asyncio.get_running_loop().create_task(self._flusher(), name="monitor")
+
+    def detach(self) -> None:
+        """Stop watching (the picture and the page stay, e.g. a finished mission's last
+        states rather than its shutdown)."""
+        for detach in reversed(self._detach):
+            detach()
+        self._detach.clear()
+        self.flush()
+
+    async def stop(self) -> None:
+        """Detach from everything, hand on the last changes, close the page and the file."""
+        self.detach()
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        self.flush()
+        if self._server is not None:
+            await self._server.stop()
+        if self._recorder is not None:
+            self._recorder.close()
+
+    async def __aenter__(self) -> Monitor:
+        await self.start()
+        return self
+
+    async def __aexit__(
+        self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        await self.stop()
+
+    @property
+    def url(self) -> str:
+        """Where the page is served (after :meth:`start`)."""
+        if self._server is None:
+            raise RuntimeError("this monitor serves no page (port=None, or not started)")
+        return self._server.url
+
+    # -- what it watches --------------------------------------------------------------
+    def add_tree(self, tree: Tree, *, robot: str) -> Callable[[], None]:
+        """Show ``tree`` as one of ``robot``'s trees; returns a detach (state kept)."""
+        self._robot(robot, tree.clock.now())
+        names = {t.name for t in self._taps if t.robot == robot}
+        name, k = tree.name, 1
+        while name in names:
+            k += 1
+            name = f"{tree.name}~{k}"
+        tap = TreeTap(tree, robot, name, self.emit, self._run_ended)
+        self._taps.append(tap)
+        self.emit(tap.structure())
+
+        def detach() -> None:
+            if tap in self._taps:
+                self._flush_tap(tap)
+                tap.close()
+                self._taps.remove(tap)
+
+        self._detach.append(detach)
+        return detach
+
+    def add_agent(self, agent: Agent) -> Callable[[], None]:
+        """Show a robot: its host tree (with the capability runs it hosts), the auctions
+        it holds and why its capabilities lost their executors. Membership is as the
+        ``viewpoint`` robot sees it (by default the first agent added). Add its mission
+        trees with :meth:`add_tree`. Returns a detach."""
+        robot, now, clock = agent.robot, agent.clock.now(), agent.clock
+        self._robot(robot, now)
+        undo = [
+            self.add_tree(agent.host, robot=robot),
+            agent.mission_control.watch_lost(self._on_lost),
+        ]
+        if isinstance(agent.auctioneer, SingleItemAuction):  # other strategies hold none
+            undo.append(agent.auctioneer.watch(self._on_auction))
+        if self.viewpoint is None:
+            self.viewpoint = robot
+        if robot == self.viewpoint:  # robots may disagree (one cut off sees all others fail)
+            self._team(robot, "joined", now)
+            undo.append(agent.team.subscribe(lambda ev, who: self._on_team(ev, who, clock.now())))
+
+        def detach() -> None:
+            for u in undo:
+                u()
+
+        self._detach.append(detach)
+        return detach
+
+    # -- events -----------------------------------------------------------------------
+    def emit(self, ev: Event) -> None:
+        """Queue an event for the next batch."""
+        self._pending.append(ev)
+
+    def _robot(self, robot: str, now: float) -> None:
+        if robot not in self._status:
+            self._status[robot] = "seen"
+            self.emit({"t": now, "k": "robot", "robot": robot})
+
+    def _team(self, robot: str, change: str, now: float) -> None:
+        self._robot(robot, now)
+        if self._status[robot] != change:  # every robot reports each change: say it once
+            self._status[robot] = change
+            self.emit({"t": now, "k": "team", "robot": robot, "change": change})
+            if change == "joined":
+                self._last_join = (now, robot)
+
+    def _on_team(self, ev: TeamEvent, robot: str, now: float) -> None:
+        change = _STATUS.get(ev)
+        if change is not None:
+            self._team(robot, change, now)
+
+    def _on_lost(self, lost: Lost) -> None:
+        self._lost[str(lost.execution)] = f"{lost.executor}: {lost.why}"
+
+    def _run_ended(self, execution: str, result: str) -> str | None:
+        why = self._lost.pop(execution, None)
+        node = execution.rsplit("#", 1)[0]
+        self._ended[node] = (result, why)
+        return why
+
+    def _on_auction(self, rec: AuctionRecord) -> None:
+        task = rec.task
+        node = f"{task.execution.origin}:{task.execution.node}"
+        base = {"k": "auction", "id": str(rec.id), "execution": str(task.execution)}
+        if rec.closed is None:
+            self.emit(
+                {
+                    **base,
+                    "t": rec.opened,
+                    "phase": "open",
+                    "auctioneer": rec.id.auctioneer,
+                    "capability": task.interface,
+                    "node": node,
+                    "candidates": sorted(task.candidates),
+                    "why": self._why(task.holder_robot, node, rec.opened),
+                }
+            )
+            return
+        out, won = rec.outcome, rec.result
+        reasons = {} if won is None or isinstance(won, Assigned) else dict(won.reasons)
+        self.emit(
+            {
+                **base,
+                "t": rec.closed,
+                "phase": "close",
+                "bids": [[b.robot, b.cost] for b in out.ranking] if out is not None else [],
+                "declined": dict(out.declined) if out is not None else {},
+                "reasons": reasons if won is not None else {"auctioneer": "cancelled"},
+                "winner": won.robot if isinstance(won, Assigned) else None,
+            }
+        )
+        if not isinstance(won, Assigned):
+            self._ended[node] = ("unassigned", None)
+
+    def _why(self, holder: str | None, node: str, now: float) -> str:
+        """Why this auction for ``node`` is held: the first one, a re-auction after its
+        executor was lost (failure, lease lapse), a retry, or a re-evaluation."""
+        last = self._ended.pop(node, None)
+        before, self._asked[node] = self._asked.get(node), now
+        if holder is not None:
+            join = self._last_join
+            if join is not None and (before is None or join[0] >= before):
+                return f"re-evaluation: {join[1]} joined; {holder} runs it"
+            return f"re-evaluation: may move from {holder}"
+        if last is None:
+            return "first request"
+        result, why = last
+        if result == "lost":
+            return f"re-auction: executor lost ({why})" if why else "re-auction: executor lost"
+        if result == "unassigned":
+            return "retry: nobody took it last time"
+        return f"new run (the last one {result})"
+
+    # -- batching ---------------------------------------------------------------------
+    def _flush_tap(self, tap: TreeTap) -> None:
+        ev = tap.flush()
+        if ev is not None:
+            self._pending.append(ev)
+
+    def flush(self) -> list[Event]:
+        """Hand every change since the last flush on, as one batch; returns it."""
+        for tap in self._taps:
+            self._flush_tap(tap)
+        batch, self._pending = self._pending, []
+        if not batch:
+            return batch
+        for ev in batch:
+            self.view.apply(ev)
+        if self._recorder is not None:
+            self._recorder.write(batch)
+        self._hub.publish(batch)
+        return batch
+
+    async def _flusher(self) -> None:
+        while True:
+            await asyncio.sleep(self.batch_s)
+            try:
+                self.flush()
+            except Exception as exc:  # a bad event must not end monitoring
+                log.error("monitor.flush_failed", exc_info=exc)
+
+    # -- for the server ---------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        return {**self.view.snapshot(), "mode": "live", "title": self.title}
+
+    @property
+    def hub(self) -> Hub:
+        return self._hub
+
+
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False

@@ -1,0 +1,77 @@
+"""Recordings: a monitor's events as JSON Lines, one event a line after a header line.
+
+The file is flushed after every batch, so a run that crashes leaves a recording up to
+its last batch; :func:`read_record` reads it back for a replay or a plot.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+from btcap.monitor.view import Event
+
+__all__ = ["FORMAT", "RecordError", "Recorder", "read_record"]
+
+FORMAT = "btcap-monitor"
+VERSION = 1
+
+_decode = msgspec.json.Decoder(dict[str, Any])
+_encode = msgspec.json.Encoder()
+
+
+class RecordError(ValueError):
+    """A recording cannot be read: the message names the file and line."""
+
+
+class Recorder:
+    """Appends batches of events to ``path`` (created with its folder, or replaced)."""
+
+    def __init__(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self._file = path.open("wb")
+        self._file.write(_encode.encode({"format": FORMAT, "version": VERSION}) + b"\n")
+
+    def write(self, batch: list[Event]) -> None:
+        if self._file.closed:
+            return
+        self._file.write(b"".join(_encode.encode(ev) + b"\n" for ev in batch))
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def read_record(path: str | Path) -> list[Event]:
+    """The events of a recording, in order; a bad file is refused naming the line."""
+    path = Path(path)
+    try:
+        lines = path.read_bytes().splitlines()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    if not lines:
+        raise RecordError(f"{path}: empty file, not a btcap recording")
+    events: list[Event] = []
+    for number, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            obj = _decode.decode(line)
+        except msgspec.DecodeError as exc:
+            if number == len(lines):  # the last line of a run that was killed mid-write
+                break
+            raise RecordError(f"{path}:{number}: not a JSON object ({exc})") from None
+        if number == 1:
+            if obj.get("format") != FORMAT:
+                raise RecordError(f"{path}:1: not a btcap recording (no {FORMAT!r} header)")
+            if obj.get("version") != VERSION:
+                raise RecordError(f"{path}:1: recording version {obj.get('version')!r}, "
+                                  f"this btcap reads version {VERSION}")  # fmt: skip
+            continue
+        if not isinstance(obj.get("t"), int | float) or not isinstance(obj.get("k"), str):
+            raise RecordError(f"{path}:{number}: an event needs a time 't' and a kind 'k'")
+        events.append(obj)
+    return events

@@ -1,0 +1,130 @@
+"""The monitor's web server (aiohttp): the page, ``/api/state`` and a WebSocket stream
+(see :mod:`btcap.monitor.hub` for what it carries). Messages from a page are ignored,
+except a replay's play/pause/seek: nothing on the page can change a robot.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import socket
+from collections.abc import Awaitable, Callable
+from importlib.resources import files
+from pathlib import Path
+from typing import Any, Protocol
+
+import msgspec
+from aiohttp import WSMsgType, web
+
+from btcap.monitor.hub import Hub
+from btcap.transports.log import get_logger
+
+__all__ = ["MonitorServer", "Source"]
+
+log = get_logger("btcap.monitor")
+
+STATIC = Path(str(files("btcap.monitor") / "static"))
+#: Nothing is loaded from anywhere but this server.
+CSP = "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'"
+
+_encode = msgspec.json.Encoder()
+
+
+class Source(Protocol):
+    """What the server shows: a live monitor or a replay."""
+
+    title: str
+
+    def snapshot(self) -> dict[str, Any]: ...
+
+    @property
+    def hub(self) -> Hub: ...
+
+
+class MonitorServer:
+    """Serves one :class:`Source` on ``host:port`` (0: a free port) until stopped."""
+
+    def __init__(self, source: Source, host: str, port: int) -> None:
+        self.source = source
+        self.host, self.port = host, port
+        source.hub.snapshot = source.snapshot
+        self._runner: web.AppRunner | None = None
+        self._sockets: set[web.WebSocketResponse] = set()
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    async def start(self) -> None:
+        app = web.Application(middlewares=[_headers])
+        app.router.add_get("/", self._index)
+        app.router.add_get("/api/state", self._state)
+        app.router.add_get("/ws", self._ws)
+        app.router.add_static("/static/", STATIC)
+        family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
+        sock = socket.socket(family, socket.SOCK_STREAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind((self.host, self.port))
+        except OSError as exc:
+            sock.close()
+            raise OSError(exc.errno, f"monitor: cannot listen on {self.host}:{self.port}: "
+                                     f"{exc.strerror}") from None  # fmt: skip
+        self.port = sock.getsockname()[1]
+        self._runner = web.AppRunner(app, access_log=None)
+        await self._runner.setup()
+        await web.SockSite(self._runner, sock).start()
+        log.info("monitor.serving", url=self.url)
+
+    async def stop(self) -> None:
+        for ws in list(self._sockets):
+            await ws.close()
+        if self._runner is not None:
+            await self._runner.cleanup()
+            self._runner = None
+
+    async def _index(self, _request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(STATIC / "index.html")
+
+    async def _state(self, _request: web.Request) -> web.Response:
+        return web.Response(body=_encode.encode(self.source.snapshot()),
+                            content_type="application/json")  # fmt: skip
+
+    async def _ws(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=20.0)
+        await ws.prepare(request)
+        hub = self.source.hub
+        q = hub.join()
+        self._sockets.add(ws)
+        sender = asyncio.get_running_loop().create_task(_pump(q, ws), name="monitor client")
+        try:
+            async for msg in ws:
+                control = getattr(self.source, "control", None)
+                if msg.type == WSMsgType.TEXT and control is not None:
+                    with contextlib.suppress(ValueError, TypeError, KeyError):
+                        control(msgspec.json.decode(msg.data))
+        finally:
+            hub.leave(q)
+            self._sockets.discard(ws)
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await sender
+        return ws
+
+
+async def _pump(q: asyncio.Queue[bytes], ws: web.WebSocketResponse) -> None:
+    with contextlib.suppress(ConnectionError, RuntimeError):
+        while True:
+            await ws.send_str((await q.get()).decode())
+
+
+@web.middleware
+async def _headers(
+    request: web.Request, handler: Callable[[web.Request], Awaitable[web.StreamResponse]]
+) -> web.StreamResponse:
+    response = await handler(request)
+    response.headers["Content-Security-Policy"] = CSP
+    response.headers["X-Content-Type-Options"] = "nosniff"
+    response.headers["Cache-Control"] = "no-store"
+    return response

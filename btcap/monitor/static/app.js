@@ -1,0 +1,352 @@
+// btcap monitor page: applies the server's events to the picture and draws it.
+// `apply` mirrors btcap/monitor/view.py (TeamView.apply): keep the two in step.
+"use strict";
+
+const MAX_RUNS = 2000, MAX_AUCTIONS = 200, MAX_MARKS = 500;
+const ACTIVE = new Set(["running", "assigned", "unassigned"]);
+const STATES = ["idle", "running", "succeeded", "failed", "error", "unassigned", "assigned",
+  "paused", "shutdown"];
+const FILL = { idle: "#dfe3e8", running: "#f5b942", succeeded: "#4bb982", failed: "#e05a5a",
+  error: "#9b2c4a", unassigned: "#b29cf7", assigned: "#5cc3ee", paused: "#f7e3a1",
+  shutdown: "#f4f5f7", uninitialized: "#f4f5f7" };
+const PALETTE = ["#5cc3ee", "#f5b942", "#8fd694", "#c39bd3", "#f1948a", "#76d7c4", "#f8c471",
+  "#aab7f5", "#e6b0aa", "#a9cce3"];
+
+let S = null;            // the picture
+let dirty = false;
+let ws = null;
+const capColour = new Map();
+
+function fromSnapshot(snap) {
+  const runs = new Map(snap.runs.map((r) => [r.execution, r]));
+  const auctions = new Map(snap.auctions.map((a) => [a.id, a]));
+  return { ...snap, runs, auctions };
+}
+
+function robot(name) {
+  if (!S.robots[name]) S.robots[name] = { status: "seen", trees: {} };
+  return S.robots[name];
+}
+
+function trim(map, max) {
+  while (map.size > max) map.delete(map.keys().next().value);
+}
+
+function apply(ev) {
+  S.t = Math.max(S.t, ev.t);
+  switch (ev.k) {
+    case "robot": robot(ev.robot); break;
+    case "tree": robot(ev.robot).trees[ev.tree] = { nodes: ev.nodes.map((n) => ({ ...n })) }; break;
+    case "states": {
+      const tree = robot(ev.robot).trees[ev.tree];
+      if (tree) for (const n of tree.nodes) if (n.id in ev.states) n.state = ev.states[n.id];
+      break;
+    }
+    case "team":
+      robot(ev.robot).status = ev.change;
+      S.marks.push({ t: ev.t, robot: ev.robot, change: ev.change });
+      if (S.marks.length > MAX_MARKS) S.marks.splice(0, S.marks.length - MAX_MARKS);
+      break;
+    case "run":
+      if (ev.phase === "start") {
+        robot(ev.robot);
+        S.runs.set(ev.execution, { execution: ev.execution, robot: ev.robot, origin: ev.origin,
+          node: ev.node, capability: ev.capability, start: ev.t, end: null, result: null,
+          why: null });
+        trim(S.runs, MAX_RUNS);
+      } else if (S.runs.has(ev.execution)) {
+        Object.assign(S.runs.get(ev.execution), { end: ev.t, result: ev.result, why: ev.why ?? null });
+      }
+      break;
+    case "auction":
+      if (ev.phase === "open") {
+        S.auctions.set(ev.id, { id: ev.id, auctioneer: ev.auctioneer, capability: ev.capability,
+          node: ev.node, execution: ev.execution, candidates: ev.candidates, why: ev.why,
+          opened: ev.t, closed: null, bids: [], declined: {}, reasons: {}, winner: null });
+        trim(S.auctions, MAX_AUCTIONS);
+      } else if (S.auctions.has(ev.id)) {
+        Object.assign(S.auctions.get(ev.id), { closed: ev.t, bids: ev.bids, declined: ev.declined,
+          reasons: ev.reasons, winner: ev.winner });
+      }
+      break;
+    case "clock":
+      if (S.replay) Object.assign(S.replay, { t: ev.t, playing: ev.playing, speed: ev.speed });
+      break;
+  }
+}
+
+// -- drawing helpers ----------------------------------------------------------------------
+const SVGNS = "http://www.w3.org/2000/svg";
+function el(tag, attrs = {}, ...kids) {
+  const e = tag.startsWith("svg:") ? document.createElementNS(SVGNS, tag.slice(4))
+    : document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (v === null || v === undefined || v === false) continue;
+    if (k === "text") e.textContent = v; else e.setAttribute(k, v);
+  }
+  for (const k of kids) if (k) e.append(k);
+  return e;
+}
+const fmt = (t) => (t >= 100 ? t.toFixed(0) : t.toFixed(1));
+function colourOf(cap) {
+  if (!capColour.has(cap)) capColour.set(cap, PALETTE[capColour.size % PALETTE.length]);
+  return capColour.get(cap);
+}
+function fit(text, px, charPx = 6.2) {
+  const n = Math.floor(px / charPx);
+  return text.length <= n ? text : n > 2 ? text.slice(0, n - 1) + "…" : "";
+}
+function robotNames() {
+  const names = Object.keys(S.robots);
+  const lane = (n) => (Object.keys(S.robots[n].trees).some((t) => !t.endsWith("-host")) ? 1 : 0);
+  return names.sort((a, b) => lane(a) - lane(b) || a.localeCompare(b));
+}
+
+// -- robots ---------------------------------------------------------------------------------
+function drawTeam() {
+  const box = document.getElementById("team");
+  box.replaceChildren();
+  for (const name of robotNames()) {
+    const r = S.robots[name];
+    const runs = [...S.runs.values()];
+    const hosts = runs.filter((x) => x.robot === name && x.end === null);
+    const mine = runs.filter((x) => x.origin === name && x.end === null);
+    const done = runs.filter((x) => x.robot === name && x.result === "succeeded").length;
+    const card = el("div", { class: `card ${r.status}`, "data-robot": name },
+      el("h3", {}, el("span", { text: name }), el("span", { class: "badge", text: r.status })));
+    const hosting = hosts.map((x) => `${x.capability} for ${x.origin}`).join(", ");
+    const missions = Object.entries(r.trees).filter(([t]) => !t.endsWith("-host"));
+    for (const [t, tree] of missions) {
+      const root = tree.nodes.find((n) => n.parent === null);
+      card.append(el("div", { class: "row" }, "mission ", el("b", { text: t }),
+        ` · ${root ? root.state : "empty"}`));
+    }
+    if (!missions.length || hosting) {
+      card.append(el("div", { class: "row" }, "runs ", el("b", { text: hosting || "nothing" })));
+    }
+    if (mine.length) {
+      const where = mine.map((x) => `${x.capability} → ${x.robot}`).join(", ");
+      card.append(el("div", { class: "row" }, "its capabilities: ", el("b", { text: where })));
+    }
+    if (!missions.length) card.append(el("div", { class: "row", text: `${done} runs succeeded` }));
+    box.append(card);
+  }
+}
+
+// -- timeline -------------------------------------------------------------------------------
+function drawTimeline() {
+  const box = document.getElementById("timeline");
+  const names = robotNames().filter((n) => !isOperator(n));
+  const width = Math.max(500, box.clientWidth || 900);
+  const laneH = 24, top = 18, left = 78, right = 10;
+  const runs = [...S.runs.values()];
+  const t0 = Math.min(S.t, ...runs.map((r) => r.start), ...S.marks.map((m) => m.t));
+  const t1 = Math.max(S.t, t0 + 1);
+  const x = (t) => left + ((t - t0) / (t1 - t0)) * (width - left - right);
+  const svg = el("svg:svg", { width, height: top + laneH * Math.max(1, names.length) + 4 });
+  const step = niceStep((t1 - t0) / 8);
+  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) {
+    svg.append(el("svg:line", { x1: x(t), x2: x(t), y1: top - 4, y2: top + laneH * names.length,
+      class: "grid" }));
+    svg.append(el("svg:text", { x: x(t), y: 11, class: "axis", "text-anchor": "middle",
+      text: `${fmt(t)} s` }));
+  }
+  names.forEach((name, i) => {
+    const y = top + i * laneH;
+    const g = el("svg:g", { class: "lane", "data-robot": name });
+    g.append(el("svg:rect", { x: left, y: y + 1, width: width - left - right, height: laneH - 2,
+      class: "lane-bg" }));
+    g.append(el("svg:text", { x: 4, y: y + laneH / 2 + 4, class: "lane-label", text: name }));
+    for (const r of runs.filter((r) => r.robot === name)) {
+      const a = x(r.start), b = x(r.end ?? S.t), w = Math.max(2, b - a);
+      const bad = r.result && r.result !== "succeeded";
+      const bar = el("svg:rect", { x: a, y: y + 4, width: w, height: laneH - 8, rx: 2,
+        fill: colourOf(r.capability), class: bad ? "bar bad" : "bar" });
+      bar.append(el("svg:title", { text: `${r.capability} for ${r.origin} (${r.node})\n` +
+        `${fmt(r.start)}–${r.end === null ? "now" : fmt(r.end)} s: ${r.result ?? "running"}` +
+        (r.why ? `\n${r.why}` : "") }));
+      g.append(bar);
+      const label = fit(r.capability, w - 4);
+      if (label) g.append(el("svg:text", { x: a + 3, y: y + laneH / 2 + 3.5, class: "bar-label",
+        text: label }));
+    }
+    for (const m of S.marks.filter((m) => m.robot === name)) {
+      const sym = { joined: "▲", failed: "✕", left: "▽" }[m.change] ?? "•";
+      const fill = { joined: "#1f8f5a", failed: "#c0392b", left: "#6b7785" }[m.change];
+      g.append(el("svg:text", { x: x(m.t), y: y + laneH / 2 + 4, "text-anchor": "middle",
+        fill, "font-size": 12, text: sym }, el("svg:title", { text: `${name} ${m.change} at ${fmt(m.t)} s` })));
+    }
+    svg.append(g);
+  });
+  svg.append(el("svg:line", { x1: x(S.t), x2: x(S.t), y1: top - 4,
+    y2: top + laneH * names.length, class: "now" }));
+  box.replaceChildren(svg);
+}
+function niceStep(raw) {
+  const p = 10 ** Math.floor(Math.log10(Math.max(raw, 1e-6)));
+  return [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw) ?? 10 * p;
+}
+function isOperator(name) {
+  const r = S.robots[name];
+  const hosts = [...S.runs.values()].some((x) => x.robot === name);
+  return !hosts && Object.keys(r.trees).some((t) => !t.endsWith("-host"));
+}
+
+// -- trees ----------------------------------------------------------------------------------
+const NODE_W = 118, NODE_H = 32, GAP_X = 10, GAP_Y = 22;
+function layout(nodes) {
+  const kids = new Map(nodes.map((n) => [n.id, []]));
+  const roots = [];
+  for (const n of nodes) (n.parent !== null && kids.has(n.parent) ? kids.get(n.parent) : roots).push(n);
+  const pos = new Map();
+  let next = 0, depth = 0;
+  const place = (n, d) => {
+    depth = Math.max(depth, d);
+    const ch = kids.get(n.id);
+    if (!ch.length) { pos.set(n.id, { x: next++, d }); return; }
+    ch.forEach((c) => place(c, d + 1));
+    pos.set(n.id, { x: (pos.get(ch[0].id).x + pos.get(ch[ch.length - 1].id).x) / 2, d });
+  };
+  roots.forEach((r) => place(r, 0));
+  return { pos, kids, cols: Math.max(next, 1), rows: depth + 1 };
+}
+function drawTree(robotName, treeName, tree) {
+  const { pos, cols, rows } = layout(tree.nodes);
+  const w = cols * (NODE_W + GAP_X) + GAP_X, h = rows * (NODE_H + GAP_Y) + 6;
+  const room = Math.max(300, document.getElementById("trees").clientWidth - 4);
+  const k = w > room && room / w >= 0.6 ? room / w : 1;  // shrink a little, else scroll
+  const svg = el("svg:svg", { width: w * k, height: h * k, viewBox: `0 0 ${w} ${h}`,
+    "data-tree": treeName });
+  const at = (id) => { const p = pos.get(id); return { x: GAP_X + p.x * (NODE_W + GAP_X), y: 4 + p.d * (NODE_H + GAP_Y) }; };
+  const byId = new Map(tree.nodes.map((n) => [n.id, n]));
+  const running = new Map();
+  for (const r of S.runs.values()) if (r.end === null) running.set(r.node, r.robot);
+  for (const n of tree.nodes) {
+    if (n.parent === null || !byId.has(n.parent)) continue;
+    const a = at(n.parent), b = at(n.id);
+    const active = ACTIVE.has(n.state) && ACTIVE.has(byId.get(n.parent).state);
+    const my = (a.y + NODE_H + b.y) / 2;
+    svg.append(el("svg:path", { class: active ? "edge active" : "edge",
+      d: `M${a.x + NODE_W / 2},${a.y + NODE_H} V${my} H${b.x + NODE_W / 2} V${b.y}` }));
+  }
+  for (const n of tree.nodes) {
+    const p = at(n.id);
+    const cls = `node${n.cap ? " cap" : ""}${ACTIVE.has(n.state) ? " active" : ""}`;
+    const g = el("svg:g", { class: cls, "data-state": n.state, "data-node": n.id,
+      transform: `translate(${p.x},${p.y})` });
+    g.append(el("svg:rect", { width: NODE_W, height: NODE_H, rx: n.cap ? 9 : 3,
+      fill: FILL[n.state] ?? FILL.idle,
+      "stroke-dasharray": n.state === "shutdown" || n.state === "uninitialized" ? "3 2" : null }));
+    const where = n.cap ? running.get(`${robotName}:${n.id}`) : null;
+    g.append(el("svg:text", { x: 6, y: 13, class: "name", text: fit(n.name, NODE_W - 10, 6.4) }));
+    g.append(el("svg:text", { x: 6, y: 26, class: "type",
+      text: fit(where ? `${n.type} → ${where}` : `${n.type} · ${n.state}`, NODE_W - 10, 5.2) }));
+    g.append(el("svg:title", { text: `${n.id}\n${n.type}: ${n.state}${where ? ` on ${where}` : ""}` }));
+    svg.append(g);
+  }
+  return svg;
+}
+function drawTrees() {
+  const box = document.getElementById("trees");
+  const scroll = new Map([...box.querySelectorAll(".tree-scroll")].map((d) => [d.dataset.key, d.scrollLeft]));
+  box.replaceChildren();
+  for (const name of robotNames().reverse()) {
+    const trees = S.robots[name].trees;
+    const names = Object.keys(trees);
+    if (!names.length) continue;
+    const block = el("div", { class: "robot-trees", "data-robot": name });
+    for (const t of names) {
+      block.append(el("h3", {}, `${name} `, el("small", { text: t })));
+      const key = `${name}/${t}`;
+      const div = el("div", { class: "tree-scroll", "data-key": key }, drawTree(name, t, trees[t]));
+      block.append(div);
+      requestAnimationFrame(() => { div.scrollLeft = scroll.get(key) ?? 0; });
+    }
+    box.append(block);
+  }
+}
+
+// -- auctions -------------------------------------------------------------------------------
+function drawAuctions() {
+  const box = document.getElementById("auctions");
+  const list = [...S.auctions.values()].reverse().slice(0, 14);
+  if (!list.length) { box.replaceChildren(el("div", { class: "empty", text: "no auctions yet" })); return; }
+  const table = el("table", {}, el("tr", {}, ...["t [s]", "capability", "why", "bids"].map((h) => el("th", { text: h }))));
+  for (const a of list) {
+    const bids = el("td");
+    for (const [r, cost] of a.bids) {
+      const why = a.reasons[r];
+      bids.append(el("span", { class: r === a.winner ? "bid win" : why ? "bid no" : "bid",
+        title: why ?? null, text: `${r} ${cost.toFixed(1)}` }));
+    }
+    for (const [r, why] of Object.entries(a.declined)) {
+      bids.append(el("span", { class: "bid no", title: why, text: `${r} declined` }));
+    }
+    const kept = a.why.startsWith("re-evaluation") && a.closed !== null && !a.winner;
+    if (a.closed === null) bids.append(el("span", { class: "why", text: "open…" }));
+    else if (kept) bids.append(el("span", { class: "why", text: "stays" }));
+    else if (!a.winner) bids.append(el("span", { class: "why re", text: "nobody took it" }));
+    const re = a.why !== "first request" && !a.why.startsWith("new run");
+    table.append(el("tr", { "data-auction": a.id, class: kept ? "kept" : null },
+      el("td", { class: "num", text: fmt(a.opened) }),
+      el("td", { title: `${a.id} · ${a.node}` }, el("b", { text: a.capability }), el("br"),
+        el("span", { class: "why", text: a.node.split("/").slice(-2).join("/") })),
+      el("td", { class: re ? "why re" : "why", text: a.why }), bids));
+  }
+  box.replaceChildren(table);
+}
+
+// -- header and replay controls -----------------------------------------------------------------
+function drawHeader() {
+  document.getElementById("title").textContent = S.title || "";
+  const mode = document.getElementById("mode");
+  mode.textContent = S.mode; mode.className = `mode ${S.mode}`;
+  document.getElementById("clock").textContent = `t = ${fmt(S.t)} s`;
+  const rp = document.getElementById("replay");
+  rp.hidden = S.mode !== "replay";
+  if (S.replay) {
+    const seek = document.getElementById("seek");
+    seek.min = S.replay.start; seek.max = S.replay.end;
+    if (document.activeElement !== seek) seek.value = S.replay.t;
+    document.getElementById("play").textContent = S.replay.playing ? "pause" : "play";
+    const sp = document.getElementById("speed");
+    const opts = [1, 2, 5, 10, 20, 50, 100, S.replay.speed].filter((v, i, a) => a.indexOf(v) === i).sort((a, b) => a - b);
+    if (sp.options.length !== opts.length) sp.replaceChildren(...opts.map((v) => el("option", { value: v, text: `${+v.toFixed(1)}×` })));
+    sp.value = S.replay.speed;
+  }
+}
+
+function render() {
+  dirty = false;
+  if (!S) return;
+  drawHeader(); drawTeam(); drawTimeline(); drawTrees(); drawAuctions();
+}
+function schedule() { if (!dirty) { dirty = true; requestAnimationFrame(render); } }
+
+function connect() {
+  const proto = location.protocol === "https:" ? "wss" : "ws";
+  ws = new WebSocket(`${proto}://${location.host}/ws`);
+  ws.onmessage = (m) => {
+    const msg = JSON.parse(m.data);
+    if (msg.type === "snapshot") S = fromSnapshot(msg.state);
+    else if (msg.type === "events" && S) msg.events.forEach(apply);
+    schedule();
+  };
+  ws.onclose = () => {
+    const mode = document.getElementById("mode");
+    mode.textContent = "disconnected"; mode.className = "mode down";
+    setTimeout(connect, 2000);
+  };
+}
+function send(msg) { if (ws && ws.readyState === 1) ws.send(JSON.stringify(msg)); }
+
+document.getElementById("play").onclick = () => send({ op: S && S.replay && S.replay.playing ? "pause" : "play" });
+document.getElementById("seek").onchange = (e) => send({ op: "seek", t: +e.target.value });
+document.getElementById("speed").onchange = (e) => send({ op: "speed", speed: +e.target.value });
+document.getElementById("legend").append(...STATES.slice(0, 8).map((s) => {
+  const swatch = el("i");
+  swatch.style.background = FILL[s];
+  return el("span", {}, swatch, s);
+}));
+window.addEventListener("resize", schedule);
+connect();
