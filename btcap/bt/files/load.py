@@ -5,10 +5,13 @@ from __future__ import annotations
 import os
 import typing
 from pathlib import Path
+from typing import Literal
 
+from btcap.bt.files.btcpp import XmlTranslator, relabel
 from btcap.bt.files.build import Builder
 from btcap.bt.files.parse import decode, format_of, parse, read_bytes
-from btcap.bt.files.schema import Format, TreeFileError
+from btcap.bt.files.schema import TreeFileError
+from btcap.bt.files.xmlread import read_xml
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.tree import Tree
 
@@ -17,20 +20,35 @@ if typing.TYPE_CHECKING:
 
 __all__ = ["load_tree", "loads_tree", "validate_file"]
 
+#: What :func:`loads_tree` reads: btcap's own schema as YAML or JSON, or
+#: BehaviorTree.CPP v4 XML (see :mod:`btcap.bt.files.btcpp`).
+LoadFormat = Literal["yaml", "json", "xml"]
+
 
 def _load(
     data: bytes | str,
-    fmt: Format,
+    fmt: LoadFormat,
     where: str,
     registry: NodeRegistry | None,
     clock: TimeSource | None,
     base: Path | None,
     source: Path | None,
 ) -> Tree:
-    spec = parse(decode(data, fmt, where), where)
     reg = registry if registry is not None else default_registry()
     stack = (source.resolve(),) if source is not None else ()
-    return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+    if fmt != "xml":
+        spec = parse(decode(data, fmt, where), where)
+        return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+    translator = XmlTranslator(read_xml(data, where), where, reg)
+    spec = translator.translate()
+    try:
+        return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+    except TreeFileError as exc:
+        raise TreeFileError(relabel(exc.problems, where, translator)) from None
+
+
+def _format(path: Path) -> LoadFormat:
+    return "xml" if path.suffix.lower() == ".xml" else format_of(path)
 
 
 def load_tree(
@@ -39,14 +57,17 @@ def load_tree(
     *,
     clock: TimeSource | None = None,
 ) -> Tree:
-    """Build the tree a ``.yaml``/``.yml``/``.json`` file describes; raises TreeFileError."""
+    """Build the tree a ``.yaml``/``.yml``/``.json`` file describes; raises TreeFileError.
+
+    A ``.xml`` file is read as BehaviorTree.CPP v4 XML (:mod:`btcap.bt.files.btcpp`).
+    """
     p = Path(path)
-    return _load(read_bytes(p), format_of(p), str(p), registry, clock, p.parent, p)
+    return _load(read_bytes(p), _format(p), str(p), registry, clock, p.parent, p)
 
 
 def loads_tree(
     text: str | bytes,
-    fmt: Format = "yaml",
+    fmt: LoadFormat = "yaml",
     registry: NodeRegistry | None = None,
     *,
     clock: TimeSource | None = None,
@@ -54,8 +75,8 @@ def loads_tree(
     base: str | os.PathLike[str] | None = None,
 ) -> Tree:
     """Like :func:`load_tree` for text; ``name`` labels errors, ``base`` resolves file refs."""
-    if fmt not in ("yaml", "json"):
-        raise ValueError(f"format {fmt!r}: expected 'yaml' or 'json'")
+    if fmt not in ("yaml", "json", "xml"):
+        raise ValueError(f"format {fmt!r}: expected 'yaml', 'json' or 'xml'")
     return _load(text, fmt, name, registry, clock, Path(base) if base else None, None)
 
 

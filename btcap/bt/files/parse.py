@@ -37,7 +37,7 @@ def format_of(path: Path) -> Format:
         raise TreeFileError(
             [
                 f"{path}: unknown file type {path.suffix or '(none)'!r}; "
-                f"expected .yaml, .yml or .json"
+                f"expected .yaml, .yml or .json (or .xml to load BehaviorTree.CPP v4 XML)"
             ]
         )
     return fmt

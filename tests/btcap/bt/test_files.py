@@ -768,7 +768,7 @@ def test_unknown_suffix_and_missing_file(tmp_path: Path, name: str, match: str) 
 def test_loads_tree_labels_errors_and_rejects_unknown_formats() -> None:
     with pytest.raises(TreeFileError, match=r"^inline\.yaml: node 'x' field 'type'"):
         loads_tree("btcap: 1\nroot: {type: Nope, name: x}\n", name="inline.yaml")
-    with pytest.raises(ValueError, match="expected 'yaml' or 'json'"):
+    with pytest.raises(ValueError, match="expected 'yaml', 'json' or 'xml'"):
         loads_tree("{}", "toml")  # type: ignore[arg-type]
     tree = loads_tree('{"btcap": 1, "root": {"type": "AlwaysSuccess"}}', "json")
     assert tree.tick() is State.SUCCEEDED

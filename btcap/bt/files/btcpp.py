@@ -1,0 +1,283 @@
+"""BehaviorTree.CPP v4 XML (as Groot2 draws it) read into a btcap tree file.
+
+The XML becomes a :class:`~btcap.bt.files.schema.TreeFile` that the usual builder turns
+into a Tree, so an XML tree is checked exactly like a YAML one. What the translation
+does:
+
+- every ``<BehaviorTree ID>`` is a subtree; ``main_tree_to_execute`` (or the only one)
+  is the root; ``<SubTree ID>`` nodes use them, remapping ports by attribute
+  (``goal="{target}"``, a literal ``goal="3"``) or by ``_autoremap="true"``;
+- blackboard entries become wires: the one node output writing ``{key}`` feeds every
+  input reading it. In a subtree, an entry read but not written inside is a public
+  input, and every entry written inside is a public output;
+- standard nodes map to btcap's (:mod:`~btcap.bt.files.btcpp_nodes`); other node types
+  are looked up in the registry (your own nodes, capability interfaces and their
+  bridges), checked against ``<TreeNodesModel>`` where it declares them;
+- literal attribute values are converted to the port's declared type (``;`` separates
+  list items, as in BehaviorTree.CPP).
+
+Whatever cannot be mapped is reported with the file, the line and the element.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import re
+from typing import Any
+
+from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
+from btcap.bt.files.schema import (
+    SCHEMA_VERSION,
+    NodeSpec,
+    PublicSpec,
+    SubtreeSpec,
+    TreeFile,
+    TreeFileError,
+    WireSpec,
+)
+from btcap.bt.files.xmlread import XmlElement
+from btcap.bt.registry import NodeRegistry, RegistryError
+
+__all__ = ["XmlTranslator", "relabel"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Def:
+    """A translated BehaviorTree and the types of its public ports."""
+
+    spec: SubtreeSpec
+    inputs: dict[str, Any]
+    outputs: dict[str, Any]
+
+
+class XmlTranslator:
+    """Translates one XML document, collecting every problem with its line."""
+
+    def __init__(self, root: XmlElement, where: str, registry: NodeRegistry) -> None:
+        self.root = root
+        self.where = where
+        self.registry = registry
+        self.reader = ElementReader(where, registry, {}, self._subtree)
+        self.problems = self.reader.problems
+        self.trees: dict[str, XmlElement] = {}
+        self.models = self.reader.models
+        self.defs: dict[str, _Def | None] = {}
+        self.active: list[str] = []
+        self.used: set[str] = set()
+        #: (BehaviorTree ID, node path) -> line, and (ID, wire index) -> line, for relabel.
+        self.node_lines = self.reader.node_lines
+        self.wire_lines: dict[tuple[str, int], int] = {}
+        self.main = ""
+
+    def fail(self, line: int, msg: str) -> None:
+        self.reader.fail(line, msg)
+
+    # -- document ---------------------------------------------------------------------
+    def translate(self) -> TreeFile:
+        root = self.root
+        if root.tag != "root":
+            self.fail(root.line, f'<{root.tag}>: expected <root BTCPP_format="4">')
+            raise TreeFileError(self.problems)
+        fmt = root.attrs.get("BTCPP_format")
+        if fmt != "4":
+            got = "no BTCPP_format" if fmt is None else f"BTCPP_format={fmt!r}"
+            self.fail(root.line, f"<root> has {got}; btcap reads BehaviorTree.CPP format 4")
+            raise TreeFileError(self.problems)
+        for el in root.children:
+            if el.tag == "BehaviorTree":
+                tid = el.attrs.get("ID")
+                if not tid:
+                    self.fail(el.line, "<BehaviorTree> without an ID")
+                elif tid in self.trees:
+                    self.fail(el.line, f"a second <BehaviorTree ID={tid!r}>")
+                else:
+                    self.trees[tid] = el
+            elif el.tag == "TreeNodesModel":
+                for model in el.children:
+                    if model.tag in MODEL_KINDS and model.attrs.get("ID"):
+                        self.models[model.attrs["ID"]] = model
+            elif el.tag == "include":
+                self.fail(el.line, "<include>: btcap reads one file; put the trees in it")
+            else:
+                self.fail(el.line, f"<{el.tag}>: expected <BehaviorTree> or <TreeNodesModel>")
+        main = root.attrs.get("main_tree_to_execute")
+        if main is None:
+            if len(self.trees) != 1:
+                ids = ", ".join(self.trees) or "none"
+                self.fail(
+                    root.line,
+                    f"main_tree_to_execute missing and {len(self.trees)} "
+                    f"BehaviorTrees ({ids}); say which one to run",
+                )
+                raise TreeFileError(self.problems)
+            main = next(iter(self.trees))
+        self.main = main
+        top = self._definition(main, root.line)
+        for tid in self.trees:
+            self._definition(tid, self.trees[tid].line)
+        if self.problems or top is None or top.spec.root is None:
+            raise TreeFileError(self.problems)
+        subtrees = {t: d.spec for t, d in self.defs.items() if d and (t != main or t in self.used)}
+        return TreeFile(
+            btcap=SCHEMA_VERSION,
+            name=main,
+            root=top.spec.root,
+            wires=top.spec.wires,
+            subtrees=subtrees,
+        )
+
+    # -- BehaviorTrees ----------------------------------------------------------------
+    def _definition(self, tid: str, line: int) -> _Def | None:
+        if tid in self.defs:
+            return self.defs[tid]
+        if tid in self.active:
+            chain = " -> ".join([*self.active[self.active.index(tid) :], tid])
+            self.fail(line, f"<SubTree ID={tid!r}>: the tree uses itself ({chain})")
+            return None
+        el = self.trees.get(tid)
+        if el is None:
+            near = difflib.get_close_matches(tid, list(self.trees), n=3, cutoff=0.6)
+            hint = f" (did you mean {', '.join(near)}?)" if near else ""
+            self.fail(
+                line,
+                f"no <BehaviorTree ID={tid!r}>{hint}; trees: {', '.join(self.trees) or 'none'}",
+            )
+            return None
+        self.active.append(tid)
+        scope = Scope(tid)
+        if len(el.children) != 1:
+            self.fail(
+                el.line,
+                f"<BehaviorTree ID={tid!r}> must hold exactly one root node, "
+                f"has {len(el.children)}",
+            )
+        spec = self.reader.node(el.children[0], None, scope, set()) if el.children else None
+        self.active.pop()
+        done = self._resolve(scope, spec) if spec is not None else None
+        self.defs[tid] = done
+        return done
+
+    def _resolve(self, scope: Scope, root: NodeSpec) -> _Def:
+        """Wire each entry's writer to its readers; what crosses the tree's edge is public."""
+        wires: list[WireSpec] = []
+        public = PublicSpec()
+        inputs: dict[str, Any] = {}
+        outputs: dict[str, Any] = {}
+        main = scope.tree == self.main
+        for key in dict.fromkeys([*scope.writers, *scope.readers]):
+            ws, rs = scope.writers.get(key, []), scope.readers.get(key, [])
+            if len(ws) > 1:
+                lines = ", ".join(str(w.line) for w in ws)
+                self.fail(
+                    ws[1].line,
+                    f"{{{key}}} is written by {len(ws)} node ports (lines "
+                    f"{lines}); btcap feeds an input from exactly one output",
+                )
+                continue
+            if ws:
+                w = ws[0]
+                for r in rs:
+                    self.wire_lines[(scope.tree, len(wires))] = r.line
+                    wires.append(WireSpec(f"{w.path}.{w.port}", f"{r.path}.{r.port}"))
+                tp = w.type
+                if key in scope.constants:
+                    tp = self._constant(key, scope, rs[0].type if rs else Any)
+                public.outputs[key] = f"{w.path}.{w.port}"
+                outputs[key] = tp
+            elif main:
+                for r in rs:
+                    self.fail(
+                        r.line,
+                        f"{{{key}}} is read here but no node writes it; btcap "
+                        f"has no outside blackboard: write it with a node output or "
+                        f"<SetBlackboard output_key={key!r} value=...>",
+                    )
+            elif len(rs) > 1:
+                lines = ", ".join(str(r.line) for r in rs)
+                self.fail(
+                    rs[1].line,
+                    f"{{{key}}} comes from outside BehaviorTree "
+                    f"{scope.tree!r} and is read by {len(rs)} node ports (lines "
+                    f"{lines}); btcap feeds a subtree input to one node port",
+                )
+            else:
+                public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
+                inputs[key] = rs[0].type
+        spec = SubtreeSpec(root=root, wires=wires, public=public)
+        return _Def(spec, inputs, outputs)
+
+    def _constant(self, key: str, scope: Scope, tp: Any) -> Any:
+        """Type a SetBlackboard value by the port that reads it."""
+        spec, text = scope.constants[key]
+        try:
+            spec.options["type"] = self.registry.format_type(tp)
+        except RegistryError:
+            return Any  # an unnamed type: the text is passed on as it is
+        spec.options["value"] = literal(text, tp)
+        return tp
+
+    # -- nodes ------------------------------------------------------------------------
+    def _subtree(
+        self, el: XmlElement, attrs: dict[str, str], name: str, path: str, scope: Scope
+    ) -> NodeSpec | None:
+        tid = attrs.pop("ID", "")
+        if not tid:
+            self.fail(el.line, "<SubTree> without an ID naming its BehaviorTree")
+            return None
+        try:
+            auto = parse_bool(attrs.pop("_autoremap", "false"))
+        except MappingError as exc:
+            self.fail(el.line, f"<SubTree ID={tid!r}> _autoremap: {exc}")
+            return None
+        done = self._definition(tid, el.line)
+        self.used.add(tid)
+        if done is None:
+            return None
+        spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
+        for ports, reading in ((done.inputs, True), (done.outputs, False)):
+            for key, tp in ports.items():
+                if key in attrs:
+                    text = attrs.pop(key)
+                elif auto:
+                    text = "{=}"
+                else:
+                    continue
+                entry = self.reader.entry(text, key, el, reading=reading)
+                if entry is None:
+                    spec.inputs[key] = literal(text, tp)
+                elif entry:
+                    refs = scope.readers if reading else scope.writers
+                    refs.setdefault(entry, []).append(Ref(path, key, el.line, tp))
+        for key in attrs:
+            self.fail(
+                el.line,
+                f"<SubTree ID={tid!r}> port {key!r}: the tree neither reads it "
+                f"from outside ({', '.join(done.inputs) or 'nothing'}) nor writes it "
+                f"({', '.join(done.outputs) or 'nothing'})",
+            )
+        return spec
+
+
+_WHERE = re.compile(
+    r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
+)
+
+
+def relabel(problems: list[str], where: str, t: XmlTranslator) -> list[str]:
+    """Builder problems (named by node path) with the XML line of the node or wire."""
+    out = []
+    prefix = f"{where}: "
+    for p in problems:
+        rest = p.removeprefix(prefix)
+        m = _WHERE.match(rest)
+        line = None
+        if m is not None:
+            tree = m.group("tree") or t.main
+            if m.group("path") is not None:
+                line = t.node_lines.get((tree, m.group("path")))
+            else:
+                line = t.wire_lines.get((tree, int(m.group("i"))))
+        out.append(p if line is None else f"{prefix}line {line}: {rest}")
+    return out

@@ -1,0 +1,345 @@
+"""The elements of a BehaviorTree.CPP v4 XML tree as btcap node specs, one at a time.
+
+:class:`ElementReader` turns one node element (and those below it) into a
+:class:`~btcap.bt.files.schema.NodeSpec`, recording in a :class:`Scope` which ports
+write and read each blackboard entry; :mod:`btcap.bt.files.btcpp` then wires them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import typing
+from collections.abc import Callable
+from typing import Any
+
+import yaml
+
+from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, MappingError
+from btcap.bt.files.schema import NodeSpec, is_type_option
+from btcap.bt.files.xmlread import XmlElement
+from btcap.bt.ports import Port
+from btcap.bt.registry import NodeRegistry, RegistryError
+
+__all__ = ["KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
+
+KEY = re.compile(r"^\{(.*)\}$")
+_SCRIPTS = frozenset(
+    {"_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "_onFailure", "_onHalted"}
+)
+_GENERIC = frozenset({"Action", "Condition", "Control", "Decorator"})
+MODEL_KINDS = frozenset({*_GENERIC, "SubTree"})
+
+
+@dataclasses.dataclass(frozen=True)
+class Ref:
+    """One node port using a blackboard entry."""
+
+    path: str
+    port: str
+    line: int
+    type: Any
+
+
+@dataclasses.dataclass
+class Scope:
+    """The blackboard of one BehaviorTree, as the ports that write and read each entry."""
+
+    tree: str
+    writers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
+    readers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
+    constants: dict[str, tuple[NodeSpec, str]] = dataclasses.field(default_factory=dict)
+
+
+def literal(text: str, tp: Any) -> Any:
+    """A literal attribute as a value of ``tp``; the builder checks what comes out."""
+    if tp is Any or tp is str or tp is object:
+        return text
+    args = typing.get_args(tp)
+    if str in args:
+        return text
+    origin = typing.get_origin(tp) or tp
+    if origin in (list, tuple, set, frozenset):
+        parts = [p.strip() for p in text.split(";")] if text.strip() else []
+        if origin is tuple and args and args[-1] is not Ellipsis and len(args) == len(parts):
+            return [literal(p, a) for p, a in zip(parts, args, strict=True)]
+        return [literal(p, args[0] if args else Any) for p in parts]
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+#: Builds a ``<SubTree>`` element: (element, its attributes, name, path, scope).
+SubtreeReader = Callable[[XmlElement, dict[str, str], str, str, "Scope"], NodeSpec | None]
+
+
+class ElementReader:
+    """Reads node elements, reporting problems with their line into a shared list."""
+
+    def __init__(
+        self,
+        where: str,
+        registry: NodeRegistry,
+        models: dict[str, XmlElement],
+        subtree: SubtreeReader,
+    ) -> None:
+        self.where = where
+        self.registry = registry
+        self.models = models
+        self.subtree = subtree
+        self.problems: list[str] = []
+        #: (BehaviorTree ID, node path) -> line of its element.
+        self.node_lines: dict[tuple[str, str], int] = {}
+
+    def fail(self, line: int, msg: str) -> None:
+        self.problems.append(f"{self.where}: line {line}: {msg}")
+
+    def node(
+        self, el: XmlElement, parent: str | None, scope: Scope, taken: set[str]
+    ) -> NodeSpec | None:
+        attrs = dict(el.attrs)
+        kind = el.tag
+        if kind in _GENERIC:
+            kind = attrs.pop("ID", "")
+            if not kind:
+                self.fail(el.line, f"<{el.tag}> without an ID naming its node type")
+                return None
+        for key in _SCRIPTS.intersection(attrs):
+            self.fail(el.line, f"<{el.tag}> attribute {key!r}: btcap has no scripting language")
+            del attrs[key]
+        name = self._name(attrs.pop("name", "") or attrs.get("ID") or kind, el, taken)
+        if name is None:
+            return None
+        path = name if parent is None else f"{parent}/{name}"
+        self.node_lines[(scope.tree, path)] = el.line
+        if kind == "SubTree":
+            return self.subtree(el, attrs, name, path, scope)
+        kids: list[NodeSpec] = []
+        names: set[str] = set()
+        for child in el.children:
+            spec = self.node(child, path, scope, names)
+            if spec is not None:
+                kids.append(spec)
+        if kind in UNSUPPORTED:
+            self.fail(
+                el.line,
+                f"<{el.tag}>: BehaviorTree.CPP's {kind} has no btcap equivalent: "
+                f"{UNSUPPORTED[kind]}",
+            )
+            return None
+        if kind == "SetBlackboard":
+            return self._set_blackboard(el, attrs, name, path, scope)
+        options: dict[str, Any] = {}
+        std = STANDARD.get(kind)
+        if std is not None:
+            options = self._standard(el, attrs, kind)
+            kind = std.btcap
+        spec = self._ports(el, attrs, kind, name, path, scope, options)
+        if spec is not None:
+            spec.children = kids
+        return spec
+
+    def _name(self, base: str, el: XmlElement, taken: set[str]) -> str | None:
+        if not base or "/" in base or "." in base:
+            self.fail(
+                el.line,
+                f"<{el.tag}> name {base!r}: btcap node names cannot be empty or contain '/' or '.'",
+            )
+            return None
+        name, k = base, 2
+        while name in taken:  # BehaviorTree.CPP allows equal sibling names, btcap does not
+            name, k = f"{base}_{k}", k + 1
+        taken.add(name)
+        return name
+
+    def _standard(self, el: XmlElement, attrs: dict[str, str], kind: str) -> dict[str, Any]:
+        std = STANDARD[kind]
+        options = dict(std.fixed)
+        for key in std.required:
+            if key not in attrs:
+                self.fail(el.line, f"<{el.tag}> needs attribute {key!r}")
+        for key, (option, convert) in std.attrs.items():
+            if key not in attrs:
+                continue
+            text = attrs.pop(key)
+            if KEY.match(text):
+                self.fail(
+                    el.line,
+                    f"<{el.tag}> attribute {key!r}={text!r}: btcap takes this "
+                    f"as a fixed option, not from the blackboard",
+                )
+                continue
+            try:
+                value = convert(text)
+            except MappingError as exc:
+                self.fail(el.line, f"<{el.tag}> attribute {key!r}: {exc}")
+                continue
+            if value is not None:
+                options[option] = value
+        for key in attrs:
+            known = ", ".join(std.attrs) or "none"
+            self.fail(el.line, f"<{el.tag}> has no attribute {key!r} (attributes: {known})")
+        attrs.clear()
+        return options
+
+    def _ports(
+        self,
+        el: XmlElement,
+        attrs: dict[str, str],
+        kind: str,
+        name: str,
+        path: str,
+        scope: Scope,
+        options: dict[str, Any],
+    ) -> NodeSpec | None:
+        try:
+            cls = self.registry.get(kind)
+        except RegistryError as exc:
+            model = self.models.get(kind)
+            said = f"; <TreeNodesModel> declares it at line {model.line}" if model else ""
+            self.fail(
+                el.line,
+                f"<{el.tag}>: {exc}{said}. Register a node type named "
+                f"{kind!r} (btcap tree --load MODULE) or declare a capability "
+                f"interface of that name (--interfaces FILE)",
+            )
+            return None
+        probe: dict[str, Any] = dict(options)
+        given: dict[str, str] = {}
+        for key in cls.OPTIONS:
+            if key in attrs:
+                text = given[key] = attrs.pop(key)
+                if KEY.match(text):
+                    self.fail(
+                        el.line,
+                        f"<{el.tag}> {key}={text!r}: {kind}'s {key!r} is an "
+                        f"option, set once when the tree is built, not a blackboard port",
+                    )
+                    del given[key]
+        # An Any-typed option takes the type a type option names (a Constant's value).
+        named = Any
+        for key, text in given.items():
+            if is_type_option(cls, key, cls.OPTIONS[key]):
+                options[key] = text
+                probe[key] = named = self._parse_type(text)
+        for key, text in given.items():
+            port = cls.OPTIONS[key]
+            if not is_type_option(cls, key, port):
+                tp = named if port.type is Any else port.type
+                options[key] = probe[key] = literal(text, tp)
+        try:  # ports may depend on options (a Constant's type, a bridge's interface)
+            node = cls("probe", **probe)
+            ins, outs = node.input_ports, node.output_ports
+        except Exception:  # the builder reports it, naming the node
+            ins, outs = cls.INPUTS, cls.OUTPUTS
+        self._check_model(kind, cls.OPTIONS, ins, outs)
+        inputs: dict[str, Any] = {}
+        for key, text in attrs.items():
+            if key in ins:
+                entry = self.entry(text, key, el, reading=True)
+                if entry is None:
+                    inputs[key] = literal(text, ins[key].type)
+                elif entry:
+                    scope.readers.setdefault(entry, []).append(
+                        Ref(path, key, el.line, ins[key].type)
+                    )
+            elif key in outs:
+                entry = self.entry(text, key, el, reading=False)
+                if entry:
+                    scope.writers.setdefault(entry, []).append(
+                        Ref(path, key, el.line, outs[key].type)
+                    )
+            else:
+                self.fail(
+                    el.line,
+                    f"<{el.tag}>: {kind} has no port {key!r} (inputs: "
+                    f"{', '.join(ins) or 'none'}; outputs: {', '.join(outs) or 'none'}; "
+                    f"options: {', '.join(cls.OPTIONS) or 'none'})",
+                )
+        return NodeSpec(type=kind, name=name, options=options, inputs=inputs)
+
+    def _parse_type(self, text: str) -> Any:
+        try:
+            return self.registry.parse_type(text)
+        except RegistryError:
+            return Any  # the builder reports the bad type name
+
+    def _check_model(
+        self, kind: str, opts: dict[str, Port], ins: dict[str, Port], outs: dict[str, Port]
+    ) -> None:
+        """A TreeNodesModel entry must agree with the registered node's ports."""
+        model = self.models.pop(kind, None)  # checked once, at its first use
+        if model is None:
+            return
+        for port in model.children:
+            key = port.attrs.get("name", "")
+            if port.tag == "input_port" and key not in ins and key not in opts:
+                have = ", ".join([*ins, *opts]) or "none"
+                self.fail(
+                    port.line,
+                    f"<TreeNodesModel> {kind} input_port {key!r}: the btcap "
+                    f"node type has no such input or option ({have})",
+                )
+            elif port.tag == "output_port" and key not in outs:
+                self.fail(
+                    port.line,
+                    f"<TreeNodesModel> {kind} output_port {key!r}: the btcap "
+                    f"node type has no such output ({', '.join(outs) or 'none'})",
+                )
+            elif port.tag == "inout_port":
+                self.fail(
+                    port.line,
+                    f"<TreeNodesModel> {kind} inout_port {key!r}: btcap ports "
+                    f"are inputs or outputs, not both",
+                )
+
+    def entry(self, text: str, port: str, el: XmlElement, *, reading: bool) -> str | None:
+        """The blackboard entry ``text`` names; None for a literal input, '' if refused."""
+        m = KEY.match(text)
+        if m is not None:
+            inner = m.group(1)
+        elif reading:
+            return None
+        else:
+            inner = text  # an output names its entry with or without braces
+        key = port if inner == "=" else inner
+        if key.startswith("@"):
+            self.fail(
+                el.line,
+                f"<{el.tag}> {port}={text!r}: btcap has no root blackboard; "
+                f"pass the value through the SubTree's ports",
+            )
+            return ""
+        if not key.isidentifier():
+            self.fail(
+                el.line,
+                f"<{el.tag}> {port}={text!r}: blackboard names must be "
+                f"identifiers here (they become port names of subtrees)",
+            )
+            return ""
+        return key
+
+    def _set_blackboard(
+        self, el: XmlElement, attrs: dict[str, str], name: str, path: str, scope: Scope
+    ) -> NodeSpec | None:
+        value, target = attrs.pop("value", None), attrs.pop("output_key", None)
+        for key in attrs:
+            self.fail(el.line, f"<{el.tag}> has no attribute {key!r} (value, output_key)")
+        if value is None or target is None:
+            self.fail(el.line, f"<{el.tag}> needs both value and output_key")
+            return None
+        if KEY.match(value):
+            self.fail(
+                el.line,
+                f"<{el.tag}> value={value!r}: copying one entry to another "
+                f"is not supported; wire the writer of {value} to the readers instead",
+            )
+            return None
+        entry = self.entry(target, "output_key", el, reading=False)
+        if not entry:
+            return None
+        spec = NodeSpec(type="Constant", name=name, options={"value": value})
+        scope.writers.setdefault(entry, []).append(Ref(path, "value", el.line, Any))
+        scope.constants[entry] = (spec, value)
+        return spec

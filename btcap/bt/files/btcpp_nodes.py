@@ -1,0 +1,147 @@
+"""BehaviorTree.CPP v4's standard nodes and the btcap node each one becomes.
+
+A node is mapped only where btcap's node decides the same way on every tick; nodes
+whose behaviour btcap does not have are listed with the reason, so a file using one
+is refused with a message saying what to use instead.
+
+Two differences hold for every node and are not repeated per entry: a BehaviorTree.CPP
+``halt`` is a btcap untick, which keeps progress (a pre-empted branch resumes where it
+was rather than starting over), and loops over synchronous children
+(RetryUntilSuccessful, Repeat) take one tick per attempt in btcap where
+BehaviorTree.CPP loops within one tick: the results are the same, a tick later.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["STANDARD", "UNSUPPORTED", "Standard", "parse_bool", "parse_int"]
+
+
+class MappingError(ValueError):
+    """A standard node's attribute has a value btcap cannot express."""
+
+
+def parse_int(text: str) -> int:
+    try:
+        return int(text.strip())
+    except ValueError:
+        raise MappingError(f"expected an integer, got {text!r}") from None
+
+
+def parse_bool(text: str) -> bool:
+    value = text.strip().lower()
+    if value in ("true", "1"):
+        return True
+    if value in ("false", "0"):
+        return False
+    raise MappingError(f"expected true or false, got {text!r}")
+
+
+def _seconds(text: str) -> float:
+    ms = parse_int(text)
+    if ms < 0:
+        raise MappingError(f"expected milliseconds >= 0, got {ms}")
+    return ms / 1000.0
+
+
+def _attempts(text: str) -> int | None:
+    n = parse_int(text)
+    if n == -1:
+        return None
+    if n < 1:
+        raise MappingError(f"expected a count >= 1 or -1 (for ever), got {n}")
+    return n
+
+
+def _cycles(text: str) -> int:
+    n = parse_int(text)
+    if n != -1 and n < 1:
+        raise MappingError(f"expected a count >= 1 or -1 (for ever), got {n}")
+    return n
+
+
+def _no_skip(text: str) -> None:
+    if parse_bool(text):
+        raise MappingError(
+            "then_skip=true returns SKIPPED, which btcap does not have; "
+            "then_skip=false (repeat the first result) maps to btcap's RunOnce"
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class Standard:
+    """A standard node: the btcap type, and per attribute the btcap option and converter.
+
+    A converter returning None sets no option (the attribute only selects behaviour that
+    btcap has anyway, like ``then_skip=false``). ``required`` attributes have no default
+    in BehaviorTree.CPP; ``fixed`` are options BehaviorTree.CPP's defaults imply.
+    """
+
+    btcap: str
+    attrs: dict[str, tuple[str, Callable[[str], Any]]] = dataclasses.field(default_factory=dict)
+    required: tuple[str, ...] = ()
+    fixed: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+STANDARD: dict[str, Standard] = {
+    # BehaviorTree.CPP's Sequence and Fallback resume at the running child: btcap's
+    # memory composites; its Reactive* tick from the first child: btcap's plain ones.
+    "Sequence": Standard("SequenceWithMemory"),
+    "Fallback": Standard("FallbackWithMemory"),
+    "ReactiveSequence": Standard("Sequence"),
+    "ReactiveFallback": Standard("Fallback"),
+    "Parallel": Standard(
+        "Parallel",
+        {
+            "success_count": ("success_threshold", parse_int),
+            "failure_count": ("failure_threshold", parse_int),
+        },
+        fixed={"failure_threshold": 1},
+    ),
+    "WhileDoElse": Standard("IfThenElse"),
+    "Inverter": Standard("Inverter"),
+    "ForceSuccess": Standard("ForceSuccess"),
+    "ForceFailure": Standard("ForceFailure"),
+    "KeepRunningUntilFailure": Standard("SuccessIsRunning"),
+    "RetryUntilSuccessful": Standard(
+        "RepeatUntilSuccess", {"num_attempts": ("max_attempts", _attempts)}, ("num_attempts",)
+    ),
+    "Repeat": Standard("Repeat", {"num_cycles": ("times", _cycles)}, ("num_cycles",)),
+    "Timeout": Standard("Timeout", {"msec": ("seconds", _seconds)}, ("msec",)),
+    "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
+    "RunOnce": Standard("RunOnce", {"then_skip": ("", _no_skip)}, ("then_skip",)),
+    "AlwaysSuccess": Standard("AlwaysSuccess"),
+    "AlwaysFailure": Standard("AlwaysFailure"),
+    "Sleep": Standard("Wait", {"msec": ("seconds", _seconds)}, ("msec",)),
+}
+
+#: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
+UNSUPPORTED: dict[str, str] = {
+    "SequenceWithMemory": "it ticks the failed child again on the next tick; btcap's "
+    "SequenceWithMemory starts over after a failure, as BehaviorTree.CPP's Sequence does "
+    "(use Sequence for that)",
+    "IfThenElse": "it checks its condition only until a branch runs; btcap's IfThenElse "
+    "re-checks it every tick, as BehaviorTree.CPP's WhileDoElse does (use WhileDoElse)",
+    "ParallelAll": "it waits for every child; btcap's Parallel decides as soon as a "
+    "threshold is met (use Parallel)",
+    "Script": "btcap has no scripting language; use a node type of your own",
+    "ScriptCondition": "btcap has no scripting language; use Compare or a node of your own",
+    "Precondition": "btcap has no scripting language; use WhileDoElse with a condition node",
+    "UnsetBlackboard": "btcap wires node outputs to inputs; there is no blackboard entry to unset",
+    "SkipUnlessUpdated": "btcap has no SKIPPED state",
+    "WaitValueUpdate": "btcap has no blackboard update stamps",
+    "ManualSelector": "it asks a person on a terminal; btcap trees never block on input",
+    "SubTreePlus": "it is BehaviorTree.CPP v3; in format 4 use SubTree with _autoremap",
+    **{
+        f"Switch{n}": "its cases are strings compared by BehaviorTree.CPP's own rules; "
+        "use btcap's Switch with typed cases"
+        for n in range(2, 7)
+    },
+    **{
+        f"Loop{kind}": "btcap has no queue ports; loop with Repeat over a node of your own"
+        for kind in ("Int", "Double", "String", "Bool")
+    },
+}

@@ -1,0 +1,322 @@
+"""``btcap tree validate|show|dot|run|nodes``: check, print, draw and tick tree files.
+
+Every subcommand takes ``--load MODULE`` (your own node types) and ``--interfaces FILE``
+(capability interfaces, whose nodes and bridges trees use), so a tree is checked with
+the node types it will really run with. Files are YAML, JSON or BehaviorTree.CPP v4 XML.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import importlib
+import importlib.util
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from types import ModuleType
+
+from btcap.actors import ManualClock
+from btcap.bt.files import file_info, load_tree, validate_file
+from btcap.bt.node import Node
+from btcap.bt.ports import type_name
+from btcap.bt.registry import NodeRegistry, default_registry
+from btcap.bt.render import render_dot, render_text
+from btcap.bt.state import DONE, State, TreeError
+from btcap.bt.tree import Tree
+from btcap.cli import CliError
+from btcap.team.capability import CapabilityInterface
+from btcap.team.capfiles import load_interfaces, register_interfaces
+
+__all__ = ["add_parser"]
+
+#: Picture formats ``tree dot`` hands to Graphviz, by output suffix.
+_PICTURES = {".svg": "svg", ".png": "png", ".pdf": "pdf"}
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``btcap tree`` and its subcommands."""
+    tree = subparsers.add_parser(
+        "tree",
+        help="check, inspect and run tree files",
+        description="Check, inspect and run tree files (YAML, JSON or BehaviorTree.CPP v4 XML).",
+    )
+    tree.set_defaults(handler=_help(tree))
+    cmds = tree.add_subparsers(dest="tree_command", metavar="SUBCOMMAND")
+    types = argparse.ArgumentParser(add_help=False)
+    group = types.add_argument_group("node types")
+    group.add_argument(
+        "--load",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import a module (dotted name or .py file) and register its Node classes and "
+        "CapabilityInterfaces; MODULE:NAME registers what NAME is or returns (repeatable)",
+    )
+    group.add_argument(
+        "--interfaces",
+        action="append",
+        default=[],
+        metavar="FILE",
+        type=Path,
+        help="capability interface file: its capabilities and their <Name>Inputs/"
+        "<Name>Outputs bridges become node types (repeatable)",
+    )
+
+    p = cmds.add_parser(
+        "validate", parents=[types], help="check tree files; print 'ok' or every problem"
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", type=Path)
+    p.set_defaults(handler=_validate)
+
+    p = cmds.add_parser("show", parents=[types], help="print a tree as an indented outline")
+    p.add_argument("file", metavar="FILE", type=Path)
+    p.set_defaults(handler=_show)
+
+    p = cmds.add_parser(
+        "dot",
+        parents=[types],
+        help="draw a tree: Graphviz DOT, or SVG/PNG/PDF by the output's suffix",
+    )
+    p.add_argument("file", metavar="FILE", type=Path)
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        help="write here instead of stdout; .svg, .png or .pdf are rendered with Graphviz",
+    )
+    p.set_defaults(handler=_dot)
+
+    p = cmds.add_parser(
+        "run",
+        parents=[types],
+        help="tick a tree until it succeeds or fails; print its final states",
+        description="Tick a tree at --rate until it succeeds or fails (exit 0 or 1), or "
+        "until --max-ticks (exit 3 if it is still running), then print it with states.",
+    )
+    p.add_argument("file", metavar="FILE", type=Path)
+    p.add_argument("--rate", type=float, default=10.0, help="ticks per second (default 10)")
+    p.add_argument("--max-ticks", type=int, default=None, help="stop after this many ticks")
+    p.add_argument(
+        "--fast",
+        action="store_true",
+        help="virtual time: waits and timeouts pass at once, the run is reproducible",
+    )
+    p.set_defaults(handler=_run)
+
+    p = cmds.add_parser(
+        "nodes", parents=[types], help="list the node types files may use, with their ports"
+    )
+    p.add_argument("types", nargs="*", metavar="TYPE", help="only these types")
+    p.set_defaults(handler=_nodes)
+
+
+def _help(parser: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int]:
+    def show(args: argparse.Namespace) -> int:
+        parser.print_help(sys.stderr)
+        return 2
+
+    return show
+
+
+# -- node types -------------------------------------------------------------------------
+def _registry(args: argparse.Namespace) -> NodeRegistry:
+    registry = default_registry(plugins=not args.no_plugins)
+    for ref in args.load:
+        _register(registry, ref)
+    for path in args.interfaces:
+        if not path.is_file():
+            raise CliError(f"--interfaces {path}: no such file")
+        register_interfaces(registry, load_interfaces(path, registry))
+    return registry
+
+
+def _import(name: str) -> ModuleType:
+    """A module by dotted name (the current directory first on the path) or by file."""
+    try:
+        if name.endswith(".py"):
+            path = Path(name)
+            if not path.is_file():
+                raise CliError(f"--load {name}: no such file")
+            if path.stem in sys.modules:
+                raise CliError(f"--load {name}: a module named {path.stem!r} is already loaded")
+            spec = importlib.util.spec_from_file_location(path.stem, path)
+            if spec is None or spec.loader is None:
+                raise CliError(f"--load {name}: not an importable Python file")
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[path.stem] = module
+            spec.loader.exec_module(module)
+            return module
+        if "" not in sys.path:
+            sys.path.insert(0, "")  # as `python -m` does: your modules in this directory
+        return importlib.import_module(name)
+    except CliError:
+        raise
+    except Exception as exc:  # the user's module: any error is theirs to see
+        raise CliError(f"--load {name}: import failed: {type(exc).__name__}: {exc}") from exc
+
+
+def _register(registry: NodeRegistry, ref: str) -> None:
+    """Register what ``MODULE`` defines or what ``MODULE:NAME`` is or returns."""
+    module_name, _, attr = ref.partition(":")
+    module = _import(module_name)
+    if attr:
+        if not hasattr(module, attr):
+            raise CliError(f"--load {ref}: module {module_name!r} has no {attr!r}")
+        found = getattr(module, attr)
+        items: Iterable[object] = (
+            [found] if isinstance(found, type | CapabilityInterface) else found()
+        )
+    else:
+        items = [
+            v
+            for k, v in vars(module).items()
+            if not k.startswith("_")
+            and (
+                isinstance(v, CapabilityInterface)
+                or getattr(v, "__module__", "") == module.__name__
+            )
+        ]
+    ifaces = [i for i in items if isinstance(i, CapabilityInterface)]
+    register_interfaces(registry, ifaces)
+    for cls in items:
+        if isinstance(cls, type) and issubclass(cls, Node):
+            if cls.__name__ not in registry:
+                registry.register(cls)
+        elif attr and not isinstance(cls, CapabilityInterface):
+            raise CliError(f"--load {ref}: {cls!r} is neither a Node class nor an interface")
+
+
+# -- subcommands ------------------------------------------------------------------------
+def _existing(path: Path) -> Path:
+    if not path.exists():
+        raise CliError(f"{path}: no such file")
+    if path.is_dir():
+        raise CliError(f"{path}: is a directory, expected a tree file")
+    return path
+
+
+def _validate(args: argparse.Namespace) -> int:
+    registry = _registry(args)
+    code = 0
+    for path in args.files:
+        if not path.exists() or path.is_dir():
+            what = "no such file" if not path.exists() else "is a directory"
+            print(f"btcap: error: {path}: {what}", file=sys.stderr)
+            code = 2
+            continue
+        problems = validate_file(path, registry)
+        if problems:
+            for line in problems:
+                print(line, file=sys.stderr)
+            code = max(code, 1)
+        else:
+            print(f"{path}: ok")
+    return code
+
+
+def _show(args: argparse.Namespace) -> int:
+    tree = load_tree(_existing(args.file), _registry(args))
+    info = file_info(tree)
+    if info.description:
+        print(info.description)
+    sys.stdout.write(render_text(tree))
+    return 0
+
+
+def _dot(args: argparse.Namespace) -> int:
+    tree = load_tree(_existing(args.file), _registry(args))
+    text = render_dot(tree)
+    out: Path | None = args.output
+    if out is None:
+        sys.stdout.write(text)
+        return 0
+    picture = _PICTURES.get(out.suffix.lower())
+    try:
+        if picture is None:
+            out.write_text(text, encoding="utf-8")
+        else:
+            out.write_bytes(_graphviz(text, picture))
+    except OSError as exc:
+        raise CliError(f"{out}: cannot write: {exc.strerror or exc}") from None
+    print(f"wrote {out}", file=sys.stderr)
+    return 0
+
+
+def _graphviz(text: str, fmt: str) -> bytes:
+    """Render DOT with Graphviz's ``dot``, which btcap does not bundle."""
+    dot = shutil.which("dot")
+    if dot is None:
+        raise CliError(
+            f"writing .{fmt} needs Graphviz's 'dot' program, which is not on PATH; install "
+            f"Graphviz (e.g. apt install graphviz) or write a .dot file and render it elsewhere"
+        )
+    try:
+        done = subprocess.run(
+            [dot, f"-T{fmt}"], input=text.encode(), capture_output=True, timeout=120, check=False
+        )
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise CliError(f"Graphviz 'dot' failed: {exc}") from None
+    if done.returncode != 0:
+        raise CliError(f"Graphviz 'dot' failed: {done.stderr.decode(errors='replace').strip()}")
+    return done.stdout
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.rate <= 0:
+        raise CliError(f"--rate {args.rate}: expected ticks per second > 0")
+    if args.max_ticks is not None and args.max_ticks < 1:
+        raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
+    clock = ManualClock() if args.fast else None
+    tree = load_tree(_existing(args.file), _registry(args), clock=clock)
+    state, ticks, text = asyncio.run(_tick(tree, clock, args.rate, args.max_ticks))
+    sys.stdout.write(text)
+    print(f"{state.value} after {ticks} tick{'s' if ticks != 1 else ''}")
+    if state is State.SUCCEEDED:
+        return 0
+    return 1 if state in DONE else 3
+
+
+async def _tick(
+    tree: Tree, clock: ManualClock | None, rate: float, max_ticks: int | None
+) -> tuple[State, int, str]:
+    """Tick to a result; the outline is taken before shutdown, which would repaint it."""
+    ticks = 0
+
+    def count(state: State) -> bool:
+        nonlocal ticks
+        ticks += 1
+        return state in DONE
+
+    try:
+        if clock is None:
+            state = await tree.run(rate, until=count, max_ticks=max_ticks)
+        else:
+            async with clock.autojump():
+                state = await tree.run(rate, until=count, max_ticks=max_ticks)
+        return state, ticks, render_text(tree, states=True)
+    finally:
+        await tree.shutdown()
+
+
+def _nodes(args: argparse.Namespace) -> int:
+    registry = _registry(args)
+    names = args.types or registry.names()
+    for name in names:
+        try:
+            cls = registry.get(name)
+        except TreeError as exc:
+            raise CliError(str(exc)) from None
+        doc = (cls.__doc__ or "").strip().splitlines()
+        print(f"{name}: {doc[0] if doc else ''}")
+        for kind, ports in (
+            ("option", cls.OPTIONS),
+            ("input", cls.INPUTS),
+            ("output", cls.OUTPUTS),
+        ):
+            for key, port in ports.items():
+                default = "" if port.required else f" = {port.default_value()!r}"
+                print(f"  {kind} {key}: {type_name(port.type)}{default}")
+    return 0
