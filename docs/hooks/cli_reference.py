@@ -4,11 +4,16 @@ taken from the parser at build time so it cannot fall behind the code."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import logging
 import os
 from collections.abc import Iterator
 from typing import Any
 
 MARKER = "<!-- btcap-cli-reference -->"
+#: A warning here fails the strict build, as mkdocs' own would.
+log = logging.getLogger("mkdocs.plugins.btcap_cli_reference")
 
 
 def _commands(
@@ -28,8 +33,13 @@ def reference() -> str:
     saved = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = "90"  # argparse wraps to the terminal: pin it for the page
     try:
+        complaints = io.StringIO()
+        with contextlib.redirect_stderr(complaints):  # a command plugin that did not load
+            root = build_parser()
+        for line in complaints.getvalue().splitlines():
+            log.warning("CLI reference incomplete: %s", line)
         parts = []
-        for name, parser in _commands(build_parser(), "btcap"):
+        for name, parser in _commands(root, "btcap"):
             parser.prog = name
             parts.append(f"## `{name}`\n\n```text\n{parser.format_help().rstrip()}\n```\n")
         return "\n".join(parts)
