@@ -16,6 +16,7 @@ from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.team.assignment import SingleItemAuction
 from btcap.team.config import MissionConfig
+from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership
 from btcap.team.mission import MissionControl
@@ -34,6 +35,8 @@ class AgentConfig(MissionConfig):
     tick_hz: float = 10.0
     heartbeat_s: float = 0.1
     failure_timeout_s: float = 0.5
+    #: Peers beaten to per period past this team size (see :mod:`btcap.team.membership`).
+    heartbeat_fanout: int = 8
 
 
 class Agent:
@@ -68,15 +71,22 @@ class Agent:
             robot,
             heartbeat_s=cfg.heartbeat_s,
             failure_timeout_s=cfg.failure_timeout_s,
+            fanout=cfg.heartbeat_fanout,
             repo_version=lambda: self.repository.version,
             busy=lambda: not self.mission_control.body.idle,
         )
-        self.auctioneer = SingleItemAuction(
-            robot,
-            window_s=cfg.auction_window_s,
-            award_timeout_s=cfg.award_timeout_s,
-            strategy=cfg.strategy,
-        )
+        self.auctioneer: SingleItemAuction | ConsensusAssigner
+        if cfg.strategy == "consensus":  # no auctioneer: every robot takes part alike
+            self.auctioneer = ConsensusAssigner(
+                robot, window_s=cfg.auction_window_s, award_timeout_s=cfg.award_timeout_s
+            )
+        else:
+            self.auctioneer = SingleItemAuction(
+                robot,
+                window_s=cfg.auction_window_s,
+                award_timeout_s=cfg.award_timeout_s,
+                strategy=cfg.strategy,
+            )
         self.mission_control = MissionControl(
             robot, self.repository, self.team, self.auctioneer, config=cfg
         )
@@ -97,7 +107,7 @@ class Agent:
             s = self.system
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
-            s.spawn(self.auctioneer, SingleItemAuction.PATH)
+            s.spawn(self.auctioneer, self.auctioneer.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)
             for path, actor in self._extra.items():
                 s.spawn(actor, path)

@@ -103,6 +103,7 @@ class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     tick_hz: _Positive = _DEFAULTS.tick_hz
     heartbeat_s: _Positive = _DEFAULTS.heartbeat_s
     failure_timeout_s: _Positive = _DEFAULTS.failure_timeout_s
+    heartbeat_fanout: Annotated[int, msgspec.Meta(ge=1)] = _DEFAULTS.heartbeat_fanout
     lease_s: _Positive = _DEFAULTS.lease_s
     keepalive_s: _Positive = _DEFAULTS.keepalive_s
     auction_window_s: _Positive = _DEFAULTS.auction_window_s
@@ -116,7 +117,7 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     #: Re-evaluate running work this often (clock seconds); null: never move running work.
     reevaluate_s: _Positive | None = _DEFAULTS.reevaluate_s
     move_margin: Annotated[float, msgspec.Meta(ge=0, lt=1)] = _DEFAULTS.move_margin
-    strategy: Literal["auction", "optimal", "arrival"] = "auction"
+    strategy: Literal["auction", "sequential", "optimal", "arrival", "consensus"] = "auction"
     rebid_on_join: Annotated[float, msgspec.Meta(gt=0, lt=1)] | None = None
     queue_after_current: bool = False
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import msgspec
+
 from btcap.bt.state import State
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.transports import Message
@@ -20,12 +22,15 @@ __all__ = [
     "Bid",
     "CallForBids",
     "CancelExecution",
+    "ConsensusClaim",
+    "ConsensusTasks",
     "ExecutionInputs",
     "ExecutionStatus",
     "Goodbye",
     "Heartbeat",
     "KeepAlive",
     "NoBid",
+    "OpenTask",
     "PauseExecution",
     "RepositoryQuery",
     "RepositoryState",
@@ -121,6 +126,46 @@ class AwardReply(Message):
     reason: str = ""
 
 
+# -- consensus allocation (no auctioneer) ------------------------------------------------
+class OpenTask(msgspec.Struct, frozen=True, array_like=True):
+    """One capability execution an origin wants run, as consensus allocation offers it.
+    ``holder``: running work is re-evaluated; ``holder_robot`` runs it and its bid counts
+    ``margin`` lower, so others must beat it by that much."""
+
+    execution: ExecutionId
+    interface: str
+    identity: str
+    inputs: dict[str, Any]
+    candidates: list[str]
+    holder: ExecutionId | None = None
+    holder_robot: str | None = None
+    margin: float = 0.0
+
+
+class ConsensusTasks(Message):
+    """The sender's open tasks as of ``version`` (newer versions replace older ones)."""
+
+    robot: str
+    version: int
+    tasks: list[OpenTask]
+
+
+class ConsensusClaim(Message):
+    """The sender's claim (``task`` at ``cost`` with ``implementation``, or none) under its
+    ``stamp``; ``view``: the claim stamp and task version of every member it has merged,
+    as (robot, stamp, version); ``why``: tasks it cannot bid for, and why. ``seq`` grows
+    with every message of the sender."""
+
+    robot: str
+    seq: int
+    stamp: int
+    task: ExecutionId | None
+    cost: float
+    implementation: str
+    view: list[tuple[str, int, int]]
+    why: list[tuple[ExecutionId, str]] = []
+
+
 # -- executions --------------------------------------------------------------------------
 class ExecutionInputs(Message):
     """The capability's latest inputs, sent every tick of the capability node."""
@@ -171,6 +216,8 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     NoBid,
     Award,
     AwardReply,
+    ConsensusTasks,
+    ConsensusClaim,
     ExecutionInputs,
     ExecutionStatus,
     PauseExecution,

@@ -76,7 +76,7 @@ class Consensus(Generic[T]):
 
     ``dropped`` counts tasks and view entries over the bounds a peer sent; ``refused``
     counts messages that spoke for someone else or made no sense. Both are the shell's to
-    log (the core does no I/O).
+    log (the core does no I/O). Robots not (or no longer) members are not heard at all.
     """
 
     def __init__(self, robot: str, *, max_tasks: int = 64, max_members: int = 1024) -> None:
@@ -140,9 +140,8 @@ class Consensus(Generic[T]):
     def offer(self, sender: str, version: int, tasks: Iterable[Task[T]]) -> bool:
         """``sender``'s open tasks as of ``version``; True if they replaced older ones.
         Tasks of another origin are refused, those over ``max_tasks`` dropped."""
-        if sender == self.robot or sender not in self.members:
-            self.refused += 1
-            return False
+        if sender not in self.members - {self.robot}:
+            return False  # a stranger (perhaps not yet heard of): nothing kept
         old = self._offers.get(sender)
         if old is not None and version <= old.version:
             return False  # a repeat or overtaken
@@ -162,7 +161,9 @@ class Consensus(Generic[T]):
     ) -> bool:
         """A peer's claim and view in its message number ``seq``; True if news. A claim
         for someone else, or with an impossible cost, is refused."""
-        if sender == self.robot or sender not in self.members or claim.robot != sender:
+        if sender not in self.members - {self.robot}:
+            return False  # a stranger (perhaps not yet heard of): nothing kept
+        if claim.robot != sender:
             self.refused += 1
             return False
         if claim.task is not None and not (math.isfinite(claim.cost) and claim.cost >= 0):

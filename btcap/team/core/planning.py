@@ -46,7 +46,7 @@ __all__ = [
     "sequential_plan",
 ]
 
-STRATEGIES = ("auction", "sequential", "optimal", "arrival")
+STRATEGIES = ("auction", "sequential", "optimal", "arrival", "consensus")
 
 Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 Plan = list[str | None]

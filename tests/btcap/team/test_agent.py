@@ -23,12 +23,15 @@ from btcap.team.messages import (
     Bid,
     CallForBids,
     CancelExecution,
+    ConsensusClaim,
+    ConsensusTasks,
     ExecutionInputs,
     ExecutionStatus,
     Goodbye,
     Heartbeat,
     KeepAlive,
     NoBid,
+    OpenTask,
     PauseExecution,
     RepositoryQuery,
     RepositoryState,
@@ -69,6 +72,15 @@ SAMPLES: dict[type[Message], list[Message]] = {
     PauseExecution: [PauseExecution(E1)],
     CancelExecution: [CancelExecution(E1), CancelExecution(E2, "reset")],
     KeepAlive: [KeepAlive("b", [E1, E2]), KeepAlive("b", [])],
+    ConsensusTasks: [
+        ConsensusTasks("a", 3, [OpenTask(E1, "Count", COUNT.identity, {"x": 3}, ["b", "c"])]),
+        ConsensusTasks("a", 4, [OpenTask(E2, "Count", "", {}, [], E1, "b", 0.2)]),
+        ConsensusTasks("a", 5, []),
+    ],
+    ConsensusClaim: [
+        ConsensusClaim("b", 7, 2, E1, 2.5, "count-b", [("a", 1, 3), ("b", 2, 0)]),
+        ConsensusClaim("b", 8, 3, None, 0.0, "", [], [(E2, "busy")]),
+    ],
 }
 
 

@@ -1,0 +1,378 @@
+"""Consensus allocation: the ``consensus`` strategy, with no auctioneer collecting bids.
+
+Every robot runs a :class:`ConsensusAssigner`. An origin offers its pending capability
+executions to the team; each robot prices them itself (the bids of
+:class:`~btcap.team.executor.ExecutorSide`), claims the one it does cheapest among those
+where it beats the current winner, and tells every member its claim; conflicts are
+resolved by the best bid, as in CBAA (:mod:`btcap.team.core.consensus`). When the team
+agrees, or after ``window_s`` without agreement, the origin awards each task to the
+winner it sees, confirmed as in the auction (award -> accept/decline, then leases), so a
+task never runs twice even if the views still differed.
+
+When to use it: a team where no robot should decide for the others, where several
+robots hold mission trees and would otherwise award the same robot from separate
+auctions, or whose links are flaky (a lost member's claims simply vanish and what it
+held is re-allocated by the others; a task's allocation needs no single robot but its
+origin). It costs more messages than the auction (every change goes to every member:
+O(n^2) per round) and gives the sequential greedy assignment, not the optimum (use
+``optimal`` for small central teams).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import math
+from collections.abc import Awaitable, Callable, Iterable
+from dataclasses import dataclass
+from typing import TypeVar
+
+from btcap.actors import Actor, ActorError, Supervision, TimeSource, handler
+from btcap.team.assignment import (
+    Assigned,
+    AssignmentStrategy,
+    AssignmentTask,
+    AuctionStats,
+    Unassigned,
+)
+from btcap.team.capability import ASSIGNER_PATH
+from btcap.team.core.consensus import Claim, Consensus, Task
+from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.membership import Membership, TeamEvent
+from btcap.team.messages import (
+    Award,
+    AwardReply,
+    Bid,
+    CallForBids,
+    CancelExecution,
+    ConsensusClaim,
+    ConsensusTasks,
+    OpenTask,
+)
+from btcap.team.mission import MissionControl
+from btcap.transports import Address
+from btcap.transports.log import get_logger, worth_logging
+
+__all__ = ["ConsensusAssigner", "ConsensusStats"]
+
+log = get_logger("btcap.team.consensus")
+
+R = TypeVar("R")
+
+
+@dataclass(slots=True)
+class ConsensusStats(AuctionStats):
+    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window."""
+
+    messages: int = 0  #: consensus messages sent
+    refused: int = 0  #: messages speaking for another robot, or for nobody we know
+    dropped: int = 0  #: tasks and view entries over the bounds a peer sent
+
+
+@dataclass(slots=True)
+class _Pending:
+    task: AssignmentTask
+    agreed: asyncio.Event
+    why: dict[str, str]
+
+
+class ConsensusAssigner(Actor, AssignmentStrategy):
+    """One robot's part of consensus allocation; see the module docstring."""
+
+    PATH = "consensus"
+    #: A peer's bad message must never stop a robot's allocation.
+    supervision = Supervision.RESUME
+
+    def __init__(
+        self,
+        robot: str,
+        *,
+        window_s: float = 1.0,
+        award_timeout_s: float = 0.5,
+        max_tasks: int = 64,
+    ) -> None:
+        super().__init__()
+        self.robot = robot
+        self.window_s = window_s
+        self.award_timeout_s = award_timeout_s
+        self.core: Consensus[OpenTask] = Consensus(robot, max_tasks=max_tasks)
+        self.stats = ConsensusStats()
+        self._pending: dict[ExecutionId, _Pending] = {}
+        self._impls: dict[str, str] = {}  # the implementation of each robot's claim
+        self._prices: dict[ExecutionId, tuple[OpenTask, Bid | str]] = {}
+        self._idle: bool | None = None  # the body's state the prices were made in
+        self._said: tuple[Claim, dict[str, tuple[int, int]]] | None = None
+        self._said_version = 0
+        self._seq = itertools.count(1)
+        self._ids = itertools.count(1)
+        self._team: Membership | None = None
+        self._unsubscribe: Callable[[], None] | None = None
+        self._newcomers: set[str] = set()
+        self._scheduled = False
+
+    # -- life cycle and team ----------------------------------------------------------
+    def on_start(self) -> None:
+        team = self.system.lookup(Membership.PATH)
+        if isinstance(team, Membership):
+            self._team = team
+            self._unsubscribe = team.subscribe(self._on_team)
+            for robot in sorted(team.alive()):
+                self.core.join(robot)
+
+    def on_stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event is TeamEvent.JOINED:
+            self.core.join(robot)
+            self._newcomers.add(robot)  # it needs what we hold, changed or not
+        elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
+            self.core.lose(robot)
+            self._impls.pop(robot, None)
+            self._newcomers.discard(robot)
+        elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
+            self._prices.clear()  # preconditions may be met now
+        self._soon()
+
+    # -- the strategy -----------------------------------------------------------------
+    async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
+        clock = self.system.clock
+        mine = _Pending(task, asyncio.Event(), {})
+        self._pending[task.execution] = mine
+        self.stats.auctions += 1
+        spec = OpenTask(
+            task.execution,
+            task.interface,
+            task.identity,
+            dict(task.inputs),
+            sorted(task.candidates),
+            task.holder,
+            task.holder_robot,
+            task.margin,
+        )
+        self.core.open(Task(task.execution, task.candidates, spec))
+        try:
+            while True:
+                self._soon()
+                if not self.core.converged():
+                    await self._agreement(mine, clock)
+                if self.core.converged():
+                    self.stats.early_closes += 1
+                won = await self._award(mine)
+                if won is not None:
+                    return won
+        finally:
+            del self._pending[task.execution]
+            self.core.close(task.execution)
+            self._soon()
+
+    async def _agreement(self, mine: _Pending, clock: TimeSource) -> None:
+        """Until the team agrees or ``window_s`` passes; silent peers are told again at a
+        quarter of the window (a message may have been lost)."""
+        for _ in range(4):
+            mine.agreed.clear()
+            if await _within(mine.agreed.wait(), clock, self.window_s / 4) is not None:
+                return
+            self._tell_all(sorted(self.core.waiting_for()))
+
+    async def _award(self, mine: _Pending) -> Assigned | Unassigned | None:
+        """Award the task to its winner; None: it declined, so agree again without it."""
+        task = mine.task
+        win = self.core.winners().get(task.execution)
+        if win is None or win.robot == task.holder_robot:
+            self.stats.unassigned += 1
+            why = dict(mine.why)
+            for robot in task.candidates - why.keys():
+                why[robot] = "kept its work" if robot == task.holder_robot else "no claim"
+            return Unassigned(why)
+        if task.reserve is not None and win.cost >= task.reserve:
+            self.stats.unassigned += 1
+            return Unassigned({win.robot: f"bid {win.cost:g} not below {task.reserve:g}"})
+        impl = self._implementation(win)
+        award = Award(
+            AuctionId(self.robot, next(self._ids)),
+            task.execution,
+            task.interface,
+            impl,
+            dict(task.inputs),
+            task.lease_s,
+            task.paused,
+        )
+        executor = self.system.ref(Address(win.robot, ASSIGNER_PATH))
+        clock = self.system.clock
+        reply: AwardReply | None = None
+        try:
+            reply = await _within(
+                executor.ask(award, expect=AwardReply), clock, self.award_timeout_s
+            )
+        except (ActorError, TypeError) as exc:
+            mine.why[win.robot] = f"no answer to the award ({exc})"
+        finally:
+            if reply is None:  # timed out, failed or cancelled: withdraw, never run twice
+                cancel = CancelExecution(task.execution, "award withdrawn")
+                executor.tell(cancel, sender=self.address)
+        if reply is not None and reply.accepted:
+            self.stats.awarded += 1
+            return Assigned(win.robot, impl, win.cost)
+        self.stats.declined_awards += 1
+        if reply is not None:
+            mine.why[win.robot] = f"declined the award: {reply.reason}"
+        mine.why.setdefault(win.robot, "no answer to the award")
+        log.info(
+            "consensus.award_declined", robot=self.robot, to=win.robot, why=mine.why[win.robot]
+        )
+        self.core.restrict(task.execution, win.robot)
+        return None
+
+    def _implementation(self, win: Claim) -> str:
+        if win.robot == self.robot:
+            price = self._prices.get(win.task) if win.task is not None else None
+            return price[1].implementation if price and isinstance(price[1], Bid) else ""
+        return self._impls.get(win.robot, "")
+
+    # -- one step: price, select, tell --------------------------------------------------
+    def _soon(self) -> None:
+        """Step once this turn of the event loop is over: what arrives meanwhile is merged
+        first and goes out in one message per member (CBAA's round), and the tasks a tree
+        asks for in one tick are offered together."""
+        if not self._scheduled:
+            self._scheduled = True
+            asyncio.get_running_loop().call_soon(self._step)
+
+    def _step(self) -> None:
+        self._scheduled = False
+        if self._system is None or not self.system.running:
+            return
+        self.core.select(self._costs())
+        self._count()
+        if self.core.converged():
+            for p in self._pending.values():
+                p.agreed.set()
+        now = (self.core.claim, self.core.vector())
+        tasks_changed = self.core.version != self._said_version
+        if tasks_changed or now != self._said:
+            self._said, self._said_version = now, self.core.version
+            self._tell_all(sorted(self.core.members - {self.robot}), tasks=tasks_changed)
+        else:
+            self._tell_all(sorted(self._newcomers & self.core.members))
+        self._newcomers.clear()
+
+    def _tell_all(self, robots: Iterable[str], *, tasks: bool = True) -> None:
+        """Tell ``robots`` this robot's claim and view (and its open tasks)."""
+        robots = list(robots)
+        if not robots or self._system is None or not self.system.running:
+            return
+        claim, vector = self.core.claim, self.core.vector()
+        impl = self._implementation(claim) if claim.task is not None else ""
+        why = [
+            (t, answer)
+            for t, (_spec, answer) in self._prices.items()
+            if isinstance(answer, str) and t.origin in robots
+        ]
+        msgs: list[ConsensusTasks | ConsensusClaim] = []
+        if tasks:
+            mine = [t.spec for t in self.core.own_tasks()]
+            msgs.append(ConsensusTasks(self.robot, self.core.version, mine))
+        view = [(r, s, v) for r, (s, v) in sorted(vector.items())]
+        cost = claim.cost if claim.task is not None else 0.0
+        msgs.append(
+            ConsensusClaim(
+                self.robot, next(self._seq), claim.stamp, claim.task, cost, impl, view, why
+            )
+        )
+        for robot in robots:
+            for msg in msgs:
+                self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
+                self.stats.messages += 1
+
+    def _costs(self) -> dict[ExecutionId, float]:
+        """This robot's cost for each open task it may take (cached while its body's
+        state and the task stay the same); a holder's bid counts ``margin`` lower."""
+        mc = self.system.lookup(ASSIGNER_PATH)
+        if not isinstance(mc, MissionControl):
+            return {}
+        idle = mc.body.idle
+        if idle != self._idle:
+            self._prices.clear()
+            self._idle = idle
+        tasks = self.core.tasks()
+        for gone in self._prices.keys() - tasks.keys():
+            del self._prices[gone]
+        costs: dict[ExecutionId, float] = {}
+        for execution, task in tasks.items():
+            if self.robot not in task.candidates:
+                continue
+            spec = task.spec
+            cached = self._prices.get(execution)
+            if cached is None or cached[0] is not spec:
+                cfb = CallForBids(
+                    AuctionId(execution.origin, 0),
+                    spec.interface,
+                    spec.identity,
+                    spec.inputs,
+                    spec.holder,
+                )
+                got = mc.executor.evaluate(cfb)
+                cached = (spec, got if isinstance(got, Bid) else got.reason)
+                self._prices[execution] = cached
+            bid = cached[1]
+            if isinstance(bid, Bid):
+                held = spec.holder_robot == self.robot
+                costs[execution] = bid.cost * (1.0 - spec.margin) if held else bid.cost
+        return costs
+
+    def _count(self) -> None:
+        """Report what the core refused or dropped since last time, at a falling rate."""
+        for name in ("refused", "dropped"):
+            now, before = getattr(self.core, name), getattr(self.stats, name)
+            if now > before:
+                setattr(self.stats, name, now)
+                if worth_logging(now):
+                    log.warning(f"consensus.{name}", robot=self.robot, count=now)
+
+    # -- what peers say ---------------------------------------------------------------
+    def _member(self, sender: str) -> bool:
+        team = self._team
+        if sender not in self.core.members and team is not None and sender in team.alive():
+            self.core.join(sender)  # its first word came before its heartbeat's news
+        return sender in self.core.members
+
+    @handler
+    def on_tasks(self, msg: ConsensusTasks) -> None:
+        sender = self.sender
+        if msg.robot != sender:
+            self.core.refused += 1
+        elif self._member(sender):
+            tasks = (Task(t.execution, frozenset(t.candidates), t) for t in msg.tasks)
+            self.core.offer(sender, msg.version, tasks)
+        self._soon()
+
+    @handler
+    def on_claim(self, msg: ConsensusClaim) -> None:
+        sender = self.sender
+        if not self._member(sender):
+            return  # a stranger, or a member we lost: its state is not kept
+        claim = Claim(msg.robot, msg.stamp, msg.task, msg.cost if msg.task else math.inf)
+        view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
+        if self.core.hear(sender, msg.seq, claim, view) and self.core.claims.get(sender) is claim:
+            self._impls[sender] = msg.implementation
+        for execution, why in msg.why[: self.core.max_tasks]:
+            p = self._pending.get(execution)
+            if p is not None and sender in p.task.candidates:
+                p.why[sender] = why
+        self._soon()
+
+
+async def _within(aw: Awaitable[R], clock: TimeSource, seconds: float) -> R | None:
+    """``aw``'s result, or None after ``seconds`` of clock time (it is then cancelled)."""
+    job = asyncio.ensure_future(aw)
+    timer = asyncio.ensure_future(clock.sleep(seconds))
+    try:
+        await asyncio.wait((job, timer), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        timer.cancel()
+        if not job.done():
+            job.cancel()
+    return job.result() if job.done() and not job.cancelled() else None

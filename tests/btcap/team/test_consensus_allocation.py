@@ -1,0 +1,150 @@
+"""The consensus strategy between live agents on the manual clock: no auctioneer, awards
+still confirmed, and a member lost mid-consensus has its work re-allocated."""
+
+from __future__ import annotations
+
+import anyio
+from capfixtures import (
+    COUNT,
+    Probe,
+    count_impl,
+    silent_member,
+    step,
+    team,
+    tick_until,
+    until,
+)
+
+from btcap import Parallel, Sequence, State
+from btcap.team.consensus_assigner import ConsensusAssigner
+
+
+def _cons(agent: object) -> ConsensusAssigner:
+    allocator = getattr(agent, "auctioneer", None)
+    assert isinstance(allocator, ConsensusAssigner)
+    return allocator
+
+
+async def test_a_mission_completes_with_the_cheapest_robot_and_no_auctioneer() -> None:
+    # A window of 1000 clock seconds: only agreement can finish it in time.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(strategy="consensus", auction_window_s=1000.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            await t.add("b", [count_impl("b", 2.0, probe)])
+            await t.add("c", [count_impl("c", 3.0, probe)])
+            await t.add("d")  # no implementation: takes part, claims nothing
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 3, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            assert node.assignments == ["b"]
+            assert node.outputs["y"] == 3
+            stats = _cons(a).stats
+            assert stats.awarded == stats.early_closes == stats.auctions == 1
+            assert stats.refused == stats.dropped == 0
+            assert not probe.violations
+            await tree.shutdown()
+
+
+async def test_parallel_tasks_get_the_greedy_conflict_free_assignment() -> None:
+    """The greedy trap: b does task 1 cheapest and gets it; c takes task 2 at 100."""
+    costs = {"b": {1: 1.0, 2: 2.0}, "c": {1: 2.0, 2: 100.0}}
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None) as t:
+            a = await t.add("a")
+            for robot, by_task in costs.items():
+                bid = lambda inputs, c=by_task: c[inputs["x"]]  # noqa: E731
+                await t.add(robot, [count_impl(robot, bid, probe)])
+            await t.converged()
+            n1 = COUNT.node_type()("n1", inputs={"x": 1})
+            n2 = COUNT.node_type()("n2", inputs={"x": 2})
+            tree = a.mission(Parallel("both", children=[n1, n2]))
+            await tick_until(tree, lambda _s: bool(n1.assignments and n2.assignments), "both")
+            assert (n1.assignments, n2.assignments) == (["b"], ["c"])
+            assert _cons(a).stats.declined_awards == 0
+            await tree.shutdown()
+
+
+async def test_two_origins_never_award_the_same_robot() -> None:
+    """Two robots with mission trees and one worker: separate auctions would both try
+    it; under consensus one task waits, and runs when the worker is free again."""
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None) as t:
+            o1 = await t.add("o1")
+            o2 = await t.add("o2")
+            await t.add("w", [count_impl("w", 1.0, probe, after=3)])
+            await t.converged()
+            n1 = COUNT.node_type()("n1", inputs={"x": 1})
+            n2 = COUNT.node_type()("n2", inputs={"x": 2})
+            t1 = o1.mission(Sequence("r1", children=[n1]))
+            t2 = o2.mission(Sequence("r2", children=[n2]))
+            for _ in range(2000):
+                s1, s2 = t1.tick(), t2.tick()
+                if s1 is State.SUCCEEDED and s2 is State.SUCCEEDED:
+                    break
+                await step()
+            assert (n1.assignments, n2.assignments) == (["w"], ["w"])
+            assert not probe.violations
+            declined = _cons(o1).stats.declined_awards + _cons(o2).stats.declined_awards
+            assert declined == 0  # the consensus kept them apart, not a refusal
+            await t1.shutdown()
+            await t2.shutdown()
+
+
+async def test_a_winner_lost_mid_consensus_has_its_task_reallocated() -> None:
+    """b claims the task while the team cannot agree yet (member s never speaks), then
+    fails silently: its claim goes with it, c claims the task, and once s has left the
+    team agrees and c runs it. b never gets an award."""
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None, auction_window_s=1000.0) as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.add("c", [count_impl("c", 2.0, probe, after=3)])
+            everyone = {"a", "b", "c", "s"}
+            async with silent_member(t.net, "s", [], t.clock):
+                await until(lambda: all(x.team.alive() == everyone for x in t.agents.values()))
+                await until(lambda: len(a.repository.providers(COUNT.identity)) == 2)
+                node = COUNT.node_type()("count", inputs={"x": 1})
+                tree = a.mission(Sequence("root", children=[node]))
+                core = _cons(a).core
+
+                def winner() -> str | None:
+                    won = list(core.winners().values())
+                    return won[0].robot if won else None
+
+                await tick_until(tree, lambda _s: winner() == "b", "b to claim it")
+                for actor in (b.auctioneer, b.mission_control, b.team):
+                    b.system.stop(actor)  # silent from now on: the team declares it failed
+                await tick_until(tree, lambda _s: "b" not in core.members, "b to be lost")
+                await tick_until(tree, lambda _s: winner() == "c", "c to claim it")
+                assert node.state is State.UNASSIGNED
+                assert not core.converged()
+            state = await tick_until(tree, lambda s: s in (State.SUCCEEDED, State.FAILED))
+            assert state is State.SUCCEEDED
+            assert node.assignments == ["c"]
+            assert probe.ticks["b"] == 0
+            assert _cons(a).stats.declined_awards == 0
+            await tree.shutdown()
+
+
+async def test_a_robot_lost_mid_run_has_its_work_reassigned_through_consensus() -> None:
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.add("c", [count_impl("c", 2.0, probe, after=5)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: probe.ticks["b"] > 0, "b running")
+            await t.remove("b")
+            state = await tick_until(tree, lambda s: s in (State.SUCCEEDED, State.FAILED))
+            assert state is State.SUCCEEDED
+            assert node.assignments == ["b", "c"]
+            assert not probe.violations
+            await tree.shutdown()
