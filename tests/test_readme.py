@@ -31,7 +31,7 @@ _FENCE = re.compile(r"^```([\w-]*)[^\n]*\n(.*?)^```[ \t]*$", re.M | re.S)
 _SHOWN = {"text", "console"}
 _CHECKED = {"python", "yaml", "sh"}
 #: ``btcap`` subcommands cheap enough to run for real (the rest are parsed only).
-_RUN = {("tree", "validate"), ("tree", "show"), ("tree", "nodes")}
+_RUN = {("tree", "validate"), ("tree", "show"), ("tree", "nodes"), ("tree", "run")}
 
 
 @dataclass(frozen=True)
