@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from btcap.sim.metrics import Interval, Mark, MissionResult, RobotStats
-from btcap.sim.plots import plot_timeline
+from btcap.sim.plots import plot_comparison, plot_timeline
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -82,3 +82,22 @@ def test_plot_timeline_survives_a_json_round_trip(tmp_path: Path) -> None:
     again = msgspec.json.decode(original.to_json(), type=MissionResult)
     assert again == original
     read_png(plot_timeline(again, tmp_path / "t.png"))
+
+
+def test_plot_comparison_of_missions_with_different_robots(tmp_path: Path) -> None:
+    import matplotlib.pyplot as plt
+    import msgspec
+
+    done = result([], [], 600.0)
+    unfinished = msgspec.structs.replace(
+        done,
+        scenario="lonely",
+        completed=False,
+        mission_time_s=2000.0,
+        robots={"spot1": RobotStats("spot", 5.0, 2000.0, 0.0, {}, 0.0)},
+    )
+    empty = msgspec.structs.replace(done, scenario="nobody", robots={})
+    out = plot_comparison([done, unfinished, empty], tmp_path / "compare.png")
+    height, width = read_png(out)
+    assert width > height > 100
+    assert not plt.get_fignums()
