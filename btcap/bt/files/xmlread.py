@@ -67,8 +67,8 @@ def read_xml(data: bytes | str, where: str) -> XmlElement:
     except expat.ExpatError as exc:
         raise TreeFileError(
             [
-                f"{where}: malformed XML: {expat.errors.messages[exc.code]} "
-                f"(line {exc.lineno}, column {exc.offset + 1})"
+                f"{where}: line {exc.lineno}: malformed XML: "
+                f"{expat.errors.messages[exc.code]} (column {exc.offset + 1})"
             ]
         ) from None
     return roots[0]
