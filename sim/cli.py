@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import json
 import math
 import signal
@@ -21,6 +22,8 @@ from rich.table import Table
 from rich.text import Text
 
 from btcap.cli import CliError
+from btcap.monitor import Monitor
+from btcap.monitor.cli import add_monitor_option, monitored
 from btcap.sim.metrics import MissionResult
 from btcap.sim.plots import plot_comparison, plot_timeline
 from btcap.sim.runner import Progress, run_fast, run_scenario
@@ -85,6 +88,15 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="busy robots bid for one more task, to start after their current one",
     )
     p.add_argument("--quiet", action="store_true", help="no live display")
+    add_monitor_option(p)
+    p.add_argument(
+        "--record",
+        type=Path,
+        metavar="FILE",
+        help="record trees, runs, auctions and team events as JSON Lines for btcap replay "
+        "(default: monitor.jsonl in the output folder)",
+    )
+    p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
 
 
@@ -243,13 +255,21 @@ class _Stopper:
 
 
 async def _run_one(
-    s: Scenario, console: Console, quiet: bool, distributed: bool, fast: bool, stopper: _Stopper
+    s: Scenario,
+    console: Console,
+    quiet: bool,
+    distributed: bool,
+    fast: bool,
+    stopper: _Stopper,
+    monitor: Monitor | None = None,
 ) -> MissionResult:
     runner: Callable[..., Awaitable[MissionResult]] = run_fast if fast else run_scenario
     if distributed:
         from btcap.sim.distributed import run_distributed
 
         runner = run_distributed
+    if monitor is not None:
+        runner = functools.partial(runner, monitor=monitor)
     stop = stopper.event()
     if quiet:
         return await runner(s, stop=stop)
@@ -313,9 +333,17 @@ def run_command(args: argparse.Namespace) -> int:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
-            result = asyncio.run(
-                _run_one(s, console, args.quiet, args.distributed, args.fast, stopper)
+            folder = out / s.name if args.compare else out
+            record = args.record or folder / "monitor.jsonl"
+            if args.compare and args.record is not None:
+                record = args.record.with_name(f"{args.record.stem}-{s.name}.jsonl")
+            run = functools.partial(
+                _run_one, s, console, args.quiet, args.distributed, args.fast, stopper
             )
+            keep = None if args.no_record else record
+            result = asyncio.run(monitored(args.monitor, keep, s.name, run))
+            if keep is not None:
+                console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             results.append(result)
             try:
                 _write(result, out / s.name if args.compare else out)

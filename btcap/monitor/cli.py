@@ -5,16 +5,27 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import TypeVar
 
 from btcap.cli import CliError
+from btcap.monitor.monitor import Monitor
 from btcap.monitor.record import RecordError
 from btcap.monitor.replay import Replay
 from btcap.monitor.server import MonitorServer
 
-__all__ = ["DEFAULT_PORT", "add_monitor_option", "add_parser", "parse_address"]
+__all__ = [
+    "DEFAULT_PORT",
+    "add_monitor_option",
+    "add_parser",
+    "monitored",
+    "parse_address",
+]
 
 DEFAULT_PORT = 8765
+
+T = TypeVar("T")
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -38,6 +49,30 @@ def add_monitor_option(p: argparse.ArgumentParser) -> None:
         metavar="[HOST:]PORT",
         help="serve the live monitor page (loopback unless HOST is given; 0: a free port)",
     )
+
+
+async def monitored(
+    address: tuple[str, int] | None,
+    record: Path | None,
+    title: str,
+    run: Callable[[Monitor | None], Awaitable[T]],
+) -> T:
+    """``run(monitor)`` with a monitor serving ``address`` and/or recording to ``record``
+    (neither: ``run(None)``, no monitor at all). Prints where the page is."""
+    if address is None and record is None:
+        return await run(None)
+    host, port = address if address is not None else ("127.0.0.1", None)
+    monitor = Monitor(host=host, port=port, record=record, title=title)
+    try:
+        await monitor.start()
+    except OSError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        if address is not None:
+            print(f"monitor: {monitor.url}", flush=True)
+        return await run(monitor)
+    finally:
+        await monitor.stop()
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

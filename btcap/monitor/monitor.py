@@ -168,7 +168,8 @@ class Monitor:
         if self.viewpoint is None:
             self.viewpoint = robot
         if robot == self.viewpoint:  # robots may disagree (one cut off sees all others fail)
-            self._team(robot, "joined", now)
+            for member in sorted(agent.team.alive()):  # itself, and who joined before
+                self._team(member, "joined", now)
             undo.append(agent.team.subscribe(lambda ev, who: self._on_team(ev, who, clock.now())))
 
         def detach() -> None:

@@ -61,6 +61,8 @@ def read_record(path: str | Path) -> list[Event]:
         try:
             obj = _decode.decode(line)
         except msgspec.DecodeError as exc:
+            if number == 1:
+                raise RecordError(f"{path}:1: not a btcap recording (not JSON Lines)") from None
             if number == len(lines):  # the last line of a run that was killed mid-write
                 break
             raise RecordError(f"{path}:{number}: not a JSON object ({exc})") from None

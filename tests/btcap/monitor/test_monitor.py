@@ -1,0 +1,282 @@
+"""The monitor without a browser: its picture, /api/state, the WebSocket stream and its
+batching, recordings and their replay (on explicit time where the subject allows)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+import anyio
+import pytest
+
+import btcap.cli
+from btcap import Leaf, Monitor, Replay, Sequence, State, Tree
+from btcap.actors import ManualClock
+from btcap.cli import main
+from btcap.monitor import RecordError, read_record
+from btcap.monitor.cli import parse_address
+from btcap.monitor.server import MonitorServer
+from btcap.sim.runner import run_fast
+from btcap.sim.scenario import load_scenario
+
+DATA = Path(__file__).parents[2] / "sim" / "data"
+ROBOTS = {"husky1", "spot1", "bebop1"}
+PICTURE = ("robots", "runs", "auctions", "marks")
+
+
+async def _json(url: str) -> Any:
+    async with aiohttp.ClientSession() as http, http.get(url) as resp:
+        assert resp.status == 200
+        assert "default-src 'self'" in resp.headers["Content-Security-Policy"]
+        return await resp.json()
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], Path]:
+    """The small mission on virtual time with a recording monitor: (live state, record)."""
+    record = tmp_path_factory.mktemp("monitor") / "run.jsonl"
+
+    async def main() -> dict[str, Any]:
+        with anyio.fail_after(60):
+            async with Monitor(port=0, record=record, title="small") as monitor:
+                result = await run_fast(load_scenario(DATA / "small.yaml"), monitor=monitor)
+                assert result.completed
+                state: dict[str, Any] = await _json(monitor.url + "api/state")
+                return state
+
+    return asyncio.run(main()), record
+
+
+def test_the_picture_shows_every_robot_its_trees_runs_and_auctions(
+    small_run: tuple[dict[str, Any], Path],
+) -> None:
+    state, _ = small_run
+    assert state["mode"] == "live"
+    assert state["title"] == "small"
+    robots = state["robots"]
+    assert set(robots) == ROBOTS | {"operator"}
+    assert all(r["status"] == "joined" for r in robots.values())
+    for name in ROBOTS:
+        assert list(robots[name]["trees"]) == [f"{name}-host"]
+    mission = robots["operator"]["trees"]["find_and_decontaminate"]["nodes"]
+    caps = {n["name"] for n in mission if n["cap"]}
+    assert caps == {"explore", "identify", "decontaminate"}
+    assert mission[0]["parent"] is None
+    assert mission[0]["state"] == "succeeded"
+    runs = state["runs"]
+    assert {r["robot"] for r in runs} == ROBOTS  # everybody worked, lanes for all
+    assert all(r["end"] is not None and r["end"] >= r["start"] for r in runs)
+    explore = {r["robot"] for r in runs if r["capability"] == "Explore"}
+    assert explore == {"bebop1"}  # the cheap explorer, as the bids say
+    awarded = [a for a in state["auctions"] if a["winner"] is not None]
+    assert awarded
+    assert all(a["bids"][0][0] == a["winner"] for a in awarded)
+    assert state["auctions"][0]["why"] == "first request"
+
+
+def test_replay_of_the_recording_ends_in_the_live_state(
+    small_run: tuple[dict[str, Any], Path],
+) -> None:
+    live, record = small_run
+
+    async def main() -> dict[str, Any]:
+        replay = Replay.open(record, speed=1e9)
+        server = MonitorServer(replay, "127.0.0.1", 0)
+        with anyio.fail_after(30):
+            await server.start()
+            try:
+                assert (await _json(server.url + "api/state"))["runs"] == []  # at the start
+                replay.step(1.0)  # a second of wall time covers the whole run at this speed
+                state: dict[str, Any] = await _json(server.url + "api/state")
+                return state
+            finally:
+                await server.stop()
+
+    replayed = asyncio.run(main())
+    assert replayed["mode"] == "replay"
+    assert replayed["replay"]["playing"] is False
+    for key in PICTURE:
+        assert replayed[key] == live[key], key
+
+
+def test_seeking_back_and_forth_gives_the_picture_of_that_time(
+    small_run: tuple[dict[str, Any], Path],
+) -> None:
+    _, record = small_run
+    events = read_record(record)
+    replay = Replay(events)
+    middle = (replay.start + replay.end) / 2
+    replay.seek(replay.end)
+    replay.seek(middle)
+    fresh = Replay(events)
+    fresh.seek(middle)
+    assert fresh.snapshot() == replay.snapshot()
+    runs = replay.snapshot()["runs"]
+    assert runs
+    assert all(r["start"] <= middle for r in runs)
+    assert any(r["end"] is None or r["end"] > middle for r in runs)  # as it was then
+
+
+def test_a_failed_executor_shows_as_the_reason_of_the_re_auction(tmp_path: Path) -> None:
+    record = tmp_path / "dynamic.jsonl"
+
+    async def main() -> None:
+        with anyio.fail_after(60):
+            async with Monitor(port=None, record=record) as monitor:
+                await run_fast(load_scenario(DATA / "dynamic.yaml"), monitor=monitor)
+
+    asyncio.run(main())
+    events = read_record(record)
+    marks = {(e["robot"], e["change"]) for e in events if e["k"] == "team"}
+    assert {("husky1", "failed"), ("bebop1", "joined"), ("bebop1", "left")} <= marks
+    lost = [e for e in events if e["k"] == "run" and e["phase"] == "end" and e["result"] == "lost"]
+    assert lost
+    assert all("husky1" in e["why"] for e in lost)
+    again = [e["why"] for e in events if e["k"] == "auction" and e["phase"] == "open"]
+    gone = "re-auction: executor lost (husky1: robot husky1 failed"
+    assert any(w.startswith(gone) for w in again)
+
+
+# -- explicit time: one tree on a manual clock --------------------------------------------
+
+
+class _Flip(Leaf):
+    """Succeeds and fails by turns: a state change on every tick."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.n = 0
+
+    def on_tick(self) -> State:
+        self.n += 1
+        return State.SUCCEEDED if self.n % 2 else State.FAILED
+
+
+@pytest.fixture
+async def flip_tree() -> AsyncIterator[Tree]:
+    tree = Tree(Sequence("root", children=[_Flip("a")]), clock=ManualClock(5.0))
+    tree.setup()
+    yield tree
+    await tree.shutdown()
+
+
+async def test_changes_between_batches_are_sent_once_each_with_the_latest_state(
+    flip_tree: Tree,
+) -> None:
+    with anyio.fail_after(10):
+        async with Monitor(port=0) as monitor:
+            monitor.add_tree(flip_tree, robot="r1")
+            monitor.flush()
+            async with aiohttp.ClientSession() as http, http.ws_connect(monitor.url + "ws") as ws:
+                first = json.loads((await ws.receive()).data)
+                assert first["type"] == "snapshot"
+                assert first["state"]["robots"]["r1"]["trees"]["root"]["nodes"][1]["id"] == "root/a"
+                for _ in range(1001):  # ends on a success
+                    flip_tree.tick()
+                await flip_tree.clock.advance(2.5)  # type: ignore[attr-defined]
+                batch = monitor.flush()
+                msg = json.loads((await ws.receive()).data)
+    assert msg == {"type": "events", "events": batch}
+    assert batch == [
+        {
+            "t": 7.5,
+            "k": "states",
+            "robot": "r1",
+            "tree": "root",
+            "states": {"root/a": "succeeded", "root": "succeeded"},
+        }
+    ]
+
+
+async def test_the_stream_never_exceeds_the_batch_rate(flip_tree: Tree) -> None:
+    """Every tick changes the tree; the page still gets at most ``batch_hz`` messages a
+    second (a batch waits at least its period, however the machine is loaded)."""
+    with anyio.fail_after(20):
+        async with Monitor(port=0, batch_hz=20) as monitor:
+            monitor.add_tree(flip_tree, robot="r1")
+            async with aiohttp.ClientSession() as http, http.ws_connect(monitor.url + "ws") as ws:
+                await ws.receive()  # the snapshot
+                hub = monitor.hub
+                loop = asyncio.get_running_loop()
+                start, sent = loop.time(), hub.sent
+                while hub.sent - sent < 10:
+                    flip_tree.tick()
+                    await asyncio.sleep(0)
+                elapsed = loop.time() - start
+                got = [json.loads((await ws.receive()).data) for _ in range(10)]
+    assert all(m["type"] == "events" for m in got)
+    assert elapsed * 20 + 1 >= 10  # ten batches took at least nine periods
+
+
+async def test_a_tree_added_later_and_its_changing_shape_are_sent_whole(flip_tree: Tree) -> None:
+    monitor = Monitor(port=None)
+    monitor.add_tree(flip_tree, robot="r1")
+    flip_tree.insert("root", _Flip("b"))
+    flip_tree.tick()
+    (ev,) = [e for e in monitor.flush() if e["k"] == "tree"][-1:]
+    assert [n["id"] for n in ev["nodes"]] == ["root", "root/a", "root/b"]
+    assert monitor.snapshot()["robots"]["r1"]["trees"]["root"]["nodes"][2]["state"] == "succeeded"
+
+
+# -- recordings -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "empty file"),
+        ('{"hello": 1}\n', ":1: not a btcap recording"),
+        ('{\n  "pretty": "json"\n}\n', ":1: not a btcap recording"),
+        ('{"format": "btcap-monitor", "version": 9}\n', ":1: recording version 9"),
+        ('{"format": "btcap-monitor", "version": 1}\n[1]\n{"t": 0, "k": "x"}\n', ":2: not a JSON"),
+        ('{"format": "btcap-monitor", "version": 1}\n{"k": "robot"}\n', ":2: an event needs"),
+    ],
+)
+def test_a_bad_recording_is_refused_naming_the_line(
+    tmp_path: Path, text: str, message: str
+) -> None:
+    path = tmp_path / "bad.jsonl"
+    path.write_text(text)
+    with pytest.raises(RecordError, match=message):
+        read_record(path)
+
+
+def test_a_recording_cut_off_mid_line_is_read_up_to_there(tmp_path: Path) -> None:
+    path = tmp_path / "cut.jsonl"
+    head = '{"format": "btcap-monitor", "version": 1}\n{"t": 1, "k": "robot", "robot": "a"}\n'
+    path.write_text(head + '{"t": 2, "k": "rob')
+    assert read_record(path) == [{"t": 1, "k": "robot", "robot": "a"}]
+
+
+# -- the command line ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "address"),
+    [("8765", ("127.0.0.1", 8765)), ("0.0.0.0:0", ("0.0.0.0", 0)), ("[::1]:99", ("::1", 99))],
+)
+def test_monitor_addresses(text: str, address: tuple[str, int]) -> None:
+    assert parse_address(text) == address
+
+
+@pytest.mark.parametrize("text", ["", "abc", "host:", "1:65536", "-1"])
+def test_a_bad_monitor_address_is_refused_naming_it(text: str) -> None:
+    with pytest.raises(argparse.ArgumentTypeError, match="expected \\[HOST:\\]PORT"):
+        parse_address(text)
+
+
+def test_btcap_run_records_by_default_and_replay_refuses_other_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+    out = tmp_path / "run"
+    assert main(["run", "--fast", "--quiet", "--out", str(out), str(DATA / "small.yaml")]) == 0
+    events = read_record(out / "monitor.jsonl")
+    assert {e["k"] for e in events} >= {"robot", "tree", "states", "team", "run", "auction"}
+    assert main(["replay", str(out / "result.json")]) == 2
+    assert "result.json:1: not a btcap recording" in capsys.readouterr().err

@@ -1,0 +1,161 @@
+"""The monitor page in a real headless browser (Debian's chromium and chromium-driver,
+driven by selenium), as a person would use it: open the page, run a mission, watch.
+
+Skipped, saying why, only where chromium or chromedriver is missing. Set
+``BTCAP_DOCS_SCREENSHOT=1`` to also write the simulated mission's screenshot to
+``docs/monitor.png`` (the README's picture).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import anyio
+import pytest
+
+from btcap import Monitor, Parallel, State
+from btcap.bt.state import DONE
+from btcap.sim.runner import run_fast
+from btcap.sim.scenario import load_scenario
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.demo import ECHO, implementations
+from btcap.team.protocol import protocol_registry
+from btcap.transports import InProcessNetwork
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMEDRIVER = shutil.which("chromedriver")
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None or CHROMEDRIVER is None,
+    reason="needs Debian's chromium and chromium-driver (apt-get install chromium "
+    "chromium-driver); .ci/run installs them",
+)
+DOCS = Path(__file__).parents[3] / "docs" / "monitor.png"
+SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
+#: Seconds the page may take to show what the test waits for (polled, not slept).
+PAGE_S = 30.0
+
+if CHROMIUM is not None and CHROMEDRIVER is not None:
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.remote.webdriver import WebDriver
+    from selenium.webdriver.support.wait import WebDriverWait
+
+
+@pytest.fixture
+def browser() -> Iterator[WebDriver]:
+    options = Options()
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1500,1000"):  # fmt: skip
+        options.add_argument(arg)
+    options.binary_location = str(CHROMIUM)
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    driver.set_page_load_timeout(PAGE_S)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def _count(driver: WebDriver, css: str) -> int:
+    return len(driver.find_elements(By.CSS_SELECTOR, css))
+
+
+async def _wait(driver: WebDriver, what: str, ok: Callable[[WebDriver], bool]) -> None:
+    """Poll the page (in a thread: the monitor serves from this event loop meanwhile)."""
+
+    def wait() -> None:
+        WebDriverWait(driver, PAGE_S, poll_frequency=0.1).until(ok, f"the page to show {what}")
+
+    await asyncio.to_thread(wait)
+
+
+async def _screenshot(driver: WebDriver, *paths: Path) -> None:
+    def shoot() -> None:
+        height = driver.execute_script("return document.body.scrollHeight")
+        driver.set_window_size(1500, min(2000, int(height) + 20))
+        for path in paths:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            assert driver.save_screenshot(str(path)), f"no screenshot written to {path}"
+
+    await asyncio.to_thread(shoot)
+
+
+async def test_the_page_shows_each_robot_and_a_capability_succeeding_live(
+    browser: WebDriver, tmp_path: Path
+) -> None:
+    """The page is open before the mission starts: what it shows came over the stream."""
+    net = InProcessNetwork(protocol_registry())
+    cfg = AgentConfig(heartbeat_s=0.05, failure_timeout_s=5.0, auction_window_s=5.0)
+
+    def agent(name: str, cost: float | None = None) -> Agent:
+        impls = implementations(name, cost=cost, duration_s=0.5) if cost is not None else []
+        return Agent(name, transport=net.transport(name), implementations=impls, config=cfg)
+
+    with anyio.fail_after(90):
+        async with (
+            agent("base") as base,
+            agent("scout", 1.0) as scout,
+            agent("rover", 5.0) as rover,
+            Monitor(port=0, title="browser test") as monitor,
+        ):
+            for a in (base, scout, rover):
+                monitor.add_agent(a)
+            await asyncio.to_thread(browser.get, monitor.url)
+            await _wait(browser, "the live badge", lambda d: _count(d, ".mode.live") == 1)
+            for _ in range(1000):  # the team forms (gossip), polled
+                if base.repository.providers(ECHO.identity) == {"scout", "rover"}:
+                    break
+                await asyncio.sleep(0.02)
+            echoes = [ECHO.node_type()(f"echo_{k}", inputs={"value": k}) for k in (1, 2)]
+            tree = base.mission(Parallel("mission", children=echoes))
+            monitor.add_tree(tree, robot="base")
+            final = await tree.run(20, until=lambda s: s in DONE)
+            assert final is State.SUCCEEDED
+            assert sorted(e.assignments[0] for e in echoes) == ["rover", "scout"]
+            monitor.detach()  # the page keeps the mission's end, not its shutdown
+            await _wait(
+                browser,
+                "a lane for each robot that worked",
+                lambda d: (
+                    _count(d, '.lane[data-robot="scout"]') == 1
+                    and _count(d, '.lane[data-robot="rover"]') == 1
+                ),
+            )
+            await _wait(
+                browser,
+                "both capability nodes succeeded",
+                lambda d: _count(d, '.node.cap[data-state="succeeded"]') == 2,
+            )
+            assert _count(browser, "[data-auction] .bid.win") >= 2  # a busy robot may decline
+            await _screenshot(browser, tmp_path / "monitor.png")
+            await tree.shutdown()
+    assert (tmp_path / "monitor.png").stat().st_size > 10_000
+
+
+async def test_the_simulated_team_on_the_page(browser: WebDriver, tmp_path: Path) -> None:
+    """The paper's team on the small mission: lanes, trees and auctions after the run."""
+    with anyio.fail_after(90):
+        async with Monitor(port=0, title="small cave, full team") as monitor:
+            result = await run_fast(load_scenario(SMALL), monitor=monitor)
+            assert result.completed
+            await asyncio.to_thread(browser.get, monitor.url)
+            robots = ("husky1", "spot1", "bebop1")
+            await _wait(
+                browser,
+                "a lane per robot",
+                lambda d: all(_count(d, f'.lane[data-robot="{r}"]') == 1 for r in robots),
+            )
+            assert _count(browser, '[data-node="mission"][data-state="succeeded"]') == 1
+            assert _count(browser, ".card") == 4
+            assert _count(browser, "[data-auction]") >= 5
+            paths = [tmp_path / "team.png"]
+            if os.environ.get("BTCAP_DOCS_SCREENSHOT"):
+                paths.append(DOCS)
+            await _screenshot(browser, *paths)
+    assert (tmp_path / "team.png").stat().st_size > 10_000
