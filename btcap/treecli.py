@@ -11,6 +11,7 @@ import argparse
 import asyncio
 import importlib
 import importlib.util
+import re
 import shutil
 import subprocess
 import sys
@@ -19,7 +20,7 @@ from pathlib import Path
 from types import ModuleType
 
 from btcap.actors import ManualClock
-from btcap.bt.files import file_info, load_tree, validate_file
+from btcap.bt.files import TreeFileError, file_info, load_tree, validate_file
 from btcap.bt.node import Node
 from btcap.bt.ports import type_name
 from btcap.bt.registry import NodeRegistry, default_registry
@@ -189,6 +190,46 @@ def _register(registry: NodeRegistry, ref: str) -> None:
             raise CliError(f"--load {ref}: {cls!r} is neither a Node class nor an interface")
 
 
+_UNKNOWN = re.compile(r"unknown node type '([^']+)'")
+
+
+def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[str]:
+    """Point at the interface file next to a tree that would define its unknown types.
+
+    Only a hint: which interfaces a tree runs with is the user's choice, so nothing is
+    loaded that was not asked for.
+    """
+    unknown = dict.fromkeys(m[1] for p in problems for m in _UNKNOWN.finditer(p))
+    if not unknown or args.interfaces:
+        return []
+    out: list[str] = []
+    for candidate in sorted(path.parent.glob("*")):
+        if candidate.suffix not in (".yaml", ".yml", ".json") or not candidate.is_file():
+            continue
+        try:
+            if b"btcap_interfaces" not in candidate.read_bytes()[:4096]:
+                continue
+            names = {i.name for i in load_interfaces(candidate)}
+        except (OSError, TreeError):
+            continue
+        for kind in unknown:
+            base = kind.removesuffix("Inputs").removesuffix("Outputs")
+            if base in names:
+                out.append(
+                    f"hint: {kind!r} comes from capability interface {base!r} in "
+                    f"{candidate}; add --interfaces {candidate}"
+                )
+    return out
+
+
+def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None) -> Tree:
+    registry = _registry(args)
+    try:
+        return load_tree(_existing(path), registry, clock=clock)
+    except TreeFileError as exc:
+        raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
+
+
 # -- subcommands ------------------------------------------------------------------------
 def _existing(path: Path) -> Path:
     if not path.exists():
@@ -208,6 +249,7 @@ def _validate(args: argparse.Namespace) -> int:
             code = 2
             continue
         problems = validate_file(path, registry)
+        problems += _hints(path, problems, args)
         if problems:
             for line in problems:
                 print(line, file=sys.stderr)
@@ -218,7 +260,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    tree = load_tree(_existing(args.file), _registry(args))
+    tree = _load(args, args.file)
     info = file_info(tree)
     if info.description:
         print(info.description)
@@ -227,7 +269,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _dot(args: argparse.Namespace) -> int:
-    tree = load_tree(_existing(args.file), _registry(args))
+    tree = _load(args, args.file)
     text = render_dot(tree)
     out: Path | None = args.output
     if out is None:
@@ -270,7 +312,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     clock = ManualClock() if args.fast else None
-    tree = load_tree(_existing(args.file), _registry(args), clock=clock)
+    tree = _load(args, args.file, clock)
     state, ticks, text = asyncio.run(_tick(tree, clock, args.rate, args.max_ticks))
     sys.stdout.write(text)
     print(f"{state.value} after {ticks} tick{'s' if ticks != 1 else ''}")

@@ -168,6 +168,8 @@ class XmlTranslator:
         main = scope.tree == self.main
         for key in dict.fromkeys([*scope.writers, *scope.readers]):
             ws, rs = scope.writers.get(key, []), scope.readers.get(key, [])
+            if not ws and key in scope.unsure:
+                continue  # perhaps written by a node already reported as unknown
             if len(ws) > 1:
                 lines = ", ".join(str(w.line) for w in ws)
                 self.fail(

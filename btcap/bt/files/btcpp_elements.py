@@ -49,6 +49,9 @@ class Scope:
     writers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
     readers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
     constants: dict[str, tuple[NodeSpec, str]] = dataclasses.field(default_factory=dict)
+    #: Entries a node of unknown type uses: whether it writes them is unknown, so no
+    #: follow-up error is reported for them.
+    unsure: set[str] = dataclasses.field(default_factory=set)
 
 
 def literal(text: str, tp: Any) -> Any:
@@ -204,6 +207,7 @@ class ElementReader:
                 f"{kind!r} (btcap tree --load MODULE) or declare a capability "
                 f"interface of that name (--interfaces FILE)",
             )
+            scope.unsure.update(m[1] for m in map(KEY.match, attrs.values()) if m)
             return None
         probe: dict[str, Any] = dict(options)
         given: dict[str, str] = {}
