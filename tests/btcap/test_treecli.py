@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 
 import btcap.cli
-import btcap.treecli
 from btcap.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -189,7 +188,7 @@ def test_run_refuses_bad_limits(capsys: pytest.CaptureFixture[str], args: list[s
 def test_dot_without_graphviz_says_what_to_install(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    monkeypatch.setattr(btcap.treecli.shutil, "which", lambda name: None)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
     out = tmp_path / "patrol.svg"
     assert main(["tree", "dot", str(PATROL_XML), "-o", str(out)]) == 2
     assert "needs Graphviz's 'dot' program, which is not on PATH" in capsys.readouterr().err
