@@ -9,6 +9,9 @@ Two differences hold for every node and are not repeated per entry: a BehaviorTr
 was rather than starting over), and loops over synchronous children
 (RetryUntilSuccessful, Repeat) take one tick per attempt in btcap where
 BehaviorTree.CPP loops within one tick: the results are the same, a tick later.
+Parallel is mapped although it decides once per tick (failure winning a tie) where
+BehaviorTree.CPP decides after each child (success first): the two differ only when
+several children finish in the same tick.
 """
 
 from __future__ import annotations
@@ -90,6 +93,7 @@ STANDARD: dict[str, Standard] = {
     # BehaviorTree.CPP's Sequence and Fallback resume at the running child: btcap's
     # memory composites; its Reactive* tick from the first child: btcap's plain ones.
     "Sequence": Standard("SequenceWithMemory"),
+    "AsyncSequence": Standard("SequenceWithMemory"),
     "Fallback": Standard("FallbackWithMemory"),
     "ReactiveSequence": Standard("Sequence"),
     "ReactiveFallback": Standard("Fallback"),
