@@ -35,6 +35,8 @@ class AgentConfig(MissionConfig):
     tick_hz: float = 10.0
     heartbeat_s: float = 0.1
     failure_timeout_s: float = 0.5
+    #: Peers beaten to per period past this team size (see :mod:`btcap.team.membership`).
+    heartbeat_fanout: int = 8
 
 
 class Agent:
@@ -69,6 +71,7 @@ class Agent:
             robot,
             heartbeat_s=cfg.heartbeat_s,
             failure_timeout_s=cfg.failure_timeout_s,
+            fanout=cfg.heartbeat_fanout,
             repo_version=lambda: self.repository.version,
             busy=lambda: not self.mission_control.body.idle,
         )

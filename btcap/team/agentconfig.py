@@ -103,6 +103,7 @@ class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     tick_hz: _Positive = _DEFAULTS.tick_hz
     heartbeat_s: _Positive = _DEFAULTS.heartbeat_s
     failure_timeout_s: _Positive = _DEFAULTS.failure_timeout_s
+    heartbeat_fanout: Annotated[int, msgspec.Meta(ge=1)] = _DEFAULTS.heartbeat_fanout
     lease_s: _Positive = _DEFAULTS.lease_s
     keepalive_s: _Positive = _DEFAULTS.keepalive_s
     auction_window_s: _Positive = _DEFAULTS.auction_window_s

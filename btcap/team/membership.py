@@ -1,14 +1,23 @@
 """Team membership: robots announce themselves by heartbeat; joins, leaves and silent
-failures are detected here and reported to local listeners."""
+failures are detected here and reported to local listeners.
+
+A robot needs one reachable teammate (a seed) to join: the seed welcomes it with the
+team's :class:`~btcap.team.messages.Roster`, the newcomer beats to each teammate, and they
+welcome it in turn. Past ``fanout`` peers, heartbeats go to ``fanout`` of them per period
+and carry what their sender heard of others (:mod:`btcap.team.core.gossip`); a robot that
+teammates mention but that cannot be reached is asked about (a roster request).
+"""
 
 from __future__ import annotations
 
+import random
 import time
 from collections.abc import Callable
 
-from btcap.actors import Actor, Supervision, handler
+from btcap.actors import Actor, Address, Supervision, handler
+from btcap.team.core.gossip import Introductions, Turns, detection_periods
 from btcap.team.core.members import Member, MemberTable, TeamEvent
-from btcap.team.messages import Goodbye, Heartbeat
+from btcap.team.messages import Contact, Goodbye, Heard, Heartbeat, Roster, RosterRequest
 from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["Member", "Membership", "TeamEvent"]
@@ -38,10 +47,13 @@ class Membership(Actor):
         failure_timeout_s: float = 0.5,
         repo_version: Callable[[], int] = lambda: 0,
         busy: Callable[[], bool] = lambda: False,
+        fanout: int = 8,
     ) -> None:
         super().__init__()
         if failure_timeout_s <= heartbeat_s:
             raise ValueError("failure_timeout_s must exceed heartbeat_s")
+        if fanout < 1:
+            raise ValueError(f"heartbeat fanout {fanout}: expected at least 1")
         self.robot = robot
         self.incarnation = time.time_ns()
         self.heartbeat_s = heartbeat_s
@@ -50,6 +62,14 @@ class Membership(Actor):
         self._body_busy = busy
         self.table = MemberTable(robot, failure_timeout_s)
         self.refused = 0  #: heartbeats and goodbyes sent in another robot's name
+        self.fanout = fanout
+        self.beat = 0  #: heartbeats sent in this incarnation
+        # Seeded by name: the same team beats in the same order every run (the fast sim).
+        self._targets = Turns(random.Random(f"targets {robot}"))
+        self._mentions = Turns(random.Random(f"mentions {robot}"))
+        self._asked = Introductions(failure_timeout_s)
+        self._was_busy = False
+        self._warned_size = 0
         self._listeners: list[Listener] = []
 
     # -- observing --------------------------------------------------------------------
@@ -84,18 +104,44 @@ class Membership(Actor):
             system.broadcast(self.PATH, Goodbye(self.robot, self.incarnation))
 
     def beat_now(self) -> None:
-        """Send a heartbeat at once (after a capability change, or to speed up joins)."""
-        self.system.broadcast(
-            self.PATH,
-            Heartbeat(self.robot, self.incarnation, self._repo_version(), self._body_busy()),
-        )
+        """Beat to every peer at once (after a capability change, or to speed up joins)."""
+        self.system.broadcast(self.PATH, self._heartbeat(self._body_busy(), heard=False))
+
+    def _heartbeat(self, busy: bool, *, heard: bool) -> Heartbeat:
+        mentions: list[Heard] = []
+        if heard:
+            members, now = self.table.members, self.system.clock.now()
+            for robot in self._mentions.take(members, self.fanout):
+                m = members[robot]
+                age_ms = max(0, round(1000 * (now - m.last_seen)))
+                mentions.append(Heard(robot, m.incarnation, m.beat, age_ms))
+        version = self._repo_version()
+        return Heartbeat(self.robot, self.incarnation, version, busy, self.beat, mentions)
+
+    def _beat_to(self, robot: str) -> None:
+        self.system.tell(Address(robot, self.PATH), self._heartbeat(self._body_busy(), heard=False))
 
     async def _beat(self) -> None:
         clock = self.system.clock
         while True:
-            self.beat_now()
+            self._periodic_beat()
             self.check(clock.now())
             await clock.sleep(self.heartbeat_s)
+
+    def _periodic_beat(self) -> None:
+        """To every peer in a small team or when this robot came free or busy; otherwise to
+        ``fanout`` of them in turns, with hearsay of others."""
+        self.beat += 1
+        transport = self.system.transport
+        peers = transport.peers() if transport is not None else frozenset()
+        busy = self._body_busy()
+        if len(peers) <= self.fanout or busy != self._was_busy:
+            self._was_busy = busy
+            self.system.broadcast(self.PATH, self._heartbeat(busy, heard=False))
+            return
+        msg = self._heartbeat(busy, heard=True)
+        for peer in self._targets.take(peers, self.fanout):
+            self.system.tell(Address(peer, self.PATH), msg)
 
     def check(self, now: float) -> None:
         """Declare members failed whose heartbeats stopped."""
@@ -124,11 +170,101 @@ class Membership(Actor):
         if not self._speaks_for_itself(msg.robot, msg):
             return
         now = self.system.clock.now()
-        events = self.table.heartbeat(msg.robot, msg.incarnation, msg.repo_version, now, msg.busy)
+        events = self.table.heartbeat(
+            msg.robot, msg.incarnation, msg.repo_version, now, msg.busy, msg.beat
+        )
         for event in events:
             self._emit(event, msg.robot)
         if TeamEvent.JOINED in events:
-            self.beat_now()  # let the newcomer know us without waiting a period
+            self._welcome(msg.robot)
+        if msg.heard and msg.robot in self.table.members:
+            self._hearsay(msg, now)
+
+    def _welcome(self, robot: str) -> None:
+        """Let a newcomer know us at once, and whom else to meet."""
+        self._beat_to(robot)
+        transport = self.system.transport
+        if transport is None:
+            return
+        contacts = [
+            Contact(r, endpoint)
+            for r in self.table.members
+            if r != robot and (endpoint := transport.endpoint_of(r)) is not None
+        ]
+        if contacts:
+            self.system.tell(Address(robot, self.PATH), Roster(contacts))
+        team = len(self.table.members) + 1
+        periods = detection_periods(team, self.fanout)
+        if self.failure_timeout_s < periods * self.heartbeat_s and team >= 2 * self._warned_size:
+            self._warned_size = team
+            log.warning(
+                "team.timeout_short",
+                robot=self.robot,
+                team=team,
+                failure_timeout_s=self.failure_timeout_s,
+                advised_s=round(periods * self.heartbeat_s, 3),
+                detail="false failures likely: raise failure_timeout_s or the fanout",
+            )
+
+    def _hearsay(self, msg: Heartbeat, now: float) -> None:
+        """Fresh beats keep teammates alive; robots we do not know yet get a heartbeat if we
+        can reach them, else the sender is asked where they are."""
+        unknown = [
+            h.robot
+            for h in msg.heard[: 4 * self.fanout]  # more than we ever send: ignored
+            if self.table.hearsay(h.robot, h.incarnation, h.beat, now, h.age_ms / 1000)
+        ]
+        due = self._asked.due(unknown, now) if unknown else []
+        if not due:
+            return
+        transport = self.system.transport
+        reachable = transport.peers() if transport is not None else frozenset()
+        for robot in due:
+            if robot in reachable:
+                self._beat_to(robot)
+        ask = [r for r in due if r not in reachable]
+        if ask:
+            self.system.tell(Address(msg.robot, self.PATH), RosterRequest(ask))
+
+    @handler
+    def on_roster_request(self, msg: RosterRequest) -> None:
+        transport = self.system.transport
+        if not self._from_member(msg) or transport is None:
+            return
+        contacts = []
+        for robot in msg.robots[: 4 * self.fanout]:
+            endpoint = transport.endpoint_of(robot) if robot in self.table.members else None
+            if endpoint is not None:
+                contacts.append(Contact(robot, endpoint))
+        if contacts:
+            self.system.tell(Address(self.sender, self.PATH), Roster(contacts))
+
+    @handler
+    def on_roster(self, msg: Roster) -> None:
+        """Dial the teammates named (a hint: with keys, only the real one completes the
+        handshake) and beat to each, so it welcomes us."""
+        transport = self.system.transport
+        if not self._from_member(msg) or transport is None:
+            return
+        for c in msg.contacts[: self.table.max_members]:
+            known = c.robot == self.robot or c.robot in self.table.members
+            if not known and transport.introduce(c.robot, c.endpoint):
+                self._beat_to(c.robot)
+
+    def _from_member(self, msg: Roster | RosterRequest) -> bool:
+        if self.sender in self.table.members:
+            return True
+        self.refused += 1
+        if worth_logging(self.refused):
+            log.warning(
+                "team.refused",
+                robot=self.robot,
+                sender=self.sender,
+                message=type(msg).__name__,
+                detail="not a member",
+                count=self.refused,
+            )
+        return False
 
     @handler
     def on_goodbye(self, msg: Goodbye) -> None:

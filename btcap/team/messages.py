@@ -24,9 +24,11 @@ __all__ = [
     "CancelExecution",
     "ConsensusClaim",
     "ConsensusTasks",
+    "Contact",
     "ExecutionInputs",
     "ExecutionStatus",
     "Goodbye",
+    "Heard",
     "Heartbeat",
     "KeepAlive",
     "NoBid",
@@ -34,19 +36,55 @@ __all__ = [
     "PauseExecution",
     "RepositoryQuery",
     "RepositoryState",
+    "Roster",
+    "RosterRequest",
 ]
 
 
 # -- team --------------------------------------------------------------------------------
+class Heard(msgspec.Struct, frozen=True, array_like=True):
+    """The latest beat a robot heard of a teammate, ``age_ms`` ago (hearsay that keeps it
+    alive)."""
+
+    robot: str
+    incarnation: int
+    beat: int
+    age_ms: int = 0
+
+
 class Heartbeat(Message):
     """I am alive; ``incarnation`` changes when a robot restarts, ``repo_version`` when its
     capabilities change (peers then ask for the new :class:`RepositoryState`); ``busy``
-    says whether its body is taken (a robot coming free is news for waiting work)."""
+    says whether its body is taken (a robot coming free is news for waiting work).
+    ``beat`` counts this robot's heartbeats; ``heard`` is what it heard of some teammates
+    (see :mod:`btcap.team.core.gossip`)."""
 
     robot: str
     incarnation: int
     repo_version: int
     busy: bool = False
+    beat: int = 0
+    heard: list[Heard] = []
+
+
+class Contact(msgspec.Struct, frozen=True, array_like=True):
+    """Where a teammate can be reached."""
+
+    robot: str
+    endpoint: str
+
+
+class Roster(Message):
+    """Teammates and where to reach them: sent to a robot that just joined, or that asked
+    (:class:`RosterRequest`) about robots it heard of but cannot reach."""
+
+    contacts: list[Contact]
+
+
+class RosterRequest(Message):
+    """Where can I reach these robots (that your heartbeats mention)?"""
+
+    robots: list[str]
 
 
 class Goodbye(Message):
@@ -209,6 +247,8 @@ class KeepAlive(Message):
 CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     Heartbeat,
     Goodbye,
+    Roster,
+    RosterRequest,
     RepositoryState,
     RepositoryQuery,
     CallForBids,

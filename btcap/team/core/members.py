@@ -23,17 +23,18 @@ class Member:
     last_seen: float
     repo_version: int
     busy: bool = False
+    beat: int = 0  #: its latest heartbeat number heard, directly or from a teammate
 
 
 class MemberTable:
     """The failure detector of one robot, fed heartbeats and goodbyes.
 
     A robot is a member from its first heartbeat until its goodbye or until no heartbeat
-    came for ``failure_timeout`` seconds. A robot that restarts (a new, larger incarnation)
-    counts as failed and joined again, so nothing of its old life is trusted; a robot
-    declared failed whose heartbeat arrives later simply joins again (its old executions
-    were re-assigned when it failed, and their late reports are refused by the lease
-    tables).
+    came for ``failure_timeout`` seconds, its own or one a teammate heard (:meth:`hearsay`).
+    A robot that restarts (a new, larger incarnation) counts as failed and joined again,
+    so nothing of its old life is trusted; a robot declared failed whose heartbeat arrives
+    later simply joins again (its old executions were re-assigned when it failed, and
+    their late reports are refused by the lease tables).
     """
 
     def __init__(self, robot: str, failure_timeout_s: float, *, max_members: int = 1024) -> None:
@@ -47,9 +48,15 @@ class MemberTable:
         return frozenset(self.members) | {self.robot}
 
     def heartbeat(
-        self, robot: str, incarnation: int, repo_version: int, now: float, busy: bool = False
+        self,
+        robot: str,
+        incarnation: int,
+        repo_version: int,
+        now: float,
+        busy: bool = False,
+        beat: int = 0,
     ) -> list[TeamEvent]:
-        """What a heartbeat from ``robot`` changes, in order."""
+        """What a heartbeat from ``robot`` itself changes, in order."""
         if robot == self.robot:
             return []
         events: list[TeamEvent] = []
@@ -63,10 +70,11 @@ class MemberTable:
         if m is None:
             if len(self.members) >= self.max_members:
                 return events  # full: a real member gets in once a silent one times out
-            self.members[robot] = Member(robot, incarnation, now, repo_version, busy)
+            self.members[robot] = Member(robot, incarnation, now, repo_version, busy, beat)
             events.append(TeamEvent.JOINED)
             return events
         m.last_seen = max(m.last_seen, now)
+        m.beat = max(m.beat, beat)
         if m.repo_version != repo_version:
             m.repo_version = repo_version
             events.append(TeamEvent.CHANGED)
@@ -75,6 +83,25 @@ class MemberTable:
             if not busy:
                 events.append(TeamEvent.FREED)
         return events
+
+    def hearsay(
+        self, robot: str, incarnation: int, beat: int, now: float, age_s: float = 0.0
+    ) -> bool:
+        """A teammate heard ``robot`` beat ``age_s`` ago: a newer beat of the life we know
+        keeps it alive from then on.
+
+        Hearsay never makes a member, ends one or changes what it offers: only the robot
+        itself does that. True if ``robot`` is not a member yet (worth an introduction).
+        """
+        if robot == self.robot:
+            return False
+        m = self.members.get(robot)
+        if m is None:
+            return True
+        if m.incarnation == incarnation and beat > m.beat:
+            m.beat = beat
+            m.last_seen = max(m.last_seen, min(now, now - age_s))
+        return False
 
     def goodbye(self, robot: str, incarnation: int) -> bool:
         """Whether ``robot`` left (a goodbye of an older incarnation changes nothing)."""

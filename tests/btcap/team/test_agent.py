@@ -25,9 +25,11 @@ from btcap.team.messages import (
     CancelExecution,
     ConsensusClaim,
     ConsensusTasks,
+    Contact,
     ExecutionInputs,
     ExecutionStatus,
     Goodbye,
+    Heard,
     Heartbeat,
     KeepAlive,
     NoBid,
@@ -35,6 +37,8 @@ from btcap.team.messages import (
     PauseExecution,
     RepositoryQuery,
     RepositoryState,
+    Roster,
+    RosterRequest,
 )
 from btcap.team.mission import MissionConfig, MissionControl
 from btcap.team.protocol import protocol_registry
@@ -48,8 +52,13 @@ E1 = ExecutionId("a", "root/count", 1)
 E2 = ExecutionId("a", "root/other", 2)
 
 SAMPLES: dict[type[Message], list[Message]] = {
-    Heartbeat: [Heartbeat("husky1", 2**62, 7), Heartbeat("b", 1, 0)],
+    Heartbeat: [
+        Heartbeat("husky1", 2**62, 7),
+        Heartbeat("b", 1, 0, True, 12, [Heard("a", 2**62, 3), Heard("c", 1, 0)]),
+    ],
     Goodbye: [Goodbye("husky1", 123)],
+    Roster: [Roster([Contact("a", "tcp://127.0.0.1:7001")]), Roster([])],
+    RosterRequest: [RosterRequest(["a", "c"]), RosterRequest([])],
     RepositoryState: [
         RepositoryState("a", 3, {"Count": COUNT.identity}, ["Count", "Explore"]),
         RepositoryState("a", 0, {}),
