@@ -15,7 +15,7 @@ import re
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
@@ -163,13 +163,20 @@ def _register(registry: NodeRegistry, ref: str) -> None:
     """Register what ``MODULE`` defines or what ``MODULE:NAME`` is or returns."""
     module_name, _, attr = ref.partition(":")
     module = _import(module_name)
+    items: list[object]
     if attr:
         if not hasattr(module, attr):
             raise CliError(f"--load {ref}: module {module_name!r} has no {attr!r}")
         found = getattr(module, attr)
-        items: Iterable[object] = (
-            [found] if isinstance(found, type | CapabilityInterface) else found()
-        )
+        if isinstance(found, type | CapabilityInterface):
+            items = [found]
+        elif callable(found):
+            try:
+                items = list(found())
+            except Exception as exc:  # the user's function: any error is theirs to see
+                raise CliError(f"--load {ref}: {type(exc).__name__}: {exc}") from exc
+        else:
+            raise CliError(f"--load {ref}: expected a Node class, an interface or a function")
     else:
         items = [
             v
@@ -180,12 +187,17 @@ def _register(registry: NodeRegistry, ref: str) -> None:
                 or getattr(v, "__module__", "") == module.__name__
             )
         ]
-    ifaces = [i for i in items if isinstance(i, CapabilityInterface)]
-    register_interfaces(registry, ifaces)
+    register_interfaces(registry, [i for i in items if isinstance(i, CapabilityInterface)])
     for cls in items:
         if isinstance(cls, type) and issubclass(cls, Node):
-            if cls.__name__ not in registry:
+            name = cls.__name__
+            if name not in registry:
                 registry.register(cls)
+            elif registry.get(name) is not cls:
+                raise CliError(
+                    f"--load {ref}: {cls.__module__}.{cls.__qualname__} is named like the "
+                    f"node type {name!r} files already use; rename the class"
+                )
         elif attr and not isinstance(cls, CapabilityInterface):
             raise CliError(f"--load {ref}: {cls!r} is neither a Node class nor an interface")
 

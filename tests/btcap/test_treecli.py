@@ -45,6 +45,14 @@ def more():
             return State.FAILED
 
     return [Boop]
+
+
+def clash():
+    class Log(Leaf):
+        def on_tick(self) -> State:
+            return State.SUCCEEDED
+
+    return [Log]
 '''
 
 BEEP_XML = """\
@@ -127,6 +135,8 @@ def test_load_by_dotted_name_and_by_name_in_module(
         "  input times: int = 1",
     ]
     assert main(["tree", "nodes", "--load", f"{mod}:more", "Boop"]) == 0
+    assert main(["tree", "nodes", "--load", f"{mod}:clash"]) == 2
+    assert "is named like the node type 'Log' files already use" in capsys.readouterr().err
     assert main(["tree", "nodes", "--load", mod, "_Hidden"]) == 2
     assert "unknown node type '_Hidden'" in capsys.readouterr().err
 
@@ -138,6 +148,8 @@ def test_load_by_dotted_name_and_by_name_in_module(
         ("missing.py", "--load missing.py: no such file"),
         ("json:nothing", "--load json:nothing: module 'json' has no 'nothing'"),
         ("json:JSONDecodeError", "is neither a Node class nor an interface"),
+        ("json:__all__", "expected a Node class, an interface or a function"),
+        ("json:loads", "--load json:loads: TypeError"),
     ],
 )
 def test_bad_load_is_a_usage_error(
