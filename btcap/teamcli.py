@@ -163,7 +163,7 @@ def _status(args: argparse.Namespace) -> int:
             config, registry, robot=robot, implementations=False, ephemeral=True
         ) as agent:
             complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
-            return complete, observe_team(agent)
+            return complete, await observe_team(agent)
 
     seen = _until_stopped(look)
     if seen is None:
@@ -178,12 +178,12 @@ def _status(args: argparse.Namespace) -> int:
 
 def _print_team(robot: str, members: list[MemberView]) -> None:
     print(f"team seen by {robot}: {len(members)} member(s)")
-    rows = [("robot", "heartbeat", "capabilities", "completed")]
+    rows = [("robot", "heartbeat", "capabilities", "runs", "completed")]
     for m in members:
         caps = "(not known yet)" if m.capabilities is None else ", ".join(sorted(m.capabilities))
-        rows.append(
-            (m.robot, f"{m.heartbeat_age_s:.2f} s ago", caps or "-", ", ".join(m.succeeded) or "-")
-        )
+        runs = "(no answer)" if m.running is None else ", ".join(m.running) or "idle"
+        age = f"{m.heartbeat_age_s:.2f} s ago"
+        rows.append((m.robot, age, caps or "-", runs, ", ".join(m.succeeded) or "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True)).rstrip())

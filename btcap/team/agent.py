@@ -17,6 +17,7 @@ from btcap.bt.tree import Tree
 from btcap.team.assignment import SingleItemAuction
 from btcap.team.config import MissionConfig
 from btcap.team.consensus_assigner import ConsensusAssigner
+from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership
 from btcap.team.mission import MissionControl
@@ -74,6 +75,7 @@ class Agent:
             fanout=cfg.heartbeat_fanout,
             repo_version=lambda: self.repository.version,
             busy=lambda: not self.mission_control.body.idle,
+            activity=self._activity,
         )
         self.auctioneer: SingleItemAuction | ConsensusAssigner
         if cfg.strategy == "consensus":  # no auctioneer: every robot takes part alike
@@ -100,6 +102,10 @@ class Agent:
     @property
     def clock(self) -> TimeSource:
         return self.system.clock
+
+    def _activity(self) -> tuple[list[ExecutionId], list[ExecutionId]]:
+        body = self.mission_control.body
+        return [e for e in (body.running,) if e], [e for e in (body.queued,) if e]
 
     async def __aenter__(self) -> Agent:
         await self.system.__aenter__()

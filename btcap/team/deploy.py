@@ -16,13 +16,15 @@ from typing import Any
 
 import anyio
 
-from btcap.actors import Clock
+from btcap.actors import Address, Clock
 from btcap.bt.files import load_tree
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import DONE, State
 from btcap.team.agent import Agent
 from btcap.team.agentconfig import RobotConfig
 from btcap.team.capability import Capability
+from btcap.team.membership import Membership
+from btcap.team.messages import Activity, ActivityQuery
 from btcap.team.protocol import protocol_registry
 
 __all__ = [
@@ -102,13 +104,31 @@ class MemberView:
     #: Capabilities it has completed (for preconditions).
     succeeded: list[str]
     heartbeat_age_s: float
+    #: What its body runs, then holds queued (``origin:node#n``); None if it did not say.
+    running: list[str] | None = None
 
 
-def observe_team(agent: Agent) -> list[MemberView]:
-    """The team as ``agent`` sees it now (without itself), sorted by robot."""
+async def observe_team(agent: Agent, *, timeout_s: float = 1.0) -> list[MemberView]:
+    """The team as ``agent`` sees it now (without itself), sorted by robot, with what each
+    runs (asked of every member at once; one that does not answer in ``timeout_s`` shows
+    None)."""
     now = agent.clock.now()
+    members = sorted(agent.team.members.items())
+    doing: dict[str, list[str]] = {}
+
+    async def ask(robot: str) -> None:
+        with anyio.move_on_after(timeout_s):
+            reply = await agent.system.ask(Address(robot, Membership.PATH), ActivityQuery())
+            if isinstance(reply, Activity) and reply.robot == robot:
+                doing[robot] = [str(e) for e in reply.running] + [
+                    f"{e} (queued)" for e in reply.queued
+                ]
+
+    async with anyio.create_task_group() as tg:
+        for robot, _ in members:
+            tg.start_soon(ask, robot)
     out = []
-    for robot, member in sorted(agent.team.members.items()):
+    for robot, member in members:
         state = agent.repository.team.get(robot)
         out.append(
             MemberView(
@@ -116,6 +136,7 @@ def observe_team(agent: Agent) -> list[MemberView]:
                 None if state is None else dict(state.interfaces),
                 [] if state is None else list(state.succeeded),
                 max(0.0, now - member.last_seen),
+                doing.get(robot),
             )
         )
     return out

@@ -16,8 +16,18 @@ from collections.abc import Callable
 
 from btcap.actors import Actor, Address, Supervision, handler
 from btcap.team.core.gossip import Introductions, Turns, detection_periods
+from btcap.team.core.ids import ExecutionId
 from btcap.team.core.members import Member, MemberTable, TeamEvent
-from btcap.team.messages import Contact, Goodbye, Heard, Heartbeat, Roster, RosterRequest
+from btcap.team.messages import (
+    Activity,
+    ActivityQuery,
+    Contact,
+    Goodbye,
+    Heard,
+    Heartbeat,
+    Roster,
+    RosterRequest,
+)
 from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["Member", "Membership", "TeamEvent"]
@@ -47,6 +57,7 @@ class Membership(Actor):
         failure_timeout_s: float = 0.5,
         repo_version: Callable[[], int] = lambda: 0,
         busy: Callable[[], bool] = lambda: False,
+        activity: Callable[[], tuple[list[ExecutionId], list[ExecutionId]]] = lambda: ([], []),
         fanout: int = 8,
     ) -> None:
         super().__init__()
@@ -60,6 +71,7 @@ class Membership(Actor):
         self.failure_timeout_s = failure_timeout_s
         self._repo_version = repo_version
         self._body_busy = busy
+        self._activity = activity
         self.table = MemberTable(robot, failure_timeout_s)
         self.refused = 0  #: heartbeats and goodbyes sent in another robot's name
         self.fanout = fanout
@@ -251,7 +263,14 @@ class Membership(Actor):
             if not known and transport.introduce(c.robot, c.endpoint):
                 self._beat_to(c.robot)
 
-    def _from_member(self, msg: Roster | RosterRequest) -> bool:
+    @handler
+    def on_activity_query(self, msg: ActivityQuery) -> Activity | None:
+        if not self._from_member(msg):
+            return None
+        running, queued = self._activity()
+        return Activity(self.robot, running, queued)
+
+    def _from_member(self, msg: Roster | RosterRequest | ActivityQuery) -> bool:
         if self.sender in self.table.members:
             return True
         self.refused += 1

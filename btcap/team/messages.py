@@ -17,6 +17,8 @@ from btcap.transports import Message
 
 __all__ = [
     "CAPABILITY_MESSAGES",
+    "Activity",
+    "ActivityQuery",
     "Award",
     "AwardReply",
     "Bid",
@@ -85,6 +87,18 @@ class RosterRequest(Message):
     """Where can I reach these robots (that your heartbeats mention)?"""
 
     robots: list[str]
+
+
+class ActivityQuery(Message):
+    """What are you running? (asked by ``btcap team status``)"""
+
+
+class Activity(Message):
+    """The executions a robot's body runs and holds queued, its own and its teammates'."""
+
+    robot: str
+    running: list[ExecutionId]
+    queued: list[ExecutionId] = []
 
 
 class Goodbye(Message):
@@ -249,6 +263,8 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     Goodbye,
     Roster,
     RosterRequest,
+    ActivityQuery,
+    Activity,
     RepositoryState,
     RepositoryQuery,
     CallForBids,

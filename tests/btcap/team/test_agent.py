@@ -18,6 +18,8 @@ from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import (
     CAPABILITY_MESSAGES,
+    Activity,
+    ActivityQuery,
     Award,
     AwardReply,
     Bid,
@@ -59,6 +61,8 @@ SAMPLES: dict[type[Message], list[Message]] = {
     Goodbye: [Goodbye("husky1", 123)],
     Roster: [Roster([Contact("a", "tcp://127.0.0.1:7001")]), Roster([])],
     RosterRequest: [RosterRequest(["a", "c"]), RosterRequest([])],
+    ActivityQuery: [ActivityQuery()],
+    Activity: [Activity("b", [E1], [E2]), Activity("b", [])],
     RepositoryState: [
         RepositoryState("a", 3, {"Count": COUNT.identity}, ["Count", "Explore"]),
         RepositoryState("a", 0, {}),

@@ -8,9 +8,11 @@ from typing import Any
 
 import anyio
 import pytest
-from capfixtures import COUNT, Probe, count_impl, team, until
+from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
+from btcap import Sequence
 from btcap.actors import ActorSystem, ManualClock
+from btcap.team.deploy import observe_team
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import Goodbye, Heartbeat
 from btcap.team.protocol import protocol_registry
@@ -174,3 +176,24 @@ async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
             assert a.repository.team["b"].version == b2.repository.version
             assert a.repository.providers(COUNT.identity) == set()
             assert not a.repository.succeeded_anywhere("Cap0")
+
+
+async def test_an_observer_sees_what_each_member_runs() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: b.mission_control.body.running is not None, "b runs")
+            seen = {m.robot: m for m in await observe_team(a)}
+            assert seen["b"].running == [str(b.mission_control.body.running)]
+            assert seen["b"].running[0].startswith("a:")  # a's work, on b's body
+            assert "Count" in (seen["b"].capabilities or {})
+            observer = await t.add("observer")
+            await t.converged()
+            views = {m.robot: m.running for m in await observe_team(observer)}
+            assert views == {"a": [], "b": seen["b"].running}
+            await tree.shutdown()
