@@ -26,6 +26,8 @@ everything it can before giving up, so one run shows all the mistakes in a file.
 The package holds the :mod:`~btcap.bt.files.schema`, :mod:`~btcap.bt.files.parse`
 (text to a checked document), :mod:`~btcap.bt.files.build` (document to Tree),
 :mod:`~btcap.bt.files.load` and :mod:`~btcap.bt.files.dump` (Tree to document, text, file).
+BehaviorTree.CPP v4 XML (``.xml``) is read too: :mod:`~btcap.bt.files.btcpp` translates
+it into the same schema, so it is built and checked like any other file.
 """
 
 from btcap.bt.files.dump import dump_tree, dumps_tree, save_tree

@@ -237,6 +237,7 @@ class XmlTranslator:
         self.used.add(tid)
         if done is None:
             return None
+        self._check_model(tid, done)
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
         for ports, reading in ((done.inputs, True), (done.outputs, False)):
             for key, tp in ports.items():
@@ -260,6 +261,28 @@ class XmlTranslator:
                 f"({', '.join(done.outputs) or 'nothing'})",
             )
         return spec
+
+    def _check_model(self, tid: str, done: _Def) -> None:
+        """A ``<SubTree>`` entry of TreeNodesModel must agree with what the tree does."""
+        model = self.models.get(tid)
+        if model is None or model.tag != "SubTree":
+            return
+        del self.models[tid]  # checked once, at its first use
+        for port in model.children:
+            key = port.attrs.get("name", "")
+            if port.tag == "input_port" and key not in done.inputs:
+                self.fail(
+                    port.line,
+                    f"<TreeNodesModel> SubTree {tid!r} input_port {key!r}: the tree does not "
+                    f"read {{{key}}} from outside (it reads: "
+                    f"{', '.join(done.inputs) or 'nothing'})",
+                )
+            elif port.tag == "output_port" and key not in done.outputs:
+                self.fail(
+                    port.line,
+                    f"<TreeNodesModel> SubTree {tid!r} output_port {key!r}: the tree does not "
+                    f"write {{{key}}} (it writes: {', '.join(done.outputs) or 'nothing'})",
+                )
 
 
 _WHERE = re.compile(

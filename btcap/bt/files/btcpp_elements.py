@@ -13,8 +13,6 @@ import typing
 from collections.abc import Callable
 from typing import Any
 
-import yaml
-
 from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, MappingError
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
@@ -67,10 +65,20 @@ def literal(text: str, tp: Any) -> Any:
         if origin is tuple and args and args[-1] is not Ellipsis and len(args) == len(parts):
             return [literal(p, a) for p, a in zip(parts, args, strict=True)]
         return [literal(p, args[0] if args else Any) for p in parts]
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text
+    return _scalar(text)
+
+
+def _scalar(text: str) -> Any:
+    """A number or boolean as BehaviorTree.CPP spells it; anything else stays text."""
+    value = text.strip()
+    for number in (int, float):
+        try:
+            return number(value)
+        except ValueError:
+            pass
+    if value.lower() in ("true", "false"):
+        return value.lower() == "true"
+    return text
 
 
 #: Builds a ``<SubTree>`` element: (element, its attributes, name, path, scope).

@@ -273,6 +273,36 @@ def test_literal_inputs_are_converted_to_the_port_type() -> None:
     assert tree.tick() is State.SUCCEEDED
 
 
+class Tally(Leaf):
+    """Test node: typed list and boolean inputs, a float option."""
+
+    INPUTS = {"ids": list[int], "loud": Port(bool, False)}
+    OPTIONS = {"scale": Port(float, 1.0)}
+
+    def on_tick(self) -> State:
+        return State.SUCCEEDED
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(st.integers(-(10**9), 10**9), max_size=6),
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.booleans(),
+)
+def test_literals_read_as_behaviortree_cpp_writes_them(
+    ids: list[int], scale: float, loud: bool
+) -> None:
+    reg = _registry()
+    reg.register(Tally)
+    text = _xml(
+        f'<BehaviorTree ID="Main"><Tally ids="{";".join(map(str, ids))}" scale="{scale!r}" '
+        f'loud="{str(loud).lower()}"/></BehaviorTree>'
+    )
+    tree = loads_tree(text, "xml", reg)
+    assert tree.root.inputs == {"ids": ids, "loud": loud}
+    assert tree.root.options["scale"] == scale
+
+
 # -- subtrees -------------------------------------------------------------------------
 SUBTREES = _xml("""
 <BehaviorTree ID="Main">
@@ -561,6 +591,20 @@ ERRORS = [
         "<TreeNodesModel> declares it at line 4. Register a node type named 'Grasp'",
     ),
 ]
+
+
+ERRORS.append(
+    (
+        _xml(
+            '<BehaviorTree ID="Main"><SubTree ID="Leg" goal="1;2"/></BehaviorTree>\n'
+            '<BehaviorTree ID="Leg"><Move goal="{goal}" distance="{d}"/></BehaviorTree>\n'
+            '<TreeNodesModel>\n<SubTree ID="Leg">\n<input_port name="goal"/>\n'
+            '<input_port name="d"/>\n</SubTree>\n</TreeNodesModel>'
+        ),
+        7,
+        "SubTree 'Leg' input_port 'd': the tree does not read {d} from outside (it reads: goal)",
+    )
+)
 
 
 @pytest.mark.parametrize(("text", "line", "message"), ERRORS, ids=[e[2][:40] for e in ERRORS])
