@@ -16,7 +16,11 @@ from capfixtures import (
 )
 
 from btcap import Parallel, Sequence, State
+from btcap.team.assignment import AssignmentTask, Unassigned
 from btcap.team.consensus_assigner import ConsensusAssigner
+from btcap.team.core.ids import ExecutionId
+from btcap.team.messages import ConsensusClaim, ConsensusTasks, OpenTask
+from btcap.transports import Address
 
 
 def _cons(agent: object) -> ConsensusAssigner:
@@ -199,3 +203,56 @@ async def test_work_stays_with_a_robot_beaten_by_less_than_the_margin() -> None:
             assert stats.auctions > 100  # it did look, every time
             assert stats.awarded == 1
             await tree.shutdown()
+
+
+async def test_nobody_able_to_take_it_says_why_robot_by_robot() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(strategy="consensus") as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", lambda _inputs: None, probe)])
+            await t.add("c", [count_impl("c", 1.0, probe)])
+            await t.converged()
+            task = AssignmentTask(
+                ExecutionId("a", "root/count", 1),
+                COUNT.name,
+                COUNT.identity,
+                {"x": 1},
+                frozenset({"b"}),
+                2.0,
+            )
+            out = await _cons(a).assign(task)
+            assert isinstance(out, Unassigned)
+            assert "cannot execute" in out.reasons["b"]
+            assert _cons(a).stats.early_closes == 1  # the team agreed that nobody can
+            assert not _cons(a).core.tasks()  # withdrawn from the team
+
+
+async def test_a_hostile_peer_is_held_to_its_own_word_and_to_the_bounds() -> None:
+    """m floods task ids and claims in another robot's name: the claim is refused, the
+    tasks beyond the bound are dropped and counted, and the mission still runs."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(strategy="consensus") as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            async with silent_member(t.net, "m", [], t.clock) as m:
+                await until(lambda: "m" in _cons(a).core.members, "m to be a member")
+                flood = [
+                    OpenTask(ExecutionId("m", "n", i), "Count", COUNT.identity, {}, ["a"])
+                    for i in range(1000)
+                ]
+                to = Address("a", ConsensusAssigner.PATH)
+                m.tell(to, ConsensusTasks("m", 1, flood))
+                m.tell(to, ConsensusTasks("b", 2, flood[:1]))  # in b's name
+                m.tell(to, ConsensusClaim("b", 1, 9, None, 0.0, "", []))  # in b's name
+                stats = _cons(a).stats
+                await until(lambda: stats.refused == 2, "the claims in b's name refused")
+                assert stats.dropped == 1000 - 64
+                assert len(_cons(a).core.tasks()) == 64
+                node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+                tree = a.mission(Sequence("root", children=[node]))
+                state = await tick_until(tree, lambda s: s is not State.RUNNING)
+                assert state is State.SUCCEEDED
+                assert node.assignments == ["b"]
+                await tree.shutdown()
