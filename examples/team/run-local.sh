@@ -62,6 +62,13 @@ for i in "${!robots[@]}"; do
     cat "$work/$robot.out"
 done
 
+# The operator knows only alpha; alpha, beta and gamma each know one other robot.
+"${btcap[@]}" team status --config "$here/operator.yaml" --wait 10 | tee "$work/status.out"
+if ! grep -q "3 member(s)" "$work/status.out"; then
+    echo "the operator did not meet all three robots through alpha" >&2
+    exit 1
+fi
+
 status=0
 "${btcap[@]}" mission run "$here/mission.yaml" --config "$here/operator.yaml" --timeout 60 \
     || status=$?
