@@ -32,10 +32,13 @@ from btcap.team.assignment import (
     Assigned,
     AssignmentStrategy,
     AssignmentTask,
+    AuctionRecord,
     AuctionStats,
+    AuctionWatcher,
     Unassigned,
 )
 from btcap.team.capability import ASSIGNER_PATH
+from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.consensus import Claim, Consensus, Task
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
@@ -71,6 +74,7 @@ class ConsensusStats(AuctionStats):
 
 @dataclass(slots=True)
 class _Pending:
+    id: AuctionId  # what its awards and reports are filed under
     task: AssignmentTask
     agreed: asyncio.Event
     why: dict[str, str]
@@ -109,6 +113,20 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         self._unsubscribe: Callable[[], None] | None = None
         self._newcomers: set[str] = set()
         self._scheduled = False
+        self._watchers: list[AuctionWatcher] = []
+
+    def watch(self, watcher: AuctionWatcher) -> Callable[[], None]:
+        """Report each task's allocation to ``watcher`` as it opens and ends, as the
+        auction reports its auctions (for monitors); returns an unsubscribe."""
+        self._watchers.append(watcher)
+        return lambda: self._watchers.remove(watcher) if watcher in self._watchers else None
+
+    def _report(self, record: AuctionRecord) -> None:
+        for watcher in list(self._watchers):
+            try:
+                watcher(record)
+            except Exception as exc:  # a monitor's bug must not stop allocation
+                log.error("consensus.watcher_failed", robot=self.robot, exc_info=exc)
 
     # -- life cycle and team ----------------------------------------------------------
     def on_start(self) -> None:
@@ -139,9 +157,12 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
     # -- the strategy -----------------------------------------------------------------
     async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
         clock = self.system.clock
-        mine = _Pending(task, asyncio.Event(), {})
+        mine = _Pending(AuctionId(self.robot, next(self._ids)), task, asyncio.Event(), {})
         self._pending[task.execution] = mine
         self.stats.auctions += 1
+        opened = AuctionRecord(mine.id, task, clock.now())
+        self._report(opened)
+        won: Assigned | Unassigned | None = None
         spec = OpenTask(
             task.execution,
             task.interface,
@@ -164,9 +185,25 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
                 if won is not None:
                     return won
         finally:
+            if self._watchers:
+                self._report(self._record(mine, opened, won))
             del self._pending[task.execution]
             self.core.close(task.execution)
             self._soon()
+
+    def _record(
+        self, mine: _Pending, opened: AuctionRecord, won: Assigned | Unassigned | None
+    ) -> AuctionRecord:
+        """How a task's allocation ended, for watchers (``won`` None: cancelled)."""
+        outcome = None
+        if won is not None:
+            ranking = []
+            if isinstance(won, Assigned):
+                ranking = [Bid(mine.id, won.robot, won.cost, won.implementation)]
+            silent = self.core.waiting_for() & mine.task.candidates
+            outcome = AuctionOutcome(ranking, dict(mine.why), silent)
+        now = self.system.clock.now()
+        return AuctionRecord(mine.id, mine.task, opened.opened, now, outcome, won)
 
     async def _agreement(self, mine: _Pending, clock: TimeSource) -> None:
         """Until the team agrees or ``window_s`` passes; silent peers are told again at a
@@ -192,7 +229,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return Unassigned({win.robot: f"bid {win.cost:g} not below {task.reserve:g}"})
         impl = self._implementation(win)
         award = Award(
-            AuctionId(self.robot, next(self._ids)),
+            mine.id,
             task.execution,
             task.interface,
             impl,

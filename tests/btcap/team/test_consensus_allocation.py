@@ -16,7 +16,7 @@ from capfixtures import (
 )
 
 from btcap import Parallel, Sequence, State
-from btcap.team.assignment import AssignmentTask, Unassigned
+from btcap.team.assignment import Assigned, AssignmentTask, AuctionRecord, Unassigned
 from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
 from btcap.team.messages import ConsensusClaim, ConsensusTasks, OpenTask
@@ -39,11 +39,17 @@ async def test_a_mission_completes_with_the_cheapest_robot_and_no_auctioneer() -
             await t.add("c", [count_impl("c", 3.0, probe)])
             await t.add("d")  # no implementation: takes part, claims nothing
             await t.converged()
+            seen: list[AuctionRecord] = []
+            _cons(a).watch(seen.append)
             node = COUNT.node_type()("count", inputs={"x": 3, "stop": True})
             tree = a.mission(Sequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
             assert node.outputs["y"] == 3
+            assert [r.closed is None for r in seen] == [True, False]
+            assert seen[1].outcome is not None
+            assert [(b.robot, b.cost) for b in seen[1].outcome.ranking] == [("b", 2.0)]
+            assert seen[1].result == Assigned("b", "count-b", 2.0)
             stats = _cons(a).stats
             assert stats.awarded == stats.early_closes == stats.auctions == 1
             assert stats.refused == stats.dropped == 0
