@@ -303,26 +303,27 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return
         claim, vector = self.core.claim, self.core.vector()
         impl = self._implementation(claim) if claim.task is not None else ""
-        why = [
-            (t, answer)
-            for t, (_spec, answer) in self._prices.items()
-            if isinstance(answer, str) and t.origin in robots
-        ]
-        msgs: list[ConsensusTasks | ConsensusClaim] = []
+        why: dict[str, list[tuple[ExecutionId, str]]] = {}  # by origin: only it needs them
+        for t, (_spec, answer) in self._prices.items():
+            if isinstance(answer, str):
+                why.setdefault(t.origin, []).append((t, answer))
+        offer = None
         if tasks:
-            mine = [t.spec for t in self.core.own_tasks()]
-            msgs.append(ConsensusTasks(self.robot, self.core.version, mine))
+            offer = ConsensusTasks(
+                self.robot, self.core.version, [t.spec for t in self.core.own_tasks()]
+            )
         view = [(r, s, v) for r, (s, v) in sorted(vector.items())]
         cost = claim.cost if claim.task is not None else 0.0
-        msgs.append(
-            ConsensusClaim(
-                self.robot, next(self._seq), claim.stamp, claim.task, cost, impl, view, why
-            )
-        )
+        seq = next(self._seq)
         for robot in robots:
-            for msg in msgs:
-                self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
-                self.stats.messages += 1
+            to = Address(robot, self.PATH)
+            if offer is not None:
+                self.system.tell(to, offer, sender=self.address)
+            says = ConsensusClaim(
+                self.robot, seq, claim.stamp, claim.task, cost, impl, view, why.get(robot, [])
+            )
+            self.system.tell(to, says, sender=self.address)
+            self.stats.messages += 1 + (offer is not None)
 
     def _costs(self) -> dict[ExecutionId, float]:
         """This robot's cost for each open task it may take (cached while its body's
