@@ -210,6 +210,8 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         quarter of the window (a message may have been lost)."""
         for _ in range(4):
             mine.agreed.clear()
+            if self.core.converged():
+                return
             if await _within(mine.agreed.wait(), clock, self.window_s / 4) is not None:
                 return
             self._tell_all(sorted(self.core.waiting_for()))
