@@ -6,7 +6,7 @@ import argparse
 import importlib
 from collections.abc import Sequence
 
-BENCHES = ("tick", "transport", "auction", "sim", "allocation", "membership", "attacks")
+BENCHES = ("tick", "transport", "auction", "sim", "allocation", "membership", "monitor", "attacks")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

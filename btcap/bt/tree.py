@@ -50,24 +50,28 @@ class Tree:
         self.clock: TimeSource = clock if clock is not None else Clock()
         self.wires: list[Wire] = []
         self.system: ActorSystem | None = None
-        self._observers: list[Observer] = []
+        self._observers: list[tuple[Observer, type[Node] | tuple[type[Node], ...]]] = []
         self._tasks: set[asyncio.Task[Any]] = set()
+        #: Grows whenever nodes join or leave the tree: a watcher can tell the shape
+        #: changed without walking it.
+        self.version = 0
         self._adopt(root)
 
     # -- structure --------------------------------------------------------------------
     def _adopt(self, node: Node) -> None:
-        watch = self._notify if self._observers else None
         nodes = list(node.walk())
         for n in nodes:  # check them all before adopting any
             if n._tree is not None and n._tree is not self:
                 raise TreeError(f"node {n.path!r} already belongs to tree {n._tree.name!r}")
+        self.version += 1
         for n in nodes:
             n._tree = self
-            n._watch = watch
+            n._watch = self._watch_for(n)
             if self.system is not None and not n.spawned:
                 self._spawn(n)
 
     def _release(self, node: Node) -> None:
+        self.version += 1
         gone = set(map(id, node.walk()))
         for w in [w for w in self.wires if id(w.source) in gone or id(w.target) in gone]:
             self.unwire(w)
@@ -304,26 +308,35 @@ class Tree:
         return task
 
     # -- observing --------------------------------------------------------------------
-    def observe(self, observer: Observer) -> Callable[[], None]:
-        """Call ``observer(node, old, new)`` on every state change; returns an unsubscribe."""
-        self._observers.append(observer)
+    def observe(
+        self, observer: Observer, *, only: type[Node] | tuple[type[Node], ...] = Node
+    ) -> Callable[[], None]:
+        """Call ``observer(node, old, new)`` on every state change of a node of the types
+        ``only`` (the others' ticks do not pay for it); returns an unsubscribe."""
+        entry = (observer, only)
+        self._observers.append(entry)
         self._set_watch()
 
         def unsubscribe() -> None:
-            if observer in self._observers:
-                self._observers.remove(observer)
+            if entry in self._observers:
+                self._observers.remove(entry)
                 self._set_watch()
 
         return unsubscribe
 
+    def _watch_for(self, node: Node) -> Observer | None:
+        """What ``node`` calls on a change: nothing, its only observer, or all of them."""
+        mine = [ob for ob, only in self._observers if isinstance(node, only)]
+        return None if not mine else mine[0] if len(mine) == 1 else self._notify
+
     def _set_watch(self) -> None:
-        watch = self._notify if self._observers else None
         for n in self.nodes():
-            n._watch = watch
+            n._watch = self._watch_for(n)
 
     def _notify(self, node: Node, old: State, new: State) -> None:
-        for ob in self._observers:
-            ob(node, old, new)
+        for ob, only in list(self._observers):
+            if isinstance(node, only):
+                ob(node, old, new)
 
     def utility(self) -> Utility:
         return self.root.utility()

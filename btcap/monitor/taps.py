@@ -1,9 +1,10 @@
-"""Where a monitor's events come from: tree observers and a robot's team hooks.
+"""Where a monitor's node events come from: one tap per tree.
 
-A tree tap costs the ticking tree one dictionary store per state change (the latest
-state per node, turned into an event when the monitor flushes) plus a set lookup; only
-capability nodes, whose transitions are rare and make the timeline, are reported at
-once with their clock time.
+A tap costs the ticking tree nothing but its capability nodes' transitions, which are
+rare and make the timeline: those are observed and reported at once, with their clock
+time. Every other node's state is read when the monitor flushes (at most 20 times a
+second), and only the nodes whose state differs from the last batch are sent: a page
+sees the latest state of each node per batch, as it would from coalesced changes.
 """
 
 from __future__ import annotations
@@ -34,19 +35,19 @@ class TreeTap:
         self.tree, self.robot, self.name = tree, robot, name
         self._emit = emit
         self._ended = ended  # (execution, result) -> why, from what the monitor heard
-        self._dirty: dict[Node, State] = {}
-        self._order: list[int] = []
-        self._caps: set[Node] = set()
+        self._nodes: list[Node] = []  # in tree order, as last sent
+        self._version = -1
+        self._paths: list[str] = []
+        self._sent: list[State] = []
         self._runs: dict[Node, tuple[str, str]] = {}  # node -> (execution, executor)
-        self._unobserve = tree.observe(self._changed)
+        self._unobserve = tree.observe(self._changed, only=Capability)
 
     def close(self) -> None:
         self._unobserve()
 
     def _changed(self, node: Node, old: State, new: State) -> None:
-        self._dirty[node] = new
-        if self._caps and node in self._caps:
-            self._capability(node, new)  # type: ignore[arg-type]
+        if isinstance(node, Capability):
+            self._capability(node, new)
 
     def _capability(self, node: Capability, new: State) -> None:
         ex = node.execution
@@ -82,13 +83,13 @@ class TreeTap:
 
     def structure(self) -> Event:
         """The whole tree as one event (sent at the start and whenever it changed)."""
-        nodes = list(self.tree.nodes())
-        self._order = [id(n) for n in nodes]
-        caps = [n for n in nodes if isinstance(n, Capability)]
-        self._caps = set(caps)
-        for c in caps:
-            if c.state not in DONE:
-                self._capability(c, c.state)  # a run already under way when attached
+        nodes = self._nodes = list(self.tree.nodes())
+        self._version = self.tree.version
+        self._paths = [n.path for n in nodes]
+        self._sent = [n.state for n in nodes]
+        for n in nodes:
+            if isinstance(n, Capability) and n.state not in DONE:
+                self._capability(n, n.state)  # a run already under way when attached
         return {
             "t": self.tree.clock.now(),
             "k": "tree",
@@ -100,7 +101,7 @@ class TreeTap:
                     "name": n.name,
                     "type": type(n).__name__,
                     "parent": n.parent_node.path if n.parent_node is not None else None,
-                    "cap": n in self._caps,
+                    "cap": isinstance(n, Capability),
                     "state": n.state.value,
                 }
                 for n in nodes
@@ -109,11 +110,16 @@ class TreeTap:
 
     def flush(self) -> Event | None:
         """The states changed since the last flush, or the whole tree if its shape changed."""
-        if not self._dirty:
-            return None
-        dirty, self._dirty = self._dirty, {}
-        if [id(n) for n in self.tree.nodes()] != self._order:
+        if self.tree.version != self._version:
             return self.structure()
-        states = {n.path: s.value for n, s in dirty.items()}
+        sent = self._sent
+        states: dict[str, str] = {}
+        for i, n in enumerate(self._nodes):
+            state = n.state
+            if state is not sent[i]:
+                sent[i] = state
+                states[self._paths[i]] = state.value
+        if not states:
+            return None
         now = self.tree.clock.now()
         return {"t": now, "k": "states", "robot": self.robot, "tree": self.name, "states": states}

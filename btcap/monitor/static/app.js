@@ -250,20 +250,18 @@ function drawTrees() {
   const box = document.getElementById("trees");
   const scroll = new Map([...box.querySelectorAll(".tree-scroll")].map((d) => [d.dataset.key, d.scrollLeft]));
   box.replaceChildren();
+  const blocks = [];
   for (const name of robotNames().reverse()) {
-    const trees = S.robots[name].trees;
-    const names = Object.keys(trees);
-    if (!names.length) continue;
-    const block = el("div", { class: "robot-trees", "data-robot": name });
-    for (const t of names) {
-      block.append(el("h3", {}, `${name} `, el("small", { text: t })));
+    for (const [t, tree] of Object.entries(S.robots[name].trees)) {
+      const host = t.endsWith("-host");
       const key = `${name}/${t}`;
-      const div = el("div", { class: "tree-scroll", "data-key": key }, drawTree(name, t, trees[t]));
-      block.append(div);
+      const div = el("div", { class: "tree-scroll", "data-key": key }, drawTree(name, t, tree));
+      blocks.push([host, el("div", { class: host ? "tree-block host" : "tree-block mission",
+        "data-robot": name }, el("h3", {}, `${name} `, el("small", { text: t })), div)]);
       requestAnimationFrame(() => { div.scrollLeft = scroll.get(key) ?? 0; });
     }
-    box.append(block);
   }
+  blocks.sort((a, b) => a[0] - b[0]).forEach(([, b]) => box.append(b));
 }
 
 // -- auctions -------------------------------------------------------------------------------

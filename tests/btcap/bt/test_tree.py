@@ -316,6 +316,37 @@ def test_observers_follow_inserted_and_removed_nodes() -> None:
     assert changes == []
 
 
+def test_an_observer_of_some_node_types_sees_only_those_and_costs_the_others_nothing() -> None:
+    tree = sample_tree()
+    leaves: list[Change] = []
+    every: list[Change] = []
+    stop = tree.observe(lambda n, old, new: leaves.append((n.path, old, new)), only=Leaf)
+    tree.tick()
+    assert leaves
+    assert all(isinstance(tree.find(path), Leaf) for path, _, _ in leaves)
+    assert all(n._watch is None for n in tree.nodes() if not isinstance(n, Leaf))
+    tree.observe(lambda n, old, new: every.append((n.path, old, new)))
+    tree.reset()
+    tree.tick()
+    assert {p for p, _, _ in every} > {p for p, _, _ in leaves}
+    stop()
+    n = len(leaves)
+    tree.reset()
+    assert len(leaves) == n
+
+
+def test_the_tree_version_grows_when_nodes_join_or_leave() -> None:
+    tree = sample_tree()
+    v = tree.version
+    tree.tick()
+    assert tree.version == v
+    x = tree.insert("root/fb", Leafy("x", F), 0)
+    assert tree.version > v
+    v = tree.version
+    tree.remove(x)
+    assert tree.version > v
+
+
 # -- running ----------------------------------------------------------------------------
 
 
