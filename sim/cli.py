@@ -87,7 +87,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         action="store_true",
         help="busy robots bid for one more task, to start after their current one",
     )
-    p.add_argument("--quiet", action="store_true", help="no live display")
+    p.add_argument("--quiet", action="store_true", help="no live display nor progress lines")
     add_monitor_option(p)
     p.add_argument(
         "--record",
