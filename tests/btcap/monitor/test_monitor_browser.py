@@ -17,8 +17,9 @@ from pathlib import Path
 import anyio
 import pytest
 
-from btcap import Monitor, Parallel, State
+from btcap import Monitor, Parallel, Replay, State
 from btcap.bt.state import DONE
+from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
 from btcap.team.agent import Agent, AgentConfig
@@ -34,7 +35,7 @@ pytestmark = pytest.mark.skipif(
     "chromium-driver); .ci/run installs them",
 )
 DOCS = Path(__file__).parents[3] / "docs" / "monitor.png"
-SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
+DYNAMIC = Path(__file__).parents[2] / "sim" / "data" / "dynamic.yaml"
 #: Seconds the page may take to show what the test waits for (polled, not slept).
 PAGE_S = 30.0
 
@@ -138,14 +139,16 @@ async def test_the_page_shows_each_robot_and_a_capability_succeeding_live(
     assert (tmp_path / "monitor.png").stat().st_size > 10_000
 
 
-async def test_the_simulated_team_on_the_page(browser: WebDriver, tmp_path: Path) -> None:
-    """The paper's team on the small mission: lanes, trees and auctions after the run."""
+async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_path: Path) -> None:
+    """The paper's robots with a failure, a join and a leave: the live page after the run,
+    then its recording replayed and paused mid-mission (what docs/monitor.png shows)."""
+    record = tmp_path / "dynamic.jsonl"
+    robots = ("husky1", "husky2", "bebop1")
     with anyio.fail_after(90):
-        async with Monitor(port=0, title="small cave, full team") as monitor:
-            result = await run_fast(load_scenario(SMALL), monitor=monitor)
+        async with Monitor(port=0, record=record, title="dynamic team") as monitor:
+            result = await run_fast(load_scenario(DYNAMIC), monitor=monitor)
             assert result.completed
             await asyncio.to_thread(browser.get, monitor.url)
-            robots = ("husky1", "spot1", "bebop1")
             await _wait(
                 browser,
                 "a lane per robot",
@@ -153,9 +156,21 @@ async def test_the_simulated_team_on_the_page(browser: WebDriver, tmp_path: Path
             )
             assert _count(browser, '[data-node="mission"][data-state="succeeded"]') == 1
             assert _count(browser, ".card") == 4
-            assert _count(browser, "[data-auction]") >= 5
-            paths = [tmp_path / "team.png"]
+            await _screenshot(browser, tmp_path / "live.png")
+        replay = Replay.open(record)
+        replay.playing = False
+        replay.seek(replay.start + 0.3 * (replay.end - replay.start))
+        server = MonitorServer(replay, "127.0.0.1", 0)
+        await server.start()
+        try:
+            await asyncio.to_thread(browser.get, server.url)
+            await _wait(browser, "the replay controls", lambda d: _count(d, "#replay[hidden]") == 0)
+            await _wait(browser, "the running path", lambda d: _count(d, ".edge.active") > 0)
+            assert _count(browser, ".lane text[fill]") >= 3  # marks: joins, the failure
+            paths = [tmp_path / "replay.png"]
             if os.environ.get("BTCAP_DOCS_SCREENSHOT"):
                 paths.append(DOCS)
             await _screenshot(browser, *paths)
-    assert (tmp_path / "team.png").stat().st_size > 10_000
+        finally:
+            await server.stop()
+    assert (tmp_path / "replay.png").stat().st_size > 10_000
