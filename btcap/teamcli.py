@@ -8,6 +8,7 @@ command cleanly: the robot says goodbye, so the team re-assigns its work at once
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import signal
 import sys
@@ -21,6 +22,7 @@ from btcap.bt.files import load_tree
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
+from btcap.monitor.cli import add_monitor_option, serving
 from btcap.team.agent import Agent
 from btcap.team.agentconfig import AgentConfigError, RobotConfig, load_agent_file
 from btcap.team.deploy import (
@@ -52,6 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         action="store_true",
         help="allow a bind reachable from other hosts without keys",
     )
+    add_monitor_option(p)
     p.set_defaults(handler=_agent)
 
     team = subparsers.add_parser("team", help="look at a running team")
@@ -73,6 +76,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("tree", metavar="TREE", type=Path)
     _join_options(p, default_wait=10.0)
     p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
+    add_monitor_option(p)
     p.set_defaults(handler=_mission)
 
 
@@ -135,7 +139,12 @@ def _agent(args: argparse.Namespace) -> int:
     registry = _registry(args)
 
     async def serve() -> None:
-        async with open_agent(config, registry, insecure=args.insecure) as agent:
+        async with (
+            open_agent(config, registry, insecure=args.insecure) as agent,
+            serving(args.monitor, agent.robot) as monitor,
+        ):
+            if monitor is not None:
+                monitor.add_agent(agent)
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
             print(f"agent {agent.robot} listening on {endpoint}", flush=True)
@@ -203,10 +212,16 @@ def _mission(args: argparse.Namespace) -> int:
     robot = args.robot or config.robot
 
     async def run() -> MissionReport:
-        async with open_agent(config, registry, robot=robot) as agent:
+        async with (
+            open_agent(config, registry, robot=robot) as agent,
+            serving(args.monitor, f"mission {args.tree.name}") as monitor,
+        ):
+            if monitor is not None:
+                monitor.add_agent(agent)
             await _join(agent, config, args.wait)
+            shown = None if monitor is None else functools.partial(monitor.add_tree, robot=robot)
             return await run_mission_file(
-                agent, args.tree, registry, timeout_s=args.timeout, progress=_say
+                agent, args.tree, registry, timeout_s=args.timeout, progress=_say, on_tree=shown
             )
 
     try:

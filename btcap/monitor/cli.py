@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-from collections.abc import Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
 from typing import TypeVar
 
@@ -21,6 +21,7 @@ __all__ = [
     "add_parser",
     "monitored",
     "parse_address",
+    "serving",
 ]
 
 DEFAULT_PORT = 8765
@@ -51,16 +52,15 @@ def add_monitor_option(p: argparse.ArgumentParser) -> None:
     )
 
 
-async def monitored(
-    address: tuple[str, int] | None,
-    record: Path | None,
-    title: str,
-    run: Callable[[Monitor | None], Awaitable[T]],
-) -> T:
-    """``run(monitor)`` with a monitor serving ``address`` and/or recording to ``record``
-    (neither: ``run(None)``, no monitor at all). Prints where the page is."""
+@contextlib.asynccontextmanager
+async def serving(
+    address: tuple[str, int] | None, title: str, record: Path | None = None
+) -> AsyncIterator[Monitor | None]:
+    """A started monitor serving ``address`` and/or recording to ``record`` for the
+    block (neither: None, no monitor at all); prints where the page is."""
     if address is None and record is None:
-        return await run(None)
+        yield None
+        return
     host, port = address if address is not None else ("127.0.0.1", None)
     monitor = Monitor(host=host, port=port, record=record, title=title)
     try:
@@ -70,9 +70,20 @@ async def monitored(
     try:
         if address is not None:
             print(f"monitor: {monitor.url}", flush=True)
-        return await run(monitor)
+        yield monitor
     finally:
         await monitor.stop()
+
+
+async def monitored(
+    address: tuple[str, int] | None,
+    record: Path | None,
+    title: str,
+    run: Callable[[Monitor | None], Awaitable[T]],
+) -> T:
+    """``run(monitor)`` inside :func:`serving`."""
+    async with serving(address, title, record) as monitor:
+        return await run(monitor)
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -20,6 +20,7 @@ from btcap.actors import Address, Clock
 from btcap.bt.files import load_tree
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import DONE, State
+from btcap.bt.tree import Tree
 from btcap.team.agent import Agent
 from btcap.team.agentconfig import RobotConfig
 from btcap.team.capability import Capability
@@ -170,11 +171,15 @@ async def run_mission_file(
     *,
     timeout_s: float | None = None,
     progress: Callable[[str], None] | None = None,
+    on_tree: Callable[[Tree], object] | None = None,
 ) -> MissionReport:
     """Load a mission tree (capability node types must be in ``registry``), tick it on
     ``agent`` until it ends or ``timeout_s`` wall seconds pass, telling ``progress`` each
-    change of a capability's state or executor."""
+    change of a capability's state or executor (and ``on_tree`` the tree before it runs,
+    e.g. a monitor's ``add_tree``)."""
     tree = agent.mission(load_tree(path, registry, clock=agent.clock))
+    if on_tree is not None:
+        on_tree(tree)
     caps = [n for n in tree.nodes() if isinstance(n, Capability)]
     seen: dict[str, tuple[State, str]] = {}
     started = time.monotonic()
