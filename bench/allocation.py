@@ -3,11 +3,25 @@
 On seeded random instances (robots and tasks on a cave map; cost = path length x the
 robot's cost factor + the task's duration on that robot, as bids are computed in the
 mission), a team of agents runs in one process on a virtual clock: one robot per agent,
-each bidding those costs, and an origin whose mission asks for every task at once. Each
-strategy of the auctioneer (``arrival``, ``auction``, ``optimal``; see
-``btcap.team.core.planning``) assigns them through real calls for bids, bids and awards;
-the optimum comes from ``scipy.optimize.linear_sum_assignment``. Reported: the ratio of
-total costs (1.0 = optimal), and of makespans (the largest cost any robot took on).
+each bidding those costs, and an origin whose mission holds one capability node per task
+(a task never ends, so each robot does at most one). Each strategy of the auctioneer
+(``arrival``, ``auction``, ``sequential``, ``optimal``; see
+``btcap.team.core.planning``) assigns them through real calls for bids, bids and awards.
+
+- **static**: every task is asked for at once; the reference is the optimum of
+  ``scipy.optimize.linear_sum_assignment``.
+- **arrivals**: tasks arrive one by one at seeded times; **failures**: every task at once,
+  then robots holding one fail (cut off the network) at seeded times and their tasks are
+  re-auctioned; **joins**: every task at once to as many robots, then the spare robots
+  join one by one at seeded times (running work may move to them). All run with
+  re-evaluation of running work (``reevaluate_s`` 30 s, ``move_margin`` 0.2, the
+  defaults; ``auction-fixed``: the auction without it) until it settled. The reference is
+  the *offline optimum with hindsight*: the least total cost of giving every task a robot
+  that never fails, knowing all tasks, failures and joins in advance. Only the final
+  allocation is priced (work done before a move or a failure is not).
+
+Reported: the ratio of total costs to the reference (1.0 = optimal), and of makespans
+(the largest cost any robot took on, against that in the reference's assignment).
 """
 
 from __future__ import annotations
@@ -16,30 +30,50 @@ import argparse
 import asyncio
 import statistics
 import time
-from collections.abc import Mapping
 from contextlib import AsyncExitStack
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from btcap import AlwaysRunning, Parallel, Sequence, Tree
+from btcap import AlwaysRunning, Sequence, Tree
 from btcap.actors import ManualClock
 from btcap.bench.common import write_result
 from btcap.sim.distance import DistanceCache, path_length
 from btcap.sim.grid import GridMap
 from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import CapabilityInterface
+from btcap.team.capability import Capability, CapabilityInterface
 from btcap.team.implementation import Implementation
 from btcap.team.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
-__all__ = ["run"]
+__all__ = ["Events", "allocate", "ratios", "run"]
 
 TASK = CapabilityInterface("Task", inputs={"task": int}, description="go and do task #task")
 STRATEGIES = ("arrival", "auction", "sequential", "optimal")
+#: Strategy columns of the dynamic cases: (label, strategy, re-evaluation period).
+DYNAMIC = (
+    ("arrival", "arrival", 30.0),
+    ("auction", "auction", 30.0),
+    ("auction-fixed", "auction", None),
+    ("sequential", "sequential", 30.0),
+    ("optimal", "optimal", 30.0),
+)
+STEP_S = 0.5  # how often the origin ticks its mission (clock seconds)
+SETTLE_S = 35.0  # after the last event: failure detection and one re-evaluation
 
 Costs = np.ndarray[Any, np.dtype[np.float64]]
+
+
+@dataclass(frozen=True, slots=True)
+class Events:
+    """When each task arrives, when a robot holding a task fails, and when the last
+    robots join, one each (clock seconds)."""
+
+    arrive: tuple[float, ...]
+    fail_at: tuple[float, ...] = ()
+    join_at: tuple[float, ...] = ()
 
 
 def _instance(grid: GridMap, rng: np.random.Generator, robots: int, tasks: int) -> Costs:
@@ -56,7 +90,7 @@ def _instance(grid: GridMap, rng: np.random.Generator, robots: int, tasks: int) 
     return cost
 
 
-def _implementation(costs: Mapping[int, float]) -> Implementation:
+def _implementation(costs: dict[int, float]) -> Implementation:
     def build() -> Tree:
         bridge, _ = TASK.bridge_types()
         return Tree(Sequence("impl", children=[bridge(name="in"), AlwaysRunning("work")]))
@@ -64,74 +98,171 @@ def _implementation(costs: Mapping[int, float]) -> Implementation:
     return Implementation("do-task", TASK, build, (), lambda inputs: costs[inputs["task"]])
 
 
-async def _assign(cost: Costs, strategy: str) -> list[int]:
-    """Which robot the real team gives each task to (every task asked for at once)."""
+async def allocate(
+    cost: Costs, strategy: str, events: Events, reevaluate_s: float | None, seed: int
+) -> tuple[list[int], set[int]]:
+    """Which robot the real team has on each task in the end (-1: none), and which robots
+    failed (each the holder of a task, picked with ``seed``)."""
     robots, tasks = cost.shape
     clock = ManualClock()
     net = InProcessNetwork(protocol_registry(), encode=False)
-    cfg = AgentConfig(heartbeat_s=1.0, failure_timeout_s=30.0, reevaluate_s=None, strategy=strategy)
+    cfg = AgentConfig(
+        heartbeat_s=1.0, failure_timeout_s=3.0, reevaluate_s=reevaluate_s, strategy=strategy
+    )
+    rng = np.random.default_rng(seed)
+    names = [f"r{r:02d}" for r in range(robots)]
+    failed: set[int] = set()
+    agents = [
+        Agent(
+            name,
+            transport=net.transport(name),
+            clock=clock,
+            implementations=[_implementation({t: float(cost[r, t]) for t in range(tasks)})],
+            config=cfg,
+        )
+        for r, name in enumerate(names)
+    ]
+    joining = list(zip(sorted(events.join_at), agents[robots - len(events.join_at) :], strict=True))
     async with clock.autojump(), AsyncExitStack() as stack:
-        names = [f"r{r:02d}" for r in range(robots)]
-        for r, name in enumerate(names):
-            impl = _implementation({t: float(cost[r, t]) for t in range(tasks)})
-            agent = Agent(
-                name,
-                transport=net.transport(name),
-                clock=clock,
-                implementations=[impl],
-                config=cfg,
-            )
+        for agent in agents[: robots - len(joining)]:
             await stack.enter_async_context(agent)
         origin = await stack.enter_async_context(
             Agent("origin", transport=net.transport("origin"), clock=clock, config=cfg)
         )
-        while len(origin.repository.providers(TASK.identity)) < robots:
+        while len(origin.repository.providers(TASK.identity)) < robots - len(joining):
             await clock.sleep(0.1)
-        nodes = [TASK.node_type()(f"t{t}", inputs={"task": t}) for t in range(tasks)]
-        tree = origin.mission(Parallel("all", children=nodes))
-        while not all(n.assignments for n in nodes):
-            tree.tick()
-            await clock.sleep(0.05)
-        winners = [names.index(n.assignments[0]) for n in nodes]
-        await tree.shutdown()
-    return winners
+        nodes: list[Capability] = [
+            TASK.node_type()(f"t{t}", inputs={"task": t}) for t in range(tasks)
+        ]
+        trees: list[Tree] = []
+        fails = sorted(events.fail_at)
+        start = clock.now()
+        last = max((*events.arrive, *fails, *events.join_at))
+        while True:
+            now = clock.now() - start
+            while len(trees) < tasks and events.arrive[len(trees)] <= now:
+                trees.append(origin.mission(nodes[len(trees)]))
+            while fails and fails[0] <= now:
+                fails.pop(0)
+                held = sorted(
+                    {names.index(n.execution.robot) for n in nodes if n.execution} - failed
+                )
+                if held:
+                    victim = int(rng.choice(held))
+                    failed.add(victim)
+                    net.isolate(names[victim])
+            while joining and joining[0][0] <= now:
+                await stack.enter_async_context(joining.pop(0)[1])
+            for tree in trees:
+                tree.tick()
+            lost = {names[r] for r in failed}
+            settled = all(n.execution is not None and n.execution.robot not in lost for n in nodes)
+            if settled and now >= last + (SETTLE_S if reevaluate_s is not None else 0.0):
+                break
+            await clock.sleep(STEP_S)
+        final = [names.index(n.execution.robot) if n.execution else -1 for n in nodes]
+        for tree in trees:
+            await tree.shutdown()
+    return final, failed
+
+
+def _events(rng: np.random.Generator, case: str, tasks: int, robots: int) -> Events:
+    """Seeded events of ``case``; ``robots`` (those failing or joining) is its size."""
+    at_once = (0.0,) * tasks
+    if case == "arrivals":
+        return Events(tuple(sorted(rng.uniform(0.0, 60.0, size=tasks).round(2))))
+    times = tuple(rng.uniform(5.0, 60.0, size=robots).round(2))
+    if case == "failures":
+        return Events(at_once, fail_at=times)
+    if case == "joins":
+        return Events(at_once, join_at=times)
+    return Events(at_once)
+
+
+def ratios(cost: Costs, final: list[int], alive: list[int]) -> tuple[float, float]:
+    """Total cost and makespan of ``final`` over the hindsight optimum's (robots ``alive``)."""
+    sub = cost[alive]
+    rows, cols = linear_sum_assignment(sub)
+    best, span = float(sub[rows, cols].sum()), float(sub[rows, cols].max())
+    taken = [float(cost[r, t]) for t, r in enumerate(final) if r >= 0]
+    if len(taken) < cost.shape[1]:  # a task left without a robot: no ratio would be honest
+        return float("inf"), float("inf")
+    return sum(taken) / best, max(taken) / span
+
+
+def _summary(table: dict[str, list[float]]) -> dict[str, dict[str, float]]:
+    return {
+        s: {"mean": round(statistics.mean(v), 4), "max": round(max(v), 4)} for s, v in table.items()
+    }
+
+
+def _print(title: str, rows: dict[str, dict[str, dict[str, float]]], columns: list[str]) -> None:
+    print(title)
+    print(f"{'':>15} " + " ".join(f"{s:>19}" for s in columns))
+    for key, by in rows.items():
+        cells = " ".join(f"{by[s]['mean']:8.3f} (max {by[s]['max']:5.2f})" for s in columns)
+        print(f"{key:>15} {cells}")
 
 
 def run(quick: bool = False) -> dict[str, Any]:
     grid = GridMap.generate_cave(80, 60, seed=3)
     sizes = [(5, 5), (10, 10)] if quick else [(5, 5), (10, 10), (20, 20)]
     instances = 5 if quick else 20
+    robots, tasks, failures = (10, 6, 2) if quick else (25, 20, 3)
+    dyn_instances = 2 if quick else 10
     out: dict[str, Any] = {"instances": instances, "cost_ratio": {}, "makespan_ratio": {}}
     t0 = time.perf_counter()
-    for robots, tasks in sizes:
-        key = f"{robots}x{tasks}"
-        ratios: dict[str, list[float]] = {s: [] for s in STRATEGIES}
+    for r, t in sizes:
+        by_cost: dict[str, list[float]] = {s: [] for s in STRATEGIES}
         spans: dict[str, list[float]] = {s: [] for s in STRATEGIES}
         for seed in range(instances):
-            cost = _instance(grid, np.random.default_rng(seed), robots, tasks)
-            rows, cols = linear_sum_assignment(cost)
-            optimum = float(cost[rows, cols].sum())
-            best_span = float(cost[rows, cols].max())
+            cost = _instance(grid, np.random.default_rng(seed), r, t)
             for strategy in STRATEGIES:
-                winners = asyncio.run(_assign(cost, strategy))
-                taken = [float(cost[r, t]) for t, r in enumerate(winners)]
-                ratios[strategy].append(sum(taken) / optimum)
-                spans[strategy].append(max(taken) / best_span)
-        for name, table in (("cost_ratio", ratios), ("makespan_ratio", spans)):
-            out[name][key] = {
-                s: {"mean": round(statistics.mean(v), 4), "max": round(max(v), 4)}
-                for s, v in table.items()
-            }
+                final, _ = asyncio.run(
+                    allocate(
+                        cost,
+                        strategy,
+                        _events(np.random.default_rng(seed), "static", t, 0),
+                        None,
+                        seed,
+                    )
+                )
+                ratio, span = ratios(cost, final, list(range(r)))
+                by_cost[strategy].append(ratio)
+                spans[strategy].append(span)
+        out["cost_ratio"][f"{r}x{t}"] = _summary(by_cost)
+        out["makespan_ratio"][f"{r}x{t}"] = _summary(spans)
+    labels = [label for label, _s, _p in DYNAMIC]
+    dynamic: dict[str, Any] = {"robots": robots, "tasks": tasks, "failures": failures}
+    dynamic |= {"instances": dyn_instances, "cost_ratio": {}, "makespan_ratio": {}}
+    for case, size in (("arrivals", 0), ("failures", failures), ("joins", robots - tasks)):
+        by_cost = {label: [] for label in labels}
+        spans = {label: [] for label in labels}
+        for seed in range(dyn_instances):
+            rng = np.random.default_rng(1000 + seed)
+            cost = _instance(grid, rng, robots, tasks)
+            events = _events(rng, case, tasks, size)
+            for label, strategy, period in DYNAMIC:
+                final, failed = asyncio.run(allocate(cost, strategy, events, period, seed))
+                alive = [i for i in range(robots) if i not in failed]
+                ratio, span = ratios(cost, final, alive)
+                by_cost[label].append(ratio)
+                spans[label].append(span)
+        dynamic["cost_ratio"][case] = _summary(by_cost)
+        dynamic["makespan_ratio"][case] = _summary(spans)
+    out["dynamic"] = dynamic
     out["seconds"] = round(time.perf_counter() - t0, 2)
-    print(f"total cost / optimum (1.0 = optimal), real agents, {instances} seeded instances")
-    print(f"{'robots x tasks':>15} " + " ".join(f"{s:>16}" for s in STRATEGIES))
-    for key, by in out["cost_ratio"].items():
-        cells = " ".join(f"{by[s]['mean']:7.3f} (max {by[s]['max']:.2f})" for s in STRATEGIES)
-        print(f"{key:>15} {cells}")
-    print("makespan / that of the least-total-cost assignment")
-    for key, by in out["makespan_ratio"].items():
-        cells = " ".join(f"{by[s]['mean']:7.3f} (max {by[s]['max']:.2f})" for s in STRATEGIES)
-        print(f"{key:>15} {cells}")
+    print(f"static: every task at once; {instances} seeded instances; reference: the optimum")
+    _print("total cost / optimum", out["cost_ratio"], list(STRATEGIES))
+    _print("makespan / the optimum's", out["makespan_ratio"], list(STRATEGIES))
+    print(
+        f"dynamic: {robots} robots x {tasks} tasks, arriving over 60 s, or with {failures} "
+        f"holders failing, or with {robots - tasks} robots joining; {dyn_instances} "
+        "instances; reference: the optimum with hindsight"
+    )
+    _print("total cost / hindsight optimum", dynamic["cost_ratio"], labels)
+    _print("makespan / the hindsight optimum's", dynamic["makespan_ratio"], labels)
+    print(f"({out['seconds']} s)")
     write_result("allocation", out)
     return out
 

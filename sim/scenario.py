@@ -90,7 +90,7 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     #: Work moves only to a robot bidding at least this fraction below what the current
     #: executor now bids to finish it.
     move_margin: float = 0.2
-    #: ``auction`` (cheapest robot-task pair first), ``optimal`` or ``arrival``.
+    #: ``auction``, ``sequential``, ``optimal`` or ``arrival`` (btcap.team.core.planning).
     strategy: str = "auction"
     #: Older name of ``move_margin`` for joins (None: ``move_margin`` applies).
     rebid_on_join: float | None = None

@@ -24,9 +24,10 @@ class MissionConfig:
     #: two near-equal robots from passing work back and forth. None: never moved.
     reevaluate_s: float | None = 30.0
     move_margin: float = 0.2
-    #: How auctions competing for the same robots are awarded: ``auction`` (the cheapest
-    #: robot-task pair first), ``optimal`` (least total cost) or ``arrival`` (each as it
-    #: closes); see :mod:`btcap.team.core.planning`.
+    #: How auctions competing for the same robots are awarded: ``auction`` (each to its
+    #: cheapest free bidder, by regret), ``sequential`` (a greedy plan improved by
+    #: exchanges), ``optimal`` (least total cost) or ``arrival`` (each as it closes); see
+    #: :mod:`btcap.team.core.planning`.
     strategy: str = "auction"
     #: Older name of ``move_margin`` for the join case; when set, it is the margin.
     rebid_on_join: float | None = None
