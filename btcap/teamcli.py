@@ -33,6 +33,7 @@ from btcap.team.deploy import (
     run_mission_file,
     wait_for_team,
 )
+from btcap.team.supervised import stdin_closed, watchable
 
 __all__ = ["add_parser"]
 
@@ -55,6 +56,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="allow a bind reachable from other hosts without keys",
     )
     add_monitor_option(p)
+    p.add_argument(
+        "--until-stdin-closes",
+        action="store_true",
+        help="also leave when standard input closes (for a supervisor holding a pipe to it)",
+    )
     p.set_defaults(handler=_agent)
 
     team = subparsers.add_parser("team", help="look at a running team")
@@ -148,7 +154,10 @@ def _agent(args: argparse.Namespace) -> int:
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
             print(f"agent {agent.robot} listening on {endpoint}", flush=True)
-            await anyio.sleep_forever()
+            if args.until_stdin_closes and watchable(sys.stdin):
+                await stdin_closed()
+            else:
+                await anyio.sleep_forever()
 
     _until_stopped(serve)
     return 0

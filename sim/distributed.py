@@ -1,5 +1,8 @@
 """Distributed mode: every robot in its own OS process, talking ZeroMQ over tcp loopback.
 
+Each robot is started exactly as on a real host, ``btcap agent CONFIG``, from a
+configuration file written for it: its seeds are the robots already running, and a
+plugin (:func:`robot_factory`) gives it the scenario's implementations and simulated body.
 The simulation manager, the shared store and the operator (holding the mission tree) stay
 in this process. A robot that *fails* for a while is frozen (SIGSTOP, then SIGCONT), so
 it falls silent exactly as a robot whose computer hangs would; one that *leaves* is
@@ -9,8 +12,10 @@ terminated and says goodbye; one that *joins* is started.
 from __future__ import annotations
 
 import signal
+import tempfile
 from collections.abc import Callable
 from contextlib import AsyncExitStack
+from pathlib import Path
 from typing import Any
 
 import anyio
@@ -24,7 +29,7 @@ from btcap.sim.hosts import agent_options, record_error
 from btcap.sim.metrics import MissionResult, RobotError
 from btcap.sim.runner import Progress, run_scenario
 from btcap.sim.scenario import Scenario
-from btcap.team.launch import AgentSpec
+from btcap.team.agentconfig import Timing
 from btcap.team.spawn import AsyncAgentProcess
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 
@@ -70,9 +75,12 @@ class ProcessHost:
         self._config = agent_options(s)
         self._scenario = msgspec.to_builtins(s)
         self._stack = AsyncExitStack()
+        self._dir = Path()
         self._tg: anyio.abc.TaskGroup | None = None
 
     async def __aenter__(self) -> ProcessHost:
+        folder = self._stack.enter_context(tempfile.TemporaryDirectory(prefix="btcap-robots-"))
+        self._dir = Path(folder)
         self._tg = await self._stack.enter_async_context(anyio.create_task_group())
         return self
 
@@ -97,23 +105,37 @@ class ProcessHost:
         self._tg.start_soon(fn, *args, name=name)
 
     def start(self, name: str) -> None:
-        spec = AgentSpec(
-            robot=name,
-            peers=dict(self._endpoints),
-            factory="btcap.sim.distributed:robot_factory",
-            factory_args={"scenario": self._scenario},
-            speedup=self.s.speedup,
-            config=self._config,
-            registry="btcap.sim.hosts:registry",
-            log_level="error",
-        )
+        path = self._dir / f"{name}.json"
+        path.write_bytes(msgspec.json.encode(self._config_file(name)))
         self._starting.add(name)
         self._left_early.discard(name)
-        self._task(self._life, name, spec, name=f"robot {name}")
+        self._task(self._life, name, path, name=f"robot {name}")
 
-    async def _life(self, name: str, spec: AgentSpec) -> None:
+    def _config_file(self, name: str) -> dict[str, Any]:
+        """The robot's ``btcap agent`` configuration (see :mod:`btcap.team.agentconfig`)."""
+        timing = {k: v for k, v in self._config.items() if k in Timing.__struct_fields__}
+        allocation = {k: v for k, v in self._config.items() if k not in timing}
+        return {
+            "btcap": 1,
+            "robot": name,
+            "network": {
+                "bind": "tcp://127.0.0.1:*",
+                "seeds": [{"robot": r, "endpoint": e} for r, e in self._endpoints.items()],
+            },
+            "timing": {**timing, "speedup": self.s.speedup},
+            "allocation": allocation,
+            "plugin": {
+                "factory": "btcap.sim.distributed:robot_factory",
+                "args": {"scenario": self._scenario},
+                "messages": "btcap.sim.hosts:registry",
+            },
+        }
+
+    async def _life(self, name: str, path: Path) -> None:
         try:
-            proc = await AsyncAgentProcess.spawn(spec, stderr=self._stderr)
+            proc = await AsyncAgentProcess.spawn_config(
+                path, name, stderr=self._stderr, log_level="error"
+            )
         except OSError as exc:
             record_error(self.errors, self.clock.now(), name, exc)
             return

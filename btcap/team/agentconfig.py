@@ -14,6 +14,10 @@ A versioned YAML (or JSON) file; paths in it are relative to the file::
     keys: {secret: keys/alpha.key_secret, trusted: keys/team}
     timing: {tick_hz: 10, heartbeat_s: 0.1, failure_timeout_s: 0.5, lease_s: 1.0}
     allocation: {rebid_on_join: 0.25}
+    plugin:                              # optional: Python code beside the files
+      factory: mypkg.robots:make         # make(robot, **args): implementations (and actors)
+      args: {model: husky}
+      messages: mypkg.robots:registry    # the MessageRegistry it speaks
 
 Every error is an :class:`AgentConfigError` naming the file and the field. Without
 ``keys`` the transport binds only a loopback (or ipc/inproc) address, unless the caller
@@ -22,6 +26,7 @@ explicitly allows an insecure bind.
 
 from __future__ import annotations
 
+import inspect
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,12 +34,15 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
+from btcap.actors import Actor
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import TreeError
 from btcap.team.agent import AgentConfig
 from btcap.team.capability import CapabilityInterface
 from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
 from btcap.team.implementation import Implementation
+from btcap.team.loader import load_callable
+from btcap.team.protocol import protocol_registry
 from btcap.transports import MessageRegistry, ZmqTransport
 from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_id
@@ -46,6 +54,8 @@ __all__ = [
     "Capabilities",
     "Keys",
     "Network",
+    "Plugged",
+    "Plugin",
     "RobotConfig",
     "Seed",
     "Timing",
@@ -94,6 +104,28 @@ class Capabilities(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     implementations: list[Path] = []
 
 
+class Plugin(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """Python code the robot runs beside its capability files (a simulator's body, say)."""
+
+    #: ``package.module:function``, called with the robot's name and ``args``: returns
+    #: implementations, or an object with ``implementations`` and ``actors`` (path -> actor
+    #: spawned beside the runtime).
+    factory: str
+    args: dict[str, Any] = {}
+    #: ``package.module:function`` returning the MessageRegistry the robot speaks (btcap's
+    #: protocol and more); default btcap's protocol.
+    messages: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Plugged:
+    """What a plugin gave: implementations, actors and the messages spoken."""
+
+    implementations: list[Implementation]
+    actors: dict[str, Actor]
+    messages: MessageRegistry
+
+
 _DEFAULTS = AgentConfig()
 
 
@@ -132,6 +164,7 @@ class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     keys: Keys | None = None
     timing: Timing = msgspec.field(default_factory=Timing)
     allocation: Allocation = msgspec.field(default_factory=Allocation)
+    plugin: Plugin | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,6 +216,39 @@ class RobotConfig:
             except TreeError as exc:
                 raise self.error(f"capabilities.implementations[{i}]", str(exc)) from None
         return interfaces, impls
+
+    def load_plugin(self, *, factory: bool = True) -> Plugged:
+        """Run the plugin's factory (not for an observer: ``factory=False``) and load the
+        messages it speaks; no plugin: btcap's protocol alone. Errors name the field."""
+        plugin = self.spec.plugin
+        if plugin is None:
+            return Plugged([], {}, protocol_registry())
+        impls: list[Implementation] = []
+        actors: dict[str, Actor] = {}
+        try:
+            make = load_callable(plugin.factory)
+        except ValueError as exc:
+            raise self.error("plugin.factory", str(exc)) from None
+        try:
+            inspect.signature(make).bind(self.robot, **plugin.args)
+        except TypeError as exc:
+            raise self.error("plugin.args", str(exc)) from None
+        if factory:
+            made = make(self.robot, **plugin.args)
+            if hasattr(made, "implementations"):
+                impls, actors = list(made.implementations), dict(getattr(made, "actors", {}))
+            else:
+                impls = list(made)
+        messages = protocol_registry()
+        if plugin.messages is not None:
+            try:
+                messages = load_callable(plugin.messages)()
+            except (ValueError, TypeError) as exc:
+                raise self.error("plugin.messages", str(exc)) from None
+            if not isinstance(messages, MessageRegistry):
+                why = f"returned {type(messages).__name__}, expected a MessageRegistry"
+                raise self.error("plugin.messages", why)
+        return Plugged(impls, actors, messages)
 
     def transport(
         self,

@@ -26,7 +26,6 @@ from btcap.team.agentconfig import RobotConfig
 from btcap.team.capability import Capability
 from btcap.team.membership import Membership
 from btcap.team.messages import Activity, ActivityQuery
-from btcap.team.protocol import protocol_registry
 
 __all__ = [
     "CapabilityResult",
@@ -49,20 +48,23 @@ async def open_agent(
     ephemeral: bool = False,
     insecure: bool = False,
 ) -> AsyncIterator[Agent]:
-    """The configured robot, in the team while the block runs; it says goodbye on exit, so
-    the team re-assigns its work at once. ``robot``/``ephemeral``/``implementations=False``
-    make a short-lived observer or operator from the same file; ``insecure`` allows a
-    keyless bind other hosts can reach."""
+    """The configured robot (with its plugin's implementations and actors), in the team
+    while the block runs; it says goodbye on exit, so the team re-assigns its work at
+    once. ``robot``/``ephemeral``/``implementations=False`` make a short-lived observer or
+    operator from the same file; ``insecure`` allows a keyless bind other hosts can
+    reach."""
     _, impls = config.load_capabilities(registry, implementations=implementations)
-    messages = protocol_registry()
+    plugged = config.load_plugin(factory=implementations)
+    messages = plugged.messages
     transport = config.transport(messages, robot=robot, ephemeral=ephemeral, insecure=insecure)
     agent = Agent(
         robot or config.robot,
         transport=transport,
         clock=Clock(config.spec.timing.speedup),
-        implementations=impls,
+        implementations=[*impls, *plugged.implementations],
         config=config.agent_config(),
         registry=messages,
+        actors=plugged.actors,
     )
     try:
         async with agent:

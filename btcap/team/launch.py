@@ -23,7 +23,6 @@ import inspect
 import json
 import os
 import signal
-import stat
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -38,6 +37,7 @@ from btcap.team.implementation import Implementation
 from btcap.team.loader import load_callable
 from btcap.team.protocol import protocol_registry
 from btcap.team.spawn import AgentProcess, AsyncAgentProcess, spawn_agent, spawn_agents
+from btcap.team.supervised import stdin_closed, watchable
 from btcap.transports import ZmqTransport
 from btcap.transports.log import get_logger
 
@@ -158,7 +158,7 @@ async def _main_async(specs: Sequence[AgentSpec]) -> None:
         tg.start_soon(_cancel_on_signal, tg.cancel_scope)
         # Stop when the parent closes our stdin (it went away or wants us gone). A stdin
         # that cannot be watched (/dev/null, a file) means: run until terminated.
-        if _watchable(sys.stdin):
+        if watchable(sys.stdin):
             tg.start_soon(_cancel_on_eof, tg.cancel_scope)
         await run_agents(specs, ready=announce)
 
@@ -171,24 +171,8 @@ async def _cancel_on_signal(scope: anyio.CancelScope) -> None:
 
 
 async def _cancel_on_eof(scope: anyio.CancelScope) -> None:
-    loop = asyncio.get_running_loop()
-    reader = asyncio.StreamReader()
-    transport, _ = await loop.connect_read_pipe(
-        lambda: asyncio.StreamReaderProtocol(reader), sys.stdin
-    )
-    try:
-        await reader.read()
-    finally:
-        transport.close()
+    await stdin_closed()
     scope.cancel()
-
-
-def _watchable(stream: Any) -> bool:
-    try:
-        mode = os.fstat(stream.fileno()).st_mode
-    except (OSError, ValueError, AttributeError):
-        return False
-    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or (stat.S_ISCHR(mode) and stream.isatty())
 
 
 def _decode_specs(text: str) -> list[AgentSpec]:

@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import select
 import signal
 import subprocess
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 from types import TracebackType
 
 import anyio
@@ -54,20 +56,34 @@ def _env() -> dict[str, str]:
     return env
 
 
-class _Announcements:
-    """What a launch process said on stdout so far: the endpoint of each agent that listens."""
+_LISTENING = re.compile(r"agent (\S+) listening on (\S+)")
 
-    def __init__(self, specs: Sequence[AgentSpec]) -> None:
-        self.robots = [s.robot for s in specs]
+
+async def _open(argv: list[str], stderr: int | None) -> anyio.abc.Process:
+    return await anyio.open_process(
+        argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
+    )
+
+
+class _Announcements:
+    """What a launch process said on stdout so far: the endpoint of each agent that listens
+    (a JSON line each, or ``btcap agent``'s own line)."""
+
+    def __init__(self, robots: Sequence[str]) -> None:
+        self.robots = list(robots)
         self.endpoints: dict[str, str] = {}
         self._buffer = b""
 
     def feed(self, chunk: bytes) -> None:
         self._buffer += chunk
         while b"\n" in self._buffer:
-            line, self._buffer = self._buffer.split(b"\n", 1)
-            info = json.loads(line)
-            self.endpoints[str(info["robot"])] = str(info["endpoint"])
+            raw, self._buffer = self._buffer.split(b"\n", 1)
+            line = raw.decode(errors="replace")
+            if (said := _LISTENING.fullmatch(line.strip())) is not None:
+                self.endpoints[said[1]] = said[2]
+            elif line.startswith("{"):
+                info = json.loads(line)
+                self.endpoints[str(info["robot"])] = str(info["endpoint"])
 
     @property
     def complete(self) -> bool:
@@ -84,15 +100,13 @@ class _Announcements:
 class _Launched:
     """What both process handles tell of the agents they started."""
 
-    def __init__(self, specs: list[AgentSpec]) -> None:
-        self.specs = specs
-        self.spec = specs[0]
-        self._said = _Announcements(specs)
+    def __init__(self, robots: list[str]) -> None:
+        self._said = _Announcements(robots)
         self.endpoints = self._said.endpoints
 
     @property
     def robot(self) -> str:
-        return self.spec.robot
+        return self._said.robots[0]
 
     @property
     def robots(self) -> list[str]:
@@ -100,7 +114,7 @@ class _Launched:
 
     @property
     def endpoint(self) -> str:
-        return self.endpoints[self.spec.robot]
+        return self.endpoints[self.robot]
 
 
 class AgentProcess(_Launched):
@@ -121,7 +135,7 @@ class AgentProcess(_Launched):
         stderr: int | None = None,
         wait: bool = True,
     ) -> None:
-        super().__init__(_specs(spec))
+        super().__init__([s.robot for s in _specs(spec)])
         self.proc = subprocess.Popen(
             _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
         )
@@ -221,18 +235,24 @@ class AsyncAgentProcess(_Launched):
     ``async with`` stops it on exit.
     """
 
-    def __init__(self, specs: list[AgentSpec], process: anyio.abc.Process) -> None:
-        super().__init__(specs)
+    def __init__(self, robots: list[str], process: anyio.abc.Process) -> None:
+        super().__init__(robots)
         self.process = process
 
     @classmethod
     async def spawn(cls, spec: Specs, *, stderr: int | None = None) -> AsyncAgentProcess:
         """Start the process and return at once; its agents are not listening yet."""
-        specs = _specs(spec)
-        process = await anyio.open_process(
-            _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
-        )
-        return cls(specs, process)
+        robots = [s.robot for s in _specs(spec)]
+        return cls(robots, await _open(_command(spec), stderr))
+
+    @classmethod
+    async def spawn_config(
+        cls, config: Path, robot: str, *, stderr: int | None = None, log_level: str = "warning"
+    ) -> AsyncAgentProcess:
+        """``btcap agent CONFIG`` (the robot the file names) in a child process that leaves
+        when our end of its stdin closes; returns at once, as :meth:`spawn`."""
+        argv = [sys.executable, "-m", "btcap", "--log-level", log_level, "agent", str(config)]
+        return cls([robot], await _open([*argv, "--until-stdin-closes"], stderr))
 
     @property
     def ready(self) -> bool:

@@ -18,6 +18,7 @@ from btcap.bt.registry import default_registry
 from btcap.cli import main
 from btcap.team.agentconfig import load_agent_file
 from btcap.team.deploy import open_agent, run_mission_file, wait_for_team
+from btcap.team.spawn import AsyncAgentProcess
 
 ROOT = Path(__file__).resolve().parents[2]
 CAPS = ROOT / "examples" / "capabilities"
@@ -195,3 +196,20 @@ def test_the_example_team_script_runs_its_mission() -> None:
     assert "mission succeeded" in out
     for robot in ("alpha", "beta", "gamma"):
         assert f"agent {robot} listening on tcp://127.0.0." in out
+
+
+@pytest.mark.slow
+async def test_a_supervised_agent_leaves_when_its_stdin_closes(tmp_path: Path) -> None:
+    """``btcap agent --until-stdin-closes`` (how the simulator starts robots): the parent
+    closing its end, as it does by exiting, however abruptly, stops the robot cleanly."""
+    path = _config(tmp_path, "cheap", impl=None, seeds=[])
+    with anyio.fail_after(30):
+        proc = await AsyncAgentProcess.spawn_config(path, "cheap", log_level="error")
+        try:
+            assert await proc.wait_ready() == {"cheap": f"ipc://{tmp_path}/cheap.sock"}
+            assert proc.alive()
+            assert proc.process.stdin is not None
+            await proc.process.stdin.aclose()
+            assert await proc.wait() == 0
+        finally:
+            await proc.kill()

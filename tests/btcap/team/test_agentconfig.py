@@ -9,6 +9,7 @@ import msgspec
 import pytest
 
 from btcap.bt.registry import default_registry
+from btcap.sim.messages import SIM_MESSAGES
 from btcap.team.agent import AgentConfig
 from btcap.team.agentconfig import AgentConfigError, Allocation, Timing, load_agent_file
 from btcap.team.protocol import protocol_registry
@@ -202,3 +203,36 @@ def test_a_keyless_bind_other_hosts_reach_is_refused_naming_the_field(tmp_path: 
     config = load_agent_file(_write(tmp_path, text))
     with pytest.raises(AgentConfigError, match=r"network\.bind: .*without keys"):
         config.transport(protocol_registry())
+
+
+def test_a_plugin_adds_implementations_actors_and_messages(tmp_path: Path) -> None:
+    text = GOOD + (
+        "plugin:\n"
+        "  factory: btcap.team.demo:implementations\n"
+        "  args: {cost: 2.5}\n"
+        "  messages: btcap.sim.hosts:registry\n"
+    )
+    config = load_agent_file(_write(tmp_path, text))
+    plugged = config.load_plugin()
+    assert [i.interface.name for i in plugged.implementations] == ["Echo"]
+    assert all(t in plugged.messages for t in SIM_MESSAGES)
+    assert config.load_plugin(factory=False).implementations == []  # an observer runs nothing
+    assert load_agent_file(_write(tmp_path, GOOD)).load_plugin().implementations == []
+
+
+@pytest.mark.parametrize(
+    ("plugin", "field"),
+    [
+        ("{factory: no.such.module:thing}", "plugin.factory"),
+        ("{factory: btcap.team.demo:implementations, args: {colour: red}}", "plugin.args"),
+        (
+            "{factory: btcap.team.demo:implementations, messages: btcap.team.demo:implementations}",
+            "plugin.messages",
+        ),
+        ("{args: {}}", "plugin"),
+    ],
+)
+def test_plugin_errors_name_the_field(tmp_path: Path, plugin: str, field: str) -> None:
+    path = _write(tmp_path, GOOD + f"plugin: {plugin}\n")
+    with pytest.raises(AgentConfigError, match=f"robot.yaml: {field}"):
+        load_agent_file(path).load_plugin()
