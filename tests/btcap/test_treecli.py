@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 import btcap.cli
+from btcap.bt.files import dumps_tree, load_tree
 from btcap.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -215,3 +216,16 @@ def test_dot_renders_pictures_with_graphviz(tmp_path: Path, suffix: str, magic: 
     out = tmp_path / f"patrol{suffix}"
     assert main(["tree", "dot", str(PATROL_XML), "-o", str(out)]) == 0
     assert magic in out.read_bytes()[:400]
+
+
+def test_show_of_xml_and_of_its_yaml_dump_agree(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    dumped = tmp_path / "patrol.yaml"
+    dumped.write_text(dumps_tree(load_tree(PATROL_XML)))
+    assert main(["tree", "show", str(PATROL_XML)]) == 0
+    from_xml = capsys.readouterr().out
+    assert main(["tree", "show", str(dumped)]) == 0
+    assert capsys.readouterr().out == from_xml
+    assert "Subtree 'go_second' (tree 'GoTo')" in from_xml
+    assert "in  value <- patrol/leg2/go_second.report" in from_xml
