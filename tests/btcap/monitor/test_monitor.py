@@ -20,6 +20,7 @@ from btcap.actors import ManualClock
 from btcap.cli import main
 from btcap.monitor import RecordError, read_record
 from btcap.monitor.cli import parse_address
+from btcap.monitor.hub import BACKLOG, Hub
 from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
@@ -280,3 +281,47 @@ def test_btcap_run_records_by_default_and_replay_refuses_other_files(
     assert {e["k"] for e in events} >= {"robot", "tree", "states", "team", "run", "auction"}
     assert main(["replay", str(out / "result.json")]) == 2
     assert "result.json:1: not a btcap recording" in capsys.readouterr().err
+
+
+# -- replay controls and slow pages --------------------------------------------------------
+
+
+async def test_a_page_plays_pauses_and_seeks_a_replay(
+    small_run: tuple[dict[str, Any], Path],
+) -> None:
+    _, record = small_run
+    replay = Replay.open(record, speed=10.0)
+    replay.playing = False
+    server = MonitorServer(replay, "127.0.0.1", 0)
+    with anyio.fail_after(30):
+        await server.start()
+        try:
+            async with aiohttp.ClientSession() as http, http.ws_connect(server.url + "ws") as ws:
+                first = json.loads((await ws.receive()).data)
+                assert first["state"]["replay"]["t"] == replay.start
+                await ws.send_str(json.dumps({"op": "seek", "t": replay.end}))
+                again = json.loads((await ws.receive()).data)
+                assert again["type"] == "snapshot"
+                assert again["state"]["runs"] == replay.snapshot()["runs"] != []
+                await ws.send_str(json.dumps({"op": "speed", "speed": 50}))
+                faster = json.loads((await ws.receive()).data)
+                await ws.send_str("not json")  # ignored
+                await ws.send_str(json.dumps({"op": "play"}))  # at the end: from the start
+                msgs = [json.loads((await ws.receive()).data) for _ in range(2)]
+        finally:
+            await server.stop()
+    assert faster["events"] == [{"t": replay.end, "k": "clock", "playing": False, "speed": 50.0}]
+    assert msgs[0]["type"] == "snapshot"
+    assert msgs[0]["state"]["runs"] == []
+    assert msgs[1]["events"] == [{"t": replay.start, "k": "clock", "playing": True, "speed": 50.0}]
+
+
+async def test_a_page_that_falls_behind_gets_a_snapshot_not_a_backlog() -> None:
+    hub = Hub()
+    hub.snapshot = lambda: {"now": "the picture"}
+    q = hub.join()
+    for i in range(BACKLOG + 5):  # the 32nd finds the queue full
+        hub.publish([{"t": i, "k": "robot", "robot": "r"}])
+    got = [json.loads(q.get_nowait()) for _ in range(q.qsize())]
+    assert got[0] == {"type": "snapshot", "state": {"now": "the picture"}}  # has 0..31
+    assert [m["events"][0]["t"] for m in got[1:]] == list(range(BACKLOG, BACKLOG + 5))
