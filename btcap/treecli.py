@@ -15,7 +15,7 @@ import re
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
 
@@ -26,9 +26,9 @@ from btcap.bt.ports import type_name
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.render import render_dot, render_text
 from btcap.bt.state import DONE, State, TreeError
-from btcap.bt.tree import Tree
+from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
-from btcap.team.capability import CapabilityInterface
+from btcap.team.capability import Capability, CapabilityInterface
 from btcap.team.capfiles import load_interfaces, register_interfaces
 
 __all__ = ["add_parser"]
@@ -325,12 +325,25 @@ def _run(args: argparse.Namespace) -> int:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     clock = ManualClock() if args.fast else None
     tree = _load(args, args.file, clock)
+    caps = [n.path for n in _all_nodes(tree) if isinstance(n, Capability)]
+    if caps:
+        raise CliError(
+            f"{args.file}: capability nodes ({', '.join(caps)}) are run by a team, not by "
+            f"'btcap tree run'; run the tree on an agent (btcap mission run)"
+        )
     state, ticks, text = asyncio.run(_tick(tree, clock, args.rate, args.max_ticks))
     sys.stdout.write(text)
     print(f"{state.value} after {ticks} tick{'s' if ticks != 1 else ''}")
     if state is State.SUCCEEDED:
         return 0
     return 1 if state in DONE else 3
+
+
+def _all_nodes(tree: Tree) -> Iterator[Node]:
+    for node in tree.nodes():
+        yield node
+        if isinstance(node, Subtree):
+            yield from _all_nodes(node.inner)
 
 
 async def _tick(

@@ -191,6 +191,24 @@ def test_run_exit_code_says_how_it_ended(
     assert capsys.readouterr().out.splitlines()[-1] == last
 
 
+def test_run_refuses_capabilities_which_need_a_team(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    xml = _tree(
+        tmp_path,
+        """\
+        <root BTCPP_format="4" main_tree_to_execute="M">
+          <BehaviorTree ID="M"><SubTree ID="Inner"/></BehaviorTree>
+          <BehaviorTree ID="Inner"><Greet who="world"/></BehaviorTree>
+        </root>
+        """,
+    )
+    args = ["--interfaces", str(CAPS / "interfaces.yaml"), str(xml)]
+    assert main(["tree", "validate", *args]) == 0
+    assert main(["tree", "run", *args]) == 2
+    assert "capability nodes (Greet) are run by a team" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("args", [["--rate", "0"], ["--max-ticks", "0"]])
 def test_run_refuses_bad_limits(capsys: pytest.CaptureFixture[str], args: list[str]) -> None:
     assert main(["tree", "run", *args, str(PATROL_XML)]) == 2
