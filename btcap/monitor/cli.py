@@ -103,6 +103,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     p.add_argument("--speed", type=float, help="clock seconds per wall second")
     p.add_argument("--paused", action="store_true", help="start paused at the beginning")
+    p.add_argument(
+        "--plot",
+        type=Path,
+        metavar="PNG",
+        help="instead of serving, draw the recording's timeline (a lane per robot) to PNG",
+    )
     p.set_defaults(handler=replay_command)
 
 
@@ -111,6 +117,14 @@ def replay_command(args: argparse.Namespace) -> int:
         replay = Replay.open(args.file, speed=args.speed)
     except (RecordError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    if args.plot is not None:
+        from btcap.monitor.plot import plot_record  # matplotlib only for a plot
+
+        try:
+            print(f"wrote {plot_record(replay.events, args.plot, title=replay.title)}")
+        except OSError as exc:
+            raise CliError(f"--plot {args.plot}: {exc.strerror or exc}") from None
+        return 0
     replay.playing = not args.paused
     host, port = args.monitor
     with contextlib.suppress(KeyboardInterrupt):

@@ -271,7 +271,7 @@ def test_a_bad_monitor_address_is_refused_naming_it(text: str) -> None:
         parse_address(text)
 
 
-def test_btcap_run_records_by_default_and_replay_refuses_other_files(
+def test_btcap_run_records_by_default_replay_plots_it_and_refuses_other_files(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
@@ -281,6 +281,9 @@ def test_btcap_run_records_by_default_and_replay_refuses_other_files(
     assert {e["k"] for e in events} >= {"robot", "tree", "states", "team", "run", "auction"}
     assert main(["replay", str(out / "result.json")]) == 2
     assert "result.json:1: not a btcap recording" in capsys.readouterr().err
+    png = tmp_path / "timeline.png"
+    assert main(["replay", str(out / "monitor.jsonl"), "--plot", str(png)]) == 0
+    assert png.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
 
 
 # -- replay controls and slow pages --------------------------------------------------------
