@@ -40,6 +40,8 @@ __all__ = ["Monitor"]
 
 log = get_logger("btcap.monitor")
 
+#: Reasons of lost executions kept for the runs they end.
+_MAX_LOST = 1000
 _STATUS = {TeamEvent.JOINED: "joined", TeamEvent.LEFT: "left", TeamEvent.FAILED: "failed"}
 
 
@@ -204,6 +206,8 @@ class Monitor:
 
     def _on_lost(self, lost: Lost) -> None:
         self._lost[str(lost.execution)] = f"{lost.executor}: {lost.why}"
+        if len(self._lost) > _MAX_LOST:  # of a tree nobody added: never claimed
+            del self._lost[next(iter(self._lost))]
 
     def _run_ended(self, execution: str, result: str) -> str | None:
         why = self._lost.pop(execution, None)
