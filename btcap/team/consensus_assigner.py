@@ -68,7 +68,7 @@ class ConsensusStats(AuctionStats):
     """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window."""
 
     messages: int = 0  #: consensus messages sent
-    refused: int = 0  #: messages speaking for another robot, or for nobody we know
+    refused: int = 0  #: messages speaking for another robot, or with an impossible cost
     dropped: int = 0  #: tasks and view entries over the bounds a peer sent
 
 
