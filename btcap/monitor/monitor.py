@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
 from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
@@ -24,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from btcap.bt.tree import Tree
 from btcap.monitor.hub import Hub
+from btcap.monitor.net import is_loopback
 from btcap.monitor.record import Recorder
 from btcap.monitor.taps import TreeTap
 from btcap.monitor.view import Event, TeamView
@@ -81,7 +81,7 @@ class Monitor:
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
         self._task: asyncio.Task[None] | None = None
-        if port is not None and not _loopback(host):
+        if port is not None and not is_loopback(host):
             log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
 
     # -- life cycle -------------------------------------------------------------------
@@ -303,12 +303,3 @@ class Monitor:
     @property
     def hub(self) -> Hub:
         return self._hub
-
-
-def _loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False

@@ -12,11 +12,13 @@ from collections.abc import Awaitable, Callable
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Protocol
+from urllib.parse import urlsplit
 
 import msgspec
 from aiohttp import WSMsgType, web
 
 from btcap.monitor.hub import Hub
+from btcap.monitor.net import is_loopback
 from btcap.transports.log import get_logger
 
 __all__ = ["MonitorServer", "Source"]
@@ -28,6 +30,8 @@ STATIC = Path(str(files("btcap.monitor") / "static"))
 CSP = "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'"
 
 _encode = msgspec.json.Encoder()
+#: What a browser on this machine may call a loopback server.
+_LOCAL_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
 
 
 class Source(Protocol):
@@ -57,7 +61,7 @@ class MonitorServer:
         return f"http://{host}:{self.port}/"
 
     async def start(self) -> None:
-        app = web.Application(middlewares=[_headers])
+        app = web.Application(middlewares=[self._guard, _headers])
         app.router.add_get("/", self._index)
         app.router.add_get("/api/state", self._state)
         app.router.add_get("/ws", self._ws)
@@ -76,6 +80,21 @@ class MonitorServer:
         await self._runner.setup()
         await web.SockSite(self._runner, sock).start()
         log.info("monitor.serving", url=self.url)
+
+    @web.middleware
+    async def _guard(
+        self, request: web.Request, handler: Callable[[web.Request], Awaitable[web.StreamResponse]]
+    ) -> web.StreamResponse:
+        """On loopback, only this machine's names for it (a web page elsewhere cannot
+        reach it by DNS rebinding), and a WebSocket only from this page (browsers let
+        any site open one)."""
+        host = request.host
+        if is_loopback(self.host) and host.rsplit(":", 1)[0] not in _LOCAL_NAMES:
+            raise web.HTTPForbidden(text=f"monitor: not served to host {host!r}")
+        origin = request.headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc != host:
+            raise web.HTTPForbidden(text=f"monitor: not served to pages of {origin!r}")
+        return await handler(request)
 
     async def stop(self) -> None:
         for ws in list(self._sockets):

@@ -328,3 +328,20 @@ async def test_a_page_that_falls_behind_gets_a_snapshot_not_a_backlog() -> None:
     got = [json.loads(q.get_nowait()) for _ in range(q.qsize())]
     assert got[0] == {"type": "snapshot", "state": {"now": "the picture"}}  # has 0..31
     assert [m["events"][0]["t"] for m in got[1:]] == list(range(BACKLOG, BACKLOG + 5))
+
+
+async def test_other_sites_cannot_read_a_loopback_monitor() -> None:
+    """Not by DNS rebinding (another host name) nor by a WebSocket from their pages."""
+    with anyio.fail_after(10):
+        async with Monitor(port=0) as monitor, aiohttp.ClientSession() as http:
+            url = monitor.url + "api/state"
+            async with http.get(url, headers={"Host": "evil.example"}) as resp:
+                assert resp.status == 403
+            async with http.get(url, headers={"Host": "localhost"}) as resp:
+                assert resp.status == 200
+            evil = {"Origin": "http://evil.example"}
+            with pytest.raises(aiohttp.WSServerHandshakeError, match="403"):
+                await http.ws_connect(monitor.url + "ws", headers=evil)
+            own = {"Origin": monitor.url.rstrip("/")}
+            async with http.ws_connect(monitor.url + "ws", headers=own) as ws:
+                assert json.loads((await ws.receive()).data)["type"] == "snapshot"
