@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 
 import pytest
 
@@ -29,4 +30,4 @@ def checks() -> dict[str, Check]:
 )
 def test_attack_changes_nothing(checks: dict[str, Check], name: str) -> None:
     check = checks[name]
-    assert check.passed, check.figures
+    assert check.passed, json.dumps(check.figures)
