@@ -5,6 +5,9 @@ rare and make the timeline: those are observed and reported at once, with their 
 time. Every other node's state is read when the monitor flushes (at most 20 times a
 second), and only the nodes whose state differs from the last batch are sent: a page
 sees the latest state of each node per batch, as it would from coalesced changes.
+
+The implementation a :class:`~btcap.team.slot.RemoteCapabilitySlot` runs for another
+robot is a tree of its own: it is shown below the slot while it runs.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.monitor.view import Event
 from btcap.team.capability import Capability
+from btcap.team.slot import RemoteCapabilitySlot
 
 __all__ = ["Emit", "TreeTap"]
 
@@ -36,7 +40,8 @@ class TreeTap:
         self._emit = emit
         self._ended = ended  # (execution, result) -> why, from what the monitor heard
         self._nodes: list[Node] = []  # in tree order, as last sent
-        self._version = -1
+        self._shape: tuple[int, ...] = ()  # the tree's version and the slots' runs
+        self._slots: list[RemoteCapabilitySlot] = []
         self._paths: list[str] = []
         self._sent: list[State] = []
         self._runs: dict[Node, tuple[str, str]] = {}  # node -> (execution, executor)
@@ -81,13 +86,34 @@ class TreeTap:
         ev = {"t": now, "k": "run", "phase": "end", "execution": cur[0], "result": result}
         self._emit({**ev, "why": why})
 
+    def _shape_now(self) -> tuple[int, ...]:
+        shape = [self.tree.version]
+        for slot in self._slots:
+            run = slot.current
+            shape += (id(run.run.tree), run.run.tree.version) if run is not None else (0, 0)
+        return tuple(shape)
+
     def structure(self) -> Event:
         """The whole tree as one event (sent at the start and whenever it changed)."""
-        nodes = self._nodes = list(self.tree.nodes())
-        self._version = self.tree.version
-        self._paths = [n.path for n in nodes]
+        own = list(self.tree.nodes())
+        self._slots = [n for n in own if isinstance(n, RemoteCapabilitySlot)]
+        nodes: list[Node] = []
+        parents: list[str | None] = []
+        paths: list[str] = []
+        for n in own:
+            nodes.append(n)
+            paths.append(n.path)
+            parents.append(n.parent_node.path if n.parent_node is not None else None)
+            hosted = n.current if isinstance(n, RemoteCapabilitySlot) else None
+            for m in hosted.run.tree.nodes() if hosted is not None else ():
+                nodes.append(m)
+                paths.append(f"{n.path}/{m.path}")
+                parents.append(
+                    n.path if m.parent_node is None else f"{n.path}/{m.parent_node.path}"
+                )
+        self._nodes, self._paths, self._shape = nodes, paths, self._shape_now()
         self._sent = [n.state for n in nodes]
-        for n in nodes:
+        for n in own:
             if isinstance(n, Capability) and n.state not in DONE:
                 self._capability(n, n.state)  # a run already under way when attached
         return {
@@ -97,20 +123,21 @@ class TreeTap:
             "tree": self.name,
             "nodes": [
                 {
-                    "id": n.path,
+                    "id": path,
                     "name": n.name,
                     "type": type(n).__name__,
-                    "parent": n.parent_node.path if n.parent_node is not None else None,
+                    "parent": parent,
                     "cap": isinstance(n, Capability),
                     "state": n.state.value,
                 }
-                for n in nodes
+                for n, path, parent in zip(nodes, paths, parents, strict=True)
             ],
         }
 
     def flush(self) -> Event | None:
-        """The states changed since the last flush, or the whole tree if its shape changed."""
-        if self.tree.version != self._version:
+        """The states changed since the last flush, or the whole tree if its shape changed
+        (nodes came or went, or a slot took up or put down a run)."""
+        if self._shape_now() != self._shape:
             return self.structure()
         sent = self._sent
         states: dict[str, str] = {}

@@ -24,6 +24,10 @@ from btcap.monitor.hub import BACKLOG, Hub
 from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
+from btcap.team.agent import Agent, AgentConfig
+from btcap.team.demo import ECHO, implementations
+from btcap.team.protocol import protocol_registry
+from btcap.transports import InProcessNetwork
 
 DATA = Path(__file__).parents[2] / "sim" / "data"
 ROBOTS = {"husky1", "spot1", "bebop1"}
@@ -345,3 +349,46 @@ async def test_other_sites_cannot_read_a_loopback_monitor() -> None:
             own = {"Origin": monitor.url.rstrip("/")}
             async with http.ws_connect(monitor.url + "ws", headers=own) as ws:
                 assert json.loads((await ws.receive()).data)["type"] == "snapshot"
+
+
+async def test_a_slot_shows_the_run_it_hosts_while_it_runs() -> None:
+    net = InProcessNetwork(protocol_registry())
+    cfg = AgentConfig(heartbeat_s=0.05, failure_timeout_s=5.0, auction_window_s=5.0)
+    impls = implementations("scout", cost=1.0)  # echoes until told to stop
+    with anyio.fail_after(30):
+        async with (
+            Agent("base", transport=net.transport("base"), config=cfg) as base,
+            Agent(
+                "scout", transport=net.transport("scout"), implementations=impls, config=cfg
+            ) as scout,
+        ):
+            monitor = Monitor(port=None)
+            monitor.add_agent(scout)
+            for _ in range(1000):
+                if base.repository.providers(ECHO.identity) == {"scout"}:
+                    break
+                await asyncio.sleep(0.01)
+            echo = ECHO.node_type()("echo", inputs={"value": 3})
+            tree = base.mission(Sequence("mission", children=[echo]))
+            for _ in range(1000):  # the root is running as soon as the echo is unassigned
+                tree.tick()
+                if echo.state is State.RUNNING:
+                    break
+                await asyncio.sleep(0.01)
+            monitor.flush()
+            hosting = monitor.snapshot()["robots"]["scout"]["trees"]["scout-host"]["nodes"]
+            echo.set_input("stop", True)
+            done = (State.SUCCEEDED, State.FAILED)
+            assert await tree.run(50, until=lambda s: s in done) is State.SUCCEEDED
+            for _ in range(100):  # the slot puts the run down at its next tick
+                monitor.flush()
+                after = monitor.snapshot()["robots"]["scout"]["trees"]["scout-host"]["nodes"]
+                if len(after) == 1:
+                    break
+                await asyncio.sleep(0.01)
+            await tree.shutdown()
+            monitor.detach()
+    by_id = {n["id"]: n for n in hosting}
+    assert by_id["slot/echo_impl"]["parent"] == "slot"
+    assert by_id["slot/echo_impl/echo"]["state"] == "running"
+    assert [n["id"] for n in after] == ["slot"]
