@@ -141,7 +141,7 @@ class Monitor:
         while name in names:
             k += 1
             name = f"{tree.name}~{k}"
-        tap = TreeTap(tree, robot, name, self.emit, self._run_ended)
+        tap = TreeTap(tree, robot, name, self._emit_run, self._run_ended)
         self._taps.append(tap)
         self.emit(tap.structure())
 
@@ -184,6 +184,14 @@ class Monitor:
     # -- events -----------------------------------------------------------------------
     def emit(self, ev: Event) -> None:
         """Queue an event for the next batch."""
+        self._pending.append(ev)
+
+    def _emit_run(self, ev: Event) -> None:
+        """A run starts or ends: the trees' states as they are now go first, so that the
+        page and a replay show them in step with it even when batches are far apart in
+        clock time (a run on virtual time covers minutes between two batches)."""
+        for tap in self._taps:
+            self._flush_tap(tap)
         self._pending.append(ev)
 
     def _robot(self, robot: str, now: float) -> None:
