@@ -6,18 +6,19 @@ knows the robot's implementations, builds runs and loads them into the slot.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from btcap.bt.state import TreeError
 from btcap.team.config import MissionStats
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
-from btcap.team.core.effects import Drop, Effect
+from btcap.team.core.costwatch import CostWatch
+from btcap.team.core.effects import Drop, Effect, Send
 from btcap.team.core.hosting import Hosted, HostLeases
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation, ImplementationRun, Precondition, Scope
-from btcap.team.messages import Award, Bid, CallForBids, NoBid
+from btcap.team.messages import Award, Bid, CallForBids, CostChanged, NoBid
 from btcap.team.repository import CapabilityRepository
 from btcap.team.runs import RunFactory
 from btcap.team.slot import RemoteCapabilitySlot
@@ -49,6 +50,7 @@ class ExecutorSide:
         self.runs: RunFactory | None = None
         #: Runs of this robot's own capability nodes, awarded and not yet adopted.
         self.local_runs: dict[ExecutionId, ImplementationRun] = {}
+        self.costs = CostWatch(0.2)
 
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         if self.slot is not None and self.slot is not slot:
@@ -65,6 +67,33 @@ class ExecutorSide:
             if not ok:
                 return f"precondition {p.capability} ({p.scope.value}) not met"
         return None
+
+    def cost_news(
+        self, inputs_of: Callable[[ExecutionId], Mapping[str, Any] | None]
+    ) -> list[Effect]:
+        """Re-estimate what finishing each run this robot holds would cost (a local run's
+        inputs from ``inputs_of``); a rise beyond the margin is news for its origin."""
+        runs: dict[ExecutionId, tuple[ImplementationRun, Mapping[str, Any] | None]] = {
+            e: (h.run, h.inputs) for e, h in self.host.hosted.items()
+        }
+        runs.update({e: (r, inputs_of(e)) for e, r in self.local_runs.items()})
+        self.costs.keep_only(runs)
+        out: list[Effect] = []
+        for execution, (run, inputs) in runs.items():
+            if inputs is None:
+                continue
+            impl = run.implementation
+            try:
+                cost = impl.cost(impl.interface.convert_inputs(dict(inputs), str(execution)))
+            except Exception as exc:  # a broken estimate is no news; the run goes on
+                self.stats.errors += 1
+                log.error(
+                    "mission.cost_failed", robot=self.robot, implementation=impl.name, exc_info=exc
+                )
+                continue
+            if cost is not None and self.costs.see(execution, cost):
+                out.append(Send(execution.origin, CostChanged(execution, cost)))
+        return out
 
     def evaluate(self, cfb: CallForBids) -> Bid | NoBid:
         """This robot's answer to a call for bids (reserves nothing)."""

@@ -27,6 +27,7 @@ __all__ = [
     "ConsensusClaim",
     "ConsensusTasks",
     "Contact",
+    "CostChanged",
     "ExecutionInputs",
     "ExecutionStatus",
     "Goodbye",
@@ -258,6 +259,14 @@ class KeepAlive(Message):
     executions: list[ExecutionId]
 
 
+class CostChanged(Message):
+    """The executor's own estimate of finishing this execution rose beyond the margin:
+    its origin re-evaluates the running work now (see :mod:`btcap.team.core.costwatch`)."""
+
+    execution: ExecutionId
+    cost: float
+
+
 CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     Heartbeat,
     Goodbye,
@@ -279,4 +288,5 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     PauseExecution,
     CancelExecution,
     KeepAlive,
+    CostChanged,
 )

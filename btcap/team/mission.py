@@ -33,6 +33,7 @@ from btcap.team.messages import (
     AwardReply,
     CallForBids,
     CancelExecution,
+    CostChanged,
     ExecutionInputs,
     ExecutionStatus,
     KeepAlive,
@@ -78,6 +79,7 @@ class MissionControl(Actor):
         #: changed): capability nodes waiting for one auction again at once.
         self.changes = 0
         self.executor = ExecutorSide(robot, repository, self.body, self.stats, self._now)
+        self.executor.costs.margin = self.config.move_margin
         self.host = self.executor.host
         self.origin_side = OriginSide(
             robot,
@@ -122,11 +124,7 @@ class MissionControl(Actor):
     def on_start(self) -> None:
         self.executor.runs = RunFactory(self.system)
         self._unsubscribe.append(self.team.subscribe(self._on_team))
-        if self.config.reevaluate_s is not None or self.config.rebid_on_join is not None:
-            # A joining robot's capabilities arrive after its join: that is the news.
-            self._unsubscribe.append(self.repository.subscribe(self._news))
-        if self.config.reevaluate_s is not None:
-            self.start_task(self._reevaluate(self.config.reevaluate_s), name="re-evaluation")
+        self._unsubscribe.extend(self._reevaluation.start(self.system.clock.sleep))
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
     def on_stop(self) -> None:
@@ -144,14 +142,6 @@ class MissionControl(Actor):
         # The team hears it with the next heartbeat (its ``busy`` flag): not a broadcast per
         # finished task, which would cost every member a message each time.
         self.changes += 1
-
-    def _news(self, _robot: str) -> None:
-        self._reevaluation.news()
-
-    async def _reevaluate(self, period: float) -> None:
-        while True:
-            await self.system.clock.sleep(period)
-            self._reevaluation.news()
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.JOINED, TeamEvent.CHANGED, TeamEvent.FREED):
@@ -180,6 +170,8 @@ class MissionControl(Actor):
         self._perform(self.host.expire(now))
         renew = merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
         self._perform(renew)
+        if self.config.reevaluate_s is not None:  # a rising estimate: look again at once
+            self._perform(self.executor.cost_news(self.origin_side.inputs_of))
 
     # -- performing the core's decisions ------------------------------------------------
     def send(self, robot: str, msg: Any) -> None:
@@ -244,6 +236,11 @@ class MissionControl(Actor):
     @handler
     def on_status(self, msg: ExecutionStatus) -> None:
         self.origin_side.status(self.sender, msg)
+
+    @handler
+    def on_cost_changed(self, msg: CostChanged) -> None:
+        if (why := self._reevaluation.cost_changed(self.sender, msg)) is not None:
+            self.refused(self.sender, msg, why)
 
     @handler
     def on_keepalive(self, msg: KeepAlive) -> None:

@@ -10,6 +10,7 @@ the old run is cancelled only then, so there is no gap and the task never runs t
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
 from btcap.bt.state import State
@@ -17,6 +18,7 @@ from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.ids import ExecutionId
+from btcap.team.messages import CostChanged
 from btcap.team.proxies import LocalExecution, RemoteExecution
 from btcap.team.repository import CapabilityRepository
 from btcap.transports.log import get_logger
@@ -60,6 +62,21 @@ class Reevaluation:
         cfg = self.mc.config
         return cfg.rebid_on_join if cfg.rebid_on_join is not None else cfg.move_margin
 
+    def start(self, sleep: Callable[[float], Awaitable[None]]) -> list[Callable[[], None]]:
+        """Look every ``reevaluate_s`` and whenever capabilities arrive (a joining robot's
+        come after its join: that is the news); returns what to unsubscribe."""
+        cfg = self.mc.config
+        if cfg.reevaluate_s is not None:
+            self.mc.start_task(self._every(cfg.reevaluate_s, sleep), name="re-evaluation")
+        if cfg.reevaluate_s is None and cfg.rebid_on_join is None:
+            return []
+        return [self.mc.repository.subscribe(lambda _robot: self.news())]
+
+    async def _every(self, period: float, sleep: Callable[[float], Awaitable[None]]) -> None:
+        while True:
+            await sleep(period)
+            self.news()
+
     def news(self) -> None:
         """The team changed, or it is time: look at the running work again."""
         if not self.mc.active:
@@ -69,6 +86,18 @@ class Reevaluation:
             return
         self._running = True
         self.mc.start_task(self._run(), name=f"re-evaluate {self.mc.robot}")
+
+    def cost_changed(self, sender: str, msg: CostChanged) -> str | None:
+        """Its executor's estimate of a running execution rose: look again now. Why the
+        message is refused, or None."""
+        ex = self.mc.active.get(msg.execution)
+        if ex is None:
+            return None  # it ended meanwhile
+        if ex.robot != sender:
+            return f"cost of {msg.execution} from another robot than its executor {ex.robot}"
+        ex.cost = msg.cost
+        self.news()
+        return None
 
     def movable(self, ex: Handle) -> bool:
         """Running work its node holds, not being moved, and not paused (no work may start

@@ -76,6 +76,11 @@ class OriginSide:
     def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> Any:
         return self._start_task(coro, name=name)
 
+    def inputs_of(self, execution: ExecutionId) -> dict[str, Any] | None:
+        """The latest inputs of the node holding ``execution`` (None once it ended)."""
+        ex = self.active.get(execution)
+        return None if ex is None else dict(ex.node.inputs)
+
     def request_assignment(
         self,
         node: Capability,

@@ -28,6 +28,7 @@ from btcap.team.messages import (
     ConsensusClaim,
     ConsensusTasks,
     Contact,
+    CostChanged,
     ExecutionInputs,
     ExecutionStatus,
     Goodbye,
@@ -85,6 +86,7 @@ SAMPLES: dict[type[Message], list[Message]] = {
     PauseExecution: [PauseExecution(E1)],
     CancelExecution: [CancelExecution(E1), CancelExecution(E2, "reset")],
     KeepAlive: [KeepAlive("b", [E1, E2]), KeepAlive("b", [])],
+    CostChanged: [CostChanged(E1, 12.5), CostChanged(E2, 0.0)],
     ConsensusTasks: [
         ConsensusTasks("a", 3, [OpenTask(E1, "Count", COUNT.identity, {"x": 3}, ["b", "c"])]),
         ConsensusTasks("a", 4, [OpenTask(E2, "Count", "", {}, [], E1, "b", 0.2)]),

@@ -7,6 +7,7 @@ import anyio
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 
 from btcap import Parallel, Sequence, State
+from btcap.team.messages import CostChanged
 
 
 async def test_work_moves_to_a_robot_that_comes_free_and_is_clearly_cheaper() -> None:
@@ -94,4 +95,52 @@ async def test_work_moves_home_when_the_origin_robot_comes_free_and_is_cheaper()
             assert n2.assignments == ["b", "a"]
             await until(lambda: probe.live("b") == 0, "b's run shut down")
             assert not probe.violations
+            await tree.shutdown()
+
+
+async def test_a_rising_estimate_of_the_running_robot_is_news_at_once() -> None:
+    """b's estimate follows the input x; when x jumps, b reports it (CostChanged) with its
+    next keep-alive and the work moves to c, long before the 1000 s period."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(reevaluate_s=1000.0) as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", lambda inputs: float(inputs["x"]), probe)])
+            await t.add("c", [count_impl("c", 10.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            assert node.assignments == ["b"]
+            node.set_input("x", 5)  # still cheaper than c: no news worth a move
+            for _ in range(20):
+                tree.tick()
+                await step(0.05)
+            assert node.assignments == ["b"]
+            node.set_input("x", 50)
+            t0 = t.clock.now()
+            await tick_until(tree, lambda _s: node.assignments[-1] == "c", "the move to c")
+            assert t.clock.now() - t0 < 5 * b.config.keepalive_s + 1.0
+            assert a.mission_control.stats.moved == 1
+            await until(lambda: probe.live("b") == 0, "b's run to be shut down")
+            assert not probe.violations
+            await tree.shutdown()
+
+
+async def test_a_cost_report_from_another_robot_than_the_executor_is_refused() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(reevaluate_s=1000.0) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            c = await t.add("c", [count_impl("c", 10.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            assert node.execution is not None
+            refused = a.mission_control.stats.refused
+            c.system.tell(a.mission_control.address, CostChanged(node.execution.id, 1e9))
+            await until(lambda: a.mission_control.stats.refused == refused + 1, "refused")
+            assert node.execution.cost == 1.0
             await tree.shutdown()
