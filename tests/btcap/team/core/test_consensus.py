@@ -301,3 +301,23 @@ def test_a_lost_robot_that_comes_back_starts_afresh() -> None:
     c.join("a")
     assert c.hear("a", 1, Claim("a", 1, tid(0), 2.0), {})  # restarted: numbers from 1
     assert c.winners()[tid(0)].cost == 2.0
+
+
+def test_the_tasks_of_a_lost_origin_go_with_it() -> None:
+    """Robot "a" wins origin p's task; p is lost: a's claim falls back to o's task."""
+    t = Team({"a": {0: 2.0}}, 1)
+    t.robots["p"] = Robot(Consensus("p"))
+    for r in t.robots.values():
+        for other in t.robots:
+            r.cons.join(other)
+    task = Task(ExecutionId("p", "t", 1), frozenset({"a"}), None)
+    t.robots["p"].cons.open(task)
+    t.robots["a"].costs[task.id] = 1.0
+    t.run()
+    agreed(t)
+    assert t.robots["a"].cons.claim.task == task.id
+    t.lose("p")
+    t.run()
+    agreed(t)
+    assert t.robots["a"].cons.claim.task == tid(0)
+    assert task.id not in t.robots[ORIGIN].cons.tasks()
