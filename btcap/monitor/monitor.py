@@ -242,7 +242,7 @@ class Monitor:
             )
             return
         out, won = rec.outcome, rec.result
-        reasons = {} if won is None or isinstance(won, Assigned) else dict(won.reasons)
+        reasons = dict(rec.passed)
         self.emit(
             {
                 **base,

@@ -16,7 +16,8 @@ Events are JSON objects with a clock time ``t`` and a kind ``k``:
   ``origin``'s node ``node``) or ended (``phase`` ``end``, ``result``, ``why``).
 - ``auction``: opened (``phase`` ``open``: ``capability``, ``node``, ``candidates``,
   ``why``) or closed (``phase`` ``close``: ``bids`` ``[[robot, cost], ...]`` cheapest
-  first, ``declined`` and ``reasons`` per robot, ``winner`` or None).
+  first, ``declined`` (would not bid) and ``reasons`` (why a robot was passed over:
+  no answer, a bid not below the reserve, the award declined) per robot, ``winner``).
 """
 
 from __future__ import annotations

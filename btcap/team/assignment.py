@@ -90,6 +90,9 @@ class AuctionRecord:
     closed: float | None = None
     outcome: AuctionOutcome | None = None
     result: Assigned | Unassigned | None = None
+    #: Why robots were passed over, winner or not: declined to bid, no answer, a bid not
+    #: below the reserve, the award declined or unanswered.
+    passed: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
 
 #: Called with every :class:`AuctionRecord` an auctioneer reports.
@@ -158,6 +161,8 @@ class _Closed:
     reserve: float | None
     turn: asyncio.Event
     plan: str | None = None  # a planning strategy's robot for it
+    #: Why robots were passed over when it awarded (for watchers).
+    passed: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def bids(self, taken: set[str]) -> list[Bid]:
         """What may be awarded, best first: the planned robot, then the cheapest free."""
@@ -290,7 +295,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         finally:
             if self._watchers:  # ``won`` None: cancelled while awarding
                 end = dataclasses.replace(opened, task=task, closed=clock.now(), result=won)
-                self._report(dataclasses.replace(end, outcome=outcome))
+                self._report(dataclasses.replace(end, outcome=outcome, passed=dict(mine.passed)))
             if mine in self._closed:
                 self._closed.remove(mine)
             if self._awarding is mine:
@@ -329,11 +334,14 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         system = self.system
         clock = system.clock
         outcome = mine.outcome
-        reasons = dict(outcome.declined)
+        reasons = mine.passed
+        reasons.update(outcome.declined)
         reasons.update((robot, "no answer") for robot in outcome.silent)
         for bid in outcome.ranking:
             if task.reserve is not None and bid.cost >= task.reserve:
                 reasons[bid.robot] = f"bid {bid.cost:g} not below {task.reserve:g}"
+            elif bid.robot in self._taken:
+                reasons[bid.robot] = "took another task of the same round"
         # A robot that took a task in this batch bid as if idle: it waits for the next one.
         for bid in mine.bids(self._taken):
             award = Award(

@@ -274,10 +274,11 @@ function drawAuctions() {
     const bids = el("td");
     for (const [r, cost] of a.bids) {
       const why = a.reasons[r];
+      const refused = why && why.includes("award");  // declined or missed the award
       bids.append(el("span", { class: r === a.winner ? "bid win" : why ? "bid no" : "bid",
-        title: why ?? null, text: `${r} ${cost.toFixed(1)}` }));
+        title: why ?? null, text: `${r} ${cost.toFixed(1)}${refused ? " ✗" : ""}` }));
     }
-    for (const [r, why] of Object.entries(a.declined)) {
+    for (const [r, why] of Object.entries(a.declined)) {  // would not bid
       bids.append(el("span", { class: "bid no", title: why, text: `${r} declined` }));
     }
     const kept = a.why.startsWith("re-evaluation") && a.closed !== null && !a.winner;

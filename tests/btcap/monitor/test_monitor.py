@@ -15,7 +15,7 @@ import anyio
 import pytest
 
 import btcap.cli
-from btcap import Leaf, Monitor, Replay, Sequence, State, Tree
+from btcap import Leaf, Monitor, Parallel, Replay, Sequence, State, Tree
 from btcap.actors import ManualClock
 from btcap.cli import main
 from btcap.monitor import RecordError, read_record
@@ -392,3 +392,36 @@ async def test_a_slot_shows_the_run_it_hosts_while_it_runs() -> None:
     assert by_id["slot/echo_impl"]["parent"] == "slot"
     assert by_id["slot/echo_impl/echo"]["state"] == "running"
     assert [n["id"] for n in after] == ["slot"]
+
+
+async def test_an_auction_says_why_the_cheapest_bidder_did_not_win() -> None:
+    """Two tasks at once: the cheap robot takes one, the other goes to the dear robot,
+    and the monitor says why the cheap one was passed over there."""
+    net = InProcessNetwork(protocol_registry())
+    cfg = AgentConfig(heartbeat_s=0.05, failure_timeout_s=5.0, auction_window_s=5.0)
+
+    def agent(name: str, cost: float | None = None) -> Agent:
+        impls = implementations(name, cost=cost, duration_s=0.2) if cost is not None else []
+        return Agent(name, transport=net.transport(name), implementations=impls, config=cfg)
+
+    monitor = Monitor(port=None)
+    with anyio.fail_after(30):
+        async with agent("base") as base, agent("cheap", 1.0), agent("dear", 5.0):
+            monitor.add_agent(base)
+            team = {"cheap", "dear"}
+            for _ in range(1000):  # both known and alive: the two auctions are one round
+                if base.repository.providers(ECHO.identity) == team <= base.team.alive():
+                    break
+                await asyncio.sleep(0.01)
+            echoes = [ECHO.node_type()(f"echo_{k}", inputs={"value": k}) for k in (1, 2)]
+            tree = base.mission(Parallel("mission", children=echoes))
+            done = (State.SUCCEEDED, State.FAILED)
+            assert await tree.run(50, until=lambda s: s in done) is State.SUCCEEDED
+            monitor.detach()
+            await tree.shutdown()
+    # (later auctions may re-evaluate running work: the first two are the round)
+    auctions = [a for a in monitor.snapshot()["auctions"] if a["why"] == "first request"]
+    assert sorted(a["winner"] for a in auctions) == ["cheap", "dear"]
+    (second,) = [a for a in auctions if a["winner"] == "dear"]
+    assert second["bids"][0] == ["cheap", 1.0]
+    assert second["reasons"] == {"cheap": "took another task of the same round"}

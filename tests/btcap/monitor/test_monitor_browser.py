@@ -109,8 +109,9 @@ async def test_the_page_shows_each_robot_and_a_capability_succeeding_live(
                 monitor.add_agent(a)
             await asyncio.to_thread(browser.get, monitor.url)
             await _wait(browser, "the live badge", lambda d: _count(d, ".mode.live") == 1)
+            team = {"scout", "rover"}
             for _ in range(1000):  # the team forms (gossip), polled
-                if base.repository.providers(ECHO.identity) == {"scout", "rover"}:
+                if base.repository.providers(ECHO.identity) == team <= base.team.alive():
                     break
                 await asyncio.sleep(0.02)
             echoes = [ECHO.node_type()(f"echo_{k}", inputs={"value": k}) for k in (1, 2)]
