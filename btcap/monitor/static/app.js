@@ -128,7 +128,8 @@ function drawTeam() {
       const where = mine.map((x) => `${x.capability} → ${x.robot}`).join(", ");
       card.append(el("div", { class: "row" }, "its capabilities: ", el("b", { text: where })));
     }
-    if (!missions.length) card.append(el("div", { class: "row", text: `${done} runs succeeded` }));
+    const tally = done === 1 ? "1 run succeeded" : `${done || "no"} runs succeeded`;
+    if (!missions.length) card.append(el("div", { class: "row", text: tally }));
     box.append(card);
   }
 }
