@@ -51,13 +51,14 @@ from btcap.transports import InProcessNetwork
 __all__ = ["Events", "allocate", "ratios", "run"]
 
 TASK = CapabilityInterface("Task", inputs={"task": int}, description="go and do task #task")
-STRATEGIES = ("arrival", "auction", "sequential", "optimal")
+STRATEGIES = ("arrival", "auction", "sequential", "consensus", "optimal")
 #: Strategy columns of the dynamic cases: (label, strategy, re-evaluation period).
 DYNAMIC = (
     ("arrival", "arrival", 30.0),
     ("auction", "auction", 30.0),
     ("auction-fixed", "auction", None),
     ("sequential", "sequential", 30.0),
+    ("consensus", "consensus", 30.0),
     ("optimal", "optimal", 30.0),
 )
 STEP_S = 0.5  # how often the origin ticks its mission (clock seconds)
