@@ -9,10 +9,12 @@ Skipped, saying why, only where chromium or chromedriver is missing. Set
 from __future__ import annotations
 
 import asyncio
+import json
 import os
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import anyio
 import pytest
@@ -61,6 +63,18 @@ def browser() -> Iterator[WebDriver]:
         yield driver
     finally:
         driver.quit()
+
+
+#: What the page's picture and the server's must agree on.
+PICTURE = ("robots", "runs", "auctions", "marks")
+#: The page's picture (app.js keeps runs and auctions in Maps), as the server shapes it.
+_PICTURE_JS = """return JSON.stringify({robots: S.robots, runs: [...S.runs.values()],
+    auctions: [...S.auctions.values()], marks: S.marks});"""
+
+
+def _page(driver: WebDriver) -> Any:
+    """The picture the page built from the snapshot and the events it was sent."""
+    return json.loads(driver.execute_script(_PICTURE_JS))
 
 
 def _count(driver: WebDriver, css: str) -> int:
@@ -135,6 +149,8 @@ async def test_the_page_shows_each_robot_and_a_capability_succeeding_live(
                 lambda d: _count(d, '.node.cap[data-state="succeeded"]') == 2,
             )
             assert _count(browser, "[data-auction] .bid.win") >= 2  # a busy robot may decline
+            server = json.loads(json.dumps({k: monitor.snapshot()[k] for k in PICTURE}))
+            await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
             await _screenshot(browser, tmp_path / "monitor.png")
             await tree.shutdown()
     assert (tmp_path / "monitor.png").stat().st_size > 10_000
