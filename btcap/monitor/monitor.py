@@ -28,7 +28,7 @@ from btcap.monitor.record import Recorder
 from btcap.monitor.taps import TreeTap
 from btcap.monitor.view import Event, TeamView
 from btcap.team.agent import Agent
-from btcap.team.assignment import Assigned, AuctionRecord, SingleItemAuction
+from btcap.team.assignment import Assigned, AuctionRecord
 from btcap.team.core.effects import Lost
 from btcap.team.membership import TeamEvent
 from btcap.transports.log import get_logger
@@ -164,9 +164,8 @@ class Monitor:
         undo = [
             self.add_tree(agent.host, robot=robot),
             agent.mission_control.watch_lost(self._on_lost),
+            agent.auctioneer.watch(self._on_auction),  # auctions, or consensus allocations
         ]
-        if isinstance(agent.auctioneer, SingleItemAuction):  # other strategies hold none
-            undo.append(agent.auctioneer.watch(self._on_auction))
         if self.viewpoint is None:
             self.viewpoint = robot
         if robot == self.viewpoint:  # robots may disagree (one cut off sees all others fail)
