@@ -38,7 +38,7 @@ from btcap.bench.hostile import (
 )
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
-from btcap.team.agent import Agent
+from btcap.team.agent import Agent, AgentConfig
 from btcap.team.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
@@ -56,6 +56,10 @@ FD_SLACK = 8  # open files allowed above the baseline once an attack is over
 RSS_SLACK_MB = 64.0  # RSS growth allowed for the fake states (100 MB sent in full mode)
 ASK_BOUND_S = 0.5  # slowest acceptable ask round trip to the target while attacked
 TICK_S = 0.01
+#: Both robots share this process's loop with the probe, whose gc.collect() for the memory
+#: figures can pause it for a good part of a second in a big process (the test suite):
+#: a failure timeout and lease of a few seconds keep that pause from passing for an attack.
+TEAM_CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, keepalive_s=0.5)
 
 
 class _Echo(Actor):
@@ -129,8 +133,9 @@ async def _team() -> AsyncIterator[tuple[Agent, Agent]]:
         registry=reg_r1,
         implementations=implementations("r1"),
         actors={"probe": _Echo()},
+        config=TEAM_CONFIG,
     )
-    origin = Agent("origin", transport=to, registry=reg_o)
+    origin = Agent("origin", transport=to, registry=reg_o, config=TEAM_CONFIG)
     async with r1, origin:
         yield r1, origin
 

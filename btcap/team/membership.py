@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable
 
 from btcap.actors import Actor, Address, Supervision, handler
-from btcap.team.core.gossip import Introductions, Turns, detection_periods
+from btcap.team.core.gossip import BeatPlan, Introductions, Turns, detection_periods
 from btcap.team.core.ids import ExecutionId
 from btcap.team.core.members import Member, MemberTable, TeamEvent
 from btcap.team.messages import (
@@ -77,7 +77,7 @@ class Membership(Actor):
         self.fanout = fanout
         self.beat = 0  #: heartbeats sent in this incarnation
         # Seeded by name: the same team beats in the same order every run (the fast sim).
-        self._targets = Turns(random.Random(f"targets {robot}"))
+        self._plan = BeatPlan(fanout, random.Random(f"targets {robot}"))
         self._mentions = Turns(random.Random(f"mentions {robot}"))
         self._asked = Introductions(failure_timeout_s)
         self._was_busy = False
@@ -141,18 +141,19 @@ class Membership(Actor):
             await clock.sleep(self.heartbeat_s)
 
     def _periodic_beat(self) -> None:
-        """To every peer in a small team or when this robot came free or busy; otherwise to
-        ``fanout`` of them in turns, with hearsay of others."""
+        """To every peer in a small team or when this robot came free or busy; otherwise
+        as :class:`~btcap.team.core.gossip.BeatPlan` says."""
         self.beat += 1
         transport = self.system.transport
         peers = transport.peers() if transport is not None else frozenset()
         busy = self._body_busy()
-        if len(peers) <= self.fanout or busy != self._was_busy:
+        plan = self._plan.next(self.table.members, peers)
+        if plan.everyone or busy != self._was_busy:
             self._was_busy = busy
             self.system.broadcast(self.PATH, self._heartbeat(busy, heard=False))
             return
-        msg = self._heartbeat(busy, heard=True)
-        for peer in self._targets.take(peers, self.fanout):
+        msg = self._heartbeat(busy, heard=plan.heard)
+        for peer in plan.to:
             self.system.tell(Address(peer, self.PATH), msg)
 
     def check(self, now: float) -> None:

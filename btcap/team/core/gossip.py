@@ -14,8 +14,9 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
-__all__ = ["Introductions", "Turns", "detection_periods"]
+__all__ = ["Beat", "BeatPlan", "Introductions", "Turns", "detection_periods"]
 
 
 class Turns:
@@ -84,3 +85,36 @@ def detection_periods(team: int, fanout: int) -> int:
         return 3
     spread = math.log(team) / math.log(max(fanout, 2))
     return math.ceil(2 * spread) + 2
+
+
+@dataclass(frozen=True, slots=True)
+class Beat:
+    """Where one periodic heartbeat goes: every peer, or ``to``; with hearsay or not."""
+
+    everyone: bool
+    to: tuple[str, ...] = ()
+    heard: bool = False
+
+
+class BeatPlan:
+    """Whom each periodic heartbeat goes to.
+
+    Members come first: past ``fanout`` of them, ``fanout`` per period in turns (with
+    hearsay). Peers that are not members (a seed not met yet, a robot back from a
+    partition; or made-up ids an attacker announced) get ``fanout`` more per period in
+    turns of their own, so however many there are they never crowd out the members.
+    """
+
+    def __init__(self, fanout: int, rng: random.Random) -> None:
+        self.fanout = fanout
+        self._members = Turns(rng)
+        self._others = Turns(rng)
+
+    def next(self, members: Iterable[str], peers: Iterable[str]) -> Beat:
+        team, reachable = set(members), set(peers)
+        if len(reachable) <= self.fanout:
+            return Beat(everyone=True)
+        others = reachable - team
+        mine = self._members.take(team & reachable, self.fanout)
+        rest = self._others.take(others, self.fanout) if others else []
+        return Beat(False, tuple(mine + rest), heard=len(team) > self.fanout)

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from btcap.team.core.gossip import Introductions, Turns, detection_periods
+from btcap.team.core.gossip import Beat, BeatPlan, Introductions, Turns, detection_periods
 from btcap.team.core.members import MemberTable, TeamEvent
 
 
@@ -85,3 +85,27 @@ def test_an_old_beat_heard_late_keeps_a_member_alive_only_from_when_it_was_heard
     t.hearsay("b", 1, 4, now=2.5, age_s=-5.0)  # a clock that runs ahead: no later than now
     assert t.expire(3.45) == []
     assert t.expire(3.55) == ["b"]
+
+
+def test_members_are_beaten_to_first_however_many_strangers_the_transport_holds() -> None:
+    plan = BeatPlan(8, random.Random(1))
+    ghosts = {f"ghost-{i}" for i in range(32)}
+    for _ in range(20):  # a two-robot team whose peer table an attacker filled
+        beat = plan.next({"origin"}, {"origin"} | ghosts)
+        assert not beat.everyone
+        assert "origin" in beat.to
+        assert len(beat.to) == 9
+        assert not beat.heard  # one member, beaten directly every period
+    assert plan.next({"a", "b"}, {"a", "b", "c"}) == Beat(everyone=True)
+
+
+def test_past_the_fanout_members_take_turns_and_carry_hearsay() -> None:
+    plan = BeatPlan(3, random.Random(2))
+    team = {f"r{i}" for i in range(12)}
+    seen: set[str] = set()
+    for _ in range(4):
+        beat = plan.next(team, team | {"seed"})
+        assert beat.heard
+        assert "seed" in beat.to  # the one non-member gets a beat every period
+        seen |= set(beat.to) - {"seed"}
+    assert seen == team
