@@ -166,6 +166,10 @@ class Membership(Actor):
         """A robot speaks only for itself: the transport authenticated the sender."""
         if robot == self.sender:
             return True
+        return self._refuse(msg, claims=robot[:64])
+
+    def _refuse(self, msg: object, **why: str) -> bool:
+        """Count and (at a falling rate) log a refused message; False, for the caller."""
         self.refused += 1
         if worth_logging(self.refused):
             log.warning(
@@ -173,8 +177,8 @@ class Membership(Actor):
                 robot=self.robot,
                 sender=self.sender,
                 message=type(msg).__name__,
-                claims=robot[:64],
                 count=self.refused,
+                **why,
             )
         return False
 
@@ -274,17 +278,7 @@ class Membership(Actor):
     def _from_member(self, msg: Roster | RosterRequest | ActivityQuery) -> bool:
         if self.sender in self.table.members:
             return True
-        self.refused += 1
-        if worth_logging(self.refused):
-            log.warning(
-                "team.refused",
-                robot=self.robot,
-                sender=self.sender,
-                message=type(msg).__name__,
-                detail="not a member",
-                count=self.refused,
-            )
-        return False
+        return self._refuse(msg, detail="not a member")
 
     @handler
     def on_goodbye(self, msg: Goodbye) -> None:
