@@ -40,6 +40,7 @@ from btcap.transports.zmq_sockets import (
     SCHEMES,
     Monitor,
     Strangers,
+    allow_sockets,
     check_id,
     check_transport_args,
     fd_of,
@@ -121,6 +122,7 @@ class ZmqTransport(Transport):
         self._ctx: zmq.Context[zmq.Socket[bytes]] = (
             zmq.Context() if self._own_ctx else zmq.Context.shadow(base.underlying)
         )
+        allow_sockets(self._ctx)
         try:
             self._router, self._events = open_router(
                 self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id

@@ -643,3 +643,17 @@ def test_an_ipc_socket_file_is_removed_on_close(tmp_path: Path) -> None:
     assert path.exists()
     transport.close()
     assert not path.exists()
+
+
+def test_a_robot_may_hold_more_peers_than_libzmqs_default_socket_limit() -> None:
+    """Each peer costs a DEALER and a monitor pair: 400 peers are 1,200 sockets, past the
+    1,023 libzmq allows a context by default."""
+    ctx: zmq.asyncio.Context = zmq.asyncio.Context()
+    t = ZmqTransport("hub", "tcp://127.0.0.1:*", MessageRegistry(), context=ctx)
+    try:
+        for i in range(400):
+            t.add_peer(f"peer-{i}", f"tcp://127.0.0.1:{20000 + i}")
+        assert len(t.peers()) == 400
+    finally:
+        t.close()
+        ctx.term()
