@@ -11,12 +11,15 @@ from typing import Any
 
 import msgspec
 
-from btcap.monitor.view import Event
+from btcap.monitor.view import Event, TeamView
 
 __all__ = ["FORMAT", "RecordError", "Recorder", "read_record"]
 
 FORMAT = "btcap-monitor"
 VERSION = 1
+
+#: Fields that are names wherever an event has them (a page shows them as text).
+_NAMES = ("robot", "tree", "capability", "origin", "node", "execution", "id", "auctioneer")
 
 _decode = msgspec.json.Decoder(dict[str, Any])
 _encode = msgspec.json.Encoder()
@@ -55,6 +58,7 @@ def read_record(path: str | Path) -> list[Event]:
     if not lines:
         raise RecordError(f"{path}: empty file, not a btcap recording")
     events: list[Event] = []
+    view = TeamView()  # a replay folds every event: one it cannot fold is refused here
     for number, line in enumerate(lines, 1):
         if not line.strip():
             continue
@@ -73,7 +77,21 @@ def read_record(path: str | Path) -> list[Event]:
                 raise RecordError(f"{path}:1: recording version {obj.get('version')!r}, "
                                   f"this btcap reads version {VERSION}")  # fmt: skip
             continue
-        if not isinstance(obj.get("t"), int | float) or not isinstance(obj.get("k"), str):
+        t = obj.get("t")
+        if (
+            isinstance(t, bool)
+            or not isinstance(t, int | float)
+            or not isinstance(obj.get("k"), str)
+        ):
             raise RecordError(f"{path}:{number}: an event needs a time 't' and a kind 'k'")
+        try:
+            for name in _NAMES:
+                if name in obj and not isinstance(obj[name], str):
+                    raise TypeError(f"{name!r} is {obj[name]!r}, expected a name")
+            view.apply(obj)
+        except KeyError as exc:
+            raise RecordError(f"{path}:{number}: a {obj['k']!r} event: no {exc}") from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise RecordError(f"{path}:{number}: a {obj['k']!r} event: {exc}") from None
         events.append(obj)
     return events

@@ -20,8 +20,11 @@ const capColour = new Map();
 function fromSnapshot(snap) {
   const runs = new Map(snap.runs.map((r) => [r.execution, r]));
   const auctions = new Map(snap.auctions.map((a) => [a.id, a]));
-  return { ...snap, runs, auctions };
+  // Robot names come from peers: a name like "constructor" must not find Object's own.
+  const robots = Object.assign(Object.create(null), snap.robots);
+  return { ...snap, robots, runs, auctions };
 }
+const own = (obj, key) => (Object.hasOwn(obj, key) ? obj[key] : undefined);
 
 function robot(name) {
   if (!S.robots[name]) S.robots[name] = { status: "seen", trees: {} };
@@ -39,7 +42,7 @@ function apply(ev) {
     case "tree": robot(ev.robot).trees[ev.tree] = { nodes: ev.nodes.map((n) => ({ ...n })) }; break;
     case "states": {
       const tree = robot(ev.robot).trees[ev.tree];
-      if (tree) for (const n of tree.nodes) if (n.id in ev.states) n.state = ev.states[n.id];
+      if (tree) for (const n of tree.nodes) if (Object.hasOwn(ev.states, n.id)) n.state = ev.states[n.id];
       break;
     }
     case "team":
@@ -274,7 +277,7 @@ function drawAuctions() {
   for (const a of list) {
     const bids = el("td");
     for (const [r, cost] of a.bids) {
-      const why = a.reasons[r];
+      const why = own(a.reasons, r);
       const refused = why && why.includes("award");  // declined or missed the award
       bids.append(el("span", { class: r === a.winner ? "bid win" : why ? "bid no" : "bid",
         title: why ?? null, text: `${r} ${cost.toFixed(1)}${refused ? " ✗" : ""}` }));

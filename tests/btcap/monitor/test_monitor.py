@@ -231,6 +231,9 @@ async def test_a_tree_added_later_and_its_changing_shape_are_sent_whole(flip_tre
 # -- recordings -------------------------------------------------------------------------------
 
 
+_HEAD = '{"format": "btcap-monitor", "version": 1}\n'
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -240,6 +243,14 @@ async def test_a_tree_added_later_and_its_changing_shape_are_sent_whole(flip_tre
         ('{"format": "btcap-monitor", "version": 9}\n', ":1: recording version 9"),
         ('{"format": "btcap-monitor", "version": 1}\n[1]\n{"t": 0, "k": "x"}\n', ":2: not a JSON"),
         ('{"format": "btcap-monitor", "version": 1}\n{"k": "robot"}\n', ":2: an event needs"),
+        (_HEAD + '{"t": 0, "k": "tree", "robot": "a"}\n', ":2: a 'tree' event: no 'nodes'"),
+        (_HEAD + '{"t": 0, "k": "robot", "robot": ["a"]}\n', ":2: a 'robot' event: 'robot'"),
+        (_HEAD + '{"t": 0, "k": "robot", "robot": 7}\n', ":2: a 'robot' event: 'robot'"),
+        (
+            _HEAD + '{"t": 0, "k": "tree", "robot": "a", "tree": "m", "nodes": [1]}\n',
+            ":2: a 'tree'",
+        ),
+        (_HEAD + '{"t": true, "k": "robot", "robot": "a"}\n', ":2: an event needs"),
     ],
 )
 def test_a_bad_recording_is_refused_naming_the_line(

@@ -191,3 +191,34 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
         finally:
             await server.stop()
     assert (tmp_path / "replay.png").stat().st_size > 10_000
+
+
+async def test_robot_names_from_the_network_are_shown_as_text(browser: WebDriver) -> None:
+    """Robot names come from peers: ``constructor``, ``__proto__`` and markup are valid
+    names, and arriving over the stream they must show as any other robot's."""
+    names = ["constructor", "__proto__", "<img src=x onerror=alert(1)>"]
+    with anyio.fail_after(60):
+        async with Monitor(port=0, title="names") as monitor:
+            await asyncio.to_thread(browser.get, monitor.url)
+            await _wait(browser, "the live badge", lambda d: _count(d, ".mode.live") == 1)
+            for k, name in enumerate(names):
+                monitor.emit({"t": 1.0, "k": "team", "robot": name, "change": "joined"})
+                ex = f"base:mission/echo#{k}"
+                monitor.emit({"t": 1.0, "k": "run", "phase": "start", "execution": ex,
+                              "robot": name, "origin": "base", "node": "mission/echo",
+                              "capability": "Echo"})  # fmt: skip
+            auction = {"k": "auction", "id": "base#1", "execution": "base:mission/echo#0"}
+            monitor.emit({**auction, "t": 1.0, "phase": "open", "auctioneer": "base",
+                          "capability": "Echo", "node": "base:mission/echo",
+                          "candidates": names, "why": "first request"})  # fmt: skip
+            monitor.emit({**auction, "t": 2.0, "phase": "close", "winner": names[0],
+                          "bids": [[n, 1.0] for n in names], "declined": {},
+                          "reasons": {}})  # fmt: skip
+            monitor.flush()
+            await _wait(browser, "a card per robot", lambda d: _count(d, ".card") == 3)
+            await _wait(browser, "every bid", lambda d: _count(d, ".bid") == 3)
+            cards = browser.find_elements(By.CSS_SELECTOR, ".card h3 span:first-child")
+            assert sorted(c.text for c in cards) == sorted(names)
+            assert _count(browser, "img") == 0
+            server = json.loads(json.dumps({k: monitor.snapshot()[k] for k in PICTURE}))
+            await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
