@@ -111,7 +111,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         self._ids = itertools.count(1)
         self._team: Membership | None = None
         self._unsubscribe: Callable[[], None] | None = None
-        self._newcomers: set[str] = set()
+        self._behind: set[str] = set()  # members missing what we hold: tell them all
         self._scheduled = False
         self._watchers: list[AuctionWatcher] = []
 
@@ -145,11 +145,11 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event is TeamEvent.JOINED:
             self.core.join(robot)
-            self._newcomers.add(robot)  # it needs what we hold, changed or not
+            self._behind.add(robot)  # it needs what we hold, changed or not
         elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
             self.core.lose(robot)
             self._impls.pop(robot, None)
-            self._newcomers.discard(robot)
+            self._behind.discard(robot)
         elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
             self._prices.clear()  # preconditions may be met now
         self._soon()
@@ -293,10 +293,14 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         tasks_changed = self.core.version != self._said_version
         if tasks_changed or now != self._said:
             self._said, self._said_version = now, self.core.version
-            self._tell_all(sorted(self.core.members - {self.robot}), tasks=tasks_changed)
+            told = self.core.members - {self.robot}
+            if not tasks_changed:  # those behind need the open tasks, changed or not
+                self._tell_all(sorted(self._behind & told))
+                told -= self._behind
+            self._tell_all(sorted(told), tasks=tasks_changed)
         else:
-            self._tell_all(sorted(self._newcomers & self.core.members))
-        self._newcomers.clear()
+            self._tell_all(sorted(self._behind & self.core.members))
+        self._behind.clear()
 
     def _tell_all(self, robots: Iterable[str], *, tasks: bool = True) -> None:
         """Tell ``robots`` this robot's claim and view (and its open tasks)."""
@@ -396,8 +400,11 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return  # a stranger, or a member we lost: its state is not kept
         claim = Claim(msg.robot, msg.stamp, msg.task, msg.cost if msg.task else math.inf)
         view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
-        if self.core.hear(sender, msg.seq, claim, view) and self.core.claims.get(sender) is claim:
-            self._impls[sender] = msg.implementation
+        if self.core.hear(sender, msg.seq, claim, view):
+            if self.core.claims.get(sender) is claim:
+                self._impls[sender] = msg.implementation
+            if view.get(self.robot) != (self.core.claim.stamp, self.core.version):
+                self._behind.add(sender)  # it missed our word (lost?): say it again
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:

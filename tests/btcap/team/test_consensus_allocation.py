@@ -3,6 +3,8 @@ still confirmed, and a member lost mid-consensus has its work re-allocated."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import anyio
 from capfixtures import (
     COUNT,
@@ -21,6 +23,7 @@ from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
 from btcap.team.messages import ConsensusClaim, ConsensusTasks, OpenTask
 from btcap.transports import Address
+from btcap.transports.codec import Envelope
 
 
 def _cons(agent: object) -> ConsensusAssigner:
@@ -262,3 +265,66 @@ async def test_a_hostile_peer_is_held_to_its_own_word_and_to_the_bounds() -> Non
                 assert state is State.SUCCEEDED
                 assert node.assignments == ["b"]
                 await tree.shutdown()
+
+
+async def test_a_robot_joining_mid_consensus_hears_the_open_tasks_at_once() -> None:
+    """The team cannot agree before the newcomer has merged every origin's open tasks, so
+    it must be sent them when it joins, not only at the next retry (a quarter window)."""
+    window = 1000.0
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None, auction_window_s=window) as t:
+            a = await t.add("a")
+            await t.add("c", [count_impl("c", 5.0, probe)])
+            async with silent_member(t.net, "s", [], t.clock):  # no agreement: a waits
+                await until(lambda: "s" in _cons(a).core.members, "s to be a member")
+                await until(lambda: a.repository.providers(COUNT.identity) == {"c"}, "c known")
+                node = COUNT.node_type()("count", inputs={"x": 1})
+                tree = a.mission(Sequence("root", children=[node]))
+                await tick_until(tree, lambda _s: bool(_cons(a).core.winners()), "a claim")
+                joined = t.clock.now()
+                b = await t.add("b")
+                await until(lambda: bool(_cons(b).core.tasks()), "b to hear a's task")
+                assert t.clock.now() - joined < window / 4
+                await tree.shutdown()
+
+
+async def test_a_claim_lost_on_the_way_is_asked_for_again_and_wins() -> None:
+    """b's claims to the origin are lost and b's state does not change after: the
+    origin's retry must make b say it again, so the task goes to b (the cheapest) on
+    agreement, not to c when the window ends."""
+    window = 40.0
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None, auction_window_s=window) as t:
+            a = await t.add("a")
+            await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.add("c", [count_impl("c", 5.0, probe)])
+            await t.converged()
+            route = t.net._route
+            lost: list[ConsensusClaim] = []
+
+            def lossy(src: Any, env: Envelope) -> None:
+                msg = env.msg
+                if (
+                    t.clock.now() < opened + window / 8  # lost until b has settled
+                    and src.system_id == "b"
+                    and env.recipient.system == "a"
+                    and isinstance(msg, ConsensusClaim)
+                    and msg.task is not None
+                ):
+                    lost.append(msg)
+                    return
+                route(src, env)
+
+            opened = t.clock.now()
+            t.net._route = lossy  # type: ignore[method-assign]
+            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            state = await tick_until(tree, lambda s: s is not State.RUNNING)
+            assert lost
+            assert state is State.SUCCEEDED
+            assert node.assignments == ["b"]
+            assert t.clock.now() - opened < window
+            assert _cons(a).stats.early_closes == 1
+            await tree.shutdown()
