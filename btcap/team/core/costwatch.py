@@ -9,6 +9,7 @@ so a steady rise is reported once per margin, not every time.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 from btcap.team.core.ids import ExecutionId
@@ -28,6 +29,8 @@ class CostWatch:
 
     def see(self, execution: ExecutionId, cost: float) -> bool:
         """Note a fresh estimate; True if it rose beyond the margin over the baseline."""
+        if math.isnan(cost):
+            return False  # no estimate: as a baseline it would hide every later rise
         base = self._base.get(execution)
         if base is None:
             self._base[execution] = cost

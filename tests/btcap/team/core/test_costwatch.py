@@ -37,3 +37,14 @@ def test_ended_runs_are_forgotten_and_the_table_is_bounded() -> None:
     for n in range(10):
         w.see(ExecutionId("a", "n", 10 + n), 1.0)
     assert len(w) == 3
+
+
+def test_an_estimate_that_is_not_a_number_is_no_news_and_leaves_the_baseline() -> None:
+    """A NaN from an estimate (0/0 on a blocked path) must not become the baseline: every
+    comparison with NaN is false, so no later rise would ever be news again."""
+    w = CostWatch(0.2)
+    assert not w.see(E1, float("nan"))
+    assert w.see(E1, 10.0) is False  # the first real estimate is the baseline
+    assert not w.see(E1, float("nan"))
+    assert w.see(E1, 20.0)
+    assert w.see(E1, float("inf"))  # unreachable now: the biggest rise there is
