@@ -34,7 +34,10 @@ from btcap.bt.tree import Subtree, Tree
 if typing.TYPE_CHECKING:
     from btcap.actors import TimeSource
 
-__all__ = ["Builder"]
+__all__ = ["MAX_NODES", "Builder"]
+
+#: Nodes one file may build, every Subtree use counted as the copy it is.
+MAX_NODES = 100_000
 
 
 def _split_ref(ref: str) -> tuple[str, str] | None:
@@ -72,6 +75,14 @@ class Builder:
 
     # -- trees ------------------------------------------------------------------------
     def build_main(self, clock: TimeSource | None) -> Tree:
+        total = self._expanded()
+        if total > MAX_NODES:
+            raise TreeFileError(
+                [
+                    f"{self.where}: the tree expands to {total} nodes (each Subtree use "
+                    f"is a copy of its subtree); btcap builds at most {MAX_NODES}"
+                ]
+            )
         for name in self.spec.subtrees:
             self._check_subtree(name)
         spec = self.spec
@@ -172,6 +183,23 @@ class Builder:
         return out
 
     # -- subtrees ---------------------------------------------------------------------
+    def _expanded(self) -> int:
+        """Nodes the main tree builds to, before building them: subtrees nested in
+        subtrees multiply. A cycle counts once (it is reported when building)."""
+        sizes: dict[str, int] = {}
+
+        def size(spec: NodeSpec, active: tuple[str, ...]) -> int:
+            n = 1 + sum(size(c, active) for c in spec.children)
+            ref = spec.options.get("tree") if spec.type == "Subtree" else None
+            if isinstance(ref, str) and ref in self.spec.subtrees and ref not in active:
+                if ref not in sizes:
+                    root = self.spec.subtrees[ref].root
+                    sizes[ref] = size(root, (*active, ref)) if root is not None else 1
+                n += sizes[ref]
+            return n
+
+        return size(self.spec.root, ())
+
     def _check_subtree(self, name: str) -> bool:
         """Build a definition once to report its problems; cached, cycles reported."""
         if name in self._checked:

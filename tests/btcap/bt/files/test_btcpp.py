@@ -632,3 +632,17 @@ def test_load_tree_reads_xml_files_and_names_them(tmp_path: Path) -> None:
     path.write_text(_xml('<BehaviorTree ID="Main">\n<Wiggle/>\n</BehaviorTree>'))
     with pytest.raises(TreeFileError, match=rf"^{path}: line 3: <Wiggle>"):
         load_tree(path)
+
+
+def test_subtrees_used_twice_per_level_are_refused_not_built_exponentially() -> None:
+    """Every <SubTree> use is a copy: 40 levels of two uses each would be 2**40 nodes."""
+    levels = [
+        f'<BehaviorTree ID="T{i}"><Sequence><SubTree ID="T{i + 1}"/><SubTree ID="T{i + 1}"/>'
+        "</Sequence></BehaviorTree>"
+        for i in range(40)
+    ]
+    text = _xml(
+        "\n".join([*levels, '<BehaviorTree ID="T40"><AlwaysSuccess/></BehaviorTree>']), "T0"
+    )
+    with pytest.raises(TreeFileError, match=r"^t.xml: .*expands to \d+ nodes"):
+        _load(text)
