@@ -400,11 +400,15 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return  # a stranger, or a member we lost: its state is not kept
         claim = Claim(msg.robot, msg.stamp, msg.task, msg.cost if msg.task else math.inf)
         view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
+        before = self.core.views.get(sender)
         if self.core.hear(sender, msg.seq, claim, view):
             if self.core.claims.get(sender) is claim:
                 self._impls[sender] = msg.implementation
-            if view.get(self.robot) != (self.core.claim.stamp, self.core.version):
-                self._behind.add(sender)  # it missed our word (lost?): say it again
+            elif self.core.views[sender] == before and view.get(self.robot) != (
+                self.core.claim.stamp,
+                self.core.version,
+            ):
+                self._behind.add(sender)  # a retry still missing our word (lost): say it again
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:
