@@ -13,7 +13,10 @@ from xml.parsers import expat
 
 from btcap.bt.files.schema import TreeFileError
 
-__all__ = ["XmlElement", "read_xml"]
+__all__ = ["MAX_DEPTH", "XmlElement", "read_xml"]
+
+#: Elements nested deeper than this are refused (reading and building trees recurse).
+MAX_DEPTH = 200
 
 
 @dataclasses.dataclass
@@ -38,6 +41,11 @@ def read_xml(data: bytes | str, where: str) -> XmlElement:
     roots: list[XmlElement] = []
 
     def start(tag: str, attrs: dict[str, str]) -> None:
+        if len(stack) >= MAX_DEPTH:
+            raise _Refused(
+                f"line {parser.CurrentLineNumber}: <{tag}> is nested {MAX_DEPTH + 1} "
+                f"elements deep; btcap reads at most {MAX_DEPTH}"
+            )
         el = XmlElement(tag, dict(attrs), parser.CurrentLineNumber)
         (stack[-1].children if stack else roots).append(el)
         stack.append(el)

@@ -646,3 +646,18 @@ def test_subtrees_used_twice_per_level_are_refused_not_built_exponentially() -> 
     )
     with pytest.raises(TreeFileError, match=r"^t.xml: .*expands to \d+ nodes"):
         _load(text)
+
+
+def test_elements_nested_without_bound_are_refused_naming_the_line() -> None:
+    depth = 5000
+    body = "<Inverter>\n" * depth + "<AlwaysSuccess/>" + "</Inverter>" * depth
+    text = _xml(f'<BehaviorTree ID="Main">\n{body}\n</BehaviorTree>')
+    with pytest.raises(TreeFileError, match=r"^t.xml: line 201: <Inverter> is nested 201"):
+        _load(text)
+
+
+def test_a_deep_tree_within_the_bound_loads_and_ticks() -> None:
+    depth = 190
+    body = "<Inverter>" * depth + "<AlwaysSuccess/>" + "</Inverter>" * depth
+    tree = _load(_xml(f'<BehaviorTree ID="Main">{body}</BehaviorTree>'))
+    assert tree.tick() is State.SUCCEEDED
