@@ -37,7 +37,7 @@ from btcap.bt.files.schema import (
     TreeFileError,
     WireSpec,
 )
-from btcap.bt.files.xmlread import XmlElement
+from btcap.bt.files.xmlread import MAX_DEPTH, XmlElement
 from btcap.bt.registry import NodeRegistry, RegistryError
 
 __all__ = ["XmlTranslator", "relabel"]
@@ -65,6 +65,8 @@ class XmlTranslator:
         self.models = self.reader.models
         self.defs: dict[str, _Def | None] = {}
         self.active: list[str] = []
+        self.bases: list[int] = []  # how deep each active tree's root sits in the main tree
+        self.heights: dict[str, int] = {}  # levels of nodes a tree adds, its subtrees' too
         self.used: set[str] = set()
         #: (BehaviorTree ID, node path) -> line, and (ID, wire index) -> line, for relabel.
         self.node_lines = self.reader.node_lines
@@ -129,7 +131,7 @@ class XmlTranslator:
         )
 
     # -- BehaviorTrees ----------------------------------------------------------------
-    def _definition(self, tid: str, line: int) -> _Def | None:
+    def _definition(self, tid: str, line: int, at: int = 0) -> _Def | None:
         if tid in self.defs:
             return self.defs[tid]
         if tid in self.active:
@@ -146,6 +148,7 @@ class XmlTranslator:
             )
             return None
         self.active.append(tid)
+        self.bases.append(at)
         scope = Scope(tid)
         if len(el.children) != 1:
             self.fail(
@@ -155,9 +158,28 @@ class XmlTranslator:
             )
         spec = self.reader.node(el.children[0], None, scope, set()) if el.children else None
         self.active.pop()
+        self.bases.pop()
         done = self._resolve(scope, spec) if spec is not None else None
         self.defs[tid] = done
+        self.heights[tid] = self._height(spec) if spec is not None else 0
         return done
+
+    def _height(self, spec: NodeSpec) -> int:
+        below = [self._height(c) for c in spec.children]
+        if spec.type == "Subtree":
+            below.append(self.heights.get(spec.options["tree"], 0))
+        return 1 + max(below, default=0)
+
+    def _too_deep(self, el: XmlElement, tid: str, depth: int) -> bool:
+        """Subtrees within subtrees nest the built tree, which loading recurses over."""
+        if depth <= MAX_DEPTH:
+            return False
+        self.fail(
+            el.line,
+            f"<SubTree ID={tid!r}> nests the tree {depth} nodes deep (subtrees within "
+            f"subtrees); btcap reads at most {MAX_DEPTH}",
+        )
+        return True
 
     def _resolve(self, scope: Scope, root: NodeSpec) -> _Def:
         """Wire each entry's writer to its readers; what crosses the tree's edge is public."""
@@ -233,9 +255,12 @@ class XmlTranslator:
         except MappingError as exc:
             self.fail(el.line, f"<SubTree ID={tid!r}> _autoremap: {exc}")
             return None
-        done = self._definition(tid, el.line)
+        at = (self.bases[-1] if self.bases else 0) + path.count("/") + 1
+        if self._too_deep(el, tid, at):
+            return None
+        done = self._definition(tid, el.line, at)
         self.used.add(tid)
-        if done is None:
+        if done is None or self._too_deep(el, tid, at + self.heights[tid]):
             return None
         self._check_model(tid, done)
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})

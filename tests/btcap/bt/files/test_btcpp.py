@@ -661,3 +661,18 @@ def test_a_deep_tree_within_the_bound_loads_and_ticks() -> None:
     body = "<Inverter>" * depth + "<AlwaysSuccess/>" + "</Inverter>" * depth
     tree = _load(_xml(f'<BehaviorTree ID="Main">{body}</BehaviorTree>'))
     assert tree.tick() is State.SUCCEEDED
+
+
+def test_subtrees_nested_without_bound_are_refused_naming_the_line() -> None:
+    """Each BehaviorTree is shallow, but a chain of 1000 SubTrees nests 2000 nodes deep."""
+    chain = [
+        f'<BehaviorTree ID="T{i}"><Inverter><SubTree ID="T{i + 1}"/></Inverter></BehaviorTree>'
+        for i in range(1000)
+    ]
+    text = _xml(
+        "\n".join([*chain, '<BehaviorTree ID="T1000"><AlwaysSuccess/></BehaviorTree>']), "T0"
+    )
+    with pytest.raises(
+        TreeFileError, match=r"^t.xml: line 102: <SubTree ID='T101'> nests the tree 202 nodes deep"
+    ):
+        _load(text)
