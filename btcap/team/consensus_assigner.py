@@ -39,7 +39,7 @@ from btcap.team.assignment import (
 )
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import AuctionOutcome
-from btcap.team.core.consensus import Claim, Consensus, Task
+from btcap.team.core.consensus import Claim, Consensus, Task, Vector
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
 from btcap.team.messages import (
@@ -402,18 +402,27 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
         before = self.core.views.get(sender)
         if self.core.hear(sender, msg.seq, claim, view):
-            if self.core.claims.get(sender) is claim:
+            fresh = self.core.claims.get(sender) is claim
+            if fresh:
                 self._impls[sender] = msg.implementation
-            elif self.core.views[sender] == before and view.get(self.robot) != (
-                self.core.claim.stamp,
-                self.core.version,
-            ):
-                self._behind.add(sender)  # a retry still missing our word (lost): say it again
+            if self._missed(before, self.core.views[sender], fresh):
+                self._behind.add(sender)
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:
                 p.why[sender] = why
         self._soon()
+
+    def _missed(self, before: Vector | None, now: Vector, fresh: bool) -> bool:
+        """Whether a peer needs our word again: it retried (no ``fresh`` claim, the same
+        view) still without it (ours was lost), or its view of us went backwards (it lost
+        us and took us back, forgetting our tasks). Not on every message it sent while
+        ours was on its way: that would double the traffic of a round."""
+        ours, seen = (self.core.claim.stamp, self.core.version), now.get(self.robot, (0, 0))
+        if before is None or seen == ours:
+            return False
+        was = before.get(self.robot, (0, 0))
+        return (not fresh and now == before) or seen[0] < was[0] or seen[1] < was[1]
 
 
 async def _within(aw: Awaitable[R], clock: TimeSource, seconds: float) -> R | None:

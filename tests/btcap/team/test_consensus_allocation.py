@@ -21,8 +21,8 @@ from btcap import Parallel, Sequence, State
 from btcap.team.assignment import Assigned, AssignmentTask, AuctionRecord, Unassigned
 from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
-from btcap.team.messages import ConsensusClaim, ConsensusTasks, OpenTask
-from btcap.transports import Address
+from btcap.team.messages import ConsensusClaim, ConsensusTasks, Heartbeat, OpenTask
+from btcap.transports import BROADCAST, Address
 from btcap.transports.codec import Envelope
 
 
@@ -327,4 +327,39 @@ async def test_a_claim_lost_on_the_way_is_asked_for_again_and_wins() -> None:
             assert node.assignments == ["b"]
             assert t.clock.now() - opened < window
             assert _cons(a).stats.early_closes == 1
+            await tree.shutdown()
+
+
+async def test_a_robot_that_lost_the_origin_and_took_it_back_is_told_its_tasks() -> None:
+    """b falsely declares the origin failed (a's heartbeats to b are lost; a still hears
+    b) and so forgets a's open task. When a is back, b's view of a has gone backwards:
+    a must tell b its tasks again at once, not at a quarter-window retry."""
+    window = 1000.0
+    with anyio.fail_after(20):
+        probe = Probe()
+        async with team(strategy="consensus", reevaluate_s=None, auction_window_s=window) as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            route = t.net._route
+            cut = [True]
+
+            def lossy(src: Any, env: Envelope) -> None:
+                to_b = src.system_id == "a" and env.recipient.system in ("b", BROADCAST)
+                if cut[0] and to_b and isinstance(env.msg, Heartbeat):
+                    return
+                route(src, env)
+
+            t.net._route = lossy  # type: ignore[method-assign]
+            await until(lambda: "a" not in b.team.alive(), "b to declare a failed")
+            assert "b" in a.team.alive()
+            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: bool(_cons(a).core.own_tasks()), "the offer")
+            cut[0] = False
+            back = t.clock.now()
+            state = await tick_until(tree, lambda s: s is not State.RUNNING)
+            assert state is State.SUCCEEDED
+            assert node.assignments == ["b"]
+            assert t.clock.now() - back < window / 4
             await tree.shutdown()
