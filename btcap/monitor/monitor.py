@@ -91,7 +91,13 @@ class Monitor:
             from btcap.monitor.server import MonitorServer  # aiohttp only when serving
 
             self._server = MonitorServer(self, host, port)
-            await self._server.start()
+            try:
+                await self._server.start()
+            except BaseException:
+                self._server = None
+                if self._recorder is not None:
+                    self._recorder.close()  # nobody calls stop() after a failed start
+                raise
         self._task = asyncio.get_running_loop().create_task(self._flusher(), name="monitor")
 
     def detach(self) -> None:

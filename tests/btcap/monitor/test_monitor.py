@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import gc
 import json
+import warnings
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -436,3 +438,18 @@ async def test_an_auction_says_why_the_cheapest_bidder_did_not_win() -> None:
     (second,) = [a for a in auctions if a["winner"] == "dear"]
     assert second["bids"][0] == ["cheap", 1.0]
     assert second["reasons"] == {"cheap": "took another task of the same round"}
+
+
+async def test_a_monitor_that_cannot_listen_closes_its_recording(tmp_path: Path) -> None:
+    """The port is taken: start fails, and the recording it opened is not left open."""
+    with anyio.fail_after(10):
+        async with Monitor(port=0) as taken:
+            port = int(taken.url.rstrip("/").rsplit(":", 1)[1])
+            monitor = Monitor(port=port, record=tmp_path / "run.jsonl")
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", ResourceWarning)
+                with pytest.raises(OSError, match=f"cannot listen on 127.0.0.1:{port}"):
+                    await monitor.start()
+                del monitor
+                gc.collect()
+    assert [w for w in caught if issubclass(w.category, ResourceWarning)] == []
