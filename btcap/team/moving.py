@@ -96,7 +96,8 @@ class Reevaluation:
         if ex.robot != sender:
             return f"cost of {msg.execution} from another robot than its executor {ex.robot}"
         ex.cost = msg.cost
-        self.news()
+        if self.mc.config.reevaluate_s is not None:  # None: this origin never moves work
+            self.news()
         return None
 
     def movable(self, ex: Handle) -> bool:

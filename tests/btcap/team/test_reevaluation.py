@@ -127,6 +127,35 @@ async def test_a_rising_estimate_of_the_running_robot_is_news_at_once() -> None:
             await tree.shutdown()
 
 
+async def test_a_rising_estimate_never_moves_the_work_of_an_origin_that_never_moves() -> None:
+    """a runs with ``reevaluate_s=None`` (never moved); its executor b, configured to
+    re-evaluate, still reports its rise: the report is noted but moves nothing."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(reevaluate_s=1000.0) as t:
+            a = await t.add("a", reevaluate_s=None)
+            await t.add("b", [count_impl("b", lambda inputs: float(inputs["x"]), probe)])
+            await t.add("c", [count_impl("c", 10.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(Sequence("root", children=[node]))
+            await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
+            for _ in range(20):  # b's first estimates: its baseline
+                tree.tick()
+                await step(0.05)
+            node.set_input("x", 50)
+            ex = node.execution
+            assert ex is not None
+            await tick_until(tree, lambda _s: ex.cost == 50.0, "b's report")
+            for _ in range(40):
+                tree.tick()
+                await step(0.05)
+            assert node.assignments == ["b"]
+            assert a.mission_control.stats.moved == 0
+            assert not probe.violations
+            await tree.shutdown()
+
+
 async def test_a_cost_report_from_another_robot_than_the_executor_is_refused() -> None:
     with anyio.fail_after(10):
         probe = Probe()
