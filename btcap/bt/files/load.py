@@ -37,8 +37,11 @@ def _load(
     reg = registry if registry is not None else default_registry()
     stack = (source.resolve(),) if source is not None else ()
     if fmt != "xml":
-        spec = parse(decode(data, fmt, where), where)
-        return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+        try:
+            spec = parse(decode(data, fmt, where), where)
+            return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+        except RecursionError:  # decoding, checking and building all recurse per level
+            raise TreeFileError([f"{where}: nodes nested too deep to read"]) from None
     translator = XmlTranslator(read_xml(data, where), where, reg)
     spec = translator.translate()
     try:

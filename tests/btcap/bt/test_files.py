@@ -816,3 +816,13 @@ def test_type_valued_options_of_custom_nodes_round_trip(tmp_path: Path, how: str
     path = save_tree(tree, tmp_path / "p.yaml", reg)
     assert "kind: 'list[int] | None'" in path.read_text()
     assert load_tree(path, reg).root.options["kind"] == list[int] | None
+
+
+@pytest.mark.parametrize("fmt", ["json", "yaml"])
+def test_nodes_nested_without_bound_are_refused_not_a_recursion_error(fmt: Any) -> None:
+    """JSON nests in flow style and YAML too: 5000 Inverters deep is a clear refusal."""
+    text = '{"type": "AlwaysSuccess"}'
+    for i in range(5000):
+        text = f'{{"type": "Inverter", "name": "i{i}", "children": [{text}]}}'
+    with pytest.raises(btcap.TreeFileError, match=r"^deep: .*nested too deep"):
+        loads_tree(f'{{"btcap": 1, "root": {text}}}', fmt, name="deep")
