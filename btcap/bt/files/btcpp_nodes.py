@@ -50,6 +50,16 @@ def _seconds(text: str) -> float:
     return ms / 1000.0
 
 
+def _timeout(text: str) -> float:
+    seconds = _seconds(text)
+    if seconds == 0:
+        raise MappingError(
+            "msec=0 is no timeout in BehaviorTree.CPP (it starts no timer), where btcap's "
+            "Timeout would fail at once; leave the Timeout out"
+        )
+    return seconds
+
+
 def _attempts(text: str) -> int | None:
     n = parse_int(text)
     if n == -1:
@@ -114,7 +124,7 @@ STANDARD: dict[str, Standard] = {
         "RepeatUntilSuccess", {"num_attempts": ("max_attempts", _attempts)}, ("num_attempts",)
     ),
     "Repeat": Standard("Repeat", {"num_cycles": ("times", _cycles)}, ("num_cycles",)),
-    "Timeout": Standard("Timeout", {"msec": ("seconds", _seconds)}, ("msec",)),
+    "Timeout": Standard("Timeout", {"msec": ("seconds", _timeout)}, ("msec",)),
     "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
     "RunOnce": Standard("RunOnce", {"then_skip": ("", _no_skip)}, ("then_skip",)),
     "AlwaysSuccess": Standard("AlwaysSuccess"),

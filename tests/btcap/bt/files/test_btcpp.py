@@ -460,6 +460,14 @@ ERRORS = [
         3,
         "<Timeout> needs attribute 'msec'",
     ),
+    (  # BehaviorTree.CPP starts no timer for 0: the child runs as long as it likes
+        _xml(
+            '<BehaviorTree ID="Main">\n<Timeout msec="0"><AlwaysSuccess/></Timeout>'
+            "\n</BehaviorTree>"
+        ),
+        3,
+        "<Timeout> attribute 'msec': msec=0 is no timeout in BehaviorTree.CPP",
+    ),
     (
         _xml(
             '<BehaviorTree ID="Main">\n<Repeat num_cycles="0"><AlwaysSuccess/></Repeat>'
