@@ -360,9 +360,11 @@ class Throttle(_Timed):
 
 
 class RunOnce(Decorator):
-    """Runs the child to a result once, then keeps returning that result until reset."""
+    """Runs the child to a result once, then keeps returning that result until reset
+    (``forever``: a reset keeps it too, as BehaviorTree.CPP's RunOnce does)."""
 
     __slots__ = ("_done",)
+    OPTIONS: ClassVar[Any] = {"forever": Port(bool, False, "keep the result across resets")}
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -377,4 +379,5 @@ class RunOnce(Decorator):
         return s
 
     def on_reset(self) -> None:
-        self._done = None
+        if not self.options["forever"]:
+            self._done = None

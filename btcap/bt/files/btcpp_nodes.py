@@ -126,7 +126,9 @@ STANDARD: dict[str, Standard] = {
     "Repeat": Standard("Repeat", {"num_cycles": ("times", _cycles)}, ("num_cycles",)),
     "Timeout": Standard("Timeout", {"msec": ("seconds", _timeout)}, ("msec",)),
     "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
-    "RunOnce": Standard("RunOnce", {"then_skip": ("", _no_skip)}, ("then_skip",)),
+    "RunOnce": Standard(
+        "RunOnce", {"then_skip": ("", _no_skip)}, ("then_skip",), fixed={"forever": True}
+    ),
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
     "Sleep": Standard("Wait", {"msec": ("seconds", _seconds)}, ("msec",)),

@@ -684,3 +684,21 @@ def test_subtrees_nested_without_bound_are_refused_naming_the_line() -> None:
         TreeFileError, match=r"^t.xml: line 102: <SubTree ID='T101'> nests the tree 202 nodes deep"
     ):
         _load(text)
+
+
+def test_run_once_runs_its_child_once_even_under_a_repeat() -> None:
+    """BehaviorTree.CPP's RunOnce keeps its first result forever; a Repeat resetting it
+    between cycles must not run the child again."""
+    ticked: list[str] = []
+
+    class Once(Leaf):
+        def on_tick(self) -> State:
+            ticked.append(self.name)
+            return State.SUCCEEDED
+
+    reg = _registry()
+    reg.register(Once)
+    body = '<Repeat num_cycles="3"><RunOnce then_skip="false"><Once/></RunOnce></Repeat>'
+    tree = loads_tree(_xml(f'<BehaviorTree ID="Main">{body}</BehaviorTree>'), "xml", reg)
+    assert [tree.tick() for _ in range(3)][-1] is State.SUCCEEDED
+    assert ticked == ["Once"]
