@@ -6,14 +6,18 @@ its last batch; :func:`read_record` reads it back for a replay or a plot.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any
 
 import msgspec
 
 from btcap.monitor.view import Event, TeamView
+from btcap.transports.log import get_logger
 
 __all__ = ["FORMAT", "RecordError", "Recorder", "read_record"]
+
+log = get_logger("btcap.monitor")
 
 FORMAT = "btcap-monitor"
 VERSION = 1
@@ -41,11 +45,23 @@ class Recorder:
     def write(self, batch: list[Event]) -> None:
         if self._file.closed:
             return
-        self._file.write(b"".join(_encode.encode(ev) + b"\n" for ev in batch))
-        self._file.flush()
+        try:
+            self._file.write(b"".join(_encode.encode(ev) + b"\n" for ev in batch))
+            self._file.flush()
+        except OSError as exc:
+            self._failed(exc)
 
     def close(self) -> None:
-        self._file.close()
+        try:
+            self._file.close()
+        except OSError as exc:
+            self._failed(exc)
+
+    def _failed(self, exc: OSError) -> None:
+        """A full disk ends the recording (said once), never the monitor or the robot."""
+        log.error("monitor.record_failed", path=str(self.path), error=exc.strerror or str(exc))
+        with contextlib.suppress(OSError):
+            self._file.close()
 
 
 def read_record(path: str | Path) -> list[Event]:

@@ -15,6 +15,7 @@ from typing import Any
 import aiohttp
 import anyio
 import pytest
+from structlog.testing import capture_logs
 
 import btcap.cli
 from btcap import Leaf, Monitor, Parallel, Replay, Sequence, State, Tree
@@ -453,3 +454,15 @@ async def test_a_monitor_that_cannot_listen_closes_its_recording(tmp_path: Path)
                 del monitor
                 gc.collect()
     assert [w for w in caught if issubclass(w.category, ResourceWarning)] == []
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (a full disk)")
+async def test_a_full_disk_stops_the_recording_not_the_monitor() -> None:
+    with anyio.fail_after(10), capture_logs() as logs:
+        async with Monitor(port=None, record="/dev/full") as monitor:
+            for k, robot in enumerate(["a", "b"]):
+                monitor.emit({"t": float(k), "k": "robot", "robot": robot})
+                assert len(monitor.flush()) == 1
+    assert sorted(monitor.view.robots) == ["a", "b"]
+    failed = [e for e in logs if e["event"] == "monitor.record_failed"]
+    assert [e["path"] for e in failed] == ["/dev/full"], logs
