@@ -75,11 +75,11 @@ class Builder:
 
     # -- trees ------------------------------------------------------------------------
     def build_main(self, clock: TimeSource | None) -> Tree:
-        total = self._expanded()
+        total, what = self._expanded()
         if total > MAX_NODES:
             raise TreeFileError(
                 [
-                    f"{self.where}: the tree expands to {total} nodes (each Subtree use "
+                    f"{self.where}: {what} expands to {total} nodes (each Subtree use "
                     f"is a copy of its subtree); btcap builds at most {MAX_NODES}"
                 ]
             )
@@ -183,9 +183,10 @@ class Builder:
         return out
 
     # -- subtrees ---------------------------------------------------------------------
-    def _expanded(self) -> int:
-        """Nodes the main tree builds to, before building them: subtrees nested in
-        subtrees multiply. A cycle counts once (it is reported when building)."""
+    def _expanded(self) -> tuple[int, str]:
+        """The most nodes the main tree or a subtree (each is built, used or not) builds
+        to, and which: subtrees nested in subtrees multiply. A cycle counts once (it is
+        reported when building)."""
         sizes: dict[str, int] = {}
 
         def size(spec: NodeSpec, active: tuple[str, ...]) -> int:
@@ -198,7 +199,11 @@ class Builder:
                 n += sizes[ref]
             return n
 
-        return size(self.spec.root, ())
+        most = (size(self.spec.root, ()), "the tree")
+        for name, sub in self.spec.subtrees.items():
+            if name not in sizes:
+                sizes[name] = size(sub.root, (name,)) if sub.root is not None else 1
+        return max([most, *((n, f"subtree {name!r}") for name, n in sizes.items())])
 
     def _check_subtree(self, name: str) -> bool:
         """Build a definition once to report its problems; cached, cycles reported."""

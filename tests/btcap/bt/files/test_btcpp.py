@@ -642,17 +642,21 @@ def test_load_tree_reads_xml_files_and_names_them(tmp_path: Path) -> None:
         load_tree(path)
 
 
-def test_subtrees_used_twice_per_level_are_refused_not_built_exponentially() -> None:
-    """Every <SubTree> use is a copy: 40 levels of two uses each would be 2**40 nodes."""
+@pytest.mark.parametrize(("main", "what"), [("T0", "the tree"), ("Main", "subtree 'T0'")])
+def test_subtrees_used_twice_per_level_are_refused_not_built_exponentially(
+    main: str, what: str
+) -> None:
+    """Every <SubTree> use is a copy: 40 levels of two uses each would be 2**40 nodes,
+    whether the main tree uses them or not (every BehaviorTree is checked)."""
     levels = [
         f'<BehaviorTree ID="T{i}"><Sequence><SubTree ID="T{i + 1}"/><SubTree ID="T{i + 1}"/>'
         "</Sequence></BehaviorTree>"
         for i in range(40)
     ]
-    text = _xml(
-        "\n".join([*levels, '<BehaviorTree ID="T40"><AlwaysSuccess/></BehaviorTree>']), "T0"
-    )
-    with pytest.raises(TreeFileError, match=r"^t.xml: .*expands to \d+ nodes"):
+    last = '<BehaviorTree ID="T40"><AlwaysSuccess/></BehaviorTree>'
+    small = '<BehaviorTree ID="Main"><AlwaysSuccess/></BehaviorTree>'
+    text = _xml("\n".join([small, *levels, last]), main)
+    with pytest.raises(TreeFileError, match=rf"^t.xml: {what} expands to {2**42 - 3} nodes"):
         _load(text)
 
 
