@@ -10,6 +10,7 @@ teammates mention but that cannot be reached is asked about (a roster request).
 
 from __future__ import annotations
 
+import math
 import random
 import time
 from collections.abc import Callable
@@ -80,6 +81,9 @@ class Membership(Actor):
         self._plan = BeatPlan(fanout, random.Random(f"targets {robot}"))
         self._mentions = Turns(random.Random(f"mentions {robot}"))
         self._asked = Introductions(failure_timeout_s)
+        #: Whose roster we take, until when: one that just met us (its welcome) or that
+        #: we asked; nobody else may make us dial endpoints of its choosing.
+        self._rosters_due: dict[str, float] = {}
         self._was_busy = False
         self._warned_size = 0
         self._listeners: list[Listener] = []
@@ -193,6 +197,7 @@ class Membership(Actor):
         for event in events:
             self._emit(event, msg.robot)
         if TeamEvent.JOINED in events:
+            self._expect_roster(msg.robot, now)
             self._welcome(msg.robot)
         if msg.heard and msg.robot in self.table.members:
             self._hearsay(msg, now)
@@ -226,10 +231,16 @@ class Membership(Actor):
     def _hearsay(self, msg: Heartbeat, now: float) -> None:
         """Fresh beats keep teammates alive; robots we do not know yet get a heartbeat if we
         can reach them, else the sender is asked where they are."""
+        # Its own beats reach us every ceil(members / fanout) periods at worst: hearsay
+        # bridges twice that, never more (a lying teammate cannot keep it alive).
+        gap = math.ceil(len(self.table.members) / self.fanout) * self.heartbeat_s
+        limit = self.failure_timeout_s + 2 * gap
         unknown = [
             h.robot
             for h in msg.heard[: 4 * self.fanout]  # more than we ever send: ignored
-            if self.table.hearsay(h.robot, h.incarnation, h.beat, now, h.age_ms / 1000)
+            if self.table.hearsay(
+                h.robot, h.incarnation, h.beat, now, h.age_ms / 1000, limit_s=limit
+            )
         ]
         due = self._asked.due(unknown, now) if unknown else []
         if not due:
@@ -241,6 +252,7 @@ class Membership(Actor):
                 self._beat_to(robot)
         ask = [r for r in due if r not in reachable]
         if ask:
+            self._expect_roster(msg.robot, now)
             self.system.tell(Address(msg.robot, self.PATH), RosterRequest(ask))
 
     @handler
@@ -263,6 +275,10 @@ class Membership(Actor):
         transport = self.system.transport
         if not self._from_member(msg) or transport is None:
             return
+        due = self._rosters_due.pop(self.sender, None)
+        if due is None or self.system.clock.now() > due:
+            self._refuse(msg, detail="a roster nobody asked for")
+            return
         for c in msg.contacts[: self.table.max_members]:
             known = c.robot == self.robot or c.robot in self.table.members
             if not known and transport.introduce(c.robot, c.endpoint):
@@ -274,6 +290,12 @@ class Membership(Actor):
             return None
         running, queued = self._activity()
         return Activity(self.robot, running, queued)
+
+    def _expect_roster(self, robot: str, now: float) -> None:
+        due = self._rosters_due
+        for r in [r for r, until in due.items() if until < now or r not in self.table.members]:
+            del due[r]
+        due[robot] = now + self.failure_timeout_s
 
     def _from_member(self, msg: Roster | RosterRequest | ActivityQuery) -> bool:
         if self.sender in self.table.members:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 
 __all__ = ["Member", "MemberTable", "TeamEvent"]
@@ -24,6 +25,7 @@ class Member:
     repo_version: int
     busy: bool = False
     beat: int = 0  #: its latest heartbeat number heard, directly or from a teammate
+    last_direct: float = 0.0  #: when its own heartbeat last arrived
 
 
 class MemberTable:
@@ -70,10 +72,11 @@ class MemberTable:
         if m is None:
             if len(self.members) >= self.max_members:
                 return events  # full: a real member gets in once a silent one times out
-            self.members[robot] = Member(robot, incarnation, now, repo_version, busy, beat)
+            self.members[robot] = Member(robot, incarnation, now, repo_version, busy, beat, now)
             events.append(TeamEvent.JOINED)
             return events
         m.last_seen = max(m.last_seen, now)
+        m.last_direct = max(m.last_direct, now)
         m.beat = max(m.beat, beat)
         if m.repo_version != repo_version:
             m.repo_version = repo_version
@@ -85,10 +88,18 @@ class MemberTable:
         return events
 
     def hearsay(
-        self, robot: str, incarnation: int, beat: int, now: float, age_s: float = 0.0
+        self,
+        robot: str,
+        incarnation: int,
+        beat: int,
+        now: float,
+        age_s: float = 0.0,
+        *,
+        limit_s: float = math.inf,
     ) -> bool:
         """A teammate heard ``robot`` beat ``age_s`` ago: a newer beat of the life we know
-        keeps it alive from then on.
+        keeps it alive from then on, for at most ``limit_s`` after its own last heartbeat
+        to us (a teammate that lies about a dead robot cannot keep it alive for ever).
 
         Hearsay never makes a member, ends one or changes what it offers: only the robot
         itself does that. True if ``robot`` is not a member yet (worth an introduction).
@@ -98,7 +109,8 @@ class MemberTable:
         m = self.members.get(robot)
         if m is None:
             return True
-        if m.incarnation == incarnation and beat > m.beat:
+        fresh = beat > m.beat and math.isfinite(age_s)
+        if m.incarnation == incarnation and fresh and now - m.last_direct <= limit_s:
             m.beat = beat
             m.last_seen = max(m.last_seen, min(now, now - age_s))
         return False

@@ -14,7 +14,7 @@ from btcap import Sequence
 from btcap.actors import ActorSystem, ManualClock
 from btcap.team.deploy import observe_team
 from btcap.team.membership import Membership, TeamEvent
-from btcap.team.messages import Goodbye, Heartbeat
+from btcap.team.messages import Contact, Goodbye, Heartbeat, Roster
 from btcap.team.protocol import protocol_registry
 from btcap.transports import Address, InProcessNetwork
 
@@ -197,3 +197,18 @@ async def test_an_observer_sees_what_each_member_runs() -> None:
             views = {m.robot: m.running for m in await observe_team(observer)}
             assert views == {"a": [], "b": seen["b"].running}
             await tree.shutdown()
+
+
+async def test_a_roster_nobody_asked_for_is_refused() -> None:
+    """Only a robot that just met us (its welcome) or that we asked may make us dial."""
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            c = await t.add("c")
+            await t.converged()
+            await t.clock.sleep(2 * a.team.failure_timeout_s)  # past the welcome
+            refused = a.team.refused
+            c.system.tell(
+                Address("a", Membership.PATH), Roster([Contact("ghost", "tcp://127.0.0.1:9")])
+            )
+            await until(lambda: a.team.refused == refused + 1, "the roster refused")

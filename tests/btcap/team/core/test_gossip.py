@@ -109,3 +109,14 @@ def test_past_the_fanout_members_take_turns_and_carry_hearsay() -> None:
         assert "seed" in beat.to  # the one non-member gets a beat every period
         seen |= set(beat.to) - {"seed"}
     assert seen == team
+
+
+def test_a_teammate_lying_about_a_dead_robot_keeps_it_alive_only_so_long() -> None:
+    t = MemberTable("me", failure_timeout_s=1.0)
+    t.heartbeat("b", 1, 0, 0.0, beat=1)  # b's last own heartbeat
+    beat = 1
+    for now in (0.5, 1.0, 1.5, 2.0):  # a liar reports ever newer beats of b
+        beat += 1
+        t.hearsay("b", 1, beat, now, limit_s=1.5)
+    assert t.members["b"].last_seen == 1.5  # the report at 2.0 came too late after 0.0
+    assert t.expire(2.6) == ["b"]
