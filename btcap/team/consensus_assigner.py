@@ -38,7 +38,7 @@ from btcap.team.assignment import (
     Unassigned,
 )
 from btcap.team.capability import ASSIGNER_PATH
-from btcap.team.core.auction import AuctionOutcome
+from btcap.team.core.auction import REASON_CHARS, AuctionOutcome
 from btcap.team.core.consensus import Claim, Consensus, Task, Vector
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.membership import Membership, TeamEvent
@@ -257,7 +257,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return Assigned(win.robot, impl, win.cost)
         self.stats.declined_awards += 1
         if reply is not None:
-            mine.why[win.robot] = f"declined the award: {reply.reason}"
+            mine.why[win.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
         mine.why.setdefault(win.robot, "no answer to the award")
         log.info(
             "consensus.award_declined", robot=self.robot, to=win.robot, why=mine.why[win.robot]
@@ -410,7 +410,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:
-                p.why[sender] = why
+                p.why[sender] = why[:REASON_CHARS]
         self._soon()
 
     def _missed(self, before: Vector | None, now: Vector, fresh: bool) -> bool:

@@ -16,6 +16,9 @@ from btcap.team.messages import Bid, NoBid
 
 __all__ = ["Auction", "AuctionOutcome"]
 
+#: How much of a reason a peer gives is kept (for the log and the user).
+REASON_CHARS = 200
+
 
 @dataclass(slots=True)
 class AuctionOutcome:
@@ -66,7 +69,7 @@ class Auction:
             else:
                 self.bids[robot] = answer
         else:
-            self.declined[robot] = answer.reason
+            self.declined[robot] = answer.reason[:REASON_CHARS]  # a peer's words: bounded
         return True
 
     def member_lost(self, robot: str) -> None:

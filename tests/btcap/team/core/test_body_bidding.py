@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from btcap.team.core.auction import Auction
+from btcap.team.core.auction import REASON_CHARS, Auction
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
 from btcap.team.core.ids import AuctionId, ExecutionId
@@ -91,6 +91,12 @@ def test_auction_answers_only_from_the_robot_they_speak_for() -> None:
     assert a.closed(0.5)
     assert [b.robot for b in a.outcome().awardable()] == ["b"]
     assert a.outcome().awardable(reserve=3.0) == []
+
+
+def test_a_peers_reason_is_kept_bounded() -> None:
+    a = Auction(A1, "Count", frozenset({"b"}), deadline=1.0)
+    assert a.offer(NoBid(A1, "b", "x" * 1_000_000), sender="b")
+    assert len(a.declined["b"]) == REASON_CHARS
 
 
 def test_the_body_says_when_it_comes_free() -> None:
