@@ -48,12 +48,20 @@ class Source(Protocol):
 class MonitorServer:
     """Serves one :class:`Source` on ``host:port`` (0: a free port) until stopped."""
 
-    def __init__(self, source: Source, host: str, port: int) -> None:
+    def __init__(self, source: Source, host: str, port: int, *, max_pages: int = 32) -> None:
         self.source = source
         self.host, self.port = host, port
+        #: Open pages at most (each holds a queue and costs a snapshot to start): more are
+        #: refused, so pages left open or opened in a loop cannot pile up.
+        self.max_pages = max_pages
         source.hub.snapshot = source.snapshot
         self._runner: web.AppRunner | None = None
         self._sockets: set[web.WebSocketResponse] = set()
+
+    @property
+    def pages(self) -> int:
+        """Pages connected now."""
+        return len(self._sockets)
 
     @property
     def url(self) -> str:
@@ -111,6 +119,10 @@ class MonitorServer:
                             content_type="application/json")  # fmt: skip
 
     async def _ws(self, request: web.Request) -> web.WebSocketResponse:
+        if len(self._sockets) >= self.max_pages:
+            raise web.HTTPServiceUnavailable(
+                text=f"monitor: {self.max_pages} pages are open already; close one"
+            )
         ws = web.WebSocketResponse(heartbeat=20.0)
         await ws.prepare(request)
         hub = self.source.hub

@@ -348,6 +348,30 @@ async def test_a_page_that_falls_behind_gets_a_snapshot_not_a_backlog() -> None:
     assert [m["events"][0]["t"] for m in got[1:]] == list(range(BACKLOG, BACKLOG + 5))
 
 
+async def test_pages_beyond_the_limit_are_refused_until_one_closes(
+    small_run: tuple[dict[str, Any], Path],
+) -> None:
+    _, record = small_run
+    server = MonitorServer(Replay.open(record), "127.0.0.1", 0, max_pages=2)
+    with anyio.fail_after(30):
+        await server.start()
+        try:
+            async with aiohttp.ClientSession() as http:
+                url = server.url + "ws"
+                async with http.ws_connect(url) as one, http.ws_connect(url):
+                    assert json.loads((await one.receive()).data)["type"] == "snapshot"
+                    while server.pages < 2:  # noqa: ASYNC110 - noted once set up
+                        await anyio.sleep(0.01)
+                    with pytest.raises(aiohttp.WSServerHandshakeError, match="503"):
+                        await http.ws_connect(url)
+                while server.pages:  # noqa: ASYNC110 - the server notes closes on its own
+                    await anyio.sleep(0.01)
+                async with http.ws_connect(url) as again:  # two closed: room again
+                    assert json.loads((await again.receive()).data)["type"] == "snapshot"
+        finally:
+            await server.stop()
+
+
 async def test_other_sites_cannot_read_a_loopback_monitor() -> None:
     """Not by DNS rebinding (another host name) nor by a WebSocket from their pages."""
     with anyio.fail_after(10):
