@@ -4,16 +4,20 @@ between near-equal ones, and the hand-over leaves no gap and no double run."""
 from __future__ import annotations
 
 import anyio
+import pytest
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 
 from btcap import Parallel, Sequence, State
 from btcap.team.messages import CostChanged
 
 
-async def test_work_moves_to_a_robot_that_comes_free_and_is_clearly_cheaper() -> None:
+@pytest.mark.parametrize("strategy", ["auction", "sequential", "consensus"])
+async def test_work_moves_to_a_robot_that_comes_free_and_is_clearly_cheaper(strategy: str) -> None:
+    """Whatever the strategy: the holder's bid counts the margin lower, c beats it clearly
+    once free, and the hand-over never runs the task twice."""
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(reevaluate_s=1000.0) as t:  # only news triggers it here
+        async with team(strategy=strategy, reevaluate_s=1000.0) as t:  # only news here
             a = await t.add("a")
             await t.add("b", [count_impl("b", 5.0, probe)])
             await t.add("c", [count_impl("c", 1.0, probe)])
