@@ -33,6 +33,7 @@ from btcap.team.deploy import (
     run_mission_file,
     wait_for_team,
 )
+from btcap.team.spawn import listening
 from btcap.team.supervised import stdin_closed, watchable
 
 __all__ = ["add_parser"]
@@ -153,7 +154,7 @@ def _agent(args: argparse.Namespace) -> int:
                 monitor.add_agent(agent)
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
-            print(f"agent {agent.robot} listening on {endpoint}", flush=True)
+            print(listening(agent.robot, endpoint), flush=True)
             if args.until_stdin_closes and watchable(sys.stdin):
                 await stdin_closed()
             else:

@@ -30,6 +30,7 @@ from btcap.team.agentspec import AgentSpec, check_specs
 __all__ = [
     "AgentProcess",
     "AsyncAgentProcess",
+    "listening",
     "open_agent",
     "open_agents",
     "spawn_agent",
@@ -56,7 +57,12 @@ def _env() -> dict[str, str]:
     return env
 
 
-_LISTENING = re.compile(r"agent (\S+) listening on (\S+)")
+def listening(robot: str, endpoint: str) -> str:
+    """The line ``btcap agent`` prints once it listens (what :func:`open_agent` waits for)."""
+    return f"agent {robot} listening on {endpoint}"
+
+
+_LISTENING = re.compile(r"agent (\S+) listening on (\S+)")  # what listening() writes
 
 
 async def _open(argv: list[str], stderr: int | None) -> anyio.abc.Process:
