@@ -1,36 +1,60 @@
 # Two commands on a fresh machine: `make run` and `make test`.
+# Both install from the lock files in requirements/ (exact versions with hashes), so a
+# fresh machine gets what CI tested; `make lock` refreshes them on purpose.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
+UV_VERSION := 0.13.9
+# uv resolves for every platform and Python the project supports, from the package index.
+LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
+	--custom-compile-command "make lock" pyproject.toml requirements/build.in
 
-.PHONY: run test lint docs bench clean venv
+.PHONY: run test lint docs bench lock clean venv
 
-$(STAMP): pyproject.toml
+# $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
+# own resolved here: all are in the lock) with the locked setuptools.
+define install
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
-	@touch $(STAMP)
+	$(BIN)/python -m pip install --quiet --require-hashes --no-deps -r $(1)
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
+	@touch $@
+endef
 
-venv: $(STAMP)
+# What running needs, and no more.
+$(VENV)/.installed-run: requirements/run.txt pyproject.toml
+	$(call install,requirements/run.txt)
 
-run: $(STAMP)
+# Running plus tests, lint, docs and benchmarks.
+$(VENV)/.installed-dev: requirements/dev.txt pyproject.toml
+	$(call install,requirements/dev.txt)
+
+venv: $(VENV)/.installed-dev
+
+run: $(VENV)/.installed-run
 	$(BIN)/btcap run $(ARGS)
 
-test: $(STAMP)
+test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest $(ARGS)
 
-lint: $(STAMP)
+lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 
 # The guide and API reference (mkdocs.yml), into build/docs; strict: a warning fails it.
-docs: $(STAMP)
+docs: $(VENV)/.installed-dev
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
-bench: $(STAMP)
+bench: $(VENV)/.installed-dev
 	$(BIN)/python -m btcap.bench all $(ARGS)
+
+# Refresh the lock files from pyproject.toml (newest releases that satisfy it), then run
+# `make test` on a fresh clone before committing them.
+lock:
+	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet uv==$(UV_VERSION)
+	$(LOCK) -o requirements/run.txt
+	$(LOCK) --extra dev -c requirements/run.txt -o requirements/dev.txt
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

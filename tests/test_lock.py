@@ -1,0 +1,77 @@
+"""The lock files in requirements/ cover what pyproject.toml asks for.
+
+`make run` and `make test` install from the lock files alone (exact versions with hashes,
+no dependency resolution of their own), so a requirement added to pyproject.toml without
+`make lock` would be missing on a fresh machine; this says so before CI does.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+from packaging.markers import Marker
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
+
+ROOT = Path(__file__).resolve().parent.parent
+PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==([^\s;\\]+)\s*(?:;\s*([^\\]+?))?\s*\\?$")
+
+
+def _pins(lock: Path) -> dict[str, list[tuple[str, str | None]]]:
+    """Name -> [(version, marker)] of every pinned line (universal locks repeat names)."""
+    pins: dict[str, list[tuple[str, str | None]]] = {}
+    for line in lock.read_text().splitlines():
+        m = PIN.match(line)
+        if m:
+            pins.setdefault(canonicalize_name(m[1]), []).append((m[2], m[3]))
+    return pins
+
+
+def _wanted(extras: list[str]) -> list[Requirement]:
+    """The requirements of btcap with ``extras``, self-references (btcap[...]) expanded."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    reqs = [Requirement(r) for r in project["dependencies"]]
+    todo, seen = list(extras), set()
+    while todo:
+        extra = todo.pop()
+        if extra in seen:
+            continue
+        seen.add(extra)
+        for text in project["optional-dependencies"][extra]:
+            r = Requirement(text)
+            if canonicalize_name(r.name) == "btcap":
+                todo.extend(r.extras)
+            else:
+                reqs.append(r)
+    return reqs
+
+
+@pytest.mark.parametrize(("lock", "extras"), [("run.txt", []), ("dev.txt", ["dev"])])
+def test_every_requirement_is_pinned_in_the_lock(lock: str, extras: list[str]) -> None:
+    pins = _pins(ROOT / "requirements" / lock)
+    assert pins, f"requirements/{lock} pins nothing"
+    problems = []
+    for req in _wanted(extras):
+        if req.marker is not None and not req.marker.evaluate():
+            continue
+        found = pins.get(canonicalize_name(req.name))
+        if not found:
+            problems.append(f"{req} is not in requirements/{lock}")
+            continue
+        here = [v for v, marker in found if marker is None or Marker(marker).evaluate()]
+        if not any(req.specifier.contains(v, prereleases=True) for v in here):
+            problems.append(f"{req}: requirements/{lock} pins {here}")
+    assert not problems, "run `make lock`: " + "; ".join(problems)
+
+
+def test_the_dev_lock_agrees_with_the_run_lock() -> None:
+    """`make run` then `make test` share a venv: one version of each package in both."""
+    run, dev = (_pins(ROOT / "requirements" / f) for f in ("run.txt", "dev.txt"))
+    versions = {
+        name: ({v for v, _ in run[name]}, {v for v, _ in dev.get(name, [])}) for name in run
+    }
+    differ = {name: pair for name, pair in versions.items() if pair[0] != pair[1]}
+    assert not differ, f"run `make lock`: the locks differ on {differ}"
