@@ -4,8 +4,9 @@ The convention (also stated at the top of README.md): ```python blocks run, each
 whole program in its own interpreter; ```yaml blocks load as tree files or agent files;
 ```sh lines are commands btcap's parser accepts (cheap ones run), make targets or scripts
 of this repository; ```text and ```console blocks are output, shown and not run. A block
-without a tag is an error, so nobody's example silently escapes the test. Blocks that
-only include a file (``--8<-- "examples/..."``) are the examples, tested on their own.
+without a tag is an error, so nobody's example silently escapes the test. A block right
+after ``<!-- copy: PATH -->`` is a copy of that file (tests/test_docs.py keeps it equal),
+which is tested on its own.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class Block:
     line: int
     lang: str
     code: str
+    copied: bool  # a copy of a file of the repository, tested on its own
 
     def __str__(self) -> str:
         return f"{self.page.relative_to(ROOT)}:{self.line} ({self.lang or 'no tag'})"
@@ -51,7 +53,10 @@ def _blocks() -> list[Block]:
         text = page.read_text(encoding="utf-8")
         for m in _FENCE.finditer(text):
             line = text.count("\n", 0, m.start()) + 1
-            found.append(Block(page, line, m[1], m[2]))
+            copied = text[: m.start()].endswith("-->\n") and text[: m.start()].rsplit("\n", 2)[
+                -2
+            ].startswith("<!-- copy: ")
+            found.append(Block(page, line, m[1], m[2], copied))
     return found
 
 
@@ -59,7 +64,7 @@ BLOCKS = _blocks()
 
 
 def _of(lang: str) -> list[Block]:
-    return [b for b in BLOCKS if b.lang == lang and not b.code.lstrip().startswith("--8<--")]
+    return [b for b in BLOCKS if b.lang == lang and not b.copied]
 
 
 @pytest.fixture(autouse=True)
