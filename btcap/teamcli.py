@@ -230,9 +230,12 @@ def _mission(args: argparse.Namespace) -> int:
                 monitor.add_agent(agent)
             await _join(agent, config, args.wait)
             shown = None if monitor is None else functools.partial(monitor.add_tree, robot=robot)
-            return await run_mission_file(
+            report = await run_mission_file(
                 agent, args.tree, registry, timeout_s=args.timeout, progress=_say, on_tree=shown
             )
+            if monitor is not None:
+                monitor.finish(*_outcome(report, args.tree.name))
+            return report
 
     try:
         report = _until_stopped(run)
@@ -243,6 +246,15 @@ def _mission(args: argparse.Namespace) -> int:
         return 130
     _print_summary(report)
     return 0 if report.succeeded else 1
+
+
+def _outcome(report: MissionReport, name: str) -> tuple[str, str]:
+    """How the monitor says the mission ended: (result, a line for a person)."""
+    after = f"after {report.elapsed_s:.1f} s"
+    if report.timed_out:
+        return "failed", f"mission {name} timed out {after}"
+    result = "succeeded" if report.succeeded else "failed"
+    return result, f"mission {name} {result} {after}"
 
 
 def _say(line: str) -> None:

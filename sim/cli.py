@@ -211,6 +211,21 @@ def _write(result: MissionResult, out: Path) -> None:
     plot_timeline(result, out / "timeline.png")
 
 
+async def _run_and_write(
+    run: Callable[[Monitor | None], Awaitable[MissionResult]],
+    folder: Path,
+    out: Path,
+    monitor: Monitor | None,
+) -> MissionResult:
+    """Run, then write the results while the monitor still serves how the run ended."""
+    result = await run(monitor)
+    try:
+        _write(result, folder)
+    except OSError as exc:
+        raise CliError(f"cannot write results to {out}: {exc.strerror or exc}") from None
+    return result
+
+
 #: What ``btcap run`` exits with when a signal stopped it (128 + the signal's number).
 _STOPPED_BY = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
@@ -341,14 +356,11 @@ def run_command(args: argparse.Namespace) -> int:
                 _run_one, s, console, args.quiet, args.distributed, args.fast, stopper
             )
             keep = None if args.no_record else record
-            result = asyncio.run(monitored(args.monitor, keep, s.name, run))
+            write = functools.partial(_run_and_write, run, folder, out)
+            result = asyncio.run(monitored(args.monitor, keep, s.name, write))
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             results.append(result)
-            try:
-                _write(result, out / s.name if args.compare else out)
-            except OSError as exc:
-                raise CliError(f"cannot write results to {out}: {exc.strerror or exc}") from None
             if stopper.signum is not None:
                 console.print(f"interrupted by {signal.Signals(stopper.signum).name}")
                 break

@@ -87,7 +87,7 @@ async def run_scenario(
 
     A ``monitor`` is shown the operator (its membership view), the mission tree and every
     robot hosted in this process; it is detached when the mission ends, so it keeps the
-    last states rather than the shutdown.
+    last states rather than the shutdown, and told how the mission ended.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -197,8 +197,21 @@ async def run_scenario(
             )
             if monitor is not None:
                 monitor.detach()
+                monitor.finish(*_outcome(result, s))
             await tree.shutdown()
     return result
+
+
+def _outcome(result: MissionResult, s: Scenario) -> tuple[str, str]:
+    """How a monitor says the mission ended: (result, a line for a person)."""
+    after = f"after {result.mission_time_s:.0f} s"
+    if result.completed:
+        return "succeeded", f"mission succeeded {after}"
+    if result.interrupted:
+        return "stopped", f"mission stopped {after} (interrupted)"
+    if result.timed_out:
+        return "failed", f"mission failed: time limit of {s.time_limit_s:g} s reached"
+    return "failed", f"mission failed {after}"
 
 
 async def _team_forms(

@@ -3,7 +3,8 @@
 A client gets the whole picture when it connects (``{"type": "snapshot", "state": ...}``)
 and then every batch of events (``{"type": "events", "events": [...]}``), one message per
 batch. A client too slow to keep up is not waited for: its backlog is replaced by a
-fresh snapshot.
+fresh snapshot. When the server stops, each client's queue ends with :data:`END`: the
+page is sent everything before it (a live run's ``finished`` event) and then closed.
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ import msgspec
 
 from btcap.monitor.view import Event
 
-__all__ = ["BACKLOG", "Hub"]
+__all__ = ["BACKLOG", "END", "Hub"]
 
 #: Batches a client may fall behind before it is sent a snapshot instead.
 BACKLOG = 32
+#: The last item of a client's queue: nothing follows, close its socket.
+END = b""
 
 _encode = msgspec.json.Encoder()
 
@@ -58,6 +61,14 @@ class Hub:
             _drain(q)
         if self._clients:
             self._send(self._snapshot_msg())
+
+    def close(self) -> None:
+        """Every page is to be sent what is queued for it, then :data:`END`."""
+        for q in self._clients:
+            if q.full():  # too far behind: the picture now, then the end
+                _drain(q)
+                q.put_nowait(self._snapshot_msg())
+            q.put_nowait(END)
 
     def _send(self, msg: bytes) -> None:
         for q in self._clients:

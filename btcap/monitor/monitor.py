@@ -6,6 +6,7 @@
         monitor.add_agent(agent)            # its host tree, team view and auctions
         monitor.add_tree(mission, robot=agent.robot)
         ...                                 # http://127.0.0.1:8765/
+        monitor.finish("succeeded", "mission succeeded after 12 s")  # else "stopped"
 
 Changes are collected as they happen and handed on in batches, at most ``batch_hz``
 times a second (wall time), to the picture (:class:`~btcap.monitor.view.TeamView`), the
@@ -36,12 +37,14 @@ from btcap.transports.log import get_logger
 if TYPE_CHECKING:
     from btcap.monitor.server import MonitorServer
 
-__all__ = ["Monitor"]
+__all__ = ["RESULTS", "Monitor"]
 
 log = get_logger("btcap.monitor")
 
 #: Reasons of lost executions kept for the runs they end.
 _MAX_LOST = 1000
+#: How a run can end (:meth:`Monitor.finish`).
+RESULTS = ("succeeded", "failed", "stopped")
 _STATUS = {TeamEvent.JOINED: "joined", TeamEvent.LEFT: "left", TeamEvent.FAILED: "failed"}
 
 
@@ -81,6 +84,7 @@ class Monitor:
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
         self._task: asyncio.Task[None] | None = None
+        self._finished = False
         if port is not None and not is_loopback(host):
             log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
 
@@ -108,8 +112,22 @@ class Monitor:
         self._detach.clear()
         self.flush()
 
+    def finish(self, result: str, summary: str) -> None:
+        """Say the run is over and hand it on at once, after the changes before it:
+        ``result`` is ``succeeded``, ``failed`` or ``stopped``, ``summary`` one line for a
+        person ("mission succeeded after 1337 s"). Pages show it and keep the final
+        picture when the monitor stops; it is recorded, so a replay's end shows it too.
+        :meth:`stop` says ``stopped`` if nobody said how the run ended."""
+        if result not in RESULTS:
+            raise ValueError(f"result {result!r}: expected one of {', '.join(RESULTS)}")
+        self.flush()
+        self._finished = True
+        self.emit({"t": self.view.t, "k": "finished", "result": result, "summary": summary})
+        self.flush()
+
     async def stop(self) -> None:
-        """Detach from everything, hand on the last changes, close the page and the file."""
+        """Detach from everything, hand on the last changes and how the run ended (see
+        :meth:`finish`), close the pages (they keep the final picture) and the file."""
         self.detach()
         if self._task is not None:
             self._task.cancel()
@@ -117,6 +135,8 @@ class Monitor:
                 await self._task
             self._task = None
         self.flush()
+        if not self._finished:
+            self.finish("stopped", "monitoring stopped")
         if self._server is not None:
             await self._server.stop()
         if self._recorder is not None:

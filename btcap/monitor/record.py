@@ -23,7 +23,8 @@ FORMAT = "btcap-monitor"
 VERSION = 1
 
 #: Fields that are names wherever an event has them (a page shows them as text).
-_NAMES = ("robot", "tree", "capability", "origin", "node", "execution", "id", "auctioneer")
+_NAMES = ("robot", "tree", "capability", "origin", "node", "execution", "id", "auctioneer",
+          "result", "summary")  # fmt: skip
 
 _decode = msgspec.json.Decoder(dict[str, Any])
 _encode = msgspec.json.Encoder()

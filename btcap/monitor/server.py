@@ -17,7 +17,7 @@ from urllib.parse import urlsplit
 import msgspec
 from aiohttp import WSMsgType, web
 
-from btcap.monitor.hub import Hub
+from btcap.monitor.hub import END, Hub
 from btcap.monitor.net import is_loopback
 from btcap.transports.log import get_logger
 
@@ -28,6 +28,9 @@ log = get_logger("btcap.monitor")
 STATIC = Path(str(files("btcap.monitor") / "static"))
 #: Nothing is loaded from anywhere but this server.
 CSP = "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'"
+
+#: How long a stopping server waits for the pages to be sent their last messages.
+DRAIN_S = 2.0
 
 _encode = msgspec.json.Encoder()
 #: What a browser on this machine may call a loopback server.
@@ -57,6 +60,7 @@ class MonitorServer:
         source.hub.snapshot = source.snapshot
         self._runner: web.AppRunner | None = None
         self._sockets: set[web.WebSocketResponse] = set()
+        self._pumps: set[asyncio.Task[None]] = set()
 
     @property
     def pages(self) -> int:
@@ -105,6 +109,11 @@ class MonitorServer:
         return await handler(request)
 
     async def stop(self) -> None:
+        """Send each page what is queued for it (how the run ended: the page keeps the
+        final picture), waiting at most :data:`DRAIN_S`, then close every page."""
+        self.source.hub.close()
+        if self._pumps:
+            await asyncio.wait(self._pumps, timeout=DRAIN_S)
         for ws in list(self._sockets):
             await ws.close()
         if self._runner is not None:
@@ -129,6 +138,7 @@ class MonitorServer:
         q = hub.join()
         self._sockets.add(ws)
         sender = asyncio.get_running_loop().create_task(_pump(q, ws), name="monitor client")
+        self._pumps.add(sender)
         try:
             async for msg in ws:
                 control = getattr(self.source, "control", None)
@@ -138,6 +148,7 @@ class MonitorServer:
         finally:
             hub.leave(q)
             self._sockets.discard(ws)
+            self._pumps.discard(sender)
             sender.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await sender
@@ -146,8 +157,9 @@ class MonitorServer:
 
 async def _pump(q: asyncio.Queue[bytes], ws: web.WebSocketResponse) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
-        while True:
-            await ws.send_str((await q.get()).decode())
+        while (msg := await q.get()) != END:
+            await ws.send_str(msg.decode())
+        await ws.close()
 
 
 @web.middleware

@@ -18,6 +18,14 @@ Events are JSON objects with a clock time ``t`` and a kind ``k``:
   ``why``) or closed (``phase`` ``close``: ``bids`` ``[[robot, cost], ...]`` cheapest
   first, ``declined`` (would not bid) and ``reasons`` (why a robot was passed over:
   no answer, a bid not below the reserve, the award declined) per robot, ``winner``).
+  An auction that closes exactly as the last one for the same node did (same capability,
+  auctioneer, why, bids, declines, reasons and winner: a retry nobody took, a
+  re-evaluation that kept the work where it was) is folded into that one's row, which then
+  stands for ``count`` auctions held from ``first`` to ``opened`` (the latest) and takes
+  the latest one's place: a task retried for minutes is one row, not a table of copies.
+- ``finished``: the run is over: ``result`` (``succeeded``, ``failed`` or ``stopped``)
+  and ``summary``, one line for a person ("mission succeeded after 1337 s"). The picture
+  keeps the last one (a page shows the final state, not a lost connection).
 """
 
 from __future__ import annotations
@@ -34,6 +42,9 @@ MAX_RUNS = 2000
 MAX_AUCTIONS = 200
 MAX_MARKS = 500
 
+#: What two auctions of one node must share to be shown as one row.
+_SAME = ("capability", "auctioneer", "why", "bids", "declined", "reasons", "winner")
+
 
 class TeamView:
     """Robots with their trees and membership, executions, auctions and marks."""
@@ -44,6 +55,7 @@ class TeamView:
         self.runs: OrderedDict[str, dict[str, Any]] = OrderedDict()
         self.auctions: OrderedDict[str, dict[str, Any]] = OrderedDict()
         self.marks: list[dict[str, Any]] = []
+        self.finished: dict[str, Any] | None = None
 
     def robot(self, name: str) -> dict[str, Any]:
         r = self.robots.get(name)
@@ -75,6 +87,8 @@ class TeamView:
             self._run(ev)
         elif kind == "auction":
             self._auction(ev)
+        elif kind == "finished":
+            self.finished = {"t": ev["t"], "result": ev["result"], "summary": ev["summary"]}
 
     def _run(self, ev: Event) -> None:
         key = ev["execution"]
@@ -113,17 +127,36 @@ class TeamView:
                 "declined": {},
                 "reasons": {},
                 "winner": None,
+                "count": 1,
+                "first": ev["t"],
             }
             while len(self.auctions) > MAX_AUCTIONS:
                 self.auctions.popitem(last=False)
         elif key in self.auctions:
-            self.auctions[key].update(
+            row = self.auctions[key]
+            row.update(
                 closed=ev["t"],
                 bids=ev["bids"],
                 declined=ev["declined"],
                 reasons=ev["reasons"],
                 winner=ev["winner"],
             )
+            self._fold(row)
+
+    def _fold(self, row: dict[str, Any]) -> None:
+        """Fold a closed auction into the row of the last one for its node, if it ended
+        the same way (app.js, ``fold``, does the same)."""
+        last, before = None, False
+        for other in reversed(self.auctions.values()):  # at most MAX_AUCTIONS rows
+            if other is row:
+                before = True
+            elif before and other["node"] == row["node"]:
+                last = other
+                break
+        if last is None or last["closed"] is None or any(last[f] != row[f] for f in _SAME):
+            return
+        row.update(count=last["count"] + 1, first=last["first"])
+        del self.auctions[last["id"]]
 
     def snapshot(self) -> dict[str, Any]:
         """The picture as JSON-ready data (what ``/api/state`` serves)."""
@@ -133,4 +166,5 @@ class TeamView:
             "runs": list(self.runs.values()),
             "auctions": list(self.auctions.values()),
             "marks": self.marks,
+            "finished": self.finished,
         }

@@ -1,5 +1,5 @@
 """``btcap run`` stopped by SIGTERM or SIGINT ends the mission early and still writes its
-result, marked interrupted, and exits with 128 + the signal's number."""
+result, marked interrupted (its recording too), and exits with 128 + the signal's number."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from btcap.monitor import read_record
 from btcap.sim.metrics import MissionResult
 
 SMALL = Path(__file__).parent / "data" / "small.yaml"
@@ -48,3 +49,7 @@ def test_a_signal_stops_the_run_and_the_result_says_interrupted(
     assert result.interrupted
     assert not result.completed
     assert not result.timed_out
+    events = read_record(out / "monitor.jsonl")  # the monitor's page says so too
+    (end,) = [e for e in events if e["k"] == "finished"]
+    assert end["result"] == "stopped"
+    assert end["summary"].endswith("(interrupted)")

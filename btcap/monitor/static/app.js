@@ -15,6 +15,7 @@ const PALETTE = ["#5cc3ee", "#f5b942", "#8fd694", "#c39bd3", "#f1948a", "#76d7c4
 let S = null;            // the picture
 let dirty = false;
 let ws = null;
+let down = false;        // the connection dropped (after a finished run it is no news)
 const capColour = new Map();
 
 function fromSnapshot(snap) {
@@ -33,6 +34,29 @@ function robot(name) {
 
 function trim(map, max) {
   while (map.size > max) map.delete(map.keys().next().value);
+}
+
+// Equal as JSON values (key order aside), as Python compares the decoded dicts.
+function same(a, b) {
+  if (a === b) return true;
+  if (typeof a !== "object" || typeof b !== "object" || a === null || b === null) return false;
+  if (Array.isArray(a) !== Array.isArray(b)) return false;
+  const ka = Object.keys(a);
+  return ka.length === Object.keys(b).length && ka.every((k) => Object.hasOwn(b, k) && same(a[k], b[k]));
+}
+
+// What two auctions of one node must share to be shown as one row (view.py, _SAME).
+const SAME = ["capability", "auctioneer", "why", "bids", "declined", "reasons", "winner"];
+// A closed auction that ended as the last one for its node did joins that one's row (view.py, _fold).
+function fold(row) {
+  let last = null, before = false;
+  for (const other of [...S.auctions.values()].reverse()) {
+    if (other === row) before = true;
+    else if (before && other.node === row.node) { last = other; break; }
+  }
+  if (!last || last.closed === null || !SAME.every((f) => same(last[f], row[f]))) return;
+  Object.assign(row, { count: last.count + 1, first: last.first });
+  S.auctions.delete(last.id);
 }
 
 function apply(ev) {
@@ -65,12 +89,18 @@ function apply(ev) {
       if (ev.phase === "open") {
         S.auctions.set(ev.id, { id: ev.id, auctioneer: ev.auctioneer, capability: ev.capability,
           node: ev.node, execution: ev.execution, candidates: ev.candidates, why: ev.why,
-          opened: ev.t, closed: null, bids: [], declined: {}, reasons: {}, winner: null });
+          opened: ev.t, closed: null, bids: [], declined: {}, reasons: {}, winner: null,
+          count: 1, first: ev.t });
         trim(S.auctions, MAX_AUCTIONS);
       } else if (S.auctions.has(ev.id)) {
-        Object.assign(S.auctions.get(ev.id), { closed: ev.t, bids: ev.bids, declined: ev.declined,
+        const row = S.auctions.get(ev.id);
+        Object.assign(row, { closed: ev.t, bids: ev.bids, declined: ev.declined,
           reasons: ev.reasons, winner: ev.winner });
+        fold(row);
       }
+      break;
+    case "finished":
+      S.finished = { t: ev.t, result: ev.result, summary: ev.summary };
       break;
     case "clock":
       if (S.replay) Object.assign(S.replay, { t: ev.t, playing: ev.playing, speed: ev.speed });
@@ -214,13 +244,14 @@ function layout(nodes) {
   roots.forEach((r) => place(r, 0));
   return { pos, kids, cols: Math.max(next, 1), rows: depth + 1 };
 }
+// A tree wider than its panel is drawn to fit (the default) or at 100 % with a scroll bar.
 function drawTree(robotName, treeName, tree) {
   const { pos, cols, rows } = layout(tree.nodes);
   const w = cols * (NODE_W + GAP_X) + GAP_X, h = rows * (NODE_H + GAP_Y) + 6;
   const room = Math.max(300, document.getElementById("trees").clientWidth - 4);
-  const k = w > room && room / w >= 0.6 ? room / w : 1;  // shrink a little, else scroll
+  const k = w > room && document.getElementById("fit").checked ? room / w : 1;
   const svg = el("svg:svg", { width: w * k, height: h * k, viewBox: `0 0 ${w} ${h}`,
-    "data-tree": treeName });
+    "data-tree": treeName, "data-zoom": k.toFixed(3), "data-wide": w > room ? "yes" : null });
   const at = (id) => { const p = pos.get(id); return { x: GAP_X + p.x * (NODE_W + GAP_X), y: 4 + p.d * (NODE_H + GAP_Y) }; };
   const byId = new Map(tree.nodes.map((n) => [n.id, n]));
   const running = new Map();
@@ -255,17 +286,23 @@ function drawTrees() {
   const scroll = new Map([...box.querySelectorAll(".tree-scroll")].map((d) => [d.dataset.key, d.scrollLeft]));
   box.replaceChildren();
   const blocks = [];
+  let wide = false;
   for (const name of robotNames().reverse()) {
     for (const [t, tree] of Object.entries(S.robots[name].trees)) {
       const host = t.endsWith("-host");
       const key = `${name}/${t}`;
-      const div = el("div", { class: "tree-scroll", "data-key": key }, drawTree(name, t, tree));
+      const svg = drawTree(name, t, tree);
+      const k = +svg.dataset.zoom;
+      wide ||= svg.dataset.wide === "yes";
+      const div = el("div", { class: "tree-scroll", "data-key": key }, svg);
       blocks.push([host, el("div", { class: host ? "tree-block host" : "tree-block mission",
-        "data-robot": name }, el("h3", {}, `${name} `, el("small", { text: t })), div)]);
+        "data-robot": name }, el("h3", {}, `${name} `, el("small", { text: t }),
+        k < 1 ? el("small", { class: "zoomed", text: ` · ${Math.round(k * 100)} %` }) : null), div)]);
       requestAnimationFrame(() => { div.scrollLeft = scroll.get(key) ?? 0; });
     }
   }
   blocks.sort((a, b) => a[0] - b[0]).forEach(([, b]) => box.append(b));
+  document.getElementById("zoom").hidden = !wide;
 }
 
 // -- auctions -------------------------------------------------------------------------------
@@ -290,11 +327,14 @@ function drawAuctions() {
     else if (kept) bids.append(el("span", { class: "why", text: "stays" }));
     else if (!a.winner) bids.append(el("span", { class: "why re", text: "nobody took it" }));
     const re = a.why !== "first request" && !a.why.startsWith("new run");
-    table.append(el("tr", { "data-auction": a.id, class: kept ? "kept" : null },
-      el("td", { class: "num", text: fmt(a.opened) }),
+    const many = a.count > 1;  // identical auctions of one node, folded (view.py)
+    const span = many ? `${a.count} identical auctions from ${fmt(a.first)} s to ${fmt(a.opened)} s` : null;
+    table.append(el("tr", { "data-auction": a.id, "data-count": a.count, class: kept ? "kept" : null },
+      el("td", { class: "num", title: span, text: many ? `${fmt(a.first)}–${fmt(a.opened)}` : fmt(a.opened) }),
       el("td", { title: `${a.id} · ${a.node}` }, el("b", { text: a.capability }), el("br"),
         el("span", { class: "why", text: a.node.split("/").slice(-2).join("/") })),
-      el("td", { class: re ? "why re" : "why", text: a.why }), bids));
+      el("td", { class: re ? "why re" : "why" },
+        many ? el("span", { class: "count", title: span, text: `×${a.count}` }) : null, a.why), bids));
   }
   box.replaceChildren(table);
 }
@@ -303,7 +343,16 @@ function drawAuctions() {
 function drawHeader() {
   document.getElementById("title").textContent = S.title || "";
   const mode = document.getElementById("mode");
-  mode.textContent = S.mode; mode.className = `mode ${S.mode}`;
+  const fin = S.finished;
+  const state = fin ? "finished" : down ? "disconnected" : S.mode;
+  mode.textContent = state;
+  mode.className = `mode ${fin ? "finished" : down ? "down" : S.mode}`;
+  mode.title = fin && down ? "the monitor has closed; the page keeps the final picture" : "";
+  const atEnd = S.replay && S.replay.t >= S.replay.end;
+  const summary = document.getElementById("summary");
+  summary.textContent = fin ? fin.summary : atEnd ? "end of the recording (no result in it)" : "";
+  summary.className = `summary ${fin ? fin.result : ""}`;
+  summary.hidden = !summary.textContent;
   document.getElementById("clock").textContent = `t = ${fmt(S.t)} s`;
   const rp = document.getElementById("replay");
   rp.hidden = S.mode !== "replay";
@@ -331,13 +380,20 @@ function connect() {
   ws = new WebSocket(`${proto}://${location.host}/ws`);
   ws.onmessage = (m) => {
     const msg = JSON.parse(m.data);
-    if (msg.type === "snapshot") S = fromSnapshot(msg.state);
+    if (msg.type === "snapshot") { S = fromSnapshot(msg.state); down = false; }
     else if (msg.type === "events" && S) msg.events.forEach(apply);
     schedule();
   };
   ws.onclose = () => {
-    const mode = document.getElementById("mode");
-    mode.textContent = "disconnected"; mode.className = "mode down";
+    // The page keeps its picture. After a finished run the monitor closing is expected:
+    // the header keeps saying how it ended; only an unexpected drop says disconnected.
+    // Either way it tries again (the next run of `btcap run --compare` serves here too).
+    down = true;
+    if (S) schedule();
+    else {
+      const mode = document.getElementById("mode");
+      mode.textContent = "disconnected"; mode.className = "mode down";
+    }
     setTimeout(connect, 2000);
   };
 }
@@ -346,6 +402,7 @@ function send(msg) { if (ws && ws.readyState === 1) ws.send(JSON.stringify(msg))
 document.getElementById("play").onclick = () => send({ op: S && S.replay && S.replay.playing ? "pause" : "play" });
 document.getElementById("seek").onchange = (e) => send({ op: "seek", t: +e.target.value });
 document.getElementById("speed").onchange = (e) => send({ op: "speed", speed: +e.target.value });
+document.getElementById("fit").onchange = schedule;
 document.getElementById("legend").append(...STATES.slice(0, 8).map((s) => {
   const swatch = el("i");
   swatch.style.background = FILL[s];

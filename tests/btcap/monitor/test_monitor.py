@@ -7,6 +7,7 @@ import argparse
 import asyncio
 import gc
 import json
+import re
 import warnings
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -34,7 +35,7 @@ from btcap.transports import InProcessNetwork
 
 DATA = Path(__file__).parents[2] / "sim" / "data"
 ROBOTS = {"husky1", "spot1", "bebop1"}
-PICTURE = ("robots", "runs", "auctions", "marks")
+PICTURE = ("robots", "runs", "auctions", "marks", "finished")
 
 
 async def _json(url: str) -> Any:
@@ -85,6 +86,8 @@ def test_the_picture_shows_every_robot_its_trees_runs_and_auctions(
     assert awarded
     assert all(a["bids"][0][0] == a["winner"] for a in awarded)
     assert state["auctions"][0]["why"] == "first request"
+    assert state["finished"]["result"] == "succeeded"
+    assert re.fullmatch(r"mission succeeded after \d+ s", state["finished"]["summary"])
 
 
 def test_replay_of_the_recording_ends_in_the_live_state(
@@ -297,6 +300,8 @@ def test_btcap_run_records_by_default_replay_plots_it_and_refuses_other_files(
     assert main(["run", "--fast", "--quiet", "--out", str(out), str(DATA / "small.yaml")]) == 0
     events = read_record(out / "monitor.jsonl")
     assert {e["k"] for e in events} >= {"robot", "tree", "states", "team", "run", "auction"}
+    assert [e["result"] for e in events if e["k"] == "finished"] == ["succeeded"]
+    assert events[-1]["k"] == "finished"  # how it ended, last
     assert main(["replay", str(out / "result.json")]) == 2
     assert "result.json:1: not a btcap recording" in capsys.readouterr().err
     png = tmp_path / "timeline.png"

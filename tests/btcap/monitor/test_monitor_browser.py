@@ -19,7 +19,7 @@ from typing import Any
 import anyio
 import pytest
 
-from btcap import Monitor, Parallel, Replay, State
+from btcap import Leaf, Monitor, Parallel, Replay, Sequence, State, Tree
 from btcap.bt.state import DONE
 from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast
@@ -66,10 +66,10 @@ def browser() -> Iterator[WebDriver]:
 
 
 #: What the page's picture and the server's must agree on.
-PICTURE = ("robots", "runs", "auctions", "marks")
+PICTURE = ("robots", "runs", "auctions", "marks", "finished")
 #: The page's picture (app.js keeps runs and auctions in Maps), as the server shapes it.
 _PICTURE_JS = """return JSON.stringify({robots: S.robots, runs: [...S.runs.values()],
-    auctions: [...S.auctions.values()], marks: S.marks});"""
+    auctions: [...S.auctions.values()], marks: S.marks, finished: S.finished ?? null});"""
 
 
 def _page(driver: WebDriver) -> Any:
@@ -79,6 +79,15 @@ def _page(driver: WebDriver) -> Any:
 
 def _count(driver: WebDriver, css: str) -> int:
     return len(driver.find_elements(By.CSS_SELECTOR, css))
+
+
+def _text(driver: WebDriver, css: str) -> str:
+    return str(driver.find_element(By.CSS_SELECTOR, css).text)
+
+
+def _closed_calmly(driver: WebDriver) -> bool:
+    """The page shows its connection closed after the run finished (said on hover)."""
+    return bool(driver.find_element(By.ID, "mode").get_attribute("title"))
 
 
 async def _wait(driver: WebDriver, what: str, ok: Callable[[WebDriver], bool]) -> None:
@@ -153,6 +162,16 @@ async def test_the_page_shows_each_robot_and_a_capability_succeeding_live(
             await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
             await _screenshot(browser, tmp_path / "monitor.png")
             await tree.shutdown()
+            monitor.finish("succeeded", "mission succeeded after 1 s")
+            await _wait(browser, "the finished badge", lambda d: _count(d, ".mode.finished") == 1)
+            assert _text(browser, "#summary.succeeded") == "mission succeeded after 1 s"
+            final = _page(browser)
+    # The monitor has stopped: the page keeps the final picture and says how it ended.
+    await _wait(browser, "the connection closed", _closed_calmly)
+    assert _count(browser, ".mode.finished") == 1
+    assert _count(browser, ".mode.down") == 0
+    assert _page(browser) == final
+    assert _count(browser, '.node.cap[data-state="succeeded"]') == 2
     assert (tmp_path / "monitor.png").stat().st_size > 10_000
 
 
@@ -174,6 +193,8 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
             assert _count(browser, '[data-node="mission"][data-state="succeeded"]') == 1
             assert _count(browser, ".card") == 4
             await _screenshot(browser, tmp_path / "live.png")
+            live = monitor.snapshot()["finished"]
+            await _wait(browser, "the finished badge", lambda d: _count(d, ".mode.finished") == 1)
         replay = Replay.open(record)
         replay.playing = False
         replay.seek(replay.start + 0.3 * (replay.end - replay.start))
@@ -188,8 +209,16 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
             if os.environ.get("BTCAP_DOCS_SCREENSHOT"):
                 paths.append(DOCS)
             await _screenshot(browser, *paths)
+            assert _count(browser, "#summary[hidden]") == 1  # not over yet
+            replay.seek(replay.end)  # the end: how the run ended, as the live page said
+            await _wait(browser, "the finished badge", lambda d: _count(d, ".mode.finished") == 1)
+            assert _text(browser, "#summary.succeeded") == live["summary"]
+            replay.seek(replay.start)
+            await _wait(browser, "the replay badge again", lambda d: _count(d, ".mode.replay") == 1)
         finally:
             await server.stop()
+        # a replay stopped before its end is no finished run: the page says it lost it
+        await _wait(browser, "the connection lost", lambda d: _count(d, ".mode.down") == 1)
     assert (tmp_path / "replay.png").stat().st_size > 10_000
 
 
@@ -222,3 +251,82 @@ async def test_robot_names_from_the_network_are_shown_as_text(browser: WebDriver
             assert _count(browser, "img") == 0
             server = json.loads(json.dumps({k: monitor.snapshot()[k] for k in PICTURE}))
             await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
+
+
+async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
+    browser: WebDriver,
+) -> None:
+    """A task nobody takes is retried for minutes, another one's auctions in between:
+    a row per task with its count and time span, folded alike on the page and the server."""
+    nodes = ["operator:mission/loop_1/decontaminate", "operator:mission/loop_2/decontaminate"]
+    with anyio.fail_after(60):
+        async with Monitor(port=0, title="retries") as monitor:
+            await asyncio.to_thread(browser.get, monitor.url)
+            await _wait(browser, "the live badge", lambda d: _count(d, ".mode.live") == 1)
+            for n in range(12):  # over the stream, in batches as they happen
+                node, t = nodes[n % 2], 10.0 * n
+                base = {"k": "auction", "id": f"operator#{n}", "execution": f"{node}#1"}
+                declined = {"husky1": "busy", "spot1": "cannot"}
+                if n % 4 == 3:
+                    declined = dict(reversed(declined.items()))  # same, in another order
+                monitor.emit({**base, "t": t, "phase": "open", "auctioneer": "operator",
+                              "capability": "MoveToDecontamination", "node": node,
+                              "candidates": ["husky1"],
+                              "why": "retry: nobody took it last time"})  # fmt: skip
+                monitor.emit({**base, "t": t + 0.5, "phase": "close", "bids": [],
+                              "declined": declined, "reasons": declined,
+                              "winner": None})  # fmt: skip
+                monitor.flush()
+            await _wait(browser, "two rows", lambda d: _count(d, "tr[data-auction]") == 2)
+            rows = browser.execute_script(
+                """return [...document.querySelectorAll("tr[data-auction]")].map((r) =>
+                    [r.dataset.auction, r.querySelector(".count").textContent,
+                     r.querySelector("td.num").textContent]);"""
+            )
+            times, dash = "\u00d7", "\u2013"  # the page: "x6", "10.0-110" in its signs
+            assert rows == [
+                ["operator#11", f"{times}6", f"10.0{dash}110"],
+                ["operator#10", f"{times}6", f"0.0{dash}100"],
+            ]
+            server = json.loads(json.dumps({k: monitor.snapshot()[k] for k in PICTURE}))
+            assert [a["count"] for a in server["auctions"]] == [6, 6]
+            await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
+
+
+class _Step(Leaf):
+    def on_tick(self) -> State:
+        return State.SUCCEEDED
+
+
+async def test_a_tree_wider_than_its_panel_is_fitted_or_shown_at_100_percent(
+    browser: WebDriver,
+) -> None:
+    tree = Tree(Sequence("wide", children=[_Step(f"step_{k}") for k in range(40)]))
+    tree.setup()
+    with anyio.fail_after(60):
+        async with Monitor(port=0, title="wide") as monitor:
+            monitor.add_tree(tree, robot="ada")
+            await asyncio.to_thread(browser.get, monitor.url)
+            svg = '#trees svg[data-tree="wide"]'
+            await _wait(browser, "the tree", lambda d: _count(d, svg) == 1)
+
+            def sizes(d: WebDriver) -> tuple[float, float, float]:
+                """(drawn width, natural width, the panel's width)"""
+                js = """const s = document.querySelector(arguments[0]);
+                    return [s.getBoundingClientRect().width, s.viewBox.baseVal.width,
+                            document.getElementById('trees').clientWidth];"""
+                w, natural, panel = d.execute_script(js, svg)
+                return float(w), float(natural), float(panel)
+
+            drawn, natural, panel = sizes(browser)
+            assert natural > 2 * panel  # 40 leaves: far wider than the panel
+            assert drawn <= panel  # fitted by default, nothing cut off
+            assert _text(browser, ".tree-block .zoomed").endswith(" %")
+            browser.find_element(By.ID, "fit").click()  # at 100 %, with a scroll bar
+            await _wait(browser, "the tree at 100 %", lambda d: sizes(d)[0] == sizes(d)[1])
+            scroll = browser.find_element(By.CSS_SELECTOR, ".tree-scroll")
+            assert browser.execute_script("return arguments[0].scrollWidth", scroll) > panel
+            assert _count(browser, ".tree-block .zoomed") == 0
+            browser.find_element(By.ID, "fit").click()
+            await _wait(browser, "the tree fitted again", lambda d: sizes(d)[0] <= panel)
+    await tree.shutdown()
