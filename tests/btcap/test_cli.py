@@ -21,7 +21,7 @@ PATROL = EXAMPLES / "patrol.yaml"
 BAD = """\
 btcap: 1
 root:
-  type: Sequence
+  type: ReactiveSequence
   name: root
   children:
     - {type: Wiat, name: pause, options: {seconds: 1}}
@@ -78,7 +78,7 @@ def test_show_prints_types_names_options_and_wires(capsys: pytest.CaptureFixture
     out = capsys.readouterr().out
     assert out.startswith("Visit two waypoints")  # the description
     assert "tree 'patrol': 8 nodes, 2 wires" in out
-    assert "Sequence 'patrol'" in out
+    assert "ReactiveSequence 'patrol'" in out
     assert "├── Constant 'first'  value=(1.0, 2.0) type=tuple[float, float]" in out
     assert "Timeout 'leg1'  seconds=5.0" in out
     assert "Subtree 'go_first' (tree 'goto')" in out
@@ -157,7 +157,19 @@ def test_dot_to_an_unwritable_place_exits_2(
 def test_nodes_lists_types_with_ports(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["tree", "nodes"]) == 0
     out = capsys.readouterr().out
-    assert "Sequence: Succeeds when every child succeeds" in out
+    lines = out.splitlines()
+    assert (
+        "Sequence: Succeeds when every child succeeds in order; resumes at the running child."
+        in lines
+    )
+    assert (
+        "ReactiveSequence: Succeeds when every child succeeds in order; starts from the first "
+        "child every tick." in lines
+    )
+    assert (
+        "Fallback: Succeeds at the first child that succeeds; resumes at the running child."
+        in lines
+    )
     assert "  option retries: int = 1" in out
     assert main(["tree", "nodes", "Wait"]) == 0
     assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float"
