@@ -2,7 +2,7 @@
 
 import asyncio
 
-from btcap import Constant, Log, ReactiveSequence, Retry, Timeout, Tree, Wait
+from btcap import Constant, Log, Retry, Sequence, Timeout, Tree, Wait
 
 
 def build() -> Tree:
@@ -10,7 +10,7 @@ def build() -> Tree:
     report = Log("report", message="arrived")
     leg = Timeout("leg", seconds=5.0, children=[Wait("drive", seconds=0.2)])
     tree = Tree(
-        ReactiveSequence(
+        Sequence(
             "go_and_report", children=[goal, Retry("retry", retries=2, children=[leg]), report]
         )
     )

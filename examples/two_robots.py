@@ -5,7 +5,7 @@ Run: .venv/bin/python examples/two_robots.py
 
 import asyncio
 
-from btcap import ReactiveSequence, State
+from btcap import Sequence, State
 from btcap.team.agent import Agent
 from btcap.team.demo import ECHO, implementations
 from btcap.team.protocol import protocol_registry
@@ -29,7 +29,7 @@ async def main() -> None:
     ):
         await asyncio.sleep(0.3)  # let heartbeats and repositories spread
         echo = ECHO.node_type()("echo", inputs={"value": 41})
-        tree = base.mission(ReactiveSequence("mission", children=[echo]))
+        tree = base.mission(Sequence("mission", children=[echo]))
         for _ in range(20):
             tree.tick()
             await asyncio.sleep(0.05)

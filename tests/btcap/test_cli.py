@@ -78,7 +78,7 @@ def test_show_prints_types_names_options_and_wires(capsys: pytest.CaptureFixture
     out = capsys.readouterr().out
     assert out.startswith("Visit two waypoints")  # the description
     assert "tree 'patrol': 8 nodes, 2 wires" in out
-    assert "ReactiveSequence 'patrol'" in out
+    assert "Sequence 'patrol'" in out
     assert "├── Constant 'first'  value=(1.0, 2.0) type=tuple[float, float]" in out
     assert "Timeout 'leg1'  seconds=5.0" in out
     assert "Subtree 'go_first' (tree 'goto')" in out
