@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from btcap import AlwaysRunning, Sequence, Tree
+from btcap import AlwaysRunning, ReactiveSequence, Tree
 from btcap.actors import ManualClock
 from btcap.bench.common import write_result
 from btcap.sim.distance import DistanceCache, path_length
@@ -94,7 +94,7 @@ def _instance(grid: GridMap, rng: np.random.Generator, robots: int, tasks: int) 
 def _implementation(costs: dict[int, float]) -> Implementation:
     def build() -> Tree:
         bridge, _ = TASK.bridge_types()
-        return Tree(Sequence("impl", children=[bridge(name="in"), AlwaysRunning("work")]))
+        return Tree(ReactiveSequence("impl", children=[bridge(name="in"), AlwaysRunning("work")]))
 
     return Implementation("do-task", TASK, build, (), lambda inputs: costs[inputs["task"]])
 

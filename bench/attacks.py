@@ -23,7 +23,7 @@ from typing import Any
 
 import zmq
 
-from btcap import Sequence as SequenceNode
+from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
 from btcap.bench.common import write_result
 from btcap.bench.hostile import (

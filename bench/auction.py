@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from btcap import Sequence as SequenceNode
+from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Address, configure_logging
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.cpumeter import CpuMeter

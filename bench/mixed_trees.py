@@ -1,13 +1,15 @@
 """Seeded random *mixed* trees for the tick benchmark, built alike in btcap and py_trees.
 
-A mixed tree has reactive and memory Sequences/Fallbacks, decorators (Inverter,
+A mixed tree has Sequences/Fallbacks of both kinds, decorators (Inverter,
 ForceSuccess/Failure, RunningIsSuccess, Retry, Repeat) and, in the ``parallel`` variant,
 Parallels, over scripted leaves that look like conditions (mostly succeed) and actions
 (run for a few ticks, then succeed or fail). Every leaf returns the entry of its script for
 the current step, shared by all leaves, so both libraries see the same inputs.
 
-Mappings to py_trees: memory composites are ``memory=True``; ``Parallel()`` (all must
-succeed) is ``SuccessOnAll(synchronise=True)`` and ``Parallel(success_threshold=1,
+Mappings to py_trees: ``Sequence``/``Fallback`` (they resume at the running child) are
+``Sequence``/``Selector`` with ``memory=True``, ``ReactiveSequence``/``ReactiveFallback``
+the same with ``memory=False``; ``Parallel()`` (all must succeed) is
+``SuccessOnAll(synchronise=True)`` and ``Parallel(success_threshold=1,
 failure_threshold=1)`` is ``SuccessOnOne()``; ``Retry(retries=k)`` is
 ``Retry(num_failures=k + 1)``; ForceSuccess/ForceFailure are FailureIsSuccess/
 SuccessIsFailure.
@@ -39,7 +41,8 @@ __all__ = [
 #: Length of every leaf script; the shared step runs 0, 1, ..., STEPS - 1, 0, ...
 STEPS = 16
 _S, _F, _R = "S", "F", "R"
-_COMPOSITES = ("sequence", "fallback", "sequence_memory", "fallback_memory")
+#: In this order, so the seeded trees stay the ones measured before the 0.2 renaming.
+_COMPOSITES = ("reactive_sequence", "reactive_fallback", "sequence", "fallback")
 _DECORATORS = (
     "inverter",
     "force_success",
@@ -169,10 +172,10 @@ def build_btcap(spec: MixedSpec, step: Stepper) -> btcap.Node:
     if k == "parallel_one":
         return btcap.Parallel(spec.name, children=kids, success_threshold=1, failure_threshold=1)
     cls = {
+        "reactive_sequence": btcap.ReactiveSequence,
+        "reactive_fallback": btcap.ReactiveFallback,
         "sequence": btcap.Sequence,
         "fallback": btcap.Fallback,
-        "sequence_memory": btcap.SequenceWithMemory,
-        "fallback_memory": btcap.FallbackWithMemory,
     }[k]
     return cls(spec.name, children=kids)
 
@@ -201,8 +204,8 @@ def build_py_trees(spec: MixedSpec, step: Stepper) -> py_trees.behaviour.Behavio
         return c.Parallel(name, policy.SuccessOnAll(synchronise=True), children=kids)
     if k == "parallel_one":
         return c.Parallel(name, policy.SuccessOnOne(), children=kids)
-    memory = k.endswith("_memory")
-    cls = c.Sequence if k.startswith("sequence") else c.Selector
+    memory = not k.startswith("reactive_")
+    cls = c.Sequence if k.endswith("sequence") else c.Selector
     return cls(name, memory=memory, children=kids)
 
 

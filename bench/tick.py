@@ -1,8 +1,8 @@
 """Tick cost and memory per node: btcap vs py_trees 2.x on the same shapes, in one run.
 
-Shapes, built from one neutral description so both libraries get identical trees, all
-composites reactive (btcap ``Sequence``/``Fallback``; py_trees ``Sequence``/``Selector``
-with ``memory=False``):
+Shapes, built from one neutral description so both libraries get identical trees. In
+``flat`` and ``balanced`` every composite is reactive (btcap ``ReactiveSequence``/
+``ReactiveFallback``; py_trees ``Sequence``/``Selector`` with ``memory=False``):
 
 - ``flat``: a Sequence of 1000 always-success leaves (1001 nodes).
 - ``balanced``: depth 4, fan-out 5, 5, 6, 6 (1 + 5 + 25 + 150 + 900 = 1081 nodes), levels
@@ -12,8 +12,9 @@ with ``memory=False``):
   child passes on what its parent must return. No decorators are needed; the root
   succeeds.
 - ``mixed`` and ``mixed_parallel``: 12 seeded random trees each (:mod:`.mixed_trees`:
-  reactive and memory composites, decorators, scripted condition and action leaves; the
-  second also with Parallels), the same trees in both libraries. One run resets every
+  reactive composites and ones that resume at their running child (btcap ``Sequence``/
+  ``Fallback``, py_trees ``memory=True``), decorators, scripted condition and action
+  leaves; the second also with Parallels), the same trees in both libraries. One run resets every
   tree (untimed), then ticks each of them for 16 steps; the time of a run is divided by
   the number of nodes that library actually ticked in it (counted beforehand, the same on
   every run since runs start from reset).
@@ -131,7 +132,7 @@ def build_btcap(spec: Spec) -> btcap.Node:
     if spec.kind == FAILURE:
         return btcap.AlwaysFailure(spec.name)
     kids = [build_btcap(c) for c in spec.children]
-    cls = btcap.Sequence if spec.kind == SEQUENCE else btcap.Fallback
+    cls = btcap.ReactiveSequence if spec.kind == SEQUENCE else btcap.ReactiveFallback
     return cls(spec.name, children=kids)
 
 

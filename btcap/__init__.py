@@ -6,9 +6,10 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 
 from btcap.bt.composites import (
     Fallback,
-    FallbackWithMemory,
     IfThenElse,
     Parallel,
+    ReactiveFallback,
+    ReactiveSequence,
     Sequence,
     SequenceWithMemory,
     Switch,
@@ -89,7 +90,6 @@ __all__ = [
     "ExecutionId",
     "FailureIsRunning",
     "Fallback",
-    "FallbackWithMemory",
     "ForceFailure",
     "ForceSuccess",
     "IfThenElse",
@@ -108,6 +108,8 @@ __all__ = [
     "Parallel",
     "Port",
     "Precondition",
+    "ReactiveFallback",
+    "ReactiveSequence",
     "RegistryError",
     "RemoteCapabilitySlot",
     "Repeat",

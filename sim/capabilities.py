@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from btcap import Port, SequenceWithMemory, Tree
+from btcap import Port, Sequence, Tree
 from btcap.actors import Actor
 from btcap.sim.distance import Cell, DistanceCache, path_length
 from btcap.sim.grid import GridMap
@@ -121,7 +121,7 @@ def robot_setup(
             leaf = OperateLeaf(o.leaf, robot=robot, manager=manager, op=o.op)
             bo = out(name="outputs") if o.result is not None else None
             children = [bi, move, leaf] if bo is None else [bi, move, leaf, bo]
-            tree = Tree(SequenceWithMemory(o.op, children=children))
+            tree = Tree(Sequence(o.op, children=children))
             tree.wire(bi, o.goal, move, "goal")
             if o.target is not None:
                 tree.wire(bi, o.target, leaf, "target")

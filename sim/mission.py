@@ -6,12 +6,12 @@ from __future__ import annotations
 
 from btcap import (
     Compare,
-    FallbackWithMemory,
+    Fallback,
     ForceSuccess,
     Node,
     Parallel,
     RepeatUntilFailure,
-    SequenceWithMemory,
+    Sequence,
     Tree,
 )
 from btcap.sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY
@@ -33,7 +33,7 @@ def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
     explore_loop = RepeatUntilFailure(
         "explore_loop",
         children=[
-            SequenceWithMemory(
+            Sequence(
                 "explore_next",
                 children=[next_goal, ForceSuccess("try_explore", children=[explore])],
             )
@@ -49,16 +49,16 @@ def mission_tree(*, object_workers: int = 1, store: str = "sim/store") -> Tree:
         # it is not identified a second time.
         known = Compare("known_contaminated", op="==", inputs={"b": True})
         decon = DECONTAMINATE.node_type()("decontaminate")
-        check = FallbackWithMemory(
+        check = Fallback(
             "known_or_identify",
-            children=[known, SequenceWithMemory("identify_then_check", children=[identify, dirty])],
+            children=[known, Sequence("identify_then_check", children=[identify, dirty])],
         )
-        handle = SequenceWithMemory("identify_then_clean", children=[check, decon])
+        handle = Sequence("identify_then_clean", children=[check, decon])
         loops.append(
             RepeatUntilFailure(
                 f"object_loop_{k + 1}",
                 children=[
-                    SequenceWithMemory(
+                    Sequence(
                         "handle_next",
                         children=[claim, ForceSuccess("try_object", children=[handle])],
                     )

@@ -1,8 +1,11 @@
-"""Control flow: Sequence, Fallback (reactive and with memory), Parallel, IfThenElse, Switch.
+"""Control flow: Sequence, Fallback, their reactive kinds, Parallel, IfThenElse, Switch.
 
-Reactive composites tick from their first child every tick, so a condition that stops
-holding pre-empts the work after it. A child that is UNASSIGNED, ASSIGNED or PAUSED counts
-as RUNNING, and a child in ERROR counts as FAILED (the child keeps its error).
+The names mean what BehaviorTree.CPP v4 means. :class:`Sequence` and :class:`Fallback`
+resume at their running child; :class:`SequenceWithMemory` also resumes at a child that
+failed; :class:`ReactiveSequence` and :class:`ReactiveFallback` tick from their first child
+every tick, so a condition that stops holding pre-empts the work after it. A child that is
+UNASSIGNED, ASSIGNED or PAUSED counts as RUNNING, and a child in ERROR counts as FAILED
+(the child keeps its error).
 
 Halting: a composite that stops ticking an active child unticks it in that same tick, so
 after every tick only nodes ticked in it are active (:mod:`btcap.bt.invariants` checks
@@ -21,9 +24,10 @@ from btcap.bt.utility import Utility, fallback_utility, parallel_utility, sequen
 
 __all__ = [
     "Fallback",
-    "FallbackWithMemory",
     "IfThenElse",
     "Parallel",
+    "ReactiveFallback",
+    "ReactiveSequence",
     "Sequence",
     "SequenceWithMemory",
     "Switch",
@@ -64,8 +68,12 @@ class Composite(Node):
         self._high = -1
 
 
-class Sequence(Composite):
-    """Succeeds when every child succeeds, in order; fails at the first failure."""
+class ReactiveSequence(Composite):
+    """Succeeds when every child succeeds in order; starts from the first child every tick.
+
+    It fails at the first failure. Because every tick starts again from the first child, a
+    condition that stops holding pre-empts (unticks) a later child still running.
+    """
 
     __slots__ = ()
 
@@ -90,8 +98,12 @@ class Sequence(Composite):
         return sequence_utility([c.utility() for c in self.children])
 
 
-class Fallback(Composite):
-    """Succeeds at the first child that succeeds; fails when every child failed."""
+class ReactiveFallback(Composite):
+    """Succeeds at the first child that succeeds; starts from the first child every tick.
+
+    It fails when every child failed. Because every tick starts again from the first
+    child, an earlier child that succeeds pre-empts (unticks) a later child still running.
+    """
 
     __slots__ = ()
 
@@ -130,10 +142,17 @@ class _Memory(Composite):
         self._current = 0
 
 
-class SequenceWithMemory(_Memory):
-    """Like :class:`Sequence`, but children that succeeded are not ticked again."""
+class Sequence(_Memory):
+    """Succeeds when every child succeeds in order; resumes at the running child.
+
+    As BehaviorTree.CPP's Sequence: the children before the running one, which succeeded,
+    are not ticked again. It fails at the first failure; after a result the next tick
+    starts at the first child.
+    """
 
     __slots__ = ()
+    #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
+    _RESUME_FAILED: ClassVar[bool] = False
 
     def on_tick(self) -> State:
         children = self.children
@@ -144,7 +163,7 @@ class SequenceWithMemory(_Memory):
             if s is _SUCCEEDED:
                 i += 1
             elif s is _FAILED or s is _ERROR:
-                self._current = 0
+                self._current = i if self._RESUME_FAILED else 0
                 return _FAILED
             else:
                 self._current = i
@@ -156,8 +175,27 @@ class SequenceWithMemory(_Memory):
         return sequence_utility([c.utility() for c in self.children])
 
 
-class FallbackWithMemory(_Memory):
-    """Like :class:`Fallback`, but children that failed are not ticked again."""
+class SequenceWithMemory(Sequence):
+    """A Sequence that, after a failure, resumes at the child that failed.
+
+    As BehaviorTree.CPP's SequenceWithMemory: the children before the failed one are not
+    ticked again. Only a success or a :meth:`~btcap.bt.node.Node.reset` (as a ``Retry``
+    does before each new attempt) starts over at the first child. BehaviorTree.CPP halts
+    the failed child and those after it; here none is active (a child that gave a result
+    runs afresh when ticked again, and later ones were not ticked since the start).
+    """
+
+    __slots__ = ()
+    _RESUME_FAILED: ClassVar[bool] = True
+
+
+class Fallback(_Memory):
+    """Succeeds at the first child that succeeds; resumes at the running child.
+
+    As BehaviorTree.CPP's Fallback: the children before the running one, which failed,
+    are not ticked again. It fails when every child failed; after a result the next tick
+    starts at the first child.
+    """
 
     __slots__ = ()
 

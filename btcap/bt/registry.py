@@ -33,6 +33,13 @@ ENTRY_POINT_GROUP = "btcap.nodes"
 #: Names handled by the tree-file format itself, never by a registry entry.
 RESERVED = frozenset({"Subtree"})
 
+#: Node types btcap no longer has, and what a file should say instead.
+REMOVED = {
+    "FallbackWithMemory": "it was removed in btcap 0.2; use Fallback, which now resumes "
+    "at the running child as FallbackWithMemory did (ReactiveFallback re-ticks from the "
+    "first child every tick)",
+}
+
 #: Exported node classes that cannot be built from a file: they need Python callables
 #: (Action, Condition) or are abstract bases (Decorator, Remap).
 _NOT_FROM_FILES = frozenset({"Action", "Condition", "Decorator", "Remap"})
@@ -140,6 +147,8 @@ class NodeRegistry:
             return self._nodes[name]
         except KeyError:
             pass
+        if name in REMOVED:
+            raise RegistryError(f"node type {name!r}: {REMOVED[name]}")
         hint = " (Subtree is built from the file's 'subtrees')" if name in RESERVED else ""
         raise RegistryError(
             f"unknown node type {name!r}{_close(name, self._nodes) or hint}; "

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.bt.composites import Sequence
+from btcap.bt.composites import ReactiveSequence
 from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
 from btcap.bt.state import State
@@ -63,7 +63,7 @@ def _build(robot: str, duration_s: float) -> Tree:
     bridge_in = inputs(name="inputs")
     echo = EchoLeaf("echo", robot=robot, duration_s=duration_s)
     bridge_out = outputs(name="outputs")
-    tree = Tree(Sequence("echo_impl", children=[bridge_in, echo, bridge_out]))
+    tree = Tree(ReactiveSequence("echo_impl", children=[bridge_in, echo, bridge_out]))
     tree.wire(bridge_in, "value", echo, "value")
     tree.wire(bridge_in, "stop", echo, "stop")
     for port in ("value", "ticks", "robot"):

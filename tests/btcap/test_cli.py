@@ -21,7 +21,7 @@ PATROL = EXAMPLES / "patrol.yaml"
 BAD = """\
 btcap: 1
 root:
-  type: Sequence
+  type: ReactiveSequence
   name: root
   children:
     - {type: Wiat, name: pause, options: {seconds: 1}}
@@ -157,7 +157,19 @@ def test_dot_to_an_unwritable_place_exits_2(
 def test_nodes_lists_types_with_ports(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["tree", "nodes"]) == 0
     out = capsys.readouterr().out
-    assert "Sequence: Succeeds when every child succeeds" in out
+    lines = out.splitlines()
+    assert (
+        "Sequence: Succeeds when every child succeeds in order; resumes at the running child."
+        in lines
+    )
+    assert (
+        "ReactiveSequence: Succeeds when every child succeeds in order; starts from the first "
+        "child every tick." in lines
+    )
+    assert (
+        "Fallback: Succeeds at the first child that succeeds; resumes at the running child."
+        in lines
+    )
     assert "  option retries: int = 1" in out
     assert main(["tree", "nodes", "Wait"]) == 0
     assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float"

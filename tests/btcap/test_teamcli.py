@@ -47,7 +47,7 @@ def _config(tmp_path: Path, robot: str, *, impl: Path | None, seeds: list[str]) 
 def _slow_greet(tmp_path: Path, name: str, cost: float) -> Path:
     tree = tmp_path / f"{name}_tree.yaml"
     tree.write_text(
-        "btcap: 1\nname: slow\nroot:\n  type: SequenceWithMemory\n  name: g\n  children:\n"
+        "btcap: 1\nname: slow\nroot:\n  type: Sequence\n  name: g\n  children:\n"
         "    - {type: GreetInputs, name: inputs}\n"
         "    - {type: Wait, name: think, options: {seconds: 2.0}}\n"
         "    - {type: GreetOutputs, name: outputs}\n"

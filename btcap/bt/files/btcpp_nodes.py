@@ -4,11 +4,14 @@ A node is mapped only where btcap's node decides the same way on every tick; nod
 whose behaviour btcap does not have are listed with the reason, so a file using one
 is refused with a message saying what to use instead.
 
-Two differences hold for every node and are not repeated per entry: a BehaviorTree.CPP
-``halt`` is a btcap untick, which keeps progress (a pre-empted branch resumes where it
-was rather than starting over), and loops over synchronous children
+Three differences hold for every node and are not repeated per entry: a
+BehaviorTree.CPP ``halt`` is a btcap untick, which keeps progress (a pre-empted branch
+resumes where it was rather than starting over); loops over synchronous children
 (RetryUntilSuccessful, Repeat) take one tick per attempt in btcap where
-BehaviorTree.CPP loops within one tick: the results are the same, a tick later.
+BehaviorTree.CPP loops within one tick: the results are the same, a tick later; and a
+retry resets its child before the next attempt, where BehaviorTree.CPP only sets the
+failed child idle, so a SequenceWithMemory under RetryUntilSuccessful starts over at
+its first child in btcap but resumes at the child that failed in BehaviorTree.CPP.
 Parallel is mapped although it decides once per tick (failure winning a tie) where
 BehaviorTree.CPP decides after each child (success first): the two differ only when
 several children finish in the same tick.
@@ -100,13 +103,13 @@ class Standard:
 
 
 STANDARD: dict[str, Standard] = {
-    # BehaviorTree.CPP's Sequence and Fallback resume at the running child: btcap's
-    # memory composites; its Reactive* tick from the first child: btcap's plain ones.
-    "Sequence": Standard("SequenceWithMemory"),
-    "AsyncSequence": Standard("SequenceWithMemory"),
-    "Fallback": Standard("FallbackWithMemory"),
-    "ReactiveSequence": Standard("Sequence"),
-    "ReactiveFallback": Standard("Fallback"),
+    # btcap's control nodes have BehaviorTree.CPP's names and decide as they do.
+    "Sequence": Standard("Sequence"),
+    "AsyncSequence": Standard("Sequence"),
+    "SequenceWithMemory": Standard("SequenceWithMemory"),
+    "Fallback": Standard("Fallback"),
+    "ReactiveSequence": Standard("ReactiveSequence"),
+    "ReactiveFallback": Standard("ReactiveFallback"),
     "Parallel": Standard(
         "Parallel",
         {
@@ -136,9 +139,6 @@ STANDARD: dict[str, Standard] = {
 
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {
-    "SequenceWithMemory": "it ticks the failed child again on the next tick; btcap's "
-    "SequenceWithMemory starts over after a failure, as BehaviorTree.CPP's Sequence does "
-    "(use Sequence for that)",
     "IfThenElse": "it checks its condition only until a branch runs; btcap's IfThenElse "
     "re-checks it every tick, as BehaviorTree.CPP's WhileDoElse does (use WhileDoElse)",
     "ParallelAll": "it waits for every child; btcap's Parallel decides as soon as a "

@@ -1,19 +1,23 @@
 """Random trees built alike in btcap and py_trees 2.x, for the differential test.
 
-A tree is a :class:`Spec`: composites (reactive and memory Sequence/Fallback, Parallel
-with thresholds), decorators (Inverter, Retry, Repeat, Timeout, ForceSuccess/Failure,
-RunningIsSuccess/Failure) and scripted leaves whose result at tick ``t`` is
-``script[t % len(script)]``. Both builds log the leaves they tick and the leaves they
-halt (a running leaf unticked / stopped to INVALID) into one :class:`Log` per library.
+A tree is a :class:`Spec`: composites (Sequence/Fallback, which resume at the running
+child, as py_trees' ``memory=True``; ReactiveSequence/ReactiveFallback, as ``memory=False``;
+SequenceWithMemory; Parallel with thresholds), decorators (Inverter, Retry, Repeat,
+Timeout, ForceSuccess/Failure, RunningIsSuccess/Failure) and scripted leaves whose
+result at tick ``t`` is ``script[t % len(script)]``. Both builds log the leaves they tick
+and the leaves they halt (a running leaf unticked / stopped to INVALID) into one
+:class:`Log` per library.
 
 py_trees is the oracle except where btcap differs on purpose. Those differences are
 modelled here, each in one small py_trees class, so every other difference shows:
 
-- untick keeps progress: a memory composite halted while running resumes at its child
+- untick keeps progress: a Sequence/Fallback halted while running resumes at its child
   (:class:`KeepSequence`/:class:`KeepSelector`), Retry/Repeat keep their counts
   (:class:`KeepRetry`/:class:`KeepRepeat`), a Parallel keeps its finished children; a
   btcap ``reset`` (Retry/Repeat starting an attempt afresh, a Parallel starting over with
   the children it halted) forgets it (:func:`forget`);
+- SequenceWithMemory, which py_trees lacks, is BehaviorTree.CPP's: after a failure it
+  resumes at the child that failed (:class:`ResumeFailedSequence`);
 - Timeout fails on expiry without ticking the child, as BehaviorTree.CPP does; its
   period restarts after a halt (:class:`BtcapTimeout`);
 - Parallel follows BehaviorTree.CPP's ParallelNode v4 thresholds, failure winning a tie
@@ -34,7 +38,7 @@ import btcap
 from btcap import State
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
-COMPOSITES = ("seq", "fb", "seqmem", "fbmem", "par")
+COMPOSITES = ("rseq", "rfb", "seq", "fb", "swm", "par")
 DECORATORS = ("inv", "retry", "repeat", "timeout", "force_s", "force_f", "run_s", "run_f")
 _STATUS = {S: Status.SUCCESS, F: Status.FAILURE, R: Status.RUNNING}
 STATE_OF = {v: k for k, v in _STATUS.items()}
@@ -129,10 +133,11 @@ def build_btcap(spec: Spec, log: Log, clock: TickClock) -> btcap.Node:
     kids = [build_btcap(c, log, clock) for c in spec.children]
     k, name = spec.kind, spec.name
     simple: dict[str, type[btcap.Node]] = {
+        "rseq": btcap.ReactiveSequence,
+        "rfb": btcap.ReactiveFallback,
         "seq": btcap.Sequence,
         "fb": btcap.Fallback,
-        "seqmem": btcap.SequenceWithMemory,
-        "fbmem": btcap.FallbackWithMemory,
+        "swm": btcap.SequenceWithMemory,
         "inv": btcap.Inverter,
         "force_s": btcap.ForceSuccess,
         "force_f": btcap.ForceFailure,
@@ -215,6 +220,17 @@ class KeepSequence(_KeepPosition, py_trees.composites.Sequence):
 
 class KeepSelector(_KeepPosition, py_trees.composites.Selector):
     pass
+
+
+class ResumeFailedSequence(KeepSequence):
+    """BehaviorTree.CPP's SequenceWithMemory: after a failure the next tick resumes at the
+    child that failed; only a success or a reset (:func:`forget`) starts over."""
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        if new_status == Status.FAILURE:
+            assert self.current_child is not None
+            self.resume = self.children.index(self.current_child)
+        super().stop(new_status)
 
 
 class _KeepCount(Keeps):
@@ -348,14 +364,16 @@ def build_py_trees(spec: Spec, log: Log, clock: TickClock) -> py_trees.behaviour
     kids = [build_py_trees(c, log, clock) for c in spec.children]
     k, name = spec.kind, spec.name
     d = py_trees.decorators
-    if k == "seq":
+    if k == "rseq":
         return py_trees.composites.Sequence(name, memory=False, children=kids)
-    if k == "fb":
+    if k == "rfb":
         return py_trees.composites.Selector(name, memory=False, children=kids)
-    if k == "seqmem":
+    if k == "seq":
         return KeepSequence(name, memory=True, children=kids)
-    if k == "fbmem":
+    if k == "fb":
         return KeepSelector(name, memory=True, children=kids)
+    if k == "swm":
+        return ResumeFailedSequence(name, memory=True, children=kids)
     if k == "par":
         return ThresholdParallel(name, kids, spec.need, spec.fail)
     if k == "retry":

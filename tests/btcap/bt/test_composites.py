@@ -1,4 +1,4 @@
-"""Control flow: reactive and memory Sequence/Fallback, Parallel, IfThenElse, Switch.
+"""Control flow: every Sequence and Fallback, Parallel, IfThenElse, Switch.
 
 Every tick goes through ``tick_checked``: after each one, no node may be left active
 unless it was ticked (the halting invariant).
@@ -17,21 +17,26 @@ from btcap import (
     AlwaysFailure,
     AlwaysRunning,
     AlwaysSuccess,
+    Condition,
     Constant,
     Fallback,
-    FallbackWithMemory,
     IfThenElse,
     Leaf,
     Node,
     Parallel,
+    ReactiveFallback,
+    ReactiveSequence,
+    Repeat,
     Sequence,
     SequenceWithMemory,
     State,
     Switch,
     Tree,
     TreeError,
+    Wait,
     loads_tree,
 )
+from btcap.actors import ManualClock
 from btcap.bt.invariants import tick_checked as tick
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
@@ -74,9 +79,13 @@ async def settle() -> None:
         await asyncio.sleep(0)
 
 
-# -- Sequence -----------------------------------------------------------------------
+# -- all Sequences and Fallbacks: one tick ---------------------------------------------
+
+SEQUENCES = [Sequence, SequenceWithMemory, ReactiveSequence]
+FALLBACKS = [Fallback, ReactiveFallback]
 
 
+@pytest.mark.parametrize("kind", SEQUENCES)
 @pytest.mark.parametrize(
     ("results", "expected", "ticked"),
     [
@@ -87,13 +96,16 @@ async def settle() -> None:
         ([], S, []),
     ],
 )
-def test_sequence_results(results: list[State], expected: State, ticked: list[int]) -> None:
+def test_sequence_results(
+    kind: type[Node], results: list[State], expected: State, ticked: list[int]
+) -> None:
     kids = leaves(*results)
-    tree = Tree(Sequence("seq", children=kids))
+    tree = Tree(kind("seq", children=kids))
     assert tick(tree) is expected
     assert ticks(kids) == ticked
 
 
+@pytest.mark.parametrize("kind", FALLBACKS)
 @pytest.mark.parametrize(
     ("results", "expected", "ticked"),
     [
@@ -104,27 +116,19 @@ def test_sequence_results(results: list[State], expected: State, ticked: list[in
         ([], F, []),
     ],
 )
-def test_fallback_results(results: list[State], expected: State, ticked: list[int]) -> None:
+def test_fallback_results(
+    kind: type[Node], results: list[State], expected: State, ticked: list[int]
+) -> None:
     kids = leaves(*results)
-    tree = Tree(Fallback("fb", children=kids))
+    tree = Tree(kind("fb", children=kids))
     assert tick(tree) is expected
     assert ticks(kids) == ticked
 
 
-@pytest.mark.parametrize("kind", [Sequence, Fallback])
-def test_reactive_composites_retick_from_the_first_child(kind: type[Node]) -> None:
-    first = S if kind is Sequence else F
-    kids = leaves(first, first, R)
-    tree = Tree(kind("c", children=kids))
-    for _ in range(3):
-        assert tick(tree) is R
-    assert ticks(kids) == [3, 3, 3]
-
-
-@pytest.mark.parametrize("kind", [Sequence, Fallback])
+@pytest.mark.parametrize("kind", SEQUENCES + FALLBACKS)
 @pytest.mark.parametrize("waiting", WAITING)
 def test_waiting_children_count_as_running(kind: type[Node], waiting: State) -> None:
-    first = S if kind is Sequence else F
+    first = F if kind in FALLBACKS else S
     kids = leaves(first, waiting, first)
     tree = Tree(kind("c", children=kids))
     assert tick(tree) is R
@@ -132,29 +136,40 @@ def test_waiting_children_count_as_running(kind: type[Node], waiting: State) -> 
     assert ticks(kids) == [1, 1, 0]
 
 
-def test_error_child_counts_as_failed_and_keeps_its_error() -> None:
+@pytest.mark.parametrize("kind", SEQUENCES + FALLBACKS)
+def test_error_child_counts_as_failed_and_keeps_its_error(kind: type[Node]) -> None:
     bad = Leafy("bad", ValueError("boom"))
-    seq_kids = [bad, Leafy("after")]
-    tree = Tree(Sequence("seq", children=seq_kids))
+    after = Leafy("after", S)
+    tree = Tree(kind("c", children=[bad, after]))
     with capture_logs():
-        assert tick(tree) is F
+        result = tick(tree)
     assert bad.state is State.ERROR
     assert isinstance(bad.error, ValueError)
-    assert seq_kids[1].ticks == 0
-
-    bad2 = Leafy("bad", ValueError("boom"))
-    fb = Tree(Fallback("fb", children=[bad2, Leafy("next", S)]))
-    with capture_logs():
-        assert tick(fb) is S
-    assert bad2.state is State.ERROR
+    if kind in FALLBACKS:
+        assert (result, after.ticks) == (S, 1)
+    else:
+        assert (result, after.ticks) == (F, 0)
 
 
-@pytest.mark.parametrize("kind", [Sequence, Fallback])
+# -- ReactiveSequence, ReactiveFallback: from the first child every tick --------------------
+
+
+@pytest.mark.parametrize("kind", [ReactiveSequence, ReactiveFallback])
+def test_reactive_composites_retick_from_the_first_child(kind: type[Node]) -> None:
+    first = S if kind is ReactiveSequence else F
+    kids = leaves(first, first, R)
+    tree = Tree(kind("c", children=kids))
+    for _ in range(3):
+        assert tick(tree) is R
+    assert ticks(kids) == [3, 3, 3]
+
+
+@pytest.mark.parametrize("kind", [ReactiveSequence, ReactiveFallback])
 @pytest.mark.parametrize("waiting", [State.RUNNING, State.UNASSIGNED, State.ASSIGNED])
 def test_earlier_child_running_unticks_the_later_running_child(
     kind: type[Node], waiting: State
 ) -> None:
-    first = S if kind is Sequence else F
+    first = S if kind is ReactiveSequence else F
     a, b, c = leaves(first, first, waiting)
     tree = Tree(kind("c", children=[a, b, c]))
     assert tick(tree) is R
@@ -171,9 +186,9 @@ def test_earlier_child_running_unticks_the_later_running_child(
     assert ticks([a, b, c]) == [3, 2, 1]
 
 
-@pytest.mark.parametrize("kind", [Sequence, Fallback])
+@pytest.mark.parametrize("kind", [ReactiveSequence, ReactiveFallback])
 def test_earlier_child_finishing_unticks_the_later_running_child(kind: type[Node]) -> None:
-    first, stop = (S, F) if kind is Sequence else (F, S)
+    first, stop = (S, F) if kind is ReactiveSequence else (F, S)
     a, b = leaves(first, R)
     tree = Tree(kind("c", children=[a, b]))
     assert tick(tree) is R
@@ -185,7 +200,7 @@ def test_earlier_child_finishing_unticks_the_later_running_child(kind: type[Node
 
 def test_finished_later_children_are_not_unticked() -> None:
     a, b, c = leaves(S, S, S)
-    tree = Tree(Sequence("seq", children=[a, b, c]))
+    tree = Tree(ReactiveSequence("seq", children=[a, b, c]))
     assert tick(tree) is S
     a.result = R
     assert tick(tree) is R
@@ -207,7 +222,7 @@ async def test_preempted_action_is_paused_and_its_task_cancelled() -> None:
 
         guard = Leafy("guard", S)
         act = Action(move, "move")
-        tree = Tree(Sequence("seq", children=[guard, act]))
+        tree = Tree(ReactiveSequence("seq", children=[guard, act]))
         assert tick(tree) is R
         await settle()
         assert seen == ["started"]
@@ -219,12 +234,12 @@ async def test_preempted_action_is_paused_and_its_task_cancelled() -> None:
         await tree.shutdown()
 
 
-# -- with memory -------------------------------------------------------------------------
+# -- Sequence, Fallback: resume at the running child (BehaviorTree.CPP's) ----------------
 
 
-def test_sequence_with_memory_skips_succeeded_children() -> None:
+def test_sequence_resumes_at_the_running_child() -> None:
     a, b, c = leaves(S, R, S)
-    tree = Tree(SequenceWithMemory("seq", children=[a, b, c]))
+    tree = Tree(Sequence("seq", children=[a, b, c]))
     assert tick(tree) is R
     assert tick(tree) is R
     assert ticks([a, b, c]) == [1, 2, 0]
@@ -232,21 +247,24 @@ def test_sequence_with_memory_skips_succeeded_children() -> None:
     b.result = S
     assert tick(tree) is S
     assert ticks([a, b, c]) == [1, 3, 1]
-    assert tick(tree) is F  # starts over from the first child
+    assert tick(tree) is F  # a success starts over from the first child
     assert ticks([a, b, c]) == [2, 3, 1]
 
 
-def test_sequence_with_memory_failure_starts_over() -> None:
-    a, b = leaves(S, F)
-    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+def test_sequence_failure_starts_over_at_the_first_child() -> None:
+    a, b, c = leaves(S, R, S)
+    tree = Tree(Sequence("seq", children=[a, b, c]))
+    assert tick(tree) is R
+    b.result = F
     assert tick(tree) is F
+    assert ticks([a, b, c]) == [1, 2, 0]
     assert tick(tree) is F
-    assert ticks([a, b]) == [2, 2]
+    assert ticks([a, b, c]) == [2, 3, 0]
 
 
-def test_fallback_with_memory_skips_failed_children() -> None:
+def test_fallback_resumes_at_the_running_child() -> None:
     a, b, c = leaves(F, R, S)
-    tree = Tree(FallbackWithMemory("fb", children=[a, b, c]))
+    tree = Tree(Fallback("fb", children=[a, b, c]))
     assert tick(tree) is R
     a.result = S  # no longer looked at
     assert tick(tree) is R
@@ -254,41 +272,133 @@ def test_fallback_with_memory_skips_failed_children() -> None:
     b.result = F
     assert tick(tree) is S
     assert ticks([a, b, c]) == [1, 3, 1]
-    assert tick(tree) is S
+    assert tick(tree) is S  # a success starts over from the first child
     assert ticks([a, b, c]) == [2, 3, 1]
 
 
-@pytest.mark.parametrize("kind", [SequenceWithMemory, FallbackWithMemory])
-def test_memory_counts_error_as_failure(kind: type[Node]) -> None:
-    bad = Leafy("bad", RuntimeError("x"))
-    other = Leafy("other", S)
-    tree = Tree(kind("m", children=[bad, other]))
-    with capture_logs():
-        result = tick(tree)
-    assert result is (F if kind is SequenceWithMemory else S)
-    assert other.ticks == (0 if kind is SequenceWithMemory else 1)
-
-
-@pytest.mark.parametrize("waiting", WAITING)
-def test_memory_waiting_children_count_as_running(waiting: State) -> None:
-    a, b = leaves(S, waiting)
-    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+def test_fallback_starts_over_when_every_child_failed() -> None:
+    a, b = leaves(F, R)
+    tree = Tree(Fallback("fb", children=[a, b]))
     assert tick(tree) is R
-    assert tick(tree) is R
+    b.result = F
+    assert tick(tree) is F
     assert ticks([a, b]) == [1, 2]
+    assert tick(tree) is F
+    assert ticks([a, b]) == [2, 3]
 
 
-def test_memory_resumes_after_untick_and_forgets_on_reset() -> None:
-    a, b = leaves(S, R)
-    tree = Tree(SequenceWithMemory("seq", children=[a, b]))
+@pytest.mark.parametrize("kind", [Sequence, SequenceWithMemory, Fallback])
+def test_memory_resumes_after_untick_and_forgets_on_reset(kind: type[Node]) -> None:
+    a, b = leaves(F if kind is Fallback else S, R)
+    tree = Tree(kind("m", children=[a, b]))
     tick(tree)
     tree.untick()
-    assert states([a, b]) == [S, State.PAUSED]
+    assert states([a, b]) == [a.result, State.PAUSED]
     tick(tree)
     assert ticks([a, b]) == [1, 2]
     tree.reset()
     tick(tree)
     assert ticks([a, b]) == [2, 3]
+
+
+async def test_a_newcomers_first_tree_finishes() -> None:
+    """A check, a repeated wait, then an action: the Sequence resumes at the action, where
+    a ReactiveSequence restarts the finished Repeat every tick, halting the action."""
+    clock = ManualClock()
+    runs: list[str] = []
+
+    async def act() -> None:
+        runs.append("started")
+        await clock.sleep(0.3)
+        runs.append("done")
+
+    def newcomer(kind: type[Node]) -> Tree:
+        children = [
+            Condition(lambda: True, "check"),
+            Repeat("twice", times=2, children=[Wait("wait", seconds=0.2)]),
+            Action(act, "act"),
+        ]
+        return Tree(kind("s", children=children), clock=clock)
+
+    with anyio.fail_after(10):
+        async with clock.autojump():
+            tree = newcomer(Sequence)
+            assert await tree.run(rate_hz=10, max_ticks=100) is S
+            await tree.shutdown()
+            assert runs == ["started", "done"]
+            assert clock.now() < 2.0
+
+            runs.clear()
+            tree = newcomer(ReactiveSequence)
+            assert await tree.run(rate_hz=10, max_ticks=100) is R  # 10 s later: still going
+            await tree.shutdown()
+            assert "done" not in runs
+            assert len(runs) > 1  # the action was halted and started again
+
+
+# -- SequenceWithMemory: also resumes at a child that failed (BehaviorTree.CPP's) ----------
+
+
+def test_sequence_with_memory_resumes_at_the_failed_child() -> None:
+    a, b, c = leaves(S, F, S)
+    tree = Tree(SequenceWithMemory("swm", children=[a, b, c]))
+    assert tick(tree) is F
+    assert ticks([a, b, c]) == [1, 1, 0]
+    assert tick(tree) is F  # the failed child again, not the first
+    assert ticks([a, b, c]) == [1, 2, 0]
+    b.result = S
+    assert tick(tree) is S
+    assert ticks([a, b, c]) == [1, 3, 1]
+    assert tick(tree) is S  # a success starts over from the first child
+    assert ticks([a, b, c]) == [2, 4, 2]
+
+
+def test_sequence_with_memory_resumes_at_a_running_child_that_then_fails() -> None:
+    a, b, c = leaves(S, R, S)
+    tree = Tree(SequenceWithMemory("swm", children=[a, b, c]))
+    assert tick(tree) is R
+    b.result = F
+    assert tick(tree) is F
+    b.result = S
+    assert tick(tree) is S
+    assert ticks([a, b, c]) == [1, 3, 1]
+
+
+def test_sequence_with_memory_resumes_at_a_child_in_error() -> None:
+    a, b = leaves(S, S)
+    bad = Leafy("bad", RuntimeError("x"))
+    tree = Tree(SequenceWithMemory("swm", children=[a, bad, b]))
+    with capture_logs():
+        assert tick(tree) is F
+        assert tick(tree) is F
+    assert bad.state is State.ERROR
+    assert ticks([a, bad, b]) == [1, 2, 0]
+    bad.result = S
+    assert tick(tree) is S
+    assert ticks([a, bad, b]) == [1, 3, 1]
+
+
+def test_sequence_with_memory_keeps_a_failure_across_untick_and_forgets_it_on_reset() -> None:
+    a, b = leaves(S, F)
+    tree = Tree(SequenceWithMemory("swm", children=[a, b]))
+    assert tick(tree) is F
+    tree.untick()
+    assert tick(tree) is F
+    assert ticks([a, b]) == [1, 2]
+    tree.reset()
+    assert tick(tree) is F
+    assert ticks([a, b]) == [2, 3]
+
+
+def test_sequence_with_memory_under_a_reactive_parent_keeps_its_place() -> None:
+    """A parent that starts over leaves a finished child alone, as BehaviorTree.CPP's
+    halt leaves SequenceWithMemory's index: the next run resumes at the failed child."""
+    a, b = leaves(S, F)
+    swm = SequenceWithMemory("swm", children=[a, b])
+    tree = Tree(ReactiveFallback("root", children=[swm, Leafy("other", S)]))
+    assert tick(tree) is S
+    assert tick(tree) is S
+    assert ticks([a, b]) == [1, 2]
 
 
 # -- Parallel ---------------------------------------------------------------------------
@@ -362,7 +472,7 @@ def test_parallel_without_children_succeeds() -> None:
 
 def test_parallel_halts_running_children_in_the_tick_it_decides() -> None:
     a, b, c = leaves(R, R, R)
-    tree = Tree(Sequence("root", children=[Parallel("par", children=[a, b, c])]))
+    tree = Tree(ReactiveSequence("root", children=[Parallel("par", children=[a, b, c])]))
     assert tick(tree) is R
     b.result = F
     assert tick(tree) is F
@@ -432,7 +542,7 @@ def test_parallel_impossible_thresholds_are_rejected_naming_the_node(
     par = Parallel(
         "par", children=leaves(S, S), success_threshold=success, failure_threshold=failure
     )
-    tree = Tree(Sequence("root", children=[par]))
+    tree = Tree(ReactiveSequence("root", children=[par]))
     with pytest.raises(TreeError, match=f"node 'root/par' \\(Parallel\\): {message}"):
         tree.validate()
     with pytest.raises(TreeError, match=message):
@@ -445,7 +555,7 @@ def test_parallel_impossible_threshold_in_a_file_is_a_load_error() -> None:
 btcap: 1
 name: t
 root:
-  type: Sequence
+  type: ReactiveSequence
   name: root
   children:
     - type: Parallel
@@ -595,7 +705,7 @@ def test_switch_no_match_unticks_the_old_branch() -> None:
 
 def test_switch_value_from_a_wire() -> None:
     sw = Switch("sw", children=leaves(F, S), cases=[1, 2])
-    tree = Tree(Sequence("root", children=[Constant("k", value=2, type=int), sw]))
+    tree = Tree(ReactiveSequence("root", children=[Constant("k", value=2, type=int), sw]))
     tree.wire("root/k", "value", "root/sw", "value")
     assert tick(tree) is S
 
@@ -618,9 +728,11 @@ def test_switch_needs_cases() -> None:
 def test_nested_halting_reaches_grandchildren() -> None:
     guard = Leafy("guard", S)
     deep = Leafy("deep", R)
-    inner = Sequence("inner", children=[Leafy("x", S), deep])
+    inner = ReactiveSequence("inner", children=[Leafy("x", S), deep])
     tree = Tree(
-        Fallback("root", children=[Leafy("never", F), Sequence("s", children=[guard, inner])])
+        ReactiveFallback(
+            "root", children=[Leafy("never", F), ReactiveSequence("s", children=[guard, inner])]
+        )
     )
     assert tick(tree) is R
     guard.result = R
@@ -631,5 +743,5 @@ def test_nested_halting_reaches_grandchildren() -> None:
 
 
 def test_always_leaves_in_composites() -> None:
-    assert tick(Tree(Sequence("s", children=[AlwaysSuccess(), AlwaysRunning()]))) is R
-    assert tick(Tree(Fallback("f", children=[AlwaysFailure(), AlwaysSuccess()]))) is S
+    assert tick(Tree(ReactiveSequence("s", children=[AlwaysSuccess(), AlwaysRunning()]))) is R
+    assert tick(Tree(ReactiveFallback("f", children=[AlwaysFailure(), AlwaysSuccess()]))) is S

@@ -16,12 +16,12 @@ from btcap import (
     Action,
     Delay,
     FailureIsRunning,
-    Fallback,
     ForceFailure,
     ForceSuccess,
     Inverter,
     Leaf,
     Node,
+    ReactiveFallback,
     Repeat,
     RepeatUntilFailure,
     RepeatUntilSuccess,
@@ -29,7 +29,7 @@ from btcap import (
     RunningIsFailure,
     RunningIsSuccess,
     RunOnce,
-    SequenceWithMemory,
+    Sequence,
     SuccessIsRunning,
     Throttle,
     Timeout,
@@ -109,11 +109,11 @@ def test_remapping_decorators(kind: type[Decorator], child_state: St) -> None:
 
 @pytest.mark.parametrize("kind", [RunningIsSuccess, RunningIsFailure])
 def test_running_is_result_unticks_the_child_the_same_tick(kind: type[Decorator]) -> None:
-    # Fallback(a, RunningIsSuccess(b)), a failing, b running: b must not stay RUNNING
+    # ReactiveFallback(a, RunningIsSuccess(b)), a failing, b running: b must not stay RUNNING
     # after its branch gave a result (it used to, neither ticked nor halted).
     a, b = Leafy(F, name="a"), Leafy(R, name="b")
     dec = kind("dec", children=[b])
-    tree = Tree(SequenceWithMemory("root", children=[Fallback("fb", children=[a, dec])]))
+    tree = Tree(Sequence("root", children=[ReactiveFallback("fb", children=[a, dec])]))
     expected = S if kind is RunningIsSuccess else F
     assert tick(tree) is expected
     assert b.state is St.PAUSED
@@ -132,7 +132,7 @@ async def test_running_is_success_cancels_the_abandoned_action() -> None:
 
         act = Action(work, "act")
         tree = Tree(
-            SequenceWithMemory(
+            Sequence(
                 "root", children=[RunningIsSuccess("dec", children=[act]), Leafy(R, name="next")]
             )
         )

@@ -10,8 +10,8 @@ from btcap import (
     Leaf,
     Log,
     Port,
+    ReactiveSequence,
     Retry,
-    Sequence,
     State,
     Subtree,
     Tree,
@@ -56,7 +56,7 @@ def test_inputs_are_constants_wires_or_fed_from_outside() -> None:
     src = Constant("src", value=2.0, type=float)
     cmp = Compare("cmp", op="<", inputs={"b": 10.0})
     holder = Holder("h", inputs={"x": Opaque(), "n": 1.0})
-    tree = Tree(Sequence("root", children=[src, cmp, holder]))
+    tree = Tree(ReactiveSequence("root", children=[src, cmp, holder]))
     tree.wire(src, "value", cmp, "a")
     wires = wire_sources(tree)
     assert wires == {(id(cmp), "a"): "root/src.value"}
@@ -74,7 +74,7 @@ def test_inputs_are_constants_wires_or_fed_from_outside() -> None:
 def test_a_subtree_file_leaves_out_values_fed_through_public_inputs() -> None:
     inner = Tree(Compare("cmp", op="<", inputs={"b": 10.0}), name="near")
     sub = Subtree(inner, "check", public_inputs={"distance": "cmp.a"})
-    tree = Tree(Sequence("root", children=[sub]))
+    tree = Tree(ReactiveSequence("root", children=[sub]))
     sub.set_input("distance", 3.0)
     tree.tick()  # copies the public input into the inner node
     assert inner.root.inputs["a"] == 3.0

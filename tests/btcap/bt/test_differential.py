@@ -40,7 +40,7 @@ def leaf(name: str, *script: State) -> Spec:
 
 # The reported defects, always run: a running child under RunningIsSuccess left running;
 # a Parallel whose success became impossible looping; success winning a tie.
-ABANDONED = Spec("fb", "r", (leaf("a", F), Spec("run_s", "d", (leaf("b", R),))))
+ABANDONED = Spec("rfb", "r", (leaf("a", F), Spec("run_s", "d", (leaf("b", R),))))
 IMPOSSIBLE = Spec("par", "r", (leaf("a", S), leaf("b", F), leaf("c", F)), need=2, fail=3)
 TIE = Spec("par", "r", (leaf("a", S), leaf("b", F)), need=1, fail=1)
 

@@ -22,8 +22,8 @@ from btcap import (
     Log,
     NodeRegistry,
     Port,
+    ReactiveSequence,
     Retry,
-    Sequence,
     State,
     Subtree,
     Tree,
@@ -88,7 +88,7 @@ btcap: 1
 name: mission
 description: Drive to a goal, retrying, and compare the distance.
 root:
-  type: Sequence
+  type: ReactiveSequence
   name: root
   children:
     - {type: Constant, name: goal, options: {value: [3.0, -4.0], type: "tuple[float, float]"}}
@@ -137,7 +137,7 @@ def test_loaded_tree_runs_and_data_flows_through_the_subtree(registry: NodeRegis
 
 
 def test_tree_built_in_code_saves_and_loads_back(tmp_path: Path) -> None:
-    root = Sequence(
+    root = ReactiveSequence(
         "root",
         children=[
             Constant("limits", value={"a": [1, 2]}, type=dict[str, list[int]] | None),
@@ -216,7 +216,7 @@ async def test_example_patrol_runs_to_success() -> None:
             state = tree.tick()
     assert state is State.SUCCEEDED
     goals = [e["value"] for e in logs if e["event"] == "moving to goal"]
-    assert list(dict.fromkeys(goals)) == [(1.0, 2.0), (4.0, 0.5)]  # the Log re-ticks: reactive
+    assert goals == [(1.0, 2.0), (4.0, 0.5)]  # each leg once: the Sequences resume
     assert clock.now() >= 1.0  # both 0.5 s drives were waited for
 
 
@@ -241,17 +241,17 @@ def test_node_name_defaults_to_type_and_subtree_name_to_its_tree() -> None:
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           children: [{type: AlwaysSuccess}, {type: Subtree, options: {tree: t}}]
         subtrees: {t: {root: {type: AlwaysFailure}}}
         """
     )
     assert [n.path for n in tree.nodes()] == [
-        "Sequence",
-        "Sequence/AlwaysSuccess",
-        "Sequence/t",
+        "ReactiveSequence",
+        "ReactiveSequence/AlwaysSuccess",
+        "ReactiveSequence/t",
     ]
-    assert tree.name == "Sequence"
+    assert tree.name == "ReactiveSequence"
 
 
 # -- subtrees from other files ----------------------------------------------------------
@@ -259,7 +259,7 @@ NAV = """
 btcap: 1
 name: nav
 root:
-  type: Sequence
+  type: ReactiveSequence
   name: nav
   children:
     - {type: Move, name: move}
@@ -279,7 +279,7 @@ def test_subtree_from_another_file_and_saved_as_a_relative_ref(
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: root
           children:
             - {type: Subtree, name: go, options: {tree: nav}, inputs: {goal: [1.0, 1.0]}}
@@ -365,7 +365,7 @@ def test_same_named_but_different_inner_trees_get_distinct_subtree_names() -> No
     def inner(seconds: float) -> Tree:
         return Tree(Wait("w", seconds=seconds), name="pause")
 
-    root = Sequence("root", children=[Subtree(inner(1.0), "a"), Subtree(inner(2.0), "b")])
+    root = ReactiveSequence("root", children=[Subtree(inner(1.0), "a"), Subtree(inner(2.0), "b")])
     spec = dump_tree(Tree(root))
     assert sorted(spec.subtrees) == ["pause", "pause_2"]
     assert [c.options["tree"] for c in spec.root.children] == ["pause", "pause_2"]
@@ -378,15 +378,25 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
     "unknown node type": (
         """
         btcap: 1
-        root: {type: Sequence, name: r, children: [{type: Sequnce, name: a}]}
+        root: {type: ReactiveSequence, name: r, children: [{type: Sequnce, name: a}]}
         """,
         ["node 'r/a' field 'type'", "unknown node type 'Sequnce'", "did you mean Sequence"],
+    ),
+    "removed node type": (
+        """
+        btcap: 1
+        root: {type: FallbackWithMemory, name: r, children: [{type: AlwaysSuccess}]}
+        """,
+        [
+            "node 'r' field 'type'",
+            "node type 'FallbackWithMemory': it was removed in btcap 0.2; use Fallback",
+        ],
     ),
     "unknown option": (
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: Retry, name: a, options: {retrys: 2}, children: [{type: AlwaysSuccess}]}
@@ -403,7 +413,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
     "missing required option": (
         """
         btcap: 1
-        root: {type: Sequence, name: r, children: [{type: Wait, name: w}]}
+        root: {type: ReactiveSequence, name: r, children: [{type: Wait, name: w}]}
         """,
         ["node 'r/w' option 'seconds'", "required (float) but missing"],
     ),
@@ -452,7 +462,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
     "required input without value or wire": (
         """
         btcap: 1
-        root: {type: Sequence, name: r, children: [{type: Move, name: m}]}
+        root: {type: ReactiveSequence, name: r, children: [{type: Move, name: m}]}
         """,
         ["node 'r/m' input 'goal'", "required (tuple[float, float]) but has no value"],
     ),
@@ -477,7 +487,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: Wait, name: w, options: {seconds: 1}, children: [{type: AlwaysSuccess}]}
@@ -487,7 +497,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
     "bad node name": (
         """
         btcap: 1
-        root: {type: Sequence, name: r, children: [{type: AlwaysSuccess, name: a.b}]}
+        root: {type: ReactiveSequence, name: r, children: [{type: AlwaysSuccess, name: a.b}]}
         """,
         ["node 'r/a.b' field 'name'", "without '/' or '.'"],
     ),
@@ -495,7 +505,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: Constant, name: c, options: {value: 1, type: int}}
@@ -516,7 +526,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: Constant, name: c, options: {value: x, type: str}}
@@ -563,7 +573,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: AlwaysSuccess, name: ok}
@@ -574,7 +584,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
     "missing node type": (
         """
         btcap: 1
-        root: {type: Sequence, name: r, children: [{name: a}]}
+        root: {type: ReactiveSequence, name: r, children: [{name: a}]}
         """,
         ["node 'r/a'", "missing required field 'type'"],
     ),
@@ -595,7 +605,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           children:
             - {type: Wait, options: {seconds: 1}, options: {seconds: 2}}
         """,
@@ -659,7 +669,7 @@ BAD_CASES: dict[str, tuple[str, list[str]]] = {
         btcap: 1
         root: {type: AlwaysSuccess}
         subtrees:
-          nav: {root: {type: Sequence, name: n, children: [{type: AlwaysSuccess, nam: x}]}}
+          nav: {root: {type: ReactiveSequence, name: n, children: [{type: AlwaysSuccess, nam: x}]}}
         """,
         ["subtree 'nav' node 'n/AlwaysSuccess'", "unknown field 'nam'"],
     ),
@@ -702,6 +712,21 @@ def test_bad_file_errors_name_file_node_and_field(
     assert validate_file(path, registry) == info.value.problems
 
 
+def test_a_json_file_with_fallback_with_memory_is_told_to_use_fallback(tmp_path: Path) -> None:
+    path = tmp_path / "old.json"
+    path.write_text(
+        '{"btcap": 1, "root": {"type": "FallbackWithMemory", "name": "f", '
+        '"children": [{"type": "AlwaysSuccess"}]}}'
+    )
+    with pytest.raises(TreeFileError) as info:
+        load_tree(path)
+    assert info.value.problems == [
+        f"{path}: node 'f' field 'type': node type 'FallbackWithMemory': it was removed in "
+        "btcap 0.2; use Fallback, which now resumes at the running child as "
+        "FallbackWithMemory did (ReactiveFallback re-ticks from the first child every tick)"
+    ]
+
+
 def test_every_problem_of_a_file_is_reported_at_once(
     tmp_path: Path, registry: NodeRegistry
 ) -> None:
@@ -710,7 +735,7 @@ def test_every_problem_of_a_file_is_reported_at_once(
         """
         btcap: 1
         root:
-          type: Sequence
+          type: ReactiveSequence
           name: r
           children:
             - {type: Wiat, name: a}
@@ -741,7 +766,7 @@ def test_malformed_json_points_at_line_and_column(tmp_path: Path) -> None:
 def test_json_schema_errors_are_translated_too(tmp_path: Path) -> None:
     path = tmp_path / "t.json"
     path.write_text(
-        '{"btcap": 1, "root": {"type": "Sequence", "name": "r", "children": [{"type": 5}]}}'
+        '{"btcap": 1, "root": {"type": "ReactiveSequence", "name": "r", "children": [{"type": 5}]}}'
     )
     with pytest.raises(TreeFileError, match=r"node 'r/\[0\]' field 'type': expected str, got int"):
         load_tree(path)
@@ -780,7 +805,7 @@ async def _noop() -> None:
 
 
 def test_dumping_a_node_built_from_a_callable_names_the_node() -> None:
-    tree = Tree(Sequence("root", children=[Action(_noop, "act")]))
+    tree = Tree(ReactiveSequence("root", children=[Action(_noop, "act")]))
     with pytest.raises(
         TreeFileError, match=r"node 'root/act' field 'type': .*Action is not registered"
     ):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from structlog.testing import capture_logs
 
-from btcap import Leaf, Node, Sequence, State, Subtree, Throttle, Tree
+from btcap import Leaf, Node, ReactiveSequence, State, Subtree, Throttle, Tree
 from btcap.actors import ManualClock
 from btcap.bt.composites import Composite
 from btcap.bt.decorators import Decorator
@@ -53,14 +53,16 @@ def test_a_running_node_nobody_ticks_is_reported() -> None:
 
 
 def test_a_running_node_under_a_finished_parent_is_reported_the_same_tick() -> None:
-    tree = Tree(Sequence("root", children=[SwallowRunning("dec", children=[Fixed("a", R)])]))
+    tree = Tree(
+        ReactiveSequence("root", children=[SwallowRunning("dec", children=[Fixed("a", R)])])
+    )
     with pytest.raises(HaltingViolation, match=r"root/dec/a is running below root/dec, which is"):
         tick_checked(tree)
 
 
 def test_record_ticks_lists_the_nodes_ticked_in_order() -> None:
     a, b, c = Fixed("a", S), Fixed("b", F), Fixed("c", S)
-    tree = Tree(Sequence("root", children=[a, b, c]))
+    tree = Tree(ReactiveSequence("root", children=[a, b, c]))
     state, ticked = record_ticks(tree, tree.tick)
     assert state is F
     assert [n.name for n in ticked] == ["root", "a", "b"]
@@ -69,7 +71,9 @@ def test_record_ticks_lists_the_nodes_ticked_in_order() -> None:
 async def test_a_throttle_may_hold_its_running_child_between_its_ticks() -> None:
     clock = ManualClock()
     deep = Fixed("deep", R)
-    tree = Tree(Throttle("thr", children=[Sequence("s", children=[deep])], rate_hz=1), clock=clock)
+    tree = Tree(
+        Throttle("thr", children=[ReactiveSequence("s", children=[deep])], rate_hz=1), clock=clock
+    )
     assert tick_checked(tree) is R
     assert tick_checked(tree) is R  # child and grandchild running, not ticked: held
     await clock.advance(1.0)
@@ -78,7 +82,7 @@ async def test_a_throttle_may_hold_its_running_child_between_its_ticks() -> None
 
 def test_nodes_inside_a_subtree_are_checked() -> None:
     inner = Tree(FirstOnlyOnce("inner", children=[Fixed("a", R), Fixed("b", R)]))
-    tree = Tree(Sequence("root", children=[Subtree(inner, "sub")]))
+    tree = Tree(ReactiveSequence("root", children=[Subtree(inner, "sub")]))
     tick_checked(tree)
     with pytest.raises(HaltingViolation, match="inner/a is running but was not ticked"):
         tick_checked(tree)
@@ -92,7 +96,7 @@ def test_a_node_that_raises_halts_its_running_children() -> None:
 
     a = Fixed("a", R)
     node: Node = Explodes("x", children=[a])
-    tree = Tree(Sequence("root", children=[node]))
+    tree = Tree(ReactiveSequence("root", children=[node]))
     with capture_logs():
         assert tick_checked(tree) is F
     assert node.state is State.ERROR

@@ -20,7 +20,7 @@ from btcap import (
     Leaf,
     Log,
     Port,
-    Sequence,
+    ReactiveSequence,
     State,
     Tree,
     TreeError,
@@ -168,7 +168,9 @@ async def test_action_input_from_a_wire() -> None:
     with anyio.fail_after(5):
         gate = Gate()
         act = Action(gate, "go", inputs={"target": str})
-        tree = Tree(Sequence("root", children=[Constant("where", value="dock", type=str), act]))
+        tree = Tree(
+            ReactiveSequence("root", children=[Constant("where", value="dock", type=str), act])
+        )
         tree.wire("root/where", "value", "root/go", "target")
         tree.tick()
         await settle()
@@ -370,7 +372,7 @@ def test_wait_needs_seconds() -> None:
 @pytest.mark.parametrize("level", ["debug", "info", "warning", "error"])
 def test_log_emits_the_message_with_the_value(level: str) -> None:
     log = Log("say", message="battery level", level=level)
-    tree = Tree(Sequence("root", children=[Constant("lvl", value=0.3, type=float), log]))
+    tree = Tree(ReactiveSequence("root", children=[Constant("lvl", value=0.3, type=float), log]))
     tree.wire("root/lvl", "value", "root/say", "value")
     with capture_logs() as logs:
         assert tree.tick() is S

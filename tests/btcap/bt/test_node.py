@@ -9,13 +9,13 @@ from structlog.testing import capture_logs
 
 from btcap import (
     AlwaysSuccess,
-    Fallback,
     IllegalTransition,
     Inverter,
     Leaf,
     Node,
     Parallel,
-    Sequence,
+    ReactiveFallback,
+    ReactiveSequence,
     State,
     Tree,
     TreeError,
@@ -117,7 +117,7 @@ def test_new_node_is_uninitialized_with_no_error() -> None:
 
 @pytest.mark.parametrize("action", ["tick", "untick", "reset"])
 def test_actions_before_setup_raise_a_clear_illegal_transition(action: str) -> None:
-    root = Sequence("root", children=[Fixed("leaf")])
+    root = ReactiveSequence("root", children=[Fixed("leaf")])
     Tree(root)
     leaf = root.children[0]
     with pytest.raises(IllegalTransition, match=rf"{action} of 'root/leaf' while uninitialized"):
@@ -141,7 +141,7 @@ def test_actions_after_shutdown_raise(action: str) -> None:
 
 def test_setup_goes_idle_children_first() -> None:
     journal: list[str] = []
-    root = Sequence("root", children=[Hooks("a", journal), Hooks("b", journal)])
+    root = ReactiveSequence("root", children=[Hooks("a", journal), Hooks("b", journal)])
     root.setup()
     assert journal == ["a.setup", "b.setup"]
     assert [n.state for n in root.walk()] == [State.IDLE] * 3
@@ -236,7 +236,7 @@ def test_reset_from_paused_goes_idle() -> None:
 
 def test_shutdown_then_setup_again() -> None:
     journal: list[str] = []
-    root = Sequence("root", children=[Hooks("a", journal)])
+    root = ReactiveSequence("root", children=[Hooks("a", journal)])
     root.setup()
     root.tick()
     root.shutdown()
@@ -265,7 +265,7 @@ def test_shutdown_of_uninitialized_or_shutdown_node_does_nothing() -> None:
 def test_exception_in_on_tick_is_an_error_state_logged_and_not_raised() -> None:
     journal: list[str] = []
     bad = Hooks("bad", journal, fail_in="tick")
-    tree = Tree(Sequence("root", children=[bad]))
+    tree = Tree(ReactiveSequence("root", children=[bad]))
     with capture_logs() as logs:
         assert tree.tick() is State.FAILED
     assert bad.state is State.ERROR
@@ -334,7 +334,7 @@ def test_exception_in_on_setup_is_an_error_of_that_node() -> None:
 
 def test_tree_setup_failure_raises_naming_the_node_and_can_be_retried() -> None:
     bad = Hooks("bad", [], fail_in="setup")
-    tree = Tree(Sequence("root", children=[bad, Fixed("ok")]))
+    tree = Tree(ReactiveSequence("root", children=[bad, Fixed("ok")]))
     with capture_logs(), pytest.raises(TreeError, match="setup failed: root/bad: RuntimeError"):
         tree.tick()
     assert {n.state for n in tree.nodes()} == {State.SHUTDOWN}
@@ -353,7 +353,9 @@ def test_bad_node_names_are_rejected(name: str) -> None:
 
 def test_path_and_walk() -> None:
     c = Fixed("c")
-    root = Sequence("root", children=[Fallback("f", children=[Fixed("a"), c]), Fixed("b")])
+    root = ReactiveSequence(
+        "root", children=[ReactiveFallback("f", children=[Fixed("a"), c]), Fixed("b")]
+    )
     assert c.path == "root/f/c"
     assert root.path == "root"
     assert [n.name for n in root.walk()] == ["root", "f", "a", "c", "b"]
@@ -366,15 +368,15 @@ def test_add_child_checks() -> None:
     with pytest.raises(TreeError, match="at most 0 children"):
         Fixed("leaf").add_child(Fixed("x"))
     with pytest.raises(TreeError, match="already has a child named 'a'"):
-        Sequence("s", children=[Fixed("a"), Fixed("a")])
+        ReactiveSequence("s", children=[Fixed("a"), Fixed("a")])
     a = Fixed("a")
-    Sequence("s1", children=[a])
+    ReactiveSequence("s1", children=[a])
     with pytest.raises(TreeError, match="already has parent 's1'"):
-        Sequence("s2", children=[a])
+        ReactiveSequence("s2", children=[a])
 
 
 def test_add_child_at_index_and_remove_child() -> None:
-    root = Sequence("root", children=[Fixed("a"), Fixed("c")])
+    root = ReactiveSequence("root", children=[Fixed("a"), Fixed("c")])
     b = root.add_child(Fixed("b"), 1)
     assert [c.name for c in root.children] == ["a", "b", "c"]
     root.remove_child(b)
@@ -386,7 +388,7 @@ def test_add_child_at_index_and_remove_child() -> None:
 
 def test_cannot_add_or_remove_children_of_active_nodes() -> None:
     busy = Fixed("busy", State.RUNNING)
-    root = ready(Sequence("root", children=[busy]))
+    root = ready(ReactiveSequence("root", children=[busy]))
     root.tick()
     with pytest.raises(IllegalTransition, match="cannot add a child to 'root' while it is running"):
         root.add_child(Fixed("x"))

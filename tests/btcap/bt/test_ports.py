@@ -13,7 +13,7 @@ from btcap import (
     Leaf,
     Parallel,
     Port,
-    Sequence,
+    ReactiveSequence,
     State,
     Tree,
     TreeError,
@@ -214,7 +214,7 @@ def test_set_input_is_type_checked() -> None:
 
 
 def make_tree(*nodes: Leaf) -> Tree:
-    return Tree(Sequence("root", children=list(nodes)))
+    return Tree(ReactiveSequence("root", children=list(nodes)))
 
 
 def test_values_flow_in_tick_order() -> None:
@@ -330,7 +330,9 @@ def test_unwire_keeps_the_other_wires() -> None:
 def test_wire_within_nested_structure() -> None:
     src, sink = Source(), Sink()
     tree = Tree(
-        Parallel("root", children=[Sequence("a", children=[src]), Inverter("b", children=[sink])])
+        Parallel(
+            "root", children=[ReactiveSequence("a", children=[src]), Inverter("b", children=[sink])]
+        )
     )
     tree.wire("root/a/src", "n", "root/b/sink", "x")
     assert tree.tick() is State.FAILED
@@ -360,7 +362,7 @@ def test_validate_accepts_a_constant_value() -> None:
 
 
 def test_validate_checks_child_counts() -> None:
-    tree = Tree(Sequence("root", children=[Inverter("inv")]))
+    tree = Tree(ReactiveSequence("root", children=[Inverter("inv")]))
     with pytest.raises(TreeError) as err:
         tree.validate()
     assert str(err.value) == "node 'root/inv' (Inverter) has 0 children; expected 1 to 1"

@@ -1,9 +1,10 @@
 """Property tests: random trees against a small reference evaluator, plus tick invariants.
 
-The reference evaluates a tree spec tick by tick. It is pure for reactive nodes; memory
-nodes and Parallel keep a little state in a dict keyed by path, exactly as much as the
-semantics require (which child a memory node resumes at, which Parallel children are
-done). It also reports which nodes a tick visits and what each returned.
+The reference evaluates a tree spec tick by tick. It is pure for the reactive composites;
+Sequence, Fallback, SequenceWithMemory and Parallel keep a little state in a dict keyed by
+path, exactly as much as the semantics require (which child a composite resumes at,
+which Parallel children are done or were halted). It also reports which nodes a tick
+visits and what each returned.
 """
 
 from __future__ import annotations
@@ -19,13 +20,14 @@ from btcap import (
     AlwaysRunning,
     AlwaysSuccess,
     Fallback,
-    FallbackWithMemory,
     ForceFailure,
     ForceSuccess,
     Inverter,
     Leaf,
     Node,
     Parallel,
+    ReactiveFallback,
+    ReactiveSequence,
     Sequence,
     SequenceWithMemory,
     State,
@@ -62,7 +64,9 @@ class NodeSpec:
 
 Spec = LeafSpec | NodeSpec
 
-COMPOSITES = ("seq", "fb", "seqmem", "fbmem")
+COMPOSITES = ("rseq", "rfb", "seq", "fb", "swm")
+#: A Parallel's child that was still running when it decided: reset when it starts over.
+HALTED = "halted"
 DECORATORS = ("inv", "force_success", "force_failure")
 
 
@@ -128,15 +132,15 @@ class Ref:
                 "force_failure": {S: F},
             }[kind]
             return remap.get(r, r)
-        if kind in ("seq", "fb"):
-            go_on = S if kind == "seq" else F
+        if kind in ("rseq", "rfb"):  # from the first child every tick
+            go_on = S if kind == "rseq" else F
             for c, p in kids:
                 r = self._eval(c, p, t)
                 if r is not go_on:
                     return r
             return go_on
-        if kind in ("seqmem", "fbmem"):
-            go_on = S if kind == "seqmem" else F
+        if kind in ("seq", "fb", "swm"):  # resume where they were
+            go_on = F if kind == "fb" else S
             i = self.memory.get(path, 0)
             while i < len(kids):
                 r = self._eval(kids[i][0], kids[i][1], t)
@@ -144,16 +148,18 @@ class Ref:
                     self.memory[path] = i
                     return R
                 if r is not go_on:
-                    self.memory[path] = 0
+                    self.memory[path] = i if kind == "swm" else 0  # swm: at the failed child
                     return r
                 i += 1
             self.memory[path] = 0
             return go_on
         assert kind == "par"  # default thresholds: all must succeed, any failure fails
-        done: list[State | None] | None = self.memory.get(path)
+        done: list[State | str | None] | None = self.memory.get(path)
         if done is None or all(d is not None for d in done):
-            if done is not None:
-                self.reset(path + "/")  # a finished Parallel restarts its children afresh
+            if done is not None:  # a finished Parallel restarts the children it halted
+                for (_, p), d in zip(kids, done, strict=True):
+                    if d == HALTED:
+                        self.reset(p)
             done = [None] * len(kids)
         for i, (c, p) in enumerate(kids):
             if done[i] is None:
@@ -162,7 +168,7 @@ class Ref:
                     done[i] = r
         ok, bad = done.count(S), done.count(F)
         if ok == len(kids) or bad >= 1:
-            self.memory[path] = [S] * len(kids)
+            self.memory[path] = [HALTED if d is None else d for d in done]
             # What still runs below a finished Parallel is unticked in the same tick.
             below = path + "/"
             self.halted.update(p for p, r in self.visited.items() if p.startswith(below) and r is R)
@@ -207,6 +213,12 @@ class Scripted(Leaf):
         return self.script[self.ctx.t % len(self.script)]
 
 
+class RReactiveSequence(Recording, ReactiveSequence): ...
+
+
+class RReactiveFallback(Recording, ReactiveFallback): ...
+
+
 class RSequence(Recording, Sequence): ...
 
 
@@ -214,9 +226,6 @@ class RFallback(Recording, Fallback): ...
 
 
 class RSequenceWithMemory(Recording, SequenceWithMemory): ...
-
-
-class RFallbackWithMemory(Recording, FallbackWithMemory): ...
 
 
 class RInverter(Recording, Inverter): ...
@@ -232,10 +241,11 @@ class RParallel(Recording, Parallel): ...
 
 
 KINDS: dict[str, type[Recording]] = {
+    "rseq": RReactiveSequence,
+    "rfb": RReactiveFallback,
     "seq": RSequence,
     "fb": RFallback,
-    "seqmem": RSequenceWithMemory,
-    "fbmem": RFallbackWithMemory,
+    "swm": RSequenceWithMemory,
     "inv": RInverter,
     "force_success": RForceSuccess,
     "force_failure": RForceFailure,
@@ -259,10 +269,11 @@ def build_plain(spec: Spec, name: str = "r") -> Node:
     if isinstance(spec, LeafSpec):
         return {S: AlwaysSuccess, F: AlwaysFailure, R: AlwaysRunning}[spec.script[0]](name)
     plain: dict[str, type[Node]] = {
+        "rseq": ReactiveSequence,
+        "rfb": ReactiveFallback,
         "seq": Sequence,
         "fb": Fallback,
-        "seqmem": SequenceWithMemory,
-        "fbmem": FallbackWithMemory,
+        "swm": SequenceWithMemory,
         "inv": Inverter,
         "force_success": ForceSuccess,
         "force_failure": ForceFailure,

@@ -9,13 +9,14 @@ from typing import Any
 import msgspec
 import pytest
 
+import btcap
 from btcap import (
     Constant,
     Leaf,
     Node,
     NodeRegistry,
+    ReactiveSequence,
     RegistryError,
-    Sequence,
     State,
     TreeError,
     default_registry,
@@ -74,8 +75,16 @@ def test_default_registry_has_every_builtin_that_a_file_can_build() -> None:
         if isinstance(getattr(module, name), type) and issubclass(getattr(module, name), Node)
     }
     assert exported - set(reg) == {"Action", "Condition", "Decorator", "Remap"}
-    assert {"Sequence", "Fallback", "Parallel", "Retry", "Timeout", "Constant", "Wait"} <= set(reg)
-    assert reg.get("Sequence") is Sequence
+    assert {
+        "ReactiveSequence",
+        "ReactiveFallback",
+        "Parallel",
+        "Retry",
+        "Timeout",
+        "Constant",
+        "Wait",
+    } <= set(reg)
+    assert reg.get("ReactiveSequence") is ReactiveSequence
     assert reg.name_of(Constant) == "Constant"
     assert "Subtree" not in reg
     assert "Action" not in reg
@@ -92,7 +101,7 @@ def test_each_default_registry_is_new() -> None:
 
 def test_default_registry_reads_the_real_entry_points() -> None:
     # The project declares an (empty) btcap.nodes group: loading it must just work.
-    assert "Sequence" in default_registry()
+    assert "ReactiveSequence" in default_registry()
 
 
 # -- registering ----------------------------------------------------------------------
@@ -107,14 +116,14 @@ def test_register_works_as_decorator_and_under_another_name() -> None:
 def test_duplicate_names_are_rejected_naming_both_classes() -> None:
     reg = default_registry(plugins=False)
 
-    class Sequence(Leaf):  # same name as the built-in
+    class ReactiveSequence(Leaf):  # same name as the built-in
         def on_tick(self) -> State:
             return State.SUCCEEDED
 
     with pytest.raises(
-        RegistryError, match=r"'Sequence' is already registered.*btcap\.bt\.composites"
+        RegistryError, match=r"'ReactiveSequence' is already registered.*btcap\.bt\.composites"
     ):
-        reg.register(Sequence)
+        reg.register(ReactiveSequence)
 
 
 @pytest.mark.parametrize(
@@ -153,7 +162,7 @@ def test_plugin_class_and_plugin_callable_are_registered(plugins: list[FakeEntry
     reg = default_registry()
     assert reg.get("Battery") is Battery
     assert reg.get("Gripper") is Gripper
-    assert "Sequence" in reg
+    assert "ReactiveSequence" in reg
 
 
 def test_no_plugins_skips_entry_points(plugins: list[FakeEntryPoint]) -> None:
@@ -188,7 +197,7 @@ def _call_fails() -> Any:
         (lambda: 42, "expected a Node subclass or a callable"),
         (_returns_junk, "returned 'Gripper'; expected only Node subclasses"),
         (_call_fails, "calling it failed: RuntimeError: no hardware"),
-        (lambda: Sequence, "'Sequence' is already registered"),
+        (lambda: ReactiveSequence, "'ReactiveSequence' is already registered"),
     ],
 )
 def test_broken_plugin_errors_name_the_entry_point(
@@ -267,3 +276,13 @@ def test_registered_types_can_be_named_in_files() -> None:
         reg.register_type("geo.Pose", int)
     with pytest.raises(RegistryError, match="no name in files"):
         NodeRegistry().format_type(Pose)
+
+
+def test_fallback_with_memory_is_gone_and_its_name_says_use_fallback() -> None:
+    assert not hasattr(btcap, "FallbackWithMemory")
+    reg = default_registry(plugins=False)
+    assert "FallbackWithMemory" not in reg
+    with pytest.raises(
+        RegistryError, match=r"'FallbackWithMemory': it was removed in btcap 0\.2; use Fallback,"
+    ):
+        reg.get("FallbackWithMemory")

@@ -16,13 +16,13 @@ from btcap import (
     AlwaysSuccess,
     Condition,
     Constant,
-    Fallback,
     IllegalTransition,
     Inverter,
     Leaf,
     Node,
     Parallel,
-    Sequence,
+    ReactiveFallback,
+    ReactiveSequence,
     State,
     Subtree,
     Tree,
@@ -81,10 +81,10 @@ def other_tasks() -> set[asyncio.Task[Any]]:
 
 def sample_tree() -> Tree:
     return Tree(
-        Sequence(
+        ReactiveSequence(
             "root",
             children=[
-                Fallback("fb", children=[Leafy("a", F), Leafy("b")]),
+                ReactiveFallback("fb", children=[Leafy("a", F), Leafy("b")]),
                 Inverter("inv", children=[Leafy("c", F)]),
             ],
         )
@@ -131,7 +131,7 @@ def test_a_node_belongs_to_one_tree() -> None:
 
 def test_insert_subtree_when_not_running() -> None:
     tree = sample_tree()
-    new = Sequence("new", children=[Leafy("x"), Leafy("y")])
+    new = ReactiveSequence("new", children=[Leafy("x"), Leafy("y")])
     tree.insert("root/fb", new, 0)
     assert tree.find("root/fb/new/y").tree is tree
     assert [c.name for c in tree.find("root/fb").children] == ["new", "a", "b"]
@@ -142,7 +142,7 @@ def test_insert_into_a_set_up_tree_sets_the_subtree_up() -> None:
     tree = sample_tree()
     assert tree.tick() is S
     x = Leafy("x", R)
-    tree.insert(tree.root, Sequence("more", children=[x]))
+    tree.insert(tree.root, ReactiveSequence("more", children=[x]))
     assert x.state is State.IDLE
     assert tree.tick() is R
     assert x.ticks == 1
@@ -150,7 +150,7 @@ def test_insert_into_a_set_up_tree_sets_the_subtree_up() -> None:
 
 
 def test_insert_below_a_running_node_raises() -> None:
-    tree = Tree(Sequence("root", children=[Leafy("busy", R)]))
+    tree = Tree(ReactiveSequence("root", children=[Leafy("busy", R)]))
     tree.tick()
     with pytest.raises(IllegalTransition, match="while it is running"):
         tree.insert("root", Leafy("x"))
@@ -173,7 +173,7 @@ def test_failed_insert_leaves_the_tree_unchanged() -> None:
 def test_remove_subtree_detaches_shuts_down_and_drops_wires() -> None:
     k = Constant("k", value=1, type=int)
     cond = Condition(lambda x: x == 1, "cond", inputs={"x": int})
-    tree = Tree(Sequence("root", children=[k, Sequence("sub", children=[cond])]))
+    tree = Tree(ReactiveSequence("root", children=[k, ReactiveSequence("sub", children=[cond])]))
     tree.wire(k, "value", cond, "x")
     assert tree.tick() is S
     removed = tree.remove("root/sub")
@@ -194,7 +194,9 @@ def test_remove_subtree_detaches_shuts_down_and_drops_wires() -> None:
 
 
 def test_removing_an_active_subtree_raises() -> None:
-    tree = Tree(Sequence("root", children=[Sequence("sub", children=[Leafy("busy", R)])]))
+    tree = Tree(
+        ReactiveSequence("root", children=[ReactiveSequence("sub", children=[Leafy("busy", R)])])
+    )
     tree.tick()
     with pytest.raises(TreeError, match="cannot remove 'root/sub' while it is running"):
         tree.remove("root/sub")
@@ -228,7 +230,9 @@ def replay(start: dict[str, State], changes: list[Change]) -> dict[str, State]:
 def test_observers_see_every_state_change() -> None:
     leaf_b = Leafy("b", R)
     tree = Tree(
-        Sequence("root", children=[Fallback("fb", children=[Leafy("a", F), leaf_b]), Leafy("c")])
+        ReactiveSequence(
+            "root", children=[ReactiveFallback("fb", children=[Leafy("a", F), leaf_b]), Leafy("c")]
+        )
     )
     changes: list[Change] = []
     tree.observe(lambda n, old, new: changes.append((n.path, old, new)))
@@ -262,7 +266,7 @@ def test_observers_see_errors_and_shutdown() -> None:
         def on_tick(self) -> State:
             raise RuntimeError("no")
 
-    tree = Tree(Sequence("root", children=[Boom("boom")]))
+    tree = Tree(ReactiveSequence("root", children=[Boom("boom")]))
     changes: list[Change] = []
     tree.observe(lambda n, old, new: changes.append((n.path, old, new)))
     with capture_logs():
@@ -401,7 +405,8 @@ async def test_run_on_a_fast_clock() -> None:
     with anyio.fail_after(5):
         clock = Clock(speedup=1000)
         tree = Tree(
-            Sequence("root", children=[Wait("wait", seconds=0.5), AlwaysSuccess()]), clock=clock
+            ReactiveSequence("root", children=[Wait("wait", seconds=0.5), AlwaysSuccess()]),
+            clock=clock,
         )
         assert await tree.run(100) is S
         assert clock.now() >= 0.5
@@ -518,7 +523,7 @@ async def test_attach_makes_every_node_an_addressable_actor() -> None:
         async with ActorSystem("robot") as system:
             k = Constant("k", value=5, type=int)
             cond = Condition(lambda x: x > 3, "big", inputs={"x": int})
-            root = Sequence("root", children=[k, Inverter("inv", children=[cond])])
+            root = ReactiveSequence("root", children=[k, Inverter("inv", children=[cond])])
             tree = Tree(root, name="mission")
             cond.set_input("x", 5)
             tree.attach(system)
@@ -562,7 +567,7 @@ async def test_attached_tree_spawns_inserted_and_stops_removed_nodes() -> None:
         async with ActorSystem("robot") as system:
             tree = sample_tree()
             tree.attach(system)
-            extra = Sequence("extra", children=[Leafy("x")])
+            extra = ReactiveSequence("extra", children=[Leafy("x")])
             tree.insert("root", extra)
             assert system.lookup("tree:root/extra/x") is extra.children[0]
             tree.remove(extra)
@@ -602,7 +607,7 @@ async def test_node_status_crosses_a_codec_transport() -> None:
             ActorSystem(transport=net.transport("b"), registry=protocol_registry()) as b,
         ):
             k = Constant("k", value=[1.5, 2.5], type=tuple[float, float])
-            tree = Tree(Sequence("root", children=[k]), name="t")
+            tree = Tree(ReactiveSequence("root", children=[k]), name="t")
             tree.attach(b)
             tree.setup()
             reply = await a.ref(k.address).ask(Tick(), timeout=2)
@@ -623,7 +628,7 @@ class Doubler(Leaf):
 
 
 def doubler_subtree(name: str = "double") -> Subtree:
-    inner = Tree(Sequence("inner", children=[Doubler("d")]))
+    inner = Tree(ReactiveSequence("inner", children=[Doubler("d")]))
     return Subtree(inner, name, public_inputs={"x": "inner/d.x"}, public_outputs={"y": "inner/d.y"})
 
 
@@ -631,7 +636,7 @@ def test_subtree_maps_inputs_and_outputs_every_tick() -> None:
     src = Constant("src", value=1, type=int)
     sub = doubler_subtree()
     check = Condition(lambda v: v > 2, "check", inputs={"v": int})
-    tree = Tree(Sequence("root", children=[src, sub, check]))
+    tree = Tree(ReactiveSequence("root", children=[src, sub, check]))
     assert sub.input_ports["x"].type is int
     assert sub.output_ports["y"].type is int
     tree.wire(src, "value", sub, "x")
@@ -645,15 +650,15 @@ def test_subtree_maps_inputs_and_outputs_every_tick() -> None:
 
 
 def test_subtree_without_its_public_input_fails_validation() -> None:
-    tree = Tree(Sequence("root", children=[doubler_subtree()]))
+    tree = Tree(ReactiveSequence("root", children=[doubler_subtree()]))
     with pytest.raises(TreeError, match="'root/double': input 'x' needs a value or a wire"):
         tree.tick()
 
 
 def test_subtree_state_follows_the_inner_tree() -> None:
     leaf = Leafy("leaf", R)
-    sub = Subtree(Tree(Sequence("inner", children=[leaf])), "sub")
-    tree = Tree(Fallback("root", children=[sub]))
+    sub = Subtree(Tree(ReactiveSequence("inner", children=[leaf])), "sub")
+    tree = Tree(ReactiveFallback("root", children=[sub]))
     assert tree.tick() is R
     assert sub.state is R
     tree.untick()
@@ -681,7 +686,7 @@ async def test_subtree_uses_the_outer_clock_and_is_shut_down_with_it() -> None:
         inner = Tree(Parallel("inner", children=[Wait("wait", seconds=1), Action(work, "work")]))
         sub = Subtree(inner, "sub")
         before = other_tasks()
-        tree = Tree(Sequence("root", children=[sub]), clock=clock)
+        tree = Tree(ReactiveSequence("root", children=[sub]), clock=clock)
         assert tree.tick() is R
         assert inner.clock is clock
         await settle()
@@ -718,14 +723,14 @@ def test_subtree_utility_is_the_inner_trees() -> None:
 def test_subtree_bad_port_references(
     inputs: dict[str, str], outputs: dict[str, str], message: str
 ) -> None:
-    inner = Tree(Sequence("inner", children=[Doubler("d")]))
+    inner = Tree(ReactiveSequence("inner", children=[Doubler("d")]))
     with pytest.raises(TreeError, match=message):
         Subtree(inner, "sub", public_inputs=inputs, public_outputs=outputs)
 
 
 def test_subtree_inner_setup_failure_fails_the_outer_setup() -> None:
-    inner = Tree(Sequence("inner", children=[Inverter("empty")]))
-    tree = Tree(Sequence("root", children=[Subtree(inner, "sub")]))
+    inner = Tree(ReactiveSequence("inner", children=[Inverter("empty")]))
+    tree = Tree(ReactiveSequence("root", children=[Subtree(inner, "sub")]))
     with capture_logs(), pytest.raises(TreeError, match="root/sub: TreeError: node 'inner/empty'"):
         tree.tick()
 

@@ -10,13 +10,13 @@ import pytest
 from btcap import (
     AlwaysSuccess,
     Fallback,
-    FallbackWithMemory,
     IfThenElse,
     Inverter,
     Leaf,
     Parallel,
+    ReactiveFallback,
+    ReactiveSequence,
     Sequence,
-    SequenceWithMemory,
     State,
     Switch,
     Tree,
@@ -91,13 +91,13 @@ def test_parallel_adds() -> None:
 
 def test_composites_aggregate_their_children() -> None:
     a, b = Costed("a", A), Costed("b", B)
+    assert ReactiveSequence("s", children=[a, b]).utility() == sequence_utility([A, B])
+    a, b = Costed("a", A), Costed("b", B)
     assert Sequence("s", children=[a, b]).utility() == sequence_utility([A, B])
     a, b = Costed("a", A), Costed("b", B)
-    assert SequenceWithMemory("s", children=[a, b]).utility() == sequence_utility([A, B])
+    assert ReactiveFallback("f", children=[a, b]).utility() == fallback_utility([A, B])
     a, b = Costed("a", A), Costed("b", B)
     assert Fallback("f", children=[a, b]).utility() == fallback_utility([A, B])
-    a, b = Costed("a", A), Costed("b", B)
-    assert FallbackWithMemory("f", children=[a, b]).utility() == fallback_utility([A, B])
     a, b = Costed("a", A), Costed("b", B)
     assert Parallel("p", children=[a, b]).utility() == A + B
     a, b = Costed("a", A), Costed("b", B)
@@ -114,31 +114,33 @@ def test_decorators_and_trees_pass_utility_through() -> None:
     inv = Inverter("inv", children=[Costed("a", A)])
     assert inv.utility() == A
     assert Inverter("empty").utility() == Utility()
-    tree = Tree(Sequence("root", children=[Costed("a", A), Costed("b", B)]))
+    tree = Tree(ReactiveSequence("root", children=[Costed("a", A), Costed("b", B)]))
     assert tree.utility() == sequence_utility([A, B])
 
 
 def test_a_leaf_that_cannot_execute_makes_a_sequence_unable() -> None:
-    tree = Tree(Sequence("root", children=[Costed("ok", A), Costed("no", CANNOT)]))
+    tree = Tree(ReactiveSequence("root", children=[Costed("ok", A), Costed("no", CANNOT)]))
     u = tree.utility()
     assert u.can_execute is False
     assert u.expected_cost == math.inf
 
 
 def test_a_fallback_stays_able_if_another_child_can() -> None:
-    fb = Fallback("fb", children=[Costed("no", CANNOT), Costed("ok", B)])
+    fb = ReactiveFallback("fb", children=[Costed("no", CANNOT), Costed("ok", B)])
     u = fb.utility()
     assert u.can_execute is True
     assert u == fallback_utility([B])  # the unable child is no path at all
-    nested = Sequence("root", children=[Costed("a", A), fb])
+    nested = ReactiveSequence("root", children=[Costed("a", A), fb])
     assert nested.utility().can_execute is True
     assert nested.utility() == sequence_utility([A, B])
 
 
 def test_a_fallback_of_unable_children_is_unable() -> None:
-    fb = Fallback("fb", children=[Costed("x", CANNOT), Costed("y", Utility(can_execute=False))])
+    fb = ReactiveFallback(
+        "fb", children=[Costed("x", CANNOT), Costed("y", Utility(can_execute=False))]
+    )
     assert fb.utility() == CANNOT
-    assert Sequence("s", children=[fb]).utility().can_execute is False
+    assert ReactiveSequence("s", children=[fb]).utility().can_execute is False
     assert (
         Parallel("p", children=[Costed("ok", A), Costed("no", CANNOT)]).utility().can_execute
         is False

@@ -19,7 +19,7 @@ import pytest
 from structlog.testing import capture_logs
 
 import btcap.cli
-from btcap import Leaf, Monitor, Parallel, Replay, Sequence, State, Tree
+from btcap import Leaf, Monitor, Parallel, ReactiveSequence, Replay, State, Tree
 from btcap.actors import ManualClock
 from btcap.cli import main
 from btcap.monitor import RecordError, read_record
@@ -170,7 +170,7 @@ class _Flip(Leaf):
 
 @pytest.fixture
 async def flip_tree() -> AsyncIterator[Tree]:
-    tree = Tree(Sequence("root", children=[_Flip("a")]), clock=ManualClock(5.0))
+    tree = Tree(ReactiveSequence("root", children=[_Flip("a")]), clock=ManualClock(5.0))
     tree.setup()
     yield tree
     await tree.shutdown()
@@ -412,7 +412,7 @@ async def test_a_slot_shows_the_run_it_hosts_while_it_runs() -> None:
                     break
                 await asyncio.sleep(0.01)
             echo = ECHO.node_type()("echo", inputs={"value": 3})
-            tree = base.mission(Sequence("mission", children=[echo]))
+            tree = base.mission(ReactiveSequence("mission", children=[echo]))
             for _ in range(1000):  # the root is running as soon as the echo is unassigned
                 tree.tick()
                 if echo.state is State.RUNNING:

@@ -12,7 +12,7 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from btcap import Leaf, Port, Sequence, State, Tree
+from btcap import Leaf, Port, ReactiveSequence, State, Tree
 from btcap.actors import Actor, ActorSystem, Clock, ManualClock, TimeSource
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.capability import CapabilityInterface
@@ -152,7 +152,7 @@ def count_impl(
             Finish(probe, robot, run, after),
             ob(name="out"),
         )
-        t = Tree(Sequence("impl", children=[i, e, o, f]))
+        t = Tree(ReactiveSequence("impl", children=[i, e, o, f]))
         t.wire(i, "x", e, "x")
         t.wire(i, "stop", f, "stop")
         for port in ("y", "ticks", "robot"):

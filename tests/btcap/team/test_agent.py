@@ -11,7 +11,7 @@ import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
-from btcap import Sequence, State
+from btcap import ReactiveSequence, State
 from btcap.team.agent import Agent, AgentConfig
 from btcap.team.assignment import SingleItemAuction
 from btcap.team.core.ids import AuctionId, ExecutionId
@@ -167,7 +167,7 @@ async def test_run_mission_returns_the_result_and_shuts_the_tree_down() -> None:
             await t.add("b", [count_impl("b", 1.0, probe, after=3)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 4})
-            root = Sequence("root", children=[node])
+            root = ReactiveSequence("root", children=[node])
             assert await a.run_mission(root) is State.SUCCEEDED
             assert node.assignments == ["b"]
             assert node.outputs == {"y": 4, "ticks": 3, "robot": "b"}
@@ -186,7 +186,7 @@ async def test_cancelling_a_running_mission_releases_the_executor() -> None:
             a, b = await t.origin_and_executor(probe)
             node = COUNT.node_type()("count", inputs={"x": 1})
             task = asyncio.get_running_loop().create_task(
-                a.run_mission(Sequence("root", children=[node]))
+                a.run_mission(ReactiveSequence("root", children=[node]))
             )
             await until(lambda: node.state is State.RUNNING, "the remote run")
             task.cancel()
@@ -211,8 +211,8 @@ async def test_an_agent_leaving_mid_work_cleans_up_both_sides() -> None:
             # a runs one capability itself and b runs one for a.
             n1 = COUNT.node_type()("one", inputs={"x": 1})
             n2 = COUNT.node_type()("two", inputs={"x": 2})
-            tree1 = a.mission(Sequence("r1", children=[n1]))
-            tree2 = a.mission(Sequence("r2", children=[n2]))
+            tree1 = a.mission(ReactiveSequence("r1", children=[n1]))
+            tree2 = a.mission(ReactiveSequence("r2", children=[n2]))
             await tick_until(tree1, lambda _s: n1.state is State.RUNNING, "n1 running")
             await tick_until(tree2, lambda _s: n2.state is State.RUNNING, "n2 running")
             assert {n1.assignments[0], n2.assignments[0]} == {"a", "b"}

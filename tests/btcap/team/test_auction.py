@@ -11,7 +11,7 @@ from capfixtures import COUNT, Probe, count_impl, silent_member, step, team, tic
 from hypothesis import given
 from hypothesis import strategies as st
 
-from btcap import Parallel, Sequence, State
+from btcap import Parallel, ReactiveSequence, State
 from btcap.actors import Actor, handler
 from btcap.team.agent import Agent
 from btcap.team.core.auction import Auction
@@ -130,7 +130,7 @@ async def test_auction_between_agents_closes_early_and_cheapest_wins() -> None:
             await t.add("d")  # no implementation: not even invited
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
             out = a.auctioneer.outcomes[-1]
@@ -152,7 +152,7 @@ async def test_equal_costs_are_broken_by_robot_id() -> None:
             await t.add("d", [count_impl("d", 2.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = c.mission(Sequence("root", children=[node]))
+            tree = c.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
             await tree.shutdown()
@@ -166,7 +166,7 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
                 await knows(a, "s")
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 start = t.clock.now()
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert t.clock.now() - start >= 2.0  # the auction waited its whole window
@@ -187,7 +187,7 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
                 await knows(a, "s")
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 tree.tick()
                 await until(lambda: bool(a.auctioneer._open), "the auction to open")
                 auction, _done = next(iter(a.auctioneer._open.values()))
@@ -210,7 +210,7 @@ async def test_invalid_bids_from_a_robot_are_declines_and_the_next_wins() -> Non
             await t.add("m", [count_impl("m", -1.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["a"]
             out = a.auctioneer.outcomes[-1]
@@ -228,7 +228,7 @@ async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
             await t.add("b", [count_impl("b", lambda inp: None if inp["x"] > 10 else 1.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 11, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             out = a.auctioneer.outcomes[-1]
             assert out is not None
@@ -258,8 +258,8 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                 )
                 na = COUNT.node_type()("count", inputs={"x": 1})
                 nc = COUNT.node_type()("count", inputs={"x": 2})
-                ta = a.mission(Sequence("ra", children=[na]))
-                tc = c.mission(Sequence("rc", children=[nc]))
+                ta = a.mission(ReactiveSequence("ra", children=[na]))
+                tc = c.mission(ReactiveSequence("rc", children=[nc]))
                 ta.tick()
                 tc.tick()
                 await until(
@@ -342,7 +342,7 @@ async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder(
             ):
                 await knows(a, "f")
                 node = COUNT.node_type()("count", inputs={"x": 1})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
                 assert node.assignments == ["a"]
                 assert [w.execution for w in slow.awards] == [node.execution.id]  # type: ignore[union-attr]
@@ -365,7 +365,7 @@ async def test_an_award_in_flight_is_withdrawn_when_the_capability_is_reset() ->
             ):
                 await knows(a, "f")
                 node = COUNT.node_type()("count", inputs={"x": 1})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 tree.tick()
                 await until(lambda: bool(slow.awards), "the award to f")
                 tree.reset()

@@ -9,7 +9,7 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 from structlog.testing import capture_logs
 
-from btcap import AlwaysSuccess, Parallel, Sequence, State, Tree, TreeError
+from btcap import AlwaysSuccess, Parallel, ReactiveSequence, State, Tree, TreeError
 from btcap.bt.utility import CANNOT
 from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
 from btcap.team.implementation import Implementation, Precondition, Scope
@@ -91,7 +91,7 @@ def test_bridges_must_be_for_the_implemented_interface() -> None:
 
     def wrong_bridge() -> Tree:
         ib = other.bridge_types()[0](name="in")
-        return Tree(Sequence("s", children=[ib, COUNT.bridge_types()[1](name="out")]))
+        return Tree(ReactiveSequence("s", children=[ib, COUNT.bridge_types()[1](name="out")]))
 
     with pytest.raises(TreeError, match=r"bridge 's/in' is for Count\(stop:bool,x:float\)"):
         _impl(wrong_bridge).instantiate()
@@ -100,12 +100,12 @@ def test_bridges_must_be_for_the_implemented_interface() -> None:
 def test_implementation_needs_its_bridges_once() -> None:
     ib_t, ob_t = COUNT.bridge_types()
     with pytest.raises(TreeError, match="inputs need an InputBridge"):
-        _impl(lambda: Sequence("s", children=[ob_t(name="out")])).instantiate()
+        _impl(lambda: ReactiveSequence("s", children=[ob_t(name="out")])).instantiate()
     with pytest.raises(TreeError, match="outputs need an OutputBridge"):
-        _impl(lambda: Sequence("s", children=[ib_t(name="in")])).instantiate()
+        _impl(lambda: ReactiveSequence("s", children=[ib_t(name="in")])).instantiate()
     with pytest.raises(TreeError, match="at most one bridge"):
         _impl(
-            lambda: Sequence("s", children=[ib_t(name="a"), ib_t(name="b"), ob_t(name="o")])
+            lambda: ReactiveSequence("s", children=[ib_t(name="a"), ib_t(name="b"), ob_t(name="o")])
         ).instantiate()
     # An interface without ports needs no bridges at all.
     bare = CapabilityInterface("Bare")
@@ -143,7 +143,7 @@ def test_implementation_cost_adds_bid_to_utility_and_none_means_cannot() -> None
 
 def test_capability_outside_an_agent_errors_with_a_hint() -> None:
     node = COUNT.node_type()("c", inputs={"x": 1})
-    tree = Tree(Sequence("root", children=[node]))
+    tree = Tree(ReactiveSequence("root", children=[node]))
     assert tree.tick() is State.FAILED
     assert node.state is State.ERROR
     assert isinstance(node.error, TreeError)
@@ -159,7 +159,7 @@ async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
         async with team() as t:
             a = await t.add("a", [count_impl("a", 1.0, probe, k=2)])
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.ASSIGNED, "assigned")
             ex = node.execution
             assert isinstance(ex, LocalExecution)
@@ -195,7 +195,7 @@ async def test_local_execution_pause_and_reset_release_the_robot() -> None:
         async with team() as t:
             a = await t.add("a", [count_impl("a", 1.0, probe)])
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             tree.untick()
             assert node.state is State.PAUSED
@@ -224,13 +224,13 @@ async def test_local_only_never_leaves_the_robot_and_waits_when_it_cannot() -> N
             c = await t.add("c")
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1}, local_only=True)
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             assert node.assignments == ["a"]  # b is cheaper, but local_only
             await tree.shutdown()
             # A robot without an implementation stays unassigned (retrying), never errors.
             lonely = COUNT.node_type()("count", inputs={"x": 1}, local_only=True, retry_s=0.1)
-            tree2 = c.mission(Sequence("root2", children=[lonely]))
+            tree2 = c.mission(ReactiveSequence("root2", children=[lonely]))
             for _ in range(5):
                 assert tree2.tick() is State.RUNNING
                 assert lonely.state is State.UNASSIGNED
@@ -250,7 +250,7 @@ async def test_a_capability_nobody_can_run_says_why_at_a_falling_rate() -> None:
             await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1}, retry_s=0.1)
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             with capture_logs() as logs:
                 await tick_until(tree, lambda _s: node._waits >= 5, "five empty auctions")
             waits = [e for e in logs if e["event"] == "capability.unassigned"]
@@ -265,7 +265,7 @@ async def test_no_implementation_in_the_team_is_named() -> None:
         async with team() as t:
             a = await t.add("a")
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             with capture_logs() as logs:
                 tree.tick()
                 tree.tick()
@@ -279,7 +279,7 @@ async def test_an_assignment_timeout_turns_the_wait_into_a_failure() -> None:
         async with team() as t:
             a = await t.add("a")
             node = COUNT.node_type()("count", inputs={"x": 1}, assignment_timeout_s=1.0)
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             start = a.clock.now()
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
             assert a.clock.now() - start >= 1.0
@@ -318,7 +318,7 @@ async def test_paused_time_does_not_count_towards_the_assignment_timeout() -> No
         async with team(reevaluate_s=None) as t:
             a = await t.add("a")
             node = COUNT.node_type()("count", inputs={"x": 1}, assignment_timeout_s=5.0)
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             tree.tick()
             tree.untick()  # paused by its parent for 10 clock seconds
             for _ in range(200):

@@ -7,7 +7,7 @@ from pathlib import Path
 import anyio
 import pytest
 
-from btcap import Sequence, State
+from btcap import ReactiveSequence, State
 from btcap.team.agent import Agent
 from btcap.team.capfiles import CapabilityFileError, load_implementation, load_interfaces
 
@@ -28,7 +28,7 @@ async def test_an_implementation_from_files_runs_through_its_bridges() -> None:
     with anyio.fail_after(10):
         async with Agent("solo", implementations=[impl]) as agent:
             node = interfaces[0].node_type()("greet", inputs={"who": "world"})
-            state = await agent.run_mission(Sequence("m", children=[node]), rate_hz=100)
+            state = await agent.run_mission(ReactiveSequence("m", children=[node]), rate_hz=100)
     assert state is State.SUCCEEDED
     assert node.outputs == {"said": "world"}
     assert node.assignments == ["solo"]

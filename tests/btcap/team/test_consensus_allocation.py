@@ -17,7 +17,7 @@ from capfixtures import (
     until,
 )
 
-from btcap import Parallel, Sequence, State
+from btcap import Parallel, ReactiveSequence, State
 from btcap.team.assignment import Assigned, AssignmentTask, AuctionRecord, Unassigned
 from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
@@ -45,7 +45,7 @@ async def test_a_mission_completes_with_the_cheapest_robot_and_no_auctioneer() -
             seen: list[AuctionRecord] = []
             _cons(a).watch(seen.append)
             node = COUNT.node_type()("count", inputs={"x": 3, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
             assert node.outputs["y"] == 3
@@ -92,8 +92,8 @@ async def test_two_origins_never_award_the_same_robot() -> None:
             await t.converged()
             n1 = COUNT.node_type()("n1", inputs={"x": 1})
             n2 = COUNT.node_type()("n2", inputs={"x": 2})
-            t1 = o1.mission(Sequence("r1", children=[n1]))
-            t2 = o2.mission(Sequence("r2", children=[n2]))
+            t1 = o1.mission(ReactiveSequence("r1", children=[n1]))
+            t2 = o2.mission(ReactiveSequence("r2", children=[n2]))
             for _ in range(2000):
                 s1, s2 = t1.tick(), t2.tick()
                 if s1 is State.SUCCEEDED and s2 is State.SUCCEEDED:
@@ -122,7 +122,7 @@ async def test_a_winner_lost_mid_consensus_has_its_task_reallocated() -> None:
                 await until(lambda: all(x.team.alive() == everyone for x in t.agents.values()))
                 await until(lambda: len(a.repository.providers(COUNT.identity)) == 2)
                 node = COUNT.node_type()("count", inputs={"x": 1})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 core = _cons(a).core
 
                 def winner() -> str | None:
@@ -153,7 +153,7 @@ async def test_a_robot_lost_mid_run_has_its_work_reassigned_through_consensus() 
             await t.add("c", [count_impl("c", 2.0, probe, after=5)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: probe.ticks["b"] > 0, "b running")
             await t.remove("b")
             state = await tick_until(tree, lambda s: s in (State.SUCCEEDED, State.FAILED))
@@ -172,7 +172,7 @@ async def test_work_stays_with_a_robot_beaten_by_less_than_the_margin() -> None:
             await t.add("b", [count_impl("b", 1.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             await t.add("c", [count_impl("c", 0.9, probe)])
             for _ in range(400):  # 200 clock seconds: 400 re-evaluations
@@ -232,7 +232,7 @@ async def test_a_hostile_peer_is_held_to_its_own_word_and_to_the_bounds() -> Non
                 assert stats.dropped == 1000 - 64
                 assert len(_cons(a).core.tasks()) == 64
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 state = await tick_until(tree, lambda s: s is not State.RUNNING)
                 assert state is State.SUCCEEDED
                 assert node.assignments == ["b"]
@@ -252,7 +252,7 @@ async def test_a_robot_joining_mid_consensus_hears_the_open_tasks_at_once() -> N
                 await until(lambda: "s" in _cons(a).core.members, "s to be a member")
                 await until(lambda: a.repository.providers(COUNT.identity) == {"c"}, "c known")
                 node = COUNT.node_type()("count", inputs={"x": 1})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda _s: bool(_cons(a).core.winners()), "a claim")
                 joined = t.clock.now()
                 b = await t.add("b")
@@ -292,7 +292,7 @@ async def test_a_claim_lost_on_the_way_is_asked_for_again_and_wins() -> None:
             opened = t.clock.now()
             t.net._route = lossy  # type: ignore[method-assign]
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             state = await tick_until(tree, lambda s: s is not State.RUNNING)
             assert lost
             assert state is State.SUCCEEDED
@@ -326,7 +326,7 @@ async def test_a_robot_that_lost_the_origin_and_took_it_back_is_told_its_tasks()
             await until(lambda: "a" not in b.team.alive(), "b to declare a failed")
             assert "b" in a.team.alive()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: bool(_cons(a).core.own_tasks()), "the offer")
             cut[0] = False
             back = t.clock.now()

@@ -20,7 +20,7 @@ import msgspec
 import pytest
 import zmq
 
-from btcap import Sequence as SequenceNode
+from btcap import ReactiveSequence as SequenceNode
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.team.agent import Agent, AgentConfig

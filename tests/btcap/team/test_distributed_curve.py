@@ -18,7 +18,7 @@ import zmq
 import zmq.asyncio
 from zmq.utils.monitor import recv_monitor_message
 
-from btcap import Sequence as SequenceNode
+from btcap import ReactiveSequence as SequenceNode
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.team.agent import Agent, AgentConfig

@@ -10,7 +10,7 @@ import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
-from btcap import Sequence
+from btcap import ReactiveSequence
 from btcap.actors import ActorSystem, ManualClock
 from btcap.team.deploy import observe_team
 from btcap.team.membership import Membership, TeamEvent
@@ -186,7 +186,7 @@ async def test_an_observer_sees_what_each_member_runs() -> None:
             b = await t.add("b", [count_impl("b", 1.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: b.mission_control.body.running is not None, "b runs")
             seen = {m.robot: m for m in await observe_team(a)}
             assert seen["b"].running == [str(b.mission_control.body.running)]

@@ -25,7 +25,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from structlog.testing import capture_logs
 
-from btcap import AlwaysFailure, Leaf, Parallel, Sequence, State, Tree
+from btcap import AlwaysFailure, Leaf, Parallel, ReactiveSequence, State, Tree
 from btcap.team.agent import Agent
 from btcap.team.assignment import Assigned, AssignmentTask
 from btcap.team.capability import Capability, CapabilityInterface
@@ -92,7 +92,7 @@ async def test_remote_execution_streams_io_both_ways_every_tick() -> None:
             b = await t.add("b", [count_impl("b", 1.0, probe, k=3)])
             await t.converged()
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             ex = node.execution
             assert isinstance(ex, RemoteExecution)
@@ -123,7 +123,7 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
         async with team() as t:
             a, b = await t.origin_and_executor(probe)
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             hosted = next(iter(b.mission_control.host.hosted.values()))
             tree.untick()
@@ -161,7 +161,7 @@ async def test_untick_while_the_auction_runs_starts_no_work() -> None:
                     "a to know b and s",
                 )
                 node = _count()
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 tree.tick()
                 assert node.state is State.UNASSIGNED
                 tree.untick()
@@ -183,7 +183,7 @@ async def test_reset_and_shutdown_cancel_the_remote_run_without_trace() -> None:
         async with team() as t:
             a, b = await t.origin_and_executor(probe)
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             tree.reset()
             assert node.execution is None
@@ -230,7 +230,7 @@ async def _failover(t: Team, kill: str) -> None:
     c = await t.add("c", [count_impl("c", 2.0, probe, k=100)])
     await t.converged()
     node = _count(x=1)
-    tree = a.mission(Sequence("root", children=[node]))
+    tree = a.mission(ReactiveSequence("root", children=[node]))
     await _running_on(tree, node, "b")
     node.set_input("x", 7)
     await tick_until(tree, lambda _s: node.outputs["y"] == 70, "b to see x=7")
@@ -280,7 +280,7 @@ async def test_lease_lapse_without_membership_failure_reassigns() -> None:
             b = await t.add("b", [count_impl("b", 1.0, probe)])
             await t.converged()
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             b.mission_control.send = lambda robot, msg: None  # type: ignore[method-assign]
             await _running_on(tree, node, "a")
@@ -299,7 +299,7 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             b = await t.add("b", [count_impl("b", 3.0, probe)])
             await t.converged()
             first = _count("first")
-            tree = a.mission(root_node := Sequence("root", children=[first]))
+            tree = a.mission(root_node := ReactiveSequence("root", children=[first]))
             await _running_on(tree, first, "b")
             hosted = set(b.mission_control.host.hosted)
             await t.add("c", [count_impl("c", 1.0, probe)])
@@ -313,7 +313,7 @@ async def test_a_joining_robot_does_not_cancel_healthy_work_but_wins_the_next_au
             first.set_input("stop", True)
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             second = _count("second", stop=True)
-            tree2 = a.mission(Sequence("root2", children=[second]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[second]))
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert second.assignments == ["c"]
             assert root_node.state is State.SUCCEEDED
@@ -335,7 +335,7 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
             b = await t.add("b", [count_impl("b", 3.0 if executor == "b" else 5.0, probe)])
             await t.converged()
             node = _count(x=1)
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, executor)
             node.set_input("x", 7)
             await tick_until(tree, _output_is(node, "y", 7), "the executor to see x=7")
@@ -376,7 +376,7 @@ async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -
             await t.add("b", [count_impl("b", 3.0, probe)])
             await t.converged()
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             c = await t.add("c", [count_impl("c", 1.0, probe)])
             # Stop ticking: the replacement is made but never adopted by the node.
@@ -413,7 +413,7 @@ async def _moving_team(t: Team, probe: Probe) -> tuple[Agent, Capability, Tree]:
     await t.add("b", [count_impl("b", 3.0, probe)])
     await t.converged()
     node = _count()
-    tree = a.mission(Sequence("root", children=[node]))
+    tree = a.mission(ReactiveSequence("root", children=[node]))
     await _running_on(tree, node, "b")
     return a, node, tree
 
@@ -514,15 +514,15 @@ async def test_a_busy_robot_queues_one_more_execution_and_starts_it_when_free(
             await t.converged()
             mc = t[executor].mission_control
             first, second, third = _count("first"), _count("second"), _count("third")
-            tree1 = a.mission(Sequence("root1", children=[first]))
+            tree1 = a.mission(ReactiveSequence("root1", children=[first]))
             await _running_on(tree1, first, executor)
             # Busy, the executor bids 1 + 1 = 2 < 5 and takes the second as queued work.
-            tree2 = a.mission(Sequence("root2", children=[second]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[second]))
             await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
             assert second.assignments == [executor]
             assert mc.body.queued is not None
             # Its queue is full: the third goes to the other robot.
-            tree3 = a.mission(Sequence("root3", children=[third]))
+            tree3 = a.mission(ReactiveSequence("root3", children=[third]))
             await _running_on(tree3, third, other)
             for _ in range(20):  # the queued run waits; it is never ticked beside the first
                 tree1.tick()
@@ -560,9 +560,9 @@ async def test_a_queued_execution_cancelled_before_it_starts_leaves_no_trace(
             await t.converged()
             mc = t[executor].mission_control
             first, second = _count("first"), _count("second")
-            tree1 = a.mission(Sequence("root1", children=[first]))
+            tree1 = a.mission(ReactiveSequence("root1", children=[first]))
             await _running_on(tree1, first, executor)
-            tree2 = a.mission(Sequence("root2", children=[second]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[second]))
             await tick_until(tree2, lambda _s: second.state is State.ASSIGNED, "second queued")
             tree2.untick()  # a queued run pauses without harm
             tree2.reset()
@@ -601,7 +601,7 @@ async def test_local_precondition_needs_success_on_this_robot() -> None:
             )
             await t.converged()
             n1 = _count("n1", stop=True)
-            tree = a.mission(Sequence("root", children=[n1]))
+            tree = a.mission(ReactiveSequence("root", children=[n1]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert n1.assignments == ["a"]
             out = a.auctioneer.outcomes[-1]
@@ -609,7 +609,7 @@ async def test_local_precondition_needs_success_on_this_robot() -> None:
             assert "precondition First (local) not met" in out.declined["b"]
             # First succeeds on a (cheaper there): b's precondition is still unmet.
             f = FIRST.node_type()("f", inputs={"x": 1, "stop": True})
-            tree2 = a.mission(Sequence("root2", children=[f]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[f]))
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert f.assignments == ["a"]
             tree.reset()
@@ -635,11 +635,11 @@ async def test_remote_precondition_needs_success_anywhere_in_the_team() -> None:
             b = await t.add("b", [count_impl("b", 1.0, probe, preconditions=need)])
             await t.converged()
             n1 = _count("n1", stop=True)
-            tree = a.mission(Sequence("root", children=[n1]))
+            tree = a.mission(ReactiveSequence("root", children=[n1]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert n1.assignments == ["a"]
             f = FIRST.node_type()("f", inputs={"x": 1, "stop": True})
-            tree2 = a.mission(Sequence("root2", children=[f]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[f]))
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             await until(lambda: b.repository.succeeded_anywhere("First"), "b to learn of First")
             tree.reset()
@@ -683,7 +683,7 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             x = await t.add("x")  # a peer sending nonsense over the real network
             await t.converged()
             node = _count()
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await _running_on(tree, node, "b")
             real = node.execution
             assert real is not None
@@ -743,7 +743,7 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             await tree.shutdown()
             # And a new capability is still auctioned and run normally.
             again = _count("again", stop=True)
-            tree2 = a.mission(Sequence("root2", children=[again]))
+            tree2 = a.mission(ReactiveSequence("root2", children=[again]))
             assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert again.assignments == ["b"]
             await tree2.shutdown()
@@ -855,7 +855,7 @@ async def test_a_failing_implementation_fails_the_capability(where: str, how: st
             )
             await t.converged(BARE.identity)
             node = BARE.node_type()("bare")
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             with capture_logs():
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
             assert node.state is State.FAILED

@@ -7,7 +7,7 @@ import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 
-from btcap import Parallel, Sequence, State
+from btcap import Parallel, ReactiveSequence, State
 from btcap.team.messages import CostChanged
 
 
@@ -52,7 +52,7 @@ async def test_near_equal_robots_never_pass_the_work_back_and_forth() -> None:
             await t.add("c", [count_impl("c", 1.05, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             for _ in range(400):  # 200 clock seconds: 400 re-evaluations
                 tree.tick()
@@ -71,7 +71,7 @@ async def test_without_reevaluation_running_work_stays_where_it_is() -> None:
             await t.add("b", [count_impl("b", 5.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             await t.add("c", [count_impl("c", 1.0, probe)])
             await t.converged()
@@ -113,7 +113,7 @@ async def test_a_rising_estimate_of_the_running_robot_is_news_at_once() -> None:
             await t.add("c", [count_impl("c", 10.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             assert node.assignments == ["b"]
             node.set_input("x", 5)  # still cheaper than c: no news worth a move
@@ -142,7 +142,7 @@ async def test_a_rising_estimate_never_moves_the_work_of_an_origin_that_never_mo
             await t.add("c", [count_impl("c", 10.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             for _ in range(20):  # b's first estimates: its baseline
                 tree.tick()
@@ -169,7 +169,7 @@ async def test_a_cost_report_from_another_robot_than_the_executor_is_refused() -
             c = await t.add("c", [count_impl("c", 10.0, probe)])
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             assert node.execution is not None
             refused = a.mission_control.stats.refused

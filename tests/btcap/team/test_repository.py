@@ -6,7 +6,7 @@ import anyio
 import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
-from btcap import Sequence, State, TreeError
+from btcap import ReactiveSequence, State, TreeError
 from btcap.actors import ActorSystem
 from btcap.team.capability import CapabilityInterface
 from btcap.team.membership import Membership
@@ -95,7 +95,7 @@ async def test_success_is_gossiped_for_remote_preconditions() -> None:
         async with team() as t:
             a, b = await t.origin_and_executor(probe)
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert "Count" in b.repository.succeeded
             assert "Count" not in a.repository.succeeded  # it ran on b, not on a

@@ -9,7 +9,7 @@ from typing import Any
 import anyio
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
-from btcap import Leaf, Sequence, State, Tree
+from btcap import Leaf, ReactiveSequence, State, Tree
 from btcap.team.capability import CapabilityInterface
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.implementation import Implementation
@@ -47,7 +47,7 @@ async def test_nobody_else_ends_a_robots_own_execution() -> None:
             x = await t.add("x")
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             ex = node.execution
             assert isinstance(ex, LocalExecution)
@@ -77,7 +77,7 @@ def blob_impl(finish: bool) -> Implementation:
     def build() -> Tree:
         _ib, ob = BLOB.bridge_types()
         make, out = MakeBlob("make", finish=finish), ob(name="out")
-        tree = Tree(Sequence("impl", children=[out, make]))
+        tree = Tree(ReactiveSequence("impl", children=[out, make]))
         tree.wire(make, "blob", out, "blob")
         return tree
 
@@ -90,7 +90,7 @@ async def _blob_mission(finish: bool) -> None:
         b = await t.add("b", [blob_impl(finish)])
         await t.converged(BLOB.identity)
         node = BLOB.node_type()("blob")
-        tree = a.mission(Sequence("root", children=[node]))
+        tree = a.mission(ReactiveSequence("root", children=[node]))
         # The executor cannot send the run's status: it gives the run up as failed,
         # says so in a form it can send, and stays able to work.
         assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED

@@ -10,7 +10,7 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 from structlog.testing import capture_logs
 
-from btcap import AlwaysRunning, Leaf, Parallel, Sequence, State, Tree, TreeError
+from btcap import AlwaysRunning, Leaf, Parallel, ReactiveSequence, State, Tree, TreeError
 from btcap.team.agent import Agent
 from btcap.team.core.hosting import Hosted
 from btcap.team.core.ids import ExecutionId
@@ -40,7 +40,7 @@ async def test_remote_run_in_a_slot_leaves_no_trace() -> None:
             slot = b.mission_control.slot
             assert isinstance(slot, RemoteCapabilitySlot)
             node = COUNT.node_type()("count", inputs={"x": 2})
-            tree = a.mission(Sequence("root", children=[node]))
+            tree = a.mission(ReactiveSequence("root", children=[node]))
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
             assert slot.current is not None
             assert slot.current.execution == node.execution.id  # type: ignore[union-attr]
@@ -100,7 +100,7 @@ async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
                 )
                 assert c.mission_control.slot is None
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert node.assignments == ["a"]
                 out = a.auctioneer.outcomes[-1]
@@ -108,7 +108,7 @@ async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
                 assert out.declined["c"] == "no remote capability slot"
                 # c itself may still run it locally.
                 own = COUNT.node_type()("own", inputs={"x": 1, "stop": True})
-                tree2 = c.mission(Sequence("root2", children=[own]))
+                tree2 = c.mission(ReactiveSequence("root2", children=[own]))
                 assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert own.assignments == ["c"]
                 await tree.shutdown()
@@ -143,7 +143,7 @@ async def test_host_tree_does_its_own_work_beside_the_slot() -> None:
             async with b:
                 await until(lambda: a.repository.providers(COUNT.identity) == {"b"})
                 node = COUNT.node_type()("count", inputs={"x": 3})
-                tree = a.mission(Sequence("root", children=[node]))
+                tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda _s: node.outputs["ticks"] == 5, "five remote ticks")
                 assert beat.count >= 5  # b's own work went on all along
                 # Unticking the host tree pauses the hosted run; the next host tick resumes it.
@@ -180,7 +180,7 @@ def _broken(robot: str, cost: float, how: str) -> Implementation:
         if how == "raises" and calls > 1:  # the first build only estimates the utility
             raise RuntimeError("sensor driver missing")
         # A node with a required input nobody feeds: setup (validation) fails.
-        return Sequence("s", children=[COUNT.bridge_types()[0](name="in"), _Needs("needs")])
+        return ReactiveSequence("s", children=[COUNT.bridge_types()[0](name="in"), _Needs("needs")])
 
     return Implementation(f"broken-{robot}", COUNT, build, bid=lambda _i: cost)
 
@@ -204,7 +204,7 @@ async def test_an_implementation_that_cannot_start_is_declined_not_fatal(how: st
             with capture_logs() as logs:  # (and no slow traceback rendering)
                 for i in range(12):  # more than the actors' restart budget
                     node = COUNT.node_type()(f"n{i}", inputs={"x": 1, "stop": True})
-                    tree = a.mission(Sequence(f"root{i}", children=[node]))
+                    tree = a.mission(ReactiveSequence(f"root{i}", children=[node]))
                     state = await tick_until(tree, lambda s: s is not State.RUNNING)
                     assert state is State.SUCCEEDED
                     assert node.assignments == ["a"]
@@ -220,7 +220,7 @@ async def test_an_implementation_that_cannot_start_is_declined_not_fatal(how: st
             await until(lambda: not _trees(b), "no leftover actors on b")
             # The same holds for b's own capabilities.
             own = COUNT.node_type()("own", inputs={"x": 1, "stop": True})
-            tree2 = b.mission(Sequence("mine", children=[own]))
+            tree2 = b.mission(ReactiveSequence("mine", children=[own]))
             with capture_logs() as logs2:
                 assert await tick_until(tree2, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert own.assignments == ["a"], [e for e in logs2 if e["log_level"] != "debug"]
