@@ -158,9 +158,9 @@ def test_nodes_lists_types_with_ports(capsys: pytest.CaptureFixture[str]) -> Non
     assert main(["tree", "nodes"]) == 0
     out = capsys.readouterr().out
     assert "Sequence: Succeeds when every child succeeds" in out
-    assert "  option retries: int = 1" in out
+    assert "  option retries: int >= 0 = 1" in out  # with the constraint it is checked by
     assert main(["tree", "nodes", "Wait"]) == 0
-    assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float"
+    assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float >= 0"
 
 
 def test_nodes_unknown_type_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
