@@ -57,7 +57,14 @@ from btcap.bt.node import Leaf, Node, Observer
 from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
 from btcap.bt.render import render_dot, render_text
-from btcap.bt.state import IllegalTransition, State, TreeError
+from btcap.bt.state import (
+    BtcapWarning,
+    IllegalTransition,
+    RestartLoopWarning,
+    State,
+    TreeError,
+    TreeTimeout,
+)
 from btcap.bt.tree import Subtree, Tree, Wire
 from btcap.bt.utility import Utility
 from btcap.monitor import Monitor, Replay
@@ -80,6 +87,7 @@ __all__ = [
     "AlwaysRunning",
     "AlwaysSuccess",
     "AuctionId",
+    "BtcapWarning",
     "Capability",
     "CapabilityInterface",
     "Compare",
@@ -116,6 +124,7 @@ __all__ = [
     "RepeatUntilFailure",
     "RepeatUntilSuccess",
     "Replay",
+    "RestartLoopWarning",
     "Retry",
     "RunOnce",
     "RunningIsFailure",
@@ -133,6 +142,7 @@ __all__ = [
     "TreeError",
     "TreeFile",
     "TreeFileError",
+    "TreeTimeout",
     "Utility",
     "Wait",
     "Wire",

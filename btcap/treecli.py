@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import importlib
 import importlib.util
+import logging
+import math
 import re
 import shutil
 import subprocess
@@ -21,11 +24,12 @@ from types import ModuleType
 
 from btcap.actors import ManualClock
 from btcap.bt.files import TreeFileError, file_info, load_tree, validate_file
+from btcap.bt.leaves import LOG_LOGGER
 from btcap.bt.node import Node
-from btcap.bt.ports import type_name
+from btcap.bt.ports import bounds, type_name
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.render import render_dot, render_text
-from btcap.bt.state import DONE, State, TreeError
+from btcap.bt.state import DONE, State, TreeError, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
 from btcap.team.capability import Capability, CapabilityInterface
@@ -94,16 +98,29 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "run",
         parents=[types],
         help="tick a tree until it succeeds or fails; print its final states",
-        description="Tick a tree at --rate until it succeeds or fails (exit 0 or 1), or "
-        "until --max-ticks (exit 3 if it is still running), then print it with states.",
+        description="Tick a tree at --rate until it succeeds or fails (exit 0 or 1), then "
+        "print it with states. At --timeout (default 60 s) or --max-ticks it is halted and "
+        "a last line names the nodes still running (exit 3). Log nodes print to stderr.",
     )
     p.add_argument("file", metavar="FILE", type=Path)
     p.add_argument("--rate", type=float, default=10.0, help="ticks per second (default 10)")
-    p.add_argument("--max-ticks", type=int, default=None, help="stop after this many ticks")
+    p.add_argument(
+        "--timeout",
+        default="60",
+        metavar="SECONDS",
+        help="halt the tree after this many seconds of clock time (virtual with --fast); "
+        "0 or none: no limit (default 60)",
+    )
+    p.add_argument("--max-ticks", type=int, default=None, help="halt after this many ticks")
     p.add_argument(
         "--fast",
         action="store_true",
         help="virtual time: waits and timeouts pass at once, the run is reproducible",
+    )
+    p.add_argument(
+        "--debug",
+        action="store_true",
+        help="warn about nodes halted and restarted over and over (also BTCAP_DEBUG=1)",
     )
     p.set_defaults(handler=_run)
 
@@ -319,24 +336,63 @@ def _graphviz(text: str, fmt: str) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.rate <= 0:
+    if not args.rate > 0:
         raise CliError(f"--rate {args.rate}: expected ticks per second > 0")
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
+    timeout = _timeout(args.timeout)
     clock = ManualClock() if args.fast else None
     tree = _load(args, args.file, clock)
+    tree.debug = tree.debug or args.debug
     caps = [n.path for n in _all_nodes(tree) if isinstance(n, Capability)]
     if caps:
         raise CliError(
             f"{args.file}: capability nodes ({', '.join(caps)}) are run by a team, not by "
             f"'btcap tree run'; run the tree on an agent (btcap mission run)"
         )
-    state, ticks, text = asyncio.run(_tick(tree, clock, args.rate, args.max_ticks))
+    with _log_nodes_shown():
+        state, ticks, text, stopped = asyncio.run(_tick(tree, clock, args, timeout))
     sys.stdout.write(text)
-    print(f"{state.value} after {ticks} tick{'s' if ticks != 1 else ''}")
+    plural = "s" if ticks != 1 else ""
+    if stopped is not None:
+        if stopped.limit == "max_ticks":
+            limit = f"--max-ticks {args.max_ticks}"
+        else:
+            limit = f"--timeout {timeout:g} s ({'virtual' if args.fast else 'clock'} time)"
+        print(
+            f"halted after {ticks} tick{plural} at {limit}; still running: "
+            f"{', '.join(stopped.running) or 'nothing'}"
+        )
+        return 3
+    print(f"{state.value} after {ticks} tick{plural}")
     if state is State.SUCCEEDED:
         return 0
     return 1 if state in DONE else 3
+
+
+def _timeout(text: str) -> float | None:
+    """``--timeout``: seconds > 0, or 0/none for no limit."""
+    if text.strip().lower() in ("0", "none"):
+        return None
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = math.nan
+    if not 0 < seconds < math.inf:
+        raise CliError(f"--timeout {text}: expected seconds > 0, or 0 or none for no limit")
+    return seconds
+
+
+@contextlib.contextmanager
+def _log_nodes_shown() -> Iterator[None]:
+    """Let Log nodes' lines through (info and up) whatever --log-level hides, for the run."""
+    logger = logging.getLogger(LOG_LOGGER)
+    level = logger.level
+    logger.setLevel(min(logging.INFO, logging.getLogger().getEffectiveLevel()))
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def _all_nodes(tree: Tree) -> Iterator[Node]:
@@ -347,9 +403,9 @@ def _all_nodes(tree: Tree) -> Iterator[Node]:
 
 
 async def _tick(
-    tree: Tree, clock: ManualClock | None, rate: float, max_ticks: int | None
-) -> tuple[State, int, str]:
-    """Tick to a result; the outline is taken before shutdown, which would repaint it."""
+    tree: Tree, clock: ManualClock | None, args: argparse.Namespace, timeout: float | None
+) -> tuple[State, int, str, TreeTimeout | None]:
+    """Tick to a result or a limit; the outline is taken before shutdown repaints it."""
     ticks = 0
 
     def count(state: State) -> bool:
@@ -357,13 +413,17 @@ async def _tick(
         ticks += 1
         return state in DONE
 
+    stopped: TreeTimeout | None = None
+    jumps = clock.autojump() if clock is not None else contextlib.nullcontext()
     try:
-        if clock is None:
-            state = await tree.run(rate, until=count, max_ticks=max_ticks)
-        else:
-            async with clock.autojump():
-                state = await tree.run(rate, until=count, max_ticks=max_ticks)
-        return state, ticks, render_text(tree, states=True)
+        async with jumps:
+            try:
+                state = await tree.run(
+                    args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout
+                )
+            except TreeTimeout as exc:
+                state, stopped = exc.state, exc
+        return state, ticks, render_text(tree, states=True), stopped
     finally:
         await tree.shutdown()
 
@@ -385,5 +445,6 @@ def _nodes(args: argparse.Namespace) -> int:
         ):
             for key, port in ports.items():
                 default = "" if port.required else f" = {port.default_value()!r}"
-                print(f"  {kind} {key}: {type_name(port.type)}{default}")
+                rule = f" {bounds(port.meta)}" if port.meta is not None else ""
+                print(f"  {kind} {key}: {type_name(port.type)}{rule}{default}")
     return 0

@@ -30,6 +30,11 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "btcap"))
 
+# btcap's debug mode for every Tree the suite makes (and the processes it starts): a node
+# caught in a restart loop raises a RestartLoopWarning, which filterwarnings=error turns
+# into a failure; a test that makes one on purpose expects it (pytest.warns).
+os.environ["BTCAP_DEBUG"] = "1"
+
 
 @pytest.fixture(autouse=True)
 def _restore_logging() -> Iterator[None]:

@@ -11,6 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, ClassVar
 
+from msgspec import Meta
+
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
@@ -185,7 +187,9 @@ class Retry(_Counting):
     """Re-runs a failing child up to ``retries`` more times; fails after that."""
 
     __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"retries": Port(int, 1, "extra attempts after a failure")}
+    OPTIONS: ClassVar[Any] = {
+        "retries": Port(int, 1, "extra attempts after a failure", Meta(ge=0)),
+    }
 
     def on_tick(self) -> State:
         child = self.children[0]
@@ -207,7 +211,9 @@ class Repeat(_Counting):
     """Runs a succeeding child ``times`` times (``-1``: forever); a failure fails it."""
 
     __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"times": Port(int, 1, "successes needed; -1 repeats forever")}
+    OPTIONS: ClassVar[Any] = {
+        "times": Port(int, 1, "successes needed; -1 repeats forever", Meta(ge=-1)),
+    }
 
     def on_tick(self) -> State:
         child = self.children[0]
@@ -226,11 +232,15 @@ class Repeat(_Counting):
         return _RUNNING
 
 
+#: A limit on attempts: None for none, else at least one (every run makes one).
+_MAX_ATTEMPTS = Port(int | None, None, "give up after this many (None: never)", Meta(ge=1))
+
+
 class RepeatUntilSuccess(_Counting):
     """Re-runs the child until it succeeds (at most ``max_attempts`` if given)."""
 
     __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"max_attempts": Port(int | None, None, "give up after this many")}
+    OPTIONS: ClassVar[Any] = {"max_attempts": _MAX_ATTEMPTS}
 
     def on_tick(self) -> State:
         child = self.children[0]
@@ -252,7 +262,7 @@ class RepeatUntilFailure(_Counting):
     """Re-runs the child until it fails, then succeeds (at most ``max_attempts``)."""
 
     __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"max_attempts": Port(int | None, None, "give up after this many")}
+    OPTIONS: ClassVar[Any] = {"max_attempts": _MAX_ATTEMPTS}
 
     def on_tick(self) -> State:
         child = self.children[0]
@@ -290,7 +300,9 @@ class Timeout(_Timed):
     """
 
     __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"seconds": Port(float, description="clock seconds allowed")}
+    OPTIONS: ClassVar[Any] = {
+        "seconds": Port(float, description="clock seconds allowed", meta=Meta(gt=0)),
+    }
 
     def on_tick(self) -> State:
         now = self.clock.now()
@@ -313,24 +325,42 @@ class Timeout(_Timed):
 
 
 class Delay(_Timed):
-    """Waits ``seconds`` after it is first ticked, then ticks the child.
+    """Waits ``seconds`` of clock time while ticked, then ticks the child.
 
-    An untick keeps the time already waited, like any other progress.
+    An untick keeps the time already waited, like any other progress: time spent
+    unticked does not count, a later tick waits only for the rest. A reset forgets it.
     """
 
-    __slots__ = ()
-    OPTIONS: ClassVar[Any] = {"seconds": Port(float, description="clock seconds to wait")}
+    __slots__ = ("_waited",)
+    OPTIONS: ClassVar[Any] = {
+        "seconds": Port(float, description="clock seconds to wait", meta=Meta(ge=0)),
+    }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._waited = 0.0  # waited before the last untick
 
     def on_tick(self) -> State:
         now = self.clock.now()
         if self._since is None:
             self._since = now
-        if now - self._since < self.options["seconds"]:
+        if self._waited + (now - self._since) < self.options["seconds"]:
             return _RUNNING
         s = _result(self.children[0].tick())
         if s is not _RUNNING:
             self._since = None
+            self._waited = 0.0
         return s
+
+    def on_untick(self) -> None:
+        super().on_untick()
+        if self._since is not None:
+            self._waited += self.clock.now() - self._since
+            self._since = None
+
+    def on_reset(self) -> None:
+        super().on_reset()
+        self._waited = 0.0
 
 
 class Throttle(_Timed):
@@ -342,12 +372,12 @@ class Throttle(_Timed):
 
     __slots__ = ("_last",)
     HOLDS_RUNNING_CHILD: ClassVar[bool] = True
-    OPTIONS: ClassVar[Any] = {"rate_hz": Port(float, description="ticks per clock second")}
+    OPTIONS: ClassVar[Any] = {
+        "rate_hz": Port(float, description="ticks per clock second", meta=Meta(gt=0)),
+    }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        if self.options["rate_hz"] <= 0:
-            raise TreeError(f"Throttle {self.name!r}: rate_hz must be > 0")
         self._last = _RUNNING
 
     def on_tick(self) -> State:

@@ -21,12 +21,15 @@ import operator
 from collections.abc import Awaitable, Callable
 from typing import Any, ClassVar
 
+from msgspec import Meta
+
 from btcap.bt.node import Leaf
-from btcap.bt.ports import Port, check_value, normalize_ports
+from btcap.bt.ports import Port, check_port, check_value, normalize_ports
 from btcap.bt.state import State, TreeError
 from btcap.transports.log import get_logger
 
 __all__ = [
+    "LOG_LOGGER",
     "Action",
     "AlwaysFailure",
     "AlwaysRunning",
@@ -42,7 +45,10 @@ _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
 
-log = get_logger("btcap.bt.tree")
+#: The ``logging`` logger Log nodes write to (``btcap tree run`` shows it on stderr).
+LOG_LOGGER = "btcap.bt.log"
+
+log = get_logger(LOG_LOGGER)
 
 
 class AlwaysSuccess(Leaf):
@@ -120,7 +126,11 @@ class Compare(Leaf):
 
 
 class Log(Leaf):
-    """Logs ``message`` (with the ``value`` input, if wired) and succeeds."""
+    """Logs ``message`` (with the ``value`` input, if wired) and succeeds.
+
+    It logs on the ``logging`` logger :data:`LOG_LOGGER`, which a program shows like any
+    other (``btcap tree run`` shows it on stderr).
+    """
 
     __slots__ = ()
     INPUTS: ClassVar[Any] = {"value": Port(Any, None)}
@@ -141,7 +151,7 @@ class Wait(Leaf):
     """Runs for ``seconds`` of clock time after its first tick, then succeeds."""
 
     __slots__ = ("_until",)
-    OPTIONS: ClassVar[Any] = {"seconds": Port(float)}
+    OPTIONS: ClassVar[Any] = {"seconds": Port(float, meta=Meta(ge=0))}
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -238,7 +248,7 @@ class Action(Leaf):
                 if port is None:
                     raise TreeError(f"Action {self.name!r} returned unknown output {key!r}")
                 where = f"Action {self.name!r} output {key!r}"
-                self.outputs[key] = check_value(value, port.type, where)
+                self.outputs[key] = check_port(value, port, where)
         return _SUCCEEDED
 
     async def _call(self, inputs: dict[str, Any]) -> Any:

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Coroutine, Iterator, Sequence
 from types import FunctionType
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from btcap.actors import Actor, handler
+from btcap.bt.host import TreeHost
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
-from btcap.bt.ports import PortMap, check_options, check_value, normalize_ports
+from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
@@ -21,7 +22,7 @@ from btcap.transports.log import get_logger
 if TYPE_CHECKING:
     import asyncio
 
-    from btcap.actors import ActorSystem, TimeSource
+    from btcap.actors import TimeSource
 
 __all__ = ["Leaf", "Node", "Observer", "TreeHost"]
 
@@ -29,25 +30,6 @@ log = get_logger("btcap")
 
 #: Called as ``observer(node, old_state, new_state)`` whenever a node changes state.
 Observer = Callable[["Node", State, State], None]
-
-
-class TreeHost(Protocol):
-    """What a node needs from the tree that owns it; :class:`~btcap.bt.tree.Tree` is one.
-
-    Declared here so this module needs nothing from the tree module, which builds on it.
-    """
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def clock(self) -> TimeSource: ...
-    @property
-    def system(self) -> ActorSystem | None: ...
-    def start_task(
-        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
-    ) -> asyncio.Task[Any]: ...
-    def _adopt(self, node: Node) -> None: ...
-    def _release(self, node: Node) -> None: ...
 
 
 _UNINIT = State.UNINITIALIZED
@@ -128,7 +110,7 @@ class Node(Actor):
         self._watch: Observer | None = None
         self._pulls: list[tuple[str, Node, str]] | None = None
         self._ready = False
-        self._gate: bool | None = True
+        self._gate: bool | tuple[Any, ...] | None = True
         self.options = self._check_options(options)
         self.input_ports: PortMap = cls.INPUTS
         self.output_ports: PortMap = cls.OUTPUTS
@@ -168,7 +150,7 @@ class Node(Actor):
                 f"node {self.name!r} ({type(self).__name__}) has no input {key!r}; "
                 f"inputs: {', '.join(self.input_ports) or 'none'}"
             )
-        self.inputs[key] = check_value(value, port.type, f"node {self.name!r} input {key!r}")
+        self.inputs[key] = check_port(value, port, f"node {self.name!r} input {key!r}")
 
     # -- structure --------------------------------------------------------------------
     def add_child(self, child: Node, index: int | None = None, *, _unique: bool = False) -> Node:
@@ -268,15 +250,14 @@ class Node(Actor):
     def tick(self) -> State:
         """Advance by one tick and return the new state. Never waits on I/O."""
         if self._gate is not None:  # not set up, or inputs to pull
-            self._before_tick()
+            bad = self._before_tick()
+            if bad is not None:
+                return self._tick_failed(bad)
         prev = self.state
         try:
             new = self.on_tick()
         except Exception as exc:
-            for c in self.children:  # a failed node ticks them no more: halt them now
-                if c.state in _ACTIVE:
-                    c.untick()
-            return self._fail(exc, "tick")
+            return self._tick_failed(exc)
         if new.__class__ is not State:
             return self._fail(TypeError(f"on_tick returned {new!r}, expected a State"), "tick")
         self.state = new
@@ -284,15 +265,29 @@ class Node(Actor):
             self._watch(self, prev, new)
         return new
 
-    def _before_tick(self) -> None:
+    def _tick_failed(self, exc: Exception) -> State:
+        for c in self.children:  # a failed node ticks them no more: halt them now
+            if c.state in _ACTIVE:
+                c.untick()
+        return self._fail(exc, "tick")
+
+    def _before_tick(self) -> TreeError | None:
+        """Pull wired inputs; the error of a value its port's constraints refuse, if any."""
         if not self._ready:
             self._not_ready("tick")
         for key, src, out in self._pulls or ():
             self.inputs[key] = src.outputs[out]
+        checks = self._gate
+        return check_wired(self.inputs, checks, self.path) if type(checks) is tuple else None
 
     def _regate(self) -> None:
         """Keep ``_gate`` None exactly when ticking needs no check and no input pulls."""
-        self._gate = None if self._ready and self._pulls is None else True
+        if not self._ready or self._pulls is None:
+            self._gate = None if self._ready else True
+        else:  # a tuple of the wired inputs a port constraint checks, if there are any
+            ports = self.input_ports
+            wired = tuple((k, p) for k, _, _ in self._pulls if (p := ports[k]).meta is not None)
+            self._gate = wired or True
 
     def untick(self) -> None:
         """Stop background work but keep progress: active nodes pause, others go idle.

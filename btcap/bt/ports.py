@@ -5,8 +5,8 @@ from __future__ import annotations
 import types
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Annotated, Any
 
 import msgspec
 
@@ -17,8 +17,11 @@ __all__ = [
     "Port",
     "PortMap",
     "assignable",
+    "bounds",
     "check_options",
+    "check_port",
     "check_value",
+    "check_wired",
     "type_name",
 ]
 
@@ -38,12 +41,20 @@ class Port:
     """A declared port: its type (anything msgspec can encode), default and description.
 
     An input or option without a default is required; an ``Optional`` type gets ``None``
-    as its default.
+    as its default. ``meta`` constrains the value (``msgspec.Meta(ge=0)``: not negative),
+    checked by msgspec wherever the type is: options and constant inputs when a node is
+    made or loaded from a file, wired inputs when the node ticks.
     """
 
     type: Any = Any
     default: Any = NO_DEFAULT
     description: str = ""
+    meta: msgspec.Meta | None = None
+    #: ``type`` with ``meta`` applied (to the non-None part of an Optional), for msgspec.
+    checked: Any = field(default=None, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "checked", _constrained(self.type, self.meta))
 
     @property
     def required(self) -> bool:
@@ -56,6 +67,22 @@ class Port:
 
 
 PortMap = dict[str, Port]
+
+
+def _constrained(t: Any, meta: msgspec.Meta | None) -> Any:
+    if meta is None:
+        return t
+    if _is_union(t):
+        parts = [p if p is type(None) else Annotated[p, meta] for p in typing.get_args(t)]
+        return typing.Union[tuple(parts)]  # noqa: UP007 - built from a runtime list
+    return Annotated[t, meta]
+
+
+def bounds(meta: msgspec.Meta) -> str:
+    """A Meta's numeric bounds as text: ``>= 0``, ``> 0 and <= 1``."""
+    ops = (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))
+    parts = [f"{op} {getattr(meta, key):g}" for key, op in ops if getattr(meta, key) is not None]
+    return " and ".join(parts)
 
 
 def _is_optional(t: Any) -> bool:
@@ -114,16 +141,37 @@ def assignable(src: Any, dst: Any) -> bool:
     return False
 
 
-def check_value(value: Any, t: Any, where: str) -> Any:
-    """Validate (and convert, e.g. list -> tuple) a value for a port, or raise TreeError."""
-    if t is Any:
+def check_value(value: Any, t: Any, where: str, meta: msgspec.Meta | None = None) -> Any:
+    """Validate (and convert, e.g. list -> tuple) a value for a port, or raise TreeError.
+
+    ``meta`` (a port's constraints) is checked too: ``where: must be >= 0, got -5``.
+    """
+    if t is Any and meta is None:
         return value
     try:
-        return msgspec.convert(value, t, strict=False)
+        return msgspec.convert(value, _constrained(t, meta), strict=False)
     except (msgspec.ValidationError, TypeError) as exc:
+        if meta is not None:
+            try:
+                msgspec.convert(value, t, strict=False)
+            except (msgspec.ValidationError, TypeError):
+                pass  # the type is wrong too: say that
+            else:
+                rule = bounds(meta) or str(exc)
+                raise TreeError(f"{where}: must be {rule}, got {value!r}") from None
         raise TreeError(
             f"{where}: expected {type_name(t)}, got {type(value).__qualname__} {value!r} ({exc})"
         ) from None
+
+
+def check_port(value: Any, port: Port, where: str) -> Any:
+    """:func:`check_value` against a port's type and constraints."""
+    if port.checked is Any:
+        return value
+    try:
+        return msgspec.convert(value, port.checked, strict=False)
+    except (msgspec.ValidationError, TypeError):
+        return check_value(value, port.type, where, port.meta)  # raises, saying why
 
 
 def check_options(spec: PortMap, given: Mapping[str, Any], node: str, kind: str) -> dict[str, Any]:
@@ -137,7 +185,7 @@ def check_options(spec: PortMap, given: Mapping[str, Any], node: str, kind: str)
     out: dict[str, Any] = {}
     for key, port in spec.items():
         if key in given:
-            out[key] = check_value(given[key], port.type, f"node {node!r} option {key!r}")
+            out[key] = check_port(given[key], port, f"node {node!r} option {key!r}")
         elif port.required:
             raise TreeError(
                 f"node {node!r} ({kind}): option {key!r} ({type_name(port.type)}) is required"
@@ -145,3 +193,15 @@ def check_options(spec: PortMap, given: Mapping[str, Any], node: str, kind: str)
         else:
             out[key] = port.default_value()
     return out
+
+
+def check_wired(
+    inputs: dict[str, Any], checks: tuple[tuple[str, Port], ...], node: str
+) -> TreeError | None:
+    """Check (and convert) wired input values a port constrains; the first refusal."""
+    for key, port in checks:
+        try:
+            inputs[key] = check_port(inputs[key], port, f"node {node!r} input {key!r}")
+        except TreeError as exc:
+            return exc
+    return None

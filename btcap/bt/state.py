@@ -1,10 +1,19 @@
-"""Node states and the errors of the node life cycle."""
+"""Node states, the errors of the node life cycle and btcap's warnings."""
 
 from __future__ import annotations
 
 import enum
 
-__all__ = ["ACTIVE", "DONE", "IllegalTransition", "State", "TreeError"]
+__all__ = [
+    "ACTIVE",
+    "DONE",
+    "BtcapWarning",
+    "IllegalTransition",
+    "RestartLoopWarning",
+    "State",
+    "TreeError",
+    "TreeTimeout",
+]
 
 
 class State(enum.Enum):
@@ -39,3 +48,42 @@ class TreeError(Exception):
 
 class IllegalTransition(TreeError):
     """An action was asked of a node in a state that does not allow it."""
+
+
+class TreeTimeout(TreeError, TimeoutError):
+    """:meth:`~btcap.bt.tree.Tree.run` reached its time or tick limit without a result.
+
+    The tree has been halted (unticked: its background work is cancelled, its progress
+    kept) when this is raised. ``limit`` is the limit reached (``"timeout_s"`` or
+    ``"max_ticks"``) and ``value`` its value, ``running`` the paths of the nodes that were
+    still running, ``state`` the root's last state and ``ticks`` the ticks of the run.
+    """
+
+    def __init__(
+        self,
+        tree: str,
+        limit: str,
+        value: float,
+        *,
+        running: tuple[str, ...],
+        state: State,
+        ticks: int,
+    ) -> None:
+        what = f"time limit of {value:g} s" if limit == "timeout_s" else f"limit of {value} ticks"
+        super().__init__(
+            f"tree {tree!r} reached its {what} after {ticks} tick{'' if ticks == 1 else 's'} "
+            f"without a result and was halted; still running: {', '.join(running) or 'nothing'}"
+        )
+        self.limit = limit
+        self.value = value
+        self.running = running
+        self.state = state
+        self.ticks = ticks
+
+
+class BtcapWarning(UserWarning):
+    """Base class of btcap's warnings, to filter them all at once."""
+
+
+class RestartLoopWarning(BtcapWarning):
+    """A node keeps being halted and started again without ever finishing (debug mode)."""

@@ -7,8 +7,10 @@ from collections.abc import Callable, Collection, Coroutine, Iterator
 from typing import TYPE_CHECKING, Any
 
 from btcap.actors import Clock, TimeSource
+from btcap.bt.debug import RestartMonitor, debug_default
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, assignable, type_name
+from btcap.bt.running import run_tree
 from btcap.bt.state import ACTIVE, DONE, State, TreeError
 from btcap.bt.utility import Utility
 
@@ -43,7 +45,12 @@ class Tree:
     """
 
     def __init__(
-        self, root: Node, *, name: str | None = None, clock: TimeSource | None = None
+        self,
+        root: Node,
+        *,
+        name: str | None = None,
+        clock: TimeSource | None = None,
+        debug: bool | None = None,
     ) -> None:
         self.root = root
         self.name = name or root.name
@@ -55,7 +62,30 @@ class Tree:
         #: Grows whenever nodes join or leave the tree: a watcher can tell the shape
         #: changed without walking it.
         self.version = 0
+        self._monitor: RestartMonitor | None = None
+        self._unmonitor: Callable[[], None] | None = None
         self._adopt(root)
+        self.debug = debug_default() if debug is None else debug
+
+    # -- debug mode -------------------------------------------------------------------
+    @property
+    def debug(self) -> bool:
+        """Debug mode: warn about nodes caught in a restart loop (:mod:`btcap.bt.debug`);
+        on by default with ``BTCAP_DEBUG`` or ``python -X dev``. Off, it costs nothing."""
+        return self._monitor is not None
+
+    @debug.setter
+    def debug(self, on: bool) -> None:
+        if on != self.debug:
+            self._share_monitor(RestartMonitor() if on else None)
+
+    def _share_monitor(self, monitor: RestartMonitor | None) -> None:
+        """Use ``monitor`` (a Subtree's inner tree: the outer tree's; None: none)."""
+        if monitor is not self._monitor:
+            if self._unmonitor is not None:
+                self._unmonitor()
+            self._monitor = monitor
+            self._unmonitor = None if monitor is None else self.observe(monitor)
 
     # -- structure --------------------------------------------------------------------
     def _adopt(self, node: Node) -> None:
@@ -222,7 +252,14 @@ class Tree:
         root = self.root
         if not root._ready:
             self.setup()
-        return root.tick()
+        monitor = self._monitor
+        if monitor is None:
+            return root.tick()
+        monitor.ticks += 1
+        state = root.tick()
+        if monitor.pending:
+            monitor.flush()  # after the tick: an error filter fails the caller, not a node
+        return state
 
     async def run(
         self,
@@ -230,24 +267,16 @@ class Tree:
         *,
         until: Callable[[State], bool] | None = None,
         max_ticks: int | None = None,
+        timeout_s: float | None = None,
     ) -> State:
-        """Tick at ``rate_hz`` (clock time, drift-free) until a result or ``until(state)``."""
-        if rate_hz <= 0:
-            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
-        stop = until or (lambda s: s in DONE)
-        period = 1.0 / rate_hz
-        deadline = self.clock.now()
-        ticks = 0
-        while True:
-            state = self.tick()
-            ticks += 1
-            if stop(state) or (max_ticks is not None and ticks >= max_ticks):
-                return state
-            deadline += period
-            now = self.clock.now()
-            if deadline < now - period:  # fell far behind: skip, don't burst
-                deadline = now
-            await self.clock.sleep_until(deadline)
+        """Tick at ``rate_hz`` (clock time, drift-free) until a result or ``until(state)``.
+
+        ``max_ticks`` and ``timeout_s`` (clock seconds) limit the run. A run that reaches
+        a limit first halts the tree (unticks it: background work is cancelled, progress
+        kept, so a later run resumes) and raises :class:`~btcap.bt.state.TreeTimeout`
+        naming the limit and the nodes still running; nothing is left running.
+        """
+        return await run_tree(self, rate_hz, until, max_ticks, timeout_s)
 
     def tick_until_result(self, max_ticks: int = 1_000_000) -> State:
         """Tick synchronously until succeeded/failed/error (for trees with no waits)."""
@@ -393,6 +422,8 @@ class Subtree(Node):
 
     def on_setup(self) -> None:
         self.inner.clock = self.clock
+        host = self._tree
+        self.inner._share_monitor(host._monitor if isinstance(host, Tree) else None)
         self.inner.setup(provided=list(self._in_map.values()))
 
     def on_tick(self) -> State:

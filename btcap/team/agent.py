@@ -155,7 +155,10 @@ class Agent:
     async def run_mission(
         self, root: Node | Tree, *, rate_hz: float | None = None, max_ticks: int | None = None
     ) -> State:
-        """Attach and tick a mission tree until it succeeds or fails."""
+        """Attach and tick a mission tree until it succeeds or fails.
+
+        At ``max_ticks`` the tree is halted and :class:`~btcap.bt.state.TreeTimeout` raised.
+        """
         tree = self.mission(root)
         try:
             return await tree.run(

@@ -170,9 +170,9 @@ def test_nodes_lists_types_with_ports(capsys: pytest.CaptureFixture[str]) -> Non
         "Fallback: Succeeds at the first child that succeeds; resumes at the running child."
         in lines
     )
-    assert "  option retries: int = 1" in out
+    assert "  option retries: int >= 0 = 1" in out
     assert main(["tree", "nodes", "Wait"]) == 0
-    assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float"
+    assert capsys.readouterr().out.splitlines()[1] == "  option seconds: float >= 0"
 
 
 def test_nodes_unknown_type_exits_2(capsys: pytest.CaptureFixture[str]) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import shutil
 import sys
 import textwrap
@@ -12,7 +13,10 @@ from pathlib import Path
 import pytest
 
 import btcap.cli
+from btcap import RestartLoopWarning
+from btcap.actors import configure_logging
 from btcap.bt.files import dumps_tree, load_tree
+from btcap.bt.leaves import LOG_LOGGER
 from btcap.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -174,7 +178,31 @@ def test_run_ticks_the_patrol_to_success_in_virtual_time(
     ("body", "args", "code", "last"),
     [
         ("<AlwaysFailure/>", [], 1, "failed after 1 tick"),
-        ('<Sleep msec="60000"/>', ["--fast", "--max-ticks", "3"], 3, "running after 3 ticks"),
+        (
+            '<Sleep msec="60000"/>',
+            ["--fast", "--max-ticks", "3"],
+            3,
+            "halted after 3 ticks at --max-ticks 3; still running: Sleep",
+        ),
+        (
+            '<Sleep msec="600000"/>',
+            ["--fast"],
+            3,
+            "halted after 600 ticks at --timeout 60 s (virtual time); still running: Sleep",
+        ),
+        (
+            '<Sleep msec="600000"/>',
+            ["--fast", "--timeout", "none"],
+            0,
+            "succeeded after 6001 ticks",
+        ),
+        ('<Sleep msec="600000"/>', ["--fast", "--timeout", "0"], 0, "succeeded after 6001 ticks"),
+        (
+            '<Sleep msec="2000"/>',
+            ["--fast", "--timeout", "1.5"],
+            3,
+            "halted after 15 ticks at --timeout 1.5 s (virtual time); still running: Sleep",
+        ),
         ("<AlwaysSuccess/>", ["--rate", "1000"], 0, "succeeded after 1 tick"),
     ],
 )
@@ -209,10 +237,84 @@ def test_run_refuses_capabilities_which_need_a_team(
     assert "capability nodes (Greet) are run by a team" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("args", [["--rate", "0"], ["--max-ticks", "0"]])
-def test_run_refuses_bad_limits(capsys: pytest.CaptureFixture[str], args: list[str]) -> None:
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--rate", "0"], "--rate 0.0: expected ticks per second > 0"),
+        (["--max-ticks", "0"], "--max-ticks 0: expected at least 1"),
+        (["--timeout", "-1"], "--timeout -1: expected seconds > 0, or 0 or none for no limit"),
+        (["--timeout", "soon"], "--timeout soon: expected seconds > 0, or 0 or none for no limit"),
+        (["--timeout", "inf"], "--timeout inf: expected seconds > 0, or 0 or none for no limit"),
+        (["--timeout", "nan"], "--timeout nan: expected seconds > 0, or 0 or none for no limit"),
+    ],
+)
+def test_run_refuses_bad_limits(
+    capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
     assert main(["tree", "run", *args, str(PATROL_XML)]) == 2
-    assert "btcap: error: --" in capsys.readouterr().err
+    assert capsys.readouterr().err.strip() == f"btcap: error: {message}"
+
+
+RESTART_LOOP = """\
+btcap: 1
+root:
+  type: ReactiveSequence
+  name: s
+  children:
+    - {type: AlwaysSuccess, name: check}
+    - type: Repeat
+      name: rep
+      children: [{type: Wait, name: w, options: {seconds: 0.2}}]
+    - {type: AlwaysRunning, name: work}
+"""
+
+
+@pytest.mark.parametrize("how", ["flag", "environment"])
+def test_run_of_a_tree_in_a_restart_loop_warns_and_stops_at_the_limit(
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    how: str,
+) -> None:
+    path = tmp_path / "hang.yaml"
+    path.write_text(RESTART_LOOP)
+    monkeypatch.setenv("BTCAP_DEBUG", "1" if how == "environment" else "0")
+    flags = ["--debug"] if how == "flag" else []
+    with pytest.warns(RestartLoopWarning, match="node 's/work' \\(AlwaysRunning\\) was halted"):
+        code = main(["tree", "run", "--fast", "--timeout", "30", *flags, str(path)])
+    assert code == 3
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last == "halted after 300 ticks at --timeout 30 s (virtual time); still running: s/rep/w"
+
+
+def test_run_shows_log_nodes_on_stderr_whatever_the_log_level(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    # The CLI's own logging set-up, as a user gets it (conftest puts logging back after).
+    monkeypatch.setattr(btcap.cli, "configure_logging", configure_logging)
+    logger = logging.getLogger(LOG_LOGGER)
+    before = logger.level
+    path = tmp_path / "say.yaml"
+    path.write_text(
+        "btcap: 1\n"
+        "root:\n"
+        "  type: Sequence\n"
+        "  name: root\n"
+        "  children:\n"
+        "    - {type: Wait, name: w, options: {seconds: 30}}\n"
+        "    - {type: Log, name: say, options: {message: hello from the tree}}\n"
+        "    - {type: Log, name: quiet, options: {message: only when debugging, level: debug}}\n"
+    )
+    assert main(["tree", "run", "--fast", str(path)]) == 0
+    out = capsys.readouterr()
+    assert out.out.splitlines()[-1] == "succeeded after 301 ticks"
+    lines = [line for line in out.err.splitlines() if "hello from the tree" in line]
+    assert len(lines) == 1
+    assert "node=root/say" in lines[0]
+    assert "only when debugging" not in out.err
+    assert logger.level == before  # put back: the library configures no logging
+    assert main(["--log-level", "debug", "tree", "run", "--fast", str(path)]) == 0
+    assert "only when debugging" in capsys.readouterr().err
 
 
 # -- pictures -------------------------------------------------------------------------

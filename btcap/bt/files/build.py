@@ -26,7 +26,7 @@ from btcap.bt.files.schema import (
     set_file_info,
 )
 from btcap.bt.node import Node
-from btcap.bt.ports import check_value, type_name
+from btcap.bt.ports import check_port, type_name
 from btcap.bt.registry import NodeRegistry, RegistryError
 from btcap.bt.state import TreeError
 from btcap.bt.tree import Subtree, Tree
@@ -322,7 +322,7 @@ class Builder:
                     ok = False
                     continue
             try:
-                options[key] = check_value(value, port.type, where)
+                options[key] = check_port(value, port, where)
             except TreeError as exc:
                 self.problems.append(str(exc))
                 ok = False
@@ -384,9 +384,7 @@ class Builder:
                 )
                 continue
             try:
-                node.set_input(
-                    key, check_value(value, port.type, f"{self.where}: {loc} input {key!r}")
-                )
+                node.set_input(key, check_port(value, port, f"{self.where}: {loc} input {key!r}"))
             except TreeError as exc:
                 self.problems.append(str(exc))
                 self._bad_inputs.add((*at, key))

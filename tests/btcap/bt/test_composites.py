@@ -27,12 +27,14 @@ from btcap import (
     ReactiveFallback,
     ReactiveSequence,
     Repeat,
+    RestartLoopWarning,
     Sequence,
     SequenceWithMemory,
     State,
     Switch,
     Tree,
     TreeError,
+    TreeTimeout,
     Wait,
     loads_tree,
 )
@@ -330,7 +332,11 @@ async def test_a_newcomers_first_tree_finishes() -> None:
 
             runs.clear()
             tree = newcomer(ReactiveSequence)
-            assert await tree.run(rate_hz=10, max_ticks=100) is R  # 10 s later: still going
+            with (
+                pytest.warns(RestartLoopWarning, match="'s/act'.*use Sequence"),
+                pytest.raises(TreeTimeout, match="still running"),  # 10 s later: still going
+            ):
+                await tree.run(rate_hz=10, max_ticks=100)
             await tree.shutdown()
             assert "done" not in runs
             assert len(runs) > 1  # the action was halted and started again

@@ -342,6 +342,29 @@ def test_counting_options_are_type_checked(kind: type[Node], option: str, value:
         kind("d", children=[Leafy(S)], **{option: value})
 
 
+@pytest.mark.parametrize(
+    ("kind", "option", "bad", "rule", "fine"),
+    [
+        (Retry, "retries", -1, ">= 0", 0),
+        (Repeat, "times", -2, ">= -1", -1),  # -1: for ever
+        (RepeatUntilSuccess, "max_attempts", 0, ">= 1", 1),
+        (RepeatUntilFailure, "max_attempts", -1, ">= 1", None),  # None: no limit
+        (Timeout, "seconds", 0, "> 0", 0.001),
+        (Timeout, "seconds", -5, "> 0", 0.001),
+        (Delay, "seconds", -5, ">= 0", 0),
+        (Delay, "seconds", float("nan"), ">= 0", float("inf")),
+        (Throttle, "rate_hz", -1, "> 0", 0.5),
+    ],
+)
+def test_negative_counts_and_durations_are_refused_naming_node_and_option(
+    kind: type[Node], option: str, bad: Any, rule: str, fine: Any
+) -> None:
+    with pytest.raises(TreeError) as err:
+        kind("d", children=[Leafy(S)], **{option: bad})
+    assert str(err.value) == f"node 'd' option {option!r}: must be {rule}, got {bad!r}"
+    assert kind("d", children=[Leafy(S)], **{option: fine}).options[option] == fine
+
+
 # -- time -------------------------------------------------------------------------------
 
 
@@ -420,17 +443,43 @@ async def test_delay_keeps_ticking_a_running_child() -> None:
         assert run(tree, 3) == [R, R, F]
 
 
-async def test_delay_keeps_the_time_waited_across_an_untick() -> None:
+async def test_delay_keeps_the_time_waited_across_an_untick_not_the_pause() -> None:
     with anyio.fail_after(5):
         clock = ManualClock()
         child = Leafy(S)
         tree = Tree(Delay("delay", children=[child], seconds=1), clock=clock)
         assert tick(tree) is R
-        await clock.advance(0.6)
-        tree.untick()
-        await clock.advance(0.4)
+        await clock.advance(0.5)
+        tree.untick()  # 0.5 s waited
+        await clock.advance(5.0)  # paused: not waiting
+        assert tick(tree) is R
+        await clock.advance(0.25)
+        assert tick(tree) is R  # 0.75 s waited
+        assert child.ticks == 0
+        await clock.advance(0.25)
         assert tick(tree) is S
         assert child.ticks == 1
+
+
+async def test_delay_waits_afresh_after_its_result_and_after_two_pauses() -> None:
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        child = Leafy(S)
+        tree = Tree(Delay("delay", children=[child], seconds=1), clock=clock)
+        for _ in range(2):
+            assert tick(tree) is R
+            await clock.advance(0.5)
+            tree.untick()
+            tree.untick()  # a second untick while paused adds nothing
+            await clock.advance(3.0)
+            assert tick(tree) is R
+            await clock.advance(0.25)
+            tree.untick()  # 0.75 s waited in two stretches
+            await clock.advance(3.0)
+            assert tick(tree) is R
+            await clock.advance(0.25)
+            assert tick(tree) is S
+        assert child.ticks == 2
 
 
 async def test_delay_forgets_on_reset() -> None:
@@ -466,7 +515,7 @@ async def test_throttle_limits_child_ticks_and_repeats_its_state() -> None:
 
 @pytest.mark.parametrize("rate", [0, -1.0])
 def test_throttle_rate_must_be_positive(rate: float) -> None:
-    with pytest.raises(TreeError, match="rate_hz must be > 0"):
+    with pytest.raises(TreeError, match=f"node 'thr' option 'rate_hz': must be > 0, got {rate}"):
         Throttle("thr", children=[Leafy(S)], rate_hz=rate)
 
 

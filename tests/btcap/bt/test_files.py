@@ -6,6 +6,7 @@ tests assert all three, and that each reported line starts with the file path.
 
 from __future__ import annotations
 
+import json
 import textwrap
 from pathlib import Path
 from typing import Any
@@ -753,6 +754,49 @@ def test_every_problem_of_a_file_is_reported_at_once(
     assert "node 'r/b' option 'seconds'" in problems[1]
     assert "wires[1]" in problems[2]  # wires[0] starts at a broken node: not reported again
     assert "node 'r/c' input 'goal'" in problems[3]
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_negative_durations_and_counts_are_refused_naming_file_node_and_option(
+    tmp_path: Path, suffix: str
+) -> None:
+    def node(kind: str, name: str, **options: Any) -> dict[str, Any]:
+        child = [{"type": "AlwaysSuccess"}] if kind != "Wait" else []
+        return {"type": kind, "name": name, "options": options, "children": child}
+
+    doc = {
+        "btcap": 1,
+        "root": {
+            "type": "Sequence",
+            "name": "r",
+            "children": [
+                node("Wait", "w", seconds=-5),
+                node("Delay", "d", seconds=-0.5),
+                node("Timeout", "t", seconds=0),
+                node("Throttle", "th", rate_hz=-1),
+                node("Retry", "re", retries=-1),
+                node("Repeat", "rp", times=-2),
+                node("Repeat", "ok", times=-1),  # documented: for ever
+                node("RepeatUntilSuccess", "us", max_attempts=0),
+                node("RepeatUntilFailure", "uf", max_attempts=-1),
+            ],
+        },
+    }
+    path = tmp_path / f"t{suffix}"
+    path.write_text(json.dumps(doc))  # JSON is YAML too
+    assert validate_file(path) == [
+        f"{path}: node {where!r} option {option!r}: must be {rule}, got {value}"
+        for where, option, rule, value in [
+            ("r/w", "seconds", ">= 0", -5),
+            ("r/d", "seconds", ">= 0", -0.5),
+            ("r/t", "seconds", "> 0", 0),
+            ("r/th", "rate_hz", "> 0", -1),
+            ("r/re", "retries", ">= 0", -1),
+            ("r/rp", "times", ">= -1", -2),
+            ("r/us", "max_attempts", ">= 1", 0),
+            ("r/uf", "max_attempts", ">= 1", -1),
+        ]
+    ]
 
 
 def test_malformed_json_points_at_line_and_column(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ import asyncio
 from typing import Any
 
 import anyio
+import msgspec
 import pytest
 from structlog.testing import capture_logs
 
@@ -21,6 +22,7 @@ from btcap import (
     Log,
     Port,
     ReactiveSequence,
+    Sequence,
     State,
     Tree,
     TreeError,
@@ -361,9 +363,40 @@ async def test_wait_survives_untick_and_restarts_on_reset() -> None:
         assert tree.tick() is R
 
 
-def test_wait_needs_seconds() -> None:
+def test_wait_needs_seconds_and_refuses_negative_ones() -> None:
     with pytest.raises(TreeError, match=r"option 'seconds' \(float\) is required"):
         Wait("wait")
+    with pytest.raises(TreeError) as err:
+        Wait("w", seconds=-5)
+    assert str(err.value) == "node 'w' option 'seconds': must be >= 0, got -5"
+    assert Tree(Wait("w", seconds=0)).tick() is S
+
+
+class Pace(Leaf):
+    """A leaf of one's own whose input is a duration: a wired value is checked per tick."""
+
+    INPUTS = {"period": Port(float, 1.0, "seconds", msgspec.Meta(ge=0))}
+
+    def on_tick(self) -> State:
+        return S
+
+
+def test_a_constrained_input_refuses_a_bad_constant_and_errs_on_a_bad_wired_value() -> None:
+    with pytest.raises(TreeError, match="node 'p' input 'period': must be >= 0, got -1"):
+        Pace("p", inputs={"period": -1})
+    source = Constant("src", value=-2.0, type=float)
+    pace = Pace("p")
+    tree = Tree(Sequence("root", children=[source, pace]))
+    tree.wire("root/src", "value", "root/p", "period")
+    with capture_logs() as logs:
+        assert tree.tick() is F
+    assert pace.state is State.ERROR
+    assert str(pace.error) == "node 'root/p' input 'period': must be >= 0, got -2.0"
+    assert [e["node"] for e in logs if e["event"] == "btcap.node_error"] == ["root/p"]
+    tree.reset()
+    source.options["value"] = 3  # converted like a constant: int to float
+    assert tree.tick() is S
+    assert pace.inputs["period"] == 3.0
 
 
 # -- Log ------------------------------------------------------------------------------

@@ -23,10 +23,12 @@ from btcap import (
     Parallel,
     ReactiveFallback,
     ReactiveSequence,
+    Sequence,
     State,
     Subtree,
     Tree,
     TreeError,
+    TreeTimeout,
     Utility,
     Wait,
     protocol_registry,
@@ -287,6 +289,7 @@ async def test_observers_see_shutdown() -> None:
 
 def test_unsubscribe_and_several_observers() -> None:
     tree = sample_tree()
+    tree.debug = False  # debug mode observes every node
     first: list[Change] = []
     second: list[Change] = []
     stop_first = tree.observe(lambda n, old, new: first.append((n.path, old, new)))
@@ -322,6 +325,7 @@ def test_observers_follow_inserted_and_removed_nodes() -> None:
 
 def test_an_observer_of_some_node_types_sees_only_those_and_costs_the_others_nothing() -> None:
     tree = sample_tree()
+    tree.debug = False  # debug mode observes every node
     leaves: list[Change] = []
     every: list[Change] = []
     stop = tree.observe(lambda n, old, new: leaves.append((n.path, old, new)), only=Leaf)
@@ -379,8 +383,16 @@ async def test_run_stops_at_max_ticks_or_until() -> None:
         runner = asyncio.create_task(tree.run(4, max_ticks=3))
         await settle()
         await clock.advance(10)
-        assert await runner is R
+        with pytest.raises(TreeTimeout) as err:
+            await runner
         assert stamp.times == [0.0, 0.25, 0.5]
+        assert (err.value.limit, err.value.running, err.value.ticks) == ("max_ticks", ("stamp",), 3)
+        assert err.value.state is R
+        assert str(err.value) == (
+            "tree 'stamp' reached its limit of 3 ticks after 3 ticks without a result and "
+            "was halted; still running: stamp"
+        )
+        assert stamp.state is State.PAUSED
 
         runner = asyncio.create_task(tree.run(2, until=lambda s: len(stamp.times) >= 6))
         await settle()
@@ -412,9 +424,66 @@ async def test_run_on_a_fast_clock() -> None:
         assert clock.now() >= 0.5
 
 
-async def test_run_rejects_a_bad_rate() -> None:
-    with anyio.fail_after(5), pytest.raises(ValueError, match="rate_hz must be > 0"):
-        await Tree(AlwaysSuccess()).run(0)
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"rate_hz": 0}, "rate_hz must be > 0, got 0"),
+        ({"rate_hz": float("nan")}, "rate_hz must be > 0, got nan"),
+        ({"max_ticks": 0}, "max_ticks must be >= 1 or None, got 0"),
+        ({"timeout_s": 0}, "timeout_s must be > 0 or None, got 0"),
+        ({"timeout_s": -1.0}, "timeout_s must be > 0 or None, got -1.0"),
+    ],
+)
+async def test_run_rejects_bad_rates_and_limits(kwargs: dict[str, Any], message: str) -> None:
+    leaf = Leafy("x")
+    with anyio.fail_after(5), pytest.raises(ValueError, match=message):
+        await Tree(leaf).run(**kwargs)
+    assert leaf.ticks == 0
+
+
+async def test_run_halts_the_tree_at_its_time_limit_and_names_the_running_nodes() -> None:
+    cancelled = asyncio.Event()
+
+    async def forever() -> None:
+        try:
+            await asyncio.Event().wait()
+        finally:
+            cancelled.set()
+
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        stamp = Stamp("watch")
+        work = Action(forever, "work")
+        root = Parallel("root", children=[Sequence("go", children=[AlwaysSuccess(), work]), stamp])
+        tree = Tree(root, clock=clock)
+        runner = asyncio.create_task(tree.run(10, timeout_s=0.35))
+        await settle()
+        await clock.advance(10)
+        with pytest.raises(TreeTimeout) as err:
+            await runner
+        # Ticks at 0, 0.1, 0.2, 0.3; halted at 0.35 without waiting for the next tick.
+        assert stamp.times == pytest.approx([0.0, 0.1, 0.2, 0.3])
+        assert clock.now() == 10  # the run ended at 0.35; the advance went on
+        assert err.value.limit == "timeout_s"
+        assert err.value.running == ("root/go/work", "root/watch")
+        assert err.value.ticks == 4
+        assert "reached its time limit of 0.35 s after 4 ticks" in str(err.value)
+        assert isinstance(err.value, TimeoutError)
+        assert isinstance(err.value, TreeError)
+        assert [n.state for n in (root, work, stamp)] == [State.PAUSED] * 3
+        await asyncio.wait_for(cancelled.wait(), 1)  # the Action's work was cancelled
+        assert clock.pending == 0
+        await tree.shutdown()
+
+
+async def test_run_names_the_running_nodes_inside_a_subtree() -> None:
+    with anyio.fail_after(5):
+        inner = Tree(Sequence("nav", children=[AlwaysSuccess(), AlwaysRunning("drive")]))
+        tree = Tree(Sequence("root", children=[Subtree(inner, "go")]), clock=ManualClock())
+        with pytest.raises(TreeTimeout) as err:
+            await tree.run(10, max_ticks=1)
+        assert err.value.running == ("root/go/drive",)
+        assert inner.root.state is State.PAUSED
 
 
 async def test_run_can_be_cancelled() -> None:
