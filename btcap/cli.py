@@ -17,7 +17,6 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
-from btcap.actors import configure_logging
 from btcap.bt.state import TreeError
 
 __all__ = ["CliError", "build_parser", "main"]
@@ -48,6 +47,14 @@ def _command_modules() -> list[str]:
 
     plugins = sorted(ep.value for ep in entry_points(group="btcap.commands"))
     return ["btcap.treecli", "btcap.teamcli", "btcap.keys_cli", "btcap.monitor.cli", *plugins]
+
+
+def configure_logging(level: str, *, json: bool = False) -> None:
+    """:func:`btcap.actors.configure_logging`, imported once a command runs: printing
+    help needs neither the actor runtime nor structlog."""
+    from btcap.actors import configure_logging as configure
+
+    configure(level, json=json)
 
 
 def _version() -> str:

@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 
 from btcap.cli import CliError
-from btcap.transports.security import write_key_pair
 
 __all__ = ["add_parser"]
 
@@ -39,6 +38,8 @@ def _help(parser: argparse.ArgumentParser) -> int:
 
 
 def _new(args: argparse.Namespace) -> int:
+    from btcap.transports.security import write_key_pair  # pyzmq: only when run
+
     try:
         public, secret = write_key_pair(args.dir, args.name)
     except (ValueError, OSError) as exc:

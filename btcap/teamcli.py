@@ -14,27 +14,17 @@ import signal
 import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import anyio
-
-from btcap.bt.files import load_tree
-from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
-from btcap.monitor.cli import add_monitor_option, serving
-from btcap.team.agent import Agent
-from btcap.team.agentconfig import AgentConfigError, RobotConfig, load_agent_file
-from btcap.team.deploy import (
-    MemberView,
-    MissionReport,
-    observe_team,
-    open_agent,
-    run_mission_file,
-    wait_for_team,
-)
-from btcap.team.spawn import listening
-from btcap.team.supervised import stdin_closed, watchable
+from btcap.monitor.cli import add_monitor_option
+
+if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
+    from btcap.bt.registry import NodeRegistry
+    from btcap.team.agent import Agent
+    from btcap.team.agentconfig import RobotConfig
+    from btcap.team.deploy import MemberView, MissionReport
 
 __all__ = ["add_parser"]
 
@@ -99,6 +89,8 @@ def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
 
 
 def _config(path: Path) -> RobotConfig:
+    from btcap.team.agentconfig import AgentConfigError, load_agent_file
+
     try:
         return load_agent_file(path)
     except AgentConfigError as exc:
@@ -106,11 +98,17 @@ def _config(path: Path) -> RobotConfig:
 
 
 def _registry(args: argparse.Namespace) -> NodeRegistry:
+    from btcap.bt.registry import default_registry
+
     return default_registry(plugins=not args.no_plugins)
 
 
 def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
     """Run ``work`` in a fresh event loop; SIGINT or SIGTERM cancel it (None)."""
+    import anyio
+
+    from btcap.team.agentconfig import AgentConfigError
+
     result: list[T] = []
 
     async def main() -> None:
@@ -142,6 +140,13 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
 
 # -- btcap agent -------------------------------------------------------------------------
 def _agent(args: argparse.Namespace) -> int:
+    import anyio
+
+    from btcap.monitor.cli import serving
+    from btcap.team.deploy import open_agent
+    from btcap.team.spawn import listening
+    from btcap.team.supervised import stdin_closed, watchable
+
     config = _config(args.config)
     registry = _registry(args)
 
@@ -173,6 +178,8 @@ def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
 
 
 def _status(args: argparse.Namespace) -> int:
+    from btcap.team.deploy import observe_team, open_agent, wait_for_team
+
     config = _config(args.config)
     registry = _registry(args)
     robot = _observer(args, config, "status")
@@ -210,6 +217,11 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 
 # -- btcap mission run -------------------------------------------------------------------
 def _mission(args: argparse.Namespace) -> int:
+    from btcap.bt.files import load_tree
+    from btcap.monitor.cli import serving
+    from btcap.team.agentconfig import AgentConfigError
+    from btcap.team.deploy import open_agent, run_mission_file
+
     config = _config(args.config)
     registry = _registry(args)
     try:
@@ -250,6 +262,8 @@ def _say(line: str) -> None:
 
 
 async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
+    from btcap.team.deploy import wait_for_team
+
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
     members = ", ".join(sorted(agent.team.members)) or "nobody"
     print(f"{agent.robot} joined the team: {members}", flush=True)
