@@ -2,7 +2,8 @@
 
 Each reads an agent configuration file (:mod:`btcap.team.agentconfig`); a bad file exits
 with status 2 and a message naming the file and the field. SIGINT and SIGTERM end each
-command cleanly: the robot says goodbye, so the team re-assigns its work at once.
+command cleanly, with one line and exit status 130 or 143 (128 + the signal's number):
+the robot says goodbye, so the team re-assigns its work at once.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
 from btcap.bt.state import TreeError
-from btcap.cli import CliError
+from btcap.cli import CliError, Stopped
 from btcap.monitor.cli import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
@@ -103,13 +104,18 @@ def _registry(args: argparse.Namespace) -> NodeRegistry:
     return default_registry(plugins=not args.no_plugins)
 
 
-def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
-    """Run ``work`` in a fresh event loop; SIGINT or SIGTERM cancel it (None)."""
+def _until_stopped(
+    work: Callable[[], Awaitable[T]], args: argparse.Namespace, doing: str = "leaving the team"
+) -> T:
+    """Run ``work`` in a fresh event loop. SIGINT or SIGTERM cancel it, saying so on one
+    line (unless ``--log-level error``: a supervisor that stops its robots wants no word
+    from each), and raise :class:`Stopped` once it has wound down."""
     import anyio
 
     from btcap.team.agentconfig import AgentConfigError
 
     result: list[T] = []
+    stopped_by: list[int] = []
 
     async def main() -> None:
         with anyio.open_signal_receiver(*_STOP) as signals:
@@ -121,7 +127,9 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
 
                 tg.start_soon(run)
                 async for sig in signals:
-                    print(f"btcap: {signal.Signals(sig).name}, leaving the team", file=sys.stderr)
+                    stopped_by.append(sig)
+                    if args.log_level != "error":
+                        print(f"btcap: {signal.Signals(sig).name}, {doing}", file=sys.stderr)
                     tg.cancel_scope.cancel()
                     break
 
@@ -135,7 +143,9 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
             raise leaf from None
     except AgentConfigError as exc:  # found once joining: bad keys, a bind refused
         raise CliError(str(exc)) from None
-    return result[0] if result else None
+    if not result:
+        raise Stopped(stopped_by[0])
+    return result[0]
 
 
 # -- btcap agent -------------------------------------------------------------------------
@@ -165,8 +175,8 @@ def _agent(args: argparse.Namespace) -> int:
             else:
                 await anyio.sleep_forever()
 
-    _until_stopped(serve)
-    return 0
+    _until_stopped(serve, args)
+    return 0  # standard input closed (--until-stdin-closes)
 
 
 # -- btcap team status -------------------------------------------------------------------
@@ -191,10 +201,7 @@ def _status(args: argparse.Namespace) -> int:
             complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
             return complete, await observe_team(agent)
 
-    seen = _until_stopped(look)
-    if seen is None:
-        return 130
-    complete, members = seen
+    complete, members = _until_stopped(look, args, "leaving")
     _print_team(robot, members)
     missing = sorted(set(config.seeds) - {m.robot for m in members})
     for seed in missing:
@@ -247,12 +254,9 @@ def _mission(args: argparse.Namespace) -> int:
             )
 
     try:
-        report = _until_stopped(run)
+        report = _until_stopped(run, args, "mission interrupted, leaving the team")
     except TreeError as exc:
         raise CliError(str(exc), code=1) from None
-    if report is None:
-        print("mission interrupted", file=sys.stderr)
-        return 130
     _print_summary(report)
     return 0 if report.succeeded else 1
 

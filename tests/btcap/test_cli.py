@@ -244,3 +244,16 @@ def test_python_dash_m_btcap_version() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == f"btcap {btcap.__version__}"
+
+
+def test_ctrl_c_while_the_parser_is_built_is_one_line_and_exit_130(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A KeyboardInterrupt anywhere in the command, even before a handler runs."""
+
+    def interrupted() -> list[str]:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(btcap.cli, "_command_modules", interrupted)
+    assert main(["--help"]) == 130
+    assert capsys.readouterr().err == "btcap: interrupted\n"
