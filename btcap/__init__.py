@@ -4,80 +4,164 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 :mod:`btcap.team`; what most programs need is re-exported here.
 """
 
-from btcap.bt.composites import (
-    Fallback,
-    IfThenElse,
-    Parallel,
-    ReactiveFallback,
-    ReactiveSequence,
-    Sequence,
-    SequenceWithMemory,
-    Switch,
-)
-from btcap.bt.decorators import (
-    Decorator,
-    Delay,
-    FailureIsRunning,
-    ForceFailure,
-    ForceSuccess,
-    Inverter,
-    Repeat,
-    RepeatUntilFailure,
-    RepeatUntilSuccess,
-    Retry,
-    RunningIsFailure,
-    RunningIsSuccess,
-    RunOnce,
-    SuccessIsRunning,
-    Throttle,
-    Timeout,
-)
-from btcap.bt.files import (
-    TreeFile,
-    TreeFileError,
-    dump_tree,
-    dumps_tree,
-    load_tree,
-    loads_tree,
-    save_tree,
-    validate_file,
-)
-from btcap.bt.leaves import (
-    Action,
-    AlwaysFailure,
-    AlwaysRunning,
-    AlwaysSuccess,
-    Compare,
-    Condition,
-    Constant,
-    Log,
-    Wait,
-)
-from btcap.bt.node import Leaf, Node, Observer
-from btcap.bt.ports import Port
-from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
-from btcap.bt.render import render_dot, render_text
-from btcap.bt.state import (
-    BtcapWarning,
-    IllegalTransition,
-    RestartLoopWarning,
-    State,
-    TreeError,
-    TreeTimeout,
-)
-from btcap.bt.tree import Subtree, Tree, Wire
-from btcap.bt.utility import Utility
-from btcap.monitor import Monitor, Replay
-from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
-from btcap.team.capfiles import load_implementation, load_interfaces
-from btcap.team.config import MissionConfig
-from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.team.implementation import Implementation, Precondition, Scope
-from btcap.team.protocol import protocol_registry
-from btcap.team.slot import RemoteCapabilitySlot
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from btcap.bt.composites import (
+        Fallback,
+        IfThenElse,
+        Parallel,
+        ReactiveFallback,
+        ReactiveSequence,
+        Sequence,
+        SequenceWithMemory,
+        Switch,
+    )
+    from btcap.bt.decorators import (
+        Decorator,
+        Delay,
+        FailureIsRunning,
+        ForceFailure,
+        ForceSuccess,
+        Inverter,
+        Repeat,
+        RepeatUntilFailure,
+        RepeatUntilSuccess,
+        Retry,
+        RunningIsFailure,
+        RunningIsSuccess,
+        RunOnce,
+        SuccessIsRunning,
+        Throttle,
+        Timeout,
+    )
+    from btcap.bt.files import (
+        TreeFile,
+        TreeFileError,
+        dump_tree,
+        dumps_tree,
+        load_tree,
+        loads_tree,
+        save_tree,
+        validate_file,
+    )
+    from btcap.bt.leaves import (
+        Action,
+        AlwaysFailure,
+        AlwaysRunning,
+        AlwaysSuccess,
+        Compare,
+        Condition,
+        Constant,
+        Log,
+        Wait,
+    )
+    from btcap.bt.node import Leaf, Node, Observer
+    from btcap.bt.ports import Port
+    from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
+    from btcap.bt.render import render_dot, render_text
+    from btcap.bt.state import (
+        BtcapWarning,
+        IllegalTransition,
+        RestartLoopWarning,
+        State,
+        TreeError,
+        TreeTimeout,
+    )
+    from btcap.bt.tree import Subtree, Tree, Wire
+    from btcap.bt.utility import Utility
+    from btcap.monitor import Monitor, Replay
+    from btcap.team.agent import Agent, AgentConfig
+    from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
+    from btcap.team.capfiles import load_implementation, load_interfaces
+    from btcap.team.config import MissionConfig
+    from btcap.team.core.ids import AuctionId, ExecutionId
+    from btcap.team.implementation import Implementation, Precondition, Scope
+    from btcap.team.protocol import protocol_registry
+    from btcap.team.slot import RemoteCapabilitySlot
 
 __version__ = "0.1.0"
+
+#: What each module gives the public API; imported on first use (see btcap._lazy).
+_EXPORTS = {
+    "btcap.bt.composites": (
+        "Fallback",
+        "IfThenElse",
+        "Parallel",
+        "ReactiveFallback",
+        "ReactiveSequence",
+        "Sequence",
+        "SequenceWithMemory",
+        "Switch",
+    ),
+    "btcap.bt.decorators": (
+        "Decorator",
+        "Delay",
+        "FailureIsRunning",
+        "ForceFailure",
+        "ForceSuccess",
+        "Inverter",
+        "Repeat",
+        "RepeatUntilFailure",
+        "RepeatUntilSuccess",
+        "Retry",
+        "RunningIsFailure",
+        "RunningIsSuccess",
+        "RunOnce",
+        "SuccessIsRunning",
+        "Throttle",
+        "Timeout",
+    ),
+    "btcap.bt.files": (
+        "TreeFile",
+        "TreeFileError",
+        "dump_tree",
+        "dumps_tree",
+        "load_tree",
+        "loads_tree",
+        "save_tree",
+        "validate_file",
+    ),
+    "btcap.bt.leaves": (
+        "Action",
+        "AlwaysFailure",
+        "AlwaysRunning",
+        "AlwaysSuccess",
+        "Compare",
+        "Condition",
+        "Constant",
+        "Log",
+        "Wait",
+    ),
+    "btcap.bt.node": ("Leaf", "Node", "Observer"),
+    "btcap.bt.ports": ("Port",),
+    "btcap.bt.registry": ("NodeRegistry", "RegistryError", "default_registry"),
+    "btcap.bt.render": ("render_dot", "render_text"),
+    "btcap.bt.state": (
+        "BtcapWarning",
+        "IllegalTransition",
+        "RestartLoopWarning",
+        "State",
+        "TreeError",
+        "TreeTimeout",
+    ),
+    "btcap.bt.tree": ("Subtree", "Tree", "Wire"),
+    "btcap.bt.utility": ("Utility",),
+    "btcap.monitor": ("Monitor", "Replay"),
+    "btcap.team.agent": ("Agent", "AgentConfig"),
+    "btcap.team.capability": ("Capability", "CapabilityInterface", "InputBridge", "OutputBridge"),
+    "btcap.team.capfiles": ("load_implementation", "load_interfaces"),
+    "btcap.team.config": ("MissionConfig",),
+    "btcap.team.core.ids": ("AuctionId", "ExecutionId"),
+    "btcap.team.implementation": ("Implementation", "Precondition", "Scope"),
+    "btcap.team.protocol": ("protocol_registry",),
+    "btcap.team.slot": ("RemoteCapabilitySlot",),
+}
+
+if not TYPE_CHECKING:
+    from btcap._lazy import lazy_exports
+
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "Action",

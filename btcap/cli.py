@@ -4,7 +4,9 @@
 Adding a command: write a module with ``add_parser(subparsers)`` that adds its parser
 and sets ``handler=fn`` (``fn(args) -> int`` exit code) via ``set_defaults``, then list
 it in :func:`_command_modules`. Handlers raise :class:`CliError` for usage problems
-(exit 2) and may let :class:`~btcap.bt.state.TreeError` escape (printed, exit 1).
+(exit 2), may let :class:`~btcap.bt.state.TreeError` escape (printed, exit 1), and raise
+:class:`Stopped` once a signal has stopped them cleanly. Keep ``add_parser`` cheap: a
+handler imports what it needs when it runs, so ``btcap --help`` stays fast.
 
 This is the only place (with the benchmarks) that configures logging.
 """
@@ -13,14 +15,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
-from btcap.actors import configure_logging
 from btcap.bt.state import TreeError
 
-__all__ = ["CliError", "build_parser", "main"]
+__all__ = ["CliError", "Stopped", "build_parser", "main"]
 
 
 class CliError(Exception):
@@ -29,6 +31,15 @@ class CliError(Exception):
     def __init__(self, message: str, code: int = 2) -> None:
         super().__init__(message)
         self.code = code
+
+
+class Stopped(Exception):
+    """A command ended early, cleanly, by SIGINT or SIGTERM, and has said so: the exit
+    code is 128 + the signal's number, as a shell reports a process the signal ended."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.code = 128 + signum
 
 
 class _CommandModule(Protocol):
@@ -48,6 +59,14 @@ def _command_modules() -> list[str]:
 
     plugins = sorted(ep.value for ep in entry_points(group="btcap.commands"))
     return ["btcap.treecli", "btcap.teamcli", "btcap.keys_cli", "btcap.monitor.cli", *plugins]
+
+
+def configure_logging(level: str, *, json: bool = False) -> None:
+    """:func:`btcap.actors.configure_logging`, imported once a command runs: printing
+    help needs neither the actor runtime nor structlog."""
+    from btcap.actors import configure_logging as configure
+
+    configure(level, json=json)
 
 
 def _version() -> str:
@@ -97,15 +116,16 @@ def _usage(parser: argparse.ArgumentParser) -> Callable[[argparse.Namespace], in
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI and return the exit code (0 ok, 1 invalid input, 2 usage error)."""
-    parser = build_parser()
+    """Run the CLI and return the exit code (0 ok, 1 invalid input, 2 usage error, 128 +
+    the signal's number when SIGINT or SIGTERM stopped it)."""
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, --version, or an argparse usage error
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-    configure_logging(args.log_level, json=args.log_json)
-    handler: Callable[[argparse.Namespace], int] = args.handler
-    try:
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version, or an argparse usage error
+            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+        configure_logging(args.log_level, json=args.log_json)
+        handler: Callable[[argparse.Namespace], int] = args.handler
         return handler(args)
     except CliError as exc:
         print(f"btcap: error: {exc}", file=sys.stderr)
@@ -113,9 +133,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TreeError as exc:
         print(exc, file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except Stopped as exc:  # the command said what it stopped
+        return exc.code
+    except KeyboardInterrupt:  # Ctrl-C anywhere else: one line, not a traceback
         print("btcap: interrupted", file=sys.stderr)
-        return 130
+        return 128 + signal.SIGINT
 
 
 if __name__ == "__main__":  # pragma: no cover

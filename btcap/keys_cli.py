@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 
 from btcap.cli import CliError
-from btcap.transports.security import write_key_pair
 
 __all__ = ["add_parser"]
 
@@ -26,7 +25,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = cmds.add_parser(
         "new",
         help="write NAME.key (public) and NAME.key_secret (secret); never overwrites",
-        description=__doc__,
+        description="Write a robot's CURVE key pair in ZeroMQ's certificate format: "
+        "NAME.key (public) and NAME.key_secret (secret), into DIR; an existing file is never "
+        "overwritten. Give NAME.key_secret to robot NAME only; copy NAME.key into the team's "
+        "directory of public certificates (the allow-list every member's transport loads as "
+        "'trusted').",
     )
     p.add_argument("name", metavar="NAME", help="the robot's name (its system id)")
     p.add_argument("--dir", type=Path, default=Path("."), help="where to write (default: .)")
@@ -39,6 +42,8 @@ def _help(parser: argparse.ArgumentParser) -> int:
 
 
 def _new(args: argparse.Namespace) -> int:
+    from btcap.transports.security import write_key_pair  # pyzmq: only when run
+
     try:
         public, secret = write_key_pair(args.dir, args.name)
     except (ValueError, OSError) as exc:

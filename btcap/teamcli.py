@@ -2,7 +2,8 @@
 
 Each reads an agent configuration file (:mod:`btcap.team.agentconfig`); a bad file exits
 with status 2 and a message naming the file and the field. SIGINT and SIGTERM end each
-command cleanly: the robot says goodbye, so the team re-assigns its work at once.
+command cleanly, with one line and exit status 130 or 143 (128 + the signal's number):
+the robot says goodbye, so the team re-assigns its work at once.
 """
 
 from __future__ import annotations
@@ -14,27 +15,17 @@ import signal
 import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import anyio
-
-from btcap.bt.files import load_tree
-from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.state import TreeError
-from btcap.cli import CliError
-from btcap.monitor.cli import add_monitor_option, serving
-from btcap.team.agent import Agent
-from btcap.team.agentconfig import AgentConfigError, RobotConfig, load_agent_file
-from btcap.team.deploy import (
-    MemberView,
-    MissionReport,
-    observe_team,
-    open_agent,
-    run_mission_file,
-    wait_for_team,
-)
-from btcap.team.spawn import listening
-from btcap.team.supervised import stdin_closed, watchable
+from btcap.cli import CliError, Stopped
+from btcap.monitor.cli import add_monitor_option
+
+if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
+    from btcap.bt.registry import NodeRegistry
+    from btcap.team.agent import Agent
+    from btcap.team.agentconfig import RobotConfig
+    from btcap.team.deploy import MemberView, MissionReport
 
 __all__ = ["add_parser"]
 
@@ -99,6 +90,8 @@ def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
 
 
 def _config(path: Path) -> RobotConfig:
+    from btcap.team.agentconfig import AgentConfigError, load_agent_file
+
     try:
         return load_agent_file(path)
     except AgentConfigError as exc:
@@ -106,12 +99,23 @@ def _config(path: Path) -> RobotConfig:
 
 
 def _registry(args: argparse.Namespace) -> NodeRegistry:
+    from btcap.bt.registry import default_registry
+
     return default_registry(plugins=not args.no_plugins)
 
 
-def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
-    """Run ``work`` in a fresh event loop; SIGINT or SIGTERM cancel it (None)."""
+def _until_stopped(
+    work: Callable[[], Awaitable[T]], args: argparse.Namespace, doing: str = "leaving the team"
+) -> T:
+    """Run ``work`` in a fresh event loop. SIGINT or SIGTERM cancel it, saying so on one
+    line (unless ``--log-level error``: a supervisor that stops its robots wants no word
+    from each), and raise :class:`Stopped` once it has wound down."""
+    import anyio
+
+    from btcap.team.agentconfig import AgentConfigError
+
     result: list[T] = []
+    stopped_by: list[int] = []
 
     async def main() -> None:
         with anyio.open_signal_receiver(*_STOP) as signals:
@@ -123,7 +127,9 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
 
                 tg.start_soon(run)
                 async for sig in signals:
-                    print(f"btcap: {signal.Signals(sig).name}, leaving the team", file=sys.stderr)
+                    stopped_by.append(sig)
+                    if args.log_level != "error":
+                        print(f"btcap: {signal.Signals(sig).name}, {doing}", file=sys.stderr)
                     tg.cancel_scope.cancel()
                     break
 
@@ -137,11 +143,20 @@ def _until_stopped(work: Callable[[], Awaitable[T]]) -> T | None:
             raise leaf from None
     except AgentConfigError as exc:  # found once joining: bad keys, a bind refused
         raise CliError(str(exc)) from None
-    return result[0] if result else None
+    if not result:
+        raise Stopped(stopped_by[0])
+    return result[0]
 
 
 # -- btcap agent -------------------------------------------------------------------------
 def _agent(args: argparse.Namespace) -> int:
+    import anyio
+
+    from btcap.monitor.cli import serving
+    from btcap.team.deploy import open_agent
+    from btcap.team.spawn import listening
+    from btcap.team.supervised import stdin_closed, watchable
+
     config = _config(args.config)
     registry = _registry(args)
 
@@ -160,8 +175,8 @@ def _agent(args: argparse.Namespace) -> int:
             else:
                 await anyio.sleep_forever()
 
-    _until_stopped(serve)
-    return 0
+    _until_stopped(serve, args)
+    return 0  # standard input closed (--until-stdin-closes)
 
 
 # -- btcap team status -------------------------------------------------------------------
@@ -173,6 +188,8 @@ def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
 
 
 def _status(args: argparse.Namespace) -> int:
+    from btcap.team.deploy import observe_team, open_agent, wait_for_team
+
     config = _config(args.config)
     registry = _registry(args)
     robot = _observer(args, config, "status")
@@ -184,10 +201,7 @@ def _status(args: argparse.Namespace) -> int:
             complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
             return complete, await observe_team(agent)
 
-    seen = _until_stopped(look)
-    if seen is None:
-        return 130
-    complete, members = seen
+    complete, members = _until_stopped(look, args, "leaving")
     _print_team(robot, members)
     missing = sorted(set(config.seeds) - {m.robot for m in members})
     for seed in missing:
@@ -210,6 +224,11 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 
 # -- btcap mission run -------------------------------------------------------------------
 def _mission(args: argparse.Namespace) -> int:
+    from btcap.bt.files import load_tree
+    from btcap.monitor.cli import serving
+    from btcap.team.agentconfig import AgentConfigError
+    from btcap.team.deploy import open_agent, run_mission_file
+
     config = _config(args.config)
     registry = _registry(args)
     try:
@@ -238,12 +257,9 @@ def _mission(args: argparse.Namespace) -> int:
             return report
 
     try:
-        report = _until_stopped(run)
+        report = _until_stopped(run, args, "mission interrupted, leaving the team")
     except TreeError as exc:
         raise CliError(str(exc), code=1) from None
-    if report is None:
-        print("mission interrupted", file=sys.stderr)
-        return 130
     _print_summary(report)
     return 0 if report.succeeded else 1
 
@@ -262,6 +278,8 @@ def _say(line: str) -> None:
 
 
 async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
+    from btcap.team.deploy import wait_for_team
+
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
     members = ", ".join(sorted(agent.team.members)) or "nobody"
     print(f"{agent.robot} joined the team: {members}", flush=True)

@@ -8,32 +8,26 @@ the node types it will really run with. Files are YAML, JSON or BehaviorTree.CPP
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import importlib
 import importlib.util
 import logging
 import math
 import re
-import shutil
-import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
 
-from btcap.actors import ManualClock
-from btcap.bt.files import TreeFileError, file_info, load_tree, validate_file
-from btcap.bt.leaves import LOG_LOGGER
-from btcap.bt.node import Node
-from btcap.bt.ports import bounds, type_name
-from btcap.bt.registry import NodeRegistry, default_registry
-from btcap.bt.render import render_dot, render_text
 from btcap.bt.state import DONE, State, TreeError, TreeTimeout
-from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
-from btcap.team.capability import Capability, CapabilityInterface
-from btcap.team.capfiles import load_interfaces, register_interfaces
+
+if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help stays fast
+    from btcap.actors import ManualClock
+    from btcap.bt.node import Node
+    from btcap.bt.registry import NodeRegistry
+    from btcap.bt.tree import Tree
 
 __all__ = ["add_parser"]
 
@@ -141,6 +135,9 @@ def _help(parser: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
 
 # -- node types -------------------------------------------------------------------------
 def _registry(args: argparse.Namespace) -> NodeRegistry:
+    from btcap.bt.registry import default_registry
+    from btcap.team.capfiles import load_interfaces, register_interfaces
+
     registry = default_registry(plugins=not args.no_plugins)
     for ref in args.load:
         _register(registry, ref)
@@ -178,6 +175,10 @@ def _import(name: str) -> ModuleType:
 
 def _register(registry: NodeRegistry, ref: str) -> None:
     """Register what ``MODULE`` defines or what ``MODULE:NAME`` is or returns."""
+    from btcap.bt.node import Node
+    from btcap.team.capability import CapabilityInterface
+    from btcap.team.capfiles import register_interfaces
+
     module_name, _, attr = ref.partition(":")
     module = _import(module_name)
     items: list[object]
@@ -228,6 +229,8 @@ def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[st
     Only a hint: which interfaces a tree runs with is the user's choice, so nothing is
     loaded that was not asked for.
     """
+    from btcap.team.capfiles import load_interfaces
+
     unknown = dict.fromkeys(m[1] for p in problems for m in _UNKNOWN.finditer(p))
     if not unknown or args.interfaces:
         return []
@@ -252,6 +255,8 @@ def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[st
 
 
 def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None) -> Tree:
+    from btcap.bt.files import TreeFileError, load_tree
+
     registry = _registry(args)
     try:
         return load_tree(_existing(path), registry, clock=clock)
@@ -269,6 +274,8 @@ def _existing(path: Path) -> Path:
 
 
 def _validate(args: argparse.Namespace) -> int:
+    from btcap.bt.files import validate_file
+
     registry = _registry(args)
     code = 0
     for path in args.files:
@@ -289,6 +296,9 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
+    from btcap.bt.files import file_info
+    from btcap.bt.render import render_text
+
     tree = _load(args, args.file)
     info = file_info(tree)
     if info.description:
@@ -298,6 +308,8 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _dot(args: argparse.Namespace) -> int:
+    from btcap.bt.render import render_dot
+
     tree = _load(args, args.file)
     text = render_dot(tree)
     out: Path | None = args.output
@@ -318,6 +330,9 @@ def _dot(args: argparse.Namespace) -> int:
 
 def _graphviz(text: str, fmt: str) -> bytes:
     """Render DOT with Graphviz's ``dot``, which btcap does not bundle."""
+    import shutil
+    import subprocess
+
     dot = shutil.which("dot")
     if dot is None:
         raise CliError(
@@ -336,6 +351,11 @@ def _graphviz(text: str, fmt: str) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from btcap.actors import ManualClock
+    from btcap.team.capability import Capability
+
     if not args.rate > 0:
         raise CliError(f"--rate {args.rate}: expected ticks per second > 0")
     if args.max_ticks is not None and args.max_ticks < 1:
@@ -386,6 +406,8 @@ def _timeout(text: str) -> float | None:
 @contextlib.contextmanager
 def _log_nodes_shown() -> Iterator[None]:
     """Let Log nodes' lines through (info and up) whatever --log-level hides, for the run."""
+    from btcap.bt.leaves import LOG_LOGGER
+
     logger = logging.getLogger(LOG_LOGGER)
     level = logger.level
     logger.setLevel(min(logging.INFO, logging.getLogger().getEffectiveLevel()))
@@ -396,6 +418,8 @@ def _log_nodes_shown() -> Iterator[None]:
 
 
 def _all_nodes(tree: Tree) -> Iterator[Node]:
+    from btcap.bt.tree import Subtree
+
     for node in tree.nodes():
         yield node
         if isinstance(node, Subtree):
@@ -406,6 +430,8 @@ async def _tick(
     tree: Tree, clock: ManualClock | None, args: argparse.Namespace, timeout: float | None
 ) -> tuple[State, int, str, TreeTimeout | None]:
     """Tick to a result or a limit; the outline is taken before shutdown repaints it."""
+    from btcap.bt.render import render_text
+
     ticks = 0
 
     def count(state: State) -> bool:
@@ -429,6 +455,8 @@ async def _tick(
 
 
 def _nodes(args: argparse.Namespace) -> int:
+    from btcap.bt.ports import bounds, type_name
+
     registry = _registry(args)
     names = args.types or registry.names()
     for name in names:

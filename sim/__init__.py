@@ -1,16 +1,40 @@
 """Simulation: a vectorised numpy grid world (cave maps, distance fields, moving robots)."""
 
-from btcap.sim.distance import (
-    UNREACHABLE,
-    Cell,
-    CellLike,
-    DistanceCache,
-    as_cell,
-    distance_field,
-    path_length,
-)
-from btcap.sim.grid import GridMap, MapError
-from btcap.sim.world import World
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from btcap.sim.distance import (
+        UNREACHABLE,
+        Cell,
+        CellLike,
+        DistanceCache,
+        as_cell,
+        distance_field,
+        path_length,
+    )
+    from btcap.sim.grid import GridMap, MapError
+    from btcap.sim.world import World
+
+#: Imported on first use (see btcap._lazy): ``btcap --help`` lists ``btcap run`` without
+#: loading numpy.
+_EXPORTS = {
+    "btcap.sim.distance": (
+        "UNREACHABLE",
+        "Cell",
+        "CellLike",
+        "DistanceCache",
+        "as_cell",
+        "distance_field",
+        "path_length",
+    ),
+    "btcap.sim.grid": ("GridMap", "MapError"),
+    "btcap.sim.world": ("World",),
+}
+
+if not TYPE_CHECKING:
+    from btcap._lazy import lazy_exports
+
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "UNREACHABLE",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import functools
 import json
 import math
@@ -12,22 +11,23 @@ import tempfile
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import Any
-
-import anyio
-import msgspec
-from rich.console import Console, Group
-from rich.live import Live
-from rich.table import Table
-from rich.text import Text
+from typing import TYPE_CHECKING, Any
 
 from btcap.cli import CliError
-from btcap.monitor import Monitor
-from btcap.monitor.cli import add_monitor_option, monitored
-from btcap.sim.metrics import MissionResult
-from btcap.sim.plots import plot_comparison, plot_timeline
-from btcap.sim.runner import Progress, run_fast, run_scenario
-from btcap.sim.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from btcap.monitor.cli import add_monitor_option
+from btcap.sim.catalog import builtin_scenarios
+
+if TYPE_CHECKING:  # the simulation is imported when a run starts: --help stays fast
+    import asyncio
+
+    import anyio
+    from rich.console import Console, Group
+    from rich.table import Table
+
+    from btcap.monitor import Monitor
+    from btcap.sim.metrics import MissionResult
+    from btcap.sim.runner import Progress
+    from btcap.sim.scenario import Scenario
 
 __all__ = ["add_parser", "resolve_scenario", "run_command"]
 
@@ -102,6 +102,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 def resolve_scenario(ref: str) -> Scenario:
     """A built-in scenario name or a path to a scenario file."""
+    from btcap.sim.scenario import ScenarioError, load_scenario
+
     builtins = builtin_scenarios()
     if ref in builtins:
         return load_scenario(builtins[ref])
@@ -128,6 +130,8 @@ def _progress_line(p: Progress, name: str) -> str:
 
 
 def _progress_view(p: Progress, name: str) -> Table:
+    from rich.table import Table
+
     t = Table(title=f"{name} - t = {p.time:7.0f} s", expand=False)
     t.add_column("robot")
     t.add_column("status")
@@ -144,6 +148,10 @@ def _progress_view(p: Progress, name: str) -> Table:
 
 
 def summary_table(results: list[MissionResult]) -> Group:
+    from rich.console import Group
+    from rich.table import Table
+    from rich.text import Text
+
     head = Table(title="mission summary")
     head.add_column("")
     for r in results:
@@ -206,6 +214,8 @@ def _check_out(out: Path) -> None:
 
 
 def _write(result: MissionResult, out: Path) -> None:
+    from btcap.sim.plots import plot_timeline
+
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_bytes(result.to_json())
     plot_timeline(result, out / "timeline.png")
@@ -262,6 +272,10 @@ class _Stopper:
 
     def event(self) -> anyio.Event:
         """The stop event of the scenario about to run in this event loop."""
+        import asyncio
+
+        import anyio
+
         self._loop = asyncio.get_running_loop()
         self._event = anyio.Event()
         if self.signum is not None:
@@ -278,6 +292,10 @@ async def _run_one(
     stopper: _Stopper,
     monitor: Monitor | None = None,
 ) -> MissionResult:
+    from rich.live import Live
+
+    from btcap.sim.runner import run_fast, run_scenario
+
     runner: Callable[..., Awaitable[MissionResult]] = run_fast if fast else run_scenario
     if distributed:
         from btcap.sim.distributed import run_distributed
@@ -304,6 +322,15 @@ async def _run_one(
 
 
 def run_command(args: argparse.Namespace) -> int:
+    import asyncio
+
+    import msgspec
+    from rich.console import Console
+
+    from btcap.monitor.cli import monitored
+    from btcap.sim.plots import plot_comparison
+    from btcap.sim.scenario import ScenarioError
+
     console = Console()
     if args.compare:
         names = args.scenarios or list(builtin_scenarios())

@@ -32,8 +32,11 @@ from btcap.sim.scenario import Scenario
 from btcap.team.agentconfig import Timing
 from btcap.team.spawn import AsyncAgentProcess
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
+from btcap.transports.log import get_logger
 
 __all__ = ["ProcessHost", "robot_factory", "run_distributed"]
+
+log = get_logger("btcap.sim")
 
 
 def robot_factory(robot: str, scenario: dict[str, Any]) -> RobotSetup:
@@ -156,6 +159,8 @@ class ProcessHost:
             if proc not in self._leaving:
                 record_error(self.errors, self.clock.now(), name, exc)
             await proc.kill()
+        else:
+            log.info("sim.robot_up", robot=name, pid=proc.pid, endpoint=proc.endpoint)
         code = await proc.wait()
         if self._procs.get(name) is proc:
             del self._procs[name]

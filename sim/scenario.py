@@ -8,6 +8,7 @@ from typing import Literal
 
 import msgspec
 
+from btcap.sim.catalog import builtin_scenarios
 from btcap.sim.grid import GridMap, MapError
 from btcap.sim.model import RobotModel, load_team, paper_team
 from btcap.team.core.planning import STRATEGIES
@@ -25,8 +26,6 @@ __all__ = [
     "builtin_scenarios",
     "load_scenario",
 ]
-
-SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 
 class ScenarioError(ValueError):
@@ -267,11 +266,6 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"{file}: not valid YAML/JSON ({exc})") from None
     s.source = str(file)
     return _check(s, str(file))
-
-
-def builtin_scenarios() -> dict[str, Path]:
-    """The scenarios shipped with btcap (the paper's three), by name."""
-    return {p.stem: p for p in sorted(SCENARIO_DIR.glob("*.yaml"))}
 
 
 def check_scenario(s: Scenario) -> Scenario:

@@ -9,30 +9,27 @@ depends on nothing but the scenario: runs are spread over worker processes and
 from __future__ import annotations
 
 import argparse
-import asyncio
-import multiprocessing
 import os
 import signal
 import statistics
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import msgspec
-from rich.console import Console
-from rich.progress import Progress
-from rich.table import Table
-from rich.text import Text
 
-from btcap.actors import configure_logging
 from btcap.cli import CliError
 from btcap.sim.cli import resolve_scenario
-from btcap.sim.metrics import MissionResult
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import Allocation, Scenario, ScenarioError, check_scenario
+
+if TYPE_CHECKING:  # the simulation is imported when a sweep starts: --help stays fast
+    from concurrent.futures import Future
+
+    from rich.table import Table
+
+    from btcap.sim.metrics import MissionResult
+    from btcap.sim.scenario import Scenario
 
 __all__ = [
     "ConfigResult",
@@ -140,6 +137,8 @@ class Configuration:
 
 
 def _has_strategy() -> bool:
+    from btcap.sim.scenario import Allocation
+
     return any(f.name == "strategy" for f in msgspec.structs.fields(Allocation))
 
 
@@ -151,6 +150,8 @@ def configurations(
 
     Raises :class:`ScenarioError` naming the strategy that the scenario does not accept.
     """
+    from btcap.sim.scenario import Allocation, ScenarioError, check_scenario
+
     base = scenario
     if not reevaluate:
         base = msgspec.structs.replace(
@@ -178,11 +179,17 @@ def configurations(
 
 def _run_seed(scenario: Scenario) -> dict[str, Any]:
     """One run, in a worker process or in this one; builtins cross the process boundary."""
+    import asyncio
+
+    from btcap.sim.runner import run_fast
+
     result: dict[str, Any] = msgspec.to_builtins(asyncio.run(run_fast(scenario)))
     return result
 
 
 def _worker_init(log_level: str, log_json: bool) -> None:
+    from btcap.actors import configure_logging
+
     # Ctrl-C is the parent's to handle: it cancels what has not started and waits.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     configure_logging(log_level, json=log_json)
@@ -203,6 +210,9 @@ def _results(
         for i, s in enumerate(runs):
             yield i, _run_seed(s)
         return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
     pool = ProcessPoolExecutor(
         max_workers=min(jobs, len(runs)),
         mp_context=multiprocessing.get_context("spawn"),  # no fork of a threaded parent
@@ -229,6 +239,8 @@ def run_sweep(
 ) -> SweepResult:
     """Run every configuration for every seed on up to ``jobs`` processes; ``log`` is the
     level and JSON flag the worker processes log with."""
+    from btcap.sim.metrics import MissionResult
+
     if jobs < 1 or not seeds or not configs:
         raise ValueError("run_sweep: expected jobs >= 1, seeds and configurations")
     runs = [msgspec.structs.replace(c.scenario, seed=seed) for c in configs for seed in seeds]
@@ -248,6 +260,9 @@ def run_sweep(
 
 
 def sweep_table(result: SweepResult) -> Table:
+    from rich.table import Table
+    from rich.text import Text
+
     seeds = result.seeds
     span = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}"
     t = Table(title=f"{result.scenario}: {span}, fast mode", caption="std: sample std over seeds")
@@ -357,6 +372,11 @@ def _out_dir(args: argparse.Namespace, name: str) -> Path:
 
 
 def sweep_command(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from btcap.sim.scenario import ScenarioError
+
     console = Console()
     if args.seeds < 1:
         raise CliError(f"--seeds: expected a number of seeds >= 1, got {args.seeds}")

@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from btcap.cli import CliError
-from btcap.monitor.monitor import Monitor
-from btcap.monitor.record import RecordError
-from btcap.monitor.replay import Replay
-from btcap.monitor.server import MonitorServer
+
+if TYPE_CHECKING:  # imported when a monitor is asked for: --help and agents stay fast
+    from btcap.monitor.monitor import Monitor
+    from btcap.monitor.replay import Replay
 
 __all__ = [
     "DEFAULT_PORT",
@@ -61,6 +60,8 @@ async def serving(
     if address is None and record is None:
         yield None
         return
+    from btcap.monitor.monitor import Monitor
+
     host, port = address if address is not None else ("127.0.0.1", None)
     monitor = Monitor(host=host, port=port, record=record, title=title)
     try:
@@ -113,6 +114,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def replay_command(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from btcap.monitor.record import RecordError
+    from btcap.monitor.replay import Replay
+
     try:
         replay = Replay.open(args.file, speed=args.speed)
     except (RecordError, ValueError) as exc:
@@ -133,6 +139,10 @@ def replay_command(args: argparse.Namespace) -> int:
 
 
 async def _serve(replay: Replay, host: str, port: int) -> None:
+    import asyncio
+
+    from btcap.monitor.server import MonitorServer  # aiohttp: only when serving
+
     server = MonitorServer(replay, host, port)
     try:
         await server.start()

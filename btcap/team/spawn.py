@@ -66,8 +66,17 @@ _LISTENING = re.compile(r"agent (\S+) listening on (\S+)")  # what listening() w
 
 
 async def _open(argv: list[str], stderr: int | None) -> anyio.abc.Process:
+    """The child, in a session of its own (as :class:`AgentProcess`): a Ctrl-C at the
+    terminal (SIGINT to the whole foreground process group) reaches the parent only, which
+    stops its children cleanly, instead of interrupting every robot half-started. Should
+    the parent die, their stdin closes and they leave (:mod:`btcap.team.supervised`)."""
     return await anyio.open_process(
-        argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
+        argv,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=stderr,
+        env=_env(),
+        start_new_session=True,
     )
 
 
@@ -143,7 +152,12 @@ class AgentProcess(_Launched):
     ) -> None:
         super().__init__([s.robot for s in _specs(spec)])
         self.proc = subprocess.Popen(
-            _command(spec), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, env=_env()
+            _command(spec),
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=stderr,
+            env=_env(),
+            start_new_session=True,  # see _open
         )
         self._started = time.monotonic()
         self._timeout = timeout

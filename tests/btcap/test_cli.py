@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 import importlib.metadata
 import re
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -256,3 +258,46 @@ def test_python_dash_m_btcap_version() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == f"btcap {btcap.__version__}"
+
+
+def test_ctrl_c_while_the_parser_is_built_is_one_line_and_exit_130(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A KeyboardInterrupt anywhere in the command, even before a handler runs."""
+
+    def interrupted() -> list[str]:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(btcap.cli, "_command_modules", interrupted)
+    assert main(["--help"]) == 130
+    assert capsys.readouterr().err == "btcap: interrupted\n"
+
+
+def _every_parser(
+    parser: argparse.ArgumentParser, name: str = "btcap"
+) -> Iterator[tuple[str, argparse.ArgumentParser]]:
+    yield name, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub, subparser in action.choices.items():
+                yield from _every_parser(subparser, f"{name} {sub}")
+
+
+#: reStructuredText a docstring may hold and a terminal shows raw: ``code``, roles
+#: (:class:`X`, :func:`~a.b`), directives, links and the literal-block marker.
+RST = re.compile(r"``|:[a-z]+:`|^\s*\.\. [a-z-]+::|`_|::$", re.MULTILINE)
+
+
+def test_the_checker_sees_rest_markup() -> None:
+    for text in ("``btcap keys``", "see :class:`Tree`", ":func:`~a.b`", "like so::", ".. note::"):
+        assert RST.search(text), text
+    assert not RST.search("--monitor [HOST:]PORT: a port 0-65535, e.g. 127.0.0.1:8765")
+
+
+def test_every_help_is_plain_text() -> None:
+    """Help shows in a terminal (and, verbatim, on the CLI reference page)."""
+    parsers = list(_every_parser(build_parser()))
+    assert len(parsers) > 10
+    for name, parser in parsers:
+        marked = [line for line in parser.format_help().splitlines() if RST.search(line)]
+        assert marked == [], f"{name} --help shows reST markup"

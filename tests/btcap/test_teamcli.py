@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -173,7 +174,7 @@ async def test_a_stopped_agent_says_goodbye_and_its_work_moves_at_once(tmp_path:
                         cheap_proc.send_signal(signal.SIGTERM)
 
                 report = await run_mission_file(agent, mission, registry, progress=progress)
-            assert await cheap_proc.wait() == 0  # it stopped cleanly
+            assert await cheap_proc.wait() == 128 + signal.SIGTERM  # it stopped cleanly
     assert report.succeeded
     (hello,) = report.capabilities
     assert hello.robots == ["cheap", "dear"]
@@ -213,3 +214,33 @@ async def test_a_supervised_agent_leaves_when_its_stdin_closes(tmp_path: Path) -
             assert await proc.wait() == 0
         finally:
             await proc.kill()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["int", "term"])
+async def test_a_signal_stops_the_agent_with_one_line_and_128_plus_its_number(
+    tmp_path: Path, sig: signal.Signals
+) -> None:
+    path = _config(tmp_path, "solo", impl=None, seeds=[])
+    with anyio.fail_after(30):
+        proc = await anyio.open_process(
+            _btcap("agent", str(path)), stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        try:
+            assert proc.stdout is not None
+            assert proc.stderr is not None
+            said = b""
+            while b"listening" not in said:
+                said += await proc.stdout.receive()
+            proc.send_signal(sig)
+            assert await proc.wait() == 128 + sig
+            err = b""
+            with contextlib.suppress(anyio.EndOfStream):
+                while True:
+                    err += await proc.stderr.receive()
+        finally:
+            with anyio.CancelScope(shield=True):
+                if proc.returncode is None:
+                    proc.kill()
+                await proc.aclose()
+    assert err.decode() == f"btcap: {sig.name}, leaving the team\n"

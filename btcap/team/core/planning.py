@@ -31,11 +31,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-
-import numpy as np
-from scipy.optimize import linear_sum_assignment
+from typing import TYPE_CHECKING
 
 from btcap.team.messages import Bid
+
+if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents start fast
+    import numpy as np
+
+    Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 
 __all__ = [
     "STRATEGIES",
@@ -48,7 +51,6 @@ __all__ = [
 
 STRATEGIES = ("auction", "sequential", "optimal", "arrival", "consensus")
 
-Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 Plan = list[str | None]
 
 
@@ -71,6 +73,8 @@ def regret(bids: Sequence[Bid]) -> tuple[float, float, str]:
 
 def _matrix(bids: Sequence[Sequence[Bid]], taken: set[str]) -> tuple[list[str], Matrix]:
     """The robots not ``taken`` that bid, and each task's cost on each (inf: no bid)."""
+    import numpy as np
+
     robots = sorted({b.robot for task in bids for b in task} - taken)
     index = {r: i for i, r in enumerate(robots)}
     cost: Matrix = np.full((len(bids), len(robots)), math.inf)
@@ -85,6 +89,9 @@ def optimal_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
     """For each task (its awardable bids), the robot that gets it in an assignment of least
     total cost, each robot at most once and never one already ``taken``; None for a task
     that gets no robot."""
+    import numpy as np
+    from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
+
     robots, cost = _matrix(bids, taken)
     if not robots or not bids:
         return [None] * len(bids)
@@ -101,6 +108,8 @@ def optimal_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
 def _greedy(cost: Matrix, got: list[int]) -> None:
     """Give tasks without a robot (-1 in ``got``) free robots in place, the cheapest
     remaining pair first, ties by task then robot index."""
+    import numpy as np
+
     robots = cost.shape[1]
     used = {r for r in got if r >= 0}
     for flat in np.argsort(cost, axis=None, kind="stable"):
@@ -116,6 +125,8 @@ def _improve(cost: Matrix, got: list[int]) -> None:
     """Best-improvement local search in place: exchange the robots of two tasks, or move a
     task to a free robot (and give the robot it left to a task without one), while that
     lowers the total cost (strictly, so it ends)."""
+    import numpy as np
+
     tasks, robots = cost.shape
     for _step in range(tasks * robots + 1):  # each step lowers the cost; a bound anyway
         held = [t for t in range(tasks) if got[t] >= 0]
