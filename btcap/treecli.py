@@ -8,24 +8,20 @@ the node types it will really run with. Files are YAML, JSON or BehaviorTree.CPP
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import importlib.util
-import logging
-import math
 import re
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
-from btcap.bt.state import DONE, State, TreeError, TreeTimeout
+from btcap.bt.state import TreeError
 from btcap.cli import CliError
 
 if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help stays fast
     from btcap.actors import ManualClock
-    from btcap.bt.node import Node
     from btcap.bt.registry import NodeRegistry
     from btcap.bt.tree import Tree
 
@@ -351,107 +347,9 @@ def _graphviz(text: str, fmt: str) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import asyncio
+    from btcap.treerun import run
 
-    from btcap.actors import ManualClock
-    from btcap.team.capability import Capability
-
-    if not args.rate > 0:
-        raise CliError(f"--rate {args.rate}: expected ticks per second > 0")
-    if args.max_ticks is not None and args.max_ticks < 1:
-        raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
-    timeout = _timeout(args.timeout)
-    clock = ManualClock() if args.fast else None
-    tree = _load(args, args.file, clock)
-    tree.debug = tree.debug or args.debug
-    caps = [n.path for n in _all_nodes(tree) if isinstance(n, Capability)]
-    if caps:
-        raise CliError(
-            f"{args.file}: capability nodes ({', '.join(caps)}) are run by a team, not by "
-            f"'btcap tree run'; run the tree on an agent (btcap mission run)"
-        )
-    with _log_nodes_shown():
-        state, ticks, text, stopped = asyncio.run(_tick(tree, clock, args, timeout))
-    sys.stdout.write(text)
-    plural = "s" if ticks != 1 else ""
-    if stopped is not None:
-        if stopped.limit == "max_ticks":
-            limit = f"--max-ticks {args.max_ticks}"
-        else:
-            limit = f"--timeout {timeout:g} s ({'virtual' if args.fast else 'clock'} time)"
-        print(
-            f"halted after {ticks} tick{plural} at {limit}; still running: "
-            f"{', '.join(stopped.running) or 'nothing'}"
-        )
-        return 3
-    print(f"{state.value} after {ticks} tick{plural}")
-    if state is State.SUCCEEDED:
-        return 0
-    return 1 if state in DONE else 3
-
-
-def _timeout(text: str) -> float | None:
-    """``--timeout``: seconds > 0, or 0/none for no limit."""
-    if text.strip().lower() in ("0", "none"):
-        return None
-    try:
-        seconds = float(text)
-    except ValueError:
-        seconds = math.nan
-    if not 0 < seconds < math.inf:
-        raise CliError(f"--timeout {text}: expected seconds > 0, or 0 or none for no limit")
-    return seconds
-
-
-@contextlib.contextmanager
-def _log_nodes_shown() -> Iterator[None]:
-    """Let Log nodes' lines through (info and up) whatever --log-level hides, for the run."""
-    from btcap.bt.leaves import LOG_LOGGER
-
-    logger = logging.getLogger(LOG_LOGGER)
-    level = logger.level
-    logger.setLevel(min(logging.INFO, logging.getLogger().getEffectiveLevel()))
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
-
-
-def _all_nodes(tree: Tree) -> Iterator[Node]:
-    from btcap.bt.tree import Subtree
-
-    for node in tree.nodes():
-        yield node
-        if isinstance(node, Subtree):
-            yield from _all_nodes(node.inner)
-
-
-async def _tick(
-    tree: Tree, clock: ManualClock | None, args: argparse.Namespace, timeout: float | None
-) -> tuple[State, int, str, TreeTimeout | None]:
-    """Tick to a result or a limit; the outline is taken before shutdown repaints it."""
-    from btcap.bt.render import render_text
-
-    ticks = 0
-
-    def count(state: State) -> bool:
-        nonlocal ticks
-        ticks += 1
-        return state in DONE
-
-    stopped: TreeTimeout | None = None
-    jumps = clock.autojump() if clock is not None else contextlib.nullcontext()
-    try:
-        async with jumps:
-            try:
-                state = await tree.run(
-                    args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout
-                )
-            except TreeTimeout as exc:
-                state, stopped = exc.state, exc
-        return state, ticks, render_text(tree, states=True), stopped
-    finally:
-        await tree.shutdown()
+    return run(args, lambda clock: _load(args, args.file, clock))
 
 
 def _nodes(args: argparse.Namespace) -> int:
