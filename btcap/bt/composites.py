@@ -10,7 +10,7 @@ UNASSIGNED, ASSIGNED or PAUSED counts as RUNNING, and a child in ERROR counts as
 Halting: a composite that stops ticking an active child unticks it in that same tick, so
 after every tick only nodes ticked in it are active (:mod:`btcap.bt.invariants` checks
 this). Untick keeps progress (memory positions, a Parallel's finished children) and
-:meth:`~btcap.bt.node.Node.reset` forgets it; see the README's node list for the rule.
+:meth:`~btcap.bt.node.Node.reset` forgets it; see docs/trees.md for the rule.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Durations are clock seconds (see :class:`actors.Clock`), never wall-clock sleeps. A
 decorator that gives a result while its child is still running unticks the child in that
-same tick. Counts survive an untick and are forgotten on reset (the README's node list
+same tick. Counts survive an untick and are forgotten on reset (docs/trees.md
 states the rule for every node).
 """
 
