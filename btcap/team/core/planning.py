@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import Literal, get_args
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -39,6 +40,7 @@ from btcap.team.messages import Bid
 
 __all__ = [
     "STRATEGIES",
+    "Strategy",
     "check_strategy",
     "optimal_plan",
     "plan",
@@ -46,7 +48,9 @@ __all__ = [
     "sequential_plan",
 ]
 
-STRATEGIES = ("auction", "sequential", "optimal", "arrival", "consensus")
+#: The allocation strategies by name (the type files use: msgspec refuses any other).
+Strategy = Literal["auction", "sequential", "optimal", "arrival", "consensus"]
+STRATEGIES: tuple[Strategy, ...] = get_args(Strategy)
 
 Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 Plan = list[str | None]
