@@ -24,6 +24,7 @@ from rich.text import Text
 from btcap.cli import CliError
 from btcap.monitor import Monitor
 from btcap.monitor.cli import add_monitor_option, monitored
+from btcap.sim import reference
 from btcap.sim.metrics import MissionResult
 from btcap.sim.plots import plot_comparison, plot_timeline
 from btcap.sim.runner import Progress, run_fast, run_scenario
@@ -98,6 +99,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
+    # ``btcap schema`` (the files ``btcap run`` reads) until it has its own entry point in
+    # the ``btcap.commands`` group; registering it both ways is harmless.
+    reference.add_parser(sub)
 
 
 def resolve_scenario(ref: str) -> Scenario:

@@ -26,7 +26,7 @@ class OperationModel(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     radius_m: Annotated[
         float,
         msgspec.Meta(
-            ge=0, description="For `explore`: what it reveals around the robot (metres, > 0)."
+            ge=0, description="For `explore`: how far around the robot it reveals (metres; > 0)."
         ),
     ] = 0.0
 
