@@ -89,6 +89,12 @@ def _check(s: Scenario, where: str) -> Scenario:
     t = s.agent
     if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s:
         raise bad("agent", "expected failure_timeout_s > heartbeat_s and lease_s > keepalive_s")
+    if 1 / t.tick_hz > s.time_limit_s:  # the time limit is checked when the mission ticks
+        raise bad(
+            "agent.tick_hz",
+            f"{t.tick_hz:g}: the mission would first tick after its time limit "
+            f"({s.time_limit_s:g} s); expected at least {1 / s.time_limit_s:g}",
+        )
     _check_events(s, bad)
     _check_map(s, bad)
     return s
