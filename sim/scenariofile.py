@@ -161,7 +161,8 @@ class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
         float, _seconds("An auction closes after this long, or once every robot answered")
     ] = 5.0
     award_timeout_s: Annotated[
-        float, _seconds("How long an auctioneer waits for the winner to accept")
+        float,
+        _seconds("How long an auctioneer waits for the winner to accept, before the next bidder"),
     ] = 10.0
 
 

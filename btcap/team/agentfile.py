@@ -160,7 +160,8 @@ class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
         _seconds("An auction closes after this long, or earlier once every teammate answered"),
     ] = _DEFAULTS.auction_window_s
     award_timeout_s: Annotated[
-        float, _seconds("How long an auctioneer waits for the winner to accept an award")
+        float,
+        _seconds("How long an auctioneer waits for the winner to accept, before the next bidder"),
     ] = _DEFAULTS.award_timeout_s
     speedup: Annotated[
         float,
