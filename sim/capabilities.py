@@ -28,9 +28,13 @@ __all__ = [
     "EXPLORE",
     "IDENTIFY",
     "INTERFACES",
+    "ROBOT_CACHE_SIZE",
     "RobotSetup",
     "robot_setup",
 ]
+
+#: Distance fields each robot keeps for its bids (4 bytes a map cell each).
+ROBOT_CACHE_SIZE = 64
 
 EXPLORE = CapabilityInterface(
     "Explore",
@@ -96,7 +100,7 @@ def robot_setup(
 ) -> RobotSetup:
     """The implementations of one simulated robot (only those its model can do)."""
     body = Body(robot, grid.start)
-    cache = DistanceCache(grid.free, maxsize=64)
+    cache = DistanceCache(grid.free, maxsize=ROBOT_CACHE_SIZE)
     cf = model.cost_factor
 
     def travel(a: Cell, b: Cell) -> float:

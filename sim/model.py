@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import msgspec
+
+from btcap.team.filecheck import field_first, not_finite
 
 __all__ = ["OperationModel", "RobotModel", "TeamFile", "TeamFileError", "load_team", "paper_team"]
 
@@ -16,18 +19,44 @@ class TeamFileError(ValueError):
 class OperationModel(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     """One sim operation a robot can perform: mean duration and, for explore, a radius."""
 
-    duration_s: float
-    radius_m: float = 0.0
+    duration_s: Annotated[
+        float,
+        msgspec.Meta(ge=0, description="How long the operation takes on average (seconds)."),
+    ]
+    radius_m: Annotated[
+        float,
+        msgspec.Meta(
+            ge=0, description="For `explore`: how far around the robot it reveals (metres; > 0)."
+        ),
+    ] = 0.0
 
 
 class RobotModel(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     """A kind of robot; the paper's table gives durations, radii and cost factors."""
 
-    cost_factor: float
-    speed_mps: float = 1.0
-    explore: OperationModel | None = None
-    identify: OperationModel | None = None
-    decontaminate: OperationModel | None = None
+    cost_factor: Annotated[
+        float,
+        msgspec.Meta(
+            gt=0, description="What a metre of driving costs in its bids (path length x factor)."
+        ),
+    ]
+    speed_mps: Annotated[
+        float, msgspec.Meta(gt=0, description="How fast it drives (metres per second).")
+    ] = 1.0
+    explore: Annotated[
+        OperationModel | None,
+        msgspec.Meta(description="Explore: reveal objects and new goals; null: cannot."),
+    ] = None
+    identify: Annotated[
+        OperationModel | None,
+        msgspec.Meta(description="Identify whether an object is contaminated; null: cannot."),
+    ] = None
+    decontaminate: Annotated[
+        OperationModel | None,
+        msgspec.Meta(
+            description="Carry a contaminated object to the decontamination area; null: cannot."
+        ),
+    ] = None
 
     def can(self, op: str) -> bool:
         return getattr(self, op) is not None
@@ -40,9 +69,12 @@ class RobotModel(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
 
 
 class TeamFile(msgspec.Struct, forbid_unknown_fields=True):
-    """``models``: robot kinds by name."""
+    """Robot models by name, for a scenario's ``team_file``."""
 
-    models: dict[str, RobotModel]
+    models: Annotated[
+        dict[str, RobotModel],
+        msgspec.Meta(min_length=1, description="Robot models by the name robots give as `model`."),
+    ]
 
 
 def paper_team() -> dict[str, RobotModel]:
@@ -74,21 +106,33 @@ def load_team(path: str | Path) -> dict[str, RobotModel]:
     except OSError as exc:
         raise TeamFileError(f"{file}: cannot read ({exc.strerror})") from None
     try:
-        if file.suffix in (".yaml", ".yml"):
-            team = msgspec.yaml.decode(text, type=TeamFile)
-        else:
-            team = msgspec.json.decode(text, type=TeamFile)
-    except msgspec.ValidationError as exc:
-        raise TeamFileError(f"{file}: {exc}") from None
+        raw = (
+            msgspec.yaml.decode(text)
+            if file.suffix in (".yaml", ".yml")
+            else msgspec.json.decode(text)
+        )
     except msgspec.DecodeError as exc:
         raise TeamFileError(f"{file}: not valid YAML/JSON ({exc})") from None
+    try:
+        team = msgspec.convert(raw, TeamFile)
+    except msgspec.ValidationError as exc:
+        raise TeamFileError(f"{file}: {field_first(_named(str(exc), raw), TeamFile)}") from None
+    if (why := not_finite(team)) is not None:
+        raise TeamFileError(f"{file}: {why[0]}: {why[1]}")
     for name, m in team.models.items():
-        if m.cost_factor <= 0 or m.speed_mps <= 0:
-            raise TeamFileError(f"{file}: models.{name}: cost_factor and speed_mps must be > 0")
-        for op in ("explore", "identify", "decontaminate"):
-            o = getattr(m, op)
-            if o is not None and (o.duration_s < 0 or o.radius_m < 0):
-                raise TeamFileError(f"{file}: models.{name}.{op}: durations and radii must be >= 0")
         if m.explore is not None and m.explore.radius_m <= 0:
             raise TeamFileError(f"{file}: models.{name}.explore.radius_m: expected > 0")
     return team.models
+
+
+def _named(message: str, raw: object) -> str:
+    """msgspec names a model ``$.models[...]``: put the model's name in its place."""
+    models = raw.get("models") if isinstance(raw, dict) else None
+    if "$.models[...]" not in message or not isinstance(models, dict):
+        return message
+    for name, entry in models.items():
+        try:
+            msgspec.convert(entry, RobotModel)
+        except msgspec.ValidationError:
+            return message.replace("$.models[...]", f"$.models.{name}")
+    return message

@@ -1,17 +1,34 @@
-"""Scenario files: map, seed, team, events and timing of one simulated mission."""
+"""Scenario files: map, seed, team, events and timing of one simulated mission.
+
+The file's types, with every field's meaning and bounds, are in
+:mod:`btcap.sim.scenariofile` (re-exported here). This module reads a file and refuses an
+impossible scenario before anything big is allocated (a map this machine cannot hold,
+more objects than free cells), in one line naming the file and the field.
+"""
 
 from __future__ import annotations
 
-import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Literal
 
 import msgspec
 
 from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.grid import GridMap, MapError
-from btcap.sim.model import RobotModel, load_team, paper_team
-from btcap.team.core.planning import STRATEGIES
+from btcap.sim.footprint import map_too_big
+from btcap.sim.grid import MapError
+from btcap.sim.scenariofile import (
+    NO_SOURCE,
+    AgentTiming,
+    Allocation,
+    CaveSpec,
+    Event,
+    MapSpec,
+    RobotEntry,
+    Scenario,
+    SimSettings,
+)
+from btcap.team.filecheck import field_first, not_finite
+from btcap.transports.zmq_sockets import check_id
 
 __all__ = [
     "AgentTiming",
@@ -24,144 +41,40 @@ __all__ = [
     "ScenarioError",
     "SimSettings",
     "builtin_scenarios",
+    "check_scenario",
     "load_scenario",
 ]
+
+_RESERVED = ("sim", "operator")
+_NOT_IN_FOLDER_NAMES = ("/", "\\", "\0")
 
 
 class ScenarioError(ValueError):
     """A scenario file is invalid; the message names the file and the field."""
 
 
-class CaveSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    width: int = 120
-    height: int = 80
-    seed: int = 7
-    fill: float = 0.45
-    iterations: int = 5
-
-
-class MapSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Either a generated cave or a map file (relative to the scenario file)."""
-
-    cave: CaveSpec | None = None
-    file: str | None = None
-    cell_size_m: float = 1.0
-
-
-class RobotEntry(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    name: str
-    model: str
-
-
-class Event(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """``join`` at ``at``; ``leave`` at ``at``; ``fail`` at ``at`` for ``duration`` seconds."""
-
-    at: float
-    robot: str
-    kind: Literal["join", "leave", "fail"]
-    duration: float = 0.0
-
-
-class SimSettings(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    step_s: float = 0.5
-    delay_jitter: float = 0.2
-    failure_chance: float = 0.05
-
-
-class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Protocol timing in simulated seconds (scaled by the speed-up like everything else)."""
-
-    tick_hz: float = 2.0
-    heartbeat_s: float = 2.0
-    failure_timeout_s: float = 15.0
-    lease_s: float = 20.0
-    keepalive_s: float = 2.0
-    auction_window_s: float = 5.0
-    award_timeout_s: float = 10.0
-
-
-class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Optional policies of the auctions (see :class:`btcap.team.mission.MissionConfig`)."""
-
-    #: Re-evaluate running work this often (clock seconds) and when the team changes;
-    #: None: running work never moves.
-    reevaluate_s: float | None = 30.0
-    #: Work moves only to a robot bidding at least this fraction below what the current
-    #: executor now bids to finish it.
-    move_margin: float = 0.2
-    #: ``auction``, ``sequential``, ``optimal`` or ``arrival`` (btcap.team.core.planning).
-    strategy: str = "auction"
-    #: Older name of ``move_margin`` for joins (None: ``move_margin`` applies).
-    rebid_on_join: float | None = None
-    #: A busy robot bids for one more task, to start after its current one.
-    queue_after_current: bool = False
-
-
-class Scenario(msgspec.Struct, forbid_unknown_fields=True):
-    """One mission: who takes part, what happens to them, and how fast time runs."""
-
-    name: str
-    robots: list[RobotEntry]
-    description: str = ""
-    map: MapSpec = MapSpec(cave=CaveSpec())
-    seed: int = 1
-    objects: int = 10
-    contaminated_share: float = 0.5
-    speedup: float = 100.0
-    time_limit_s: float = 4 * 3600.0
-    object_workers: int = 1
-    team_file: str | None = None
-    events: list[Event] = []
-    sim: SimSettings = SimSettings()
-    agent: AgentTiming = AgentTiming()
-    allocation: Allocation = Allocation()
-    source: str = "<scenario>"
-
-    def models(self) -> dict[str, RobotModel]:
-        if self.team_file is None:
-            return paper_team()
-        path = Path(self.team_file)
-        if not path.is_absolute() and self.source not in ("<scenario>", ""):
-            path = Path(self.source).parent / path
-        return load_team(path)
-
-    def grid(self) -> GridMap:
-        spec = self.map
-        if spec.file is not None:
-            path = Path(spec.file)
-            if not path.is_absolute():
-                path = Path(self.source).parent / path
-            return GridMap.load(path, cell_size_m=spec.cell_size_m)
-        cave = spec.cave or CaveSpec()
-        return GridMap.generate_cave(
-            cave.width,
-            cave.height,
-            seed=cave.seed,
-            fill=cave.fill,
-            iterations=cave.iterations,
-            cell_size_m=spec.cell_size_m,
-        )
-
-    def initially_present(self) -> list[RobotEntry]:
-        """Robots present from the start: all but those whose first event is a join."""
-        first: dict[str, str] = {}
-        for e in sorted(self.events, key=lambda e: e.at):
-            first.setdefault(e.robot, e.kind)
-        return [r for r in self.robots if first.get(r.name) != "join"]
+#: Makes the error for a field and what was expected of it.
+_Bad = Callable[[str, str], ScenarioError]
 
 
 def _check(s: Scenario, where: str) -> Scenario:
     def bad(field: str, expected: str) -> ScenarioError:
         return ScenarioError(f"{where}: {field}: {expected}")
 
+    if (why := not_finite(s)) is not None:
+        raise bad(*why)
+    if s.name in ("", ".", "..") or any(c in s.name for c in _NOT_IN_FOLDER_NAMES):
+        raise bad("name", f"{s.name!r}: expected a name that can name a folder (no '/')")
     if not s.robots:
         raise bad("robots", "expected at least one robot")
     names = [r.name for r in s.robots]
     if len(set(names)) != len(names):
         raise bad("robots", f"robot names must be unique, got {names}")
     for i, r in enumerate(s.robots):
-        if not r.name or "/" in r.name or r.name in ("sim", "operator", "*"):
-            raise bad(f"robots[{i}].name", f"{r.name!r} is reserved or contains '/'")
+        why_id = check_id(r.name)
+        if why_id is not None or r.name in _RESERVED:
+            expected = why_id or f"{', '.join(_RESERVED)} are reserved"
+            raise bad(f"robots[{i}].name", f"{r.name!r}: {expected}")
     try:
         models = s.models()
     except ValueError as exc:
@@ -173,40 +86,21 @@ def _check(s: Scenario, where: str) -> Scenario:
             )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
-    for field, value in (("speedup", s.speedup), ("time_limit_s", s.time_limit_s)):
-        if not value > 0:
-            raise bad(field, f"expected > 0, got {value}")
-    if s.objects < 0 or not 0 <= s.contaminated_share <= 1:
-        raise bad("objects", "expected objects >= 0 and 0 <= contaminated_share <= 1")
-    if s.object_workers < 1:
-        raise bad("object_workers", "expected >= 1")
-    if not 0 <= s.sim.failure_chance < 1:
-        raise bad("sim.failure_chance", f"expected within [0, 1), got {s.sim.failure_chance}")
-    if not s.sim.step_s > 0:
-        raise bad("sim.step_s", f"expected > 0, got {s.sim.step_s}")
-    if not 0 <= s.sim.delay_jitter <= 1:
-        raise bad("sim.delay_jitter", f"expected within [0, 1], got {s.sim.delay_jitter}")
-    if s.allocation.strategy not in STRATEGIES:
-        got = s.allocation.strategy
-        raise bad("allocation.strategy", f"expected one of {', '.join(STRATEGIES)}, got {got!r}")
-    every = s.allocation.reevaluate_s
-    if every is not None and not (math.isfinite(every) and every > 0):
-        raise bad("allocation.reevaluate_s", f"expected seconds > 0 or null, got {every}")
-    if not 0 <= s.allocation.move_margin < 1:
-        raise bad(
-            "allocation.move_margin", f"expected within [0, 1), got {s.allocation.move_margin}"
-        )
-    margin = s.allocation.rebid_on_join
-    if margin is not None and not 0 < margin < 1:
-        raise bad("allocation.rebid_on_join", f"expected a fraction within (0, 1), got {margin}")
     t = s.agent
-    for name in AgentTiming.__struct_fields__:
-        if not getattr(t, name) > 0:
-            raise bad(f"agent.{name}", f"expected > 0, got {getattr(t, name)}")
-    if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s or t.tick_hz <= 0:
+    if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s:
+        raise bad("agent", "expected failure_timeout_s > heartbeat_s and lease_s > keepalive_s")
+    if 1 / t.tick_hz > s.time_limit_s:  # the time limit is checked when the mission ticks
         raise bad(
-            "agent", "expected failure_timeout_s > heartbeat_s, lease_s > keepalive_s, tick_hz > 0"
+            "agent.tick_hz",
+            f"{t.tick_hz:g}: the mission would first tick after its time limit "
+            f"({s.time_limit_s:g} s); expected at least {1 / s.time_limit_s:g}",
         )
+    _check_events(s, bad)
+    _check_map(s, bad)
+    return s
+
+
+def _check_events(s: Scenario, bad: _Bad) -> None:
     present = {r.name: True for r in s.initially_present()}
     for r in s.robots:
         present.setdefault(r.name, False)
@@ -239,11 +133,35 @@ def _check(s: Scenario, where: str) -> Scenario:
             if e.duration <= 0:
                 raise bad(f"{where_e}.duration", "a failure needs a duration > 0")
             down_until[e.robot] = e.at + e.duration
+
+
+def _check_map(s: Scenario, bad: _Bad) -> None:
+    """The map fits in memory and holds the objects: a generated cave is sized before it
+    is generated, a map file once read; objects go on cells reachable from the start."""
+    robots = len(s.robots)
+    cave = s.map.cave
+    if cave is not None:
+        if (why := map_too_big(cave.height, cave.width, robots)) is not None:
+            raise bad("map.cave", why)
+        if s.objects > cave.width * cave.height:
+            raise bad(
+                "objects",
+                f"{s.objects} objects on a {cave.width}x{cave.height} map; expected at most "
+                "one per reachable cell",
+            )
     try:
-        s.grid()
+        grid = s.grid()
     except (MapError, ValueError, OSError) as exc:  # generate_cave raises ValueError
         raise bad("map", str(exc)) from None
-    return s
+    if cave is None and (why := map_too_big(grid.height, grid.width, robots)) is not None:
+        raise bad("map.file", why)
+    reachable = int(grid.reachable.sum())
+    if s.objects > reachable:
+        raise bad(
+            "objects",
+            f"{s.objects} objects; expected at most {reachable}, one per cell reachable from "
+            "the start of this map",
+        )
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -261,13 +179,20 @@ def load_scenario(path: str | Path) -> Scenario:
         else:
             raise ScenarioError(f"{file}: expected a .yaml, .yml or .json file")
     except msgspec.ValidationError as exc:
-        raise ScenarioError(f"{file}: {exc}") from None
+        raise ScenarioError(f"{file}: {field_first(str(exc), Scenario)}") from None
     except msgspec.DecodeError as exc:
         raise ScenarioError(f"{file}: not valid YAML/JSON ({exc})") from None
+    if s.source != NO_SOURCE:
+        raise ScenarioError(f"{file}: source: not a field of a scenario file (the loader sets it)")
     s.source = str(file)
     return _check(s, str(file))
 
 
 def check_scenario(s: Scenario) -> Scenario:
-    """Validate a scenario built in Python."""
+    """Validate a scenario built in Python: the bounds its types give (as when read from a
+    file), then everything :func:`load_scenario` checks."""
+    try:
+        msgspec.convert(msgspec.to_builtins(s), Scenario)
+    except msgspec.ValidationError as exc:
+        raise ScenarioError(f"{s.source}: {field_first(str(exc), Scenario)}") from None
     return _check(s, s.source)

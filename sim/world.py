@@ -20,7 +20,10 @@ from numpy.typing import ArrayLike, NDArray
 from btcap.sim.distance import Cell, CellLike, DistanceCache, as_cell
 from btcap.sim.grid import GridMap
 
-__all__ = ["World"]
+__all__ = ["CACHE_SIZE", "World"]
+
+#: Distance fields the world keeps by default (4 bytes a map cell each).
+CACHE_SIZE = 256
 
 _T = TypeVar("_T", bound=np.generic)
 _PARKED = 0  # slab plane of idle robots: no hop anywhere, goal never reached
@@ -63,7 +66,7 @@ class World:
     _moving: NDArray[np.bool_]
 
     def __init__(
-        self, grid: GridMap, *, cache: DistanceCache | None = None, cache_size: int = 256
+        self, grid: GridMap, *, cache: DistanceCache | None = None, cache_size: int = CACHE_SIZE
     ) -> None:
         if cache is None:
             cache = DistanceCache(grid.free, maxsize=cache_size)

@@ -1,12 +1,12 @@
 """Every code block of the README and the guide (docs/) works as written.
 
 The convention (also stated at the top of README.md): ```python blocks run, each as a
-whole program in its own interpreter; ```yaml blocks load as tree files or agent files;
-```sh lines are commands btcap's parser accepts (cheap ones run), make targets or scripts
-of this repository; ```text and ```console blocks are output, shown and not run. A block
-without a tag is an error, so nobody's example silently escapes the test. A block right
-after ``<!-- copy: PATH -->`` is a copy of that file (tests/test_docs.py keeps it equal),
-which is tested on its own.
+whole program in its own interpreter; ```yaml blocks load as tree files, agent files,
+scenarios or team files; ```sh lines are commands btcap's parser accepts (cheap ones
+run), make targets or scripts of this repository; ```text and ```console blocks are
+output, shown and not run. A block without a tag is an error, so nobody's example
+silently escapes the test. A block right after ``<!-- copy: PATH -->`` is a copy of that
+file (tests/test_docs.py keeps it equal), which is tested on its own.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ import yaml
 
 import btcap.cli
 from btcap.bt.files import dump_tree, loads_tree
+from btcap.sim.model import load_team
+from btcap.sim.scenario import load_scenario
 from btcap.team.agentconfig import load_agent_file
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -97,7 +99,17 @@ def test_yaml_block_loads(block: Block, tmp_path: Path, monkeypatch: pytest.Monk
         tree = dump_tree(loads_tree(block.code))
         assert tree.root.name, str(block)
         return
-    assert "robot" in data, f"{block}: neither a tree file nor an agent file"
+    if "robots" in data:  # a scenario
+        path = tmp_path / "scenario.yaml"
+        path.write_text(block.code, encoding="utf-8")
+        assert load_scenario(path).name == data["name"]
+        return
+    if "models" in data:  # a team file
+        path = tmp_path / "team.yaml"
+        path.write_text(block.code, encoding="utf-8")
+        assert set(load_team(path)) == set(data["models"])
+        return
+    assert "robot" in data, f"{block}: neither a tree, agent, scenario nor team file"
     # An agent file as it would sit in examples/team/, with its teammates' keys made.
     shutil.copytree(ROOT / "examples" / "capabilities", tmp_path / "capabilities")
     keys = tmp_path / "keys"

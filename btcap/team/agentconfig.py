@@ -30,7 +30,7 @@ import inspect
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import msgspec
 
@@ -38,8 +38,19 @@ from btcap.actors import Actor
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import TreeError
 from btcap.team.agent import AgentConfig
+from btcap.team.agentfile import (
+    AgentFile,
+    Allocation,
+    Capabilities,
+    Keys,
+    Network,
+    Plugin,
+    Seed,
+    Timing,
+)
 from btcap.team.capability import CapabilityInterface
 from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
+from btcap.team.filecheck import field_first, not_finite
 from btcap.team.implementation import Implementation
 from btcap.team.loader import load_callable
 from btcap.team.protocol import protocol_registry
@@ -62,59 +73,12 @@ __all__ = [
     "load_agent_file",
 ]
 
-_Positive = Annotated[float, msgspec.Meta(gt=0)]
 _SCHEMES = ("tcp://", "ipc://", "inproc://")
 _WILDCARDS = ("*", "0.0.0.0", "::", "[::]")
 
 
 class AgentConfigError(TreeError):
     """An agent configuration file is invalid; the message names the file and the field."""
-
-
-class Seed(msgspec.Struct, forbid_unknown_fields=True):
-    """A teammate to dial at start; the rest of the team is learnt from the seeds."""
-
-    robot: str
-    endpoint: str
-
-
-class Network(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    bind: str = "tcp://127.0.0.1:*"
-    #: What peers connect to; required when ``bind`` is a wildcard address.
-    advertise: str | None = None
-    seeds: list[Seed] = []
-    max_peers: Annotated[int, msgspec.Meta(gt=0)] = 1024
-
-
-class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """CURVE key files in ZeroMQ's certificate format (``btcap keys new``)."""
-
-    #: This robot's secret certificate ``NAME.key_secret`` (it holds the public key too).
-    #: Key paths may name environment variables (``${BTCAP_KEYS}/alpha.key_secret``).
-    secret: Path
-    #: A directory of the team's public certificates ``NAME.key``, this robot's included:
-    #: only robots whose key is there get through the handshake.
-    trusted: Path
-
-
-class Capabilities(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """Interface files, and the implementation files this robot runs (none: an operator)."""
-
-    interfaces: list[Path] = []
-    implementations: list[Path] = []
-
-
-class Plugin(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """Python code the robot runs beside its capability files (a simulator's body, say)."""
-
-    #: ``package.module:function``, called with the robot's name and ``args``: returns
-    #: implementations, or an object with ``implementations`` and ``actors`` (path -> actor
-    #: spawned beside the runtime).
-    factory: str
-    args: dict[str, Any] = {}
-    #: ``package.module:function`` returning the MessageRegistry the robot speaks (btcap's
-    #: protocol and more); default btcap's protocol.
-    messages: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,47 +88,6 @@ class Plugged:
     implementations: list[Implementation]
     actors: dict[str, Actor]
     messages: MessageRegistry
-
-
-_DEFAULTS = AgentConfig()
-
-
-class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """Rates and timeouts (:class:`~btcap.team.agent.AgentConfig`), plus the clock speed-up."""
-
-    tick_hz: _Positive = _DEFAULTS.tick_hz
-    heartbeat_s: _Positive = _DEFAULTS.heartbeat_s
-    failure_timeout_s: _Positive = _DEFAULTS.failure_timeout_s
-    heartbeat_fanout: Annotated[int, msgspec.Meta(ge=1)] = _DEFAULTS.heartbeat_fanout
-    lease_s: _Positive = _DEFAULTS.lease_s
-    keepalive_s: _Positive = _DEFAULTS.keepalive_s
-    auction_window_s: _Positive = _DEFAULTS.auction_window_s
-    award_timeout_s: _Positive = _DEFAULTS.award_timeout_s
-    speedup: _Positive = 1.0
-
-
-class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """The allocation policies of :class:`~btcap.team.config.MissionConfig`."""
-
-    #: Re-evaluate running work this often (clock seconds); null: never move running work.
-    reevaluate_s: _Positive | None = _DEFAULTS.reevaluate_s
-    move_margin: Annotated[float, msgspec.Meta(ge=0, lt=1)] = _DEFAULTS.move_margin
-    strategy: Literal["auction", "sequential", "optimal", "arrival", "consensus"] = "auction"
-    rebid_on_join: Annotated[float, msgspec.Meta(gt=0, lt=1)] | None = None
-    queue_after_current: bool = False
-
-
-class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """The schema of a configuration file."""
-
-    btcap: int
-    robot: str
-    capabilities: Capabilities = msgspec.field(default_factory=Capabilities)
-    network: Network = msgspec.field(default_factory=Network)
-    keys: Keys | None = None
-    timing: Timing = msgspec.field(default_factory=Timing)
-    allocation: Allocation = msgspec.field(default_factory=Allocation)
-    plugin: Plugin | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -316,8 +239,10 @@ def load_agent_file(path: str | Path) -> RobotConfig:
     try:
         spec = msgspec.convert(raw, AgentFile, dec_hook=_paths)
     except msgspec.ValidationError as exc:
-        raise AgentConfigError(f"{file}: {_field_first(str(exc))}") from None
+        raise AgentConfigError(f"{file}: {field_first(str(exc), AgentFile)}") from None
     config = RobotConfig(file, spec)
+    if (why := not_finite(spec)) is not None:
+        raise config.error(*why)
     _check(config, file.parent)
     return config
 
@@ -326,16 +251,6 @@ def _paths(kind: type[Any], value: Any) -> Any:
     if kind is Path and isinstance(value, str):
         return Path(value)
     raise NotImplementedError
-
-
-def _field_first(message: str) -> str:
-    """msgspec's "Expected `int`, got `str` - at `$.timing.tick_hz`" as
-    "timing.tick_hz: Expected `int`, got `str`"."""
-    what, sep, where = message.rpartition(" - at `$")
-    if not sep:
-        return message
-    field = where.rstrip("`").lstrip(".")
-    return f"{field}: {what}" if field else what
 
 
 def _check(config: RobotConfig, base: Path) -> None:

@@ -14,8 +14,13 @@ class MissionConfig:
     #: How long an execution lives without word from the other side. The origin grants
     #: it with every award; the executor gives the run up after ``0.8 * lease_s``.
     lease_s: float = 1.0
+    #: How often the origin renews a running execution's lease (below ``lease_s``).
     keepalive_s: float = 0.2
+    #: An auction closes after this long, or earlier once every live, eligible member
+    #: has bid or declined.
     auction_window_s: float = 1.0
+    #: How long an auctioneer waits for the winner to accept an award before the next
+    #: bidder gets it.
     award_timeout_s: float = 0.5
     #: Running work is re-evaluated every ``reevaluate_s`` clock seconds and whenever the
     #: team changes (a robot joins, comes free or changes): it moves to another robot only

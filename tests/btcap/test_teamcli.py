@@ -95,6 +95,37 @@ def test_bad_config_exits_2_naming_the_field(
         assert f"{path}: timing.tick_hz" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ("timing: {tick_hz: .inf}", "timing.tick_hz: expected a finite number, got inf"),
+        ("timing: {speedup: .nan}", "timing.speedup: Expected `float` > 0.0"),
+        ("timing: {heartbeat_fanout: 0}", "timing.heartbeat_fanout: Expected `int` >= 1"),
+        ("network: {max_peers: 0}", "network.max_peers: Expected `int` >= 1"),
+        (
+            "allocation: {strategy: cheapest}",
+            "allocation.strategy: Invalid enum value 'cheapest'; expected one of 'arrival', ",
+        ),
+        ("allocation: {move_margin: 1}", "allocation.move_margin: Expected `float` < 1.0"),
+        ("plugin: {factory: pkg.mod:make, args: {limit: .inf}}", "plugin.args.limit: expected"),
+    ],
+)
+def test_every_command_reading_an_agent_file_refuses_a_bad_value_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, field: str
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(f"btcap: 1\nrobot: r\n{body}\n")
+    for argv in (
+        ["agent", str(path)],
+        ["team", "status", "--config", str(path)],
+        ["mission", "run", str(tmp_path / "tree.yaml"), "--config", str(path)],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"btcap: error: {path}: {field}"), err
+        assert err.count("\n") == 1, err
+
+
 def test_agent_refuses_a_bind_beyond_this_host_without_keys(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -29,6 +29,7 @@ def usage_error(capsys: pytest.CaptureFixture[str], argv: list[str], *fragments:
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert err.startswith("btcap: error: ")
+    assert err.count("\n") == 1, err  # one line
     for fragment in fragments:
         assert fragment in err, err
 
@@ -65,6 +66,44 @@ def test_invalid_scenario_file(capsys: pytest.CaptureFixture[str], tmp_path: Pat
     bad.write_text("name: bad\nrobots: [{name: r, model: tank}]\n")
     argv = ["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]
     usage_error(capsys, argv, str(bad), "robots[0].model", "'tank'")
+    assert not (tmp_path / "o").exists()
+
+
+SMALL_MAP = "map: {cave: {width: 50, height: 35, seed: 3}}"
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "field"),
+    [
+        ("objects: 4", "objects: 100000", "objects"),  # more than the cave's cells
+        (SMALL_MAP, "map: {cave: {width: 100000, height: 100000}}", "map.cave"),
+        (SMALL_MAP, "map: {cave: {width: 40000, height: 40000}}", "map.cave"),  # memory
+        ("objects: 4", "objects: -1", "objects"),
+        ("seed: 4", "seed: -4", "seed"),
+        ("speedup: 1000", "speedup: 0", "speedup"),
+        ("speedup: 1000", "speedup: .inf", "speedup"),
+        ("time_limit_s: 20000", "time_limit_s: -1", "time_limit_s"),
+        ("{step_s: 1.0,", "{step_s: 0,", "sim.step_s"),
+        ("tick_hz: 1.0", "tick_hz: .nan", "agent.tick_hz"),
+        ("{name: spot1, model: spot}", "{name: spot1, model: tank}", "robots[1].model"),
+        (
+            "robots:\n  - {name: husky1, model: husky}\n  - {name: spot1, model: spot}\n"
+            "  - {name: bebop1, model: bebop}\n",
+            "robots: []\n",
+            "robots",
+        ),
+        ("name: small", "name: ..", "name"),
+    ],
+)
+def test_an_impossible_scenario_is_one_line_naming_file_and_field(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, old: str, new: str, field: str
+) -> None:
+    text = SMALL.read_text()
+    assert old in text
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace(old, new))
+    argv = ["run", str(bad), "--fast", "--out", str(tmp_path / "o"), "--quiet"]
+    usage_error(capsys, argv, f"btcap: error: {bad}: {field}: ")
     assert not (tmp_path / "o").exists()
 
 

@@ -150,9 +150,9 @@ def test_not_a_mapping(tmp_path: Path) -> None:
     ("extra", "fragments"),
     [
         ("speed: 3\n", ("unknown field", "speed")),
-        ("sim: {step: 1}\n", ("unknown field", "step", "$.sim")),
-        ("agent: {tick: 1}\n", ("unknown field", "tick", "$.agent")),
-        ("map: {cave: {width: 30, depth: 3}}\n", ("unknown field", "depth", "$.map.cave")),
+        ("sim: {step: 1}\n", ("sim: ", "unknown field", "step")),
+        ("agent: {tick: 1}\n", ("agent: ", "unknown field", "tick")),
+        ("map: {cave: {width: 30, depth: 3}}\n", ("map.cave: ", "unknown field", "depth")),
     ],
 )
 def test_unknown_keys(tmp_path: Path, extra: str, fragments: tuple[str, ...]) -> None:
@@ -161,25 +161,29 @@ def test_unknown_keys(tmp_path: Path, extra: str, fragments: tuple[str, ...]) ->
 
 def test_unknown_key_in_a_robot(tmp_path: Path) -> None:
     text = GOOD.replace("{name: husky1, model: husky}", "{name: husky1, model: husky, colour: r}")
-    rejected(write(tmp_path, text), "colour", "$.robots[0]")
+    rejected(write(tmp_path, text), "robots[0]: ", "colour")
 
 
 @pytest.mark.parametrize(
     ("old", "new", "field"),
     [
-        ("objects: 4", "objects: many", "$.objects"),
-        ("speedup: 500", "speedup: fast", "$.speedup"),
-        ("seed: 3", "seed: [3]", "$.seed"),
-        ("{name: bebop1, model: bebop}", "{name: bebop1, model: 7}", "$.robots[1].model"),
+        ("objects: 4", "objects: many", "objects: Expected `int`"),
+        ("speedup: 500", "speedup: fast", "speedup: Expected `float`"),
+        ("seed: 3", "seed: [3]", "seed: Expected `int`"),
+        (
+            "{name: bebop1, model: bebop}",
+            "{name: bebop1, model: 7}",
+            "robots[1].model: Expected `str`",
+        ),
         (
             "name: test",
             "name: test\nevents: [{at: soon, robot: husky1, kind: fail}]",
-            "$.events[0].at",
+            "events[0].at: Expected `float`",
         ),
         (
             "name: test",
             "name: test\nevents: [{at: 1, robot: husky1, kind: explode}]",
-            "$.events[0].kind",
+            "events[0].kind: Invalid enum value 'explode'; expected one of 'fail', 'join', 'leave'",
         ),
     ],
 )
@@ -207,7 +211,7 @@ def test_reserved_robot_names(tmp_path: Path, name: str) -> None:
 
 
 def test_no_robots(tmp_path: Path) -> None:
-    rejected(write(tmp_path, "name: x\nrobots: []\n"), "robots", "at least one")
+    rejected(write(tmp_path, "name: x\nrobots: []\n"), "robots: ", "length >= 1")
 
 
 def events_file(tmp_path: Path, *events: str) -> Path:
@@ -289,10 +293,13 @@ def test_no_robot_present_at_the_start(tmp_path: Path) -> None:
         ("{cave: {width: 20}, file: x.txt}", "exactly one of"),
         ("{file: missing.txt}", "no such map file"),
         ("{file: map.bmp}", "unsupported map format"),
-        ("{cave: {width: 0, height: 10}}", "size"),
+        ("{cave: {width: 0, height: 10}}", "map.cave.width: Expected `int` >= 1"),
         ("{cave: {width: 20, height: 10, fill: 1.5}}", "fill"),
         ("{cave: {width: 20, height: 10, iterations: -1}}", "iterations"),
-        ("{cave: {width: 20, height: 10}, cell_size_m: 0}", "cell size"),
+        (
+            "{cave: {width: 20, height: 10}, cell_size_m: 0}",
+            "map.cell_size_m: Expected `float` > 0",
+        ),
     ],
 )
 def test_bad_map_spec(tmp_path: Path, map_spec: str, fragment: str) -> None:
@@ -324,6 +331,97 @@ def test_bad_map_spec(tmp_path: Path, map_spec: str, fragment: str) -> None:
 )
 def test_bad_values(tmp_path: Path, old: str, new: str, field: str) -> None:
     rejected(write(tmp_path, GOOD.replace(old, new)), field)
+
+
+LONG = "r" * 241
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "fragments"),
+    [
+        ("seed: 3", "seed: -1", ("seed: Expected `int` >= 0",)),
+        ("seed: 2}}", "seed: -2}}", ("map.cave.seed: Expected `int` >= 0",)),
+        ("seed: 2}}", "seed: 2, iterations: 101}}", ("map.cave.iterations", "<= 100")),
+        ("seed: 3", "seed: 3\nobject_workers: 1001", ("object_workers", "<= 1000")),
+        ("name: test", "name: '..'", ("name: '..'", "folder")),
+        ("name: test", "name: a/b", ("name: 'a/b'", "folder")),
+        ("name: husky1", f"name: {LONG}", ("robots[0].name", "longer than 240 bytes")),
+        ("speedup: 500", "speedup: .inf", ("speedup: expected a finite number, got inf",)),
+        ("speedup: 500", "speedup: .nan", ("speedup: Expected `float` > 0.0",)),
+        ("seed: 3", "seed: 3\ntime_limit_s: .inf", ("time_limit_s: expected a finite number",)),
+        ("seed: 2}}", "seed: 2}, cell_size_m: .inf}", ("map.cell_size_m: expected a finite",)),
+        ("seed: 3", "seed: 3\ncontaminated_share: .nan", ("contaminated_share: Expected",)),
+        (
+            "seed: 3",
+            "seed: 3\nevents: [{at: .inf, robot: husky1, kind: leave}]",
+            ("events[0].at: expected a finite number, got inf",),
+        ),
+        (
+            "seed: 3",
+            "seed: 3\nagent: {tick_hz: 0.00001}",
+            ("agent.tick_hz: 1e-05", "after its time limit (14400 s)", "at least 6.9"),
+        ),
+        (
+            "seed: 3",
+            "seed: 3\nallocation: {strategy: cheapest}",
+            ("allocation.strategy: Invalid enum value 'cheapest'", "expected one of", "'auction'"),
+        ),
+        ("seed: 3", "seed: 3\nsource: x.yaml", ("source: not a field of a scenario file",)),
+    ],
+)
+def test_values_that_would_crash_or_hang_a_run(
+    tmp_path: Path, old: str, new: str, fragments: tuple[str, ...]
+) -> None:
+    assert old in GOOD
+    rejected(write(tmp_path, GOOD.replace(old, new)), *fragments)
+
+
+@pytest.mark.parametrize(
+    ("cave", "fragments"),
+    [
+        ("{width: 100000, height: 100000}", ("map.cave: 100000x100000 = 10000000000 cells",)),
+        ("{width: 40000, height: 40000}", ("map.cave: a 40000x40000 map needs up to 2.", "TiB")),
+    ],
+)
+def test_a_cave_too_big_for_memory_is_refused_before_it_is_generated(
+    tmp_path: Path, cave: str, fragments: tuple[str, ...]
+) -> None:
+    text = GOOD.replace("{cave: {width: 30, height: 20, seed: 2}}", f"{{cave: {cave}}}")
+    rejected(write(tmp_path, text), *fragments, "more than" if "TiB" in fragments else "at most")
+
+
+def test_a_map_file_too_big_for_memory_is_refused_once_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    GridMap.from_array(np.ones((6, 8), dtype=bool)).save(tmp_path / "room.txt")
+    text = GOOD.replace("{cave: {width: 30, height: 20, seed: 2}}", "{file: room.txt}")
+    monkeypatch.setattr("btcap.sim.footprint.memory_limit", lambda: 10_000)
+    rejected(write(tmp_path, text), "map.file: a 8x6 map needs up to", "of memory here")
+
+
+def test_more_objects_than_cells_are_refused_before_the_cave_is_generated(tmp_path: Path) -> None:
+    text = GOOD.replace("objects: 4", "objects: 100000")
+    rejected(write(tmp_path, text), "objects: 100000 objects on a 30x20 map", "at most one")
+
+
+def test_more_objects_than_reachable_cells_are_refused(tmp_path: Path) -> None:
+    reachable = int(GridMap.generate_cave(30, 20, seed=2).reachable.sum())
+    assert reachable < 30 * 20
+    load_scenario(write(tmp_path, GOOD.replace("objects: 4", f"objects: {reachable}")))
+    text = GOOD.replace("objects: 4", f"objects: {reachable + 1}")
+    rejected(
+        write(tmp_path, text), f"objects: {reachable + 1} objects; expected at most {reachable}"
+    )
+
+
+def test_check_scenario_applies_the_bounds_of_the_file_to_python_built_scenarios() -> None:
+    cave = MapSpec(cave=CaveSpec(20, 15))
+    bad = Scenario("py", [RobotEntry("h", "husky")], map=cave, objects=-1, source="built.py")
+    with pytest.raises(ScenarioError, match=re.escape("built.py: objects: Expected `int` >= 0")):
+        check_scenario(bad)
+    inf = Scenario("py", [RobotEntry("h", "husky")], map=cave, speedup=float("inf"))
+    with pytest.raises(ScenarioError, match="speedup: expected a finite number"):
+        check_scenario(inf)
 
 
 def test_check_scenario_validates_python_built_scenarios() -> None:
@@ -386,6 +484,8 @@ def test_a_scenario_with_a_bad_team_file_names_both_files(tmp_path: Path) -> Non
         ("{duration_s: 4}", "{duration_s: 4, power: 9}", "power"),
         ("cost_factor: 3", "cost_factor: heavy", "cost_factor"),
         ("models:", "robots:", "models"),
+        ("cost_factor: 3", "cost_factor: .inf", "models.crane.cost_factor: expected a finite"),
+        ("{duration_s: 4}", "{duration_s: .nan}", "models.crane.decontaminate.duration_s"),
     ],
 )
 def test_bad_team_files(tmp_path: Path, old: str, new: str, fragment: str) -> None:

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, get_args
 
 from btcap.team.messages import Bid
 
@@ -42,6 +42,7 @@ if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents 
 
 __all__ = [
     "STRATEGIES",
+    "Strategy",
     "check_strategy",
     "optimal_plan",
     "plan",
@@ -49,7 +50,9 @@ __all__ = [
     "sequential_plan",
 ]
 
-STRATEGIES = ("auction", "sequential", "optimal", "arrival", "consensus")
+#: The allocation strategies by name (the type files use: msgspec refuses any other).
+Strategy = Literal["auction", "sequential", "optimal", "arrival", "consensus"]
+STRATEGIES: tuple[Strategy, ...] = get_args(Strategy)
 
 Plan = list[str | None]
 

@@ -1,0 +1,317 @@
+"""The schema of a scenario file (``btcap run``, ``btcap sweep``): its msgspec types, each
+field with its meaning and bounds, so msgspec refuses a bad value naming the field and
+the file reference (``btcap schema scenario``, docs/files.md) is generated from them.
+
+:mod:`btcap.sim.scenario` reads the file and checks what the types cannot say.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+import msgspec
+
+from btcap.sim.grid import GridMap
+from btcap.sim.model import RobotModel, load_team, paper_team
+from btcap.team.core.planning import Strategy
+
+__all__ = [
+    "NO_SOURCE",
+    "AgentTiming",
+    "Allocation",
+    "CaveSpec",
+    "Event",
+    "MapSpec",
+    "RobotEntry",
+    "Scenario",
+    "SimSettings",
+]
+
+_Positive = Annotated[float, msgspec.Meta(gt=0)]
+#: The ``source`` of a scenario not read from a file.
+NO_SOURCE = "<scenario>"
+
+
+def _doc(text: str) -> msgspec.Meta:
+    return msgspec.Meta(description=text)
+
+
+def _seconds(text: str) -> msgspec.Meta:
+    return msgspec.Meta(gt=0, description=f"{text} (mission seconds).")
+
+
+class CaveSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """A cellular-automaton cave generated from a seed, reduced to its largest connected
+    part; the robots start on its left, the decontamination area is the free cell
+    farthest from the start."""
+
+    width: Annotated[int, msgspec.Meta(ge=1, description="Cells across (columns).")] = 120
+    height: Annotated[int, msgspec.Meta(ge=1, description="Cells down (rows).")] = 80
+    seed: Annotated[
+        int, msgspec.Meta(ge=0, description="The cave's seed: the same seed, the same cave.")
+    ] = 7
+    fill: Annotated[
+        float,
+        msgspec.Meta(
+            ge=0,
+            lt=1,
+            description="Share of cells that start as wall before smoothing: more, narrower caves.",
+        ),
+    ] = 0.45
+    iterations: Annotated[
+        int,
+        msgspec.Meta(
+            ge=0,
+            le=100,
+            description="Smoothing rounds: a cell becomes wall when 5 of its 3x3 block are.",
+        ),
+    ] = 5
+
+
+class MapSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """The cave: exactly one of a generated ``cave`` or a map ``file``."""
+
+    cave: Annotated[CaveSpec | None, _doc("A generated cave.")] = None
+    file: Annotated[
+        str | None,
+        _doc(
+            "A map file, relative to the scenario file: `.npy` (bool or 0/1, 1 = free), "
+            "`.png` (dark = wall) or `.txt` (`#` wall, `.` free, `S` start, `D` "
+            "decontamination area)."
+        ),
+    ] = None
+    cell_size_m: Annotated[
+        float, msgspec.Meta(gt=0, description="The side of a cell in metres.")
+    ] = 1.0
+
+
+class RobotEntry(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """A robot of the team."""
+
+    name: Annotated[
+        str,
+        _doc(
+            "Its name: unique, non-empty, without `/`, at most 240 bytes, not `sim`, "
+            "`operator` or `*`."
+        ),
+    ]
+    model: Annotated[
+        str,
+        _doc(
+            "Its robot model: `husky`, `spot` or `bebop` (the paper's team), or a model "
+            "of the `team_file`."
+        ),
+    ]
+
+
+class Event(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """``join`` at ``at``; ``leave`` at ``at``; ``fail`` at ``at`` for ``duration`` seconds."""
+
+    at: Annotated[float, msgspec.Meta(ge=0, description="When (mission seconds).")]
+    robot: Annotated[str, _doc("Which robot: a name of `robots`.")]
+    kind: Annotated[
+        Literal["join", "leave", "fail"],
+        _doc(
+            "`join` (a robot whose first event is a join is away at the start), `leave` "
+            "(says goodbye) or `fail` (falls silent for `duration`, then comes back)."
+        ),
+    ]
+    duration: Annotated[
+        float, msgspec.Meta(ge=0, description="How long a `fail` lasts (> 0 for a fail).")
+    ] = 0.0
+
+
+class SimSettings(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """The pace and randomness of the simulation manager."""
+
+    step_s: Annotated[float, _seconds("Robots move and operations are checked once a step")] = 0.5
+    delay_jitter: Annotated[
+        float,
+        msgspec.Meta(
+            ge=0,
+            le=1,
+            description="An operation takes its model's duration times a random factor "
+            "within [1 - jitter, 1 + jitter].",
+        ),
+    ] = 0.2
+    failure_chance: Annotated[
+        float,
+        msgspec.Meta(ge=0, lt=1, description="The chance that an operation fails."),
+    ] = 0.05
+
+
+class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """Protocol timing in simulated seconds (scaled by the speed-up like everything else)."""
+
+    tick_hz: Annotated[
+        float, msgspec.Meta(gt=0, description="Ticks of each robot's tree per mission second.")
+    ] = 2.0
+    heartbeat_s: Annotated[float, _seconds("How often a robot beats to its teammates")] = 2.0
+    failure_timeout_s: Annotated[
+        float, _seconds("A robot not heard of for this long is failed; more than `heartbeat_s`")
+    ] = 15.0
+    lease_s: Annotated[
+        float, _seconds("How long an execution lives without word from the other side")
+    ] = 20.0
+    keepalive_s: Annotated[
+        float, _seconds("How often a running execution is renewed; less than `lease_s`")
+    ] = 2.0
+    auction_window_s: Annotated[
+        float, _seconds("An auction closes after this long, or once every robot answered")
+    ] = 5.0
+    award_timeout_s: Annotated[
+        float,
+        _seconds("How long an auctioneer waits for the winner to accept, before the next bidder"),
+    ] = 10.0
+
+
+class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """Optional policies of the auctions (see :class:`btcap.team.mission.MissionConfig`)."""
+
+    reevaluate_s: Annotated[
+        _Positive | None,
+        _doc(
+            "Re-evaluate running work this often (mission seconds) and whenever the team "
+            "changes; null: running work never moves."
+        ),
+    ] = 30.0
+    move_margin: Annotated[
+        float,
+        msgspec.Meta(
+            ge=0,
+            lt=1,
+            description="Work moves only to a robot bidding at least this fraction below "
+            "what its current executor now bids to finish it.",
+        ),
+    ] = 0.2
+    strategy: Annotated[
+        Strategy,
+        _doc(
+            "How auctions competing for the same robots are awarded: `auction` (each to its "
+            "cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
+            "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
+            "`consensus` (decentralised, no auctioneer)."
+        ),
+    ] = "auction"
+    rebid_on_join: Annotated[
+        Annotated[float, msgspec.Meta(gt=0, lt=1)] | None,
+        _doc("Older name of `move_margin` for joins; null: `move_margin` applies."),
+    ] = None
+    queue_after_current: Annotated[
+        bool, _doc("A busy robot also bids for one more task, to start after its current one.")
+    ] = False
+
+
+class Scenario(msgspec.Struct, forbid_unknown_fields=True):
+    """One mission: who takes part, what happens to them, and how fast time runs."""
+
+    name: Annotated[
+        str,
+        msgspec.Meta(
+            min_length=1,
+            description="The scenario's name, shown in the summary; with `--compare`, the "
+            "name of its output folder (so no `/`, and not `.` or `..`).",
+        ),
+    ]
+    robots: Annotated[
+        list[RobotEntry],
+        msgspec.Meta(
+            min_length=1,
+            description="The team: present from the start unless a robot's first event is "
+            "a `join`.",
+        ),
+    ]
+    description: Annotated[str, _doc("A line for people; not used.")] = ""
+    map: Annotated[MapSpec, _doc("The cave: generated or read from a file.")] = MapSpec(
+        cave=CaveSpec()
+    )
+    seed: Annotated[
+        int,
+        msgspec.Meta(
+            ge=0,
+            description="The mission's seed: where the objects lie, which are contaminated, "
+            "and the simulation's delays and failures.",
+        ),
+    ] = 1
+    objects: Annotated[
+        int,
+        msgspec.Meta(
+            ge=0,
+            description="Objects scattered over the cells reachable from the start, at most "
+            "one per cell.",
+        ),
+    ] = 10
+    contaminated_share: Annotated[
+        float,
+        msgspec.Meta(ge=0, le=1, description="The chance that an object is contaminated."),
+    ] = 0.5
+    speedup: Annotated[
+        float,
+        msgspec.Meta(
+            gt=0,
+            description="Mission seconds per wall second on the wall clock (`btcap run` "
+            "without `--fast`, which runs as fast as it can).",
+        ),
+    ] = 100.0
+    time_limit_s: Annotated[float, _seconds("The mission stops unfinished after this long")] = (
+        4 * 3600.0
+    )
+    object_workers: Annotated[
+        int,
+        msgspec.Meta(
+            ge=1,
+            le=1000,
+            description="Identify-and-decontaminate loops of the mission tree, run in parallel.",
+        ),
+    ] = 1
+    team_file: Annotated[
+        str | None,
+        _doc(
+            "A team file of robot models, relative to the scenario file; null: the paper's "
+            "team (`husky`, `spot`, `bebop`)."
+        ),
+    ] = None
+    events: Annotated[list[Event], _doc("Joins, leaves and failures, in any order.")] = []
+    sim: Annotated[SimSettings, _doc("The simulation's pace and randomness.")] = SimSettings()
+    agent: Annotated[AgentTiming, _doc("Every robot's protocol timing.")] = AgentTiming()
+    allocation: Annotated[Allocation, _doc("How work is allocated and moved.")] = Allocation()
+    source: Annotated[
+        str,
+        msgspec.Meta(
+            description="The file the scenario was read from (set by the loader).",
+            extra={"internal": True},
+        ),
+    ] = NO_SOURCE
+
+    def models(self) -> dict[str, RobotModel]:
+        if self.team_file is None:
+            return paper_team()
+        path = Path(self.team_file)
+        if not path.is_absolute() and self.source not in (NO_SOURCE, ""):
+            path = Path(self.source).parent / path
+        return load_team(path)
+
+    def grid(self) -> GridMap:
+        spec = self.map
+        if spec.file is not None:
+            path = Path(spec.file)
+            if not path.is_absolute():
+                path = Path(self.source).parent / path
+            return GridMap.load(path, cell_size_m=spec.cell_size_m)
+        cave = spec.cave or CaveSpec()
+        return GridMap.generate_cave(
+            cave.width,
+            cave.height,
+            seed=cave.seed,
+            fill=cave.fill,
+            iterations=cave.iterations,
+            cell_size_m=spec.cell_size_m,
+        )
+
+    def initially_present(self) -> list[RobotEntry]:
+        """Robots present from the start: all but those whose first event is a join."""
+        first: dict[str, str] = {}
+        for e in sorted(self.events, key=lambda e: e.at):
+            first.setdefault(e.robot, e.kind)
+        return [r for r in self.robots if first.get(r.name) != "join"]
