@@ -208,7 +208,11 @@ class Retry(_Counting):
 
 
 class Repeat(_Counting):
-    """Runs a succeeding child ``times`` times (``-1``: forever); a failure fails it."""
+    """Runs a succeeding child ``times`` times (``-1``: forever); a failure fails it.
+
+    ``times=0`` succeeds without ticking the child, as BehaviorTree.CPP's ``Repeat
+    num_cycles="0"`` does.
+    """
 
     __slots__ = ()
     OPTIONS: ClassVar[Any] = {
@@ -216,6 +220,8 @@ class Repeat(_Counting):
     }
 
     def on_tick(self) -> State:
+        if not self.options["times"]:
+            return _SUCCEEDED
         child = self.children[0]
         s = child.tick()
         if s is not _SUCCEEDED:

@@ -14,6 +14,7 @@ from structlog.testing import capture_logs
 
 from btcap import (
     Action,
+    AlwaysRunning,
     Delay,
     FailureIsRunning,
     ForceFailure,
@@ -540,3 +541,11 @@ def test_run_once_keeps_the_first_result(result: St) -> None:
     tree.reset()
     assert tick(tree) is child.script[0]
     assert child.ticks == 3
+
+
+def test_repeat_zero_times_succeeds_without_ticking_the_child() -> None:
+    """As BehaviorTree.CPP's ``<Repeat num_cycles="0">``: nothing to do is done."""
+    child = AlwaysRunning("child")
+    tree = Tree(Repeat("none", times=0, children=[child]))
+    assert tree.tick() is St.SUCCEEDED
+    assert child.state is St.IDLE
