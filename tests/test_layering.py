@@ -10,13 +10,10 @@ is still a circle a reader has to untangle). The sans-IO allocation core imports
 from __future__ import annotations
 
 import ast
-import os
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parent.parent
-PACKAGE = ROOT / "btcap"
+from btcap_sources import ROOTS, modules
 
 #: Lowest first. A module belongs to the longest prefix listed here.
 LAYERS = (
@@ -28,31 +25,14 @@ LAYERS = (
     "btcap.sim",
     "btcap.bench",
 )
-#: Top-level names the folders had before they were installed under btcap.
-BARE = ("actors", "transports", "sim", "bench")
+#: Top-level names of the folders installed under btcap (pyproject.toml's package-dir).
+BARE = tuple(folder.name for package, folder in ROOTS.items() if package != "btcap")
 #: What the sans-IO core may not import: it decides, the shell does the I/O.
 IO_MODULES = ("asyncio", "anyio", "zmq", "socket", "selectors", "btcap.actors", "time")
 CORE = "btcap.team.core"
 
 
-def _modules() -> dict[str, Path]:
-    found: dict[str, Path] = {}
-    paths = [
-        Path(folder, file)
-        for folder, _dirs, files in os.walk(PACKAGE, followlinks=True)  # btcap/actors -> ...
-        for file in files
-        if file.endswith(".py")
-    ]
-    for path in sorted(paths):
-        rel = path.relative_to(PACKAGE).with_suffix("")
-        parts = ["btcap", *rel.parts]
-        if parts[-1] == "__init__":
-            parts.pop()
-        found[".".join(parts)] = path
-    return found
-
-
-MODULES = _modules()
+MODULES = modules()
 
 
 def _imports(name: str, path: Path) -> set[str]:
@@ -97,6 +77,7 @@ def _package(module: str) -> str:
 def test_the_graph_sees_the_whole_package() -> None:
     assert {"btcap.transports.codec", "btcap.actors.system", "btcap.bt.node"} <= MODULES.keys()
     assert {"btcap.team.agent", "btcap.sim.runner", "btcap.bench.tick"} <= MODULES.keys()
+    assert set(BARE) == {"actors", "transports", "sim", "bench"}
 
 
 def test_no_module_imports_a_higher_layer() -> None:
