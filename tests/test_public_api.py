@@ -35,7 +35,7 @@ def _static_imports(package: str) -> dict[str, str]:
     return out
 
 
-@pytest.mark.parametrize("package", ["btcap", "btcap.monitor", "btcap.sim"])
+@pytest.mark.parametrize("package", ["btcap", "btcap.monitor", "btcap.sim", "btcap.transports"])
 def test_lazy_exports_are_what_type_checkers_see(package: str) -> None:
     """The names a package imports on first use are exactly its ``__all__`` and exactly
     the names its ``TYPE_CHECKING`` block imports, from the same modules."""
