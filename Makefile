@@ -9,7 +9,7 @@ UV_VERSION := 0.13.9
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" pyproject.toml requirements/build.in
 
-.PHONY: run test lint docs bench lock clean venv
+.PHONY: run test lint docs view bench lock clean venv
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -36,14 +36,33 @@ run: $(VENV)/.installed-run
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest $(ARGS)
 
-lint: $(VENV)/.installed-dev
+# mypy checks the view (below), so it prints btcap/actors/x.py for actors/x.py; sed puts
+# the paths back to the files to edit. Run mypy this way, not as a bare `mypy`.
+lint: view
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	$(BIN)/mypy
+	cd $(VIEW) && $(CURDIR)/$(BIN)/mypy --config-file $(CURDIR)/pyproject.toml \
+		--cache-dir $(CURDIR)/.mypy_cache >mypy.txt; status=$$?; \
+		sed $(foreach f,$(MAPPED),-e 's|^btcap/$(f)/|$(f)/|') mypy.txt; exit $$status
 
 # The guide and API reference (mkdocs.yml), into build/docs; strict: a warning fails it.
-docs: $(VENV)/.installed-dev
+# mkdocstrings reads the view.
+docs: view
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
+# The package as installed, for the tools that find modules by path and cannot follow
+# pyproject.toml's package-dir (actors/ is installed as btcap.actors, ...): mypy and
+# mkdocstrings. Hard links, remade on every run so new files appear and deleted ones go;
+# edit the real files, not these.
+VIEW := build/view
+# The top-level folders package-dir installs as btcap.<folder>.
+MAPPED = $(shell $(BIN)/python -c 'import tomllib; d = tomllib.load(open("pyproject.toml", \
+	"rb"))["tool"]["setuptools"]["package-dir"]; print(*(f for p, f in d.items() if p == "btcap." + f))')
+
+view: $(VENV)/.installed-dev
+	rm -rf $(VIEW) && mkdir -p $(VIEW)
+	cp -al btcap $(VIEW)/btcap
+	for f in $(MAPPED); do cp -al $$f $(VIEW)/btcap/$$f; done
 
 bench: $(VENV)/.installed-dev
 	$(BIN)/python -m btcap.bench all $(ARGS)

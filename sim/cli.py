@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from btcap.cli import CliError
-from btcap.monitor.cli import add_monitor_option
+from btcap.cli.monitor import add_monitor_option
 from btcap.sim.catalog import builtin_scenarios
 
 if TYPE_CHECKING:  # the simulation is imported when a run starts: --help stays fast
@@ -327,7 +327,7 @@ def run_command(args: argparse.Namespace) -> int:
     import msgspec
     from rich.console import Console
 
-    from btcap.monitor.cli import monitored
+    from btcap.cli.monitor import monitored
     from btcap.sim.plots import plot_comparison
     from btcap.sim.scenario import ScenarioError
 

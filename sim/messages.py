@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from btcap.actors import Message
+from btcap.transports.message import Message
 
 __all__ = [
     "SIM_MESSAGES",

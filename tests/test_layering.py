@@ -4,22 +4,26 @@
 and CLI) <- ``sim`` <- ``bench``: a module may import its own layer and those below,
 never above; no two modules import each other, directly or round a longer circle, and
 that counts imports inside functions and under ``TYPE_CHECKING`` (a circle hidden there
-is still a circle a reader has to untangle). The sans-IO allocation core imports no I/O.
+is still a circle a reader has to untangle). The sans-IO allocation core imports no I/O,
+and neither do the modules it imports, nor theirs: checked over the imports that run when
+a module is imported, and in a fresh interpreter.
 """
 
 from __future__ import annotations
 
 import ast
-import os
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from btcap_sources import ROOTS, modules
+from test_startup import _loaded
 
-ROOT = Path(__file__).resolve().parent.parent
-PACKAGE = ROOT / "btcap"
-
-#: Lowest first. A module belongs to the longest prefix listed here.
+#: Lowest first. A module belongs to the longest prefix listed here. btcap._lazy (the
+#: lazy re-exports of the package ``__init__`` modules, stdlib only) is the base of all.
 LAYERS = (
+    "btcap._lazy",
     "btcap.transports",
     "btcap.actors",
     "btcap.bt",
@@ -28,56 +32,84 @@ LAYERS = (
     "btcap.sim",
     "btcap.bench",
 )
-#: Top-level names the folders had before they were installed under btcap.
-BARE = ("actors", "transports", "sim", "bench")
+#: Top-level names of the folders installed under btcap (pyproject.toml's package-dir).
+BARE = tuple(folder.name for package, folder in ROOTS.items() if package != "btcap")
 #: What the sans-IO core may not import: it decides, the shell does the I/O.
 IO_MODULES = ("asyncio", "anyio", "zmq", "socket", "selectors", "btcap.actors", "time")
 CORE = "btcap.team.core"
 
 
-def _modules() -> dict[str, Path]:
-    found: dict[str, Path] = {}
-    paths = [
-        Path(folder, file)
-        for folder, _dirs, files in os.walk(PACKAGE, followlinks=True)  # btcap/actors -> ...
-        for file in files
-        if file.endswith(".py")
-    ]
-    for path in sorted(paths):
-        rel = path.relative_to(PACKAGE).with_suffix("")
-        parts = ["btcap", *rel.parts]
-        if parts[-1] == "__init__":
-            parts.pop()
-        found[".".join(parts)] = path
-    return found
+MODULES = modules()
 
 
-MODULES = _modules()
+def _resolve(name: str, path: Path, node: ast.Import | ast.ImportFrom) -> set[str]:
+    """The modules one import statement of module ``name`` (file ``path``) names."""
+    if isinstance(node, ast.Import):
+        return {alias.name for alias in node.names}
+    if node.level:
+        base = name.split(".")
+        base = base[: len(base) - node.level + (1 if path.name == "__init__.py" else 0)]
+        mod = ".".join([*base, node.module] if node.module else base)
+    else:
+        mod = node.module or ""
+    out = {mod}
+    for alias in node.names:  # ``from btcap.bt import composites`` names a module
+        if f"{mod}.{alias.name}" in MODULES:
+            out.add(f"{mod}.{alias.name}")
+    return out
 
 
 def _imports(name: str, path: Path) -> set[str]:
     """Every module ``name`` imports, resolved to modules of btcap where it can be."""
     tree = ast.parse(path.read_text(), str(path))
-    is_pkg = path.name == "__init__.py"
     out: set[str] = set()
     for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = name.split(".")
-                base = base[: len(base) - node.level + (1 if is_pkg else 0)]
-                mod = ".".join([*base, node.module] if node.module else base)
-            else:
-                mod = node.module or ""
-            out.add(mod)
-            for alias in node.names:  # ``from btcap.bt import composites`` names a module
-                if f"{mod}.{alias.name}" in MODULES:
-                    out.add(f"{mod}.{alias.name}")
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            out |= _resolve(name, path, node)
     return out
 
 
 GRAPH = {name: _imports(name, path) for name, path in MODULES.items()}
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    """``TYPE_CHECKING`` or ``typing.TYPE_CHECKING``."""
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _run_at_import(body: list[ast.stmt]) -> Iterator[ast.stmt]:
+    """The statements of ``body`` that run when the module is imported: not those in
+    functions nor under ``if TYPE_CHECKING:`` (its ``else``, and ``if not
+    TYPE_CHECKING:``, do run); class bodies, ``try`` and ``with`` do."""
+    for stmt in body:
+        yield stmt
+        if isinstance(stmt, ast.If):
+            if not _is_type_checking(stmt.test):
+                yield from _run_at_import(stmt.body)
+            yield from _run_at_import(stmt.orelse)
+        elif isinstance(stmt, ast.Try | ast.TryStar):
+            for part in (stmt.body, *(h.body for h in stmt.handlers), stmt.orelse):
+                yield from _run_at_import(part)
+            yield from _run_at_import(stmt.finalbody)
+        elif isinstance(stmt, ast.With | ast.ClassDef | ast.For | ast.While):
+            yield from _run_at_import(stmt.body)
+
+
+def _runtime_imports(name: str, path: Path) -> set[str]:
+    """The modules importing ``name`` imports, and the ``__init__`` of each package above
+    each of them (``import a.b.c`` runs ``a`` and ``a.b`` first)."""
+    tree = ast.parse(path.read_text(), str(path))
+    named: set[str] = {name}
+    for stmt in _run_at_import(tree.body):
+        if isinstance(stmt, ast.Import | ast.ImportFrom):
+            named |= _resolve(name, path, stmt)
+    out = {".".join(mod.split(".")[:i]) for mod in named for i in range(1, mod.count(".") + 2)}
+    return out - {name}
+
+
+RUNTIME_GRAPH = {name: _runtime_imports(name, path) for name, path in MODULES.items()}
 
 
 def _layer(module: str) -> int:
@@ -97,6 +129,7 @@ def _package(module: str) -> str:
 def test_the_graph_sees_the_whole_package() -> None:
     assert {"btcap.transports.codec", "btcap.actors.system", "btcap.bt.node"} <= MODULES.keys()
     assert {"btcap.team.agent", "btcap.sim.runner", "btcap.bench.tick"} <= MODULES.keys()
+    assert set(BARE) == {"actors", "transports", "sim", "bench"}
 
 
 def test_no_module_imports_a_higher_layer() -> None:
@@ -184,11 +217,92 @@ def test_the_allocation_core_does_no_io(module: str) -> None:
     assert not bad, f"{module} imports {bad}"
 
 
+#: Imports nothing that does I/O, not even transitively (DESIGN.md: the sans-IO core and
+#: the message types), by module prefix -> the third-party packages it may reach.
+IO_FREE = {
+    "btcap.transports.message": {"msgspec"},
+    "btcap.team.messages": {"msgspec"},
+    CORE: {"msgspec", "numpy", "scipy"},
+}
+#: Not reachable from IO_FREE (``time`` is: every interpreter loads it at start-up).
+IO_TRANSITIVE = ("asyncio", "anyio", "zmq", "socket", "selectors", "btcap.actors")
+
+
+def _io_free(module: str) -> set[str] | None:
+    """The third-party packages ``module`` may reach, or None if it is not I/O-free."""
+    for prefix, allowed in IO_FREE.items():
+        if module == prefix or module.startswith(prefix + "."):
+            return allowed
+    return None
+
+
+def _first_forbidden(graph: dict[str, set[str]], start: str, allowed: set[str]) -> list[str] | None:
+    """The import chain from ``start`` to the first module it may not reach (I/O, the
+    actor runtime, a third-party package not ``allowed``), or None (breadth first)."""
+    came: dict[str, str | None] = {start: None}
+    todo = [start]
+    while todo:
+        mod = todo.pop(0)
+        root = mod.split(".")[0]
+        if mod != start and (
+            any(mod == io or mod.startswith(io + ".") for io in IO_TRANSITIVE)
+            or (root not in sys.stdlib_module_names and root != "btcap" and root not in allowed)
+        ):
+            chain = [mod]
+            while (prev := came[chain[-1]]) is not None:
+                chain.append(prev)
+            return chain[::-1]
+        for dep in sorted(graph.get(mod, ())):
+            if dep not in came:
+                came[dep] = mod
+                todo.append(dep)
+    return None
+
+
+IO_FREE_MODULES = sorted(m for m in MODULES if _io_free(m) is not None)
+
+
+@pytest.mark.parametrize("module", IO_FREE_MODULES)
+def test_the_io_free_modules_import_no_io_even_transitively(module: str) -> None:
+    allowed = _io_free(module)
+    assert allowed is not None
+    chain = _first_forbidden(RUNTIME_GRAPH, module, allowed)
+    assert chain is None, "importing it imports " + " -> ".join(chain)
+
+
+@pytest.mark.parametrize("module", IO_FREE_MODULES)
+def test_the_io_free_modules_load_no_io_in_a_fresh_interpreter(module: str) -> None:
+    """What really ends up in ``sys.modules`` (third-party packages' own imports too)."""
+    loaded = _loaded(f"import {module}")
+    assert module in loaded  # the check can see an import
+    bad = [io for io in IO_TRANSITIVE if any(m == io or m.startswith(io + ".") for m in loaded)]
+    assert not bad, f"importing {module} loads {bad}"
+
+
 def test_the_checker_catches_what_it_is_for() -> None:
-    """The rules above must be able to fail: a circle and an upward import are seen."""
+    """The rules above must be able to fail: a circle, an upward import and an I/O
+    import a few modules away are seen."""
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _layer("btcap.actors.system") < _layer("btcap.bt.node") < _layer("btcap.team.agent")
     assert _layer("btcap.team.agent") < _layer("btcap") < _layer("btcap.sim.runner")
+    assert _layer("btcap._lazy") < _layer("btcap.transports.base")
+    planted = {"btcap.x": {"btcap.y", "msgspec"}, "btcap.y": {"btcap.z"}, "btcap.z": {"zmq"}}
+    assert _first_forbidden(planted, "btcap.x", {"msgspec"}) == [
+        "btcap.x",
+        "btcap.y",
+        "btcap.z",
+        "zmq",
+    ]
+    assert _first_forbidden(planted, "btcap.x", {"msgspec", "zmq"}) is not None  # I/O: never
+    assert _first_forbidden({"btcap.x": {"yaml"}}, "btcap.x", {"msgspec"}) == ["btcap.x", "yaml"]
+    assert _first_forbidden({"btcap.x": {"json", "btcap.y"}}, "btcap.x", set()) is None
+    code = "import typing\nif typing.TYPE_CHECKING:\n    import zmq\nelse:\n    import json\n"
+    code += "if not TYPE_CHECKING:\n    import yaml\ndef f():\n    import anyio\n"
+    code += "class C:\n    import csv\n"
+    body = _run_at_import(ast.parse(code).body)
+    ran = {a.name for s in body if isinstance(s, ast.Import) for a in s.names}
+    assert ran == {"typing", "json", "yaml", "csv"}
+    assert {"btcap", "btcap.team", "btcap.team.core"} <= RUNTIME_GRAPH["btcap.team.core.body"]
 
 
 #: Modules are kept small enough to read in one sitting.

@@ -1,11 +1,10 @@
-"""The public API: every exported name resolves, and the old module paths still work."""
+"""The public API: every exported name resolves, lazily, to what type checkers see."""
 
 from __future__ import annotations
 
 import ast
 import importlib
 import inspect
-import sys
 
 import pytest
 
@@ -35,7 +34,7 @@ def _static_imports(package: str) -> dict[str, str]:
     return out
 
 
-@pytest.mark.parametrize("package", ["btcap", "btcap.monitor", "btcap.sim"])
+@pytest.mark.parametrize("package", ["btcap", "btcap.monitor", "btcap.sim", "btcap.transports"])
 def test_lazy_exports_are_what_type_checkers_see(package: str) -> None:
     """The names a package imports on first use are exactly its ``__all__`` and exactly
     the names its ``TYPE_CHECKING`` block imports, from the same modules."""
@@ -48,24 +47,3 @@ def test_lazy_exports_are_what_type_checkers_see(package: str) -> None:
         assert getattr(module, name) is getattr(importlib.import_module(lazy[name]), name)
     with pytest.raises(AttributeError, match=f"module '{package}' has no attribute 'Nope'"):
         _ = module.Nope
-
-
-@pytest.mark.parametrize(
-    ("old", "name", "new"),
-    [
-        ("btcap.agent", "Agent", "btcap.team.agent"),
-        ("btcap.demo", "ECHO", "btcap.team.demo"),
-        ("btcap.protocol", "protocol_registry", "btcap.team.protocol"),
-        ("btcap.capfiles", "load_interfaces", "btcap.team.capfiles"),
-        ("btcap.launch", "spawn_agent", "btcap.team.spawn"),
-    ],
-)
-def test_old_module_paths_re_export_with_a_deprecation_warning(
-    old: str, name: str, new: str
-) -> None:
-    sys.modules.pop(old, None)
-    with pytest.warns(DeprecationWarning, match=old):
-        module = importlib.import_module(old)
-    assert getattr(module, name) is getattr(importlib.import_module(new), name)
-    for exported in module.__all__:
-        assert hasattr(module, exported)

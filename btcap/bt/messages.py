@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from btcap.actors import Message
 from btcap.bt.state import State
+from btcap.transports.message import Message
 
 __all__ = [
     "NODE_MESSAGES",

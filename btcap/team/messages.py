@@ -13,7 +13,7 @@ import msgspec
 
 from btcap.bt.state import State
 from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.transports import Message
+from btcap.transports.message import Message
 
 __all__ = [
     "CAPABILITY_MESSAGES",

@@ -22,8 +22,8 @@ import btcap.cli
 from btcap import Leaf, Monitor, Parallel, ReactiveSequence, Replay, State, Tree
 from btcap.actors import ManualClock
 from btcap.cli import main
+from btcap.cli.monitor import parse_address
 from btcap.monitor import RecordError, read_record
-from btcap.monitor.cli import parse_address
 from btcap.monitor.hub import BACKLOG, Hub
 from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast

@@ -1,6 +1,6 @@
 """``btcap tree run``: tick a tree file to a result, or to a tick or time limit.
 
-Apart from :mod:`btcap.treecli` so that ``btcap --help`` never imports what ticking needs.
+Apart from :mod:`btcap.cli.tree` so that ``btcap --help`` never imports what ticking needs.
 """
 
 from __future__ import annotations

@@ -347,7 +347,7 @@ def _graphviz(text: str, fmt: str) -> bytes:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from btcap.treerun import run
+    from btcap.cli.treerun import run
 
     return run(args, lambda clock: _load(args, args.file, clock))
 

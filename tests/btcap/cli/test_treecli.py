@@ -19,7 +19,7 @@ from btcap.bt.files import dumps_tree, load_tree
 from btcap.bt.leaves import LOG_LOGGER
 from btcap.cli import main
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"
 PATROL_XML = ROOT / "examples" / "trees" / "patrol.xml"
 

@@ -1,5 +1,5 @@
 """The ``btcap`` command: each subcommand lives in its own module (``btcap tree`` in
-:mod:`btcap.treecli`), listed by :func:`_command_modules` or plugged in.
+:mod:`btcap.cli.tree`), listed by :func:`_command_modules` or plugged in.
 
 Adding a command: write a module with ``add_parser(subparsers)`` that adds its parser
 and sets ``handler=fn`` (``fn(args) -> int`` exit code) via ``set_defaults``, then list
@@ -58,7 +58,7 @@ def _command_modules() -> list[str]:
     from importlib.metadata import entry_points
 
     plugins = sorted(ep.value for ep in entry_points(group="btcap.commands"))
-    return ["btcap.treecli", "btcap.teamcli", "btcap.keys_cli", "btcap.monitor.cli", *plugins]
+    return ["btcap.cli.tree", "btcap.cli.team", "btcap.cli.keys", "btcap.cli.monitor", *plugins]
 
 
 def configure_logging(level: str, *, json: bool = False) -> None:
@@ -138,7 +138,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C anywhere else: one line, not a traceback
         print("btcap: interrupted", file=sys.stderr)
         return 128 + signal.SIGINT
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -17,7 +17,7 @@ import btcap
 import btcap.cli
 from btcap.cli import build_parser, main
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "trees"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "trees"
 PATROL = EXAMPLES / "patrol.yaml"
 
 BAD = """\

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, TypeVar
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError, Stopped
-from btcap.monitor.cli import add_monitor_option
+from btcap.cli.monitor import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
     from btcap.bt.registry import NodeRegistry
@@ -152,7 +152,7 @@ def _until_stopped(
 def _agent(args: argparse.Namespace) -> int:
     import anyio
 
-    from btcap.monitor.cli import serving
+    from btcap.cli.monitor import serving
     from btcap.team.deploy import open_agent
     from btcap.team.spawn import listening
     from btcap.team.supervised import stdin_closed, watchable
@@ -225,7 +225,7 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 # -- btcap mission run -------------------------------------------------------------------
 def _mission(args: argparse.Namespace) -> int:
     from btcap.bt.files import load_tree
-    from btcap.monitor.cli import serving
+    from btcap.cli.monitor import serving
     from btcap.team.agentconfig import AgentConfigError
     from btcap.team.deploy import open_agent, run_mission_file
 

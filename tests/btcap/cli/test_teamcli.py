@@ -21,7 +21,7 @@ from btcap.team.agentconfig import load_agent_file
 from btcap.team.deploy import open_agent, run_mission_file, wait_for_team
 from btcap.team.spawn import AsyncAgentProcess
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"
 TEAM = ROOT / "examples" / "team"
 
