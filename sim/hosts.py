@@ -22,8 +22,9 @@ from btcap.sim.grid import GridMap
 from btcap.sim.messages import SIM_MESSAGES
 from btcap.sim.metrics import RobotError
 from btcap.sim.scenario import Scenario
-from btcap.team.agent import Agent, AgentConfig
+from btcap.team.agent import Agent
 from btcap.team.protocol import protocol_registry
+from btcap.team.settings import AgentConfig
 from btcap.transports import InProcessNetwork, MessageRegistry, Transport
 from btcap.transports.log import get_logger
 
@@ -54,7 +55,7 @@ def agent_options(s: Scenario) -> dict[str, Any]:
 
 
 def agent_config(s: Scenario) -> AgentConfig:
-    return AgentConfig(**agent_options(s))
+    return AgentConfig.of(s.agent, s.allocation)
 
 
 def describe(exc: BaseException) -> str:

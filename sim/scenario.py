@@ -1,7 +1,8 @@
 """Scenario files: map, seed, team, events and timing of one simulated mission.
 
 The file's types, with every field's meaning and bounds, are in
-:mod:`btcap.sim.scenariofile` (re-exported here). This module reads a file and refuses an
+:mod:`btcap.sim.scenariofile` (re-exported here; the ``agent`` and ``allocation`` blocks
+are the settings of :mod:`btcap.team.settings`). This module reads a file and refuses an
 impossible scenario before anything big is allocated (a map this machine cannot hold,
 more objects than free cells), in one line naming the file and the field.
 """
@@ -27,6 +28,7 @@ from btcap.sim.scenariofile import (
     Scenario,
     SimSettings,
 )
+from btcap.team.core.planning import check_strategy
 from btcap.team.filecheck import field_first, not_finite
 from btcap.transports.zmq_sockets import check_id
 
@@ -86,9 +88,11 @@ def _check(s: Scenario, where: str) -> Scenario:
             )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
+    try:
+        check_strategy(s.allocation.strategy)
+    except ValueError as exc:
+        raise bad("allocation.strategy", str(exc)) from None
     t = s.agent
-    if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s:
-        raise bad("agent", "expected failure_timeout_s > heartbeat_s and lease_s > keepalive_s")
     if 1 / t.tick_hz > s.time_limit_s:  # the time limit is checked when the mission ticks
         raise bad(
             "agent.tick_hz",

@@ -14,7 +14,17 @@ import msgspec
 
 from btcap.sim.grid import GridMap
 from btcap.sim.model import RobotModel, load_team, paper_team
-from btcap.team.core.planning import Strategy
+from btcap.team.settings import (
+    Allocation,
+    AuctionWindowS,
+    AwardTimeoutS,
+    FailureTimeoutS,
+    HeartbeatS,
+    KeepaliveS,
+    LeaseS,
+    TickHz,
+    Timing,
+)
 
 __all__ = [
     "NO_SOURCE",
@@ -28,7 +38,6 @@ __all__ = [
     "SimSettings",
 ]
 
-_Positive = Annotated[float, msgspec.Meta(gt=0)]
 #: The ``source`` of a scenario not read from a file.
 NO_SOURCE = "<scenario>"
 
@@ -141,66 +150,18 @@ class SimSettings(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     ] = 0.05
 
 
-class AgentTiming(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Protocol timing in simulated seconds (scaled by the speed-up like everything else)."""
+class AgentTiming(Timing, frozen=True):
+    """Every robot's protocol timing (:class:`~btcap.team.settings.Timing`), in simulated
+    seconds (the clock runs on mission time, scaled by the speed-up like everything else).
+    The defaults suit a mission of hours, not a robot's real-time library defaults."""
 
-    tick_hz: Annotated[
-        float, msgspec.Meta(gt=0, description="Ticks of each robot's tree per mission second.")
-    ] = 2.0
-    heartbeat_s: Annotated[float, _seconds("How often a robot beats to its teammates")] = 2.0
-    failure_timeout_s: Annotated[
-        float, _seconds("A robot not heard of for this long is failed; more than `heartbeat_s`")
-    ] = 15.0
-    lease_s: Annotated[
-        float, _seconds("How long an execution lives without word from the other side")
-    ] = 20.0
-    keepalive_s: Annotated[
-        float, _seconds("How often a running execution is renewed; less than `lease_s`")
-    ] = 2.0
-    auction_window_s: Annotated[
-        float, _seconds("An auction closes after this long, or once every robot answered")
-    ] = 5.0
-    award_timeout_s: Annotated[
-        float,
-        _seconds("How long an auctioneer waits for the winner to accept, before the next bidder"),
-    ] = 10.0
-
-
-class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
-    """Optional policies of the auctions (see :class:`btcap.team.mission.MissionConfig`)."""
-
-    reevaluate_s: Annotated[
-        _Positive | None,
-        _doc(
-            "Re-evaluate running work this often (mission seconds) and whenever the team "
-            "changes; null: running work never moves."
-        ),
-    ] = 30.0
-    move_margin: Annotated[
-        float,
-        msgspec.Meta(
-            ge=0,
-            lt=1,
-            description="Work moves only to a robot bidding at least this fraction below "
-            "what its current executor now bids to finish it.",
-        ),
-    ] = 0.2
-    strategy: Annotated[
-        Strategy,
-        _doc(
-            "How auctions competing for the same robots are awarded: `auction` (each to its "
-            "cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-            "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
-            "`consensus` (decentralised, no auctioneer)."
-        ),
-    ] = "auction"
-    rebid_on_join: Annotated[
-        Annotated[float, msgspec.Meta(gt=0, lt=1)] | None,
-        _doc("Older name of `move_margin` for joins; null: `move_margin` applies."),
-    ] = None
-    queue_after_current: Annotated[
-        bool, _doc("A busy robot also bids for one more task, to start after its current one.")
-    ] = False
+    tick_hz: TickHz = 2.0
+    heartbeat_s: HeartbeatS = 2.0
+    failure_timeout_s: FailureTimeoutS = 15.0
+    lease_s: LeaseS = 20.0
+    keepalive_s: KeepaliveS = 2.0
+    auction_window_s: AuctionWindowS = 5.0
+    award_timeout_s: AwardTimeoutS = 10.0
 
 
 class Scenario(msgspec.Struct, forbid_unknown_fields=True):

@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import weakref
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
@@ -15,7 +14,6 @@ from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.team.assignment import SingleItemAuction
-from btcap.team.config import MissionConfig
 from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation
@@ -23,21 +21,11 @@ from btcap.team.membership import Membership
 from btcap.team.mission import MissionControl
 from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
+from btcap.team.settings import AgentConfig
 from btcap.team.slot import RemoteCapabilitySlot
 from btcap.transports import MessageRegistry, Transport
 
 __all__ = ["Agent", "AgentConfig"]
-
-
-@dataclass(slots=True, kw_only=True)
-class AgentConfig(MissionConfig):
-    """Timing of one robot, in clock seconds (see :class:`~btcap.team.config.MissionConfig`)."""
-
-    tick_hz: float = 10.0
-    heartbeat_s: float = 0.1
-    failure_timeout_s: float = 0.5
-    #: Peers beaten to per period past this team size (see :mod:`btcap.team.membership`).
-    heartbeat_fanout: int = 8
 
 
 class Agent:

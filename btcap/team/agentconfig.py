@@ -37,11 +37,11 @@ import msgspec
 from btcap.actors import Actor
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import TreeError
-from btcap.team.agent import AgentConfig
 from btcap.team.agentfile import (
     AgentFile,
     Allocation,
     Capabilities,
+    FileTiming,
     Keys,
     Network,
     Plugin,
@@ -50,10 +50,12 @@ from btcap.team.agentfile import (
 )
 from btcap.team.capability import CapabilityInterface
 from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
+from btcap.team.core.planning import check_strategy
 from btcap.team.filecheck import field_first, not_finite
 from btcap.team.implementation import Implementation
 from btcap.team.loader import load_callable
 from btcap.team.protocol import protocol_registry
+from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, ZmqTransport
 from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_id
@@ -63,6 +65,7 @@ __all__ = [
     "AgentFile",
     "Allocation",
     "Capabilities",
+    "FileTiming",
     "Keys",
     "Network",
     "Plugged",
@@ -114,9 +117,7 @@ class RobotConfig:
         return {s.robot: s.endpoint for s in self.spec.network.seeds}
 
     def agent_config(self) -> AgentConfig:
-        options = msgspec.structs.asdict(self.spec.timing)
-        del options["speedup"]
-        return AgentConfig(**options, **msgspec.structs.asdict(self.spec.allocation))
+        return AgentConfig.of(self.spec.timing, self.spec.allocation)
 
     def load_capabilities(
         self, registry: NodeRegistry, *, implementations: bool = True
@@ -287,11 +288,10 @@ def _check(config: RobotConfig, base: Path) -> None:
                 f"network.seeds[{i}].endpoint",
                 f"{seed.endpoint!r}: expected a tcp://, ipc:// or inproc:// endpoint",
             )
-    t = spec.timing
-    if t.failure_timeout_s <= t.heartbeat_s:
-        raise config.error("timing.failure_timeout_s", "must exceed timing.heartbeat_s")
-    if t.keepalive_s >= t.lease_s:
-        raise config.error("timing.keepalive_s", "must be below timing.lease_s")
+    try:
+        check_strategy(spec.allocation.strategy)
+    except ValueError as exc:
+        raise config.error("allocation.strategy", str(exc)) from None
     caps = spec.capabilities
     caps.interfaces = _files(config, base, "capabilities.interfaces", caps.interfaces)
     caps.implementations = _files(

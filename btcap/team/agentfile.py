@@ -2,7 +2,8 @@
 with its meaning and bounds, so msgspec refuses a bad value naming the field and the file
 reference (``btcap schema agent``, docs/files.md) is generated from them.
 
-:mod:`btcap.team.agentconfig` reads the file and checks what the types cannot say.
+:mod:`btcap.team.agentconfig` reads the file and checks what the types cannot say. The
+``timing`` and ``allocation`` blocks are the settings of :mod:`btcap.team.settings`.
 """
 
 from __future__ import annotations
@@ -12,13 +13,13 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
-from btcap.team.agent import AgentConfig
-from btcap.team.core.planning import Strategy
+from btcap.team.settings import Allocation, Timing
 
 __all__ = [
     "AgentFile",
     "Allocation",
     "Capabilities",
+    "FileTiming",
     "Keys",
     "Network",
     "Plugin",
@@ -26,15 +27,9 @@ __all__ = [
     "Timing",
 ]
 
-_Positive = Annotated[float, msgspec.Meta(gt=0)]
-
 
 def _doc(text: str) -> msgspec.Meta:
     return msgspec.Meta(description=text)
-
-
-def _seconds(text: str) -> msgspec.Meta:
-    return msgspec.Meta(gt=0, description=f"{text} (clock seconds).")
 
 
 class Seed(msgspec.Struct, forbid_unknown_fields=True):
@@ -124,45 +119,9 @@ class Plugin(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     ] = None
 
 
-_DEFAULTS = AgentConfig()
+class FileTiming(Timing, frozen=True):
+    """Rates and timeouts (:class:`~btcap.team.settings.Timing`), plus the clock's speed-up."""
 
-
-class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """Rates and timeouts (:class:`~btcap.team.agent.AgentConfig`), plus the clock speed-up."""
-
-    tick_hz: Annotated[
-        float, msgspec.Meta(gt=0, description="How often the robot's own tree is ticked (Hz).")
-    ] = _DEFAULTS.tick_hz
-    heartbeat_s: Annotated[float, _seconds("How often the robot beats to its teammates")] = (
-        _DEFAULTS.heartbeat_s
-    )
-    failure_timeout_s: Annotated[
-        float,
-        _seconds("A teammate not heard of for this long is failed; more than `heartbeat_s`"),
-    ] = _DEFAULTS.failure_timeout_s
-    heartbeat_fanout: Annotated[
-        int,
-        msgspec.Meta(
-            ge=1,
-            description="Past this many peers, beat to this many per period in turns, "
-            "carrying hearsay of the others.",
-        ),
-    ] = _DEFAULTS.heartbeat_fanout
-    lease_s: Annotated[
-        float,
-        _seconds("How long an execution lives without word from the other side"),
-    ] = _DEFAULTS.lease_s
-    keepalive_s: Annotated[
-        float, _seconds("How often a running execution is renewed; less than `lease_s`")
-    ] = _DEFAULTS.keepalive_s
-    auction_window_s: Annotated[
-        float,
-        _seconds("An auction closes after this long, or earlier once every teammate answered"),
-    ] = _DEFAULTS.auction_window_s
-    award_timeout_s: Annotated[
-        float,
-        _seconds("How long an auctioneer waits for the winner to accept, before the next bidder"),
-    ] = _DEFAULTS.award_timeout_s
     speedup: Annotated[
         float,
         msgspec.Meta(
@@ -171,44 +130,6 @@ class Timing(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
             "every robot of a team runs at the same one.",
         ),
     ] = 1.0
-
-
-class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """The allocation policies of :class:`~btcap.team.config.MissionConfig`."""
-
-    reevaluate_s: Annotated[
-        _Positive | None,
-        _doc(
-            "Re-evaluate running work this often (clock seconds) and whenever the team "
-            "changes; null: running work never moves."
-        ),
-    ] = _DEFAULTS.reevaluate_s
-    move_margin: Annotated[
-        float,
-        msgspec.Meta(
-            ge=0,
-            lt=1,
-            description="Work moves only to a robot bidding at least this fraction below "
-            "what its current executor now bids to finish it.",
-        ),
-    ] = _DEFAULTS.move_margin
-    strategy: Annotated[
-        Strategy,
-        _doc(
-            "How auctions competing for the same robots are awarded: `auction` (each to its "
-            "cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-            "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
-            "`consensus` (decentralised, no auctioneer)."
-        ),
-    ] = "auction"
-    rebid_on_join: Annotated[
-        Annotated[float, msgspec.Meta(gt=0, lt=1)] | None,
-        _doc("Older name of `move_margin` for joins; null: `move_margin`."),
-    ] = None
-    queue_after_current: Annotated[
-        bool,
-        _doc("A busy robot also bids for one more task, to start after its current one."),
-    ] = False
 
 
 class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
@@ -229,8 +150,8 @@ class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
         Keys | None,
         _doc("CURVE keys; null: unencrypted, and bound only where this host alone reaches it."),
     ] = None
-    timing: Annotated[Timing, _doc("Rates and timeouts, and the clock's speed-up.")] = (
-        msgspec.field(default_factory=Timing)
+    timing: Annotated[FileTiming, _doc("Rates and timeouts, and the clock's speed-up.")] = (
+        msgspec.field(default_factory=FileTiming)
     )
     allocation: Annotated[Allocation, _doc("How work is allocated and moved.")] = msgspec.field(
         default_factory=Allocation

@@ -13,7 +13,8 @@ from typing import Any
 
 import msgspec
 
-from btcap.team.agent import AgentConfig
+from btcap.team.filecheck import field_first
+from btcap.team.settings import AgentConfig
 from btcap.transports import KeyPair, TeamKeys
 
 __all__ = ["AgentSpec", "agent_config", "agent_keys", "check_specs"]
@@ -26,7 +27,7 @@ class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
     ``factory_args``) returns the robot's implementations, or an object with
     ``implementations`` and ``actors``; ``registry`` names a function returning the
     :class:`~transports.MessageRegistry` it speaks; ``config`` holds
-    :class:`~btcap.team.agent.AgentConfig` keywords. ``keys`` (a secret certificate
+    :class:`~btcap.team.settings.AgentConfig` fields. ``keys`` (a secret certificate
     ``NAME.key_secret``) and ``trusted`` (a directory of the team's public ``NAME.key``
     files, this robot's included) turn on CURVE; both empty means a plain transport.
     """
@@ -45,12 +46,12 @@ class AgentSpec(msgspec.Struct, forbid_unknown_fields=True):
 
 
 def agent_config(spec: AgentSpec) -> AgentConfig:
-    """The spec's ``config`` as an AgentConfig; ValueError naming an unknown key."""
-    options: dict[str, Any] = dict(spec.config)  # None only where AgentConfig allows it
+    """The spec's ``config`` as an AgentConfig; ValueError naming an unknown key or a bad
+    value."""
     try:
-        return AgentConfig(**options)
-    except TypeError as exc:  # "... unexpected keyword argument 'key'"
-        raise ValueError(f"agent spec {spec.robot!r}: config: {exc}") from None
+        return msgspec.convert(spec.config, AgentConfig)
+    except msgspec.ValidationError as exc:
+        raise ValueError(f"agent spec {spec.robot!r}: config: {field_first(str(exc))}") from None
 
 
 def agent_keys(spec: AgentSpec) -> tuple[KeyPair | None, TeamKeys | None]:

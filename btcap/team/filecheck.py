@@ -18,12 +18,15 @@ import msgspec.inspect as mi
 __all__ = ["field_first", "not_finite"]
 
 _STEP = re.compile(r"\.([^.\[]+)|\[\d+\]")
+#: "keepalive_s: must be below lease_s": a ValueError a Struct's ``__post_init__`` raised.
+_OWN_FIELD = re.compile(r"([a-z_][a-z0-9_]*): ")
 
 
 def field_first(message: str, schema: Any = None) -> str:
     """msgspec's "Expected `int`, got `str` - at `$.timing.tick_hz`" as
-    "timing.tick_hz: Expected `int`, got `str`"; given the ``schema`` (the type decoded),
-    an invalid choice also lists the valid ones."""
+    "timing.tick_hz: Expected `int`, got `str`", and "keepalive_s: must be below lease_s -
+    at `$.timing`" as "timing.keepalive_s: must be below lease_s"; given the ``schema``
+    (the type decoded), an invalid choice also lists the valid ones."""
     what, sep, where = message.rpartition(" - at `$")
     if not sep:
         return message
@@ -33,6 +36,8 @@ def field_first(message: str, schema: Any = None) -> str:
         if choices:
             what += f"; expected one of {', '.join(repr(c) for c in choices)}"
     field = field.lstrip(".")
+    if field and (own := _OWN_FIELD.match(what)):  # a Struct's own check names its field
+        field, what = f"{field}.{own[1]}", what[own.end() :]
     return f"{field}: {what}" if field else what
 
 

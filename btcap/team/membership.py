@@ -29,6 +29,7 @@ from btcap.team.messages import (
     Roster,
     RosterRequest,
 )
+from btcap.team.settings import Timing
 from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["Member", "Membership", "TeamEvent"]
@@ -37,6 +38,7 @@ log = get_logger("btcap.team")
 
 
 Listener = Callable[[TeamEvent, str], None]
+_DEFAULT = Timing()
 
 
 class Membership(Actor):
@@ -54,18 +56,18 @@ class Membership(Actor):
         self,
         robot: str,
         *,
-        heartbeat_s: float = 0.1,
-        failure_timeout_s: float = 0.5,
+        heartbeat_s: float = _DEFAULT.heartbeat_s,
+        failure_timeout_s: float = _DEFAULT.failure_timeout_s,
         repo_version: Callable[[], int] = lambda: 0,
         busy: Callable[[], bool] = lambda: False,
         activity: Callable[[], tuple[list[ExecutionId], list[ExecutionId]]] = lambda: ([], []),
-        fanout: int = 8,
+        fanout: int = _DEFAULT.heartbeat_fanout,
     ) -> None:
         super().__init__()
-        if failure_timeout_s <= heartbeat_s:
-            raise ValueError("failure_timeout_s must exceed heartbeat_s")
-        if fanout < 1:
-            raise ValueError(f"heartbeat fanout {fanout}: expected at least 1")
+        # The settings' own checks (bounds, failure_timeout_s > heartbeat_s): ValueError.
+        Timing(
+            heartbeat_s=heartbeat_s, failure_timeout_s=failure_timeout_s, heartbeat_fanout=fanout
+        )
         self.robot = robot
         self.incarnation = time.time_ns()
         self.heartbeat_s = heartbeat_s

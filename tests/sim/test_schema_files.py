@@ -65,11 +65,12 @@ def test_the_scenario_schema_leaves_out_what_the_loader_sets() -> None:
 def test_the_schema_rejects_what_the_loader_rejects() -> None:
     """Bounds in the schema are msgspec's: an editor flags what btcap run refuses."""
     spec = msgspec.json.decode((reference.SCHEMA_DIR / "agent.schema.json").read_bytes())
-    timing = spec["$defs"]["Timing"]["properties"]
+    timing = spec["$defs"]["FileTiming"]["properties"]
     assert timing["tick_hz"]["exclusiveMinimum"] == 0
     assert timing["heartbeat_fanout"]["minimum"] == 1
-    strategies = spec["$defs"]["Allocation"]["properties"]["strategy"]["enum"]
-    assert set(strategies) == {"auction", "sequential", "optimal", "arrival", "consensus"}
+    # A name, checked against the strategies known when the file is loaded (plug-ins too).
+    strategy = spec["$defs"]["Allocation"]["properties"]["strategy"]
+    assert (strategy["type"], strategy["minLength"]) == ("string", 1)
 
 
 @pytest.mark.parametrize("kind", list(reference.FORMATS))
