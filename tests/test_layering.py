@@ -1,10 +1,11 @@
 """The layering contract of DESIGN.md, checked over every import statement in the code.
 
-``transports`` <- ``actors`` <- ``btcap.bt`` <- ``btcap.team`` <- ``btcap`` (its public API
-and CLI) <- ``sim`` <- ``bench``: a module may import its own layer and those below,
-never above; no two modules import each other, directly or round a longer circle, and
-that counts imports inside functions and under ``TYPE_CHECKING`` (a circle hidden there
-is still a circle a reader has to untangle). The sans-IO allocation core imports no I/O.
+``btcap.errors`` (the errors' base) <- ``transports`` <- ``actors`` <- ``btcap.bt`` <-
+``btcap.team`` <- ``btcap`` (its public API and CLI) <- ``sim`` <- ``bench``: a module may
+import its own layer and those below, never above; no two modules import each other,
+directly or round a longer circle, and that counts imports inside functions and under
+``TYPE_CHECKING`` (a circle hidden there is still a circle a reader has to untangle). The
+sans-IO allocation core imports no I/O.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ PACKAGE = ROOT / "btcap"
 
 #: Lowest first. A module belongs to the longest prefix listed here.
 LAYERS = (
+    "btcap.errors",
     "btcap.transports",
     "btcap.actors",
     "btcap.bt",
