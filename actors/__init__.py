@@ -13,6 +13,7 @@ from btcap.actors.errors import (
 )
 from btcap.actors.log import configure_logging
 from btcap.actors.ref import ActorRef
+from btcap.actors.services import Service, Services
 from btcap.actors.system import ActorSystem, Failure, SystemStats, runtime_messages
 from btcap.transports.message import Address, Message
 
@@ -32,6 +33,8 @@ __all__ = [
     "ManualClock",
     "Message",
     "Reply",
+    "Service",
+    "Services",
     "Supervision",
     "SystemClosed",
     "SystemStats",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from btcap.errors import BtcapError
+
 __all__ = [
     "ActorError",
     "ActorFailed",
@@ -12,7 +14,7 @@ __all__ = [
 ]
 
 
-class ActorError(Exception):
+class ActorError(BtcapError):
     """Base of every error the runtime raises."""
 
 

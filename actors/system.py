@@ -18,6 +18,7 @@ from btcap.actors.cell import ActorCell, Reply
 from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
+from btcap.actors.services import Services
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
@@ -83,6 +84,7 @@ class ActorSystem:
         self.mailbox_size = mailbox_size
         self.ask_timeout = ask_timeout
         self.stats = SystemStats()
+        self.services = Services()  # what its parts share (e.g. a robot's mission control)
         self.address = Address(self.id, "$system")
         self._actors: dict[str, ActorCell] = {}
         self._names = itertools.count(1)
@@ -188,12 +190,9 @@ class ActorSystem:
             name = f"{type(actor).__name__.lower()}-{next(self._names)}"
         elif not name or "/" in name:
             raise ValueError(f"actor name {name!r}: expected a non-empty name without '/'")
-        if parent is not None:
-            if parent._system is not self:
-                raise ValueError("the parent must be spawned in the same system")
-            path = f"{parent.address.path}/{name}"
-        else:
-            path = name
+        if parent is not None and parent._system is not self:
+            raise ValueError("the parent must be spawned in the same system")
+        path = name if parent is None else f"{parent.address.path}/{name}"
         if path in self._actors:
             raise ValueError(f"an actor already lives at {self.id}/{path}")
         actor._system = self

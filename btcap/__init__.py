@@ -70,6 +70,7 @@ if TYPE_CHECKING:
     )
     from btcap.bt.tree import Subtree, Tree, Wire
     from btcap.bt.utility import Utility
+    from btcap.errors import BtcapError
     from btcap.monitor import Monitor, Replay
     from btcap.team.agent import Agent, AgentConfig
     from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
@@ -147,6 +148,7 @@ _EXPORTS = {
     ),
     "btcap.bt.tree": ("Subtree", "Tree", "Wire"),
     "btcap.bt.utility": ("Utility",),
+    "btcap.errors": ("BtcapError",),
     "btcap.monitor": ("Monitor", "Replay"),
     "btcap.team.agent": ("Agent", "AgentConfig"),
     "btcap.team.capability": ("Capability", "CapabilityInterface", "InputBridge", "OutputBridge"),
@@ -171,6 +173,7 @@ __all__ = [
     "AlwaysRunning",
     "AlwaysSuccess",
     "AuctionId",
+    "BtcapError",
     "BtcapWarning",
     "Capability",
     "CapabilityInterface",

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from btcap.errors import BtcapError
 from btcap.sim.distance import Cell, CellLike, as_cell, distance_field
 
 __all__ = ["GridMap", "MapError"]
@@ -23,7 +24,7 @@ _TEXT_CHARS = "#.SD"
 _SUFFIXES = (".npy", ".png", ".txt")
 
 
-class MapError(ValueError):
+class MapError(BtcapError, ValueError):
     """A map that cannot be used; the message starts with its source (usually the file)."""
 
 

@@ -7,12 +7,13 @@ from typing import Annotated
 
 import msgspec
 
+from btcap.errors import BtcapError
 from btcap.team.filecheck import field_first, not_finite
 
 __all__ = ["OperationModel", "RobotModel", "TeamFile", "TeamFileError", "load_team", "paper_team"]
 
 
-class TeamFileError(ValueError):
+class TeamFileError(BtcapError, ValueError):
     """A team file is invalid; the message names the file and the field."""
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import msgspec
 
+from btcap.errors import BtcapError
 from btcap.sim.catalog import builtin_scenarios
 from btcap.sim.footprint import map_too_big
 from btcap.sim.grid import MapError
@@ -51,7 +52,7 @@ _RESERVED = ("sim", "operator")
 _NOT_IN_FOLDER_NAMES = ("/", "\\", "\0")
 
 
-class ScenarioError(ValueError):
+class ScenarioError(BtcapError, ValueError):
     """A scenario file is invalid; the message names the file and the field."""
 
 

@@ -1,12 +1,13 @@
 """The layering contract of DESIGN.md, checked over every import statement in the code.
 
-``transports`` <- ``actors`` <- ``btcap.bt`` <- ``btcap.team`` <- ``btcap`` (its public API
-and CLI) <- ``sim`` <- ``bench``: a module may import its own layer and those below,
-never above; no two modules import each other, directly or round a longer circle, and
-that counts imports inside functions and under ``TYPE_CHECKING`` (a circle hidden there
-is still a circle a reader has to untangle). The sans-IO allocation core imports no I/O,
-and neither do the modules it imports, nor theirs: checked over the imports that run when
-a module is imported, and in a fresh interpreter.
+``btcap._lazy`` and ``btcap.errors`` (the base of all) <- ``transports`` <- ``actors`` <-
+``btcap.bt`` <- ``btcap.team`` <- ``btcap`` (its public API and CLI) <- ``sim`` <-
+``bench``: a module may import its own layer and those below, never above; no two modules
+import each other, directly or round a longer circle, and that counts imports inside
+functions and under ``TYPE_CHECKING`` (a circle hidden there is still a circle a reader
+has to untangle). The sans-IO allocation core imports no I/O, and neither do the modules
+it imports, nor theirs: checked over the imports that run when a module is imported, and
+in a fresh interpreter.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from test_startup import _loaded
 #: lazy re-exports of the package ``__init__`` modules, stdlib only) is the base of all.
 LAYERS = (
     "btcap._lazy",
+    "btcap.errors",
     "btcap.transports",
     "btcap.actors",
     "btcap.bt",

@@ -7,6 +7,7 @@ from typing import Any, Union
 
 import msgspec
 
+from btcap.errors import BtcapError
 from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["Codec", "CodecError", "Envelope", "Kind"]
@@ -31,7 +32,7 @@ class Envelope(msgspec.Struct, array_like=True, gc=False):
     corr: int = 0
 
 
-class CodecError(ValueError):
+class CodecError(BtcapError, ValueError):
     """A frame could not be decoded into a registered message."""
 
 

@@ -24,13 +24,14 @@ from btcap.bt.decorators import Decorator
 from btcap.bt.node import Node
 from btcap.bt.state import ACTIVE, State
 from btcap.bt.tree import Subtree, Tree
+from btcap.errors import BtcapError
 
 __all__ = ["HaltingViolation", "check_halting", "record_ticks", "tick_checked"]
 
 T = TypeVar("T")
 
 
-class HaltingViolation(AssertionError):
+class HaltingViolation(BtcapError, AssertionError):
     """A node was left active although nobody ticked it or its parent gave it up."""
 
 

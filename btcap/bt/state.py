@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import enum
 
+from btcap.errors import BtcapError
+
 __all__ = [
     "ACTIVE",
     "DONE",
@@ -42,7 +44,7 @@ ACTIVE = frozenset({State.RUNNING, State.ASSIGNED, State.UNASSIGNED})
 DONE = frozenset({State.SUCCEEDED, State.FAILED, State.ERROR})
 
 
-class TreeError(Exception):
+class TreeError(BtcapError):
     """A tree or tree file is invalid: the message names the node, port or field."""
 
 

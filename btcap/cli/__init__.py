@@ -21,11 +21,12 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from btcap.bt.state import TreeError
+from btcap.errors import BtcapError
 
 __all__ = ["CliError", "Stopped", "build_parser", "main"]
 
 
-class CliError(Exception):
+class CliError(BtcapError):
     """A usage problem (bad argument, missing file): printed without a traceback."""
 
     def __init__(self, message: str, code: int = 2) -> None:
@@ -33,7 +34,7 @@ class CliError(Exception):
         self.code = code
 
 
-class Stopped(Exception):
+class Stopped(BtcapError):
     """A command ended early, cleanly, by SIGINT or SIGTERM, and has said so: the exit
     code is 128 + the signal's number, as a shell reports a process the signal ended."""
 

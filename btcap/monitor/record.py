@@ -12,6 +12,7 @@ from typing import Any
 
 import msgspec
 
+from btcap.errors import BtcapError
 from btcap.monitor.view import Event, TeamView
 from btcap.transports.log import get_logger
 
@@ -30,7 +31,7 @@ _decode = msgspec.json.Decoder(dict[str, Any])
 _encode = msgspec.json.Encoder()
 
 
-class RecordError(ValueError):
+class RecordError(BtcapError, ValueError):
     """A recording cannot be read: the message names the file and line."""
 
 

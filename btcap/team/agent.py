@@ -14,6 +14,7 @@ from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.team.assignment import SingleItemAuction
+from btcap.team.capability import ASSIGNER
 from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation
@@ -22,7 +23,7 @@ from btcap.team.mission import MissionControl
 from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
 from btcap.team.settings import AgentConfig
-from btcap.team.slot import RemoteCapabilitySlot
+from btcap.team.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.transports import MessageRegistry, Transport
 
 __all__ = ["Agent", "AgentConfig"]
@@ -53,8 +54,6 @@ class Agent:
         self.config = config or AgentConfig()
         reg = registry or protocol_registry()
         self.system = ActorSystem(robot, transport=transport, registry=reg, clock=clock)
-        self.repository = CapabilityRepository(robot)
-        self.repository.extend(implementations)
         cfg = self.config
         self.team = Membership(
             robot,
@@ -65,6 +64,8 @@ class Agent:
             busy=lambda: not self.mission_control.body.idle,
             activity=self._activity,
         )
+        self.repository = CapabilityRepository(robot, team=self.team)
+        self.repository.extend(implementations)
         self.auctioneer: SingleItemAuction | ConsensusAssigner
         if cfg.strategy == "consensus":  # no auctioneer: every robot takes part alike
             self.auctioneer = ConsensusAssigner(
@@ -103,6 +104,8 @@ class Agent:
             s.spawn(self.repository, CapabilityRepository.PATH)
             s.spawn(self.auctioneer, self.auctioneer.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)
+            s.services.provide(ASSIGNER, self.mission_control)  # to capability nodes
+            s.services.provide(SLOT_HOST, self.mission_control)  # to the remote slot
             for path, actor in self._extra.items():
                 s.spawn(actor, path)
             self.host.attach(s)

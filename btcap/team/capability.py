@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
+from btcap.actors.services import Service
 from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_name
 from btcap.bt.state import DONE, State, TreeError
@@ -19,6 +20,7 @@ from btcap.team.execution import AssignmentRequest, Execution
 from btcap.transports.log import get_logger
 
 __all__ = [
+    "ASSIGNER",
     "ASSIGNER_PATH",
     "Assigner",
     "Capability",
@@ -187,6 +189,10 @@ class Assigner(Protocol):
     ) -> AssignmentRequest: ...
 
 
+#: The robot's :class:`Assigner` among its actor system's services (its mission control).
+ASSIGNER: Service[Assigner] = Service("assigner")
+
+
 class Capability(Node):
     """A capability in a tree: asks mission control for an executor, then runs it.
 
@@ -255,8 +261,8 @@ class Capability(Node):
 
     def _mission_control(self) -> Assigner:
         system = self.tree.system
-        mc = system.lookup(ASSIGNER_PATH) if system is not None else None
-        if not isinstance(mc, Assigner):
+        mc = system.services.get(ASSIGNER) if system is not None else None
+        if mc is None:
             raise TreeError(
                 f"capability {self.path!r}: the tree must be attached to a robot's actor "
                 f"system running MissionControl (use btcap.Agent)"

@@ -31,6 +31,7 @@ import anyio
 import msgspec
 
 from btcap.actors import Clock, configure_logging
+from btcap.errors import BtcapError
 from btcap.team.agent import Agent
 from btcap.team.agentspec import AgentSpec, agent_config, agent_keys, check_specs
 from btcap.team.implementation import Implementation
@@ -56,7 +57,7 @@ __all__ = [
 log = get_logger("btcap.team.launch")
 
 
-class AgentFailed(Exception):
+class AgentFailed(BtcapError):
     """An agent run by :func:`run_agents` stopped with an error (chained as the cause)."""
 
     def __init__(self, robot: str, error: BaseException) -> None:

@@ -7,16 +7,17 @@ converted back to their declared types on arrival.
 
 from __future__ import annotations
 
+import enum
 from typing import Any
 
 import msgspec
 
-from btcap.bt.state import State
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.transports.message import Message
 
 __all__ = [
     "CAPABILITY_MESSAGES",
+    "RUN_DONE",
     "Activity",
     "ActivityQuery",
     "Award",
@@ -41,6 +42,7 @@ __all__ = [
     "RepositoryState",
     "Roster",
     "RosterRequest",
+    "RunState",
 ]
 
 
@@ -220,6 +222,32 @@ class ConsensusClaim(Message):
 
 
 # -- executions --------------------------------------------------------------------------
+class RunState(enum.Enum):
+    """The state of a remote execution, as its executor reports it.
+
+    The team's own states, kept apart from the node states of :class:`~btcap.bt.state.State`
+    so the core needs no behaviour tree; the values are the node states' (the executor
+    reports its implementation's root state), so the wire bytes are the same. LOST is what
+    an executor reports for an execution it does not (or no longer) have; its wire value is
+    ``"shutdown"``.
+    """
+
+    UNINITIALIZED = "uninitialized"
+    IDLE = "idle"
+    RUNNING = "running"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    ERROR = "error"
+    LOST = "shutdown"
+    PAUSED = "paused"
+    UNASSIGNED = "unassigned"
+    ASSIGNED = "assigned"
+
+
+#: Run states that end an execution with a result.
+RUN_DONE = frozenset({RunState.SUCCEEDED, RunState.FAILED, RunState.ERROR})
+
+
 class ExecutionInputs(Message):
     """The capability's latest inputs, sent every tick of the capability node."""
 
@@ -233,7 +261,7 @@ class ExecutionStatus(Message):
 
     execution: ExecutionId
     robot: str
-    state: State
+    state: RunState
     outputs: dict[str, Any]
     seq: int = 0
     detail: str = ""

@@ -38,6 +38,7 @@ from btcap.team.messages import (
     ExecutionStatus,
     KeepAlive,
     PauseExecution,
+    RunState,
 )
 from btcap.team.moving import Reevaluation
 from btcap.team.origin_side import Handle, OriginSide
@@ -48,6 +49,9 @@ from btcap.transports import Address
 from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["MissionConfig", "MissionControl", "MissionStats"]
+
+#: A hosted run's root state as its origin is told it (same values: the wire is unchanged).
+_RUN_STATE = {s: RunState(s.value) for s in State}
 
 log = get_logger("btcap.mission")
 
@@ -287,4 +291,4 @@ class MissionControl(Actor):
         """Called by the slot after each tick of a hosted run."""
         if state is State.SUCCEEDED:
             self.repository.record_success(hosted.run.implementation.interface.name)
-        self._perform(self.host.ticked(hosted.execution, state, outputs))
+        self._perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs))

@@ -12,7 +12,7 @@ import itertools
 from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
-from btcap.bt.state import DONE, TreeError
+from btcap.bt.state import TreeError
 from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
@@ -24,7 +24,7 @@ from btcap.team.execution import AssignmentRequest
 from btcap.team.executor import ExecutorSide
 from btcap.team.implementation import ImplementationRun
 from btcap.team.membership import Membership
-from btcap.team.messages import ExecutionStatus
+from btcap.team.messages import RUN_DONE, ExecutionStatus
 from btcap.team.proxies import LocalExecution, RemoteExecution
 from btcap.team.repository import CapabilityRepository
 
@@ -182,9 +182,9 @@ class OriginSide:
     def status(self, sender: str, msg: ExecutionStatus) -> None:
         """A report on a remote execution: its outputs typed by the node's interface."""
         self.perform(self.leases.status(sender, msg, self.now(), self._convert))
-        if msg.state in DONE and msg.execution not in self.leases.tracked:
+        if msg.state in RUN_DONE and msg.execution not in self.leases.tracked:
             handle = self.active.get(msg.execution)
-            if isinstance(handle, RemoteExecution) and handle.tracked.state in DONE:
+            if isinstance(handle, RemoteExecution) and handle.tracked.state in RUN_DONE:
                 self.active.pop(msg.execution)  # its result was taken
                 # Its executor is free now: work waiting for a robot competes for it at
                 # once, with the task that follows this one (not a heartbeat later).

@@ -12,15 +12,25 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Protocol
 
-from btcap.bt.state import DONE, State
+from btcap.bt.state import State
 from btcap.team.capability import Capability
 from btcap.team.core.body import Body
 from btcap.team.core.ids import ExecutionId
 from btcap.team.core.origin import Tracked
 from btcap.team.implementation import ImplementationRun
-from btcap.team.messages import CancelExecution, ExecutionInputs, PauseExecution
+from btcap.team.messages import (
+    RUN_DONE,
+    CancelExecution,
+    ExecutionInputs,
+    PauseExecution,
+    RunState,
+)
 
 __all__ = ["HandleOwner", "LocalExecution", "RemoteExecution"]
+
+#: What the capability node makes of a remote run's reported state (same values; LOST
+#: never reaches the node: the lease table gives the execution up instead).
+_NODE_STATE = {s: State(s.value) for s in RunState}
 
 
 class HandleOwner(Protocol):
@@ -118,16 +128,16 @@ class RemoteExecution(_Handle):
         return self.tracked.lost
 
     @property
-    def state(self) -> State:
+    def state(self) -> RunState:
         return self.tracked.state
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
         t = self.tracked
-        if t.lost or (self.replacement is not None and t.state not in DONE and self._moving()):
+        if t.lost or (self.replacement is not None and t.state not in RUN_DONE and self._moving()):
             return None, {}  # lost, or moved: the node adopts the replacement
         t.seq += 1
         self._side.send(self.robot, ExecutionInputs(self.id, t.seq, dict(inputs)))
-        return t.state, t.outputs
+        return _NODE_STATE[t.state], t.outputs
 
     def pause(self) -> None:
         if not self.tracked.lost:

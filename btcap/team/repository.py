@@ -30,7 +30,9 @@ class CapabilityRepository(Actor):
     #: Input from peers must never stop it (a bug shows as a logged failure, not silence).
     supervision = Supervision.RESUME
 
-    def __init__(self, robot: str) -> None:
+    def __init__(self, robot: str, *, team: Membership | None = None) -> None:
+        """``team`` is the robot's membership, followed while the repository runs (None:
+        no team, e.g. a repository used alone)."""
         super().__init__()
         self.robot = robot
         self.version = 0
@@ -39,7 +41,7 @@ class CapabilityRepository(Actor):
         self.succeeded: set[str] = set()
         self.team: dict[str, RepositoryState] = {}
         self._unsubscribe: Callable[[], None] | None = None
-        self._team: Membership | None = None
+        self._team = team
         self.refused = 0  #: states sent in another robot's name
         self.early = 0  #: states from robots not (yet) members, dropped
         self._listeners: list[Callable[[str], None]] = []
@@ -129,10 +131,8 @@ class CapabilityRepository(Actor):
 
     # -- life cycle and messages ------------------------------------------------------
     def on_start(self) -> None:
-        team = self.system.lookup(Membership.PATH)
-        if isinstance(team, Membership):
-            self._team = team
-            self._unsubscribe = team.subscribe(self._on_team)
+        if self._team is not None:
+            self._unsubscribe = self._team.subscribe(self._on_team)
 
     def on_stop(self) -> None:
         if self._unsubscribe is not None:

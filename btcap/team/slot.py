@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+from btcap.actors.services import Service
 from btcap.bt.node import Leaf
 from btcap.bt.state import State, TreeError
-from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.hosting import Hosted
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import ImplementationRun
 
-__all__ = ["RemoteCapabilitySlot", "SlotHost"]
+__all__ = ["SLOT_HOST", "RemoteCapabilitySlot", "SlotHost"]
 
 _RUNNING = State.RUNNING
 
@@ -25,6 +25,10 @@ class SlotHost(Protocol):
     def hosted_ticked(
         self, hosted: Hosted[ImplementationRun], state: State, outputs: dict[str, Any]
     ) -> None: ...
+
+
+#: The robot's :class:`SlotHost` among its actor system's services (its mission control).
+SLOT_HOST: Service[SlotHost] = Service("slot host")
 
 
 class RemoteCapabilitySlot(Leaf):
@@ -44,8 +48,8 @@ class RemoteCapabilitySlot(Leaf):
 
     def on_setup(self) -> None:
         system = self.tree.system
-        host = system.lookup(ASSIGNER_PATH) if system is not None else None
-        if not isinstance(host, SlotHost):
+        host = system.services.get(SLOT_HOST) if system is not None else None
+        if host is None:
             raise TreeError(f"slot {self.path!r}: the tree must be attached to a robot's system")
         host.attach_slot(self)
         self._host = host

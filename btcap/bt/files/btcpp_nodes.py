@@ -23,10 +23,12 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
+from btcap.errors import BtcapError
+
 __all__ = ["STANDARD", "UNSUPPORTED", "Standard", "parse_bool", "parse_int"]
 
 
-class MappingError(ValueError):
+class MappingError(BtcapError, ValueError):
     """A standard node's attribute has a value btcap cannot express."""
 
 

@@ -17,18 +17,18 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
-from btcap.bt.state import DONE, State
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Pause, Refused, Send, Start
 from btcap.team.core.ids import ExecutionId
-from btcap.team.core.origin import LOST
 from btcap.team.messages import (
+    RUN_DONE,
     Award,
     CancelExecution,
     ExecutionInputs,
     ExecutionStatus,
     KeepAlive,
     PauseExecution,
+    RunState,
 )
 
 __all__ = ["HostLeases", "Hosted"]
@@ -48,7 +48,7 @@ class Hosted(Generic[R]):
     inputs: dict[str, Any]
     lease_s: float
     last_heard: float
-    state: State = State.ASSIGNED
+    state: RunState = RunState.ASSIGNED
     outputs: dict[str, Any] = field(default_factory=dict)
     paused: bool = False
     seq: int = 0
@@ -102,7 +102,7 @@ class HostLeases(Generic[R]):
         h = self.hosted.get(execution)
         if h is None:
             final = self.finished.get(execution) or ExecutionStatus(
-                execution, self.robot, LOST, {}, msg.seq, "unknown execution"
+                execution, self.robot, RunState.LOST, {}, msg.seq, "unknown execution"
             )
             return [Send(sender, final)]
         inputs = convert(h, msg.inputs)
@@ -120,7 +120,7 @@ class HostLeases(Generic[R]):
         h.paused = True
         if self.body.running != h.execution:
             return []  # a queued run has not started: nothing to pause
-        h.state = State.PAUSED
+        h.state = RunState.PAUSED
         return [Pause(h.execution)]
 
     def cancel(self, sender: str, msg: CancelExecution) -> list[Effect]:
@@ -141,7 +141,9 @@ class HostLeases(Generic[R]):
     def status(self, h: Hosted[R]) -> ExecutionStatus:
         return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq)
 
-    def ticked(self, execution: ExecutionId, state: State, outputs: dict[str, Any]) -> list[Effect]:
+    def ticked(
+        self, execution: ExecutionId, state: RunState, outputs: dict[str, Any]
+    ) -> list[Effect]:
         """The slot ticked the run: report it; a finished run is kept as a final status."""
         h = self.hosted.get(execution)
         if h is None:
@@ -149,14 +151,16 @@ class HostLeases(Generic[R]):
         h.state, h.outputs = state, outputs
         report = self.status(h)
         out: list[Effect] = [Send(h.origin, report)]
-        if state in DONE:
+        if state in RUN_DONE:
             self.finished[execution] = report
             while len(self.finished) > FINISHED_KEPT:
                 self.finished.popitem(last=False)
             out += self.drop(execution, "finished")
         return out
 
-    def give_up(self, execution: ExecutionId, why: str, state: State = LOST) -> list[Effect]:
+    def give_up(
+        self, execution: ExecutionId, why: str, state: RunState = RunState.LOST
+    ) -> list[Effect]:
         """The run cannot go on here (its setup failed, its status cannot be sent): tell the
         origin, with ``state`` LOST to have it re-assigned or FAILED to end it, and drop it."""
         h = self.hosted.get(execution)
@@ -169,11 +173,11 @@ class HostLeases(Generic[R]):
         """A status of the run could not be sent (its outputs do not encode): the run
         fails, and its origin hears that instead, now and when it asks again."""
         if execution in self.hosted:
-            return self.give_up(execution, why, State.FAILED)
+            return self.give_up(execution, why, RunState.FAILED)
         final = self.finished.get(execution)
         if final is None or final.detail == why:
             return []
-        failed = ExecutionStatus(execution, self.robot, State.FAILED, {}, final.seq, why)
+        failed = ExecutionStatus(execution, self.robot, RunState.FAILED, {}, final.seq, why)
         self.finished[execution] = failed
         return [Send(execution.origin, failed)]
 

@@ -16,18 +16,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from btcap.bt.state import DONE, State
 from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.ids import ExecutionId
-from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive
+from btcap.team.messages import RUN_DONE, CancelExecution, ExecutionStatus, KeepAlive, RunState
 
-__all__ = ["ENDED_KEPT", "LOST", "OriginLeases", "Tracked", "merge_keepalives"]
+__all__ = ["ENDED_KEPT", "OriginLeases", "Tracked", "merge_keepalives"]
+
+_DONE_OR_LOST = RUN_DONE | {RunState.LOST}
 
 #: Executions given up on that are remembered, to stop their runs if they report again.
 ENDED_KEPT = 1024
-
-#: The state an executor reports for an execution it does not (or no longer) have.
-LOST = State.SHUTDOWN
 
 
 @dataclass(slots=True)
@@ -38,7 +36,7 @@ class Tracked:
     executor: str
     lease_s: float
     last_heard: float
-    state: State = State.ASSIGNED
+    state: RunState = RunState.ASSIGNED
     outputs: dict[str, Any] = field(default_factory=dict)
     seq: int = 0  # the latest inputs sent
     acked: int = 0  # the latest inputs the executor confirmed
@@ -78,14 +76,18 @@ class OriginLeases:
         if t is None:
             if msg.execution.origin != self.robot:
                 return [Refused(sender, msg, f"status of {msg.execution}, not ours")]
-            if msg.execution not in self._ended or msg.state in DONE or msg.state is LOST:
+            if (
+                msg.execution not in self._ended
+                or msg.state in RUN_DONE
+                or msg.state is RunState.LOST
+            ):
                 return []  # early (before the accept), a duplicate result, or a goodbye
             # A run we gave up on (its executor was declared dead, or we moved it) goes on:
             # tell it to stop now rather than at the end of its lease.
             return [Send(sender, CancelExecution(msg.execution, "no longer assigned to you"))]
         if sender != t.executor:
             return [Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")]
-        if msg.state is LOST:
+        if msg.state is RunState.LOST:
             return self._lose(t, f"executor no longer has it ({msg.detail})")
         outputs = convert(t, msg.outputs)
         if isinstance(outputs, str):
@@ -95,7 +97,7 @@ class OriginLeases:
         t.outputs = outputs
         t.acked = max(t.acked, msg.seq)
         t.detail = msg.detail
-        if msg.state in DONE:  # the result is taken once; duplicates are ignored
+        if msg.state in RUN_DONE:  # the result is taken once; duplicates are ignored
             del self.tracked[t.execution]
             self._end(t.execution)
         return []

@@ -321,17 +321,15 @@ async def silent_member(
         robot, transport=net.transport(robot), registry=protocol_registry(), clock=clock
     )
     async with system:
-        repo = CapabilityRepository(robot)
-        repo.extend(impls)
-        system.spawn(
-            Membership(
-                robot,
-                heartbeat_s=c.heartbeat_s,
-                failure_timeout_s=c.failure_timeout_s,
-                repo_version=lambda: repo.version,
-            ),
-            Membership.PATH,
+        members = Membership(
+            robot,
+            heartbeat_s=c.heartbeat_s,
+            failure_timeout_s=c.failure_timeout_s,
+            repo_version=lambda: repo.version,
         )
+        repo = CapabilityRepository(robot, team=members)
+        repo.extend(impls)
+        system.spawn(members, Membership.PATH)
         system.spawn(repo, CapabilityRepository.PATH)
         for path, actor in (actors or {}).items():
             system.spawn(actor, path)

@@ -42,6 +42,7 @@ from btcap.team.messages import (
     RepositoryState,
     Roster,
     RosterRequest,
+    RunState,
 )
 from btcap.team.mission import MissionConfig, MissionControl
 from btcap.team.protocol import protocol_registry
@@ -81,7 +82,7 @@ SAMPLES: dict[type[Message], list[Message]] = {
     AwardReply: [AwardReply(E1, "b", True), AwardReply(E2, "b", False, "busy")],
     ExecutionInputs: [ExecutionInputs(E1, 42, {"x": -3, "stop": True})],
     ExecutionStatus: [
-        ExecutionStatus(E1, "b", state, {"y": 1, "robot": "b"}, 9, "detail") for state in State
+        ExecutionStatus(E1, "b", state, {"y": 1, "robot": "b"}, 9, "detail") for state in RunState
     ],
     PauseExecution: [PauseExecution(E1)],
     CancelExecution: [CancelExecution(E1), CancelExecution(E2, "reset")],
@@ -115,6 +116,19 @@ def test_capability_messages_round_trip_through_the_codec(msg: Message) -> None:
     assert type(back.msg) is type(msg)
     assert back.msg == msg
     assert codec.decode_message(codec.encode_message(msg)) == msg
+
+
+def test_run_states_travel_as_the_node_states_values() -> None:
+    """The team's run states are their own type, but their wire values are the node
+    states' (an executor reports its implementation's root state): LOST is "shutdown"."""
+    assert [r.value for r in RunState] == [s.value for s in State]
+    assert RunState.LOST.value == State.SHUTDOWN.value == "shutdown"
+    codec = Codec(protocol_registry())
+    wire = codec.encode_message(ExecutionStatus(E1, "b", RunState.LOST, {}))
+    assert b"shutdown" in wire
+    back = codec.decode_message(wire)
+    assert isinstance(back, ExecutionStatus)
+    assert back.state is RunState.LOST
 
 
 def test_nan_cost_survives_the_codec_as_nan() -> None:

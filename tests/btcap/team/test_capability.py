@@ -10,8 +10,16 @@ from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 from structlog.testing import capture_logs
 
 from btcap import AlwaysSuccess, Parallel, ReactiveSequence, State, Tree, TreeError
+from btcap.actors import ActorSystem
 from btcap.bt.utility import CANNOT
-from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
+from btcap.team.capability import (
+    ASSIGNER,
+    Capability,
+    CapabilityInterface,
+    InputBridge,
+    OutputBridge,
+)
+from btcap.team.execution import AssignmentRequest
 from btcap.team.implementation import Implementation, Precondition, Scope
 from btcap.team.proxies import LocalExecution
 
@@ -328,3 +336,44 @@ async def test_paused_time_does_not_count_towards_the_assignment_timeout() -> No
             assert tree.tick() is not State.FAILED  # the wait starts again on resuming
             await tick_until(tree, lambda _s: node.state is State.RUNNING, "assigned to b")
             await tree.shutdown()
+
+
+# -- the assigner ------------------------------------------------------------------------
+
+
+class _Recorder:
+    """An assigner that records what it is asked and never finds anyone."""
+
+    changes = 0
+
+    def __init__(self) -> None:
+        self.asked: list[tuple[str, dict[str, Any], bool]] = []
+
+    def request_assignment(
+        self,
+        node: Capability,
+        inputs: dict[str, Any],
+        *,
+        local_only: bool = False,
+        exclude: frozenset[str] = frozenset(),
+    ) -> AssignmentRequest:
+        self.asked.append((node.path, inputs, local_only))
+        return AssignmentRequest()
+
+
+async def test_a_capability_node_asks_the_assigner_its_system_provides() -> None:
+    """Found by its typed service key, not by an actor path: whatever lives at
+    "mission_control" is not asked, and any assigner the system provides is."""
+    with anyio.fail_after(5):
+        async with ActorSystem("a") as system:
+            lost = Tree(COUNT.node_type()("count", inputs={"x": 1}), name="lost")
+            lost.attach(system)
+            with capture_logs() as logs:  # the node's error ends its tick, logged
+                assert lost.tick() is State.ERROR
+            assert "running MissionControl" in str(logs[0]["exc_info"])
+            recorder = _Recorder()
+            system.services.provide(ASSIGNER, recorder)
+            tree = Tree(COUNT.node_type()("count", inputs={"x": 2}, local_only=True))
+            tree.attach(system)
+            assert tree.tick() is State.UNASSIGNED
+            assert recorder.asked == [("count", {"x": 2, "stop": False}, True)]

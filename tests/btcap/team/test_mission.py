@@ -42,6 +42,7 @@ from btcap.team.messages import (
     KeepAlive,
     NoBid,
     PauseExecution,
+    RunState,
 )
 from btcap.team.mission import MissionControl
 from btcap.team.proxies import LocalExecution, RemoteExecution
@@ -130,7 +131,7 @@ async def test_untick_pauses_the_remote_run_and_ticking_resumes_it() -> None:
             assert node.state is State.PAUSED
             await until(lambda: probe.unticks["b"] == 1 and hosted.paused, "b to pause")
             frozen = probe.ticks["b"]
-            assert hosted.state is State.PAUSED
+            assert hosted.state is RunState.PAUSED
             # Paused, not gone: the lease is kept alive without ticks.
             for _ in range(80):  # 0.4 s of wall time = 4 clock s, twice the lease
                 await step(0.005)
@@ -696,10 +697,10 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             stray: list[tuple[Address, Any]] = [
                 (Address("a", "auctioneer"), Bid(AuctionId("a", 999), "x", 0.0, "count-x")),
                 (Address("a", "auctioneer"), NoBid(z1, "x", "")),
-                (a_mc, ExecutionStatus(foreign, "x", State.SUCCEEDED, {"y": 1})),
+                (a_mc, ExecutionStatus(foreign, "x", RunState.SUCCEEDED, {"y": 1})),
                 # A real execution, but reported by a robot that does not run it.
-                (a_mc, ExecutionStatus(real.id, "x", State.SUCCEEDED, {"y": 666})),
-                (a_mc, ExecutionStatus(real.id, "x", State.SHUTDOWN, {})),
+                (a_mc, ExecutionStatus(real.id, "x", RunState.SUCCEEDED, {"y": 666})),
+                (a_mc, ExecutionStatus(real.id, "x", RunState.LOST, {})),
                 (a_mc, KeepAlive("x", [real.id, foreign])),
                 (b_mc, ExecutionInputs(foreign, 1, {"x": 5})),
                 (b_mc, ExecutionInputs(ExecutionId("", "", 0), 1, {})),

@@ -157,7 +157,7 @@ async def test_a_stopped_repository_no_longer_listens_to_the_team(
         ):
             members = Membership("a")
             system.spawn(members, Membership.PATH)
-            repo = CapabilityRepository("a")
+            repo = CapabilityRepository("a", team=members)
             system.spawn(repo, CapabilityRepository.PATH)
             seen: list[str] = []
             members.subscribe(lambda event, robot: seen.append(robot))

@@ -13,7 +13,7 @@ from btcap import Leaf, ReactiveSequence, State, Tree
 from btcap.team.capability import CapabilityInterface
 from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.implementation import Implementation
-from btcap.team.messages import Award, AwardReply, CancelExecution, ExecutionStatus
+from btcap.team.messages import Award, AwardReply, CancelExecution, ExecutionStatus, RunState
 from btcap.team.proxies import LocalExecution
 from btcap.transports import Address
 
@@ -52,7 +52,7 @@ async def test_nobody_else_ends_a_robots_own_execution() -> None:
             ex = node.execution
             assert isinstance(ex, LocalExecution)
             mc = a.mission_control
-            forged = ExecutionStatus(ex.id, "a", State.SUCCEEDED, {"y": 666})
+            forged = ExecutionStatus(ex.id, "a", RunState.SUCCEEDED, {"y": 666})
             x.system.tell(Address("a", MC), forged)
             ticks = node.outputs["ticks"]
             await tick_until(tree, lambda _s: node.outputs["ticks"] > ticks + 3, "more ticks")

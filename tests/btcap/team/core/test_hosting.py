@@ -4,12 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from btcap.bt.state import State
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Pause, Refused, Send, Start
 from btcap.team.core.hosting import FINISHED_KEPT, Hosted, HostLeases
 from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.team.core.origin import LOST
 from btcap.team.messages import (
     Award,
     CancelExecution,
@@ -17,6 +15,7 @@ from btcap.team.messages import (
     ExecutionStatus,
     KeepAlive,
     PauseExecution,
+    RunState,
 )
 
 E1 = ExecutionId("a", "root/count", 1)
@@ -62,8 +61,8 @@ def test_with_a_queue_one_more_waits_and_starts_when_the_body_is_free() -> None:
     assert take(hl, E2) is False
     assert hl.body.queued == E2
     assert "busy" in str(hl.refuse_award("c", award(E3)))
-    done = ExecutionStatus(E1, "b", State.SUCCEEDED, {}, 0)
-    assert hl.ticked(E1, State.SUCCEEDED, {}) == [
+    done = ExecutionStatus(E1, "b", RunState.SUCCEEDED, {}, 0)
+    assert hl.ticked(E1, RunState.SUCCEEDED, {}) == [
         Send("a", done),
         Drop(E1, "finished", "run-1"),
         Start(E2),
@@ -78,7 +77,7 @@ def test_inputs_only_from_the_origin_and_answered_at_once() -> None:
     assert isinstance(refused, Refused)
     assert hl.hosted[E1].inputs == {}
     [reply] = hl.inputs("a", ExecutionInputs(E1, 2, {"x": 2}), 0.2, same)
-    assert reply == Send("a", ExecutionStatus(E1, "b", State.ASSIGNED, {}, 2))
+    assert reply == Send("a", ExecutionStatus(E1, "b", RunState.ASSIGNED, {}, 2))
     # An older input arriving late does not overwrite the newer one.
     hl.inputs("a", ExecutionInputs(E1, 1, {"x": 1}), 0.3, same)
     assert (hl.hosted[E1].inputs, hl.hosted[E1].seq) == ({"x": 2}, 2)
@@ -97,11 +96,11 @@ def test_malformed_inputs_change_nothing() -> None:
 def test_inputs_for_an_unknown_or_finished_run_get_its_final_word() -> None:
     hl = host()
     [unknown] = hl.inputs("a", ExecutionInputs(E1, 4, {}), 0.0, same)
-    assert unknown == Send("a", ExecutionStatus(E1, "b", LOST, {}, 4, "unknown execution"))
+    assert unknown == Send("a", ExecutionStatus(E1, "b", RunState.LOST, {}, 4, "unknown execution"))
     take(hl, E1)
-    hl.ticked(E1, State.FAILED, {"y": 1})
+    hl.ticked(E1, RunState.FAILED, {"y": 1})
     [final] = hl.inputs("a", ExecutionInputs(E1, 5, {}), 0.1, same)
-    assert final == Send("a", ExecutionStatus(E1, "b", State.FAILED, {"y": 1}, 0))
+    assert final == Send("a", ExecutionStatus(E1, "b", RunState.FAILED, {"y": 1}, 0))
 
 
 def test_finished_statuses_are_bounded() -> None:
@@ -109,7 +108,7 @@ def test_finished_statuses_are_bounded() -> None:
     for n in range(FINISHED_KEPT + 10):
         e = ExecutionId("a", "n", n)
         take(hl, e)
-        hl.ticked(e, State.SUCCEEDED, {})
+        hl.ticked(e, RunState.SUCCEEDED, {})
     assert len(hl.finished) == FINISHED_KEPT
     assert ExecutionId("a", "n", 0) not in hl.finished
 
@@ -139,7 +138,7 @@ def test_pause_and_cancel_only_from_the_origin() -> None:
     assert isinstance(hl.pause("mallory", PauseExecution(E1))[0], Refused)
     assert isinstance(hl.cancel("mallory", CancelExecution(E1))[0], Refused)
     assert hl.pause("a", PauseExecution(E1)) == [Pause(E1)]
-    assert hl.hosted[E1].state is State.PAUSED
+    assert hl.hosted[E1].state is RunState.PAUSED
     assert hl.cancel("a", CancelExecution(E1, "reset")) == [Drop(E1, "reset", "run-1")]
     assert hl.cancel("a", CancelExecution(E1, "again")) == []
 
@@ -173,8 +172,8 @@ def test_a_queued_run_that_cannot_start_tells_its_origin() -> None:
     hl = host(queue=True)
     take(hl, E1)
     take(hl, E2)
-    hl.ticked(E1, State.SUCCEEDED, {})
-    lost = ExecutionStatus(E2, "b", LOST, {}, 0, "slot broken")
+    hl.ticked(E1, RunState.SUCCEEDED, {})
+    lost = ExecutionStatus(E2, "b", RunState.LOST, {}, 0, "slot broken")
     assert hl.give_up(E2, "slot broken") == [
         Send("a", lost),
         Drop(E2, "slot broken", "run-2"),

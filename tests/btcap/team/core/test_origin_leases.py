@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from btcap.bt.state import State
 from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.ids import ExecutionId
-from btcap.team.core.origin import ENDED_KEPT, LOST, OriginLeases
-from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive
+from btcap.team.core.origin import ENDED_KEPT, OriginLeases
+from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive, RunState
 
 E1 = ExecutionId("a", "root/count", 1)
 E2 = ExecutionId("a", "root/other", 2)
@@ -18,15 +17,15 @@ def lost(execution: ExecutionId, executor: str, why: str) -> list[Effect]:
     return [Lost(execution, executor, why), Send(executor, stop)]
 
 
-def status(execution: ExecutionId, robot: str, state: State, seq: int = 0) -> ExecutionStatus:
+def status(execution: ExecutionId, robot: str, state: RunState, seq: int = 0) -> ExecutionStatus:
     return ExecutionStatus(execution, robot, state, {"y": seq}, seq)
 
 
 def test_reports_renew_the_lease_and_silence_loses_it_once() -> None:
     o = OriginLeases("a")
     t = o.track(E1, "b", 1.0, now=0.0)
-    assert o.status("b", status(E1, "b", State.RUNNING, 3), now=0.9) == []
-    assert (t.state, t.outputs, t.acked) == (State.RUNNING, {"y": 3}, 3)
+    assert o.status("b", status(E1, "b", RunState.RUNNING, 3), now=0.9) == []
+    assert (t.state, t.outputs, t.acked) == (RunState.RUNNING, {"y": 3}, 3)
     assert o.expire(1.8) == []  # renewed at 0.9: lapses only after 1.9
     assert o.expire(1.91) == lost(E1, "b", "lease lapsed")
     assert t.lost
@@ -37,11 +36,11 @@ def test_reports_renew_the_lease_and_silence_loses_it_once() -> None:
 def test_only_the_executor_reports_on_an_execution() -> None:
     o = OriginLeases("a")
     t = o.track(E1, "b", 1.0, now=0.0)
-    forged = status(E1, "b", State.SUCCEEDED, 7)
+    forged = status(E1, "b", RunState.SUCCEEDED, 7)
     [refused] = o.status("mallory", forged, now=0.5)
     assert isinstance(refused, Refused)
     assert refused.sender == "mallory"
-    assert t.state is State.ASSIGNED  # nothing taken from it
+    assert t.state is RunState.ASSIGNED  # nothing taken from it
     assert o.expire(1.01) == lost(E1, "b", "lease lapsed")  # and the lease was not renewed
 
 
@@ -57,18 +56,18 @@ def test_keepalives_renew_only_from_the_executor() -> None:
 def test_a_duplicate_result_is_taken_once() -> None:
     o = OriginLeases("a")
     t = o.track(E1, "b", 1.0, now=0.0)
-    assert o.status("b", status(E1, "b", State.SUCCEEDED, 4), now=0.1) == []
-    assert t.state is State.SUCCEEDED
+    assert o.status("b", status(E1, "b", RunState.SUCCEEDED, 4), now=0.1) == []
+    assert t.state is RunState.SUCCEEDED
     assert E1 not in o.tracked
-    assert o.status("b", status(E1, "b", State.FAILED, 5), now=0.2) == []
-    assert t.state is State.SUCCEEDED
+    assert o.status("b", status(E1, "b", RunState.FAILED, 5), now=0.2) == []
+    assert t.state is RunState.SUCCEEDED
     assert t.outputs == {"y": 4}
 
 
 def test_the_executor_saying_it_lost_the_run_loses_it() -> None:
     o = OriginLeases("a")
     o.track(E1, "b", 1.0, now=0.0)
-    gone = ExecutionStatus(E1, "b", LOST, {}, 0, "unknown execution")
+    gone = ExecutionStatus(E1, "b", RunState.LOST, {}, 0, "unknown execution")
     why = "executor no longer has it (unknown execution)"
     assert o.status("b", gone, now=0.1) == lost(E1, "b", why)
 
@@ -80,25 +79,25 @@ def test_a_robot_declared_dead_that_reports_again_is_told_to_stop() -> None:
     assert o.member_gone("b", "robot b failed") == lost(E1, "b", "robot b failed")
     assert set(o.tracked) == {E2}
     # b was only slow: its heartbeat and its run's report come back after all.
-    [stop] = o.status("b", status(E1, "b", State.RUNNING, 9), now=0.3)
+    [stop] = o.status("b", status(E1, "b", RunState.RUNNING, 9), now=0.3)
     assert stop == Send("b", CancelExecution(E1, "no longer assigned to you"))
     # Its final word on the run changes nothing either.
-    assert o.status("b", status(E1, "b", State.SUCCEEDED, 10), now=0.4) == []
+    assert o.status("b", status(E1, "b", RunState.SUCCEEDED, 10), now=0.4) == []
 
 
 def test_reports_on_other_robots_executions_are_refused() -> None:
     o = OriginLeases("a")
     other = ExecutionId("z", "root/x", 1)
-    [refused] = o.status("b", status(other, "b", State.RUNNING), now=0.0)
+    [refused] = o.status("b", status(other, "b", RunState.RUNNING), now=0.0)
     assert isinstance(refused, Refused)
 
 
 def test_a_report_that_overtakes_the_accept_is_ignored_not_cancelled() -> None:
     o = OriginLeases("a")
-    assert o.status("b", status(E1, "b", State.RUNNING, 0), now=0.0) == []
+    assert o.status("b", status(E1, "b", RunState.RUNNING, 0), now=0.0) == []
     t = o.track(E1, "b", 1.0, now=0.0)  # the accept arrives after the first report
-    assert o.status("b", status(E1, "b", State.RUNNING, 1), now=0.1) == []
-    assert t.state is State.RUNNING
+    assert o.status("b", status(E1, "b", RunState.RUNNING, 1), now=0.1) == []
+    assert t.state is RunState.RUNNING
 
 
 def test_executions_given_up_on_are_remembered_boundedly() -> None:
@@ -108,8 +107,8 @@ def test_executions_given_up_on_are_remembered_boundedly() -> None:
         o.track(e, "b", 1.0, now=0.0)
         o.forget(e)
     oldest, newest = ExecutionId("a", "n", 0), ExecutionId("a", "n", ENDED_KEPT + 4)
-    assert o.status("b", status(oldest, "b", State.RUNNING), now=0.0) == []
-    assert o.status("b", status(newest, "b", State.RUNNING), now=0.0) != []
+    assert o.status("b", status(oldest, "b", RunState.RUNNING), now=0.0) == []
+    assert o.status("b", status(newest, "b", RunState.RUNNING), now=0.0) != []
 
 
 def test_outputs_are_typed_on_arrival_and_bad_ones_change_nothing() -> None:
@@ -119,13 +118,14 @@ def test_outputs_are_typed_on_arrival_and_bad_ones_change_nothing() -> None:
 
     o = OriginLeases("a")
     t = o.track(E1, "b", 1.0, now=0.0)
-    assert o.status("b", ExecutionStatus(E1, "b", State.RUNNING, {"y": 2.0}, 1), 0.5, convert) == []
+    running = ExecutionStatus(E1, "b", RunState.RUNNING, {"y": 2.0}, 1)
+    assert o.status("b", running, 0.5, convert) == []
     assert t.outputs == {"y": 2}
     [refused] = o.status(
-        "b", ExecutionStatus(E1, "b", State.SUCCEEDED, {"y": "x"}, 2), 0.9, convert
+        "b", ExecutionStatus(E1, "b", RunState.SUCCEEDED, {"y": "x"}, 2), 0.9, convert
     )
     assert isinstance(refused, Refused)
-    assert (t.state, t.outputs) == (State.RUNNING, {"y": 2})
+    assert (t.state, t.outputs) == (RunState.RUNNING, {"y": 2})
     assert o.expire(1.6) != []  # the bad report did not renew the lease (0.5 + 1.0 < 1.6)
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from btcap.bt.state import State
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Lost, Send
 from btcap.team.core.hosting import Hosted, HostLeases
@@ -17,6 +16,7 @@ from btcap.team.messages import (
     CancelExecution,
     ExecutionInputs,
     ExecutionStatus,
+    RunState,
 )
 
 E1 = ExecutionId("a", "root/count", 1)
@@ -75,7 +75,7 @@ def test_a_decline_after_the_auctioneer_timed_out() -> None:
     assert E1 not in origin.tracked
     assert host.body.idle
     # A status the executor sent before the withdrawal reached it changes nothing.
-    stale = ExecutionStatus(E1, "b", State.RUNNING, {}, 0)
+    stale = ExecutionStatus(E1, "b", RunState.RUNNING, {}, 0)
     assert origin.status("b", stale, now=0.1) == []
     assert E1 not in origin.tracked
 
@@ -92,7 +92,7 @@ def test_a_heartbeat_from_a_robot_already_declared_dead() -> None:
     assert origin.member_gone("b", "robot b failed") == lost(E1, "b", "robot b failed")
     members.heartbeat("b", 7, 0, now=0.7)
     assert "b" in members.alive()
-    report = host.ticked(E1, State.RUNNING, {"y": 1})
+    report = host.ticked(E1, RunState.RUNNING, {"y": 1})
     [stop] = deliver_to_origin(origin, report, 0.7)
     assert stop == Send("b", CancelExecution(E1, "no longer assigned to you"))
     assert host.cancel("a", stop.message) == [Drop(E1, "no longer assigned to you", "run")]
@@ -103,10 +103,10 @@ def test_a_duplicate_result_after_the_executor_finished() -> None:
     origin, host, award = awarded()
     host.admit(award, "run", {}, 1.0, now=0.0)
     t = origin.track(E1, "b", 1.0, now=0.0)
-    done = host.ticked(E1, State.SUCCEEDED, {"y": 3})
+    done = host.ticked(E1, RunState.SUCCEEDED, {"y": 3})
     assert deliver_to_origin(origin, done[:1], 0.1) == []
-    assert t.state is State.SUCCEEDED
+    assert t.state is RunState.SUCCEEDED
     # The origin's last inputs crossed the result: the executor repeats the result.
     again = host.inputs("a", ExecutionInputs(E1, 2, {}), 0.2, same)
     assert deliver_to_origin(origin, again, 0.2) == []
-    assert (t.state, t.outputs, t.lost) == (State.SUCCEEDED, {"y": 3}, False)
+    assert (t.state, t.outputs, t.lost) == (RunState.SUCCEEDED, {"y": 3}, False)

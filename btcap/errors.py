@@ -1,0 +1,15 @@
+"""The base of every error btcap raises on purpose.
+
+``except BtcapError`` catches what btcap itself reports (a bad file, a refused message,
+a timed-out request) and lets programming errors through. Each error keeps its builtin
+base too (``ValueError``, ``TimeoutError`` ...), so existing ``except`` clauses still
+catch it. This module imports nothing of btcap: every layer may use it.
+"""
+
+from __future__ import annotations
+
+__all__ = ["BtcapError"]
+
+
+class BtcapError(Exception):
+    """An error btcap raises on purpose; its message says what was wrong and where."""
