@@ -15,11 +15,10 @@ from typing import Any
 from btcap.actors import (
     Actor,
     ActorError,
-    ActorRef,
     AskTimeout,
     Supervision,
-    TimeSource,
     handler,
+    within,
 )
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
@@ -128,29 +127,6 @@ def _against_holder(task: AssignmentTask, outcome: AuctionOutcome) -> Assignment
     return dataclasses.replace(
         task, reserve=beat if task.reserve is None else min(task.reserve, beat)
     )
-
-
-async def _ask_within(
-    ref: ActorRef[Any], msg: Award, clock: TimeSource, seconds: float
-) -> AwardReply:
-    """The award's reply, or AskTimeout after ``seconds`` of clock time: a real clock
-    gives the ask a wall-time limit; on a virtual one the clock decides, racing the ask
-    (whose own wall-time limit, the system's ask timeout, is only a backstop)."""
-    wall = clock.to_wall(seconds)
-    if wall > 0:
-        return await ref.ask(msg, expect=AwardReply, timeout=max(wall, 0.05))
-    ask = asyncio.ensure_future(ref.ask(msg, expect=AwardReply))
-    timer = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((ask, timer), return_when=asyncio.FIRST_COMPLETED)
-        answered = ask.done()
-    finally:
-        timer.cancel()
-        if not ask.done():  # timed out, or we were cancelled: the ask goes too
-            ask.cancel()
-    if not answered:
-        raise AskTimeout(f"no reply from {ref.address} to the award within {seconds} clock s")
-    return ask.result()
 
 
 @dataclass(slots=True, eq=False)
@@ -267,7 +243,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
             if not auction.closed(clock.now()):
-                await _wait(done, clock, self.window_s)
+                await within(clock, self.window_s, done.wait())
         except BaseException:
             del self._open[auction_id]
             self._next_turn()  # others may have waited for this one
@@ -355,7 +331,17 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             )
             executor = system.ref(Address(bid.robot, ASSIGNER_PATH))
             try:
-                reply = await _ask_within(executor, award, clock, self.award_timeout_s)
+                reply = await within(
+                    clock,
+                    self.award_timeout_s,
+                    executor.ask(award, expect=AwardReply),
+                    min_wall=0.05,
+                )
+                if reply is None:
+                    raise AskTimeout(
+                        f"no reply from {executor.address} to the award "
+                        f"within {self.award_timeout_s} clock s"
+                    )
             except (ActorError, TypeError, asyncio.CancelledError) as exc:
                 # The robot may still take the award after we gave up waiting (or were
                 # cancelled): withdraw it, so the task never runs twice at once.
@@ -388,22 +374,3 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         auction.offer(msg, sender=self.sender)
         if auction.answered_all:
             done.set()
-
-
-async def _wait(done: asyncio.Event, clock: TimeSource, seconds: float) -> None:
-    """Until ``done`` is set or ``seconds`` of clock time pass, whichever is first."""
-    wall = clock.to_wall(seconds)
-    if wall > 0:  # a real clock: one timer, no extra tasks
-        timer = asyncio.get_running_loop().call_later(wall, done.set)
-        try:
-            await done.wait()
-        finally:
-            timer.cancel()
-        return
-    waiter = asyncio.ensure_future(done.wait())
-    sleeper = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((waiter, sleeper), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        waiter.cancel()
-        sleeper.cancel()

@@ -23,11 +23,10 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TypeVar
 
-from btcap.actors import Actor, ActorError, Supervision, TimeSource, handler
+from btcap.actors import Actor, ActorError, Supervision, TimeSource, handler, within
 from btcap.team.assignment import (
     Assigned,
     AssignmentStrategy,
@@ -59,8 +58,6 @@ from btcap.transports.log import get_logger, worth_logging
 __all__ = ["ConsensusAssigner", "ConsensusStats"]
 
 log = get_logger("btcap.team.consensus")
-
-R = TypeVar("R")
 
 
 @dataclass(slots=True)
@@ -212,7 +209,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             mine.agreed.clear()
             if self.core.converged():
                 return
-            if await _within(mine.agreed.wait(), clock, self.window_s / 4) is not None:
+            if await within(clock, self.window_s / 4, mine.agreed.wait()) is not None:
                 return
             self._tell_all(sorted(self.core.waiting_for()))
 
@@ -243,8 +240,8 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         clock = self.system.clock
         reply: AwardReply | None = None
         try:
-            reply = await _within(
-                executor.ask(award, expect=AwardReply), clock, self.award_timeout_s
+            reply = await within(
+                clock, self.award_timeout_s, executor.ask(award, expect=AwardReply)
             )
         except (ActorError, TypeError) as exc:
             mine.why[win.robot] = f"no answer to the award ({exc})"
@@ -423,16 +420,3 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return False
         was = before.get(self.robot, (0, 0))
         return (not fresh and now == before) or seen[0] < was[0] or seen[1] < was[1]
-
-
-async def _within(aw: Awaitable[R], clock: TimeSource, seconds: float) -> R | None:
-    """``aw``'s result, or None after ``seconds`` of clock time (it is then cancelled)."""
-    job = asyncio.ensure_future(aw)
-    timer = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((job, timer), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        timer.cancel()
-        if not job.done():
-            job.cancel()
-    return job.result() if job.done() and not job.cancelled() else None
