@@ -86,6 +86,12 @@ def _check(s: Scenario, where: str) -> Scenario:
             )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
+    from btcap.team.strategies import check_strategy  # loads plug-ins' names only if needed
+
+    try:
+        check_strategy(s.allocation.strategy)
+    except ValueError as exc:
+        raise bad("allocation.strategy", str(exc)) from None
     t = s.agent
     if t.failure_timeout_s <= t.heartbeat_s or t.lease_s <= t.keepalive_s:
         raise bad("agent", "expected failure_timeout_s > heartbeat_s and lease_s > keepalive_s")

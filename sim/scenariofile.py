@@ -14,7 +14,6 @@ import msgspec
 
 from btcap.sim.grid import GridMap
 from btcap.sim.model import RobotModel, load_team, paper_team
-from btcap.team.core.planning import Strategy
 
 __all__ = [
     "NO_SOURCE",
@@ -186,12 +185,13 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
         ),
     ] = 0.2
     strategy: Annotated[
-        Strategy,
+        str,
         _doc(
             "How auctions competing for the same robots are awarded: `auction` (each to its "
             "cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-            "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
-            "`consensus` (decentralised, no auctioneer)."
+            "exchanges), `optimal` (least total cost), `arrival` (each as it closes), "
+            "`consensus` (decentralised, no auctioneer), or the name of an installed "
+            "`btcap.strategies` plug-in."
         ),
     ] = "auction"
     rebid_on_join: Annotated[

@@ -13,7 +13,6 @@ from typing import Annotated, Any, Literal
 import msgspec
 
 from btcap.team.agent import AgentConfig
-from btcap.team.core.planning import Strategy
 
 __all__ = [
     "AgentFile",
@@ -193,12 +192,13 @@ class Allocation(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
         ),
     ] = _DEFAULTS.move_margin
     strategy: Annotated[
-        Strategy,
+        str,
         _doc(
             "How auctions competing for the same robots are awarded: `auction` (each to its "
             "cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-            "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
-            "`consensus` (decentralised, no auctioneer)."
+            "exchanges), `optimal` (least total cost), `arrival` (each as it closes), "
+            "`consensus` (decentralised, no auctioneer), or the name of an installed "
+            "`btcap.strategies` plug-in."
         ),
     ] = "auction"
     rebid_on_join: Annotated[
