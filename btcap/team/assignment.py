@@ -18,7 +18,7 @@ from btcap.actors import (
     within,
 )
 from btcap.team.capability import ASSIGNER_PATH
-from btcap.team.core.auction import Auction, AuctionOutcome
+from btcap.team.core.auction import REASON_CHARS, Auction, AuctionOutcome
 from btcap.team.core.ids import AuctionId
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned, against_holder
@@ -272,7 +272,7 @@ class SingleItemAuction(Allocator):
                 self.stats.awarded += 1
                 return Assigned(bid.robot, bid.implementation, bid.cost)
             self.stats.declined_awards += 1
-            reasons[bid.robot] = f"declined the award: {reply.reason}"
+            reasons[bid.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
             log.info(
                 "auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason
             )
