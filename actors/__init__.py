@@ -2,7 +2,7 @@
 
 from btcap.actors.actor import Actor
 from btcap.actors.cell import ActorCell, Reply, Supervision, handler
-from btcap.actors.clock import Clock, ManualClock, TimeSource
+from btcap.actors.clock import Clock, ManualClock, TimeSource, within
 from btcap.actors.errors import (
     ActorError,
     ActorFailed,
@@ -42,4 +42,5 @@ __all__ = [
     "configure_logging",
     "handler",
     "runtime_messages",
+    "within",
 ]

@@ -11,10 +11,12 @@ import contextlib
 import heapq
 import itertools
 import time
-from collections.abc import AsyncIterator
-from typing import Protocol, runtime_checkable
+from collections.abc import AsyncIterator, Awaitable
+from typing import Protocol, TypeVar, runtime_checkable
 
-__all__ = ["Clock", "ManualClock", "TimeSource"]
+__all__ = ["Clock", "ManualClock", "TimeSource", "within"]
+
+T = TypeVar("T")
 
 
 @runtime_checkable
@@ -146,6 +148,38 @@ class ManualClock:
                 await asyncio.sleep(idle_wait)
             else:
                 await self.advance(max(0.0, deadline - self._now))
+
+
+async def within(
+    clock: TimeSource, seconds: float, aw: Awaitable[T], *, min_wall: float = 0.0
+) -> T | None:
+    """``aw``'s result, or None once ``seconds`` of clock time have passed (``aw`` is then
+    cancelled); an error of ``aw`` propagates, and so does our own cancellation (which
+    cancels ``aw`` too).
+
+    On a real clock one wall-time limit (at least ``min_wall``) bounds the wait. On a
+    virtual one the clock decides: ``aw`` races a sleep on it, ``aw`` started first (the
+    order virtual-time runs are reproducible by).
+    """
+    wall = clock.to_wall(seconds)
+    if wall > 0:
+        limit = asyncio.timeout(max(wall, min_wall))
+        try:
+            async with limit:
+                return await aw
+        except TimeoutError:
+            if limit.expired():
+                return None
+            raise  # ``aw``'s own timeout error
+    job = asyncio.ensure_future(aw)
+    timer = asyncio.ensure_future(clock.sleep(seconds))
+    try:
+        await asyncio.wait((job, timer), return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        timer.cancel()
+        if not job.done():  # timed out, or we were cancelled: the job goes too
+            job.cancel()
+    return job.result() if job.done() and not job.cancelled() else None
 
 
 _SETTLE_ROUNDS = 100_000

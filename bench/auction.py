@@ -83,7 +83,7 @@ async def _rounds(
     origin: Agent, bidders: Sequence[str], warmup: int, count: int
 ) -> tuple[list[float], int]:
     """Per-round latency in ms, and how many measured rounds closed early."""
-    auctioneer = origin.auctioneer
+    auctioneer = origin.allocator
     system = origin.system
     candidates = frozenset(bidders)
     identity = ECHO.identity

@@ -77,9 +77,13 @@ if TYPE_CHECKING:
     from btcap.team.capfiles import load_implementation, load_interfaces
     from btcap.team.config import MissionConfig
     from btcap.team.core.ids import AuctionId, ExecutionId
+    from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
+    from btcap.team.core.turns import BatchPolicy
     from btcap.team.implementation import Implementation, Precondition, Scope
     from btcap.team.protocol import protocol_registry
     from btcap.team.slot import RemoteCapabilitySlot
+    from btcap.team.strategies import BatchStrategy
+    from btcap.team.strategy import Allocator, RobotContext, Strategy
 
 __version__ = "0.1.0"
 
@@ -155,9 +159,13 @@ _EXPORTS = {
     "btcap.team.capfiles": ("load_implementation", "load_interfaces"),
     "btcap.team.config": ("MissionConfig",),
     "btcap.team.core.ids": ("AuctionId", "ExecutionId"),
+    "btcap.team.core.task": ("Assigned", "AssignmentTask", "Unassigned"),
+    "btcap.team.core.turns": ("BatchPolicy",),
     "btcap.team.implementation": ("Implementation", "Precondition", "Scope"),
     "btcap.team.protocol": ("protocol_registry",),
     "btcap.team.slot": ("RemoteCapabilitySlot",),
+    "btcap.team.strategies": ("BatchStrategy",),
+    "btcap.team.strategy": ("Allocator", "RobotContext", "Strategy"),
 }
 
 if not TYPE_CHECKING:
@@ -169,10 +177,15 @@ __all__ = [
     "Action",
     "Agent",
     "AgentConfig",
+    "Allocator",
     "AlwaysFailure",
     "AlwaysRunning",
     "AlwaysSuccess",
+    "Assigned",
+    "AssignmentTask",
     "AuctionId",
+    "BatchPolicy",
+    "BatchStrategy",
     "BtcapError",
     "BtcapWarning",
     "Capability",
@@ -213,6 +226,7 @@ __all__ = [
     "Replay",
     "RestartLoopWarning",
     "Retry",
+    "RobotContext",
     "RunOnce",
     "RunningIsFailure",
     "RunningIsSuccess",
@@ -220,6 +234,7 @@ __all__ = [
     "Sequence",
     "SequenceWithMemory",
     "State",
+    "Strategy",
     "Subtree",
     "SuccessIsRunning",
     "Switch",
@@ -230,6 +245,7 @@ __all__ = [
     "TreeFile",
     "TreeFileError",
     "TreeTimeout",
+    "Unassigned",
     "Utility",
     "Wait",
     "Wire",

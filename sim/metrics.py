@@ -210,7 +210,7 @@ def collect(
         mission_time_s=round(duration, 3),
         summary={k: float(v) for k, v in state.summary().items()},
         robots=robots,
-        auctions=operator.auctioneer.stats.auctions,
+        auctions=operator.allocator.stats.auctions,
         executions_lost=operator.mission_control.stats.lost,
         reassigned=log.reassigned,
         robot_failures=log.applied["fail"],

@@ -29,7 +29,6 @@ from btcap.sim.scenariofile import (
     Scenario,
     SimSettings,
 )
-from btcap.team.core.planning import check_strategy
 from btcap.team.filecheck import field_first, not_finite
 from btcap.transports.zmq_sockets import check_id
 
@@ -89,6 +88,8 @@ def _check(s: Scenario, where: str) -> Scenario:
             )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
+    from btcap.team.strategies import check_strategy  # loads plug-ins' names only if needed
+
     try:
         check_strategy(s.allocation.strategy)
     except ValueError as exc:

@@ -190,7 +190,7 @@ class Monitor:
         undo = [
             self.add_tree(agent.host, robot=robot),
             agent.mission_control.watch_lost(self._on_lost),
-            agent.auctioneer.watch(self._on_auction),  # auctions, or consensus allocations
+            agent.allocator.watch(self._on_auction),  # auctions, or consensus allocations
         ]
         if self.viewpoint is None:
             self.viewpoint = robot

@@ -1,5 +1,6 @@
-"""The per-robot runtime: one actor system with membership, repository, auctioneer,
-mission control and a host tree with a remote capability slot."""
+"""The per-robot runtime: one actor system with membership, repository, the allocation
+strategy's actor (the auctioneer, or consensus), mission control and a host tree with a
+remote capability slot."""
 
 from __future__ import annotations
 
@@ -13,9 +14,7 @@ from btcap.actors import Actor, ActorSystem, TimeSource
 from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
-from btcap.team.assignment import SingleItemAuction
 from btcap.team.capability import ASSIGNER
-from btcap.team.consensus_assigner import ConsensusAssigner
 from btcap.team.core.ids import ExecutionId
 from btcap.team.implementation import Implementation
 from btcap.team.membership import Membership
@@ -24,6 +23,8 @@ from btcap.team.protocol import protocol_registry
 from btcap.team.repository import CapabilityRepository
 from btcap.team.settings import AgentConfig
 from btcap.team.slot import SLOT_HOST, RemoteCapabilitySlot
+from btcap.team.strategies import resolve
+from btcap.team.strategy import Allocator, Strategy
 from btcap.transports import MessageRegistry, Transport
 
 __all__ = ["Agent", "AgentConfig"]
@@ -35,7 +36,9 @@ class Agent:
     ``actors`` are spawned beside the runtime's own (e.g. a simulated robot's body).
     ``host`` is the robot's own tree; by default just a :class:`RemoteCapabilitySlot`,
     ticked at ``config.tick_hz`` while the agent runs. Give your own host tree that
-    contains a slot to do other work beside it.
+    contains a slot to do other work beside it. ``strategy`` allocates the tasks of
+    this robot's capability nodes: a registered name (:mod:`btcap.team.strategies`) or a
+    :class:`~btcap.team.strategy.Strategy` object; by default ``config.strategy``.
     """
 
     def __init__(
@@ -49,6 +52,7 @@ class Agent:
         host: Node | None = None,
         registry: MessageRegistry | None = None,
         actors: Mapping[str, Actor] | None = None,
+        strategy: str | Strategy | None = None,
     ) -> None:
         self.robot = robot
         self.config = config or AgentConfig()
@@ -66,21 +70,12 @@ class Agent:
         )
         self.repository = CapabilityRepository(robot, team=self.team)
         self.repository.extend(implementations)
-        self.auctioneer: SingleItemAuction | ConsensusAssigner
-        if cfg.strategy == "consensus":  # no auctioneer: every robot takes part alike
-            self.auctioneer = ConsensusAssigner(
-                robot, window_s=cfg.auction_window_s, award_timeout_s=cfg.award_timeout_s
-            )
-        else:
-            self.auctioneer = SingleItemAuction(
-                robot,
-                window_s=cfg.auction_window_s,
-                award_timeout_s=cfg.award_timeout_s,
-                strategy=cfg.strategy,
-            )
+        self.strategy = resolve(cfg.strategy if strategy is None else strategy)
         self.mission_control = MissionControl(
-            robot, self.repository, self.team, self.auctioneer, config=cfg
+            robot, self.repository, self.team, self.strategy, config=cfg
         )
+        #: This robot's part of the strategy (the auctioneer, or consensus).
+        self.allocator: Allocator = self.mission_control.allocator
         self.host = Tree(
             host or RemoteCapabilitySlot(), name=f"{robot}-host", clock=self.system.clock
         )
@@ -102,7 +97,7 @@ class Agent:
             s = self.system
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
-            s.spawn(self.auctioneer, self.auctioneer.PATH)
+            s.spawn(self.allocator, self.allocator.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)
             s.services.provide(ASSIGNER, self.mission_control)  # to capability nodes
             s.services.provide(SLOT_HOST, self.mission_control)  # to the remote slot

@@ -50,12 +50,12 @@ from btcap.team.agentfile import (
 )
 from btcap.team.capability import CapabilityInterface
 from btcap.team.capfiles import load_implementation, load_interfaces, register_interfaces
-from btcap.team.core.planning import check_strategy
 from btcap.team.filecheck import field_first, not_finite
 from btcap.team.implementation import Implementation
 from btcap.team.loader import load_callable
 from btcap.team.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
+from btcap.team.strategies import check_strategy
 from btcap.transports import MessageRegistry, ZmqTransport
 from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_id
@@ -256,6 +256,10 @@ def _paths(kind: type[Any], value: Any) -> Any:
 
 def _check(config: RobotConfig, base: Path) -> None:
     spec = config.spec
+    try:
+        check_strategy(spec.allocation.strategy)
+    except ValueError as exc:
+        raise config.error("allocation.strategy", str(exc)) from None
     if (why := check_id(spec.robot)) is not None:
         raise config.error("robot", f"{spec.robot!r}: {why}")
     net = spec.network

@@ -1,156 +1,50 @@
-"""The assignment system: an abstract strategy and the reference single-item auction."""
+"""The single-item auction: the allocator of the batch strategies (``auction``,
+``sequential``, ``optimal``, ``arrival`` and any :class:`~btcap.team.strategies.BatchStrategy`)."""
 
 from __future__ import annotations
 
-import abc
 import asyncio
 import dataclasses
 import itertools
-import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from btcap.actors import (
-    Actor,
     ActorError,
-    ActorRef,
     AskTimeout,
     Supervision,
-    TimeSource,
     handler,
+    within,
 )
 from btcap.team.capability import ASSIGNER_PATH
-from btcap.team.core.auction import Auction, AuctionOutcome
-from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.team.core.planning import check_strategy, plan, regret
-from btcap.team.membership import Membership, TeamEvent
+from btcap.team.core.auction import REASON_CHARS, Auction, AuctionOutcome
+from btcap.team.core.ids import AuctionId
+from btcap.team.core.members import TeamEvent
+from btcap.team.core.task import Assigned, AssignmentTask, Unassigned, against_holder
+from btcap.team.core.turns import AUCTION, BatchPolicy
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
+from btcap.team.strategy import (
+    Allocator,
+    AuctionRecord,
+    AuctionStats,
+    AuctionWatcher,
+    TeamView,
+)
 from btcap.transports import Address
 from btcap.transports.log import get_logger
 
 __all__ = [
     "Assigned",
-    "AssignmentStrategy",
     "AssignmentTask",
     "AuctionRecord",
     "AuctionStats",
+    "AuctionWatcher",
     "SingleItemAuction",
     "Unassigned",
 ]
 
 log = get_logger("btcap.team.assignment")
-
-
-@dataclass(frozen=True, slots=True)
-class AssignmentTask:
-    """One capability execution to place on a robot."""
-
-    execution: ExecutionId
-    interface: str
-    identity: str
-    inputs: Mapping[str, Any]
-    candidates: frozenset[str]
-    lease_s: float
-    reserve: float | None = None  # award only bids cheaper than this (moving running work)
-    paused: bool = False  # the winner holds the run until its first inputs
-    #: Re-evaluating running work: the execution and the robot running it (it bids what
-    #: finishing would cost, is never awarded, and others must beat its bid by ``margin``).
-    holder: ExecutionId | None = None
-    holder_robot: str | None = None
-    margin: float = 0.0
-
-
-@dataclass(frozen=True, slots=True)
-class Assigned:
-    """The robot that accepted, with the implementation it runs and its bid."""
-
-    robot: str
-    implementation: str
-    cost: float
-
-
-@dataclass(frozen=True, slots=True)
-class Unassigned:
-    """Nobody took the task, and why, robot by robot (for the log and the user)."""
-
-    reasons: Mapping[str, str]
-
-
-@dataclass(frozen=True, slots=True)
-class AuctionRecord:
-    """An auction as a watcher sees it: reported once when it opens (``outcome`` and
-    ``result`` None) and once when it ends (both set, or ``outcome`` None if it was
-    cancelled while open)."""
-
-    id: AuctionId
-    task: AssignmentTask
-    opened: float
-    closed: float | None = None
-    outcome: AuctionOutcome | None = None
-    result: Assigned | Unassigned | None = None
-    #: Why robots were passed over, winner or not: declined to bid, no answer, a bid not
-    #: below the reserve, the award declined or unanswered.
-    passed: Mapping[str, str] = dataclasses.field(default_factory=dict)
-
-
-#: Called with every :class:`AuctionRecord` an auctioneer reports.
-AuctionWatcher = Callable[[AuctionRecord], None]
-
-
-@dataclass(slots=True)
-class AuctionStats:
-    auctions: int = 0
-    awarded: int = 0
-    unassigned: int = 0
-    declined_awards: int = 0
-    early_closes: int = 0
-
-
-class AssignmentStrategy(abc.ABC):
-    """Chooses the executor of a capability among candidate robots."""
-
-    @abc.abstractmethod
-    async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
-        """Find a robot that accepted to run ``task`` now, or say why none did."""
-
-
-def _against_holder(task: AssignmentTask, outcome: AuctionOutcome) -> AssignmentTask:
-    """Re-evaluation: others must beat the holder's fresh bid by the margin (the holder
-    itself is never awarded its own work again)."""
-    if task.holder_robot is None:
-        return task
-    held = next((b.cost for b in outcome.ranking if b.robot == task.holder_robot), None)
-    if held is None:  # no fresh bid to compare with: the work stays where it is
-        return dataclasses.replace(task, reserve=0.0)
-    beat = held * (1.0 - task.margin)
-    return dataclasses.replace(
-        task, reserve=beat if task.reserve is None else min(task.reserve, beat)
-    )
-
-
-async def _ask_within(
-    ref: ActorRef[Any], msg: Award, clock: TimeSource, seconds: float
-) -> AwardReply:
-    """The award's reply, or AskTimeout after ``seconds`` of clock time: a real clock
-    gives the ask a wall-time limit; on a virtual one the clock decides, racing the ask
-    (whose own wall-time limit, the system's ask timeout, is only a backstop)."""
-    wall = clock.to_wall(seconds)
-    if wall > 0:
-        return await ref.ask(msg, expect=AwardReply, timeout=max(wall, 0.05))
-    ask = asyncio.ensure_future(ref.ask(msg, expect=AwardReply))
-    timer = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((ask, timer), return_when=asyncio.FIRST_COMPLETED)
-        answered = ask.done()
-    finally:
-        timer.cancel()
-        if not ask.done():  # timed out, or we were cancelled: the ask goes too
-            ask.cancel()
-    if not answered:
-        raise AskTimeout(f"no reply from {ref.address} to the award within {seconds} clock s")
-    return ask.result()
 
 
 @dataclass(slots=True, eq=False)
@@ -169,13 +63,8 @@ class _Closed:
         bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
         return sorted(bids, key=lambda b: b.robot != self.plan)
 
-    def best(self, taken: set[str]) -> tuple[float, str]:
-        """The bid it would award first (for the order of turns)."""
-        bids = self.bids(taken)
-        return (bids[0].cost, bids[0].robot) if bids else (math.inf, "")
 
-
-class SingleItemAuction(Actor, AssignmentStrategy):
+class SingleItemAuction(Allocator):
     """Call for bids, close early, award the cheapest bidder, fall through on declines.
 
     The auctioneer's own robot is invited like any other (it bids in its own auction).
@@ -186,8 +75,10 @@ class SingleItemAuction(Actor, AssignmentStrategy):
 
     Auctions that run at the same time for the same robots award one after the other,
     in an order (and, for the planning strategies, to robots) chosen from their bids
-    together (see :mod:`btcap.team.core.planning`): a robot that comes free gets the task
-    best for the team, not the one whose auction closed first.
+    together by its ``policy`` (see :mod:`btcap.team.core.turns`): a robot that comes
+    free gets the task best for the team, not the one whose auction closed first.
+    ``team`` (the robot's membership) closes an auction early when an invited robot is
+    lost.
     """
 
     PATH = "auctioneer"
@@ -200,11 +91,13 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         *,
         window_s: float = 1.0,
         award_timeout_s: float = 0.5,
-        strategy: str = "auction",
+        policy: BatchPolicy = AUCTION,
+        team: TeamView | None = None,
     ) -> None:
         super().__init__()
         self.robot = robot
-        self.strategy = check_strategy(strategy)
+        self.policy = policy
+        self.team = team
         self.window_s = window_s
         self.award_timeout_s = award_timeout_s
         self.stats = AuctionStats()
@@ -232,9 +125,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 log.error("auction.watcher_failed", robot=self.robot, exc_info=exc)
 
     def on_start(self) -> None:
-        team = self.system.lookup(Membership.PATH)
-        if isinstance(team, Membership):
-            self._unsubscribe = team.subscribe(self._on_team)
+        if self.team is not None:
+            self._unsubscribe = self.team.subscribe(self._on_team)
 
     def on_stop(self) -> None:
         if self._unsubscribe is not None:
@@ -267,7 +159,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
             if not auction.closed(clock.now()):
-                await _wait(done, clock, self.window_s)
+                await within(clock, self.window_s, done.wait())
         except BaseException:
             del self._open[auction_id]
             self._next_turn()  # others may have waited for this one
@@ -278,7 +170,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             self.stats.early_closes += 1
         outcome = auction.outcome()
         self.outcomes.append(outcome)
-        task = _against_holder(task, outcome)
+        task = against_holder(task, outcome)
         mine = _Closed(outcome, task.reserve, asyncio.Event())
         # Leaving the open auctions and joining the closed ones in one step: a closed
         # auction never takes its turn while a competitor is between the two.
@@ -309,7 +201,8 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         collecting bids competes with the waiting ones for a robot."""
         if self._awarding is not None or not self._closed:
             return
-        if self.strategy == "arrival":
+        policy = self.policy
+        if not policy.batches:
             nxt = self._closed[0]
         else:
             wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
@@ -317,13 +210,10 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 return  # its bids may be cheaper: wait for it to close
             if all(c.plan is None for c in self._closed):
                 batch = [c.bids(self._taken) for c in self._closed]
-                robots = plan(self.strategy, batch, self._taken) or [None] * len(batch)
+                robots = policy.plan(batch, self._taken) or [None] * len(batch)
                 for closed, robot in zip(self._closed, robots, strict=True):
                     closed.plan = robot
-            if self.strategy == "auction":
-                nxt = min(self._closed, key=lambda c: regret(c.bids(self._taken)))
-            else:
-                nxt = min(self._closed, key=lambda c: c.best(self._taken))
+            nxt = self._closed[policy.first([c.bids(self._taken) for c in self._closed])]
         self._closed.remove(nxt)
         self._awarding = nxt
         nxt.turn.set()
@@ -355,7 +245,17 @@ class SingleItemAuction(Actor, AssignmentStrategy):
             )
             executor = system.ref(Address(bid.robot, ASSIGNER_PATH))
             try:
-                reply = await _ask_within(executor, award, clock, self.award_timeout_s)
+                reply = await within(
+                    clock,
+                    self.award_timeout_s,
+                    executor.ask(award, expect=AwardReply),
+                    min_wall=0.05,
+                )
+                if reply is None:
+                    raise AskTimeout(
+                        f"no reply from {executor.address} to the award "
+                        f"within {self.award_timeout_s} clock s"
+                    )
             except (ActorError, TypeError, asyncio.CancelledError) as exc:
                 # The robot may still take the award after we gave up waiting (or were
                 # cancelled): withdraw it, so the task never runs twice at once.
@@ -372,7 +272,7 @@ class SingleItemAuction(Actor, AssignmentStrategy):
                 self.stats.awarded += 1
                 return Assigned(bid.robot, bid.implementation, bid.cost)
             self.stats.declined_awards += 1
-            reasons[bid.robot] = f"declined the award: {reply.reason}"
+            reasons[bid.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
             log.info(
                 "auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason
             )
@@ -388,22 +288,3 @@ class SingleItemAuction(Actor, AssignmentStrategy):
         auction.offer(msg, sender=self.sender)
         if auction.answered_all:
             done.set()
-
-
-async def _wait(done: asyncio.Event, clock: TimeSource, seconds: float) -> None:
-    """Until ``done`` is set or ``seconds`` of clock time pass, whichever is first."""
-    wall = clock.to_wall(seconds)
-    if wall > 0:  # a real clock: one timer, no extra tasks
-        timer = asyncio.get_running_loop().call_later(wall, done.set)
-        try:
-            await done.wait()
-        finally:
-            timer.cancel()
-        return
-    waiter = asyncio.ensure_future(done.wait())
-    sleeper = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((waiter, sleeper), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        waiter.cancel()
-        sleeper.cancel()

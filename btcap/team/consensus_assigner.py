@@ -23,25 +23,16 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TypeVar
 
-from btcap.actors import Actor, ActorError, Supervision, TimeSource, handler
-from btcap.team.assignment import (
-    Assigned,
-    AssignmentStrategy,
-    AssignmentTask,
-    AuctionRecord,
-    AuctionStats,
-    AuctionWatcher,
-    Unassigned,
-)
+from btcap.actors import ActorError, Supervision, TimeSource, handler, within
 from btcap.team.capability import ASSIGNER_PATH
 from btcap.team.core.auction import REASON_CHARS, AuctionOutcome
 from btcap.team.core.consensus import Claim, Consensus, Task, Vector
 from btcap.team.core.ids import AuctionId, ExecutionId
-from btcap.team.membership import Membership, TeamEvent
+from btcap.team.core.members import TeamEvent
+from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.messages import (
     Award,
     AwardReply,
@@ -52,15 +43,20 @@ from btcap.team.messages import (
     ConsensusTasks,
     OpenTask,
 )
-from btcap.team.mission import MissionControl
+from btcap.team.strategy import (
+    Allocator,
+    AuctionRecord,
+    AuctionStats,
+    AuctionWatcher,
+    Pricer,
+    TeamView,
+)
 from btcap.transports import Address
 from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["ConsensusAssigner", "ConsensusStats"]
 
 log = get_logger("btcap.team.consensus")
-
-R = TypeVar("R")
 
 
 @dataclass(slots=True)
@@ -80,8 +76,10 @@ class _Pending:
     why: dict[str, str]
 
 
-class ConsensusAssigner(Actor, AssignmentStrategy):
-    """One robot's part of consensus allocation; see the module docstring."""
+class ConsensusAssigner(Allocator):
+    """One robot's part of consensus allocation; see the module docstring. ``team`` is the
+    robot's membership, ``pricer`` prices tasks for it (its executor side); without
+    them it knows no members and claims nothing."""
 
     PATH = "consensus"
     #: A peer's bad message must never stop a robot's allocation.
@@ -94,13 +92,17 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         window_s: float = 1.0,
         award_timeout_s: float = 0.5,
         max_tasks: int = 64,
+        team: TeamView | None = None,
+        pricer: Pricer | None = None,
     ) -> None:
         super().__init__()
         self.robot = robot
+        self.team = team
+        self.pricer = pricer
         self.window_s = window_s
         self.award_timeout_s = award_timeout_s
         self.core: Consensus[OpenTask] = Consensus(robot, max_tasks=max_tasks)
-        self.stats = ConsensusStats()
+        self.stats: ConsensusStats = ConsensusStats()
         self._pending: dict[ExecutionId, _Pending] = {}
         self._impls: dict[str, str] = {}  # the implementation of each robot's claim
         self._prices: dict[ExecutionId, tuple[OpenTask, Bid | str]] = {}
@@ -109,7 +111,6 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         self._said_version = 0
         self._seq = itertools.count(1)
         self._ids = itertools.count(1)
-        self._team: Membership | None = None
         self._unsubscribe: Callable[[], None] | None = None
         self._behind: set[str] = set()  # members missing what we hold: tell them all
         self._scheduled = False
@@ -130,9 +131,8 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
 
     # -- life cycle and team ----------------------------------------------------------
     def on_start(self) -> None:
-        team = self.system.lookup(Membership.PATH)
-        if isinstance(team, Membership):
-            self._team = team
+        team = self.team
+        if team is not None:
             self._unsubscribe = team.subscribe(self._on_team)
             for robot in sorted(team.alive()):
                 self.core.join(robot)
@@ -212,7 +212,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             mine.agreed.clear()
             if self.core.converged():
                 return
-            if await _within(mine.agreed.wait(), clock, self.window_s / 4) is not None:
+            if await within(clock, self.window_s / 4, mine.agreed.wait()) is not None:
                 return
             self._tell_all(sorted(self.core.waiting_for()))
 
@@ -243,8 +243,8 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
         clock = self.system.clock
         reply: AwardReply | None = None
         try:
-            reply = await _within(
-                executor.ask(award, expect=AwardReply), clock, self.award_timeout_s
+            reply = await within(
+                clock, self.award_timeout_s, executor.ask(award, expect=AwardReply)
             )
         except (ActorError, TypeError) as exc:
             mine.why[win.robot] = f"no answer to the award ({exc})"
@@ -334,10 +334,10 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
     def _costs(self) -> dict[ExecutionId, float]:
         """This robot's cost for each open task it may take (cached while its body's
         state and the task stay the same); a holder's bid counts ``margin`` lower."""
-        mc = self.system.lookup(ASSIGNER_PATH)
-        if not isinstance(mc, MissionControl):
+        pricer = self.pricer
+        if pricer is None:
             return {}
-        idle = mc.body.idle
+        idle = pricer.idle
         if idle != self._idle:
             self._prices.clear()
             self._idle = idle
@@ -358,7 +358,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
                     spec.inputs,
                     spec.holder,
                 )
-                got = mc.executor.evaluate(cfb)
+                got = pricer.evaluate(cfb)
                 cached = (spec, got if isinstance(got, Bid) else got.reason)
                 self._prices[execution] = cached
             bid = cached[1]
@@ -378,7 +378,7 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
 
     # -- what peers say ---------------------------------------------------------------
     def _member(self, sender: str) -> bool:
-        team = self._team
+        team = self.team
         if sender not in self.core.members and team is not None and sender in team.alive():
             self.core.join(sender)  # its first word came before its heartbeat's news
         return sender in self.core.members
@@ -423,16 +423,3 @@ class ConsensusAssigner(Actor, AssignmentStrategy):
             return False
         was = before.get(self.robot, (0, 0))
         return (not fresh and now == before) or seen[0] < was[0] or seen[1] < was[1]
-
-
-async def _within(aw: Awaitable[R], clock: TimeSource, seconds: float) -> R | None:
-    """``aw``'s result, or None after ``seconds`` of clock time (it is then cancelled)."""
-    job = asyncio.ensure_future(aw)
-    timer = asyncio.ensure_future(clock.sleep(seconds))
-    try:
-        await asyncio.wait((job, timer), return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        timer.cancel()
-        if not job.done():
-            job.cancel()
-    return job.result() if job.done() and not job.cancelled() else None

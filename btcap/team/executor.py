@@ -52,6 +52,11 @@ class ExecutorSide:
         self.local_runs: dict[ExecutionId, ImplementationRun] = {}
         self.costs = CostWatch(0.2)
 
+    @property
+    def idle(self) -> bool:
+        """Whether the robot runs nothing now (bids made while busy include the wait)."""
+        return self.body.idle
+
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         if self.slot is not None and self.slot is not slot:
             raise TreeError(f"robot {self.robot} already has a remote capability slot")

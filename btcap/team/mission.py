@@ -16,7 +16,7 @@ from typing import Any
 
 from btcap.actors import Actor, Supervision, handler
 from btcap.bt.state import State
-from btcap.team.assignment import AssignmentStrategy, SingleItemAuction
+from btcap.team.assignment import SingleItemAuction
 from btcap.team.capability import ASSIGNER_PATH, Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.body import Body
@@ -45,6 +45,7 @@ from btcap.team.origin_side import Handle, OriginSide
 from btcap.team.repository import CapabilityRepository
 from btcap.team.runs import RunFactory
 from btcap.team.slot import RemoteCapabilitySlot
+from btcap.team.strategy import RobotContext, Strategy
 from btcap.transports import Address
 from btcap.transports.log import get_logger, worth_logging
 
@@ -68,7 +69,7 @@ class MissionControl(Actor):
         robot: str,
         repository: CapabilityRepository,
         team: Membership,
-        strategy: AssignmentStrategy,
+        strategy: Strategy,
         *,
         config: MissionConfig | None = None,
     ) -> None:
@@ -85,11 +86,13 @@ class MissionControl(Actor):
         self.executor = ExecutorSide(robot, repository, self.body, self.stats, self._now)
         self.executor.costs.margin = self.config.move_margin
         self.host = self.executor.host
+        #: This robot's part of the allocation strategy (spawned beside mission control).
+        self.allocator = strategy.allocator(RobotContext(robot, self.config, team, self.executor))
         self.origin_side = OriginSide(
             robot,
             config=self.config,
             stats=self.stats,
-            strategy=strategy,
+            allocator=self.allocator,
             repository=repository,
             team=team,
             executor=self.executor,
@@ -119,10 +122,6 @@ class MissionControl(Actor):
     @property
     def slot(self) -> RemoteCapabilitySlot | None:
         return self.executor.slot
-
-    @property
-    def strategy(self) -> AssignmentStrategy:
-        return self.origin_side.strategy
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:

@@ -14,13 +14,14 @@ from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
 from btcap.bt.state import State
-from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.ids import ExecutionId
+from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.messages import CostChanged
 from btcap.team.proxies import LocalExecution, RemoteExecution
 from btcap.team.repository import CapabilityRepository
+from btcap.team.strategy import Allocator
 from btcap.transports.log import get_logger
 
 __all__ = ["Reevaluation"]
@@ -36,7 +37,7 @@ class Mover(Protocol):
     robot: str
     config: MissionConfig
     stats: MissionStats
-    strategy: AssignmentStrategy
+    allocator: Allocator
     repository: CapabilityRepository
     active: dict[ExecutionId, Handle]
 
@@ -146,7 +147,7 @@ class Reevaluation:
             holder_robot=ex.robot,
             margin=self.margin,
         )
-        won = await mc.strategy.assign(task)
+        won = await mc.allocator.assign(task)
         if not isinstance(won, Assigned):
             return
         new = mc.handle(task.execution, won, node)  # not ticked until the node adopts it

@@ -13,13 +13,13 @@ from collections.abc import Callable, Coroutine, Iterable
 from typing import Any
 
 from btcap.bt.state import TreeError
-from btcap.team.assignment import Assigned, AssignmentStrategy, AssignmentTask
 from btcap.team.capability import Capability
 from btcap.team.config import MissionConfig, MissionStats
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Effect
 from btcap.team.core.ids import ExecutionId
 from btcap.team.core.origin import OriginLeases, Tracked
+from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.execution import AssignmentRequest
 from btcap.team.executor import ExecutorSide
 from btcap.team.implementation import ImplementationRun
@@ -27,6 +27,7 @@ from btcap.team.membership import Membership
 from btcap.team.messages import RUN_DONE, ExecutionStatus
 from btcap.team.proxies import LocalExecution, RemoteExecution
 from btcap.team.repository import CapabilityRepository
+from btcap.team.strategy import Allocator
 
 __all__ = ["Handle", "OriginSide"]
 
@@ -42,7 +43,7 @@ class OriginSide:
         *,
         config: MissionConfig,
         stats: MissionStats,
-        strategy: AssignmentStrategy,
+        allocator: Allocator,
         repository: CapabilityRepository,
         team: Membership,
         executor: ExecutorSide,
@@ -55,7 +56,7 @@ class OriginSide:
         self.robot = robot
         self.config = config
         self.stats = stats
-        self.strategy = strategy
+        self.allocator = allocator
         self.repository = repository
         self.team = team
         self.executor = executor
@@ -159,7 +160,7 @@ class OriginSide:
 
     async def _assign(self, req: AssignmentRequest, task: AssignmentTask, node: Capability) -> None:
         try:
-            won = await self.strategy.assign(task)
+            won = await self.allocator.assign(task)
         except asyncio.CancelledError:
             self.withdrawn(task.execution)  # taken for itself as the request was cancelled
             raise

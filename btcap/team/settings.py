@@ -118,8 +118,9 @@ StrategyName = Annotated[
         min_length=1,
         description="How auctions competing for the same robots are awarded: `auction` (each "
         "to its cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-        "exchanges), `optimal` (least total cost), `arrival` (each as it closes) or "
-        "`consensus` (decentralised, no auctioneer).",
+        "exchanges), `optimal` (least total cost), `arrival` (each as it closes), "
+        "`consensus` (decentralised, no auctioneer), or the name of an installed "
+        "`btcap.strategies` plug-in.",
     ),
 ]
 RebidOnJoin = Annotated[
@@ -208,7 +209,7 @@ class MissionConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     Running work is re-evaluated every ``reevaluate_s`` and whenever the team changes: it
     moves to another robot only if that one bids at least ``move_margin`` below what the
     current executor now bids to finish it. ``strategy`` names how auctions competing for
-    the same robots are awarded (see :mod:`btcap.team.core.planning`).
+    the same robots are awarded (see :mod:`btcap.team.strategies`).
     """
 
     lease_s: LeaseS = _T.lease_s

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from typing import TypeVar
 
 import anyio
 import pytest
@@ -18,7 +19,10 @@ from btcap.actors import (
     Message,
     TimeSource,
     handler,
+    within,
 )
+
+T = TypeVar("T")
 
 
 async def _sleeper(
@@ -294,3 +298,85 @@ async def test_autojump_stops_with_its_block() -> None:
         pass
     tasks = {t.get_name() for t in asyncio.all_tasks()}
     assert "autojump" not in tasks
+
+
+# -- within: await something or give up on the clock -------------------------------------
+
+
+async def test_within_returns_the_result_before_the_clock_runs_out() -> None:
+    clock = ManualClock()
+    with anyio.fail_after(2):
+        async with clock.autojump():
+            assert await within(clock, 5.0, _after(clock, 1.0, "done")) == "done"
+            assert clock.now() == 1.0
+
+
+async def test_within_gives_none_on_expiry_and_cancels_the_job() -> None:
+    clock = ManualClock()
+    job = asyncio.get_running_loop().create_future()
+    ended: list[bool] = []
+
+    async def waits() -> str:
+        try:
+            return str(await job)
+        finally:
+            ended.append(True)
+
+    with anyio.fail_after(2):
+        async with clock.autojump():
+            assert await within(clock, 2.0, waits()) is None
+            assert clock.now() == 2.0
+        await asyncio.sleep(0)
+    assert ended == [True]
+
+
+async def test_within_propagates_the_job_error() -> None:
+    async def fails() -> None:
+        raise KeyError("boom")
+
+    clock = ManualClock()
+    with anyio.fail_after(2), pytest.raises(KeyError, match="boom"):
+        await within(clock, 1.0, fails())
+
+
+async def test_within_on_a_real_clock_bounds_the_wall_time() -> None:
+    clock = Clock(speedup=100.0)  # 1 clock s = 10 ms
+    never = asyncio.get_running_loop().create_future()
+    with anyio.fail_after(2):
+        assert await within(clock, 1.0, _after(clock, 0.1, 7)) == 7
+        assert await within(clock, 1.0, never) is None
+        # an error of the job's own, even a timeout, is not taken for expiry
+        with pytest.raises(TimeoutError, match="own"):
+            await within(clock, 1.0, _raise(TimeoutError("own")))
+
+
+async def test_cancelling_the_waiter_cancels_the_job_and_the_timer() -> None:
+    clock = ManualClock()
+    ended: list[str] = []
+
+    async def waits() -> None:
+        try:
+            await asyncio.get_running_loop().create_future()
+        finally:
+            ended.append("job")
+
+    with anyio.fail_after(2):
+        waiter = asyncio.ensure_future(within(clock, 5.0, waits()))
+        await asyncio.sleep(0)
+        await asyncio.sleep(0)
+        assert clock.pending == 1
+        waiter.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await waiter
+        await asyncio.sleep(0)
+    assert ended == ["job"]
+    assert clock.pending == 0
+
+
+async def _after(clock: TimeSource, seconds: float, value: T) -> T:
+    await clock.sleep(seconds)
+    return value
+
+
+async def _raise(exc: BaseException) -> None:
+    raise exc

@@ -364,7 +364,10 @@ LONG = "r" * 241
         (
             "seed: 3",
             "seed: 3\nallocation: {strategy: cheapest}",
-            ("allocation.strategy: allocation strategy 'cheapest'", "expected one of", "auction"),
+            (
+                "allocation.strategy: allocation strategy 'cheapest'",
+                "expected one of auction, seq",
+            ),
         ),
         ("seed: 3", "seed: 3\nsource: x.yaml", ("source: not a field of a scenario file",)),
     ],

@@ -25,13 +25,16 @@ it sees the batch's full bid matrix. The strategies differ in what they do with 
   reference, and a good choice for small teams with one origin.
 - ``arrival``: each auction is awarded as it closes, to its cheapest bidder (btcap's
   first behaviour, kept as a baseline).
+
+The order of the awards is :mod:`btcap.team.core.turns`; the strategies by name are
+:mod:`btcap.team.strategies`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Literal, get_args
+from collections.abc import Sequence, Set
+from typing import TYPE_CHECKING
 
 from btcap.team.messages import Bid
 
@@ -40,27 +43,9 @@ if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents 
 
     Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 
-__all__ = [
-    "STRATEGIES",
-    "Strategy",
-    "check_strategy",
-    "optimal_plan",
-    "plan",
-    "regret",
-    "sequential_plan",
-]
-
-#: The allocation strategies by name (the type files use: msgspec refuses any other).
-Strategy = Literal["auction", "sequential", "optimal", "arrival", "consensus"]
-STRATEGIES: tuple[Strategy, ...] = get_args(Strategy)
+__all__ = ["optimal_plan", "regret", "sequential_plan"]
 
 Plan = list[str | None]
-
-
-def check_strategy(name: str) -> str:
-    if name not in STRATEGIES:
-        raise ValueError(f"allocation strategy {name!r}: expected one of {', '.join(STRATEGIES)}")
-    return name
 
 
 def regret(bids: Sequence[Bid]) -> tuple[float, float, str]:
@@ -74,7 +59,7 @@ def regret(bids: Sequence[Bid]) -> tuple[float, float, str]:
     return (-loss, best.cost, best.robot)
 
 
-def _matrix(bids: Sequence[Sequence[Bid]], taken: set[str]) -> tuple[list[str], Matrix]:
+def _matrix(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> tuple[list[str], Matrix]:
     """The robots not ``taken`` that bid, and each task's cost on each (inf: no bid)."""
     import numpy as np
 
@@ -88,7 +73,7 @@ def _matrix(bids: Sequence[Sequence[Bid]], taken: set[str]) -> tuple[list[str], 
     return robots, cost
 
 
-def optimal_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
+def optimal_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
     """For each task (its awardable bids), the robot that gets it in an assignment of least
     total cost, each robot at most once and never one already ``taken``; None for a task
     that gets no robot."""
@@ -155,7 +140,7 @@ def _improve(cost: Matrix, got: list[int]) -> None:
             _greedy(cost, got)
 
 
-def sequential_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
+def sequential_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
     """The greedy assignment (cheapest robot-task pair first, then the next), improved by
     pairwise exchanges and moves to free robots; same contract as :func:`optimal_plan`."""
     robots, cost = _matrix(bids, taken)
@@ -165,16 +150,3 @@ def sequential_plan(bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan:
     _greedy(cost, got)
     _improve(cost, got)
     return [robots[r] if r >= 0 else None for r in got]
-
-
-#: The strategies that plan a whole batch before its first award.
-PLANNERS: dict[str, Callable[[Sequence[Sequence[Bid]], set[str]], Plan]] = {
-    "sequential": sequential_plan,
-    "optimal": optimal_plan,
-}
-
-
-def plan(strategy: str, bids: Sequence[Sequence[Bid]], taken: set[str]) -> Plan | None:
-    """The batch's plan under ``strategy``, or None if it awards auction by auction."""
-    planner = PLANNERS.get(strategy)
-    return None if planner is None else planner(bids, taken)

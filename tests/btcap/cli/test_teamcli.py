@@ -104,7 +104,7 @@ def test_bad_config_exits_2_naming_the_field(
         ("network: {max_peers: 0}", "network.max_peers: Expected `int` >= 1"),
         (
             "allocation: {strategy: cheapest}",
-            "allocation.strategy: allocation strategy 'cheapest': expected one of auction",
+            "allocation.strategy: allocation strategy 'cheapest': expected one of auction, ",
         ),
         ("allocation: {move_margin: 1}", "allocation.move_margin: Expected `float` < 1.0"),
         ("plugin: {factory: pkg.mod:make, args: {limit: .inf}}", "plugin.args.limit: expected"),

@@ -215,12 +215,17 @@ class Team:
         self._lives: dict[str, tuple[asyncio.Event, asyncio.Task[None]]] = {}
 
     async def add(self, robot: str, impls: Iterable[Implementation] = (), **cfg: Any) -> Agent:
+        options = {**self.cfg, **cfg}
+        strategy = options.get("strategy")
+        if strategy is not None and not isinstance(strategy, str):  # a strategy object
+            del options["strategy"]
         agent = Agent(
             robot,
             transport=self.net.transport(robot),
             clock=self.clock,
             implementations=impls,
-            config=config(**{**self.cfg, **cfg}),
+            config=config(**options),
+            strategy=strategy,
         )
         log = self.events.setdefault(robot, [])
         agent.team.subscribe(lambda event, member: log.append((event, member)))

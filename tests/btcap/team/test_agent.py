@@ -165,7 +165,7 @@ async def test_agent_wires_one_robot() -> None:
             s = a.system
             assert s.lookup(Membership.PATH) is a.team
             assert s.lookup(CapabilityRepository.PATH) is a.repository
-            assert s.lookup(SingleItemAuction.PATH) is a.auctioneer
+            assert s.lookup(SingleItemAuction.PATH) is a.allocator
             assert s.lookup(MissionControl.PATH) is a.mission_control
             assert a.mission_control.slot is not None
             assert a.clock is t.clock

@@ -133,13 +133,13 @@ async def test_auction_between_agents_closes_early_and_cheapest_wins() -> None:
             tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["b"]
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert [(b.robot, b.cost) for b in out.ranking] == [("b", 2.0), ("c", 3.0), ("a", 5.0)]
             assert out.silent == frozenset()
             assert out.declined == {}
-            assert a.auctioneer.stats.early_closes == a.auctioneer.stats.auctions == 1
-            assert a.auctioneer.stats.awarded == 1
+            assert a.allocator.stats.early_closes == a.allocator.stats.auctions == 1
+            assert a.allocator.stats.awarded == 1
             await tree.shutdown()
 
 
@@ -170,11 +170,11 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
                 start = t.clock.now()
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert t.clock.now() - start >= 2.0  # the auction waited its whole window
-                out = a.auctioneer.outcomes[-1]
+                out = a.allocator.outcomes[-1]
                 assert out is not None
                 assert out.silent == {"s"}
                 assert [b.robot for b in out.ranking] == ["a"]
-                assert a.auctioneer.stats.early_closes == 0
+                assert a.allocator.stats.early_closes == 0
                 assert node.assignments == ["a"]
                 await tree.shutdown()
 
@@ -189,12 +189,12 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 tree.tick()
-                await until(lambda: bool(a.auctioneer._open), "the auction to open")
-                auction, _done = next(iter(a.auctioneer._open.values()))
+                await until(lambda: bool(a.allocator._open), "the auction to open")
+                auction, _done = next(iter(a.allocator._open.values()))
                 await until(lambda: auction.waiting_for == {"s"}, "a's own bid")
             # s said goodbye: the auction stops waiting for it, long before its window.
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert out.silent == frozenset()
             assert node.assignments == ["a"]
@@ -213,7 +213,7 @@ async def test_invalid_bids_from_a_robot_are_declines_and_the_next_wins() -> Non
             tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert node.assignments == ["a"]
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert set(out.declined) == {"n", "m"}
             assert all("invalid cost" in why for why in out.declined.values())
@@ -230,7 +230,7 @@ async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
             node = COUNT.node_type()("count", inputs={"x": 11, "stop": True})
             tree = a.mission(ReactiveSequence("root", children=[node]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert "cannot execute" in out.declined["b"]
             assert node.assignments == ["a"]
@@ -266,7 +266,7 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                     lambda: (
                         na.execution is None
                         and nc.execution is None
-                        and a.auctioneer.stats.auctions == c.auctioneer.stats.auctions == 1
+                        and a.allocator.stats.auctions == c.allocator.stats.auctions == 1
                     ),
                     "both auctions",
                 )
@@ -281,7 +281,7 @@ async def test_busy_winner_declines_the_award_and_the_next_bidder_gets_it() -> N
                 assert len(robots) == 2
                 assert robots[0] != robots[1]
                 assert b.mission_control.stats.declined == 1
-                stats = [a.auctioneer.stats, c.auctioneer.stats]
+                stats = [a.allocator.stats, c.allocator.stats]
                 assert sum(s.declined_awards for s in stats) == 1
                 assert sum(s.awarded for s in stats) == 2
                 for node in (na, nc):
@@ -346,7 +346,7 @@ async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder(
                 await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
                 assert node.assignments == ["a"]
                 assert [w.execution for w in slow.awards] == [node.execution.id]  # type: ignore[union-attr]
-                assert a.auctioneer.stats.declined_awards == 1
+                assert a.allocator.stats.declined_awards == 1
                 # f finally takes the award, too late: the withdrawal follows right behind.
                 slow.release.set()
                 await until(lambda: bool(slow.cancels), "the withdrawal")
@@ -393,7 +393,7 @@ async def test_simultaneous_auctions_award_the_cheapest_pair_first() -> None:
             tree = a.mission(Parallel("both", children=[far, near]))
             await tick_until(tree, lambda _s: State.RUNNING in (far.state, near.state), "one")
             assert (near.state, far.state) == (State.RUNNING, State.UNASSIGNED)
-            assert [o.ranking[0].cost for o in a.auctioneer.outcomes] == [5.0, 1.0]
+            assert [o.ranking[0].cost for o in a.allocator.outcomes] == [5.0, 1.0]
             await tree.shutdown()
 
 

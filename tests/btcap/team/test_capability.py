@@ -174,7 +174,7 @@ async def test_lone_robot_runs_capability_locally_with_io_every_tick() -> None:
             assert ex.robot == "a"
             assert a.mission_control.body.running == ex.id
             assert node.assignments == ["a"]
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert [b.robot for b in out.ranking] == ["a"]
             # Every tick: the input goes in, the implementation ticks, the output comes back.

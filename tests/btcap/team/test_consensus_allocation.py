@@ -27,7 +27,7 @@ from btcap.transports.codec import Envelope
 
 
 def _cons(agent: object) -> ConsensusAssigner:
-    allocator = getattr(agent, "auctioneer", None)
+    allocator = getattr(agent, "allocator", None)
     assert isinstance(allocator, ConsensusAssigner)
     return allocator
 
@@ -130,7 +130,7 @@ async def test_a_winner_lost_mid_consensus_has_its_task_reallocated() -> None:
                     return won[0].robot if won else None
 
                 await tick_until(tree, lambda _s: winner() == "b", "b to claim it")
-                for actor in (b.auctioneer, b.mission_control, b.team):
+                for actor in (b.allocator, b.mission_control, b.team):
                     b.system.stop(actor)  # silent from now on: the team declares it failed
                 await tick_until(tree, lambda _s: "b" not in core.members, "b to be lost")
                 await tick_until(tree, lambda _s: winner() == "c", "c to claim it")

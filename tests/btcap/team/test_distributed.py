@@ -149,7 +149,7 @@ async def test_assigns_to_cheapest_child_and_io_flows_both_ways(spawn: Any) -> N
             await finish(tree, node)
             assert node.assignments == ["r1"]
             assert origin.mission_control.stats.lost == 0
-            assert origin.auctioneer.stats.early_closes >= 1
+            assert origin.allocator.stats.early_closes >= 1
             await tree.shutdown()
 
 
@@ -204,8 +204,8 @@ async def test_late_joiner_wins_next_auction_without_cancelling_healthy_work(
 
             tree_b, node_b = echo_mission(origin, "b")
             await until(tree_b, running_on(node_b, "r1"))
-            assert origin.auctioneer.outcomes
-            ranking = [bid.robot for bid in origin.auctioneer.outcomes[-1].ranking]
+            assert origin.allocator.outcomes
+            ranking = [bid.robot for bid in origin.allocator.outcomes[-1].ranking]
             assert ranking == ["r1", "r3"]  # r2 is busy and declined
 
             await echo_follows(tree_a, node_a, [11, 12], "r2")

@@ -118,7 +118,7 @@ async def test_members_auction_over_curve_and_a_keyless_origin_is_shut_out(
             await until(tree, lambda: node.state is State.RUNNING and node.outputs["value"] == 3)
             assert node.execution is not None
             assert node.execution.robot == "c1"
-            assert origin.auctioneer.stats.early_closes >= 1
+            assert origin.allocator.stats.early_closes >= 1
 
             await handshake_fails_without_keys(child.endpoint)
             async with agent("plain", {"c1": child.endpoint}, None) as plain:

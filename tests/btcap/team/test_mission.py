@@ -169,7 +169,7 @@ async def test_untick_while_the_auction_runs_starts_no_work() -> None:
                 assert node.state in {State.PAUSED}
                 # Long after the window: nothing was awarded, nothing runs for a paused node.
                 start = t.clock.now()
-                await until(lambda: t.clock.now() - start > 3.0 and not a.auctioneer._open)
+                await until(lambda: t.clock.now() - start > 3.0 and not a.allocator._open)
                 assert probe.ticks["b"] == 0
                 assert _no_trace(b)
                 assert node.execution is None
@@ -340,10 +340,10 @@ async def test_rebid_on_join_moves_work_only_to_a_robot_cheaper_by_the_margin(
             await _running_on(tree, node, executor)
             node.set_input("x", 7)
             await tick_until(tree, _output_is(node, "y", 7), "the executor to see x=7")
-            auctions = a.auctioneer.stats.auctions
+            auctions = a.allocator.stats.auctions
             c = await t.add("c", [count_impl("c", joiner_cost, probe, k=100)])
             await t.converged()
-            await until(lambda: a.auctioneer.stats.auctions > auctions, "the offer to c")
+            await until(lambda: a.allocator.stats.auctions > auctions, "the offer to c")
             if moves:
                 await _running_on(tree, node, "c")
                 assert node.assignments == [executor, "c"]
@@ -391,7 +391,7 @@ async def test_a_reset_while_work_is_being_moved_cancels_the_replacement_too() -
 def _slow_offers(mc: MissionControl, before: float = 0.0, after: float = 0.0) -> Counter[str]:
     """Stretch the offers of running work (auctions with a reserve) in wall time, as a far
     robot would; counts the offers "started" and "finished"."""
-    real = mc.strategy.assign
+    real = mc.allocator.assign
     offers: Counter[str] = Counter()
 
     async def assign(task: AssignmentTask) -> Assigned | None:
@@ -404,7 +404,7 @@ def _slow_offers(mc: MissionControl, before: float = 0.0, after: float = 0.0) ->
         offers["finished"] += 1
         return won
 
-    mc.strategy.assign = assign  # type: ignore[method-assign]
+    mc.allocator.assign = assign  # type: ignore[method-assign]
     return offers
 
 
@@ -605,7 +605,7 @@ async def test_local_precondition_needs_success_on_this_robot() -> None:
             tree = a.mission(ReactiveSequence("root", children=[n1]))
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             assert n1.assignments == ["a"]
-            out = a.auctioneer.outcomes[-1]
+            out = a.allocator.outcomes[-1]
             assert out is not None
             assert "precondition First (local) not met" in out.declined["b"]
             # First succeeds on a (cheaper there): b's precondition is still unmet.
@@ -740,7 +740,7 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
                 mc = agent.mission_control
                 assert agent.system.lookup("mission_control") is mc
                 assert mc._restarts == 0
-                assert agent.auctioneer._restarts == 0
+                assert agent.allocator._restarts == 0
             await tree.shutdown()
             # And a new capability is still auctioned and run normally.
             again = _count("again", stop=True)

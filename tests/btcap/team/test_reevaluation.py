@@ -59,7 +59,7 @@ async def test_near_equal_robots_never_pass_the_work_back_and_forth() -> None:
                 await step(0.05)
             assert node.assignments == ["b"]
             assert a.mission_control.stats.moved == 0
-            assert a.auctioneer.stats.auctions > 100  # it did look, every time
+            assert a.allocator.stats.auctions > 100  # it did look, every time
             await tree.shutdown()
 
 

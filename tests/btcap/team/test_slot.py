@@ -103,7 +103,7 @@ async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
                 assert node.assignments == ["a"]
-                out = a.auctioneer.outcomes[-1]
+                out = a.allocator.outcomes[-1]
                 assert out is not None
                 assert out.declined["c"] == "no remote capability slot"
                 # c itself may still run it locally.

@@ -9,15 +9,10 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 from btcap.team.core.ids import AuctionId
-from btcap.team.core.planning import (
-    STRATEGIES,
-    check_strategy,
-    optimal_plan,
-    plan,
-    regret,
-    sequential_plan,
-)
+from btcap.team.core.planning import optimal_plan, regret, sequential_plan
+from btcap.team.core.turns import ARRIVAL, AUCTION, SEQUENTIAL
 from btcap.team.messages import Bid
+from btcap.team.strategies import check_strategy, names
 
 A1 = AuctionId("a", 1)
 
@@ -60,9 +55,9 @@ def test_the_plans_escape_the_classic_trap() -> None:
         assert planner([t1, t2], {"b"}) == ["c", None]
         assert planner([[], t2], set()) == [None, "b"]
         assert planner([], set()) == []
-    assert plan("auction", [t1, t2], set()) is None
-    assert plan("arrival", [t1, t2], set()) is None
-    assert plan("sequential", [t1, t2], set()) == ["c", "b"]
+    assert AUCTION.plan([t1, t2], set()) is None
+    assert ARRIVAL.plan([t1, t2], set()) is None
+    assert SEQUENTIAL.plan([t1, t2], set()) == ["c", "b"]
 
 
 def test_regret_puts_the_task_that_loses_most_by_waiting_first() -> None:
@@ -133,7 +128,7 @@ def test_sequential_is_a_valid_local_optimum_between_greedy_and_the_optimum(seed
 
 
 def test_strategy_names_are_checked() -> None:
-    assert STRATEGIES[:4] == ("auction", "sequential", "optimal", "arrival")
+    assert names()[:5] == ["auction", "sequential", "optimal", "arrival", "consensus"]
     assert check_strategy("sequential") == "sequential"
     with pytest.raises(ValueError, match="'fastest': expected one of auction, sequential"):
         check_strategy("fastest")
