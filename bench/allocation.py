@@ -42,10 +42,10 @@ from btcap.actors import ManualClock
 from btcap.bench.common import write_result
 from btcap.sim.distance import DistanceCache, path_length
 from btcap.sim.grid import GridMap
-from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import Capability, CapabilityInterface
-from btcap.team.implementation import Implementation
-from btcap.team.protocol import protocol_registry
+from btcap.team.capabilities.capability import Capability, CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
 __all__ = ["Events", "allocate", "ratios", "run"]

@@ -38,10 +38,10 @@ from btcap.bench.hostile import (
 )
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
-from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import Capability
+from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
+from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.transports import ZmqTransport
 
 __all__ = ["Counts", "probe", "run"]

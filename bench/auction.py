@@ -21,7 +21,7 @@
   arrived back).
 - **failover_s**: the executing robot's process is SIGKILLed; timed until the capability
   runs again on another robot (its execution is set, on another robot, and running), at
-  speed-up 1 with the default :class:`~btcap.team.agent.AgentConfig`.
+  speed-up 1 with the default :class:`~btcap.team.runtime.agent.AgentConfig`.
 
 Run ``python -m btcap.bench auction [--quick]`` or ``python -m btcap.bench.auction [--quick]``.
 """
@@ -44,15 +44,15 @@ from btcap.actors import Address, configure_logging
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.cpumeter import CpuMeter
 from btcap.bt.state import State
-from btcap.team.agent import Agent, AgentConfig
-from btcap.team.assignment import Assigned, AssignmentTask
-from btcap.team.core.ids import ExecutionId
+from btcap.team.allocation.auction import Assigned, AssignmentTask
+from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.demo import ECHO, implementations
-from btcap.team.launch import AgentSpec, spawn_agents
+from btcap.team.deployment.launch import AgentSpec, spawn_agents
+from btcap.team.ids import ExecutionId
 from btcap.team.messages import CancelExecution
-from btcap.team.mission import MissionControl
-from btcap.team.protocol import protocol_registry
-from btcap.team.proxies import RemoteExecution
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.mission import MissionControl
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork, KeyPair, TeamKeys, ZmqTransport
 from btcap.transports.security import write_key_pair
 

@@ -13,10 +13,10 @@ from typing import Any
 import zmq
 
 from btcap.actors import Address, Message
-from btcap.team.core.ids import ExecutionId
-from btcap.team.membership import Membership
+from btcap.team.ids import ExecutionId
+from btcap.team.membership.membership import Membership
 from btcap.team.messages import ExecutionInputs, Heartbeat, RepositoryState
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import MessageRegistry
 from btcap.transports.codec import Codec, Envelope, Kind
 

@@ -20,10 +20,10 @@ from typing import Any
 
 from btcap.actors import ManualClock
 from btcap.bench.common import write_result
-from btcap.team.agent import Agent, AgentConfig
 from btcap.team.core.members import TeamEvent
 from btcap.team.messages import Heartbeat, Roster, RosterRequest
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import BROADCAST, Codec, InProcessNetwork
 from btcap.transports.codec import Envelope
 

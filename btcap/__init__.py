@@ -72,18 +72,23 @@ if TYPE_CHECKING:
     from btcap.bt.utility import Utility
     from btcap.errors import BtcapError
     from btcap.monitor import Monitor, Replay
-    from btcap.team.agent import Agent, AgentConfig
-    from btcap.team.capability import Capability, CapabilityInterface, InputBridge, OutputBridge
-    from btcap.team.capfiles import load_implementation, load_interfaces
-    from btcap.team.config import MissionConfig
-    from btcap.team.core.ids import AuctionId, ExecutionId
+    from btcap.team.allocation.strategies import BatchStrategy
+    from btcap.team.allocation.strategy import Allocator, RobotContext, Strategy
+    from btcap.team.capabilities.capability import (
+        Capability,
+        CapabilityInterface,
+        InputBridge,
+        OutputBridge,
+    )
+    from btcap.team.capabilities.capfiles import load_implementation, load_interfaces
+    from btcap.team.capabilities.implementation import Implementation, Precondition, Scope
+    from btcap.team.capabilities.slot import RemoteCapabilitySlot
     from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
     from btcap.team.core.turns import BatchPolicy
-    from btcap.team.implementation import Implementation, Precondition, Scope
-    from btcap.team.protocol import protocol_registry
-    from btcap.team.slot import RemoteCapabilitySlot
-    from btcap.team.strategies import BatchStrategy
-    from btcap.team.strategy import Allocator, RobotContext, Strategy
+    from btcap.team.ids import AuctionId, ExecutionId
+    from btcap.team.runtime.agent import Agent, AgentConfig
+    from btcap.team.runtime.config import MissionConfig
+    from btcap.team.runtime.protocol import protocol_registry
 
 __version__ = "0.1.0"
 
@@ -154,18 +159,23 @@ _EXPORTS = {
     "btcap.bt.utility": ("Utility",),
     "btcap.errors": ("BtcapError",),
     "btcap.monitor": ("Monitor", "Replay"),
-    "btcap.team.agent": ("Agent", "AgentConfig"),
-    "btcap.team.capability": ("Capability", "CapabilityInterface", "InputBridge", "OutputBridge"),
-    "btcap.team.capfiles": ("load_implementation", "load_interfaces"),
-    "btcap.team.config": ("MissionConfig",),
-    "btcap.team.core.ids": ("AuctionId", "ExecutionId"),
+    "btcap.team.runtime.agent": ("Agent", "AgentConfig"),
+    "btcap.team.capabilities.capability": (
+        "Capability",
+        "CapabilityInterface",
+        "InputBridge",
+        "OutputBridge",
+    ),
+    "btcap.team.capabilities.capfiles": ("load_implementation", "load_interfaces"),
+    "btcap.team.runtime.config": ("MissionConfig",),
+    "btcap.team.ids": ("AuctionId", "ExecutionId"),
     "btcap.team.core.task": ("Assigned", "AssignmentTask", "Unassigned"),
     "btcap.team.core.turns": ("BatchPolicy",),
-    "btcap.team.implementation": ("Implementation", "Precondition", "Scope"),
-    "btcap.team.protocol": ("protocol_registry",),
-    "btcap.team.slot": ("RemoteCapabilitySlot",),
-    "btcap.team.strategies": ("BatchStrategy",),
-    "btcap.team.strategy": ("Allocator", "RobotContext", "Strategy"),
+    "btcap.team.capabilities.implementation": ("Implementation", "Precondition", "Scope"),
+    "btcap.team.runtime.protocol": ("protocol_registry",),
+    "btcap.team.capabilities.slot": ("RemoteCapabilitySlot",),
+    "btcap.team.allocation.strategies": ("BatchStrategy",),
+    "btcap.team.allocation.strategy": ("Allocator", "RobotContext", "Strategy"),
 }
 
 if not TYPE_CHECKING:

@@ -6,9 +6,9 @@ Run: .venv/bin/python examples/two_robots.py
 import asyncio
 
 from btcap import Sequence, State
-from btcap.team.agent import Agent
 from btcap.team.demo import ECHO, implementations
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.agent import Agent
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
 

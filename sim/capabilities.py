@@ -20,8 +20,8 @@ from btcap.sim.grid import GridMap
 from btcap.sim.leaves import MoveToLeaf, OperateLeaf
 from btcap.sim.model import RobotModel
 from btcap.sim.robot import Body
-from btcap.team.capability import CapabilityInterface
-from btcap.team.implementation import Implementation
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
 
 __all__ = [
     "DECONTAMINATE",

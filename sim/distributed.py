@@ -29,8 +29,8 @@ from btcap.sim.hosts import agent_options, record_error
 from btcap.sim.metrics import MissionResult, RobotError
 from btcap.sim.runner import Progress, run_scenario
 from btcap.sim.scenario import Scenario
-from btcap.team.agentconfig import Timing
-from btcap.team.spawn import AsyncAgentProcess
+from btcap.team.deployment.agentconfig import Timing
+from btcap.team.deployment.spawn import AsyncAgentProcess
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 from btcap.transports.log import get_logger
 
@@ -115,7 +115,7 @@ class ProcessHost:
         self._task(self._life, name, path, name=f"robot {name}")
 
     def _config_file(self, name: str) -> dict[str, Any]:
-        """The robot's ``btcap agent`` configuration (see :mod:`btcap.team.agentconfig`)."""
+        """The robot's ``btcap agent`` configuration (:mod:`btcap.team.deployment.agentconfig`)."""
         timing = {k: v for k, v in self._config.items() if k in Timing.__struct_fields__}
         allocation = {k: v for k, v in self._config.items() if k not in timing}
         return {

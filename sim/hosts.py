@@ -22,8 +22,8 @@ from btcap.sim.grid import GridMap
 from btcap.sim.messages import SIM_MESSAGES
 from btcap.sim.metrics import RobotError
 from btcap.sim.scenario import Scenario
-from btcap.team.agent import Agent
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.agent import Agent
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports import InProcessNetwork, MessageRegistry, Transport
 from btcap.transports.log import get_logger

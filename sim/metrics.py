@@ -9,13 +9,13 @@ import msgspec
 
 from btcap import Node, State, Tree
 from btcap.bt.state import DONE
-from btcap.team.capability import Capability
+from btcap.team.capabilities.capability import Capability
 
 if TYPE_CHECKING:
     from btcap.sim.manager import SimulationManager
     from btcap.sim.scenario import Scenario
     from btcap.sim.store import MissionState
-    from btcap.team.agent import Agent
+    from btcap.team.runtime.agent import Agent
 
 __all__ = [
     "Interval",

@@ -20,7 +20,7 @@ from btcap.sim.footprint import MAP_BYTES_PER_CELL
 from btcap.sim.model import TeamFile
 from btcap.sim.scenariofile import Scenario
 from btcap.sim.world import CACHE_SIZE
-from btcap.team.agentfile import AgentFile
+from btcap.team.deployment.agentfile import AgentFile
 
 __all__ = ["FORMATS", "SCHEMA_DIR", "generated", "main", "page", "schema_command", "stale"]
 

@@ -27,9 +27,9 @@ from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
-from btcap.team.agent import Agent
-from btcap.team.capability import Capability
-from btcap.team.membership import TeamEvent
+from btcap.team.capabilities.capability import Capability
+from btcap.team.membership.membership import TeamEvent
+from btcap.team.runtime.agent import Agent
 from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 

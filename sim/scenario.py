@@ -88,7 +88,9 @@ def _check(s: Scenario, where: str) -> Scenario:
             )
     if (s.map.cave is None) == (s.map.file is None):
         raise bad("map", "expected exactly one of 'cave' or 'file'")
-    from btcap.team.strategies import check_strategy  # loads plug-ins' names only if needed
+    from btcap.team.allocation.strategies import (
+        check_strategy,  # loads plug-ins' names only if needed
+    )
 
     try:
         check_strategy(s.allocation.strategy)

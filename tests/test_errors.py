@@ -41,7 +41,7 @@ def test_the_walk_sees_the_errors_of_every_layer() -> None:
         "btcap.transports.codec.CodecError",
         "btcap.actors.errors.AskTimeout",
         "btcap.bt.state.TreeError",
-        "btcap.team.launch.AgentFailed",
+        "btcap.team.deployment.launch.AgentFailed",
         "btcap.cli.CliError",
         "btcap.sim.scenario.ScenarioError",
     } <= EXCEPTIONS.keys()

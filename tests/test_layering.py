@@ -130,7 +130,7 @@ def _package(module: str) -> str:
 
 def test_the_graph_sees_the_whole_package() -> None:
     assert {"btcap.transports.codec", "btcap.actors.system", "btcap.bt.node"} <= MODULES.keys()
-    assert {"btcap.team.agent", "btcap.sim.runner", "btcap.bench.tick"} <= MODULES.keys()
+    assert {"btcap.team.runtime.agent", "btcap.sim.runner", "btcap.bench.tick"} <= MODULES.keys()
     assert set(BARE) == {"actors", "transports", "sim", "bench"}
 
 
@@ -285,8 +285,10 @@ def test_the_checker_catches_what_it_is_for() -> None:
     """The rules above must be able to fail: a circle, an upward import and an I/O
     import a few modules away are seen."""
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
-    assert _layer("btcap.actors.system") < _layer("btcap.bt.node") < _layer("btcap.team.agent")
-    assert _layer("btcap.team.agent") < _layer("btcap") < _layer("btcap.sim.runner")
+    assert (
+        _layer("btcap.actors.system") < _layer("btcap.bt.node") < _layer("btcap.team.runtime.agent")
+    )
+    assert _layer("btcap.team.runtime.agent") < _layer("btcap") < _layer("btcap.sim.runner")
     assert _layer("btcap._lazy") < _layer("btcap.transports.base")
     planted = {"btcap.x": {"btcap.y", "msgspec"}, "btcap.y": {"btcap.z"}, "btcap.z": {"zmq"}}
     assert _first_forbidden(planted, "btcap.x", {"msgspec"}) == [
@@ -318,3 +320,44 @@ def test_no_module_is_too_long_to_read() -> None:
         if (n := len(path.read_text().splitlines())) > MAX_LINES
     }
     assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+#: The team layer's roles, lowest first (DESIGN.md; btcap/team/*/__init__.py say each in
+#: a sentence). A team module may import its own level and those below.
+TEAM_LEVELS = {
+    "btcap.team.filecheck": 0,
+    "btcap.team.ids": 0,
+    "btcap.team.messages": 0,
+    "btcap.team.settings": 0,
+    "btcap.team.core": 1,
+    "btcap.team.capabilities": 2,
+    "btcap.team.demo": 2,
+    "btcap.team.membership": 3,
+    "btcap.team.allocation": 4,
+    "btcap.team.runtime": 5,
+    "btcap.team.deployment": 6,
+}
+
+
+def _team_level(module: str) -> int:
+    found = [p for p in TEAM_LEVELS if module == p or module.startswith(p + ".")]
+    assert found, f"{module}: in no role of TEAM_LEVELS"
+    return TEAM_LEVELS[max(found, key=len)]
+
+
+TEAM_MODULES = [m for m in MODULES if m.startswith("btcap.team.")]
+
+
+def test_every_team_module_has_a_role() -> None:
+    assert {_team_level(m) for m in TEAM_MODULES} == set(TEAM_LEVELS.values())
+
+
+def test_no_team_module_imports_a_higher_role() -> None:
+    upward = sorted(
+        f"{m} -> {dep}"
+        for m in TEAM_MODULES
+        for dep in GRAPH[m]
+        if dep.startswith("btcap.team.") and _team_level(dep) > _team_level(m)
+    )
+    assert not upward, f"team modules importing a higher role: {upward}"
+

@@ -26,7 +26,7 @@ import btcap.cli
 from btcap.bt.files import dump_tree, loads_tree
 from btcap.sim.model import load_team
 from btcap.sim.scenario import load_scenario
-from btcap.team.agentconfig import load_agent_file
+from btcap.team.deployment.agentconfig import load_agent_file
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]

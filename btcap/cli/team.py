@@ -1,6 +1,6 @@
 """``btcap agent``, ``btcap team status`` and ``btcap mission run``: one robot per host.
 
-Each reads an agent configuration file (:mod:`btcap.team.agentconfig`); a bad file exits
+Each reads an agent configuration file (:mod:`btcap.team.deployment.agentconfig`); a bad file exits
 with status 2 and a message naming the file and the field. SIGINT and SIGTERM end each
 command cleanly, with one line and exit status 130 or 143 (128 + the signal's number):
 the robot says goodbye, so the team re-assigns its work at once.
@@ -23,9 +23,9 @@ from btcap.cli.monitor import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
     from btcap.bt.registry import NodeRegistry
-    from btcap.team.agent import Agent
-    from btcap.team.agentconfig import RobotConfig
-    from btcap.team.deploy import MemberView, MissionReport
+    from btcap.team.deployment.agentconfig import RobotConfig
+    from btcap.team.deployment.deploy import MemberView, MissionReport
+    from btcap.team.runtime.agent import Agent
 
 __all__ = ["add_parser"]
 
@@ -90,7 +90,7 @@ def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
 
 
 def _config(path: Path) -> RobotConfig:
-    from btcap.team.agentconfig import AgentConfigError, load_agent_file
+    from btcap.team.deployment.agentconfig import AgentConfigError, load_agent_file
 
     try:
         return load_agent_file(path)
@@ -112,7 +112,7 @@ def _until_stopped(
     from each), and raise :class:`Stopped` once it has wound down."""
     import anyio
 
-    from btcap.team.agentconfig import AgentConfigError
+    from btcap.team.deployment.agentconfig import AgentConfigError
 
     result: list[T] = []
     stopped_by: list[int] = []
@@ -153,9 +153,9 @@ def _agent(args: argparse.Namespace) -> int:
     import anyio
 
     from btcap.cli.monitor import serving
-    from btcap.team.deploy import open_agent
-    from btcap.team.spawn import listening
-    from btcap.team.supervised import stdin_closed, watchable
+    from btcap.team.deployment.deploy import open_agent
+    from btcap.team.deployment.spawn import listening
+    from btcap.team.deployment.supervised import stdin_closed, watchable
 
     config = _config(args.config)
     registry = _registry(args)
@@ -188,7 +188,7 @@ def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from btcap.team.deploy import observe_team, open_agent, wait_for_team
+    from btcap.team.deployment.deploy import observe_team, open_agent, wait_for_team
 
     config = _config(args.config)
     registry = _registry(args)
@@ -226,8 +226,8 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 def _mission(args: argparse.Namespace) -> int:
     from btcap.bt.files import load_tree
     from btcap.cli.monitor import serving
-    from btcap.team.agentconfig import AgentConfigError
-    from btcap.team.deploy import open_agent, run_mission_file
+    from btcap.team.deployment.agentconfig import AgentConfigError
+    from btcap.team.deployment.deploy import open_agent, run_mission_file
 
     config = _config(args.config)
     registry = _registry(args)
@@ -278,7 +278,7 @@ def _say(line: str) -> None:
 
 
 async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
-    from btcap.team.deploy import wait_for_team
+    from btcap.team.deployment.deploy import wait_for_team
 
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
     members = ", ".join(sorted(agent.team.members)) or "nobody"

@@ -132,7 +132,7 @@ def _help(parser: argparse.ArgumentParser) -> Callable[[argparse.Namespace], int
 # -- node types -------------------------------------------------------------------------
 def _registry(args: argparse.Namespace) -> NodeRegistry:
     from btcap.bt.registry import default_registry
-    from btcap.team.capfiles import load_interfaces, register_interfaces
+    from btcap.team.capabilities.capfiles import load_interfaces, register_interfaces
 
     registry = default_registry(plugins=not args.no_plugins)
     for ref in args.load:
@@ -172,8 +172,8 @@ def _import(name: str) -> ModuleType:
 def _register(registry: NodeRegistry, ref: str) -> None:
     """Register what ``MODULE`` defines or what ``MODULE:NAME`` is or returns."""
     from btcap.bt.node import Node
-    from btcap.team.capability import CapabilityInterface
-    from btcap.team.capfiles import register_interfaces
+    from btcap.team.capabilities.capability import CapabilityInterface
+    from btcap.team.capabilities.capfiles import register_interfaces
 
     module_name, _, attr = ref.partition(":")
     module = _import(module_name)
@@ -225,7 +225,7 @@ def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[st
     Only a hint: which interfaces a tree runs with is the user's choice, so nothing is
     loaded that was not asked for.
     """
-    from btcap.team.capfiles import load_interfaces
+    from btcap.team.capabilities.capfiles import load_interfaces
 
     unknown = dict.fromkeys(m[1] for p in problems for m in _UNKNOWN.finditer(p))
     if not unknown or args.interfaces:

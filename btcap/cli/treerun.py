@@ -20,7 +20,7 @@ from btcap.bt.render import render_text
 from btcap.bt.state import DONE, State, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
-from btcap.team.capability import Capability
+from btcap.team.capabilities.capability import Capability
 
 __all__ = ["run"]
 

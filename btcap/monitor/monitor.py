@@ -28,10 +28,10 @@ from btcap.monitor.net import is_loopback
 from btcap.monitor.record import Recorder
 from btcap.monitor.taps import TreeTap
 from btcap.monitor.view import Event, TeamView
-from btcap.team.agent import Agent
-from btcap.team.assignment import Assigned, AuctionRecord
+from btcap.team.allocation.auction import Assigned, AuctionRecord
 from btcap.team.core.effects import Lost
-from btcap.team.membership import TeamEvent
+from btcap.team.membership.membership import TeamEvent
+from btcap.team.runtime.agent import Agent
 from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:

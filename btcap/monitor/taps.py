@@ -6,7 +6,7 @@ time. Every other node's state is read when the monitor flushes (at most 20 time
 second), and only the nodes whose state differs from the last batch are sent: a page
 sees the latest state of each node per batch, as it would from coalesced changes.
 
-The implementation a :class:`~btcap.team.slot.RemoteCapabilitySlot` runs for another
+The implementation a :class:`~btcap.team.capabilities.slot.RemoteCapabilitySlot` runs for another
 robot is a tree of its own: it is shown below the slot while it runs.
 """
 
@@ -19,8 +19,8 @@ from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.monitor.view import Event
-from btcap.team.capability import Capability
-from btcap.team.slot import RemoteCapabilitySlot
+from btcap.team.capabilities.capability import Capability
+from btcap.team.capabilities.slot import RemoteCapabilitySlot
 
 __all__ = ["Emit", "TreeTap"]
 

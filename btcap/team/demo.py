@@ -14,8 +14,8 @@ from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
-from btcap.team.capability import CapabilityInterface
-from btcap.team.implementation import Implementation
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
 
 __all__ = ["ECHO", "EchoLeaf", "implementations"]
 

@@ -1,9 +1,9 @@
-"""Messages of the capability layer: team membership, repository gossip, auctions, executions.
+"""Messages of the capability layer: team membership, repository gossip, auctions,
+executions.
 
-Every type here is registered by :func:`btcap.team.protocol.protocol_registry`, so it travels
-between robots over any transport. Values of capability ports travel as ``Any`` and are
-converted back to their declared types on arrival.
-"""
+Every type here is registered by :func:`btcap.team.runtime.protocol.protocol_registry`,
+so it travels between robots over any transport. Values of capability ports travel as
+``Any`` and are converted back to their declared types on arrival."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Any
 
 import msgspec
 
-from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.ids import AuctionId, ExecutionId
 from btcap.transports.message import Message
 
 __all__ = [

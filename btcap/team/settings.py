@@ -209,7 +209,7 @@ class MissionConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     Running work is re-evaluated every ``reevaluate_s`` and whenever the team changes: it
     moves to another robot only if that one bids at least ``move_margin`` below what the
     current executor now bids to finish it. ``strategy`` names how auctions competing for
-    the same robots are awarded (see :mod:`btcap.team.strategies`).
+    the same robots are awarded (see :mod:`btcap.team.allocation.strategies`).
     """
 
     lease_s: LeaseS = _T.lease_s

@@ -25,9 +25,9 @@ from btcap.sim.metrics import Interval, MissionResult
 from btcap.sim.model import RobotModel
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import Event, Scenario, builtin_scenarios, load_scenario
-from btcap.team.assignment import Assigned, AssignmentTask, SingleItemAuction, Unassigned
-from btcap.team.capability import Capability
-from btcap.team.implementation import Implementation
+from btcap.team.allocation.auction import Assigned, AssignmentTask, SingleItemAuction, Unassigned
+from btcap.team.capabilities.capability import Capability
+from btcap.team.capabilities.implementation import Implementation
 
 SEEDS = (1, 2, 3)
 #: Wall seconds one fast mission may take on a loaded machine (they take ~1-4 s).

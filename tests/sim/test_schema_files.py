@@ -14,7 +14,7 @@ from btcap.cli import main
 from btcap.sim import reference
 from btcap.sim.model import TeamFile
 from btcap.sim.scenariofile import Scenario
-from btcap.team.agentfile import AgentFile
+from btcap.team.deployment.agentfile import AgentFile
 
 
 @pytest.fixture(autouse=True)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from btcap.team.core.ids import AuctionId
+from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid, NoBid
 
 __all__ = ["Auction", "AuctionOutcome"]

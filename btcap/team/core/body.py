@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 __all__ = ["Body"]
 

@@ -33,7 +33,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 __all__ = ["Claim", "Consensus", "Task", "Vector"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 __all__ = ["CostWatch"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 __all__ = ["Drop", "Effect", "Lost", "Pause", "Refused", "Send", "Start"]
 

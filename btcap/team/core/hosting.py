@@ -19,7 +19,7 @@ from typing import Any, Generic, TypeVar
 
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Pause, Refused, Send, Start
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 from btcap.team.messages import (
     RUN_DONE,
     Award,

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from btcap.team.core.effects import Effect, Lost, Refused, Send
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 from btcap.team.messages import RUN_DONE, CancelExecution, ExecutionStatus, KeepAlive, RunState
 
 __all__ = ["ENDED_KEPT", "OriginLeases", "Tracked", "merge_keepalives"]

@@ -11,7 +11,7 @@ it sees the batch's full bid matrix. The strategies differ in what they do with 
   one with a single bidder before all), so a task that would lose much by waiting is not
   beaten to its robot by one that has an almost-as-good alternative. No robot is ever
   given a task it did not bid cheapest for among the free ones; what a batch gets wrong,
-  re-evaluation of running work (:mod:`btcap.team.moving`) improves later. Use it by
+  re-evaluation of running work (:mod:`btcap.team.runtime.moving`) improves later. Use it by
   default: it needs no plan and tolerates auctions closing apart.
 - ``sequential`` (sequential single-item auctions over all pending tasks, with
   improvement): the greedy rule (the globally cheapest robot-task pair first, then the
@@ -27,7 +27,7 @@ it sees the batch's full bid matrix. The strategies differ in what they do with 
   first behaviour, kept as a baseline).
 
 The order of the awards is :mod:`btcap.team.core.turns`; the strategies by name are
-:mod:`btcap.team.strategies`.
+:mod:`btcap.team.allocation.strategies`.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from btcap.team.core.auction import AuctionOutcome
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 __all__ = ["Assigned", "AssignmentTask", "Unassigned", "against_holder"]
 

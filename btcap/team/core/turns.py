@@ -5,7 +5,7 @@ the same robots) until none still collecting bids competes for their robots; a
 :class:`BatchPolicy` then says whether it plans the batch (a robot for each auction) and
 which auction awards next. The four built-in policies are the strategies of
 :mod:`btcap.team.core.planning`; a third-party strategy can bring its own (see
-:class:`btcap.team.strategies.BatchStrategy`).
+:class:`btcap.team.allocation.strategies.BatchStrategy`).
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ from btcap.bt.messages import (
     Tick,
     Untick,
 )
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import Address, Codec, Envelope, Kind, Message
 
 

@@ -17,9 +17,9 @@ import pytest
 
 from btcap.bt.registry import default_registry
 from btcap.cli import main
-from btcap.team.agentconfig import load_agent_file
-from btcap.team.deploy import open_agent, run_mission_file, wait_for_team
-from btcap.team.spawn import AsyncAgentProcess
+from btcap.team.deployment.agentconfig import load_agent_file
+from btcap.team.deployment.deploy import open_agent, run_mission_file, wait_for_team
+from btcap.team.deployment.spawn import AsyncAgentProcess
 
 ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"

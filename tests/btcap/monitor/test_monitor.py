@@ -28,9 +28,9 @@ from btcap.monitor.hub import BACKLOG, Hub
 from btcap.monitor.server import MonitorServer
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
-from btcap.team.agent import Agent, AgentConfig
 from btcap.team.demo import ECHO, implementations
-from btcap.team.protocol import protocol_registry
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
 DATA = Path(__file__).parents[2] / "sim" / "data"

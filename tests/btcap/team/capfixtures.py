@@ -14,12 +14,12 @@ from typing import Any
 
 from btcap import Leaf, Port, ReactiveSequence, State, Tree
 from btcap.actors import Actor, ActorSystem, Clock, ManualClock, TimeSource
-from btcap.team.agent import Agent, AgentConfig
-from btcap.team.capability import CapabilityInterface
-from btcap.team.implementation import Implementation, Precondition
-from btcap.team.membership import Membership, TeamEvent
-from btcap.team.protocol import protocol_registry
-from btcap.team.repository import CapabilityRepository
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation, Precondition
+from btcap.team.membership.membership import Membership, TeamEvent
+from btcap.team.membership.repository import CapabilityRepository
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
 #: Clock seconds run SPEEDUP times faster than the wall in these tests.

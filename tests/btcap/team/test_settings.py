@@ -11,10 +11,10 @@ import pytest
 
 from btcap.sim.scenario import AgentTiming
 from btcap.sim.scenario import Allocation as ScenarioAllocation
-from btcap.team.agentconfig import Allocation as FileAllocation
-from btcap.team.agentconfig import FileTiming
-from btcap.team.agentspec import AgentSpec, agent_config
-from btcap.team.membership import Membership
+from btcap.team.deployment.agentconfig import Allocation as FileAllocation
+from btcap.team.deployment.agentconfig import FileTiming
+from btcap.team.deployment.agentspec import AgentSpec, agent_config
+from btcap.team.membership.membership import Membership
 from btcap.team.settings import AgentConfig, Allocation, MissionConfig, Timing
 
 

@@ -8,13 +8,13 @@ from typing import Any
 
 import pytest
 
+from btcap.team.allocation.strategies import check_strategy
 from btcap.team.core.auction import REASON_CHARS, Auction
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
-from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.core.planning import optimal_plan
+from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import Bid, CallForBids, NoBid
-from btcap.team.strategies import check_strategy
 
 A1 = AuctionId("a", 1)
 CFB = CallForBids(A1, "Count", "Count()->()", {})

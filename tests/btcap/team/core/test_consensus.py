@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from btcap.team.core.consensus import Claim, Consensus, Task, Vector
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 ORIGIN = "o"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from btcap.team.core.costwatch import CostWatch
-from btcap.team.core.ids import ExecutionId
+from btcap.team.ids import ExecutionId
 
 E1 = ExecutionId("a", "root/x", 1)
 E2 = ExecutionId("a", "root/y", 2)

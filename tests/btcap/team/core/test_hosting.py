@@ -7,7 +7,7 @@ from typing import Any
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Pause, Refused, Send, Start
 from btcap.team.core.hosting import FINISHED_KEPT, Hosted, HostLeases
-from btcap.team.core.ids import AuctionId, ExecutionId
+from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import (
     Award,
     CancelExecution,

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from btcap.team.core.effects import Effect, Lost, Refused, Send
-from btcap.team.core.ids import ExecutionId
 from btcap.team.core.origin import ENDED_KEPT, OriginLeases
+from btcap.team.ids import ExecutionId
 from btcap.team.messages import CancelExecution, ExecutionStatus, KeepAlive, RunState
 
 E1 = ExecutionId("a", "root/count", 1)

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from btcap.team.core.ids import AuctionId
+from btcap.team.allocation.strategies import check_strategy, names
 from btcap.team.core.planning import optimal_plan, regret, sequential_plan
 from btcap.team.core.turns import ARRIVAL, AUCTION, SEQUENTIAL
+from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid
-from btcap.team.strategies import check_strategy, names
 
 A1 = AuctionId("a", 1)
 

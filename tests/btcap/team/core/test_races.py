@@ -8,9 +8,9 @@ from typing import Any
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Lost, Send
 from btcap.team.core.hosting import Hosted, HostLeases
-from btcap.team.core.ids import AuctionId, ExecutionId
 from btcap.team.core.members import MemberTable
 from btcap.team.core.origin import OriginLeases
+from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import (
     Award,
     CancelExecution,

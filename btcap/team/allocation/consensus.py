@@ -1,0 +1,425 @@
+"""Consensus allocation: the ``consensus`` strategy, with no auctioneer collecting bids.
+
+Every robot runs a :class:`ConsensusAssigner`. An origin offers its pending capability
+executions to the team; each robot prices them itself (the bids of
+:class:`~btcap.team.runtime.executor.ExecutorSide`), claims the one it does cheapest among those
+where it beats the current winner, and tells every member its claim; conflicts are
+resolved by the best bid, as in CBAA (:mod:`btcap.team.core.consensus`). When the team
+agrees, or after ``window_s`` without agreement, the origin awards each task to the
+winner it sees, confirmed as in the auction (award -> accept/decline, then leases), so a
+task never runs twice even if the views still differed.
+
+When to use it: a team where no robot should decide for the others, where several
+robots hold mission trees and would otherwise award the same robot from separate
+auctions, or whose links are flaky (a lost member's claims simply vanish and what it
+held is re-allocated by the others; a task's allocation needs no single robot but its
+origin). It costs more messages than the auction (every change goes to every member:
+O(n^2) per round) and gives the sequential greedy assignment, not the optimum (use
+``optimal`` for small central teams).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from btcap.actors import ActorError, Supervision, TimeSource, handler, within
+from btcap.team.allocation.strategy import (
+    Allocator,
+    AuctionRecord,
+    AuctionStats,
+    AuctionWatcher,
+    Pricer,
+    TeamView,
+)
+from btcap.team.capabilities.capability import ASSIGNER_PATH
+from btcap.team.core.auction import REASON_CHARS, AuctionOutcome
+from btcap.team.core.consensus import Claim, Consensus, Task, Vector
+from btcap.team.core.members import TeamEvent
+from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
+from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.messages import (
+    Award,
+    AwardReply,
+    Bid,
+    CallForBids,
+    CancelExecution,
+    ConsensusClaim,
+    ConsensusTasks,
+    OpenTask,
+)
+from btcap.transports import Address
+from btcap.transports.log import get_logger, worth_logging
+
+__all__ = ["ConsensusAssigner", "ConsensusStats"]
+
+log = get_logger("btcap.team.consensus")
+
+
+@dataclass(slots=True)
+class ConsensusStats(AuctionStats):
+    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window."""
+
+    messages: int = 0  #: consensus messages sent
+    refused: int = 0  #: messages speaking for another robot, or with an impossible cost
+    dropped: int = 0  #: tasks and view entries over the bounds a peer sent
+
+
+@dataclass(slots=True)
+class _Pending:
+    id: AuctionId  # what its awards and reports are filed under
+    task: AssignmentTask
+    agreed: asyncio.Event
+    why: dict[str, str]
+
+
+class ConsensusAssigner(Allocator):
+    """One robot's part of consensus allocation; see the module docstring. ``team`` is the
+    robot's membership, ``pricer`` prices tasks for it (its executor side); without
+    them it knows no members and claims nothing."""
+
+    PATH = "consensus"
+    #: A peer's bad message must never stop a robot's allocation.
+    supervision = Supervision.RESUME
+
+    def __init__(
+        self,
+        robot: str,
+        *,
+        window_s: float = 1.0,
+        award_timeout_s: float = 0.5,
+        max_tasks: int = 64,
+        team: TeamView | None = None,
+        pricer: Pricer | None = None,
+    ) -> None:
+        super().__init__()
+        self.robot = robot
+        self.team = team
+        self.pricer = pricer
+        self.window_s = window_s
+        self.award_timeout_s = award_timeout_s
+        self.core: Consensus[OpenTask] = Consensus(robot, max_tasks=max_tasks)
+        self.stats: ConsensusStats = ConsensusStats()
+        self._pending: dict[ExecutionId, _Pending] = {}
+        self._impls: dict[str, str] = {}  # the implementation of each robot's claim
+        self._prices: dict[ExecutionId, tuple[OpenTask, Bid | str]] = {}
+        self._idle: bool | None = None  # the body's state the prices were made in
+        self._said: tuple[Claim, dict[str, tuple[int, int]]] | None = None
+        self._said_version = 0
+        self._seq = itertools.count(1)
+        self._ids = itertools.count(1)
+        self._unsubscribe: Callable[[], None] | None = None
+        self._behind: set[str] = set()  # members missing what we hold: tell them all
+        self._scheduled = False
+        self._watchers: list[AuctionWatcher] = []
+
+    def watch(self, watcher: AuctionWatcher) -> Callable[[], None]:
+        """Report each task's allocation to ``watcher`` as it opens and ends, as the
+        auction reports its auctions (for monitors); returns an unsubscribe."""
+        self._watchers.append(watcher)
+        return lambda: self._watchers.remove(watcher) if watcher in self._watchers else None
+
+    def _report(self, record: AuctionRecord) -> None:
+        for watcher in list(self._watchers):
+            try:
+                watcher(record)
+            except Exception as exc:  # a monitor's bug must not stop allocation
+                log.error("consensus.watcher_failed", robot=self.robot, exc_info=exc)
+
+    # -- life cycle and team ----------------------------------------------------------
+    def on_start(self) -> None:
+        team = self.team
+        if team is not None:
+            self._unsubscribe = team.subscribe(self._on_team)
+            for robot in sorted(team.alive()):
+                self.core.join(robot)
+
+    def on_stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event is TeamEvent.JOINED:
+            self.core.join(robot)
+            self._behind.add(robot)  # it needs what we hold, changed or not
+        elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
+            self.core.lose(robot)
+            self._impls.pop(robot, None)
+            self._behind.discard(robot)
+        elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
+            self._prices.clear()  # preconditions may be met now
+        self._soon()
+
+    # -- the strategy -----------------------------------------------------------------
+    async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
+        clock = self.system.clock
+        mine = _Pending(AuctionId(self.robot, next(self._ids)), task, asyncio.Event(), {})
+        self._pending[task.execution] = mine
+        self.stats.auctions += 1
+        opened = AuctionRecord(mine.id, task, clock.now())
+        self._report(opened)
+        won: Assigned | Unassigned | None = None
+        spec = OpenTask(
+            task.execution,
+            task.interface,
+            task.identity,
+            dict(task.inputs),
+            sorted(task.candidates),
+            task.holder,
+            task.holder_robot,
+            task.margin,
+        )
+        self.core.open(Task(task.execution, task.candidates, spec))
+        try:
+            while True:
+                self._soon()
+                if not self.core.converged():
+                    await self._agreement(mine, clock)
+                if self.core.converged():
+                    self.stats.early_closes += 1
+                won = await self._award(mine)
+                if won is not None:
+                    return won
+        finally:
+            if self._watchers:
+                self._report(self._record(mine, opened, won))
+            del self._pending[task.execution]
+            self.core.close(task.execution)
+            self._soon()
+
+    def _record(
+        self, mine: _Pending, opened: AuctionRecord, won: Assigned | Unassigned | None
+    ) -> AuctionRecord:
+        """How a task's allocation ended, for watchers (``won`` None: cancelled)."""
+        outcome = None
+        if won is not None:
+            ranking = []
+            if isinstance(won, Assigned):
+                ranking = [Bid(mine.id, won.robot, won.cost, won.implementation)]
+            silent = self.core.waiting_for() & mine.task.candidates
+            outcome = AuctionOutcome(ranking, dict(mine.why), silent)
+        now = self.system.clock.now()
+        return AuctionRecord(mine.id, mine.task, opened.opened, now, outcome, won)
+
+    async def _agreement(self, mine: _Pending, clock: TimeSource) -> None:
+        """Until the team agrees or ``window_s`` passes; silent peers are told again at a
+        quarter of the window (a message may have been lost)."""
+        for _ in range(4):
+            mine.agreed.clear()
+            if self.core.converged():
+                return
+            if await within(clock, self.window_s / 4, mine.agreed.wait()) is not None:
+                return
+            self._tell_all(sorted(self.core.waiting_for()))
+
+    async def _award(self, mine: _Pending) -> Assigned | Unassigned | None:
+        """Award the task to its winner; None: it declined, so agree again without it."""
+        task = mine.task
+        win = self.core.winners().get(task.execution)
+        if win is None or win.robot == task.holder_robot:
+            self.stats.unassigned += 1
+            why = dict(mine.why)
+            for robot in task.candidates - why.keys():
+                why[robot] = "kept its work" if robot == task.holder_robot else "no claim"
+            return Unassigned(why)
+        if task.reserve is not None and win.cost >= task.reserve:
+            self.stats.unassigned += 1
+            return Unassigned({win.robot: f"bid {win.cost:g} not below {task.reserve:g}"})
+        impl = self._implementation(win)
+        award = Award(
+            mine.id,
+            task.execution,
+            task.interface,
+            impl,
+            dict(task.inputs),
+            task.lease_s,
+            task.paused,
+        )
+        executor = self.system.ref(Address(win.robot, ASSIGNER_PATH))
+        clock = self.system.clock
+        reply: AwardReply | None = None
+        try:
+            reply = await within(
+                clock, self.award_timeout_s, executor.ask(award, expect=AwardReply)
+            )
+        except (ActorError, TypeError) as exc:
+            mine.why[win.robot] = f"no answer to the award ({exc})"
+        finally:
+            if reply is None:  # timed out, failed or cancelled: withdraw, never run twice
+                cancel = CancelExecution(task.execution, "award withdrawn")
+                executor.tell(cancel, sender=self.address)
+        if reply is not None and reply.accepted:
+            self.stats.awarded += 1
+            return Assigned(win.robot, impl, win.cost)
+        self.stats.declined_awards += 1
+        if reply is not None:
+            mine.why[win.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
+        mine.why.setdefault(win.robot, "no answer to the award")
+        log.info(
+            "consensus.award_declined", robot=self.robot, to=win.robot, why=mine.why[win.robot]
+        )
+        self.core.restrict(task.execution, win.robot)
+        return None
+
+    def _implementation(self, win: Claim) -> str:
+        if win.robot == self.robot:
+            price = self._prices.get(win.task) if win.task is not None else None
+            return price[1].implementation if price and isinstance(price[1], Bid) else ""
+        return self._impls.get(win.robot, "")
+
+    # -- one step: price, select, tell --------------------------------------------------
+    def _soon(self) -> None:
+        """Step once this turn of the event loop is over: what arrives meanwhile is merged
+        first and goes out in one message per member (CBAA's round), and the tasks a tree
+        asks for in one tick are offered together."""
+        if not self._scheduled:
+            self._scheduled = True
+            asyncio.get_running_loop().call_soon(self._step)
+
+    def _step(self) -> None:
+        self._scheduled = False
+        if self._system is None or not self.system.running:
+            return
+        self.core.select(self._costs())
+        self._count()
+        if self.core.converged():
+            for p in self._pending.values():
+                p.agreed.set()
+        now = (self.core.claim, self.core.vector())
+        tasks_changed = self.core.version != self._said_version
+        if tasks_changed or now != self._said:
+            self._said, self._said_version = now, self.core.version
+            told = self.core.members - {self.robot}
+            if not tasks_changed:  # those behind need the open tasks, changed or not
+                self._tell_all(sorted(self._behind & told))
+                told -= self._behind
+            self._tell_all(sorted(told), tasks=tasks_changed)
+        else:
+            self._tell_all(sorted(self._behind & self.core.members))
+        self._behind.clear()
+
+    def _tell_all(self, robots: Iterable[str], *, tasks: bool = True) -> None:
+        """Tell ``robots`` this robot's claim and view (and its open tasks)."""
+        robots = list(robots)
+        if not robots or self._system is None or not self.system.running:
+            return
+        claim, vector = self.core.claim, self.core.vector()
+        impl = self._implementation(claim) if claim.task is not None else ""
+        why: dict[str, list[tuple[ExecutionId, str]]] = {}  # by origin: only it needs them
+        for t, (_spec, answer) in self._prices.items():
+            if isinstance(answer, str):
+                why.setdefault(t.origin, []).append((t, answer))
+        offer = None
+        if tasks:
+            offer = ConsensusTasks(
+                self.robot, self.core.version, [t.spec for t in self.core.own_tasks()]
+            )
+        view = [(r, s, v) for r, (s, v) in sorted(vector.items())]
+        cost = claim.cost if claim.task is not None else 0.0
+        seq = next(self._seq)
+        for robot in robots:
+            to = Address(robot, self.PATH)
+            if offer is not None:
+                self.system.tell(to, offer, sender=self.address)
+            says = ConsensusClaim(
+                self.robot, seq, claim.stamp, claim.task, cost, impl, view, why.get(robot, [])
+            )
+            self.system.tell(to, says, sender=self.address)
+            self.stats.messages += 1 + (offer is not None)
+
+    def _costs(self) -> dict[ExecutionId, float]:
+        """This robot's cost for each open task it may take (cached while its body's
+        state and the task stay the same); a holder's bid counts ``margin`` lower."""
+        pricer = self.pricer
+        if pricer is None:
+            return {}
+        idle = pricer.idle
+        if idle != self._idle:
+            self._prices.clear()
+            self._idle = idle
+        tasks = self.core.tasks()
+        for gone in self._prices.keys() - tasks.keys():
+            del self._prices[gone]
+        costs: dict[ExecutionId, float] = {}
+        for execution, task in tasks.items():
+            if self.robot not in task.candidates:
+                continue
+            spec = task.spec
+            cached = self._prices.get(execution)
+            if cached is None or cached[0] is not spec:
+                cfb = CallForBids(
+                    AuctionId(execution.origin, 0),
+                    spec.interface,
+                    spec.identity,
+                    spec.inputs,
+                    spec.holder,
+                )
+                got = pricer.evaluate(cfb)
+                cached = (spec, got if isinstance(got, Bid) else got.reason)
+                self._prices[execution] = cached
+            bid = cached[1]
+            if isinstance(bid, Bid):
+                held = spec.holder_robot == self.robot
+                costs[execution] = bid.cost * (1.0 - spec.margin) if held else bid.cost
+        return costs
+
+    def _count(self) -> None:
+        """Report what the core refused or dropped since last time, at a falling rate."""
+        for name in ("refused", "dropped"):
+            now, before = getattr(self.core, name), getattr(self.stats, name)
+            if now > before:
+                setattr(self.stats, name, now)
+                if worth_logging(now):
+                    log.warning(f"consensus.{name}", robot=self.robot, count=now)
+
+    # -- what peers say ---------------------------------------------------------------
+    def _member(self, sender: str) -> bool:
+        team = self.team
+        if sender not in self.core.members and team is not None and sender in team.alive():
+            self.core.join(sender)  # its first word came before its heartbeat's news
+        return sender in self.core.members
+
+    @handler
+    def on_tasks(self, msg: ConsensusTasks) -> None:
+        sender = self.sender
+        if msg.robot != sender:
+            self.core.refused += 1
+        elif self._member(sender):
+            tasks = (Task(t.execution, frozenset(t.candidates), t) for t in msg.tasks)
+            self.core.offer(sender, msg.version, tasks)
+        self._soon()
+
+    @handler
+    def on_claim(self, msg: ConsensusClaim) -> None:
+        sender = self.sender
+        if not self._member(sender):
+            return  # a stranger, or a member we lost: its state is not kept
+        claim = Claim(msg.robot, msg.stamp, msg.task, msg.cost if msg.task else math.inf)
+        view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
+        before = self.core.views.get(sender)
+        if self.core.hear(sender, msg.seq, claim, view):
+            fresh = self.core.claims.get(sender) is claim
+            if fresh:
+                self._impls[sender] = msg.implementation
+            if self._missed(before, self.core.views[sender], fresh):
+                self._behind.add(sender)
+        for execution, why in msg.why[: self.core.max_tasks]:
+            p = self._pending.get(execution)
+            if p is not None and sender in p.task.candidates:
+                p.why[sender] = why[:REASON_CHARS]
+        self._soon()
+
+    def _missed(self, before: Vector | None, now: Vector, fresh: bool) -> bool:
+        """Whether a peer needs our word again: it retried (no ``fresh`` claim, the same
+        view) still without it (ours was lost), or its view of us went backwards (it lost
+        us and took us back, forgetting our tasks). Not on every message it sent while
+        ours was on its way: that would double the traffic of a round."""
+        ours, seen = (self.core.claim.stamp, self.core.version), now.get(self.robot, (0, 0))
+        if before is None or seen == ours:
+            return False
+        was = before.get(self.robot, (0, 0))
+        return (not fresh and now == before) or seen[0] < was[0] or seen[1] < was[1]

@@ -1,0 +1,81 @@
+"""The remote capability slot: where a robot runs implementations for others."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+from btcap.actors.services import Service
+from btcap.bt.node import Leaf
+from btcap.bt.state import State, TreeError
+from btcap.team.capabilities.implementation import ImplementationRun
+from btcap.team.core.hosting import Hosted
+from btcap.team.ids import ExecutionId
+
+__all__ = ["SLOT_HOST", "RemoteCapabilitySlot", "SlotHost"]
+
+_RUNNING = State.RUNNING
+
+
+@runtime_checkable
+class SlotHost(Protocol):
+    """What the slot needs from its robot's mission control."""
+
+    def attach_slot(self, slot: RemoteCapabilitySlot) -> None: ...
+
+    def hosted_ticked(
+        self, hosted: Hosted[ImplementationRun], state: State, outputs: dict[str, Any]
+    ) -> None: ...
+
+
+#: The robot's :class:`SlotHost` among its actor system's services (its mission control).
+SLOT_HOST: Service[SlotHost] = Service("slot host")
+
+
+class RemoteCapabilitySlot(Leaf):
+    """A node in a robot's own tree that runs one remote-requested implementation at a time.
+
+    The implementation is ticked at this tree's rate; its root state and outputs go back
+    to the requesting robot after every tick. When it ends or is cancelled it is shut down
+    and dropped, leaving nothing behind. The slot itself keeps running as a service.
+    """
+
+    __slots__ = ("_host", "current")
+
+    def __init__(self, name: str | None = "slot", **kwargs: object) -> None:
+        self.current: Hosted[ImplementationRun] | None = None
+        self._host: SlotHost | None = None
+        super().__init__(name, **kwargs)  # type: ignore[arg-type]
+
+    def on_setup(self) -> None:
+        system = self.tree.system
+        host = system.services.get(SLOT_HOST) if system is not None else None
+        if host is None:
+            raise TreeError(f"slot {self.path!r}: the tree must be attached to a robot's system")
+        host.attach_slot(self)
+        self._host = host
+
+    def load(self, hosted: Hosted[ImplementationRun]) -> str | None:
+        """Take a run, or say why not."""
+        if self.current is not None:
+            return f"slot busy with {self.current.execution}"
+        if not self._ready:
+            return "slot not set up"
+        hosted.run.tree.setup()
+        self.current = hosted
+        return None
+
+    def unload(self, execution: ExecutionId) -> None:
+        if self.current is not None and self.current.execution == execution:
+            self.current = None
+
+    def on_tick(self) -> State:
+        h = self.current
+        if h is None or h.paused or self._host is None:
+            return _RUNNING
+        state, outputs = h.run.step(h.inputs)
+        self._host.hosted_ticked(h, state, outputs)
+        return _RUNNING
+
+    def on_untick(self) -> None:
+        if self.current is not None:
+            self.current.run.pause()

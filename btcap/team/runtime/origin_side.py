@@ -1,0 +1,201 @@
+"""The origin's side of mission control: finding executors for this robot's capability
+nodes and keeping the handles they tick.
+
+Which executions live is decided by the core's :class:`~btcap.team.core.origin.OriginLeases`;
+this part runs the assignment strategy and turns its winner into a handle.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+from collections.abc import Callable, Coroutine, Iterable
+from typing import Any
+
+from btcap.bt.state import TreeError
+from btcap.team.allocation.strategy import Allocator
+from btcap.team.capabilities.capability import Capability
+from btcap.team.capabilities.execution import AssignmentRequest
+from btcap.team.capabilities.implementation import ImplementationRun
+from btcap.team.capabilities.proxies import LocalExecution, RemoteExecution
+from btcap.team.core.body import Body
+from btcap.team.core.effects import Effect
+from btcap.team.core.origin import OriginLeases, Tracked
+from btcap.team.core.task import Assigned, AssignmentTask
+from btcap.team.ids import ExecutionId
+from btcap.team.membership.membership import Membership
+from btcap.team.membership.repository import CapabilityRepository
+from btcap.team.messages import RUN_DONE, ExecutionStatus
+from btcap.team.runtime.config import MissionConfig, MissionStats
+from btcap.team.runtime.executor import ExecutorSide
+
+__all__ = ["Handle", "OriginSide"]
+
+Handle = LocalExecution | RemoteExecution
+
+
+class OriginSide:
+    """Assignments and execution handles of one robot's capability nodes."""
+
+    def __init__(
+        self,
+        robot: str,
+        *,
+        config: MissionConfig,
+        stats: MissionStats,
+        allocator: Allocator,
+        repository: CapabilityRepository,
+        team: Membership,
+        executor: ExecutorSide,
+        send: Callable[[str, Any], None],
+        perform: Callable[[Iterable[Effect]], None],
+        start_task: Callable[..., asyncio.Task[Any]],
+        now: Callable[[], float],
+        news: Callable[[], None] = lambda: None,
+    ) -> None:
+        self.robot = robot
+        self.config = config
+        self.stats = stats
+        self.allocator = allocator
+        self.repository = repository
+        self.team = team
+        self.executor = executor
+        self.body: Body = executor.body
+        self.send = send
+        self.perform = perform
+        self._start_task = start_task
+        self.now = now
+        self.news = news
+        self.leases = OriginLeases(robot)
+        #: Every execution a capability node of this robot holds, local or remote.
+        self.active: dict[ExecutionId, Handle] = {}
+        self._ids = itertools.count(1)
+
+    def alive(self) -> frozenset[str]:
+        return self.team.alive()
+
+    def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> Any:
+        return self._start_task(coro, name=name)
+
+    def inputs_of(self, execution: ExecutionId) -> dict[str, Any] | None:
+        """The latest inputs of the node holding ``execution`` (None once it ended)."""
+        ex = self.active.get(execution)
+        return None if ex is None else dict(ex.node.inputs)
+
+    def request_assignment(
+        self,
+        node: Capability,
+        inputs: dict[str, Any],
+        *,
+        local_only: bool = False,
+        exclude: frozenset[str] = frozenset(),
+    ) -> AssignmentRequest:
+        """Start finding an executor for ``node``; never blocks the tick."""
+        req = AssignmentRequest()
+        self.stats.requests += 1
+        iface = type(node).INTERFACE
+        providers = self.repository.providers(iface.identity)
+        candidates = {self.robot} & providers if local_only else providers & self.team.alive()
+        candidates -= exclude
+        if not candidates:
+            req.done = True
+            req.why = {
+                "team": f"no live member{' but excluded ones' if exclude else ''} "
+                f"implements {iface.name}"
+            }
+            self.stats.unassigned += 1
+            return req
+        execution = self.new_execution(node)
+        task = AssignmentTask(
+            execution,
+            iface.name,
+            iface.identity,
+            inputs,
+            frozenset(candidates),
+            self.config.lease_s,
+        )
+        req.task = self.start_task(self._assign(req, task, node), name=f"assign {execution}")
+        return req
+
+    def new_execution(self, node: Capability) -> ExecutionId:
+        return ExecutionId(self.robot, node.path, next(self._ids))
+
+    def remote(
+        self, execution: ExecutionId, robot: str, node: Capability, cost: float
+    ) -> RemoteExecution:
+        """The handle of an execution ``robot`` accepted; its lease starts now."""
+        tracked = self.leases.track(execution, robot, self.config.lease_s, self.now())
+        return RemoteExecution(self, tracked, node, cost)
+
+    def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle:
+        """The handle of an execution ``won.robot`` accepted: this robot's own run, ticked
+        by the node, or a proxy of one on another robot (its lease starts now)."""
+        if won.robot == self.robot:
+            run = self.executor.local_runs.pop(execution)
+            return LocalExecution(self, execution, run, node, won.cost)
+        return self.remote(execution, won.robot, node, won.cost)
+
+    def let_go(self, ex: Handle, reason: str) -> None:
+        """The node let ``ex`` go; a replacement it never adopted goes with it."""
+        self.leases.forget(ex.id)
+        self.active.pop(ex.id, None)
+        if ex.replacement is not None:
+            ex.replacement.cancel(reason)
+            ex.replacement = None
+
+    def release(self, execution: ExecutionId, run: ImplementationRun) -> None:
+        """A run of this robot's own ended, was dropped or was never adopted."""
+        self.executor.local_runs.pop(execution, None)
+        self.executor.close(run)
+        self.perform(self.executor.host.release(execution))
+
+    def record_success(self, capability: str) -> None:
+        self.repository.record_success(capability)
+
+    def withdrawn(self, execution: ExecutionId) -> None:
+        """Our own auctioneer gave up on an award this robot took for itself."""
+        run = self.executor.local_runs.get(execution)
+        if run is not None and execution not in self.active:
+            self.release(execution, run)
+
+    async def _assign(self, req: AssignmentRequest, task: AssignmentTask, node: Capability) -> None:
+        try:
+            won = await self.allocator.assign(task)
+        except asyncio.CancelledError:
+            self.withdrawn(task.execution)  # taken for itself as the request was cancelled
+            raise
+        finally:
+            req.done = True
+        if not isinstance(won, Assigned) or won.robot != self.robot:
+            self.withdrawn(task.execution)  # a self-award it gave up on, then took
+        if not isinstance(won, Assigned):
+            req.why = dict(won.reasons)
+            self.stats.unassigned += 1
+            return
+        self.stats.assigned += 1
+        ex = self.handle(task.execution, won, node)
+        self.active[ex.id] = ex
+        req.execution = ex
+        if req.cancelled:
+            ex.cancel("request cancelled")
+            req.execution = None
+
+    def status(self, sender: str, msg: ExecutionStatus) -> None:
+        """A report on a remote execution: its outputs typed by the node's interface."""
+        self.perform(self.leases.status(sender, msg, self.now(), self._convert))
+        if msg.state in RUN_DONE and msg.execution not in self.leases.tracked:
+            handle = self.active.get(msg.execution)
+            if isinstance(handle, RemoteExecution) and handle.tracked.state in RUN_DONE:
+                self.active.pop(msg.execution)  # its result was taken
+                # Its executor is free now: work waiting for a robot competes for it at
+                # once, with the task that follows this one (not a heartbeat later).
+                self.news()
+
+    def _convert(self, t: Tracked, values: dict[str, Any]) -> dict[str, Any] | str:
+        handle = self.active.get(t.execution)
+        if handle is None:
+            return dict(values)  # a replacement not yet adopted: its node reads them later
+        try:
+            return type(handle.node).INTERFACE.convert_outputs(values, f"status of {t.execution}")
+        except TreeError as exc:
+            return str(exc)

@@ -1,0 +1,214 @@
+"""Team membership: joins, goodbyes, silent failures, restarts; unit and between agents."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import AsyncExitStack, asynccontextmanager
+from typing import Any
+
+import anyio
+import pytest
+from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
+
+from btcap import ReactiveSequence
+from btcap.actors import ActorSystem, ManualClock
+from btcap.team.deployment.deploy import observe_team
+from btcap.team.membership.membership import Membership, TeamEvent
+from btcap.team.messages import Contact, Goodbye, Heartbeat, Roster
+from btcap.team.runtime.protocol import protocol_registry
+from btcap.transports import Address, InProcessNetwork
+
+
+class Peers:
+    """Robots x and y as actor systems of their own: what they send, the network
+    delivers with their authenticated name, whatever the message claims."""
+
+    def __init__(self, m: Membership, clock: ManualClock, systems: dict[str, ActorSystem]):
+        self.m, self.clock, self.systems = m, clock, systems
+
+    async def send(self, sender: str, msg: Heartbeat | Goodbye) -> None:
+        self.systems[sender].tell(Address("me", Membership.PATH), msg)
+        await self.clock.advance(0)  # the network delivers on the next loop turn
+
+
+@asynccontextmanager
+async def membership(**kw: Any) -> AsyncIterator[tuple[Peers, list[tuple[TeamEvent, str]]]]:
+    clock = ManualClock()
+    net = InProcessNetwork(protocol_registry())
+    async with AsyncExitStack() as stack:
+        systems = {
+            name: await stack.enter_async_context(
+                ActorSystem(name, transport=net.transport(name), clock=clock)
+            )
+            for name in ("me", "x", "y")
+        }
+        m = Membership("me", **kw)
+        systems["me"].spawn(m, Membership.PATH)
+        events: list[tuple[TeamEvent, str]] = []
+        m.subscribe(lambda e, r: events.append((e, r)))
+        yield Peers(m, clock, systems), events
+
+
+def test_failure_timeout_must_exceed_the_heartbeat() -> None:
+    with pytest.raises(ValueError, match="failure_timeout_s"):
+        Membership("me", heartbeat_s=1.0, failure_timeout_s=1.0)
+
+
+async def test_heartbeats_join_change_and_restart() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+            m = p.m
+            m.system.tell(m.address, Heartbeat("me", m.incarnation, 0))  # my own: ignored
+            await p.clock.advance(0)
+            assert events == []
+            assert m.alive() == {"me"}
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Heartbeat("x", 1, 0))  # nothing new
+            assert events == [(TeamEvent.JOINED, "x")]
+            assert m.alive() == {"me", "x"}
+            await p.send("x", Heartbeat("x", 1, 3))
+            assert events[-1] == (TeamEvent.CHANGED, "x")
+            # A new incarnation: the old one failed, the new one joined.
+            await p.send("x", Heartbeat("x", 2, 0))
+            assert events[-2:] == [(TeamEvent.FAILED, "x"), (TeamEvent.JOINED, "x")]
+            assert m.members["x"].incarnation == 2
+
+
+async def test_a_robot_speaks_only_for_itself() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("y", Heartbeat("z", 1, 0))  # y in z's name: no z joins
+            await p.send("y", Goodbye("x", 1))  # y in x's name: x stays
+            assert events == [(TeamEvent.JOINED, "x")]
+            assert p.m.alive() == {"me", "x"}
+            assert p.m.refused == 2
+
+
+async def test_goodbye_of_the_current_incarnation_only() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+            await p.send("x", Heartbeat("x", 2, 0))
+            await p.send("x", Goodbye("x", 1))  # from an old incarnation
+            await p.send("y", Goodbye("y", 1))  # from a stranger
+            assert p.m.alive() == {"me", "x"}
+            await p.send("x", Goodbye("x", 2))
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.LEFT, "x")]
+            assert p.m.alive() == {"me"}
+
+
+async def test_silence_beyond_the_failure_timeout_is_a_failure() -> None:
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.clock.advance(0.4)
+            await p.send("x", Heartbeat("x", 1, 0))  # renews
+            await p.clock.advance(0.5)
+            assert events == [(TeamEvent.JOINED, "x")]
+            await p.clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
+            assert p.m.alive() == {"me"}
+
+
+async def test_a_failing_listener_does_not_stop_the_others() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+
+            def bad(_e: TeamEvent, _r: str) -> None:
+                raise RuntimeError("listener bug")
+
+            unsubscribe = p.m.subscribe(bad)
+            p.m.subscribe(lambda e, r: events.append((e, r)))
+            await p.send("x", Heartbeat("x", 1, 0))
+            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.JOINED, "x")]
+            unsubscribe()
+            unsubscribe()  # twice is harmless
+            assert bad not in p.m._listeners
+
+
+async def test_join_leave_and_failure_between_agents() -> None:
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b")
+            await t.add("c")
+            await t.converged()
+            assert t.seen("a", "b") == [TeamEvent.JOINED]
+            # b leaves on purpose: everyone knows at once (no timeout needed).
+            await t.remove("b")
+            await until(lambda: a.team.alive() == {"a", "c"} and t["c"].team.alive() == {"a", "c"})
+            assert t.seen("a", "b") == [TeamEvent.JOINED, TeamEvent.LEFT]
+            # c goes silent: after the failure timeout it counts as failed, and c sees a fail.
+            t.net.isolate("c")
+            await until(lambda: a.team.alive() == {"a"} and t["c"].team.alive() == {"c"})
+            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            assert t.seen("c", "a") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            # Healed, it joins again.
+            t.net.heal("c")
+            await until(lambda: a.team.alive() == {"a", "c"})
+            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+
+
+async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:
+    # The failure timeout is long: only the new incarnation can reveal the restart.
+    with anyio.fail_after(10):
+        async with team(failure_timeout_s=1000.0) as t:
+            probe = Probe()
+            a = await t.add("a")
+            b = await t.add(
+                "b", [count_impl("b", 1.0, probe), count_impl("b", 1.0, probe, name="x")]
+            )
+            await t.converged()
+            for i in range(3):  # the old incarnation's repository version grows past the new one's
+                b.repository.record_success(f"Cap{i}")
+            await until(lambda: a.repository.team["b"].version == b.repository.version)
+            old = b.team.incarnation
+            t.net.isolate("b")  # a crash: no goodbye gets out
+            await t.remove("b")
+            assert a.team.alive() == {"a", "b"}
+            b2 = await t.add("b")
+            assert b2.team.incarnation != old
+            await until(lambda: a.team.members["b"].incarnation == b2.team.incarnation)
+            joins = [e for e in t.seen("a", "b") if e is not TeamEvent.CHANGED]
+            assert joins == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+            # What the old incarnation could do and did is forgotten; the new one is learnt.
+            await until(lambda: "b" in a.repository.team)
+            assert a.repository.team["b"].version == b2.repository.version
+            assert a.repository.providers(COUNT.identity) == set()
+            assert not a.repository.succeeded_anywhere("Cap0")
+
+
+async def test_an_observer_sees_what_each_member_runs() -> None:
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            a = await t.add("a")
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            await t.converged()
+            node = COUNT.node_type()("count", inputs={"x": 1})
+            tree = a.mission(ReactiveSequence("root", children=[node]))
+            await tick_until(tree, lambda _s: b.mission_control.body.running is not None, "b runs")
+            seen = {m.robot: m for m in await observe_team(a)}
+            assert seen["b"].running == [str(b.mission_control.body.running)]
+            assert seen["b"].running[0].startswith("a:")  # a's work, on b's body
+            assert "Count" in (seen["b"].capabilities or {})
+            observer = await t.add("observer")
+            await t.converged()
+            views = {m.robot: m.running for m in await observe_team(observer)}
+            assert views == {"a": [], "b": seen["b"].running}
+            await tree.shutdown()
+
+
+async def test_a_roster_nobody_asked_for_is_refused() -> None:
+    """Only a robot that just met us (its welcome) or that we asked may make us dial."""
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            c = await t.add("c")
+            await t.converged()
+            await t.clock.sleep(2 * a.team.failure_timeout_s)  # past the welcome
+            refused = a.team.refused
+            c.system.tell(
+                Address("a", Membership.PATH), Roster([Contact("ghost", "tcp://127.0.0.1:9")])
+            )
+            await until(lambda: a.team.refused == refused + 1, "the roster refused")
