@@ -78,28 +78,24 @@ class MissionControl(Actor):
         self.team = team
         self.config = config or MissionConfig()
         self.stats = MissionStats()
-        self.body = Body(queue_after_current=self.config.queue_after_current, on_free=self._freed)
+        self.body = Body(queue_after_current=self.config.queue_after_current, on_free=self.freed)
         #: Grows whenever waiting work may now find a robot (one came free, joined or
         #: changed): capability nodes waiting for one auction again at once.
         self.changes = 0
-        self.executor = ExecutorSide(robot, repository, self.body, self.stats, self._now)
+        self.executor = ExecutorSide(robot, repository, self.body, self.stats, self.now)
         self.executor.costs.margin = self.config.move_margin
         self.host = self.executor.host
         #: This robot's part of the allocation strategy (spawned beside mission control).
         self.allocator = strategy.allocator(RobotContext(robot, self.config, team, self.executor))
         self.origin_side = OriginSide(
             robot,
+            self,
             config=self.config,
             stats=self.stats,
             allocator=self.allocator,
             repository=repository,
             team=team,
             executor=self.executor,
-            send=self.send,
-            perform=self._perform,
-            start_task=self.start_task,
-            now=self._now,
-            news=self._freed,
         )
         self.origin = self.origin_side.leases
         #: Every execution a capability node of this robot holds, local or remote.
@@ -115,7 +111,8 @@ class MissionControl(Actor):
         w = self._lost_watchers
         return lambda: w.remove(watcher) if watcher in w else None
 
-    def _now(self) -> float:
+    def now(self) -> float:
+        """The time of the robot's clock (the virtual one in a fast simulation)."""
         return self.system.clock.now()
 
     @property
@@ -133,14 +130,15 @@ class MissionControl(Actor):
         for unsubscribe in self._unsubscribe:
             unsubscribe()
         # The robot is going away: what it runs for others or itself stops with it.
-        self._perform(self.host.drop_all("robot stopping"))
+        self.perform(self.host.drop_all("robot stopping"))
         for execution, run in list(self.executor.local_runs.items()):
             self.origin_side.release(execution, run)
 
     def attach_slot(self, slot: RemoteCapabilitySlot) -> None:
         self.executor.attach_slot(slot)
 
-    def _freed(self) -> None:
+    def freed(self) -> None:
+        """This robot, or one its work ran on, came free: waiting work may find it now."""
         # The team hears it with the next heartbeat (its ``busy`` flag): not a broadcast per
         # finished task, which would cost every member a message each time.
         self.changes += 1
@@ -152,8 +150,8 @@ class MissionControl(Actor):
                 self._reevaluation.news()  # (a join is news once its capabilities are known)
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
             why = f"robot {robot} {event.value}"
-            self._perform(self.origin.member_gone(robot, why))
-            self._perform(self.host.origin_gone(robot, f"origin {why}"))
+            self.perform(self.origin.member_gone(robot, why))
+            self.perform(self.host.origin_gone(robot, f"origin {why}"))
 
     async def _leases(self) -> None:
         clock = self.system.clock
@@ -168,18 +166,19 @@ class MissionControl(Actor):
     def check_leases(self, now: float) -> None:
         """Expire lapsed leases on both sides, then renew the live ones in one message
         per peer."""
-        self._perform(self.origin.expire(now))
-        self._perform(self.host.expire(now))
+        self.perform(self.origin.expire(now))
+        self.perform(self.host.expire(now))
         renew = merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
-        self._perform(renew)
+        self.perform(renew)
         if self.config.reevaluate_s is not None:  # a rising estimate: look again at once
-            self._perform(self.executor.cost_news(self.origin_side.inputs_of))
+            self.perform(self.executor.cost_news(self.origin_side.inputs_of))
 
     # -- performing the core's decisions ------------------------------------------------
     def send(self, robot: str, msg: Any) -> None:
         self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
 
-    def _perform(self, effects: Iterable[Effect]) -> None:
+    def perform(self, effects: Iterable[Effect]) -> None:
+        """Carry out the core's decisions (while stopping, only the drops)."""
         if self._system is None or not self.system.running:
             # Stopping: the runs are closed, nobody is told and nothing new starts.
             for e in effects:
@@ -194,7 +193,7 @@ class MissionControl(Actor):
                 log.error("mission.effect_failed", robot=self.robot, effect=repr(e), exc_info=exc)
                 if isinstance(e, Send) and isinstance(e.message, ExecutionStatus):
                     why = f"its status cannot be sent: {exc}"
-                    self._perform(self.host.unsendable(e.message.execution, why))
+                    self.perform(self.host.unsendable(e.message.execution, why))
 
     def _do(self, e: Effect) -> None:
         if isinstance(e, Send):
@@ -211,7 +210,7 @@ class MissionControl(Actor):
         elif isinstance(e, Pause):
             self.host.hosted[e.execution].run.pause()
         elif isinstance(e, Start):
-            self._perform(self.executor.start(e.execution))
+            self.perform(self.executor.start(e.execution))
         elif isinstance(e, Refused):
             self.refused(e.sender, e.message, e.why)
 
@@ -246,7 +245,7 @@ class MissionControl(Actor):
 
     @handler
     def on_keepalive(self, msg: KeepAlive) -> None:
-        now = self._now()
+        now = self.now()
         self.origin.keepalive(self.sender, msg.executions, now)
         self.host.keepalive(self.sender, msg, now)
 
@@ -270,18 +269,18 @@ class MissionControl(Actor):
 
     @handler
     def on_inputs(self, msg: ExecutionInputs) -> None:
-        now = self._now()
-        self._perform(self.host.inputs(self.sender, msg, now, self.executor.convert))
+        now = self.now()
+        self.perform(self.host.inputs(self.sender, msg, now, self.executor.convert))
 
     @handler
     def on_pause(self, msg: PauseExecution) -> None:
-        self._perform(self.host.pause(self.sender, msg))
+        self.perform(self.host.pause(self.sender, msg))
 
     @handler
     def on_cancel(self, msg: CancelExecution) -> None:
         if msg.execution.origin == self.robot == self.sender:
             self.origin_side.withdrawn(msg.execution)  # our own auctioneer withdrew it
-        self._perform(self.host.cancel(self.sender, msg))
+        self.perform(self.host.cancel(self.sender, msg))
 
     def hosted_ticked(
         self, hosted: Hosted[ImplementationRun], state: State, outputs: dict[str, Any]
@@ -289,4 +288,4 @@ class MissionControl(Actor):
         """Called by the slot after each tick of a hosted run."""
         if state is State.SUCCEEDED:
             self.repository.record_success(hosted.run.implementation.interface.name)
-        self._perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs))
+        self.perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs))

@@ -2,15 +2,16 @@
 nodes and keeping the handles they tick.
 
 Which executions live is decided by the core's :class:`~btcap.team.core.origin.OriginLeases`;
-this part runs the assignment strategy and turns its winner into a handle.
+this part runs the assignment strategy and turns its winner into a handle. What it needs
+from its robot's mission control is the small :class:`OriginHost`.
 """
 
 from __future__ import annotations
 
 import asyncio
 import itertools
-from collections.abc import Callable, Coroutine, Iterable
-from typing import Any
+from collections.abc import Coroutine, Iterable
+from typing import Any, Protocol
 
 from btcap.bt.state import TreeError
 from btcap.team.allocation.strategy import Allocator
@@ -29,9 +30,35 @@ from btcap.team.messages import RUN_DONE, ExecutionStatus
 from btcap.team.runtime.config import MissionConfig, MissionStats
 from btcap.team.runtime.executor import ExecutorSide
 
-__all__ = ["Handle", "OriginSide"]
+__all__ = ["Handle", "OriginHost", "OriginSide"]
 
 Handle = LocalExecution | RemoteExecution
+
+
+class OriginHost(Protocol):
+    """What the origin side needs from its robot's mission control (the actor shell)."""
+
+    def send(self, robot: str, msg: Any) -> None:
+        """Tell ``robot``'s mission control ``msg``."""
+        ...
+
+    def perform(self, effects: Iterable[Effect]) -> None:
+        """Carry out the core's decisions."""
+        ...
+
+    def start_task(
+        self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
+    ) -> asyncio.Task[Any]:
+        """Run ``coro`` in the background until mission control stops."""
+        ...
+
+    def now(self) -> float:
+        """The time of the robot's clock."""
+        ...
+
+    def freed(self) -> None:
+        """A robot this one's work ran on is free again: waiting work may find it now."""
+        ...
 
 
 class OriginSide:
@@ -40,6 +67,7 @@ class OriginSide:
     def __init__(
         self,
         robot: str,
+        host: OriginHost,
         *,
         config: MissionConfig,
         stats: MissionStats,
@@ -47,13 +75,9 @@ class OriginSide:
         repository: CapabilityRepository,
         team: Membership,
         executor: ExecutorSide,
-        send: Callable[[str, Any], None],
-        perform: Callable[[Iterable[Effect]], None],
-        start_task: Callable[..., asyncio.Task[Any]],
-        now: Callable[[], float],
-        news: Callable[[], None] = lambda: None,
     ) -> None:
         self.robot = robot
+        self.host = host
         self.config = config
         self.stats = stats
         self.allocator = allocator
@@ -61,11 +85,8 @@ class OriginSide:
         self.team = team
         self.executor = executor
         self.body: Body = executor.body
-        self.send = send
-        self.perform = perform
-        self._start_task = start_task
-        self.now = now
-        self.news = news
+        #: Bound once: every remote handle sends its node's inputs through it each tick.
+        self.send = host.send
         self.leases = OriginLeases(robot)
         #: Every execution a capability node of this robot holds, local or remote.
         self.active: dict[ExecutionId, Handle] = {}
@@ -75,7 +96,7 @@ class OriginSide:
         return self.team.alive()
 
     def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> Any:
-        return self._start_task(coro, name=name)
+        return self.host.start_task(coro, name=name)
 
     def inputs_of(self, execution: ExecutionId) -> dict[str, Any] | None:
         """The latest inputs of the node holding ``execution`` (None once it ended)."""
@@ -124,7 +145,7 @@ class OriginSide:
         self, execution: ExecutionId, robot: str, node: Capability, cost: float
     ) -> RemoteExecution:
         """The handle of an execution ``robot`` accepted; its lease starts now."""
-        tracked = self.leases.track(execution, robot, self.config.lease_s, self.now())
+        tracked = self.leases.track(execution, robot, self.config.lease_s, self.host.now())
         return RemoteExecution(self, tracked, node, cost)
 
     def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle:
@@ -147,7 +168,7 @@ class OriginSide:
         """A run of this robot's own ended, was dropped or was never adopted."""
         self.executor.local_runs.pop(execution, None)
         self.executor.close(run)
-        self.perform(self.executor.host.release(execution))
+        self.host.perform(self.executor.host.release(execution))
 
     def record_success(self, capability: str) -> None:
         self.repository.record_success(capability)
@@ -182,14 +203,14 @@ class OriginSide:
 
     def status(self, sender: str, msg: ExecutionStatus) -> None:
         """A report on a remote execution: its outputs typed by the node's interface."""
-        self.perform(self.leases.status(sender, msg, self.now(), self._convert))
+        self.host.perform(self.leases.status(sender, msg, self.host.now(), self._convert))
         if msg.state in RUN_DONE and msg.execution not in self.leases.tracked:
             handle = self.active.get(msg.execution)
             if isinstance(handle, RemoteExecution) and handle.tracked.state in RUN_DONE:
                 self.active.pop(msg.execution)  # its result was taken
                 # Its executor is free now: work waiting for a robot competes for it at
                 # once, with the task that follows this one (not a heartbeat later).
-                self.news()
+                self.host.freed()
 
     def _convert(self, t: Tracked, values: dict[str, Any]) -> dict[str, Any] | str:
         handle = self.active.get(t.execution)
