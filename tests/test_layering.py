@@ -360,4 +360,3 @@ def test_no_team_module_imports_a_higher_role() -> None:
         if dep.startswith("btcap.team.") and _team_level(dep) > _team_level(m)
     )
     assert not upward, f"team modules importing a higher role: {upward}"
-

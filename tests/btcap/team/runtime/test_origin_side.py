@@ -13,12 +13,13 @@ import anyio
 from capfixtures import COUNT, Probe, count_impl
 
 from btcap import State
-from btcap.team.config import MissionConfig, MissionStats
+from btcap.team.allocation.strategy import Allocator, AuctionWatcher
+from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Effect, Refused
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
-from btcap.team.executor import ExecutorSide
-from btcap.team.membership import Membership
+from btcap.team.membership.membership import Membership
+from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import (
     CancelExecution,
     ExecutionInputs,
@@ -26,10 +27,9 @@ from btcap.team.messages import (
     RepositoryState,
     RunState,
 )
-from btcap.team.origin_side import OriginHost, OriginSide
-from btcap.team.proxies import RemoteExecution
-from btcap.team.repository import CapabilityRepository
-from btcap.team.strategy import Allocator, AuctionWatcher
+from btcap.team.runtime.config import MissionConfig, MissionStats
+from btcap.team.runtime.executor import ExecutorSide
+from btcap.team.runtime.origin_side import OriginHost, OriginSide
 
 
 class FakeHost:
