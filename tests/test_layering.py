@@ -360,3 +360,10 @@ def test_no_team_module_imports_a_higher_role() -> None:
         if dep.startswith("btcap.team.") and _team_level(dep) > _team_level(m)
     )
     assert not upward, f"team modules importing a higher role: {upward}"
+
+
+def test_team_modules_stay_under_400_lines() -> None:
+    long = {
+        m: n for m in TEAM_MODULES if (n := len(MODULES[m].read_text().splitlines())) > 400
+    }
+    assert not long, f"team modules over 400 lines: {long}"

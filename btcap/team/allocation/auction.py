@@ -9,15 +9,9 @@ import dataclasses
 import itertools
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 
-from btcap.actors import (
-    ActorError,
-    AskTimeout,
-    Supervision,
-    handler,
-    within,
-)
+from btcap.actors import Supervision, handler, within
+from btcap.team.allocation.award import offer
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
@@ -26,12 +20,13 @@ from btcap.team.allocation.strategy import (
     TeamView,
 )
 from btcap.team.capabilities.capability import ASSIGNER_PATH
-from btcap.team.core.auction import REASON_CHARS, Auction, AuctionOutcome
+from btcap.team.core.auction import Auction, AuctionOutcome
+from btcap.team.core.award import AwardRound
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned, against_holder
-from btcap.team.core.turns import AUCTION, BatchPolicy
+from btcap.team.core.turns import AUCTION, AwardQueue, BatchPolicy
 from btcap.team.ids import AuctionId
-from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
+from btcap.team.messages import Bid, CallForBids, NoBid
 from btcap.transports import Address
 from btcap.transports.log import get_logger
 
@@ -45,24 +40,7 @@ __all__ = [
     "Unassigned",
 ]
 
-log = get_logger("btcap.team.assignment")
-
-
-@dataclass(slots=True, eq=False)
-class _Closed:
-    """A closed auction waiting for its turn to award."""
-
-    outcome: AuctionOutcome
-    reserve: float | None
-    turn: asyncio.Event
-    plan: str | None = None  # a planning strategy's robot for it
-    #: Why robots were passed over when it awarded (for watchers).
-    passed: dict[str, str] = dataclasses.field(default_factory=dict)
-
-    def bids(self, taken: set[str]) -> list[Bid]:
-        """What may be awarded, best first: the planned robot, then the cheapest free."""
-        bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
-        return sorted(bids, key=lambda b: b.robot != self.plan)
+log = get_logger("btcap.team.allocation.auction")
 
 
 class SingleItemAuction(Allocator):
@@ -103,9 +81,8 @@ class SingleItemAuction(Allocator):
         self.award_timeout_s = award_timeout_s
         self.stats = AuctionStats()
         self._open: dict[AuctionId, tuple[Auction, asyncio.Event]] = {}
-        self._closed: list[_Closed] = []  # waiting for their turn to award
-        self._awarding: _Closed | None = None
-        self._taken: set[str] = set()  # robots that accepted in this batch
+        self._queue = AwardQueue(policy)  # the closed auctions' turns to award
+        self._turns: dict[AuctionId, asyncio.Event] = {}  # set when its turn comes
         #: The latest auctions' outcomes, newest last (for monitoring and tests).
         self.outcomes: deque[AuctionOutcome] = deque(maxlen=64)
         self._ids = itertools.count(1)
@@ -149,6 +126,7 @@ class SingleItemAuction(Allocator):
         auction = Auction(auction_id, task.interface, task.candidates, clock.now() + self.window_s)
         done = asyncio.Event()
         self._open[auction_id] = (auction, done)
+        self._queue.opened(auction_id, auction.invited)
         self.stats.auctions += 1
         opened = AuctionRecord(auction_id, task, clock.now())
         if self._watchers:
@@ -163,6 +141,7 @@ class SingleItemAuction(Allocator):
                 await within(clock, self.window_s, done.wait())
         except BaseException:
             del self._open[auction_id]
+            self._queue.dropped(auction_id)
             self._next_turn()  # others may have waited for this one
             if self._watchers:
                 self._report(dataclasses.replace(opened, closed=clock.now()))
@@ -172,113 +151,39 @@ class SingleItemAuction(Allocator):
         outcome = auction.outcome()
         self.outcomes.append(outcome)
         task = against_holder(task, outcome)
-        mine = _Closed(outcome, task.reserve, asyncio.Event())
-        # Leaving the open auctions and joining the closed ones in one step: a closed
-        # auction never takes its turn while a competitor is between the two.
+        turn = asyncio.Event()
         del self._open[auction_id]
-        self._closed.append(mine)
+        self._queue.closed(auction_id, outcome, task.reserve)
+        self._turns[auction_id] = turn
         won: Assigned | Unassigned | None = None
+        award: AwardRound | None = None
         try:
             self._next_turn()
-            await mine.turn.wait()
-            won = await self._award(task, auction_id, mine)
-            if isinstance(won, Assigned):
-                self._taken.add(won.robot)
+            await turn.wait()
+            award = self._queue.round(auction_id, task)
+            won = await offer(
+                self, award, self.award_timeout_s, self.stats, log, event="auction", min_wall=0.05
+            )
+            if won is None:
+                self.stats.unassigned += 1
+                won = award.result()
+            else:
+                self._queue.took(won.robot)
             return won
         finally:
             if self._watchers:  # ``won`` None: cancelled while awarding
                 end = dataclasses.replace(opened, task=task, closed=clock.now(), result=won)
-                self._report(dataclasses.replace(end, outcome=outcome, passed=dict(mine.passed)))
-            if mine in self._closed:
-                self._closed.remove(mine)
-            if self._awarding is mine:
-                self._awarding = None
-            if not self._closed:
-                self._taken.clear()
+                passed = {} if award is None else dict(award.reasons)
+                self._report(dataclasses.replace(end, outcome=outcome, passed=passed))
+            self._turns.pop(auction_id, None)
+            self._queue.finished(auction_id)
             self._next_turn()
 
     def _next_turn(self) -> None:
-        """Let the closed auction with the cheapest free bid award, once no auction still
-        collecting bids competes with the waiting ones for a robot."""
-        if self._awarding is not None or not self._closed:
-            return
-        policy = self.policy
-        if not policy.batches:
-            nxt = self._closed[0]
-        else:
-            wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
-            if any(wanted & a.invited for a, _done in self._open.values()):
-                return  # its bids may be cheaper: wait for it to close
-            if all(c.plan is None for c in self._closed):
-                batch = [c.bids(self._taken) for c in self._closed]
-                robots = policy.plan(batch, self._taken) or [None] * len(batch)
-                for closed, robot in zip(self._closed, robots, strict=True):
-                    closed.plan = robot
-            nxt = self._closed[policy.first([c.bids(self._taken) for c in self._closed])]
-        self._closed.remove(nxt)
-        self._awarding = nxt
-        nxt.turn.set()
-
-    async def _award(
-        self, task: AssignmentTask, auction_id: AuctionId, mine: _Closed
-    ) -> Assigned | Unassigned:
-        system = self.system
-        clock = system.clock
-        outcome = mine.outcome
-        reasons = mine.passed
-        reasons.update(outcome.declined)
-        reasons.update((robot, "no answer") for robot in outcome.silent)
-        for bid in outcome.ranking:
-            if task.reserve is not None and bid.cost >= task.reserve:
-                reasons[bid.robot] = f"bid {bid.cost:g} not below {task.reserve:g}"
-            elif bid.robot in self._taken:
-                reasons[bid.robot] = "took another task of the same round"
-        # A robot that took a task in this batch bid as if idle: it waits for the next one.
-        for bid in mine.bids(self._taken):
-            award = Award(
-                auction_id,
-                task.execution,
-                task.interface,
-                bid.implementation,
-                dict(task.inputs),
-                task.lease_s,
-                task.paused,
-            )
-            executor = system.ref(Address(bid.robot, ASSIGNER_PATH))
-            try:
-                reply = await within(
-                    clock,
-                    self.award_timeout_s,
-                    executor.ask(award, expect=AwardReply),
-                    min_wall=0.05,
-                )
-                if reply is None:
-                    raise AskTimeout(
-                        f"no reply from {executor.address} to the award "
-                        f"within {self.award_timeout_s} clock s"
-                    )
-            except (ActorError, TypeError, asyncio.CancelledError) as exc:
-                # The robot may still take the award after we gave up waiting (or were
-                # cancelled): withdraw it, so the task never runs twice at once.
-                executor.tell(
-                    CancelExecution(task.execution, "award withdrawn"), sender=self.address
-                )
-                if isinstance(exc, asyncio.CancelledError):
-                    raise
-                log.info("auction.award_lost", auction=auction_id, robot=bid.robot, error=str(exc))
-                self.stats.declined_awards += 1
-                reasons[bid.robot] = f"no answer to the award ({exc})"
-                continue
-            if reply.accepted:
-                self.stats.awarded += 1
-                return Assigned(bid.robot, bid.implementation, bid.cost)
-            self.stats.declined_awards += 1
-            reasons[bid.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
-            log.info(
-                "auction.award_declined", auction=auction_id, robot=bid.robot, reason=reply.reason
-            )
-        self.stats.unassigned += 1
-        return Unassigned(reasons)
+        """Let the closed auction whose turn it is award (see :class:`AwardQueue`)."""
+        turn = self._queue.next_turn()
+        if turn is not None:
+            self._turns.pop(turn).set()
 
     @handler(Bid, NoBid)
     def on_answer(self, msg: Bid | NoBid) -> None:

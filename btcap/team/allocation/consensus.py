@@ -26,7 +26,8 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from btcap.actors import ActorError, Supervision, TimeSource, handler, within
+from btcap.actors import Supervision, TimeSource, handler, within
+from btcap.team.allocation.award import offer
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
@@ -35,18 +36,15 @@ from btcap.team.allocation.strategy import (
     Pricer,
     TeamView,
 )
-from btcap.team.capabilities.capability import ASSIGNER_PATH
-from btcap.team.core.auction import REASON_CHARS, AuctionOutcome
+from btcap.team.core.auction import AuctionOutcome
+from btcap.team.core.award import AwardRound, bounded
 from btcap.team.core.consensus import Claim, Consensus, Task, Vector
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import (
-    Award,
-    AwardReply,
     Bid,
     CallForBids,
-    CancelExecution,
     ConsensusClaim,
     ConsensusTasks,
     OpenTask,
@@ -229,41 +227,12 @@ class ConsensusAssigner(Allocator):
         if task.reserve is not None and win.cost >= task.reserve:
             self.stats.unassigned += 1
             return Unassigned({win.robot: f"bid {win.cost:g} not below {task.reserve:g}"})
-        impl = self._implementation(win)
-        award = Award(
-            mine.id,
-            task.execution,
-            task.interface,
-            impl,
-            dict(task.inputs),
-            task.lease_s,
-            task.paused,
-        )
-        executor = self.system.ref(Address(win.robot, ASSIGNER_PATH))
-        clock = self.system.clock
-        reply: AwardReply | None = None
-        try:
-            reply = await within(
-                clock, self.award_timeout_s, executor.ask(award, expect=AwardReply)
-            )
-        except (ActorError, TypeError) as exc:
-            mine.why[win.robot] = f"no answer to the award ({exc})"
-        finally:
-            if reply is None:  # timed out, failed or cancelled: withdraw, never run twice
-                cancel = CancelExecution(task.execution, "award withdrawn")
-                executor.tell(cancel, sender=self.address)
-        if reply is not None and reply.accepted:
-            self.stats.awarded += 1
-            return Assigned(win.robot, impl, win.cost)
-        self.stats.declined_awards += 1
-        if reply is not None:
-            mine.why[win.robot] = f"declined the award: {reply.reason[:REASON_CHARS]}"
-        mine.why.setdefault(win.robot, "no answer to the award")
-        log.info(
-            "consensus.award_declined", robot=self.robot, to=win.robot, why=mine.why[win.robot]
-        )
-        self.core.restrict(task.execution, win.robot)
-        return None
+        bid = Bid(mine.id, win.robot, win.cost, self._implementation(win))
+        award = AwardRound(mine.id, task, [bid], mine.why)
+        won = await offer(self, award, self.award_timeout_s, self.stats, log, event="consensus")
+        if won is None:  # declined or silent: agree again without it
+            self.core.restrict(task.execution, win.robot)
+        return won
 
     def _implementation(self, win: Claim) -> str:
         if win.robot == self.robot:
@@ -410,7 +379,7 @@ class ConsensusAssigner(Allocator):
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:
-                p.why[sender] = why[:REASON_CHARS]
+                p.why[sender] = bounded(why)
         self._soon()
 
     def _missed(self, before: Vector | None, now: Vector, fresh: bool) -> bool:

@@ -14,10 +14,15 @@ from dataclasses import dataclass, field
 from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid, NoBid
 
-__all__ = ["Auction", "AuctionOutcome"]
+__all__ = ["REASON_CHARS", "Auction", "AuctionOutcome", "bounded"]
 
 #: How much of a reason a peer gives is kept (for the log and the user).
 REASON_CHARS = 200
+
+
+def bounded(reason: str) -> str:
+    """A peer's words, cut to :data:`REASON_CHARS` (a peer must not fill our memory)."""
+    return reason[:REASON_CHARS]
 
 
 @dataclass(slots=True)
@@ -69,7 +74,7 @@ class Auction:
             else:
                 self.bids[robot] = answer
         else:
-            self.declined[robot] = answer.reason[:REASON_CHARS]  # a peer's words: bounded
+            self.declined[robot] = bounded(answer.reason)
         return True
 
     def member_lost(self, robot: str) -> None:

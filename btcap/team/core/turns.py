@@ -1,23 +1,36 @@
 """The order in which a batch of closed auctions awards, and to whom (sans-IO).
 
 An auctioneer holds the closed auctions of a batch (those that ran at the same time for
-the same robots) until none still collecting bids competes for their robots; a
-:class:`BatchPolicy` then says whether it plans the batch (a robot for each auction) and
-which auction awards next. The four built-in policies are the strategies of
-:mod:`btcap.team.core.planning`; a third-party strategy can bring its own (see
-:class:`btcap.team.allocation.strategies.BatchStrategy`).
+the same robots, an :class:`AwardQueue`) until none still collecting bids competes for
+their robots; a :class:`BatchPolicy` then says whether it plans the batch (a robot for
+each auction) and which auction awards next, one at a time. The four built-in policies
+are the strategies of :mod:`btcap.team.core.planning`; a third-party strategy can bring
+its own (see :class:`btcap.team.allocation.strategies.BatchStrategy`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence, Set
+from dataclasses import dataclass
 from typing import Protocol
 
+from btcap.team.core.auction import AuctionOutcome
+from btcap.team.core.award import AwardRound, passed_over
 from btcap.team.core.planning import optimal_plan, regret, sequential_plan
+from btcap.team.core.task import AssignmentTask
+from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid
 
-__all__ = ["ARRIVAL", "AUCTION", "OPTIMAL", "SEQUENTIAL", "BatchPolicy", "Planned"]
+__all__ = [
+    "ARRIVAL",
+    "AUCTION",
+    "OPTIMAL",
+    "SEQUENTIAL",
+    "AwardQueue",
+    "BatchPolicy",
+    "Planned",
+]
 
 #: A robot for each task of the batch, in order (None: no robot for it).
 Plan = Sequence[str | None]
@@ -95,3 +108,104 @@ AUCTION: BatchPolicy = _ByRegret()
 SEQUENTIAL: BatchPolicy = Planned(sequential_plan)
 OPTIMAL: BatchPolicy = Planned(optimal_plan)
 ARRIVAL: BatchPolicy = _ByArrival()
+
+
+@dataclass(slots=True, eq=False)
+class _Closed:
+    """A closed auction waiting for its turn to award."""
+
+    auction: AuctionId
+    outcome: AuctionOutcome
+    reserve: float | None
+    plan: str | None = None  # a planning policy's robot for it
+
+    def bids(self, taken: Set[str]) -> list[Bid]:
+        """What may be awarded, best first: the planned robot, then the cheapest free."""
+        bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
+        return sorted(bids, key=lambda b: b.robot != self.plan)
+
+
+class AwardQueue:
+    """One auctioneer's auctions between their call for bids and their award: which
+    closed auction awards next (:meth:`next_turn`, through its ``policy``), one at a
+    time, and the robots ``taken`` by the batch so far (they bid as if idle, so they
+    wait for the next batch). The caller tells it each step, with no clock of its own.
+    """
+
+    def __init__(self, policy: BatchPolicy) -> None:
+        self.policy = policy
+        #: Robots that accepted a task of this batch (forgotten when the batch is done).
+        self.taken: set[str] = set()
+        self._open: dict[AuctionId, frozenset[str]] = {}  # collecting bids: who is invited
+        self._closed: list[_Closed] = []  # waiting for their turn, oldest first
+        self._awarding: _Closed | None = None
+
+    @property
+    def waiting(self) -> list[AuctionId]:
+        """The closed auctions waiting for their turn, oldest first."""
+        return [c.auction for c in self._closed]
+
+    @property
+    def awarding(self) -> AuctionId | None:
+        """The auction whose turn it is (until :meth:`finished`)."""
+        return None if self._awarding is None else self._awarding.auction
+
+    def opened(self, auction: AuctionId, invited: frozenset[str]) -> None:
+        """An auction called for bids from ``invited``."""
+        self._open[auction] = invited
+
+    def dropped(self, auction: AuctionId) -> None:
+        """An auction was given up while still collecting bids."""
+        self._open.pop(auction, None)
+
+    def closed(self, auction: AuctionId, outcome: AuctionOutcome, reserve: float | None) -> None:
+        """An auction closed with ``outcome``; it awards only bids below ``reserve``.
+        It leaves the open auctions and joins the closed ones in one step: a closed
+        auction never takes its turn while a competitor is between the two."""
+        self._open.pop(auction, None)
+        self._closed.append(_Closed(auction, outcome, reserve))
+
+    def next_turn(self) -> AuctionId | None:
+        """The closed auction that awards now, or None: one is awarding, none is
+        waiting, or (batching policies) an auction still collecting bids invited a robot
+        the waiting ones bid with (its bids may be cheaper: wait for it to close)."""
+        if self._awarding is not None or not self._closed:
+            return None
+        policy = self.policy
+        if not policy.batches:
+            nxt = self._closed[0]
+        else:
+            wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
+            if any(wanted & invited for invited in self._open.values()):
+                return None
+            if all(c.plan is None for c in self._closed):
+                batch = [c.bids(self.taken) for c in self._closed]
+                robots = policy.plan(batch, self.taken) or [None] * len(batch)
+                for closed, robot in zip(self._closed, robots, strict=True):
+                    closed.plan = robot
+            nxt = self._closed[policy.first([c.bids(self.taken) for c in self._closed])]
+        self._closed.remove(nxt)
+        self._awarding = nxt
+        return nxt.auction
+
+    def round(self, auction: AuctionId, task: AssignmentTask) -> AwardRound:
+        """The award of the auction whose turn it is: its free bids, the planned robot
+        first, and why the others were passed over."""
+        closed = self._awarding
+        if closed is None or closed.auction != auction:
+            raise ValueError(f"auction {auction} is not the one awarding")
+        reasons = passed_over(closed.outcome, closed.reserve, self.taken)
+        return AwardRound(auction, task, closed.bids(self.taken), reasons)
+
+    def took(self, robot: str) -> None:
+        """``robot`` accepted a task of this batch."""
+        self.taken.add(robot)
+
+    def finished(self, auction: AuctionId) -> None:
+        """An auction closed is done: awarded, or given up while waiting or awarding.
+        The batch ends with its last auction."""
+        self._closed = [c for c in self._closed if c.auction != auction]
+        if self._awarding is not None and self._awarding.auction == auction:
+            self._awarding = None
+        if not self._closed:
+            self.taken.clear()

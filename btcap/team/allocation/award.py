@@ -1,0 +1,62 @@
+"""The award step's I/O, once for every strategy: ask each bidder of an
+:class:`~btcap.team.core.award.AwardRound` in turn, within the award timeout, and
+withdraw an award that got no answer (the robot may take it late: it must not run twice).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from btcap.actors import Actor, ActorError, AskTimeout, within
+from btcap.team.allocation.strategy import AuctionStats
+from btcap.team.capabilities.capability import ASSIGNER_PATH
+from btcap.team.core.award import AwardRound
+from btcap.team.core.task import Assigned
+from btcap.team.messages import AwardReply
+from btcap.transports import Address
+
+__all__ = ["offer"]
+
+
+async def offer(
+    actor: Actor,
+    award: AwardRound,
+    timeout_s: float,
+    stats: AuctionStats,
+    log: Any,
+    *,
+    event: str,
+    min_wall: float = 0.0,
+) -> Assigned | None:
+    """The first bidder of ``award`` that accepts, or None: each declined or did not
+    answer within ``timeout_s`` clock seconds (why: ``award.reasons``). Counts awards and
+    declines in ``stats``; logs ``{event}.award_lost`` and ``{event}.award_declined``
+    with ``log``. ``min_wall``: the least wall time to wait on a fast real clock."""
+    system = actor.system
+    clock = system.clock
+    while (ask := award.next()) is not None:
+        robot = award.offered.robot
+        executor = system.ref(Address(robot, ASSIGNER_PATH))
+        try:
+            reply = await within(
+                clock, timeout_s, executor.ask(ask, expect=AwardReply), min_wall=min_wall
+            )
+            if reply is None:
+                raise AskTimeout(
+                    f"no reply from {executor.address} to the award within {timeout_s} clock s"
+                )
+        except (ActorError, TypeError) as exc:
+            executor.tell(award.unanswered(str(exc)), sender=actor.address)
+            log.info(f"{event}.award_lost", auction=award.auction, robot=robot, error=str(exc))
+            stats.declined_awards += 1
+            continue
+        except BaseException:  # cancelled: withdraw too, then give up
+            executor.tell(award.withdrawal(), sender=actor.address)
+            raise
+        if reply.accepted:
+            stats.awarded += 1
+            return award.accepted()
+        stats.declined_awards += 1
+        why = award.declined(reply.reason)
+        log.info(f"{event}.award_declined", auction=award.auction, robot=robot, reason=why)
+    return None

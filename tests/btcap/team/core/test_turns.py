@@ -1,0 +1,137 @@
+"""The order closed auctions award in (the :class:`AwardQueue`), on explicit time."""
+
+from __future__ import annotations
+
+import pytest
+
+from btcap.team.core.auction import Auction
+from btcap.team.core.task import AssignmentTask
+from btcap.team.core.turns import ARRIVAL, AUCTION, OPTIMAL, SEQUENTIAL, AwardQueue, BatchPolicy
+from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.messages import Bid
+
+A1, A2, A3 = AuctionId("o", 1), AuctionId("o", 2), AuctionId("o", 3)
+
+
+def task(number: int) -> AssignmentTask:
+    return AssignmentTask(ExecutionId("o", "n", number), "Move", "move", {}, frozenset(), 1.0)
+
+
+def auction(queue: AwardQueue, aid: AuctionId, deadline: float, **costs: float) -> Auction:
+    """An auction opened in ``queue`` that invites ``costs``' robots, who bid them."""
+    a = Auction(aid, "Move", frozenset(costs), deadline)
+    queue.opened(aid, a.invited)
+    for robot, cost in costs.items():
+        a.offer(Bid(aid, robot, cost, "i"))
+    return a
+
+
+def close(queue: AwardQueue, a: Auction, now: float, reserve: float | None = None) -> None:
+    assert a.closed(now)
+    queue.closed(a.id, a.outcome(), reserve)
+
+
+def award_to(queue: AwardQueue, aid: AuctionId, robot: str) -> None:
+    """``aid`` (whose turn it is) is accepted by ``robot``."""
+    queue.took(robot)
+    queue.finished(aid)
+
+
+def test_a_closed_auction_waits_for_an_open_competitor_then_regret_orders() -> None:
+    queue = AwardQueue(AUCTION)
+    first = auction(queue, A1, 1.0, a=1.0, b=5.0)  # loses 4 if it waits
+    second = auction(queue, A2, 2.0, a=2.0, b=2.5)  # loses 0.5
+    close(queue, first, now=1.0)
+    assert queue.next_turn() is None  # A2 still collects bids from a and b
+    close(queue, second, now=2.0)
+    assert queue.next_turn() == A1  # the bigger regret first, though A2 is cheaper for a
+    assert queue.next_turn() is None  # one at a time
+    assert queue.round(A1, task(1)).next() is not None
+    award_to(queue, A1, "a")
+    assert queue.next_turn() == A2
+    award = queue.round(A2, task(2))
+    assert award.reasons == {"a": "took another task of the same round"}
+    nxt = award.next()
+    assert nxt is not None
+    assert award.offered.robot == "b"
+    assert award.next() is None  # a is skipped
+    queue.finished(A2)
+    assert queue.taken == set()  # the batch is over: a bids again
+
+
+def test_an_open_auction_for_other_robots_does_not_hold_a_turn() -> None:
+    queue = AwardQueue(AUCTION)
+    close(queue, auction(queue, A1, 1.0, a=1.0), now=1.0)
+    auction(queue, A2, 9.0, c=1.0)
+    assert queue.next_turn() == A1
+
+
+def test_arrival_awards_each_auction_as_it_closes_oldest_first() -> None:
+    queue = AwardQueue(ARRIVAL)
+    first = auction(queue, A1, 1.0, a=3.0)
+    second = auction(queue, A2, 2.0, a=1.0)
+    auction(queue, A3, 3.0, a=0.5)  # open, competing: arrival does not wait
+    close(queue, first, now=1.0)
+    close(queue, second, now=2.0)
+    assert queue.next_turn() == A1
+    queue.finished(A1)
+    assert queue.next_turn() == A2
+
+
+def test_a_plan_puts_its_robot_first_and_the_cheapest_planned_awards_first() -> None:
+    queue = AwardQueue(OPTIMAL)
+    first = auction(queue, A1, 1.0, a=1.0, b=2.0)
+    second = auction(queue, A2, 1.0, a=1.5, b=10.0)
+    close(queue, first, now=1.0)
+    close(queue, second, now=1.0)
+    # The optimum gives A1 to b and A2 to a (3.5 in all, not 11): A2's 1.5 goes first.
+    assert queue.next_turn() == A2
+    award = queue.round(A2, task(2))
+    assert award.next() is not None
+    assert award.offered.robot == "a"
+    award_to(queue, A2, "a")
+    assert queue.next_turn() == A1
+    award = queue.round(A1, task(1))
+    assert award.next() is not None
+    assert award.offered.robot == "b"
+    assert award.next() is None
+    assert award.reasons == {"a": "took another task of the same round"}
+
+
+@pytest.mark.parametrize("policy", [AUCTION, SEQUENTIAL, OPTIMAL, ARRIVAL])
+def test_ties_go_to_the_oldest_closed_auction(policy: BatchPolicy) -> None:
+    queue = AwardQueue(policy)
+    first = auction(queue, A1, 1.0, a=1.0)
+    second = auction(queue, A2, 1.0, a=1.0)
+    close(queue, second, now=1.0)
+    close(queue, first, now=1.0)
+    assert queue.next_turn() == A2
+
+
+def test_a_reserve_keeps_bids_not_below_it_from_the_award() -> None:
+    queue = AwardQueue(AUCTION)
+    close(queue, auction(queue, A1, 1.0, a=1.0, b=3.0), now=1.0, reserve=2.0)
+    assert queue.next_turn() == A1
+    award = queue.round(A1, task(1))
+    assert award.reasons == {"b": "bid 3 not below 2"}
+    assert award.next() is not None
+    assert award.offered.robot == "a"
+    assert award.next() is None
+
+
+def test_an_auction_given_up_frees_the_turn() -> None:
+    queue = AwardQueue(AUCTION)
+    close(queue, auction(queue, A1, 1.0, a=1.0), now=1.0)
+    auction(queue, A2, 5.0, a=1.0)
+    close(queue, auction(queue, A3, 1.0, a=2.0), now=1.0)
+    assert queue.next_turn() is None
+    queue.finished(A1)  # cancelled while waiting
+    assert queue.waiting == [A3]
+    queue.dropped(A2)  # cancelled while collecting bids
+    assert queue.next_turn() == A3
+    assert queue.awarding == A3
+    with pytest.raises(ValueError, match="not the one awarding"):
+        queue.round(A1, task(1))
+    queue.finished(A3)  # cancelled while awarding
+    assert queue.awarding is None
+    assert queue.next_turn() is None
