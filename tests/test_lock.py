@@ -49,7 +49,9 @@ def _wanted(extras: list[str]) -> list[Requirement]:
     return reqs
 
 
-@pytest.mark.parametrize(("lock", "extras"), [("requirements.txt", []), ("requirements-dev.txt", ["dev"])])
+@pytest.mark.parametrize(
+    ("lock", "extras"), [("requirements.txt", []), ("requirements-dev.txt", ["dev"])]
+)
 def test_every_requirement_is_pinned_in_the_lock(lock: str, extras: list[str]) -> None:
     pins = _pins(ROOT / lock)
     assert pins, f"{lock} pins nothing"
