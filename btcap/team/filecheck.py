@@ -28,13 +28,17 @@ def field_first(message: str, schema: Any = None) -> str:
     at `$.timing`" as "timing.keepalive_s: must be below lease_s"; given the ``schema``
     (the type decoded), an invalid choice also lists the valid ones."""
     what, sep, where = message.rpartition(" - at `$")
-    if not sep:
-        return message
+    if not sep:  # at the top of the file
+        what, where = message, ""
     field = where.rstrip("`")
     if schema is not None and what.startswith("Invalid enum value"):
         choices = _choices(mi.type_info(schema), field)
         if choices:
             what += f"; expected one of {', '.join(repr(c) for c in choices)}"
+    if schema is not None and what.startswith("Object contains unknown field"):
+        known = _at(mi.type_info(schema), field)
+        if isinstance(known, mi.StructType):
+            what += f"; expected one of {', '.join(f.encode_name for f in known.fields)}"
     field = field.lstrip(".")
     if field and (own := _OWN_FIELD.match(what)):  # a Struct's own check names its field
         field, what = f"{field}.{own[1]}", what[own.end() :]
@@ -43,11 +47,22 @@ def field_first(message: str, schema: Any = None) -> str:
 
 def _choices(info: mi.Type, path: str) -> tuple[Any, ...]:
     """The values of the Literal (or Enum) at ``path`` (``.events[0].kind``) in ``info``."""
+    info = _pick(_at(info, path), (mi.LiteralType, mi.EnumType))
+    if isinstance(info, mi.LiteralType):
+        return info.values
+    if isinstance(info, mi.EnumType):
+        return tuple(e.value for e in info.cls)
+    return ()
+
+
+def _at(info: mi.Type, path: str) -> mi.Type:
+    """The type at ``path`` (``.events[0]``) in ``info`` (a Struct for the path of an object,
+    through lists, dicts and ``X | None``), or ``Any`` where the path leads nowhere."""
     for m in _STEP.finditer(path):
         if m.group(1) is None:  # [i]
             info = _pick(info, (mi.ListType,))
             if not isinstance(info, mi.ListType):
-                return ()
+                return mi.AnyType()
             info = info.item_type
             continue
         info = _pick(info, (mi.StructType, mi.DictType))
@@ -56,14 +71,9 @@ def _choices(info: mi.Type, path: str) -> tuple[Any, ...]:
             continue
         fields = {f.encode_name: f.type for f in getattr(info, "fields", ())}
         if m.group(1) not in fields:
-            return ()
+            return mi.AnyType()
         info = fields[m.group(1)]
-    info = _pick(info, (mi.LiteralType, mi.EnumType))
-    if isinstance(info, mi.LiteralType):
-        return info.values
-    if isinstance(info, mi.EnumType):
-        return tuple(e.value for e in info.cls)
-    return ()
+    return _pick(info, (mi.StructType, mi.LiteralType, mi.EnumType))
 
 
 def _pick(info: mi.Type, kinds: tuple[type[mi.Type], ...]) -> mi.Type:

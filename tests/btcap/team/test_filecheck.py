@@ -57,3 +57,20 @@ def test_non_finite_numbers_are_found_anywhere() -> None:
         "expected a finite number, got -inf",
     )
     assert not_finite(float("inf")) == ("$", "expected a finite number, got inf")
+
+
+@pytest.mark.parametrize(
+    ("message", "said"),
+    [
+        (
+            "Object contains unknown field `name`",
+            "Object contains unknown field `name`; expected one of legs, spare, tags, mood",
+        ),
+        (
+            "Object contains unknown field `pace` - at `$.legs[2]`",
+            "legs[2]: Object contains unknown field `pace`; expected one of gait, length_m",
+        ),
+    ],
+)
+def test_an_unknown_field_is_told_the_fields_it_could_be(message: str, said: str) -> None:
+    assert field_first(message, Dog) == said
