@@ -11,8 +11,8 @@ import contextlib
 import heapq
 import itertools
 import time
-from collections.abc import AsyncIterator, Awaitable
-from typing import Protocol, TypeVar, runtime_checkable
+from collections.abc import AsyncIterator, Awaitable, Callable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 __all__ = ["Clock", "ManualClock", "TimeSource", "within"]
 
@@ -93,6 +93,22 @@ class ManualClock:
         fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         heapq.heappush(self._sleepers, (deadline, next(self._seq), fut))
         await fut
+
+    def call_later(
+        self, seconds: float, callback: Callable[..., object], *args: Any
+    ) -> asyncio.Future[None]:
+        """Call ``callback(*args)`` once the clock reaches ``now + seconds`` (a timer on
+        this clock, as ``loop.call_later`` is one on the wall); cancel the returned
+        future to disarm it. It fires in deadline order with the sleepers."""
+        fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._seq), fut))
+
+        def fire(done: asyncio.Future[None]) -> None:
+            if not done.cancelled():
+                callback(*args)
+
+        fut.add_done_callback(fire)
+        return fut
 
     async def advance(self, seconds: float) -> None:
         """Move time forward by ``seconds``, waking each sleeper at its own deadline.
@@ -189,31 +205,28 @@ _SETTLE_ROUNDS = 100_000
 async def _settle() -> None:
     """Return once the running event loop has nothing ready to run but this task.
 
-    Yields one loop iteration at a time until no callback is ready and no timer is
-    due. asyncio offers no public way to ask that, so this reads the stdlib loop's
-    ready queue and timer heap (``BaseEventLoop._ready`` and ``_scheduled``, stable
-    since Python 3.4; aiotools' VirtualClock and looptime reach into the same loop
-    internals). A loop without them, such as uvloop's, is refused with a clear error
-    rather than guessed at with a fixed number of yields.
+    Yields one loop iteration at a time until no callback is ready. Event loop timers
+    (wall time) are not work to wait for: whether one is due when the loop settles
+    depends on how fast the machine runs, so counting them would let the machine's load
+    decide what happens before virtual time moves on (and scanning the timer heap on
+    every iteration made large runs quadratic). asyncio offers no public way to ask
+    whether a callback is ready, so this reads the stdlib loop's ready queue
+    (``BaseEventLoop._ready``, stable since Python 3.4; aiotools' VirtualClock and
+    looptime reach into the same loop internals). A loop without it, such as uvloop's,
+    is refused with a clear error rather than guessed at with a fixed number of yields.
     """
     loop = asyncio.get_running_loop()
     ready = getattr(loop, "_ready", None)
-    scheduled = getattr(loop, "_scheduled", None)
-    if ready is None or scheduled is None:
+    if ready is None:
         raise TypeError(
             f"ManualClock needs the standard asyncio event loop, not {type(loop).__name__}: "
             "it waits until the loop has nothing ready to run"
         )
     for _ in range(_SETTLE_ROUNDS):
         await asyncio.sleep(0)
-        if not ready and not _timer_due(loop, scheduled):
+        if not ready:
             return
     raise RuntimeError(
         f"the event loop never settled within {_SETTLE_ROUNDS} iterations: some task "
         "keeps yielding without waiting on anything (a busy loop?)"
     )
-
-
-def _timer_due(loop: asyncio.AbstractEventLoop, scheduled: list[asyncio.TimerHandle]) -> bool:
-    now = loop.time()
-    return any(h.when() <= now and not h.cancelled() for h in scheduled)
