@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import math
 import uuid
 from collections.abc import Coroutine
 from dataclasses import dataclass, field
@@ -16,10 +15,11 @@ import anyio
 from anyio.abc import TaskGroup
 
 from btcap.actors.cell import ActorCell, Reply
-from btcap.actors.clock import Clock, ManualClock, TimeSource
+from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.actors.services import Services
+from btcap.actors.timers import Expired, arm_timer, relay_reply
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
@@ -313,7 +313,7 @@ class ActorSystem:
         """Wait for a reply a handler deferred by returning a Future (fast-path asks)."""
         # Our own future to time out: the handler's must stay free for its late answer.
         waiter: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
-        relay = partial(_relay, waiter)
+        relay = partial(relay_reply, waiter)
         fut.add_done_callback(relay)
         try:
             return await self._reply_within(waiter, timeout, address, msg)
@@ -326,28 +326,15 @@ class ActorSystem:
         """``fut``'s result, or :class:`AskTimeout` once the ask's limit has passed."""
         limit = self.ask_timeout if timeout is None else timeout
         # One timer instead of a timeout context: an ask is a hot path.
-        timer = self._timer(limit, fut)
+        timer = arm_timer(self.clock, limit, fut)
         try:
             return await fut
-        except _Expired:
+        except Expired:
             raise AskTimeout(
                 f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
             ) from None
         finally:
             timer.cancel()
-
-    def _timer(
-        self, limit: float, fut: asyncio.Future[Any]
-    ) -> asyncio.Handle | asyncio.Future[Any]:
-        """Expire ``fut`` after ``limit`` seconds: of the wall on a real clock (a network
-        round trip's time), of the clock on a virtual one, where wall time must decide
-        nothing (how fast the machine runs would change the run)."""
-        clock = self.clock
-        if isinstance(clock, ManualClock):
-            return clock.call_later(limit, _expire, fut)
-        if math.isinf(clock.speedup):  # another virtual clock: a sleep on it
-            return asyncio.ensure_future(_expire_after(clock, limit, fut))
-        return asyncio.get_running_loop().call_later(limit, _expire, fut)
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
@@ -441,32 +428,6 @@ class ActorSystem:
             self._failure = (where, exc)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
-
-
-class _Expired(Exception):
-    """Set on a remote ask's future when its timer fires."""
-
-
-def _expire(fut: asyncio.Future[Any]) -> None:
-    if not fut.done():
-        fut.set_exception(_Expired())
-
-
-async def _expire_after(clock: TimeSource, seconds: float, fut: asyncio.Future[Any]) -> None:
-    await clock.sleep(seconds)
-    _expire(fut)
-
-
-def _relay(waiter: asyncio.Future[Any], fut: asyncio.Future[Any]) -> None:
-    """Hand a deferred reply on to the ask's own waiter (unless that timed out)."""
-    if waiter.done():
-        return
-    if fut.cancelled():
-        waiter.cancel()
-    elif (exc := fut.exception()) is not None:
-        waiter.set_exception(exc)
-    else:
-        waiter.set_result(fut.result())
 
 
 def _future_reply(fut: asyncio.Future[Any]) -> Reply:
