@@ -14,7 +14,7 @@ import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Any, Protocol, TypeVar, runtime_checkable
 
-__all__ = ["Clock", "ManualClock", "TimeSource", "within"]
+__all__ = ["Clock", "ClockTimer", "ManualClock", "TimeSource", "within"]
 
 T = TypeVar("T")
 
@@ -70,7 +70,7 @@ class ManualClock:
 
     def __init__(self, start: float = 0.0) -> None:
         self._now = float(start)
-        self._sleepers: list[tuple[float, int, asyncio.Future[None]]] = []
+        self._sleepers: list[tuple[float, int, asyncio.Future[None] | ClockTimer]] = []
         self._seq = itertools.count()
 
     @property
@@ -94,21 +94,13 @@ class ManualClock:
         heapq.heappush(self._sleepers, (deadline, next(self._seq), fut))
         await fut
 
-    def call_later(
-        self, seconds: float, callback: Callable[..., object], *args: Any
-    ) -> asyncio.Future[None]:
+    def call_later(self, seconds: float, callback: Callable[..., object], *args: Any) -> ClockTimer:
         """Call ``callback(*args)`` once the clock reaches ``now + seconds`` (a timer on
-        this clock, as ``loop.call_later`` is one on the wall); cancel the returned
-        future to disarm it. It fires in deadline order with the sleepers."""
-        fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._seq), fut))
-
-        def fire(done: asyncio.Future[None]) -> None:
-            if not done.cancelled():
-                callback(*args)
-
-        fut.add_done_callback(fire)
-        return fut
+        this clock, as ``loop.call_later`` is one on the wall), in deadline order with the
+        sleepers; ``cancel()`` the returned timer to disarm it."""
+        timer = ClockTimer(callback, args)
+        heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._seq), timer))
+        return timer
 
     async def advance(self, seconds: float) -> None:
         """Move time forward by ``seconds``, waking each sleeper at its own deadline.
@@ -164,6 +156,29 @@ class ManualClock:
                 await asyncio.sleep(idle_wait)
             else:
                 await self.advance(max(0.0, deadline - self._now))
+
+
+class ClockTimer:
+    """A :meth:`ManualClock.call_later` timer: no future and no task, since every ask
+    of a virtual-time run arms one and nearly all are cancelled."""
+
+    __slots__ = ("_args", "_callback", "_done")
+
+    def __init__(self, callback: Callable[..., object], args: tuple[Any, ...]) -> None:
+        self._callback = callback
+        self._args = args
+        self._done = False
+
+    def cancel(self) -> None:
+        self._done = True
+
+    def done(self) -> bool:
+        return self._done
+
+    def set_result(self, _: None) -> None:
+        """Fire (the clock treats it as a sleeper's future)."""
+        self._done = True
+        self._callback(*self._args)
 
 
 async def within(

@@ -8,7 +8,7 @@ import asyncio
 import math
 from typing import Any
 
-from btcap.actors.clock import ManualClock, TimeSource
+from btcap.actors.clock import ClockTimer, ManualClock, TimeSource
 
 __all__ = ["Expired", "arm_timer", "relay_reply"]
 
@@ -19,7 +19,7 @@ class Expired(Exception):
 
 def arm_timer(
     clock: TimeSource, limit: float, fut: asyncio.Future[Any]
-) -> asyncio.Handle | asyncio.Future[Any]:
+) -> asyncio.Handle | ClockTimer | asyncio.Future[Any]:
     """Fail ``fut`` with :class:`Expired` after ``limit`` seconds: of the wall on a real
     clock (a network round trip's time), of the clock on a virtual one. Cancel the
     returned handle to disarm it."""
