@@ -9,12 +9,13 @@ import math
 from typing import Any
 
 from btcap.actors.clock import ClockTimer, ManualClock, TimeSource
+from btcap.actors.errors import ActorError
 
 __all__ = ["Expired", "arm_timer", "relay_reply"]
 
 
-class Expired(Exception):
-    """Set on an ask's future when its timer fires."""
+class Expired(ActorError):
+    """Set on an ask's future when its timer fires (the ask raises AskTimeout instead)."""
 
 
 def arm_timer(
