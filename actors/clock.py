@@ -11,10 +11,10 @@ import contextlib
 import heapq
 import itertools
 import time
-from collections.abc import AsyncIterator, Awaitable
-from typing import Protocol, TypeVar, runtime_checkable
+from collections.abc import AsyncIterator, Awaitable, Callable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
-__all__ = ["Clock", "ManualClock", "TimeSource", "within"]
+__all__ = ["Clock", "ClockTimer", "ManualClock", "TimeSource", "within"]
 
 T = TypeVar("T")
 
@@ -70,7 +70,7 @@ class ManualClock:
 
     def __init__(self, start: float = 0.0) -> None:
         self._now = float(start)
-        self._sleepers: list[tuple[float, int, asyncio.Future[None]]] = []
+        self._sleepers: list[tuple[float, int, asyncio.Future[None] | ClockTimer]] = []
         self._seq = itertools.count()
 
     @property
@@ -93,6 +93,14 @@ class ManualClock:
         fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         heapq.heappush(self._sleepers, (deadline, next(self._seq), fut))
         await fut
+
+    def call_later(self, seconds: float, callback: Callable[..., object], *args: Any) -> ClockTimer:
+        """Call ``callback(*args)`` once the clock reaches ``now + seconds`` (a timer on
+        this clock, as ``loop.call_later`` is one on the wall), in deadline order with the
+        sleepers; ``cancel()`` the returned timer to disarm it."""
+        timer = ClockTimer(callback, args)
+        heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._seq), timer))
+        return timer
 
     async def advance(self, seconds: float) -> None:
         """Move time forward by ``seconds``, waking each sleeper at its own deadline.
@@ -150,6 +158,29 @@ class ManualClock:
                 await self.advance(max(0.0, deadline - self._now))
 
 
+class ClockTimer:
+    """A :meth:`ManualClock.call_later` timer: no future and no task, since every ask
+    of a virtual-time run arms one and nearly all are cancelled."""
+
+    __slots__ = ("_args", "_callback", "_done")
+
+    def __init__(self, callback: Callable[..., object], args: tuple[Any, ...]) -> None:
+        self._callback = callback
+        self._args = args
+        self._done = False
+
+    def cancel(self) -> None:
+        self._done = True
+
+    def done(self) -> bool:
+        return self._done
+
+    def set_result(self, _: None) -> None:
+        """Fire (the clock treats it as a sleeper's future)."""
+        self._done = True
+        self._callback(*self._args)
+
+
 async def within(
     clock: TimeSource, seconds: float, aw: Awaitable[T], *, min_wall: float = 0.0
 ) -> T | None:
@@ -189,31 +220,28 @@ _SETTLE_ROUNDS = 100_000
 async def _settle() -> None:
     """Return once the running event loop has nothing ready to run but this task.
 
-    Yields one loop iteration at a time until no callback is ready and no timer is
-    due. asyncio offers no public way to ask that, so this reads the stdlib loop's
-    ready queue and timer heap (``BaseEventLoop._ready`` and ``_scheduled``, stable
-    since Python 3.4; aiotools' VirtualClock and looptime reach into the same loop
-    internals). A loop without them, such as uvloop's, is refused with a clear error
-    rather than guessed at with a fixed number of yields.
+    Yields one loop iteration at a time until no callback is ready. Event loop timers
+    (wall time) are not work to wait for: whether one is due when the loop settles
+    depends on how fast the machine runs, so counting them would let the machine's load
+    decide what happens before virtual time moves on (and scanning the timer heap on
+    every iteration made large runs quadratic). asyncio offers no public way to ask
+    whether a callback is ready, so this reads the stdlib loop's ready queue
+    (``BaseEventLoop._ready``, stable since Python 3.4; aiotools' VirtualClock and
+    looptime reach into the same loop internals). A loop without it, such as uvloop's,
+    is refused with a clear error rather than guessed at with a fixed number of yields.
     """
     loop = asyncio.get_running_loop()
     ready = getattr(loop, "_ready", None)
-    scheduled = getattr(loop, "_scheduled", None)
-    if ready is None or scheduled is None:
+    if ready is None:
         raise TypeError(
             f"ManualClock needs the standard asyncio event loop, not {type(loop).__name__}: "
             "it waits until the loop has nothing ready to run"
         )
     for _ in range(_SETTLE_ROUNDS):
         await asyncio.sleep(0)
-        if not ready and not _timer_due(loop, scheduled):
+        if not ready:
             return
     raise RuntimeError(
         f"the event loop never settled within {_SETTLE_ROUNDS} iterations: some task "
         "keeps yielding without waiting on anything (a busy loop?)"
     )
-
-
-def _timer_due(loop: asyncio.AbstractEventLoop, scheduled: list[asyncio.TimerHandle]) -> bool:
-    now = loop.time()
-    return any(h.when() <= now and not h.cancelled() for h in scheduled)

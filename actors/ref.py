@@ -62,7 +62,8 @@ class ActorRef(Generic[A]):
         expect: type[Any] | None = None,
         timeout: float | None = None,
     ) -> Any:
-        """Request and await the reply (wall-clock ``timeout`` seconds).
+        """Request and await the reply: ``timeout`` seconds of the wall on a real clock,
+        of the clock on a virtual one (where wall time must decide nothing).
 
         Raises :class:`~actors.errors.ActorFailed` if the handler raised,
         :class:`~actors.errors.AskTimeout` if no reply came, and ``TypeError`` if the

@@ -19,6 +19,7 @@ from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.actors.services import Services
+from btcap.actors.timers import Expired, arm_timer, relay_reply
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
@@ -300,39 +301,40 @@ class ActorSystem:
             except BaseException:
                 self._pending.pop(corr, None)
                 raise
-            limit = self.ask_timeout if timeout is None else timeout
-            # One timer instead of a timeout context: a remote ask is a hot path.
-            timer = loop.call_later(limit, _expire, fut)
             try:
-                return await fut
-            except _Expired:
-                raise AskTimeout(
-                    f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
-                ) from None
+                return await self._reply_within(fut, timeout, address, msg)
             finally:
-                timer.cancel()
                 self._pending.pop(corr, None)
-        limit = self.ask_timeout if timeout is None else timeout
-        try:
-            async with asyncio.timeout(limit):
-                return await fut
-        except TimeoutError:
-            raise AskTimeout(
-                f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
-            ) from None
+        return await self._reply_within(fut, timeout, address, msg)
 
     async def await_deferred(
         self, address: Address, msg: Any, fut: asyncio.Future[Any], timeout: float | None
     ) -> Any:
         """Wait for a reply a handler deferred by returning a Future (fast-path asks)."""
-        limit = self.ask_timeout if timeout is None else timeout
+        # Our own future to time out: the handler's must stay free for its late answer.
+        waiter: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
+        relay = partial(relay_reply, waiter)
+        fut.add_done_callback(relay)
         try:
-            async with asyncio.timeout(limit):
-                return await asyncio.shield(fut)
-        except TimeoutError:
+            return await self._reply_within(waiter, timeout, address, msg)
+        finally:
+            fut.remove_done_callback(relay)
+
+    async def _reply_within(
+        self, fut: asyncio.Future[Any], timeout: float | None, address: Address, msg: Any
+    ) -> Any:
+        """``fut``'s result, or :class:`AskTimeout` once the ask's limit has passed."""
+        limit = self.ask_timeout if timeout is None else timeout
+        # One timer instead of a timeout context: an ask is a hot path.
+        timer = arm_timer(self.clock, limit, fut)
+        try:
+            return await fut
+        except Expired:
             raise AskTimeout(
                 f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
             ) from None
+        finally:
+            timer.cancel()
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
@@ -426,15 +428,6 @@ class ActorSystem:
             self._failure = (where, exc)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
-
-
-class _Expired(Exception):
-    """Set on a remote ask's future when its timer fires."""
-
-
-def _expire(fut: asyncio.Future[Any]) -> None:
-    if not fut.done():
-        fut.set_exception(_Expired())
 
 
 def _future_reply(fut: asyncio.Future[Any]) -> Reply:

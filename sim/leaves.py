@@ -7,6 +7,7 @@ the simulation or the store answers.
 from __future__ import annotations
 
 import asyncio
+import math
 from typing import Any, ClassVar
 
 from btcap import Leaf, Port, State
@@ -42,7 +43,11 @@ class _Background(Leaf):
             raise TreeError(f"{self.path!r} needs its tree attached to a robot's actor system")
         return system.ref(Address.parse(where) if "/" in where else where)
 
-    def _wall(self, seconds: float) -> float:
+    def _limit(self, seconds: float) -> float:
+        """An ask's timeout covering ``seconds`` of clock time with a margin: wall
+        seconds on a real clock, clock seconds on a virtual one (as the ask counts)."""
+        if math.isinf(self.clock.speedup):
+            return seconds * 3 + 2.0
         return max(2.0, self.clock.to_wall(seconds) * 3 + 2.0)
 
     def _poll(self, start: Any) -> Any:
@@ -95,7 +100,7 @@ class MoveToLeaf(_Background):
         ref = self._ref_to(self.options["manager"])
         try:
             result: SimResult = await ref.ask(
-                MoveTo(self.options["robot"], goal), expect=SimResult, timeout=self._wall(3600)
+                MoveTo(self.options["robot"], goal), expect=SimResult, timeout=self._limit(3600)
             )
         except asyncio.CancelledError:
             ref.tell(StopRobot(self.options["robot"]))
@@ -140,7 +145,7 @@ class OperateLeaf(_Background):
         msg = Operate(self.options["robot"], self.options["op"], -1 if target is None else target)
         ref = self._ref_to(self.options["manager"])
         try:
-            result: SimResult = await ref.ask(msg, expect=SimResult, timeout=self._wall(3600))
+            result: SimResult = await ref.ask(msg, expect=SimResult, timeout=self._limit(3600))
         except asyncio.CancelledError:
             # Abandoned (paused, cancelled, lease lost): the robot must not go on with it,
             # or it would keep holding an object nobody is waiting for.

@@ -37,7 +37,8 @@ __all__ = ["HostFactory", "Progress", "run_scenario"]
 
 log = get_logger("btcap.sim")
 
-#: Wall seconds the robots present at the start have to join the team.
+#: Seconds the robots present at the start have to join the team: of the wall on a real
+#: clock, of the clock on a virtual one (where wall time must decide nothing).
 TEAM_FORMS_S = 60.0
 
 
@@ -226,11 +227,16 @@ async def _team_forms(
 
     # Polled on the mission's clock (about every 10 ms of wall time on a real one), so a
     # virtual clock's run does not depend on how fast real time passes.
-    poll = 0.01 * clock.speedup if math.isfinite(clock.speedup) else 0.05
-    with anyio.move_on_after(TEAM_FORMS_S):
+    virtual = not math.isfinite(clock.speedup)
+    poll = 0.05 if virtual else 0.01 * clock.speedup
+    deadline = clock.now() + TEAM_FORMS_S
+    with anyio.move_on_after(math.inf if virtual else TEAM_FORMS_S):
         while missing() and not stop.is_set():
+            if virtual and clock.now() >= deadline:
+                break
             await clock.sleep(poll)
-        return
+        else:
+            return
     for robot in sorted(missing()):
         log.error("sim.robot_absent", robot=robot, waited_s=TEAM_FORMS_S)
         robots.errors.append(

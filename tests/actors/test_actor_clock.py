@@ -14,6 +14,7 @@ from btcap.actors import (
     Actor,
     ActorRef,
     ActorSystem,
+    AskTimeout,
     Clock,
     ManualClock,
     Message,
@@ -21,6 +22,7 @@ from btcap.actors import (
     handler,
     within,
 )
+from btcap.transports import InProcessNetwork, MessageRegistry
 
 T = TypeVar("T")
 
@@ -380,3 +382,117 @@ async def _after(clock: TimeSource, seconds: float, value: T) -> T:
 
 async def _raise(exc: BaseException) -> None:
     raise exc
+
+
+# -- ask timeouts on the virtual clock ------------------------------------------------------
+
+
+class Never(Message):
+    how: str
+
+
+class Silent(Actor):
+    """Never answers: its reply is deferred to a future nobody sets."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.kept: list[asyncio.Future[None]] = []
+
+    @handler
+    def on_never(self, msg: Never) -> asyncio.Future[None]:
+        fut: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.kept.append(fut)
+        return fut
+
+
+class SilentAsync(Actor):
+    """Never answers: its async handler waits forever (the ask waits in its mailbox)."""
+
+    @handler
+    async def on_never(self, msg: Never) -> None:
+        await asyncio.Event().wait()
+
+
+def _burn_cpu(wall_s: float) -> None:
+    """Block the event loop with work for ``wall_s`` seconds of wall time."""
+    end = time.perf_counter() + wall_s
+    while time.perf_counter() < end:
+        pass
+
+
+@pytest.mark.parametrize("path", ["deferred", "mailbox", "remote"])
+async def test_an_unanswered_ask_times_out_at_its_virtual_instant_whatever_the_wall_does(
+    path: str,
+) -> None:
+    clock = ManualClock(start=100.0)
+    net = InProcessNetwork(MessageRegistry([Never]))
+    errors: list[tuple[str, float]] = []
+    with anyio.fail_after(5):
+        async with (
+            ActorSystem("a", transport=net.transport("a"), clock=clock) as a,
+            ActorSystem("b", transport=net.transport("b"), clock=clock) as b,
+        ):
+            b.spawn(Silent(), "silent")
+            b.spawn(SilentAsync(), "slow")
+            where, how = {
+                "deferred": (b.ref("silent"), "deferred"),
+                "mailbox": (b.ref("slow"), "mailbox"),
+                "remote": (a.ref("b/silent"), "deferred"),
+            }[path]
+
+            async def ask() -> None:
+                try:
+                    await where.ask(Never(how), timeout=0.05)  # clock seconds
+                except AskTimeout as exc:
+                    errors.append((str(exc), clock.now()))
+
+            task = asyncio.create_task(ask())
+            await clock.advance(0.0)
+            _burn_cpu(0.2)  # four times the limit passes on the wall: it must not count
+            await clock.advance(0.049)
+            assert errors == []
+            _burn_cpu(0.2)
+            await clock.advance(0.001)
+            assert len(errors) == 1
+            assert errors[0][1] == pytest.approx(100.05)
+            assert "within 0.05 s" in errors[0][0]
+            await task
+
+
+async def test_a_late_deferred_answer_after_a_virtual_timeout_is_dropped_quietly() -> None:
+    clock = ManualClock()
+    with anyio.fail_after(2):
+        async with ActorSystem("s", clock=clock) as system:
+            silent = Silent()
+            ref = system.spawn(silent, "silent")
+            task = asyncio.create_task(ref.ask(Never("deferred"), timeout=1.0))
+            await clock.advance(1.0)
+            with pytest.raises(AskTimeout):
+                await task
+            silent.kept[0].set_result(None)  # the handler's own future stays its own
+            await clock.advance(0.0)
+
+
+async def test_ask_timeouts_on_a_virtual_clock_are_clock_timers_not_loop_timers() -> None:
+    clock = ManualClock()
+    with anyio.fail_after(2):
+        async with ActorSystem("s", clock=clock) as system:
+            ref = system.spawn(SilentAsync(), "slow")
+            task = asyncio.create_task(ref.ask(Never("mailbox"), timeout=30.0))
+            await clock.advance(0.0)
+            assert clock.next_deadline() == 30.0
+            await clock.advance(30.0)
+            with pytest.raises(AskTimeout):
+                await task
+
+
+async def test_a_clock_timer_fires_in_deadline_order_and_can_be_disarmed() -> None:
+    clock = ManualClock()
+    fired: list[tuple[str, float]] = []
+    with anyio.fail_after(2):
+        clock.call_later(2.0, lambda: fired.append(("b", clock.now())))
+        clock.call_later(1.0, lambda: fired.append(("a", clock.now())))
+        clock.call_later(1.5, fired.append, ("never", 0.0)).cancel()
+        assert clock.pending == 2
+        await clock.advance(5.0)
+    assert fired == [("a", 1.0), ("b", 2.0)]

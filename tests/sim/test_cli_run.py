@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import msgspec
@@ -169,3 +170,53 @@ def test_fast_mode_writes_the_same_result_twice(tmp_path: Path) -> None:
     first, second = ((tmp_path / out / "result.json").read_bytes() for out in ("a", "b"))
     assert first == second
     assert msgspec.json.decode(first, type=MissionResult).completed
+
+
+def _crowd(path: Path, robots: int) -> Path:
+    """A small cave with more robots than any built-in scenario and the default protocol
+    timing (short timeouts, so a timer decided by wall time would show)."""
+    models = ("husky", "spot", "bebop")
+    team = "".join(f"  - {{name: r{i}, model: {models[i % 3]}}}\n" for i in range(robots))
+    path.write_text(
+        "name: crowd\nseed: 4\nobjects: 8\ncontaminated_share: 0.5\ntime_limit_s: 600\n"
+        "map: {cave: {width: 50, height: 35, seed: 3}}\n"
+        "sim: {step_s: 1.0, delay_jitter: 0.2, failure_chance: 0.05}\n"
+        f"robots:\n{team}"
+    )
+    return path
+
+
+@pytest.mark.slow
+def test_fast_mode_with_a_crowd_writes_the_same_result_however_loaded_the_machine(
+    tmp_path: Path,
+) -> None:
+    """Every timer of a virtual-time run is on the virtual clock: a thread burning CPU
+    alongside (it takes the GIL from the event loop at instants that differ from run to
+    run, and slows it down) changes nothing."""
+    scenario = _crowd(tmp_path / "crowd.yaml", 30)
+
+    def run(out: str) -> bytes:
+        argv = ["run", str(scenario), "--fast", "--no-record", "--out", str(tmp_path / out)]
+        assert main([*argv, "--quiet"]) == 0
+        return (tmp_path / out / "result.json").read_bytes()
+
+    first = run("calm")
+    stop = threading.Event()
+
+    def burn() -> None:
+        n = 0
+        while not stop.is_set():
+            n += 1
+
+    burner = threading.Thread(target=burn, daemon=True)
+    burner.start()
+    try:
+        loaded = run("loaded")
+    finally:
+        stop.set()
+        burner.join(timeout=10)
+    assert not burner.is_alive()
+    assert first == loaded
+    result = msgspec.json.decode(first, type=MissionResult)
+    assert len(result.robots) == 30
+    assert result.completed
