@@ -1,13 +1,14 @@
 # Two commands on a fresh machine: `make run` and `make test`.
-# Both install from the lock files in requirements/ (exact versions with hashes), so a
-# fresh machine gets what CI tested; `make lock` refreshes them on purpose.
+# Both install from the lock files requirements.txt and requirements-dev.txt (exact
+# versions with hashes), so a fresh machine gets what CI tested; `make lock` refreshes
+# them on purpose.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 UV_VERSION := 0.13.9
 # uv resolves for every platform and Python the project supports, from the package index.
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
-	--custom-compile-command "make lock" pyproject.toml requirements/build.in
+	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
 .PHONY: run test lint docs view bench lock clean venv
 
@@ -21,12 +22,12 @@ define install
 endef
 
 # What running needs, and no more.
-$(VENV)/.installed-run: requirements/run.txt pyproject.toml
-	$(call install,requirements/run.txt)
+$(VENV)/.installed-run: requirements.txt pyproject.toml
+	$(call install,requirements.txt)
 
 # Running plus tests, lint, docs and benchmarks.
-$(VENV)/.installed-dev: requirements/dev.txt pyproject.toml
-	$(call install,requirements/dev.txt)
+$(VENV)/.installed-dev: requirements-dev.txt pyproject.toml
+	$(call install,requirements-dev.txt)
 
 venv: $(VENV)/.installed-dev
 
@@ -72,8 +73,8 @@ bench: $(VENV)/.installed-dev
 lock:
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet uv==$(UV_VERSION)
-	$(LOCK) -o requirements/run.txt
-	$(LOCK) --extra dev -c requirements/run.txt -o requirements/dev.txt
+	$(LOCK) -o requirements.txt
+	$(LOCK) --extra dev -c requirements.txt -o requirements-dev.txt
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -87,8 +87,8 @@ if TYPE_CHECKING:
     from btcap.team.core.turns import BatchPolicy
     from btcap.team.ids import AuctionId, ExecutionId
     from btcap.team.runtime.agent import Agent, AgentConfig
-    from btcap.team.runtime.config import MissionConfig
     from btcap.team.runtime.protocol import protocol_registry
+    from btcap.team.settings import MissionConfig
 
 __version__ = "0.1.0"
 
@@ -167,7 +167,7 @@ _EXPORTS = {
         "OutputBridge",
     ),
     "btcap.team.capabilities.capfiles": ("load_implementation", "load_interfaces"),
-    "btcap.team.runtime.config": ("MissionConfig",),
+    "btcap.team.settings": ("MissionConfig",),
     "btcap.team.ids": ("AuctionId", "ExecutionId"),
     "btcap.team.core.task": ("Assigned", "AssignmentTask", "Unassigned"),
     "btcap.team.core.turns": ("BatchPolicy",),

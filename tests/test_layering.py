@@ -363,7 +363,5 @@ def test_no_team_module_imports_a_higher_role() -> None:
 
 
 def test_team_modules_stay_under_400_lines() -> None:
-    long = {
-        m: n for m in TEAM_MODULES if (n := len(MODULES[m].read_text().splitlines())) > 400
-    }
+    long = {m: n for m in TEAM_MODULES if (n := len(MODULES[m].read_text().splitlines())) > 400}
     assert not long, f"team modules over 400 lines: {long}"

@@ -1,4 +1,4 @@
-"""The lock files in requirements/ cover what pyproject.toml asks for.
+"""The lock files (requirements.txt, requirements-dev.txt) cover what pyproject.toml asks for.
 
 `make run` and `make test` install from the lock files alone (exact versions with hashes,
 no dependency resolution of their own), so a requirement added to pyproject.toml without
@@ -49,27 +49,29 @@ def _wanted(extras: list[str]) -> list[Requirement]:
     return reqs
 
 
-@pytest.mark.parametrize(("lock", "extras"), [("run.txt", []), ("dev.txt", ["dev"])])
+@pytest.mark.parametrize(
+    ("lock", "extras"), [("requirements.txt", []), ("requirements-dev.txt", ["dev"])]
+)
 def test_every_requirement_is_pinned_in_the_lock(lock: str, extras: list[str]) -> None:
-    pins = _pins(ROOT / "requirements" / lock)
-    assert pins, f"requirements/{lock} pins nothing"
+    pins = _pins(ROOT / lock)
+    assert pins, f"{lock} pins nothing"
     problems = []
     for req in _wanted(extras):
         if req.marker is not None and not req.marker.evaluate():
             continue
         found = pins.get(canonicalize_name(req.name))
         if not found:
-            problems.append(f"{req} is not in requirements/{lock}")
+            problems.append(f"{req} is not in {lock}")
             continue
         here = [v for v, marker in found if marker is None or Marker(marker).evaluate()]
         if not any(req.specifier.contains(v, prereleases=True) for v in here):
-            problems.append(f"{req}: requirements/{lock} pins {here}")
+            problems.append(f"{req}: {lock} pins {here}")
     assert not problems, "run `make lock`: " + "; ".join(problems)
 
 
 def test_the_dev_lock_agrees_with_the_run_lock() -> None:
     """`make run` then `make test` share a venv: one version of each package in both."""
-    run, dev = (_pins(ROOT / "requirements" / f) for f in ("run.txt", "dev.txt"))
+    run, dev = (_pins(ROOT / f) for f in ("requirements.txt", "requirements-dev.txt"))
     versions = {
         name: ({v for v, _ in run[name]}, {v for v, _ in dev.get(name, [])}) for name in run
     }

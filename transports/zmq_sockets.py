@@ -29,6 +29,7 @@ __all__ = [
     "SCHEMES",
     "Monitor",
     "RouterEvents",
+    "check_endpoint",
     "check_id",
     "fd_of",
     "open_dealer",
@@ -327,14 +328,34 @@ def remove_ipc_file(endpoint: str) -> None:
             os.unlink(endpoint.removeprefix("ipc://"))
 
 
+def check_endpoint(endpoint: str, *, dial: bool) -> str | None:
+    """Why ``endpoint`` cannot be bound (or, ``dial``: dialled by peers), or None.
+
+    libzmq wraps a tcp port above 65535 round to another port and binds that, so a typo
+    would listen where no peer looks: refused here, with the other malformed endpoints.
+    """
+    if not endpoint.startswith(SCHEMES):
+        return "expected a tcp://, ipc:// or inproc:// endpoint"
+    if not endpoint.startswith("tcp://"):
+        return None if endpoint.partition("://")[2] else "expected a name after the scheme"
+    host, colon, port = endpoint.removeprefix("tcp://").rpartition(":")
+    if not colon or not host:
+        return "expected tcp://HOST:PORT"
+    if dial and (port == "*" or "*" in host):
+        return "expected a host and port peers can dial, not a wildcard"
+    if port != "*" and not (port.isdigit() and int(port) <= 65535):
+        return f"port {port!r}: expected 0 to 65535" + ("" if dial else " or *")
+    return None
+
+
 def check_transport_args(system_id: str, bind: str, advertise: str | None, max_bytes: int) -> None:
     """What a ZmqTransport is given, checked before any socket opens."""
     if (why := check_id(system_id)) is not None:
         raise ValueError(f"system id {system_id!r}: {why}")
-    if not bind.startswith(SCHEMES):
-        raise ValueError(f"cannot bind {bind!r}: expected tcp://, ipc:// or inproc://")
-    if advertise is not None and not advertise.startswith(SCHEMES):
-        raise ValueError(f"advertise {advertise!r}: expected tcp://, ipc:// or inproc://")
+    if (why := check_endpoint(bind, dial=False)) is not None:
+        raise ValueError(f"cannot bind {bind!r}: {why}")
+    if advertise is not None and (why := check_endpoint(advertise, dial=True)) is not None:
+        raise ValueError(f"advertise {advertise!r}: {why}")
     if max_bytes < 1024:
         raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
 

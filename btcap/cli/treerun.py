@@ -27,8 +27,8 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) -> int:
     """``btcap tree run``: tick the tree ``load`` builds, to a result or a limit."""
-    if not args.rate > 0:
-        raise CliError(f"--rate {args.rate}: expected ticks per second > 0")
+    if not 0 < args.rate < math.inf:
+        raise CliError(f"--rate {args.rate}: expected a finite number of ticks per second > 0")
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     timeout = _timeout(args.timeout)

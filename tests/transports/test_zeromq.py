@@ -605,6 +605,8 @@ def test_close_without_serving() -> None:
         "bogus://127.0.0.1:1",
         "ipc:///nonexistent-dir-for-btcap/x.sock",
         "127.0.0.1:5555",
+        "tcp://127.0.0.1:65536",  # libzmq would bind port 0 + 1 = 1 instead
+        "tcp://:5555",
     ],
 )
 def test_bad_bind_endpoint_raises_value_error_naming_it(bind: str) -> None:

@@ -12,7 +12,8 @@ __all__ = ["Bidder", "Evaluation", "evaluate"]
 
 
 class Bidder(Protocol):
-    """What bidding needs of an implementation (see ``btcap.team.interface``)."""
+    """What bidding needs of an implementation (one is
+    :class:`~btcap.team.capabilities.implementation.Implementation`)."""
 
     @property
     def name(self) -> str: ...

@@ -62,7 +62,7 @@ from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, ZmqTransport
 from btcap.transports.security import KeyPair, TeamKeys
-from btcap.transports.zmq_sockets import check_id
+from btcap.transports.zmq_sockets import check_endpoint, check_id
 
 __all__ = [
     "AgentConfigError",
@@ -80,7 +80,6 @@ __all__ = [
     "load_agent_file",
 ]
 
-_SCHEMES = ("tcp://", "ipc://", "inproc://")
 _WILDCARDS = ("*", "0.0.0.0", "::", "[::]")
 
 
@@ -267,15 +266,11 @@ def _check(config: RobotConfig, base: Path) -> None:
     if (why := check_id(spec.robot)) is not None:
         raise config.error("robot", f"{spec.robot!r}: {why}")
     net = spec.network
-    if not net.bind.startswith(_SCHEMES):
-        raise config.error("network.bind", f"{net.bind!r}: expected tcp://, ipc:// or inproc://")
+    if (why := check_endpoint(net.bind, dial=False)) is not None:
+        raise config.error("network.bind", f"{net.bind!r}: {why}")
     if net.advertise is not None:
-        if not net.advertise.startswith(_SCHEMES) or "*" in net.advertise:
-            raise config.error(
-                "network.advertise",
-                f"{net.advertise!r}: expected a tcp://, ipc:// or inproc:// endpoint "
-                "with a host and port peers can dial",
-            )
+        if (why := check_endpoint(net.advertise, dial=True)) is not None:
+            raise config.error("network.advertise", f"{net.advertise!r}: {why}")
     elif _host(net.bind) in _WILDCARDS:
         raise config.error(
             "network.advertise",
@@ -291,15 +286,8 @@ def _check(config: RobotConfig, base: Path) -> None:
         if seed.robot in seen:
             raise config.error(f"network.seeds[{i}].robot", f"{seed.robot!r} is listed twice")
         seen.add(seed.robot)
-        if not seed.endpoint.startswith(_SCHEMES) or "*" in seed.endpoint:
-            raise config.error(
-                f"network.seeds[{i}].endpoint",
-                f"{seed.endpoint!r}: expected a tcp://, ipc:// or inproc:// endpoint",
-            )
-    try:
-        check_strategy(spec.allocation.strategy)
-    except ValueError as exc:
-        raise config.error("allocation.strategy", str(exc)) from None
+        if (why := check_endpoint(seed.endpoint, dial=True)) is not None:
+            raise config.error(f"network.seeds[{i}].endpoint", f"{seed.endpoint!r}: {why}")
     caps = spec.capabilities
     caps.interfaces = _files(config, base, "capabilities.interfaces", caps.interfaces)
     caps.implementations = _files(

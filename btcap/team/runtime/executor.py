@@ -26,7 +26,7 @@ from btcap.team.core.hosting import Hosted, HostLeases
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import Award, Bid, CallForBids, CostChanged, NoBid
-from btcap.team.runtime.config import MissionStats
+from btcap.team.runtime.stats import MissionStats
 from btcap.transports.log import get_logger
 
 __all__ = ["ExecutorSide"]

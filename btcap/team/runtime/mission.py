@@ -41,10 +41,11 @@ from btcap.team.messages import (
     PauseExecution,
     RunState,
 )
-from btcap.team.runtime.config import MissionConfig, MissionStats
 from btcap.team.runtime.executor import ExecutorSide
 from btcap.team.runtime.moving import Reevaluation
 from btcap.team.runtime.origin_side import Handle, OriginSide
+from btcap.team.runtime.stats import MissionStats
+from btcap.team.settings import MissionConfig
 from btcap.transports import Address
 from btcap.transports.log import get_logger, worth_logging
 

@@ -21,7 +21,8 @@ from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import CostChanged
-from btcap.team.runtime.config import MissionConfig, MissionStats
+from btcap.team.runtime.stats import MissionStats
+from btcap.team.settings import MissionConfig
 from btcap.transports.log import get_logger
 
 __all__ = ["Reevaluation"]

@@ -27,8 +27,9 @@ from btcap.team.ids import ExecutionId
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import RUN_DONE, ExecutionStatus
-from btcap.team.runtime.config import MissionConfig, MissionStats
 from btcap.team.runtime.executor import ExecutorSide
+from btcap.team.runtime.stats import MissionStats
+from btcap.team.settings import MissionConfig
 
 __all__ = ["Handle", "OriginHost", "OriginSide"]
 

@@ -240,7 +240,8 @@ def test_run_refuses_capabilities_which_need_a_team(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--rate", "0"], "--rate 0.0: expected ticks per second > 0"),
+        (["--rate", "0"], "--rate 0.0: expected a finite number of ticks per second > 0"),
+        (["--rate", "inf"], "--rate inf: expected a finite number of ticks per second > 0"),
         (["--max-ticks", "0"], "--max-ticks 0: expected at least 1"),
         (["--timeout", "-1"], "--timeout -1: expected seconds > 0, or 0 or none for no limit"),
         (["--timeout", "soon"], "--timeout soon: expected seconds > 0, or 0 or none for no limit"),

@@ -107,6 +107,10 @@ def test_paths_are_relative_to_the_file_and_key_paths_expand_the_environment(
         ("robot: beta,", "robot: alpha,", "network.seeds[0].robot: 'alpha' is this robot"),
         ("robot: beta,", "robot: '*',", "network.seeds[0].robot"),
         ('"tcp://127.0.0.2:7102"', '"127.0.0.2:7102"', "network.seeds[0].endpoint"),
+        # libzmq would wrap these round to another port: refused, not silently moved
+        ("bind: tcp://127.0.0.1:*", "bind: tcp://127.0.0.1:99999", "network.bind: 'tcp://"),
+        ('"tcp://127.0.0.2:7102"', '"tcp://127.0.0.2:70000"', "port '70000': expected 0 to"),
+        ('"tcp://127.0.0.2:7102"', '"tcp://127.0.0.2:*"', "network.seeds[0].endpoint"),
         (
             '"tcp://127.0.0.2:7102"}]',
             '"tcp://h:1"}, {robot: b}]',

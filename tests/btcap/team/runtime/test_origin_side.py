@@ -28,9 +28,10 @@ from btcap.team.messages import (
     RepositoryState,
     RunState,
 )
-from btcap.team.runtime.config import MissionConfig, MissionStats
 from btcap.team.runtime.executor import ExecutorSide
 from btcap.team.runtime.origin_side import OriginHost, OriginSide
+from btcap.team.runtime.stats import MissionStats
+from btcap.team.settings import MissionConfig
 
 
 class FakeHost:

@@ -1,13 +1,10 @@
-"""Counters of a robot's mission control; its settings are in :mod:`btcap.team.settings`
-(``MissionConfig`` is re-exported here for the modules that take both)."""
+"""Counters of a robot's mission control (its settings are in :mod:`btcap.team.settings`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from btcap.team.settings import MissionConfig
-
-__all__ = ["MissionConfig", "MissionStats"]
+__all__ = ["MissionStats"]
 
 
 @dataclass(slots=True)
