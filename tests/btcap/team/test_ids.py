@@ -23,11 +23,13 @@ def test_ids_read_as_origin_tag_path_number_and_tell_lives_apart() -> None:
     new = ExecutionId("operator", "greetings/ada", 1, 0x1234_3F2B)
     assert str(old) == "operator~3f2a:greetings/ada#1"
     assert str(AuctionId("operator", 7, 0x3F2A)) == "operator~3f2a#7"
-    assert old != new and len({old, new}) == 2
+    assert old != new
+    assert len({old, new}) == 2
     # Ids made by hand (no incarnation) read as before.
     assert str(ExecutionId("x", "root", 1)) == "x:root#1"
     assert str(AuctionId("x", 1)) == "x#1"
-    assert incarnation_tag(0) == "" and incarnation_tag(0xABCDEF) == "~cdef"
+    assert incarnation_tag(0) == ""
+    assert incarnation_tag(0xABCDEF) == "~cdef"
 
 
 def test_the_incarnation_survives_the_wire_and_an_id_without_one_still_decodes() -> None:
@@ -78,7 +80,8 @@ async def test_the_same_mission_from_a_restarted_origin_is_won_by_its_first_auct
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda s: s is State.SUCCEEDED, f"life {life} succeeds")
                 (rec,) = [r for r in records if r.closed is not None]
-                assert isinstance(rec.result, Assigned) and rec.result.robot == "b", rec
+                assert isinstance(rec.result, Assigned), rec
+                assert rec.result.robot == "b", rec
                 assert rec.passed == {}, rec
                 assert rec.id.incarnation == rec.task.execution.incarnation == a.team.incarnation
                 assert str(rec.id).startswith(f"a{incarnation_tag(a.team.incarnation)}#")
