@@ -140,6 +140,10 @@ class ZmqTransport(Transport):
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
+        #: Peers whose link dropped since our last hello to them: what we send next is
+        #: queued until zmq reconnects, so a hello goes first (a restarted peer drops
+        #: messages from a sender that has not said hello on its new life).
+        self._unsaid: set[str] = set()
         self.hellos = 0
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -198,6 +202,7 @@ class ZmqTransport(Transport):
         sock = self._dealers.pop(system_id, None)
         self._endpoints.pop(system_id, None)
         self._configured.discard(system_id)
+        self._unsaid.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
         monitor = self._monitors.pop(system_id, None)
@@ -234,6 +239,11 @@ class ZmqTransport(Transport):
         self._write(target, dealer, _MSG, data)
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
+        if self._unsaid and sid in self._unsaid:
+            self._unsaid.discard(sid)
+            if kind != _HELLO:
+                hello = _HELLO + self.endpoint.encode()
+                write(sock, hello, self.max_message_bytes, self.stats, self.system_id, sid)
         write(sock, kind + data, self.max_message_bytes, self.stats, self.system_id, sid)
 
     # -- receiving --------------------------------------------------------------------
@@ -310,8 +320,12 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_events)
 
     def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._reconnected) and self._loop is not None:
+        if monitor.drain(_BATCH, self._reconnected, self._disconnected) and self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
+
+    def _disconnected(self, monitor: Monitor) -> None:
+        if monitor.peer in self._dealers:
+            self._unsaid.add(monitor.peer)
 
     def _reconnected(self, monitor: Monitor) -> None:
         log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)

@@ -204,7 +204,8 @@ def open_dealer(
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            events = sock.get_monitor_socket(zmq.EVENT_CONNECTED, addr=name)
+            watched = zmq.EVENT_CONNECTED | zmq.EVENT_DISCONNECTED
+            events = sock.get_monitor_socket(watched, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
         else:
@@ -232,9 +233,15 @@ class Monitor:
         self.connects = 0
         self.closed = False
 
-    def drain(self, limit: int, reconnected: Callable[[Monitor], None]) -> bool:
+    def drain(
+        self,
+        limit: int,
+        reconnected: Callable[[Monitor], None],
+        disconnected: Callable[[Monitor], None] = lambda _m: None,
+    ) -> bool:
         """Read up to ``limit`` events, calling ``reconnected`` for every connection after
-        the first (the peer may have restarted and forgotten us); True if more wait."""
+        the first (the peer may have restarted and forgotten us) and ``disconnected`` when
+        the link drops; True if more wait."""
         try:
             for _ in range(limit):
                 if self.closed or not self.socket.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
@@ -246,6 +253,8 @@ class Monitor:
                         self.connects += 1
                         if self.connects > 1:
                             reconnected(self)
+                    elif event == _DISCONNECTED:
+                        disconnected(self)
         except zmq.ZMQError as exc:
             log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
             return False
