@@ -325,6 +325,7 @@ class ZmqTransport(Transport):
 
     def _disconnected(self, monitor: Monitor) -> None:
         if monitor.peer in self._dealers:
+            log.debug("transport.peer_disconnected", system=self.system_id, peer=monitor.peer)
             self._unsaid.add(monitor.peer)
 
     def _reconnected(self, monitor: Monitor) -> None:
