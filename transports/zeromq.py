@@ -140,10 +140,6 @@ class ZmqTransport(Transport):
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
-        #: Peers whose link dropped since our last hello to them: what we send next is
-        #: queued until zmq reconnects, so a hello goes first (a restarted peer drops
-        #: messages from a sender that has not said hello on its new life).
-        self._unsaid: set[str] = set()
         self.hellos = 0
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -202,7 +198,6 @@ class ZmqTransport(Transport):
         sock = self._dealers.pop(system_id, None)
         self._endpoints.pop(system_id, None)
         self._configured.discard(system_id)
-        self._unsaid.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
         monitor = self._monitors.pop(system_id, None)
@@ -239,11 +234,6 @@ class ZmqTransport(Transport):
         self._write(target, dealer, _MSG, data)
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
-        if self._unsaid and sid in self._unsaid:
-            self._unsaid.discard(sid)
-            if kind != _HELLO:
-                hello = _HELLO + self.endpoint.encode()
-                write(sock, hello, self.max_message_bytes, self.stats, self.system_id, sid)
         write(sock, kind + data, self.max_message_bytes, self.stats, self.system_id, sid)
 
     # -- receiving --------------------------------------------------------------------
@@ -324,9 +314,20 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_monitor, monitor)
 
     def _disconnected(self, monitor: Monitor) -> None:
-        if monitor.peer in self._dealers:
-            log.debug("transport.peer_disconnected", system=self.system_id, peer=monitor.peer)
-            self._unsaid.add(monitor.peer)
+        """Our link to a peer dropped: what is queued on it (sent since the drop, before
+        we heard of it) would reach the peer's next life ahead of our hello, and be dropped
+        there as from an unknown peer. A fresh DEALER queues the hello first instead."""
+        peer = monitor.peer
+        if self._monitors.get(peer) is not monitor or self._closed:
+            return
+        log.debug("transport.peer_disconnected", system=self.system_id, peer=peer)
+        endpoint, configured = self._endpoints.pop(peer), peer in self._configured
+        met = self._strangers.since.get(peer)  # a stranger stays one (its ttl runs on)
+        self._connect(peer, endpoint)
+        if configured:
+            self._configured.add(peer)
+        if met is not None:
+            self._strangers.met(peer, met)
 
     def _reconnected(self, monitor: Monitor) -> None:
         log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)

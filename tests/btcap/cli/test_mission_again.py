@@ -22,6 +22,8 @@ import anyio
 import anyio.abc
 import pytest
 
+from btcap.cli import main
+
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -49,13 +51,14 @@ def _free_port(taken: set[int]) -> int:
 
 
 def _config(tmp_path: Path, robot: str, ports: dict[str, int], *, impl: bool) -> Path:
-    """A robot on a fixed loopback port that knows every other one as a seed; retry_s
-    (10 s) far beyond a run, so a declined first auction would show."""
+    """A robot on a fixed loopback port with CURVE keys, as in examples/team: the operator
+    knows only alpha (it learns the others from alpha's roster, and they may speak first);
+    retry_s (10 s) far beyond a run, so a declined first auction would show."""
+    known = ["alpha"] if robot == "operator" else [r for r in ROBOTS if r != robot]
     seeds = "".join(
-        f'    - {{robot: {r}, endpoint: "tcp://127.0.0.1:{p}"}}\n'
-        for r, p in ports.items()
-        if r != robot and r != "operator"
+        f'    - {{robot: {r}, endpoint: "tcp://127.0.0.1:{ports[r]}"}}\n' for r in known
     )
+    keys = tmp_path / "keys"
     path = tmp_path / f"{robot}.yaml"
     path.write_text(
         f"btcap: 1\nrobot: {robot}\n"
@@ -63,6 +66,7 @@ def _config(tmp_path: Path, robot: str, ports: dict[str, int], *, impl: bool) ->
         + (f"  implementations: [{CAPS / 'greet.yaml'}]\n" if impl else "")
         + f"network:\n  bind: tcp://127.0.0.1:{ports[robot]}\n  seeds:\n{seeds}"
         + "timing: {tick_hz: 20, heartbeat_s: 0.1, failure_timeout_s: 1.0, lease_s: 1.0}\n"
+        + f"keys: {{secret: {keys / robot}.key_secret, trusted: {keys}}}\n"
     )
     return path
 
@@ -88,6 +92,9 @@ async def _agent(config: Path) -> AsyncIterator[anyio.abc.Process]:
 async def test_the_same_mission_runs_ten_times_from_a_fresh_operator(tmp_path: Path) -> None:
     taken: set[int] = set()
     ports = {r: _free_port(taken) for r in (*ROBOTS, "operator")}
+    (tmp_path / "keys").mkdir()
+    for robot in ports:
+        assert main(["keys", "new", robot, "--dir", str(tmp_path / "keys")]) == 0
     configs = {r: _config(tmp_path, r, ports, impl=True) for r in ROBOTS}
     operator = _config(tmp_path, "operator", ports, impl=False)
     argv = [sys.executable, "-m", "btcap", "--log-level", "info", "--log-json", "mission", "run"]
