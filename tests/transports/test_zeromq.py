@@ -223,7 +223,7 @@ async def test_what_we_send_while_a_peer_restarts_reaches_its_new_life(
                 await eventually(lambda: "a" in tb.peers(), "b learnt a")
                 assert await a.ref(Address("b", "echo")).ask(Echo("1")) == Echoed("1", "b")
             await eventually(
-                lambda: any(e["event"] == "transport.peer_disconnected" for e in plain_logs),
+                lambda: any(e["event"] == "transport.peer_relinked" for e in plain_logs),
                 "a saw its link to b drop",
             )
             for i in range(5):
