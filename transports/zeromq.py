@@ -176,7 +176,7 @@ class ZmqTransport(Transport):
         if not endpoint.startswith(SCHEMES):
             raise ValueError(f"peer {system_id}: endpoint {endpoint!r} is not tcp/ipc/inproc")
         sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint, self.curve)
-        self.remove_peer(system_id)
+        self._unlink(system_id)  # a peer that moved stays configured, or a stranger
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
         self._known[system_id.encode()] = system_id
@@ -195,11 +195,14 @@ class ZmqTransport(Transport):
 
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
-        sock = self._dealers.pop(system_id, None)
-        self._endpoints.pop(system_id, None)
         self._configured.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
+        self._unlink(system_id)
+
+    def _unlink(self, system_id: str) -> None:
+        sock = self._dealers.pop(system_id, None)
+        self._endpoints.pop(system_id, None)
         monitor = self._monitors.pop(system_id, None)
         if monitor is not None:
             if self._loop is not None and not self._loop.is_closed():
@@ -310,12 +313,14 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_events)
 
     def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._reconnected) and self._loop is not None:
+        if monitor.drain(_BATCH, self._relink) and self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
 
-    def _reconnected(self, monitor: Monitor) -> None:
-        log.info("transport.peer_reconnected", system=self.system_id, peer=monitor.peer)
-        self._write(monitor.peer, monitor.dealer, _HELLO, self.endpoint.encode())
+    def _relink(self, monitor: Monitor) -> None:
+        # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
+        if self._monitors.get(monitor.peer) is monitor and not self._closed:
+            log.info("transport.peer_relinked", system=self.system_id, peer=monitor.peer)
+            self._connect(monitor.peer, self._endpoints.pop(monitor.peer))
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -334,7 +339,7 @@ class ZmqTransport(Transport):
             peer = self._known.get(ident)
             if peer is None:
                 self.stats.unknown_peer += 1
-                self._reject("unknown peer", ident, "no hello")
+                reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
                 return
             try:
                 env = self.codec.decode(memoryview(body)[1:])
@@ -358,18 +363,15 @@ class ZmqTransport(Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
         elif kind == _HELLO_BYTE:
-            self._hello(ident, body[1:])
+            try:
+                peer, endpoint = parse_hello(ident, body[1:], self.system_id)
+            except ValueError as exc:
+                self._malformed("bad hello", ident, str(exc))
+                return
+            if self._admit(peer, endpoint, self.accept_hello):
+                self.hellos += 1
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
-
-    def _hello(self, ident: bytes, payload: bytes) -> None:
-        try:
-            peer, endpoint = parse_hello(ident, payload, self.system_id)
-        except ValueError as exc:
-            self._malformed("bad hello", ident, str(exc))
-            return
-        if self._admit(peer, endpoint, self.accept_hello):
-            self.hellos += 1
 
     def introduce(self, system_id: str, endpoint: str) -> bool:
         """Dial a teammate others told us of, as a stranger until it speaks (see class)."""
@@ -389,13 +391,14 @@ class ZmqTransport(Transport):
             return True
         if known is None and not accept:
             self.stats.unknown_peer += 1
-            self._reject("unknown peer", ident, "hello refused")
+            reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
             return False
         if known is None and len(self._dealers) >= self.max_peers:
             stranger = self._strangers.oldest()  # the longest silent one makes room
             if stranger is None:
                 self.stats.unknown_peer += 1
-                self._reject("too many peers", ident, f"already {len(self._dealers)}")
+                why = f"already {len(self._dealers)}"
+                reject(self.stats, self.system_id, "too many peers", ident, why)
                 return False
             self.remove_peer(stranger)
         try:
@@ -417,9 +420,6 @@ class ZmqTransport(Transport):
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1
-        self._reject(reason, ident, detail)
-
-    def _reject(self, reason: str, ident: bytes, detail: str) -> None:
         reject(self.stats, self.system_id, reason, ident, detail)
 
     @property

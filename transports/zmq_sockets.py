@@ -1,8 +1,10 @@
 """ZeroMQ socket set-up for :mod:`btcap.transports.zeromq`: peer ids, DEALERs, monitors.
 
 A DEALER per peer carries our system id as its routing id; a connection monitor on it
-tells when zmq reconnected, so the transport can say hello again to a peer that
-restarted on the same endpoint.
+tells when the link drops. The transport then replaces the DEALER by a fresh one with its
+hello queued first: zmq would reconnect the old one by itself, but what was queued on it
+since the drop would reach a peer restarted on the same endpoint before our hello, and
+be dropped there as from an unknown peer.
 """
 
 from __future__ import annotations
@@ -197,14 +199,14 @@ def open_dealer(
             raise
     monitor = None
     if not endpoint.startswith("inproc://"):
-        # A peer that restarts on the same endpoint gets our DEALER back by zmq's
-        # reconnect, but has forgotten us: a monitor tells us to say hello again.
-        # It must watch before connecting, or the first connection may go unseen.
+        # A peer that restarts on the same endpoint has forgotten us: a monitor tells us
+        # the link dropped, to relink with a hello first (see the module's docstring).
+        # It must watch before connecting, or an early drop may go unseen.
         # (pyzmq names monitors after the socket's fd, which a closed one may still
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            events = sock.get_monitor_socket(zmq.EVENT_CONNECTED, addr=name)
+            events = sock.get_monitor_socket(zmq.EVENT_DISCONNECTED, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
         else:
@@ -222,19 +224,18 @@ def open_dealer(
 class Monitor:
     """Connection events of one DEALER, read from its zmq monitor socket."""
 
-    __slots__ = ("closed", "connects", "dealer", "fd", "peer", "socket")
+    __slots__ = ("closed", "dealer", "fd", "peer", "socket")
 
     def __init__(self, peer: str, dealer: zmq.Socket[bytes], socket: zmq.Socket[bytes]) -> None:
         self.peer = peer
         self.dealer = dealer
         self.socket = socket
         self.fd = fd_of(socket)
-        self.connects = 0
         self.closed = False
 
-    def drain(self, limit: int, reconnected: Callable[[Monitor], None]) -> bool:
-        """Read up to ``limit`` events, calling ``reconnected`` for every connection after
-        the first (the peer may have restarted and forgotten us); True if more wait."""
+    def drain(self, limit: int, dropped: Callable[[Monitor], None]) -> bool:
+        """Read up to ``limit`` events, calling ``dropped`` when the link drops (the peer
+        may be restarting, and forget us); True if more wait."""
         try:
             for _ in range(limit):
                 if self.closed or not self.socket.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
@@ -242,10 +243,8 @@ class Monitor:
                 frames = self.socket.recv_multipart(NOBLOCK)
                 if len(frames) == 2 and len(frames[0]) == 6:
                     event = int.from_bytes(frames[0][:2], sys.byteorder)
-                    if event == zmq.EVENT_CONNECTED:
-                        self.connects += 1
-                        if self.connects > 1:
-                            reconnected(self)
+                    if event == _DISCONNECTED:
+                        dropped(self)
         except zmq.ZMQError as exc:
             log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
             return False

@@ -244,13 +244,13 @@ class Monitor:
 
     def _run_ended(self, execution: str, result: str) -> str | None:
         why = self._lost.pop(execution, None)
-        node = execution.rsplit("#", 1)[0]
+        node = _node_of(execution)
         self._ended[node] = (result, why)
         return why
 
     def _on_auction(self, rec: AuctionRecord) -> None:
         task = rec.task
-        node = f"{task.execution.origin}:{task.execution.node}"
+        node = _node_of(str(task.execution))
         base = {"k": "auction", "id": str(rec.id), "execution": str(task.execution)}
         if rec.closed is None:
             self.emit(
@@ -336,3 +336,9 @@ class Monitor:
     @property
     def hub(self) -> Hub:
         return self._hub
+
+
+def _node_of(execution: str) -> str:
+    """The node an execution id names, as its runs and auctions are matched by (the id's
+    text without ``#number``: ``origin~incarnation:path``)."""
+    return execution.rsplit("#", 1)[0]

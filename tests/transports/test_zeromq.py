@@ -210,6 +210,37 @@ async def test_peer_restarting_on_the_same_endpoint_learns_us_again() -> None:
                 assert await a.ref(Address("b", "echo")).ask(Echo("3")) == Echoed("3", "b")
 
 
+async def test_what_we_send_while_a_peer_restarts_reaches_its_new_life(
+    plain_logs: list[MutableMapping[str, Any]],
+) -> None:
+    """Tells to b while it is down wait in a's queue; b's new life hears a's hello before
+    them, so it drops none as coming from an unknown peer."""
+    with anyio.fail_after(10):
+        async with zmq_system("a", "tcp://127.0.0.1:*") as (a, ta):
+            async with zmq_system("b", "tcp://127.0.0.1:*") as (_b, tb):
+                endpoint = tb.endpoint
+                ta.add_peer("b", endpoint)
+                await eventually(lambda: "a" in tb.peers(), "b learnt a")
+                assert await a.ref(Address("b", "echo")).ask(Echo("1")) == Echoed("1", "b")
+            await eventually(
+                lambda: any(e["event"] == "transport.peer_relinked" for e in plain_logs),
+                "a saw its link to b drop",
+            )
+            for i in range(5):
+                a.tell(Address("b", "inbox"), Note(f"queued {i}"))
+            transport = None
+            with anyio.fail_after(5):
+                while transport is None:
+                    try:
+                        transport = ZmqTransport("b", endpoint, registry())
+                    except ValueError:
+                        await anyio.sleep(0.05)
+            async with zmq_system("b", transport) as (b2, tb2):
+                await note_arrives(b2, "queued 4")
+                assert inbox(b2).notes == [f"queued {i}" for i in range(5)]
+                assert tb2.stats.unknown_peer == 0
+
+
 async def test_peer_moving_to_a_new_endpoint_is_followed() -> None:
     with anyio.fail_after(10):
         async with zmq_system("a", "tcp://127.0.0.1:*") as (a, ta):

@@ -122,7 +122,8 @@ class SingleItemAuction(Allocator):
     async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
         system = self.system
         clock = system.clock
-        auction_id = AuctionId(self.robot, next(self._ids))
+        # The auctioneer is the execution's origin: its auctions share its incarnation.
+        auction_id = AuctionId(self.robot, next(self._ids), task.execution.incarnation)
         auction = Auction(auction_id, task.interface, task.candidates, clock.now() + self.window_s)
         done = asyncio.Event()
         self._open[auction_id] = (auction, done)

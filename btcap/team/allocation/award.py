@@ -47,7 +47,7 @@ async def offer(
                 )
         except (ActorError, TypeError) as exc:
             executor.tell(award.unanswered(str(exc)), sender=actor.address)
-            log.info(f"{event}.award_lost", auction=award.auction, robot=robot, error=str(exc))
+            log.info(f"{event}.award_lost", auction=str(award.auction), robot=robot, error=str(exc))
             stats.declined_awards += 1
             continue
         except BaseException:  # cancelled: withdraw too, then give up
@@ -58,5 +58,5 @@ async def offer(
             return award.accepted()
         stats.declined_awards += 1
         why = award.declined(reply.reason)
-        log.info(f"{event}.award_declined", auction=award.auction, robot=robot, reason=why)
+        log.info(f"{event}.award_declined", auction=str(award.auction), robot=robot, reason=why)
     return None

@@ -155,7 +155,8 @@ class ConsensusAssigner(Allocator):
     # -- the strategy -----------------------------------------------------------------
     async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
         clock = self.system.clock
-        mine = _Pending(AuctionId(self.robot, next(self._ids)), task, asyncio.Event(), {})
+        auction = AuctionId(self.robot, next(self._ids), task.execution.incarnation)
+        mine = _Pending(auction, task, asyncio.Event(), {})
         self._pending[task.execution] = mine
         self.stats.auctions += 1
         opened = AuctionRecord(mine.id, task, clock.now())
@@ -321,7 +322,7 @@ class ConsensusAssigner(Allocator):
             cached = self._prices.get(execution)
             if cached is None or cached[0] is not spec:
                 cfb = CallForBids(
-                    AuctionId(execution.origin, 0),
+                    AuctionId(execution.origin, 0, execution.incarnation),
                     spec.interface,
                     spec.identity,
                     spec.inputs,

@@ -140,7 +140,8 @@ class OriginSide:
         return req
 
     def new_execution(self, node: Capability) -> ExecutionId:
-        return ExecutionId(self.robot, node.path, next(self._ids))
+        # The membership's incarnation: a restarted robot's ids differ from its last life's.
+        return ExecutionId(self.robot, node.path, next(self._ids), self.team.incarnation)
 
     def remote(
         self, execution: ExecutionId, robot: str, node: Capability, cost: float

@@ -190,7 +190,7 @@ async def test_an_observer_sees_what_each_member_runs() -> None:
             await tick_until(tree, lambda _s: b.mission_control.body.running is not None, "b runs")
             seen = {m.robot: m for m in await observe_team(a)}
             assert seen["b"].running == [str(b.mission_control.body.running)]
-            assert seen["b"].running[0].startswith("a:")  # a's work, on b's body
+            assert seen["b"].running[0].startswith("a~")  # a's work (a~<incarnation>:…), on b
             assert "Count" in (seen["b"].capabilities or {})
             observer = await t.add("observer")
             await t.converged()

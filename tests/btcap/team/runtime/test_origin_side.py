@@ -18,6 +18,7 @@ from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Effect, Refused
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
+from btcap.team.ids import incarnation_tag
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import (
@@ -110,7 +111,8 @@ async def test_a_remote_win_is_a_handle_whose_lease_inputs_and_result_go_through
         side, allocator = origin(host, Assigned("b", "count", 1.0))
         node = COUNT.node_type()("count", inputs={"x": 1})
         req = side.request_assignment(node, {"x": 1})
-        assert [t.get_name() for t in host.tasks] == [f"assign a:{node.path}#1"]
+        tag = incarnation_tag(side.team.incarnation)
+        assert [t.get_name() for t in host.tasks] == [f"assign a{tag}:{node.path}#1"]
         await req.task
         (task,) = allocator.asked
         assert task.candidates == {"a", "b"}
