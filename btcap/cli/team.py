@@ -159,6 +159,13 @@ def _agent(args: argparse.Namespace) -> int:
 
     config = _config(args.config)
     registry = _registry(args)
+    if args.insecure and config.keys is None:
+        print(
+            f"btcap: warning: --insecure: {config.robot} speaks to anyone who can reach "
+            f"{config.spec.network.bind}, unencrypted and unauthenticated",
+            file=sys.stderr,
+            flush=True,
+        )
 
     async def serve() -> None:
         async with (

@@ -217,6 +217,13 @@ class RobotConfig:
                 insecure=insecure,
             )
         except ValueError as exc:
+            if keys is None and not insecure and "without keys" in str(exc):
+                raise self.error(
+                    "network.bind",
+                    f"{bind!r} can be reached from other hosts, and this file has no keys: "
+                    "add keys: {secret: NAME.key_secret, trusted: DIR} (btcap keys new), "
+                    "bind a loopback address, or run with --insecure",
+                ) from None
             field = "keys" if keys is not None and "key" in str(exc) else "network.bind"
             raise self.error(field, str(exc)) from None
 

@@ -275,3 +275,33 @@ async def test_a_signal_stops_the_agent_with_one_line_and_128_plus_its_number(
                     proc.kill()
                 await proc.aclose()
     assert err.decode() == f"btcap: {sig.name}, leaving the team\n"
+
+
+@pytest.mark.slow
+async def test_insecure_warns_once_when_there_are_no_keys(tmp_path: Path) -> None:
+    """--insecure is allowed, but not silent: one line says what it gives away."""
+    path = _config(tmp_path, "open", impl=None, seeds=[])
+    with anyio.fail_after(30):
+        proc = await anyio.open_process(
+            _btcap("agent", str(path), "--insecure"), stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        try:
+            assert proc.stdout is not None
+            assert proc.stderr is not None
+            said = b""
+            while b"listening" not in said:
+                said += await proc.stdout.receive()
+            proc.send_signal(signal.SIGINT)
+            assert await proc.wait() == 128 + signal.SIGINT
+            err = b""
+            with contextlib.suppress(anyio.EndOfStream):
+                while True:
+                    err += await proc.stderr.receive()
+        finally:
+            with anyio.CancelScope(shield=True):
+                if proc.returncode is None:
+                    proc.kill()
+                await proc.aclose()
+    lines = err.decode().splitlines()
+    assert lines[0].startswith("btcap: warning: --insecure: open speaks to anyone who can reach")
+    assert sum("--insecure" in line for line in lines) == 1
