@@ -12,15 +12,14 @@ from __future__ import annotations
 import json
 import random
 import socket
-import subprocess
 import sys
-from collections.abc import AsyncIterator
-from contextlib import AsyncExitStack, asynccontextmanager
+from contextlib import AsyncExitStack
 from pathlib import Path
 
 import anyio
 import anyio.abc
 import pytest
+from agentproc import running_agent
 
 from btcap.cli import main
 
@@ -71,24 +70,6 @@ def _config(tmp_path: Path, robot: str, ports: dict[str, int], *, impl: bool) ->
     return path
 
 
-@asynccontextmanager
-async def _agent(config: Path) -> AsyncIterator[anyio.abc.Process]:
-    """``btcap agent CONFIG`` in its own process, once it listens; killed on exit."""
-    argv = [sys.executable, "-m", "btcap", "agent", str(config)]
-    proc = await anyio.open_process(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
-    try:
-        assert proc.stdout is not None
-        said = b""
-        while b"listening" not in said:
-            said += await proc.stdout.receive()
-        yield proc
-    finally:
-        with anyio.CancelScope(shield=True):
-            if proc.returncode is None:
-                proc.kill()
-            await proc.aclose()
-
-
 async def test_the_same_mission_runs_ten_times_from_a_fresh_operator(tmp_path: Path) -> None:
     taken: set[int] = set()
     ports = {r: _free_port(taken) for r in (*ROBOTS, "operator")}
@@ -102,7 +83,7 @@ async def test_the_same_mission_runs_ten_times_from_a_fresh_operator(tmp_path: P
     with anyio.fail_after(240):
         async with AsyncExitStack() as stack:
             for robot in ROBOTS:
-                await stack.enter_async_context(_agent(configs[robot]))
+                await stack.enter_async_context(running_agent(configs[robot]))
             for run in range(RUNS):
                 with anyio.fail_after(40):
                     done = await anyio.run_process(argv, check=False)

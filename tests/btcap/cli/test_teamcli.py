@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
 import subprocess
 import sys
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
 from pathlib import Path
 
 import anyio
 import anyio.abc
 import pytest
+from agentproc import btcap, running_agent, stop
 
 from btcap.bt.registry import default_registry
 from btcap.cli import main
@@ -60,29 +58,6 @@ def _slow_greet(tmp_path: Path, name: str, cost: float) -> Path:
         f"tree: {tree.name}\ncost: {cost}\n"
     )
     return impl
-
-
-def _btcap(*args: str) -> list[str]:
-    return [sys.executable, "-m", "btcap", *args]
-
-
-@asynccontextmanager
-async def _agent(config: Path) -> AsyncIterator[anyio.abc.Process]:
-    """``btcap agent CONFIG`` in its own process, once it listens; stopped on exit."""
-    proc = await anyio.open_process(
-        _btcap("agent", str(config)), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL
-    )
-    try:
-        assert proc.stdout is not None
-        said = b""
-        while b"listening" not in said:
-            said += await proc.stdout.receive()
-        yield proc
-    finally:
-        with anyio.CancelScope(shield=True):
-            if proc.returncode is None:
-                proc.kill()
-            await proc.aclose()
 
 
 def test_bad_config_exits_2_naming_the_field(
@@ -187,9 +162,9 @@ async def test_a_stopped_agent_says_goodbye_and_its_work_moves_at_once(tmp_path:
     mission.write_text("btcap: 1\nroot: {type: Greet, name: hello, inputs: {who: Ada}}\n")
     registry = default_registry(plugins=False)
     with anyio.fail_after(40):
-        async with _agent(cheap) as cheap_proc, _agent(dear):
+        async with running_agent(cheap) as cheap_proc, running_agent(dear):
             status = await anyio.run_process(
-                _btcap("team", "status", "--config", str(operator), "--wait", "5"), check=False
+                btcap("team", "status", "--config", str(operator), "--wait", "5"), check=False
             )
             shown = status.stdout.decode()
             assert status.returncode == 0, status.stderr.decode()
@@ -254,27 +229,10 @@ async def test_a_signal_stops_the_agent_with_one_line_and_128_plus_its_number(
 ) -> None:
     path = _config(tmp_path, "solo", impl=None, seeds=[])
     with anyio.fail_after(30):
-        proc = await anyio.open_process(
-            _btcap("agent", str(path)), stdout=subprocess.PIPE, stderr=subprocess.PIPE
-        )
-        try:
-            assert proc.stdout is not None
-            assert proc.stderr is not None
-            said = b""
-            while b"listening" not in said:
-                said += await proc.stdout.receive()
-            proc.send_signal(sig)
-            assert await proc.wait() == 128 + sig
-            err = b""
-            with contextlib.suppress(anyio.EndOfStream):
-                while True:
-                    err += await proc.stderr.receive()
-        finally:
-            with anyio.CancelScope(shield=True):
-                if proc.returncode is None:
-                    proc.kill()
-                await proc.aclose()
-    assert err.decode() == f"btcap: {sig.name}, leaving the team\n"
+        async with running_agent(path, stderr=subprocess.PIPE) as proc:
+            code, err = await stop(proc, sig)
+    assert code == 128 + sig
+    assert err == f"btcap: {sig.name}, leaving the team\n"
 
 
 @pytest.mark.slow
@@ -282,26 +240,9 @@ async def test_insecure_warns_once_when_there_are_no_keys(tmp_path: Path) -> Non
     """--insecure is allowed, but not silent: one line says what it gives away."""
     path = _config(tmp_path, "open", impl=None, seeds=[])
     with anyio.fail_after(30):
-        proc = await anyio.open_process(
-            _btcap("agent", str(path), "--insecure"), stdout=subprocess.PIPE, stderr=subprocess.PIPE
-        )
-        try:
-            assert proc.stdout is not None
-            assert proc.stderr is not None
-            said = b""
-            while b"listening" not in said:
-                said += await proc.stdout.receive()
-            proc.send_signal(signal.SIGINT)
-            assert await proc.wait() == 128 + signal.SIGINT
-            err = b""
-            with contextlib.suppress(anyio.EndOfStream):
-                while True:
-                    err += await proc.stderr.receive()
-        finally:
-            with anyio.CancelScope(shield=True):
-                if proc.returncode is None:
-                    proc.kill()
-                await proc.aclose()
-    lines = err.decode().splitlines()
+        async with running_agent(path, "--insecure", stderr=subprocess.PIPE) as proc:
+            code, err = await stop(proc, signal.SIGINT)
+    assert code == 128 + signal.SIGINT
+    lines = err.splitlines()
     assert lines[0].startswith("btcap: warning: --insecure: open speaks to anyone who can reach")
     assert sum("--insecure" in line for line in lines) == 1
