@@ -1,12 +1,19 @@
-"""Mail a recipient refused: counted per sender and message kind, logged once per pair.
+"""Mail a recipient refused: counted by kind, logged once per sender and kind.
 
-A refused message is an attempt to do what the sender has no right to, so its first
-occurrence from each sender deserves a line of its own; repeats only a reminder at
-every power of two from 1024 on. The table is bounded: a keyless peer can name itself
-anything, and past :data:`MAX_PAIRS` pairs the newcomers share one line per kind.
+A ``local_only`` message (see :func:`~btcap.actors.cell.handler`) that came from a
+transport is an attempt to do what the sender has no right to, so its first occurrence
+from each sender deserves a line of its own; repeats only a reminder at every power of
+two from 1024 on. The table is bounded: a keyless peer can name itself anything, and
+past :data:`MAX_PAIRS` pairs the newcomers share one count per kind.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from btcap.actors.errors import Refused
+from btcap.transports.codec import Envelope, Kind
 
 __all__ = ["MAX_PAIRS", "OTHERS", "Refusals"]
 
@@ -17,13 +24,35 @@ OTHERS = "*"
 
 
 class Refusals:
-    """How often each sender had each kind of message refused."""
+    """How often each sender had each kind of message refused by one actor system."""
 
-    __slots__ = ("_counts", "limit")
+    __slots__ = ("_counts", "_log", "limit", "system_id")
 
-    def __init__(self, limit: int = MAX_PAIRS) -> None:
+    def __init__(self, system_id: str, log: Any, limit: int = MAX_PAIRS) -> None:
+        self.system_id = system_id
         self.limit = limit
+        self._log = log
         self._counts: dict[tuple[str, str], int] = {}
+
+    def refuse(
+        self,
+        env: Envelope,
+        by_kind: dict[str, int],
+        reply: Callable[[Envelope, Any, BaseException | None], None],
+    ) -> None:
+        """Count ``env`` (also in ``by_kind``, the system's stats), log it if it is the
+        first of its sender and kind, and ``reply`` to an ask with :class:`Refused`."""
+        name = type(env.msg).__qualname__
+        by_kind[name] = by_kind.get(name, 0) + 1
+        sender = env.sender.system
+        counted_as, n = self.count(sender, name)
+        to = f"{self.system_id}/{env.recipient.path}"
+        if self.worth_logging(n):
+            more = {} if counted_as == sender else {"counted_as": counted_as}
+            self._log.warning("actors.refused", sender=sender, message=name, to=to, count=n, **more)
+        if env.kind is Kind.ASK:
+            why = f"{name} to {to} is taken only from inside {self.system_id}, not from {sender}"
+            reply(env, None, Refused(why))
 
     def count(self, sender: str, kind: str) -> tuple[str, int]:
         """Count one refusal; the sender it was counted under and the pair's count."""

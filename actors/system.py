@@ -16,14 +16,7 @@ from anyio.abc import TaskGroup
 
 from btcap.actors.cell import ActorCell, Reply
 from btcap.actors.clock import Clock, TimeSource
-from btcap.actors.errors import (
-    ActorError,
-    ActorFailed,
-    AskTimeout,
-    DeadLetter,
-    Refused,
-    SystemClosed,
-)
+from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
@@ -54,13 +47,13 @@ def runtime_messages() -> MessageRegistry:
 
 @dataclass(slots=True)
 class SystemStats:
-    """Counters of what could not be delivered, by reason."""
+    """Counters of what could not be delivered, by reason; ``refused``: local-only mail
+    that came from a transport, by message kind (e.g. "Tick")."""
 
     dead_letters: int = 0
     escalations: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
     failures: dict[str, int] = field(default_factory=dict)  # "Actor: Message: Error" -> count
-    #: Local-only messages that came from a transport, by message kind (e.g. "Tick").
     refused: dict[str, int] = field(default_factory=dict)
 
 
@@ -105,8 +98,8 @@ class ActorSystem:
         self._tg: TaskGroup | None = None
         self._closing = False
         self._failure: tuple[Address, BaseException] | None = None
-        self._refusals = Refusals()
         self._log = log.bind(system=self.id)
+        self._refusals = Refusals(self.id, self._log)
 
     # -- lifecycle --------------------------------------------------------------------
     async def __aenter__(self) -> ActorSystem:
@@ -392,28 +385,11 @@ class ActorSystem:
                 self._reply_remote(env, None, gone)
             return
         h = actor._handler_for(type(env.msg))
-        if h is not None and h.local_only:
-            self._refuse(env)
+        if h is not None and h.local_only:  # whatever sender it names: it came from outside
+            self._refusals.refuse(env, self.stats.refused, self._reply_remote)
             return
         reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
         actor._receive(env.msg, reply, env.sender.system)
-
-    def _refuse(self, env: Envelope) -> None:
-        """A message only the system's own actors may send came from a transport: refused
-        whatever sender it names (a peer may call itself by this system's id), counted
-        by kind, logged once per sender and kind, and an ask answered with Refused."""
-        name = type(env.msg).__qualname__
-        refused = self.stats.refused
-        refused[name] = refused.get(name, 0) + 1
-        sender = env.sender.system
-        counted_as, n = self._refusals.count(sender, name)
-        to = f"{self.id}/{env.recipient.path}"
-        if self._refusals.worth_logging(n):
-            more = {} if counted_as == sender else {"counted_as": counted_as}
-            self._log.warning("actors.refused", sender=sender, message=name, to=to, count=n, **more)
-        if env.kind is Kind.ASK:
-            why = f"{name} to {to} is taken only from inside {self.id}, not from {sender}"
-            self._reply_remote(env, None, Refused(why))
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
         me = Address(self.id, env.recipient.path)

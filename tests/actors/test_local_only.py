@@ -32,6 +32,7 @@ from btcap.transports import (
     Transport,
     TransportStats,
 )
+from btcap.transports.log import get_logger
 
 
 class Poke(Message):
@@ -206,7 +207,7 @@ async def test_refused_whatever_sender_the_envelope_names(claimed: str) -> None:
 
 
 def test_the_table_of_senders_is_bounded() -> None:
-    refusals = Refusals(limit=3)
+    refusals = Refusals("robot", get_logger("btcap.actors"), limit=3)
     assert refusals.count("a", "Tick") == ("a", 1)
     assert refusals.count("a", "Tick") == ("a", 2)
     assert refusals.count("b", "Tick") == ("b", 1)
@@ -219,6 +220,19 @@ def test_the_table_of_senders_is_bounded() -> None:
     for n in range(1, 5000):
         refusals.count(f"ghost-{n}", "Tick")
     assert len(refusals) == 4
+
+
+async def test_past_the_bound_newcomers_are_logged_as_others() -> None:
+    with anyio.fail_after(5):
+        async with pair() as (robot, peer, _guarded):
+            robot._refusals.limit = 0  # every sender is a newcomer past the bound
+            with capture_logs() as logs:
+                for _ in range(2):
+                    peer.tell(Address("robot", "guarded"), Poke())
+                await peer.ask(Address("robot", "guarded"), Read(), timeout=1)
+            [line] = refusal_lines(logs)
+            assert (line["sender"], line["counted_as"], line["count"]) == ("peer", OTHERS, 1)
+            assert robot.stats.refused == {"Poke": 2}
 
 
 def test_a_pair_is_logged_first_then_rarely() -> None:
