@@ -96,7 +96,6 @@ class Outcome:
     """What one attack did; :attr:`succeeded` is the verdict."""
 
     attack: str
-    mode: str
     target: str = ""
     obeyed: int = 0  # replies with a node status
     refused: int = 0  # Refused failures
@@ -247,7 +246,7 @@ def _refusals(agent: Agent) -> int:
 
 async def strike(origin: Agent, r1: Agent, mallory: ActorSystem, attack: NodeAttack) -> Outcome:
     """Run one attack against a fresh mission of ``origin`` and see what it did."""
-    out = Outcome(attack.name, "")
+    out = Outcome(attack.name)
     node = ECHO.node_type()("echo", inputs={"value": 1})
     assert isinstance(node, Capability)
     tree = origin.mission(SequenceNode("root", children=[node]), name=attack.name)
@@ -298,7 +297,6 @@ async def probe(
         async with node_team(mode) as (origin, r1, mallory):
             for attack in ATTACKS:
                 out = await strike(origin, r1, mallory, attack)
-                out.mode = mode
                 figures = {
                     "succeeded": out.succeeded,
                     "obeyed": out.obeyed,
