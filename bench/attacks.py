@@ -25,6 +25,7 @@ import zmq
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
+from btcap.bench.attacks_nodes import probe as node_actions
 from btcap.bench.common import write_result
 from btcap.bench.hostile import (
     Ping,
@@ -60,6 +61,10 @@ TICK_S = 0.01
 #: figures can pause it for a good part of a second in a big process (the test suite):
 #: a failure timeout and lease of a few seconds keep that pause from passing for an attack.
 TEAM_CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, keepalive_s=0.5)
+#: Probes of their own modules, each with its own team: ``(name, passed, figures)`` each.
+MORE_PROBES = [
+    node_actions,
+]
 
 
 class _Echo(Actor):
@@ -316,6 +321,8 @@ async def probe(quick: bool) -> list[Check]:
             and health.ask_errors == 0
         )
         checks.append(Check("mission", ok, mission))
+    for more in MORE_PROBES:
+        checks += [Check(name, passed, figures) for name, passed, figures in await more(quick)]
     return checks
 
 

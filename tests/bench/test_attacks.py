@@ -31,3 +31,12 @@ def checks() -> dict[str, Check]:
 def test_attack_changes_nothing(checks: dict[str, Check], name: str) -> None:
     check = checks[name]
     assert check.passed, json.dumps(check.figures)
+
+
+def test_no_node_action_attack_succeeds(checks: dict[str, Check]) -> None:
+    """The node-action probe (bench/attacks_nodes.py) runs in the same probe: five
+    attacks, keyless and with a member's CURVE key, each refused and counted."""
+    nodes = {name: c for name, c in checks.items() if name.startswith("node_")}
+    assert len(nodes) == 10
+    failed = {name: c.figures for name, c in nodes.items() if not c.passed}
+    assert not failed, json.dumps(failed)
