@@ -24,6 +24,7 @@ from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
+from btcap.transports.identity import OBSERVER, is_observer_id
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
 from btcap.transports.security import (
@@ -32,6 +33,15 @@ from btcap.transports.security import (
     TeamKeys,
     authenticated,
     curve_for,
+)
+from btcap.transports.zmq_claims import (
+    TELL_S,
+    Claims,
+    NameTaken,
+    RoleTable,
+    hello_payload,
+    limits_for,
+    split_hello,
 )
 from btcap.transports.zmq_sockets import (
     EVENTS,
@@ -60,6 +70,7 @@ _MSG = b"M"
 _HELLO = b"H"
 _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
+_REFUSAL_BYTE = b"R"[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
 _JUNK_COST = 31
@@ -87,6 +98,13 @@ class ZmqTransport(Transport):
     its own; ``inproc://`` is refused). Without keys it binds loopback/ipc/inproc only
     unless ``insecure=True``. ``max_message_bytes`` bounds a frame: libzmq cuts off a
     connection that sends a bigger one (see :attr:`disconnects`).
+
+    One live process per name: a hello under a known peer's name from another process
+    while our link to that peer is up is refused, and the newcomer told why (its
+    :meth:`serve` raises :class:`~btcap.transports.zmq_claims.NameTaken`); a peer that
+    restarted (its old link dropped) is followed. Roles: :meth:`limit` gives the table of
+    what each role may send; a peer's role is its key's (``observer`` for an observer id
+    ``NAME+TAG``); without keys only observer ids are limited. Broadcasts skip observers.
     """
 
     def __init__(
@@ -140,6 +158,13 @@ class ZmqTransport(Transport):
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
+        self._claims = Claims(system_id)
+        self._roles: RoleTable | None = None
+        self._allowed: dict[str, frozenset[type[Any]]] = {}  # limited peers only
+        self._observers: set[str] = set()
+        self._raw_ident = b""
+        #: Why a teammate refused us (another live process has our name), or None.
+        self.name_taken: str | None = None
         self.hellos = 0
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -180,8 +205,10 @@ class ZmqTransport(Transport):
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
         self._known[system_id.encode()] = system_id
+        self._classify(system_id)
         # The first hello waits in the DEALER's queue until the connection is up.
-        self._write(system_id, sock, _HELLO, self.endpoint.encode())
+        hello = hello_payload(self.endpoint, self._claims.instance)
+        self._write(system_id, sock, _HELLO, hello)
         if monitor is not None:
             self._monitors[system_id] = monitor
             if self._loop is not None:
@@ -193,8 +220,37 @@ class ZmqTransport(Transport):
         # Events that came before we watched have already reset the descriptor.
         self._loop.call_soon(self._on_monitor, monitor)
 
+    # -- roles ------------------------------------------------------------------------
+    def limit(self, table: RoleTable | None) -> None:
+        """What each role may send (role -> message types, None: any); checked on every
+        tell and ask received. None: no limits."""
+        self._roles = table
+        for peer in self._known.values():
+            self._classify(peer)
+
+    def role_of(self, peer: str) -> str | None:
+        """A peer's role: its key's with keys; without, ``observer`` for an observer id
+        and None (anything) for others."""
+        if self.curve is not None:
+            return self.curve.team.role_of(peer)
+        return OBSERVER if is_observer_id(peer) else None
+
+    def _classify(self, peer: str) -> None:
+        role = self.role_of(peer)
+        allowed = limits_for(peer, role, self._roles)
+        if allowed is None:
+            self._allowed.pop(peer, None)
+        else:
+            self._allowed[peer] = allowed
+        if role == OBSERVER or is_observer_id(peer):
+            self._observers.add(peer)
+        else:
+            self._observers.discard(peer)
+
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
+        self._allowed.pop(system_id, None)
+        self._observers.discard(system_id)
         self._configured.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
@@ -226,8 +282,10 @@ class ZmqTransport(Transport):
         data = self.codec.encode(env)
         target = env.recipient.system
         if target == BROADCAST:
+            observers = self._observers  # they ask; team news is not for them
             for sid, sock in list(self._dealers.items()):
-                self._write(sid, sock, _MSG, data)
+                if sid not in observers:
+                    self._write(sid, sock, _MSG, data)
             return
         dealer = self._dealers.get(target)
         if dealer is None:
@@ -269,6 +327,8 @@ class ZmqTransport(Transport):
             await self._stopped
         finally:
             self.close()
+        if self.name_taken is not None:
+            raise NameTaken(self.name_taken)
 
     def _on_readable(self) -> None:
         deliver = self._deliver
@@ -327,6 +387,10 @@ class ZmqTransport(Transport):
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return []
+        raw = self._raw_ident = frames[0].bytes
+        if self._claims.refused_links and self._claims.blocked(raw):
+            reject(self.stats, self.system_id, "name taken", member, "a refused second process")
+            return []
         return [member, *(f.bytes for f in frames[1:])]
 
     def _handle(self, frames: list[bytes], deliver: Deliver) -> None:
@@ -353,9 +417,16 @@ class ZmqTransport(Transport):
             if to != self.system_id and to != BROADCAST:
                 self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
                 return
+            allowed = self._allowed.get(peer)
+            if allowed is not None and env.kind < 2 and type(env.msg) not in allowed:  # tell, ask
+                self._forbidden(peer, env)
+                return
             self.stats.received += 1
             if self._strangers.since:
-                self._strangers.vouched(peer)
+                if peer in self._observers:
+                    self._observed(peer)
+                else:
+                    self._strangers.vouched(peer)
             try:
                 deliver(env)
             except Exception as exc:  # a bug above us must not stop the receive loop
@@ -363,13 +434,16 @@ class ZmqTransport(Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
         elif kind == _HELLO_BYTE:
+            where, instance = split_hello(body[1:])
             try:
-                peer, endpoint = parse_hello(ident, body[1:], self.system_id)
+                peer, endpoint = parse_hello(ident, where, self.system_id)
             except ValueError as exc:
                 self._malformed("bad hello", ident, str(exc))
                 return
-            if self._admit(peer, endpoint, self.accept_hello):
+            if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
+        elif kind == _REFUSAL_BYTE:
+            self._refused_by(ident, body[1:])
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
 
@@ -382,11 +456,14 @@ class ZmqTransport(Transport):
     def endpoint_of(self, system_id: str) -> str | None:
         return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
 
-    def _admit(self, peer: str, endpoint: str, accept: bool) -> bool:
+    def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).
         Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
         ident = peer.encode()
         known = self._endpoints.get(peer)
+        if known is not None and known != endpoint and self._second(peer, endpoint, instance):
+            return False
+        self._claims.seen(peer, instance)
         if known == endpoint or peer in self._configured:
             return True
         if known is None and not accept:
@@ -413,6 +490,68 @@ class ZmqTransport(Transport):
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         return True
+
+    def _second(self, peer: str, endpoint: str, instance: str) -> bool:
+        """Whether a hello comes from a second process under a live peer's name: if so it
+        is refused, logged once and told why."""
+        monitor = self._monitors.get(peer)
+        if monitor is None:
+            return False
+        monitor.drain(_BATCH, self._relink)  # a drop not yet read means a restart
+        monitor = self._monitors.get(peer)
+        up_since = None if monitor is None else monitor.up_since
+        if up_since is None or not self._claims.is_second(peer, instance, up_since):
+            return False
+        raw = self._raw_ident if self.curve is not None else None
+        self.stats.drop("name taken")
+        sock = self._claims.refuse(
+            self._ctx,
+            self.curve,
+            self._id,
+            peer,
+            endpoint,
+            self._endpoints[peer],
+            up_since,
+            raw,
+        )
+        if sock is not None and self._loop is not None:
+            self._loop.call_later(TELL_S, self._claims.done_telling, sock)
+        return True
+
+    def _refused_by(self, ident: bytes, text: bytes) -> None:
+        """A teammate says another live process has our name: stop serving."""
+        peer = self._known.get(ident)
+        if peer is None:
+            self._malformed("bad refusal", ident, "not from a peer we dialled")
+            return
+        if self.name_taken is not None:
+            return
+        self.name_taken = f"{peer} refused us: {text[:1000].decode(errors='replace')}"
+        log.error("transport.name_taken", system=self.system_id, detail=self.name_taken)
+        stopped = self._stopped
+        if stopped is not None and not stopped.done():
+            stopped.set_result(None)
+
+    def _observed(self, peer: str) -> None:
+        """An observer stays a stranger (forgotten once silent), each message re-met."""
+        if self._loop is None:
+            return
+        since = self._strangers.since.get(peer)
+        now = self._loop.time()
+        if since is not None and now - since > self._strangers.ttl / 8:
+            self._strangers.met(peer, now)
+            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
+
+    def _forbidden(self, peer: str, env: Envelope) -> None:
+        role = self.role_of(peer) or OBSERVER
+        what = type(env.msg).__name__
+        reject(
+            self.stats,
+            self.system_id,
+            "not allowed for its role",
+            peer.encode(),
+            f"{role} may not send {what}",
+        )
 
     def _forget(self, peer: str, met: float) -> None:
         if self._strangers.since.get(peer) == met and not self._closed:
@@ -442,6 +581,7 @@ class ZmqTransport(Transport):
         stopped, self._stopped = self._stopped, None
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
+        self._claims.done_telling()
         self._router.close(0)
         remove_ipc_file(self.bound_endpoint)
         if self.curve is not None:
