@@ -109,8 +109,8 @@ def write_key_pair(
     with tempfile.TemporaryDirectory(dir=folder, prefix=".btcap-keys-") as tmp:
         made = zmq.auth.create_certificates(tmp, name)
         os.chmod(made[1], 0o600)
-        for path in made:  # pyzmq puts metadata in the secret file only
-            _add_metadata(Path(path), {"name": name, "role": role})
+        for cert in made:  # pyzmq puts metadata in the secret file only
+            _add_metadata(Path(cert), {"name": name, "role": role})
         try:
             for src, dst in zip(made, (public, secret), strict=True):
                 os.link(src, dst)  # unlike a rename, fails if dst appeared meanwhile

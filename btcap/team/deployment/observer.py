@@ -94,16 +94,16 @@ def _views(answers: dict[str, TeamStatus], wanted: list[str]) -> tuple[bool, lis
             ages[seen.robot] = min(age, ages.get(seen.robot, age))
     views = []
     for robot in sorted(set(answers) | named):
-        status = answers.get(robot)
+        said = answers.get(robot)
         views.append(
             MemberView(
                 robot,
-                None if status is None else dict(status.interfaces),
-                [] if status is None else list(status.succeeded),
+                None if said is None else dict(said.interfaces),
+                [] if said is None else list(said.succeeded),
                 ages.get(robot, 0.0),
                 None
-                if status is None
-                else [str(e) for e in status.running] + [f"{e} (queued)" for e in status.queued],
+                if said is None
+                else [str(e) for e in said.running] + [f"{e} (queued)" for e in said.queued],
             )
         )
     complete = all(r in answers for r in [*wanted, *named])
