@@ -33,6 +33,7 @@ from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
 from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.membership.roles import role_table
 from btcap.team.messages import (
     Award,
     Bid,
@@ -43,7 +44,6 @@ from btcap.team.messages import (
     Heartbeat,
     RunState,
 )
-from btcap.team.roles import role_table
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.transports import Address, Envelope, Kind, Message, ZmqTransport
 from btcap.transports.security import write_key_pair

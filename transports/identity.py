@@ -1,7 +1,7 @@
 """Who a peer is: a member's role, and the ids of observers that are not members.
 
 A member's **role** (:data:`ROLES`) says what it may send (the table lives with the
-protocol, :mod:`btcap.team.roles`). With keys it is written in the member's certificate
+protocol, :mod:`btcap.team.membership.roles`). With keys it is written in the member's certificate
 (``btcap keys new NAME --role ROLE``), under ZeroMQ's ``metadata`` section::
 
     metadata

@@ -24,7 +24,6 @@ from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
 from btcap.transports.codec import Codec, CodecError, Envelope
-from btcap.transports.identity import OBSERVER, is_observer_id
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
 from btcap.transports.security import (
@@ -34,15 +33,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.zmq_claims import (
-    TELL_S,
-    Claims,
-    NameTaken,
-    RoleTable,
-    hello_payload,
-    limits_for,
-    split_hello,
-)
+from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     EVENTS,
     NOBLOCK,
@@ -70,7 +61,6 @@ _MSG = b"M"
 _HELLO = b"H"
 _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
-_REFUSAL_BYTE = b"R"[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
 _JUNK_COST = 31
@@ -78,7 +68,7 @@ _JUNK_COST = 31
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
 
 
-class ZmqTransport(Transport):
+class ZmqTransport(PeerRules, Transport):
     """Reach peers over ``inproc://``, ``ipc://`` or ``tcp://``.
 
     ``bind`` may use port ``*``; :attr:`endpoint` then tells the port chosen. Bound to a
@@ -97,14 +87,7 @@ class ZmqTransport(Transport):
     and only a member's hello opens a connection back (a ZAP handler in a zmq context of
     its own; ``inproc://`` is refused). Without keys it binds loopback/ipc/inproc only
     unless ``insecure=True``. ``max_message_bytes`` bounds a frame: libzmq cuts off a
-    connection that sends a bigger one (see :attr:`disconnects`).
-
-    One live process per name: a hello under a known peer's name from another process
-    while our link to that peer is up is refused, and the newcomer told why (its
-    :meth:`serve` raises :class:`~btcap.transports.zmq_claims.NameTaken`); a peer that
-    restarted (its old link dropped) is followed. Roles: :meth:`limit` gives the table of
-    what each role may send; a peer's role is its key's (``observer`` for an observer id
-    ``NAME+TAG``); without keys only observer ids are limited. Broadcasts skip observers.
+    connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
     """
 
     def __init__(
@@ -158,14 +141,8 @@ class ZmqTransport(Transport):
         self._configured: set[str] = set()
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
-        self._claims = Claims(system_id)
-        self._roles: RoleTable | None = None
-        self._allowed: dict[str, frozenset[type[Any]]] = {}  # limited peers only
-        self._observers: set[str] = set()
-        self._raw_ident = b""
-        #: Why a teammate refused us (another live process has our name), or None.
-        self.name_taken: str | None = None
         self.hellos = 0
+        self._init_rules()
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -181,9 +158,6 @@ class ZmqTransport(Transport):
     def disconnects(self) -> int:
         """Inbound connections closed: by peers, or by libzmq for an oversized frame."""
         return self._events.disconnects
-
-    def __repr__(self) -> str:
-        return f"ZmqTransport({self.system_id!r}, {self.endpoint!r}, peers={len(self._dealers)})"
 
     # -- peers ------------------------------------------------------------------------
     def add_peer(self, system_id: str, endpoint: str) -> None:
@@ -207,8 +181,7 @@ class ZmqTransport(Transport):
         self._known[system_id.encode()] = system_id
         self._classify(system_id)
         # The first hello waits in the DEALER's queue until the connection is up.
-        hello = hello_payload(self.endpoint, self._claims.instance)
-        self._write(system_id, sock, _HELLO, hello)
+        self._write(system_id, sock, _HELLO, self._hello())
         if monitor is not None:
             self._monitors[system_id] = monitor
             if self._loop is not None:
@@ -220,37 +193,9 @@ class ZmqTransport(Transport):
         # Events that came before we watched have already reset the descriptor.
         self._loop.call_soon(self._on_monitor, monitor)
 
-    # -- roles ------------------------------------------------------------------------
-    def limit(self, table: RoleTable | None) -> None:
-        """What each role may send (role -> message types, None: any); checked on every
-        tell and ask received. None: no limits."""
-        self._roles = table
-        for peer in self._known.values():
-            self._classify(peer)
-
-    def role_of(self, peer: str) -> str | None:
-        """A peer's role: its key's with keys; without, ``observer`` for an observer id
-        and None (anything) for others."""
-        if self.curve is not None:
-            return self.curve.team.role_of(peer)
-        return OBSERVER if is_observer_id(peer) else None
-
-    def _classify(self, peer: str) -> None:
-        role = self.role_of(peer)
-        allowed = limits_for(peer, role, self._roles)
-        if allowed is None:
-            self._allowed.pop(peer, None)
-        else:
-            self._allowed[peer] = allowed
-        if role == OBSERVER or is_observer_id(peer):
-            self._observers.add(peer)
-        else:
-            self._observers.discard(peer)
-
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
-        self._allowed.pop(system_id, None)
-        self._observers.discard(system_id)
+        self._unclassify(system_id)
         self._configured.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
@@ -267,24 +212,13 @@ class ZmqTransport(Transport):
         if sock is not None:
             sock.close(0)
 
-    def peers(self) -> frozenset[str]:
-        return frozenset(self._dealers)
-
-    def peer_endpoints(self) -> dict[str, str]:
-        return dict(self._endpoints)
-
-    def routing_id(self, peer: str) -> bytes:
-        """What our link to ``peer`` is called there: our id (with keys, plus a suffix)."""
-        return bytes(self._dealers[peer].getsockopt(zmq.ROUTING_ID))
-
     # -- sending ----------------------------------------------------------------------
     def send(self, env: Envelope) -> None:
         data = self.codec.encode(env)
         target = env.recipient.system
         if target == BROADCAST:
-            observers = self._observers  # they ask; team news is not for them
             for sid, sock in list(self._dealers.items()):
-                if sid not in observers:
+                if sid not in self._observers:  # they ask; team news is not for them
                     self._write(sid, sock, _MSG, data)
             return
         dealer = self._dealers.get(target)
@@ -327,8 +261,7 @@ class ZmqTransport(Transport):
             await self._stopped
         finally:
             self.close()
-        if self.name_taken is not None:
-            raise NameTaken(self.name_taken)
+        self._raise_if_refused()
 
     def _on_readable(self) -> None:
         deliver = self._deliver
@@ -387,9 +320,7 @@ class ZmqTransport(Transport):
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return []
-        raw = self._raw_ident = frames[0].bytes
-        if self._claims.refused_links and self._claims.blocked(raw):
-            reject(self.stats, self.system_id, "name taken", member, "a refused second process")
+        if self._blocked(frames[0].bytes, member):
             return []
         return [member, *(f.bytes for f in frames[1:])]
 
@@ -417,16 +348,11 @@ class ZmqTransport(Transport):
             if to != self.system_id and to != BROADCAST:
                 self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
                 return
-            allowed = self._allowed.get(peer)
-            if allowed is not None and env.kind < 2 and type(env.msg) not in allowed:  # tell, ask
-                self._forbidden(peer, env)
-                return
             self.stats.received += 1
             if self._strangers.since:
-                if peer in self._observers:
-                    self._observed(peer)
-                else:
-                    self._strangers.vouched(peer)
+                self._strangers.vouched(peer)
+            if self._limited and peer in self._limited and self._screen(peer, env):
+                return
             try:
                 deliver(env)
             except Exception as exc:  # a bug above us must not stop the receive loop
@@ -442,7 +368,7 @@ class ZmqTransport(Transport):
                 return
             if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
-        elif kind == _REFUSAL_BYTE:
+        elif kind == REFUSAL:
             self._refused_by(ident, body[1:])
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
@@ -453,17 +379,13 @@ class ZmqTransport(Transport):
             return False
         return system_id not in self._endpoints and self._admit(system_id, endpoint, True)
 
-    def endpoint_of(self, system_id: str) -> str | None:
-        return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
-
     def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).
         Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
         ident = peer.encode()
         known = self._endpoints.get(peer)
-        if known is not None and known != endpoint and self._second(peer, endpoint, instance):
+        if self._second(peer, endpoint, known, instance):
             return False
-        self._claims.seen(peer, instance)
         if known == endpoint or peer in self._configured:
             return True
         if known is None and not accept:
@@ -490,68 +412,6 @@ class ZmqTransport(Transport):
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         return True
-
-    def _second(self, peer: str, endpoint: str, instance: str) -> bool:
-        """Whether a hello comes from a second process under a live peer's name: if so it
-        is refused, logged once and told why."""
-        monitor = self._monitors.get(peer)
-        if monitor is None:
-            return False
-        monitor.drain(_BATCH, self._relink)  # a drop not yet read means a restart
-        monitor = self._monitors.get(peer)
-        up_since = None if monitor is None else monitor.up_since
-        if up_since is None or not self._claims.is_second(peer, instance, up_since):
-            return False
-        raw = self._raw_ident if self.curve is not None else None
-        self.stats.drop("name taken")
-        sock = self._claims.refuse(
-            self._ctx,
-            self.curve,
-            self._id,
-            peer,
-            endpoint,
-            self._endpoints[peer],
-            up_since,
-            raw,
-        )
-        if sock is not None and self._loop is not None:
-            self._loop.call_later(TELL_S, self._claims.done_telling, sock)
-        return True
-
-    def _refused_by(self, ident: bytes, text: bytes) -> None:
-        """A teammate says another live process has our name: stop serving."""
-        peer = self._known.get(ident)
-        if peer is None:
-            self._malformed("bad refusal", ident, "not from a peer we dialled")
-            return
-        if self.name_taken is not None:
-            return
-        self.name_taken = f"{peer} refused us: {text[:1000].decode(errors='replace')}"
-        log.error("transport.name_taken", system=self.system_id, detail=self.name_taken)
-        stopped = self._stopped
-        if stopped is not None and not stopped.done():
-            stopped.set_result(None)
-
-    def _observed(self, peer: str) -> None:
-        """An observer stays a stranger (forgotten once silent), each message re-met."""
-        if self._loop is None:
-            return
-        since = self._strangers.since.get(peer)
-        now = self._loop.time()
-        if since is not None and now - since > self._strangers.ttl / 8:
-            self._strangers.met(peer, now)
-            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
-
-    def _forbidden(self, peer: str, env: Envelope) -> None:
-        role = self.role_of(peer) or OBSERVER
-        what = type(env.msg).__name__
-        reject(
-            self.stats,
-            self.system_id,
-            "not allowed for its role",
-            peer.encode(),
-            f"{role} may not send {what}",
-        )
 
     def _forget(self, peer: str, met: float) -> None:
         if self._strangers.since.get(peer) == met and not self._closed:
@@ -581,7 +441,7 @@ class ZmqTransport(Transport):
         stopped, self._stopped = self._stopped, None
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
-        self._claims.done_telling()
+        self._stop_rules()
         self._router.close(0)
         remove_ipc_file(self.bound_endpoint)
         if self.curve is not None:

@@ -10,7 +10,7 @@ it announced (``NAME is already live at ENDPOINT (since ...)``) and its transpor
 with :class:`NameTaken`; with keys, what it sends on that connection is dropped.
 
 **Roles.** A table (role -> the message types it may send, None: any) is given by the
-layer that defines the protocol (:func:`btcap.team.roles.role_table`); the transport
+layer that defines the protocol (:func:`btcap.team.membership.roles.role_table`); the transport
 checks every tell and ask against the sender's role before delivering it.
 """
 
@@ -93,11 +93,11 @@ class Claims:
         if instance:
             self.instances[peer] = instance
 
-    def is_second(self, peer: str, instance: str, up_since: float | None) -> bool:
-        """Whether a hello under ``peer``'s name from another endpoint comes from a second
-        process: our link to the known one is up and the hello names another instance."""
+    def is_second(self, peer: str, instance: str) -> bool:
+        """Whether a hello under ``peer``'s name (from another endpoint, while our link to
+        the known one is up) names another instance than the known one's."""
         known = self.instances.get(peer)
-        return up_since is not None and bool(instance) and known is not None and known != instance
+        return bool(instance) and known is not None and known != instance
 
     def refuse(
         self,

@@ -4,7 +4,7 @@ certificate format, its role in the metadata.
 Give ``NAME.key_secret`` to robot NAME only; copy ``NAME.key`` into the team's directory
 of public certificates (the allow-list every member's transport loads as ``trusted``).
 The role (robot, operator, observer) says what the member may send
-(:mod:`btcap.team.roles`).
+(:mod:`btcap.team.membership.roles`).
 """
 
 from __future__ import annotations

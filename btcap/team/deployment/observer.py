@@ -17,9 +17,9 @@ import anyio
 from btcap.actors import ActorError, ActorSystem, Address, Clock
 from btcap.team.deployment.agentconfig import RobotConfig
 from btcap.team.deployment.deploy import MemberView
+from btcap.team.membership.roles import role_table
 from btcap.team.membership.status import StatusDesk
 from btcap.team.messages import StatusQuery, TeamStatus
-from btcap.team.roles import role_table
 from btcap.transports.identity import observer_id
 
 __all__ = ["open_observer", "survey"]

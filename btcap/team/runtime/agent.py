@@ -22,8 +22,8 @@ from btcap.team.capabilities.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
+from btcap.team.membership.roles import role_table
 from btcap.team.membership.status import StatusDesk
-from btcap.team.roles import role_table
 from btcap.team.runtime.mission import MissionControl
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
@@ -62,7 +62,9 @@ class Agent:
         self.robot = robot
         self.config = config or AgentConfig()
         reg = registry or protocol_registry()
-        if transport is not None:  # what each role may send (with keys; see btcap.team.roles)
+        if (
+            transport is not None
+        ):  # what each role may send (with keys; see btcap.team.membership.roles)
             transport.limit(role_table())
         self.system = ActorSystem(robot, transport=transport, registry=reg, clock=clock)
         cfg = self.config

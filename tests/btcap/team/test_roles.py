@@ -1,7 +1,7 @@
 """Roles in the trust list, observers that are not members, one live process per name.
 
 ZeroMQ transports over tcp loopback (OS-chosen ports), with CURVE keys and without; the
-receiving transport is given the team's role table (:func:`btcap.team.roles.role_table`)
+receiving transport is given the team's role table (:func:`btcap.team.membership.roles.role_table`)
 and what it delivers is recorded. Every transport is closed.
 """
 
@@ -19,6 +19,7 @@ from structlog.testing import capture_logs
 
 from btcap.bt.messages import Tick
 from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.membership.roles import role_table
 from btcap.team.messages import (
     ActivityQuery,
     Award,
@@ -29,7 +30,6 @@ from btcap.team.messages import (
     RunState,
     StatusQuery,
 )
-from btcap.team.roles import role_table
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import Address, Envelope, Kind, Message, TeamKeys, ZmqTransport
 from btcap.transports.identity import observer_id, read_role
