@@ -62,9 +62,7 @@ class Agent:
         self.robot = robot
         self.config = config or AgentConfig()
         reg = registry or protocol_registry()
-        if (
-            transport is not None
-        ):  # what each role may send (with keys; see btcap.team.membership.roles)
+        if transport is not None:  # what each role may send (btcap.team.membership.roles)
             transport.limit(role_table())
         self.system = ActorSystem(robot, transport=transport, registry=reg, clock=clock)
         cfg = self.config
