@@ -90,7 +90,12 @@ def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
         default=default_wait,
         help=f"seconds to wait for the seeds to answer (default {default_wait})",
     )
-    p.add_argument("--as", dest="robot", default=None, help="robot name to join as")
+    p.add_argument(
+        "--as",
+        dest="robot",
+        default=None,
+        help="robot name to join as (team status: to observe for; with keys, its key's)",
+    )
 
 
 def _config(path: Path) -> RobotConfig:
