@@ -6,6 +6,7 @@ transport calls these hooks from its receive path; the state they keep is theirs
 from __future__ import annotations
 
 import asyncio
+import time
 from typing import Any
 
 import zmq
@@ -34,6 +35,8 @@ REFUSAL = b"R"[0]
 """The first byte of a frame telling a newcomer why its name was refused."""
 _BATCH = 256
 _REFUSED = "not allowed for its role"
+_ANSWER_S = 10.0
+"""A refusal counts only this soon after our link to the refusing peer came up."""
 
 
 class PeerRules:
@@ -179,6 +182,14 @@ class PeerRules:
             return
         if self.name_taken is not None:
             return
+        monitor = self._monitors.get(peer)
+        if monitor is not None:  # a refusal answers our hello at once, or it is forged
+            monitor.drain(_BATCH, self._relink)
+            up = self._monitors[peer].up_since if peer in self._monitors else None
+            if up is None or time.time() - up > _ANSWER_S:
+                self.stats.malformed += 1
+                reject(self.stats, self.system_id, "bad refusal", ident, "not an answer to a hello")
+                return
         self.name_taken = f"{peer} refused us: {text[:1000].decode(errors='replace')}"
         log.error("transport.name_taken", system=self.system_id, detail=self.name_taken)
         if self._stopped is not None and not self._stopped.done():

@@ -238,3 +238,26 @@ async def test_a_restarted_process_is_followed_to_its_new_endpoint(keyed: bool, 
                 tell(again, "r", Heartbeat("s", 2, 0))
                 await eventually(lambda: len(got) == 1, "the new life is heard")
                 assert again.name_taken is None
+
+
+async def test_a_refusal_that_answers_no_hello_is_ignored(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without keys anyone local can send a refusal in a teammate's name: one that comes
+    long after our link to that teammate came up answers no hello of ours, and is dropped."""
+    monkeypatch.setattr("btcap.transports.zmq_rules._ANSWER_S", 0.2)
+    r = make("r", None)
+    s = make("s", None, peers={"r": r.endpoint})
+    with anyio.fail_after(10):
+        async with serving(r, s):
+            await eventually(lambda: r.endpoint_of("s") == s.endpoint, "r met s")
+            await anyio.sleep(0.3)
+            forger = make("r", None)  # r's name, its own socket: a refusal "from r"
+            try:
+                forger.add_peer("s", s.endpoint)
+                forger._claims.refuse(  # what a real refusal sends, long after the hello
+                    forger._ctx, None, b"r", "s", s.endpoint, r.endpoint, 0.0, None
+                )
+                await eventually(lambda: s.stats.by_reason.get("bad refusal", 0) == 1, "dropped")
+            finally:
+                forger._claims.done_telling()
+                forger.close()
+            assert s.name_taken is None
