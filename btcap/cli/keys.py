@@ -14,7 +14,9 @@ import sys
 from pathlib import Path
 
 from btcap.cli import CliError
-from btcap.transports.identity import ROLES
+
+#: btcap.transports.identity.ROLES, spelt out: ``--help`` loads no transport module.
+ROLES = ("robot", "operator", "observer")
 
 __all__ = ["add_parser"]
 

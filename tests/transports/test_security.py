@@ -20,8 +20,9 @@ import zmq
 from structlog.testing import capture_logs
 
 from btcap.actors import ActorSystem, Address
+from btcap.cli import keys as keys_cli
 from btcap.cli import main as btcap_main
-from btcap.transports import Envelope, KeyPair, Kind, TeamKeys, ZmqTransport
+from btcap.transports import Envelope, KeyPair, Kind, TeamKeys, ZmqTransport, identity
 from btcap.transports.security import write_key_pair
 from tests.transports.peer_process import Echo, EchoActor, Echoed, messages
 
@@ -284,6 +285,7 @@ def test_keys_new_writes_loadable_certificates_and_never_overwrites(
     pair = KeyPair.load(tmp_path / "robot-1.key_secret")
     assert TeamKeys.load(tmp_path).key_of("robot-1") == pair.public
     assert TeamKeys.load(tmp_path).role_of("robot-1") == "robot"
+    assert keys_cli.ROLES == identity.ROLES
     assert (tmp_path / "robot-1.key_secret").stat().st_mode & 0o077 == 0
     before = (tmp_path / "robot-1.key_secret").read_bytes()
     capsys.readouterr()
