@@ -26,6 +26,7 @@ import zmq
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
 from btcap.bench.attacks_nodes import probe as node_actions
+from btcap.bench.attacks_roles import probe_roles
 from btcap.bench.common import write_result
 from btcap.bench.hostile import (
     Ping,
@@ -64,6 +65,7 @@ TEAM_CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, k
 #: Probes of their own modules, each with its own team: ``(name, passed, figures)`` each.
 MORE_PROBES = [
     node_actions,
+    probe_roles,
 ]
 
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from anyio.abc import TaskStatus
 
 from btcap.transports.codec import Envelope
+from btcap.transports.message import Message
 
 __all__ = ["BROADCAST", "Deliver", "Transport", "TransportStats"]
 
@@ -61,6 +62,15 @@ class Transport(abc.ABC):
         Transports that reach every system without being told (in-process) need nothing.
         """
         return system_id in self.peers()
+
+    def limit(self, table: Mapping[str, frozenset[type[Message]] | None] | None) -> None:
+        """What each authenticated role may send (role -> message types, None: any).
+        Transports that authenticate no roles (in-process) ignore it."""
+        del table
+
+    def role_of(self, peer: str) -> str | None:
+        """A peer's authenticated role, None where roles are not known (no keys)."""
+        return None
 
     def endpoint_of(self, system_id: str) -> str | None:
         """Where ``system_id`` (or this system) can be reached, if this transport dials."""
