@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -35,6 +36,7 @@ from typing import Any, TypeVar
 import anyio
 import anyio.abc
 import pytest
+import tracedwork
 from anyio.streams.buffered import BufferedByteReceiveStream
 from netlab import Lab, LabUnavailable, unavailable
 from tracedwork import INTERFACES, read_trace
@@ -44,7 +46,6 @@ from btcap.cli import main
 pytestmark = pytest.mark.slow
 
 T = TypeVar("T")
-TESTS = Path(__file__).resolve().parents[3]
 ROBOTS = ("alpha", "beta", "gamma")
 COST = {"alpha": 1.0, "beta": 2.0, "gamma": 3.0}
 PORT = 7100
@@ -119,9 +120,14 @@ def btcap_in(lab: Lab, host: str, *args: str) -> list[str]:
     ]
 
 
-def child_env() -> dict[str, str]:
-    """This environment, with tests/ importable (the robots' plugin lives there)."""
-    path = os.pathsep.join(p for p in (str(TESTS), os.environ.get("PYTHONPATH")) if p)
+def child_env(folder: Path) -> dict[str, str]:
+    """This environment, with the robots' plugin importable: a copy of tracedwork.py in
+    ``folder/plugin`` (not all of tests/, whose folders would shadow btcap's packages)."""
+    plugin = folder / "plugin"
+    if not plugin.exists():
+        plugin.mkdir()
+        shutil.copy(tracedwork.__file__, plugin)
+    path = os.pathsep.join(p for p in (str(plugin), os.environ.get("PYTHONPATH")) if p)
     return {**os.environ, "PYTHONPATH": path}
 
 
@@ -133,7 +139,7 @@ async def process(
     to leave, then SIGKILL, and is always reaped."""
     with log.open("wb") as err:
         proc = await anyio.open_process(
-            cmd, stdin=stdin, stdout=subprocess.PIPE, stderr=err, env=child_env()
+            cmd, stdin=stdin, stdout=subprocess.PIPE, stderr=err, env=child_env(log.parent)
         )
     try:
         yield proc
