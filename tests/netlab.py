@@ -116,6 +116,8 @@ class Lab:
             said = getattr(exc, "stderr", "") or str(exc)
             raise LabUnavailable(f"'ip netns add' failed: {said.strip()}") from None
         try:
+            # ip netns exec remounts /sys: a container may allow namespaces but not that.
+            ip("netns", "exec", self.hub, sys.executable, "-c", "pass")
             ip("-n", self.hub, "link", "add", "br0", "type", "bridge")
             ip("-n", self.hub, "link", "set", "br0", "up")
             for host in self.hosts:
@@ -123,20 +125,8 @@ class Lab:
                 self._add_namespace(ns)
                 # Made inside the host's namespace with its peer in the hub's: neither end
                 # ever exists in the namespace this test runs in.
-                ip(
-                    "-n",
-                    ns,
-                    "link",
-                    "add",
-                    "eth0",
-                    "type",
-                    "veth",
-                    "peer",
-                    "name",
-                    port,
-                    "netns",
-                    self.hub,
-                )
+                veth = f"link add eth0 type veth peer name {port} netns {self.hub}"
+                ip("-n", ns, *veth.split())
                 ip("-n", self.hub, "link", "set", port, "master", "br0")
                 ip("-n", self.hub, "link", "set", port, "up")
                 ip("-n", ns, "addr", "add", f"{self.address(host)}/24", "dev", "eth0")
@@ -144,7 +134,8 @@ class Lab:
         except (subprocess.CalledProcessError, OSError) as exc:
             self.close()
             said = getattr(exc, "stderr", "") or str(exc)
-            raise LabUnavailable(f"cannot make veths and a bridge: {said.strip()}") from None
+            why = f"cannot run programs in it or make veths and a bridge: {said.strip()}"
+            raise LabUnavailable(why) from None
         return self
 
     def cut(self, host: str, how: str = "down") -> None:
