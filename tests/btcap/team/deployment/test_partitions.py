@@ -2,8 +2,9 @@
 Linux network namespace, and an operator in a fourth, all on one bridge over CURVE tcp
 (tests/netlab.py makes the namespaces and veths). During a ``btcap mission run`` the robot
 running the long task is cut off (its bridge port down), healed once the operator has
-declared it failed and moved the task, and, once it is back in the team, the task's new
-robot is cut off the other way (its port out of the bridge) and healed likewise.
+declared it failed and the task's run ended, and awaited back in the team; then the long
+task's robot again, cut the other way (its port out of the bridge); then the operator
+itself, whose every robot gives its runs up and comes back after the heal.
 
 Checked from what the processes wrote, not what the team believed:
 
@@ -57,7 +58,7 @@ TASK_S = 3.0
 RUN_BEFORE_CUT_S = 0.5
 #: A cut-off executor gives its run up 0.8 lease after the origin's last word, checking
 #: every keepalive: by 0.85 s. Its origin re-assigns the run when the lease lapses (1 s),
-#: or when it declares the executor failed (after 1.1-1.2 s here), which must not come
+#: or when it declares the executor failed (after 1.1-1.3 s here), which must not come
 #: first: a failure timeout under 0.8 lease (the defaults: 0.5 s and 1 s) races the
 #: executor's own detection, and the run can go on beside its successor (seen: 26 ms).
 TIMING = (
