@@ -79,6 +79,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     _join_options(p, default_wait=10.0)
     p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
     add_monitor_option(p)
+    p.add_argument(
+        "--record",
+        type=Path,
+        metavar="FILE",
+        help="record the mission's runs, auctions and the team's joins and failures as "
+        "JSON Lines for btcap replay or a script",
+    )
     p.set_defaults(handler=_mission)
 
 
@@ -252,7 +259,7 @@ def _mission(args: argparse.Namespace) -> int:
     async def run() -> MissionReport:
         async with (
             open_agent(config, registry, robot=robot) as agent,
-            serving(args.monitor, f"mission {args.tree.name}") as monitor,
+            serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)

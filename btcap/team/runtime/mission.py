@@ -124,6 +124,9 @@ class MissionControl(Actor):
     def on_start(self) -> None:
         self.executor.runs = RunFactory(self.system)
         self._unsubscribe.append(self.team.subscribe(self._on_team))
+        # A robot that joins (or rejoins after a partition) is news for waiting work only
+        # once its capabilities arrive, which may be after the auction its join set off.
+        self._unsubscribe.append(self.repository.subscribe(self._capabilities_known))
         self._unsubscribe.extend(self._reevaluation.start(self.system.clock.sleep))
         self.start_task(self._leases(), name=f"leases {self.robot}")
 
@@ -142,6 +145,9 @@ class MissionControl(Actor):
         """This robot, or one its work ran on, came free: waiting work may find it now."""
         # The team hears it with the next heartbeat (its ``busy`` flag): not a broadcast per
         # finished task, which would cost every member a message each time.
+        self.changes += 1
+
+    def _capabilities_known(self, robot: str) -> None:
         self.changes += 1
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
