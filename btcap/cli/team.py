@@ -23,6 +23,7 @@ from btcap.cli.monitor import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
     from btcap.bt.registry import NodeRegistry
+    from btcap.cli.joining import Joining
     from btcap.team.deployment.agentconfig import RobotConfig
     from btcap.team.deployment.deploy import MemberView, MissionReport
     from btcap.team.runtime.agent import Agent
@@ -105,11 +106,14 @@ def _registry(args: argparse.Namespace) -> NodeRegistry:
 
 
 def _until_stopped(
-    work: Callable[[], Awaitable[T]], args: argparse.Namespace, doing: str = "leaving the team"
+    work: Callable[[], Awaitable[T]],
+    args: argparse.Namespace,
+    doing: str | Callable[[], str] = "leaving the team",
 ) -> T:
     """Run ``work`` in a fresh event loop. SIGINT or SIGTERM cancel it, saying so on one
     line (unless ``--log-level error``: a supervisor that stops its robots wants no word
-    from each), and raise :class:`Stopped` once it has wound down."""
+    from each) what it does then (``doing``, or what it returns), and raise
+    :class:`Stopped` once it has wound down."""
     import anyio
 
     from btcap.team.deployment.agentconfig import AgentConfigError
@@ -129,7 +133,8 @@ def _until_stopped(
                 async for sig in signals:
                     stopped_by.append(sig)
                     if args.log_level != "error":
-                        print(f"btcap: {signal.Signals(sig).name}, {doing}", file=sys.stderr)
+                        what = doing if isinstance(doing, str) else doing()
+                        print(f"btcap: {signal.Signals(sig).name}, {what}", file=sys.stderr)
                     tg.cancel_scope.cancel()
                     break
 
@@ -152,6 +157,7 @@ def _until_stopped(
 def _agent(args: argparse.Namespace) -> int:
     import anyio
 
+    from btcap.cli.joining import Joining
     from btcap.cli.monitor import serving
     from btcap.team.deployment.deploy import open_agent
     from btcap.team.deployment.spawn import listening
@@ -159,6 +165,7 @@ def _agent(args: argparse.Namespace) -> int:
 
     config = _config(args.config)
     registry = _registry(args)
+    joining = Joining(config.seeds)
     if args.insecure and config.keys is None:
         print(
             f"btcap: warning: --insecure: {config.robot} speaks to anyone who can reach "
@@ -174,6 +181,7 @@ def _agent(args: argparse.Namespace) -> int:
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
+            joining.watch(agent)
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
             print(listening(agent.robot, endpoint), flush=True)
@@ -182,7 +190,7 @@ def _agent(args: argparse.Namespace) -> int:
             else:
                 await anyio.sleep_forever()
 
-    _until_stopped(serve, args)
+    _until_stopped(serve, args, functools.partial(joining.stopping, "leaving the team"))
     return 0  # standard input closed (--until-stdin-closes)
 
 
@@ -232,6 +240,7 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 # -- btcap mission run -------------------------------------------------------------------
 def _mission(args: argparse.Namespace) -> int:
     from btcap.bt.files import load_tree
+    from btcap.cli.joining import Joining
     from btcap.cli.monitor import serving
     from btcap.team.deployment.agentconfig import AgentConfigError
     from btcap.team.deployment.deploy import open_agent, run_mission_file
@@ -246,6 +255,7 @@ def _mission(args: argparse.Namespace) -> int:
         raise CliError(f"{args.tree}: no such file")
     load_tree(args.tree, registry)  # a bad tree fails before joining (TreeError: exit 1)
     robot = args.robot or config.robot
+    joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
         async with (
@@ -254,7 +264,8 @@ def _mission(args: argparse.Namespace) -> int:
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
-            await _join(agent, config, args.wait)
+            joining.watch(agent)
+            await _join(agent, config, args.wait, joining)
             shown = None if monitor is None else functools.partial(monitor.add_tree, robot=robot)
             report = await run_mission_file(
                 agent, args.tree, registry, timeout_s=args.timeout, progress=_say, on_tree=shown
@@ -264,7 +275,8 @@ def _mission(args: argparse.Namespace) -> int:
             return report
 
     try:
-        report = _until_stopped(run, args, "mission interrupted, leaving the team")
+        doing = functools.partial(joining.stopping, "mission interrupted, leaving the team")
+        report = _until_stopped(run, args, doing)
     except TreeError as exc:
         raise CliError(str(exc), code=1) from None
     _print_summary(report)
@@ -284,7 +296,7 @@ def _say(line: str) -> None:
     print(line, flush=True)
 
 
-async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
+async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining) -> None:
     from btcap.team.deployment.deploy import wait_for_team
 
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
@@ -292,8 +304,10 @@ async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
     print(f"{agent.robot} joined the team: {members}", flush=True)
     if not complete:
         missing = sorted(set(config.seeds) - set(agent.team.members))
+        refused = agent.system.transport and agent.system.transport.stats.refused_by
+        why = f" ({joining.why_not()})" if refused else ""
         print(
-            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s; going on",
+            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s{why}; going on",
             file=sys.stderr,
         )
 
