@@ -23,7 +23,7 @@ from btcap.cli.monitor import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
     from btcap.bt.registry import NodeRegistry
-    from btcap.cli.joining import Joining
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.agentconfig import RobotConfig
     from btcap.team.deployment.deploy import MemberView, MissionReport
     from btcap.team.runtime.agent import Agent
@@ -157,8 +157,8 @@ def _until_stopped(
 def _agent(args: argparse.Namespace) -> int:
     import anyio
 
-    from btcap.cli.joining import Joining
     from btcap.cli.monitor import serving
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.deploy import open_agent
     from btcap.team.deployment.spawn import listening
     from btcap.team.deployment.supervised import stdin_closed, watchable
@@ -203,24 +203,33 @@ def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
 
 
 def _status(args: argparse.Namespace) -> int:
+    from btcap.cli.teamwords import Joining, departure_rows
+    from btcap.team.deployment.departed import DepartureView, observe_departures
     from btcap.team.deployment.deploy import observe_team, open_agent, wait_for_team
 
     config = _config(args.config)
     registry = _registry(args)
     robot = _observer(args, config, "status")
+    joining = Joining(config.seeds)
 
-    async def look() -> tuple[bool, list[MemberView]]:
+    async def look() -> tuple[bool, list[MemberView], list[DepartureView], str]:
         async with open_agent(
             config, registry, robot=robot, implementations=False, ephemeral=True
         ) as agent:
+            joining.watch(agent)
             complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
-            return complete, await observe_team(agent)
+            members = await observe_team(agent)
+            return complete, members, await observe_departures(agent), joining.refused()
 
-    complete, members = _until_stopped(look, args, "leaving")
+    complete, members, departed, why = _until_stopped(look, args, "leaving")
     _print_team(robot, members)
+    if departed:
+        print(f"departed lately: {len(departed)}")
+        _print_rows(departure_rows(departed))
     missing = sorted(set(config.seeds) - {m.robot for m in members})
     for seed in missing:
-        print(f"btcap: seed {seed} did not answer within {args.wait} s", file=sys.stderr)
+        said = f" ({why})" if why else ""
+        print(f"btcap: seed {seed} did not answer within {args.wait} s{said}", file=sys.stderr)
     return 0 if members and complete else 1
 
 
@@ -232,6 +241,10 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
         runs = "(no answer)" if m.running is None else ", ".join(m.running) or "idle"
         age = f"{m.heartbeat_age_s:.2f} s ago"
         rows.append((m.robot, age, caps or "-", runs, ", ".join(m.succeeded) or "-"))
+    _print_rows(rows)
+
+
+def _print_rows(rows: list[tuple[str, ...]]) -> None:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True)).rstrip())
@@ -240,8 +253,8 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 # -- btcap mission run -------------------------------------------------------------------
 def _mission(args: argparse.Namespace) -> int:
     from btcap.bt.files import load_tree
-    from btcap.cli.joining import Joining
     from btcap.cli.monitor import serving
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.agentconfig import AgentConfigError
     from btcap.team.deployment.deploy import open_agent, run_mission_file
 
@@ -304,8 +317,7 @@ async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining
     print(f"{agent.robot} joined the team: {members}", flush=True)
     if not complete:
         missing = sorted(set(config.seeds) - set(agent.team.members))
-        refused = agent.system.transport and agent.system.transport.stats.refused_by
-        why = f" ({joining.why_not()})" if refused else ""
+        why = f" ({joining.refused()})" if joining.refused() else ""
         print(
             f"btcap: seeds {', '.join(missing)} did not answer within {wait} s{why}; going on",
             file=sys.stderr,

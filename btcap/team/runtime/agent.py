@@ -20,6 +20,7 @@ from btcap.team.capabilities.capability import ASSIGNER
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.capabilities.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.team.ids import ExecutionId
+from btcap.team.membership.departures import DepartureLog
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.runtime.mission import MissionControl
@@ -68,6 +69,8 @@ class Agent:
             busy=lambda: not self.mission_control.body.idle,
             activity=self._activity,
         )
+        #: Who failed or left lately (for ``btcap team status``).
+        self.departures = DepartureLog(self.team)
         self.repository = CapabilityRepository(robot, team=self.team)
         self.repository.extend(implementations)
         self.strategy = resolve(cfg.strategy if strategy is None else strategy)
@@ -96,6 +99,7 @@ class Agent:
         try:
             s = self.system
             s.spawn(self.team, Membership.PATH)
+            s.spawn(self.departures, DepartureLog.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
             s.spawn(self.allocator, self.allocator.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)

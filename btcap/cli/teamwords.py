@@ -1,0 +1,71 @@
+"""What the team commands say about joining and departing, in a person's words: whether
+a robot ever joined its team and if not why (on a signal, or when the seeds stay
+silent), and which robots failed or left lately (``btcap team status``).
+
+Imported by a command once it runs (it loads the team layer)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from btcap.team.membership.membership import TeamEvent
+
+if TYPE_CHECKING:
+    from btcap.team.deployment.departed import DepartureView
+    from btcap.team.runtime.agent import Agent
+
+__all__ = ["Joining", "departure_rows"]
+
+
+class Joining:
+    """Watches one agent: did a teammate ever answer it, and who refused its key?
+
+    A robot without seeds starts a team of its own, so it is in one from the start.
+    """
+
+    def __init__(self, seeds: dict[str, str]) -> None:
+        self.seeds = seeds
+        self.agent: Agent | None = None
+        self.joined = not seeds
+
+    def watch(self, agent: Agent) -> None:
+        """Follow ``agent``'s team; a teammate's failure becomes a warning in its log
+        (what a robot run from the command line shows by default)."""
+        self.agent = agent
+        agent.departures.loud = True
+        self.joined = self.joined or bool(agent.team.members)
+        agent.team.subscribe(self._on_team)
+
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        if event is TeamEvent.JOINED:
+            self.joined = True
+
+    def refused(self) -> str:
+        """What the peers that refused our handshake said ("" if none did)."""
+        transport = None if self.agent is None else self.agent.system.transport
+        return "" if transport is None else "; ".join(transport.stats.refused_by.values())
+
+    def why_not(self) -> str:
+        """Why no teammate answered: who refused us, else the silence of the seeds."""
+        return self.refused() or f"no answer from {', '.join(sorted(self.seeds))} yet"
+
+    def stopping(self, doing: str) -> str:
+        """What a signal's line says the command does: ``doing`` once in the team."""
+        if self.joined:
+            return doing
+        return f"stopping, never joined the team: {self.why_not()}"
+
+
+def departure_rows(
+    departures: Sequence[DepartureView], now: float | None = None
+) -> list[tuple[str, ...]]:
+    """The table ``btcap team status`` prints under the members: robot, what, when (this
+    host's local time and how long ago), why."""
+    wall = time.time() if now is None else now
+    rows: list[tuple[str, ...]] = [("robot", "what", "when", "why")]
+    for d in departures:
+        at = time.strftime("%H:%M:%S", time.localtime(wall - d.age_s))
+        rows.append((d.robot, d.how, f"{at} ({d.age_s:.1f} s ago)", d.why))
+    return rows
