@@ -43,7 +43,7 @@ _MAX_RETRY_S = 30.0
 def fingerprint(key: bytes) -> str:
     """A z85 public key shortened for a log line: enough to tell keys apart by eye."""
     text = key.decode(errors="replace")
-    return f"{text[:8]}..." if len(text) > 8 else text
+    return f"{text[:8]}\u2026" if len(text) > 8 else text  # (z85 has dots of its own)
 
 
 @dataclass(slots=True)

@@ -60,7 +60,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     team_cmds = team.add_subparsers(dest="team_command", metavar="SUBCOMMAND")
     p = team_cmds.add_parser(
         "status",
-        help="join briefly and print the members, their capabilities and heartbeats",
+        help="join briefly and print the members, their capabilities and heartbeats, "
+        "and the robots that failed or left lately (when and why)",
     )
     _join_options(p, default_wait=3.0)
     p.set_defaults(handler=_status)
@@ -306,15 +307,24 @@ def _outcome(report: MissionReport, name: str) -> tuple[str, str]:
 
 
 def _say(line: str) -> None:
-    print(line, flush=True)
+    try:
+        print(line, flush=True)
+    except UnicodeEncodeError:  # e.g. "beta failed — re-auctioning" to an ASCII-only pipe
+        plain = line.replace("\u2014", "-").encode(sys.stdout.encoding, "backslashreplace")
+        print(plain.decode(sys.stdout.encoding), flush=True)
 
 
 async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining) -> None:
     from btcap.team.deployment.deploy import wait_for_team
 
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
-    members = ", ".join(sorted(agent.team.members)) or "nobody"
-    print(f"{agent.robot} joined the team: {members}", flush=True)
+    members = ", ".join(sorted(agent.team.members))
+    print(
+        f"{agent.robot} joined the team: {members}"
+        if members
+        else f"{agent.robot} has no teammates: nobody answered",
+        flush=True,
+    )
     if not complete:
         missing = sorted(set(config.seeds) - set(agent.team.members))
         why = f" ({joining.refused()})" if joining.refused() else ""

@@ -85,7 +85,7 @@ async def test_a_refused_key_is_told_on_both_machines_and_redialled_slowly(keys:
             assert operator.stats.refused_by == {"alpha": ours["detail"]}
             public = KeyPair.load(keys / "operator.key_secret").public
             assert theirs["address"] == "127.0.0.1"
-            assert theirs["key"] == fingerprint(public) == public.decode()[:8] + "..."
+            assert theirs["key"] == fingerprint(public) == public.decode()[:8] + "\u2026"
             assert theirs["known_as"] == "unknown"
             assert "not in our trusted folder (keys.trusted)" in theirs["detail"]
             await anyio.sleep(0.5)  # dialled again after 0.25 s, 0.5 s, 1 s ...
@@ -147,4 +147,4 @@ def test_lines_are_rate_limited_per_peer_and_cleared_once_admitted() -> None:
         refusals.we_refused("10.0.0.9", f"{99:040d}".encode())  # remembered: quiet
         refusals.we_refused("10.0.0.9", f"{0:040d}".encode())  # forgotten: told again
     assert len(logs) == 101
-    assert logs[-1]["key"] == "00000000..."
+    assert logs[-1]["key"] == "00000000\u2026"
