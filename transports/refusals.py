@@ -116,7 +116,7 @@ class Refusals:
                     count=times,
                     **ours,
                 )
-        return min(_MAX_RETRY_S, _FIRST_RETRY_S * 2 ** min(n - 1, 16))
+        return min(_MAX_RETRY_S, _FIRST_RETRY_S * 2.0 ** min(n - 1, 16))
 
     def _why_failed(self, peer: str, endpoint: str, event: int, value: int, n: int) -> str | None:
         me, keyed = self.system, self.own_key is not None

@@ -285,7 +285,7 @@ class Monitor:
             dropped(self)
         elif event == _DISCONNECTED and self.redial is None:
             loop = asyncio.get_running_loop()
-            self.redial = loop.call_later(self.failed, dropped, self)
+            self.redial = loop.call_later(self.failed or 0.0, dropped, self)
         elif event == SUCCEEDED:
             self.failed = None
             if self.redial is not None:
