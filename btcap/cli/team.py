@@ -222,7 +222,8 @@ def _status(args: argparse.Namespace) -> int:
             members = await observe_team(agent)
             return complete, members, await observe_departures(agent), joining.refused()
 
-    complete, members, departed, why = _until_stopped(look, args, "leaving")
+    doing = functools.partial(joining.stopping, "leaving")
+    complete, members, departed, why = _until_stopped(look, args, doing)
     _print_team(robot, members)
     if departed:
         print(f"departed lately: {len(departed)}")

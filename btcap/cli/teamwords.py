@@ -11,12 +11,15 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from btcap.team.membership.membership import TeamEvent
+from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:
     from btcap.team.deployment.departed import DepartureView
     from btcap.team.runtime.agent import Agent
 
 __all__ = ["Joining", "departure_rows"]
+
+log = get_logger("btcap.cli")
 
 
 class Joining:
@@ -37,6 +40,15 @@ class Joining:
         agent.departures.loud = True
         self.joined = self.joined or bool(agent.team.members)
         agent.team.subscribe(self._on_team)
+        if not self.joined:  # a robot that waits in silence says why, once (at info)
+            wait = min(10.0, max(1.0, 2 * agent.config.failure_timeout_s))
+            agent.system.start_task(self._not_yet(wait), name=f"joining {agent.robot}")
+
+    async def _not_yet(self, wait: float) -> None:
+        assert self.agent is not None
+        await self.agent.clock.sleep(wait)
+        if not self.joined:
+            log.info("agent.not_joined", robot=self.agent.robot, waited_s=wait, why=self.why_not())
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event is TeamEvent.JOINED:

@@ -31,13 +31,12 @@ async def running_agent(
 
 @asynccontextmanager
 async def listening_agent(
-    config: Path, *flags: str, stderr: int = subprocess.DEVNULL
+    config: Path, *flags: str, stderr: int = subprocess.DEVNULL, log_level: str = "warning"
 ) -> AsyncIterator[tuple[anyio.abc.Process, str]]:
     """:func:`running_agent`, with the endpoint it says it listens on (a port ``*`` in
     its file becomes the one the system chose)."""
-    proc = await anyio.open_process(
-        btcap("agent", str(config), *flags), stdout=subprocess.PIPE, stderr=stderr
-    )
+    command = btcap("--log-level", log_level, "agent", str(config), *flags)
+    proc = await anyio.open_process(command, stdout=subprocess.PIPE, stderr=stderr)
     try:
         assert proc.stdout is not None
         said = b""

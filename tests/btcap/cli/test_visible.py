@@ -44,9 +44,9 @@ def _keyed(tmp_path: Path, robot: str, trusted: str, seeds: dict[str, str]) -> P
 async def test_a_refused_key_is_told_on_both_machines_and_the_robot_never_joined(
     tmp_path: Path,
 ) -> None:
-    """beta's key is not in alpha's trusted folder: beta says so within seconds, alpha
-    says whose address and which key it refused, and beta's Ctrl-C line does not claim
-    it was in the team."""
+    """beta's key is not in alpha's trusted folder: beta says so within seconds (and at
+    info, that it has not joined yet), alpha says whose address and which key it
+    refused, and beta's Ctrl-C line does not claim it was in the team."""
     for folder in ("team", "betas"):
         (tmp_path / folder).mkdir()
     for robot in ("alpha", "beta"):
@@ -57,9 +57,12 @@ async def test_a_refused_key_is_told_on_both_machines_and_the_robot_never_joined
     with anyio.fail_after(30):
         async with listening_agent(alpha_file, stderr=subprocess.PIPE) as (alpha, endpoint):
             beta_file = _keyed(tmp_path, "beta", "betas", {"alpha": endpoint})
-            async with listening_agent(beta_file, stderr=subprocess.PIPE) as (beta, _):
+            beta_run = listening_agent(beta_file, stderr=subprocess.PIPE, log_level="info")
+            async with beta_run as (beta, _):
                 with anyio.fail_after(5):
                     said = await said_on_stderr(beta, "alpha refused our key")
+                with anyio.fail_after(5):  # after twice the failure timeout (1 s)
+                    said = await said_on_stderr(beta, "agent.not_joined", said)
                 code, rest = await stop(beta, signal.SIGINT)
             with anyio.fail_after(5):
                 refused = await said_on_stderr(alpha, "transport.key_refused")
@@ -71,6 +74,9 @@ async def test_a_refused_key_is_told_on_both_machines_and_the_robot_never_joined
     assert why in beta_said
     assert "leaving the team" not in beta_said
     assert f"btcap: SIGINT, stopping, never joined the team: {why}" in beta_said
+    waiting = next(x for x in beta_said.splitlines() if "agent.not_joined" in x)
+    assert "[info     ]" in waiting
+    assert why in waiting
     line = next(x for x in refused.decode().splitlines() if "transport.key_refused" in x)
     assert "[warning  ]" in line
     assert "address=127.0.0.1" in line
