@@ -104,7 +104,11 @@ class Refusals:
             del self._failures[next(iter(self._failures))]
         why = self._why_failed(peer, endpoint, event, value, n)
         if why is not None:
-            self.stats.refused_by[peer] = why
+            told = self.stats.refused_by
+            told.pop(peer, None)
+            told[peer] = why  # the most recent last: the oldest goes when full
+            while len(told) > self.max_entries:
+                del told[next(iter(told))]
             if times := self._worth_a_line(f"peer {peer}"):
                 ours = {} if self.own_key is None else {"our_key": fingerprint(self.own_key)}
                 log.warning(

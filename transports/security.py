@@ -185,6 +185,7 @@ class _TeamAuthenticator(AsyncioAuthenticator):
         """The credentials check pyzmq calls with the client's z85 key."""
         admitted = self.team.name_of(key) is not None
         if not admitted and self.refused is not None:
+            # (the member it names: None while every known key is admitted)
             self.refused(self.address, key, self.team.name_of(key))
         return admitted
 
