@@ -230,8 +230,8 @@ def _status(args: argparse.Namespace) -> int:
         _print_rows(departure_rows(departed))
     missing = sorted(set(config.seeds) - {m.robot for m in members})
     for seed in missing:
-        said = f" ({why})" if why else ""
-        print(f"btcap: seed {seed} did not answer within {args.wait} s{said}", file=sys.stderr)
+        said = joining.silent([seed], why)
+        print(f"btcap: seed {seed} did not answer within {args.wait} s: {said}", file=sys.stderr)
     return 0 if members and complete else 1
 
 
@@ -328,9 +328,9 @@ async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining
     )
     if not complete:
         missing = sorted(set(config.seeds) - set(agent.team.members))
-        why = f" ({joining.refused()})" if joining.refused() else ""
         print(
-            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s{why}; going on",
+            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s "
+            f"(going on): {joining.silent(missing)}",
             file=sys.stderr,
         )
 

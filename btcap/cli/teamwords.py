@@ -63,6 +63,16 @@ class Joining:
         """Why no teammate answered: who refused us, else the silence of the seeds."""
         return self.refused() or f"no answer from {', '.join(sorted(self.seeds))} yet"
 
+    def silent(self, seeds: Sequence[str], refused: str | None = None) -> str:
+        """Why ``seeds`` did not answer, and what to check (``refused``: what
+        :meth:`refused` said while the robot was up)."""
+        refused = self.refused() if refused is None else refused
+        if refused:
+            return refused
+        where = ", ".join(f"{s} at {self.seeds[s]}" for s in seeds if s in self.seeds)
+        up = "is it up" if len(seeds) == 1 else "are they up"
+        return f"{up} ({where} in network.seeds), or is --wait too short?"
+
     def stopping(self, doing: str) -> str:
         """What a signal's line says the command does: ``doing`` once in the team."""
         if self.joined:

@@ -15,6 +15,7 @@ import pytest
 from agentproc import btcap, listening_agent, running_agent, said_on_stderr, stop
 
 from btcap.bt.registry import default_registry
+from btcap.cli import main
 from btcap.team.deployment.agentconfig import load_agent_file
 from btcap.team.deployment.deploy import open_agent, run_mission_file, wait_for_team
 from btcap.transports import KeyPair
@@ -82,6 +83,16 @@ async def test_a_refused_key_is_told_on_both_machines_and_the_robot_never_joined
     assert "address=127.0.0.1" in line
     assert fingerprint(KeyPair.load(tmp_path / "beta.key_secret").public) in line
     assert "known_as=unknown" in line
+
+
+def test_a_silent_seed_is_told_with_where_it_was_looked_for(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    operator = _robot(tmp_path, "operator", cost=None, seeds=["ghost"])
+    assert main(["team", "status", "--config", str(operator), "--wait", "0.3"]) == 1
+    err = capsys.readouterr().err
+    where = f"ghost at ipc://{tmp_path}/ghost.sock in network.seeds"
+    assert f"seed ghost did not answer within 0.3 s: is it up ({where}), or is --wait" in err
 
 
 def _robot(tmp_path: Path, robot: str, *, cost: float | None, seeds: list[str]) -> Path:
