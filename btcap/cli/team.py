@@ -326,8 +326,8 @@ async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining
         else f"{agent.robot} has no teammates: nobody answered",
         flush=True,
     )
-    if not complete:
-        missing = sorted(set(config.seeds) - set(agent.team.members))
+    missing = sorted(set(config.seeds) - set(agent.team.members))
+    if not complete and missing:
         print(
             f"btcap: seeds {', '.join(missing)} did not answer within {wait} s "
             f"(going on): {joining.silent(missing)}",
