@@ -216,6 +216,7 @@ def _counters(agent: Agent) -> dict[str, int]:
     t = _zmq(agent)
     stats = dataclasses.asdict(t.stats)
     reasons = stats.pop("by_reason")
+    stats.pop("refused_by")  # who refused the target's handshakes: no counter
     return {
         **stats,
         **{f"dropped:{k}": v for k, v in reasons.items()},

@@ -29,6 +29,8 @@ class TransportStats:
     unknown_peer: int = 0
     undeliverable: int = 0
     by_reason: dict[str, int] = field(default_factory=dict)
+    #: Peers that refused our handshake, and what to check, until one admits us.
+    refused_by: dict[str, str] = field(default_factory=dict)
 
     def drop(self, reason: str) -> None:
         self.by_reason[reason] = self.by_reason.get(reason, 0) + 1

@@ -15,7 +15,7 @@ from __future__ import annotations
 import ipaddress
 import os
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -211,17 +211,33 @@ class TeamKeys:
         return f"TeamKeys({sorted(self._by_name)})"
 
 
+Refused = Callable[[str, bytes, "str | None"], None]
+"""Told of each refused handshake: the peer's address, its z85 key, the member it names."""
+
+
 class _TeamAuthenticator(AsyncioAuthenticator):
     """pyzmq's ZAP handler, admitting the team's keys and naming peers after them."""
 
-    def __init__(self, context: zmq.Context[Any], team: TeamKeys) -> None:
+    def __init__(
+        self, context: zmq.Context[Any], team: TeamKeys, refused: Refused | None = None
+    ) -> None:
         super().__init__(context)
         self.team = team
+        self.refused = refused
+        self.address = ""  #: the peer being checked (pyzmq does not pass it on)
         self.configure_curve_callback(ZAP_DOMAIN, self)
+
+    async def handle_zap_message(self, msg: list[bytes]) -> None:
+        self.address = msg[3].decode(errors="replace")[:80] if len(msg) > 3 else "?"
+        await super().handle_zap_message(msg)
 
     def callback(self, domain: str, key: bytes) -> bool:
         """The credentials check pyzmq calls with the client's z85 key."""
-        return self.team.name_of(key) is not None
+        admitted = self.team.name_of(key) is not None
+        if not admitted and self.refused is not None:
+            # (the member it names: None while every known key is admitted)
+            self.refused(self.address, key, self.team.name_of(key))
+        return admitted
 
     def curve_user_id(self, client_public_key: bytes) -> str:
         name = self.team.name_of(z85.encode(client_public_key))
@@ -267,11 +283,12 @@ class Curve:
         sock.setsockopt(zmq.CURVE_SECRETKEY, self.keys.secret)
         sock.setsockopt(zmq.CURVE_PUBLICKEY, self.keys.public)
 
-    def start(self, context: zmq.Context[Any]) -> None:
-        """Run the ZAP handler on the running asyncio loop."""
+    def start(self, context: zmq.Context[Any], refused: Refused | None = None) -> None:
+        """Run the ZAP handler on the running asyncio loop (telling ``refused`` whom it
+        refused)."""
         if self._auth is not None:
             return
-        auth = _TeamAuthenticator(context, self.team)
+        auth = _TeamAuthenticator(context, self.team, refused)
         try:
             auth.start()
         except zmq.ZMQError as exc:

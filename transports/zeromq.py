@@ -174,7 +174,7 @@ class ZmqTransport(PeerRules, Transport):
             return
         if not endpoint.startswith(SCHEMES):
             raise ValueError(f"peer {system_id}: endpoint {endpoint!r} is not tcp/ipc/inproc")
-        sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint, self.curve)
+        sock, monitor = open_dealer(self._ctx, self._id, system_id, endpoint, self._events)
         self._unlink(system_id)  # a peer that moved stays configured, or a stranger
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
@@ -241,7 +241,7 @@ class ZmqTransport(PeerRules, Transport):
             raise RuntimeError(f"transport of {self.system_id} is already serving")
         loop = asyncio.get_running_loop()
         if self.curve is not None:
-            self.curve.start(self._ctx)
+            self.curve.start(self._ctx, self._events.refusals.we_refused)
         try:
             loop.add_reader(self._fd, self._on_readable)
         except NotImplementedError:

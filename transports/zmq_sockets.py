@@ -9,6 +9,7 @@ be dropped there as from an unknown peer.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import os
 import secrets
@@ -23,6 +24,7 @@ from zmq.utils.monitor import parse_monitor_message
 
 from btcap.transports.base import BROADCAST, TransportStats
 from btcap.transports.log import get_logger, worth_logging
+from btcap.transports.refusals import FAILED, HANDSHAKE_EVENTS, REFUSED, SUCCEEDED, Refusals
 from btcap.transports.security import Curve
 
 __all__ = [
@@ -104,7 +106,7 @@ def open_router(
         # is who ZAP admitted: handing over would let one member cut another's link.
         sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
     name = f"inproc://zmq-transport-router-{uuid.uuid4().hex}"
-    events = RouterEvents(sock, name, stats, system)
+    events = RouterEvents(sock, name, stats, system, curve)
     try:
         sock.bind(bind)
     except zmq.ZMQError as exc:
@@ -175,12 +177,14 @@ def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
 
 
 def open_dealer(
-    ctx: zmq.Context[Any], own_id: bytes, peer: str, endpoint: str, curve: Curve | None = None
+    ctx: zmq.Context[Any], own_id: bytes, peer: str, endpoint: str, events: RouterEvents
 ) -> tuple[zmq.Socket[bytes], Monitor | None]:
     """A DEALER connected to ``peer`` at ``endpoint``, with its monitor (none for inproc).
 
-    With ``curve`` it only completes a handshake with a server holding ``peer``'s key.
+    With keys (``events.curve``) it only completes a handshake with a server holding
+    ``peer``'s key; a failed handshake is told to ``events.refusals``.
     """
+    curve = events.curve
     if curve is not None and endpoint.startswith("inproc://"):
         raise ValueError(f"peer {peer}: cannot reach {endpoint!r} with keys (not encrypted)")
     sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
@@ -207,11 +211,12 @@ def open_dealer(
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            events = sock.get_monitor_socket(_DISCONNECTED | _UP, addr=name)
+            watch = _DISCONNECTED | HANDSHAKE_EVENTS
+            socket = sock.get_monitor_socket(watch, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
         else:
-            monitor = Monitor(peer, sock, events)
+            monitor = Monitor(peer, sock, socket, endpoint, events.refusals)
     try:
         sock.connect(endpoint)
     except zmq.ZMQError as exc:
@@ -223,16 +228,42 @@ def open_dealer(
 
 
 class Monitor:
-    """Connection events of one DEALER, read from its zmq monitor socket."""
+    """Connection events of one DEALER, read from its zmq monitor socket.
 
-    __slots__ = ("closed", "dealer", "fd", "peer", "socket", "up_since")
+    After a failed handshake the link is dialled again only after a pause that grows
+    with each failure (:meth:`Refusals.failed`), and a success cancels it.
+    """
 
-    def __init__(self, peer: str, dealer: zmq.Socket[bytes], socket: zmq.Socket[bytes]) -> None:
+    __slots__ = (
+        "closed",
+        "dealer",
+        "endpoint",
+        "failed",
+        "fd",
+        "peer",
+        "redial",
+        "refusals",
+        "socket",
+        "up_since",
+    )
+
+    def __init__(
+        self,
+        peer: str,
+        dealer: zmq.Socket[bytes],
+        socket: zmq.Socket[bytes],
+        endpoint: str,
+        refusals: Refusals,
+    ) -> None:
         self.peer = peer
         self.dealer = dealer
         self.socket = socket
+        self.endpoint = endpoint
+        self.refusals = refusals
         self.fd = fd_of(socket)
         self.closed = False
+        self.failed: float | None = None  #: the pause before re-dialling, once failed
+        self.redial: asyncio.TimerHandle | None = None
         #: When the link's handshake last succeeded (wall time), None while it is down.
         self.up_since: float | None = None
 
@@ -246,29 +277,44 @@ class Monitor:
                 frames = self.socket.recv_multipart(NOBLOCK)
                 if len(frames) == 2 and len(frames[0]) == 6:
                     event = int.from_bytes(frames[0][:2], sys.byteorder)
-                    if event == _UP:
-                        self.up_since = time.time()
-                    elif event == _DISCONNECTED:
-                        self.up_since = None
-                        dropped(self)
+                    value = int.from_bytes(frames[0][2:], sys.byteorder)
+                    self._event(event, value, dropped)
         except zmq.ZMQError as exc:
             log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
             return False
         return True
 
+    def _event(self, event: int, value: int, dropped: Callable[[Monitor], None]) -> None:
+        if event == _DISCONNECTED:
+            self.up_since = None
+        if event == _DISCONNECTED and self.failed is None:
+            dropped(self)
+        elif event == _DISCONNECTED and self.redial is None:
+            loop = asyncio.get_running_loop()
+            self.redial = loop.call_later(self.failed or 0.0, dropped, self)
+        elif event == SUCCEEDED:
+            self.up_since = time.time()
+            self.failed = None
+            if self.redial is not None:
+                self.redial.cancel()
+                self.redial = None
+            self.refusals.admitted(self.peer)
+        elif event & HANDSHAKE_EVENTS and self.failed is None:  # once per DEALER
+            self.failed = self.refusals.failed(self.peer, self.endpoint, event, value)
+
     def close(self) -> None:
         self.closed = True
+        if self.redial is not None:
+            self.redial.cancel()
         self.dealer.disable_monitor()
         self.socket.close(0)
 
 
-_REFUSED = int(zmq.EVENT_HANDSHAKE_FAILED_AUTH)
-# Not EVENT_HANDSHAKE_FAILED_NO_DETAIL: with it watched, libzmq 4.3.5 leaves a handshake
-# that fails for want of a ZAP handler (a transport not yet serving) hanging for good
-# instead of closing it, and the peer never retries.
-_FAILED = int(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
+# The ROUTER's monitor watches REFUSED and FAILED, not EVENT_HANDSHAKE_FAILED_NO_DETAIL:
+# with it watched, libzmq 4.3.5 leaves a handshake that fails for want of a ZAP handler (a
+# transport not yet serving) hanging for good instead of closing it, and the peer never
+# retries. (A DEALER's monitor may: it never runs ZAP.)
 _DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
-_UP = int(zmq.EVENT_HANDSHAKE_SUCCEEDED)  # the link is up: the peer at its end lives
 
 
 class RouterEvents:
@@ -276,28 +322,37 @@ class RouterEvents:
 
     Refused handshakes (a key not on the allow-list) and failed ones (wrong mechanism,
     junk) never become messages, and neither does a frame over ``MAXMSGSIZE``: libzmq
-    drops that connection, which shows only as a disconnect.
+    drops that connection, which shows only as a disconnect. :attr:`refusals` says what
+    failed, on this side (the ZAP handler tells it who was refused) and on the dialling
+    one (the transport's DEALERs share it).
     """
 
-    __slots__ = ("disconnects", "fd", "router", "socket", "stats", "system")
+    __slots__ = ("curve", "disconnects", "fd", "refusals", "router", "socket", "stats", "system")
 
     def __init__(
-        self, router: zmq.Socket[bytes], name: str, stats: TransportStats, system: str
+        self,
+        router: zmq.Socket[bytes],
+        name: str,
+        stats: TransportStats,
+        system: str,
+        curve: Curve | None = None,
     ) -> None:
         self.router = router
         self.stats = stats
         self.system = system
+        self.curve = curve
+        self.refusals = Refusals(system, stats, None if curve is None else curve.keys.public)
         self.disconnects = 0
         self.socket: zmq.Socket[bytes] = router.get_monitor_socket(
-            _REFUSED | _FAILED | _DISCONNECTED, addr=name
+            REFUSED | FAILED | _DISCONNECTED, addr=name
         )
         self.fd = fd_of(self.socket)
 
     def drain(self, limit: int) -> bool:
         """Count up to ``limit`` events; True if more are queued.
 
-        Refused handshakes (a key not on the allow-list) are unknown peers; disconnects
-        are counted in :attr:`disconnects` and logged now and then.
+        Refused handshakes (a key not on the allow-list) are unknown peers, told by the
+        ZAP handler; disconnects are counted in :attr:`disconnects` and logged now and then.
         """
         sock = self.socket
         for _ in range(limit):
@@ -305,11 +360,11 @@ class RouterEvents:
                 return False
             event = parse_monitor_message(sock.recv_multipart(NOBLOCK))
             kind, value = int(event["event"]), event["value"]
-            if kind == _REFUSED:
+            if kind == REFUSED:
                 self.stats.unknown_peer += 1
-                reject(self.stats, self.system, "handshake refused", b"", f"ZAP status {value}")
-            elif kind == _FAILED:
-                reject(self.stats, self.system, "handshake failed", b"", f"error {value}")
+                self.stats.drop("handshake refused")
+            elif kind == FAILED:
+                self.refusals.handshake_failed(value)
             elif kind == _DISCONNECTED:
                 self.disconnects += 1
                 if worth_logging(self.disconnects):

@@ -12,7 +12,7 @@ import argparse
 import functools
 import signal
 import sys
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
@@ -22,6 +22,7 @@ from btcap.cli.monitor import add_monitor_option
 
 if TYPE_CHECKING:  # the rest is imported by the command that runs: --help stays fast
     from btcap.bt.registry import NodeRegistry
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.agentconfig import RobotConfig
     from btcap.team.deployment.deploy import MemberView, MissionReport
     from btcap.team.runtime.agent import Agent
@@ -58,9 +59,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     team_cmds = team.add_subparsers(dest="team_command", metavar="SUBCOMMAND")
     p = team_cmds.add_parser(
         "status",
-        help="ask the team (without joining it) for its members, capabilities and runs",
+        help="ask the team (without joining it) for its members, capabilities and runs, "
+        "and the robots that failed or left lately (when and why)",
         description="Ask the seeds, then every member they name, how they see the team; "
-        "print the members, what each offers and runs, and how fresh its heartbeat is. "
+        "print the members, what each offers and runs, and how fresh its heartbeat is, "
+        "and the robots that failed or left lately. "
         "It observes as CONFIG's robot plus a tag (e.g. operator+status-1a2b3c), with "
         "that robot's key: it never joins, so it can run beside that robot's agent or "
         "mission. Exit status 1 if a seed or a member did not answer within --wait.",
@@ -121,11 +124,14 @@ def _registry(args: argparse.Namespace) -> NodeRegistry:
 
 
 def _until_stopped(
-    work: Callable[[], Awaitable[T]], args: argparse.Namespace, doing: str = "leaving the team"
+    work: Callable[[], Awaitable[T]],
+    args: argparse.Namespace,
+    doing: str | Callable[[], str] = "leaving the team",
 ) -> T:
     """Run ``work`` in a fresh event loop. SIGINT or SIGTERM cancel it, saying so on one
     line (unless ``--log-level error``: a supervisor that stops its robots wants no word
-    from each), and raise :class:`Stopped` once it has wound down."""
+    from each) what it does then (``doing``, or what it returns), and raise
+    :class:`Stopped` once it has wound down."""
     import anyio
 
     from btcap.team.deployment.agentconfig import AgentConfigError
@@ -146,7 +152,8 @@ def _until_stopped(
                 async for sig in signals:
                     stopped_by.append(sig)
                     if args.log_level != "error":
-                        print(f"btcap: {signal.Signals(sig).name}, {doing}", file=sys.stderr)
+                        what = doing if isinstance(doing, str) else doing()
+                        print(f"btcap: {signal.Signals(sig).name}, {what}", file=sys.stderr)
                     tg.cancel_scope.cancel()
                     break
 
@@ -172,12 +179,14 @@ def _agent(args: argparse.Namespace) -> int:
     import anyio
 
     from btcap.cli.monitor import serving
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.deploy import open_agent
     from btcap.team.deployment.spawn import listening
     from btcap.team.deployment.supervised import stdin_closed, watchable
 
     config = _config(args.config)
     registry = _registry(args)
+    joining = Joining(config.seeds)
     if args.insecure and config.keys is None:
         print(
             f"btcap: warning: --insecure: {config.robot} speaks to anyone who can reach "
@@ -193,6 +202,7 @@ def _agent(args: argparse.Namespace) -> int:
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
+            joining.watch(agent)
             transport = agent.system.transport
             endpoint = getattr(transport, "endpoint", "?")
             print(listening(agent.robot, endpoint), flush=True)
@@ -201,27 +211,40 @@ def _agent(args: argparse.Namespace) -> int:
             else:
                 await anyio.sleep_forever()
 
-    _until_stopped(serve, args)
+    _until_stopped(serve, args, functools.partial(joining.stopping, "leaving the team"))
     return 0  # standard input closed (--until-stdin-closes)
 
 
 # -- btcap team status -------------------------------------------------------------------
 def _status(args: argparse.Namespace) -> int:
+    from btcap.cli.teamwords import Joining, departure_rows
+    from btcap.team.deployment.departed import DepartureView, survey_departures
     from btcap.team.deployment.observer import open_observer, survey
 
     config = _config(args.config)
     seen: list[str] = []
+    refused: list[str] = []
 
-    async def look() -> tuple[bool, list[MemberView]]:
+    async def look() -> tuple[bool, list[MemberView], list[DepartureView]]:
         async with open_observer(config, member=args.robot) as observer:
             seen.append(observer.id)
-            return await survey(observer, config.seeds, timeout_s=args.wait)
+            complete, members = await survey(observer, config.seeds, timeout_s=args.wait)
+            answered = [m.robot for m in members if m.capabilities is not None]
+            departed = await survey_departures(observer, answered)
+            if observer.transport is not None:
+                refused.extend(observer.transport.stats.refused_by.values())
+            return complete, members, departed
 
-    complete, members = _until_stopped(look, args, "stopping")
+    complete, members, departed = _until_stopped(look, args, "stopping")
     _print_team(seen[0] if seen else config.robot, members)
+    if departed:
+        print(f"departed lately: {len(departed)}")
+        _print_rows(departure_rows(departed))
     answered = {m.robot for m in members if m.capabilities is not None}
+    joining = Joining(config.seeds)
     for seed in sorted(set(config.seeds) - answered):
-        print(f"btcap: seed {seed} did not answer within {args.wait} s", file=sys.stderr)
+        said = joining.silent([seed], "; ".join(refused))
+        print(f"btcap: seed {seed} did not answer within {args.wait} s: {said}", file=sys.stderr)
     return 0 if answered and complete else 1
 
 
@@ -233,6 +256,10 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
         runs = "(no answer)" if m.running is None else ", ".join(m.running) or "idle"
         age = f"{m.heartbeat_age_s:.2f} s ago"
         rows.append((m.robot, age, caps or "-", runs, ", ".join(m.succeeded) or "-"))
+    _print_rows(rows)
+
+
+def _print_rows(rows: Sequence[tuple[str, ...]]) -> None:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True)).rstrip())
@@ -242,6 +269,7 @@ def _print_team(robot: str, members: list[MemberView]) -> None:
 def _mission(args: argparse.Namespace) -> int:
     from btcap.bt.files import load_tree
     from btcap.cli.monitor import serving
+    from btcap.cli.teamwords import Joining
     from btcap.team.deployment.agentconfig import AgentConfigError
     from btcap.team.deployment.deploy import open_agent, run_mission_file
 
@@ -255,6 +283,7 @@ def _mission(args: argparse.Namespace) -> int:
         raise CliError(f"{args.tree}: no such file")
     load_tree(args.tree, registry)  # a bad tree fails before joining (TreeError: exit 1)
     robot = args.robot or config.robot
+    joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
         async with (
@@ -263,7 +292,8 @@ def _mission(args: argparse.Namespace) -> int:
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
-            await _join(agent, config, args.wait)
+            joining.watch(agent)
+            await _join(agent, config, args.wait, joining)
             shown = None if monitor is None else functools.partial(monitor.add_tree, robot=robot)
             report = await run_mission_file(
                 agent, args.tree, registry, timeout_s=args.timeout, progress=_say, on_tree=shown
@@ -273,7 +303,8 @@ def _mission(args: argparse.Namespace) -> int:
             return report
 
     try:
-        report = _until_stopped(run, args, "mission interrupted, leaving the team")
+        doing = functools.partial(joining.stopping, "mission interrupted, leaving the team")
+        report = _until_stopped(run, args, doing)
     except TreeError as exc:
         raise CliError(str(exc), code=1) from None
     _print_summary(report)
@@ -290,19 +321,29 @@ def _outcome(report: MissionReport, name: str) -> tuple[str, str]:
 
 
 def _say(line: str) -> None:
-    print(line, flush=True)
+    try:
+        print(line, flush=True)
+    except UnicodeEncodeError:  # e.g. "beta failed — re-auctioning" to an ASCII-only pipe
+        plain = line.replace("\u2014", "-").encode(sys.stdout.encoding, "backslashreplace")
+        print(plain.decode(sys.stdout.encoding), flush=True)
 
 
-async def _join(agent: Agent, config: RobotConfig, wait: float) -> None:
+async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining) -> None:
     from btcap.team.deployment.deploy import wait_for_team
 
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
-    members = ", ".join(sorted(agent.team.members)) or "nobody"
-    print(f"{agent.robot} joined the team: {members}", flush=True)
-    if not complete:
-        missing = sorted(set(config.seeds) - set(agent.team.members))
+    members = ", ".join(sorted(agent.team.members))
+    print(
+        f"{agent.robot} joined the team: {members}"
+        if members
+        else f"{agent.robot} has no teammates: nobody answered",
+        flush=True,
+    )
+    missing = sorted(set(config.seeds) - set(agent.team.members))
+    if not complete and missing:
         print(
-            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s; going on",
+            f"btcap: seeds {', '.join(missing)} did not answer within {wait} s "
+            f"(going on): {joining.silent(missing)}",
             file=sys.stderr,
         )
 

@@ -29,6 +29,9 @@ __all__ = [
     "ConsensusTasks",
     "Contact",
     "CostChanged",
+    "Departed",
+    "Departures",
+    "DeparturesQuery",
     "ExecutionInputs",
     "ExecutionStatus",
     "Goodbye",
@@ -323,6 +326,30 @@ class TeamStatus(Message):
     members: list[Seen]
 
 
+# -- departures (btcap team status) ------------------------------------------------------
+class Departed(msgspec.Struct, frozen=True, array_like=True):
+    """A robot that left the team or was declared failed, as one teammate saw it."""
+
+    robot: str
+    incarnation: int
+    #: "failed" or "left".
+    how: str
+    #: How long ago, in milliseconds of the teller's clock (no two hosts' clocks agree).
+    age_ms: int
+    why: str = ""
+
+
+class DeparturesQuery(Message):
+    """Who failed or left lately? (asked by ``btcap team status``)"""
+
+
+class Departures(Message):
+    """The latest departures a robot saw, the most recent first (a bounded few)."""
+
+    robot: str
+    departed: list[Departed]
+
+
 CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     Heartbeat,
     Goodbye,
@@ -347,4 +374,6 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     CostChanged,
     StatusQuery,
     TeamStatus,
+    DeparturesQuery,
+    Departures,
 )

@@ -61,7 +61,7 @@ from btcap.team.filecheck import field_first, not_finite
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, ZmqTransport
-from btcap.transports.identity import OBSERVER, check_member_name, is_observer_id
+from btcap.transports.identity import OBSERVER, check_member_name, is_observer_id, member_of
 from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_endpoint, check_id
 
@@ -212,6 +212,8 @@ class RobotConfig:
                     f"{name}'s key has the role observer: it can only look at the team "
                     "(btcap team status), not join it",
                 )
+            as_other = robot is not None and not is_observer_id(name)
+            self._check_trusted(member_of(name), bind, keys, trusted, as_other)
         try:
             return ZmqTransport(
                 robot or self.robot,
@@ -234,6 +236,35 @@ class RobotConfig:
                 ) from None
             field = "keys" if keys is not None and "key" in str(exc) else "network.bind"
             raise self.error(field, str(exc)) from None
+
+    def _check_trusted(
+        self, robot: str, bind: str, keys: KeyPair, trusted: TeamKeys, as_other: bool
+    ) -> None:
+        """What CURVE would refuse, in this file's words (the transport's are Python's)."""
+        assert self.keys is not None
+        folder = self.keys.trusted
+        named = f"robot {robot!r}" + (" (--as)" if as_other else "")
+        if trusted.key_of(robot) is None:
+            why = f"{folder} has no {robot}.key, so teammates would refuse {named}"
+            raise self.error("keys.trusted", f"{why} (btcap keys new {robot}, then copy it)")
+        if trusted.key_of(robot) != keys.public:
+            raise self.error(
+                "keys.secret",
+                f"{self.keys.secret} is not the key of {named}: {folder}/{robot}.key holds "
+                "another public key, so teammates would refuse it",
+            )
+        if bind.startswith("inproc://"):
+            raise self.error(
+                "network.bind",
+                f"{bind!r}: inproc:// is not encrypted; with keys use ipc:// or tcp://",
+            )
+        for i, seed in enumerate(self.spec.network.seeds):
+            if trusted.key_of(seed.robot) is None:
+                why = f"{folder} (keys.trusted) has no {seed.robot}.key: we could not check it"
+                raise self.error(f"network.seeds[{i}].robot", f"{seed.robot!r}: {why}")
+            if seed.endpoint.startswith("inproc://"):
+                why = "inproc:// is not encrypted; with keys use ipc:// or tcp://"
+                raise self.error(f"network.seeds[{i}].endpoint", f"{seed.endpoint!r}: {why}")
 
     def error(self, field: str, why: str) -> AgentConfigError:
         return AgentConfigError(f"{self.path}: {field}: {why}")

@@ -22,6 +22,7 @@ from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.team.capabilities.capability import Capability
+from btcap.team.core.effects import Lost
 from btcap.team.deployment.agentconfig import RobotConfig
 from btcap.team.membership.membership import Membership
 from btcap.team.messages import Activity, ActivityQuery
@@ -177,26 +178,41 @@ async def run_mission_file(
 ) -> MissionReport:
     """Load a mission tree (capability node types must be in ``registry``), tick it on
     ``agent`` until it ends or ``timeout_s`` wall seconds pass, telling ``progress`` each
-    change of a capability's state or executor (and ``on_tree`` the tree before it runs,
-    e.g. a monitor's ``add_tree``)."""
+    change of a capability's state or executor, and why work moved when its robot failed
+    or left ("beta failed — re-auctioning Greet"), and ``on_tree`` the tree before it
+    runs (e.g. a monitor's ``add_tree``)."""
     tree = agent.mission(load_tree(path, registry, clock=agent.clock))
     if on_tree is not None:
         on_tree(tree)
     caps = [n for n in tree.nodes() if isinstance(n, Capability)]
+    paths = {n.path for n in caps}
     seen: dict[str, tuple[State, str]] = {}
+    lost: dict[str, Lost] = {}
     started = time.monotonic()
 
     def report(root: State) -> bool:
         for node in caps:
-            now = (node.state, node.assignments[-1] if node.assignments else "")
+            # Unassigned is on nobody, whoever had it last.
+            on = node.assignments[-1] if node.assignments and node.state != _UNASSIGNED else ""
+            now = (node.state, on)
+            at = f"{time.monotonic() - started:7.2f} s  {node.path}:"
+            if progress is not None and (e := lost.pop(node.path, None)) is not None:
+                progress(f"{at} {_gone(e)} — re-auctioning {type(node).INTERFACE.name}")
+                if now[0] is _UNASSIGNED:
+                    seen[node.path] = now  # the line above says it, and why
             if progress is not None and seen.get(node.path) != now:
                 robot = f" on {now[1]}" if now[1] else ""
-                progress(f"{time.monotonic() - started:7.2f} s  {node.path}: {now[0].value}{robot}")
+                progress(f"{at} {now[0].value}{robot}")
             seen[node.path] = now
         return root in DONE
 
+    def on_lost(e: Lost) -> None:
+        if e.execution.origin == agent.robot and e.execution.node in paths:
+            lost[e.execution.node] = e
+
     state = State.IDLE
     timed_out = False
+    unwatch = agent.mission_control.watch_lost(on_lost)
     try:
         with anyio.move_on_after(timeout_s) as scope:
             state = await tree.run(agent.config.tick_hz, until=report)
@@ -206,5 +222,19 @@ async def run_mission_file(
             CapabilityResult(n.path, n.state, list(n.assignments), dict(n.outputs)) for n in caps
         ]
     finally:
+        unwatch()
         await tree.shutdown()
     return MissionReport(state, time.monotonic() - started, timed_out, results)
+
+
+_UNASSIGNED = State.UNASSIGNED
+
+
+def _gone(e: Lost) -> str:
+    """Why a capability's executor lost its run, from its side of the team."""
+    robot = f"robot {e.executor} "
+    if e.why.startswith(robot):  # "robot beta failed", "robot beta left"
+        return e.why.removeprefix("robot ")
+    if e.why == "lease lapsed":
+        return f"{e.executor} stopped answering (its lease lapsed)"
+    return f"lost on {e.executor} ({e.why})"

@@ -14,7 +14,8 @@ robot      everything (it bids, runs and reports work, and may run missions)
 operator   membership (heartbeats, goodbyes, rosters), its repository, queries,
            and what an origin sends: calls for bids, awards, inputs, keep-alives,
            pause and cancel, consensus offers and claims, declining (``NoBid``)
-observer   queries only: :class:`StatusQuery`, :class:`ActivityQuery`
+observer   queries only: :class:`StatusQuery`, :class:`ActivityQuery`,
+           :class:`DeparturesQuery`
 =========  ===================================================================
 
 Replies are not checked here: an answer reaches only the system that asked.
@@ -29,6 +30,7 @@ from btcap.team.messages import (
     CancelExecution,
     ConsensusClaim,
     ConsensusTasks,
+    DeparturesQuery,
     ExecutionInputs,
     Goodbye,
     Heartbeat,
@@ -46,7 +48,7 @@ from btcap.transports.message import Message
 
 __all__ = ["OBSERVER_SENDS", "OPERATOR_SENDS", "role_table"]
 
-OBSERVER_SENDS: frozenset[type[Message]] = frozenset({StatusQuery, ActivityQuery})
+OBSERVER_SENDS: frozenset[type[Message]] = frozenset({StatusQuery, ActivityQuery, DeparturesQuery})
 """An observer only asks."""
 
 OPERATOR_SENDS: frozenset[type[Message]] = OBSERVER_SENDS | {

@@ -20,6 +20,7 @@ from btcap.team.capabilities.capability import ASSIGNER
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.capabilities.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.team.ids import ExecutionId
+from btcap.team.membership.departures import DepartureLog
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.membership.roles import role_table
@@ -75,6 +76,8 @@ class Agent:
             busy=lambda: not self.mission_control.body.idle,
             activity=self._activity,
         )
+        #: Who failed or left lately (for ``btcap team status``).
+        self.departures = DepartureLog(self.team)
         self.repository = CapabilityRepository(robot, team=self.team)
         self.repository.extend(implementations)
         self.status_desk = StatusDesk(self.team, self.repository, self._activity)
@@ -104,6 +107,7 @@ class Agent:
         try:
             s = self.system
             s.spawn(self.team, Membership.PATH)
+            s.spawn(self.departures, DepartureLog.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
             s.spawn(self.status_desk, StatusDesk.PATH)
             s.spawn(self.allocator, self.allocator.PATH)

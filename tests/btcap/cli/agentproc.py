@@ -25,21 +25,38 @@ async def running_agent(
     config: Path, *flags: str, stderr: int = subprocess.DEVNULL
 ) -> AsyncIterator[anyio.abc.Process]:
     """``btcap agent CONFIG FLAGS`` once it says it listens; killed on exit if still up."""
-    proc = await anyio.open_process(
-        btcap("agent", str(config), *flags), stdout=subprocess.PIPE, stderr=stderr
-    )
+    async with listening_agent(config, *flags, stderr=stderr) as (proc, _):
+        yield proc
+
+
+@asynccontextmanager
+async def listening_agent(
+    config: Path, *flags: str, stderr: int = subprocess.DEVNULL, log_level: str = "warning"
+) -> AsyncIterator[tuple[anyio.abc.Process, str]]:
+    """:func:`running_agent`, with the endpoint it says it listens on (a port ``*`` in
+    its file becomes the one the system chose)."""
+    command = btcap("--log-level", log_level, "agent", str(config), *flags)
+    proc = await anyio.open_process(command, stdout=subprocess.PIPE, stderr=stderr)
     try:
         assert proc.stdout is not None
         said = b""
-        while b"listening" not in said:
+        while b"listening" not in said or not said.endswith(b"\n"):
             chunk = await proc.stdout.receive()
             said += chunk
-        yield proc
+        yield proc, said.decode().split(" listening on ")[1].split()[0]
     finally:
         with anyio.CancelScope(shield=True):
             if proc.returncode is None:
                 proc.kill()
             await proc.aclose()
+
+
+async def said_on_stderr(proc: anyio.abc.Process, text: str, so_far: bytes = b"") -> bytes:
+    """What ``proc`` wrote on stderr up to and including ``text`` (it must be piped)."""
+    assert proc.stderr is not None
+    while text.encode() not in so_far:
+        so_far += await proc.stderr.receive()
+    return so_far
 
 
 async def stop(proc: anyio.abc.Process, sig: signal.Signals) -> tuple[int, str]:

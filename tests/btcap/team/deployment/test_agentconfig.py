@@ -229,6 +229,41 @@ def test_a_keyless_bind_other_hosts_reach_is_refused_naming_the_field(tmp_path: 
     assert "insecure=True" not in message
 
 
+def test_key_mistakes_curve_would_refuse_name_the_field_in_the_files_words(
+    tmp_path: Path,
+) -> None:
+    """An unencrypted seed endpoint, a name (--as) or a seed without a key in the trusted
+    folder, the robot's own key different there: each names its field."""
+    keys = tmp_path / "keys"
+    keys.mkdir()
+    for robot in ("alpha", "beta"):
+        write_key_pair(keys, robot)
+    text = GOOD + "keys: {secret: keys/alpha.key_secret, trusted: keys}\n"
+
+    def refusal(text: str, **kwargs: str) -> str:
+        config = load_agent_file(_write(tmp_path, text))
+        with pytest.raises(AgentConfigError) as info:
+            config.transport(protocol_registry(), **kwargs)
+        return str(info.value)
+
+    said = refusal(text.replace("tcp://127.0.0.2:7102", "inproc://beta"))
+    assert "network.seeds[0].endpoint: 'inproc://beta': inproc:// is not encrypted" in said
+    said = refusal(text, robot="gamma")
+    assert "keys.trusted: " in said
+    assert "has no gamma.key, so teammates would refuse robot 'gamma' (--as)" in said
+    (keys / "beta.key").unlink()
+    said = refusal(text)
+    assert "network.seeds[0].robot: 'beta': " in said
+    assert "(keys.trusted) has no beta.key: we could not check it" in said
+    (tmp_path / "old").mkdir()
+    public, _ = write_key_pair(tmp_path / "old", "alpha")
+    public.replace(keys / "alpha.key")  # the folder holds a key alpha had before
+    said = refusal(text)
+    assert "keys.secret: " in said
+    assert "alpha.key_secret is not the key of robot 'alpha'" in said
+    assert "system" not in said  # the file's words (robot), not Python's (system id)
+
+
 def test_a_plugin_adds_implementations_actors_and_messages(tmp_path: Path) -> None:
     text = GOOD + (
         "plugin:\n"

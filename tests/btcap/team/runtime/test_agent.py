@@ -29,6 +29,9 @@ from btcap.team.messages import (
     ConsensusTasks,
     Contact,
     CostChanged,
+    Departed,
+    Departures,
+    DeparturesQuery,
     ExecutionInputs,
     ExecutionStatus,
     Goodbye,
@@ -96,6 +99,12 @@ SAMPLES: dict[type[Message], list[Message]] = {
     CancelExecution: [CancelExecution(E1), CancelExecution(E2, "reset")],
     KeepAlive: [KeepAlive("b", [E1, E2]), KeepAlive("b", [])],
     CostChanged: [CostChanged(E1, 12.5), CostChanged(E2, 0.0)],
+    DeparturesQuery: [DeparturesQuery()],
+    Departures: [
+        Departures("a", [Departed("b", 2**62, "failed", 1200, "no heartbeat for 1 s")]),
+        Departures("a", [Departed("c", 7, "left", 0)]),
+        Departures("a", []),
+    ],
     ConsensusTasks: [
         ConsensusTasks("a", 3, [OpenTask(E1, "Count", COUNT.identity, {"x": 3}, ["b", "c"])]),
         ConsensusTasks("a", 4, [OpenTask(E2, "Count", "", {}, [], E1, "b", 0.2)]),
