@@ -176,8 +176,10 @@ async def test_a_second_live_robot_is_refused_and_a_restarted_one_rejoins(
                         after = await _status(operator, "--wait", "3")
                         if after.returncode == 0 and "Greet" in after.stdout.decode():
                             break
-                rows = after.stdout.decode().splitlines()[2:]
+                members, _, departed = after.stdout.decode().partition("departed lately")
+                rows = members.splitlines()[2:]
                 assert sorted(r.split()[0] for r in rows) == ["alpha", "beta"]
+                assert "alpha" in departed  # its old life, killed, is listed as failed
             _, beta_err = await stop(beta_proc, signal.SIGTERM)
     taken = [line for line in beta_err.splitlines() if "name_taken" in line]
     assert len(taken) == 1, beta_err  # the team logs it once
