@@ -256,7 +256,8 @@ async def test_a_mission_survives_real_partitions_with_its_invariants(tmp_path: 
 async def _mission_under_partitions(lab: Lab, folder: Path) -> None:
     (folder / "keys").mkdir()
     for robot in [*ROBOTS, "operator"]:
-        assert main(["keys", "new", robot, "--dir", str(folder / "keys")]) == 0
+        role = "operator" if robot == "operator" else "robot"
+        assert main(["keys", "new", robot, "--role", role, "--dir", str(folder / "keys")]) == 0
     (folder / "work.yaml").write_text(INTERFACES)
     (folder / "mission.yaml").write_text(MISSION)
     configs = {r: write_config(lab, folder, r) for r in [*ROBOTS, "operator"]}
