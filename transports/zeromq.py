@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+from collections import OrderedDict
 from typing import Any
 
 import zmq
@@ -74,8 +75,12 @@ class ZmqTransport(Transport):
     wildcard address, pass ``advertise``: the endpoint sent in hellos. ``peers`` maps
     system ids to endpoints (more via :meth:`add_peer`); with ``accept_hello`` any system
     that says hello becomes a peer, up to ``max_peers``: one known only from its hello
-    makes room for a newcomer and is dropped after ``stranger_ttl_s`` unless it sent a
-    real message. A hello from a new endpoint (a restart elsewhere) reconnects there.
+    (a stranger) makes room for a newcomer and is dropped after ``stranger_ttl_s`` unless
+    it sent a real message; at most ``max_strangers`` are dialled at once (made-up ids
+    cost three descriptors each). A peer whose link dropped is a stranger again until it
+    speaks (a restart does at once; a departed peer is forgotten). A hello from a new
+    endpoint (a restart elsewhere) reconnects there. :meth:`forget` drops a peer the
+    layer above declared gone (failed, left).
     ``inproc://`` only reaches transports on the same zmq context. Use a transport from
     the thread running its event loop.
 
@@ -105,9 +110,14 @@ class ZmqTransport(Transport):
         insecure: bool = False,
         max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES,
         stranger_ttl_s: float = 30.0,
+        max_strangers: int = 64,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
         self._strangers = Strangers(stranger_ttl_s)
+        self.max_strangers = max_strangers
+        #: Peers forgotten (failed or left) -> their endpoint: one that speaks again
+        #: (a false failure) is dialled back; bounded, the oldest go first.
+        self._forgotten: OrderedDict[str, str] = OrderedDict()
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.max_message_bytes = max_message_bytes
         self.system_id = system_id
@@ -200,6 +210,24 @@ class ZmqTransport(Transport):
         self._known.pop(system_id.encode(), None)
         self._unlink(system_id)
 
+    def forget(self, system_id: str) -> None:
+        """A peer has gone (declared failed, or left): stop dialling it, close its sockets
+        and drop what is queued for it. A configured peer is dialled afresh (it may come
+        back without knowing us); any other is dialled back only if it speaks again."""
+        endpoint = self._endpoints.get(system_id)
+        if endpoint is None or self._closed:
+            return
+        if system_id in self._configured:
+            self._unlink(system_id)  # what was queued goes with the old DEALER
+            self._connect(system_id, endpoint)
+            return
+        self.remove_peer(system_id)
+        self._forgotten[system_id] = endpoint
+        self._forgotten.move_to_end(system_id)
+        while len(self._forgotten) > self.max_peers:
+            self._forgotten.popitem(last=False)
+        log.info("transport.peer_forgotten", system=self.system_id, peer=system_id)
+
     def _unlink(self, system_id: str) -> None:
         sock = self._dealers.pop(system_id, None)
         self._endpoints.pop(system_id, None)
@@ -285,6 +313,8 @@ class ZmqTransport(Transport):
                         frames = self._authenticated(router.recv_multipart(NOBLOCK, copy=False))
                     else:
                         frames = router.recv_multipart(NOBLOCK)
+                        if frames:  # the name its routing id claims (see open_dealer)
+                            frames[0] = frames[0].partition(b"/")[0]
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
@@ -318,9 +348,12 @@ class ZmqTransport(Transport):
 
     def _relink(self, monitor: Monitor) -> None:
         # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
-        if self._monitors.get(monitor.peer) is monitor and not self._closed:
-            log.info("transport.peer_relinked", system=self.system_id, peer=monitor.peer)
-            self._connect(monitor.peer, self._endpoints.pop(monitor.peer))
+        peer = monitor.peer
+        if self._monitors.get(peer) is monitor and not self._closed:
+            log.info("transport.peer_relinked", system=self.system_id, peer=peer)
+            self._connect(peer, self._endpoints.pop(peer))
+            if peer not in self._configured and peer not in self._strangers.since:
+                self._stranger(peer)  # gone for good unless it speaks again
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -337,6 +370,8 @@ class ZmqTransport(Transport):
         kind = body[0] if body else -1
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
+            if peer is None:
+                peer = self._recall(ident)
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
@@ -373,11 +408,31 @@ class ZmqTransport(Transport):
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
 
+    def _recall(self, ident: bytes) -> str | None:
+        """A forgotten peer speaks again (it was declared failed, falsely): dial it back."""
+        if not self._forgotten:
+            return None
+        try:
+            peer = ident.decode()
+        except UnicodeDecodeError:
+            return None
+        endpoint = self._forgotten.pop(peer, None)
+        if endpoint is None or not self._admit(peer, endpoint, True):
+            return None
+        self._strangers.vouched(peer)
+        return peer
+
     def introduce(self, system_id: str, endpoint: str) -> bool:
         """Dial a teammate others told us of, as a stranger until it speaks (see class)."""
         if check_id(system_id) is not None or not endpoint.startswith(SCHEMES):
             return False
-        return system_id not in self._endpoints and self._admit(system_id, endpoint, True)
+        if system_id in self._endpoints:
+            return False
+        if len(self._strangers.since) >= self.max_strangers:
+            # Hearsay is not dialled in bulk: the others wait until these have spoken.
+            self.stats.drop("too many strangers")
+            return False
+        return self._admit(system_id, endpoint, True)
 
     def endpoint_of(self, system_id: str) -> str | None:
         return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
@@ -393,6 +448,10 @@ class ZmqTransport(Transport):
             self.stats.unknown_peer += 1
             reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
             return False
+        if known is None and len(self._strangers.since) >= self.max_strangers:
+            stranger = self._strangers.oldest()  # made-up ids: the oldest makes room
+            if stranger is not None:
+                self.remove_peer(stranger)
         if known is None and len(self._dealers) >= self.max_peers:
             stranger = self._strangers.oldest()  # the longest silent one makes room
             if stranger is None:
@@ -406,13 +465,18 @@ class ZmqTransport(Transport):
         except (ValueError, RuntimeError) as exc:
             self._malformed("bad hello", ident, str(exc)[:200])
             return False
-        if known is None and self._loop is not None:
-            now = self._loop.time()
-            self._strangers.met(peer, now)
-            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
+        if known is None:
+            self._stranger(peer)
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         return True
+
+    def _stranger(self, peer: str) -> None:
+        """``peer`` is dropped after ``stranger_ttl_s`` unless it speaks meanwhile."""
+        if self._loop is not None:
+            now = self._loop.time()
+            self._strangers.met(peer, now)
+            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
 
     def _forget(self, peer: str, met: float) -> None:
         if self._strangers.since.get(peer) == met and not self._closed:

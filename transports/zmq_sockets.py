@@ -37,6 +37,7 @@ __all__ = [
     "open_dealer",
     "open_router",
     "parse_hello",
+    "peer_name",
     "reject",
 ]
 
@@ -96,12 +97,10 @@ def open_router(
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
     if curve is not None:
         curve.server(sock)
-    if curve is None:
-        # A peer that reconnects with the same id (after a network blip or a restart)
-        # takes over its old connection instead of being silently ignored. With keys
-        # every connection has a routing id of its own (see open_dealer) and the member
-        # is who ZAP admitted: handing over would let one member cut another's link.
-        sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+    # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
+    # own (see open_dealer), so a peer that reconnects never collides with its old link,
+    # and one that takes another's routing id (learnt, or guessed: without keys it is the
+    # name) gets a link of its own instead of cutting the real one off for good.
     name = f"inproc://zmq-transport-router-{uuid.uuid4().hex}"
     events = RouterEvents(sock, name, stats, system)
     try:
@@ -157,6 +156,12 @@ def write(
         stats.sent += 1
 
 
+def peer_name(ident: bytes) -> bytes:
+    """The system a keyless connection's routing id names: the part before its ``/``
+    (ids have none; a connection's suffix follows it)."""
+    return ident.partition(b"/")[0]
+
+
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
     """The peer id and endpoint a hello announces; ValueError says what is wrong."""
     try:
@@ -184,9 +189,10 @@ def open_dealer(
         raise ValueError(f"peer {peer}: cannot reach {endpoint!r} with keys (not encrypted)")
     sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
-    # Without keys the routing id names the sender; with keys ZAP does, and a fresh
-    # suffix per connection keeps a restart from colliding with its old, dead link.
-    routing_id = own_id if curve is None else own_id + b"/" + secrets.token_hex(6).encode()
+    # Our name and a fresh suffix per connection: a restart never collides with its old,
+    # dead link. With keys ZAP names the sender; without, the part before the "/" does
+    # (see :func:`peer_name`).
+    routing_id = own_id + b"/" + secrets.token_hex(6).encode()
     sock.setsockopt(zmq.ROUTING_ID, routing_id)
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
