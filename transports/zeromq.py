@@ -343,7 +343,7 @@ class ZmqTransport(Transport):
             self._loop.call_soon(self._on_events)
 
     def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._relink) and self._loop is not None:
+        if monitor.drain(_BATCH, self._relink, self._unreachable) and self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
 
     def _relink(self, monitor: Monitor) -> None:
@@ -354,6 +354,13 @@ class ZmqTransport(Transport):
             self._connect(peer, self._endpoints.pop(peer))
             if peer not in self._configured and peer not in self._strangers.since:
                 self._stranger(peer)  # gone for good unless it speaks again
+
+    def _unreachable(self, monitor: Monitor) -> None:
+        # Nobody listens where it said: a stranger again, forgotten unless it speaks.
+        peer = monitor.peer
+        if self._monitors.get(peer) is monitor and peer not in self._configured:
+            if peer not in self._strangers.since and not self._closed:
+                self._stranger(peer)
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)

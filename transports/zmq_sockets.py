@@ -212,7 +212,8 @@ def open_dealer(
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            events = sock.get_monitor_socket(zmq.EVENT_DISCONNECTED, addr=name)
+            watched = zmq.EVENT_DISCONNECTED | zmq.EVENT_CONNECT_RETRIED
+            events = sock.get_monitor_socket(watched, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
         else:
@@ -239,9 +240,15 @@ class Monitor:
         self.fd = fd_of(socket)
         self.closed = False
 
-    def drain(self, limit: int, dropped: Callable[[Monitor], None]) -> bool:
+    def drain(
+        self,
+        limit: int,
+        dropped: Callable[[Monitor], None],
+        retried: Callable[[Monitor], None] = lambda _m: None,
+    ) -> bool:
         """Read up to ``limit`` events, calling ``dropped`` when the link drops (the peer
-        may be restarting, and forget us); True if more wait."""
+        may be restarting, and forget us) and ``retried`` when a connection attempt
+        failed (nobody listens there now); True if more wait."""
         try:
             for _ in range(limit):
                 if self.closed or not self.socket.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
@@ -251,6 +258,8 @@ class Monitor:
                     event = int.from_bytes(frames[0][:2], sys.byteorder)
                     if event == _DISCONNECTED:
                         dropped(self)
+                    elif event == _RETRIED:
+                        retried(self)
         except zmq.ZMQError as exc:
             log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
             return False
@@ -268,6 +277,7 @@ _REFUSED = int(zmq.EVENT_HANDSHAKE_FAILED_AUTH)
 # instead of closing it, and the peer never retries.
 _FAILED = int(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
 _DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
+_RETRIED = int(zmq.EVENT_CONNECT_RETRIED)
 
 
 class RouterEvents:
