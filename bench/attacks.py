@@ -25,6 +25,7 @@ import zmq
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
+from btcap.bench.attacks_member import probe_members
 from btcap.bench.common import write_result
 from btcap.bench.hostile import (
     Ping,
@@ -45,6 +46,9 @@ from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.transports import ZmqTransport
 
 __all__ = ["Counts", "probe", "run"]
+
+#: More probes, each in a module of its own: ``async (quick) -> [(name, passed, figures)]``.
+MORE_PROBES = [probe_members]
 
 _TCP = "tcp://127.0.0.1:*"
 _DEAD = "tcp://127.0.0.1:9"  # discard port: where forged hellos say they live
@@ -331,6 +335,8 @@ def run(quick: bool = False) -> bool:
     """Run the probe, print a line per check, write ``attacks.json``; True if all passed."""
     t0 = time.perf_counter()
     checks = asyncio.run(probe(quick))
+    for more in MORE_PROBES:
+        checks += [Check(*c) for c in asyncio.run(more(quick))]
     for check in checks:
         print(_line(check), flush=True)
     passed = all(c.passed for c in checks)

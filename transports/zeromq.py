@@ -63,6 +63,9 @@ _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
+_UNREACHABLE_TRIES = 3
+"""Failed dials (libzmq retries every 100 ms) after which a stranger that never spoke is
+dropped: nobody listens where it said."""
 _JUNK_COST = 31
 """More of that turn a malformed message takes: refusing junk can cost more than delivering
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
@@ -118,6 +121,10 @@ class ZmqTransport(Transport):
         #: Peers forgotten (failed or left) -> their endpoint: one that speaks again
         #: (a false failure) is dialled back; bounded, the oldest go first.
         self._forgotten: OrderedDict[str, str] = OrderedDict()
+        #: Strangers again (their link dropped, or nobody answers where they said) that
+        #: had spoken before: given their time, and remembered when forgotten.
+        self._spoke: set[str] = set()
+        self._retried: dict[str, int] = {}  #: failed dials of each stranger
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.max_message_bytes = max_message_bytes
         self.system_id = system_id
@@ -207,6 +214,8 @@ class ZmqTransport(Transport):
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
         self._configured.discard(system_id)
         self._strangers.vouched(system_id)  # forgotten either way
+        self._spoke.discard(system_id)
+        self._retried.pop(system_id, None)
         self._known.pop(system_id.encode(), None)
         self._unlink(system_id)
 
@@ -353,14 +362,25 @@ class ZmqTransport(Transport):
             log.info("transport.peer_relinked", system=self.system_id, peer=peer)
             self._connect(peer, self._endpoints.pop(peer))
             if peer not in self._configured and peer not in self._strangers.since:
-                self._stranger(peer)  # gone for good unless it speaks again
+                self._lapsed(peer)  # gone for good unless it speaks again
 
     def _unreachable(self, monitor: Monitor) -> None:
-        # Nobody listens where it said: a stranger again, forgotten unless it speaks.
+        """Nobody listens where ``monitor``'s peer said: a stranger that never spoke is
+        dropped at once (made up, or gone); one that spoke is a stranger again, forgotten
+        unless it speaks."""
         peer = monitor.peer
-        if self._monitors.get(peer) is monitor and peer not in self._configured:
-            if peer not in self._strangers.since and not self._closed:
-                self._stranger(peer)
+        if self._monitors.get(peer) is not monitor or peer in self._configured or self._closed:
+            return
+        if peer not in self._strangers.since:
+            self._lapsed(peer)
+        elif peer not in self._spoke:
+            tries = self._retried[peer] = self._retried.get(peer, 0) + 1
+            if tries >= _UNREACHABLE_TRIES:
+                self.remove_peer(peer)
+
+    def _lapsed(self, peer: str) -> None:
+        self._spoke.add(peer)
+        self._stranger(peer)
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -487,7 +507,10 @@ class ZmqTransport(Transport):
 
     def _forget(self, peer: str, met: float) -> None:
         if self._strangers.since.get(peer) == met and not self._closed:
-            self.remove_peer(peer)  # it never said more than hello
+            if peer in self._spoke:
+                self.forget(peer)  # silent since its link dropped: dialled back if it speaks
+            else:
+                self.remove_peer(peer)  # it never said more than hello
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

@@ -31,3 +31,17 @@ def checks() -> dict[str, Check]:
 def test_attack_changes_nothing(checks: dict[str, Check], name: str) -> None:
     check = checks[name]
     assert check.passed, json.dumps(check.figures)
+
+
+@pytest.fixture(scope="module")
+def member_checks() -> dict[str, Check]:
+    from btcap.bench.attacks_member import probe_members
+
+    result = asyncio.run(asyncio.wait_for(probe_members(quick=True), timeout=60))
+    return {name: Check(name, passed, figures) for name, passed, figures in result}
+
+
+@pytest.mark.parametrize("name", ["award", "lease", "heartbeat_churn", "sybil"])
+def test_member_attack_is_bounded(member_checks: dict[str, Check], name: str) -> None:
+    check = member_checks[name]
+    assert check.passed, json.dumps(check.figures)
