@@ -65,6 +65,7 @@ class Transport(abc.ABC):
     def forget(self, system_id: str) -> None:
         """``system_id`` has gone (the layer above declared it failed or left): release
         what reaching it costs. Transports that hold nothing per peer need nothing."""
+        return None
 
     def endpoint_of(self, system_id: str) -> str | None:
         """Where ``system_id`` (or this system) can be reached, if this transport dials."""

@@ -23,7 +23,6 @@ from tests.transports.test_zeromq import (
     eventually,
     inbox,
     note_arrives,
-    registry,
     zmq_system,
 )
 
@@ -99,13 +98,15 @@ async def test_a_peer_declared_gone_is_forgotten_and_dialled_back_if_it_speaks()
 
 async def test_a_configured_peer_declared_gone_is_dialled_afresh() -> None:
     with anyio.fail_after(10):
-        async with zmq_system("b", TCP) as (_b, tb):
-            async with zmq_system("a", TCP, peers={"b": tb.endpoint}) as (a, ta):
-                before = ta.routing_id("b")
-                ta.forget("b")  # what was queued goes; the seed stays dialled
-                assert "b" in ta.peers()
-                assert ta.routing_id("b") != before
-                assert await a.ref(Address("b", "echo")).ask(Echo("x")) == Echoed("x", "b")
+        async with (
+            zmq_system("b", TCP) as (_b, tb),
+            zmq_system("a", TCP, peers={"b": tb.endpoint}) as (a, ta),
+        ):
+            before = ta.routing_id("b")
+            ta.forget("b")  # what was queued goes; the seed stays dialled
+            assert "b" in ta.peers()
+            assert ta.routing_id("b") != before
+            assert await a.ref(Address("b", "echo")).ask(Echo("x")) == Echoed("x", "b")
 
 
 async def test_departed_one_message_peers_do_not_keep_descriptors() -> None:
@@ -126,9 +127,7 @@ async def test_hearsay_is_not_dialled_in_bulk() -> None:
     with anyio.fail_after(10):
         async with zmq_system("a", TCP, max_strangers=8) as (_a, ta):
             base = open_fds()
-            introduced = [
-                ta.introduce(f"ghost-{n}", f"tcp://127.0.0.1:{9}") for n in range(200)
-            ]
+            introduced = [ta.introduce(f"ghost-{n}", f"tcp://127.0.0.1:{9}") for n in range(200)]
             assert sum(introduced) == 8
             assert len(ta.peers()) == 8
             assert ta.stats.by_reason["too many strangers"] == 192

@@ -2,12 +2,13 @@
 
 An award is taken only from the origin of its execution (who is also its auctioneer),
 only with a lease of at most ``max_lease_s`` and only while the body can take it (that
-this robot bid for it is :class:`~btcap.team.core.bounds.BidBook`'s to say). The origin renews a hosted run's lease with every
-input it sends and with keep-alives; when no word came for the award's ``lease_s`` times
-``lease_share`` the run is dropped — a little before the origin re-assigns it, so the two
-runs of a partitioned execution never overlap. Only the origin may tick, pause or cancel
-its run, and finished runs keep their final status for a while, so a late input is
-answered with the result rather than with "unknown".
+this robot bid for it is :class:`~btcap.team.core.bounds.BidBook`'s to say). The origin
+renews a hosted run's lease with every input it sends and with keep-alives; when no word
+came for the award's ``lease_s`` times ``lease_share`` the run is dropped — a little
+before the origin re-assigns it, so the two runs of a partitioned execution never
+overlap. Only the origin may tick, pause or cancel its run, and finished runs keep their
+final status for a while, so a late input is answered with the result rather than with
+"unknown".
 """
 
 from __future__ import annotations

@@ -235,9 +235,9 @@ class CapabilityRepository(Actor):
     @handler
     def on_query(self, msg: RepositoryQuery) -> None:
         sender = self.sender  # answered to who asked, whatever name the query carries
-        if sender != self.robot and sender in self._alive():
-            if self.queries.allow(sender, self.system.clock.now()):
-                self.system.ref(Address(sender, self.PATH)).tell(self.state())
+        member = sender != self.robot and sender in self._alive()
+        if member and self.queries.allow(sender, self.system.clock.now()):
+            self.system.ref(Address(sender, self.PATH)).tell(self.state())
 
     def _alive(self) -> frozenset[str]:
         return self._team.alive() if self._team is not None else frozenset()
