@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import asyncio
 import os
-from collections import OrderedDict
 from typing import Any
 
 import zmq
@@ -34,13 +33,13 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
+from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_sockets import (
     EVENTS,
     NOBLOCK,
     POLLIN,
     SCHEMES,
     Monitor,
-    Strangers,
     allow_sockets,
     check_id,
     check_transport_args,
@@ -63,27 +62,22 @@ _MSG_BYTE = _MSG[0]
 _HELLO_BYTE = _HELLO[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
-_UNREACHABLE_TRIES = 3
-"""Failed dials (libzmq retries every 100 ms) after which a stranger that never spoke is
-dropped: nobody listens where it said."""
 _JUNK_COST = 31
 """More of that turn a malformed message takes: refusing junk can cost more than delivering
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
 
 
-class ZmqTransport(Transport):
+class ZmqTransport(PeerFates, Transport):
     """Reach peers over ``inproc://``, ``ipc://`` or ``tcp://``.
 
     ``bind`` may use port ``*``; :attr:`endpoint` then tells the port chosen. Bound to a
     wildcard address, pass ``advertise``: the endpoint sent in hellos. ``peers`` maps
     system ids to endpoints (more via :meth:`add_peer`); with ``accept_hello`` any system
-    that says hello becomes a peer, up to ``max_peers``: one known only from its hello
-    (a stranger) makes room for a newcomer and is dropped after ``stranger_ttl_s`` unless
-    it sent a real message; at most ``max_strangers`` are dialled at once (made-up ids
-    cost three descriptors each). A peer whose link dropped is a stranger again until it
-    speaks (a restart does at once; a departed peer is forgotten). A hello from a new
-    endpoint (a restart elsewhere) reconnects there. :meth:`forget` drops a peer the
-    layer above declared gone (failed, left).
+    that says hello becomes a peer, up to ``max_peers``: a stranger (known only from its
+    hello, or again since its link dropped) makes room for a newcomer and is dropped
+    after ``stranger_ttl_s`` unless it speaks; at most ``max_strangers`` at once (see
+    :mod:`~btcap.transports.zmq_peers`). A hello from a new endpoint (a restart
+    elsewhere) reconnects there. :meth:`forget` drops a peer declared gone.
     ``inproc://`` only reaches transports on the same zmq context. Use a transport from
     the thread running its event loop.
 
@@ -116,15 +110,7 @@ class ZmqTransport(Transport):
         max_strangers: int = 64,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
-        self._strangers = Strangers(stranger_ttl_s)
-        self.max_strangers = max_strangers
-        #: Peers forgotten (failed or left) -> their endpoint: one that speaks again
-        #: (a false failure) is dialled back; bounded, the oldest go first.
-        self._forgotten: OrderedDict[str, str] = OrderedDict()
-        #: Strangers again (their link dropped, or nobody answers where they said) that
-        #: had spoken before: given their time, and remembered when forgotten.
-        self._spoke: set[str] = set()
-        self._retried: dict[str, int] = {}  #: failed dials of each stranger
+        self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.max_message_bytes = max_message_bytes
         self.system_id = system_id
@@ -213,29 +199,9 @@ class ZmqTransport(Transport):
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
         self._configured.discard(system_id)
-        self._strangers.vouched(system_id)  # forgotten either way
-        self._spoke.discard(system_id)
-        self._retried.pop(system_id, None)
+        self._strangers.dropped(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
         self._unlink(system_id)
-
-    def forget(self, system_id: str) -> None:
-        """A peer has gone (declared failed, or left): stop dialling it, close its sockets
-        and drop what is queued for it. A configured peer is dialled afresh (it may come
-        back without knowing us); any other is dialled back only if it speaks again."""
-        endpoint = self._endpoints.get(system_id)
-        if endpoint is None or self._closed:
-            return
-        if system_id in self._configured:
-            self._unlink(system_id)  # what was queued goes with the old DEALER
-            self._connect(system_id, endpoint)
-            return
-        self.remove_peer(system_id)
-        self._forgotten[system_id] = endpoint
-        self._forgotten.move_to_end(system_id)
-        while len(self._forgotten) > self.max_peers:
-            self._forgotten.popitem(last=False)
-        log.info("transport.peer_forgotten", system=self.system_id, peer=system_id)
 
     def _unlink(self, system_id: str) -> None:
         sock = self._dealers.pop(system_id, None)
@@ -361,26 +327,8 @@ class ZmqTransport(Transport):
         if self._monitors.get(peer) is monitor and not self._closed:
             log.info("transport.peer_relinked", system=self.system_id, peer=peer)
             self._connect(peer, self._endpoints.pop(peer))
-            if peer not in self._configured and peer not in self._strangers.since:
-                self._lapsed(peer)  # gone for good unless it speaks again
-
-    def _unreachable(self, monitor: Monitor) -> None:
-        """Nobody listens where ``monitor``'s peer said: a stranger that never spoke is
-        dropped at once (made up, or gone); one that spoke is a stranger again, forgotten
-        unless it speaks."""
-        peer = monitor.peer
-        if self._monitors.get(peer) is not monitor or peer in self._configured or self._closed:
-            return
-        if peer not in self._strangers.since:
-            self._lapsed(peer)
-        elif peer not in self._spoke:
-            tries = self._retried[peer] = self._retried.get(peer, 0) + 1
-            if tries >= _UNREACHABLE_TRIES:
-                self.remove_peer(peer)
-
-    def _lapsed(self, peer: str) -> None:
-        self._spoke.add(peer)
-        self._stranger(peer)
+            if peer not in self._configured:  # gone for good unless it speaks again
+                self._fate(peer, self._strangers.lapsed(peer))
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -435,32 +383,6 @@ class ZmqTransport(Transport):
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
 
-    def _recall(self, ident: bytes) -> str | None:
-        """A forgotten peer speaks again (it was declared failed, falsely): dial it back."""
-        if not self._forgotten:
-            return None
-        try:
-            peer = ident.decode()
-        except UnicodeDecodeError:
-            return None
-        endpoint = self._forgotten.pop(peer, None)
-        if endpoint is None or not self._admit(peer, endpoint, True):
-            return None
-        self._strangers.vouched(peer)
-        return peer
-
-    def introduce(self, system_id: str, endpoint: str) -> bool:
-        """Dial a teammate others told us of, as a stranger until it speaks (see class)."""
-        if check_id(system_id) is not None or not endpoint.startswith(SCHEMES):
-            return False
-        if system_id in self._endpoints:
-            return False
-        if len(self._strangers.since) >= self.max_strangers:
-            # Hearsay is not dialled in bulk: the others wait until these have spoken.
-            self.stats.drop("too many strangers")
-            return False
-        return self._admit(system_id, endpoint, True)
-
     def endpoint_of(self, system_id: str) -> str | None:
         return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
 
@@ -475,10 +397,8 @@ class ZmqTransport(Transport):
             self.stats.unknown_peer += 1
             reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
             return False
-        if known is None and len(self._strangers.since) >= self.max_strangers:
-            stranger = self._strangers.oldest()  # made-up ids: the oldest makes room
-            if stranger is not None:
-                self.remove_peer(stranger)
+        if known is None and self._strangers.full():
+            self.remove_peer(self._strangers.oldest() or peer)  # the oldest makes room
         if known is None and len(self._dealers) >= self.max_peers:
             stranger = self._strangers.oldest()  # the longest silent one makes room
             if stranger is None:
@@ -497,20 +417,6 @@ class ZmqTransport(Transport):
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         return True
-
-    def _stranger(self, peer: str) -> None:
-        """``peer`` is dropped after ``stranger_ttl_s`` unless it speaks meanwhile."""
-        if self._loop is not None:
-            now = self._loop.time()
-            self._strangers.met(peer, now)
-            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
-
-    def _forget(self, peer: str, met: float) -> None:
-        if self._strangers.since.get(peer) == met and not self._closed:
-            if peer in self._spoke:
-                self.forget(peer)  # silent since its link dropped: dialled back if it speaks
-            else:
-                self.remove_peer(peer)  # it never said more than hello
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

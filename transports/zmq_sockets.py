@@ -373,22 +373,3 @@ def check_transport_args(system_id: str, bind: str, advertise: str | None, max_b
         raise ValueError(f"advertise {advertise!r}: {why}")
     if max_bytes < 1024:
         raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
-
-
-class Strangers:
-    """Peers known only from their hello. Anybody can invent any number of them, so they
-    are the first to go when the peer table is full, and are forgotten after ``ttl``
-    seconds unless they sent a real message (a teammate's heartbeat does at once)."""
-
-    def __init__(self, ttl: float) -> None:
-        self.ttl = ttl
-        self.since: dict[str, float] = {}
-
-    def met(self, peer: str, now: float) -> None:
-        self.since[peer] = now
-
-    def vouched(self, peer: str) -> None:
-        self.since.pop(peer, None)
-
-    def oldest(self) -> str | None:
-        return min(self.since, key=self.since.__getitem__) if self.since else None
