@@ -24,10 +24,14 @@ def _award(auction: AuctionId, number: int, lease_s: float) -> Award:
     return Award(auction, execution, "Count", "count-b", {"x": 1}, lease_s)
 
 
-async def test_an_award_no_auction_preceded_is_declined_and_the_robot_stays_free() -> None:
+@pytest.mark.parametrize("strategy", ["auction", "consensus"])
+async def test_an_award_no_auction_preceded_is_declined_and_the_robot_stays_free(
+    strategy: str,
+) -> None:
+    """Whatever the strategy: b bid in no auction of x's and claimed none of its tasks."""
     with anyio.fail_after(10):
         probe = Probe()
-        async with team() as t:
+        async with team(strategy=strategy) as t:
             a = await t.add("a")
             b = await t.add("b", [count_impl("b", 1.0, probe)])
             x = await t.add("x")
