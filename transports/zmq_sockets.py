@@ -37,7 +37,6 @@ __all__ = [
     "open_dealer",
     "open_router",
     "parse_hello",
-    "peer_name",
     "reject",
 ]
 
@@ -156,12 +155,6 @@ def write(
         stats.sent += 1
 
 
-def peer_name(ident: bytes) -> bytes:
-    """The system a keyless connection's routing id names: the part before its ``/``
-    (ids have none; a connection's suffix follows it)."""
-    return ident.partition(b"/")[0]
-
-
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
     """The peer id and endpoint a hello announces; ValueError says what is wrong."""
     try:
@@ -191,7 +184,7 @@ def open_dealer(
     sock.setsockopt(zmq.LINGER, 0)
     # Our name and a fresh suffix per connection: a restart never collides with its old,
     # dead link. With keys ZAP names the sender; without, the part before the "/" does
-    # (see :func:`peer_name`).
+    # (ids have no "/").
     routing_id = own_id + b"/" + secrets.token_hex(6).encode()
     sock.setsockopt(zmq.ROUTING_ID, routing_id)
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
