@@ -9,6 +9,7 @@ from btcap.actors.errors import (
     AskTimeout,
     DeadLetter,
     MailboxFull,
+    Refused,
     SystemClosed,
 )
 from btcap.actors.log import configure_logging
@@ -32,6 +33,7 @@ __all__ = [
     "MailboxFull",
     "ManualClock",
     "Message",
+    "Refused",
     "Reply",
     "Service",
     "Services",

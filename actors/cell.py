@@ -30,6 +30,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 Reply = Callable[[Any, BaseException | None], None]
 
 _HANDLER_ATTR = "__actor_handles__"
+_LOCAL_ONLY_ATTR = "__actor_local_only__"
 
 
 class Supervision(enum.Enum):
@@ -49,32 +50,38 @@ class Supervision(enum.Enum):
 @overload
 def handler(fn: F, /) -> F: ...
 @overload
-def handler(*types: type[Any]) -> Callable[[F], F]: ...
-def handler(*args: Any) -> Any:
+def handler(*types: type[Any], local_only: bool = False) -> Callable[[F], F]: ...
+def handler(*args: Any, local_only: bool = False) -> Any:
     """Mark a method as the handler of a message type.
 
     Use bare (the type is read from the annotation of the message parameter) or with the
     types it handles: ``@handler(Ping, Pong)``. Handlers may be sync or async; what they
     return is the reply to an ask.
+
+    ``local_only=True`` takes the message only from inside the actor's own system (its
+    actors, tasks and callers); the same message from a transport is refused, counted in
+    ``SystemStats.refused`` and answered with :class:`~btcap.actors.errors.Refused`,
+    whatever sender it names. For actions no peer has a right to (a BT node's tick).
     """
-    if len(args) == 1 and inspect.isfunction(args[0]):
-        fn = args[0]
-        setattr(fn, _HANDLER_ATTR, ())
-        return fn
+    bare = len(args) == 1 and inspect.isfunction(args[0])
+    types = () if bare else args
 
     def mark(fn: F) -> F:
-        setattr(fn, _HANDLER_ATTR, args)
+        setattr(fn, _HANDLER_ATTR, types)
+        if local_only:
+            setattr(fn, _LOCAL_ONLY_ATTR, True)
         return fn
 
-    return mark
+    return mark(args[0]) if bare else mark
 
 
 class _Handler:
-    __slots__ = ("fn", "is_async")
+    __slots__ = ("fn", "is_async", "local_only")
 
     def __init__(self, fn: Callable[..., Any]) -> None:
         self.fn = fn
         self.is_async = inspect.iscoroutinefunction(fn)
+        self.local_only: bool = getattr(fn, _LOCAL_ONLY_ATTR, False)
 
 
 def _collect_handlers(cls: type[ActorCell]) -> dict[type[Any], _Handler]:

@@ -10,6 +10,7 @@ __all__ = [
     "AskTimeout",
     "DeadLetter",
     "MailboxFull",
+    "Refused",
     "SystemClosed",
 ]
 
@@ -38,6 +39,11 @@ class DeadLetter(ActorError):
 
 class MailboxFull(ActorError):
     """The recipient's bounded mailbox is full."""
+
+
+class Refused(ActorError):
+    """The recipient takes this message only from inside its own actor system (a
+    ``local_only`` handler, such as a BT node's actions), and it came from a transport."""
 
 
 class SystemClosed(ActorError):

@@ -18,6 +18,7 @@ from btcap.actors.cell import ActorCell, Reply
 from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
+from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
 from btcap.actors.timers import Expired, arm_timer, relay_reply
 from btcap.transports.base import BROADCAST, Transport
@@ -46,12 +47,14 @@ def runtime_messages() -> MessageRegistry:
 
 @dataclass(slots=True)
 class SystemStats:
-    """Counters of what could not be delivered, by reason."""
+    """Counters of what could not be delivered, by reason; ``refused``: local-only mail
+    that came from a transport, by message kind (e.g. "Tick")."""
 
     dead_letters: int = 0
     escalations: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
     failures: dict[str, int] = field(default_factory=dict)  # "Actor: Message: Error" -> count
+    refused: dict[str, int] = field(default_factory=dict)
 
 
 class ActorSystem:
@@ -96,6 +99,7 @@ class ActorSystem:
         self._closing = False
         self._failure: tuple[Address, BaseException] | None = None
         self._log = log.bind(system=self.id)
+        self._refusals = Refusals(self.id, self._log)
 
     # -- lifecycle --------------------------------------------------------------------
     async def __aenter__(self) -> ActorSystem:
@@ -379,6 +383,10 @@ class ActorSystem:
             if kind is Kind.ASK:
                 gone = DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
                 self._reply_remote(env, None, gone)
+            return
+        h = actor._handler_for(type(env.msg))
+        if h is not None and h.local_only:  # whatever sender it names: it came from outside
+            self._refusals.refuse(env, self.stats.refused, self._reply_remote)
             return
         reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
         actor._receive(env.msg, reply, env.sender.system)

@@ -26,6 +26,8 @@ import zmq
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
 from btcap.bench.attacks_member import probe_members
+from btcap.bench.attacks_nodes import probe as node_actions
+from btcap.bench.attacks_roles import probe_roles
 from btcap.bench.common import write_result
 from btcap.bench.hostile import (
     Ping,
@@ -47,9 +49,6 @@ from btcap.transports import ZmqTransport
 
 __all__ = ["Counts", "probe", "run"]
 
-#: More probes, each in a module of its own: ``async (quick) -> [(name, passed, figures)]``.
-MORE_PROBES = [probe_members]
-
 _TCP = "tcp://127.0.0.1:*"
 _DEAD = "tcp://127.0.0.1:9"  # discard port: where forged hellos say they live
 ATTACKER = "mallory"
@@ -64,6 +63,12 @@ TICK_S = 0.01
 #: figures can pause it for a good part of a second in a big process (the test suite):
 #: a failure timeout and lease of a few seconds keep that pause from passing for an attack.
 TEAM_CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, keepalive_s=0.5)
+#: Probes of their own modules, each with its own team: ``(name, passed, figures)`` each.
+MORE_PROBES = [
+    node_actions,
+    probe_roles,
+    probe_members,
+]
 
 
 class _Echo(Actor):
@@ -320,6 +325,8 @@ async def probe(quick: bool) -> list[Check]:
             and health.ask_errors == 0
         )
         checks.append(Check("mission", ok, mission))
+    for more in MORE_PROBES:
+        checks += [Check(name, passed, figures) for name, passed, figures in await more(quick)]
     return checks
 
 
@@ -335,8 +342,6 @@ def run(quick: bool = False) -> bool:
     """Run the probe, print a line per check, write ``attacks.json``; True if all passed."""
     t0 = time.perf_counter()
     checks = asyncio.run(probe(quick))
-    for more in MORE_PROBES:
-        checks += [Check(*c) for c in asyncio.run(more(quick))]
     for check in checks:
         print(_line(check), flush=True)
     passed = all(c.passed for c in checks)

@@ -115,7 +115,8 @@ def test_yaml_block_loads(block: Block, tmp_path: Path, monkeypatch: pytest.Monk
     keys = tmp_path / "keys"
     keys.mkdir()
     monkeypatch.setenv("BTCAP_KEYS", str(keys))
-    assert btcap.cli.main(["keys", "new", data["robot"], "--dir", str(keys)]) == 0
+    argv = ["keys", "new", data["robot"], "--role", "robot", "--dir", str(keys)]
+    assert btcap.cli.main(argv) == 0
     path = tmp_path / "team" / "robot.yaml"
     path.parent.mkdir()
     path.write_text(block.code, encoding="utf-8")

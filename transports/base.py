@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from anyio.abc import TaskStatus
 
 from btcap.transports.codec import Envelope
+from btcap.transports.message import Message
 
 __all__ = ["BROADCAST", "Deliver", "Transport", "TransportStats"]
 
@@ -65,6 +66,15 @@ class Transport(abc.ABC):
     def forget(self, system_id: str) -> None:
         """``system_id`` has gone (the layer above declared it failed or left): release
         what reaching it costs. Transports that hold nothing per peer need nothing."""
+        return None
+
+    def limit(self, table: Mapping[str, frozenset[type[Message]] | None] | None) -> None:
+        """What each authenticated role may send (role -> message types, None: any).
+        Transports that authenticate no roles (in-process) ignore it."""
+        del table
+
+    def role_of(self, peer: str) -> str | None:
+        """A peer's authenticated role, None where roles are not known (no keys)."""
         return None
 
     def endpoint_of(self, system_id: str) -> str | None:

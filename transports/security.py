@@ -2,10 +2,12 @@
 
 Keys live in ZeroMQ's certificate files (``zmq.auth.create_certificates``): a robot keeps
 its secret certificate ``NAME.key_secret``; the team shares a directory of public
-certificates ``NAME.key``, one per member, and the file name is the member's name. A peer
-is who its key says: pyzmq's asyncio authenticator admits only keys on the allow-list and
-stamps every message from that connection with the member's name as its ``User-Id``,
-which the transport compares with what the message claims.
+certificates ``NAME.key``, one per member, and the file name is the member's name; its
+metadata holds the member's role (:mod:`~btcap.transports.identity`). A peer is who its
+key says: pyzmq's asyncio authenticator admits only keys on the allow-list and stamps
+every message from that connection with the member's name as its ``User-Id``, which the
+transport compares with what the message claims (the member itself, or an observer
+speaking for it: ``NAME+TAG``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,16 @@ import zmq
 import zmq.auth
 from zmq.auth.asyncio import AsyncioAuthenticator
 from zmq.utils import z85
+
+from btcap.transports.identity import (
+    OBSERVER,
+    ROBOT,
+    check_member_name,
+    check_role,
+    is_observer_id,
+    member_of,
+    read_role,
+)
 
 __all__ = [
     "DEFAULT_MAX_MESSAGE_BYTES",
@@ -75,12 +87,18 @@ class KeyPair:
         return cls(_check_key(public, str(path)), _check_key(secret, str(path)))
 
 
-def write_key_pair(directory: str | os.PathLike[str], name: str) -> tuple[Path, Path]:
+def write_key_pair(
+    directory: str | os.PathLike[str], name: str, role: str = ROBOT
+) -> tuple[Path, Path]:
     """Write ``NAME.key`` (public, for the team's directory) and ``NAME.key_secret``
-    (readable by its owner only) with ``zmq.auth.create_certificates``; never overwrite."""
+    (readable by its owner only) with ``zmq.auth.create_certificates``, the ``role`` in
+    their metadata; never overwrite."""
     folder = Path(directory)
     if not name or name != Path(name).name or name.startswith(".") or "/" in name:
         raise ValueError(f"key name {name!r}: expected a plain robot name")
+    if (why := check_member_name(name)) is not None:
+        raise ValueError(f"key name {name!r}: {why}")
+    check_role(role, f"key {name!r}")
     if not folder.is_dir():
         raise ValueError(f"{folder}: no such directory")
     public, secret = folder / f"{name}.key", folder / f"{name}.key_secret"
@@ -89,8 +107,10 @@ def write_key_pair(directory: str | os.PathLike[str], name: str) -> tuple[Path, 
             raise ValueError(f"{path}: already exists (not overwritten)")
     done: list[Path] = []
     with tempfile.TemporaryDirectory(dir=folder, prefix=".btcap-keys-") as tmp:
-        made = zmq.auth.create_certificates(tmp, name, metadata={"name": name})
+        made = zmq.auth.create_certificates(tmp, name)
         os.chmod(made[1], 0o600)
+        for cert in made:  # pyzmq puts metadata in the secret file only
+            _add_metadata(Path(cert), {"name": name, "role": role})
         try:
             for src, dst in zip(made, (public, secret), strict=True):
                 os.link(src, dst)  # unlike a rename, fails if dst appeared meanwhile
@@ -100,6 +120,13 @@ def write_key_pair(directory: str | os.PathLike[str], name: str) -> tuple[Path, 
                 path.unlink()
             raise ValueError(f"{exc.filename}: already exists (not overwritten)") from None
     return public, secret
+
+
+def _add_metadata(path: Path, values: Mapping[str, str]) -> None:
+    """Fill the certificate's ``metadata`` section (ZeroMQ's ZPL format, quoted values)."""
+    lines = "".join(f'    {key} = "{value}"\n' for key, value in values.items())
+    text = path.read_text(encoding="utf-8")
+    path.write_text(text.replace("\nmetadata\n", f"\nmetadata\n{lines}", 1), encoding="utf-8")
 
 
 def _load(path: Path) -> tuple[bytes, bytes | None]:
@@ -112,37 +139,60 @@ def _load(path: Path) -> tuple[bytes, bytes | None]:
 
 
 class TeamKeys:
-    """The allow-list: member name -> public key. Only these may talk to a secure transport."""
+    """The allow-list: member name -> public key and role. Only these may talk to a secure
+    transport. ``roles`` maps names to :data:`~btcap.transports.identity.ROLES`; a member
+    it leaves out is a robot (files always say: see :meth:`load`)."""
 
-    __slots__ = ("_by_key", "_by_name")
+    __slots__ = ("_by_key", "_by_name", "_roles")
 
-    def __init__(self, members: Mapping[str, bytes]) -> None:
+    def __init__(
+        self, members: Mapping[str, bytes], roles: Mapping[str, str] | None = None
+    ) -> None:
         self._by_name: dict[str, bytes] = {}
         self._by_key: dict[bytes, str] = {}
+        self._roles: dict[str, str] = {}
         for name, key in members.items():
             _check_key(key, f"member {name!r}")
+            if (why := check_member_name(name)) is not None:
+                raise ValueError(f"member {name!r}: {why}")
             other = self._by_key.get(key)
             if other is not None:
                 raise ValueError(f"members {other!r} and {name!r} have the same public key")
             self._by_name[name] = key
             self._by_key[key] = name
+            self._roles[name] = check_role((roles or {}).get(name, ROBOT), f"member {name!r}")
+        for name in roles or {}:
+            if name not in self._by_name:
+                raise ValueError(f"role given for {name!r}, which has no key")
 
     @classmethod
     def load(cls, directory: str | os.PathLike[str]) -> TeamKeys:
-        """Every ``NAME.key`` public certificate in ``directory`` (names from file names)."""
+        """Every ``NAME.key`` public certificate in ``directory`` (names from file names,
+        roles from their metadata: one without is an error naming it)."""
         folder = Path(directory)
         if not folder.is_dir():
             raise ValueError(f"{folder}: no such directory of public certificates")
-        members = {p.stem: _load(p)[0] for p in sorted(folder.glob("*.key")) if p.is_file()}
+        files = [p for p in sorted(folder.glob("*.key")) if p.is_file()]
+        members = {p.stem: _load(p)[0] for p in files}
         if not members:
             raise ValueError(f"{folder}: holds no public certificates (NAME.key files)")
         try:
-            return cls(members)
+            roles = {p.stem: read_role(p) for p in files}
+        except OSError as exc:
+            raise ValueError(f"{folder}: cannot read ({exc})") from None
+        try:
+            return cls(members, roles)
         except ValueError as exc:
             raise ValueError(f"{folder}: {exc}") from None
 
     def key_of(self, name: str) -> bytes | None:
         return self._by_name.get(name)
+
+    def role_of(self, system_id: str) -> str | None:
+        """A peer's role: its member's, ``observer`` for an observer speaking for a
+        member, None for a stranger."""
+        role = self._roles.get(member_of(system_id))
+        return OBSERVER if role is not None and is_observer_id(system_id) else role
 
     def name_of(self, key: bytes) -> str | None:
         """The member holding ``key`` (z85-encoded), or None for a stranger."""
@@ -189,10 +239,11 @@ class Curve:
     __slots__ = ("_auth", "keys", "team")
 
     def __init__(self, system_id: str, keys: KeyPair, team: TeamKeys) -> None:
-        if team.key_of(system_id) != keys.public:
+        member = member_of(system_id)  # an observer uses its member's key
+        if team.key_of(member) != keys.public:
             raise ValueError(
                 f"system {system_id!r}: its public key is not the team's certificate "
-                f"{system_id}.key (peers would refuse it): check the keys and the system id"
+                f"{member}.key (peers would refuse it): check the keys and the system id"
             )
         self.keys = keys
         self.team = team
@@ -209,7 +260,7 @@ class Curve:
 
     def client(self, sock: zmq.Socket[bytes], peer: str) -> None:
         """Make ``sock`` talk to ``peer`` only if the server holds that member's key."""
-        server_key = self.team.key_of(peer)
+        server_key = self.team.key_of(member_of(peer))
         if server_key is None:
             raise ValueError(f"peer {peer!r} has no public key in the team's certificates")
         sock.setsockopt(zmq.CURVE_SERVERKEY, server_key)
@@ -241,8 +292,9 @@ def authenticated(frames: list[zmq.Frame]) -> tuple[bytes, str]:
     """Who sent a received message, and what is wrong with it ("" if nothing).
 
     The ``User-Id`` is the member ZAP authenticated; the routing id is the sender's
-    choice (its name, a ``/`` and a per-connection suffix), only checked for a lie.
-    On a problem the routing id is returned, for the log.
+    choice (its name, a ``/`` and a per-connection suffix), only checked for a lie. An
+    observer speaking for that member (``NAME+TAG``) is itself. On a problem the routing
+    id is returned, for the log.
     """
     ident = frames[0].bytes
     try:
@@ -251,6 +303,8 @@ def authenticated(frames: list[zmq.Frame]) -> tuple[bytes, str]:
         return ident, "unauthenticated"
     if ident == user or ident.startswith(user + b"/"):
         return user, ""
+    if ident.startswith(user + b"+"):  # member names hold no '+' (TeamKeys checks)
+        return ident.partition(b"/")[0], ""
     return ident, "identity mismatch"
 
 

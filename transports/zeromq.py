@@ -34,6 +34,7 @@ from btcap.transports.security import (
     curve_for,
 )
 from btcap.transports.zmq_peers import PeerBook, PeerFates
+from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     EVENTS,
     NOBLOCK,
@@ -67,7 +68,7 @@ _JUNK_COST = 31
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
 
 
-class ZmqTransport(PeerFates, Transport):
+class ZmqTransport(PeerFates, PeerRules, Transport):
     """Reach peers over ``inproc://``, ``ipc://`` or ``tcp://``.
 
     ``bind`` may use port ``*``; :attr:`endpoint` then tells the port chosen. Bound to a
@@ -88,7 +89,7 @@ class ZmqTransport(PeerFates, Transport):
     and only a member's hello opens a connection back (a ZAP handler in a zmq context of
     its own; ``inproc://`` is refused). Without keys it binds loopback/ipc/inproc only
     unless ``insecure=True``. ``max_message_bytes`` bounds a frame: libzmq cuts off a
-    connection that sends a bigger one (see :attr:`disconnects`).
+    connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
     """
 
     def __init__(
@@ -144,6 +145,7 @@ class ZmqTransport(PeerFates, Transport):
         self._known: dict[bytes, str] = {}
         self._monitors: dict[str, Monitor] = {}
         self.hellos = 0
+        self._init_rules()
         self._deliver: Deliver | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopped: asyncio.Future[None] | None = None
@@ -159,9 +161,6 @@ class ZmqTransport(PeerFates, Transport):
     def disconnects(self) -> int:
         """Inbound connections closed: by peers, or by libzmq for an oversized frame."""
         return self._events.disconnects
-
-    def __repr__(self) -> str:
-        return f"ZmqTransport({self.system_id!r}, {self.endpoint!r}, peers={len(self._dealers)})"
 
     # -- peers ------------------------------------------------------------------------
     def add_peer(self, system_id: str, endpoint: str) -> None:
@@ -183,8 +182,9 @@ class ZmqTransport(PeerFates, Transport):
         self._dealers[system_id] = sock
         self._endpoints[system_id] = endpoint
         self._known[system_id.encode()] = system_id
+        self._classify(system_id)
         # The first hello waits in the DEALER's queue until the connection is up.
-        self._write(system_id, sock, _HELLO, self.endpoint.encode())
+        self._write(system_id, sock, _HELLO, self._hello())
         if monitor is not None:
             self._monitors[system_id] = monitor
             if self._loop is not None:
@@ -198,6 +198,7 @@ class ZmqTransport(PeerFates, Transport):
 
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
+        self._unclassify(system_id)
         self._configured.discard(system_id)
         self._strangers.dropped(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
@@ -214,23 +215,14 @@ class ZmqTransport(PeerFates, Transport):
         if sock is not None:
             sock.close(0)
 
-    def peers(self) -> frozenset[str]:
-        return frozenset(self._dealers)
-
-    def peer_endpoints(self) -> dict[str, str]:
-        return dict(self._endpoints)
-
-    def routing_id(self, peer: str) -> bytes:
-        """What our link to ``peer`` is called there: our id (with keys, plus a suffix)."""
-        return bytes(self._dealers[peer].getsockopt(zmq.ROUTING_ID))
-
     # -- sending ----------------------------------------------------------------------
     def send(self, env: Envelope) -> None:
         data = self.codec.encode(env)
         target = env.recipient.system
         if target == BROADCAST:
             for sid, sock in list(self._dealers.items()):
-                self._write(sid, sock, _MSG, data)
+                if sid not in self._observers:  # they ask; team news is not for them
+                    self._write(sid, sock, _MSG, data)
             return
         dealer = self._dealers.get(target)
         if dealer is None:
@@ -272,6 +264,7 @@ class ZmqTransport(PeerFates, Transport):
             await self._stopped
         finally:
             self.close()
+        self._raise_if_refused()
 
     def _on_readable(self) -> None:
         deliver = self._deliver
@@ -335,6 +328,8 @@ class ZmqTransport(PeerFates, Transport):
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return []
+        if self._blocked(frames[0].bytes, member):
+            return []
         return [member, *(f.bytes for f in frames[1:])]
 
     def _handle(self, frames: list[bytes], deliver: Deliver) -> None:
@@ -366,6 +361,8 @@ class ZmqTransport(PeerFates, Transport):
             self.stats.received += 1
             if self._strangers.since:
                 self._strangers.vouched(peer)
+            if self._limited and peer in self._limited and self._screen(peer, env):
+                return
             try:
                 deliver(env)
             except Exception as exc:  # a bug above us must not stop the receive loop
@@ -373,24 +370,26 @@ class ZmqTransport(PeerFates, Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
         elif kind == _HELLO_BYTE:
+            where, instance = split_hello(body[1:])
             try:
-                peer, endpoint = parse_hello(ident, body[1:], self.system_id)
+                peer, endpoint = parse_hello(ident, where, self.system_id)
             except ValueError as exc:
                 self._malformed("bad hello", ident, str(exc))
                 return
-            if self._admit(peer, endpoint, self.accept_hello):
+            if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
+        elif kind == REFUSAL:
+            self._refused_by(ident, body[1:])
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
 
-    def endpoint_of(self, system_id: str) -> str | None:
-        return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
-
-    def _admit(self, peer: str, endpoint: str, accept: bool) -> bool:
+    def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).
         Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
         ident = peer.encode()
         known = self._endpoints.get(peer)
+        if self._second(peer, endpoint, known, instance):
+            return False
         if known == endpoint or peer in self._configured:
             return True
         if known is None and not accept:
@@ -442,6 +441,7 @@ class ZmqTransport(PeerFates, Transport):
         stopped, self._stopped = self._stopped, None
         if stopped is not None and not stopped.done():
             stopped.set_result(None)
+        self._stop_rules()
         self._router.close(0)
         remove_ipc_file(self.bound_endpoint)
         if self.curve is not None:

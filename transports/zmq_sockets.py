@@ -13,6 +13,7 @@ import contextlib
 import os
 import secrets
 import sys
+import time
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -205,8 +206,7 @@ def open_dealer(
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            watched = zmq.EVENT_DISCONNECTED | zmq.EVENT_CONNECT_RETRIED
-            events = sock.get_monitor_socket(watched, addr=name)
+            events = sock.get_monitor_socket(_DISCONNECTED | _UP | _RETRIED, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
         else:
@@ -224,7 +224,7 @@ def open_dealer(
 class Monitor:
     """Connection events of one DEALER, read from its zmq monitor socket."""
 
-    __slots__ = ("closed", "dealer", "fd", "peer", "socket")
+    __slots__ = ("closed", "dealer", "fd", "peer", "socket", "up_since")
 
     def __init__(self, peer: str, dealer: zmq.Socket[bytes], socket: zmq.Socket[bytes]) -> None:
         self.peer = peer
@@ -232,6 +232,8 @@ class Monitor:
         self.socket = socket
         self.fd = fd_of(socket)
         self.closed = False
+        #: When the link's handshake last succeeded (wall time), None while it is down.
+        self.up_since: float | None = None
 
     def drain(
         self,
@@ -249,7 +251,10 @@ class Monitor:
                 frames = self.socket.recv_multipart(NOBLOCK)
                 if len(frames) == 2 and len(frames[0]) == 6:
                     event = int.from_bytes(frames[0][:2], sys.byteorder)
-                    if event == _DISCONNECTED:
+                    if event == _UP:
+                        self.up_since = time.time()
+                    elif event == _DISCONNECTED:
+                        self.up_since = None
                         dropped(self)
                     elif event == _RETRIED:
                         retried(self)
@@ -270,6 +275,7 @@ _REFUSED = int(zmq.EVENT_HANDSHAKE_FAILED_AUTH)
 # instead of closing it, and the peer never retries.
 _FAILED = int(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
 _DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
+_UP = int(zmq.EVENT_HANDSHAKE_SUCCEEDED)  # the link is up: the peer at its end lives
 _RETRIED = int(zmq.EVENT_CONNECT_RETRIED)
 
 

@@ -1,4 +1,9 @@
-"""The node actions as typed messages, so a node can be driven from another process."""
+"""The node actions as typed messages, so a node can be driven by another actor.
+
+Nodes take them only from inside their own actor system: across a transport they are
+refused (a remote run is driven through its handle, never node by node). They are in the
+protocol registry so a refusal and its reason reach the sender.
+"""
 
 from __future__ import annotations
 

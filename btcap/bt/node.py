@@ -2,7 +2,8 @@
 
 Ticking a local tree is a chain of plain method calls (the actor runtime's fast path);
 the same actions are also messages (:mod:`btcap.bt.messages`) so a node can be driven from
-another actor or another process.
+another actor of its system. They are ``local_only``: from another process or robot they
+are refused (:class:`~btcap.actors.errors.Refused`), whatever sender they name.
 """
 
 from __future__ import annotations
@@ -391,32 +392,35 @@ class Node(Actor):
         return Utility()
 
     # -- actor protocol ---------------------------------------------------------------
+    # The node actions as messages, from this robot's own actors only: a peer drives a
+    # run it owns through the run's handle (mission control's execution messages,
+    # checked against the run's origin), never by addressing nodes.
     def status(self) -> NodeStatus:
         return NodeStatus(self.state, dict(self.outputs))
 
-    @handler
+    @handler(local_only=True)
     def _on_setup_msg(self, msg: Setup) -> NodeStatus:
         self.setup()
         return self.status()
 
-    @handler
+    @handler(local_only=True)
     def _on_tick_msg(self, msg: Tick) -> NodeStatus:
         for key, value in msg.inputs.items():
             self.set_input(key, value)
         self.tick()
         return self.status()
 
-    @handler
+    @handler(local_only=True)
     def _on_untick_msg(self, msg: Untick) -> NodeStatus:
         self.untick()
         return self.status()
 
-    @handler
+    @handler(local_only=True)
     def _on_reset_msg(self, msg: Reset) -> NodeStatus:
         self.reset()
         return self.status()
 
-    @handler
+    @handler(local_only=True)
     def _on_shutdown_msg(self, msg: Shutdown) -> NodeStatus:
         self.shutdown()
         return self.status()

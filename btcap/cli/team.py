@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import os
 import signal
 import sys
 from collections.abc import Awaitable, Callable
@@ -59,7 +58,12 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     team_cmds = team.add_subparsers(dest="team_command", metavar="SUBCOMMAND")
     p = team_cmds.add_parser(
         "status",
-        help="join briefly and print the members, their capabilities and heartbeats",
+        help="ask the team (without joining it) for its members, capabilities and runs",
+        description="Ask the seeds, then every member they name, how they see the team; "
+        "print the members, what each offers and runs, and how fresh its heartbeat is. "
+        "It observes as CONFIG's robot plus a tag (e.g. operator+status-1a2b3c), with "
+        "that robot's key: it never joins, so it can run beside that robot's agent or "
+        "mission. Exit status 1 if a seed or a member did not answer within --wait.",
     )
     _join_options(p, default_wait=3.0)
     p.set_defaults(handler=_status)
@@ -86,7 +90,12 @@ def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
         default=default_wait,
         help=f"seconds to wait for the seeds to answer (default {default_wait})",
     )
-    p.add_argument("--as", dest="robot", default=None, help="robot name to join as")
+    p.add_argument(
+        "--as",
+        dest="robot",
+        default=None,
+        help="robot name to join as (team status: to observe for; with keys, its key's)",
+    )
 
 
 def _config(path: Path) -> RobotConfig:
@@ -113,6 +122,7 @@ def _until_stopped(
     import anyio
 
     from btcap.team.deployment.agentconfig import AgentConfigError
+    from btcap.transports.zmq_claims import NameTaken
 
     result: list[T] = []
     stopped_by: list[int] = []
@@ -143,6 +153,8 @@ def _until_stopped(
             raise leaf from None
     except AgentConfigError as exc:  # found once joining: bad keys, a bind refused
         raise CliError(str(exc)) from None
+    except NameTaken as exc:  # another live process has this robot's name
+        raise CliError(str(exc), code=1) from None
     if not result:
         raise Stopped(stopped_by[0])
     return result[0]
@@ -187,37 +199,27 @@ def _agent(args: argparse.Namespace) -> int:
 
 
 # -- btcap team status -------------------------------------------------------------------
-def _observer(args: argparse.Namespace, config: RobotConfig, role: str) -> str:
-    """Without keys, a name of its own; with keys, the name its key certifies."""
-    if args.robot or config.keys is not None:
-        return str(args.robot or config.robot)
-    return f"{config.robot}-{role}-{os.getpid()}"
-
-
 def _status(args: argparse.Namespace) -> int:
-    from btcap.team.deployment.deploy import observe_team, open_agent, wait_for_team
+    from btcap.team.deployment.observer import open_observer, survey
 
     config = _config(args.config)
-    registry = _registry(args)
-    robot = _observer(args, config, "status")
+    seen: list[str] = []
 
     async def look() -> tuple[bool, list[MemberView]]:
-        async with open_agent(
-            config, registry, robot=robot, implementations=False, ephemeral=True
-        ) as agent:
-            complete = await wait_for_team(agent, config.seeds, timeout_s=args.wait)
-            return complete, await observe_team(agent)
+        async with open_observer(config, member=args.robot) as observer:
+            seen.append(observer.id)
+            return await survey(observer, config.seeds, timeout_s=args.wait)
 
-    complete, members = _until_stopped(look, args, "leaving")
-    _print_team(robot, members)
-    missing = sorted(set(config.seeds) - {m.robot for m in members})
-    for seed in missing:
+    complete, members = _until_stopped(look, args, "stopping")
+    _print_team(seen[0] if seen else config.robot, members)
+    answered = {m.robot for m in members if m.capabilities is not None}
+    for seed in sorted(set(config.seeds) - answered):
         print(f"btcap: seed {seed} did not answer within {args.wait} s", file=sys.stderr)
-    return 0 if members and complete else 1
+    return 0 if answered and complete else 1
 
 
 def _print_team(robot: str, members: list[MemberView]) -> None:
-    print(f"team seen by {robot}: {len(members)} member(s)")
+    print(f"team seen by {robot} (an observer, not a member): {len(members)} member(s)")
     rows = [("robot", "heartbeat", "capabilities", "runs", "completed")]
     for m in members:
         caps = "(not known yet)" if m.capabilities is None else ", ".join(sorted(m.capabilities))

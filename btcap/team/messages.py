@@ -43,6 +43,9 @@ __all__ = [
     "Roster",
     "RosterRequest",
     "RunState",
+    "Seen",
+    "StatusQuery",
+    "TeamStatus",
 ]
 
 
@@ -295,6 +298,31 @@ class CostChanged(Message):
     cost: float
 
 
+# -- observers ---------------------------------------------------------------------------
+class StatusQuery(Message):
+    """How is the team, as you see it? (asked by an observer, which is never a member)"""
+
+
+class Seen(msgspec.Struct, frozen=True, array_like=True):
+    """A teammate as the answering robot sees it."""
+
+    robot: str
+    endpoint: str
+    heartbeat_age_ms: int
+
+
+class TeamStatus(Message):
+    """A robot's answer to :class:`StatusQuery`: itself (what it offers, completed, runs,
+    holds queued) and the members it sees, with where they listen."""
+
+    robot: str
+    interfaces: dict[str, str]
+    succeeded: list[str]
+    running: list[ExecutionId]
+    queued: list[ExecutionId]
+    members: list[Seen]
+
+
 CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     Heartbeat,
     Goodbye,
@@ -317,4 +345,6 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     CancelExecution,
     KeepAlive,
     CostChanged,
+    StatusQuery,
+    TeamStatus,
 )

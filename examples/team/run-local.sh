@@ -35,9 +35,10 @@ trap 'exit 130' INT TERM
 # $BTCAP_KEYS, and every link of the team is encrypted and authenticated with them.
 export BTCAP_KEYS="$work/keys"
 mkdir -p "$BTCAP_KEYS"
-for robot in alpha beta gamma operator; do
-    "${btcap[@]}" keys new "$robot" --dir "$BTCAP_KEYS" > /dev/null
+for robot in alpha beta gamma; do
+    "${btcap[@]}" keys new "$robot" --role robot --dir "$BTCAP_KEYS" > /dev/null
 done
+"${btcap[@]}" keys new operator --role operator --dir "$BTCAP_KEYS" > /dev/null
 echo "keys written to $BTCAP_KEYS"
 
 for robot in alpha beta gamma; do

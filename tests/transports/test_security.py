@@ -20,8 +20,9 @@ import zmq
 from structlog.testing import capture_logs
 
 from btcap.actors import ActorSystem, Address
+from btcap.cli import keys as keys_cli
 from btcap.cli import main as btcap_main
-from btcap.transports import Envelope, KeyPair, Kind, TeamKeys, ZmqTransport
+from btcap.transports import Envelope, KeyPair, Kind, TeamKeys, ZmqTransport, identity
 from btcap.transports.security import write_key_pair
 from tests.transports.peer_process import Echo, EchoActor, Echoed, messages
 
@@ -280,14 +281,17 @@ def test_key_arguments_are_checked(keys: Path) -> None:
 def test_keys_new_writes_loadable_certificates_and_never_overwrites(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert btcap_main(["keys", "new", "robot-1", "--dir", str(tmp_path)]) == 0
+    assert btcap_main(["keys", "new", "robot-1", "--role", "robot", "--dir", str(tmp_path)]) == 0
     pair = KeyPair.load(tmp_path / "robot-1.key_secret")
     assert TeamKeys.load(tmp_path).key_of("robot-1") == pair.public
+    assert TeamKeys.load(tmp_path).role_of("robot-1") == "robot"
+    assert keys_cli.ROLES == identity.ROLES
     assert (tmp_path / "robot-1.key_secret").stat().st_mode & 0o077 == 0
     before = (tmp_path / "robot-1.key_secret").read_bytes()
     capsys.readouterr()
-    assert btcap_main(["keys", "new", "robot-1", "--dir", str(tmp_path)]) == 2
+    assert btcap_main(["keys", "new", "robot-1", "--role", "robot", "--dir", str(tmp_path)]) == 2
     assert "already exists" in capsys.readouterr().err
     assert (tmp_path / "robot-1.key_secret").read_bytes() == before
-    assert btcap_main(["keys", "new", "x", "--dir", str(tmp_path / "missing")]) == 2
+    missing = str(tmp_path / "missing")
+    assert btcap_main(["keys", "new", "x", "--role", "observer", "--dir", missing]) == 2
     assert "no such directory" in capsys.readouterr().err

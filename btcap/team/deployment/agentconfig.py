@@ -61,6 +61,7 @@ from btcap.team.filecheck import field_first, not_finite
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, ZmqTransport
+from btcap.transports.identity import OBSERVER, check_member_name, is_observer_id
 from btcap.transports.security import KeyPair, TeamKeys
 from btcap.transports.zmq_sockets import check_endpoint, check_id
 
@@ -204,6 +205,13 @@ class RobotConfig:
                 trusted = TeamKeys.load(self.keys.trusted)
             except (OSError, ValueError) as exc:
                 raise self.error("keys.trusted", str(exc)) from None
+            name = robot or self.robot
+            if trusted.role_of(name) == OBSERVER and not is_observer_id(name):
+                raise self.error(
+                    "keys.secret",
+                    f"{name}'s key has the role observer: it can only look at the team "
+                    "(btcap team status), not join it",
+                )
         try:
             return ZmqTransport(
                 robot or self.robot,
@@ -270,7 +278,7 @@ def _check(config: RobotConfig, base: Path) -> None:
         check_strategy(spec.allocation.strategy)
     except ValueError as exc:
         raise config.error("allocation.strategy", str(exc)) from None
-    if (why := check_id(spec.robot)) is not None:
+    if (why := check_id(spec.robot) or check_member_name(spec.robot)) is not None:
         raise config.error("robot", f"{spec.robot!r}: {why}")
     net = spec.network
     if (why := check_endpoint(net.bind, dial=False)) is not None:

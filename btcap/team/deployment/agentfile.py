@@ -81,7 +81,9 @@ class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
         Path,
         _doc(
             "A directory of the team's public certificates `NAME.key`, this robot's "
-            "included: only robots whose key is there get through the handshake."
+            "included, each with its role (robot, operator or observer) in its metadata: "
+            "only robots whose key is there get through the handshake, and each sends only "
+            "what its role allows."
         ),
     ]
 

@@ -22,10 +22,13 @@ from btcap.team.capabilities.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.membership import Membership, TeamEvent
 from btcap.team.membership.repository import CapabilityRepository
+from btcap.team.membership.roles import role_table
+from btcap.team.membership.status import StatusDesk
 from btcap.team.runtime.mission import MissionControl
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, Transport
+from btcap.transports.identity import check_member_name
 
 __all__ = ["Agent", "AgentConfig"]
 
@@ -54,9 +57,13 @@ class Agent:
         actors: Mapping[str, Actor] | None = None,
         strategy: str | Strategy | None = None,
     ) -> None:
+        if (why := check_member_name(robot)) is not None:
+            raise ValueError(f"robot {robot!r}: {why}")
         self.robot = robot
         self.config = config or AgentConfig()
         reg = registry or protocol_registry()
+        if transport is not None:  # what each role may send (btcap.team.membership.roles)
+            transport.limit(role_table())
         self.system = ActorSystem(robot, transport=transport, registry=reg, clock=clock)
         cfg = self.config
         self.team = Membership(
@@ -70,6 +77,7 @@ class Agent:
         )
         self.repository = CapabilityRepository(robot, team=self.team)
         self.repository.extend(implementations)
+        self.status_desk = StatusDesk(self.team, self.repository, self._activity)
         self.strategy = resolve(cfg.strategy if strategy is None else strategy)
         self.mission_control = MissionControl(
             robot, self.repository, self.team, self.strategy, config=cfg
@@ -105,6 +113,7 @@ class Agent:
             s = self.system
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
+            s.spawn(self.status_desk, StatusDesk.PATH)
             s.spawn(self.allocator, self.allocator.PATH)
             s.spawn(self.mission_control, MissionControl.PATH)
             s.services.provide(ASSIGNER, self.mission_control)  # to capability nodes

@@ -35,7 +35,7 @@ from btcap import (
 )
 from btcap.actors import ActorFailed, ActorSystem, Clock, ManualClock
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
-from btcap.transports import InProcessNetwork
+from btcap.transports import Envelope, InProcessNetwork, Kind
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 
@@ -668,7 +668,9 @@ async def test_attached_tree_shutdown_awaits_its_background_work() -> None:
             assert other_tasks() == before
 
 
-async def test_node_status_crosses_a_codec_transport() -> None:
+async def test_node_actions_from_another_system_are_refused() -> None:
+    """Nodes are driven by their own robot only: another system's node actions are
+    refused and counted, and the node is left as it was."""
     with anyio.fail_after(5):
         net = InProcessNetwork(protocol_registry())
         async with (
@@ -679,8 +681,21 @@ async def test_node_status_crosses_a_codec_transport() -> None:
             tree = Tree(ReactiveSequence("root", children=[k]), name="t")
             tree.attach(b)
             tree.setup()
-            reply = await a.ref(k.address).ask(Tick(), timeout=2)
-            assert reply == NodeStatus(S, {"value": [1.5, 2.5]})  # a tuple travels as a list
+            for action in (Tick(), Untick(), Reset(), Shutdown(), Setup()):
+                with pytest.raises(ActorFailed, match="Refused"), capture_logs():
+                    await a.ref(k.address).ask(action, timeout=2)
+            assert k.state is State.IDLE
+            assert b.stats.refused == dict.fromkeys(
+                ("Tick", "Untick", "Reset", "Shutdown", "Setup"), 1
+            )
+            # b's own actors still drive it, and its status survives the codec.
+            reply = await b.ref(k.address).ask(Tick())
+            assert net.codec is not None
+            env = Envelope(Kind.REPLY, k.address, a.address, reply, 1)
+            assert net.codec.decode(net.codec.encode(env)).msg == NodeStatus(
+                S,
+                {"value": [1.5, 2.5]},  # a tuple travels as a list
+            )
             await tree.shutdown()
 
 

@@ -75,7 +75,8 @@ async def test_the_same_mission_runs_ten_times_from_a_fresh_operator(tmp_path: P
     ports = {r: _free_port(taken) for r in (*ROBOTS, "operator")}
     (tmp_path / "keys").mkdir()
     for robot in ports:
-        assert main(["keys", "new", robot, "--dir", str(tmp_path / "keys")]) == 0
+        role = "operator" if robot == "operator" else "robot"
+        assert main(["keys", "new", robot, "--role", role, "--dir", str(tmp_path / "keys")]) == 0
     configs = {r: _config(tmp_path, r, ports, impl=True) for r in ROBOTS}
     operator = _config(tmp_path, "operator", ports, impl=False)
     argv = [sys.executable, "-m", "btcap", "--log-level", "info", "--log-json", "mission", "run"]

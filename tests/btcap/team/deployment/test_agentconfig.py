@@ -197,6 +197,16 @@ def test_keys_make_an_encrypted_transport_and_bad_key_files_are_named(tmp_path: 
         zmq_auth.create_certificates(str(keys), robot)
     text = GOOD + "keys: {secret: keys/alpha.key_secret, trusted: keys}\n"
     config = load_agent_file(_write(tmp_path, text))
+    with pytest.raises(AgentConfigError) as info:  # keys made before roles: say how to fix
+        config.transport(protocol_registry())
+    assert str(info.value).count("\n") == 0
+    assert "keys.trusted: " in str(info.value)
+    assert "alpha.key: no role" in str(info.value)
+    assert "btcap keys new alpha --role" in str(info.value)
+    for robot in ("alpha", "beta"):
+        for suffix in (".key", ".key_secret"):
+            (keys / f"{robot}{suffix}").unlink()
+        write_key_pair(keys, robot, "robot")
     transport = config.transport(protocol_registry())
     try:
         assert transport.curve is not None

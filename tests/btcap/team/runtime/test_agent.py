@@ -43,6 +43,9 @@ from btcap.team.messages import (
     Roster,
     RosterRequest,
     RunState,
+    Seen,
+    StatusQuery,
+    TeamStatus,
 )
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.mission import MissionConfig, MissionControl
@@ -65,6 +68,11 @@ SAMPLES: dict[type[Message], list[Message]] = {
     RosterRequest: [RosterRequest(["a", "c"]), RosterRequest([])],
     ActivityQuery: [ActivityQuery()],
     Activity: [Activity("b", [E1], [E2]), Activity("b", [])],
+    StatusQuery: [StatusQuery()],
+    TeamStatus: [
+        TeamStatus("b", {"Greet": "Greet:1"}, ["Greet"], [E1], [E2], [Seen("a", "tcp://h:1", 7)]),
+        TeamStatus("b", {}, [], [], [], []),
+    ],
     RepositoryState: [
         RepositoryState("a", 3, {"Count": COUNT.identity}, ["Count", "Explore"]),
         RepositoryState("a", 0, {}),

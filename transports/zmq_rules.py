@@ -1,0 +1,204 @@
+"""Who a peer of :class:`~btcap.transports.zeromq.ZmqTransport` is: where it listens, its
+role and what that lets it send, whether it is an observer, and whether its name is
+already live elsewhere (see :mod:`~btcap.transports.zmq_claims`). A mixin: the
+transport calls these hooks from its receive path; the state they keep is theirs."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Any
+
+import zmq
+
+from btcap.transports.base import TransportStats
+from btcap.transports.codec import Envelope
+from btcap.transports.identity import OBSERVER, is_observer_id
+from btcap.transports.log import get_logger
+from btcap.transports.security import Curve
+from btcap.transports.zmq_claims import (
+    TELL_S,
+    Claims,
+    NameTaken,
+    RoleTable,
+    hello_payload,
+    limits_for,
+    split_hello,
+)
+from btcap.transports.zmq_peers import PeerBook
+from btcap.transports.zmq_sockets import Monitor, reject
+
+__all__ = ["REFUSAL", "PeerRules", "split_hello"]
+
+log = get_logger("btcap.transports")
+
+REFUSAL = b"R"[0]
+"""The first byte of a frame telling a newcomer why its name was refused."""
+_BATCH = 256
+_REFUSED = "not allowed for its role"
+_ANSWER_S = 10.0
+"""A refusal counts only this soon after our link to the refusing peer came up."""
+
+
+class PeerRules:
+    """Roles, observers and one live process per name, for a ZeroMQ transport."""
+
+    # The transport's own state these hooks read (set by its __init__).
+    system_id: str
+    endpoint: str
+    curve: Curve | None
+    stats: TransportStats
+    _ctx: zmq.Context[zmq.Socket[bytes]]
+    _id: bytes
+    _known: dict[bytes, str]
+    _dealers: dict[str, zmq.Socket[bytes]]
+    _endpoints: dict[str, str]
+    _monitors: dict[str, Monitor]
+    _strangers: PeerBook
+    _loop: asyncio.AbstractEventLoop | None
+    _stopped: asyncio.Future[None] | None
+
+    def _init_rules(self) -> None:
+        self._claims = Claims(self.system_id)
+        self._roles: RoleTable | None = None
+        self._limited: dict[str, frozenset[type[Any]]] = {}  # peers with limits only
+        self._observers: set[str] = set()
+        self._observed: dict[str, float] = {}
+        self._raw_ident = b""
+        #: Why a teammate refused us (another live process has our name), or None.
+        self.name_taken: str | None = None
+
+    def _relink(self, monitor: Monitor) -> None:
+        raise NotImplementedError  # the transport's
+
+    def _forget(self, peer: str, met: float) -> None:
+        raise NotImplementedError  # the transport's
+
+    # -- where peers are --------------------------------------------------------------
+    def __repr__(self) -> str:
+        return f"ZmqTransport({self.system_id!r}, {self.endpoint!r}, peers={len(self._dealers)})"
+
+    def peers(self) -> frozenset[str]:
+        return frozenset(self._dealers)
+
+    def peer_endpoints(self) -> dict[str, str]:
+        return dict(self._endpoints)
+
+    def routing_id(self, peer: str) -> bytes:
+        """What our link to ``peer`` is called there: our id, a ``/`` and a suffix."""
+        return bytes(self._dealers[peer].getsockopt(zmq.ROUTING_ID))
+
+    def endpoint_of(self, system_id: str) -> str | None:
+        return self.endpoint if system_id == self.system_id else self._endpoints.get(system_id)
+
+    # -- roles ------------------------------------------------------------------------
+    def limit(self, table: RoleTable | None) -> None:
+        """What each role may send (role -> message types, None: any), checked on every
+        tell and ask received; None: no limits."""
+        self._roles = table
+        for peer in self._known.values():
+            self._classify(peer)
+
+    def role_of(self, peer: str) -> str | None:
+        """A peer's role: its key's (an observer id's: ``observer``); without keys
+        ``observer`` for an observer id, None (anything) for the others."""
+        if self.curve is not None:
+            return self.curve.team.role_of(peer)
+        return OBSERVER if is_observer_id(peer) else None
+
+    def _classify(self, peer: str) -> None:
+        role = self.role_of(peer)
+        allowed = limits_for(peer, role, self._roles)
+        if allowed is None:
+            self._limited.pop(peer, None)
+        else:
+            self._limited[peer] = allowed
+        if role == OBSERVER or is_observer_id(peer):
+            self._observers.add(peer)  # it asks: broadcasts (team news) skip it
+        else:
+            self._observers.discard(peer)
+
+    def _unclassify(self, peer: str) -> None:
+        self._limited.pop(peer, None)
+        self._observers.discard(peer)
+        self._observed.pop(peer, None)
+
+    def _screen(self, peer: str, env: Envelope) -> bool:
+        """Whether a limited peer's message is refused (counted, logged at a falling
+        rate). An observer stays a stranger, forgotten once it falls silent."""
+        if env.kind < 2 and type(env.msg) not in self._limited[peer]:  # tell, ask
+            role = self.role_of(peer) or OBSERVER
+            what = f"{role} may not send {type(env.msg).__name__}"
+            reject(self.stats, self.system_id, _REFUSED, peer.encode(), what)
+            return True
+        if peer in self._observers and self._loop is not None:
+            now, met = self._loop.time(), self._observed.get(peer)
+            if met is None or now - met > self._strangers.ttl / 8:
+                self._observed[peer] = now
+                self._strangers.met(peer, now)
+                self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
+            else:
+                self._strangers.since[peer] = met  # what the pending _forget looks for
+        return False
+
+    # -- names ------------------------------------------------------------------------
+    def _hello(self) -> bytes:
+        return hello_payload(self.endpoint, self._claims.instance)
+
+    def _blocked(self, raw: bytes, member: bytes) -> bool:
+        """With keys: whether a connection belongs to a refused second process."""
+        self._raw_ident = raw
+        if self._claims.refused_links and self._claims.blocked(raw):
+            reject(self.stats, self.system_id, "name taken", member, "a refused second process")
+            return True
+        return False
+
+    def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool:
+        """Whether a hello under a known peer's name from another endpoint comes from a
+        second process (our link to the known one is up, the instance differs): refused,
+        logged once and told why. Otherwise (a restart elsewhere) its instance is noted."""
+        monitor = self._monitors.get(peer) if known not in (None, endpoint) else None
+        if monitor is not None:
+            monitor.drain(_BATCH, self._relink)  # a drop not yet read means a restart
+            monitor = self._monitors.get(peer)
+        up_since = None if monitor is None else monitor.up_since
+        if up_since is None or known is None or not self._claims.is_second(peer, instance):
+            self._claims.seen(peer, instance)
+            return False
+        raw = self._raw_ident if self.curve is not None else None
+        self.stats.drop("name taken")
+        sock = self._claims.refuse(
+            self._ctx, self.curve, self._id, peer, endpoint, known, up_since, raw
+        )
+        if sock is not None and self._loop is not None:
+            self._loop.call_later(TELL_S, self._claims.done_telling, sock)
+        return True
+
+    def _refused_by(self, ident: bytes, text: bytes) -> None:
+        """A teammate says another live process has our name: stop serving."""
+        peer = self._known.get(ident)
+        if peer is None:
+            self.stats.malformed += 1
+            reject(self.stats, self.system_id, "bad refusal", ident, "not from a peer we dialled")
+            return
+        if self.name_taken is not None:
+            return
+        monitor = self._monitors.get(peer)
+        if monitor is not None:  # a refusal answers our hello at once, or it is forged
+            monitor.drain(_BATCH, self._relink)
+            up = self._monitors[peer].up_since if peer in self._monitors else None
+            if up is None or time.time() - up > _ANSWER_S:
+                self.stats.malformed += 1
+                reject(self.stats, self.system_id, "bad refusal", ident, "not an answer to a hello")
+                return
+        self.name_taken = f"{peer} refused us: {text[:1000].decode(errors='replace')}"
+        log.error("transport.name_taken", system=self.system_id, detail=self.name_taken)
+        if self._stopped is not None and not self._stopped.done():
+            self._stopped.set_result(None)
+
+    def _raise_if_refused(self) -> None:
+        if self.name_taken is not None:
+            raise NameTaken(self.name_taken)
+
+    def _stop_rules(self) -> None:
+        self._claims.done_telling()
