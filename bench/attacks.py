@@ -25,6 +25,7 @@ import zmq
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
+from btcap.bench.attacks_member import probe_members
 from btcap.bench.attacks_nodes import probe as node_actions
 from btcap.bench.attacks_roles import probe_roles
 from btcap.bench.common import write_result
@@ -66,6 +67,7 @@ TEAM_CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, k
 MORE_PROBES = [
     node_actions,
     probe_roles,
+    probe_members,
 ]
 
 

@@ -65,6 +65,11 @@ class Transport(abc.ABC):
         """
         return system_id in self.peers()
 
+    def forget(self, system_id: str) -> None:
+        """``system_id`` has gone (the layer above declared it failed or left): release
+        what reaching it costs. Transports that hold nothing per peer need nothing."""
+        return None
+
     def limit(self, table: Mapping[str, frozenset[type[Message]] | None] | None) -> None:
         """What each authenticated role may send (role -> message types, None: any).
         Transports that authenticate no roles (in-process) ignore it."""

@@ -33,6 +33,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
+from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     EVENTS,
@@ -40,7 +41,6 @@ from btcap.transports.zmq_sockets import (
     POLLIN,
     SCHEMES,
     Monitor,
-    Strangers,
     allow_sockets,
     check_id,
     check_transport_args,
@@ -68,15 +68,17 @@ _JUNK_COST = 31
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
 
 
-class ZmqTransport(PeerRules, Transport):
+class ZmqTransport(PeerFates, PeerRules, Transport):
     """Reach peers over ``inproc://``, ``ipc://`` or ``tcp://``.
 
     ``bind`` may use port ``*``; :attr:`endpoint` then tells the port chosen. Bound to a
     wildcard address, pass ``advertise``: the endpoint sent in hellos. ``peers`` maps
     system ids to endpoints (more via :meth:`add_peer`); with ``accept_hello`` any system
-    that says hello becomes a peer, up to ``max_peers``: one known only from its hello
-    makes room for a newcomer and is dropped after ``stranger_ttl_s`` unless it sent a
-    real message. A hello from a new endpoint (a restart elsewhere) reconnects there.
+    that says hello becomes a peer, up to ``max_peers``: a stranger (known only from its
+    hello, or again since its link dropped) makes room for a newcomer and is dropped
+    after ``stranger_ttl_s`` unless it speaks; at most ``max_strangers`` at once (see
+    :mod:`~btcap.transports.zmq_peers`). A hello from a new endpoint (a restart
+    elsewhere) reconnects there. :meth:`forget` drops a peer declared gone.
     ``inproc://`` only reaches transports on the same zmq context. Use a transport from
     the thread running its event loop.
 
@@ -106,9 +108,10 @@ class ZmqTransport(PeerRules, Transport):
         insecure: bool = False,
         max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES,
         stranger_ttl_s: float = 30.0,
+        max_strangers: int = 64,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
-        self._strangers = Strangers(stranger_ttl_s)
+        self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.max_message_bytes = max_message_bytes
         self.system_id = system_id
@@ -197,7 +200,7 @@ class ZmqTransport(PeerRules, Transport):
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
         self._unclassify(system_id)
         self._configured.discard(system_id)
-        self._strangers.vouched(system_id)  # forgotten either way
+        self._strangers.dropped(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
         self._unlink(system_id)
 
@@ -278,6 +281,8 @@ class ZmqTransport(PeerRules, Transport):
                         frames = self._authenticated(router.recv_multipart(NOBLOCK, copy=False))
                     else:
                         frames = router.recv_multipart(NOBLOCK)
+                        if frames:  # the name its routing id claims (see open_dealer)
+                            frames[0] = frames[0].partition(b"/")[0]
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
@@ -306,14 +311,17 @@ class ZmqTransport(PeerRules, Transport):
             self._loop.call_soon(self._on_events)
 
     def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._relink) and self._loop is not None:
+        if monitor.drain(_BATCH, self._relink, self._unreachable) and self._loop is not None:
             self._loop.call_soon(self._on_monitor, monitor)
 
     def _relink(self, monitor: Monitor) -> None:
         # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
-        if self._monitors.get(monitor.peer) is monitor and not self._closed:
-            log.info("transport.peer_relinked", system=self.system_id, peer=monitor.peer)
-            self._connect(monitor.peer, self._endpoints.pop(monitor.peer))
+        peer = monitor.peer
+        if self._monitors.get(peer) is monitor and not self._closed:
+            log.info("transport.peer_relinked", system=self.system_id, peer=peer)
+            self._connect(peer, self._endpoints.pop(peer))
+            if peer not in self._configured:  # gone for good unless it speaks again
+                self._fate(peer, self._strangers.lapsed(peer))
 
     def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
         member, problem = authenticated(frames)
@@ -332,6 +340,8 @@ class ZmqTransport(PeerRules, Transport):
         kind = body[0] if body else -1
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
+            if peer is None:
+                peer = self._recall(ident)
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
@@ -373,12 +383,6 @@ class ZmqTransport(PeerRules, Transport):
         else:
             self._malformed("unknown frame kind", ident, repr(body[:8]))
 
-    def introduce(self, system_id: str, endpoint: str) -> bool:
-        """Dial a teammate others told us of, as a stranger until it speaks (see class)."""
-        if check_id(system_id) is not None or not endpoint.startswith(SCHEMES):
-            return False
-        return system_id not in self._endpoints and self._admit(system_id, endpoint, True)
-
     def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).
         Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
@@ -392,6 +396,8 @@ class ZmqTransport(PeerRules, Transport):
             self.stats.unknown_peer += 1
             reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
             return False
+        if known is None and self._strangers.full():
+            self.remove_peer(self._strangers.oldest() or peer)  # the oldest makes room
         if known is None and len(self._dealers) >= self.max_peers:
             stranger = self._strangers.oldest()  # the longest silent one makes room
             if stranger is None:
@@ -405,17 +411,11 @@ class ZmqTransport(PeerRules, Transport):
         except (ValueError, RuntimeError) as exc:
             self._malformed("bad hello", ident, str(exc)[:200])
             return False
-        if known is None and self._loop is not None:
-            now = self._loop.time()
-            self._strangers.met(peer, now)
-            self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
+        if known is None:
+            self._stranger(peer)
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
         return True
-
-    def _forget(self, peer: str, met: float) -> None:
-        if self._strangers.since.get(peer) == met and not self._closed:
-            self.remove_peer(peer)  # it never said more than hello
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

@@ -140,8 +140,8 @@ class Claims:
     ) -> zmq.Socket[bytes] | None:
         sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
-        suffix = b"" if curve is None else b"/" + secrets.token_hex(6).encode()
-        sock.setsockopt(zmq.ROUTING_ID, own_id + suffix)
+        # A routing id of its own, as every link has (see zmq_sockets.open_dealer).
+        sock.setsockopt(zmq.ROUTING_ID, own_id + b"/" + secrets.token_hex(6).encode())
         try:
             if curve is not None:
                 curve.client(sock, peer)

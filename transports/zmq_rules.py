@@ -25,7 +25,8 @@ from btcap.transports.zmq_claims import (
     limits_for,
     split_hello,
 )
-from btcap.transports.zmq_sockets import Monitor, Strangers, reject
+from btcap.transports.zmq_peers import PeerBook
+from btcap.transports.zmq_sockets import Monitor, reject
 
 __all__ = ["REFUSAL", "PeerRules", "split_hello"]
 
@@ -53,7 +54,7 @@ class PeerRules:
     _dealers: dict[str, zmq.Socket[bytes]]
     _endpoints: dict[str, str]
     _monitors: dict[str, Monitor]
-    _strangers: Strangers
+    _strangers: PeerBook
     _loop: asyncio.AbstractEventLoop | None
     _stopped: asyncio.Future[None] | None
 
@@ -84,7 +85,7 @@ class PeerRules:
         return dict(self._endpoints)
 
     def routing_id(self, peer: str) -> bytes:
-        """What our link to ``peer`` is called there: our id (with keys, plus a suffix)."""
+        """What our link to ``peer`` is called there: our id, a ``/`` and a suffix."""
         return bytes(self._dealers[peer].getsockopt(zmq.ROUTING_ID))
 
     def endpoint_of(self, system_id: str) -> str | None:

@@ -99,12 +99,10 @@ def open_router(
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
     if curve is not None:
         curve.server(sock)
-    if curve is None:
-        # A peer that reconnects with the same id (after a network blip or a restart)
-        # takes over its old connection instead of being silently ignored. With keys
-        # every connection has a routing id of its own (see open_dealer) and the member
-        # is who ZAP admitted: handing over would let one member cut another's link.
-        sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+    # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
+    # own (see open_dealer), so a peer that reconnects never collides with its old link,
+    # and one that takes another's routing id (learnt, or guessed: without keys it is the
+    # name) gets a link of its own instead of cutting the real one off for good.
     name = f"inproc://zmq-transport-router-{uuid.uuid4().hex}"
     events = RouterEvents(sock, name, stats, system, curve)
     try:
@@ -189,9 +187,10 @@ def open_dealer(
         raise ValueError(f"peer {peer}: cannot reach {endpoint!r} with keys (not encrypted)")
     sock: zmq.Socket[bytes] = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
-    # Without keys the routing id names the sender; with keys ZAP does, and a fresh
-    # suffix per connection keeps a restart from colliding with its old, dead link.
-    routing_id = own_id if curve is None else own_id + b"/" + secrets.token_hex(6).encode()
+    # Our name and a fresh suffix per connection: a restart never collides with its old,
+    # dead link. With keys ZAP names the sender; without, the part before the "/" does
+    # (ids have no "/").
+    routing_id = own_id + b"/" + secrets.token_hex(6).encode()
     sock.setsockopt(zmq.ROUTING_ID, routing_id)
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
@@ -211,7 +210,7 @@ def open_dealer(
         # hold while zmq reaps it: a fresh name never collides.)
         name = f"inproc://zmq-transport-monitor-{uuid.uuid4().hex}"
         try:
-            watch = _DISCONNECTED | HANDSHAKE_EVENTS
+            watch = _DISCONNECTED | _RETRIED | HANDSHAKE_EVENTS
             socket = sock.get_monitor_socket(watch, addr=name)
         except zmq.ZMQError as exc:
             log.warning("transport.no_monitor", peer=peer, error=str(exc))
@@ -267,9 +266,15 @@ class Monitor:
         #: When the link's handshake last succeeded (wall time), None while it is down.
         self.up_since: float | None = None
 
-    def drain(self, limit: int, dropped: Callable[[Monitor], None]) -> bool:
+    def drain(
+        self,
+        limit: int,
+        dropped: Callable[[Monitor], None],
+        retried: Callable[[Monitor], None] = lambda _m: None,
+    ) -> bool:
         """Read up to ``limit`` events, calling ``dropped`` when the link drops (the peer
-        may be restarting, and forget us); True if more wait."""
+        may be restarting, and forget us) and ``retried`` when a connection attempt
+        failed (nobody listens there now); True if more wait."""
         try:
             for _ in range(limit):
                 if self.closed or not self.socket.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
@@ -278,13 +283,22 @@ class Monitor:
                 if len(frames) == 2 and len(frames[0]) == 6:
                     event = int.from_bytes(frames[0][:2], sys.byteorder)
                     value = int.from_bytes(frames[0][2:], sys.byteorder)
-                    self._event(event, value, dropped)
+                    self._event(event, value, dropped, retried)
         except zmq.ZMQError as exc:
             log.warning("transport.monitor_failed", peer=self.peer, error=str(exc))
             return False
         return True
 
-    def _event(self, event: int, value: int, dropped: Callable[[Monitor], None]) -> None:
+    def _event(
+        self,
+        event: int,
+        value: int,
+        dropped: Callable[[Monitor], None],
+        retried: Callable[[Monitor], None],
+    ) -> None:
+        if event == _RETRIED:
+            retried(self)
+            return
         if event == _DISCONNECTED:
             self.up_since = None
         if event == _DISCONNECTED and self.failed is None:
@@ -315,6 +329,7 @@ class Monitor:
 # transport not yet serving) hanging for good instead of closing it, and the peer never
 # retries. (A DEALER's monitor may: it never runs ZAP.)
 _DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
+_RETRIED = int(zmq.EVENT_CONNECT_RETRIED)
 
 
 class RouterEvents:
@@ -419,22 +434,3 @@ def check_transport_args(system_id: str, bind: str, advertise: str | None, max_b
         raise ValueError(f"advertise {advertise!r}: {why}")
     if max_bytes < 1024:
         raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
-
-
-class Strangers:
-    """Peers known only from their hello. Anybody can invent any number of them, so they
-    are the first to go when the peer table is full, and are forgotten after ``ttl``
-    seconds unless they sent a real message (a teammate's heartbeat does at once)."""
-
-    def __init__(self, ttl: float) -> None:
-        self.ttl = ttl
-        self.since: dict[str, float] = {}
-
-    def met(self, peer: str, now: float) -> None:
-        self.since[peer] = now
-
-    def vouched(self, peer: str) -> None:
-        self.since.pop(peer, None)
-
-    def oldest(self) -> str | None:
-        return min(self.since, key=self.since.__getitem__) if self.since else None

@@ -37,6 +37,7 @@ __all__ = [
     "HeartbeatS",
     "KeepaliveS",
     "LeaseS",
+    "MaxLeaseS",
     "MissionConfig",
     "MoveMargin",
     "QueueAfterCurrent",
@@ -47,6 +48,7 @@ __all__ = [
     "Timing",
     "check_heartbeat",
     "check_lease",
+    "check_max_lease",
 ]
 
 
@@ -136,6 +138,15 @@ QueueAfterCurrent = Annotated[
 ]
 
 
+MaxLeaseS = Annotated[
+    float,
+    _seconds(
+        "The longest lease this robot accepts in an award: a member that stops renewing "
+        "its run holds the robot at most this long; not below `lease_s`"
+    ),
+]
+
+
 def check_heartbeat(heartbeat_s: float, failure_timeout_s: float) -> None:
     """A teammate must get the chance to beat before it is failed."""
     if failure_timeout_s <= heartbeat_s:
@@ -146,6 +157,12 @@ def check_lease(lease_s: float, keepalive_s: float) -> None:
     """A running execution must be renewed before its lease runs out."""
     if keepalive_s >= lease_s:
         raise ValueError("keepalive_s: must be below lease_s")
+
+
+def check_max_lease(lease_s: float, max_lease_s: float) -> None:
+    """The team's own awards (with this file's ``lease_s``) must be accepted."""
+    if max_lease_s < lease_s:
+        raise ValueError("max_lease_s: must not be below lease_s")
 
 
 #: Set while :func:`_check_bounds` converts, so the copy it makes is not checked again.
@@ -193,6 +210,7 @@ class Allocation(msgspec.Struct, kw_only=True, forbid_unknown_fields=True, froze
     strategy: StrategyName = "auction"
     rebid_on_join: RebidOnJoin = None
     queue_after_current: QueueAfterCurrent = False
+    max_lease_s: MaxLeaseS = 300.0
 
     def __post_init__(self) -> None:
         _check_bounds(self)
@@ -221,10 +239,12 @@ class MissionConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     strategy: StrategyName = _A.strategy
     rebid_on_join: RebidOnJoin = _A.rebid_on_join
     queue_after_current: QueueAfterCurrent = _A.queue_after_current
+    max_lease_s: MaxLeaseS = _A.max_lease_s
 
     def __post_init__(self) -> None:
         _check_bounds(self)
         check_lease(self.lease_s, self.keepalive_s)
+        check_max_lease(self.lease_s, self.max_lease_s)
 
 
 class AgentConfig(MissionConfig, kw_only=True):

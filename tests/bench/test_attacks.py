@@ -40,3 +40,10 @@ def test_no_node_action_attack_succeeds(checks: dict[str, Check]) -> None:
     assert len(nodes) == 10
     failed = {name: c.figures for name, c in nodes.items() if not c.passed}
     assert not failed, json.dumps(failed)
+
+
+@pytest.mark.parametrize("name", ["award", "lease", "heartbeat_churn", "sybil"])
+def test_member_attack_is_bounded(checks: dict[str, Check], name: str) -> None:
+    """bench/attacks_member.py: what a member may do in its own name, a keyless Sybil."""
+    check = checks[name]
+    assert check.passed, json.dumps(check.figures)

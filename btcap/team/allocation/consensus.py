@@ -255,6 +255,8 @@ class ConsensusAssigner(Allocator):
         if self._system is None or not self.system.running:
             return
         self.core.select(self._costs())
+        if self.core.claim.task is not None and self.pricer is not None:
+            self.pricer.claimed(self.core.claim.task)  # its award is one we asked for
         self._count()
         if self.core.converged():
             for p in self._pending.values():

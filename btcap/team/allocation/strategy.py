@@ -35,7 +35,7 @@ from btcap.actors import Actor
 from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
-from btcap.team.ids import AuctionId
+from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import Bid, CallForBids, NoBid
 from btcap.team.settings import MissionConfig
 
@@ -66,6 +66,9 @@ class Pricer(Protocol):
 
     @property
     def idle(self) -> bool: ...
+
+    def claimed(self, execution: ExecutionId) -> None:
+        """This robot claimed ``execution`` (consensus): its origin's award is expected."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,12 +1,14 @@
 """The executor's side: runs this robot hosts for other robots, their leases and its body.
 
-An award is taken only from the origin of its execution (who is also its auctioneer)
-and only while the body can take it. The origin renews a hosted run's lease with every
-input it sends and with keep-alives; when no word came for the award's ``lease_s`` times
-``lease_share`` the run is dropped — a little before the origin re-assigns it, so the two
-runs of a partitioned execution never overlap. Only the origin may tick, pause or cancel
-its run, and finished runs keep their final status for a while, so a late input is
-answered with the result rather than with "unknown".
+An award is taken only from the origin of its execution (who is also its auctioneer),
+only with a lease of at most ``max_lease_s`` and only while the body can take it (that
+this robot bid for it is :class:`~btcap.team.core.bounds.BidBook`'s to say). The origin
+renews a hosted run's lease with every input it sends and with keep-alives; when no word
+came for the award's ``lease_s`` times ``lease_share`` the run is dropped — a little
+before the origin re-assigns it, so the two runs of a partitioned execution never
+overlap. Only the origin may tick, pause or cancel its run, and finished runs keep their
+final status for a while, so a late input is answered with the result rather than with
+"unknown".
 """
 
 from __future__ import annotations
@@ -61,10 +63,13 @@ class Hosted(Generic[R]):
 class HostLeases(Generic[R]):
     """Hosted runs and the body they share with this robot's own runs."""
 
-    def __init__(self, robot: str, body: Body, *, lease_share: float = 0.8) -> None:
+    def __init__(
+        self, robot: str, body: Body, *, lease_share: float = 0.8, max_lease_s: float = math.inf
+    ) -> None:
         self.robot = robot
         self.body = body
         self.lease_share = lease_share
+        self.max_lease_s = max_lease_s
         self.hosted: dict[ExecutionId, Hosted[R]] = {}
         self.finished: OrderedDict[ExecutionId, ExecutionStatus] = OrderedDict()
 
@@ -78,6 +83,11 @@ class HostLeases(Generic[R]):
             return f"{execution} was awarded before"
         if not math.isfinite(award.lease_s) or award.lease_s <= 0:
             return f"award of {execution}: lease_s {award.lease_s!r}, expected a positive number"
+        if award.lease_s > self.max_lease_s:
+            return (
+                f"award of {execution}: lease_s {award.lease_s:g} is over this robot's "
+                f"max_lease_s {self.max_lease_s:g}"
+            )
         return self.body.busy_reason()
 
     def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:

@@ -8,14 +8,34 @@ from btcap.actors import Actor, Supervision, handler
 from btcap.bt.state import TreeError
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
+from btcap.team.core.bounds import Budgets
 from btcap.team.membership.membership import Membership, TeamEvent
 from btcap.team.messages import RepositoryQuery, RepositoryState
 from btcap.transports import Address
 from btcap.transports.log import get_logger, worth_logging
 
-__all__ = ["CapabilityRepository"]
+__all__ = ["MAX_STATE_COST", "MAX_TEAM_COST", "CapabilityRepository", "state_cost"]
 
 log = get_logger("btcap.team.repository")
+
+#: What one teammate's capabilities may cost to hold (about bytes; see
+#: :func:`state_cost`): hundreds of interfaces with long port lists fit.
+MAX_STATE_COST = 256 * 1024
+#: What the whole team's may cost together: a flood of made-up members (without keys,
+#: anyone may join) cannot take more memory than this.
+MAX_TEAM_COST = 32 * 1024 * 1024
+#: Repository queries answered per teammate at once, then per clock second (one comes
+#: with each join and each change of its capabilities).
+QUERIES_BURST = 16.0
+QUERIES_PER_S = 4.0
+#: The per-entry overhead counted (a dict slot and two str objects, roughly).
+_ENTRY = 128
+
+
+def state_cost(state: RepositoryState) -> int:
+    """About the bytes holding ``state`` takes."""
+    interfaces = sum(len(k) + len(v) + _ENTRY for k, v in state.interfaces.items())
+    return _ENTRY + interfaces + sum(len(c) + _ENTRY // 2 for c in state.succeeded)
 
 
 class CapabilityRepository(Actor):
@@ -44,6 +64,13 @@ class CapabilityRepository(Actor):
         self._team = team
         self.refused = 0  #: states sent in another robot's name
         self.early = 0  #: states from robots not (yet) members, dropped
+        self.oversized = 0  #: states over MAX_STATE_COST, or over MAX_TEAM_COST in all
+        self.max_state_cost = MAX_STATE_COST
+        self.max_team_cost = MAX_TEAM_COST
+        self._costs: dict[str, int] = {}  #: what each teammate's state held costs
+        self._held = 0  #: their sum
+        #: Queries answered per teammate (each answer is this robot's whole state).
+        self.queries = Budgets(QUERIES_PER_S, QUERIES_BURST)
         self._listeners: list[Callable[[str], None]] = []
 
     # -- local content ----------------------------------------------------------------
@@ -149,6 +176,7 @@ class CapabilityRepository(Actor):
             system.ref(f"{robot}/{self.PATH}").tell(RepositoryQuery(self.robot))
         elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
             self.team.pop(robot, None)
+            self._held -= self._costs.pop(robot, 0)
 
     @handler
     def on_state(self, msg: RepositoryState) -> None:
@@ -172,8 +200,20 @@ class CapabilityRepository(Actor):
             log.debug("repository.not_a_member", robot=self.robot, sender=sender)
             return
         known = self.team.get(msg.robot)
-        if known is None or msg.version >= known.version:
-            self.team[msg.robot] = msg
+        if known is not None and msg.version < known.version:
+            return
+        if (why := self._over(sender, msg)) is not None:
+            self.oversized += 1
+            if worth_logging(self.oversized):
+                log.warning(
+                    "repository.oversized",
+                    robot=self.robot,
+                    sender=sender,
+                    why=why,
+                    count=self.oversized,
+                )
+            return
+        self.team[msg.robot] = msg
         if known is None:
             for listener in list(self._listeners):
                 try:
@@ -181,10 +221,22 @@ class CapabilityRepository(Actor):
                 except Exception as exc:
                     log.error("repository.listener_failed", robot=self.robot, exc_info=exc)
 
+    def _over(self, sender: str, msg: RepositoryState) -> str | None:
+        """Why ``msg`` is too big to hold, or None (then its cost is counted as held)."""
+        cost = state_cost(msg)
+        if cost > self.max_state_cost:
+            return f"capabilities cost {cost}, over {self.max_state_cost}"
+        held = self._held - self._costs.get(sender, 0) + cost
+        if held > self.max_team_cost:
+            return f"the team's capabilities would cost {held}, over {self.max_team_cost}"
+        self._costs[sender], self._held = cost, held
+        return None
+
     @handler
     def on_query(self, msg: RepositoryQuery) -> None:
         sender = self.sender  # answered to who asked, whatever name the query carries
-        if sender != self.robot and sender in self._alive():
+        member = sender != self.robot and sender in self._alive()
+        if member and self.queries.allow(sender, self.system.clock.now()):
             self.system.ref(Address(sender, self.PATH)).tell(self.state())
 
     def _alive(self) -> frozenset[str]:

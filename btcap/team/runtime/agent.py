@@ -21,7 +21,7 @@ from btcap.team.capabilities.implementation import Implementation
 from btcap.team.capabilities.slot import SLOT_HOST, RemoteCapabilitySlot
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.departures import DepartureLog
-from btcap.team.membership.membership import Membership
+from btcap.team.membership.membership import Membership, TeamEvent
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.membership.roles import role_table
 from btcap.team.membership.status import StatusDesk
@@ -94,6 +94,14 @@ class Agent:
         self._extra = dict(actors or {})
         self._missions: weakref.WeakSet[Tree] = weakref.WeakSet()
 
+    def _on_team(self, event: TeamEvent, robot: str) -> None:
+        """A teammate declared failed or gone costs nothing more: the transport stops
+        dialling it, closes its sockets and drops what was queued for it (it is dialled
+        back if it speaks again)."""
+        transport = self.system.transport
+        if transport is not None and event in (TeamEvent.FAILED, TeamEvent.LEFT):
+            transport.forget(robot)
+
     @property
     def clock(self) -> TimeSource:
         return self.system.clock
@@ -116,6 +124,7 @@ class Agent:
             s.services.provide(SLOT_HOST, self.mission_control)  # to the remote slot
             for path, actor in self._extra.items():
                 s.spawn(actor, path)
+            self.team.subscribe(self._on_team)  # last: the others hear a loss first
             self.host.attach(s)
             self.host.setup()
             self._host_task = s.start_task(self._run_host(), name=f"host tree {self.robot}")

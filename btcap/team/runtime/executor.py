@@ -20,6 +20,7 @@ from btcap.team.capabilities.runs import RunFactory
 from btcap.team.capabilities.slot import RemoteCapabilitySlot
 from btcap.team.core.bidding import evaluate
 from btcap.team.core.body import Body
+from btcap.team.core.bounds import BidBook, Budgets, bid_memory_s
 from btcap.team.core.costwatch import CostWatch
 from btcap.team.core.effects import Drop, Effect, Send
 from btcap.team.core.hosting import Hosted, HostLeases
@@ -27,11 +28,17 @@ from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import Award, Bid, CallForBids, CostChanged, NoBid
 from btcap.team.runtime.stats import MissionStats
+from btcap.team.settings import MissionConfig
 from btcap.transports.log import get_logger
 
 __all__ = ["ExecutorSide"]
 
 log = get_logger("btcap.mission")
+
+#: Calls for bids one auctioneer may have priced at once, then per clock second: a tree
+#: that asks for many capabilities in one tick opens as many auctions at once.
+CALLS_BURST = 256.0
+CALLS_PER_S = 64.0
 
 
 class ExecutorSide:
@@ -44,13 +51,23 @@ class ExecutorSide:
         body: Body,
         stats: MissionStats,
         now: Callable[[], float],
+        *,
+        config: MissionConfig | None = None,
     ) -> None:
+        cfg = config or MissionConfig()
         self.robot = robot
         self.repository = repository
         self.body = body
         self.stats = stats
         self.now = now
-        self.host: HostLeases[ImplementationRun] = HostLeases(robot, body)
+        self.host: HostLeases[ImplementationRun] = HostLeases(
+            robot, body, max_lease_s=cfg.max_lease_s
+        )
+        #: The auctions this robot bid in and the consensus tasks it claimed: the only
+        #: awards it takes.
+        self.bids = BidBook(bid_memory_s(cfg.auction_window_s, cfg.award_timeout_s))
+        #: Calls for bids priced per auctioneer (each costs the implementations' estimates).
+        self.calls = Budgets(CALLS_PER_S, CALLS_BURST)
         self.slot: RemoteCapabilitySlot | None = None
         self.runs: RunFactory | None = None
         #: Runs of this robot's own capability nodes, awarded and not yet adopted.
@@ -126,6 +143,21 @@ class ExecutorSide:
             log.error("mission.bid_failed", robot=self.robot, implementation=name, exc_info=err)
         return ev.answer
 
+    def bid(self, sender: str, cfb: CallForBids) -> Bid | NoBid | None:
+        """This robot's answer to ``sender``'s call for bids, remembered so its award is
+        taken; None: over the auctioneer's budget of calls (not answered: the auction
+        closes at its window)."""
+        now = self.now()
+        if not self.calls.allow(sender, now):
+            return None
+        answer = self.evaluate(cfb)
+        if isinstance(answer, Bid):
+            self.bids.bid(cfb.auction, cfb.interface, now)
+        return answer
+
+    def claimed(self, execution: ExecutionId) -> None:
+        self.bids.claimed(execution, self.now())
+
     def _implementation(self, msg: Award) -> Implementation | str:
         impls = self.repository.local_implementations(msg.interface)
         impl = next((i for i in impls if i.name == msg.implementation), None)
@@ -137,7 +169,8 @@ class ExecutorSide:
 
     def accept(self, sender: str, msg: Award) -> str | None:
         """Take the award, or say why not; nothing is held after a refusal."""
-        impl = self.host.refuse_award(sender, msg) or self._implementation(msg)
+        refused = self.bids.refuse(sender, msg, self.now()) or self.host.refuse_award(sender, msg)
+        impl = refused or self._implementation(msg)
         if isinstance(impl, str):
             return impl
         assert self.runs is not None
@@ -154,6 +187,7 @@ class ExecutorSide:
                     "mission.build_failed", robot=self.robot, implementation=impl.name, exc_info=exc
                 )
             return str(exc)
+        self.bids.taken(msg)
         if msg.execution.origin != self.robot:
             if self.host.admit(msg, run, inputs, cost, self.now()):
                 why = self.load(msg.execution)

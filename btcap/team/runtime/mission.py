@@ -83,7 +83,9 @@ class MissionControl(Actor):
         #: Grows whenever waiting work may now find a robot (one came free, joined or
         #: changed): capability nodes waiting for one auction again at once.
         self.changes = 0
-        self.executor = ExecutorSide(robot, repository, self.body, self.stats, self.now)
+        self.executor = ExecutorSide(
+            robot, repository, self.body, self.stats, self.now, config=self.config
+        )
         self.executor.costs.margin = self.config.move_margin
         self.host = self.executor.host
         #: This robot's part of the allocation strategy (spawned beside mission control).
@@ -152,6 +154,9 @@ class MissionControl(Actor):
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.JOINED, TeamEvent.CHANGED, TeamEvent.FREED):
+            if not self._reevaluation.budget(robot, self.now()):
+                self.stats.news_ignored += 1  # its news comes faster than we may act on it
+                return
             self.changes += 1
             if self.config.reevaluate_s is not None and event is not TeamEvent.JOINED:
                 self._reevaluation.news()  # (a join is news once its capabilities are known)
@@ -263,8 +268,12 @@ class MissionControl(Actor):
         if self.sender != auctioneer:  # nobody may have our bids sent to a third robot
             self.refused(self.sender, msg, f"call for bids of {auctioneer}'s auction")
             return
+        answer = self.executor.bid(self.sender, msg)
+        if answer is None:
+            self.refused(self.sender, msg, "over its budget of calls for bids")
+            return
         to = Address(auctioneer, SingleItemAuction.PATH)
-        self.system.tell(to, self.executor.evaluate(msg), sender=self.address)
+        self.system.tell(to, answer, sender=self.address)
 
     @handler
     def on_award(self, msg: Award) -> AwardReply:

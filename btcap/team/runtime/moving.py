@@ -17,6 +17,7 @@ from btcap.bt.state import State
 from btcap.team.allocation.strategy import Allocator
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import LocalExecution, RemoteExecution
+from btcap.team.core.bounds import Budgets
 from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
@@ -28,6 +29,10 @@ from btcap.transports.log import get_logger
 __all__ = ["Reevaluation"]
 
 log = get_logger("btcap.mission")
+
+#: A teammate's news sets off work at most this often per auction window, after a burst.
+NEWS_PER_WINDOW = 1.0
+NEWS_BURST = 4.0
 
 Handle = LocalExecution | RemoteExecution
 
@@ -44,6 +49,8 @@ class Mover(Protocol):
 
     def alive(self) -> frozenset[str]: ...
 
+    def now(self) -> float: ...
+
     def new_execution(self, node: Capability) -> ExecutionId: ...
 
     def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle: ...
@@ -58,6 +65,15 @@ class Reevaluation:
         self.mc = mc
         self._running = False
         self._again = False
+        window = mc.config.auction_window_s
+        #: Each teammate's news (a join, coming free, new capabilities) may set off a
+        #: re-evaluation (an auction per running task) or waiting work's auctions:
+        #: NEWS_BURST at once, then one per auction window; more waits for the periodic look.
+        self.news_budget = Budgets(NEWS_PER_WINDOW / window, NEWS_BURST)
+
+    def budget(self, robot: str, now: float) -> bool:
+        """Whether news from ``robot`` may set off work now (spent if so)."""
+        return self.news_budget.allow(robot, now)
 
     @property
     def margin(self) -> float:
@@ -72,7 +88,13 @@ class Reevaluation:
             self.mc.start_task(self._every(cfg.reevaluate_s, sleep), name="re-evaluation")
         if cfg.reevaluate_s is None and cfg.rebid_on_join is None:
             return []
-        return [self.mc.repository.subscribe(lambda _robot: self.news())]
+        return [self.mc.repository.subscribe(self._capabilities)]
+
+    def _capabilities(self, robot: str) -> None:
+        if self.budget(robot, self.mc.now()):
+            self.news()
+        else:
+            self.mc.stats.news_ignored += 1
 
     async def _every(self, period: float, sleep: Callable[[float], Awaitable[None]]) -> None:
         while True:

@@ -96,6 +96,9 @@ class OriginSide:
     def alive(self) -> frozenset[str]:
         return self.team.alive()
 
+    def now(self) -> float:
+        return self.host.now()
+
     def start_task(self, coro: Coroutine[Any, Any, Any], *, name: str | None = None) -> Any:
         return self.host.start_task(coro, name=name)
 

@@ -18,3 +18,4 @@ class MissionStats:
     moved: int = 0
     refused: int = 0  #: messages a peer had no right to send, or that made no sense
     errors: int = 0  #: failures of this robot's own code (bid functions, builds), logged
+    news_ignored: int = 0  #: teammates' news over their budget (see Reevaluation.budget)

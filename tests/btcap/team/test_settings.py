@@ -118,3 +118,12 @@ def test_membership_takes_its_defaults_and_checks_from_the_settings() -> None:
     )
     with pytest.raises(ValueError, match="heartbeat_fanout: Expected `int` >= 1"):
         Membership("me", fanout=0)
+
+
+def test_max_lease_s_bounds_the_leases_a_robot_accepts_and_covers_its_own() -> None:
+    assert AgentConfig().max_lease_s == Allocation().max_lease_s == 300.0
+    with pytest.raises(ValueError, match=r"^max_lease_s: must not be below lease_s"):
+        AgentConfig(lease_s=10.0, keepalive_s=1.0, max_lease_s=5.0)
+    with pytest.raises(ValueError, match=r"^max_lease_s: Expected `float` > 0\.0"):
+        Allocation(max_lease_s=0.0)
+    assert AgentConfig.of(Timing(), Allocation(max_lease_s=2.0)).max_lease_s == 2.0

@@ -661,7 +661,7 @@ async def test_preconditions_are_checked_again_at_award() -> None:
             b.repository.team["a"].succeeded.append("First")
             mc = b.mission_control
             cfb = CallForBids(AuctionId("a", 9), "Count", COUNT.identity, {"x": 1})
-            assert isinstance(mc.executor.evaluate(cfb), Bid)
+            assert isinstance(mc.executor.bid("a", cfb), Bid)  # remembered: its award is due
             # The member that had done it left before the award came.
             b.repository.team.pop("a")
             execution = ExecutionId("a", "root", 9)
@@ -714,8 +714,13 @@ async def test_stray_and_foreign_messages_are_ignored_and_the_team_keeps_working
             ]
             for address, msg in stray:
                 send(address, msg)
-            # An award for an implementation the robot does not have is declined.
+            # An award for an auction the robot did not bid in is declined; so is one for
+            # an implementation it does not have.
             award = Award(AuctionId("x", 1), foreign, "Count", "no-such-impl", {"x": 1}, 1.0)
+            reply = await x.system.ref("a/mission_control").ask(award, expect=AwardReply)
+            assert not reply.accepted
+            assert "we made no bid in auction x#1" in reply.reason
+            a.mission_control.executor.bids.bid(AuctionId("x", 1), "Count", a.clock.now())
             reply = await x.system.ref("a/mission_control").ask(award, expect=AwardReply)
             assert not reply.accepted
             assert "no implementation" in reply.reason

@@ -30,6 +30,7 @@ async def test_a_withdrawn_award_to_itself_frees_the_body() -> None:
             mc = a.mission_control
             execution = ExecutionId("a", "root/count", 99)
             award = Award(AuctionId("a", 99), execution, "Count", "count-a", {"x": 1}, 1.0)
+            mc.executor.bids.bid(award.auction, "Count", a.clock.now())  # it bid in its auction
             reply = await a.system.ref(Address("a", MC)).ask(award, expect=AwardReply)
             assert reply.accepted
             assert mc.body.running == execution

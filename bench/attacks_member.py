@@ -1,0 +1,337 @@
+"""Attacks by a member acting in its own name, and a keyless Sybil (issue 19, item 5).
+
+A keyless team over tcp loopback in this process: ``origin``, robots ``r1`` and ``r2``
+(both run Echo) and ``mallory``, a member like any other. Mallory:
+
+- ``award``: awards r1 an execution no auction preceded, with a 10^6 s lease;
+- ``lease``: calls for bids like an auctioneer, then awards r1 with a 10^6 s lease;
+- ``heartbeat_churn``: 300 heartbeats in 3 s to the origin, its busy flag flipped in
+  each, while the origin's mission runs on r1 (every "came free" is news);
+- ``sybil``: a raw pyzmq client makes up ghost members (a hello from a dead endpoint,
+  a heartbeat and a big capability list each) that then fall silent.
+
+Each gives ``(name, passed, figures)``; :func:`probe_members` is one of the attack
+probe's ``MORE_PROBES`` (``python -m btcap.bench attacks``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ctypes
+import gc
+import os
+import time
+from collections.abc import AsyncIterator, Callable
+from typing import Any
+
+import zmq
+
+from btcap import ReactiveSequence
+from btcap.actors import Address, Message
+from btcap.bt.state import State
+from btcap.team.capabilities.capability import Capability
+from btcap.team.core.members import TeamEvent
+from btcap.team.demo import ECHO, implementations
+from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.messages import (
+    Award,
+    AwardReply,
+    CallForBids,
+    CancelExecution,
+    Heartbeat,
+    RepositoryState,
+)
+from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.protocol import protocol_registry
+from btcap.transports import ZmqTransport
+from btcap.transports.codec import Codec, Envelope, Kind
+
+__all__ = ["probe_members"]
+
+_TCP = "tcp://127.0.0.1:*"
+_DEAD = "tcp://127.0.0.1:9"  # discard port: where the ghosts say they live
+MC = "mission_control"
+HUGE_LEASE_S = 1e6
+#: As the attack probe's team: a failure timeout of a few seconds rides out gc pauses.
+CONFIG = AgentConfig(heartbeat_s=0.1, failure_timeout_s=3.0, lease_s=3.0, keepalive_s=0.5)
+CHURN_BEATS = 300
+CHURN_S = 3.0
+CHURN_MAX_AUCTIONS = 15  # a burst of news, then one per auction window (1 s)
+FD_SLACK = 16
+RSS_SLACK_MB = 96.0
+CPU_SLACK = 0.05  # idle CPU (share of one core) allowed above the baseline afterwards
+
+Result = tuple[str, bool, dict[str, Any]]
+
+
+def _open_files() -> int:
+    return len(os.listdir("/proc/self/fd"))
+
+
+def _trim() -> None:
+    """Give freed heap back to the system (glibc keeps it otherwise): RSS then shows what
+    is held, not what the allocator kept from the flood of big frames."""
+    gc.collect()
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+
+
+def _held_bytes(state: RepositoryState) -> int:
+    """The characters of a teammate's capability list a robot holds."""
+    return sum(len(k) + len(v) for k, v in state.interfaces.items()) + sum(
+        map(len, state.succeeded)
+    )
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS in /proc/self/status")
+
+
+async def _idle_cpu(seconds: float) -> float:
+    """This process's CPU time over ``seconds`` of wall time, as a share of one core."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    await asyncio.sleep(seconds)
+    return (time.process_time() - c0) / (time.perf_counter() - t0)
+
+
+async def _until(cond: Callable[[], bool], timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        await asyncio.sleep(0.01)
+    return True
+
+
+@contextlib.asynccontextmanager
+async def _team() -> AsyncIterator[dict[str, Agent]]:
+    """origin, r1, r2 and mallory on keyless tcp loopback, transports as deployed."""
+    names = ("r1", "r2", "origin", "mallory")
+    transports: dict[str, ZmqTransport] = {}
+    regs = {n: protocol_registry() for n in names}
+    for n in names:
+        seeds = {} if n == "r1" else {"r1": transports["r1"].endpoint}
+        transports[n] = ZmqTransport(n, _TCP, regs[n], peers=seeds)
+    agents = {
+        n: Agent(
+            n,
+            transport=transports[n],
+            registry=regs[n],
+            implementations=implementations(n) if n in ("r1", "r2") else (),
+            config=CONFIG,
+        )
+        for n in names
+    }
+    try:
+        async with contextlib.AsyncExitStack() as stack:
+            for n in names:
+                await stack.enter_async_context(agents[n])
+            origin = agents["origin"]
+            ok = await _until(
+                lambda: (
+                    {"r1", "r2"} <= origin.repository.providers(ECHO.identity)
+                    and set(names) - {"origin"} <= set(origin.team.members)
+                    and {"origin", "mallory"} <= set(agents["r1"].team.members)
+                ),
+                15.0,
+            )
+            if not ok:
+                raise TimeoutError("the team did not form")
+            yield agents
+    finally:
+        for t in transports.values():
+            t.close()
+
+
+def _echo_award(auction: AuctionId, number: int, lease_s: float) -> Award:
+    execution = ExecutionId("mallory", "root/echo", number)
+    return Award(auction, execution, "Echo", "echo-r1", {"value": 1}, lease_s)
+
+
+async def _award_from_mallory(team: dict[str, Agent], award: Award) -> AwardReply:
+    mallory, r1 = team["mallory"], team["r1"]
+    ref = mallory.system.ref(Address("r1", MC))
+    reply = await ref.ask(award, expect=AwardReply, timeout=2.0)
+    if reply.accepted:  # measured: give the robot back for the next case
+        mallory.system.tell(Address("r1", MC), CancelExecution(award.execution, "probe done"))
+        await _until(lambda: r1.mission_control.body.idle, 2.0)
+    return reply
+
+
+async def _award(team: dict[str, Agent]) -> Result:
+    """Awards no auction preceded, each with a 10^6 s lease."""
+    accepted, reasons = 0, set()
+    for n in range(1, 6):
+        reply = await _award_from_mallory(team, _echo_award(AuctionId("mallory", n), n, 1e6))
+        accepted += reply.accepted
+        reasons.add(reply.reason[:80])
+    figures = {"awards_sent": 5, "awards_accepted": accepted, "reasons": sorted(reasons)}
+    return "award", accepted == 0, figures
+
+
+async def _lease(team: dict[str, Agent]) -> Result:
+    """A real call for bids from mallory (r1 bids), then its award with a 10^6 s lease."""
+    auction = AuctionId("mallory", 1000)
+    cfb = CallForBids(auction, "Echo", ECHO.identity, {"value": 1})
+    team["mallory"].system.tell(Address("r1", MC), cfb)
+    await asyncio.sleep(0.1)
+    reply = await _award_from_mallory(team, _echo_award(auction, 1000, HUGE_LEASE_S))
+    figures = {"lease_s": HUGE_LEASE_S, "accepted": reply.accepted, "reason": reply.reason}
+    return "lease", not reply.accepted and "max_lease_s" in reply.reason, figures
+
+
+async def _churn(team: dict[str, Agent]) -> Result:
+    """300 heartbeats in 3 s with a flipped busy flag, while the origin's work runs."""
+    origin, mallory = team["origin"], team["mallory"]
+    node = ECHO.node_type()("echo", inputs={"value": 1})
+    assert isinstance(node, Capability)
+    tree = origin.mission(ReactiveSequence("root", children=[node]))
+    stop = asyncio.Event()
+
+    async def tick() -> None:
+        while not stop.is_set():
+            tree.tick()
+            await asyncio.sleep(0.02)
+
+    ticking = asyncio.create_task(tick())
+    try:
+        if not await _until(lambda: node.state is State.RUNNING, 10.0):
+            return "heartbeat_churn", False, {"error": "the mission did not start"}
+        auctions = origin.allocator.stats.auctions
+        t = mallory.team
+        beat = t.beat + 1_000_000
+        for k in range(CHURN_BEATS):
+            hb = Heartbeat("mallory", t.incarnation, mallory.repository.version, k % 2 == 0)
+            mallory.system.tell(Address("origin", "team"), _beat(hb, beat + k))
+            await asyncio.sleep(CHURN_S / CHURN_BEATS)
+        await asyncio.sleep(1.0)  # re-evaluations under way finish
+        held = origin.allocator.stats.auctions - auctions
+        figures = {
+            "heartbeats": CHURN_BEATS,
+            "seconds": CHURN_S,
+            "reevaluation_auctions": held,
+            "news_ignored": getattr(origin.mission_control.stats, "news_ignored", 0),
+            "assignments": list(node.assignments),
+        }
+        return "heartbeat_churn", held <= CHURN_MAX_AUCTIONS, figures
+    finally:
+        stop.set()
+        await ticking
+        await tree.shutdown()
+
+
+def _beat(hb: Heartbeat, beat: int) -> Heartbeat:
+    return Heartbeat(hb.robot, hb.incarnation, hb.repo_version, hb.busy, beat)
+
+
+def _frame(codec: Codec, sender: str, to: str, path: str, msg: Message) -> bytes:
+    return b"M" + codec.encode(Envelope(Kind.TELL, Address(sender, "x"), Address(to, path), msg))
+
+
+def _ghosts(endpoint: str, n: int, state_bytes: int) -> None:
+    """Made-up members: a hello from a dead endpoint, a heartbeat and a big capability
+    list each, then silence."""
+    codec = Codec(protocol_registry())
+    filler = "i" * 1000
+    interfaces = {f"Iface{k}": filler for k in range(state_bytes // 1000)}
+    for start in range(0, n, 100):
+        ctx: zmq.Context[Any] = zmq.Context()
+        try:
+            for i in range(start, min(n, start + 100)):
+                ghost = f"ghost-{i}"
+                sock = ctx.socket(zmq.DEALER)
+                sock.setsockopt(zmq.ROUTING_ID, ghost.encode())
+                sock.setsockopt(zmq.LINGER, 5000)
+                sock.setsockopt(zmq.SNDHWM, 0)
+                sock.connect(endpoint)
+                sock.send(b"H" + _DEAD.encode())
+                sock.send(_frame(codec, ghost, "r1", "team", Heartbeat(ghost, 1, 1, False, 1)))
+                state = RepositoryState(ghost, 1, interfaces)
+                sock.send(_frame(codec, ghost, "r1", "repository", state))
+                sock.close()
+        finally:
+            ctx.term()
+
+
+async def _sybil(quick: bool) -> Result:
+    n, size = (200, 300_000) if quick else (1000, 900_000)
+    async with _team() as team:
+        r1, origin = team["r1"], team["origin"]
+        false_failures: list[str] = []
+        origin.team.subscribe(
+            lambda e, r: false_failures.append(r) if e is TeamEvent.FAILED and r in team else None
+        )
+        joins: list[str] = []
+        r1.team.subscribe(lambda e, r: joins.append(r) if e is TeamEvent.JOINED else None)
+        held_peak = 0
+
+        def held() -> bool:
+            nonlocal held_peak
+            cost = sum(_held_bytes(st) for st in r1.repository.team.values())
+            held_peak = max(held_peak, cost)
+            return False
+
+        _trim()
+        fds0, rss0 = _open_files(), _rss_mb()
+        cpu0 = await _idle_cpu(1.0)
+        sending = asyncio.create_task(
+            asyncio.to_thread(_ghosts, r1.system.transport.endpoint, n, size)  # type: ignore[union-attr]
+        )
+        peak_fds, peak_rss = 0, 0.0
+        while not sending.done():
+            held()
+            peak_fds, peak_rss = max(peak_fds, _open_files()), max(peak_rss, _rss_mb())
+            await asyncio.sleep(0.05)
+        await sending
+        await asyncio.sleep(0.5)
+        held()
+        peak_fds, peak_rss = max(peak_fds, _open_files()), max(peak_rss, _rss_mb())
+        ghosts_joined = sum(r.startswith("ghost-") for r in joins)
+        # They fall silent: failed after the failure timeout, then forgotten.
+        await _until(lambda: not any(m.startswith("ghost-") for m in r1.team.members), 15.0)
+        await asyncio.sleep(1.0)
+        _trim()
+        fds1, rss1 = _open_files(), _rss_mb()
+        cpu1 = await _idle_cpu(2.0)
+        t1 = r1.system.transport
+        to = origin.system.transport
+        figures = {
+            "ghosts": n,
+            "state_bytes": size,
+            "ghosts_joined": ghosts_joined,
+            "capability_lists_held_peak_mb": round(held_peak / 2**20, 1),
+            "fds_before": fds0,
+            "fds_peak": peak_fds,
+            "fds_after": fds1,
+            "rss_before_mb": round(rss0, 1),
+            "rss_peak_mb": round(peak_rss, 1),
+            "rss_after_mb": round(rss1, 1),
+            "idle_cpu_before": round(cpu0, 3),
+            "idle_cpu_after": round(cpu1, 3),
+            "r1_peers_after": len(t1.peers()) if t1 is not None else -1,
+            "origin_peers_after": len(to.peers()) if to is not None else -1,
+            "false_failures": false_failures,
+        }
+        ok = (
+            fds1 <= fds0 + FD_SLACK
+            and rss1 - rss0 <= RSS_SLACK_MB
+            and cpu1 <= cpu0 + CPU_SLACK
+            and not false_failures
+        )
+        return "sybil", ok, figures
+
+
+async def probe_members(quick: bool) -> list[Result]:
+    """The member and Sybil attacks, each on a fresh team."""
+    results: list[Result] = []
+    async with _team() as team:
+        results.append(await _award(team))
+        results.append(await _lease(team))
+        results.append(await _churn(team))
+    results.append(await _sybil(quick))
+    return results
