@@ -103,6 +103,10 @@ class SwimNet:
             r.counted[type(msg).__name__] += 1
         if self.intercept is not None and self.intercept(sender, to, msg):
             return
+        self.transmit(sender, to, msg)
+
+    def transmit(self, sender: str, to: str, msg: Message) -> None:
+        """Put ``msg`` on the wire, past :attr:`intercept` (lost or delayed as usual)."""
         loss = self.link_loss.get((sender, to), self.loss)
         if loss and self._rng.random() < loss:
             return
@@ -119,10 +123,9 @@ class SwimNet:
                 continue
             swim = r.swim
             if kind == _TICK:
-                period = swim.period_s
                 self._apply(to, swim.tick(t))
                 self._at(t + swim.probe_timeout_s, _TIMEOUT, to)
-                self._at(t + period, _TICK, to)
+                self._at(t + swim.period_s, _TICK, to)
             elif kind == _TIMEOUT:
                 self._apply(to, swim.timeout(t))
             elif isinstance(msg, Heartbeat):

@@ -10,6 +10,7 @@ the transport) until its goodbye, or until a suspicion of it ran out unrefuted
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -42,13 +43,14 @@ class Suspicion:
 
     beat: int
     since: float
+    #: The suspectors that told us themselves (or us), first first; "" one passed on.
     by: list[str] = field(default_factory=list)
-    probed: bool = False  #: whether we probed it ourselves since
+    probed_at: float = -math.inf  #: when we last probed it ourselves
 
     @property
     def confirmations(self) -> int:
         """Independent suspectors beyond the first (Lifeguard shortens the timeout)."""
-        return max(len(self.by) - 1, 0)
+        return max(sum(1 for b in self.by if b) - 1, 0)
 
 
 @dataclass(slots=True)
@@ -139,7 +141,7 @@ class MemberTable:
             m.beat = beat
             m.suspicion = self.suspected[robot] = Suspicion(beat, now, [by])
             return True
-        if by in s.by or len(s.by) >= MAX_SUSPECTORS:
+        if not by or by in s.by or len(s.by) >= MAX_SUSPECTORS:
             return False
         s.by.append(by)
         return True

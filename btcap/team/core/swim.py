@@ -5,9 +5,9 @@ member (:class:`~btcap.team.core.gossip.ProbeOrder`) with a heartbeat carrying n
 member answers at once. No answer within the probe timeout: ``indirect`` other members
 are asked to probe it (:class:`~btcap.team.messages.ProbeRequest`; their
 :class:`~btcap.team.messages.Vouch` counts as an answer). Still nothing when the period
-ends: the member is *suspected*, and the suspicion is passed on. Every robot that hears a
-suspicion probes the member itself next (an answer clears the suspicion there; silence
-confirms it) and runs its own timer (:meth:`SwimParams.suspicion_s`, between
+ends: the member is *suspected*, and the suspicion is passed on. Every robot that holds a
+suspicion probes the member itself, one suspect per period (an answer clears the
+suspicion there and carries the robot's refutation; silence confirms it) and runs its own timer (:meth:`SwimParams.suspicion_s`, between
 ``α·log10(team)`` and ``β·α·log10(team)`` periods, never below ``floor_s``, shorter with
 more independent confirmations); it declares the member failed alone, when the timer runs
 out unrefuted. No message says "X is dead", so nobody can kill a live robot by saying so.
@@ -199,12 +199,11 @@ class Swim:
         """A message of this robot about itself, with news piggybacked (news of ``to``
         first: a suspected robot learns of it from the probe that checks it)."""
         p = self.params
-        heard = self.rumours.take(p.news, p.retransmits(self.team()), first=to)
         if to is not None and (m := self.members.get(to)) and m.suspicion is not None:
-            s = m.suspicion
-            mine = Heard(to, m.incarnation, s.beat, 0, True, s.by[0])
-            if mine not in heard:
-                heard = [mine, *heard[: p.news - 1]]
+            # To a suspect: only its suspicion (news passed to a dead robot is wasted).
+            heard = [Heard(to, m.incarnation, m.suspicion.beat, 0, True, self.robot)]
+        else:
+            heard = self.rumours.take(p.news, p.retransmits(self.team()), first=to)
         return Heartbeat(
             self.robot,
             self.incarnation,
@@ -226,11 +225,17 @@ class Swim:
             self.rumours.drop(robot)
             step.events.append((TeamEvent.FAILED, robot))
         self._relays = {n: r for n, r in self._relays.items() if r.until > now}
-        target = self._next_target()
+        target = self._next_target(now)
         if target is not None:
             self._numbers += 1
             self._probe = _Probe(target, self._numbers)
             step.sends.append((target, self.heartbeat(to=target, probe=self._numbers)))
+        if target in self.table.suspected and len(self.rumours):
+            # A probe of a suspect carries only its suspicion: the news goes on to the
+            # round robin's member, so it keeps spreading while everybody checks.
+            gossip = self._order.next(self.members)
+            if gossip is not None and gossip != target:
+                step.sends.append((gossip, self.heartbeat(to=gossip)))
         return step
 
     def timeout(self, now: float) -> Step:
@@ -263,16 +268,17 @@ class Swim:
         if self.table.suspect(m.robot, m.incarnation, m.beat, self.robot, now):
             s = m.suspicion
             assert s is not None
-            s.probed = True
             self.rumours.add(Heard(m.robot, m.incarnation, s.beat, 0, True, self.robot))
 
-    def _next_target(self) -> str | None:
-        """A suspected member we did not probe ourselves yet goes first (our own answer
-        or silence is better evidence than hearsay); then the round robin."""
-        for robot, s in self.table.suspected.items():
-            if not s.probed:
-                s.probed = True
-                return robot
+    def _next_target(self, now: float) -> str | None:
+        """Suspected members go first, the one we probed least recently: an answer to
+        us clears the suspicion here, and carries the robot's refutation; silence
+        confirms it. Then the round robin."""
+        suspected = self.table.suspected
+        if suspected:
+            robot = min(suspected, key=lambda r: suspected[r].probed_at)
+            suspected[robot].probed_at = now
+            return robot
         return self._order.next(self.members)
 
     # -- messages -------------------------------------------------------------------------
@@ -320,10 +326,12 @@ class Swim:
                     self._refute(h.beat)
                 continue
             if h.suspect:
-                # The suspector named counts only if it is a member (or the sender).
-                by = h.by if h.by in self.members or h.by == sender else sender
-                if self.table.suspect(h.robot, h.incarnation, h.beat, by, now):
-                    self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, by))
+                # A robot speaks only for itself: news of a suspicion says its sender holds
+                # it (honest robots pass on only what they hold), so the sender counts as a
+                # suspector, never the robot named in ``by`` (else a liar could name others
+                # and bring every suspicion to its shortest timeout).
+                if self.table.suspect(h.robot, h.incarnation, h.beat, sender, now):
+                    self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, h.by))
                 continue
             result = self.table.hearsay(h.robot, h.incarnation, h.beat, now, window_s=window)
             if result is Hearsay.NEWS:

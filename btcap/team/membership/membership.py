@@ -143,8 +143,8 @@ class Membership(Actor):
     async def _run(self) -> None:
         clock, swim = self.system.clock, self.swim
         while True:
-            period, wait = swim.period_s, swim.probe_timeout_s
             self._period(clock.now())
+            period, wait = swim.period_s, swim.probe_timeout_s
             await clock.sleep(wait)
             self._apply(swim.timeout(clock.now()), None)
             await clock.sleep(period - wait)
