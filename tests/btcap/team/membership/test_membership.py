@@ -97,15 +97,18 @@ async def test_goodbye_of_the_current_incarnation_only() -> None:
             assert p.m.alive() == {"me"}
 
 
-async def test_silence_beyond_the_failure_timeout_is_a_failure() -> None:
+async def test_a_member_silent_to_probes_is_suspected_then_failed() -> None:
     with anyio.fail_after(5):
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
-            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Heartbeat("x", 1, 0))  # x never answers a probe
             await p.clock.advance(0.4)
-            await p.send("x", Heartbeat("x", 1, 0))  # renews
-            await p.clock.advance(0.5)
+            await p.send("x", Heartbeat("x", 1, 0))  # its own word ends the suspicion
+            assert p.m.table.suspected == {}
+            await p.clock.advance(0.2)  # the next probe went unanswered: suspected
+            assert set(p.m.table.suspected) == {"x"}
+            await p.clock.advance(0.3)  # not yet: the suspicion lasts failure_timeout_s
             assert events == [(TeamEvent.JOINED, "x")]
-            await p.clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
+            await p.clock.advance(0.4)
             assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
             assert p.m.alive() == {"me"}
 
