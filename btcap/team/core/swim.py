@@ -75,9 +75,12 @@ class SwimParams:
         return self.period_s / 2
 
     def suspicion_bounds(self, team: int) -> tuple[float, float]:
-        """The shortest and longest suspicion timeouts in a team of ``team`` robots."""
-        lo = max(self.floor_s, ALPHA * math.log10(max(team, 1)) * self.period_s)
-        return lo, BETA * lo
+        """The shortest and longest suspicion timeouts in a team of ``team`` robots:
+        ``α·log10(team)`` periods and β times that, neither below the floor (a floor
+        the user set is what they get where it is longer than the scaled timeouts)."""
+        scaled = ALPHA * math.log10(max(team, 1)) * self.period_s
+        lo = max(self.floor_s, scaled)
+        return lo, max(lo, BETA * scaled)
 
     def suspicion_s(self, team: int, confirmations: int) -> float:
         """Lifeguard's timeout: the longest with no independent confirmation, down to the

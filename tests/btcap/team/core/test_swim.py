@@ -29,7 +29,8 @@ def robot(name: str = "a", team: tuple[str, ...] = ("b", "c", "d", "e")) -> Swim
 
 def test_timeouts_scale_with_the_team_and_the_setting_is_their_floor() -> None:
     p = DEFAULTS
-    assert p.suspicion_bounds(10) == (0.5, 3.0)  # 4·log10(10)·0.1 = 0.4 < the floor
+    assert p.suspicion_bounds(10) == (0.5, pytest.approx(2.4))  # 4·log10(10)·0.1 < the floor
+    assert SwimParams(5.0, 80.0).suspicion_bounds(4) == (80.0, 80.0)  # a long floor: as set
     lo, hi = p.suspicion_bounds(1000)
     assert (lo, hi) == (pytest.approx(1.2), pytest.approx(7.2))
     assert p.suspicion_s(1000, 0) == pytest.approx(7.2)  # nobody else agrees: the longest
