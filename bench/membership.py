@@ -144,7 +144,11 @@ def _print(kind: str, size: int, window_s: float, row: dict[str, Any]) -> None:
 
 
 def run(quick: bool = False) -> dict[str, Any]:
-    core = ((10, 60.0), (50, 60.0)) if quick else ((10, 1800.0), (50, 1800.0), (200, 1800.0), (500, 1800.0))
+    core = (
+        ((10, 60.0), (50, 60.0))
+        if quick
+        else ((10, 1800.0), (50, 1800.0), (200, 1800.0), (500, 1800.0))
+    )
     agents = ((10, 20.0),) if quick else ((10, 120.0), (50, 120.0))
     out: dict[str, Any] = {
         "heartbeat_s": DEFAULTS.heartbeat_s,

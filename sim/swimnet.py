@@ -90,7 +90,9 @@ class SwimNet:
             self._at(phase.uniform(0, params.period_s), _TICK, name)
 
     # -- driving ------------------------------------------------------------------------
-    def _at(self, t: float, kind: int, to: str, sender: str = "", msg: Message | None = None) -> None:
+    def _at(
+        self, t: float, kind: int, to: str, sender: str = "", msg: Message | None = None
+    ) -> None:
         self._seq += 1
         heapq.heappush(self._queue, (t, self._seq, kind, to, sender, msg))
 

@@ -3,7 +3,7 @@
 Freshness cannot reach every robot every period with bounded messages; changes can.
 So a robot probes one teammate per period (:class:`ProbeOrder`, SWIM's shuffled round
 robin) and each message carries a bounded number of news items (:class:`Rumours`: joins,
-suspicions, refutations), each passed on ``λ·log(team)`` times: a change reaches the whole
+suspicions, refutations), each passed on ``lambda·log(team)`` times: a change reaches the whole
 team in O(log team) periods while messages and bytes per robot and period stay flat.
 """
 

@@ -5,11 +5,12 @@ member (:class:`~btcap.team.core.gossip.ProbeOrder`) with a heartbeat carrying n
 member answers at once. No answer within the probe timeout: ``indirect`` other members
 are asked to probe it (:class:`~btcap.team.messages.ProbeRequest`; their
 :class:`~btcap.team.messages.Vouch` counts as an answer). Still nothing when the period
-ends: the member is *suspected*, and the suspicion is passed on. Every robot that holds a
-suspicion probes the member itself, one suspect per period (an answer clears the
-suspicion there and carries the robot's refutation; silence confirms it) and runs its own timer (:meth:`SwimParams.suspicion_s`, between
-``α·log10(team)`` and ``β·α·log10(team)`` periods, never below ``floor_s``, shorter with
-more independent confirmations); it declares the member failed alone, when the timer runs
+ends: the member is *suspected*, and the suspicion is passed on. Every robot that holds
+a suspicion probes the member itself, one suspect per period (an answer clears the
+suspicion there and carries the robot's refutation; silence confirms it), and runs its
+own timer (:meth:`SwimParams.suspicion_s`: between ``alpha·log10(team)`` and
+``beta·alpha·log10(team)`` periods, never below ``floor_s``, shorter with more
+independent confirmations); it declares the member failed alone, when the timer runs
 out unrefuted. No message says "X is dead", so nobody can kill a live robot by saying so.
 
 A robot that hears it is suspected refutes: its ``beat`` (the version of what it says
@@ -47,10 +48,10 @@ __all__ = [
     "SwimParams",
 ]
 
-ALPHA = 4.0  #: suspicion timeout, in periods per decade of team size (Lifeguard's α)
-BETA = 6.0  #: the longest suspicion timeout, in shortest ones (Lifeguard's β)
+ALPHA = 4.0  #: suspicion timeout, in periods per decade of team size (Lifeguard's alpha)
+BETA = 6.0  #: the longest suspicion timeout, in shortest ones (Lifeguard's beta)
 CONFIRMATIONS = 3  #: independent confirmations that bring a suspicion to its shortest
-RETRANSMIT = 4  #: each news item is passed on RETRANSMIT·⌈log10(team + 1)⌉ times (λ)
+RETRANSMIT = 4  #: each news item is passed on RETRANSMIT·⌈log10(team + 1)⌉ times (lambda)
 MAX_HEALTH = 8  #: the local health multiplier's ceiling (Lifeguard's awareness)
 MAX_RELAYS = 64  #: indirect probes run for others at once (a flood of requests is dropped)
 
@@ -76,7 +77,7 @@ class SwimParams:
 
     def suspicion_bounds(self, team: int) -> tuple[float, float]:
         """The shortest and longest suspicion timeouts in a team of ``team`` robots:
-        ``α·log10(team)`` periods and β times that, neither below the floor (a floor
+        ``alpha·log10(team)`` periods and beta times that, neither below the floor (a floor
         the user set is what they get where it is longer than the scaled timeouts)."""
         scaled = ALPHA * math.log10(max(team, 1)) * self.period_s
         lo = max(self.floor_s, scaled)
@@ -294,11 +295,11 @@ class Swim:
         events = self.table.heartbeat(
             robot, msg.incarnation, msg.repo_version, now, msg.busy, msg.beat
         )
+        news = self.rumours.about(robot)
         if events and events[-1] is TeamEvent.JOINED:  # passed on: others may not know it
             self.rumours.add(Heard(robot, msg.incarnation, msg.beat))
-        elif (news := self.rumours.about(robot)) is not None and news.suspect:
-            if robot not in self.table.suspected:
-                self.rumours.drop(robot)  # heard it ourselves: stop spreading the doubt
+        elif news is not None and news.suspect and robot not in self.table.suspected:
+            self.rumours.drop(robot)  # heard it ourselves: stop spreading the doubt
         step.events.extend((event, robot) for event in events)
         self._news(robot, msg.heard, now, step)
         member = robot in self.members

@@ -44,10 +44,12 @@ def test_confirmations_count_distinct_suspectors() -> None:
     assert not t.suspect("b", 1, 0, "c", 0.2)  # the same suspector again
     assert t.suspect("b", 1, 0, "d", 0.2)
     s = t.members["b"].suspicion
-    assert s is not None and (s.since, s.confirmations) == (0.1, 1)
+    assert s is not None
+    assert (s.since, s.confirmations) == (0.1, 1)
     assert t.suspect("b", 1, 2, "e", 0.3)  # a newer beat: a new suspicion
     s = t.members["b"].suspicion
-    assert s is not None and (s.since, s.beat, s.confirmations) == (0.3, 2, 0)
+    assert s is not None
+    assert (s.since, s.beat, s.confirmations) == (0.3, 2, 0)
 
 
 def test_a_teammate_lying_about_a_dead_robot_keeps_it_alive_only_so_long() -> None:

@@ -4,6 +4,7 @@ the seeded network of :mod:`btcap.sim.swimnet`."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 
@@ -37,11 +38,13 @@ def test_timeouts_scale_with_the_team_and_the_setting_is_their_floor() -> None:
     assert p.suspicion_s(1000, 3) == pytest.approx(1.2)  # three others agree: the shortest
     assert p.suspicion_s(1000, 1) == pytest.approx(7.2 - 6.0 * math.log(2) / math.log(4))
     assert p.suspicion_s(2, 0) == 0.5  # nobody could confirm: the shortest
-    assert p.retransmits(10) == 8 and p.retransmits(500) == 12
+    assert p.retransmits(10) == 8
+    assert p.retransmits(500) == 12
     # the stated detection bound grows with log(team), not with the team
     growth = [p.detection_bound_s(n) for n in (10, 100, 1000, 10000)]
-    steps = [b - a for a, b in zip(growth, growth[1:], strict=False)]
-    assert all(s < 3.0 for s in steps) and growth[-1] < 15
+    steps = [b - a for a, b in itertools.pairwise(growth)]
+    assert all(s < 3.0 for s in steps)
+    assert growth[-1] < 15
 
 
 def test_a_setting_that_cannot_work_is_refused_with_its_name() -> None:
@@ -53,23 +56,30 @@ def test_an_unanswered_probe_asks_others_then_suspects_and_the_suspect_refutes()
     a = robot()
     step = a.tick(0.0)
     [(target, ping)] = step.sends
-    assert isinstance(ping, Heartbeat) and ping.probe
+    assert isinstance(ping, Heartbeat)
+    assert ping.probe
     step = a.timeout(0.05)
     asked = [to for to, msg in step.sends if isinstance(msg, ProbeRequest)]
-    assert len(asked) == 3 and target not in asked
+    assert len(asked) == 3
+    assert target not in asked
     assert a.timeout(0.06).sends == []  # asked once
     a.tick(0.1)  # the period ended in silence: suspected, and the news spreads
     m = a.members[target]
-    assert m.suspicion is not None and m.suspicion.by == ["a"]
+    assert m.suspicion is not None
+    assert m.suspicion.by == ["a"]
     # The next ping to the suspect carries the suspicion; the suspect refutes it.
     t = Swim(target, 1, DEFAULTS, random.Random(1))
     t.on_heartbeat(Heartbeat("a", 1, 0), 0.1)
     step = t.on_heartbeat(a.heartbeat(to=target, probe=7), 0.15)
     [(to, ack)] = step.sends
-    assert to == "a" and isinstance(ack, Heartbeat) and ack.ack == 7 and ack.beat == 1
+    assert to == "a"
+    assert isinstance(ack, Heartbeat)
+    assert ack.ack == 7
+    assert ack.beat == 1
     assert t.refuted == 1
     a.on_heartbeat(ack, 0.16)
-    assert a.members[target].suspicion is None and a.members[target].beat == 1
+    assert a.members[target].suspicion is None
+    assert a.members[target].beat == 1
 
 
 def test_a_vouch_answers_only_the_probe_it_was_asked_for() -> None:
