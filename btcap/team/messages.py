@@ -50,8 +50,9 @@ __all__ = [
 
 # -- team --------------------------------------------------------------------------------
 class Heard(msgspec.Struct, frozen=True, array_like=True):
-    """The latest beat a robot heard of a teammate, ``age_ms`` ago (hearsay that keeps it
-    alive)."""
+    """News of a teammate passed on by gossip: alive at ``beat`` (a join, or a refutation
+    of a suspicion), or, ``suspect``, suspected of having failed at ``beat`` (first by
+    ``by``). ``age_ms`` is kept for old peers and is 0 in news btcap sends now."""
 
     robot: str
     incarnation: int
