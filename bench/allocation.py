@@ -114,7 +114,8 @@ async def allocate(
     """Which robot the real team has on each task in the end (-1: none), and which robots
     failed (each the holder of a task, picked with ``seed``). ``false`` collects
     (observer, robot) of every failure declared of a robot that was not failed on
-    purpose (a flapping team would make the ratios meaningless)."""
+    purpose, by one that was not either (a flapping team would make the ratios
+    meaningless)."""
     robots, tasks = cost.shape
     clock = ManualClock()
     net = InProcessNetwork(protocol_registry(), encode=False)
@@ -140,7 +141,8 @@ async def allocate(
         def seen(event: TeamEvent, robot: str) -> None:
             if false is None or event is not TeamEvent.FAILED:
                 return
-            if robot not in names or names.index(robot) not in failed:
+            cut = {names[r] for r in failed}  # cut off on purpose: they fail the others
+            if robot not in cut and agent.robot not in cut:
                 false.append((agent.robot, robot))
 
         agent.team.subscribe(seen)
