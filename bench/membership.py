@@ -39,7 +39,7 @@ from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import BROADCAST, Codec, InProcessNetwork
 from btcap.transports.codec import Envelope
 
-__all__ = ["run"]
+__all__ = ["agent_team", "core_team", "run"]
 
 MEMBERSHIP = (Heartbeat, Roster, RosterRequest, ProbeRequest, Vouch, Goodbye)
 LOSS = 0.01
@@ -49,7 +49,7 @@ PARAMS = SwimParams(
 )
 
 
-def _core(size: int, window_s: float, seed: int = 1) -> dict[str, Any]:
+def core_team(size: int, window_s: float, seed: int = 1) -> dict[str, Any]:
     names = [f"r{i:03d}" for i in range(size)]
     net = SwimNet(names, PARAMS, seed=seed, loss=LOSS)
     net.run_until(window_s)
@@ -72,7 +72,7 @@ def _core(size: int, window_s: float, seed: int = 1) -> dict[str, Any]:
     }
 
 
-async def _agents(size: int, window_s: float, seed: int = 1) -> dict[str, Any]:
+async def agent_team(size: int, window_s: float, seed: int = 1) -> dict[str, Any]:
     clock = ManualClock()
     reg = protocol_registry()
     net = InProcessNetwork(reg)
@@ -165,11 +165,11 @@ def run(quick: bool = False) -> dict[str, Any]:
         f"{'detect s':>8} {'bound s':>7}"
     )
     for size, window_s in core:
-        row = _core(size, window_s)
+        row = core_team(size, window_s)
         out[f"core/{size}"] = {"window_s": window_s, **row}
         _print("core", size, window_s, row)
     for size, window_s in agents:
-        row = asyncio.run(_agents(size, window_s))
+        row = asyncio.run(agent_team(size, window_s))
         out[f"agents/{size}"] = {"window_s": window_s, **row}
         _print("agents", size, window_s, row)
     out["seconds"] = round(time.perf_counter() - t0, 1)
