@@ -159,8 +159,7 @@ class Membership(Actor):
         transport = self.system.transport
         if transport is None:
             return
-        members = self.table.members
-        others = [p for p in transport.peers() if p not in members]
+        others = transport.peers() - self.table.members.keys()  # a set operation, in C
         for peer in self._others.take(others, self.fanout) if others else ():
             self._beat_to(peer)
 
