@@ -21,7 +21,9 @@ each bidding those costs, and an origin whose mission holds one capability node 
   allocation is priced (work done before a move or a failure is not).
 
 Reported: the ratio of total costs to the reference (1.0 = optimal), and of makespans
-(the largest cost any robot took on, against that in the reference's assignment).
+(the largest cost any robot took on, against that in the reference's assignment); next
+to each dynamic ratio, the failures any robot declared of a robot not failed on purpose
+(``ff``: false failures, summed over the instances; 0 means the team did not flap).
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from btcap.sim.distance import DistanceCache, path_length
 from btcap.sim.grid import GridMap
 from btcap.team.capabilities.capability import Capability, CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
+from btcap.team.core.members import TeamEvent
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
@@ -100,10 +103,19 @@ def _implementation(costs: dict[int, float]) -> Implementation:
 
 
 async def allocate(
-    cost: Costs, strategy: str, events: Events, reevaluate_s: float | None, seed: int
+    cost: Costs,
+    strategy: str,
+    events: Events,
+    reevaluate_s: float | None,
+    seed: int,
+    *,
+    false: list[tuple[str, str]] | None = None,
 ) -> tuple[list[int], set[int]]:
     """Which robot the real team has on each task in the end (-1: none), and which robots
-    failed (each the holder of a task, picked with ``seed``)."""
+    failed (each the holder of a task, picked with ``seed``). ``false`` collects
+    (observer, robot) of every failure declared of a robot that was not failed on
+    purpose, by one that was not either (a flapping team would make the ratios
+    meaningless)."""
     robots, tasks = cost.shape
     clock = ManualClock()
     net = InProcessNetwork(protocol_registry(), encode=False)
@@ -124,12 +136,25 @@ async def allocate(
         for r, name in enumerate(names)
     ]
     joining = list(zip(sorted(events.join_at), agents[robots - len(events.join_at) :], strict=True))
+
+    def watch(agent: Agent) -> None:
+        def seen(event: TeamEvent, robot: str) -> None:
+            if false is None or event is not TeamEvent.FAILED:
+                return
+            cut = {names[r] for r in failed}  # cut off on purpose: they fail the others
+            if robot not in cut and agent.robot not in cut:
+                false.append((agent.robot, robot))
+
+        agent.team.subscribe(seen)
+
     async with clock.autojump(), AsyncExitStack() as stack:
         for agent in agents[: robots - len(joining)]:
             await stack.enter_async_context(agent)
+            watch(agent)
         origin = await stack.enter_async_context(
             Agent("origin", transport=net.transport("origin"), clock=clock, config=cfg)
         )
+        watch(origin)
         while len(origin.repository.providers(TASK.identity)) < robots - len(joining):
             await clock.sleep(0.1)
         nodes: list[Capability] = [
@@ -153,7 +178,7 @@ async def allocate(
                     failed.add(victim)
                     net.isolate(names[victim])
             while joining and joining[0][0] <= now:
-                await stack.enter_async_context(joining.pop(0)[1])
+                watch(await stack.enter_async_context(joining.pop(0)[1]))
             for tree in trees:
                 tree.tick()
             lost = {names[r] for r in failed}
@@ -197,12 +222,25 @@ def _summary(table: dict[str, list[float]]) -> dict[str, dict[str, float]]:
     }
 
 
-def _print(title: str, rows: dict[str, dict[str, dict[str, float]]], columns: list[str]) -> None:
+def _print(
+    title: str,
+    rows: dict[str, dict[str, dict[str, float]]],
+    columns: list[str],
+    false: dict[str, dict[str, int]] | None = None,
+) -> None:
+    """A table of mean (max) ratios; with ``false``, each cell also shows the false
+    failures declared in its runs (``ff``)."""
+    width = 19 if false is None else 25
     print(title)
-    print(f"{'':>15} " + " ".join(f"{s:>19}" for s in columns))
+    print(f"{'':>15} " + " ".join(f"{s:>{width}}" for s in columns))
     for key, by in rows.items():
-        cells = " ".join(f"{by[s]['mean']:8.3f} (max {by[s]['max']:5.2f})" for s in columns)
-        print(f"{key:>15} {cells}")
+        cells = []
+        for s in columns:
+            cell = f"{by[s]['mean']:8.3f} (max {by[s]['max']:5.2f})"
+            if false is not None:
+                cell += f" ff {false[key][s]:<2}"
+            cells.append(f"{cell:>{width}}")
+        print(f"{key:>15} {' '.join(cells)}")
 
 
 def run(quick: bool = False) -> dict[str, Any]:
@@ -236,21 +274,26 @@ def run(quick: bool = False) -> dict[str, Any]:
     labels = [label for label, _s, _p in DYNAMIC]
     dynamic: dict[str, Any] = {"robots": robots, "tasks": tasks, "failures": failures}
     dynamic |= {"instances": dyn_instances, "cost_ratio": {}, "makespan_ratio": {}}
+    dynamic["false_failures"] = {}
     for case, size in (("arrivals", 0), ("failures", failures), ("joins", robots - tasks)):
         by_cost = {label: [] for label in labels}
         spans = {label: [] for label in labels}
+        false: dict[str, list[tuple[str, str]]] = {label: [] for label in labels}
         for seed in range(dyn_instances):
             rng = np.random.default_rng(1000 + seed)
             cost = _instance(grid, rng, robots, tasks)
             events = _events(rng, case, tasks, size)
             for label, strategy, period in DYNAMIC:
-                final, failed = asyncio.run(allocate(cost, strategy, events, period, seed))
+                final, failed = asyncio.run(
+                    allocate(cost, strategy, events, period, seed, false=false[label])
+                )
                 alive = [i for i in range(robots) if i not in failed]
                 ratio, span = ratios(cost, final, alive)
                 by_cost[label].append(ratio)
                 spans[label].append(span)
         dynamic["cost_ratio"][case] = _summary(by_cost)
         dynamic["makespan_ratio"][case] = _summary(spans)
+        dynamic["false_failures"][case] = {label: len(v) for label, v in false.items()}
     out["dynamic"] = dynamic
     out["seconds"] = round(time.perf_counter() - t0, 2)
     print(f"static: every task at once; {instances} seeded instances; reference: the optimum")
@@ -261,8 +304,9 @@ def run(quick: bool = False) -> dict[str, Any]:
         f"holders failing, or with {robots - tasks} robots joining; {dyn_instances} "
         "instances; reference: the optimum with hindsight"
     )
-    _print("total cost / hindsight optimum", dynamic["cost_ratio"], labels)
-    _print("makespan / the hindsight optimum's", dynamic["makespan_ratio"], labels)
+    ff = dynamic["false_failures"]
+    _print("total cost / hindsight optimum (ff: false failures)", dynamic["cost_ratio"], labels, ff)
+    _print("makespan / the hindsight optimum's", dynamic["makespan_ratio"], labels, ff)
     print(f"({out['seconds']} s)")
     write_result("allocation", out)
     return out

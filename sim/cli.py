@@ -71,6 +71,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
+        "--robots",
+        type=int,
+        metavar="N",
+        help="grow the team to N robots: the scenario's robots' models in turn, named "
+        "MODEL2, MODEL3, ... (full-team --robots 200: 67 huskies, 67 spots, 66 bebops)",
+    )
+    p.add_argument(
         "--fast",
         action="store_true",
         help="virtual time that jumps whenever every robot waits: as fast as the computation "
@@ -113,6 +120,28 @@ def resolve_scenario(ref: str) -> Scenario:
             f"scenario {ref!r}: no such file, and not a built-in ({', '.join(builtins)})"
         )
     return load_scenario(path)
+
+
+def grow_team(s: Scenario, robots: int) -> None:
+    """Add robots to ``s`` until it has ``robots``: its robots' models in turn, each
+    named after its model and the next free number (husky2, spot2, bebop2, husky3, ...)."""
+    from btcap.sim.scenariofile import RobotEntry
+
+    if robots < len(s.robots):
+        raise CliError(
+            f"--robots: expected at least the scenario's {len(s.robots)} robots, got {robots}"
+        )
+    names = {r.name for r in s.robots}
+    models = [r.model for r in s.robots]
+    count: dict[str, int] = {}
+    for i in range(robots - len(s.robots)):
+        model = models[i % len(models)]
+        n = count.get(model, 1)
+        while f"{model}{n}" in names:
+            n += 1
+        count[model] = n
+        names.add(f"{model}{n}")
+        s.robots.append(RobotEntry(f"{model}{n}", model))
 
 
 def _progress_line(p: Progress, name: str) -> str:
@@ -352,6 +381,8 @@ def run_command(args: argparse.Namespace) -> int:
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
     for s in scenarios:
+        if args.robots is not None:
+            grow_team(s, args.robots)
         if args.speedup is not None:
             s.speedup = args.speedup
         if margin is not None:
@@ -384,7 +415,13 @@ def run_command(args: argparse.Namespace) -> int:
             )
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
+            started = time.perf_counter()
             result = asyncio.run(monitored(args.monitor, keep, s.name, write))
+            console.print(
+                f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
+                f"in {time.perf_counter() - started:.1f} s of wall time",
+                markup=False,
+            )
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             results.append(result)

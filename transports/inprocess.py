@@ -24,6 +24,7 @@ class InProcessNetwork:
     def __init__(self, registry: MessageRegistry | None = None, *, encode: bool = True) -> None:
         self._members: dict[str, InProcessTransport] = {}
         self._cut: set[str] = set()
+        self._everyone: frozenset[str] | None = None  # the members' names, until one changes
         self.codec = Codec(registry or MessageRegistry()) if encode else None
 
     def transport(self, system_id: str) -> InProcessTransport:
@@ -31,6 +32,7 @@ class InProcessNetwork:
             raise ValueError(f"system id {system_id!r} is already on this network or reserved")
         t = InProcessTransport(self, system_id)
         self._members[system_id] = t
+        self._everyone = None
         return t
 
     def isolate(self, system_id: str) -> None:
@@ -43,6 +45,13 @@ class InProcessNetwork:
     def _leave(self, system_id: str) -> None:
         self._members.pop(system_id, None)
         self._cut.discard(system_id)
+        self._everyone = None
+
+    def _names(self) -> frozenset[str]:
+        """Every system on the network (kept until one joins or leaves: a team asks often)."""
+        if self._everyone is None:
+            self._everyone = frozenset(self._members)
+        return self._everyone
 
     def _route(self, src: InProcessTransport, env: Envelope) -> None:
         if src.system_id in self._cut:
@@ -109,4 +118,4 @@ class InProcessTransport(Transport):
         self._network._route(self, env)
 
     def peers(self) -> frozenset[str]:
-        return frozenset(s for s in self._network._members if s != self.system_id)
+        return self._network._names() - {self.system_id}

@@ -41,6 +41,7 @@ __all__ = [
     "NoBid",
     "OpenTask",
     "PauseExecution",
+    "ProbeRequest",
     "RepositoryQuery",
     "RepositoryState",
     "Roster",
@@ -49,26 +50,33 @@ __all__ = [
     "Seen",
     "StatusQuery",
     "TeamStatus",
+    "Vouch",
 ]
 
 
 # -- team --------------------------------------------------------------------------------
 class Heard(msgspec.Struct, frozen=True, array_like=True):
-    """The latest beat a robot heard of a teammate, ``age_ms`` ago (hearsay that keeps it
-    alive)."""
+    """News of a teammate passed on by gossip: alive at ``beat`` (a join, or a refutation
+    of a suspicion), or, ``suspect``, suspected of having failed at ``beat`` (first by
+    ``by``). ``age_ms`` is kept for old peers and is 0 in news btcap sends now."""
 
     robot: str
     incarnation: int
     beat: int
     age_ms: int = 0
+    #: ``by`` suspects ``robot`` of having failed at ``beat`` (see :mod:`btcap.team.core.swim`).
+    suspect: bool = False
+    by: str = ""
 
 
 class Heartbeat(Message):
     """I am alive; ``incarnation`` changes when a robot restarts, ``repo_version`` when its
     capabilities change (peers then ask for the new :class:`RepositoryState`); ``busy``
     says whether its body is taken (a robot coming free is news for waiting work).
-    ``beat`` counts this robot's heartbeats; ``heard`` is what it heard of some teammates
-    (see :mod:`btcap.team.core.gossip`)."""
+    ``beat`` is the version of what a robot says of itself within one life: it grows when
+    the robot refutes a suspicion or its ``busy``/``repo_version`` change; ``heard`` is news
+    of teammates (joins, suspicions, refutations) passed on by gossip (see
+    :mod:`btcap.team.core.swim`)."""
 
     robot: str
     incarnation: int
@@ -76,6 +84,10 @@ class Heartbeat(Message):
     busy: bool = False
     beat: int = 0
     heard: list[Heard] = []
+    #: Non-zero: a probe; answer at once with a heartbeat whose ``ack`` is this number.
+    probe: int = 0
+    #: Non-zero: the answer to the sender's probe of that number.
+    ack: int = 0
 
 
 class Contact(msgspec.Struct, frozen=True, array_like=True):
@@ -115,6 +127,24 @@ class Goodbye(Message):
 
     robot: str
     incarnation: int
+
+
+class ProbeRequest(Message):
+    """My probe ``probe`` of ``target`` went unanswered: probe it for me (SWIM's
+    indirect probe, through a path that may not share my lossy link)."""
+
+    target: str
+    probe: int
+
+
+class Vouch(Message):
+    """``target`` answered the probe you asked me for (``probe`` is your number): I, the
+    sender, heard it myself, in its life ``incarnation`` at ``beat``."""
+
+    target: str
+    probe: int
+    incarnation: int
+    beat: int
 
 
 # -- repository --------------------------------------------------------------------------
@@ -376,4 +406,6 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     TeamStatus,
     DeparturesQuery,
     Departures,
+    ProbeRequest,
+    Vouch,
 )

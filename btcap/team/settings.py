@@ -64,16 +64,23 @@ def _seconds(text: str) -> msgspec.Meta:
 TickHz = Annotated[
     float, msgspec.Meta(gt=0, description="How often the robot's own tree is ticked (Hz).")
 ]
-HeartbeatS = Annotated[float, _seconds("How often the robot beats to its teammates")]
+HeartbeatS = Annotated[
+    float, _seconds("The failure detector's period: the robot probes one teammate this often")
+]
 FailureTimeoutS = Annotated[
-    float, _seconds("A teammate not heard of for this long is failed; more than `heartbeat_s`")
+    float,
+    _seconds(
+        "The shortest time a suspected teammate has to refute before it is failed; the "
+        "suspicion timeout scales with the team above it (docs/membership.md); more than "
+        "`heartbeat_s`"
+    ),
 ]
 HeartbeatFanout = Annotated[
     int,
     msgspec.Meta(
         ge=1,
-        description="Past this many peers, beat to this many per period in turns, "
-        "carrying hearsay of the others.",
+        description="News items (joins, suspicions, refutations) per membership message; "
+        "also how many peers that are no members get a heartbeat per period.",
     ),
 ]
 LeaseS = Annotated[
@@ -148,7 +155,7 @@ MaxLeaseS = Annotated[
 
 
 def check_heartbeat(heartbeat_s: float, failure_timeout_s: float) -> None:
-    """A teammate must get the chance to beat before it is failed."""
+    """A suspected teammate must get at least a period to refute before it is failed."""
     if failure_timeout_s <= heartbeat_s:
         raise ValueError("failure_timeout_s: must exceed heartbeat_s")
 

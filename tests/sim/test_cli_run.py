@@ -9,8 +9,8 @@ import msgspec
 import pytest
 
 import btcap.cli
-from btcap.cli import main
-from btcap.sim.cli import resolve_scenario
+from btcap.cli import CliError, main
+from btcap.sim.cli import grow_team, resolve_scenario
 from btcap.sim.metrics import MissionResult
 from btcap.sim.scenario import ScenarioError
 
@@ -220,3 +220,31 @@ def test_fast_mode_with_a_crowd_writes_the_same_result_however_loaded_the_machin
     result = msgspec.json.decode(first, type=MissionResult)
     assert len(result.robots) == 30
     assert result.completed
+
+
+def test_robots_grows_the_team_by_its_models_and_refuses_to_shrink_it(tmp_path: Path) -> None:
+    s = resolve_scenario("full-team")
+    grow_team(s, 8)
+    assert [r.name for r in s.robots] == [
+        "husky1", "spot1", "bebop1", "husky2", "spot2", "bebop2", "husky3", "spot3",
+    ]  # fmt: skip
+    assert [r.model for r in s.robots[3:]] == ["husky", "spot", "bebop", "husky", "spot"]
+    with pytest.raises(CliError, match="--robots: expected at least the scenario's 8 robots"):
+        grow_team(s, 2)
+
+
+@pytest.mark.slow
+def test_a_grown_team_runs_the_same_to_the_byte_and_never_flaps(tmp_path: Path) -> None:
+    """``--robots``: forty robots with the scenario's timing; nobody is failed (the team
+    does not flap however large), and the result is the same twice."""
+
+    def run(out: str) -> bytes:
+        argv = ["run", "full-team", "--robots", "40", "--fast", "--no-record", "--quiet"]
+        assert main([*argv, "--out", str(tmp_path / out)]) == 0
+        return (tmp_path / out / "result.json").read_bytes()
+
+    first = run("a")
+    assert first == run("b")
+    result = msgspec.json.decode(first, type=MissionResult)
+    assert len(result.robots) == 40
+    assert (result.completed, result.robot_failures, result.executions_lost) == (True, 0, 0)

@@ -1,22 +1,21 @@
-"""Heartbeats that scale: whom to beat to, what to tell them, whom to ask about.
+"""Gossip that scales: whom to probe next, what news to pass on, whom to ask about.
 
-All-to-all heartbeats cost every robot a message per teammate per period. Past
-``fanout`` peers a robot beats directly to ``fanout`` of them per period, in turns
-through a shuffled order (so each peer still hears from it every
-``ceil(peers / fanout)`` periods), and each heartbeat carries what its sender heard of
-up to ``digest`` teammates, in turns too. A robot's latest beat then spreads like a
-rumour, so liveness stays fresh with a constant number of messages of constant size per
-robot and period: traffic per robot does not grow with the team.
+Freshness cannot reach every robot every period with bounded messages; changes can.
+So a robot probes one teammate per period (:class:`ProbeOrder`, SWIM's shuffled round
+robin) and each message carries a bounded number of news items (:class:`Rumours`: joins,
+suspicions, refutations), each passed on ``lambda·log(team)`` times: a change reaches the whole
+team in O(log team) periods while messages and bytes per robot and period stay flat.
 """
 
 from __future__ import annotations
 
-import math
 import random
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-__all__ = ["Beat", "BeatPlan", "Introductions", "Turns", "detection_periods"]
+from btcap.team.messages import Heard
+
+__all__ = ["Introductions", "ProbeOrder", "Rumours", "Turns"]
 
 
 class Turns:
@@ -73,48 +72,72 @@ class Introductions:
         return len(self._asked)
 
 
-def detection_periods(team: int, fanout: int) -> int:
-    """Heartbeat periods a failure timeout should span for a team of ``team`` robots.
+class ProbeOrder:
+    """Whom to probe next: every member once per round, in an order shuffled each round
+    (SWIM's round robin: a member is probed by each teammate within two rounds, and the
+    cost is O(1) per probe however large the team)."""
 
-    Direct beats reach each peer every ``ceil((team - 1) / fanout)`` periods; hearsay
-    usually brings a fresher beat within about ``log_fanout(team)`` periods. Twice that,
-    plus two periods of slack, keeps false failures rare.
-    """
-    peers = max(team - 1, 1)
-    if peers <= fanout:
-        return 3
-    spread = math.log(team) / math.log(max(fanout, 2))
-    return math.ceil(2 * spread) + 2
+    def __init__(self, rng: random.Random) -> None:
+        self._rng = rng
+        self._queue: list[str] = []
+
+    def next(self, members: Mapping[str, object]) -> str | None:
+        """The next member to probe (None: nobody to probe)."""
+        while self._queue:
+            name = self._queue.pop()
+            if name in members:
+                return name
+        if not members:
+            return None
+        self._queue = sorted(members)
+        self._rng.shuffle(self._queue)
+        return self._queue.pop()
 
 
-@dataclass(frozen=True, slots=True)
-class Beat:
-    """Where one periodic heartbeat goes: every peer, or ``to``; with hearsay or not."""
-
-    everyone: bool
-    to: tuple[str, ...] = ()
-    heard: bool = False
+@dataclass(slots=True)
+class _Item:
+    news: Heard
+    sent: int = 0
 
 
-class BeatPlan:
-    """Whom each periodic heartbeat goes to.
+class Rumours:
+    """News to pass on, one item per robot (a newer one replaces the older), each sent
+    at most ``times`` times, the least-sent first; at most ``limit`` held (a peer
+    inventing robots costs a bounded table, the most-sent dropped first)."""
 
-    Members come first: past ``fanout`` of them, ``fanout`` per period in turns (with
-    hearsay). Peers that are not members (a seed not met yet, a robot back from a
-    partition; or made-up ids an attacker announced) get ``fanout`` more per period in
-    turns of their own, so however many there are they never crowd out the members.
-    """
+    def __init__(self, limit: int) -> None:
+        self.limit = limit
+        self._news: dict[str, _Item] = {}
 
-    def __init__(self, fanout: int, rng: random.Random) -> None:
-        self.fanout = fanout
-        self._members = Turns(rng)
-        self._others = Turns(rng)
+    def add(self, news: Heard) -> None:
+        self._news.pop(news.robot, None)
+        self._news[news.robot] = _Item(news)
+        if len(self._news) > self.limit:
+            worst = max(self._news, key=lambda r: self._news[r].sent)
+            del self._news[worst]
 
-    def next(self, members: Iterable[str], peers: Iterable[str]) -> Beat:
-        team, reachable = set(members), set(peers)
-        if len(reachable) <= self.fanout:
-            return Beat(everyone=True)
-        others = reachable - team
-        mine = self._members.take(team & reachable, self.fanout)
-        rest = self._others.take(others, self.fanout) if others else []
-        return Beat(False, tuple(mine + rest), heard=len(team) > self.fanout)
+    def drop(self, robot: str) -> None:
+        self._news.pop(robot, None)
+
+    def about(self, robot: str) -> Heard | None:
+        item = self._news.get(robot)
+        return None if item is None else item.news
+
+    def take(self, n: int, times: int, first: str | None = None) -> list[Heard]:
+        """Up to ``n`` items to send now (news of ``first`` first, if any); each counts
+        as sent once more and is forgotten after ``times`` sends."""
+        news = self._news
+        if not news or n <= 0:
+            return []
+        order = sorted(news, key=lambda r: (r != first, news[r].sent))[:n]
+        out: list[Heard] = []
+        for robot in order:
+            item = news[robot]
+            out.append(item.news)
+            item.sent += 1
+            if item.sent >= times:
+                del news[robot]
+        return out
+
+    def __len__(self) -> int:
+        return len(self._news)

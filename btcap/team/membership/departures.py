@@ -64,7 +64,7 @@ class DepartureLog(Actor):
         elif member is not None and member.incarnation != life:
             how, why = "failed", "restarted (a new life under the same name)"
         else:
-            how, why = "failed", f"no heartbeat for {self.team.failure_timeout_s:g} s"
+            how, why = "failed", "stopped answering probes (suspected, not refuted)"
         now = self.system.clock.now() if self._system is not None else 0.0
         self.departures.appendleft(Departure(robot, life, how, now, why))
         emit = (log.warning if how == "failed" else log.info) if self.loud else log.debug

@@ -1,33 +1,36 @@
-"""Team membership: robots announce themselves by heartbeat; joins, leaves and silent
-failures are detected here and reported to local listeners.
+"""Team membership: robots probe each other (SWIM with Lifeguard's refinements); joins,
+leaves and failures are detected here and reported to local listeners.
 
 A robot needs one reachable teammate (a seed) to join: the seed welcomes it with the
 team's :class:`~btcap.team.messages.Roster`, the newcomer beats to each teammate, and they
-welcome it in turn. Past ``fanout`` peers, heartbeats go to ``fanout`` of them per period
-and carry what their sender heard of others (:mod:`btcap.team.core.gossip`); a robot that
-teammates mention but that cannot be reached is asked about (a roster request).
+welcome it in turn. From then on each robot probes one member per period and passes news
+on (joins, suspicions, refutations); the decisions are :mod:`btcap.team.core.swim`'s. A
+robot that teammates mention but that cannot be reached is asked about (a roster
+request). Peers that are no members (a seed not met yet, a robot back from a partition)
+get a heartbeat in turns, ``fanout`` a period, so they (re)join.
 """
 
 from __future__ import annotations
 
-import math
 import random
 import time
 from collections.abc import Callable
 
 from btcap.actors import Actor, Address, Supervision, handler
-from btcap.team.core.gossip import BeatPlan, Introductions, Turns, detection_periods
+from btcap.team.core.gossip import Introductions, Turns
 from btcap.team.core.members import Member, MemberTable, TeamEvent
+from btcap.team.core.swim import Step, Swim, SwimParams
 from btcap.team.ids import ExecutionId
 from btcap.team.messages import (
     Activity,
     ActivityQuery,
     Contact,
     Goodbye,
-    Heard,
     Heartbeat,
+    ProbeRequest,
     Roster,
     RosterRequest,
+    Vouch,
 )
 from btcap.team.settings import Timing
 from btcap.transports.log import get_logger, worth_logging
@@ -42,10 +45,10 @@ _DEFAULT = Timing()
 
 
 class Membership(Actor):
-    """Heartbeats out, heartbeats in, and a failure detector on clock time.
+    """Probes out, answers in, and a failure detector on clock time.
 
-    The decisions are :class:`~btcap.team.core.members.MemberTable`'s; this actor sends
-    the heartbeats and tells local listeners what changed.
+    The decisions are :class:`~btcap.team.core.swim.Swim`'s; this actor runs its clock,
+    sends what it says and tells local listeners what changed.
     """
 
     PATH = "team"
@@ -75,20 +78,26 @@ class Membership(Actor):
         self._repo_version = repo_version
         self._body_busy = busy
         self._activity = activity
-        self.table = MemberTable(robot, failure_timeout_s)
-        self.refused = 0  #: heartbeats and goodbyes sent in another robot's name
+        params = SwimParams(heartbeat_s, failure_timeout_s, news=fanout)
+        # Seeded by name: the same team probes in the same order every run (the fast sim).
+        self.swim = Swim(robot, self.incarnation, params, random.Random(f"probes {robot}"))
+        self.refused = 0  #: messages sent in another robot's name, or by strangers
         self.fanout = fanout
-        self.beat = 0  #: heartbeats sent in this incarnation
-        # Seeded by name: the same team beats in the same order every run (the fast sim).
-        self._plan = BeatPlan(fanout, random.Random(f"targets {robot}"))
-        self._mentions = Turns(random.Random(f"mentions {robot}"))
+        self._others = Turns(random.Random(f"others {robot}"))
         self._asked = Introductions(failure_timeout_s)
         #: Whose roster we take, until when: one that just met us (its welcome) or that
         #: we asked; nobody else may make us dial endpoints of its choosing.
         self._rosters_due: dict[str, float] = {}
-        self._was_busy = False
-        self._warned_size = 0
         self._listeners: list[Listener] = []
+
+    @property
+    def table(self) -> MemberTable:
+        return self.swim.table
+
+    @property
+    def beat(self) -> int:
+        """The version of what this robot says of itself, in this life."""
+        return self.swim.beat
 
     # -- observing --------------------------------------------------------------------
     def subscribe(self, listener: Listener) -> Callable[[], None]:
@@ -114,7 +123,8 @@ class Membership(Actor):
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
-        self.start_task(self._beat(), name=f"heartbeat {self.robot}")
+        self.swim.set_state(self._repo_version(), self._body_busy())
+        self.start_task(self._run(), name=f"membership {self.robot}")
 
     def on_stop(self) -> None:
         system = self._system
@@ -122,50 +132,54 @@ class Membership(Actor):
             system.broadcast(self.PATH, Goodbye(self.robot, self.incarnation))
 
     def beat_now(self) -> None:
-        """Beat to every peer at once (after a capability change, or to speed up joins)."""
-        self.system.broadcast(self.PATH, self._heartbeat(self._body_busy(), heard=False))
-
-    def _heartbeat(self, busy: bool, *, heard: bool) -> Heartbeat:
-        mentions: list[Heard] = []
-        if heard:
-            members, now = self.table.members, self.system.clock.now()
-            for robot in self._mentions.take(members, self.fanout):
-                m = members[robot]
-                age_ms = max(0, round(1000 * (now - m.last_seen)))
-                mentions.append(Heard(robot, m.incarnation, m.beat, age_ms))
-        version = self._repo_version()
-        return Heartbeat(self.robot, self.incarnation, version, busy, self.beat, mentions)
+        """Tell every peer at once what this robot offers (after a capability change, or
+        to speed up joins)."""
+        self.swim.set_state(self._repo_version(), self._body_busy())
+        self.system.broadcast(self.PATH, self.swim.heartbeat())
 
     def _beat_to(self, robot: str) -> None:
-        self.system.tell(Address(robot, self.PATH), self._heartbeat(self._body_busy(), heard=False))
+        self.system.tell(Address(robot, self.PATH), self.swim.heartbeat())
 
-    async def _beat(self) -> None:
-        clock = self.system.clock
+    async def _run(self) -> None:
+        clock, swim = self.system.clock, self.swim
         while True:
-            self._periodic_beat()
-            self.check(clock.now())
-            await clock.sleep(self.heartbeat_s)
+            self._period(clock.now())
+            period, wait = swim.period_s, swim.probe_timeout_s
+            await clock.sleep(wait)
+            self._apply(swim.timeout(clock.now()), None)
+            await clock.sleep(period - wait)
 
-    def _periodic_beat(self) -> None:
-        """To every peer in a small team or when this robot came free or busy; otherwise
-        as :class:`~btcap.team.core.gossip.BeatPlan` says."""
-        self.beat += 1
+    def _period(self, now: float) -> None:
+        """A new period: our own news first (a robot coming free or busy, or offering
+        something new, tells every peer at once), then the probe, then a heartbeat to
+        peers that are no members, in turns."""
+        if self.swim.set_state(self._repo_version(), self._body_busy()):
+            self.system.broadcast(self.PATH, self.swim.heartbeat())
+        self._apply(self.swim.tick(now), None)
         transport = self.system.transport
-        peers = transport.peers() if transport is not None else frozenset()
-        busy = self._body_busy()
-        plan = self._plan.next(self.table.members, peers)
-        if plan.everyone or busy != self._was_busy:
-            self._was_busy = busy
-            self.system.broadcast(self.PATH, self._heartbeat(busy, heard=False))
+        if transport is None:
             return
-        msg = self._heartbeat(busy, heard=plan.heard)
-        for peer in plan.to:
-            self.system.tell(Address(peer, self.PATH), msg)
+        others = transport.peers() - self.table.members.keys()  # a set operation, in C
+        for peer in self._others.take(others, self.fanout) if others else ():
+            self._beat_to(peer)
 
     def check(self, now: float) -> None:
-        """Declare members failed whose heartbeats stopped."""
-        for robot in self.table.expire(now):
+        """Declare members failed whose suspicion ran out unrefuted."""
+        for robot in self.table.expire(now, self.swim.timeout_of):
+            self.swim.rumours.drop(robot)
             self._emit(TeamEvent.FAILED, robot)
+
+    def _apply(self, step: Step, sender: str | None) -> None:
+        """Send what the protocol said, then tell listeners what changed."""
+        for to, msg in step.sends:
+            self.system.tell(Address(to, self.PATH), msg)
+        for event, robot in step.events:
+            self._emit(event, robot)
+            if event is TeamEvent.JOINED:
+                self._expect_roster(robot, self.system.clock.now())
+                self._welcome(robot)
+        if step.unknown and sender is not None:
+            self._introduce(sender, step.unknown)
 
     # -- messages ---------------------------------------------------------------------
     def _speaks_for_itself(self, robot: str, msg: Heartbeat | Goodbye) -> bool:
@@ -192,17 +206,17 @@ class Membership(Actor):
     def on_heartbeat(self, msg: Heartbeat) -> None:
         if not self._speaks_for_itself(msg.robot, msg):
             return
-        now = self.system.clock.now()
-        events = self.table.heartbeat(
-            msg.robot, msg.incarnation, msg.repo_version, now, msg.busy, msg.beat
-        )
-        for event in events:
-            self._emit(event, msg.robot)
-        if TeamEvent.JOINED in events:
-            self._expect_roster(msg.robot, now)
-            self._welcome(msg.robot)
-        if msg.heard and msg.robot in self.table.members:
-            self._hearsay(msg, now)
+        self._apply(self.swim.on_heartbeat(msg, self.system.clock.now()), msg.robot)
+
+    @handler
+    def on_probe_request(self, msg: ProbeRequest) -> None:
+        if self._from_member(msg):
+            self._apply(self.swim.on_probe_request(self.sender, msg, self.system.clock.now()), None)
+
+    @handler
+    def on_vouch(self, msg: Vouch) -> None:
+        if self._from_member(msg):
+            self._apply(self.swim.on_vouch(self.sender, msg, self.system.clock.now()), None)
 
     def _welcome(self, robot: str) -> None:
         """Let a newcomer know us at once, and whom else to meet."""
@@ -217,34 +231,12 @@ class Membership(Actor):
         ]
         if contacts:
             self.system.tell(Address(robot, self.PATH), Roster(contacts))
-        team = len(self.table.members) + 1
-        periods = detection_periods(team, self.fanout)
-        if self.failure_timeout_s < periods * self.heartbeat_s and team >= 2 * self._warned_size:
-            self._warned_size = team
-            log.warning(
-                "team.timeout_short",
-                robot=self.robot,
-                team=team,
-                failure_timeout_s=self.failure_timeout_s,
-                advised_s=round(periods * self.heartbeat_s, 3),
-                detail="false failures likely: raise failure_timeout_s or the fanout",
-            )
 
-    def _hearsay(self, msg: Heartbeat, now: float) -> None:
-        """Fresh beats keep teammates alive; robots we do not know yet get a heartbeat if we
-        can reach them, else the sender is asked where they are."""
-        # Its own beats reach us every ceil(members / fanout) periods at worst: hearsay
-        # bridges twice that, never more (a lying teammate cannot keep it alive).
-        gap = math.ceil(len(self.table.members) / self.fanout) * self.heartbeat_s
-        limit = self.failure_timeout_s + 2 * gap
-        unknown = [
-            h.robot
-            for h in msg.heard[: 4 * self.fanout]  # more than we ever send: ignored
-            if self.table.hearsay(
-                h.robot, h.incarnation, h.beat, now, h.age_ms / 1000, limit_s=limit
-            )
-        ]
-        due = self._asked.due(unknown, now) if unknown else []
+    def _introduce(self, sender: str, unknown: list[str]) -> None:
+        """Robots a member mentions that we do not know get a heartbeat if we can reach
+        them (they welcome us), else the member is asked where they are."""
+        now = self.system.clock.now()
+        due = self._asked.due(unknown, now)
         if not due:
             return
         transport = self.system.transport
@@ -253,9 +245,9 @@ class Membership(Actor):
             if robot in reachable:
                 self._beat_to(robot)
         ask = [r for r in due if r not in reachable]
-        if ask:
-            self._expect_roster(msg.robot, now)
-            self.system.tell(Address(msg.robot, self.PATH), RosterRequest(ask))
+        if ask and sender in self.table.members:
+            self._expect_roster(sender, now)
+            self.system.tell(Address(sender, self.PATH), RosterRequest(ask))
 
     @handler
     def on_roster_request(self, msg: RosterRequest) -> None:
@@ -299,14 +291,14 @@ class Membership(Actor):
             del due[r]
         due[robot] = now + self.failure_timeout_s
 
-    def _from_member(self, msg: Roster | RosterRequest | ActivityQuery) -> bool:
+    def _from_member(
+        self, msg: Roster | RosterRequest | ActivityQuery | ProbeRequest | Vouch
+    ) -> bool:
         if self.sender in self.table.members:
             return True
         return self._refuse(msg, detail="not a member")
 
     @handler
     def on_goodbye(self, msg: Goodbye) -> None:
-        if self._speaks_for_itself(msg.robot, msg) and self.table.goodbye(
-            msg.robot, msg.incarnation
-        ):
-            self._emit(TeamEvent.LEFT, msg.robot)
+        if self._speaks_for_itself(msg.robot, msg):
+            self._apply(self.swim.on_goodbye(msg.robot, msg.incarnation), None)

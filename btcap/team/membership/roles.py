@@ -37,11 +37,13 @@ from btcap.team.messages import (
     KeepAlive,
     NoBid,
     PauseExecution,
+    ProbeRequest,
     RepositoryQuery,
     RepositoryState,
     Roster,
     RosterRequest,
     StatusQuery,
+    Vouch,
 )
 from btcap.transports.identity import OBSERVER, OPERATOR, ROBOT
 from btcap.transports.message import Message
@@ -57,6 +59,8 @@ OPERATOR_SENDS: frozenset[type[Message]] = OBSERVER_SENDS | {
     Goodbye,
     Roster,
     RosterRequest,
+    ProbeRequest,
+    Vouch,
     RepositoryState,
     RepositoryQuery,
     # the origin of missions

@@ -1,16 +1,15 @@
-"""Heartbeat gossip decided on explicit inputs: turns, introductions, hearsay."""
+"""Gossip decided on explicit inputs: turns, probe order, news, introductions."""
 
 from __future__ import annotations
 
 import math
 import random
 
-import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from btcap.team.core.gossip import Beat, BeatPlan, Introductions, Turns, detection_periods
-from btcap.team.core.members import MemberTable, TeamEvent
+from btcap.team.core.gossip import Introductions, ProbeOrder, Rumours, Turns
+from btcap.team.messages import Heard
 
 
 @given(st.integers(2, 60), st.integers(1, 10), st.integers(0, 2**32))
@@ -55,68 +54,41 @@ def test_introductions_are_rate_limited_and_bounded() -> None:
     assert len(intro) == 3
 
 
-def test_hearsay_keeps_a_member_alive_but_never_makes_or_changes_one() -> None:
-    t = MemberTable("me", failure_timeout_s=1.0)
-    assert t.hearsay("b", 1, 5, 0.0) is True  # unknown: worth an introduction
-    assert "b" not in t.members
-    assert t.heartbeat("b", 1, 0, 0.0, beat=5) == [TeamEvent.JOINED]
-    assert t.hearsay("b", 1, 5, 0.9) is False  # not newer: no refresh
-    assert t.expire(1.05) == ["b"]
-    assert t.heartbeat("b", 1, 0, 2.0, beat=6) == [TeamEvent.JOINED]
-    assert t.hearsay("b", 1, 7, 2.9) is False  # newer: alive until 3.9
-    assert t.hearsay("b", 2, 99, 3.5) is False  # another life: only b itself says so
-    assert t.expire(3.8) == []
-    assert t.members["b"].incarnation == 1
-    assert t.expire(3.95) == ["b"]
-    assert t.hearsay("me", 1, 1, 4.0) is False
+def test_probes_visit_every_member_once_a_round_in_a_shuffled_order() -> None:
+    order = ProbeOrder(random.Random(3))
+    members = {f"r{i}": None for i in range(7)}
+    rounds = [[order.next(members) for _ in range(7)] for _ in range(3)]
+    for r in rounds:
+        assert sorted(r) == sorted(members)  # type: ignore[type-var]
+    assert rounds[0] != rounds[1]  # reshuffled
+    del members["r3"]
+    assert all(order.next(members) != "r3" for _ in range(14))  # gone: never probed
+    assert order.next({}) is None
 
 
-@pytest.mark.parametrize(("team", "fanout", "periods"), [(5, 8, 3), (9, 8, 3), (50, 8, 6)])
-def test_detection_periods(team: int, fanout: int, periods: int) -> None:
-    assert detection_periods(team, fanout) == periods
+@given(st.integers(1, 40), st.integers(0, 2**32))
+def test_every_member_is_probed_within_two_rounds(n: int, seed: int) -> None:
+    order = ProbeOrder(random.Random(seed))
+    members = {f"r{i}": None for i in range(n)}
+    last: dict[str, int] = {}
+    for p in range(6 * n):
+        name = order.next(members)
+        assert name is not None
+        assert p - last.get(name, -1) <= 2 * n  # never skipped past two rounds
+        last[name] = p
 
 
-def test_an_old_beat_heard_late_keeps_a_member_alive_only_from_when_it_was_heard() -> None:
-    t = MemberTable("me", failure_timeout_s=1.0)
-    t.heartbeat("b", 1, 0, 0.0, beat=1)
-    t.hearsay("b", 1, 2, now=0.9, age_s=0.8)  # beat 2 was heard at 0.1, not at 0.9
-    assert t.expire(1.15) == ["b"]
-    t.heartbeat("b", 1, 0, 2.0, beat=3)
-    t.hearsay("b", 1, 4, now=2.5, age_s=-5.0)  # a clock that runs ahead: no later than now
-    assert t.expire(3.45) == []
-    assert t.expire(3.55) == ["b"]
-
-
-def test_members_are_beaten_to_first_however_many_strangers_the_transport_holds() -> None:
-    plan = BeatPlan(8, random.Random(1))
-    ghosts = {f"ghost-{i}" for i in range(32)}
-    for _ in range(20):  # a two-robot team whose peer table an attacker filled
-        beat = plan.next({"origin"}, {"origin"} | ghosts)
-        assert not beat.everyone
-        assert "origin" in beat.to
-        assert len(beat.to) == 9
-        assert not beat.heard  # one member, beaten directly every period
-    assert plan.next({"a", "b"}, {"a", "b", "c"}) == Beat(everyone=True)
-
-
-def test_past_the_fanout_members_take_turns_and_carry_hearsay() -> None:
-    plan = BeatPlan(3, random.Random(2))
-    team = {f"r{i}" for i in range(12)}
-    seen: set[str] = set()
-    for _ in range(4):
-        beat = plan.next(team, team | {"seed"})
-        assert beat.heard
-        assert "seed" in beat.to  # the one non-member gets a beat every period
-        seen |= set(beat.to) - {"seed"}
-    assert seen == team
-
-
-def test_a_teammate_lying_about_a_dead_robot_keeps_it_alive_only_so_long() -> None:
-    t = MemberTable("me", failure_timeout_s=1.0)
-    t.heartbeat("b", 1, 0, 0.0, beat=1)  # b's last own heartbeat
-    beat = 1
-    for now in (0.5, 1.0, 1.5, 2.0):  # a liar reports ever newer beats of b
-        beat += 1
-        t.hearsay("b", 1, beat, now, limit_s=1.5)
-    assert t.members["b"].last_seen == 1.5  # the report at 2.0 came too late after 0.0
-    assert t.expire(2.6) == ["b"]
+def test_news_is_sent_a_bounded_number_of_times_least_sent_first() -> None:
+    news = Rumours(limit=3)
+    news.add(Heard("a", 1, 1))
+    news.add(Heard("b", 1, 1))
+    assert news.take(1, times=2) == [Heard("a", 1, 1)]
+    assert news.take(1, times=2) == [Heard("b", 1, 1)]  # the least sent first
+    assert news.take(5, times=2, first="b") == [Heard("b", 1, 1), Heard("a", 1, 1)]
+    assert news.take(5, times=2) == []  # each sent twice: forgotten
+    news.add(Heard("c", 1, 1))
+    news.add(Heard("c", 1, 2, 0, True, "a"))  # newer news of c replaces the older
+    assert news.take(5, times=2) == [Heard("c", 1, 2, 0, True, "a")]
+    for i in range(10):  # a flood of news is bounded
+        news.add(Heard(f"ghost{i}", 1, 1))
+    assert len(news) == 3

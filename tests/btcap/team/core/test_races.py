@@ -83,12 +83,13 @@ def test_a_decline_after_the_auctioneer_timed_out() -> None:
 def test_a_heartbeat_from_a_robot_already_declared_dead() -> None:
     """b stalls past the failure timeout: the origin re-assigns its work. b's heartbeat
     then comes back: it rejoins, but its old run is stopped, not trusted."""
-    members = MemberTable("a", failure_timeout_s=0.5)
+    members = MemberTable("a")
     origin, host, award = awarded(lease_s=2.0)
     members.heartbeat("b", 7, 0, now=0.0)
     host.admit(award, "run", {}, 1.0, now=0.0)
     origin.track(E1, "b", 2.0, now=0.0)
-    assert members.expire(0.6) == ["b"]
+    members.suspect("b", 7, 0, "a", now=0.1)
+    assert members.expire(0.6, lambda _s: 0.5) == ["b"]
     assert origin.member_gone("b", "robot b failed") == lost(E1, "b", "robot b failed")
     members.heartbeat("b", 7, 0, now=0.7)
     assert "b" in members.alive()

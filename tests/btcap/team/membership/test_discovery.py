@@ -1,6 +1,6 @@
 """Discovery over tcp loopback: one seed is enough to learn the whole team, the team learns
-the newcomer, and losing the seed hangs nobody. Heartbeats go to two peers per period
-(a fanout below the team's size), so hearsay and rosters do the work."""
+the newcomer, and losing the seed hangs nobody. Messages carry two news items each (a
+fanout below the team's size), so news of joins, introductions and rosters do the work."""
 
 from __future__ import annotations
 

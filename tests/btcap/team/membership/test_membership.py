@@ -14,9 +14,9 @@ from btcap import ReactiveSequence
 from btcap.actors import ActorSystem, ManualClock
 from btcap.team.deployment.deploy import observe_team
 from btcap.team.membership.membership import Membership, TeamEvent
-from btcap.team.messages import Contact, Goodbye, Heartbeat, Roster
+from btcap.team.messages import Contact, Goodbye, Heartbeat, ProbeRequest, Roster, Vouch
 from btcap.team.runtime.protocol import protocol_registry
-from btcap.transports import Address, InProcessNetwork
+from btcap.transports import Address, InProcessNetwork, Message
 
 
 class Peers:
@@ -26,7 +26,7 @@ class Peers:
     def __init__(self, m: Membership, clock: ManualClock, systems: dict[str, ActorSystem]):
         self.m, self.clock, self.systems = m, clock, systems
 
-    async def send(self, sender: str, msg: Heartbeat | Goodbye) -> None:
+    async def send(self, sender: str, msg: Message) -> None:
         self.systems[sender].tell(Address("me", Membership.PATH), msg)
         await self.clock.advance(0)  # the network delivers on the next loop turn
 
@@ -97,17 +97,33 @@ async def test_goodbye_of_the_current_incarnation_only() -> None:
             assert p.m.alive() == {"me"}
 
 
-async def test_silence_beyond_the_failure_timeout_is_a_failure() -> None:
+async def test_a_member_silent_to_probes_is_suspected_then_failed() -> None:
     with anyio.fail_after(5):
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
-            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Heartbeat("x", 1, 0))  # x never answers a probe
             await p.clock.advance(0.4)
-            await p.send("x", Heartbeat("x", 1, 0))  # renews
-            await p.clock.advance(0.5)
+            await p.send("x", Heartbeat("x", 1, 0))  # its own word ends the suspicion
+            assert p.m.table.suspected == {}
+            await p.clock.advance(0.2)  # the next probe went unanswered: suspected
+            assert set(p.m.table.suspected) == {"x"}
+            await p.clock.advance(0.3)  # not yet: the suspicion lasts failure_timeout_s
             assert events == [(TeamEvent.JOINED, "x")]
-            await p.clock.advance(0.2)  # the heartbeat loop checks every 0.1 s
+            await p.clock.advance(0.4)
             assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
             assert p.m.alive() == {"me"}
+
+
+async def test_only_members_may_ask_for_a_probe_or_vouch() -> None:
+    with anyio.fail_after(5):
+        async with membership() as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("y", ProbeRequest("x", 1))  # y is no member: refused
+            await p.send("y", Vouch("x", 1, 1, 0))
+            assert p.m.refused == 2
+            await p.send("x", ProbeRequest("ghost", 1))  # a member, about a stranger: ignored
+            await p.send("x", Vouch("x", 99, 1, 0))  # not asked: changes nothing
+            assert p.m.refused == 2
+            assert events == [(TeamEvent.JOINED, "x")]
 
 
 async def test_a_failing_listener_does_not_stop_the_others() -> None:

@@ -41,6 +41,7 @@ from btcap.team.messages import (
     NoBid,
     OpenTask,
     PauseExecution,
+    ProbeRequest,
     RepositoryQuery,
     RepositoryState,
     Roster,
@@ -49,6 +50,7 @@ from btcap.team.messages import (
     Seen,
     StatusQuery,
     TeamStatus,
+    Vouch,
 )
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.mission import MissionConfig, MissionControl
@@ -65,7 +67,10 @@ SAMPLES: dict[type[Message], list[Message]] = {
     Heartbeat: [
         Heartbeat("husky1", 2**62, 7),
         Heartbeat("b", 1, 0, True, 12, [Heard("a", 2**62, 3), Heard("c", 1, 0)]),
+        Heartbeat("b", 1, 0, False, 3, [Heard("c", 1, 4, 0, True, "a")], probe=9, ack=2**40),
     ],
+    ProbeRequest: [ProbeRequest("c", 2**40)],
+    Vouch: [Vouch("c", 7, 2**62, 3)],
     Goodbye: [Goodbye("husky1", 123)],
     Roster: [Roster([Contact("a", "tcp://127.0.0.1:7001")]), Roster([])],
     RosterRequest: [RosterRequest(["a", "c"]), RosterRequest([])],
