@@ -137,6 +137,8 @@ class ExecutorSide:
 
     def accept(self, sender: str, msg: Award) -> str | None:
         """Take the award, or say why not; nothing is held after a refusal."""
+        if self.host.repeated(sender, msg):
+            return None
         impl = self.host.refuse_award(sender, msg) or self._implementation(msg)
         if isinstance(impl, str):
             return impl
