@@ -18,10 +18,11 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import anyio
+import msgspec
 from anyio.abc import TaskStatus
 
 from btcap.actors import ManualClock
-from btcap.transports import BROADCAST, Codec, MessageRegistry
+from btcap.transports import BROADCAST, Address, Codec, MessageRegistry
 from btcap.transports.base import Deliver, Transport, TransportStats
 from btcap.transports.codec import Envelope
 
@@ -71,6 +72,8 @@ class FaultyNetwork:
         self.faults = LinkFaults()
         self.counters = NetCounters()
         self.tap: Tap | None = None
+        #: Called with (sender, envelope) for every message sent, before any fault.
+        self.watch: Callable[[str, Envelope], None] | None = None
         self._ports: dict[str, FaultyTransport] = {}
         self._group: dict[str, int] = {}
         self._frozen: dict[str, list[tuple[FaultyTransport, str, bytes]]] = {}
@@ -134,6 +137,8 @@ class FaultyNetwork:
             return
         self.counters.sent += 1
         self._count(type(env.msg).__name__)
+        if self.watch is not None:
+            self.watch(src.system_id, env)
         self._route(src, env)
 
     def _route(self, src: FaultyTransport, env: Envelope) -> None:
@@ -156,7 +161,8 @@ class FaultyNetwork:
                 for extra in self.tap(name, dest.system_id, env):
                     port = self._ports.get(extra)
                     if port is not None and port is not dest and port is not src:
-                        self._to(src, port, data)
+                        to = Address(extra, env.recipient.path)
+                        self._to(src, port, self.codec.encode(msgspec.structs.replace(env, recipient=to)))
 
     def _to(self, src: FaultyTransport, dest: FaultyTransport, data: bytes) -> None:
         a, b = src.system_id, dest.system_id

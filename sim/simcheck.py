@@ -6,6 +6,8 @@
   executor is declared failed, so only a run cut off from its origin (whose cancel was
   lost) may overlap its successor, and only that long, plus the longest delay the network
   gives a message and a tick of each side.
+- **A decline means not running.** A robot that declines an award does not hold its
+  execution (or the origin would give the task to another robot while it runs here).
 - **Nothing credited after failure.** A task's result comes from a run that started after
   the origin last declared its robot failed: the result of a run the origin gave up on
   (of a failed, perhaps restarted, incarnation) is refused.
@@ -100,6 +102,14 @@ class Checker:
         rec = self.runs.get(run)
         if rec is not None:
             rec.ended = True
+
+    def declined(self, robot: str, execution: str, holds: bool, why: str, now: float) -> None:
+        """``robot`` sent a decline of ``execution``; ``holds``: while it holds the run."""
+        if holds:
+            self.violations.append(
+                f"{now:.3f} declined but running: {robot} declined {execution} ({why}) "
+                "while it runs it"
+            )
 
     # -- the origin's view ------------------------------------------------------------------
     def declared_failed(self, robot: str, now: float) -> None:

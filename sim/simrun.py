@@ -22,7 +22,8 @@ from btcap.sim.simcheck import LEASE_SHARE, Checker
 from btcap.sim.simplan import ORIGIN, Fault, Plan
 from btcap.sim.simwork import implementations, mission
 from btcap.team.membership.membership import TeamEvent
-from btcap.team.messages import RUN_DONE, Award, ExecutionInputs, KeepAlive
+from btcap.team.messages import RUN_DONE, Award, AwardReply, ExecutionInputs, KeepAlive
+from btcap.transports.codec import Envelope
 from btcap.team.runtime.agent import Agent
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
@@ -176,6 +177,14 @@ class _Run:
             self.left.discard(robot)
             await self.start(robot)
 
+    def watch(self, sender: str, env: Envelope) -> None:
+        """What a robot says, checked against what it does as it says it."""
+        msg = env.msg
+        if isinstance(msg, AwardReply) and not msg.accepted and sender in self.lives:
+            body = self.lives[sender].agent.mission_control.body
+            holds = body.holds(msg.execution)
+            self.checker.declined(sender, str(msg.execution), holds, msg.reason, self.clock.now())
+
     def window_s(self) -> float:
         longest = max((f.rates[3] for f in self.plan.faults if f.kind == "net"), default=0.0)
         return LEASE_SHARE * self.cfg.lease_s + longest + 2.0 / self.cfg.tick_hz
@@ -260,6 +269,7 @@ async def _run(plan: Plan) -> Outcome:
     cfg = config_for(plan)
     r = _Run(plan, clock, net, Checker(0.0, 1.0 / cfg.tick_hz), cfg)
     r.checker.window_s = r.window_s()
+    net.watch = r.watch
     r.note(f"plan: seed {plan.seed}, {plan.strategy}, robots {', '.join(plan.initial)}")
     done = False
     async with clock.autojump():

@@ -80,7 +80,7 @@ def implementations(plan: Plan, robot: str, checker: Checker) -> list[Implementa
         def build(iface: CapabilityInterface = iface) -> Tree:
             return _build(iface, checker, robot)
 
-        out.append(Implementation(f"{iface.name.lower()}-{robot}", iface, build, (), bid))
+        out.append(Implementation(iface.name.lower(), iface, build, (), bid))
     return out
 
 
