@@ -165,11 +165,6 @@ class ActorSystem:
         """Asks awaiting a reply (a bounded table: the simulation test checks it)."""
         return len(self._pending)
 
-    @property
-    def task_count(self) -> int:
-        """Background tasks of the system still running."""
-        return len(self._tasks)
-
     def start_task(
         self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
     ) -> asyncio.Task[Any]:

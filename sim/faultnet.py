@@ -162,7 +162,9 @@ class FaultyNetwork:
                     port = self._ports.get(extra)
                     if port is not None and port is not dest and port is not src:
                         to = Address(extra, env.recipient.path)
-                        self._to(src, port, self.codec.encode(msgspec.structs.replace(env, recipient=to)))
+                        self._to(
+                            src, port, self.codec.encode(msgspec.structs.replace(env, recipient=to))
+                        )
 
     def _to(self, src: FaultyTransport, dest: FaultyTransport, data: bytes) -> None:
         a, b = src.system_id, dest.system_id

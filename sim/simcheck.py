@@ -1,7 +1,7 @@
 """The invariants of the deterministic simulation test, checked as the run goes.
 
 - **One executor at a time.** Two runs of the same task tick at the same time for at most
-  the hand-over window: an executor stops a run ``lease_share`` (0.8) × ``lease_s`` after
+  the hand-over window: an executor stops a run ``lease_share`` (0.8) x ``lease_s`` after
   its last word from the origin, and the origin re-assigns once the lease lapses or the
   executor is declared failed, so only a run cut off from its origin (whose cancel was
   lost) may overlap its successor, and only that long, plus the longest delay the network
@@ -120,7 +120,9 @@ class Checker:
         came): it must never be credited."""
         self.lost.add(execution)
 
-    def credit(self, origin: str, task: str, robot: str, run: int, execution: str, now: float) -> None:
+    def credit(
+        self, origin: str, task: str, robot: str, run: int, execution: str, now: float
+    ) -> None:
         """The origin took ``run``'s result for ``task`` from ``execution``."""
         rec = self.runs.get(run)
         if rec is None or rec.robot != robot or rec.task != task:

@@ -102,7 +102,7 @@ class Plan(msgspec.Struct, frozen=True, kw_only=True):
 
 
 def plan_for(seed: int, *, robots: tuple[int, int] = (3, 5), inject: bool = False) -> Plan:
-    """The plan of ``seed``: a team of ``robots`` (a range) plus the origin, 2–4 tasks and
+    """The plan of ``seed``: a team of ``robots`` (a range) plus the origin, 2-4 tasks and
     a few faults in the first 12 clock seconds. ``inject`` adds a ``mirror`` fault."""
     rng = random.Random(seed)
     n = rng.randint(*robots)
@@ -123,7 +123,8 @@ def plan_for(seed: int, *, robots: tuple[int, int] = (3, 5), inject: bool = Fals
     heal_at = round(rng.uniform(4.0, 12.0), 3)
     faults = _faults(rng, names, spare, heal_at)
     if inject:
-        faults.append(Fault(0.0, "mirror", (rng.choice(names),)))
+        pick = random.Random(f"inject {seed}")  # the plan's other draws stay the same
+        faults.append(Fault(0.0, "mirror", (pick.choice(names),)))
     return Plan(
         seed=seed,
         strategy=rng.choice(STRATEGIES),

@@ -21,12 +21,13 @@ from btcap.sim.faultnet import FaultyNetwork, LinkFaults, NetCounters, Tap
 from btcap.sim.simcheck import LEASE_SHARE, Checker
 from btcap.sim.simplan import ORIGIN, Fault, Plan
 from btcap.sim.simwork import implementations, mission
+from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.membership.membership import TeamEvent
 from btcap.team.messages import RUN_DONE, Award, AwardReply, ExecutionInputs, KeepAlive
-from btcap.transports.codec import Envelope
 from btcap.team.runtime.agent import Agent
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
+from btcap.transports.codec import Envelope
 
 __all__ = ["Outcome", "config_for", "run_plan"]
 
@@ -133,10 +134,9 @@ class _Run:
             # Runs on it whose result has not come are given up from now on (this
             # listener runs before mission control's, which loses them).
             for handle in self.lives[ORIGIN].agent.mission_control.active.values():
-                tracked = getattr(handle, "tracked", None)
-                if tracked is not None and tracked.executor == robot:
-                    if tracked.state not in RUN_DONE:
-                        self.checker.gave_up(str(handle.id))
+                t = handle.tracked if isinstance(handle, RemoteExecution) else None
+                if t is not None and t.executor == robot and t.state not in RUN_DONE:
+                    self.checker.gave_up(str(handle.id))
 
     async def apply(self, f: Fault) -> None:
         self.note(f"fault: {f.line().strip()}")
@@ -288,7 +288,9 @@ async def _run(plan: Plan) -> Outcome:
     return Outcome(plan, list(r.checker.violations), r.trace, clock.now(), c, done, r.failures)
 
 
-def run_plan(plan: Plan, *, on_loop: Callable[[asyncio.AbstractEventLoop], None] | None = None) -> Outcome:
+def run_plan(
+    plan: Plan, *, on_loop: Callable[[asyncio.AbstractEventLoop], None] | None = None
+) -> Outcome:
     """Run ``plan`` in a fresh event loop (the standard asyncio one: the clock reads its
     ready queue)."""
     loop = asyncio.new_event_loop()

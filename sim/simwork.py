@@ -69,7 +69,7 @@ def _build(iface: CapabilityInterface, checker: Checker, robot: str) -> Tree:
 
 
 def implementations(plan: Plan, robot: str, checker: Checker) -> list[Implementation]:
-    """What ``robot`` offers: its skills, each bidding cost × duration."""
+    """What ``robot`` offers: its skills, each bidding cost x duration."""
     out = []
     for skill in plan.robots[robot]:
         iface = INTERFACES[skill.capability]

@@ -80,7 +80,8 @@ async def test_drops_duplicates_and_delays_happen_as_the_rates_say() -> None:
     assert 150 < c_missing < 250  # about a fifth dropped
     assert 100 < len(numbers) - len(set(numbers)) < 220  # about a fifth of the rest twice
     late = [t for t, _, _ in got if t > 0]
-    assert late and max(late) <= 1.0  # delayed on the virtual clock, within the bound
+    assert late
+    assert max(late) <= 1.0
     assert numbers != sorted(numbers)  # so reordered
 
 
@@ -97,7 +98,9 @@ async def test_the_same_seed_makes_the_same_faults() -> None:
 async def test_a_partition_cuts_between_groups_only_until_healed() -> None:
     def body(net: FaultyNetwork, ports: dict[str, FaultyTransport]) -> None:
         net.partition([["a", "b"], ["c"]])
-        ports["a"].send(Envelope(Kind.TELL, Address("a", "team"), Address(BROADCAST, "team"), Goodbye("a", 1)))
+        ports["a"].send(
+            Envelope(Kind.TELL, Address("a", "team"), Address(BROADCAST, "team"), Goodbye("a", 1))
+        )
         ports["c"].send(_env("c", "a", 2))
         net.heal()
         ports["c"].send(_env("c", "a", 3))
@@ -116,7 +119,12 @@ async def test_a_frozen_system_gets_its_traffic_in_one_burst_on_thaw() -> None:
 
     got = await _with_net(1, ["a", "b"], body)
     assert [(who, n) for _, who, n in got] == [
-        ("b", 0), ("a", 10), ("b", 1), ("a", 11), ("b", 2), ("a", 12)
+        ("b", 0),
+        ("a", 10),
+        ("b", 1),
+        ("a", 11),
+        ("b", 2),
+        ("a", 12),
     ]
     assert {t for t, _, _ in got} == {2.0}
 

@@ -86,10 +86,7 @@ class HostLeases(Generic[R]):
         before", or the auctioneer would give the task to the next bidder while it runs
         here (found by ``btcap sim-test``, seed 859)."""
         execution = award.execution
-        return (
-            execution in self.hosted
-            and sender == execution.origin == award.auction.auctioneer
-        )
+        return execution in self.hosted and sender == execution.origin == award.auction.auctioneer
 
     def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:
         """Take a remote award (checked with :meth:`refuse_award`); True if it runs now."""
