@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import asyncio
 import random
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from btcap.actors import ManualClock
@@ -288,15 +287,11 @@ async def _run(plan: Plan) -> Outcome:
     return Outcome(plan, list(r.checker.violations), r.trace, clock.now(), c, done, r.failures)
 
 
-def run_plan(
-    plan: Plan, *, on_loop: Callable[[asyncio.AbstractEventLoop], None] | None = None
-) -> Outcome:
+def run_plan(plan: Plan) -> Outcome:
     """Run ``plan`` in a fresh event loop (the standard asyncio one: the clock reads its
     ready queue)."""
     loop = asyncio.new_event_loop()
     try:
-        if on_loop is not None:
-            on_loop(loop)
         return loop.run_until_complete(_run(plan))
     finally:
         loop.close()

@@ -117,6 +117,16 @@ def test_the_cli_passes_and_replays_one_seed(capsys: pytest.CaptureFixture[str])
     assert "end: done" in out
 
 
+def test_jobs_run_the_same_seeds_in_processes(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["sim-test", "--seeds", "4", "--start", str(INJECTED), "--inject-fault", "--no-shrink"]
+    assert main([*argv, "--jobs", "2"]) == 1
+    two = capsys.readouterr().out
+    assert main(argv) == 1
+    one = capsys.readouterr().out
+    assert two.splitlines()[:-1] == one.splitlines()[:-1]  # all but the time taken
+    assert f"4 seeds, 2 failed ({INJECTED}, 16)" in one
+
+
 @pytest.mark.parametrize(
     ("argv", "fragment"),
     [
