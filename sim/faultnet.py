@@ -76,6 +76,7 @@ class FaultyNetwork:
         self.watch: Callable[[str, Envelope], None] | None = None
         self._ports: dict[str, FaultyTransport] = {}
         self._group: dict[str, int] = {}
+        self._oneway: set[tuple[str, str]] = set()
         self._frozen: dict[str, list[tuple[FaultyTransport, str, bytes]]] = {}
         self._dead: set[str] = set()
 
@@ -104,8 +105,14 @@ class FaultyNetwork:
         """Systems in different groups stop hearing each other; unnamed ones form group 0."""
         self._group = {name: i + 1 for i, group in enumerate(groups) for name in group}
 
+    def cut_oneway(self, sender: str, receiver: str) -> None:
+        """What ``sender`` sends ``receiver`` is lost (the other way still works)."""
+        self._oneway.add((sender, receiver))
+
     def heal(self) -> None:
+        """End partitions and one-way cuts."""
         self._group = {}
+        self._oneway = set()
 
     def freeze(self, system_id: str) -> None:
         self._frozen.setdefault(system_id, [])
@@ -171,7 +178,7 @@ class FaultyNetwork:
         if b in self._dead:
             self.counters.dead += 1
             return
-        if self._group.get(a, 0) != self._group.get(b, 0):
+        if self._group.get(a, 0) != self._group.get(b, 0) or (a, b) in self._oneway:
             self.counters.cut += 1
             return
         for frozen in (a, b):

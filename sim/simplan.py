@@ -34,6 +34,7 @@ CAPABILITIES = ("Work", "Scan")
 FAULT_KINDS = (
     "net",
     "partition",
+    "oneway",
     "heal",
     "freeze",
     "thaw",
@@ -51,8 +52,10 @@ class Fault(msgspec.Struct, frozen=True, omit_defaults=True):
 
     ``net`` sets the message faults from then on (``rates``: drop, duplicate, delay
     chances and the longest delay in seconds); ``partition`` splits the team into
-    ``groups``; ``mirror`` also delivers every execution message meant for another robot
-    to ``robots[0]`` (a network that forges deliveries: only for testing the checks).
+    ``groups``; ``oneway`` drops what ``robots[0]`` sends ``robots[1]`` (not the other
+    way); ``heal`` ends partitions and one-way cuts; ``mirror`` also delivers every
+    execution message meant for another robot to ``robots[0]`` (a network that forges
+    deliveries: only for testing the checks).
     """
 
     at: float
@@ -101,9 +104,12 @@ class Plan(msgspec.Struct, frozen=True, kw_only=True):
         return msgspec.structs.replace(self, faults=faults)
 
 
-def plan_for(seed: int, *, robots: tuple[int, int] = (3, 5), inject: bool = False) -> Plan:
+def plan_for(
+    seed: int, *, robots: tuple[int, int] = (3, 5), inject: bool = False, heavy: bool = False
+) -> Plan:
     """The plan of ``seed``: a team of ``robots`` (a range) plus the origin, 2-4 tasks and
-    a few faults in the first 12 clock seconds. ``inject`` adds a ``mirror`` fault."""
+    1-6 faults in the first 4-12 clock seconds. ``heavy``: 4-14 faults over 8-24 s, one-way
+    link cuts among them, loss up to 40 %. ``inject`` adds a ``mirror`` fault."""
     rng = random.Random(seed)
     n = rng.randint(*robots)
     names = [f"r{i}" for i in range(1, n + 1)]
@@ -120,8 +126,8 @@ def plan_for(seed: int, *, robots: tuple[int, int] = (3, 5), inject: bool = Fals
         TaskSpec(f"t{k}", rng.choice(CAPABILITIES), round(rng.uniform(0.5, 4.0), 2))
         for k in range(1, rng.randint(2, 4) + 1)
     )
-    heal_at = round(rng.uniform(4.0, 12.0), 3)
-    faults = _faults(rng, names, spare, heal_at)
+    heal_at = round(rng.uniform(8.0, 24.0) if heavy else rng.uniform(4.0, 12.0), 3)
+    faults = _faults(rng, names, spare, heal_at, heavy)
     if inject:
         pick = random.Random(f"inject {seed}")  # the plan's other draws stay the same
         faults.append(Fault(0.0, "mirror", (pick.choice(names),)))
@@ -142,19 +148,26 @@ def _caps(skills: tuple[Skill, ...]) -> set[str]:
     return {s.capability for s in skills}
 
 
-def _faults(rng: random.Random, names: list[str], spare: list[str], heal_at: float) -> list[Fault]:
+def _faults(
+    rng: random.Random, names: list[str], spare: list[str], heal_at: float, heavy: bool
+) -> list[Fault]:
     out: list[Fault] = []
     everyone = [ORIGIN, *names]
+    kinds = ("net", "net", "partition", "freeze", "crash", "leave")
 
     def when(after: float = 0.2) -> float:
         return round(rng.uniform(after, heal_at), 3)
 
-    for _ in range(rng.randint(1, 6)):
-        kind = rng.choice(("net", "net", "partition", "freeze", "crash", "leave"))
+    for _ in range(rng.randint(4, 14) if heavy else rng.randint(1, 6)):
+        kind = rng.choice((*kinds, "oneway", "oneway") if heavy else kinds)
         t = when()
-        if kind == "net":
+        if kind == "oneway":
+            a, b = rng.sample(everyone, 2)
+            out.append(Fault(t, "oneway", (a, b)))
+            out.append(Fault(when(t), "heal"))
+        elif kind == "net":
             rates = (
-                round(rng.uniform(0.0, 0.25), 3),
+                round(rng.uniform(0.0, 0.4 if heavy else 0.25), 3),
                 round(rng.uniform(0.0, 0.2), 3),
                 round(rng.uniform(0.0, 0.5), 3),
                 round(rng.uniform(0.01, 0.6), 3),

@@ -144,6 +144,8 @@ class _Run:
             self.net.faults = LinkFaults(*f.rates)
         elif f.kind == "partition":
             self.net.partition(f.groups)
+        elif f.kind == "oneway":
+            self.net.cut_oneway(*f.robots)
         elif f.kind == "heal":
             self.net.heal()
         elif f.kind == "freeze" and robot in self.lives:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
     from btcap.sim.simplan import Plan
     from btcap.sim.simrun import Outcome
 
-__all__ = ["add_parser", "parse_robots", "sim_test_command"]
+__all__ = ["Draw", "add_parser", "parse_robots", "sim_test_command"]
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -55,6 +56,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="write each failing seed's shrunken plan to DIR/seed-S.json",
     )
     p.add_argument(
+        "--heavy",
+        action="store_true",
+        help="heavier faults: 4-14 of them over 8-24 s, one-way link cuts, loss up to 40 %%",
+    )
+    p.add_argument(
         "--inject-fault",
         action="store_true",
         help="add a fault outside the fault model (every execution message is also "
@@ -75,7 +81,28 @@ def parse_robots(text: str) -> tuple[int, int]:
     return pair
 
 
-def _check(args: argparse.Namespace) -> tuple[int, int]:
+@dataclass(frozen=True)
+class Draw:
+    """How seeds become plans (the options a replay command must repeat)."""
+
+    robots: tuple[int, int] = (3, 5)
+    inject: bool = False
+    heavy: bool = False
+
+    def plan(self, seed: int) -> Plan:
+        from btcap.sim.simplan import plan_for
+
+        return plan_for(seed, robots=self.robots, inject=self.inject, heavy=self.heavy)
+
+    def replay(self, seed: int) -> str:
+        lo, hi = self.robots
+        extra = "" if self.robots == (3, 5) else f" --robots {lo}-{hi}"
+        extra += " --heavy" if self.heavy else ""
+        extra += " --inject-fault" if self.inject else ""
+        return f"btcap sim-test --seed {seed}{extra} --trace"
+
+
+def _check(args: argparse.Namespace) -> Draw:
     if args.seeds < 1:
         raise CliError(f"--seeds: expected a positive number, got {args.seeds}")
     if args.start < 0 or (args.seed is not None and args.seed < 0):
@@ -84,68 +111,51 @@ def _check(args: argparse.Namespace) -> tuple[int, int]:
         raise CliError(f"--jobs: expected a positive number, got {args.jobs}")
     if args.save_failures is not None and not args.save_failures.is_dir():
         raise CliError(f"--save-failures: {args.save_failures} is not a folder")
-    return parse_robots(args.robots)
+    return Draw(parse_robots(args.robots), args.inject_fault, args.heavy)
 
 
 def sim_test_command(args: argparse.Namespace) -> int:
-    robots = _check(args)
+    draw = _check(args)
     if args.log_level == "warning":  # the faults make warnings routine: errors only
         configure_logging("error", json=args.log_json)
     started = time.perf_counter()
-    from btcap.sim.simplan import load_plan, plan_for
+    from btcap.sim.simplan import load_plan
+    from btcap.sim.simrun import run_plan
 
     if args.plan is not None:
         try:
             plan = load_plan(args.plan)
         except ValueError as exc:
             raise CliError(f"--plan: {exc}") from None
-        return _report_all([_one(plan, args, robots)], started)
+        return _report_all([_show(run_plan(plan), args, draw)], started)
     if args.seed is not None:
-        plan = plan_for(args.seed, robots=robots, inject=args.inject_fault)
-        return _report_all([_one(plan, args, robots)], started)
+        return _report_all([_show(run_plan(draw.plan(args.seed)), args, draw)], started)
     seeds = range(args.start, args.start + args.seeds)
     if args.jobs == 1:
-        inject = args.inject_fault
-        results = [_one(plan_for(s, robots=robots, inject=inject), args, robots) for s in seeds]
+        results = [_show(run_plan(draw.plan(s)), args, draw) for s in seeds]
     else:
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(args.jobs) as pool:
-            n = len(seeds)
-            outcomes = pool.map(
-                _run_seed, seeds, [robots] * n, [args.inject_fault] * n, chunksize=8
-            )
-            results = [_show(o, args, robots) for o in outcomes]
+            outcomes = pool.map(_run_seed, seeds, [draw] * len(seeds), chunksize=8)
+            results = [_show(o, args, draw) for o in outcomes]
     return _report_all(results, started)
 
 
-def _run_seed(seed: int, robots: tuple[int, int], inject: bool) -> Outcome:
-    from btcap.sim.simplan import plan_for
+def _run_seed(seed: int, draw: Draw) -> Outcome:
     from btcap.sim.simrun import run_plan
 
-    return run_plan(plan_for(seed, robots=robots, inject=inject))
+    return run_plan(draw.plan(seed))
 
 
-def _one(plan: Plan, args: argparse.Namespace, robots: tuple[int, int]) -> Outcome:
-    from btcap.sim.simrun import run_plan
-
-    return _show(run_plan(plan), args, robots)
-
-
-def replay_command(seed: int, robots: tuple[int, int], inject: bool = False) -> str:
-    extra = "" if robots == (3, 5) else f" --robots {robots[0]}-{robots[1]}"
-    extra += " --inject-fault" if inject else ""
-    return f"btcap sim-test --seed {seed}{extra} --trace"
-
-
-def _show(outcome: Outcome, args: argparse.Namespace, robots: tuple[int, int]) -> Outcome:
+def _show(outcome: Outcome, args: argparse.Namespace, draw: Draw) -> Outcome:
     seed = outcome.plan.seed
     if args.trace:
         print("\n".join(outcome.trace))
     if outcome.ok:
         return outcome
     print(f"seed {seed}: FAILED: {outcome.violations[0]}")
-    print(f"  replay: {replay_command(seed, robots, args.inject_fault)}")
+    print(f"  replay: {draw.replay(seed)}")
     if args.no_shrink:
         return outcome
     from btcap.sim.simplan import save_plan
