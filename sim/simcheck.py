@@ -65,6 +65,8 @@ class Checker:
     _overlap: dict[tuple[int, int], float] = field(default_factory=dict)
     _reported: set[tuple[int, int]] = field(default_factory=set)
     _next: int = 0
+    #: The longest time two runs of one task ticked at once (a hand-over's length).
+    longest_overlap_s: float = 0.0
 
     def new_run(self) -> int:
         self._next += 1
@@ -90,6 +92,7 @@ class Checker:
                 continue
             pair = (min(run, other.run), max(run, other.run))
             total = self._overlap[pair] = self._overlap.get(pair, 0.0) + step
+            self.longest_overlap_s = max(self.longest_overlap_s, total)
             if total > self.window_s and pair not in self._reported:
                 self._reported.add(pair)
                 a, b = self.runs[pair[0]], self.runs[pair[1]]

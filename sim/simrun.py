@@ -58,6 +58,8 @@ class Outcome:
     counters: NetCounters
     done: bool = False
     failures: int = 0  #: members the origin declared failed (false ones included)
+    overlap_s: float = 0.0  #: the longest two runs of one task ran at once
+    window_s: float = 0.0  #: what the hand-over window allowed
 
     @property
     def ok(self) -> bool:
@@ -286,7 +288,18 @@ async def _run(plan: Plan) -> Outcome:
         f"end: {'done' if done else 'not done'}; messages {c.sent} sent, {c.dropped} dropped, "
         f"{c.duplicated} duplicated, {c.delayed} delayed, {c.cut} cut, {c.held} held"
     )
-    return Outcome(plan, list(r.checker.violations), r.trace, clock.now(), c, done, r.failures)
+    ch = r.checker
+    return Outcome(
+        plan,
+        list(ch.violations),
+        r.trace,
+        clock.now(),
+        c,
+        done,
+        r.failures,
+        ch.longest_overlap_s,
+        ch.window_s,
+    )
 
 
 def run_plan(plan: Plan) -> Outcome:

@@ -179,10 +179,12 @@ def _report_all(results: list[Outcome], started: float) -> int:
     failed = [o.plan.seed for o in results if not o.ok]
     simulated = sum(o.end_s for o in results)
     false_failures = sum(o.failures for o in results)
+    longest = max(results, key=lambda o: o.overlap_s)
     print(
         f"{len(results)} seeds, {len(failed)} failed"
         + (f" ({', '.join(map(str, failed[:20]))})" if failed else "")
         + f"; {simulated / 3600:.2f} simulated hours, {false_failures} failures declared, "
-        f"in {time.perf_counter() - started:.1f} s"
+        f"longest double run {longest.overlap_s:.2f} s (seed {longest.plan.seed}, window "
+        f"{longest.window_s:.2f} s), in {time.perf_counter() - started:.1f} s"
     )
     return 1 if failed else 0

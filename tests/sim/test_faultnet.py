@@ -109,6 +109,18 @@ async def test_a_partition_cuts_between_groups_only_until_healed() -> None:
     assert sorted((who, n) for _, who, n in got) == [("a", 3), ("b", 1)]
 
 
+async def test_a_one_way_cut_loses_one_direction_only() -> None:
+    def body(net: FaultyNetwork, ports: dict[str, FaultyTransport]) -> None:
+        net.cut_oneway("a", "b")
+        ports["a"].send(_env("a", "b", 1))
+        ports["b"].send(_env("b", "a", 2))
+        net.heal()
+        ports["a"].send(_env("a", "b", 3))
+
+    got = await _with_net(1, ["a", "b"], body)
+    assert [(who, n) for _, who, n in got] == [("a", 2), ("b", 3)]
+
+
 async def test_a_frozen_system_gets_its_traffic_in_one_burst_on_thaw() -> None:
     def body(net: FaultyNetwork, ports: dict[str, FaultyTransport]) -> None:
         net.freeze("b")

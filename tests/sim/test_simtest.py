@@ -33,6 +33,16 @@ def test_every_invariant_holds_for_hundreds_of_seeds(start: int) -> None:
     assert not failed, "\n".join(failed)
 
 
+def test_heavy_faults_hold_too() -> None:
+    failed = []
+    for seed in range(25):
+        outcome = run_plan(plan_for(seed, heavy=True))
+        if not outcome.ok:
+            failed.append(f"btcap sim-test --seed {seed} --heavy --trace: {outcome.violations[0]}")
+    assert not failed, "\n".join(failed)
+    assert any(f.kind == "oneway" for f in plan_for(1, heavy=True).faults)
+
+
 def test_the_faults_really_happen_over_the_seeds() -> None:
     kinds: set[str] = set()
     sent = dropped = duplicated = delayed = cut = held = 0
@@ -110,7 +120,9 @@ def test_the_cli_prints_the_replay_command_and_the_shrunken_trace(
 
 def test_the_cli_passes_and_replays_one_seed(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sim-test", "--seeds", "4", "--start", "20"]) == 0
-    assert "4 seeds, 0 failed" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "4 seeds, 0 failed" in out
+    assert "longest double run " in out
     assert main(["sim-test", "--seed", "20", "--trace", "--robots", "3"]) == 0
     out = capsys.readouterr().out
     assert "plan: seed 20" in out
