@@ -24,6 +24,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from btcap.team.core.hosting import FINISHED_KEPT
+
 if TYPE_CHECKING:
     from btcap.team.runtime.agent import Agent
 
@@ -155,6 +157,10 @@ class Checker:
                 "hosted runs": (len(mc.host.hosted), 2),
                 "local runs": (len(mc.executor.local_runs), tasks),
                 "pending asks": (a.system.pending_asks, 4 * names + tasks),
+                "finished runs kept": (len(mc.host.finished), FINISHED_KEPT),
+                # The membership's own tables (being rewritten: read where they are).
+                "introductions": (len(getattr(a.team, "_asked", ())), names),
+                "rosters awaited": (len(getattr(a.team, "_rosters_due", ())), names),
                 "drop reasons": (len(a.system.transport.stats.by_reason), REASONS_KEPT)
                 if a.system.transport is not None
                 else (0, 0),
