@@ -92,7 +92,8 @@ class Plan(msgspec.Struct, frozen=True, kw_only=True):
 
     seed: int
     strategy: str
-    robots: dict[str, tuple[Skill, ...]]  #: every robot that ever lives, with its skills
+    #: Every robot that ever lives, with its skills (the origin too, if it has any).
+    robots: dict[str, tuple[Skill, ...]]
     initial: tuple[str, ...]  #: the robots there from the start (the others join)
     sequence: bool  #: the tasks one after the other, else in parallel
     tasks: tuple[TaskSpec, ...]
@@ -109,7 +110,8 @@ def plan_for(
 ) -> Plan:
     """The plan of ``seed``: a team of ``robots`` (a range) plus the origin, 2-4 tasks and
     1-6 faults in the first 4-12 clock seconds. ``heavy``: 4-14 faults over 8-24 s, one-way
-    link cuts among them, loss up to 40 %. ``inject`` adds a ``mirror`` fault."""
+    link cuts among them, loss up to 40 %, and half the time the origin offers a capability
+    too. ``inject`` adds a ``mirror`` fault."""
     rng = random.Random(seed)
     n = rng.randint(*robots)
     names = [f"r{i}" for i in range(1, n + 1)]
@@ -128,6 +130,8 @@ def plan_for(
     )
     heal_at = round(rng.uniform(8.0, 24.0) if heavy else rng.uniform(4.0, 12.0), 3)
     faults = _faults(rng, names, spare, heal_at, heavy)
+    if heavy and rng.random() < 0.5:  # the origin works too: its own runs, self-awards
+        skills[ORIGIN] = (Skill(rng.choice(CAPABILITIES), round(rng.uniform(1.0, 10.0), 2)),)
     if inject:
         pick = random.Random(f"inject {seed}")  # the plan's other draws stay the same
         faults.append(Fault(0.0, "mirror", (pick.choice(names),)))

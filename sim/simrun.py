@@ -91,7 +91,7 @@ class _Run:
         self.trace.append(f"{self.clock.now():8.3f}  {what}")
 
     async def start(self, robot: str) -> None:
-        impls = [] if robot == ORIGIN else implementations(self.plan, robot, self.checker)
+        impls = implementations(self.plan, robot, self.checker)
         agent = Agent(
             robot,
             transport=self.net.transport(robot),
@@ -205,7 +205,7 @@ def _mirror(to: str) -> Tap:
 
 async def _drive(r: _Run) -> bool:
     plan, clock, checker = r.plan, r.clock, r.checker
-    names = len(plan.robots) + 1
+    names = len(set(plan.robots) | {ORIGIN})
     for robot in (ORIGIN, *plan.initial):
         await r.start(robot)
     op = r.lives[ORIGIN].agent

@@ -71,7 +71,7 @@ def _build(iface: CapabilityInterface, checker: Checker, robot: str) -> Tree:
 def implementations(plan: Plan, robot: str, checker: Checker) -> list[Implementation]:
     """What ``robot`` offers: its skills, each bidding cost x duration."""
     out = []
-    for skill in plan.robots[robot]:
+    for skill in plan.robots.get(robot, ()):
         iface = INTERFACES[skill.capability]
 
         def bid(inputs: Mapping[str, Any], cost: float = skill.cost) -> float:
