@@ -190,3 +190,11 @@ def test_found_bugs_stay_fixed(name: str) -> None:
     outcome = run_plan(load_plan(DATA / name))
     assert outcome.ok, outcome.violations
     assert outcome.done
+
+
+def test_a_late_award_withdrawn_unanswered_is_stopped_at_its_first_report() -> None:
+    """The frozen robot got the award after the origin gave it to the next bidder; it
+    ran both for 1.75 s until its lease lapsed, now one status round trip (a tick)."""
+    outcome = run_plan(load_plan(DATA / "heavy-15.json"))
+    assert outcome.ok, outcome.violations
+    assert 0 < outcome.overlap_s <= 0.5
