@@ -100,6 +100,9 @@ class Plan(msgspec.Struct, frozen=True, kw_only=True):
     faults: tuple[Fault, ...]
     heal_at: float  #: every fault ends here: healed, thawed, restarted, clean links
     quiet_s: float  #: the mission must be done this long after ``heal_at``
+    #: A second mission, held by the first robot (never crashed nor leaving): two
+    #: origins compete for the same robots.
+    second: tuple[TaskSpec, ...] = ()
 
     def with_faults(self, faults: tuple[Fault, ...]) -> Plan:
         return msgspec.structs.replace(self, faults=faults)
@@ -111,7 +114,8 @@ def plan_for(
     """The plan of ``seed``: a team of ``robots`` (a range) plus the origin, 2-4 tasks and
     1-6 faults in the first 4-12 clock seconds. ``heavy``: 4-14 faults over 8-24 s, one-way
     link cuts among them, loss up to 40 %, and half the time the origin offers a capability
-    too. ``inject`` adds a ``mirror`` fault."""
+    too, half the time a second mission on the first robot. ``inject`` adds a ``mirror``
+    fault."""
     rng = random.Random(seed)
     n = rng.randint(*robots)
     names = [f"r{i}" for i in range(1, n + 1)]
@@ -129,7 +133,12 @@ def plan_for(
         for k in range(1, rng.randint(2, 4) + 1)
     )
     heal_at = round(rng.uniform(8.0, 24.0) if heavy else rng.uniform(4.0, 12.0), 3)
-    faults = _faults(rng, names, spare, heal_at, heavy)
+    two = heavy and rng.random() < 0.5
+    faults = _faults(rng, names, spare, heal_at, heavy, keep=names[0] if two else "")
+    second = tuple(
+        TaskSpec(f"u{k}", rng.choice(CAPABILITIES), round(rng.uniform(0.5, 4.0), 2))
+        for k in range(1, (rng.randint(1, 3) if two else 0) + 1)
+    )
     if heavy and rng.random() < 0.5:  # the origin works too: its own runs, self-awards
         skills[ORIGIN] = (Skill(rng.choice(CAPABILITIES), round(rng.uniform(1.0, 10.0), 2)),)
     if inject:
@@ -145,6 +154,7 @@ def plan_for(
         faults=tuple(sorted(faults, key=lambda f: f.at)),
         heal_at=heal_at,
         quiet_s=45.0,
+        second=second,
     )
 
 
@@ -153,8 +163,15 @@ def _caps(skills: tuple[Skill, ...]) -> set[str]:
 
 
 def _faults(
-    rng: random.Random, names: list[str], spare: list[str], heal_at: float, heavy: bool
+    rng: random.Random,
+    names: list[str],
+    spare: list[str],
+    heal_at: float,
+    heavy: bool,
+    keep: str = "",
 ) -> list[Fault]:
+    """The faults of a plan; ``keep`` (a robot holding a mission) is partitioned and
+    frozen but never crashed nor leaving."""
     out: list[Fault] = []
     everyone = [ORIGIN, *names]
     kinds = ("net", "net", "partition", "freeze", "crash", "leave")
@@ -183,7 +200,7 @@ def _faults(
             out.append(Fault(t, "partition", groups=(tuple(sorted(cut)), tuple(rest))))
             out.append(Fault(when(t), "heal"))
         else:
-            robot = rng.choice(names)
+            robot = rng.choice([n for n in names if n != keep] if kind != "freeze" else names)
             back = {"freeze": "thaw", "crash": "restart", "leave": "join"}[kind]
             out.append(Fault(t, kind, (robot,)))
             if rng.random() < 0.7:

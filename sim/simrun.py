@@ -16,10 +16,12 @@ from dataclasses import dataclass, field
 
 from btcap.actors import ManualClock
 from btcap.bt.state import State
+from btcap.bt.tree import Tree
 from btcap.sim.faultnet import FaultyNetwork, LinkFaults, NetCounters, Tap
 from btcap.sim.simcheck import LEASE_SHARE, Checker
 from btcap.sim.simplan import ORIGIN, Fault, Plan
 from btcap.sim.simwork import implementations, mission
+from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.membership.membership import TeamEvent
 from btcap.team.messages import RUN_DONE, Award, AwardReply, ExecutionInputs, KeepAlive
@@ -86,6 +88,7 @@ class _Run:
     left: set[str] = field(default_factory=set)
     incarnation: int = 0
     failures: int = 0
+    origins: tuple[str, ...] = (ORIGIN,)
 
     def note(self, what: str) -> None:
         self.trace.append(f"{self.clock.now():8.3f}  {what}")
@@ -102,8 +105,8 @@ class _Run:
         # Incarnations from the run, not the wall: the same plan, the same ids.
         self.incarnation += 1
         agent.team.incarnation = self.incarnation
-        if robot == ORIGIN:
-            agent.team.subscribe(self._origin_saw)
+        if robot in self.origins:
+            agent.team.subscribe(lambda event, member: self._origin_saw(robot, event, member))
             agent.mission_control.watch_lost(lambda lost: self.checker.gave_up(str(lost.execution)))
         ready, stop = asyncio.Event(), asyncio.Event()
 
@@ -125,16 +128,16 @@ class _Run:
         life.stop.set()
         await life.task
 
-    def _origin_saw(self, event: TeamEvent, robot: str) -> None:
+    def _origin_saw(self, origin: str, event: TeamEvent, robot: str) -> None:
         if event is TeamEvent.FREED:
             return
-        self.note(f"op sees {robot} {event.value}")
+        self.note(f"{origin} sees {robot} {event.value}")
         if event is TeamEvent.FAILED:
             self.failures += 1
             self.checker.declared_failed(robot, self.clock.now())
             # Runs on it whose result has not come are given up from now on (this
             # listener runs before mission control's, which loses them).
-            for handle in self.lives[ORIGIN].agent.mission_control.active.values():
+            for handle in self.lives[origin].agent.mission_control.active.values():
                 t = handle.tracked if isinstance(handle, RemoteExecution) else None
                 if t is not None and t.executor == robot and t.state not in RUN_DONE:
                     self.checker.gave_up(str(handle.id))
@@ -203,14 +206,24 @@ def _mirror(to: str) -> Tap:
     return tap
 
 
+@dataclass
+class _Mission:
+    origin: str
+    tree: Tree
+    nodes: list[Capability]
+    state: State = State.IDLE
+
+
 async def _drive(r: _Run) -> bool:
     plan, clock, checker = r.plan, r.clock, r.checker
     names = len(set(plan.robots) | {ORIGIN})
     for robot in (ORIGIN, *plan.initial):
         await r.start(robot)
-    op = r.lives[ORIGIN].agent
-    root, nodes = mission(plan)
-    tree = op.mission(root)
+    missions = []
+    for origin, tasks in zip(r.origins, (plan.tasks, plan.second), strict=False):
+        root, nodes = mission(plan, tasks)
+        missions.append(_Mission(origin, r.lives[origin].agent.mission(root), nodes))
+    all_nodes = [node for m in missions for node in m.nodes]
     pending = sorted(plan.faults, key=lambda f: f.at)
     healed = False
     tick_s = 1.0 / r.cfg.tick_hz
@@ -225,32 +238,24 @@ async def _drive(r: _Run) -> bool:
                 healed = True
                 pending.clear()
                 await r.heal_all()
-            state = tree.tick()
+            for m in missions:
+                if m.state is not State.SUCCEEDED:
+                    m.state = m.tree.tick()
             now = clock.now()
-            for node in nodes:
-                ex = node.execution
-                if ex is not None:
-                    adopted[node.name] = str(ex.id)
-                where = (node.state.value, ex.robot if ex is not None else "")
-                if seen.get(node.name) != where:
-                    seen[node.name] = where
-                    r.note(f"{node.name} {where[0]}" + (f" on {where[1]}" if where[1] else ""))
-                    if node.state is State.SUCCEEDED:
-                        out = node.outputs
-                        execution = adopted.get(node.name, "")
-                        robot, run = out["robot"], out["run"]
-                        checker.credit(ORIGIN, node.name, robot, run, execution, now)
+            for m in missions:
+                for node in m.nodes:
+                    _observe(r, m.origin, node, seen, adopted, now)
             agents = [life.agent for life in r.lives.values()]
-            checker.bounds(now, agents, names, len(nodes))
+            checker.bounds(now, agents, names, len(all_nodes))
             if checker.violations:
                 return False
-            if state is State.SUCCEEDED:
+            if all(m.state is State.SUCCEEDED for m in missions):
                 return True
-            if state is State.FAILED:
+            if any(m.state is State.FAILED for m in missions):
                 checker.violations.append(f"{now:.3f} the mission failed")
                 return False
             if now > plan.heal_at + plan.quiet_s:
-                left = [n.name for n in nodes if n.state is not State.SUCCEEDED]
+                left = [n.name for n in all_nodes if n.state is not State.SUCCEEDED]
                 checker.violations.append(
                     f"{now:.3f} not live: tasks {', '.join(left)} not done {plan.quiet_s:.0f} s "
                     "after every fault healed"
@@ -263,7 +268,31 @@ async def _drive(r: _Run) -> bool:
                 wake = min(wake, plan.heal_at)
             await clock.sleep_until(wake)
     finally:
-        await tree.shutdown()
+        for m in missions:
+            await m.tree.shutdown()
+
+
+def _observe(
+    r: _Run,
+    origin: str,
+    node: Capability,
+    seen: dict[str, tuple[str, str]],
+    adopted: dict[str, str],
+    now: float,
+) -> None:
+    """Note where ``node``'s execution runs; a success is credited to its runner."""
+    ex = node.execution
+    if ex is not None:
+        adopted[node.name] = str(ex.id)
+    where = (node.state.value, ex.robot if ex is not None else "")
+    if seen.get(node.name) == where:
+        return
+    seen[node.name] = where
+    r.note(f"{node.name} {where[0]}" + (f" on {where[1]}" if where[1] else ""))
+    if node.state is State.SUCCEEDED:
+        out = node.outputs
+        execution = adopted.get(node.name, "")
+        r.checker.credit(origin, node.name, out["robot"], out["run"], execution, now)
 
 
 async def _run(plan: Plan) -> Outcome:
@@ -271,6 +300,8 @@ async def _run(plan: Plan) -> Outcome:
     net = FaultyNetwork(clock, random.Random(plan.seed * 7919 + 17), protocol_registry())
     cfg = config_for(plan)
     r = _Run(plan, clock, net, Checker(0.0, 1.0 / cfg.tick_hz), cfg)
+    if plan.second:
+        r.origins = (ORIGIN, plan.initial[0])
     r.checker.window_s = r.window_s()
     net.watch = r.watch
     r.note(f"plan: seed {plan.seed}, {plan.strategy}, robots {', '.join(plan.initial)}")

@@ -11,7 +11,7 @@ from btcap.bt.node import Leaf, Node
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.sim.simcheck import Checker
-from btcap.sim.simplan import CAPABILITIES, Plan
+from btcap.sim.simplan import CAPABILITIES, Plan, TaskSpec
 from btcap.team.capabilities.capability import Capability, CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
 
@@ -84,13 +84,14 @@ def implementations(plan: Plan, robot: str, checker: Checker) -> list[Implementa
     return out
 
 
-def mission(plan: Plan) -> tuple[Node, list[Capability]]:
-    """The mission tree and its capability nodes, one per task."""
+def mission(plan: Plan, tasks: tuple[TaskSpec, ...] | None = None) -> tuple[Node, list[Capability]]:
+    """The mission tree of ``tasks`` (the plan's first mission by default) and its
+    capability nodes, one per task."""
     nodes = [
         INTERFACES[t.capability].node_type()(
             t.name, inputs={"task": t.name, "duration": t.duration_s}
         )
-        for t in plan.tasks
+        for t in (plan.tasks if tasks is None else tasks)
     ]
     root: Node = (
         Sequence("mission", children=list(nodes))
