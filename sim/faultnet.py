@@ -74,6 +74,8 @@ class FaultyNetwork:
         self.tap: Tap | None = None
         #: Called with (sender, envelope) for every message sent, before any fault.
         self.watch: Callable[[str, Envelope], None] | None = None
+        #: Whether to lose a message outright (a test-only fault, with ``tap``).
+        self.mute: Callable[[str, Envelope], bool] | None = None
         self._ports: dict[str, FaultyTransport] = {}
         self._group: dict[str, int] = {}
         self._oneway: set[tuple[str, str]] = set()
@@ -146,6 +148,9 @@ class FaultyNetwork:
         self._count(type(env.msg).__name__)
         if self.watch is not None:
             self.watch(src.system_id, env)
+        if self.mute is not None and self.mute(src.system_id, env):
+            self.counters.dropped += 1
+            return
         self._route(src, env)
 
     def _route(self, src: FaultyTransport, env: Envelope) -> None:

@@ -54,8 +54,8 @@ class Fault(msgspec.Struct, frozen=True, omit_defaults=True):
     chances and the longest delay in seconds); ``partition`` splits the team into
     ``groups``; ``oneway`` drops what ``robots[0]`` sends ``robots[1]`` (not the other
     way); ``heal`` ends partitions and one-way cuts; ``mirror`` also delivers every
-    execution message meant for another robot to ``robots[0]`` (a network that forges
-    deliveries: only for testing the checks).
+    execution message meant for another robot to ``robots[0]`` and loses the statuses it
+    sends (a network that forges deliveries: only for testing the checks).
     """
 
     at: float

@@ -24,7 +24,14 @@ from btcap.sim.simwork import implementations, mission
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.membership.membership import TeamEvent
-from btcap.team.messages import RUN_DONE, Award, AwardReply, ExecutionInputs, KeepAlive
+from btcap.team.messages import (
+    RUN_DONE,
+    Award,
+    AwardReply,
+    ExecutionInputs,
+    ExecutionStatus,
+    KeepAlive,
+)
 from btcap.team.runtime.agent import Agent
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
@@ -171,6 +178,8 @@ class _Run:
             self.left.add(robot)
         elif f.kind == "mirror":
             self.net.tap = _mirror(robot)
+            # ... and what it reports on them is lost, so nobody stops its copies.
+            self.net.mute = lambda src, env: src == robot and isinstance(env.msg, ExecutionStatus)
 
     async def heal_all(self) -> None:
         self.note("heal: every fault ends")
