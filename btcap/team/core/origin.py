@@ -63,6 +63,11 @@ class OriginLeases:
         if self.tracked.pop(execution, None) is not None:
             self._end(execution)
 
+    def abandon(self, execution: ExecutionId) -> None:
+        """Nobody took the execution (its awards declined or withdrawn unanswered): a
+        robot that got a withdrawn award late and reports on it is told to stop."""
+        self._end(execution)
+
     def status(
         self,
         sender: str,
