@@ -164,6 +164,11 @@ class ActorSystem:
     def running(self) -> bool:
         return self._tg is not None and not self._closing
 
+    @property
+    def pending_asks(self) -> int:
+        """Asks awaiting a reply (a bounded table: the simulation test checks it)."""
+        return len(self._pending)
+
     def start_task(
         self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
     ) -> asyncio.Task[Any]:

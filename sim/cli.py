@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from btcap.cli import CliError
 from btcap.cli.monitor import add_monitor_option
+from btcap.sim import simtestcli
 from btcap.sim.catalog import builtin_scenarios
 
 if TYPE_CHECKING:  # the simulation is imported when a run starts: --help stays fast
@@ -105,6 +106,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
+    simtestcli.add_parser(sub)
 
 
 def resolve_scenario(ref: str) -> Scenario:

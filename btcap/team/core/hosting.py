@@ -90,6 +90,14 @@ class HostLeases(Generic[R]):
             )
         return self.body.busy_reason()
 
+    def repeated(self, sender: str, award: Award) -> bool:
+        """Whether ``award`` is a copy of one this robot took and still holds (the
+        network delivered it twice): it is accepted again, not declined as "awarded
+        before", or the auctioneer would give the task to the next bidder while it runs
+        here (found by ``btcap sim-test``, seed 859)."""
+        execution = award.execution
+        return execution in self.hosted and sender == execution.origin == award.auction.auctioneer
+
     def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:
         """Take a remote award (checked with :meth:`refuse_award`); True if it runs now."""
         self.hosted[award.execution] = Hosted(

@@ -63,6 +63,11 @@ class OriginLeases:
         if self.tracked.pop(execution, None) is not None:
             self._end(execution)
 
+    def abandon(self, execution: ExecutionId) -> None:
+        """Nobody took the execution (its awards declined or withdrawn unanswered): a
+        robot that got a withdrawn award late and reports on it is told to stop."""
+        self._end(execution)
+
     def status(
         self,
         sender: str,
@@ -86,7 +91,12 @@ class OriginLeases:
             # tell it to stop now rather than at the end of its lease.
             return [Send(sender, CancelExecution(msg.execution, "no longer assigned to you"))]
         if sender != t.executor:
-            return [Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")]
+            # An award withdrawn unanswered that reached ``sender`` late runs there beside
+            # the one its next bidder took: stop it now, not when its lease lapses (found
+            # by ``btcap sim-test --heavy``, seed 15).
+            stop = CancelExecution(msg.execution, f"assigned to {t.executor}")
+            refused = Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")
+            return [refused] if msg.state in _DONE_OR_LOST else [refused, Send(sender, stop)]
         if msg.state is RunState.LOST:
             return self._lose(t, f"executor no longer has it ({msg.detail})")
         outputs = convert(t, msg.outputs)

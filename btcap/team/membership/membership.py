@@ -72,7 +72,6 @@ class Membership(Actor):
             heartbeat_s=heartbeat_s, failure_timeout_s=failure_timeout_s, heartbeat_fanout=fanout
         )
         self.robot = robot
-        self.incarnation = time.time_ns()
         self.heartbeat_s = heartbeat_s
         self.failure_timeout_s = failure_timeout_s
         self._repo_version = repo_version
@@ -80,7 +79,7 @@ class Membership(Actor):
         self._activity = activity
         params = SwimParams(heartbeat_s, failure_timeout_s, news=fanout)
         # Seeded by name: the same team probes in the same order every run (the fast sim).
-        self.swim = Swim(robot, self.incarnation, params, random.Random(f"probes {robot}"))
+        self.swim = Swim(robot, time.time_ns(), params, random.Random(f"probes {robot}"))
         self.refused = 0  #: messages sent in another robot's name, or by strangers
         self.fanout = fanout
         self._others = Turns(random.Random(f"others {robot}"))
@@ -89,6 +88,16 @@ class Membership(Actor):
         #: we asked; nobody else may make us dial endpoints of its choosing.
         self._rosters_due: dict[str, float] = {}
         self._listeners: list[Listener] = []
+
+    @property
+    def incarnation(self) -> int:
+        """This life's number: larger after every restart (wall-clock nanoseconds)."""
+        return self.swim.incarnation
+
+    @incarnation.setter
+    def incarnation(self, value: int) -> None:
+        # Before it starts only: a deterministic simulation numbers lives itself.
+        self.swim.incarnation = value
 
     @property
     def table(self) -> MemberTable:

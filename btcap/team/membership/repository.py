@@ -160,6 +160,20 @@ class CapabilityRepository(Actor):
     def on_start(self) -> None:
         if self._team is not None:
             self._unsubscribe = self._team.subscribe(self._on_team)
+            self.start_task(self._catch_up(self._team), name=f"repository {self.robot}")
+
+    async def _catch_up(self, team: Membership) -> None:
+        """Ask again, every failure timeout, members whose state we lack or whose
+        heartbeats name a newer version: a lost query or reply is otherwise never
+        repeated (the version it answers does not change), and the member's capabilities
+        stay unknown for good (found by ``btcap sim-test``, seed 879)."""
+        clock = self.system.clock
+        while True:
+            await clock.sleep(team.failure_timeout_s)
+            for robot, member in team.members.items():
+                known = self.team.get(robot)
+                if known is None or known.version < member.repo_version:
+                    self.system.ref(f"{robot}/{self.PATH}").tell(RepositoryQuery(self.robot))
 
     def on_stop(self) -> None:
         if self._unsubscribe is not None:

@@ -169,6 +169,8 @@ class ExecutorSide:
 
     def accept(self, sender: str, msg: Award) -> str | None:
         """Take the award, or say why not; nothing is held after a refusal."""
+        if self.host.repeated(sender, msg):  # a copy of one we hold (the network's)
+            return None
         refused = self.bids.refuse(sender, msg, self.now()) or self.host.refuse_award(sender, msg)
         impl = refused or self._implementation(msg)
         if isinstance(impl, str):

@@ -195,6 +195,7 @@ class OriginSide:
         if not isinstance(won, Assigned) or won.robot != self.robot:
             self.withdrawn(task.execution)  # a self-award it gave up on, then took
         if not isinstance(won, Assigned):
+            self.leases.abandon(task.execution)
             req.why = dict(won.reasons)
             self.stats.unassigned += 1
             return

@@ -179,3 +179,16 @@ def test_a_queued_run_that_cannot_start_tells_its_origin() -> None:
         Drop(E2, "slot broken", "run-2"),
     ]
     assert hl.body.idle
+
+
+def test_a_copy_of_an_award_held_is_recognised_to_be_accepted_again() -> None:
+    """The network delivered the award twice: declining the copy ("awarded before") let
+    the auctioneer give the task to a second robot while the first ran it."""
+    hl = host()
+    assert not hl.repeated("a", award(E1))
+    assert take(hl, E1)
+    assert hl.repeated("a", award(E1))
+    assert not hl.repeated("mallory", award(E1))  # only from its origin
+    assert not hl.repeated("a", award(E2))
+    hl.drop(E1, "finished")
+    assert not hl.repeated("a", award(E1))

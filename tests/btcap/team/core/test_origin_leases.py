@@ -136,3 +136,17 @@ def test_losing_an_execution_tells_its_old_executor_to_stop() -> None:
     o.track(E1, "b", 1.0, now=0.0)
     effects = o.expire(1.01)
     assert Send("b", CancelExecution(E1, "re-assigned: lease lapsed")) in effects
+
+
+def test_a_late_run_of_an_award_nobody_took_or_given_to_another_is_stopped() -> None:
+    """An award withdrawn unanswered that reached its robot late runs there: its first
+    report is answered with a cancel, not left to its lease."""
+    o = OriginLeases("a")
+    o.abandon(E1)  # nobody took it
+    stop = CancelExecution(E1, "no longer assigned to you")
+    assert o.status("b", status(E1, "b", RunState.RUNNING), now=1.0) == [Send("b", stop)]
+    assert o.status("b", status(E1, "b", RunState.SUCCEEDED), now=1.0) == []  # not credited
+    o.track(E2, "c", 1.0, now=0.0)  # the next bidder took it
+    [refused, cancel] = o.status("b", status(E2, "b", RunState.RUNNING), now=1.0)
+    assert isinstance(refused, Refused)
+    assert cancel == Send("b", CancelExecution(E2, "assigned to c"))

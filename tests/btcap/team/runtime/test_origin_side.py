@@ -16,7 +16,7 @@ from btcap import State
 from btcap.team.allocation.strategy import Allocator, AuctionWatcher
 from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.core.body import Body
-from btcap.team.core.effects import Effect, Refused
+from btcap.team.core.effects import Effect, Refused, Send
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import incarnation_tag
 from btcap.team.membership.membership import Membership
@@ -127,9 +127,11 @@ async def test_a_remote_win_is_a_handle_whose_lease_inputs_and_result_go_through
         assert ex.step({"x": 2, "stop": False}) == (State.ASSIGNED, {})  # nothing heard yet
         assert host.sent == [("b", ExecutionInputs(ex.id, 1, {"x": 2, "stop": False}))]
 
-        # A report from another robot is the host's to refuse; the handle stays.
+        # A report from another robot is the host's to refuse, and its run is stopped (an
+        # award withdrawn unanswered that reached it late); the handle stays.
         side.status("c", ExecutionStatus(ex.id, "c", RunState.RUNNING, {}))
-        assert [type(e) for e in host.performed] == [Refused]
+        assert [type(e) for e in host.performed] == [Refused, Send]
+        assert host.performed[1] == Send("c", CancelExecution(ex.id, "assigned to b"))
         assert host.freed_count == 0
 
         host.clock = 9.0
