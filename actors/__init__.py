@@ -15,7 +15,8 @@ from btcap.actors.errors import (
 from btcap.actors.log import configure_logging
 from btcap.actors.ref import ActorRef
 from btcap.actors.services import Service, Services
-from btcap.actors.system import ActorSystem, Failure, SystemStats, runtime_messages
+from btcap.actors.stats import SystemStats
+from btcap.actors.system import ActorSystem, Failure, runtime_messages
 from btcap.transports.message import Address, Message
 
 __all__ = [

@@ -6,7 +6,6 @@ import asyncio
 import itertools
 import uuid
 from collections.abc import Coroutine
-from dataclasses import dataclass, field
 from functools import partial
 from types import TracebackType
 from typing import Any, TypeVar
@@ -20,13 +19,14 @@ from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter,
 from btcap.actors.ref import ActorRef
 from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
+from btcap.actors.stats import SystemStats
 from btcap.actors.timers import Expired, arm_timer, relay_reply
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address, Message, MessageRegistry
 
-__all__ = ["ActorSystem", "Failure", "SystemStats", "runtime_messages"]
+__all__ = ["ActorSystem", "Failure", "runtime_messages"]
 
 log = get_logger("btcap.actors")
 
@@ -43,18 +43,6 @@ class Failure(Message):
 def runtime_messages() -> MessageRegistry:
     """A registry holding the runtime's own message types."""
     return MessageRegistry([Failure])
-
-
-@dataclass(slots=True)
-class SystemStats:
-    """Counters of what could not be delivered, by reason; ``refused``: local-only mail
-    that came from a transport, by message kind (e.g. "Tick")."""
-
-    dead_letters: int = 0
-    escalations: int = 0
-    dropped: dict[str, int] = field(default_factory=dict)
-    failures: dict[str, int] = field(default_factory=dict)  # "Actor: Message: Error" -> count
-    refused: dict[str, int] = field(default_factory=dict)
 
 
 class ActorSystem:

@@ -292,8 +292,13 @@ async def _sybil(quick: bool) -> Result:
         held()
         peak_fds, peak_rss = max(peak_fds, _open_files()), max(peak_rss, _rss_mb())
         ghosts_joined = sum(r.startswith("ghost-") for r in joins)
-        # They fall silent: failed after the failure timeout, then forgotten.
-        await _until(lambda: not any(m.startswith("ghost-") for m in r1.team.members), 15.0)
+        # They fall silent. r1 is their only prober (teammates hear of them, but
+        # hearsay makes nobody a member), one probe per period: each is suspected
+        # within a round of r1's probes, failed a suspicion later, then forgotten.
+        swim = r1.team.swim
+        members = len(r1.team.members) + 1
+        bound = members * swim.period_s + swim.params.detection_bound_s(members) + 3.0
+        await _until(lambda: not any(m.startswith("ghost-") for m in r1.team.members), bound)
         await asyncio.sleep(1.0)
         _trim()
         fds1, rss1 = _open_files(), _rss_mb()

@@ -124,28 +124,6 @@ def resolve_scenario(ref: str) -> Scenario:
     return load_scenario(path)
 
 
-def grow_team(s: Scenario, robots: int) -> None:
-    """Add robots to ``s`` until it has ``robots``: its robots' models in turn, each
-    named after its model and the next free number (husky2, spot2, bebop2, husky3, ...)."""
-    from btcap.sim.scenariofile import RobotEntry
-
-    if robots < len(s.robots):
-        raise CliError(
-            f"--robots: expected at least the scenario's {len(s.robots)} robots, got {robots}"
-        )
-    names = {r.name for r in s.robots}
-    models = [r.model for r in s.robots]
-    count: dict[str, int] = {}
-    for i in range(robots - len(s.robots)):
-        model = models[i % len(models)]
-        n = count.get(model, 1)
-        while f"{model}{n}" in names:
-            n += 1
-        count[model] = n
-        names.add(f"{model}{n}")
-        s.robots.append(RobotEntry(f"{model}{n}", model))
-
-
 def _progress_line(p: Progress, name: str) -> str:
     """The live table as one plain line, for logs."""
     s = p.summary
@@ -360,7 +338,7 @@ def run_command(args: argparse.Namespace) -> int:
 
     from btcap.cli.monitor import monitored
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError
+    from btcap.sim.scenario import ScenarioError, grow_team
 
     console = Console()
     if args.compare:
@@ -384,7 +362,10 @@ def run_command(args: argparse.Namespace) -> int:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
     for s in scenarios:
         if args.robots is not None:
-            grow_team(s, args.robots)
+            try:
+                grow_team(s, args.robots)
+            except ValueError as exc:
+                raise CliError(f"--robots: {exc}") from None
         if args.speedup is not None:
             s.speedup = args.speedup
         if margin is not None:

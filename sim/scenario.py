@@ -44,6 +44,7 @@ __all__ = [
     "SimSettings",
     "builtin_scenarios",
     "check_scenario",
+    "grow_team",
     "load_scenario",
 ]
 
@@ -204,3 +205,22 @@ def check_scenario(s: Scenario) -> Scenario:
     except msgspec.ValidationError as exc:
         raise ScenarioError(f"{s.source}: {field_first(str(exc), Scenario)}") from None
     return _check(s, s.source)
+
+
+def grow_team(s: Scenario, robots: int) -> None:
+    """Add robots to ``s`` until it has ``robots``: its robots' models in turn, each
+    named after its model and the next free number (husky2, spot2, bebop2, husky3, ...);
+    ValueError if it already has more."""
+    if robots < len(s.robots):
+        raise ValueError(f"expected at least the scenario's {len(s.robots)} robots, got {robots}")
+    names = {r.name for r in s.robots}
+    models = [r.model for r in s.robots]
+    count: dict[str, int] = {}
+    for i in range(robots - len(s.robots)):
+        model = models[i % len(models)]
+        n = count.get(model, 1)
+        while f"{model}{n}" in names:
+            n += 1
+        count[model] = n
+        names.add(f"{model}{n}")
+        s.robots.append(RobotEntry(f"{model}{n}", model))

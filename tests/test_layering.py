@@ -328,6 +328,7 @@ TEAM_LEVELS = {
     "btcap.team.filecheck": 0,
     "btcap.team.ids": 0,
     "btcap.team.messages": 0,
+    "btcap.team.observing": 0,
     "btcap.team.settings": 0,
     "btcap.team.core": 1,
     "btcap.team.capabilities": 2,

@@ -14,7 +14,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def checks() -> dict[str, Check]:
-    result = asyncio.run(asyncio.wait_for(probe(quick=True), timeout=30))
+    result = asyncio.run(asyncio.wait_for(probe(quick=True), timeout=120))
     return {c.name: c for c in result}
 
 

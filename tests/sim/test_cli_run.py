@@ -9,10 +9,10 @@ import msgspec
 import pytest
 
 import btcap.cli
-from btcap.cli import CliError, main
-from btcap.sim.cli import grow_team, resolve_scenario
+from btcap.cli import main
+from btcap.sim.cli import resolve_scenario
 from btcap.sim.metrics import MissionResult
-from btcap.sim.scenario import ScenarioError
+from btcap.sim.scenario import ScenarioError, grow_team
 
 SMALL = Path(__file__).parent / "data" / "small.yaml"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -229,7 +229,7 @@ def test_robots_grows_the_team_by_its_models_and_refuses_to_shrink_it(tmp_path: 
         "husky1", "spot1", "bebop1", "husky2", "spot2", "bebop2", "husky3", "spot3",
     ]  # fmt: skip
     assert [r.model for r in s.robots[3:]] == ["husky", "spot", "bebop", "husky", "spot"]
-    with pytest.raises(CliError, match="--robots: expected at least the scenario's 8 robots"):
+    with pytest.raises(ValueError, match="expected at least the scenario's 8 robots"):
         grow_team(s, 2)
 
 
