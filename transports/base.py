@@ -58,6 +58,11 @@ class Transport(abc.ABC):
     def peers(self) -> frozenset[str]:
         """The system ids this transport can currently reach."""
 
+    def unreachable(self) -> frozenset[str]:
+        """Peers whose recent dials all failed (nobody listens where they said they do):
+        worth suspecting at once. Empty where a transport cannot tell (in-process)."""
+        return frozenset()
+
     def introduce(self, system_id: str, endpoint: str) -> bool:
         """Reach a system a teammate told us of; whether it is (now) reachable.
 

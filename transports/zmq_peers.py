@@ -148,6 +148,10 @@ class PeerFates:
         self._strangers.remember(system_id, endpoint)
         log.info("transport.peer_forgotten", system=self.system_id, peer=system_id)
 
+    def unreachable(self) -> frozenset[str]:
+        """Peers whose last dials all failed (see :data:`UNREACHABLE_TRIES`)."""
+        return frozenset(p for p, m in self._monitors.items() if m.retries >= UNREACHABLE_TRIES)
+
     def _unreachable(self, monitor: Monitor) -> None:
         peer = monitor.peer  # nobody listens where it said
         if self._monitors.get(peer) is monitor and peer not in self._configured:

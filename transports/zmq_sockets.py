@@ -242,6 +242,7 @@ class Monitor:
         "peer",
         "redial",
         "refusals",
+        "retries",
         "socket",
         "up_since",
     )
@@ -265,6 +266,7 @@ class Monitor:
         self.redial: asyncio.TimerHandle | None = None
         #: When the link's handshake last succeeded (wall time), None while it is down.
         self.up_since: float | None = None
+        self.retries = 0  #: dials that failed in a row (nobody listens there)
 
     def drain(
         self,
@@ -297,6 +299,7 @@ class Monitor:
         retried: Callable[[Monitor], None],
     ) -> None:
         if event == _RETRIED:
+            self.retries += 1
             retried(self)
             return
         if event == _DISCONNECTED:
@@ -307,6 +310,7 @@ class Monitor:
             loop = asyncio.get_running_loop()
             self.redial = loop.call_later(self.failed or 0.0, dropped, self)
         elif event == SUCCEEDED:
+            self.retries = 0
             self.up_since = time.time()
             self.failed = None
             if self.redial is not None:

@@ -147,12 +147,15 @@ class ProbeRequest(Message):
 
 class Vouch(Message):
     """``target`` answered the probe you asked me for (``probe`` is your number): I, the
-    sender, heard it myself, in its life ``incarnation`` at ``beat``."""
+    sender, heard it myself, in its life ``incarnation`` at ``beat``. With ``answered``
+    false it is Lifeguard's nack, sent as soon as I was asked: I am here and trying, so
+    if the target stays silent the fault is not your own network."""
 
     target: str
     probe: int
     incarnation: int
     beat: int
+    answered: bool = True
 
 
 # -- repository --------------------------------------------------------------------------

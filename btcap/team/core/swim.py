@@ -1,30 +1,23 @@
 """Failure detection that needs no tuning: SWIM with Lifeguard's refinements (sans-IO).
 
-Each protocol period (``period_s``, the ``heartbeat_s`` setting) a robot probes one
-member (:class:`~btcap.team.core.gossip.ProbeOrder`) with a heartbeat carrying news; the
-member answers at once. No answer within the probe timeout: ``indirect`` other members
-are asked to probe it (:class:`~btcap.team.messages.ProbeRequest`; their
-:class:`~btcap.team.messages.Vouch` counts as an answer). Still nothing when the period
-ends: the member is *suspected*, and the suspicion is passed on. Every robot that holds
-a suspicion probes the member itself, one suspect per period (an answer clears the
-suspicion there and carries the robot's refutation; silence confirms it), and runs its
-own timer (:meth:`SwimParams.suspicion_s`: between ``alpha·log10(team)`` and
-``beta·alpha·log10(team)`` periods, never below ``floor_s``, shorter with more
-independent confirmations); it declares the member failed alone, when the timer runs
-out unrefuted. No message says "X is dead", so nobody can kill a live robot by saying so.
+Each period (``period_s``, the ``heartbeat_s`` setting) a robot probes one member
+(:class:`~btcap.team.core.gossip.ProbeOrder`) with a heartbeat carrying news; it answers
+at once. No answer within the probe timeout: ``indirect`` others are asked to probe it
+(:class:`~btcap.team.messages.ProbeRequest`; a :class:`~btcap.team.messages.Vouch` is an
+answer). Silent at the period's end (or unreachable for the transport): *suspected*, and
+the suspicion spreads. Holders of a suspicion probe the suspect every other period (an
+answer clears it there and carries the refutation) and run their own timer
+(:meth:`SwimParams.suspicion_s`: ``alpha·log10(team)`` to ``beta·alpha·log10(team)``
+periods, never below ``floor_s``, shorter with more independent confirmations); each
+declares the member failed alone. No message says "X is dead": nobody can kill a live
+robot by saying so. A suspected robot refutes with a newer ``beat`` (the version of what
+it says of itself in this life); a refutation passed on by others counts only within
+:meth:`SwimParams.hearsay_window_s` of our last direct word from the robot.
 
-A robot that hears it is suspected refutes: its ``beat`` (the version of what it says
-of itself in this life; SWIM's incarnation number) goes past the suspicion's, and the
-news spreads. A refutation passed on by others counts only within
-:meth:`SwimParams.hearsay_window_s` of our last direct word from the robot, so nobody can
-keep a dead robot alive past that either.
-
-Lifeguard's local health: a robot whose own probes go unanswered, or that has to refute
-suspicions of itself, is probably the slow one; it probes less often and waits longer
-(``period_s`` and the probe timeout times ``1 + health``, health up to
-:data:`MAX_HEALTH`).
-
-See docs/membership.md for the design and the detection bound.
+Lifeguard's local health: a robot whose probes go unanswered while its helpers do not
+even say they are trying (a nack: a :class:`Vouch` with ``answered`` false), or that must
+refute suspicions of itself, is probably the slow one: its period and probe timeout grow
+by ``1 + health`` (health up to :data:`MAX_HEALTH`). Design and bound: docs/membership.md.
 """
 
 from __future__ import annotations
@@ -126,6 +119,7 @@ class _Probe:
     number: int
     acked: bool = False
     helpers: tuple[str, ...] = ()
+    nacked: set[str] = field(default_factory=set)  #: helpers that said they are trying
 
 
 @dataclass(slots=True)
@@ -167,6 +161,7 @@ class Swim:
         self._probe: _Probe | None = None
         self._numbers = 0
         self._relays: dict[int, _Relay] = {}
+        self._suspect_turn = False  #: whether this period probes a suspect
 
     # -- reading -----------------------------------------------------------------------
     @property
@@ -267,19 +262,26 @@ class Swim:
             return
         if m.suspicion is None:
             # The first to find it silent may be the one whose network is failing
-            # (Lifeguard: slow down a little); confirming others' suspicion is no sign.
-            self.health = min(self.health + 1, MAX_HEALTH)
+            # (Lifeguard: slow down, by each helper that did not even say it was trying;
+            # by one when there was none to ask); confirming others' suspicion is no sign.
+            missing = len(probe.helpers) - len(probe.nacked) if probe.helpers else 1
+            self.health = min(self.health + missing, MAX_HEALTH)
+        self._suspect(m, now)
+
+    def _suspect(self, m: Member, now: float) -> None:
         if self.table.suspect(m.robot, m.incarnation, m.beat, self.robot, now):
             s = m.suspicion
             assert s is not None
             self.rumours.add(Heard(m.robot, m.incarnation, s.beat, 0, True, self.robot))
 
     def _next_target(self, now: float) -> str | None:
-        """Suspected members go first, the one we probed least recently: an answer to
-        us clears the suspicion here, and carries the robot's refutation; silence
-        confirms it. Then the round robin."""
+        """Every other period, a suspected member, the one we probed least recently: an
+        answer to us clears the suspicion here, and carries the robot's refutation;
+        silence confirms it. Otherwise the round robin, which must go on: several robots
+        that die at once are found one after the other, not one per suspicion."""
         suspected = self.table.suspected
-        if suspected:
+        self._suspect_turn = not self._suspect_turn and bool(suspected)
+        if self._suspect_turn:
             robot = min(suspected, key=lambda r: suspected[r].probed_at)
             suspected[robot].probed_at = now
             return robot
@@ -364,6 +366,7 @@ class Swim:
         until = now + self.period_s
         self._relays[self._numbers] = _Relay(sender, msg.probe, msg.target, until)
         step.sends.append((msg.target, self.heartbeat(to=msg.target, probe=self._numbers)))
+        step.sends.append((sender, Vouch(msg.target, msg.probe, 0, 0, answered=False)))
         return step
 
     def on_vouch(self, sender: str, msg: Vouch, now: float) -> Step:
@@ -376,8 +379,18 @@ class Swim:
             and msg.probe == probe.number
             and msg.target == probe.target
         ):
-            probe.acked = True
+            if msg.answered:
+                probe.acked = True
+            else:
+                probe.nacked.add(sender)
         return Step()
+
+    def unreachable(self, robot: str, now: float) -> None:
+        """Nobody listens where ``robot`` said (the transport cannot connect): suspect it
+        now, not in its round-robin turn; refuted by its own newer beat, as any other."""
+        m = self.members.get(robot)
+        if m is not None and m.suspicion is None:
+            self._suspect(m, now)
 
     def on_goodbye(self, robot: str, incarnation: int) -> Step:
         step = Step()

@@ -168,6 +168,8 @@ class Membership(Actor):
         transport = self.system.transport
         if transport is None:
             return
+        for robot in transport.unreachable() & self.table.members.keys():
+            self.swim.unreachable(robot, now)
         others = transport.peers() - self.table.members.keys()  # a set operation, in C
         for peer in self._others.take(others, self.fanout) if others else ():
             self._beat_to(peer)

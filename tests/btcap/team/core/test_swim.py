@@ -102,12 +102,53 @@ def test_a_vouch_answers_only_the_probe_it_was_asked_for() -> None:
     assert b.table.suspected == {}
 
 
+def test_helpers_that_say_they_are_trying_keep_the_prober_healthy() -> None:
+    """Lifeguard's nacks: a dead member found by a robot whose helpers answer does not
+    slow it down; helpers that stay silent too (its own network failing?) do, by each."""
+    team = tuple(f"r{i}" for i in range(8))
+    for told, health in ((3, 0), (2, 1), (0, 3)):
+        a = robot(team=team)
+        target = a.tick(0.0).sends[0][0]
+        helpers = [to for to, m in a.timeout(0.05).sends if isinstance(m, ProbeRequest)]
+        assert len(helpers) == 3
+        number = a.heartbeat(to=target).probe or 1  # our first probe's number
+        for helper in helpers[:told]:
+            a.on_vouch(helper, Vouch(target, number, 0, 0, answered=False), 0.06)
+        if told:  # a helper that says it twice counts once
+            a.on_vouch(helpers[0], Vouch(target, number, 0, 0, answered=False), 0.07)
+        a.tick(0.1)
+        assert a.health == health, told
+        assert a.members[target].suspicion is not None  # a nack is no answer
+
+
+def test_an_unreachable_member_is_suspected_at_once_and_can_refute() -> None:
+    a = robot()
+    a.unreachable("ghost", 0.0)  # not a member: nothing
+    assert a.table.suspected == {}
+    a.unreachable("c", 0.0)
+    assert a.members["c"].suspicion is not None  # not waiting for its turn to be probed
+    assert a.members["c"].suspicion.by == ["a"]  # type: ignore[union-attr]
+    a.on_heartbeat(Heartbeat("c", 1, 0, beat=5), 0.05)  # its own newer beat refutes
+    assert a.members["c"].suspicion is None
+    a.unreachable("d", 0.0)
+    t = 0.0
+    while "d" in a.members and t < 60:
+        t += 0.1
+        a.tick(t)
+    assert "d" not in a.members  # silent: failed when its timer ran out
+    assert t <= DEFAULTS.suspicion_bounds(5)[1] + 0.2
+
+
 def test_probe_requests_are_bounded_and_only_for_members() -> None:
     a = robot(team=("b", "c"))
     assert a.on_probe_request("stranger", ProbeRequest("b", 1), 0.0).sends == []
     assert a.on_probe_request("c", ProbeRequest("ghost", 1), 0.0).sends == []
-    sent = sum(len(a.on_probe_request("c", ProbeRequest("b", i), 0.0).sends) for i in range(500))
-    assert sent == MAX_RELAYS
+    steps = [a.on_probe_request("c", ProbeRequest("b", i), 0.0).sends for i in range(500)]
+    pings = [msg for sends in steps for to, msg in sends if to == "b"]
+    assert len(pings) == MAX_RELAYS
+    nacks = [msg for sends in steps for to, msg in sends if to == "c"]
+    assert len(nacks) == MAX_RELAYS  # "I am trying", only for the requests taken on
+    assert all(isinstance(m, Vouch) and not m.answered for m in nacks)
 
 
 def test_news_of_invented_robots_is_bounded_and_makes_nobody_a_member() -> None:
