@@ -55,30 +55,14 @@ _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
 """A DEALER only sends: peers never answer on it, so anything beyond a handshake that
 arrives there is junk, and libzmq drops the connection instead of queueing it."""
-# ZMTP heartbeats, on the DEALER and the ROUTER alike: each side PINGs every _PING_MS and
-# drops its connection if nothing at all arrives within _PING_TIMEOUT_MS of a PING. Without
-# them a cut link stays up, and after the heal nothing flows until TCP's backed-off
-# retransmission timer fires (seconds to minutes); an inbound link from a crashed host
-# stayed on the ROUTER for good. A dropped DEALER is relinked (Monitor, _relink), so a
-# cut longer than the timeout heals within a redial. libzmq's I/O thread sends and
-# answers PINGs and runs the timers, without the GIL: a stalled event loop (a second
-# under CPU load) never drops a healthy link; only one with no traffic at all for 3-4 s
-# is, or a ROUTER whose 10,000-message queue from that peer stays full that long.
-# 1 s pings cost next to nothing (a few bytes each way per link); each side times out
-# for itself, so HEARTBEAT_TTL is not needed, nor TCP_MAXRT (TCP_USER_TIMEOUT on Linux),
-# which would only drop the same links later.
-_PING_MS = 1000
-_PING_TIMEOUT_MS = 3000
-_CONNECT_TIMEOUT_MS = 1000
-"""A dial into a partition gets no answer, and its SYN is retried by the kernel after 1,
-3, 7, 15... s: given up after 1 s and redialled after zmq's RECONNECT_IVL (100 ms)
-instead, so a relinked peer is reached about a second after the heal at most. A SYN's
-round trip is the network's alone (no process runs in it): 1 s is ample on a LAN."""
-
-
-def _heartbeats(sock: zmq.Socket[bytes]) -> None:
-    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
-    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
+# ZMTP heartbeats on DEALERs and ROUTER alike: a PING a second, and the connection dropped
+# if nothing arrives within 3 s of one. Else a cut link stays up and, healed, waits for TCP's
+# backed-off retransmission (seconds to minutes), and a crashed host's inbound link stays for
+# good. A dropped DEALER is relinked (Monitor). libzmq's I/O thread pings, answers and times
+# out without the GIL: a stalled event loop never drops a healthy link (a ROUTER queue full
+# from one peer for 3 s does). A dial into a partition is given up after 1 s (the kernel
+# retries a SYN after 1, 3, 7... s) and redone after RECONNECT_IVL (100 ms).
+_PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
 
 
 def check_id(system_id: str) -> str | None:
@@ -121,7 +105,8 @@ def open_router(
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
-    _heartbeats(sock)
+    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
+    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
     if curve is not None:
         curve.server(sock)
     # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
@@ -220,7 +205,8 @@ def open_dealer(
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
     sock.setsockopt(zmq.MAXMSGSIZE, _DEALER_MAX_IN)
-    _heartbeats(sock)
+    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
+    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
     sock.setsockopt(zmq.CONNECT_TIMEOUT, _CONNECT_TIMEOUT_MS)
     if curve is not None:
         try:
