@@ -55,6 +55,14 @@ _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
 """A DEALER only sends: peers never answer on it, so anything beyond a handshake that
 arrives there is junk, and libzmq drops the connection instead of queueing it."""
+# ZMTP heartbeats on DEALERs and ROUTER alike: a PING a second, and the connection dropped
+# if nothing arrives within 3 s of one. Else a cut link stays up and, healed, waits for TCP's
+# backed-off retransmission (seconds to minutes), and a crashed host's inbound link stays for
+# good. A dropped DEALER is relinked (Monitor). libzmq's I/O thread pings, answers and times
+# out without the GIL: a stalled event loop never drops a healthy link (a ROUTER queue full
+# from one peer for 3 s does). A dial into a partition is given up after 1 s (the kernel
+# retries a SYN after 1, 3, 7... s) and redone after RECONNECT_IVL (100 ms).
+_PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
 
 
 def check_id(system_id: str) -> str | None:
@@ -97,6 +105,8 @@ def open_router(
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
+    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
+    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
     if curve is not None:
         curve.server(sock)
     # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
@@ -195,6 +205,9 @@ def open_dealer(
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
     sock.setsockopt(zmq.MAXMSGSIZE, _DEALER_MAX_IN)
+    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
+    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
+    sock.setsockopt(zmq.CONNECT_TIMEOUT, _CONNECT_TIMEOUT_MS)
     if curve is not None:
         try:
             curve.client(sock, peer)
