@@ -53,15 +53,12 @@ SCHEMES = ("tcp://", "ipc://", "inproc://")
 _RECV_HWM = 10_000
 _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
-"""A DEALER only sends: peers never answer on it, so anything beyond a handshake that
-arrives there is junk, and libzmq drops the connection instead of queueing it."""
-# ZMTP heartbeats on DEALERs and ROUTER alike: a PING a second, and the connection dropped
-# if nothing arrives within 3 s of one. Else a cut link stays up and, healed, waits for TCP's
-# backed-off retransmission (seconds to minutes), and a crashed host's inbound link stays for
-# good. A dropped DEALER is relinked (Monitor). libzmq's I/O thread pings, answers and times
-# out without the GIL: a stalled event loop never drops a healthy link (a ROUTER queue full
-# from one peer for 3 s does). A dial into a partition is given up after 1 s (the kernel
-# retries a SYN after 1, 3, 7... s) and redone after RECONNECT_IVL (100 ms).
+"""A DEALER only sends: what else arrives is junk, and libzmq drops the connection."""
+# ZMTP heartbeats (DEALERs and ROUTER): a PING a second, the connection dropped after 3 s
+# of silence, else a cut link waits for TCP's backed-off retransmission once healed and a
+# crashed host's inbound link stays for good. libzmq's I/O thread pings and times out
+# without the GIL, so a stalled event loop drops no healthy link. A dial into a partition
+# gives up after 1 s (SYN retries: 1, 3, 7 s...) and is redone after RECONNECT_IVL.
 _PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
 
 
