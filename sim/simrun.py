@@ -33,6 +33,7 @@ from btcap.team.messages import (
     KeepAlive,
 )
 from btcap.team.runtime.agent import Agent
+from btcap.team.runtime.background import Background, start_in_background
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.team.settings import AgentConfig
 from btcap.transports.codec import Envelope
@@ -76,13 +77,6 @@ class Outcome:
 
 
 @dataclass
-class _Life:
-    agent: Agent
-    stop: asyncio.Event
-    task: asyncio.Task[None]
-
-
-@dataclass
 class _Run:
     plan: Plan
     clock: ManualClock
@@ -90,7 +84,7 @@ class _Run:
     checker: Checker
     cfg: AgentConfig
     trace: list[str] = field(default_factory=list)
-    lives: dict[str, _Life] = field(default_factory=dict)
+    lives: dict[str, Background] = field(default_factory=dict)
     crashed: set[str] = field(default_factory=set)
     left: set[str] = field(default_factory=set)
     incarnation: int = 0
@@ -115,25 +109,10 @@ class _Run:
         if robot in self.origins:
             agent.team.subscribe(lambda event, member: self._origin_saw(robot, event, member))
             agent.mission_control.watch_lost(lambda lost: self.checker.gave_up(str(lost.execution)))
-        ready, stop = asyncio.Event(), asyncio.Event()
-
-        async def life() -> None:
-            async with agent:
-                ready.set()
-                await stop.wait()
-
-        task = asyncio.get_running_loop().create_task(life(), name=f"agent {robot}")
-        waiter = asyncio.ensure_future(ready.wait())
-        await asyncio.wait((task, waiter), return_when=asyncio.FIRST_COMPLETED)
-        waiter.cancel()
-        if task.done():
-            task.result()
-        self.lives[robot] = _Life(agent, stop, task)
+        self.lives[robot] = await start_in_background(agent)
 
     async def stop(self, robot: str) -> None:
-        life = self.lives.pop(robot)
-        life.stop.set()
-        await life.task
+        await self.lives.pop(robot).stop()
 
     def _origin_saw(self, origin: str, event: TeamEvent, robot: str) -> None:
         if event is TeamEvent.FREED:

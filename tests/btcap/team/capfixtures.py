@@ -19,6 +19,7 @@ from btcap.team.capabilities.implementation import Implementation, Precondition
 from btcap.team.membership.membership import Membership, TeamEvent
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.background import Background, start_in_background
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
@@ -212,7 +213,7 @@ class Team:
         self.agents: dict[str, Agent] = {}
         #: What each agent's membership reported, in order (robot -> [(event, member)]).
         self.events: dict[str, list[tuple[TeamEvent, str]]] = {}
-        self._lives: dict[str, tuple[asyncio.Event, asyncio.Task[None]]] = {}
+        self._lives: dict[str, Background] = {}
 
     async def add(self, robot: str, impls: Iterable[Implementation] = (), **cfg: Any) -> Agent:
         options = {**self.cfg, **cfg}
@@ -229,21 +230,8 @@ class Team:
         )
         log = self.events.setdefault(robot, [])
         agent.team.subscribe(lambda event, member: log.append((event, member)))
-        ready, stop = asyncio.Event(), asyncio.Event()
-
-        async def life() -> None:
-            async with agent:
-                ready.set()
-                await stop.wait()
-
-        task = asyncio.get_running_loop().create_task(life(), name=f"agent {robot}")
-        waiter = asyncio.ensure_future(ready.wait())
-        await asyncio.wait((task, waiter), return_when=asyncio.FIRST_COMPLETED)
-        waiter.cancel()
-        if task.done():
-            task.result()  # raises what the agent raised on entry
+        self._lives[robot] = await start_in_background(agent)  # raises what entry raised
         self.agents[robot] = agent
-        self._lives[robot] = (stop, task)
         return agent
 
     def seen(self, robot: str, member: str) -> list[TeamEvent]:
@@ -253,9 +241,7 @@ class Team:
     async def remove(self, robot: str) -> None:
         """The robot leaves on purpose (its agent exits, saying goodbye)."""
         self.agents.pop(robot)
-        stop, task = self._lives.pop(robot)
-        stop.set()
-        await task
+        await self._lives.pop(robot).stop()
 
     async def close(self) -> None:
         for robot in reversed(list(self._lives)):
