@@ -1,10 +1,13 @@
-"""``btcap agent`` in its own process, for the CLI tests: started, waited for until it
-listens, stopped by a signal with what it said on stderr, and always killed and reaped."""
+"""``btcap agent`` in its own process, for the CLI tests: on a free port, started, waited
+for until it listens, stopped by a signal with what it said on stderr, and always killed
+and reaped."""
 
 from __future__ import annotations
 
 import contextlib
+import random
 import signal
+import socket
 import subprocess
 import sys
 from collections.abc import AsyncIterator
@@ -13,6 +16,24 @@ from pathlib import Path
 
 import anyio
 import anyio.abc
+
+
+def free_port(taken: set[int]) -> int:
+    """A free loopback port below Linux's ephemeral range, not in ``taken`` (then added):
+    robots redial a port between runs, and a dial to a free ephemeral port can connect
+    to itself."""
+    rng = random.Random()
+    while True:
+        port = rng.randrange(20000, 32000)
+        if port in taken:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        taken.add(port)
+        return port
 
 
 def btcap(*args: str) -> list[str]:

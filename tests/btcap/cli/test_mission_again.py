@@ -10,8 +10,6 @@ warning (no message dropped for coming before its sender's hello).
 from __future__ import annotations
 
 import json
-import random
-import socket
 import sys
 from contextlib import AsyncExitStack
 from pathlib import Path
@@ -19,7 +17,7 @@ from pathlib import Path
 import anyio
 import anyio.abc
 import pytest
-from agentproc import running_agent
+from agentproc import free_port, running_agent
 
 from btcap.cli import main
 
@@ -30,23 +28,6 @@ CAPS = ROOT / "examples" / "capabilities"
 TEAM = ROOT / "examples" / "team"
 ROBOTS = ("alpha", "beta", "gamma")
 RUNS = 10
-
-
-def _free_port(taken: set[int]) -> int:
-    """A free loopback port below Linux's ephemeral range: robots redial the operator's
-    port between runs, and a dial to a free ephemeral port can connect to itself."""
-    rng = random.Random()
-    while True:
-        port = rng.randrange(20000, 32000)
-        if port in taken:
-            continue
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
-        taken.add(port)
-        return port
 
 
 def _config(tmp_path: Path, robot: str, ports: dict[str, int], *, impl: bool) -> Path:
@@ -72,7 +53,7 @@ def _config(tmp_path: Path, robot: str, ports: dict[str, int], *, impl: bool) ->
 
 async def test_the_same_mission_runs_ten_times_from_a_fresh_operator(tmp_path: Path) -> None:
     taken: set[int] = set()
-    ports = {r: _free_port(taken) for r in (*ROBOTS, "operator")}
+    ports = {r: free_port(taken) for r in (*ROBOTS, "operator")}
     (tmp_path / "keys").mkdir()
     for robot in ports:
         role = "operator" if robot == "operator" else "robot"

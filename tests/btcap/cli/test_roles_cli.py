@@ -11,9 +11,7 @@ processes with CURVE keys over tcp loopback (free ports), as in docs/deploy.md.
 
 from __future__ import annotations
 
-import random
 import signal
-import socket
 import subprocess
 from contextlib import AsyncExitStack
 from pathlib import Path
@@ -21,7 +19,7 @@ from pathlib import Path
 import anyio
 import anyio.abc
 import pytest
-from agentproc import btcap, running_agent, stop
+from agentproc import btcap, free_port, running_agent, stop
 
 from btcap.cli import main
 
@@ -30,22 +28,6 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[3]
 CAPS = ROOT / "examples" / "capabilities"
 ROLE = {"alpha": "robot", "beta": "robot", "operator": "operator", "eye": "observer"}
-
-
-def _free_port(taken: set[int]) -> int:
-    """A free loopback port below Linux's ephemeral range (see test_mission_again)."""
-    rng = random.Random()
-    while True:
-        port = rng.randrange(20000, 32000)
-        if port in taken:
-            continue
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
-        taken.add(port)
-        return port
 
 
 class Team:
@@ -71,14 +53,14 @@ class Team:
         self.impl.write_text(
             "btcap_implementation: 1\nname: slow\ninterface: Greet\ntree: slow_tree.yaml\n"
         )
-        self.ports = {name: _free_port(self.taken) for name in ROLE}
+        self.ports = {name: free_port(self.taken) for name in ROLE}
         self.mission = tmp_path / "mission.yaml"
         self.mission.write_text("btcap: 1\nroot: {type: Greet, name: hello, inputs: {who: Ada}}\n")
 
     def config(self, name: str, *, seeds: list[str], file: str | None = None) -> Path:
         """NAME's config (robots implement the slow greeting); ``file`` another file for
         the same name on a port of its own."""
-        port = self.ports[name] if file is None else _free_port(self.taken)
+        port = self.ports[name] if file is None else free_port(self.taken)
         seed_lines = "".join(
             f'    - {{robot: {r}, endpoint: "tcp://127.0.0.1:{self.ports[r]}"}}\n' for r in seeds
         )
