@@ -7,6 +7,7 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from btcap.bt.async_nodes import AsyncFallback, AsyncSequence, WhileDoElse
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -94,6 +95,7 @@ __version__ = "0.1.0"
 
 #: What each module gives the public API; imported on first use (see btcap._lazy).
 _EXPORTS = {
+    "btcap.bt.async_nodes": ("AsyncFallback", "AsyncSequence", "WhileDoElse"),
     "btcap.bt.composites": (
         "Fallback",
         "IfThenElse",
@@ -192,6 +194,8 @@ __all__ = [
     "AlwaysRunning",
     "AlwaysSuccess",
     "Assigned",
+    "AsyncFallback",
+    "AsyncSequence",
     "AssignmentTask",
     "AuctionId",
     "BatchPolicy",
@@ -258,6 +262,7 @@ __all__ = [
     "Unassigned",
     "Utility",
     "Wait",
+    "WhileDoElse",
     "Wire",
     "default_registry",
     "dump_tree",

@@ -107,7 +107,8 @@ class Standard:
 STANDARD: dict[str, Standard] = {
     # btcap's control nodes have BehaviorTree.CPP's names and decide as they do.
     "Sequence": Standard("Sequence"),
-    "AsyncSequence": Standard("Sequence"),
+    "AsyncSequence": Standard("AsyncSequence"),
+    "AsyncFallback": Standard("AsyncFallback"),
     "SequenceWithMemory": Standard("SequenceWithMemory"),
     "Fallback": Standard("Fallback"),
     "ReactiveSequence": Standard("ReactiveSequence"),
@@ -120,7 +121,7 @@ STANDARD: dict[str, Standard] = {
         },
         fixed={"failure_threshold": 1},
     ),
-    "WhileDoElse": Standard("IfThenElse"),
+    "WhileDoElse": Standard("WhileDoElse"),
     "Inverter": Standard("Inverter"),
     "ForceSuccess": Standard("ForceSuccess"),
     "ForceFailure": Standard("ForceFailure"),

@@ -1,0 +1,139 @@
+"""BehaviorTree.CPP's control nodes that give the tick back: AsyncSequence, AsyncFallback,
+WhileDoElse.
+
+They exist so that a BehaviorTree.CPP file means in btcap what it means there (issue 20):
+
+- :class:`AsyncSequence` and :class:`AsyncFallback` return RUNNING after a child that
+  gave its result at once (it was not running before this tick), before ticking the next
+  one. A reactive parent therefore re-checks its conditions between two instant
+  children; ``ReactiveSequence[C, AsyncSequence[L0, L1]]`` fails on the second tick when
+  ``C`` starts failing, where a plain Sequence would have run L0 and L1 in the first.
+  A child that was running and now gives its result does not yield: the next child is
+  ticked in the same tick.
+- :class:`WhileDoElse` re-checks its condition every tick like :class:`IfThenElse`, but
+  while the condition is RUNNING it returns RUNNING and leaves the branch that was
+  running alone: not ticked, and not halted either (an IfThenElse unticks it). The branch
+  keeps its background work, as an asynchronous BehaviorTree.CPP action keeps its thread.
+  It is the one composite whose active children may go unticked for a tick
+  (``HOLDS_RUNNING_CHILD``, which :mod:`btcap.bt.invariants` honours).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from btcap.bt.composites import Fallback, IfThenElse, Sequence
+from btcap.bt.node import Node
+from btcap.bt.state import State
+
+__all__ = ["AsyncFallback", "AsyncSequence", "WhileDoElse"]
+
+_RUNNING = State.RUNNING
+_SUCCEEDED = State.SUCCEEDED
+_FAILED = State.FAILED
+_ERROR = State.ERROR
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
+
+
+class AsyncSequence(Sequence):
+    """A Sequence that returns RUNNING after each child that succeeded at once.
+
+    As BehaviorTree.CPP's AsyncSequence: the next child is ticked in the next tick, so a
+    reactive parent can pre-empt between them. After the last child, or a child that was
+    already running, there is nothing to yield for.
+    """
+
+    __slots__ = ()
+
+    def on_tick(self) -> State:
+        children = self.children
+        i = self._current
+        n = len(children)
+        while i < n:
+            child = children[i]
+            instant = child.state not in _ACTIVE
+            s = child.tick()
+            if s is _SUCCEEDED:
+                i += 1
+                if instant and i < n:
+                    self._current = i
+                    return _RUNNING
+            elif s is _FAILED or s is _ERROR:
+                self._current = 0
+                return _FAILED
+            else:
+                self._current = i
+                return _RUNNING
+        self._current = 0
+        return _SUCCEEDED
+
+
+class AsyncFallback(Fallback):
+    """A Fallback that returns RUNNING after each child that failed at once.
+
+    As BehaviorTree.CPP's AsyncFallback: the next child is ticked in the next tick.
+    """
+
+    __slots__ = ()
+
+    def on_tick(self) -> State:
+        children = self.children
+        i = self._current
+        n = len(children)
+        while i < n:
+            child = children[i]
+            instant = child.state not in _ACTIVE
+            s = child.tick()
+            if s is _FAILED or s is _ERROR:
+                i += 1
+                if instant and i < n:
+                    self._current = i
+                    return _RUNNING
+            elif s is _SUCCEEDED:
+                self._current = 0
+                return _SUCCEEDED
+            else:
+                self._current = i
+                return _RUNNING
+        self._current = 0
+        return _FAILED
+
+
+class WhileDoElse(IfThenElse):
+    """Ticks the condition every tick, then the second child if it succeeded, else the
+    third (if any); while the condition runs, the branch that was running keeps running.
+
+    As BehaviorTree.CPP's WhileDoElse. Without a third child, a failed condition fails
+    the node (and halts the second child).
+    """
+
+    __slots__ = ()
+    #: A running branch stays active, unticked, while the condition runs.
+    HOLDS_RUNNING_CHILD: ClassVar[bool] = True
+
+    def on_tick(self) -> State:
+        children = self.children
+        s = children[0].tick()
+        if s is _FAILED or s is _ERROR:
+            _halt(children[1])
+            if len(children) < 3:
+                return _FAILED
+            return _result(children[2].tick())
+        if s is _SUCCEEDED:
+            if len(children) > 2:
+                _halt(children[2])
+            return _result(children[1].tick())
+        return _RUNNING
+
+
+def _halt(node: Node) -> None:
+    if node.state in _ACTIVE:
+        node.untick()
+
+
+def _result(s: State) -> State:
+    if s is _SUCCEEDED:
+        return s
+    if s is _FAILED or s is _ERROR:
+        return _FAILED
+    return _RUNNING
