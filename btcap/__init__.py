@@ -7,7 +7,12 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from btcap.bt.async_nodes import AsyncFallback, AsyncSequence, WhileDoElse
+    from btcap.bt.async_nodes import (
+        AsyncFallback,
+        AsyncSequence,
+        AsyncSequenceWithMemory,
+        WhileDoElse,
+    )
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -95,7 +100,12 @@ __version__ = "0.1.0"
 
 #: What each module gives the public API; imported on first use (see btcap._lazy).
 _EXPORTS = {
-    "btcap.bt.async_nodes": ("AsyncFallback", "AsyncSequence", "WhileDoElse"),
+    "btcap.bt.async_nodes": (
+        "AsyncFallback",
+        "AsyncSequence",
+        "AsyncSequenceWithMemory",
+        "WhileDoElse",
+    ),
     "btcap.bt.composites": (
         "Fallback",
         "IfThenElse",
@@ -194,9 +204,10 @@ __all__ = [
     "AlwaysRunning",
     "AlwaysSuccess",
     "Assigned",
+    "AssignmentTask",
     "AsyncFallback",
     "AsyncSequence",
-    "AssignmentTask",
+    "AsyncSequenceWithMemory",
     "AuctionId",
     "BatchPolicy",
     "BatchStrategy",

@@ -1,5 +1,5 @@
-"""BehaviorTree.CPP's control nodes that give the tick back: AsyncSequence, AsyncFallback,
-WhileDoElse.
+"""BehaviorTree.CPP's control nodes that give the tick back: AsyncSequence,
+AsyncSequenceWithMemory, AsyncFallback, WhileDoElse.
 
 They exist so that a BehaviorTree.CPP file means in btcap what it means there (issue 20):
 
@@ -9,7 +9,8 @@ They exist so that a BehaviorTree.CPP file means in btcap what it means there (i
   children; ``ReactiveSequence[C, AsyncSequence[L0, L1]]`` fails on the second tick when
   ``C`` starts failing, where a plain Sequence would have run L0 and L1 in the first.
   A child that was running and now gives its result does not yield: the next child is
-  ticked in the same tick.
+  ticked in the same tick. BehaviorTree.CPP 4.8's SequenceWithMemory yields the same way;
+  it maps to :class:`AsyncSequenceWithMemory`.
 - :class:`WhileDoElse` re-checks its condition every tick like :class:`IfThenElse`, but
   while the condition is RUNNING it returns RUNNING and leaves the branch that was
   running alone: not ticked, and not halted either (an IfThenElse unticks it). The branch
@@ -26,7 +27,7 @@ from btcap.bt.composites import Fallback, IfThenElse, Sequence
 from btcap.bt.node import Node
 from btcap.bt.state import State
 
-__all__ = ["AsyncFallback", "AsyncSequence", "WhileDoElse"]
+__all__ = ["AsyncFallback", "AsyncSequence", "AsyncSequenceWithMemory", "WhileDoElse"]
 
 _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
@@ -59,13 +60,25 @@ class AsyncSequence(Sequence):
                     self._current = i
                     return _RUNNING
             elif s is _FAILED or s is _ERROR:
-                self._current = 0
+                self._current = i if self._RESUME_FAILED else 0
                 return _FAILED
             else:
                 self._current = i
                 return _RUNNING
         self._current = 0
         return _SUCCEEDED
+
+
+class AsyncSequenceWithMemory(AsyncSequence):
+    """An AsyncSequence that, after a failure, resumes at the child that failed.
+
+    What BehaviorTree.CPP 4.8's ``SequenceWithMemory`` does: it yields like
+    AsyncSequence (btcap's :class:`~btcap.bt.composites.SequenceWithMemory` does not),
+    and a halt keeps its position, as an untick does here.
+    """
+
+    __slots__ = ()
+    _RESUME_FAILED: ClassVar[bool] = True
 
 
 class AsyncFallback(Fallback):
