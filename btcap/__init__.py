@@ -11,6 +11,7 @@ if TYPE_CHECKING:
         AsyncFallback,
         AsyncSequence,
         AsyncSequenceWithMemory,
+        LatchedIfThenElse,
         WhileDoElse,
     )
     from btcap.bt.composites import (
@@ -104,6 +105,7 @@ _EXPORTS = {
         "AsyncFallback",
         "AsyncSequence",
         "AsyncSequenceWithMemory",
+        "LatchedIfThenElse",
         "WhileDoElse",
     ),
     "btcap.bt.composites": (
@@ -230,6 +232,7 @@ __all__ = [
     "Implementation",
     "InputBridge",
     "Inverter",
+    "LatchedIfThenElse",
     "Leaf",
     "Log",
     "MissionConfig",

@@ -1,5 +1,5 @@
 """BehaviorTree.CPP's control nodes that give the tick back: AsyncSequence,
-AsyncSequenceWithMemory, AsyncFallback, WhileDoElse.
+AsyncSequenceWithMemory, AsyncFallback, WhileDoElse; and its IfThenElse, which latches.
 
 They exist so that a BehaviorTree.CPP file means in btcap what it means there (issue 20):
 
@@ -17,17 +17,26 @@ They exist so that a BehaviorTree.CPP file means in btcap what it means there (i
   keeps its background work, as an asynchronous BehaviorTree.CPP action keeps its thread.
   It is the one composite whose active children may go unticked for a tick
   (``HOLDS_RUNNING_CHILD``, which :mod:`btcap.bt.invariants` honours).
+- :class:`LatchedIfThenElse` is BehaviorTree.CPP's IfThenElse: once the condition has
+  given a result, only the chosen branch is ticked until it gives one; btcap's own
+  :class:`IfThenElse` re-checks its condition every tick (BehaviorTree.CPP's WhileDoElse).
 """
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
-from btcap.bt.composites import Fallback, IfThenElse, Sequence
+from btcap.bt.composites import Composite, Fallback, IfThenElse, Sequence
 from btcap.bt.node import Node
-from btcap.bt.state import State
+from btcap.bt.state import State, TreeError
 
-__all__ = ["AsyncFallback", "AsyncSequence", "AsyncSequenceWithMemory", "WhileDoElse"]
+__all__ = [
+    "AsyncFallback",
+    "AsyncSequence",
+    "AsyncSequenceWithMemory",
+    "LatchedIfThenElse",
+    "WhileDoElse",
+]
 
 _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
@@ -137,6 +146,51 @@ class WhileDoElse(IfThenElse):
                 _halt(children[2])
             return _result(children[1].tick())
         return _RUNNING
+
+
+class LatchedIfThenElse(Composite):
+    """Ticks the condition until it gives a result, then only the branch it chose (the
+    second child on success, else the third) until that branch gives one.
+
+    As BehaviorTree.CPP's IfThenElse. Without a third child, a failed condition fails
+    the node. The chosen branch is progress: it survives an untick, not a reset.
+    """
+
+    __slots__ = ("_branch",)
+    MIN_CHILDREN: ClassVar[int] = 2
+    MAX_CHILDREN: ClassVar[int | None] = 3
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._branch = 0  # 0: the condition decides next; else the branch running
+
+    def check_children(self) -> None:
+        if len(self.children) < 2:
+            raise TreeError(f"IfThenElse {self.name!r} needs a condition and a then-branch")
+
+    def on_setup(self) -> None:
+        self.check_children()
+
+    def on_tick(self) -> State:
+        children = self.children
+        if self._branch == 0:
+            s = children[0].tick()
+            if s is _SUCCEEDED:
+                self._branch = 1
+            elif s is _FAILED or s is _ERROR:
+                if len(children) < 3:
+                    return _FAILED
+                self._branch = 2
+            else:
+                return _RUNNING
+        s = _result(children[self._branch].tick())
+        if s is not _RUNNING:
+            self._branch = 0
+        return s
+
+    def on_reset(self) -> None:
+        super().on_reset()
+        self._branch = 0
 
 
 def _halt(node: Node) -> None:

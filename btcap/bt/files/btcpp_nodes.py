@@ -116,7 +116,8 @@ class Standard:
 DIFFERENCES: dict[str, str] = {
     "halt_keeps_progress": "A BehaviorTree.CPP halt is a btcap untick, which keeps "
     "progress: a pre-empted Sequence, Fallback, AsyncSequence, AsyncFallback or Parallel "
-    "resumes where it was, and RetryUntilSuccessful/Repeat keep their counts, where "
+    "resumes where it was, IfThenElse keeps the branch it chose, and "
+    "RetryUntilSuccessful/Repeat keep their counts, where "
     "BehaviorTree.CPP starts them over (SequenceWithMemory keeps its position in both).",
     "loop_after_running": "When a child that was running fails under RetryUntilSuccessful "
     "(or succeeds under Repeat) and attempts remain, BehaviorTree.CPP ticks it again "
@@ -126,6 +127,11 @@ DIFFERENCES: dict[str, str] = {
     "and a Parallel starting over resets the children it halted, so a SequenceWithMemory "
     "below them starts over at its first child in btcap; BehaviorTree.CPP's resumes at "
     "the child that failed.",
+    "action_result_kept": "A BehaviorTree.CPP asynchronous action (StatefulActionNode) "
+    "that gave a result gives it again, without running, if ticked before its parent "
+    "resets it: WhileDoElse's condition while a branch runs, IfThenElse's after it failed "
+    "without an else branch. A btcap leaf runs on every tick it gets. Condition nodes "
+    "and synchronous actions run on every tick in both.",
     "parallel_decides_per_child": "BehaviorTree.CPP's Parallel checks its thresholds after "
     "each child and stops ticking once decided (success checked first); btcap's ticks "
     "every unfinished child, then decides (failure wins a tie). They differ only when "
@@ -150,7 +156,10 @@ STANDARD: dict[str, Standard] = {
         fixed={"failure_threshold": 1},
         differs=("parallel_decides_per_child", "halt_keeps_progress"),
     ),
-    "WhileDoElse": Standard("WhileDoElse"),
+    "WhileDoElse": Standard("WhileDoElse", differs=("action_result_kept",)),
+    "IfThenElse": Standard(
+        "LatchedIfThenElse", differs=("halt_keeps_progress", "action_result_kept")
+    ),
     "Inverter": Standard("Inverter"),
     "ForceSuccess": Standard("ForceSuccess"),
     "ForceFailure": Standard("ForceFailure"),
@@ -179,8 +188,6 @@ STANDARD: dict[str, Standard] = {
 
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {
-    "IfThenElse": "it checks its condition only until a branch runs; btcap's IfThenElse "
-    "re-checks it every tick, as BehaviorTree.CPP's WhileDoElse does (use WhileDoElse)",
     "WasEntryUpdated": "btcap has no blackboard update stamps",
     "ParallelAll": "it waits for every child; btcap's Parallel decides as soon as a "
     "threshold is met (use Parallel)",

@@ -20,7 +20,16 @@ from typing import Any
 
 import behaviortreepy as bt
 
-from btcap import Leaf, Parallel, Repeat, RepeatUntilSuccess, Sequence, SequenceWithMemory, State
+from btcap import (
+    LatchedIfThenElse,
+    Leaf,
+    Parallel,
+    Repeat,
+    RepeatUntilSuccess,
+    Sequence,
+    SequenceWithMemory,
+    State,
+)
 from btcap.bt.decorators import _Counting
 from btcap.bt.files import loads_tree
 from btcap.bt.invariants import check_halting, record_ticks
@@ -43,6 +52,7 @@ COMPOSITES = (
     "AsyncFallback",
     "Parallel",
     "WhileDoElse",
+    "IfThenElse",
 )
 DECORATORS = (
     "Inverter",
@@ -113,10 +123,11 @@ def random_tree(rng: random.Random, max_depth: int = 4) -> El:
             }.get(tag, {})
             return El(tag, name(), attrs, [node(depth + 1)])
         tag = rng.choice(COMPOSITES)
-        if tag == "WhileDoElse":
-            # A stateful action that gave a result is not ticked again by BehaviorTree.CPP
-            # until its parent resets it, and WhileDoElse resets its condition only when it
-            # gives a result: a condition leaf is a condition node there, as in real trees.
+        if tag in ("WhileDoElse", "IfThenElse"):
+            # The documented difference "action_result_kept": a stateful action that gave a
+            # result is not run again by BehaviorTree.CPP until its parent resets it, and
+            # these reset their condition only when they give a result. A condition leaf
+            # is a condition node here, as in most real trees; the test shows the rest.
             first = node(depth + 1)
             if first.tag == "Act":
                 first.tag = "Cond"
@@ -183,6 +194,8 @@ def _progress(node: Node) -> bool:
         return node._pending is not None and node._ok + node._bad > 0
     if isinstance(node, _Counting):
         return node.count > 0
+    if isinstance(node, LatchedIfThenElse):
+        return node._branch > 0
     if isinstance(node, Sequence) and not isinstance(node, SequenceWithMemory):
         return node._current > 0
     from btcap.bt.composites import Fallback

@@ -8,6 +8,7 @@ from btcap import (
     AsyncSequence,
     AsyncSequenceWithMemory,
     IfThenElse,
+    LatchedIfThenElse,
     Leaf,
     ReactiveSequence,
     Sequence,
@@ -100,3 +101,17 @@ def test_while_do_else_without_else_fails_and_halts_the_branch() -> None:
     tree = Tree(WhileDoElse("w", children=[cond, then]))
     assert [tick(tree), tick(tree)] == [R, F]
     assert then.state is State.PAUSED
+
+
+def test_latched_if_then_else_checks_the_condition_only_until_a_branch_runs() -> None:
+    cond, then = Scripted("cond", S, F), Scripted("then", R, R, S)
+    tree = Tree(LatchedIfThenElse("i", children=[cond, then, Scripted("else", S)]))
+    assert [tick(tree), tick(tree), tick(tree)] == [R, R, S]
+    assert (cond.ticks, then.ticks) == (1, 3)
+    assert tick(tree) is S  # the condition decides again: it fails, the else branch runs
+    assert cond.ticks == 2
+
+
+def test_latched_if_then_else_without_else_fails_with_its_condition() -> None:
+    tree = Tree(LatchedIfThenElse("i", children=[Scripted("cond", F), Scripted("then", S)]))
+    assert tick(tree) is F

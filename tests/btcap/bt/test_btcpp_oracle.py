@@ -31,6 +31,7 @@ from btcap.bt.files.btcpp_nodes import DIFFERENCES, STANDARD
 
 #: The documented differences, by the key of the docs table (docs/btcpp.md).
 KNOWN_DIFFERENCES = {
+    "action_result_kept",  # avoided by the generator (a condition leaf is a <Cond>)
     "halt_keeps_progress",
     "loop_after_running",
     "memory_reset_by_retry",
@@ -122,6 +123,11 @@ EXAMPLES = {
         ),
         {"A": "S", "B": "FS"},
         4,
+    ),
+    "action_result_kept": (
+        El("WhileDoElse", "w", children=[act("C"), act("T")]),
+        {"C": "SF", "T": "R"},
+        2,
     ),
     "parallel_decides_per_child": (
         El("Parallel", "p", {"success_count": "1", "failure_count": "1"}, [act("A"), act("B")]),
