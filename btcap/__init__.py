@@ -12,6 +12,7 @@ if TYPE_CHECKING:
         AsyncSequence,
         AsyncSequenceWithMemory,
         LatchedIfThenElse,
+        ParallelAll,
         WhileDoElse,
     )
     from btcap.bt.composites import (
@@ -106,6 +107,7 @@ _EXPORTS = {
         "AsyncSequence",
         "AsyncSequenceWithMemory",
         "LatchedIfThenElse",
+        "ParallelAll",
         "WhileDoElse",
     ),
     "btcap.bt.composites": (
@@ -242,6 +244,7 @@ __all__ = [
     "Observer",
     "OutputBridge",
     "Parallel",
+    "ParallelAll",
     "Port",
     "Precondition",
     "ReactiveFallback",

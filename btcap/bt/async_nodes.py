@@ -1,5 +1,6 @@
 """BehaviorTree.CPP's control nodes that give the tick back: AsyncSequence,
-AsyncSequenceWithMemory, AsyncFallback, WhileDoElse; and its IfThenElse, which latches.
+AsyncSequenceWithMemory, AsyncFallback, WhileDoElse; its IfThenElse, which latches, and
+its ParallelAll, which waits for every child.
 
 They exist so that a BehaviorTree.CPP file means in btcap what it means there (issue 20):
 
@@ -20,6 +21,9 @@ They exist so that a BehaviorTree.CPP file means in btcap what it means there (i
 - :class:`LatchedIfThenElse` is BehaviorTree.CPP's IfThenElse: once the condition has
   given a result, only the chosen branch is ticked until it gives one; btcap's own
   :class:`IfThenElse` re-checks its condition every tick (BehaviorTree.CPP's WhileDoElse).
+- :class:`ParallelAll` is BehaviorTree.CPP's ParallelAll: it ticks every unfinished child
+  until all have finished, then fails if ``max_failures`` of them failed; btcap's
+  :class:`~btcap.bt.composites.Parallel` decides as soon as a threshold is met.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.composites import Composite, Fallback, IfThenElse, Sequence
 from btcap.bt.node import Node
+from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
 
 __all__ = [
@@ -35,6 +40,7 @@ __all__ = [
     "AsyncSequence",
     "AsyncSequenceWithMemory",
     "LatchedIfThenElse",
+    "ParallelAll",
     "WhileDoElse",
 ]
 
@@ -191,6 +197,64 @@ class LatchedIfThenElse(Composite):
     def on_reset(self) -> None:
         super().on_reset()
         self._branch = 0
+
+
+class ParallelAll(Composite):
+    """Ticks every unfinished child each tick; once all have finished, fails if at least
+    ``max_failures`` failed (negative: counted from the number of children, -1 is all),
+    else succeeds.
+
+    As BehaviorTree.CPP's ParallelAll. The finished children are progress: they survive
+    an untick, not a reset.
+    """
+
+    __slots__ = ("_failures", "_finished")
+    OPTIONS: ClassVar[Any] = {
+        "max_failures": Port(int, 1, "failures that fail it once all children finished"),
+    }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._finished: set[int] = set()
+        self._failures = 0
+
+    def threshold(self) -> int:
+        """Failures that fail it, for the current children; TreeError if never met."""
+        n, t = len(self.children), self.options["max_failures"]
+        at = max(n + t + 1, 0) if t < 0 else t
+        if at > n:
+            raise TreeError(
+                f"node {self.path!r} (ParallelAll): max_failures {t} can never be met with "
+                f"{n} children"
+            )
+        return at
+
+    def check_children(self) -> None:
+        self.threshold()
+
+    def on_setup(self) -> None:
+        self.threshold()
+
+    def on_tick(self) -> State:
+        finished = self._finished
+        for i, child in enumerate(self.children):
+            if i in finished:
+                continue
+            s = child.tick()
+            if s is _SUCCEEDED:
+                finished.add(i)
+            elif s is _FAILED or s is _ERROR:
+                finished.add(i)
+                self._failures += 1
+        if len(finished) < len(self.children):
+            return _RUNNING
+        failed = self._failures >= self.threshold()
+        self.on_reset()
+        return _FAILED if failed else _SUCCEEDED
+
+    def on_reset(self) -> None:
+        self._finished = set()
+        self._failures = 0
 
 
 def _halt(node: Node) -> None:

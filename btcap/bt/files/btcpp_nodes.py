@@ -116,7 +116,7 @@ class Standard:
 DIFFERENCES: dict[str, str] = {
     "halt_keeps_progress": "A BehaviorTree.CPP halt is a btcap untick, which keeps "
     "progress: a pre-empted Sequence, Fallback, AsyncSequence, AsyncFallback or Parallel "
-    "resumes where it was, IfThenElse keeps the branch it chose, and "
+    "resumes where it was (a ParallelAll too), IfThenElse keeps the branch it chose, and "
     "RetryUntilSuccessful/Repeat keep their counts, where "
     "BehaviorTree.CPP starts them over (SequenceWithMemory keeps its position in both).",
     "loop_after_running": "When a child that was running fails under RetryUntilSuccessful "
@@ -156,6 +156,11 @@ STANDARD: dict[str, Standard] = {
         fixed={"failure_threshold": 1},
         differs=("parallel_decides_per_child", "halt_keeps_progress"),
     ),
+    "ParallelAll": Standard(
+        "ParallelAll",
+        {"max_failures": ("max_failures", parse_int)},
+        differs=("halt_keeps_progress",),
+    ),
     "WhileDoElse": Standard("WhileDoElse", differs=("action_result_kept",)),
     "IfThenElse": Standard(
         "LatchedIfThenElse", differs=("halt_keeps_progress", "action_result_kept")
@@ -189,8 +194,6 @@ STANDARD: dict[str, Standard] = {
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {
     "WasEntryUpdated": "btcap has no blackboard update stamps",
-    "ParallelAll": "it waits for every child; btcap's Parallel decides as soon as a "
-    "threshold is met (use Parallel)",
     "Script": "btcap has no scripting language; use a node type of your own",
     "ScriptCondition": "btcap has no scripting language; use Compare or a node of your own",
     "Precondition": "btcap has no scripting language; use WhileDoElse with a condition node",

@@ -24,6 +24,7 @@ from btcap import (
     LatchedIfThenElse,
     Leaf,
     Parallel,
+    ParallelAll,
     Repeat,
     RepeatUntilSuccess,
     Sequence,
@@ -53,6 +54,7 @@ COMPOSITES = (
     "Parallel",
     "WhileDoElse",
     "IfThenElse",
+    "ParallelAll",
 )
 DECORATORS = (
     "Inverter",
@@ -141,6 +143,8 @@ def random_tree(rng: random.Random, max_depth: int = 4) -> El:
                 "success_count": str(rng.randint(-n - 1 if n > 1 else -1, n) or -1),
                 "failure_count": "1",
             }
+        elif tag == "ParallelAll":
+            attrs = {"max_failures": str(rng.randint(-len(kids) - 1, len(kids)))}
         return El(tag, name(), attrs, kids)
 
     return node(0)
@@ -194,6 +198,8 @@ def _progress(node: Node) -> bool:
         return node._pending is not None and node._ok + node._bad > 0
     if isinstance(node, _Counting):
         return node.count > 0
+    if isinstance(node, ParallelAll):
+        return bool(node._finished)
     if isinstance(node, LatchedIfThenElse):
         return node._branch > 0
     if isinstance(node, Sequence) and not isinstance(node, SequenceWithMemory):

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from btcap import (
     AsyncFallback,
     AsyncSequence,
@@ -10,10 +12,12 @@ from btcap import (
     IfThenElse,
     LatchedIfThenElse,
     Leaf,
+    ParallelAll,
     ReactiveSequence,
     Sequence,
     State,
     Tree,
+    TreeError,
     WhileDoElse,
 )
 from btcap.bt.invariants import tick_checked as tick
@@ -115,3 +119,18 @@ def test_latched_if_then_else_checks_the_condition_only_until_a_branch_runs() ->
 def test_latched_if_then_else_without_else_fails_with_its_condition() -> None:
     tree = Tree(LatchedIfThenElse("i", children=[Scripted("cond", F), Scripted("then", S)]))
     assert tick(tree) is F
+
+
+def test_parallel_all_waits_for_every_child_then_counts_failures() -> None:
+    a, b, c = Scripted("a", F), Scripted("b", R, S), Scripted("c", R, R, F)
+    tree = Tree(ParallelAll("p", children=[a, b, c], max_failures=2))
+    assert [tick(tree), tick(tree), tick(tree)] == [R, R, F]
+    assert (a.ticks, b.ticks, c.ticks) == (1, 2, 3)  # a finished child is not ticked again
+    one = Tree(ParallelAll("p", children=[Scripted("a", F), Scripted("b", S)], max_failures=-1))
+    assert tick(one) is S  # -1: all of them must fail
+
+
+def test_parallel_all_refuses_a_threshold_it_can_never_meet() -> None:
+    tree = Tree(ParallelAll("p", children=[Scripted("a", S)], max_failures=2))
+    with pytest.raises(TreeError, match=r"max_failures 2 can never be met with 1 children"):
+        tree.setup()

@@ -127,6 +127,12 @@ MAPPED = [
         {"success_threshold": -1, "failure_threshold": -1},
     ),
     ("<WhileDoElse><AlwaysSuccess/><AlwaysSuccess/></WhileDoElse>", "WhileDoElse", {}),
+    ("<IfThenElse><AlwaysSuccess/><AlwaysSuccess/></IfThenElse>", "LatchedIfThenElse", {}),
+    (
+        '<ParallelAll max_failures="2"><AlwaysSuccess/><AlwaysFailure/></ParallelAll>',
+        "ParallelAll",
+        {"max_failures": 2},
+    ),
     ("<Inverter><AlwaysSuccess/></Inverter>", "Inverter", {}),
     ("<ForceSuccess><AlwaysFailure/></ForceSuccess>", "ForceSuccess", {}),
     ("<ForceFailure><AlwaysSuccess/></ForceFailure>", "ForceFailure", {}),
