@@ -128,10 +128,11 @@ class AsyncFallback(Fallback):
 
 
 class WhileDoElse(IfThenElse):
-    """Ticks the condition every tick, then the second child if it succeeded, else the
-    third (if any); while the condition runs, the branch that was running keeps running.
+    """An IfThenElse whose running branch keeps running while the condition runs.
 
-    As BehaviorTree.CPP's WhileDoElse. Without a third child, a failed condition fails
+    The condition is ticked every tick; then the second child if it succeeded, else the
+    third (if any). As BehaviorTree.CPP's WhileDoElse. Without a third child, a failed condition
+    fails
     the node (and halts the second child).
     """
 
@@ -155,10 +156,10 @@ class WhileDoElse(IfThenElse):
 
 
 class LatchedIfThenElse(Composite):
-    """Ticks the condition until it gives a result, then only the branch it chose (the
-    second child on success, else the third) until that branch gives one.
+    """Ticks the condition until it decides, then only the chosen branch until it ends.
 
-    As BehaviorTree.CPP's IfThenElse. Without a third child, a failed condition fails
+    The branch is the second child on success, else the third. As BehaviorTree.CPP's IfThenElse.
+    Without a third child, a failed condition fails
     the node. The chosen branch is progress: it survives an untick, not a reset.
     """
 
@@ -200,11 +201,10 @@ class LatchedIfThenElse(Composite):
 
 
 class ParallelAll(Composite):
-    """Ticks every unfinished child each tick; once all have finished, fails if at least
-    ``max_failures`` failed (negative: counted from the number of children, -1 is all),
-    else succeeds.
+    """Ticks every unfinished child until all finish; fails if ``max_failures`` failed.
 
-    As BehaviorTree.CPP's ParallelAll. The finished children are progress: they survive
+    A negative ``max_failures`` counts from the number of children (-1 is all). As
+    BehaviorTree.CPP's ParallelAll. The finished children are progress: they survive
     an untick, not a reset.
     """
 
