@@ -131,9 +131,8 @@ class WhileDoElse(IfThenElse):
     """An IfThenElse whose running branch keeps running while the condition runs.
 
     The condition is ticked every tick; then the second child if it succeeded, else the
-    third (if any). As BehaviorTree.CPP's WhileDoElse. Without a third child, a failed condition
-    fails
-    the node (and halts the second child).
+    third (if any). As BehaviorTree.CPP's WhileDoElse. Without a third child, a failed
+    condition fails the node (and halts the second child).
     """
 
     __slots__ = ()
@@ -158,9 +157,9 @@ class WhileDoElse(IfThenElse):
 class LatchedIfThenElse(Composite):
     """Ticks the condition until it decides, then only the chosen branch until it ends.
 
-    The branch is the second child on success, else the third. As BehaviorTree.CPP's IfThenElse.
-    Without a third child, a failed condition fails
-    the node. The chosen branch is progress: it survives an untick, not a reset.
+    The branch is the second child on success, else the third. As BehaviorTree.CPP's
+    IfThenElse. Without a third child, a failed condition fails the node. The chosen
+    branch is progress: it survives an untick, not a reset.
     """
 
     __slots__ = ("_branch",)
