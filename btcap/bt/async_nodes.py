@@ -219,7 +219,8 @@ class ParallelAll(Composite):
 
     def threshold(self) -> int:
         """Failures that fail it, for the current children; TreeError if never met."""
-        n, t = len(self.children), self.options["max_failures"]
+        n = len(self.children)
+        t: int = self.options["max_failures"]
         at = max(n + t + 1, 0) if t < 0 else t
         if at > n:
             raise TreeError(
