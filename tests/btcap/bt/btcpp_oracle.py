@@ -21,6 +21,7 @@ from typing import Any
 import behaviortreepy as bt
 
 from btcap import (
+    AsyncSequenceWithMemory,
     LatchedIfThenElse,
     Leaf,
     Parallel,
@@ -202,7 +203,9 @@ def _progress(node: Node) -> bool:
         return bool(node._finished)
     if isinstance(node, LatchedIfThenElse):
         return node._branch > 0
-    if isinstance(node, Sequence) and not isinstance(node, SequenceWithMemory):
+    if isinstance(node, Sequence) and not isinstance(
+        node, (SequenceWithMemory, AsyncSequenceWithMemory)
+    ):
         return node._current > 0
     from btcap.bt.composites import Fallback
 
@@ -255,8 +258,11 @@ class BtcapRun:
             if sum(id(c) in seen for c in n.children) > 1:
                 self.now.add("parallel_decides_per_child")
         self.decided = []
+        # A SequenceWithMemory that failed or was halted past its first child keeps its
+        # place in both, until btcap resets it (a retry, a Parallel starting over).
+        kept = (State.FAILED, State.ERROR, State.PAUSED)
         for n in self.tree.root.walk():
-            if isinstance(n, SequenceWithMemory) and n._current > 0:
+            if isinstance(n, AsyncSequenceWithMemory) and n._current > 0 and n.state in kept:
                 up = n.parent_node
                 while up is not None:
                     if isinstance(up, (Parallel, _Counting)):
