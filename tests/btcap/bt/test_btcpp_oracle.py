@@ -27,7 +27,7 @@ from btcpp_oracle import (
     random_tree,
 )
 
-from btcap.bt.files.btcpp_nodes import DIFFERENCES, STANDARD
+from btcap.bt.files.btcpp_nodes import DIFFERENCES, STANDARD, Standard
 
 #: The documented differences, by the key of the docs table (docs/btcpp.md).
 KNOWN_DIFFERENCES = {
@@ -144,3 +144,22 @@ def test_each_documented_difference_is_real(key: str) -> None:
     mine, theirs = _ticks(root, scripts, n)
     assert mine != theirs, f"{key}: documented as a difference, but both decide alike"
     assert key in DIFFERENCES
+
+
+@pytest.mark.parametrize(
+    ("tag", "old"), [("AsyncSequence", "Sequence"), ("SequenceWithMemory", "SequenceWithMemory")]
+)
+def test_the_oracle_catches_the_former_mappings(
+    monkeypatch: pytest.MonkeyPatch, tag: str, old: str
+) -> None:
+    """The comparison can fail: with the mapping before issue 20 it does."""
+    monkeypatch.setitem(STANDARD, tag, Standard(old))
+    root = El(
+        "ReactiveSequence",
+        "rs",
+        children=[
+            El("Act", "C", script="SF"),
+            El(tag, "a", children=[El("Act", "L0", script="S"), El("Act", "L1", script="S")]),
+        ],
+    )
+    assert compare(root, ticks=2).mismatch is not None
