@@ -1,7 +1,8 @@
 """BehaviorTree.CPP v4's standard nodes and the btcap node each one becomes.
 
-A node is mapped only where btcap's node decides the same way on every tick; nodes
-whose behaviour btcap does not have are listed with the reason, so a file using one
+A node is mapped only where btcap's node decides the same way on every tick, or with
+a difference named in :data:`DIFFERENCES` (``Standard.differs``); nodes whose behaviour
+btcap does not have are listed with the reason, so a file using one
 is refused with a message saying what to use instead. :func:`node_table` renders the
 whole list (docs/btcpp.md), and tests/btcap/bt/test_btcpp_oracle.py ticks random trees
 of the mapped nodes in btcap and in BehaviorTree.CPP 4.8 itself, allowing only the
