@@ -7,6 +7,14 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from btcap.bt.async_nodes import (
+        AsyncFallback,
+        AsyncSequence,
+        AsyncSequenceWithMemory,
+        LatchedIfThenElse,
+        ParallelAll,
+        WhileDoElse,
+    )
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -94,6 +102,14 @@ __version__ = "0.1.0"
 
 #: What each module gives the public API; imported on first use (see btcap._lazy).
 _EXPORTS = {
+    "btcap.bt.async_nodes": (
+        "AsyncFallback",
+        "AsyncSequence",
+        "AsyncSequenceWithMemory",
+        "LatchedIfThenElse",
+        "ParallelAll",
+        "WhileDoElse",
+    ),
     "btcap.bt.composites": (
         "Fallback",
         "IfThenElse",
@@ -193,6 +209,9 @@ __all__ = [
     "AlwaysSuccess",
     "Assigned",
     "AssignmentTask",
+    "AsyncFallback",
+    "AsyncSequence",
+    "AsyncSequenceWithMemory",
     "AuctionId",
     "BatchPolicy",
     "BatchStrategy",
@@ -215,6 +234,7 @@ __all__ = [
     "Implementation",
     "InputBridge",
     "Inverter",
+    "LatchedIfThenElse",
     "Leaf",
     "Log",
     "MissionConfig",
@@ -224,6 +244,7 @@ __all__ = [
     "Observer",
     "OutputBridge",
     "Parallel",
+    "ParallelAll",
     "Port",
     "Precondition",
     "ReactiveFallback",
@@ -258,6 +279,7 @@ __all__ = [
     "Unassigned",
     "Utility",
     "Wait",
+    "WhileDoElse",
     "Wire",
     "default_registry",
     "dump_tree",
