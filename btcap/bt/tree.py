@@ -7,6 +7,7 @@ from collections.abc import Callable, Collection, Coroutine, Iterator
 from typing import TYPE_CHECKING, Any
 
 from btcap.actors import Clock, TimeSource
+from btcap.bt.blackboard import Blackboard
 from btcap.bt.debug import RestartMonitor, debug_default
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, assignable, type_name
@@ -56,6 +57,8 @@ class Tree:
         self.name = name or root.name
         self.clock: TimeSource = clock if clock is not None else Clock()
         self.wires: list[Wire] = []
+        #: Entries nodes share beyond wires (BehaviorTree.CPP XML trees); None: none.
+        self.blackboard: Blackboard | None = None
         self.system: ActorSystem | None = None
         self._observers: list[tuple[Observer, type[Node] | tuple[type[Node], ...]]] = []
         self._tasks: set[asyncio.Task[Any]] = set()
@@ -201,7 +204,18 @@ class Tree:
         has a value or a wire.
 
         ``provided`` lists inputs fed from outside, e.g. a :class:`Subtree`'s public inputs.
+        An entry of the :attr:`blackboard` that a required input reads must be written by
+        a node or set by the application.
         """
+        board = self.blackboard
+        if board is not None:
+            needed = board.needed()
+            if needed:
+                raise TreeError(
+                    f"tree {self.name!r}: blackboard entries read but never written nor "
+                    f"set: {'; '.join(needed)}; set them before ticking "
+                    f"(tree.blackboard[KEY] = VALUE, or btcap tree run --set KEY=VALUE)"
+                )
         wired = {(id(w.target), w.target_port) for w in self.wires}
         wired.update((id(n), key) for n, key in provided)
         for n in self.nodes():
@@ -214,8 +228,14 @@ class Tree:
                     f"{cls.MIN_CHILDREN} to {most}"
                 )
             n.check_children()
+            pulled = [key for key, _, _ in n._pulls or ()]
             for key, port in n.input_ports.items():
-                if port.required and n.inputs.get(key) is None and (id(n), key) not in wired:
+                if (
+                    port.required
+                    and n.inputs.get(key) is None
+                    and (id(n), key) not in wired
+                    and key not in pulled
+                ):
                     raise TreeError(f"node {n.path!r}: input {key!r} needs a value or a wire")
 
     # -- actors -----------------------------------------------------------------------

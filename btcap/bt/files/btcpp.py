@@ -24,8 +24,10 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
-from typing import Any
+from collections.abc import Collection
+from typing import Any, TypeVar
 
+from btcap.bt.files.board import TreeBoard
 from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
 from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
 from btcap.bt.files.schema import (
@@ -38,9 +40,12 @@ from btcap.bt.files.schema import (
     WireSpec,
 )
 from btcap.bt.files.xmlread import MAX_DEPTH, XmlElement
+from btcap.bt.ports import assignable, type_name
 from btcap.bt.registry import NodeRegistry, RegistryError
 
 __all__ = ["XmlTranslator", "relabel"]
+
+_T = TypeVar("_T")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,13 +55,26 @@ class _Def:
     spec: SubtreeSpec
     inputs: dict[str, Any]
     outputs: dict[str, Any]
+    #: Its blackboard entries (not ports): the type and whether a node inside writes it.
+    cells: dict[str, tuple[Any, bool]] = dataclasses.field(default_factory=dict)
 
 
 class XmlTranslator:
     """Translates one XML document, collecting every problem with its line."""
 
-    def __init__(self, root: XmlElement, where: str, registry: NodeRegistry) -> None:
+    def __init__(
+        self, root: XmlElement, where: str, registry: NodeRegistry, entries: Collection[str] = ()
+    ) -> None:
         self.root = root
+        #: Entries the application supplies: blackboard entries even if a node writes them.
+        self.entries = frozenset(entries)
+        #: The blackboard entries of each BehaviorTree, for the builder.
+        self.boards: dict[str, TreeBoard] = {}
+        #: Per BehaviorTree, its entries that are a SubTree's blackboard entries:
+        #: (the SubTree node and the entry inside, whether the SubTree writes it).
+        self.aliases: dict[str, dict[str, list[tuple[Ref, bool]]]] = {}
+        #: Entries some tree uses as ``{@key}``: the main tree's are blackboard entries.
+        self.globals: set[str] = set()
         self.where = where
         self.registry = registry
         self.reader = ElementReader(where, registry, {}, self._subtree)
@@ -182,23 +200,25 @@ class XmlTranslator:
         return True
 
     def _resolve(self, scope: Scope, root: NodeSpec) -> _Def:
-        """Wire each entry's writer to its readers; what crosses the tree's edge is public."""
+        """Wire each entry's writer to its readers; what crosses the tree's edge is public.
+
+        Entries wires cannot express are blackboard entries (:meth:`_cell`).
+        """
         wires: list[WireSpec] = []
         public = PublicSpec()
         inputs: dict[str, Any] = {}
         outputs: dict[str, Any] = {}
         main = scope.tree == self.main
-        for key in dict.fromkeys([*scope.writers, *scope.readers]):
-            ws, rs = scope.writers.get(key, []), scope.readers.get(key, [])
-            if not ws and key in scope.unsure:
+        writers, readers = _merged(scope.writers, main), _merged(scope.readers, main)
+        aliases = _merged(self.aliases.get(scope.tree, {}), main)
+        board = self.boards.setdefault(scope.tree, TreeBoard())
+        cells: dict[str, tuple[Any, bool]] = {}
+        for key in dict.fromkeys([*writers, *readers, *aliases]):
+            ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
+            if not ws and not al and key in scope.unsure:
                 continue  # perhaps written by a node already reported as unknown
-            if len(ws) > 1:
-                lines = ", ".join(str(w.line) for w in ws)
-                self.fail(
-                    ws[1].line,
-                    f"{{{key}}} is written by {len(ws)} node ports (lines "
-                    f"{lines}); btcap feeds an input from exactly one output",
-                )
+            if self._is_cell(key, ws, rs, al, main):
+                self._cell(scope, key, (ws, rs, al), board, cells)
                 continue
             if ws:
                 w = ws[0]
@@ -210,14 +230,6 @@ class XmlTranslator:
                     tp = self._constant(key, scope, rs[0].type if rs else Any)
                 public.outputs[key] = f"{w.path}.{w.port}"
                 outputs[key] = tp
-            elif main:
-                for r in rs:
-                    self.fail(
-                        r.line,
-                        f"{{{key}}} is read here but no node writes it; btcap "
-                        f"has no outside blackboard: write it with a node output or "
-                        f"<SetBlackboard output_key={key!r} value=...>",
-                    )
             elif len(rs) > 1:
                 lines = ", ".join(str(r.line) for r in rs)
                 self.fail(
@@ -230,7 +242,56 @@ class XmlTranslator:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
         spec = SubtreeSpec(root=root, wires=wires, public=public)
-        return _Def(spec, inputs, outputs)
+        return _Def(spec, inputs, outputs, cells)
+
+    def _is_cell(
+        self, key: str, ws: list[Ref], rs: list[Ref], al: list[tuple[Ref, bool]], main: bool
+    ) -> bool:
+        """Whether an entry needs the blackboard: what one output wired to inputs is not."""
+        if key.startswith("@") or al or len(ws) > 1:
+            return True
+        if ws and any(r.path == ws[0].path for r in rs):
+            return True  # read and written by one node: it reads the value before its own
+        return main and (not ws or key in self.entries or key in self.globals)
+
+    def _cell(
+        self,
+        scope: Scope,
+        key: str,
+        refs: tuple[list[Ref], list[Ref], list[tuple[Ref, bool]]],
+        board: TreeBoard,
+        cells: dict[str, tuple[Any, bool]],
+    ) -> None:
+        """A blackboard entry: every port using it reads or writes it, one type for all."""
+        ws, rs, al = refs
+        if key in scope.constants:
+            self._constant(key, scope, rs[0].type if rs else Any)
+        written = [(w.line, w.type) for w in ws] + [(r.line, r.type) for r, w in al if w]
+        read = [(r.line, r.type) for r in rs] + [(r.line, r.type) for r, w in al if not w]
+        typed = [(line, tp) for line, tp in written if tp is not Any]
+        for line, tp in typed[1:]:
+            if not (assignable(tp, typed[0][1]) and assignable(typed[0][1], tp)):
+                self.fail(
+                    line,
+                    f"{{{key}}} is written as {type_name(tp)} here and as "
+                    f"{type_name(typed[0][1])} at line {typed[0][0]}; an entry has one type",
+                )
+        for line, tp in read if typed else ():
+            if not assignable(typed[0][1], tp):
+                self.fail(
+                    line,
+                    f"{{{key}}} is read here as {type_name(tp)} but written as "
+                    f"{type_name(typed[0][1])} at line {typed[0][0]}",
+                )
+        board.writes.extend((w.path, w.port, key) for w in ws)
+        board.reads.extend((r.path, r.port, key) for r in rs)
+        for r, _ in al:
+            board.remaps.setdefault(r.path, {})[r.port] = key
+        if key.startswith("@"):
+            self.globals.add(key[1:])
+        else:
+            tp = typed[0][1] if typed else next((t for _, t in read if t is not Any), Any)
+            cells[key] = (tp, bool(written))
 
     def _constant(self, key: str, scope: Scope, tp: Any) -> Any:
         """Type a SetBlackboard value by the port that reads it."""
@@ -264,6 +325,16 @@ class XmlTranslator:
             return None
         self._check_model(tid, done)
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
+        for key, (tp, written) in done.cells.items():  # one entry inside and out
+            if key in attrs or auto:
+                text = attrs.pop(key, "{=}")
+                entry = self.reader.entry(text, key, el, reading=True)
+                if entry is None:
+                    board = self.boards.setdefault(scope.tree, TreeBoard())
+                    board.initial.setdefault(path, {})[key] = text
+                elif entry:
+                    refs = self.aliases.setdefault(scope.tree, {}).setdefault(entry, [])
+                    refs.append((Ref(path, key, el.line, tp), written))
         for ports, reading in ((done.inputs, True), (done.outputs, False)):
             for key, tp in ports.items():
                 if key in attrs:
@@ -313,6 +384,16 @@ class XmlTranslator:
 _WHERE = re.compile(
     r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
 )
+
+
+def _merged(refs: dict[str, list[_T]], main: bool) -> dict[str, list[_T]]:
+    """Entries by name; in the main tree ``{@key}`` is ``{key}``."""
+    if not main:
+        return refs
+    out: dict[str, list[_T]] = {}
+    for key, some in refs.items():
+        out.setdefault(key.removeprefix("@"), []).extend(some)
+    return out
 
 
 def relabel(problems: list[str], where: str, t: XmlTranslator) -> list[str]:
