@@ -120,7 +120,10 @@ class Blackboard:
         return board.outputs[name]
 
     def get(self, key: str, default: Any = None) -> Any:
-        return self[key] if key in self else default
+        try:
+            return self[key]
+        except KeyError:
+            return default
 
     def __setitem__(self, key: str, value: Any) -> None:
         """Set an entry, checked against its declared type (text is parsed to it)."""

@@ -252,6 +252,8 @@ class XmlTranslator:
             return True
         if ws and any(r.path == ws[0].path for r in rs):
             return True  # read and written by one node: it reads the value before its own
+        if ws and rs and not main:
+            return True  # remapped, its readers see the parent's value before the writer's
         return main and (not ws or key in self.entries or key in self.globals)
 
     def _cell(
