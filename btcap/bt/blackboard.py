@@ -79,7 +79,9 @@ class Blackboard:
         self.name = name
         self.parent = parent
         self.remap = dict(remap or {})
-        self.parse = parse if parse is not None or parent is None else parent.parse
+        self.parse: Callable[[str, Any], Any] | None = (
+            parse if parse is not None or parent is None else parent.parse
+        )
         #: Entry values (named like a node's outputs, so a node input pulls from it as
         #: from a node's output: reading costs what a wire costs).
         self.outputs: _Entries = _Entries()

@@ -335,8 +335,8 @@ class XmlTranslator:
                     board = self.boards.setdefault(scope.tree, TreeBoard())
                     board.initial.setdefault(path, {})[key] = text
                 elif entry:
-                    refs = self.aliases.setdefault(scope.tree, {}).setdefault(entry, [])
-                    refs.append((Ref(path, key, el.line, tp), written))
+                    aliased = self.aliases.setdefault(scope.tree, {}).setdefault(entry, [])
+                    aliased.append((Ref(path, key, el.line, tp), written))
         for ports, reading in ((done.inputs, True), (done.outputs, False)):
             for key, tp in ports.items():
                 if key in attrs:

@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 
 from btcap import Leaf, NodeRegistry, State, Tree, TreeFileError, default_registry, loads_tree
+from btcap.bt.blackboard import Blackboard
 from btcap.bt.state import TreeError
 
 
@@ -89,6 +90,11 @@ def _xml(body: str) -> str:
     )
 
 
+def _board(tree: Tree) -> Blackboard:
+    assert tree.blackboard is not None
+    return tree.blackboard
+
+
 def _load(body: str, **entries: Any) -> Tree:
     return loads_tree(_xml(body), "xml", _registry(), name="t.xml", entries=entries)
 
@@ -108,7 +114,7 @@ def test_a_node_reading_and_writing_one_entry_reads_the_applications_value_first
     tree = _load(PRUNE, goals=[1, 2, 3])
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [[2, 3]]
-    assert tree.blackboard is not None and tree.blackboard["goals"] == [2, 3]
+    assert _board(tree)["goals"] == [2, 3]
     tree.reset()  # a reset keeps entries, as BehaviorTree.CPP's halt does
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [[2, 3], [3]]
@@ -148,13 +154,12 @@ GOAL = """
 
 def test_the_application_supplies_an_entry_nodes_only_read() -> None:
     tree = _load(GOAL, goal="1;2")  # text is read as the entry's type, as BT.CPP does
-    assert tree.blackboard is not None and tree.blackboard["goal"] == (1.0, 2.0)
+    assert _board(tree)["goal"] == (1.0, 2.0)
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [3.0]
 
     later = _load(GOAL)
-    assert later.blackboard is not None
-    later.blackboard["goal"] = [3, 4]
+    _board(later)["goal"] = [3, 4]
     assert later.tick() is State.SUCCEEDED
     assert SEEN == [3.0, 7.0]
 
@@ -168,12 +173,11 @@ def test_an_entry_read_but_never_written_nor_set_is_refused_before_ticking() -> 
 def test_supplied_values_are_checked_against_the_entry_type() -> None:
     with pytest.raises(TreeFileError, match=r"t.xml: entry 'goal': .*expected tuple"):
         _load(GOAL, goal="north")
-    tree = _load(GOAL)
-    assert tree.blackboard is not None
+    board = _board(_load(GOAL))
     with pytest.raises(TreeError, match="entry 'goal'"):
-        tree.blackboard["goal"] = "north"
+        board["goal"] = "north"
     with pytest.raises(TreeError, match=r"no entry 'gaol' .*\(entries: goal\)"):
-        tree.blackboard["gaol"] = (1, 2)
+        board["gaol"] = (1, 2)
 
 
 def test_an_entry_several_nodes_write_holds_the_last_write() -> None:
@@ -242,7 +246,7 @@ def test_a_subtree_entry_remapped_is_the_parents_entry(use: str, key: str) -> No
     tree = _load(body, **{key: [1, 2, 3]})
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [[2, 3], [2, 3]]
-    assert tree.blackboard is not None and tree.blackboard[key] == [2, 3]
+    assert _board(tree)[key] == [2, 3]
 
 
 def test_a_subtree_entry_given_a_literal_starts_with_it_and_stays_inside() -> None:
@@ -289,7 +293,7 @@ def test_a_subtree_output_into_a_shared_entry_is_written_by_the_node_inside() ->
     )
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [1, 2]
-    assert tree.blackboard is not None and tree.blackboard["error"] == 2
+    assert _board(tree)["error"] == 2
 
 
 def test_a_tree_without_blackboard_entries_pays_nothing_for_them() -> None:
@@ -304,7 +308,7 @@ def test_a_tree_without_blackboard_entries_pays_nothing_for_them() -> None:
         "Sequence/Move -> Sequence/Seen"
     ]
     assert all(type(n.outputs) is dict for n in tree.nodes())
-    assert tree.blackboard is not None and list(tree.blackboard) == []
+    assert list(_board(tree)) == []
 
 
 def test_entries_are_refused_for_btcap_tree_files() -> None:
