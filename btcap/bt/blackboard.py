@@ -139,7 +139,7 @@ class Blackboard:
             )
         if isinstance(value, str) and board.parse is not None:
             value = board.parse(value, port.type)
-        where = f"blackboard {board.name!r} entry {name!r}"
+        where = f"blackboard entry {name!r} of tree {board.name!r}"
         board.outputs[name] = check_port(value, port, where)
 
     def __iter__(self) -> Iterator[str]:

@@ -90,5 +90,5 @@ class Boards:
             try:
                 board[key] = value
             except TreeError as exc:
-                fail(f"{ctx}entry {key!r}: {exc}")
+                fail(f"{ctx}{exc}")
         return fed

@@ -171,7 +171,9 @@ def test_an_entry_read_but_never_written_nor_set_is_refused_before_ticking() -> 
 
 
 def test_supplied_values_are_checked_against_the_entry_type() -> None:
-    with pytest.raises(TreeFileError, match=r"t.xml: entry 'goal': .*expected tuple"):
+    with pytest.raises(
+        TreeFileError, match=r"t.xml: blackboard entry 'goal' of tree 'Main': expected tuple"
+    ):
         _load(GOAL, goal="north")
     board = _board(_load(GOAL))
     with pytest.raises(TreeError, match="entry 'goal'"):
