@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
 from typing import Any, TypeVar
 
 from btcap.bt.files.board import TreeBoard
@@ -57,6 +57,8 @@ class _Def:
     outputs: dict[str, Any]
     #: Its blackboard entries (not ports): the type and whether a node inside writes it.
     cells: dict[str, tuple[Any, bool]] = dataclasses.field(default_factory=dict)
+    #: Its outputs written whenever it succeeds (:meth:`XmlTranslator._before`).
+    sure: frozenset[str] = frozenset()
 
 
 class XmlTranslator:
@@ -213,11 +215,13 @@ class XmlTranslator:
         aliases = _merged(self.aliases.get(scope.tree, {}), main)
         board = self.boards.setdefault(scope.tree, TreeBoard())
         cells: dict[str, tuple[Any, bool]] = {}
+        specs = dict(_specs(root, None))
+        sure: set[str] = set()
         for key in dict.fromkeys([*writers, *readers, *aliases]):
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
             if not ws and not al and key in scope.unsure:
                 continue  # perhaps written by a node already reported as unknown
-            if self._is_cell(key, ws, rs, al, main):
+            if self._is_cell(key, (ws, rs, al), main, specs):
                 self._cell(scope, key, (ws, rs, al), board, cells)
                 continue
             if ws:
@@ -230,6 +234,8 @@ class XmlTranslator:
                     tp = self._constant(key, scope, rs[0].type if rs else Any)
                 public.outputs[key] = f"{w.path}.{w.port}"
                 outputs[key] = tp
+                if _passing(w.path.split("/"), 0, specs) and self._sure(w, specs):
+                    sure.add(key)
             elif len(rs) > 1:
                 lines = ", ".join(str(r.line) for r in rs)
                 self.fail(
@@ -242,19 +248,56 @@ class XmlTranslator:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
         spec = SubtreeSpec(root=root, wires=wires, public=public)
-        return _Def(spec, inputs, outputs, cells)
+        return _Def(spec, inputs, outputs, cells, frozenset(sure))
 
     def _is_cell(
-        self, key: str, ws: list[Ref], rs: list[Ref], al: list[tuple[Ref, bool]], main: bool
+        self,
+        key: str,
+        refs: tuple[list[Ref], list[Ref], list[tuple[Ref, bool]]],
+        main: bool,
+        specs: dict[str, NodeSpec],
     ) -> bool:
-        """Whether an entry needs the blackboard: what one output wired to inputs is not."""
+        """Whether an entry needs the blackboard: what one output wired to inputs is not.
+
+        A wire holds the writer's output, cleared when the writer is reset; an entry
+        keeps its value until written again. They agree when a reader can only tick
+        after the writer succeeded in the same run of a sequence (:func:`_before`).
+        """
+        ws, rs, al = refs
         if key.startswith("@") or al or len(ws) > 1:
             return True
         if ws and any(r.path == ws[0].path for r in rs):
             return True  # read and written by one node: it reads the value before its own
         if ws and rs and not main:
             return True  # remapped, its readers see the parent's value before the writer's
-        return main and (not ws or key in self.entries or key in self.globals)
+        if main and (not ws or key in self.entries or key in self.globals):
+            return True
+        return bool(ws) and not all(self._before(ws[0], r, specs) for r in rs)
+
+    def _before(self, writer: Ref, reader: Ref, specs: dict[str, NodeSpec]) -> bool:
+        """Whether ``reader`` ticks only after ``writer`` wrote in the same run: both under
+        one sequence, the writer's branch first and made of nodes that succeed only when
+        the one below them did (a wire then reads what the entry would hold)."""
+        w, r = writer.path.split("/"), reader.path.split("/")
+        k = 0
+        while k < min(len(w), len(r)) - 1 and w[k] == r[k]:
+            k += 1
+        lca = specs.get("/".join(w[:k])) if k and w[:k] == r[:k] else None
+        if lca is None or lca.type not in _SEQUENCES:
+            return False
+        names = [c.name for c in lca.children]
+        if names.index(w[k]) > names.index(r[k]) or not _passing(w, k, specs):
+            return False
+        return self._sure(writer, specs)
+
+    def _sure(self, writer: Ref, specs: dict[str, NodeSpec]) -> bool:
+        """Whether the node has written the output whenever it succeeds: a SubTree has if
+        its tree has (a node of yours is taken to write its outputs when it succeeds)."""
+        spec = specs[writer.path]
+        if spec.type != "Subtree":
+            return True
+        done = self.defs.get(spec.options["tree"])
+        return done is not None and writer.port in done.sure
 
     def _cell(
         self,
@@ -386,6 +429,29 @@ class XmlTranslator:
 _WHERE = re.compile(
     r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
 )
+
+
+#: btcap node types that tick their children in order, each only after the one before
+#: succeeded in the same run; and those that succeed only when their child just did.
+_SEQUENCES = frozenset(
+    {"Sequence", "SequenceWithMemory", "ReactiveSequence", "AsyncSequence"}
+    | {"AsyncSequenceWithMemory"}
+)
+_PASSING = _SEQUENCES | {"Timeout", "RepeatUntilSuccess", "Repeat", "Delay"}
+
+
+def _specs(spec: NodeSpec, parent: str | None) -> Iterator[tuple[str, NodeSpec]]:
+    """(path, spec) of every node of a translated tree."""
+    path = spec.name if parent is None else f"{parent}/{spec.name}"
+    yield path, spec
+    for child in spec.children:
+        yield from _specs(child, path)
+
+
+def _passing(path: list[str], start: int, specs: dict[str, NodeSpec]) -> bool:
+    """Whether every node from ``path[:start + 1]`` down to (not including) the last
+    succeeds only when the one below it succeeded in the same run."""
+    return all(specs["/".join(path[: i + 1])].type in _PASSING for i in range(start, len(path) - 1))
 
 
 def _merged(refs: dict[str, list[_T]], main: bool) -> dict[str, list[_T]]:

@@ -9,7 +9,16 @@ from typing import Any
 
 import pytest
 
-from btcap import Leaf, NodeRegistry, State, Tree, TreeFileError, default_registry, loads_tree
+from btcap import (
+    Leaf,
+    NodeRegistry,
+    State,
+    Tree,
+    TreeFileError,
+    default_registry,
+    dumps_tree,
+    loads_tree,
+)
 from btcap.bt.blackboard import Blackboard
 from btcap.bt.state import TreeError
 
@@ -48,6 +57,16 @@ class Fail(Leaf):
         return State.FAILED
 
 
+class Count(Leaf):
+    """Writes how often it ticked (a reset starts it over)."""
+
+    OUTPUTS = {"n": int}
+
+    def on_tick(self) -> State:
+        self.outputs["n"] = (self.outputs["n"] or 0) + 1
+        return State.SUCCEEDED
+
+
 class Seen(Leaf):
     """Records every value its input reads (in the module list SEEN)."""
 
@@ -78,7 +97,7 @@ def _clear_seen() -> None:
 
 def _registry() -> NodeRegistry:
     reg = default_registry(plugins=False)
-    for cls in (Move, Prune, Fail, Seen, Maybe):
+    for cls in (Move, Prune, Fail, Seen, Maybe, Count):
         reg.register(cls)
     return reg
 
@@ -317,3 +336,47 @@ def test_entries_are_refused_for_btcap_tree_files() -> None:
     text = "btcap: 1\nroot: {type: AlwaysSuccess}\n"
     with pytest.raises(TreeFileError, match=r"<string>: blackboard entries \(goal\) are for"):
         loads_tree(text, "yaml", _registry(), entries={"goal": 1})
+
+
+def test_a_tree_with_blackboard_entries_is_not_written_as_a_btcap_file() -> None:
+    with pytest.raises(
+        TreeFileError, match=r"tree 'Main' uses BehaviorTree.CPP blackboard entries"
+    ):
+        dumps_tree(_load(PRUNE, goals=[1]), registry=_registry())
+
+
+def test_an_entry_keeps_its_value_across_a_loop_where_a_wire_would_be_cleared() -> None:
+    """Read before it is written in each cycle: BehaviorTree.CPP reads the last cycle's
+    value (a wire would read the writer's output, cleared when the Repeat resets it)."""
+    tree = _load(
+        """
+        <BehaviorTree ID="Main">
+          <Repeat num_cycles="3">
+            <Sequence><Maybe value="{d}"/><Count n="{d}"/></Sequence>
+          </Repeat>
+        </BehaviorTree>
+        """
+    )
+    assert tree.wires == []
+    tree.tick_until_result()
+    assert SEEN == [None, 1, 1]
+
+
+def test_a_reader_ticking_only_after_its_writer_succeeded_is_wired() -> None:
+    tree = _load(
+        """
+        <BehaviorTree ID="Main">
+          <Sequence>
+            <Timeout msec="1000"><Sequence><Move goal="1;2" distance="{d}"/></Sequence></Timeout>
+            <Seen value="{d}"/>
+            <Fallback><Move goal="1;1" distance="{e}"/><AlwaysSuccess/></Fallback>
+            <Seen value="{e}"/>
+          </Sequence>
+        </BehaviorTree>
+        """
+    )
+    wired = [f"{w.source.path} -> {w.target.path}" for w in tree.wires]
+    assert wired == ["Sequence/Timeout/Sequence/Move -> Sequence/Seen"]
+    assert list(_board(tree)) == ["e"]  # a Fallback may succeed without its writer
+    assert tree.tick() is State.SUCCEEDED
+    assert SEEN == [3.0, 2.0]
