@@ -19,19 +19,13 @@ import dataclasses
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, cast
 
-import msgspec
-
-from btcap.bt.ports import Missing, Port, check_port, type_name
+from btcap.bt.ports import ENTRY, Missing, Port, check_port, type_name
 from btcap.bt.state import TreeError
 
 if TYPE_CHECKING:
     from btcap.bt.node import Node
 
 __all__ = ["Blackboard"]
-
-#: An input reading an entry is checked on every tick (for a missing entry, see
-#: :func:`~btcap.bt.ports.check_wired`): a port without constraints gets an empty one.
-_CHECKED = msgspec.Meta()
 
 
 class _Entries(dict[str, Any]):
@@ -168,7 +162,7 @@ class Blackboard:
         if inp.required:
             board.readers.setdefault(name, []).append(f"{node.path}.{port}")
         if inp.meta is None:  # so the node's tick checks the entry is there
-            node.input_ports = {**node.input_ports, port: dataclasses.replace(inp, meta=_CHECKED)}
+            node.input_ports = {**node.input_ports, port: dataclasses.replace(inp, meta=ENTRY)}
         if node._pulls is None:
             node._pulls = []
         node._pulls.append((port, cast("Node", board), name))

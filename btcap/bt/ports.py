@@ -13,6 +13,7 @@ import msgspec
 from btcap.bt.state import TreeError
 
 __all__ = [
+    "ENTRY",
     "NO_DEFAULT",
     "Missing",
     "Port",
@@ -68,6 +69,11 @@ class Port:
 
 
 PortMap = dict[str, Port]
+
+
+#: The constraint of an input reading a blackboard entry: none, but it puts the input
+#: among those a tick checks (for a :class:`Missing` value), values unconverted.
+ENTRY = msgspec.Meta()
 
 
 class Missing:
@@ -225,6 +231,8 @@ def check_wired(
                     f"no value (nothing wrote it and the application did not set it)"
                 )
             inputs[key] = port.default_value()
+            continue
+        if port.meta is ENTRY:
             continue
         try:
             inputs[key] = check_port(value, port, f"node {node!r} input {key!r}")

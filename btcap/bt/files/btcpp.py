@@ -7,9 +7,14 @@ does:
 - every ``<BehaviorTree ID>`` is a subtree; ``main_tree_to_execute`` (or the only one)
   is the root; ``<SubTree ID>`` nodes use them, remapping ports by attribute
   (``goal="{target}"``, a literal ``goal="3"``) or by ``_autoremap="true"``;
-- blackboard entries become wires: the one node output writing ``{key}`` feeds every
-  input reading it. In a subtree, an entry read but not written inside is a public
-  input, and every entry written inside is a public output;
+- blackboard entries become wires where a wire reads what the entry would hold: the one
+  output writing ``{key}`` feeds the inputs that tick only after it succeeded in the
+  same run of a sequence. Every other entry is a :class:`~btcap.bt.blackboard.Blackboard`
+  entry (:mod:`btcap.bt.files.board`): several writers (the last write wins), a node
+  reading and writing it, a reader before its writer, one the application supplies
+  (``entries=``, ``tree.blackboard``), ``{@key}`` (the main tree's). A SubTree's entry
+  remapped to a parent's entry is that entry. In a subtree, an entry read but not
+  written inside is a public input, and one written there is a public output;
 - standard nodes map to btcap's (:mod:`~btcap.bt.files.btcpp_nodes`); other node types
   are looked up in the registry (your own nodes, capability interfaces and their
   bridges), checked against ``<TreeNodesModel>`` where it declares them;
