@@ -142,14 +142,19 @@ class Blackboard:
     def __repr__(self) -> str:
         return f"<Blackboard {self.name!r} {dict(self.outputs)!r}>"
 
-    def needed(self) -> list[str]:
-        """Entries some input requires that no node writes and nobody has set."""
-        out = []
+    def check(self, tree: str) -> None:
+        """Raise TreeError if a required input reads an entry no node writes and nobody set."""
+        needed = []
         for key, readers in self.readers.items():
             if readers and not self.writers.get(key) and key not in self.outputs:
                 tp = type_name(self.ports[key].type) if key in self.ports else "Any"
-                out.append(f"{{{key}}} ({tp}, read by {', '.join(readers)})")
-        return out
+                needed.append(f"{{{key}}} ({tp}, read by {', '.join(readers)})")
+        if needed:
+            raise TreeError(
+                f"tree {tree!r}: blackboard entries read but never written nor set: "
+                f"{'; '.join(needed)}; set them before ticking (tree.blackboard[KEY] = "
+                f"VALUE, or btcap tree run --set KEY=VALUE)"
+            )
 
     # -- wiring nodes -----------------------------------------------------------------
     def read(self, node: Node, port: str, key: str) -> None:

@@ -57,13 +57,11 @@ class Tree:
         self.name = name or root.name
         self.clock: TimeSource = clock if clock is not None else Clock()
         self.wires: list[Wire] = []
-        #: Entries nodes share beyond wires (BehaviorTree.CPP XML trees); None: none.
-        self.blackboard: Blackboard | None = None
         self.system: ActorSystem | None = None
         self._observers: list[tuple[Observer, type[Node] | tuple[type[Node], ...]]] = []
         self._tasks: set[asyncio.Task[Any]] = set()
-        #: Grows whenever nodes join or leave the tree: a watcher can tell the shape
-        #: changed without walking it.
+        self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
+        #: Grows when nodes join or leave: a watcher sees the shape changed without a walk.
         self.version = 0
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
@@ -200,23 +198,14 @@ class Tree:
         wire.target._regate()
 
     def validate(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
-        """Check children (counts, :meth:`Node.check_children`) and that every required input
-        has a value or a wire.
+        """Check children (counts, :meth:`Node.check_children`), that every required input
+        has a value, a wire or an entry, and that the :attr:`blackboard` has what it needs.
 
         ``provided`` lists inputs fed from outside, e.g. a :class:`Subtree`'s public inputs.
-        An entry of the :attr:`blackboard` that a required input reads must be written by
-        a node or set by the application.
         """
-        board = self.blackboard
-        if board is not None:
-            needed = board.needed()
-            if needed:
-                raise TreeError(
-                    f"tree {self.name!r}: blackboard entries read but never written nor "
-                    f"set: {'; '.join(needed)}; set them before ticking "
-                    f"(tree.blackboard[KEY] = VALUE, or btcap tree run --set KEY=VALUE)"
-                )
-        wired = {(id(w.target), w.target_port) for w in self.wires}
+        if self.blackboard is not None:
+            self.blackboard.check(self.name)
+        wired = {(id(n), key) for n in self.nodes() for key, _, _ in n._pulls or ()}
         wired.update((id(n), key) for n, key in provided)
         for n in self.nodes():
             cls = type(n)
@@ -228,14 +217,8 @@ class Tree:
                     f"{cls.MIN_CHILDREN} to {most}"
                 )
             n.check_children()
-            pulled = [key for key, _, _ in n._pulls or ()]
             for key, port in n.input_ports.items():
-                if (
-                    port.required
-                    and n.inputs.get(key) is None
-                    and (id(n), key) not in wired
-                    and key not in pulled
-                ):
+                if port.required and n.inputs.get(key) is None and (id(n), key) not in wired:
                     raise TreeError(f"node {n.path!r}: input {key!r} needs a value or a wire")
 
     # -- actors -----------------------------------------------------------------------

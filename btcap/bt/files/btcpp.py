@@ -29,11 +29,12 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
-from collections.abc import Collection, Iterator
-from typing import Any, TypeVar
+from collections.abc import Collection
+from typing import Any
 
 from btcap.bt.files.board import TreeBoard
 from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_entries import before, entry_type, merged, passing, paths
 from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
@@ -45,12 +46,9 @@ from btcap.bt.files.schema import (
     WireSpec,
 )
 from btcap.bt.files.xmlread import MAX_DEPTH, XmlElement
-from btcap.bt.ports import assignable, type_name
 from btcap.bt.registry import NodeRegistry, RegistryError
 
 __all__ = ["XmlTranslator", "relabel"]
-
-_T = TypeVar("_T")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,7 +60,7 @@ class _Def:
     outputs: dict[str, Any]
     #: Its blackboard entries (not ports): the type and whether a node inside writes it.
     cells: dict[str, tuple[Any, bool]] = dataclasses.field(default_factory=dict)
-    #: Its outputs written whenever it succeeds (:meth:`XmlTranslator._before`).
+    #: Its outputs written whenever it succeeds (:func:`btcpp_entries.before`).
     sure: frozenset[str] = frozenset()
 
 
@@ -216,11 +214,11 @@ class XmlTranslator:
         inputs: dict[str, Any] = {}
         outputs: dict[str, Any] = {}
         main = scope.tree == self.main
-        writers, readers = _merged(scope.writers, main), _merged(scope.readers, main)
-        aliases = _merged(self.aliases.get(scope.tree, {}), main)
+        writers, readers = merged(scope.writers, main), merged(scope.readers, main)
+        aliases = merged(self.aliases.get(scope.tree, {}), main)
         board = self.boards.setdefault(scope.tree, TreeBoard())
         cells: dict[str, tuple[Any, bool]] = {}
-        specs = dict(_specs(root, None))
+        specs = dict(paths(root, None))
         sure: set[str] = set()
         for key in dict.fromkeys([*writers, *readers, *aliases]):
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
@@ -239,7 +237,7 @@ class XmlTranslator:
                     tp = self._constant(key, scope, rs[0].type if rs else Any)
                 public.outputs[key] = f"{w.path}.{w.port}"
                 outputs[key] = tp
-                if _passing(w.path.split("/"), 0, specs) and self._sure(w, specs):
+                if passing(w.path.split("/"), 0, specs) and self._sure(w, specs):
                     sure.add(key)
             elif len(rs) > 1:
                 lines = ", ".join(str(r.line) for r in rs)
@@ -266,7 +264,7 @@ class XmlTranslator:
 
         A wire holds the writer's output, cleared when the writer is reset; an entry
         keeps its value until written again. They agree when a reader can only tick
-        after the writer succeeded in the same run of a sequence (:func:`_before`).
+        after the writer succeeded in the same run of a sequence (:func:`before`).
         """
         ws, rs, al = refs
         if key.startswith("@") or al or len(ws) > 1:
@@ -277,23 +275,9 @@ class XmlTranslator:
             return True  # remapped, its readers see the parent's value before the writer's
         if main and (not ws or key in self.entries or key in self.globals):
             return True
-        return bool(ws) and not all(self._before(ws[0], r, specs) for r in rs)
-
-    def _before(self, writer: Ref, reader: Ref, specs: dict[str, NodeSpec]) -> bool:
-        """Whether ``reader`` ticks only after ``writer`` wrote in the same run: both under
-        one sequence, the writer's branch first and made of nodes that succeed only when
-        the one below them did (a wire then reads what the entry would hold)."""
-        w, r = writer.path.split("/"), reader.path.split("/")
-        k = 0
-        while k < min(len(w), len(r)) - 1 and w[k] == r[k]:
-            k += 1
-        lca = specs.get("/".join(w[:k])) if k and w[:k] == r[:k] else None
-        if lca is None or lca.type not in _SEQUENCES:
-            return False
-        names = [c.name for c in lca.children]
-        if names.index(w[k]) > names.index(r[k]) or not _passing(w, k, specs):
-            return False
-        return self._sure(writer, specs)
+        if not ws:
+            return False  # a subtree's input from outside
+        return not (self._sure(ws[0], specs) and all(before(ws[0].path, r.path, specs) for r in rs))
 
     def _sure(self, writer: Ref, specs: dict[str, NodeSpec]) -> bool:
         """Whether the node has written the output whenever it succeeds: a SubTree has if
@@ -318,21 +302,7 @@ class XmlTranslator:
             self._constant(key, scope, rs[0].type if rs else Any)
         written = [(w.line, w.type) for w in ws] + [(r.line, r.type) for r, w in al if w]
         read = [(r.line, r.type) for r in rs] + [(r.line, r.type) for r, w in al if not w]
-        typed = [(line, tp) for line, tp in written if tp is not Any]
-        for line, tp in typed[1:]:
-            if not (assignable(tp, typed[0][1]) and assignable(typed[0][1], tp)):
-                self.fail(
-                    line,
-                    f"{{{key}}} is written as {type_name(tp)} here and as "
-                    f"{type_name(typed[0][1])} at line {typed[0][0]}; an entry has one type",
-                )
-        for line, tp in read if typed else ():
-            if not assignable(typed[0][1], tp):
-                self.fail(
-                    line,
-                    f"{{{key}}} is read here as {type_name(tp)} but written as "
-                    f"{type_name(typed[0][1])} at line {typed[0][0]}",
-                )
+        tp = entry_type(key, written, read, self.fail)
         board.writes.extend((w.path, w.port, key) for w in ws)
         board.reads.extend((r.path, r.port, key) for r in rs)
         for r, _ in al:
@@ -340,7 +310,6 @@ class XmlTranslator:
         if key.startswith("@"):
             self.globals.add(key[1:])
         else:
-            tp = typed[0][1] if typed else next((t for _, t in read if t is not Any), Any)
             cells[key] = (tp, bool(written))
 
     def _constant(self, key: str, scope: Scope, tp: Any) -> Any:
@@ -434,39 +403,6 @@ class XmlTranslator:
 _WHERE = re.compile(
     r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
 )
-
-
-#: btcap node types that tick their children in order, each only after the one before
-#: succeeded in the same run; and those that succeed only when their child just did.
-_SEQUENCES = frozenset(
-    {"Sequence", "SequenceWithMemory", "ReactiveSequence", "AsyncSequence"}
-    | {"AsyncSequenceWithMemory"}
-)
-_PASSING = _SEQUENCES | {"Timeout", "RepeatUntilSuccess", "Repeat", "Delay"}
-
-
-def _specs(spec: NodeSpec, parent: str | None) -> Iterator[tuple[str, NodeSpec]]:
-    """(path, spec) of every node of a translated tree."""
-    path = spec.name if parent is None else f"{parent}/{spec.name}"
-    yield path, spec
-    for child in spec.children:
-        yield from _specs(child, path)
-
-
-def _passing(path: list[str], start: int, specs: dict[str, NodeSpec]) -> bool:
-    """Whether every node from ``path[:start + 1]`` down to (not including) the last
-    succeeds only when the one below it succeeded in the same run."""
-    return all(specs["/".join(path[: i + 1])].type in _PASSING for i in range(start, len(path) - 1))
-
-
-def _merged(refs: dict[str, list[_T]], main: bool) -> dict[str, list[_T]]:
-    """Entries by name; in the main tree ``{@key}`` is ``{key}``."""
-    if not main:
-        return refs
-    out: dict[str, list[_T]] = {}
-    for key, some in refs.items():
-        out.setdefault(key.removeprefix("@"), []).extend(some)
-    return out
 
 
 def relabel(problems: list[str], where: str, t: XmlTranslator) -> list[str]:
