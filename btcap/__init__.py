@@ -7,6 +7,7 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from btcap.bt.blackboard import Blackboard
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -155,6 +156,7 @@ _EXPORTS = {
         "TreeError",
         "TreeTimeout",
     ),
+    "btcap.bt.blackboard": ("Blackboard",),
     "btcap.bt.tree": ("Subtree", "Tree", "Wire"),
     "btcap.bt.utility": ("Utility",),
     "btcap.errors": ("BtcapError",),
@@ -196,6 +198,7 @@ __all__ = [
     "AuctionId",
     "BatchPolicy",
     "BatchStrategy",
+    "Blackboard",
     "BtcapError",
     "BtcapWarning",
     "Capability",
