@@ -42,14 +42,18 @@ class _Writes(dict[str, Any]):
 
     __slots__ = ("to",)
 
-    to: dict[str, tuple[_Entries, str]]
+    to: dict[str, tuple[Blackboard, str]]
 
     def __setitem__(self, key: str, value: Any) -> None:
         dict.__setitem__(self, key, value)
         if value is not None:
             target = self.to.get(key)
             if target is not None:
-                target[0][target[1]] = value
+                board, name = target
+                entries = board.outputs
+                if name not in entries:
+                    board._arrived(name)
+                entries[name] = value
 
 
 class Blackboard:
@@ -61,7 +65,17 @@ class Blackboard:
     on reading); without it, values are only checked.
     """
 
-    __slots__ = ("name", "outputs", "parent", "parse", "ports", "readers", "remap", "writers")
+    __slots__ = (
+        "name",
+        "outputs",
+        "parent",
+        "parse",
+        "ports",
+        "readers",
+        "remap",
+        "waiting",
+        "writers",
+    )
 
     def __init__(
         self,
@@ -83,6 +97,9 @@ class Blackboard:
         self.ports: dict[str, Port] = {}
         self.readers: dict[str, list[str]] = {}
         self.writers: dict[str, list[str]] = {}
+        #: Inputs checked on every tick until their entry has a value: (node, input,
+        #: its port) per entry.
+        self.waiting: dict[str, list[tuple[Node, str, Port]]] = {}
 
     # -- entries ----------------------------------------------------------------------
     def owner(self, key: str) -> tuple[Blackboard, str]:
@@ -134,7 +151,17 @@ class Blackboard:
         if isinstance(value, str) and board.parse is not None:
             value = board.parse(value, port.type)
         where = f"blackboard entry {name!r} of tree {board.name!r}"
-        board.outputs[name] = check_port(value, port, where)
+        value = check_port(value, port, where)
+        if name not in board.outputs:
+            board._arrived(name)
+        board.outputs[name] = value
+
+    def _arrived(self, name: str) -> None:
+        """Entry ``name`` has its first value: its inputs need no check any more, reading
+        it costs what reading a wire does."""
+        for node, port, inp in self.waiting.pop(name, ()):
+            node.input_ports[port] = inp
+            node._regate()
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.ports)
@@ -166,8 +193,9 @@ class Blackboard:
         board.declare(name, inp)
         if inp.required:
             board.readers.setdefault(name, []).append(f"{node.path}.{port}")
-        if inp.meta is None:  # so the node's tick checks the entry is there
+        if inp.meta is None and name not in board.outputs:  # checked until it has a value
             node.input_ports = {**node.input_ports, port: dataclasses.replace(inp, meta=ENTRY)}
+            board.waiting.setdefault(name, []).append((node, port, inp))
         if node._pulls is None:
             node._pulls = []
         node._pulls.append((port, cast("Node", board), name))
@@ -195,4 +223,4 @@ class Blackboard:
             outputs = _Writes(outputs)
             outputs.to = {}
             node.outputs = outputs
-        outputs.to[port] = (board.outputs, name)
+        outputs.to[port] = (board, name)
