@@ -380,3 +380,30 @@ def test_a_reader_ticking_only_after_its_writer_succeeded_is_wired() -> None:
     assert list(_board(tree)) == ["e"]  # a Fallback may succeed without its writer
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [3.0, 2.0]
+
+
+def test_entries_pass_through_nested_subtrees_and_root_remaps() -> None:
+    tree = _load(
+        """
+        <BehaviorTree ID="Main">
+          <Sequence>
+            <SubTree ID="A" list="{todo}"/>
+            <Seen value="{todo}"/>
+            <SubTree ID="C" g="{@todo}"/>
+          </Sequence>
+        </BehaviorTree>
+        <BehaviorTree ID="A"><SubTree ID="B" goals="{list}"/></BehaviorTree>
+        <BehaviorTree ID="B"><Prune input_goals="{goals}" output_goals="{goals}"/></BehaviorTree>
+        <BehaviorTree ID="C">
+          <Sequence>
+            <Seen value="{g}"/>
+            <Prune input_goals="{@todo}" output_goals="{@todo}"/>
+          </Sequence>
+        </BehaviorTree>
+        """,
+        todo=[1, 2, 3, 4],
+    )
+    assert tree.wires == []
+    assert tree.tick() is State.SUCCEEDED
+    assert SEEN == [[2, 3, 4], [2, 3, 4]]
+    assert _board(tree)["todo"] == [3, 4]
