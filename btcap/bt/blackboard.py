@@ -116,9 +116,11 @@ class Blackboard:
         return board, name
 
     def declare(self, key: str, port: Port) -> None:
-        """Say which type ``key`` holds (the first declaration stands)."""
+        """Say which type ``key`` holds (the first typed declaration stands)."""
         board, name = self.owner(key)
-        board.ports.setdefault(name, Port(port.type, description=port.description))
+        known = board.ports.get(name)
+        if known is None or (known.type is Any and port.type is not Any):
+            board.ports[name] = Port(port.type, description=port.description)
 
     def __contains__(self, key: object) -> bool:
         if not isinstance(key, str):

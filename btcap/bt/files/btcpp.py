@@ -239,14 +239,6 @@ class XmlTranslator:
                 outputs[key] = tp
                 if passing(w.path.split("/"), 0, specs) and self._sure(w, specs):
                     sure.add(key)
-            elif len(rs) > 1:
-                lines = ", ".join(str(r.line) for r in rs)
-                self.fail(
-                    rs[1].line,
-                    f"{{{key}}} comes from outside BehaviorTree "
-                    f"{scope.tree!r} and is read by {len(rs)} node ports (lines "
-                    f"{lines}); btcap feeds a subtree input to one node port",
-                )
             else:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
@@ -273,6 +265,8 @@ class XmlTranslator:
             return True  # read and written by one node: it reads the value before its own
         if ws and rs and not main:
             return True  # remapped, its readers see the parent's value before the writer's
+        if len(rs) > 1 and not main:
+            return True  # from outside, to several ports
         if main and (not ws or key in self.entries or key in self.globals):
             return True
         if not ws:

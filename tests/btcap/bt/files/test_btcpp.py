@@ -605,15 +605,6 @@ ERRORS = [
         "<SubTree ID='Leg'> port 'gaol': the tree neither reads it from outside (goal)",
     ),
     (
-        _xml(
-            '<BehaviorTree ID="Main">\n<SubTree ID="Two" g="1;2"/>\n</BehaviorTree>\n'
-            '<BehaviorTree ID="Two">\n<Sequence>\n<Move goal="{g}"/>\n<Move name="b" '
-            'goal="{g}"/>\n</Sequence>\n</BehaviorTree>'
-        ),
-        8,
-        "{g} comes from outside BehaviorTree 'Two' and is read by 2 node ports (lines 7, 8)",
-    ),
-    (
         _xml('<BehaviorTree ID="Main">\n<AlwaysSuccess name="a.b"/>\n</BehaviorTree>'),
         3,
         "name 'a.b': btcap node names cannot be empty or contain '/' or '.'",

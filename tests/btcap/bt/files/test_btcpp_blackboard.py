@@ -407,3 +407,22 @@ def test_entries_pass_through_nested_subtrees_and_root_remaps() -> None:
     assert tree.tick() is State.SUCCEEDED
     assert SEEN == [[2, 3, 4], [2, 3, 4]]
     assert _board(tree)["todo"] == [3, 4]
+
+
+def test_a_subtree_entry_from_outside_read_by_several_nodes() -> None:
+    tree = _load(
+        """
+        <BehaviorTree ID="Main">
+          <Sequence>
+            <SubTree ID="Two" g="1;2"/>
+            <SubTree ID="Two" name="again" g="{goal}"/>
+          </Sequence>
+        </BehaviorTree>
+        <BehaviorTree ID="Two">
+          <Sequence><Seen value="{g}"/><Move goal="{g}"/><Seen name="b" value="{g}"/></Sequence>
+        </BehaviorTree>
+        """,
+        goal=(3, 3),
+    )
+    assert tree.tick() is State.SUCCEEDED
+    assert SEEN == [(1.0, 2.0), (1.0, 2.0), (3.0, 3.0), (3.0, 3.0)]
