@@ -15,6 +15,7 @@ if TYPE_CHECKING:
         ParallelAll,
         WhileDoElse,
     )
+    from btcap.bt.blackboard import Blackboard
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -171,6 +172,7 @@ _EXPORTS = {
         "TreeError",
         "TreeTimeout",
     ),
+    "btcap.bt.blackboard": ("Blackboard",),
     "btcap.bt.tree": ("Subtree", "Tree", "Wire"),
     "btcap.bt.utility": ("Utility",),
     "btcap.errors": ("BtcapError",),
@@ -215,6 +217,7 @@ __all__ = [
     "AuctionId",
     "BatchPolicy",
     "BatchStrategy",
+    "Blackboard",
     "BtcapError",
     "BtcapWarning",
     "Capability",

@@ -13,7 +13,9 @@ import msgspec
 from btcap.bt.state import TreeError
 
 __all__ = [
+    "ENTRY",
     "NO_DEFAULT",
+    "Missing",
     "Port",
     "PortMap",
     "assignable",
@@ -67,6 +69,23 @@ class Port:
 
 
 PortMap = dict[str, Port]
+
+
+#: The constraint of an input reading a blackboard entry: none, but it puts the input
+#: among those a tick checks (for a :class:`Missing` value), values unconverted.
+ENTRY = msgspec.Meta()
+
+
+class Missing:
+    """What an input reads from a blackboard entry that was never written."""
+
+    __slots__ = ("key",)
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+    def __repr__(self) -> str:
+        return f"Missing({self.key!r})"
 
 
 def _constrained(t: Any, meta: msgspec.Meta | None) -> Any:
@@ -198,10 +217,25 @@ def check_options(spec: PortMap, given: Mapping[str, Any], node: str, kind: str)
 def check_wired(
     inputs: dict[str, Any], checks: tuple[tuple[str, Port], ...], node: str
 ) -> TreeError | None:
-    """Check (and convert) wired input values a port constrains; the first refusal."""
+    """Check (and convert) wired input values a port constrains; the first refusal.
+
+    An input reading a blackboard entry never written fails the node if it is required
+    (BehaviorTree.CPP's ``getInput`` fails) and gets its default otherwise.
+    """
     for key, port in checks:
+        value = inputs[key]
+        if type(value) is Missing:
+            if port.required:
+                return TreeError(
+                    f"node {node!r} input {key!r}: blackboard entry {{{value.key}}} has "
+                    f"no value (nothing wrote it and the application did not set it)"
+                )
+            inputs[key] = port.default_value()
+            continue
+        if port.meta is ENTRY:
+            continue
         try:
-            inputs[key] = check_port(inputs[key], port, f"node {node!r} input {key!r}")
+            inputs[key] = check_port(value, port, f"node {node!r} input {key!r}")
         except TreeError as exc:
             return exc
     return None

@@ -7,6 +7,7 @@ from collections.abc import Callable, Collection, Coroutine, Iterator
 from typing import TYPE_CHECKING, Any
 
 from btcap.actors import Clock, TimeSource
+from btcap.bt.blackboard import Blackboard
 from btcap.bt.debug import RestartMonitor, debug_default
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, assignable, type_name
@@ -59,8 +60,8 @@ class Tree:
         self.system: ActorSystem | None = None
         self._observers: list[tuple[Observer, type[Node] | tuple[type[Node], ...]]] = []
         self._tasks: set[asyncio.Task[Any]] = set()
-        #: Grows whenever nodes join or leave the tree: a watcher can tell the shape
-        #: changed without walking it.
+        self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
+        #: Grows when nodes join or leave: a watcher sees the shape changed without a walk.
         self.version = 0
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
@@ -197,12 +198,14 @@ class Tree:
         wire.target._regate()
 
     def validate(self, *, provided: Collection[tuple[Node, str]] = ()) -> None:
-        """Check children (counts, :meth:`Node.check_children`) and that every required input
-        has a value or a wire.
+        """Check children (counts, :meth:`Node.check_children`), that every required input
+        has a value, a wire or an entry, and that the :attr:`blackboard` has what it needs.
 
         ``provided`` lists inputs fed from outside, e.g. a :class:`Subtree`'s public inputs.
         """
-        wired = {(id(w.target), w.target_port) for w in self.wires}
+        if self.blackboard is not None:
+            self.blackboard.check(self.name)
+        wired = {(id(n), key) for n in self.nodes() for key, _, _ in n._pulls or ()}
         wired.update((id(n), key) for n, key in provided)
         for n in self.nodes():
             cls = type(n)

@@ -112,6 +112,21 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         action="store_true",
         help="warn about nodes halted and restarted over and over (also BTCAP_DEBUG=1)",
     )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="set a blackboard entry of a BehaviorTree.CPP XML tree before ticking, as the "
+        "application would (repeatable); VALUE is read as the entry's type ('1;2' is a list)",
+    )
+    p.add_argument(
+        "--set-file",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="a YAML mapping of blackboard entries to set before ticking (--set wins)",
+    )
     p.set_defaults(handler=_run)
 
     p = cmds.add_parser(
@@ -255,7 +270,9 @@ def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None
 
     registry = _registry(args)
     try:
-        return load_tree(_existing(path), registry, clock=clock)
+        return load_tree(
+            _existing(path), registry, clock=clock, entries=getattr(args, "entries", None)
+        )
     except TreeFileError as exc:
         raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
 

@@ -12,6 +12,10 @@ import logging
 import math
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import msgspec.yaml
 
 from btcap.actors import ManualClock
 from btcap.bt.leaves import LOG_LOGGER
@@ -32,6 +36,7 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     timeout = _timeout(args.timeout)
+    args.entries = _entries(args.set, args.set_file)
     clock = ManualClock() if args.fast else None
     tree = load(clock)
     tree.debug = tree.debug or args.debug
@@ -59,6 +64,25 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
     if state is State.SUCCEEDED:
         return 0
     return 1 if state in DONE else 3
+
+
+def _entries(given: list[str], file: Path | None) -> dict[str, Any]:
+    """``--set-file`` then ``--set``: the blackboard entries the run starts with."""
+    out: dict[str, Any] = {}
+    if file is not None:
+        try:
+            data = msgspec.yaml.decode(file.read_bytes())
+        except (OSError, msgspec.DecodeError) as exc:
+            raise CliError(f"--set-file {file}: {exc}") from None
+        if not isinstance(data, dict) or not all(isinstance(k, str) for k in data):
+            raise CliError(f"--set-file {file}: expected a mapping of entry names to values")
+        out.update(data)
+    for item in given:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise CliError(f"--set {item!r}: expected KEY=VALUE")
+        out[key.strip()] = value
+    return out
 
 
 def _timeout(text: str) -> float | None:

@@ -7,9 +7,14 @@ does:
 - every ``<BehaviorTree ID>`` is a subtree; ``main_tree_to_execute`` (or the only one)
   is the root; ``<SubTree ID>`` nodes use them, remapping ports by attribute
   (``goal="{target}"``, a literal ``goal="3"``) or by ``_autoremap="true"``;
-- blackboard entries become wires: the one node output writing ``{key}`` feeds every
-  input reading it. In a subtree, an entry read but not written inside is a public
-  input, and every entry written inside is a public output;
+- blackboard entries become wires where a wire reads what the entry would hold: the one
+  output writing ``{key}`` feeds the inputs that tick only after it succeeded in the
+  same run of a sequence. Every other entry is a :class:`~btcap.bt.blackboard.Blackboard`
+  entry (:mod:`btcap.bt.files.board`): several writers (the last write wins), a node
+  reading and writing it, a reader before its writer, one the application supplies
+  (``entries=``, ``tree.blackboard``), ``{@key}`` (the main tree's). A SubTree's entry
+  remapped to a parent's entry is that entry. In a subtree, an entry read but not
+  written inside is a public input, and one written there is a public output;
 - standard nodes map to btcap's (:mod:`~btcap.bt.files.btcpp_nodes`); other node types
   are looked up in the registry (your own nodes, capability interfaces and their
   bridges), checked against ``<TreeNodesModel>`` where it declares them;
@@ -24,9 +29,12 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
+from collections.abc import Collection
 from typing import Any
 
+from btcap.bt.files.board import TreeBoard
 from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_entries import before, entry_type, merged, passing, paths
 from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
@@ -50,13 +58,28 @@ class _Def:
     spec: SubtreeSpec
     inputs: dict[str, Any]
     outputs: dict[str, Any]
+    #: Its blackboard entries (not ports): the type and whether a node inside writes it.
+    cells: dict[str, tuple[Any, bool]] = dataclasses.field(default_factory=dict)
+    #: Its outputs written whenever it succeeds (:func:`btcpp_entries.before`).
+    sure: frozenset[str] = frozenset()
 
 
 class XmlTranslator:
     """Translates one XML document, collecting every problem with its line."""
 
-    def __init__(self, root: XmlElement, where: str, registry: NodeRegistry) -> None:
+    def __init__(
+        self, root: XmlElement, where: str, registry: NodeRegistry, entries: Collection[str] = ()
+    ) -> None:
         self.root = root
+        #: Entries the application supplies: blackboard entries even if a node writes them.
+        self.entries = frozenset(entries)
+        #: The blackboard entries of each BehaviorTree, for the builder.
+        self.boards: dict[str, TreeBoard] = {}
+        #: Per BehaviorTree, its entries that are a SubTree's blackboard entries:
+        #: (the SubTree node and the entry inside, whether the SubTree writes it).
+        self.aliases: dict[str, dict[str, list[tuple[Ref, bool]]]] = {}
+        #: Entries some tree uses as ``{@key}``: the main tree's are blackboard entries.
+        self.globals: set[str] = set()
         self.where = where
         self.registry = registry
         self.reader = ElementReader(where, registry, {}, self._subtree)
@@ -182,23 +205,27 @@ class XmlTranslator:
         return True
 
     def _resolve(self, scope: Scope, root: NodeSpec) -> _Def:
-        """Wire each entry's writer to its readers; what crosses the tree's edge is public."""
+        """Wire each entry's writer to its readers; what crosses the tree's edge is public.
+
+        Entries wires cannot express are blackboard entries (:meth:`_cell`).
+        """
         wires: list[WireSpec] = []
         public = PublicSpec()
         inputs: dict[str, Any] = {}
         outputs: dict[str, Any] = {}
         main = scope.tree == self.main
-        for key in dict.fromkeys([*scope.writers, *scope.readers]):
-            ws, rs = scope.writers.get(key, []), scope.readers.get(key, [])
-            if not ws and key in scope.unsure:
+        writers, readers = merged(scope.writers, main), merged(scope.readers, main)
+        aliases = merged(self.aliases.get(scope.tree, {}), main)
+        board = self.boards.setdefault(scope.tree, TreeBoard())
+        cells: dict[str, tuple[Any, bool]] = {}
+        specs = dict(paths(root, None))
+        sure: set[str] = set()
+        for key in dict.fromkeys([*writers, *readers, *aliases]):
+            ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
+            if not ws and not al and key in scope.unsure:
                 continue  # perhaps written by a node already reported as unknown
-            if len(ws) > 1:
-                lines = ", ".join(str(w.line) for w in ws)
-                self.fail(
-                    ws[1].line,
-                    f"{{{key}}} is written by {len(ws)} node ports (lines "
-                    f"{lines}); btcap feeds an input from exactly one output",
-                )
+            if self._is_cell(key, (ws, rs, al), main, specs):
+                self._cell(scope, key, (ws, rs, al), board, cells)
                 continue
             if ws:
                 w = ws[0]
@@ -210,27 +237,74 @@ class XmlTranslator:
                     tp = self._constant(key, scope, rs[0].type if rs else Any)
                 public.outputs[key] = f"{w.path}.{w.port}"
                 outputs[key] = tp
-            elif main:
-                for r in rs:
-                    self.fail(
-                        r.line,
-                        f"{{{key}}} is read here but no node writes it; btcap "
-                        f"has no outside blackboard: write it with a node output or "
-                        f"<SetBlackboard output_key={key!r} value=...>",
-                    )
-            elif len(rs) > 1:
-                lines = ", ".join(str(r.line) for r in rs)
-                self.fail(
-                    rs[1].line,
-                    f"{{{key}}} comes from outside BehaviorTree "
-                    f"{scope.tree!r} and is read by {len(rs)} node ports (lines "
-                    f"{lines}); btcap feeds a subtree input to one node port",
-                )
+                if passing(w.path.split("/"), 0, specs) and self._sure(w, specs):
+                    sure.add(key)
             else:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
         spec = SubtreeSpec(root=root, wires=wires, public=public)
-        return _Def(spec, inputs, outputs)
+        return _Def(spec, inputs, outputs, cells, frozenset(sure))
+
+    def _is_cell(
+        self,
+        key: str,
+        refs: tuple[list[Ref], list[Ref], list[tuple[Ref, bool]]],
+        main: bool,
+        specs: dict[str, NodeSpec],
+    ) -> bool:
+        """Whether an entry needs the blackboard: what one output wired to inputs is not.
+
+        A wire holds the writer's output, cleared when the writer is reset; an entry
+        keeps its value until written again. They agree when a reader can only tick
+        after the writer succeeded in the same run of a sequence (:func:`before`).
+        """
+        ws, rs, al = refs
+        if key.startswith("@") or al or len(ws) > 1:
+            return True
+        if ws and any(r.path == ws[0].path for r in rs):
+            return True  # read and written by one node: it reads the value before its own
+        if ws and rs and not main:
+            return True  # remapped, its readers see the parent's value before the writer's
+        if len(rs) > 1 and not main:
+            return True  # from outside, to several ports
+        if main and (not ws or key in self.entries or key in self.globals):
+            return True
+        if not ws:
+            return False  # a subtree's input from outside
+        return not (self._sure(ws[0], specs) and all(before(ws[0].path, r.path, specs) for r in rs))
+
+    def _sure(self, writer: Ref, specs: dict[str, NodeSpec]) -> bool:
+        """Whether the node has written the output whenever it succeeds: a SubTree has if
+        its tree has (a node of yours is taken to write its outputs when it succeeds)."""
+        spec = specs[writer.path]
+        if spec.type != "Subtree":
+            return True
+        done = self.defs.get(spec.options["tree"])
+        return done is not None and writer.port in done.sure
+
+    def _cell(
+        self,
+        scope: Scope,
+        key: str,
+        refs: tuple[list[Ref], list[Ref], list[tuple[Ref, bool]]],
+        board: TreeBoard,
+        cells: dict[str, tuple[Any, bool]],
+    ) -> None:
+        """A blackboard entry: every port using it reads or writes it, one type for all."""
+        ws, rs, al = refs
+        if key in scope.constants:
+            self._constant(key, scope, rs[0].type if rs else Any)
+        written = [(w.line, w.type) for w in ws] + [(r.line, r.type) for r, w in al if w]
+        read = [(r.line, r.type) for r in rs] + [(r.line, r.type) for r, w in al if not w]
+        tp = entry_type(key, written, read, self.fail)
+        board.writes.extend((w.path, w.port, key) for w in ws)
+        board.reads.extend((r.path, r.port, key) for r in rs)
+        for r, _ in al:
+            board.remaps.setdefault(r.path, {})[r.port] = key
+        if key.startswith("@"):
+            self.globals.add(key[1:])
+        else:
+            cells[key] = (tp, bool(written))
 
     def _constant(self, key: str, scope: Scope, tp: Any) -> Any:
         """Type a SetBlackboard value by the port that reads it."""
@@ -264,6 +338,16 @@ class XmlTranslator:
             return None
         self._check_model(tid, done)
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
+        for key, (tp, written) in done.cells.items():  # one entry inside and out
+            if key in attrs or auto:
+                text = attrs.pop(key, "{=}")
+                entry = self.reader.entry(text, key, el, reading=True)
+                if entry is None:
+                    board = self.boards.setdefault(scope.tree, TreeBoard())
+                    board.initial.setdefault(path, {})[key] = text
+                elif entry:
+                    aliased = self.aliases.setdefault(scope.tree, {}).setdefault(entry, [])
+                    aliased.append((Ref(path, key, el.line, tp), written))
         for ports, reading in ((done.inputs, True), (done.outputs, False)):
             for key, tp in ports.items():
                 if key in attrs:

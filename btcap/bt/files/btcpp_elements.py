@@ -316,14 +316,7 @@ class ElementReader:
         else:
             inner = text  # an output names its entry with or without braces
         key = port if inner == "=" else inner
-        if key.startswith("@"):
-            self.fail(
-                el.line,
-                f"<{el.tag}> {port}={text!r}: btcap has no root blackboard; "
-                f"pass the value through the SubTree's ports",
-            )
-            return ""
-        if not key.isidentifier():
+        if not key.removeprefix("@").isidentifier():  # {@key}: the root tree's entry
             self.fail(
                 el.line,
                 f"<{el.tag}> {port}={text!r}: blackboard names must be "

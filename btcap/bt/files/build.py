@@ -13,6 +13,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from btcap.bt.files.board import Boards
 from btcap.bt.files.parse import read_tree_file
 from btcap.bt.files.schema import (
     FileInfo,
@@ -58,8 +59,9 @@ class Builder:
         base: Path | None,
         stack: tuple[Path, ...],
         cache: dict[Path, TreeFile],
+        boards: Boards | None = None,
     ) -> None:
-        self.spec = spec
+        self.spec, self.boards = spec, boards  # boards: an XML file's blackboard entries
         self.where = where
         self.registry = registry
         self.base = base
@@ -102,11 +104,13 @@ class Builder:
         clock: TimeSource | None = None,
     ) -> Tree | None:
         failed: list[str] = []
+        if self.boards is not None:
+            self.boards.enter(name or "")
         root = self._node(root_spec, None, ctx, failed)
-        if root is None:
+        tree = None if root is None else Tree(root, name=name, clock=clock)
+        wired = self.boards.leave(tree, self.fail, ctx) if self.boards is not None else set()
+        if tree is None:
             return None
-        tree = Tree(root, name=name, clock=clock)
-        wired: set[tuple[str, str]] = set()
         for i, w in enumerate(wires):
             self._wire(tree, i, w, ctx, failed, wired)
         public_in: set[tuple[str, str]] = set()
@@ -213,7 +217,10 @@ class Builder:
             return False
         self._building.append(name)
         before = len(self.problems)
+        held = self.boards.hold() if self.boards is not None else None  # checked alone
         ok = self._build_subtree(name) is not None and len(self.problems) == before
+        if self.boards is not None:
+            self.boards.next = held
         self._building.pop()
         self._checked[name] = ok
         return ok
@@ -278,6 +285,8 @@ class Builder:
             failed.append(path)
             return None
         if spec.type == "Subtree":
+            if self.boards is not None:
+                self.boards.subtree(path)
             node = self._subtree_node(spec, name, loc)
         else:
             node = self._plain_node(spec, name, loc)

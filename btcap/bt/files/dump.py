@@ -63,6 +63,12 @@ class _Dumper:
             self.fail(f"{loc}: value {value!r} cannot be written to a file ({exc})")
 
     def tree(self, tree: Tree, fed: Collection[InputKey]) -> tuple[NodeSpec, list[WireSpec]]:
+        if tree.blackboard is not None and tree.blackboard.ports:
+            self.fail(
+                f"tree {tree.name!r} uses BehaviorTree.CPP blackboard entries "
+                f"({', '.join(tree.blackboard.ports)}), which a btcap tree file cannot hold "
+                f"(it wires one output to inputs); keep the XML file"
+            )
         root = self.node(tree.root, wire_sources(tree), fed)
         wires = [
             WireSpec(f"{w.source.path}.{w.source_port}", f"{w.target.path}.{w.target_port}")

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import os
 import typing
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
+from btcap.bt.files.board import Boards
 from btcap.bt.files.btcpp import XmlTranslator, relabel
 from btcap.bt.files.build import Builder
 from btcap.bt.files.parse import decode, format_of, parse, read_bytes
@@ -33,19 +35,28 @@ def _load(
     clock: TimeSource | None,
     base: Path | None,
     source: Path | None,
+    entries: Mapping[str, Any] | None = None,
 ) -> Tree:
     reg = registry if registry is not None else default_registry()
     stack = (source.resolve(),) if source is not None else ()
+    if fmt != "xml" and entries:
+        raise TreeFileError(
+            [
+                f"{where}: blackboard entries ({', '.join(entries)}) are for BehaviorTree.CPP "
+                f"XML trees; a btcap tree file wires its inputs (or makes them public)"
+            ]
+        )
     if fmt != "xml":
         try:
             spec = parse(decode(data, fmt, where), where)
             return Builder(spec, where, reg, base, stack, {}).build_main(clock)
         except RecursionError:  # decoding, checking and building all recurse per level
             raise TreeFileError([f"{where}: nodes nested too deep to read"]) from None
-    translator = XmlTranslator(read_xml(data, where), where, reg)
+    translator = XmlTranslator(read_xml(data, where), where, reg, entries or ())
     spec = translator.translate()
+    boards = Boards(translator.boards, translator.main, entries or {})
     try:
-        return Builder(spec, where, reg, base, stack, {}).build_main(clock)
+        return Builder(spec, where, reg, base, stack, {}, boards).build_main(clock)
     except TreeFileError as exc:
         raise TreeFileError(relabel(exc.problems, where, translator)) from None
 
@@ -59,13 +70,18 @@ def load_tree(
     registry: NodeRegistry | None = None,
     *,
     clock: TimeSource | None = None,
+    entries: Mapping[str, Any] | None = None,
 ) -> Tree:
     """Build the tree a ``.yaml``/``.yml``/``.json`` file describes; raises TreeFileError.
 
-    A ``.xml`` file is read as BehaviorTree.CPP v4 XML (:mod:`btcap.bt.files.btcpp`).
+    A ``.xml`` file is read as BehaviorTree.CPP v4 XML (:mod:`btcap.bt.files.btcpp`);
+    ``entries`` are blackboard entries the application supplies, as BehaviorTree.CPP's
+    ``tree.rootBlackboard()->set(key, value)`` before ticking (text is converted to the
+    entry's type). Entries can also be set later, before the first tick, through
+    ``tree.blackboard``.
     """
     p = Path(path)
-    return _load(read_bytes(p), _format(p), str(p), registry, clock, p.parent, p)
+    return _load(read_bytes(p), _format(p), str(p), registry, clock, p.parent, p, entries)
 
 
 def loads_tree(
@@ -76,11 +92,12 @@ def loads_tree(
     clock: TimeSource | None = None,
     name: str = "<string>",
     base: str | os.PathLike[str] | None = None,
+    entries: Mapping[str, Any] | None = None,
 ) -> Tree:
     """Like :func:`load_tree` for text; ``name`` labels errors, ``base`` resolves file refs."""
     if fmt not in ("yaml", "json", "xml"):
         raise ValueError(f"format {fmt!r}: expected 'yaml', 'json' or 'xml'")
-    return _load(text, fmt, name, registry, clock, Path(base) if base else None, None)
+    return _load(text, fmt, name, registry, clock, Path(base) if base else None, None, entries)
 
 
 def validate_file(path: str | os.PathLike[str], registry: NodeRegistry | None = None) -> list[str]:

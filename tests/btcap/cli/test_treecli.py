@@ -350,3 +350,67 @@ def test_show_of_xml_and_of_its_yaml_dump_agree(
     assert capsys.readouterr().out == from_xml
     assert "Subtree 'go_second' (tree 'GoTo')" in from_xml
     assert "in  value <- patrol/leg2/go_second.report" in from_xml
+
+
+# -- blackboard entries ---------------------------------------------------------------
+NEED = '''\
+from btcap import Leaf, State
+
+
+class Need(Leaf):
+    """Succeeds when its goal is to the east."""
+
+    INPUTS = {"goal": tuple[float, float]}
+
+    def on_tick(self) -> State:
+        return State.SUCCEEDED if self.inputs["goal"][0] > 0 else State.FAILED
+'''
+
+
+def _need(tmp_path: Path) -> tuple[Path, Path]:
+    """A module with the Need node (named afresh: a module loads once) and a tree using it."""
+    need = tmp_path / f"need_{uuid.uuid4().hex[:8]}.py"
+    need.write_text(NEED)
+    xml = '<root BTCPP_format="4"><BehaviorTree ID="M"><Need goal="{goal}"/></BehaviorTree></root>'
+    return need, _tree(tmp_path, xml)
+
+
+@pytest.mark.parametrize(
+    ("args", "file", "code", "out"),
+    [
+        (["--set", "goal=1;2"], None, 0, "goal = (1.0, 2.0)"),
+        ([], "goal: [-1, 2]\n", 1, "goal = (-1.0, 2.0)"),
+        (["--set", "goal=3;4"], "goal: [-1, 2]\n", 0, "goal = (3.0, 4.0)"),
+    ],
+)
+def test_run_sets_blackboard_entries_the_tree_reads(
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+    args: list[str],
+    file: str | None,
+    code: int,
+    out: str,
+) -> None:
+    need, tree = _need(tmp_path)
+    if file is not None:
+        (tmp_path / "entries.yaml").write_text(file)
+        args = ["--set-file", str(tmp_path / "entries.yaml"), *args]
+    assert main(["tree", "run", "--load", str(need), *args, str(tree)]) == code
+    assert out in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        ([], "blackboard entries read but never written nor set: {goal} (tuple[float, float]"),
+        (["--set", "gaol=1;2"], "no entry 'gaol' that the application can set (entries: goal)"),
+        (["--set", "goal=east"], "blackboard entry 'goal' of tree 'M': expected tuple"),
+        (["--set", "goal"], "--set 'goal': expected KEY=VALUE"),
+    ],
+)
+def test_run_refuses_missing_unknown_and_mistyped_entries(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, args: list[str], message: str
+) -> None:
+    need, tree = _need(tmp_path)
+    assert main(["tree", "run", "--load", str(need), *args, str(tree)]) != 0
+    assert message in capsys.readouterr().err
