@@ -31,8 +31,9 @@ ROLE = {"alpha": "robot", "beta": "robot", "operator": "operator", "eye": "obser
 
 
 class Team:
-    """Keys for every name of ROLE, configs on free ports; the robots greet slowly (1.5 s)
-    so a mission is still running when asked about."""
+    """Keys for every name of ROLE, configs on free ports; the robots greet slowly (6 s,
+    as a loaded machine takes seconds to start `team status`) so a mission is still
+    running when asked about."""
 
     def __init__(self, tmp_path: Path) -> None:
         self.dir = tmp_path
@@ -45,7 +46,7 @@ class Team:
         tree.write_text(
             "btcap: 1\nname: slow\nroot:\n  type: Sequence\n  name: g\n  children:\n"
             "    - {type: GreetInputs, name: inputs}\n"
-            "    - {type: Wait, name: think, options: {seconds: 1.5}}\n"
+            "    - {type: Wait, name: think, options: {seconds: 6}}\n"
             "    - {type: GreetOutputs, name: outputs}\n"
             "wires:\n  - {from: g/inputs.who, to: g/outputs.said}\n"
         )
