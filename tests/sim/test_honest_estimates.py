@@ -26,6 +26,8 @@ from btcap.sim.robot import Body
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import builtin_scenarios, check_scenario, grow_team, load_scenario
 from btcap.sim.scenariofile import Scenario
+from btcap.team.core.costwatch import CostWatch
+from btcap.team.ids import ExecutionId
 
 #: A hand-over undone within this many clock seconds is one too many.
 UNDONE_S = 5.0
@@ -151,3 +153,20 @@ def test_the_bid_for_held_work_falls_as_the_robot_drives_and_works() -> None:
     # A failed operation leaves nothing done: a retry costs the whole work again.
     body.on_position(PositionUpdate("spot1", far))
     assert impl.bid(inputs) == pytest.approx(2.0)  # type: ignore[attr-defined]
+
+
+def test_an_estimate_that_rises_during_a_drive_is_news() -> None:
+    """The rising-estimate trigger sees a drive now: a robot pushed away from its goal
+    (here: told it is further off than before) bids more, beyond the margin."""
+    grid = GridMap.generate_cave(60, 40, seed=2)
+    far = max(
+        ((r, c) for r in range(grid.height) for c in range(grid.width) if grid.is_free((r, c))),
+        key=lambda cell: abs(cell[0] - grid.start[0]) + abs(cell[1] - grid.start[1]),
+    )
+    body, impl = _identify_bid(grid, far)
+    inputs = {"object": 3, "at": far}
+    watch = CostWatch(0.2)
+    execution = ExecutionId("operator", "identify", 1)
+    assert not watch.see(execution, impl.bid(inputs))  # type: ignore[attr-defined]
+    body.on_position(PositionUpdate("spot1", grid.start))
+    assert watch.see(execution, impl.bid(inputs))  # type: ignore[attr-defined]
