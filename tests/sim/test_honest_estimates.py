@@ -115,8 +115,10 @@ async def test_no_hand_over_is_undone_with_six_robots(seed: int, tmp_path: Path)
     assert undone_handovers(await recorded(s, tmp_path / "m.jsonl")) == []
 
 
-@pytest.mark.parametrize("seed", [11, 12, 13, 14])
+@pytest.mark.parametrize("seed", [11, 17, 21, 23, 36])
 async def test_no_hand_over_is_undone_on_unseen_scenarios(seed: int, tmp_path: Path) -> None:
+    """Seeds 17, 21, 23 and 36 each handed work over and back with stale estimates (5 of
+    seeds 11-40 did; none does now)."""
     assert undone_handovers(await recorded(hidden_style(seed), tmp_path / "m.jsonl")) == []
 
 
