@@ -3,7 +3,9 @@
 Implementations are small trees of sim leaves: drive to the target, then ask the
 simulation manager for the operation. A robot bids the paper's cost: path length to the
 target (and, to decontaminate, on to the decontamination area) times its distance cost
-factor, plus the operation's duration.
+factor, plus the operation's duration. The same estimate, asked again while the robot
+drives or works, says what finishing would cost from where it is now: the drive left and
+the work left (its :class:`~btcap.sim.robot.Body` hears of every cell and operation).
 """
 
 from __future__ import annotations
@@ -110,12 +112,24 @@ def robot_setup(
         duration = model.operation(o.op).duration_s
 
         def bid(inputs: Mapping[str, Any]) -> float | None:
+            """What finishing would cost from here and now: the drive left (from where the
+            body is), then the work left (its duration less what is done)."""
             at = _target(inputs, o.goal)
             if at is None or not grid.is_free(at):
                 return None
-            cost = travel(body.position, at) + duration
-            if o.then_decon:
-                cost += travel(at, grid.decon_area)
+            if o.target is None:  # explore: where the robot stands
+                left = body.left_s(o.op, -1, duration) if body.position == at else None
+            else:
+                target = inputs.get(o.target)
+                left = None if target is None else body.left_s(o.op, int(target), duration)
+            if left is None:  # not under way: drive there, work, (carry the object on)
+                cost = travel(body.position, at) + duration
+                if o.then_decon:
+                    cost += travel(at, grid.decon_area)
+            elif o.then_decon and body.phase == "carry":
+                cost = travel(body.position, grid.decon_area) + left
+            else:
+                cost = left
             return cost if math.isfinite(cost) else None
 
         def build() -> Tree:

@@ -8,6 +8,7 @@ are here; robots in their own OS processes are in :mod:`btcap.sim.distributed`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from contextlib import AsyncExitStack
 from typing import Any, Protocol
@@ -122,6 +123,7 @@ class InProcessHost:
         self._stop: dict[str, anyio.Event] = {}
         self._gone: dict[str, anyio.Event] = {}
         self._up: set[str] = set()
+        self._lives = 0  # incarnations handed out, on a virtual clock
         #: Told of every robot's agent when it starts; returns what to undo before it stops.
         self.on_agent: Callable[[Agent], Callable[[], None]] | None = None
 
@@ -154,7 +156,7 @@ class InProcessHost:
                 await before.wait()
             model = next(r.model for r in self.s.robots if r.name == name)
             setup = robot_setup(name, self.models[model], self.grid)
-            async with Agent(
+            agent = Agent(
                 name,
                 transport=self.net.transport(name),
                 clock=self.clock,
@@ -162,7 +164,11 @@ class InProcessHost:
                 registry=self.reg,
                 implementations=setup.implementations,
                 actors=setup.actors,
-            ) as agent:
+            )
+            if math.isinf(self.clock.speedup):  # lives numbered by the run: the same ids
+                self._lives += 1
+                agent.team.incarnation = self._lives
+            async with agent:
                 undo = self.on_agent(agent) if self.on_agent is not None else None
                 self._up.add(name)
                 try:

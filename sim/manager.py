@@ -4,6 +4,11 @@ Robots ask it to move and to explore, identify or decontaminate. Moves end when 
 vectorised world step brings the robot to its goal; operations end after the robot
 model's duration, randomised, and may fail with a set chance (seeded). Answers are
 deferred replies, so the manager serves every robot at once.
+
+Each robot's body hears where it is and what it does as it happens (a
+:class:`~btcap.sim.messages.PositionUpdate` for every cell it drives into and every
+operation that starts, begins its timed work or ends), so what it bids for the work it
+holds is what finishing costs from here, not from where it started.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ class _Op:
     event: SimEvent
     target: int
     carrying: bool = False
+    working: bool = False  # its timed work has begun (decontaminate: at the decon area)
 
 
 @dataclass(slots=True)
@@ -87,6 +93,8 @@ class SimulationManager(Actor):
         self.robots: dict[str, _Robot] = {}
         self.events: list[SimEvent] = []
         self._clock: TimeSource | None = None
+        self._by_index: list[_Robot] = []  # world index -> robot
+        self._cells = self.world.positions  # as the bodies were last told
 
     def add_robot(self, name: str, model: RobotModel, cell: Cell | None = None) -> None:
         if name in self.robots:
@@ -94,7 +102,9 @@ class SimulationManager(Actor):
         i = self.world.add_robot(
             cell or self.state.grid.start, speed_mps=model.speed_mps, cost_factor=model.cost_factor
         )
-        self.robots[name] = _Robot(name, i, model)
+        self.robots[name] = r = _Robot(name, i, model)
+        self._by_index.append(r)
+        self._cells = self.world.positions
 
     def position(self, name: str) -> Cell:
         return self.world.position(self.robots[name].index)
@@ -116,9 +126,22 @@ class SimulationManager(Actor):
             deadline += dt
             await clock.sleep_until(deadline)
             arrived = self.world.step(dt)
+            told: set[int] = set()
             for r in self.robots.values():
                 if r.move is not None and r.index in arrived:
-                    self._end_move(r, True, "arrived")
+                    self._end_move(r, True, "arrived")  # tells the body
+                    told.add(r.index)
+            self._tell_moved(told)
+
+    def _tell_moved(self, told: set[int]) -> None:
+        """Tell each robot that drove into another cell in this step where it is now (one
+        comparison over all robots), unless it was ``told`` already."""
+        cells, before = self.world.positions, self._cells
+        self._cells = cells
+        n = len(before)  # robots added since have not moved yet
+        for i in np.flatnonzero((cells[:n] != before).any(axis=1)).tolist():
+            if i not in told:
+                self._tell_position(self._by_index[i])
 
     # -- failures (driven by scenarios) -----------------------------------------------
     def robot_down(self, name: str, why: str = "robot down") -> None:
@@ -205,10 +228,17 @@ class SimulationManager(Actor):
             fut.set_result(SimResult(ok, cell, detail))
         self._tell_position(r)
 
-    def _tell_position(self, r: _Robot) -> None:
-        if self._system is not None:
-            cell = self.position(r.name)
-            self.system.ref(Address(r.name, "body")).tell(PositionUpdate(r.name, cell))
+    def _tell_position(self, r: _Robot, done: _Op | None = None) -> None:
+        """Tell the robot's body where it is and what it is doing, or has ``done`` (see
+        :class:`~btcap.sim.messages.PositionUpdate`)."""
+        if self._system is None:
+            return
+        msg = PositionUpdate(r.name, self.position(r.name))
+        op = r.busy[-1] if r.busy else done
+        if op is not None:
+            msg.op, msg.target = op.event.kind, op.target
+            msg.phase = "done" if op is done else "work" if op.working else "carry"
+        self.system.ref(Address(r.name, "body")).tell(msg)
 
     @handler
     def on_operate(self, msg: Operate) -> SimResult | asyncio.Future[SimResult]:
@@ -229,7 +259,9 @@ class SimulationManager(Actor):
         fails = bool(self.rng.random() < self.config.failure_chance)
         fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
         op = _Op(fut, self._event(r.name, msg.op, target=msg.target), msg.target)
+        op.working = msg.op != "decontaminate"  # which first carries the object
         r.busy.append(op)
+        self._tell_position(r)
         self.start_task(self._operate(r, msg, duration, fails, op), name=f"{msg.op} {r.name}")
         return fut
 
@@ -252,6 +284,8 @@ class SimulationManager(Actor):
                     await clock.sleep(self.config.step_s)
                     if op.fut.done():  # superseded, stopped or the robot went down
                         return
+                op.working = True
+                self._tell_position(r)
             await clock.sleep(duration)
             if op.fut.done():
                 return
@@ -291,8 +325,8 @@ class SimulationManager(Actor):
         if not op.fut.done():
             op.fut.set_result(result)
         self._close(op.event, result.ok, result.detail)
-        if op.event.kind == "decontaminate":
-            self._tell_position(r)  # carrying moved the robot
+        # No operation under way any more (and carrying moved the robot).
+        self._tell_position(r, op if result.ok else None)
 
     # -- timeline ---------------------------------------------------------------------
     def _event(self, robot: str, kind: str, *, target: int = -1, detail: str = "") -> SimEvent:

@@ -49,10 +49,21 @@ class SimResult(Message):
 
 
 class PositionUpdate(Message):
-    """Sent to a robot's body whenever the simulation moved or stopped it."""
+    """The robot's body as the simulation has it now: sent on every cell it drives into,
+    when a move ends or stops, and when an operation starts, begins its timed work or ends.
+
+    ``op`` is the operation under way or just done ("" if none) on object ``target`` (-1:
+    none, as for explore), in ``phase`` ``carry`` (decontaminate first carries the object to
+    the decontamination area), ``work`` (its timed work has begun) or ``done`` (it ended
+    well; a failed one leaves no operation). With it the robot's bids for the work it
+    holds say what finishing costs *now*, not from where it started.
+    """
 
     robot: str
     position: tuple[int, int]
+    op: str = ""
+    target: int = -1
+    phase: str = ""
 
 
 class Claim(Message):

@@ -110,16 +110,21 @@ async def run_scenario(
         ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as simsys,
     ):
         simsys.spawn(manager, SimulationManager.PATH)
-        if monitor is not None and isinstance(robots, InProcessHost):
-            robots.on_agent = monitor.add_agent
+        if monitor is not None:
+            monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
+            if isinstance(robots, InProcessHost):
+                robots.on_agent = monitor.add_agent
         simsys.spawn(ObjectStore(state), ObjectStore.PATH)
-        async with Agent(
+        operator = Agent(
             "operator",
             transport=robots.transport("operator"),
             clock=clock,
             config=cfg,
             registry=reg,
-        ) as operator:
+        )
+        if math.isinf(clock.speedup):  # its life numbered by the run, as the robots': same ids
+            operator.team.incarnation = 1
+        async with operator:
             if monitor is not None:
                 monitor.add_agent(operator)
             operator.team.subscribe(lambda ev, robot: mlog.mark(clock.now(), ev.value, robot))

@@ -11,17 +11,21 @@
 Changes are collected as they happen and handed on in batches, at most ``batch_hz``
 times a second (wall time), to the picture (:class:`~btcap.monitor.view.TeamView`), the
 recording and every connected page. The page is read-only: it cannot change a robot.
+On a virtual clock (:meth:`Monitor.follow`) batches fall every so many seconds of that
+clock instead, so the recording of a deterministic run is the same byte for byte.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
+from btcap.actors import TimeSource
 from btcap.bt.tree import Tree
 from btcap.monitor.hub import Hub
 from btcap.monitor.net import is_loopback
@@ -37,7 +41,7 @@ from btcap.transports.log import get_logger
 if TYPE_CHECKING:
     from btcap.monitor.server import MonitorServer
 
-__all__ = ["RESULTS", "Monitor"]
+__all__ = ["FOLLOW_EVERY_S", "RESULTS", "Monitor"]
 
 log = get_logger("btcap.monitor")
 
@@ -46,6 +50,9 @@ _MAX_LOST = 1000
 #: How a run can end (:meth:`Monitor.finish`).
 RESULTS = ("succeeded", "failed", "stopped")
 _STATUS = {TeamEvent.JOINED: "joined", TeamEvent.LEFT: "left", TeamEvent.FAILED: "failed"}
+#: Clock seconds between batches on a virtual clock (:meth:`Monitor.follow`): the
+#: simulator's step, so a replay misses no cell of a drive and a long run stays cheap.
+FOLLOW_EVERY_S = 0.5
 
 
 class Monitor:
@@ -84,6 +91,7 @@ class Monitor:
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
         self._task: asyncio.Task[None] | None = None
+        self._following: TimeSource | None = None
         self._finished = False
         if port is not None and not is_loopback(host):
             log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
@@ -102,15 +110,39 @@ class Monitor:
                 if self._recorder is not None:
                     self._recorder.close()  # nobody calls stop() after a failed start
                 raise
-        self._task = asyncio.get_running_loop().create_task(self._flusher(), name="monitor")
+        self._pace(None)
+
+    def _pace(self, clock: TimeSource | None, every_s: float = FOLLOW_EVERY_S) -> None:
+        """Batch on the wall (None) or every ``every_s`` of ``clock``."""
+        if self._task is not None:
+            self._task.cancel()
+        self._following = clock
+        flusher = self._flusher() if clock is None else self._clock_flusher(clock, every_s)
+        self._task = asyncio.get_running_loop().create_task(flusher, name="monitor")
+
+    def follow(self, clock: TimeSource, *, every_s: float = FOLLOW_EVERY_S) -> None:
+        """Batch every ``every_s`` seconds of ``clock`` if it is virtual (an infinite
+        speed-up: :class:`~btcap.actors.ManualClock`), until :meth:`detach`: the states
+        a batch samples then depend on the run alone, not on how fast the machine computed
+        it, and two runs of a deterministic simulation record the same bytes. A clock
+        that keeps pace with the wall changes nothing (batches stay on wall time)."""
+        if not every_s > 0:
+            raise ValueError(f"every_s {every_s}: expected clock seconds > 0")
+        if self._task is None:
+            raise RuntimeError("start the monitor before it follows a clock")
+        if math.isinf(clock.speedup):
+            self.flush()  # what wall time collected so far: before the clock's batches
+            self._pace(clock, every_s)
 
     def detach(self) -> None:
         """Stop watching (the picture and the page stay, e.g. a finished mission's last
-        states rather than its shutdown)."""
+        states rather than its shutdown); a followed clock is let go (see :meth:`follow`)."""
         for detach in reversed(self._detach):
             detach()
         self._detach.clear()
         self.flush()
+        if self._following is not None and self._task is not None:
+            self._pace(None)
 
     def finish(self, result: str, summary: str) -> None:
         """Say the run is over and hand it on at once, after the changes before it:
@@ -324,10 +356,20 @@ class Monitor:
     async def _flusher(self) -> None:
         while True:
             await asyncio.sleep(self.batch_s)
-            try:
-                self.flush()
-            except Exception as exc:  # a bad event must not end monitoring
-                log.error("monitor.flush_failed", exc_info=exc)
+            self._safe_flush()
+
+    async def _clock_flusher(self, clock: TimeSource, every_s: float) -> None:
+        deadline = clock.now()
+        while True:
+            deadline += every_s
+            await clock.sleep_until(deadline)
+            self._safe_flush()
+
+    def _safe_flush(self) -> None:
+        try:
+            self.flush()
+        except Exception as exc:  # a bad event must not end monitoring
+            log.error("monitor.flush_failed", exc_info=exc)
 
     # -- for the server ---------------------------------------------------------------
     def snapshot(self) -> dict[str, Any]:

@@ -166,12 +166,28 @@ async def test_a_single_husky_starts_the_cheapest_available_task(
 # -- Fig. 5: the dynamic team ----------------------------------------------------------
 
 
+def joins_at(s: Scenario, at: float) -> Scenario:
+    """The Bebop joins at ``at`` instead (it leaves as shipped)."""
+    events = [e if e.kind != "join" else Event(at, e.robot, "join") for e in s.events]
+    return msgspec.structs.replace(s, events=events)
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 async def test_explore_moves_to_the_joining_bebop_at_once(seed: int) -> None:
-    """The Bebop joins while a Husky explores at its goal: although the Bebop must first
-    travel there, it is so much cheaper (cost factor 1.0, 10 s) that Explore moves to it
-    within seconds, cutting the Husky's exploration short."""
-    result = await mission("huskies-bebop-joins", seed)
+    """The Bebop joins just after a Husky began exploring at its goal: although the Bebop
+    must first travel there, it is so much cheaper (cost factor 1.0, 10 s against the
+    Husky's 60 s, nearly all of it still to do) that Explore moves to it within seconds,
+    cutting the Husky's exploration short."""
+    shipped = await mission("huskies-bebop-joins", seed)
+    # Until the Bebop joins the run is the shipped one: the first exploration a Husky
+    # had to drive to (the first one is at the start, where the Bebop appears).
+    began = next(
+        i.start
+        for i in shipped.timeline
+        if i.kind == "explore" and i.robot.startswith("husky") and i.start > 10.0
+    )
+    with anyio.fail_after(RUN_S):
+        result = await run_fast(joins_at(scenario("huskies-bebop-joins", seed), began + 5.0))
     assert result.completed
     joined = mark_time(result, "joined", "bebop1")
     # The Husky was exploring, i.e. standing at the goal, when the Bebop joined...
@@ -191,6 +207,21 @@ async def test_explore_moves_to_the_joining_bebop_at_once(seed: int) -> None:
     assert result.moved >= 1
     assigned = explore_assignments(result)
     assert assigned[assigned.index("bebop1") - 1] == cut.robot
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+async def test_a_nearly_finished_exploration_stays(seed: int) -> None:
+    """The shipped scenario: the Bebop joins when the exploring Husky is well into its
+    60 s; it bids what is left, not what it bid from the start, and keeps the work."""
+    result = await mission("huskies-bebop-joins", seed)
+    joined = mark_time(result, "joined", "bebop1")
+    busy = next(
+        i
+        for i in result.timeline
+        if i.kind == "explore" and i.robot.startswith("husky") and i.start < joined <= i.end
+    )
+    assert joined - busy.start > 30.0  # over half of it done
+    assert busy.ok
 
 
 def leaves_early(s: Scenario, at: float) -> Scenario:
@@ -258,9 +289,15 @@ async def test_a_failed_husky_loses_its_work_and_gets_work_again_when_it_returns
 
 
 async def test_a_failed_huskys_work_is_reassigned_while_it_is_down() -> None:
+    busy = 0
     for seed in (1, 2, 3, 4, 5):
         result = await mission("huskies-bebop-joins", seed)
+        failed = mark_time(result, "down", "husky2")
+        if not any(i.robot == "husky2" and i.start < failed <= i.end for i in result.timeline):
+            continue  # it had just finished its work (seed 3: 0.1 s before)
+        busy += 1
         assert result.reassigned >= 1, f"seed {seed}: husky2's work waited for its return"
+    assert busy >= 3
 
 
 # -- team size and re-evaluation -------------------------------------------------------

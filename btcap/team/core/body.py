@@ -1,4 +1,15 @@
-"""The robot's one body: it runs at most one execution, and may hold one more queued."""
+"""The robot's one body: it runs at most one execution, and may hold one more queued.
+
+The contract for estimates (a simulated robot keeps it, a real one must): an
+implementation's bid, asked again while the robot runs that very work, says what
+*finishing* it would cost from here and now: the drive left from where the robot is,
+then the work left, not the cost from where it started. Re-evaluation compares it with
+other robots' fresh bids, so a stale estimate moves work to a robot that is in fact
+further from done (and back again once the estimate is refreshed); and only an estimate
+that follows the robot can rise when its path gets blocked, news the run's origin
+re-evaluates on at once (:mod:`btcap.team.core.costwatch`). Read the robot's pose and
+progress when asked (odometry, the action server's feedback), not the values at award.
+"""
 
 from __future__ import annotations
 
@@ -49,6 +60,14 @@ class Body:
         if self.queue_after_current and self.queued is None:
             return self._running_cost
         return None
+
+    def estimate(self, execution: ExecutionId, cost: float) -> None:
+        """A fresh estimate of what finishing ``execution`` costs (see the module's
+        contract): if it runs, a task queued behind it waits that long, not as long as it
+        would have taken when it was awarded. (A queued one's estimate is priced from
+        where the robot is now, not where it will be: it is not taken.)"""
+        if execution == self.running:
+            self._running_cost = cost
 
     def busy_reason(self) -> str | None:
         """Why an award must be declined now, or None if the body can take it."""

@@ -118,7 +118,10 @@ class ExecutorSide:
                     "mission.cost_failed", robot=self.robot, implementation=impl.name, exc_info=exc
                 )
                 continue
-            if cost is not None and self.costs.see(execution, cost):
+            if cost is None:
+                continue
+            self.body.estimate(execution, cost)  # what a task queued behind it waits
+            if self.costs.see(execution, cost):
                 out.append(Send(execution.origin, CostChanged(execution, cost)))
         return out
 

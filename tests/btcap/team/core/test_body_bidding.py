@@ -123,3 +123,18 @@ def test_the_optimal_plan_beats_greedy_on_the_classic_trap() -> None:
     assert optimal_plan([[], t2], taken=set()) == [None, "b"]
     with pytest.raises(ValueError, match="expected one of auction, sequential, optimal"):
         check_strategy("fastest")
+
+
+def test_a_fresh_estimate_of_the_running_work_is_what_a_queued_task_waits() -> None:
+    body = Body(queue_after_current=True)
+    running, queued = ExecutionId("o", "n", 1), ExecutionId("o", "n", 2)
+    assert body.take(running, 80.0)
+    assert body.wait_cost() == 80.0
+    body.estimate(running, 12.5)  # the robot is nearly done
+    assert body.wait_cost() == 12.5
+    body.estimate(queued, 1.0)  # not held: no effect
+    assert body.wait_cost() == 12.5
+    assert not body.take(queued, 30.0)
+    body.estimate(queued, 3.0)  # queued: priced from here, not after the running work
+    assert body.release(running) == queued
+    assert body.wait_cost() == 30.0
