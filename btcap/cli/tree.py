@@ -8,14 +8,16 @@ the node types it will really run with. Files are YAML, JSON or BehaviorTree.CPP
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import re
 import sys
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
@@ -60,19 +62,50 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "<Name>Outputs bridges become node types (repeatable)",
     )
 
+    xml = argparse.ArgumentParser(add_help=False)
+    group = xml.add_argument_group("BehaviorTree.CPP XML")
+    group.add_argument(
+        "--main",
+        metavar="TREE",
+        help="the <BehaviorTree ID> to run (default: main_tree_to_execute, or the only one)",
+    )
+    group.add_argument(
+        "--stub-missing",
+        action="store_true",
+        help="build each type <TreeNodesModel> declares but nothing registers, with its "
+        "ports; actions and conditions succeed (or do what --stub-script says)",
+    )
+    group.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="FILE",
+        type=Path,
+        help="a model file (<root><TreeNodesModel>, e.g. nav2_tree_nodes.xml) read besides "
+        "the tree's own models (repeatable)",
+    )
+    group.add_argument(
+        "--stub-script",
+        metavar="FILE",
+        type=Path,
+        help="YAML file of the stubs' results by type or name, e.g. "
+        "'types: {ComputePathToPose: [RUNNING, SUCCESS]}'",
+    )
+    files = argparse.ArgumentParser(add_help=False, parents=[types, xml])
+
     p = cmds.add_parser(
-        "validate", parents=[types], help="check tree files; print 'ok' or every problem"
+        "validate", parents=[files], help="check tree files; print 'ok' or every problem"
     )
     p.add_argument("files", nargs="+", metavar="FILE", type=Path)
     p.set_defaults(handler=_validate)
 
-    p = cmds.add_parser("show", parents=[types], help="print a tree as an indented outline")
+    p = cmds.add_parser("show", parents=[files], help="print a tree as an indented outline")
     p.add_argument("file", metavar="FILE", type=Path)
     p.set_defaults(handler=_show)
 
     p = cmds.add_parser(
         "dot",
-        parents=[types],
+        parents=[files],
         help="draw a tree: Graphviz DOT, or SVG/PNG/PDF by the output's suffix",
     )
     p.add_argument("file", metavar="FILE", type=Path)
@@ -86,7 +119,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
     p = cmds.add_parser(
         "run",
-        parents=[types],
+        parents=[files],
         help="tick a tree until it succeeds or fails; print its final states",
         description="Tick a tree at --rate until it succeeds or fails (exit 0 or 1), then "
         "print it with states. At --timeout (default 60 s) or --max-ticks it is halted and "
@@ -204,14 +237,12 @@ def _register(registry: NodeRegistry, ref: str) -> None:
     register_interfaces(registry, [i for i in items if isinstance(i, CapabilityInterface)])
     for cls in items:
         if isinstance(cls, type) and issubclass(cls, Node):
-            name = cls.__name__
-            if name not in registry:
+            if cls in registry.classes():
+                continue  # imported twice, or re-exported
+            try:  # a btcap built-in's name is taken as user.NAME (NodeRegistry.register)
                 registry.register(cls)
-            elif registry.get(name) is not cls:
-                raise CliError(
-                    f"--load {ref}: {cls.__module__}.{cls.__qualname__} is named like the "
-                    f"node type {name!r} files already use; rename the class"
-                )
+            except TreeError as exc:
+                raise CliError(f"--load {ref}: {exc}; rename the class") from None
         elif attr and not isinstance(cls, CapabilityInterface):
             raise CliError(f"--load {ref}: {cls!r} is neither a Node class nor an interface")
 
@@ -250,12 +281,43 @@ def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[st
     return out
 
 
+def _xml_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The load_tree keywords of the BehaviorTree.CPP XML options."""
+    for path in [*args.model, *([args.stub_script] if args.stub_script else [])]:
+        if not path.is_file():
+            raise CliError(f"{path}: no such file")
+    return {
+        "main": args.main,
+        "stub_missing": args.stub_missing,
+        "models": args.model,
+        "stub_script": args.stub_script,
+    }
+
+
+@contextlib.contextmanager
+def _warnings_shown() -> Iterator[None]:
+    """Print what files only warn about (BehaviorTree.CPP's warnings) as one line each."""
+    from btcap.bt.files import TreeFileWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", TreeFileWarning)
+        try:
+            yield
+        finally:
+            for w in caught:
+                if issubclass(w.category, TreeFileWarning):
+                    print(f"warning: {w.message}", file=sys.stderr)
+                else:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
 def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None) -> Tree:
     from btcap.bt.files import TreeFileError, load_tree
 
     registry = _registry(args)
     try:
-        return load_tree(_existing(path), registry, clock=clock)
+        with _warnings_shown():
+            return load_tree(_existing(path), registry, clock=clock, **_xml_options(args))
     except TreeFileError as exc:
         raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
 
@@ -273,6 +335,7 @@ def _validate(args: argparse.Namespace) -> int:
     from btcap.bt.files import validate_file
 
     registry = _registry(args)
+    options = _xml_options(args)
     code = 0
     for path in args.files:
         if not path.exists() or path.is_dir():
@@ -280,7 +343,8 @@ def _validate(args: argparse.Namespace) -> int:
             print(f"btcap: error: {path}: {what}", file=sys.stderr)
             code = 2
             continue
-        problems = validate_file(path, registry)
+        with _warnings_shown():
+            problems = validate_file(path, registry, **options)
         problems += _hints(path, problems, args)
         if problems:
             for line in problems:

@@ -24,10 +24,13 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
+from pathlib import Path
 from typing import Any
 
-from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_doc import Documents, XmlOptions
+from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, ElementReader, Ref, Scope, literal
 from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
+from btcap.bt.files.btcpp_stubs import load_scripts, make_stub
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -55,12 +58,25 @@ class _Def:
 class XmlTranslator:
     """Translates one XML document, collecting every problem with its line."""
 
-    def __init__(self, root: XmlElement, where: str, registry: NodeRegistry) -> None:
+    def __init__(
+        self,
+        root: XmlElement,
+        where: str,
+        registry: NodeRegistry,
+        options: XmlOptions | None = None,
+        folder: Path | None = None,
+        source: Path | None = None,
+    ) -> None:
         self.root = root
         self.where = where
         self.registry = registry
+        self.options = options or XmlOptions()
+        self.folder = folder  # where <include path> is relative to
+        self.source = source  # the file itself, if read from one (include cycles)
         self.reader = ElementReader(where, registry, {}, self._subtree)
         self.problems = self.reader.problems
+        #: What BehaviorTree.CPP warns about and btcap reads anyway.
+        self.warnings: list[str] = []
         self.trees: dict[str, XmlElement] = {}
         self.models = self.reader.models
         self.defs: dict[str, _Def | None] = {}
@@ -71,54 +87,38 @@ class XmlTranslator:
         #: (BehaviorTree ID, node path) -> line, and (ID, wire index) -> line, for relabel.
         self.node_lines = self.reader.node_lines
         self.wire_lines: dict[tuple[str, int], int] = {}
+        #: BehaviorTree ID -> the file it is in (an <include>d one, or this one).
+        self.tree_where: dict[str, str] = {}
         self.main = ""
 
     def fail(self, line: int, msg: str) -> None:
         self.reader.fail(line, msg)
 
+    def _fail_in(self, where: str, line: int, msg: str) -> None:
+        self.problems.append(f"{where}: line {line}: {msg}" if line > 0 else f"{where}: {msg}")
+
     # -- document ---------------------------------------------------------------------
     def translate(self) -> TreeFile:
-        root = self.root
-        if root.tag != "root":
-            self.fail(root.line, f'<{root.tag}>: expected <root BTCPP_format="4">')
+        docs = Documents(self._fail_in, self.warnings.append)
+        if not docs.root(self.root, self.where):
             raise TreeFileError(self.problems)
-        fmt = root.attrs.get("BTCPP_format")
-        if fmt != "4":
-            got = "no BTCPP_format" if fmt is None else f"BTCPP_format={fmt!r}"
-            self.fail(root.line, f"<root> has {got}; btcap reads BehaviorTree.CPP format 4")
+        chain = (self.source.resolve(),) if self.source is not None else ()
+        docs.read(self.root, self.where, self.folder, chain)
+        for path in self.options.models:
+            docs.model_file(path)
+        self.trees = docs.trees
+        self.tree_where = {t: el.where or self.where for t, el in self.trees.items()}
+        self.models.update(docs.models)
+        if self.options.stub_missing:
+            self._stub()
+        if self.problems:
             raise TreeFileError(self.problems)
-        for el in root.children:
-            if el.tag == "BehaviorTree":
-                tid = el.attrs.get("ID")
-                if not tid:
-                    self.fail(el.line, "<BehaviorTree> without an ID")
-                elif tid in self.trees:
-                    self.fail(el.line, f"a second <BehaviorTree ID={tid!r}>")
-                else:
-                    self.trees[tid] = el
-            elif el.tag == "TreeNodesModel":
-                for model in el.children:
-                    if model.tag in MODEL_KINDS and model.attrs.get("ID"):
-                        self.models[model.attrs["ID"]] = model
-            elif el.tag == "include":
-                self.fail(el.line, "<include>: btcap reads one file; put the trees in it")
-            else:
-                self.fail(el.line, f"<{el.tag}>: expected <BehaviorTree> or <TreeNodesModel>")
-        main = root.attrs.get("main_tree_to_execute")
-        if main is None:
-            if len(self.trees) != 1:
-                ids = ", ".join(self.trees) or "none"
-                self.fail(
-                    root.line,
-                    f"main_tree_to_execute missing and {len(self.trees)} "
-                    f"BehaviorTrees ({ids}); say which one to run",
-                )
-                raise TreeFileError(self.problems)
-            main = next(iter(self.trees))
+        main = self._main()
         self.main = main
-        top = self._definition(main, root.line)
+        top = self._definition(main, self.root.line)
         for tid in self.trees:
             self._definition(tid, self.trees[tid].line)
+        self.problems.extend(self.reader.unknown_problems())
         if self.problems or top is None or top.spec.root is None:
             raise TreeFileError(self.problems)
         subtrees = {t: d.spec for t, d in self.defs.items() if d and (t != main or t in self.used)}
@@ -129,6 +129,51 @@ class XmlTranslator:
             wires=top.spec.wires,
             subtrees=subtrees,
         )
+
+    def _main(self) -> str:
+        """The tree to run: asked for, main_tree_to_execute, or the only one."""
+        ids = ", ".join(self.trees) or "none"
+        main = self.options.main
+        if main is not None:
+            if main not in self.trees:
+                self.fail(self.root.line, f"main tree {main!r}: no such BehaviorTree ({ids})")
+                raise TreeFileError(self.problems)
+            return main
+        main = self.root.attrs.get("main_tree_to_execute")
+        if main is not None:
+            return main
+        if len(self.trees) != 1:
+            self.fail(
+                self.root.line,
+                f"main_tree_to_execute missing and {len(self.trees)} BehaviorTrees "
+                f"({ids}); say which one to run (--main TREE, or main= when loading)",
+            )
+            raise TreeFileError(self.problems)
+        return next(iter(self.trees))
+
+    def _stub(self) -> None:
+        """Register a stand-in for each declared type no registered node type provides."""
+        try:
+            scripts = load_scripts(self.options.stub_script)
+        except TreeFileError as exc:
+            self.problems.extend(exc.problems)
+            return
+        registry = self.registry.copy()
+        for kind, model in list(self.models.items()):
+            if (
+                model.tag == "SubTree"
+                or kind in BTCPP_BUILTINS
+                or registry.xml_type(kind) is not None
+            ):
+                continue
+            try:
+                registry.register(make_stub(model, scripts), kind)
+            except (TreeFileError, RegistryError) as exc:
+                msgs = exc.problems if isinstance(exc, TreeFileError) else [str(exc)]
+                self.problems.extend(msgs)
+                continue
+            self.reader.seen_models[kind] = self.models.pop(kind)  # its own ports
+        self.registry = self.reader.registry = registry
 
     # -- BehaviorTrees ----------------------------------------------------------------
     def _definition(self, tid: str, line: int, at: int = 0) -> _Def | None:
@@ -149,6 +194,7 @@ class XmlTranslator:
             return None
         self.active.append(tid)
         self.bases.append(at)
+        outer, self.reader.where = self.reader.where, self.tree_where.get(tid, self.where)
         scope = Scope(tid)
         if len(el.children) != 1:
             self.fail(
@@ -160,6 +206,7 @@ class XmlTranslator:
         self.active.pop()
         self.bases.pop()
         done = self._resolve(scope, spec) if spec is not None else None
+        self.reader.where = outer
         self.defs[tid] = done
         self.heights[tid] = self._height(spec) if spec is not None else 0
         return done
@@ -323,11 +370,13 @@ def relabel(problems: list[str], where: str, t: XmlTranslator) -> list[str]:
         rest = p.removeprefix(prefix)
         m = _WHERE.match(rest)
         line = None
+        at = where
         if m is not None:
             tree = m.group("tree") or t.main
+            at = t.tree_where.get(tree, where)
             if m.group("path") is not None:
                 line = t.node_lines.get((tree, m.group("path")))
             else:
                 line = t.wire_lines.get((tree, int(m.group("i"))))
-        out.append(p if line is None else f"{prefix}line {line}: {rest}")
+        out.append(p if line is None else f"{at}: line {line}: {rest}")
     return out
