@@ -118,7 +118,8 @@ class XmlTranslator:
         top = self._definition(main, self.root.line)
         for tid in self.trees:
             self._definition(tid, self.trees[tid].line)
-        self.problems.extend(self.reader.unknown_problems())
+        for problem in self.reader.unknown_problems():
+            self._insert(problem)
         if self.problems or top is None or top.spec.root is None:
             raise TreeFileError(self.problems)
         subtrees = {t: d.spec for t, d in self.defs.items() if d and (t != main or t in self.used)}
@@ -129,6 +130,17 @@ class XmlTranslator:
             wires=top.spec.wires,
             subtrees=subtrees,
         )
+
+    def _insert(self, problem: str) -> None:
+        """Put ``problem`` before the first one of its file at a later line."""
+        m = _LINE.match(problem)
+        assert m is not None
+        for i, other in enumerate(self.problems):
+            n = _LINE.match(other)
+            if n is not None and n.group(1) == m.group(1) and int(n.group(2)) > int(m.group(2)):
+                self.problems.insert(i, problem)
+                return
+        self.problems.append(problem)
 
     def _main(self) -> str:
         """The tree to run: asked for, main_tree_to_execute, or the only one."""
@@ -357,6 +369,7 @@ class XmlTranslator:
                 )
 
 
+_LINE = re.compile(r"^(.*?): line (\d+): ")
 _WHERE = re.compile(
     r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
 )

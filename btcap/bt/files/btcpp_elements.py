@@ -148,7 +148,7 @@ class ElementReader:
             where, first = uses[0]
             lines = ", ".join(str(line) for _, line in uses[:_FIRST_LINES])
             more = ", ..." if len(uses) > _FIRST_LINES else ""
-            n = f"{len(uses)} elements" if len(uses) > 1 else "1 element"
+            n = f"{len(uses)} elements, lines" if len(uses) > 1 else "1 element, line"
             model = self.models.get(kind) or self.seen_models.get(kind)
             if model is not None:
                 todo = (
@@ -163,8 +163,8 @@ class ElementReader:
                 )
             near = _near(kind, self.registry)
             out.append(
-                f"{where}: line {first}: unknown node type {kind!r}{near} "
-                f"({n}, lines {lines}{more}); {todo}"
+                f"{where}: line {first}: <{kind}>: unknown node type {kind!r}{near} "
+                f"({n} {lines}{more}); {todo}"
             )
         return out
 
@@ -181,7 +181,8 @@ class ElementReader:
         for key in _SCRIPTS.intersection(attrs):
             self.fail(el.line, f"<{el.tag}> attribute {key!r}: btcap has no scripting language")
             del attrs[key]
-        name = self._name(attrs.pop("name", "") or attrs.get("ID") or kind, el, taken)
+        default = attrs.get("ID") or kind.rsplit(".", 1)[-1]  # acme.Grasp: Grasp
+        name = self._name(attrs.pop("name", "") or default, el, taken)
         if name is None:
             return None
         path = name if parent is None else f"{parent}/{name}"
