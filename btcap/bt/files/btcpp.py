@@ -134,7 +134,9 @@ class XmlTranslator:
     def _insert(self, problem: str) -> None:
         """Put ``problem`` before the first one of its file at a later line."""
         m = _LINE.match(problem)
-        assert m is not None
+        if m is None:  # the closing "what to do" line
+            self.problems.append(problem)
+            return
         for i, other in enumerate(self.problems):
             n = _LINE.match(other)
             if n is not None and n.group(1) == m.group(1) and int(n.group(2)) > int(m.group(2)):
@@ -154,6 +156,9 @@ class XmlTranslator:
         main = self.root.attrs.get("main_tree_to_execute")
         if main is not None:
             return main
+        if not self.trees:
+            self.fail(self.root.line, "no <BehaviorTree> in this file")
+            raise TreeFileError(self.problems)
         if len(self.trees) != 1:
             self.fail(
                 self.root.line,

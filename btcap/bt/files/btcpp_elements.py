@@ -141,8 +141,9 @@ class ElementReader:
         self.problems.append(f"{where or self.where}: line {line}: {msg}")
 
     def unknown_problems(self) -> list[str]:
-        """One line per unknown type: how often, where first, and what to do."""
+        """One line per unknown type (how often, where first), then what to do, once."""
         out = []
+        declared = undeclared = 0
         for kind, uses in self.unknown.items():
             uses.sort()
             where, first = uses[0]
@@ -150,23 +151,30 @@ class ElementReader:
             more = ", ..." if len(uses) > _FIRST_LINES else ""
             n = f"{len(uses)} elements, lines" if len(uses) > 1 else "1 element, line"
             model = self.models.get(kind) or self.seen_models.get(kind)
+            said = ""
             if model is not None:
-                todo = (
-                    f"<TreeNodesModel> declares it (line {model.line}): --stub-missing "
-                    f"builds a stand-in from there, or register the type (--load MODULE)"
-                )
+                declared += 1
+                said = f"; <TreeNodesModel> declares it (line {model.line})"
             else:
-                todo = (
-                    "register it (--load MODULE), declare a capability interface of that "
-                    "name (--interfaces FILE), or declare it in <TreeNodesModel> (or "
-                    "--model FILE) and add --stub-missing"
-                )
-            near = _near(kind, self.registry)
+                undeclared += 1
             out.append(
-                f"{where}: line {first}: <{kind}>: unknown node type {kind!r}{near} "
-                f"({n} {lines}{more}); {todo}"
+                f"{where}: line {first}: <{kind}>: unknown node type {kind!r}"
+                f"{_near(kind, self.registry)} ({n} {lines}{more}){said}"
             )
-        return out
+        if not out:
+            return out
+        todo = "register it (--load MODULE) or declare a capability interface of that name "
+        todo += "(--interfaces FILE)"
+        if declared:
+            todo += ", or add --stub-missing to build a stand-in from <TreeNodesModel>"
+        if undeclared:
+            todo += ", or declare it in <TreeNodesModel> (or --model FILE) and add --stub-missing"
+        if len(out) == 1:
+            return [f"{out[0]}: {todo}"]
+        its = todo.replace(" it ", " them ").replace(
+            "a capability interface of that name", "capability interfaces of those names"
+        )
+        return [*out, f"{self.where}: {len(out)} unknown node types: {its}"]
 
     def node(
         self, el: XmlElement, parent: str | None, scope: Scope, taken: set[str]

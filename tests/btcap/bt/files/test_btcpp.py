@@ -477,7 +477,7 @@ ERRORS = [
     (
         _xml('<BehaviorTree ID="Main">\n<Sequence>\n<Wiggle/>\n</Sequence>\n</BehaviorTree>'),
         4,
-        "<Wiggle>: unknown node type 'Wiggle' (1 element, line 4); register it (--load MODULE)",
+        "<Wiggle>: unknown node type 'Wiggle' (1 element, line 4): register it (--load MODULE)",
     ),
     (
         _xml('<BehaviorTree ID="Main">\n<Script code="x:=1"/>\n</BehaviorTree>'),
@@ -631,7 +631,7 @@ ERRORS = [
         ),
         2,
         "unknown node type 'Grasp' (1 element, line 2); <TreeNodesModel> declares it (line 4): "
-        "--stub-missing builds a stand-in",
+        "register it",
     ),
 ]
 
