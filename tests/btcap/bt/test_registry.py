@@ -156,7 +156,8 @@ def test_a_user_type_named_like_a_builtin_is_kept_apart() -> None:
         reg.register(Wait2, "Wait")
     copy = reg.copy()
     copy.register(Battery)
-    assert "Battery" in copy and "Battery" not in reg
+    assert "Battery" in copy
+    assert "Battery" not in reg
 
 
 @pytest.mark.parametrize(

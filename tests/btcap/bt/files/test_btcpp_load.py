@@ -196,7 +196,8 @@ def test_bad_includes_are_refused(tmp_path: Path, attrs: str, message: str) -> N
         tmp_path, "m.xml", f"<include {attrs}/>\n<BehaviorTree><AlwaysSuccess/></BehaviorTree>"
     )
     (problem,) = validate_file(main, default_registry(plugins=False))
-    assert problem.startswith(f"{main}: line 2: ") and message in problem
+    assert problem.startswith(f"{main}: line 2: ")
+    assert message in problem
 
 
 def test_an_include_cycle_is_refused_naming_the_chain(tmp_path: Path) -> None:
@@ -226,13 +227,14 @@ def test_the_same_tree_id_in_two_files_is_refused(tmp_path: Path) -> None:
 
 # -- errors people read once ------------------------------------------------------------
 def test_unknown_types_are_one_line_each_with_count_and_first_lines() -> None:
-    many = "\n".join('<Wiggle name="w%d"/>' % i for i in range(33))
+    many = "\n".join(f'<Wiggle name="w{i}"/>' for i in range(33))
     text = _xml(
         f'<BehaviorTree ID="M">\n<Sequence>\n{many}\n<Jiggle/>\n</Sequence>\n</BehaviorTree>'
     )
     problems = _problems(text)
     assert problems == [
-        "t.xml: line 4: <Wiggle>: unknown node type 'Wiggle' (33 elements, lines 4, 5, 6, 7, 8, ...)",
+        "t.xml: line 4: <Wiggle>: unknown node type 'Wiggle' "
+        "(33 elements, lines 4, 5, 6, 7, 8, ...)",
         "t.xml: line 37: <Jiggle>: unknown node type 'Jiggle' (1 element, line 37)",
         "t.xml: 2 unknown node types: register them (--load MODULE) or declare capability "
         "interfaces of those names (--interfaces FILE), or declare them in <TreeNodesModel> "
@@ -344,7 +346,8 @@ def test_registered_types_win_over_stubs() -> None:
     reg.register(Follow)
     tree = _load(MODELLED, reg, stub_missing=True)
     assert type(tree.find("Retry3/Sequence/Follow")) is Follow
-    assert "Follow" in reg and "Plan" not in reg  # stubs go to a copy of the registry
+    assert "Follow" in reg
+    assert "Plan" not in reg
 
 
 def test_nav2_tree_validates_from_its_files_alone() -> None:
@@ -358,7 +361,8 @@ def test_nav2_tree_validates_from_its_files_alone() -> None:
     tree = load_tree(DRY_RUN, reg, stub_missing=True, models=[NAV_MODEL])
     nav = _inner(tree, "Sequence/NavigateWithReplanning")
     wait = nav.find("NavigateRecovery/Sequence/RecoveryFallback/RecoveryActions/Wait")
-    assert type(wait).__name__ == "Wait" and wait.inputs["wait_duration"] == "5.0"
+    assert type(wait).__name__ == "Wait"
+    assert wait.inputs["wait_duration"] == "5.0"
 
 
 async def test_nav2_tree_dry_runs_with_a_script() -> None:
