@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from btcap.bt.files import (
         TreeFile,
         TreeFileError,
+        TreeFileWarning,
         dump_tree,
         dumps_tree,
         load_tree,
@@ -125,6 +126,7 @@ _EXPORTS = {
     "btcap.bt.files": (
         "TreeFile",
         "TreeFileError",
+        "TreeFileWarning",
         "dump_tree",
         "dumps_tree",
         "load_tree",
@@ -254,6 +256,7 @@ __all__ = [
     "TreeError",
     "TreeFile",
     "TreeFileError",
+    "TreeFileWarning",
     "TreeTimeout",
     "Unassigned",
     "Utility",
