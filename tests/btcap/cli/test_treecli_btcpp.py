@@ -1,7 +1,7 @@
 """``btcap tree`` on BehaviorTree.CPP files: --main, --stub-missing, --model, --stub-script.
 
-A Nav2 tree validates and dry-runs from its files alone (the Nav2-shaped files were
-written for btcap's tests, beside the XML loading tests).
+A Nav2 tree validates and dry-runs from its files alone (the Nav2-shaped files of
+examples/nav2/ were written for btcap).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 import btcap.cli
 from btcap.cli import main
 
-NAV2 = Path(__file__).resolve().parents[1] / "bt" / "files" / "nav2"
+NAV2 = Path(__file__).resolve().parents[3] / "examples" / "nav2"
 MODEL = NAV2 / "nav2_tree_nodes.xml"
 DRY_RUN = NAV2 / "dry_run.xml"
 STUBS = ["--stub-missing", "--model", str(MODEL)]

@@ -3,7 +3,7 @@
 Names as in the file (btcap-only built-ins never capture an element), anonymous trees,
 ``<include>``, the format attribute, choosing the main tree, built-ins btcap does not
 map, stand-ins built from ``<TreeNodesModel>`` and the one-line unknown-type report.
-The Nav2-shaped files under ``nav2/`` were written for these tests.
+The Nav2-shaped files of ``examples/nav2/`` were written for btcap.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from btcap.actors import ManualClock
 from btcap.bt.files import TreeFileWarning, validate_file
 from btcap.bt.registry import NodeRegistry
 
-NAV2 = Path(__file__).parent / "nav2"
+NAV2 = Path(__file__).resolve().parents[4] / "examples" / "nav2"
 NAV_TREE = NAV2 / "navigate_w_replanning_and_recovery.xml"
 NAV_MODEL = NAV2 / "nav2_tree_nodes.xml"
 DRY_RUN = NAV2 / "dry_run.xml"
