@@ -4,15 +4,19 @@ The XML becomes a :class:`~btcap.bt.files.schema.TreeFile` that the usual builde
 into a Tree, so an XML tree is checked exactly like a YAML one. What the translation
 does:
 
-- every ``<BehaviorTree ID>`` is a subtree; ``main_tree_to_execute`` (or the only one)
-  is the root; ``<SubTree ID>`` nodes use them, remapping ports by attribute
-  (``goal="{target}"``, a literal ``goal="3"``) or by ``_autoremap="true"``;
+- every ``<BehaviorTree ID>`` of the file and of the files it ``<include>``s
+  (:mod:`~btcap.bt.files.btcpp_doc`) is a subtree; the one asked for (``main=``),
+  ``main_tree_to_execute`` or the only one is the root; ``<SubTree ID>`` nodes use
+  them, remapping ports by attribute (``goal="{target}"``, a literal ``goal="3"``) or
+  by ``_autoremap="true"``;
 - blackboard entries become wires: the one node output writing ``{key}`` feeds every
   input reading it. In a subtree, an entry read but not written inside is a public
   input, and every entry written inside is a public output;
 - standard nodes map to btcap's (:mod:`~btcap.bt.files.btcpp_nodes`); other node types
-  are looked up in the registry (your own nodes, capability interfaces and their
-  bridges), checked against ``<TreeNodesModel>`` where it declares them;
+  are looked up among the registry's user types (your own nodes, capability interfaces
+  and their bridges; never btcap's own ``Wait`` or ``Log``, which XML spells
+  ``btcap.Log``), checked against ``<TreeNodesModel>`` where it declares them, or
+  stubbed from it (:mod:`~btcap.bt.files.btcpp_stubs`);
 - literal attribute values are converted to the port's declared type (``;`` separates
   list items, as in BehaviorTree.CPP).
 

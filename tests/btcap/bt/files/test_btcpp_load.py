@@ -24,6 +24,7 @@ from btcap import (
     Tree,
     TreeFileError,
     default_registry,
+    dumps_tree,
     load_tree,
     loads_tree,
 )
@@ -384,3 +385,28 @@ async def test_nav2_tree_dry_runs_with_a_script() -> None:
         State.FAILED
     )
     await tree.shutdown()
+
+
+def test_a_users_builtin_named_type_dumps_as_user_name_and_loads_back() -> None:
+    reg = default_registry(plugins=False)
+    reg.register(Wait)
+    tree = _load(_xml('<BehaviorTree ID="M"><Wait wait_duration="5.0"/></BehaviorTree>'), reg)
+    text = dumps_tree(tree, registry=reg)
+    assert "type: user.Wait" in text
+    again = loads_tree(text, "yaml", reg)
+    assert type(again.root) is Wait
+    assert again.root.name == "Wait"
+
+
+def test_an_inout_port_of_a_model_is_an_input_and_an_output_of_its_stub() -> None:
+    text = _xml(
+        """
+        <BehaviorTree ID="M"><Prune goals="a;b"/></BehaviorTree>
+        <TreeNodesModel>
+          <Action ID="Prune"><inout_port name="goals" type="std::vector&lt;Pose&gt;"/></Action>
+        </TreeNodesModel>
+        """
+    )
+    prune = _load(text, stub_missing=True).root
+    assert set(prune.input_ports) == set(prune.output_ports) == {"goals"}
+    assert prune.inputs["goals"] == "a;b"  # an unknown C++ type: the text as it is
