@@ -35,7 +35,7 @@ MODEL_KINDS = frozenset({*_GENERIC, "SubTree"})
 BTCPP_BUILTINS = frozenset(
     {
         *("AlwaysFailure", "AlwaysSuccess", "AsyncFallback", "AsyncSequence", "Delay"),
-        *("EntryUpdatedAction", "EntryUpdatedDecorator", "Fallback", "ForceFailure"),
+        *("Fallback", "ForceFailure"),
         *("ForceSuccess", "IfThenElse", "Inverter", "KeepRunningUntilFailure"),
         *("LoopBool", "LoopDouble", "LoopInt", "LoopString", "ManualSelector"),
         *("Parallel", "ParallelAll", "Precondition", "ReactiveFallback"),

@@ -102,7 +102,7 @@ def test_btcap_builtins_are_spelt_with_their_prefix_in_xml() -> None:
     assert tree.root.name == "Log"
 
 
-@pytest.mark.parametrize("kind", ["TryCatch", "EntryUpdatedAction", "WasEntryUpdated"])
+@pytest.mark.parametrize("kind", ["TryCatch", "WasEntryUpdated"])
 def test_unmapped_btcpp_builtins_are_refused_as_builtins_not_unknown(kind: str) -> None:
     reg = default_registry(plugins=False)
     reg.register(type(kind, (Leaf,), {"on_tick": lambda self: State.SUCCEEDED}))
