@@ -410,3 +410,14 @@ def test_an_inout_port_of_a_model_is_an_input_and_an_output_of_its_stub() -> Non
     prune = _load(text, stub_missing=True).root
     assert set(prune.input_ports) == set(prune.output_ports) == {"goals"}
     assert prune.inputs["goals"] == "a;b"  # an unknown C++ type: the text as it is
+
+
+def test_malformed_included_and_model_files_are_named(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text('<root BTCPP_format="4">\n<BehaviorTree>\n</root>\n')
+    main = _write(tmp_path, "m.xml", '<include path="bad.xml"/>\n<BehaviorTree ID="M"/>')
+    problems = validate_file(main, default_registry(plugins=False))
+    assert problems[0].startswith(f"{bad}: line 3: malformed XML")
+    empty = _write(tmp_path, "model.xml", "", "")
+    problems = validate_file(main, default_registry(plugins=False), models=[empty])
+    assert f"{empty}: line 1: no <TreeNodesModel> in this model file" in problems
