@@ -38,7 +38,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.composites import Sequence
 from btcap.bt.decorators import Remap
-from btcap.bt.files.btcpp_elements import literal
+from btcap.bt.files.btcpp_elements import KEY, literal
 from btcap.bt.files.parse import decode, read_bytes
 from btcap.bt.files.schema import TreeFileError
 from btcap.bt.files.xmlread import XmlElement
@@ -75,7 +75,10 @@ def cpp_type(text: str | None) -> Any:
     """The port type a model's C++ type names; Any for the ones btcap cannot know."""
     if text is None:
         return Any
-    return _CPP.get(" ".join(text.split()), Any)
+    name = " ".join(text.split())
+    if name.startswith(("std::__cxx11::basic_string<char", "std::basic_string<char")):
+        return str  # what typeid demangles std::string to, as Groot2 may save it
+    return _CPP.get(name, Any)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,6 +226,8 @@ def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:
         optional = Any if tp is Any else tp | None
         if port.tag in ("input_port", "inout_port"):
             default = port.attrs.get("default")
+            if default is not None and KEY.match(default):
+                default = None  # a default entry: only a port given in the XML reads one
             ins[name] = Port(optional, None if default is None else literal(default, tp))
         if port.tag in ("output_port", "inout_port"):
             outs[name] = Port(optional)

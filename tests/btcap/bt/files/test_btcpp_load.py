@@ -30,6 +30,7 @@ from btcap import (
 )
 from btcap.actors import ManualClock
 from btcap.bt.files import TreeFileWarning, validate_file
+from btcap.bt.files.btcpp_stubs import cpp_type
 from btcap.bt.registry import NodeRegistry
 
 NAV2 = Path(__file__).resolve().parents[4] / "examples" / "nav2"
@@ -264,6 +265,7 @@ MODELLED = _xml(
       </Action>
       <Action ID="Follow">
         <input_port name="path"/>
+        <input_port name="goal" default="{goal}"/>
       </Action>
     </TreeNodesModel>
     """
@@ -278,6 +280,8 @@ def test_stubs_are_built_from_the_model_with_typed_ports() -> None:
     assert plan.input_ports["goal"].type == float | None
     assert plan.inputs == {"goal": 1.5, "planner": "GridBased"}
     assert plan.output_ports["path"].type is Any  # a C++ type btcap cannot know
+    # A default naming an entry is no literal: the stub's input stays unset.
+    assert tree.find("Retry3/Sequence/Follow").inputs["goal"] is None
 
 
 def test_a_stubbed_port_keeps_its_model_type_against_literals() -> None:
@@ -421,3 +425,17 @@ def test_malformed_included_and_model_files_are_named(tmp_path: Path) -> None:
     empty = _write(tmp_path, "model.xml", "", "")
     problems = validate_file(main, default_registry(plugins=False), models=[empty])
     assert f"{empty}: line 1: no <TreeNodesModel> in this model file" in problems
+
+
+@pytest.mark.parametrize(
+    ("text", "tp"),
+    [
+        ("double", float),
+        ("unsigned int", int),
+        ("std::__cxx11::basic_string<char, std::char_traits<char>, std::allocator<char> >", str),
+        ("geometry_msgs::msg::PoseStamped_<std::allocator<void> >", Any),
+        (None, Any),
+    ],
+)
+def test_model_types_btcap_knows_and_the_rest(text: str | None, tp: Any) -> None:
+    assert cpp_type(text) is tp
