@@ -343,7 +343,7 @@ def test_registered_types_win_over_stubs() -> None:
     reg = default_registry(plugins=False)
 
     class Follow(Leaf):
-        INPUTS = {"path": Any}
+        INPUTS = {"path": Any, "goal": Any}
 
         def on_tick(self) -> State:
             return State.SUCCEEDED
