@@ -19,6 +19,7 @@ import pytest
 from btcap import (
     Leaf,
     Node,
+    Port,
     State,
     Subtree,
     Tree,
@@ -343,7 +344,7 @@ def test_registered_types_win_over_stubs() -> None:
     reg = default_registry(plugins=False)
 
     class Follow(Leaf):
-        INPUTS = {"path": Any, "goal": Any}
+        INPUTS = {"path": Any, "goal": Port(Any, None)}
 
         def on_tick(self) -> State:
             return State.SUCCEEDED
