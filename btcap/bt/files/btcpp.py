@@ -33,8 +33,8 @@ from typing import Any
 
 from btcap.bt.files.btcpp_doc import Documents, XmlOptions
 from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, ElementReader, Ref, Scope, literal
-from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
-from btcap.bt.files.btcpp_stubs import load_scripts, make_stub
+from btcap.bt.files.btcpp_nodes import UNSUPPORTED, MappingError, parse_bool
+from btcap.bt.files.btcpp_stubs import infer_models, load_scripts, make_stub
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -194,7 +194,24 @@ class XmlTranslator:
                 self.problems.extend(msgs)
                 continue
             self.reader.seen_models[kind] = self.models.pop(kind)  # its own ports
+        unsure = infer_models(self.trees.values(), lambda k: self._unknown(k, registry))
+        for kind, model in unsure.items():
+            registry.register(make_stub(model, scripts), kind)
+            ports = ", ".join(p.attrs["name"] for p in model.children) or "none"
+            self.warnings.append(
+                f"{model.where or self.where}: line {model.line}: {kind} is declared in no "
+                f"<TreeNodesModel>; stubbed from its use ({model.tag}; inputs: {ports})"
+            )
         self.registry = self.reader.registry = registry
+
+    def _unknown(self, kind: str, registry: NodeRegistry) -> bool:
+        """Whether a type used in the XML is neither BehaviorTree.CPP's, known nor modelled."""
+        return not (
+            kind in BTCPP_BUILTINS
+            or kind in UNSUPPORTED
+            or kind in self.models
+            or registry.xml_type(kind) is not None
+        )
 
     # -- BehaviorTrees ----------------------------------------------------------------
     def _definition(self, tid: str, line: int, at: int = 0) -> _Def | None:

@@ -10,7 +10,8 @@ model, with its ports, much as BehaviorTree.CPP's substitution rules put a
 - a ``<Decorator>`` returns its child's result; a ``<Control>`` ticks its children as
   a ``Sequence`` does.
 
-Port types are read from the model where it gives them (``double``, ``int``, ``bool``,
+A type no model declares is stubbed from its use (:func:`infer_models`). Port types
+are read from the model where it gives them (``double``, ``int``, ``bool``,
 ``std::string`` and their kin); any other C++ type is untyped. Inputs are optional
 (BehaviorTree.CPP reads them only when the node asks). The script is a small YAML file
 (or the same content as a dict)::
@@ -32,13 +33,13 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
 from btcap.bt.composites import Sequence
 from btcap.bt.decorators import Remap
-from btcap.bt.files.btcpp_elements import KEY, literal
+from btcap.bt.files.btcpp_elements import KEY, MODEL_KINDS, literal
 from btcap.bt.files.parse import decode, read_bytes
 from btcap.bt.files.schema import TreeFileError
 from btcap.bt.files.xmlread import XmlElement
@@ -46,7 +47,7 @@ from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port
 from btcap.bt.state import DONE, State, TreeError
 
-__all__ = ["StubScripts", "cpp_type", "load_scripts", "make_stub"]
+__all__ = ["StubScripts", "cpp_type", "infer_models", "load_scripts", "make_stub"]
 
 _CPP: dict[str, Any] = {
     "bool": bool,
@@ -211,6 +212,44 @@ _BASES: dict[str, type[Node]] = {
     "Decorator": StubDecorator,
     "Control": StubControl,
 }
+
+
+def infer_models(
+    trees: Iterable[XmlElement], wanted: Callable[[str], bool]
+) -> dict[str, XmlElement]:
+    """Models of the ``wanted`` types no ``<TreeNodesModel>`` declares, from their uses.
+
+    As BehaviorTree.CPP's tutorials ship no model: the kind is the element's
+    (``<Action ID=...>``) or follows from the children (none: an Action, one: a
+    Decorator, else a Control); every attribute used is an untyped input.
+    """
+    found: dict[str, XmlElement] = {}
+    kids: dict[str, int] = {}
+    stack = [c for t in trees for c in t.children]
+    while stack:
+        el = stack.pop()
+        stack.extend(el.children)
+        generic = el.tag in MODEL_KINDS and el.tag != "SubTree"
+        kind = el.attrs.get("ID", "") if generic else el.tag
+        if not kind or not wanted(kind):
+            continue
+        tag = el.tag if generic else ""
+        model = found.setdefault(kind, XmlElement(tag, {"ID": kind}, el.line, where=el.where))
+        if (el.where, el.line) < (model.where, model.line):
+            model.line, model.where = el.line, el.where
+        low, high = kids.get(kind, (len(el.children), len(el.children)))
+        kids[kind] = (min(low, len(el.children)), max(high, len(el.children)))
+        names = {p.attrs["name"] for p in model.children}
+        for key in el.attrs:
+            if key not in names and key not in ("ID", "name") and key.isidentifier():
+                model.children.append(XmlElement("input_port", {"name": key}, el.line))
+                names.add(key)
+    found = dict(sorted(found.items(), key=lambda item: (item[1].where, item[1].line)))
+    for kind, model in found.items():
+        if not model.tag:
+            low, high = kids[kind]
+            model.tag = "Action" if high == 0 else "Decorator" if low == high == 1 else "Control"
+    return found
 
 
 def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:

@@ -440,3 +440,35 @@ def test_malformed_included_and_model_files_are_named(tmp_path: Path) -> None:
 )
 def test_model_types_btcap_knows_and_the_rest(text: str | None, tp: Any) -> None:
     assert cpp_type(text) is tp
+
+
+async def test_undeclared_types_are_stubbed_from_their_use_with_a_warning() -> None:
+    """BehaviorTree.CPP's tutorials ship no <TreeNodesModel>: the use says enough."""
+    text = _xml(
+        """
+        <BehaviorTree ID="M">
+          <Sequence>
+            <SaySomething message="hello"/>
+            <RetryOnce><Action ID="OpenGripper" force="2"/></RetryOnce>
+            <Both><SaySomething message="again" volume="3"/><AlwaysSuccess/></Both>
+          </Sequence>
+        </BehaviorTree>
+        """
+    )
+    assert len(_problems(text)) == 5  # four unknown types, and what to do
+    clock = ManualClock()
+    with pytest.warns(TreeFileWarning) as caught:
+        tree = _load(text, stub_missing=True, clock=clock)
+    assert [str(w.message) for w in caught] == [
+        "t.xml: line 4: SaySomething is declared in no <TreeNodesModel>; stubbed from its "
+        "use (Action; inputs: message, volume)",
+        "t.xml: line 5: RetryOnce is declared in no <TreeNodesModel>; stubbed from its use "
+        "(Decorator; inputs: none)",
+        "t.xml: line 5: OpenGripper is declared in no <TreeNodesModel>; stubbed from its use "
+        "(Action; inputs: force)",
+        "t.xml: line 6: Both is declared in no <TreeNodesModel>; stubbed from its use "
+        "(Control; inputs: none)",
+    ]
+    assert tree.find("Sequence/SaySomething").inputs == {"message": "hello", "volume": None}
+    assert await _run(tree, clock) is State.SUCCEEDED
+    await tree.shutdown()
