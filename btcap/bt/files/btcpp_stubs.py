@@ -224,7 +224,7 @@ def infer_models(
     Decorator, else a Control); every attribute used is an untyped input.
     """
     found: dict[str, XmlElement] = {}
-    kids: dict[str, int] = {}
+    kids: dict[str, tuple[int, int]] = {}  # fewest and most children of a use
     stack = [c for t in trees for c in t.children]
     while stack:
         el = stack.pop()
