@@ -7,6 +7,14 @@ The behavior-tree core lives in :mod:`btcap.bt`, capabilities and the team in
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from btcap.bt.async_nodes import (
+        AsyncFallback,
+        AsyncSequence,
+        AsyncSequenceWithMemory,
+        LatchedIfThenElse,
+        ParallelAll,
+        WhileDoElse,
+    )
     from btcap.bt.composites import (
         Fallback,
         IfThenElse,
@@ -95,6 +103,14 @@ __version__ = "0.1.0"
 
 #: What each module gives the public API; imported on first use (see btcap._lazy).
 _EXPORTS = {
+    "btcap.bt.async_nodes": (
+        "AsyncFallback",
+        "AsyncSequence",
+        "AsyncSequenceWithMemory",
+        "LatchedIfThenElse",
+        "ParallelAll",
+        "WhileDoElse",
+    ),
     "btcap.bt.composites": (
         "Fallback",
         "IfThenElse",
@@ -195,6 +211,9 @@ __all__ = [
     "AlwaysSuccess",
     "Assigned",
     "AssignmentTask",
+    "AsyncFallback",
+    "AsyncSequence",
+    "AsyncSequenceWithMemory",
     "AuctionId",
     "BatchPolicy",
     "BatchStrategy",
@@ -217,6 +236,7 @@ __all__ = [
     "Implementation",
     "InputBridge",
     "Inverter",
+    "LatchedIfThenElse",
     "Leaf",
     "Log",
     "MissionConfig",
@@ -226,6 +246,7 @@ __all__ = [
     "Observer",
     "OutputBridge",
     "Parallel",
+    "ParallelAll",
     "Port",
     "Precondition",
     "ReactiveFallback",
@@ -261,6 +282,7 @@ __all__ = [
     "Unassigned",
     "Utility",
     "Wait",
+    "WhileDoElse",
     "Wire",
     "default_registry",
     "dump_tree",

@@ -6,8 +6,9 @@ After a tick, a node may be active (RUNNING, ASSIGNED, UNASSIGNED) only if
 2. its parent is active too: a node that gave a result, or was not ticked, has halted
    (unticked) everything below it in the same tick.
 
-The one exception is below a decorator that holds a running child between the child's
-ticks by design (``HOLDS_RUNNING_CHILD``, e.g. Throttle): the held subtree keeps its state.
+The one exception is below a node that holds a running child between the child's ticks
+by design (``HOLDS_RUNNING_CHILD``: Throttle, and WhileDoElse while its condition runs):
+the held subtree keeps its state.
 
 Ticks are recorded with a profile hook on the nodes' ``tick`` functions, so the tick path
 itself carries no bookkeeping for this.
@@ -20,7 +21,6 @@ from collections.abc import Callable, Iterator
 from types import CodeType, FrameType
 from typing import Any, TypeVar
 
-from btcap.bt.decorators import Decorator
 from btcap.bt.node import Node
 from btcap.bt.state import ACTIVE, State
 from btcap.bt.tree import Subtree, Tree
@@ -74,14 +74,8 @@ def check_halting(tree: Tree, ticked: list[Node]) -> None:
         if id(node) in held or (parent is not None and id(parent) in held):
             held.add(id(node))
             continue
-        if (
-            isinstance(node, Decorator)
-            and node.HOLDS_RUNNING_CHILD
-            and id(node) in was_ticked
-            and node.children
-            and id(node.children[0]) not in was_ticked
-        ):
-            held.add(id(node.children[0]))
+        if getattr(node, "HOLDS_RUNNING_CHILD", False) and id(node) in was_ticked:
+            held.update(id(c) for c in node.children if id(c) not in was_ticked)
         if node.state not in ACTIVE:
             continue
         if id(node) not in was_ticked:

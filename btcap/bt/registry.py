@@ -16,7 +16,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from importlib import metadata
 from typing import Any
 
-from btcap.bt import composites, decorators, leaves
+from btcap.bt import async_nodes, composites, decorators, leaves
 from btcap.bt.node import Node
 from btcap.bt.state import TreeError
 
@@ -86,7 +86,7 @@ class RegistryError(TreeError):
 def _builtin_nodes() -> list[type[Node]]:
     """Every node class the core exports that a file can build (no callables needed)."""
     out: list[type[Node]] = []
-    for module in (composites, decorators, leaves):
+    for module in (composites, async_nodes, decorators, leaves):
         for name in module.__all__:
             obj = getattr(module, name)
             if isinstance(obj, type) and issubclass(obj, Node) and name not in _NOT_FROM_FILES:

@@ -1,20 +1,17 @@
 """BehaviorTree.CPP v4's standard nodes and the btcap node each one becomes.
 
-A node is mapped only where btcap's node decides the same way on every tick; nodes
-whose behaviour btcap does not have are listed with the reason, so a file using one
-is refused with a message saying what to use instead.
+A node is mapped only where btcap's node decides the same way on every tick, or with
+a difference named in :data:`DIFFERENCES` (``Standard.differs``); nodes whose behaviour
+btcap does not have are listed with the reason, so a file using one
+is refused with a message saying what to use instead. :func:`node_table` renders the
+whole list (docs/btcpp.md), and tests/btcap/bt/test_btcpp_oracle.py ticks random trees
+of the mapped nodes in btcap and in BehaviorTree.CPP 4.8 itself, allowing only the
+:data:`DIFFERENCES` below.
 
-Three differences hold for every node and are not repeated per entry: a
-BehaviorTree.CPP ``halt`` is a btcap untick, which keeps progress (a pre-empted branch
-resumes where it was rather than starting over); loops over synchronous children
-(RetryUntilSuccessful, Repeat) take one tick per attempt in btcap where
-BehaviorTree.CPP loops within one tick: the results are the same, a tick later; and a
-retry resets its child before the next attempt, where BehaviorTree.CPP only sets the
-failed child idle, so a SequenceWithMemory under RetryUntilSuccessful starts over at
-its first child in btcap but resumes at the child that failed in BehaviorTree.CPP.
-Parallel is mapped although it decides once per tick (failure winning a tie) where
-BehaviorTree.CPP decides after each child (success first): the two differ only when
-several children finish in the same tick.
+The loops of RetryUntilSuccessful and Repeat: in BehaviorTree.CPP 4.8 a child that gives
+its result at once already takes one tick per attempt, as in btcap; only a child that
+was running and now asks for another attempt is ticked again within the same tick
+there, and in the next tick in btcap.
 """
 
 from __future__ import annotations
@@ -25,7 +22,16 @@ from typing import Any
 
 from btcap.errors import BtcapError
 
-__all__ = ["STANDARD", "UNSUPPORTED", "Standard", "parse_bool", "parse_int"]
+__all__ = [
+    "BUILTINS",
+    "DIFFERENCES",
+    "STANDARD",
+    "UNSUPPORTED",
+    "Standard",
+    "node_table",
+    "parse_bool",
+    "parse_int",
+]
 
 
 class MappingError(BtcapError, ValueError):
@@ -102,14 +108,44 @@ class Standard:
     attrs: dict[str, tuple[str, Callable[[str], Any]]] = dataclasses.field(default_factory=dict)
     required: tuple[str, ...] = ()
     fixed: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: Keys of :data:`DIFFERENCES` this node shows; empty: it decides as BehaviorTree.CPP.
+    differs: tuple[str, ...] = ()
 
+
+#: Where a mapped node may decide differently from BehaviorTree.CPP 4.8, by key (the
+#: differential test names each one; nothing else is allowed to differ).
+DIFFERENCES: dict[str, str] = {
+    "halt_keeps_progress": "A BehaviorTree.CPP halt is a btcap untick, which keeps "
+    "progress: a pre-empted Sequence, Fallback, AsyncSequence, AsyncFallback or Parallel "
+    "resumes where it was (a ParallelAll too), IfThenElse keeps the branch it chose, and "
+    "RetryUntilSuccessful/Repeat keep their counts, where "
+    "BehaviorTree.CPP starts them over (SequenceWithMemory keeps its position in both).",
+    "loop_after_running": "When a child that was running fails under RetryUntilSuccessful "
+    "(or succeeds under Repeat) and attempts remain, BehaviorTree.CPP ticks it again "
+    "within the same tick; btcap starts the next attempt in the next tick. A child that "
+    "gives its result at once takes one tick per attempt in both.",
+    "memory_reset_by_retry": "Before another attempt a retry or repeat resets its child, "
+    "and a Parallel starting over resets the children it halted, so a SequenceWithMemory "
+    "below them starts over at its first child in btcap; BehaviorTree.CPP's resumes at "
+    "the child that failed.",
+    "action_result_kept": "A BehaviorTree.CPP asynchronous action (StatefulActionNode) "
+    "that gave a result gives it again, without running, if ticked before its parent "
+    "resets it: WhileDoElse's condition while a branch runs, IfThenElse's after it failed "
+    "without an else branch. A btcap leaf runs on every tick it gets. Condition nodes "
+    "and synchronous actions run on every tick in both.",
+    "parallel_decides_per_child": "BehaviorTree.CPP's Parallel checks its thresholds after "
+    "each child and stops ticking once decided (success checked first); btcap's ticks "
+    "every unfinished child, then decides (failure wins a tie). They differ only when "
+    "several children finish in the same tick.",
+}
 
 STANDARD: dict[str, Standard] = {
     # btcap's control nodes have BehaviorTree.CPP's names and decide as they do.
-    "Sequence": Standard("Sequence"),
-    "AsyncSequence": Standard("Sequence"),
-    "SequenceWithMemory": Standard("SequenceWithMemory"),
-    "Fallback": Standard("Fallback"),
+    "Sequence": Standard("Sequence", differs=("halt_keeps_progress",)),
+    "AsyncSequence": Standard("AsyncSequence", differs=("halt_keeps_progress",)),
+    "AsyncFallback": Standard("AsyncFallback", differs=("halt_keeps_progress",)),
+    "SequenceWithMemory": Standard("AsyncSequenceWithMemory", differs=("memory_reset_by_retry",)),
+    "Fallback": Standard("Fallback", differs=("halt_keeps_progress",)),
     "ReactiveSequence": Standard("ReactiveSequence"),
     "ReactiveFallback": Standard("ReactiveFallback"),
     "Parallel": Standard(
@@ -119,16 +155,33 @@ STANDARD: dict[str, Standard] = {
             "failure_count": ("failure_threshold", parse_int),
         },
         fixed={"failure_threshold": 1},
+        differs=("parallel_decides_per_child", "halt_keeps_progress"),
     ),
-    "WhileDoElse": Standard("IfThenElse"),
+    "ParallelAll": Standard(
+        "ParallelAll",
+        {"max_failures": ("max_failures", parse_int)},
+        differs=("halt_keeps_progress",),
+    ),
+    "WhileDoElse": Standard("WhileDoElse", differs=("action_result_kept",)),
+    "IfThenElse": Standard(
+        "LatchedIfThenElse", differs=("halt_keeps_progress", "action_result_kept")
+    ),
     "Inverter": Standard("Inverter"),
     "ForceSuccess": Standard("ForceSuccess"),
     "ForceFailure": Standard("ForceFailure"),
     "KeepRunningUntilFailure": Standard("SuccessIsRunning"),
     "RetryUntilSuccessful": Standard(
-        "RepeatUntilSuccess", {"num_attempts": ("max_attempts", _attempts)}, ("num_attempts",)
+        "RepeatUntilSuccess",
+        {"num_attempts": ("max_attempts", _attempts)},
+        ("num_attempts",),
+        differs=("loop_after_running", "halt_keeps_progress"),
     ),
-    "Repeat": Standard("Repeat", {"num_cycles": ("times", _cycles)}, ("num_cycles",)),
+    "Repeat": Standard(
+        "Repeat",
+        {"num_cycles": ("times", _cycles)},
+        ("num_cycles",),
+        differs=("loop_after_running", "halt_keeps_progress"),
+    ),
     "Timeout": Standard("Timeout", {"msec": ("seconds", _timeout)}, ("msec",)),
     "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
     "RunOnce": Standard(
@@ -141,10 +194,7 @@ STANDARD: dict[str, Standard] = {
 
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {
-    "IfThenElse": "it checks its condition only until a branch runs; btcap's IfThenElse "
-    "re-checks it every tick, as BehaviorTree.CPP's WhileDoElse does (use WhileDoElse)",
-    "ParallelAll": "it waits for every child; btcap's Parallel decides as soon as a "
-    "threshold is met (use Parallel)",
+    "WasEntryUpdated": "btcap has no blackboard update stamps",
     "Script": "btcap has no scripting language; use a node type of your own",
     "ScriptCondition": "btcap has no scripting language; use Compare or a node of your own",
     "Precondition": "btcap has no scripting language; use WhileDoElse with a condition node",
@@ -163,3 +213,40 @@ UNSUPPORTED: dict[str, str] = {
         for kind in ("Int", "Double", "String", "Bool")
     },
 }
+
+#: Elements the XML reader handles itself (not node types), with what they become.
+SPECIAL: dict[str, str] = {
+    "SubTree": "a btcap Subtree; ports remapped by attribute, literal or _autoremap",
+    "SetBlackboard": "a Constant typed by the port that reads the entry",
+}
+
+#: BehaviorTree.CPP 4.8's built-in node types (what its factory registers), in its order.
+BUILTINS: tuple[str, ...] = (
+    *("Sequence", "AsyncSequence", "SequenceWithMemory", "Fallback", "AsyncFallback"),
+    *("ReactiveSequence", "ReactiveFallback", "Parallel", "ParallelAll"),
+    *("IfThenElse", "WhileDoElse", *(f"Switch{n}" for n in range(2, 7))),
+    *("Inverter", "ForceSuccess", "ForceFailure", "KeepRunningUntilFailure"),
+    *("RetryUntilSuccessful", "Repeat", "Timeout", "Delay", "RunOnce", "Precondition"),
+    *("SkipUnlessUpdated", "WaitValueUpdate", *(f"Loop{k}" for k in ("Int", "Double"))),
+    *("LoopString", "LoopBool", "AlwaysSuccess", "AlwaysFailure", "Sleep", "Script"),
+    *("ScriptCondition", "SetBlackboard", "UnsetBlackboard", "WasEntryUpdated", "SubTree"),
+    *("ManualSelector", "SubTreePlus"),
+)
+
+
+def node_table() -> str:
+    """Markdown: every built-in, mapped exactly / with a stated difference / refused."""
+    rows = ["| BehaviorTree.CPP node | btcap | how |", "|---|---|---|"]
+    for name in BUILTINS:
+        if name in STANDARD:
+            std = STANDARD[name]
+            how = ", ".join(f"[{d}](#{d})" for d in std.differs) or "exact"
+            if name in ("Timeout", "Delay", "Sleep"):
+                how += " (on the clock; not in the differential test)"
+            rows.append(f"| `{name}` | `{std.btcap}` | {how} |")
+        elif name in SPECIAL:
+            rows.append(f"| `{name}` | {SPECIAL[name]} | read by the loader (docs/trees.md) |")
+        else:
+            rows.append(f"| `{name}` | refused | {UNSUPPORTED[name]} |")
+    notes = [f"### {key}\n\n{text}\n" for key, text in DIFFERENCES.items()]
+    return "\n".join(rows) + "\n\n" + "\n".join(notes)
