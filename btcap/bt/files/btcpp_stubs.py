@@ -20,8 +20,8 @@ are read from the model where it gives them (``double``, ``int``, ``bool``,
     types:                                    # by node type
       ComputePathToPose: [RUNNING, SUCCESS]   # one result per tick, the last repeats
       GoalUpdated: FAILURE
-    names:                                    # by node name (* and ? wildcards); first
-      "Follow*":                              # match wins, before the type's script
+    names:                                    # by node name or path (* and ? wildcards);
+      "Follow*":                              # first match wins, before the type's script
         results: [RUNNING, RUNNING, SUCCESS]
         outputs: {error_code_id: 0}           # written when a result is SUCCESS/FAILURE
 
@@ -98,9 +98,10 @@ class StubScripts:
     types: Mapping[str, Script] = dataclasses.field(default_factory=dict)
     names: tuple[tuple[str, Script], ...] = ()
 
-    def find(self, kind: str, name: str) -> Script:
+    def find(self, kind: str, name: str, path: str = "") -> Script:
+        """By name or node path (as BehaviorTree.CPP's filters), then type, then default."""
         for pattern, script in self.names:
-            if fnmatch.fnmatchcase(name, pattern):
+            if fnmatch.fnmatchcase(name, pattern) or fnmatch.fnmatchcase(path, pattern):
                 return script
         return self.types.get(kind, self.default)
 
@@ -170,14 +171,21 @@ class StubLeaf(Leaf):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._step = 0
-        self._script = self.SCRIPTS.find(self.KIND, self.name)
-        for key in self._script.outputs:
+        self._script = self._checked(self.SCRIPTS.find(self.KIND, self.name))
+
+    def _checked(self, script: Script) -> Script:
+        for key in script.outputs:
             if key not in self.output_ports:
                 have = ", ".join(self.output_ports) or "none"
                 raise TreeError(
                     f"stub script for {self.KIND} {self.name!r}: output {key!r}: the model "
                     f"declares no such output port ({have})"
                 )
+        return script
+
+    def on_setup(self) -> None:
+        """A name pattern may also match the node's path, known once it is in a tree."""
+        self._script = self._checked(self.SCRIPTS.find(self.KIND, self.name, self.path))
 
     def on_tick(self) -> State:
         results = self._script.results

@@ -480,3 +480,11 @@ async def test_undeclared_types_are_stubbed_from_their_use_with_a_warning() -> N
     assert tree.find("Sequence/SaySomething").inputs == {"message": "hello", "volume": None}
     assert await _run(tree, clock) is State.SUCCEEDED
     await tree.shutdown()
+
+
+async def test_a_name_pattern_matches_the_node_path_too() -> None:
+    clock = ManualClock()
+    script = {"names": {"Retry3/*/Fol*": "FAILURE"}}
+    tree = _load(MODELLED, stub_missing=True, stub_script=script, clock=clock)
+    assert await _run(tree, clock) is State.FAILED
+    await tree.shutdown()
