@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from btcap.bt.files import (
         TreeFile,
         TreeFileError,
+        TreeFileWarning,
         dump_tree,
         dumps_tree,
         load_tree,
@@ -142,6 +143,7 @@ _EXPORTS = {
     "btcap.bt.files": (
         "TreeFile",
         "TreeFileError",
+        "TreeFileWarning",
         "dump_tree",
         "dumps_tree",
         "load_tree",
@@ -278,6 +280,7 @@ __all__ = [
     "TreeError",
     "TreeFile",
     "TreeFileError",
+    "TreeFileWarning",
     "TreeTimeout",
     "Unassigned",
     "Utility",

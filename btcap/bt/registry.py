@@ -30,6 +30,13 @@ __all__ = [
 #: The entry-point group third-party node packages register under.
 ENTRY_POINT_GROUP = "btcap.nodes"
 
+#: Prefixes of the two names a clash between btcap and a user type leaves apart:
+#: ``user.Wait`` is a user's class registered as ``Wait`` while btcap's own ``Wait``
+#: keeps the plain name in YAML, JSON and Python; ``btcap.Log`` is btcap's own ``Log``
+#: in BehaviorTree.CPP XML, where plain names never mean btcap-only types.
+USER_PREFIX = "user."
+BTCAP_PREFIX = "btcap."
+
 #: Names handled by the tree-file format itself, never by a registry entry.
 RESERVED = frozenset({"Subtree"})
 
@@ -105,6 +112,9 @@ class NodeRegistry:
         self._nodes: dict[str, type[Node]] = {}
         self._names: dict[type[Node], str] = {}
         self._types: dict[str, Any] = dict(_BUILTIN_TYPES)
+        #: name -> ``user.name`` for user types named like a btcap built-in.
+        self._shadow: dict[str, str] = {}
+        self._builtins = frozenset(_builtin_nodes())
         for cls in nodes:
             self.register(cls)
         for name, tp in (types or {}).items():
@@ -115,7 +125,11 @@ class NodeRegistry:
         """Add a node class under ``name`` (default: its class name); returns ``cls``.
 
         Usable as a decorator. A name may be taken only once, so a file never silently
-        builds a different class than its author meant.
+        builds a different class than its author meant; the one exception is a class
+        named like a btcap built-in (``Wait``, ``Log``): it is registered as
+        ``user.Wait``, YAML and Python keep meaning btcap's ``Wait`` by the plain name,
+        and BehaviorTree.CPP XML, where btcap's own nodes never capture an element,
+        means the user's (:meth:`xml_type`).
         """
         if not (isinstance(cls, type) and issubclass(cls, Node)):
             raise RegistryError(f"cannot register {cls!r}: expected a Node subclass")
@@ -131,6 +145,12 @@ class NodeRegistry:
                 f"for the tree-file format"
             )
         old = self._nodes.get(key)
+        if old is not None and old in self._builtins and cls not in self._builtins:
+            if key in self._shadow:
+                old = self._nodes[self._shadow[key]]
+            else:
+                self._shadow[key] = USER_PREFIX + key
+                return self.register(cls, USER_PREFIX + key)
         if old is not None:
             raise RegistryError(
                 f"node type {key!r} is already registered "
@@ -152,8 +172,37 @@ class NodeRegistry:
         hint = " (Subtree is built from the file's 'subtrees')" if name in RESERVED else ""
         raise RegistryError(
             f"unknown node type {name!r}{_close(name, self._nodes) or hint}; "
-            f"known types: {', '.join(sorted(self._nodes))}"
+            f"'btcap tree nodes' lists the known types"
         )
+
+    def is_builtin(self, name: str) -> bool:
+        """Whether ``name`` is one of btcap's own node types (not a user's)."""
+        return self._nodes.get(name) in self._builtins
+
+    def xml_type(self, name: str) -> str | None:
+        """The registered name a BehaviorTree.CPP XML element ``name`` builds, or None.
+
+        XML means BehaviorTree.CPP's names: a user type (``Wait`` -> ``user.Wait`` if
+        it shares a btcap built-in's name), never a btcap-only built-in unless spelt
+        ``btcap.Log``. BehaviorTree.CPP's own node names are mapped before this.
+        """
+        if name in self._shadow:
+            return self._shadow[name]
+        if name.startswith(BTCAP_PREFIX):
+            plain = name.removeprefix(BTCAP_PREFIX)
+            return plain if self.is_builtin(plain) else None
+        if name in self._nodes and not self.is_builtin(name):
+            return name
+        return None
+
+    def copy(self) -> NodeRegistry:
+        """A registry with the same entries, to add types to without touching this one."""
+        out = NodeRegistry()
+        out._nodes = dict(self._nodes)
+        out._names = dict(self._names)
+        out._types = dict(self._types)
+        out._shadow = dict(self._shadow)
+        return out
 
     def name_of(self, cls: type[Node]) -> str:
         """The name ``cls`` was registered under (first one, if several)."""
@@ -167,6 +216,10 @@ class NodeRegistry:
 
     def names(self) -> list[str]:
         return sorted(self._nodes)
+
+    def classes(self) -> set[type[Node]]:
+        """Every registered class, whatever its names."""
+        return set(self._names)
 
     def __contains__(self, name: object) -> bool:
         return name in self._nodes

@@ -8,14 +8,16 @@ the node types it will really run with. Files are YAML, JSON or BehaviorTree.CPP
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import re
 import sys
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
@@ -26,9 +28,6 @@ if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help st
     from btcap.bt.tree import Tree
 
 __all__ = ["add_parser"]
-
-#: Picture formats ``tree dot`` hands to Graphviz, by output suffix.
-_PICTURES = {".svg": "svg", ".png": "png", ".pdf": "pdf"}
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -60,19 +59,50 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "<Name>Outputs bridges become node types (repeatable)",
     )
 
+    xml = argparse.ArgumentParser(add_help=False)
+    group = xml.add_argument_group("BehaviorTree.CPP XML")
+    group.add_argument(
+        "--main",
+        metavar="TREE",
+        help="the <BehaviorTree ID> to run (default: main_tree_to_execute, or the only one)",
+    )
+    group.add_argument(
+        "--stub-missing",
+        action="store_true",
+        help="build each type <TreeNodesModel> declares but nothing registers, with its "
+        "ports; actions and conditions succeed (or do what --stub-script says)",
+    )
+    group.add_argument(
+        "--model",
+        action="append",
+        default=[],
+        metavar="FILE",
+        type=Path,
+        help="a model file (<root><TreeNodesModel>, e.g. nav2_tree_nodes.xml) read besides "
+        "the tree's own models (repeatable)",
+    )
+    group.add_argument(
+        "--stub-script",
+        metavar="FILE",
+        type=Path,
+        help="YAML file of the stubs' results by type or name, e.g. "
+        "'types: {ComputePathToPose: [RUNNING, SUCCESS]}'",
+    )
+    files = argparse.ArgumentParser(add_help=False, parents=[types, xml])
+
     p = cmds.add_parser(
-        "validate", parents=[types], help="check tree files; print 'ok' or every problem"
+        "validate", parents=[files], help="check tree files; print 'ok' or every problem"
     )
     p.add_argument("files", nargs="+", metavar="FILE", type=Path)
     p.set_defaults(handler=_validate)
 
-    p = cmds.add_parser("show", parents=[types], help="print a tree as an indented outline")
+    p = cmds.add_parser("show", parents=[files], help="print a tree as an indented outline")
     p.add_argument("file", metavar="FILE", type=Path)
     p.set_defaults(handler=_show)
 
     p = cmds.add_parser(
         "dot",
-        parents=[types],
+        parents=[files],
         help="draw a tree: Graphviz DOT, or SVG/PNG/PDF by the output's suffix",
     )
     p.add_argument("file", metavar="FILE", type=Path)
@@ -86,7 +116,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
     p = cmds.add_parser(
         "run",
-        parents=[types],
+        parents=[files],
         help="tick a tree until it succeeds or fails; print its final states",
         description="Tick a tree at --rate until it succeeds or fails (exit 0 or 1), then "
         "print it with states. At --timeout (default 60 s) or --max-ticks it is halted and "
@@ -219,14 +249,12 @@ def _register(registry: NodeRegistry, ref: str) -> None:
     register_interfaces(registry, [i for i in items if isinstance(i, CapabilityInterface)])
     for cls in items:
         if isinstance(cls, type) and issubclass(cls, Node):
-            name = cls.__name__
-            if name not in registry:
+            if cls in registry.classes():
+                continue  # imported twice, or re-exported
+            try:  # a btcap built-in's name is taken as user.NAME (NodeRegistry.register)
                 registry.register(cls)
-            elif registry.get(name) is not cls:
-                raise CliError(
-                    f"--load {ref}: {cls.__module__}.{cls.__qualname__} is named like the "
-                    f"node type {name!r} files already use; rename the class"
-                )
+            except TreeError as exc:
+                raise CliError(f"--load {ref}: {exc}; rename the class") from None
         elif attr and not isinstance(cls, CapabilityInterface):
             raise CliError(f"--load {ref}: {cls!r} is neither a Node class nor an interface")
 
@@ -265,14 +293,49 @@ def _hints(path: Path, problems: list[str], args: argparse.Namespace) -> list[st
     return out
 
 
+def _xml_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The load_tree keywords of the BehaviorTree.CPP XML options."""
+    for path in [*args.model, *([args.stub_script] if args.stub_script else [])]:
+        if not path.is_file():
+            raise CliError(f"{path}: no such file")
+    return {
+        "main": args.main,
+        "stub_missing": args.stub_missing,
+        "models": args.model,
+        "stub_script": args.stub_script,
+    }
+
+
+@contextlib.contextmanager
+def _warnings_shown() -> Iterator[None]:
+    """Print what files only warn about (BehaviorTree.CPP's warnings) as one line each."""
+    from btcap.bt.files import TreeFileWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", TreeFileWarning)
+        try:
+            yield
+        finally:
+            for w in caught:
+                if issubclass(w.category, TreeFileWarning):
+                    print(f"warning: {w.message}", file=sys.stderr)
+                else:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
 def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None) -> Tree:
     from btcap.bt.files import TreeFileError, load_tree
 
     registry = _registry(args)
     try:
-        return load_tree(
-            _existing(path), registry, clock=clock, entries=getattr(args, "entries", None)
-        )
+        with _warnings_shown():
+            return load_tree(
+                _existing(path),
+                registry,
+                clock=clock,
+                entries=getattr(args, "entries", None),
+                **_xml_options(args),
+            )
     except TreeFileError as exc:
         raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
 
@@ -290,6 +353,7 @@ def _validate(args: argparse.Namespace) -> int:
     from btcap.bt.files import validate_file
 
     registry = _registry(args)
+    options = _xml_options(args)
     code = 0
     for path in args.files:
         if not path.exists() or path.is_dir():
@@ -297,7 +361,8 @@ def _validate(args: argparse.Namespace) -> int:
             print(f"btcap: error: {path}: {what}", file=sys.stderr)
             code = 2
             continue
-        problems = validate_file(path, registry)
+        with _warnings_shown():
+            problems = validate_file(path, registry, **options)
         problems += _hints(path, problems, args)
         if problems:
             for line in problems:
@@ -322,6 +387,7 @@ def _show(args: argparse.Namespace) -> int:
 
 def _dot(args: argparse.Namespace) -> int:
     from btcap.bt.render import render_dot
+    from btcap.cli.graphviz import PICTURES, graphviz
 
     tree = _load(args, args.file)
     text = render_dot(tree)
@@ -329,38 +395,16 @@ def _dot(args: argparse.Namespace) -> int:
     if out is None:
         sys.stdout.write(text)
         return 0
-    picture = _PICTURES.get(out.suffix.lower())
+    picture = PICTURES.get(out.suffix.lower())
     try:
         if picture is None:
             out.write_text(text, encoding="utf-8")
         else:
-            out.write_bytes(_graphviz(text, picture))
+            out.write_bytes(graphviz(text, picture))
     except OSError as exc:
         raise CliError(f"{out}: cannot write: {exc.strerror or exc}") from None
     print(f"wrote {out}", file=sys.stderr)
     return 0
-
-
-def _graphviz(text: str, fmt: str) -> bytes:
-    """Render DOT with Graphviz's ``dot``, which btcap does not bundle."""
-    import shutil
-    import subprocess
-
-    dot = shutil.which("dot")
-    if dot is None:
-        raise CliError(
-            f"writing .{fmt} needs Graphviz's 'dot' program, which is not on PATH; install "
-            f"Graphviz (e.g. apt install graphviz) or write a .dot file and render it elsewhere"
-        )
-    try:
-        done = subprocess.run(
-            [dot, f"-T{fmt}"], input=text.encode(), capture_output=True, timeout=120, check=False
-        )
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise CliError(f"Graphviz 'dot' failed: {exc}") from None
-    if done.returncode != 0:
-        raise CliError(f"Graphviz 'dot' failed: {done.stderr.decode(errors='replace').strip()}")
-    return done.stdout
 
 
 def _run(args: argparse.Namespace) -> int:

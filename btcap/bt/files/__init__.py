@@ -31,7 +31,7 @@ it into the same schema, so it is built and checked like any other file.
 """
 
 from btcap.bt.files.dump import dump_tree, dumps_tree, save_tree
-from btcap.bt.files.load import load_tree, loads_tree, validate_file
+from btcap.bt.files.load import TreeFileWarning, load_tree, loads_tree, validate_file
 from btcap.bt.files.parse import read_tree_file
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
@@ -53,6 +53,7 @@ __all__ = [
     "SubtreeSpec",
     "TreeFile",
     "TreeFileError",
+    "TreeFileWarning",
     "WireSpec",
     "dump_tree",
     "dumps_tree",

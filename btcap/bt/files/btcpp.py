@@ -4,9 +4,11 @@ The XML becomes a :class:`~btcap.bt.files.schema.TreeFile` that the usual builde
 into a Tree, so an XML tree is checked exactly like a YAML one. What the translation
 does:
 
-- every ``<BehaviorTree ID>`` is a subtree; ``main_tree_to_execute`` (or the only one)
-  is the root; ``<SubTree ID>`` nodes use them, remapping ports by attribute
-  (``goal="{target}"``, a literal ``goal="3"``) or by ``_autoremap="true"``;
+- every ``<BehaviorTree ID>`` of the file and of the files it ``<include>``s
+  (:mod:`~btcap.bt.files.btcpp_doc`) is a subtree; the one asked for (``main=``),
+  ``main_tree_to_execute`` or the only one is the root; ``<SubTree ID>`` nodes use
+  them, remapping ports by attribute (``goal="{target}"``, a literal ``goal="3"``) or
+  by ``_autoremap="true"``;
 - blackboard entries become wires where a wire reads what the entry would hold: the one
   output writing ``{key}`` feeds the inputs that tick only after it succeeded in the
   same run of a sequence. Every other entry is a :class:`~btcap.bt.blackboard.Blackboard`
@@ -16,8 +18,10 @@ does:
   remapped to a parent's entry is that entry. In a subtree, an entry read but not
   written inside is a public input, and one written there is a public output;
 - standard nodes map to btcap's (:mod:`~btcap.bt.files.btcpp_nodes`); other node types
-  are looked up in the registry (your own nodes, capability interfaces and their
-  bridges), checked against ``<TreeNodesModel>`` where it declares them;
+  are looked up among the registry's user types (your own nodes, capability interfaces
+  and their bridges; never btcap's own ``Wait`` or ``Log``, which XML spells
+  ``btcap.Log``), checked against ``<TreeNodesModel>`` where it declares them, or
+  stubbed from it (:mod:`~btcap.bt.files.btcpp_stubs`);
 - literal attribute values are converted to the port's declared type (``;`` separates
   list items, as in BehaviorTree.CPP).
 
@@ -28,14 +32,17 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import re
 from collections.abc import Collection
+from pathlib import Path
 from typing import Any
 
 from btcap.bt.files.board import TreeBoard
-from btcap.bt.files.btcpp_elements import MODEL_KINDS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_doc import Documents, XmlOptions
+from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, ElementReader, Ref, Scope, literal
 from btcap.bt.files.btcpp_entries import before, entry_type, merged, passing, paths
-from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
+from btcap.bt.files.btcpp_lines import check_subtree_model, insert_problem
+from btcap.bt.files.btcpp_nodes import UNSUPPORTED, MappingError, parse_bool
+from btcap.bt.files.btcpp_stubs import infer_models, load_scripts, make_stub
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -48,7 +55,7 @@ from btcap.bt.files.schema import (
 from btcap.bt.files.xmlread import MAX_DEPTH, XmlElement
 from btcap.bt.registry import NodeRegistry, RegistryError
 
-__all__ = ["XmlTranslator", "relabel"]
+__all__ = ["XmlTranslator"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +75,14 @@ class XmlTranslator:
     """Translates one XML document, collecting every problem with its line."""
 
     def __init__(
-        self, root: XmlElement, where: str, registry: NodeRegistry, entries: Collection[str] = ()
+        self,
+        root: XmlElement,
+        where: str,
+        registry: NodeRegistry,
+        options: XmlOptions | None = None,
+        folder: Path | None = None,
+        source: Path | None = None,
+        entries: Collection[str] = (),
     ) -> None:
         self.root = root
         #: Entries the application supplies: blackboard entries even if a node writes them.
@@ -82,8 +96,13 @@ class XmlTranslator:
         self.globals: set[str] = set()
         self.where = where
         self.registry = registry
+        self.options = options or XmlOptions()
+        self.folder = folder  # where <include path> is relative to
+        self.source = source  # the file itself, if read from one (include cycles)
         self.reader = ElementReader(where, registry, {}, self._subtree)
         self.problems = self.reader.problems
+        #: What BehaviorTree.CPP warns about and btcap reads anyway.
+        self.warnings: list[str] = []
         self.trees: dict[str, XmlElement] = {}
         self.models = self.reader.models
         self.defs: dict[str, _Def | None] = {}
@@ -94,54 +113,39 @@ class XmlTranslator:
         #: (BehaviorTree ID, node path) -> line, and (ID, wire index) -> line, for relabel.
         self.node_lines = self.reader.node_lines
         self.wire_lines: dict[tuple[str, int], int] = {}
+        #: BehaviorTree ID -> the file it is in (an <include>d one, or this one).
+        self.tree_where: dict[str, str] = {}
         self.main = ""
 
     def fail(self, line: int, msg: str) -> None:
         self.reader.fail(line, msg)
 
+    def _fail_in(self, where: str, line: int, msg: str) -> None:
+        self.problems.append(f"{where}: line {line}: {msg}" if line > 0 else f"{where}: {msg}")
+
     # -- document ---------------------------------------------------------------------
     def translate(self) -> TreeFile:
-        root = self.root
-        if root.tag != "root":
-            self.fail(root.line, f'<{root.tag}>: expected <root BTCPP_format="4">')
+        docs = Documents(self._fail_in, self.warnings.append)
+        if not docs.root(self.root, self.where):
             raise TreeFileError(self.problems)
-        fmt = root.attrs.get("BTCPP_format")
-        if fmt != "4":
-            got = "no BTCPP_format" if fmt is None else f"BTCPP_format={fmt!r}"
-            self.fail(root.line, f"<root> has {got}; btcap reads BehaviorTree.CPP format 4")
+        chain = (self.source.resolve(),) if self.source is not None else ()
+        docs.read(self.root, self.where, self.folder, chain)
+        for path in self.options.models:
+            docs.model_file(path)
+        self.trees = docs.trees
+        self.tree_where = {t: el.where or self.where for t, el in self.trees.items()}
+        self.models.update(docs.models)
+        if self.options.stub_missing:
+            self._stub()
+        if self.problems:
             raise TreeFileError(self.problems)
-        for el in root.children:
-            if el.tag == "BehaviorTree":
-                tid = el.attrs.get("ID")
-                if not tid:
-                    self.fail(el.line, "<BehaviorTree> without an ID")
-                elif tid in self.trees:
-                    self.fail(el.line, f"a second <BehaviorTree ID={tid!r}>")
-                else:
-                    self.trees[tid] = el
-            elif el.tag == "TreeNodesModel":
-                for model in el.children:
-                    if model.tag in MODEL_KINDS and model.attrs.get("ID"):
-                        self.models[model.attrs["ID"]] = model
-            elif el.tag == "include":
-                self.fail(el.line, "<include>: btcap reads one file; put the trees in it")
-            else:
-                self.fail(el.line, f"<{el.tag}>: expected <BehaviorTree> or <TreeNodesModel>")
-        main = root.attrs.get("main_tree_to_execute")
-        if main is None:
-            if len(self.trees) != 1:
-                ids = ", ".join(self.trees) or "none"
-                self.fail(
-                    root.line,
-                    f"main_tree_to_execute missing and {len(self.trees)} "
-                    f"BehaviorTrees ({ids}); say which one to run",
-                )
-                raise TreeFileError(self.problems)
-            main = next(iter(self.trees))
+        main = self._main()
         self.main = main
-        top = self._definition(main, root.line)
+        top = self._definition(main, self.root.line)
         for tid in self.trees:
             self._definition(tid, self.trees[tid].line)
+        for problem in self.reader.unknown_problems():
+            insert_problem(self.problems, problem)
         if self.problems or top is None or top.spec.root is None:
             raise TreeFileError(self.problems)
         subtrees = {t: d.spec for t, d in self.defs.items() if d and (t != main or t in self.used)}
@@ -151,6 +155,71 @@ class XmlTranslator:
             root=top.spec.root,
             wires=top.spec.wires,
             subtrees=subtrees,
+        )
+
+    def _main(self) -> str:
+        """The tree to run: asked for, main_tree_to_execute, or the only one."""
+        ids = ", ".join(self.trees) or "none"
+        main = self.options.main
+        if main is not None:
+            if main not in self.trees:
+                self.fail(self.root.line, f"main tree {main!r}: no such BehaviorTree ({ids})")
+                raise TreeFileError(self.problems)
+            return main
+        main = self.root.attrs.get("main_tree_to_execute")
+        if main is not None:
+            return main
+        if not self.trees:
+            self.fail(self.root.line, "no <BehaviorTree> in this file")
+            raise TreeFileError(self.problems)
+        if len(self.trees) != 1:
+            self.fail(
+                self.root.line,
+                f"main_tree_to_execute missing and {len(self.trees)} BehaviorTrees "
+                f"({ids}); say which one to run (--main TREE, or main= when loading)",
+            )
+            raise TreeFileError(self.problems)
+        return next(iter(self.trees))
+
+    def _stub(self) -> None:
+        """Register a stand-in for each declared type no registered node type provides."""
+        try:
+            scripts = load_scripts(self.options.stub_script)
+        except TreeFileError as exc:
+            self.problems.extend(exc.problems)
+            return
+        registry = self.registry.copy()
+        for kind, model in list(self.models.items()):
+            if (
+                model.tag == "SubTree"
+                or kind in BTCPP_BUILTINS
+                or registry.xml_type(kind) is not None
+            ):
+                continue
+            try:
+                registry.register(make_stub(model, scripts), kind)
+            except (TreeFileError, RegistryError) as exc:
+                msgs = exc.problems if isinstance(exc, TreeFileError) else [str(exc)]
+                self.problems.extend(msgs)
+                continue
+            self.reader.seen_models[kind] = self.models.pop(kind)  # its own ports
+        unsure = infer_models(self.trees.values(), lambda k: self._unknown(k, registry))
+        for kind, model in unsure.items():
+            registry.register(make_stub(model, scripts), kind)
+            ports = ", ".join(p.attrs["name"] for p in model.children) or "none"
+            self.warnings.append(
+                f"{model.where or self.where}: line {model.line}: {kind} is declared in no "
+                f"<TreeNodesModel>; stubbed from its use ({model.tag}; inputs: {ports})"
+            )
+        self.registry = self.reader.registry = registry
+
+    def _unknown(self, kind: str, registry: NodeRegistry) -> bool:
+        """Whether a type used in the XML is neither BehaviorTree.CPP's, known nor modelled."""
+        return not (
+            kind in BTCPP_BUILTINS
+            or kind in UNSUPPORTED
+            or kind in self.models
+            or registry.xml_type(kind) is not None
         )
 
     # -- BehaviorTrees ----------------------------------------------------------------
@@ -172,6 +241,7 @@ class XmlTranslator:
             return None
         self.active.append(tid)
         self.bases.append(at)
+        outer, self.reader.where = self.reader.where, self.tree_where.get(tid, self.where)
         scope = Scope(tid)
         if len(el.children) != 1:
             self.fail(
@@ -183,6 +253,7 @@ class XmlTranslator:
         self.active.pop()
         self.bases.pop()
         done = self._resolve(scope, spec) if spec is not None else None
+        self.reader.where = outer
         self.defs[tid] = done
         self.heights[tid] = self._height(spec) if spec is not None else 0
         return done
@@ -336,7 +407,7 @@ class XmlTranslator:
         self.used.add(tid)
         if done is None or self._too_deep(el, tid, at + self.heights[tid]):
             return None
-        self._check_model(tid, done)
+        check_subtree_model(self.models, tid, done.inputs, done.outputs, self.fail)
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
         for key, (tp, written) in done.cells.items():  # one entry inside and out
             if key in attrs or auto:
@@ -370,48 +441,3 @@ class XmlTranslator:
                 f"({', '.join(done.outputs) or 'nothing'})",
             )
         return spec
-
-    def _check_model(self, tid: str, done: _Def) -> None:
-        """A ``<SubTree>`` entry of TreeNodesModel must agree with what the tree does."""
-        model = self.models.get(tid)
-        if model is None or model.tag != "SubTree":
-            return
-        del self.models[tid]  # checked once, at its first use
-        for port in model.children:
-            key = port.attrs.get("name", "")
-            if port.tag == "input_port" and key not in done.inputs:
-                self.fail(
-                    port.line,
-                    f"<TreeNodesModel> SubTree {tid!r} input_port {key!r}: the tree does not "
-                    f"read {{{key}}} from outside (it reads: "
-                    f"{', '.join(done.inputs) or 'nothing'})",
-                )
-            elif port.tag == "output_port" and key not in done.outputs:
-                self.fail(
-                    port.line,
-                    f"<TreeNodesModel> SubTree {tid!r} output_port {key!r}: the tree does not "
-                    f"write {{{key}}} (it writes: {', '.join(done.outputs) or 'nothing'})",
-                )
-
-
-_WHERE = re.compile(
-    r"^(?:subtree '(?P<tree>[^']+)' )?(?:node '(?P<path>[^']+)'|wires\[(?P<i>\d+)\])"
-)
-
-
-def relabel(problems: list[str], where: str, t: XmlTranslator) -> list[str]:
-    """Builder problems (named by node path) with the XML line of the node or wire."""
-    out = []
-    prefix = f"{where}: "
-    for p in problems:
-        rest = p.removeprefix(prefix)
-        m = _WHERE.match(rest)
-        line = None
-        if m is not None:
-            tree = m.group("tree") or t.main
-            if m.group("path") is not None:
-                line = t.node_lines.get((tree, m.group("path")))
-            else:
-                line = t.wire_lines.get((tree, int(m.group("i"))))
-        out.append(p if line is None else f"{prefix}line {line}: {rest}")
-    return out

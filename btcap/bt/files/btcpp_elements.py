@@ -8,6 +8,7 @@ write and read each blackboard entry; :mod:`btcap.bt.files.btcpp` then wires the
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 import typing
 from collections.abc import Callable
@@ -19,7 +20,7 @@ from btcap.bt.files.xmlread import XmlElement
 from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, RegistryError
 
-__all__ = ["KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
+__all__ = ["BTCPP_BUILTINS", "KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
 
 KEY = re.compile(r"^\{(.*)\}$")
 _SCRIPTS = frozenset(
@@ -27,6 +28,27 @@ _SCRIPTS = frozenset(
 )
 _GENERIC = frozenset({"Action", "Condition", "Control", "Decorator"})
 MODEL_KINDS = frozenset({*_GENERIC, "SubTree"})
+
+#: Every node type BehaviorTree.CPP 4.x registers itself. Those not in
+#: :data:`STANDARD` or :data:`UNSUPPORTED` are refused as "not mapped": such a file is
+#: not using a custom type, so no node of the user's may stand in for it.
+BTCPP_BUILTINS = frozenset(
+    {
+        *("AlwaysFailure", "AlwaysSuccess", "AsyncFallback", "AsyncSequence", "Delay"),
+        *("Fallback", "ForceFailure"),
+        *("ForceSuccess", "IfThenElse", "Inverter", "KeepRunningUntilFailure"),
+        *("LoopBool", "LoopDouble", "LoopInt", "LoopString", "ManualSelector"),
+        *("Parallel", "ParallelAll", "Precondition", "ReactiveFallback"),
+        *("ReactiveSequence", "Repeat", "RetryUntilSuccessful", "RunOnce", "Script"),
+        *("ScriptCondition", "Sequence", "SequenceWithMemory", "SetBlackboard"),
+        *("SkipUnlessUpdated", "Sleep", "SubTree", "Switch2", "Switch3", "Switch4"),
+        *("Switch5", "Switch6", "Timeout", "TryCatch", "UnsetBlackboard"),
+        *("WaitValueUpdate", "WasEntryUpdated", "WhileDoElse"),
+    }
+)
+
+#: How many lines an unknown-type message lists before "...".
+_FIRST_LINES = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +90,14 @@ def literal(text: str, tp: Any) -> Any:
     return _scalar(text)
 
 
+def _near(word: str, registry: NodeRegistry) -> str:
+    """' (did you mean X?)' among the types an XML element may name."""
+    names = [n for n in registry if not n.startswith("user.") and registry.xml_type(n) is not None]
+    names += STANDARD
+    near = difflib.get_close_matches(word, names, n=3, cutoff=0.7)
+    return f" (did you mean {', '.join(near)}?)" if near else ""
+
+
 def _scalar(text: str) -> Any:
     """A number or boolean as BehaviorTree.CPP spells it; anything else stays text."""
     value = text.strip()
@@ -102,9 +132,49 @@ class ElementReader:
         self.problems: list[str] = []
         #: (BehaviorTree ID, node path) -> line of its element.
         self.node_lines: dict[tuple[str, str], int] = {}
+        #: Unknown node type -> (file, line) of each element using it, reported once.
+        self.unknown: dict[str, list[tuple[str, int]]] = {}
+        #: The model of each type once its first use checked it (for the unknown report).
+        self.seen_models: dict[str, XmlElement] = {}
 
-    def fail(self, line: int, msg: str) -> None:
-        self.problems.append(f"{self.where}: line {line}: {msg}")
+    def fail(self, line: int, msg: str, where: str = "") -> None:
+        self.problems.append(f"{where or self.where}: line {line}: {msg}")
+
+    def unknown_problems(self) -> list[str]:
+        """One line per unknown type (how often, where first), then what to do, once."""
+        out = []
+        declared = undeclared = 0
+        for kind, uses in self.unknown.items():
+            uses.sort()
+            where, first = uses[0]
+            lines = ", ".join(str(line) for _, line in uses[:_FIRST_LINES])
+            more = ", ..." if len(uses) > _FIRST_LINES else ""
+            n = f"{len(uses)} elements, lines" if len(uses) > 1 else "1 element, line"
+            model = self.models.get(kind) or self.seen_models.get(kind)
+            said = ""
+            if model is not None:
+                declared += 1
+                said = f"; <TreeNodesModel> declares it (line {model.line})"
+            else:
+                undeclared += 1
+            out.append(
+                f"{where}: line {first}: <{kind}>: unknown node type {kind!r}"
+                f"{_near(kind, self.registry)} ({n} {lines}{more}){said}"
+            )
+        if not out:
+            return out
+        todo = "register it (--load MODULE) or declare a capability interface of that name "
+        todo += "(--interfaces FILE)"
+        if declared:
+            todo += ", or add --stub-missing to build a stand-in from <TreeNodesModel>"
+        if undeclared:
+            todo += ", or declare it in <TreeNodesModel> (or --model FILE) and add --stub-missing"
+        if len(out) == 1:
+            return [f"{out[0]}: {todo}"]
+        its = todo.replace(" it ", " them ").replace(
+            "a capability interface of that name", "capability interfaces of those names"
+        )
+        return [*out, f"{self.where}: {len(out)} unknown node types: {its}"]
 
     def node(
         self, el: XmlElement, parent: str | None, scope: Scope, taken: set[str]
@@ -119,7 +189,8 @@ class ElementReader:
         for key in _SCRIPTS.intersection(attrs):
             self.fail(el.line, f"<{el.tag}> attribute {key!r}: btcap has no scripting language")
             del attrs[key]
-        name = self._name(attrs.pop("name", "") or attrs.get("ID") or kind, el, taken)
+        default = attrs.get("ID") or kind.rsplit(".", 1)[-1]  # acme.Grasp: Grasp
+        name = self._name(attrs.pop("name", "") or default, el, taken)
         if name is None:
             return None
         path = name if parent is None else f"{parent}/{name}"
@@ -145,8 +216,21 @@ class ElementReader:
         std = STANDARD.get(kind)
         if std is not None:
             options = self._standard(el, attrs, kind)
-            kind = std.btcap
-        spec = self._ports(el, attrs, kind, name, path, scope, options)
+            spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
+        elif kind in BTCPP_BUILTINS:
+            self.fail(
+                el.line,
+                f"<{el.tag}>: BehaviorTree.CPP's built-in {kind} is not mapped to a btcap "
+                f"node (yet), and a node of your own may not stand in for a built-in",
+            )
+            return None
+        else:
+            found = self.registry.xml_type(kind)
+            if found is None:
+                self.unknown.setdefault(kind, []).append((self.where, el.line))
+                scope.unsure.update(m[1] for m in map(KEY.match, attrs.values()) if m)
+                return None
+            spec = self._ports(el, attrs, found, name, path, scope, options, kind)
         if spec is not None:
             spec.children = kids
         return spec
@@ -203,20 +287,9 @@ class ElementReader:
         path: str,
         scope: Scope,
         options: dict[str, Any],
+        xml_name: str,
     ) -> NodeSpec | None:
-        try:
-            cls = self.registry.get(kind)
-        except RegistryError as exc:
-            model = self.models.get(kind)
-            said = f"; <TreeNodesModel> declares it at line {model.line}" if model else ""
-            self.fail(
-                el.line,
-                f"<{el.tag}>: {exc}{said}. Register a node type named "
-                f"{kind!r} (btcap tree --load MODULE) or declare a capability "
-                f"interface of that name (--interfaces FILE)",
-            )
-            scope.unsure.update(m[1] for m in map(KEY.match, attrs.values()) if m)
-            return None
+        cls = self.registry.get(kind)
         probe: dict[str, Any] = dict(options)
         given: dict[str, str] = {}
         for key in cls.OPTIONS:
@@ -245,7 +318,7 @@ class ElementReader:
             ins, outs = node.input_ports, node.output_ports
         except Exception:  # the builder reports it, naming the node
             ins, outs = cls.INPUTS, cls.OUTPUTS
-        self._check_model(kind, cls.OPTIONS, ins, outs)
+        self._check_model(xml_name, cls.OPTIONS, ins, outs)
         inputs: dict[str, Any] = {}
         for key, text in attrs.items():
             if key in ins:
@@ -265,7 +338,7 @@ class ElementReader:
             else:
                 self.fail(
                     el.line,
-                    f"<{el.tag}>: {kind} has no port {key!r} (inputs: "
+                    f"<{el.tag}>: {xml_name} has no port {key!r} (inputs: "
                     f"{', '.join(ins) or 'none'}; outputs: {', '.join(outs) or 'none'}; "
                     f"options: {', '.join(cls.OPTIONS) or 'none'})",
                 )
@@ -284,6 +357,8 @@ class ElementReader:
         model = self.models.pop(kind, None)  # checked once, at its first use
         if model is None:
             return
+        self.seen_models[kind] = model
+        where = model.where or self.where
         for port in model.children:
             key = port.attrs.get("name", "")
             if port.tag == "input_port" and key not in ins and key not in opts:
@@ -292,18 +367,21 @@ class ElementReader:
                     port.line,
                     f"<TreeNodesModel> {kind} input_port {key!r}: the btcap "
                     f"node type has no such input or option ({have})",
+                    where,
                 )
             elif port.tag == "output_port" and key not in outs:
                 self.fail(
                     port.line,
                     f"<TreeNodesModel> {kind} output_port {key!r}: the btcap "
                     f"node type has no such output ({', '.join(outs) or 'none'})",
+                    where,
                 )
             elif port.tag == "inout_port":
                 self.fail(
                     port.line,
                     f"<TreeNodesModel> {kind} inout_port {key!r}: btcap ports "
                     f"are inputs or outputs, not both",
+                    where,
                 )
 
     def entry(self, text: str, port: str, el: XmlElement, *, reading: bool) -> str | None:

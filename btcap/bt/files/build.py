@@ -278,6 +278,7 @@ class Builder:
         if name is None:
             tree_ref = spec.options.get("tree")
             name = tree_ref if spec.type == "Subtree" and isinstance(tree_ref, str) else spec.type
+            name = name.rsplit(".", 1)[-1]  # user.Wait, acme.Grasp: a name has no dots
         path = name if parent is None else f"{parent}/{name}"
         loc = f"{ctx}node {path!r}"
         if not name or "/" in name or "." in name:

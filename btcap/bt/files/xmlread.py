@@ -21,13 +21,17 @@ MAX_DEPTH = 200
 
 @dataclasses.dataclass
 class XmlElement:
-    """One element: its tag, attributes in document order, line, children and text."""
+    """One element: its tag, attributes in document order, line, children and text.
+
+    ``where`` names the file it is in (a tree may come from several, by ``<include>``).
+    """
 
     tag: str
     attrs: dict[str, str]
     line: int
     children: list[XmlElement] = dataclasses.field(default_factory=list)
     text: str = ""
+    where: str = ""
 
 
 class _Refused(Exception):
@@ -46,7 +50,7 @@ def read_xml(data: bytes | str, where: str) -> XmlElement:
                 f"line {parser.CurrentLineNumber}: <{tag}> is nested {MAX_DEPTH + 1} "
                 f"elements deep; btcap reads at most {MAX_DEPTH}"
             )
-        el = XmlElement(tag, dict(attrs), parser.CurrentLineNumber)
+        el = XmlElement(tag, dict(attrs), parser.CurrentLineNumber, where=where)
         (stack[-1].children if stack else roots).append(el)
         stack.append(el)
 

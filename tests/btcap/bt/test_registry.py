@@ -114,16 +114,50 @@ def test_register_works_as_decorator_and_under_another_name() -> None:
 
 
 def test_duplicate_names_are_rejected_naming_both_classes() -> None:
-    reg = default_registry(plugins=False)
+    reg = NodeRegistry()
+    reg.register(Battery)
 
-    class ReactiveSequence(Leaf):  # same name as the built-in
+    class Other(Leaf):
         def on_tick(self) -> State:
             return State.SUCCEEDED
 
     with pytest.raises(
-        RegistryError, match=r"'ReactiveSequence' is already registered.*btcap\.bt\.composites"
+        RegistryError, match=r"'Battery' is already registered \(.*Battery\); cannot add .*Other"
     ):
-        reg.register(ReactiveSequence)
+        reg.register(Other, "Battery")
+
+
+def test_a_user_type_named_like_a_builtin_is_kept_apart() -> None:
+    """YAML and Python keep btcap's Wait by its plain name; XML means the user's."""
+    reg = default_registry(plugins=False)
+
+    class Wait(Leaf):  # Nav2's Wait: a wait_duration input, nothing like btcap's
+        INPUTS = {"wait_duration": float}
+
+        def on_tick(self) -> State:
+            return State.SUCCEEDED
+
+    assert reg.register(Wait) is Wait
+    assert reg.get("Wait") is leaves.Wait
+    assert reg.get("user.Wait") is Wait
+    assert reg.name_of(Wait) == "user.Wait"  # so a dumped tree loads back the same
+    assert reg.xml_type("Wait") == "user.Wait"
+    assert reg.xml_type("Log") is None  # btcap's own: no XML element means it...
+    assert reg.xml_type("btcap.Log") == "Log"  # ...unless it says so
+    assert reg.xml_type("Battery") is None
+
+    class Wait2(Leaf):
+        def on_tick(self) -> State:
+            return State.SUCCEEDED
+
+    with pytest.raises(
+        RegistryError, match=r"'Wait' is already registered \(.*\.Wait\); cannot add .*Wait2"
+    ):
+        reg.register(Wait2, "Wait")
+    copy = reg.copy()
+    copy.register(Battery)
+    assert "Battery" in copy
+    assert "Battery" not in reg
 
 
 @pytest.mark.parametrize(
@@ -144,7 +178,7 @@ def test_unknown_type_lists_close_matches_and_is_a_tree_error() -> None:
     reg = default_registry(plugins=False)
     with pytest.raises(TreeError, match=r"unknown node type 'Sequnce' \(did you mean Sequence"):
         reg.get("Sequnce")
-    with pytest.raises(RegistryError, match=r"known types: .*Wait"):
+    with pytest.raises(RegistryError, match=r"'Zzz'; 'btcap tree nodes' lists the known types$"):
         reg.get("Zzz")
     with pytest.raises(RegistryError, match="subtrees"):
         reg.get("Subtree")

@@ -66,7 +66,7 @@ BEEP_XML = """\
     <Sequence>
       <Beep times="3"/>
       <DockInputs station="{s}"/>
-      <Log message="docking" value="{s}"/>
+      <btcap.Log message="docking" value="{s}"/>
     </Sequence>
   </BehaviorTree>
 </root>
@@ -140,8 +140,12 @@ def test_load_by_dotted_name_and_by_name_in_module(
         "  input times: int = 1",
     ]
     assert main(["tree", "nodes", "--load", f"{mod}:more", "Boop"]) == 0
-    assert main(["tree", "nodes", "--load", f"{mod}:clash"]) == 2
-    assert "is named like the node type 'Log' files already use" in capsys.readouterr().err
+    capsys.readouterr()
+    # A class named like a btcap built-in is the user's Log in XML, user.Log in YAML.
+    assert main(["tree", "nodes", "--load", f"{mod}:clash", "Log", "user.Log"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("Log: Logs ``message``")
+    assert "\nuser.Log: \n" in out
     assert main(["tree", "nodes", "--load", mod, "_Hidden"]) == 2
     assert "unknown node type '_Hidden'" in capsys.readouterr().err
 

@@ -467,8 +467,8 @@ def test_capability_bridges_and_an_implementation_with_an_xml_tree(tmp_path: Pat
 
 # -- errors ---------------------------------------------------------------------------
 ERRORS = [
-    ("<root><BehaviorTree ID='Main'><AlwaysSuccess/></BehaviorTree></root>", 1, "no BTCPP_format"),
-    ('<root BTCPP_format="3"/>', 1, "BTCPP_format='3'; btcap reads BehaviorTree.CPP format 4"),
+    ('<root BTCPP_format="3"/>', 1, 'BTCPP_format="3": BehaviorTree.CPP 3.x files name nodes'),
+    ('<root BTCPP_format="5"/>', 1, "BTCPP_format='5'; btcap reads BehaviorTree.CPP format 4"),
     ('<root BTCPP_format="4">\n<BehaviorTree ID="Main">\n<Sequence>\n</root>', 4, "malformed XML"),
     (
         '<!DOCTYPE r [<!ENTITY a "aaaa"><!ENTITY b "&a;&a;&a;">]>\n<root BTCPP_format="4"/>',
@@ -484,11 +484,12 @@ ERRORS = [
         1,
         "main_tree_to_execute missing and 2 BehaviorTrees (A, B)",
     ),
-    (_xml('<include path="other.xml"/>'), 2, "<include>: btcap reads one file"),
+    (_xml('<include path="other.xml"/>'), 2, "a tree read from text has no directory"),
+    (_xml('<include ros_pkg="nav2_bt" path="a.xml"/>'), 2, "btcap does not look up ROS packages"),
     (
         _xml('<BehaviorTree ID="Main">\n<Sequence>\n<Wiggle/>\n</Sequence>\n</BehaviorTree>'),
         4,
-        "<Wiggle>: unknown node type 'Wiggle'",
+        "<Wiggle>: unknown node type 'Wiggle' (1 element, line 4): register it (--load MODULE)",
     ),
     (
         _xml('<BehaviorTree ID="Main">\n<Script code="x:=1"/>\n</BehaviorTree>'),
@@ -636,7 +637,8 @@ ERRORS = [
             '<Action ID="Grasp"/>\n</TreeNodesModel>'
         ),
         2,
-        "<TreeNodesModel> declares it at line 4. Register a node type named 'Grasp'",
+        "unknown node type 'Grasp' (1 element, line 2); <TreeNodesModel> declares it (line 4): "
+        "register it",
     ),
 ]
 
