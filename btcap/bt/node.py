@@ -13,6 +13,7 @@ from types import FunctionType
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from btcap.actors import Actor, handler
+from btcap.bt.empty import NO_CHILDREN, NO_VALUES
 from btcap.bt.host import TreeHost
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
@@ -112,16 +113,20 @@ class Node(Actor):
         self._pulls: list[tuple[str, Node, str]] | None = None
         self._ready = False
         self._gate: bool | tuple[Any, ...] | None = True
-        self.options = self._check_options(options)
+        # Nothing declared, nothing held: shared unwritable empties (see btcap.bt.empty).
+        self.options = self._check_options(options) if options or cls.OPTIONS else NO_VALUES
         self.input_ports: PortMap = cls.INPUTS
         self.output_ports: PortMap = cls.OUTPUTS
         self.declare_ports()
-        self.inputs: dict[str, Any] = {n: p.default_value() for n, p in self.input_ports.items()}
-        self.outputs: dict[str, Any] = dict.fromkeys(self.output_ports)
+        ins, outs = self.input_ports, self.output_ports
+        self.inputs: dict[str, Any] = (
+            {n: p.default_value() for n, p in ins.items()} if ins else NO_VALUES
+        )
+        self.outputs: dict[str, Any] = dict.fromkeys(outs) if outs else NO_VALUES
         if inputs:
             for key, value in inputs.items():
                 self.set_input(key, value)
-        self.children: list[Node] = []
+        self.children: list[Node] = [] if cls.MAX_CHILDREN != 0 else NO_CHILDREN
         seen: set[str] = set()
         for child in children:
             if child.name in seen:
