@@ -64,7 +64,7 @@ __all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
 
 LIBS = ("btcap", "py_trees")
 SHAPES = ("flat", "balanced", "mixed", "mixed_parallel")
-MIXED_TREES = 12
+MIXED_TREES = 8
 MIXED_SEED = 1
 FLAT_LEAVES = 1000
 BALANCED_FANOUT = (5, 5, 6, 6)
