@@ -25,7 +25,7 @@ library's time by the nodes it ticked itself.
 from __future__ import annotations
 
 import random
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -138,7 +138,9 @@ _STATUS = {
 }
 
 
-def _interned(table: dict[str, object], script: str, cache: dict[str, tuple[object, ...]]) -> Any:
+def _interned(
+    table: Mapping[str, object], script: str, cache: dict[str, tuple[object, ...]]
+) -> Any:
     """The script as a tuple of results, one tuple per distinct script (in both libraries)."""
     found = cache.get(script)
     if found is None:

@@ -31,7 +31,7 @@ class NoValues(dict[str, Any]):
     def _write(self, *args: Any, **kwargs: Any) -> NoReturn:
         _refuse("the node declares no ports or options to write")
 
-    __delitem__ = update = setdefault = pop = popitem = clear = __ior__ = _write  # type: ignore[assignment]
+    __delitem__ = update = setdefault = pop = popitem = clear = __ior__ = _write
 
     def __reduce__(self) -> Any:
         return (dict, ())
@@ -45,8 +45,8 @@ class NoChildren(list[Any]):
     def _write(self, *args: Any, **kwargs: Any) -> NoReturn:
         _refuse("a leaf takes no children")
 
-    append = insert = extend = remove = pop = clear = sort = reverse = _write  # type: ignore[assignment]
-    __setitem__ = __delitem__ = __iadd__ = __imul__ = _write  # type: ignore[assignment]
+    append = insert = extend = remove = pop = clear = sort = reverse = _write
+    __setitem__ = __delitem__ = __iadd__ = __imul__ = _write
 
     def __reduce__(self) -> Any:
         return (list, ())

@@ -21,20 +21,19 @@ __all__ = [
 ]
 
 
-if sys.version_info < (3, 12) and "__getattr__" in vars(enum.EnumType):
+class _FastEnumType(enum.EnumType):
+    """EnumType without the toll of its ``__getattr__`` on every ``State.X`` (Python 3.11).
 
-    class _FastEnumType(enum.EnumType):
-        """EnumType without the toll of its ``__getattr__`` on every ``State.X``.
+    On CPython 3.11 a metaclass defining ``__getattr__`` sends every class attribute
+    lookup through a Python-level call of ``type.__getattribute__``: ``State.SUCCEEDED``
+    cost ~70 ns, ten times a module constant, on every tick of a leaf written as the
+    docs show. With ``object.__getattribute__`` the interpreter reads the class's own
+    dict in C (members live there); anything else (inherited methods) falls back to the
+    full lookup. Own-dict values must then need no binding, which ``__init__`` checks.
+    Python 3.12 dropped ``EnumType.__getattr__``; there this class changes nothing.
+    """
 
-        On CPython 3.11 a metaclass defining ``__getattr__`` sends every class attribute
-        lookup through a Python-level call of ``type.__getattribute__``: ``State.SUCCEEDED``
-        cost ~70 ns, ten times a module constant, on every tick of a leaf written as the
-        docs show. With ``object.__getattribute__`` the interpreter reads the class's own
-        dict in C (members live there); anything else (inherited methods) falls back to the
-        full lookup below. Own-dict values must then not be descriptors needing a binding,
-        which ``__init__`` checks. Python 3.12 dropped ``EnumType.__getattr__``.
-        """
-
+    if sys.version_info < (3, 12):
         __getattribute__ = object.__getattribute__
 
         def __getattr__(cls, name: str) -> Any:
@@ -45,9 +44,6 @@ if sys.version_info < (3, 12) and "__getattr__" in vars(enum.EnumType):
             for key, value in vars(cls).items():
                 if hasattr(type(value), "__get__") and not isinstance(value, FunctionType):
                     raise TypeError(f"{cls.__name__}.{key}: no descriptors in a fast enum")
-
-else:  # pragma: no cover - Python 3.12 and later look members up fast already
-    _FastEnumType = enum.EnumType
 
 
 class State(enum.Enum, metaclass=_FastEnumType):
