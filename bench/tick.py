@@ -1,4 +1,4 @@
-"""Tick cost and memory per node: btcap vs py_trees 2.x on the same shapes, in one run.
+"""Tick cost and memory per node: btcap vs py_trees 2.x (and BehaviorTree.CPP) in one run.
 
 Shapes, built from one neutral description so both libraries get identical trees. In
 ``flat`` and ``balanced`` every composite is reactive (btcap ``ReactiveSequence``/
@@ -11,12 +11,12 @@ Shapes, built from one neutral description so both libraries get identical trees
   under a Fallback), and a composite's result is then its last child's, so each last
   child passes on what its parent must return. No decorators are needed; the root
   succeeds.
-- ``mixed`` and ``mixed_parallel``: 12 seeded random trees each (:mod:`.mixed_trees`:
-  reactive composites and ones that resume at their running child (btcap ``Sequence``/
-  ``Fallback``, py_trees ``memory=True``), decorators, scripted condition and action
-  leaves; the second also with Parallels), the same trees in both libraries. One run resets every
-  tree (untimed), then ticks each of them for 16 steps; the time of a run is divided by
-  the number of nodes that library actually ticked in it (counted beforehand, the same on
+- ``mixed`` and ``mixed_parallel``: 8 seeded random trees of about 1000 nodes each, from
+  the generator :mod:`.mixed_trees` states (Sequence/Fallback reactive and with memory,
+  decorators, leaves that do a little work and sometimes run; the second also Parallels
+  with random thresholds), the same trees in both libraries. One run resets every tree
+  (untimed), then ticks each of them for 16 steps; the time of a run is divided by the
+  number of nodes that library actually ticked in it (counted beforehand, the same on
   every run since runs start from reset).
 
 Before timing, ticks per node are counted in both libraries (py_trees: the nodes its
@@ -31,10 +31,12 @@ Reported: the median per tick divided by the node count, in microseconds per nod
 py_trees / btcap as the speed-up (``speedup`` from wall time, ``cpu_speedup`` from CPU
 time, which is steadier on a shared machine because preemption does not count).
 
-Memory: ``tracemalloc`` traced bytes held after building and setting up a 10,000-node
-tree (a flat Sequence of 9,999 leaves; btcap ``Tree`` + ``setup()``, py_trees
-``BehaviourTree`` + ``setup()``), divided by 10,000. Node names are created before
-tracing starts, so neither library is charged for them.
+Peers measured in the same run (:mod:`.tick_peers`): BehaviorTree.CPP 4.8 through
+``behaviortreepy`` on ``flat`` and ``balanced`` when installed (taking turns with the
+other two), a leaf returning ``State.SUCCEEDED`` against one returning a module constant,
+and memory per node at 100,000 nodes, flat and mixed, against py_trees. The load
+average is recorded at the start and the end; :func:`.tick_peers.markdown` renders the
+README's rows from the result.
 
 Run ``python -m btcap.bench tick [--quick]`` or ``python -m btcap.bench.tick [--quick]``.
 """
@@ -58,7 +60,14 @@ import py_trees
 import btcap
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.mixed_trees import MixedRun, MixedSpec, btcap_run, mixed_spec, py_trees_run
-from btcap.bench.tick_peers import MEMORY_NODES, btcpp_tick, leaf_form_trees, load_average, memory
+from btcap.bench.tick_peers import (
+    MEMORY_NODES,
+    btcpp_tick,
+    leaf_form_trees,
+    load_average,
+    markdown,
+    memory,
+)
 
 __all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
 
@@ -414,6 +423,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     }
     data["load_average"] = {"start": load_start, "end": load_average()}
     print(_table(data))
+    print(markdown(data))
     path = write_result("tick", data)
     print(f"wrote {path}")
     return data

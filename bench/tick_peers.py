@@ -34,6 +34,7 @@ __all__ = [
     "btcpp_tick",
     "leaf_form_trees",
     "load_average",
+    "markdown",
     "memory",
 ]
 
@@ -185,3 +186,34 @@ def memory(flat: Any, build_btcap: Any, build_py_trees: Any) -> dict[str, Any]:
         out["py_trees"][shape] = _traced(p) / n
         out["ratio"][shape] = out["btcap"][shape] / out["py_trees"][shape]
     return out
+
+
+# -- the README's rows -----------------------------------------------------------------------
+
+
+def markdown(data: dict[str, Any]) -> str:
+    """The README performance table's tick and memory rows, from :func:`.tick.run`'s data."""
+    us = {lib: {k: 1000 * v for k, v in d.items()} for lib, d in data["cpu_us_per_node"].items()}
+    ratio, bt, mem = data["cpu_speedup"], data["btcpp_cpu_ns_per_node"], data["memory"]
+    forms = {k: 1000 * v for k, v in data["leaf_forms_cpu_us_per_node"].items()}
+    x = "\u00d7"
+    flat_peer = f"py_trees {us['py_trees']['flat'] / 1000:.2f} µs/node ({ratio['flat']:.0f}{x})"
+    if "flat" in bt:
+        flat_peer += f"; BehaviorTree.CPP {bt['flat']:.0f} ns/node"
+    m, p = "mixed", "mixed_parallel"
+    rows = [
+        f"<!-- python -m btcap.bench tick, load average {data['load_average']['start']} -->",
+        f"| tick, flat `ReactiveSequence` of 1000 leaves | {us['btcap']['flat']:.0f} ns/node "
+        f"| {flat_peer} |",
+        "| tick, random mixed trees of ~1000 nodes / with Parallels (per ticked node) "
+        f"| {us['btcap'][m]:.0f} / {us['btcap'][p]:.0f} ns/node "
+        f"| py_trees {us['py_trees'][m] / 1000:.2f} / {us['py_trees'][p] / 1000:.2f} µs/node "
+        f"({ratio[m]:.0f}{x} / {ratio[p]:.0f}{x}) |",
+        f"| leaf written `return State.SUCCEEDED` | {forms['State.SUCCEEDED']:.0f} ns/node "
+        f"| a module constant: {forms['module constant']:.0f} ns/node |",
+        f"| memory, flat / mixed trees of 100,000 nodes | {mem['btcap']['flat']:.0f} / "
+        f"{mem['btcap']['mixed']:.0f} B/node | py_trees {mem['py_trees']['flat']:.0f} / "
+        f"{mem['py_trees']['mixed']:.0f} B/node ({mem['ratio']['flat']:.2f}{x} / "
+        f"{mem['ratio']['mixed']:.2f}{x}) |",
+    ]
+    return "\n".join(rows)
