@@ -1,25 +1,33 @@
 """Seeded random *mixed* trees for the tick benchmark, built alike in btcap and py_trees.
 
-A mixed tree has Sequences/Fallbacks of both kinds, decorators (Inverter,
-ForceSuccess/Failure, RunningIsSuccess, Retry, Repeat) and, in the ``parallel`` variant,
-Parallels, over scripted leaves that look like conditions (mostly succeed) and actions
-(run for a few ticks, then succeed or fail). Every leaf returns the entry of its script for
-the current step, shared by all leaves, so both libraries see the same inputs.
+The generator, stated (:func:`mixed_spec`): trees of about :data:`TREE_NODES` nodes
+(800-1200; the seed is stepped until one falls in that range), at most
+:data:`DEPTH` levels and 2-:data:`FANOUT` children a composite. Below the root a node is
+a leaf with probability ``0.08 * level``, else a decorator (30 %: Inverter,
+ForceSuccess/Failure, RunningIsSuccess, Retry or Repeat with 1-3) or a composite drawn
+evenly from Sequence and Fallback of both kinds (reactive, and with memory: they resume
+at the running child) and, in the ``parallel`` variant, Parallel with random thresholds
+(success 1..n, failure 1..n). Leaves do a little work on every tick (a multiply-add on
+their own counter) and return the entry of their script for the current step, shared by
+all leaves, so both libraries see the same inputs: at each step a leaf is running
+(10 %), failed (30 %) or succeeded.
 
 Mappings to py_trees: ``Sequence``/``Fallback`` (they resume at the running child) are
 ``Sequence``/``Selector`` with ``memory=True``, ``ReactiveSequence``/``ReactiveFallback``
-the same with ``memory=False``; ``Parallel()`` (all must succeed) is
-``SuccessOnAll(synchronise=True)`` and ``Parallel(success_threshold=1,
-failure_threshold=1)`` is ``SuccessOnOne()``; ``Retry(retries=k)`` is
-``Retry(num_failures=k + 1)``; ForceSuccess/ForceFailure are FailureIsSuccess/
-SuccessIsFailure.
+the same with ``memory=False``; ``Retry(retries=k)`` is ``Retry(num_failures=k + 1)``;
+ForceSuccess/ForceFailure are FailureIsSuccess/SuccessIsFailure. py_trees' Parallel has
+no k-of-n thresholds (any failure fails it): a Parallel that needs every child is
+``SuccessOnAll(synchronise=True)``, any other ``SuccessOnOne()``. The trees therefore
+tick differently where thresholds differ, which is why the benchmark divides each
+library's time by the nodes it ticked itself.
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import py_trees
 
@@ -40,6 +48,8 @@ __all__ = [
 
 #: Length of every leaf script; the shared step runs 0, 1, ..., STEPS - 1, 0, ...
 STEPS = 16
+#: Size, height and branching of the generated trees.
+TREE_NODES, DEPTH, FANOUT = 1000, 6, 6
 _S, _F, _R = "S", "F", "R"
 #: In this order, so the seeded trees stay the ones measured before the 0.2 renaming.
 _COMPOSITES = ("reactive_sequence", "reactive_fallback", "sequence", "fallback")
@@ -51,7 +61,7 @@ _DECORATORS = (
     "retry",
     "repeat",
 )
-_PARALLELS = ("parallel_all", "parallel_one")
+_PARALLELS = ("parallel",)
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,7 +70,8 @@ class MixedSpec:
 
     kind: str
     name: str
-    arg: int = 0  # retries or repeat count
+    arg: int = 0  # retries or repeat count; a Parallel's success threshold
+    arg2: int = 0  # a Parallel's failure threshold
     script: str = ""  # leaf results per step, one of S/F/R each
     children: tuple[MixedSpec, ...] = ()
 
@@ -71,35 +82,40 @@ class MixedSpec:
 
 
 def _script(rng: random.Random) -> str:
-    if rng.random() < 0.4:  # a condition: holds most of the time
-        return "".join(_F if rng.random() < 0.15 else _S for _ in range(STEPS))
-    out: list[str] = []  # an action: runs a few ticks, then succeeds (mostly) or fails
-    while len(out) < STEPS:
-        out += [_R] * rng.randint(1, 4) + [_F if rng.random() < 0.2 else _S]
-    return "".join(out[:STEPS])
+    """A leaf's results per step: running 10 %, failed 30 %, else succeeded."""
+    return "".join(rng.choices((_R, _F, _S), (0.1, 0.3, 0.6), k=STEPS))
 
 
-def mixed_spec(seed: int, *, parallel: bool, depth: int = 5, fanout: int = 4) -> MixedSpec:
-    """A random tree of height at most ``depth`` and at most ``fanout`` children a node."""
+def mixed_spec(seed: int, *, parallel: bool, size: int = TREE_NODES) -> MixedSpec:
+    """A random tree of ``size`` nodes, give or take 20 % (see the module's docstring)."""
+    while True:
+        spec = _random_tree(seed, parallel)
+        if 0.8 * size <= sum(1 for _ in spec.walk()) <= 1.2 * size:
+            return spec
+        seed += 10_007
+
+
+def _random_tree(seed: int, parallel: bool) -> MixedSpec:
     rng = random.Random(seed)
     counter = iter(range(1_000_000))
     kinds = _COMPOSITES + _PARALLELS if parallel else _COMPOSITES
 
     def node(level: int) -> MixedSpec:
         name = f"n{next(counter)}"
-        if level == depth or rng.random() < 0.1 * (level - 1):
+        if level == DEPTH or (level > 0 and rng.random() < 0.08 * level):
             return MixedSpec("leaf", name, script=_script(rng))
-        if rng.random() < 0.3:
+        if level > 0 and rng.random() < 0.3:
             kind = rng.choice(_DECORATORS)
             return MixedSpec(kind, name, arg=rng.randint(1, 3), children=(node(level + 1),))
         kind = rng.choice(kinds)
-        kids = tuple(node(level + 1) for _ in range(rng.randint(2, fanout)))
+        kids = tuple(node(level + 1) for _ in range(rng.randint(2, FANOUT)))
+        if kind == "parallel":
+            n = len(kids)
+            ok, bad = rng.randint(1, n), rng.randint(1, n)
+            return MixedSpec(kind, name, arg=ok, arg2=bad, children=kids)
         return MixedSpec(kind, name, children=kids)
 
-    root = node(0)
-    if root.kind == "leaf":
-        return mixed_spec(seed + 10_007, parallel=parallel, depth=depth, fanout=fanout)
-    return root
+    return node(0)
 
 
 class Stepper:
@@ -122,30 +138,49 @@ _STATUS = {
 }
 
 
-class Scripted(btcap.Leaf):
-    """Returns its script's entry for the shared step."""
+def _interned(
+    table: Mapping[str, object], script: str, cache: dict[str, tuple[object, ...]]
+) -> Any:
+    """The script as a tuple of results, one tuple per distinct script (in both libraries)."""
+    found = cache.get(script)
+    if found is None:
+        found = cache[script] = tuple(table[c] for c in script)
+    return found
 
-    __slots__ = ("script", "step")
+
+class Scripted(btcap.Leaf):
+    """Does a little work, then returns its script's entry for the shared step."""
+
+    __slots__ = ("script", "step", "work")
+    _scripts: ClassVar[dict[str, tuple[object, ...]]] = {}
 
     def __init__(self, name: str, script: str, step: Stepper) -> None:
         super().__init__(name)
-        self.script = tuple(_STATE[c] for c in script)
+        self.script: tuple[btcap.State, ...] = _interned(_STATE, script, self._scripts)
         self.step = step
+        self.work = 0
 
     def on_tick(self) -> btcap.State:
-        return self.script[self.step.now]
+        now = self.step.now
+        self.work = (self.work * 31 + now) % 1_000_003
+        return self.script[now]
 
 
 class PtScripted(py_trees.behaviour.Behaviour):
     """The same leaf for py_trees."""
 
+    _scripts: ClassVar[dict[str, tuple[object, ...]]] = {}
+
     def __init__(self, name: str, script: str, step: Stepper) -> None:
         super().__init__(name)
-        self.script = tuple(_STATUS[c] for c in script)
+        self.script: tuple[py_trees.common.Status, ...] = _interned(_STATUS, script, self._scripts)
         self.step = step
+        self.work = 0
 
     def update(self) -> py_trees.common.Status:
-        return self.script[self.step.now]
+        now = self.step.now
+        self.work = (self.work * 31 + now) % 1_000_003
+        return self.script[now]
 
 
 _BTCAP_DECORATORS: dict[str, type[btcap.Node]] = {
@@ -167,10 +202,9 @@ def build_btcap(spec: MixedSpec, step: Stepper) -> btcap.Node:
         return btcap.Retry(spec.name, children=kids, retries=spec.arg)
     if k == "repeat":
         return btcap.Repeat(spec.name, children=kids, times=spec.arg)
-    if k == "parallel_all":
-        return btcap.Parallel(spec.name, children=kids)
-    if k == "parallel_one":
-        return btcap.Parallel(spec.name, children=kids, success_threshold=1, failure_threshold=1)
+    if k == "parallel":
+        ok, bad = spec.arg, spec.arg2
+        return btcap.Parallel(spec.name, children=kids, success_threshold=ok, failure_threshold=bad)
     cls = {
         "reactive_sequence": btcap.ReactiveSequence,
         "reactive_fallback": btcap.ReactiveFallback,
@@ -200,10 +234,10 @@ def build_py_trees(spec: MixedSpec, step: Stepper) -> py_trees.behaviour.Behavio
         return d.Repeat(name, kids[0], num_success=spec.arg)
     policy = py_trees.common.ParallelPolicy
     c = py_trees.composites
-    if k == "parallel_all":
-        return c.Parallel(name, policy.SuccessOnAll(synchronise=True), children=kids)
-    if k == "parallel_one":
-        return c.Parallel(name, policy.SuccessOnOne(), children=kids)
+    if k == "parallel":
+        every = spec.arg == len(kids)
+        chosen = policy.SuccessOnAll(synchronise=True) if every else policy.SuccessOnOne()
+        return c.Parallel(name, chosen, children=kids)
     memory = not k.startswith("reactive_")
     cls = c.Sequence if k.endswith("sequence") else c.Selector
     return cls(name, memory=memory, children=kids)

@@ -1,4 +1,4 @@
-"""Tick cost and memory per node: btcap vs py_trees 2.x on the same shapes, in one run.
+"""Tick cost and memory per node: btcap vs py_trees 2.x (and BehaviorTree.CPP) in one run.
 
 Shapes, built from one neutral description so both libraries get identical trees. In
 ``flat`` and ``balanced`` every composite is reactive (btcap ``ReactiveSequence``/
@@ -11,12 +11,12 @@ Shapes, built from one neutral description so both libraries get identical trees
   under a Fallback), and a composite's result is then its last child's, so each last
   child passes on what its parent must return. No decorators are needed; the root
   succeeds.
-- ``mixed`` and ``mixed_parallel``: 12 seeded random trees each (:mod:`.mixed_trees`:
-  reactive composites and ones that resume at their running child (btcap ``Sequence``/
-  ``Fallback``, py_trees ``memory=True``), decorators, scripted condition and action
-  leaves; the second also with Parallels), the same trees in both libraries. One run resets every
-  tree (untimed), then ticks each of them for 16 steps; the time of a run is divided by
-  the number of nodes that library actually ticked in it (counted beforehand, the same on
+- ``mixed`` and ``mixed_parallel``: 8 seeded random trees of about 1000 nodes each, from
+  the generator :mod:`.mixed_trees` states (Sequence/Fallback reactive and with memory,
+  decorators, leaves that do a little work and sometimes run; the second also Parallels
+  with random thresholds), the same trees in both libraries. One run resets every tree
+  (untimed), then ticks each of them for 16 steps; the time of a run is divided by the
+  number of nodes that library actually ticked in it (counted beforehand, the same on
   every run since runs start from reset).
 
 Before timing, ticks per node are counted in both libraries (py_trees: the nodes its
@@ -31,10 +31,12 @@ Reported: the median per tick divided by the node count, in microseconds per nod
 py_trees / btcap as the speed-up (``speedup`` from wall time, ``cpu_speedup`` from CPU
 time, which is steadier on a shared machine because preemption does not count).
 
-Memory: ``tracemalloc`` traced bytes held after building and setting up a 10,000-node
-tree (a flat Sequence of 9,999 leaves; btcap ``Tree`` + ``setup()``, py_trees
-``BehaviourTree`` + ``setup()``), divided by 10,000. Node names are created before
-tracing starts, so neither library is charged for them.
+Peers measured in the same run (:mod:`.tick_peers`): BehaviorTree.CPP 4.8 through
+``behaviortreepy`` on ``flat`` and ``balanced`` when installed (taking turns with the
+other two), a leaf returning ``State.SUCCEEDED`` against one returning a module constant,
+and memory per node at 100,000 nodes, flat and mixed, against py_trees. The load
+average is recorded at the start and the end; :func:`.tick_peers.markdown` renders the
+README's rows from the result.
 
 Run ``python -m btcap.bench tick [--quick]`` or ``python -m btcap.bench.tick [--quick]``.
 """
@@ -46,7 +48,6 @@ import gc
 import itertools
 import sys
 import time
-import tracemalloc
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -59,16 +60,23 @@ import py_trees
 import btcap
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.mixed_trees import MixedRun, MixedSpec, btcap_run, mixed_spec, py_trees_run
+from btcap.bench.tick_peers import (
+    MEMORY_NODES,
+    btcpp_tick,
+    leaf_form_trees,
+    load_average,
+    markdown,
+    memory,
+)
 
 __all__ = ["Spec", "balanced_spec", "flat_spec", "run"]
 
 LIBS = ("btcap", "py_trees")
 SHAPES = ("flat", "balanced", "mixed", "mixed_parallel")
-MIXED_TREES = 12
+MIXED_TREES = 8
 MIXED_SEED = 1
 FLAT_LEAVES = 1000
 BALANCED_FANOUT = (5, 5, 6, 6)
-MEMORY_NODES = 10_000
 VERIFY_TICKS = 3
 BLOCK_S = 0.05
 
@@ -287,51 +295,23 @@ def time_runs(
     return samples
 
 
-def memory_per_node(build: Callable[[], object], nodes: int) -> float:
-    """Traced bytes still held after ``build()``, divided by ``nodes``."""
-    gc.collect()
-    tracemalloc.start()
-    try:
-        before = tracemalloc.get_traced_memory()[0]
-        keep = build()
-        gc.collect()
-        after = tracemalloc.get_traced_memory()[0]
-    finally:
-        tracemalloc.stop()
-    del keep
-    return (after - before) / nodes
-
-
-def _build_btcap_for_memory(spec: Spec) -> Callable[[], object]:
-    return lambda: _btcap_tree(spec)
-
-
-def _build_py_trees_for_memory(spec: Spec) -> Callable[[], object]:
-    def build() -> object:
-        tree = py_trees.trees.BehaviourTree(build_py_trees(spec))
-        tree.setup()
-        return tree
-
-    return build
-
-
 # -- the benchmark --------------------------------------------------------------------------
 
 
 def _table(data: dict[str, Any]) -> str:
-    us, p99, cpu = data["us_per_node"], data["us_per_node_p99"], data["cpu_us_per_node"]
+    us, cpu, ratio = data["us_per_node"], data["cpu_us_per_node"], data["cpu_speedup"]
     lines = [
-        f"{'us per node':<14} {'nodes':>5} {'btcap p50':>9} {'p99':>6} {'py_trees p50':>12} "
-        f"{'p99':>6} {'speed-up':>8} {'cpu time speed-up':>17}",
-        "-" * 83,
+        f"load average {data['load_average']['start']} at the start, "
+        f"{data['load_average']['end']} at the end",
+        f"{'us per node':<14} {'nodes':>5} {'btcap p50':>9} {'cpu':>6} {'py_trees p50':>12} "
+        f"{'cpu':>6} {'speed-up':>8} {'cpu':>6}",
+        "-" * 72,
     ]
     for shape in SHAPES:
         lines.append(
             f"{shape:<14} {data['nodes'][shape]:>5} {us['btcap'][shape]:>9.3f} "
-            f"{p99['btcap'][shape]:>6.2f} {us['py_trees'][shape]:>12.3f} "
-            f"{p99['py_trees'][shape]:>6.2f} {data['speedup'][shape]:>7.1f}x "
-            f"{data['cpu_speedup'][shape]:>8.1f}x ({cpu['btcap'][shape]:.3f}"
-            f" vs {cpu['py_trees'][shape]:.2f})"
+            f"{cpu['btcap'][shape]:>6.3f} {us['py_trees'][shape]:>12.3f} "
+            f"{cpu['py_trees'][shape]:>6.2f} {data['speedup'][shape]:>7.1f}x {ratio[shape]:>5.1f}x"
         )
     t = data["nodes_ticked_per_sample"]
     lines.append(
@@ -340,11 +320,30 @@ def _table(data: dict[str, Any]) -> str:
         + " nodes, py_trees "
         + ", ".join(f"{t['py_trees'][s]} ({s})" for s in SHAPES[2:])
     )
-    b = data["bytes_per_node"]
+    bt = data["btcpp_cpu_ns_per_node"]
+    if bt:
+        lines.append(
+            "BehaviorTree.CPP 4.8 (behaviortreepy, C++ leaves), CPU ns per node: "
+            + ", ".join(
+                f"{s} {bt[s]:.0f} (btcap {1000 * cpu['btcap'][s]:.0f}, "
+                f"{1000 * cpu['btcap'][s] / bt[s]:.2f}x)"
+                for s in bt
+            )
+        )
+    else:
+        lines.append("BehaviorTree.CPP: behaviortreepy not installed, not measured")
+    f = data["leaf_forms_cpu_us_per_node"]
     lines.append(
-        f"memory, {data['memory_nodes']} nodes: btcap {b['btcap']:.0f} B/node, "
-        f"py_trees {b['py_trees']:.0f} B/node ({b['py_trees'] / b['btcap']:.2f}x)"
+        f"leaf written `return State.SUCCEEDED`: {f['State.SUCCEEDED']:.3f} us/node CPU, "
+        f"`return SUCCEEDED` (module constant): {f['module constant']:.3f} "
+        f"({data['leaf_forms_ratio']:.2f}x)"
     )
+    m = data["memory"]
+    for shape in ("flat", "mixed"):
+        lines.append(
+            f"memory, {shape} {m['nodes'][shape]} nodes: btcap {m['btcap'][shape]:.0f} B/node, "
+            f"py_trees {m['py_trees'][shape]:.0f} B/node ({m['ratio'][shape]:.2f}x)"
+        )
     return "\n".join(lines)
 
 
@@ -354,8 +353,9 @@ def _mixed_runs(shape: str) -> dict[str, MixedRun]:
 
 
 def run(quick: bool = False) -> dict[str, Any]:
-    """Verify the shapes, time both libraries, print a table, write ``bench/results/tick.json``."""
+    """Verify the shapes, time the libraries, print a table, write ``bench/results/tick.json``."""
     warmup, count = (20, 200) if quick else (100, 1_000)
+    load_start = load_average()
     specs = {"flat": flat_spec(FLAT_LEAVES), "balanced": balanced_spec()}
     us: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
     us99: dict[str, dict[str, float]] = {lib: {} for lib in LIBS}
@@ -364,15 +364,20 @@ def run(quick: bool = False) -> dict[str, Any]:
     nodes: dict[str, int] = {}
     per_lib_nodes: dict[str, dict[str, int]] = {lib: {} for lib in LIBS}
     all_samples: dict[str, dict[str, dict[str, list[float]]]] = {}
+    btcpp: dict[str, float] = {}
     for shape, spec in specs.items():
         n = nodes[shape] = _count(spec)
         tree = _btcap_tree(spec)
         root = _py_trees_root(spec)
         verify_btcap(spec, tree)
         verify_py_trees(spec, root)
-        all_samples[shape] = time_shape(
-            {"btcap": tree.tick, "py_trees": root.tick_once}, warmup, count
-        )
+        ticks: dict[str, Callable[[], object]] = {"btcap": tree.tick, "py_trees": root.tick_once}
+        bt_tick = btcpp_tick(spec)
+        if bt_tick is not None:
+            ticks["btcpp"] = bt_tick
+        all_samples[shape] = time_shape(ticks, warmup, count)
+        if bt_tick is not None:
+            btcpp[shape] = percentiles([t / n for t in all_samples[shape]["btcpp"]["cpu"]])["p50"]
         for lib in LIBS:
             per_lib_nodes[lib][shape] = n
     for shape in ("mixed", "mixed_parallel"):
@@ -390,22 +395,25 @@ def run(quick: bool = False) -> dict[str, Any]:
             us[lib][shape], us99[lib][shape] = p["p50"], p["p99"]
             cpu_us[lib][shape] = percentiles([s / 1000.0 / n for s in samples[lib]["cpu"]])["p50"]
             ticked[lib][shape] = len(samples[lib]["wall"])
-
-    mem_spec = flat_spec(MEMORY_NODES - 1)
-    bytes_per_node = {
-        "btcap": memory_per_node(_build_btcap_for_memory(mem_spec), MEMORY_NODES),
-        "py_trees": memory_per_node(_build_py_trees_for_memory(mem_spec), MEMORY_NODES),
+    forms = leaf_form_trees()
+    form_samples = time_shape({f: t.tick for f, t in forms.items()}, warmup, count)
+    form_us = {
+        f: percentiles([s / 1000.0 / (FLAT_LEAVES + 1) for s in v["cpu"]])["p50"]
+        for f, v in form_samples.items()
     }
+    flat_memory = flat_spec(MEMORY_NODES - 1)
     data: dict[str, Any] = {
         "us_per_node": us,
         "us_per_node_p99": us99,
         "speedup": {s: us["py_trees"][s] / us["btcap"][s] for s in SHAPES},
         "cpu_us_per_node": cpu_us,
         "cpu_speedup": {s: cpu_us["py_trees"][s] / cpu_us["btcap"][s] for s in SHAPES},
-        "bytes_per_node": bytes_per_node,
+        "btcpp_cpu_ns_per_node": btcpp,
+        "leaf_forms_cpu_us_per_node": form_us,
+        "leaf_forms_ratio": form_us["State.SUCCEEDED"] / form_us["module constant"],
+        "memory": memory(flat_memory, build_btcap, build_py_trees),
         "nodes": nodes,
         "nodes_ticked_per_sample": per_lib_nodes,
-        "memory_nodes": MEMORY_NODES,
         "samples": ticked,
         "warmup": warmup,
         "quick": quick,
@@ -413,7 +421,9 @@ def run(quick: bool = False) -> dict[str, Any]:
         "py_trees_tick": "root.tick_once()",
         "btcap_tick": "Tree.tick()",
     }
+    data["load_average"] = {"start": load_start, "end": load_average()}
     print(_table(data))
+    print(markdown(data))
     path = write_result("tick", data)
     print(f"wrote {path}")
     return data

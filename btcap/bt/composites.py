@@ -37,6 +37,7 @@ _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
+_IDLE = State.IDLE
 #: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
@@ -138,7 +139,7 @@ class _Memory(Composite):
         self._current = 0
 
     def on_reset(self) -> None:
-        super().on_reset()
+        self._high = -1  # Composite.on_reset, inlined: resets are on a Parallel's tick path
         self._current = 0
 
 
@@ -294,8 +295,9 @@ class Parallel(Composite):
         pending = self._pending
         if pending is None:
             if self._restart:  # children it halted (or that erred) start afresh, not resume
-                for c in children:
-                    if c.state is not _SUCCEEDED and c.state is not _FAILED:
+                for c in children:  # (idle ones have nothing to forget)
+                    s = c.state
+                    if s is not _SUCCEEDED and s is not _FAILED and s is not _IDLE:
                         c.reset()
                 self._restart = False
             pending = children
@@ -326,7 +328,7 @@ class Parallel(Composite):
         return result
 
     def on_reset(self) -> None:
-        super().on_reset()
+        self._high = -1
         self._pending = None
         self._restart = False
 

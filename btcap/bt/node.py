@@ -9,13 +9,14 @@ are refused (:class:`~btcap.actors.errors.Refused`), whatever sender they name.
 from __future__ import annotations
 
 from collections.abc import Callable, Coroutine, Iterator, Sequence
-from types import FunctionType
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from btcap.actors import Actor, handler
+from btcap.bt.empty import NO_CHILDREN, NO_VALUES
 from btcap.bt.host import TreeHost
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
+from btcap.bt.specialize import interned_members, own_copies
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
@@ -86,8 +87,9 @@ class Node(Actor):
                 setattr(
                     cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}")
                 )
-        if "tick" not in cls.__dict__ and cls.tick.__code__ == Node.tick.__code__:
-            cls.tick = _own_copy(Node.tick)  # type: ignore[method-assign]
+        own_copies(cls, Node, ("tick", "reset", "untick"))  # the hot actions
+        if "on_tick" in cls.__dict__:  # ``return State.SUCCEEDED`` as fast as a constant
+            cls.on_tick = interned_members(cls.__dict__["on_tick"], State)  # type: ignore[method-assign]
 
     def __init__(
         self,
@@ -112,16 +114,20 @@ class Node(Actor):
         self._pulls: list[tuple[str, Node, str]] | None = None
         self._ready = False
         self._gate: bool | tuple[Any, ...] | None = True
-        self.options = self._check_options(options)
+        # Nothing declared, nothing held: shared unwritable empties (see btcap.bt.empty).
+        self.options = self._check_options(options) if options or cls.OPTIONS else NO_VALUES
         self.input_ports: PortMap = cls.INPUTS
         self.output_ports: PortMap = cls.OUTPUTS
         self.declare_ports()
-        self.inputs: dict[str, Any] = {n: p.default_value() for n, p in self.input_ports.items()}
-        self.outputs: dict[str, Any] = dict.fromkeys(self.output_ports)
+        ins, outs = self.input_ports, self.output_ports
+        self.inputs: dict[str, Any] = (
+            {n: p.default_value() for n, p in ins.items()} if ins else NO_VALUES
+        )
+        self.outputs: dict[str, Any] = dict.fromkeys(outs) if outs else NO_VALUES
         if inputs:
             for key, value in inputs.items():
                 self.set_input(key, value)
-        self.children: list[Node] = []
+        self.children: list[Node] = [] if cls.MAX_CHILDREN != 0 else NO_CHILDREN
         seen: set[str] = set()
         for child in children:
             if child.name in seen:
@@ -313,8 +319,8 @@ class Node(Actor):
         """Back to idle: outputs cleared, background work cancelled, children reset."""
         if not self._ready:
             self._not_ready("reset")
-        for c in self.children:
-            if c.state is not _IDLE:  # an idle child was not ticked since its setup or reset
+        for c in self.children:  # only what ran since its last reset: idle ones did not
+            if c.state is not _IDLE:
                 c.reset()
         self.error = None
         try:
@@ -322,8 +328,10 @@ class Node(Actor):
         except Exception as exc:
             self._fail(exc, "reset")
             return
-        for key in self.outputs:
-            self.outputs[key] = None
+        outputs = self.outputs
+        if outputs:
+            for key in outputs:
+                outputs[key] = None
         prev = self.state  # _set, inlined: a Parallel starting over resets on the tick path
         self.state = _IDLE
         if self._watch is not None and prev is not _IDLE:
@@ -427,15 +435,6 @@ class Node(Actor):
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r} {self.state.value}>"
-
-
-def _own_copy(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """``fn`` with a code object of its own, so CPython's specialising interpreter keeps
-    monomorphic inline caches per node class instead of sharing (and missing) them."""
-    copy = FunctionType(fn.__code__.replace(), fn.__globals__, fn.__name__, fn.__defaults__)
-    copy.__qualname__, copy.__doc__ = fn.__qualname__, fn.__doc__
-    copy.__kwdefaults__, copy.__annotations__ = fn.__kwdefaults__, fn.__annotations__
-    return copy
 
 
 class Leaf(Node):

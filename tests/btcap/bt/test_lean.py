@@ -1,0 +1,177 @@
+"""What keeps nodes small and ticks cheap must not show: shared empties refuse writes,
+State behaves as the Enum it is, and a reset reaches only the nodes that ran."""
+
+from __future__ import annotations
+
+import enum
+import pickle
+import sys
+import traceback
+
+import msgspec
+import pytest
+
+from btcap import (
+    AlwaysSuccess,
+    Leaf,
+    Parallel,
+    Port,
+    Sequence,
+    State,
+    Tree,
+    TreeError,
+)
+from btcap.bt.messages import NodeStatus
+from btcap.bt.specialize import interned_members
+from btcap.bt.state import _FastEnumType
+
+
+class Counting(Leaf):
+    """Gives its scripted results in turn and counts its resets."""
+
+    __slots__ = ("resets", "script", "ticks")
+
+    def __init__(self, name: str, script: str) -> None:
+        super().__init__(name)
+        self.script = script
+        self.ticks = 0
+        self.resets = 0
+
+    def on_tick(self) -> State:
+        result = {"S": State.SUCCEEDED, "F": State.FAILED, "R": State.RUNNING}
+        s = result[self.script[min(self.ticks, len(self.script) - 1)]]
+        self.ticks += 1
+        return s
+
+    def on_reset(self) -> None:
+        self.resets += 1
+        self.ticks = 0
+
+
+class WithOutput(Leaf):
+    OUTPUTS = {"x": int}
+    OPTIONS = {"k": Port(int, 1)}
+
+    def on_tick(self) -> State:
+        self.outputs["x"] = self.options["k"]
+        return State.SUCCEEDED
+
+
+def test_a_node_without_ports_refuses_writes_to_them() -> None:
+    leaf = AlwaysSuccess("a")
+    assert leaf.inputs == {}
+    assert leaf.outputs == {}
+    assert leaf.options == {}
+    with pytest.raises(TreeError, match="no port or option 'x'"):
+        leaf.outputs["x"] = 1
+    with pytest.raises(TreeError, match="declares no ports"):
+        leaf.inputs.update(x=1)
+    with pytest.raises(TreeError, match="takes no children"):
+        leaf.children.append(AlwaysSuccess("b"))
+    assert AlwaysSuccess("c").outputs == {}
+    assert leaf.children == []
+    assert pickle.loads(pickle.dumps(leaf.outputs)) == {}
+
+
+def test_nodes_with_ports_keep_their_own_values() -> None:
+    a, b = WithOutput("a", k=1), WithOutput("b", k=2)
+    tree = Tree(Sequence("root", children=[a, b]))
+    tree.setup()
+    assert tree.tick() is State.SUCCEEDED
+    assert (a.outputs, b.outputs) == ({"x": 1}, {"x": 2})
+    tree.reset()
+    assert (a.outputs, b.outputs) == ({"x": None}, {"x": None})
+
+
+def test_state_is_still_the_enum() -> None:
+    assert isinstance(State, enum.EnumMeta)
+    assert issubclass(State, enum.Enum)
+    assert State.SUCCEEDED is State("succeeded") is State["SUCCEEDED"]
+    assert len(list(State)) == len(State.__members__) == 10
+    assert State.SUCCEEDED.value == "succeeded"
+    assert State.SUCCEEDED.name == "SUCCEEDED"
+    assert pickle.loads(pickle.dumps(State.PAUSED)) is State.PAUSED
+    status = NodeStatus(State.FAILED, {"x": 1})
+    assert msgspec.msgpack.decode(msgspec.msgpack.encode(status), type=NodeStatus) == status
+    with pytest.raises(ValueError, match="not a valid State"):
+        State("bogus")
+    with pytest.raises(AttributeError):
+        State.BOGUS  # noqa: B018
+    with pytest.raises(AttributeError, match="cannot reassign"):
+        State.IDLE = State.RUNNING  # type: ignore[misc]
+    assert State._missing_("x") is None  # inherited from Enum: the full lookup
+
+
+@pytest.mark.skipif(sys.version_info >= (3, 12), reason="the check exists where the toll does")
+def test_a_fast_enum_refuses_members_that_need_binding() -> None:
+    with pytest.raises(TypeError, match="no descriptors"):
+
+        class Bad(enum.Enum, metaclass=_FastEnumType):
+            A = 1
+
+            @classmethod
+            def make(cls) -> Bad:
+                return cls.A
+
+
+def test_a_parallel_starting_over_resets_only_what_ran() -> None:
+    # The Parallel succeeds once ``quick`` does; ``slow`` is halted mid-way, its Sequence
+    # having ticked ``first`` (done) and ``second`` (running) but never ``third``.
+    quick = Counting("quick", "S")
+    first, second, third = Counting("first", "S"), Counting("second", "R"), Counting("third", "S")
+    slow = Sequence("slow", children=[first, second, third])
+    tree = Tree(Parallel("p", children=[quick, slow], success_threshold=1))
+    tree.setup()
+    assert tree.tick() is State.SUCCEEDED
+    assert (slow.state, second.state, third.state) == (State.PAUSED, State.PAUSED, State.IDLE)
+    assert tree.tick() is State.SUCCEEDED  # starting over: slow and what ran below it reset
+    assert (first.resets, second.resets, third.resets, quick.resets) == (1, 1, 0, 0)
+
+
+_CPYTHON_311 = sys.implementation.name == "cpython" and sys.version_info[:2] == (3, 11)
+
+
+class Documented(Leaf):
+    """A leaf as the docs write one, with a branch and a line that raises."""
+
+    __slots__ = ("fail", "result")
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.result, self.fail = True, False
+
+    def on_tick(self) -> State:
+        if self.fail:
+            raise RuntimeError("asked to")
+        return State.SUCCEEDED if self.result else State.FAILED
+
+
+def test_a_leaf_returning_state_members_reads_them_as_constants() -> None:
+    leaf = Documented("d")
+    tree = Tree(leaf)
+    tree.setup()
+    assert tree.tick() is State.SUCCEEDED
+    leaf.result = False
+    assert tree.tick() is State.FAILED
+    code = Documented.on_tick.__code__
+    if _CPYTHON_311:
+        assert State.SUCCEEDED in code.co_consts
+        assert State.FAILED in code.co_consts
+    leaf.fail = True
+    assert tree.tick() is State.ERROR
+    assert leaf.error is not None
+    frames = [f for f in traceback.extract_tb(leaf.error.__traceback__) if f.name == "on_tick"]
+    assert frames[-1].line == 'raise RuntimeError("asked to")'  # line numbers kept
+
+
+def test_only_the_module_global_state_is_interned() -> None:
+    def shadowed(self: object) -> object:
+        State = {"SUCCEEDED": 1}  # noqa: N806 - a local of that name is not the enum
+        return State["SUCCEEDED"]
+
+    def other_global(self: object) -> object:
+        return enum.Enum  # a global that is not State
+
+    for fn in (shadowed, other_global):
+        assert interned_members(fn, State) is fn
+    assert interned_members(Documented.on_tick, State)(Documented("x")) is State.SUCCEEDED
