@@ -16,7 +16,7 @@ from btcap.bt.empty import NO_CHILDREN, NO_VALUES
 from btcap.bt.host import TreeHost
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
-from btcap.bt.specialize import interned_members, own_copies
+from btcap.bt.specialize import own_copies
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
@@ -88,8 +88,6 @@ class Node(Actor):
                     cls, attr, normalize_ports(cls.__dict__[attr], f"{cls.__qualname__}.{attr}")
                 )
         own_copies(cls, Node, ("tick", "reset", "untick"))  # the hot actions
-        if "on_tick" in cls.__dict__:  # ``return State.SUCCEEDED`` as fast as a constant
-            cls.on_tick = interned_members(cls.__dict__["on_tick"], State)  # type: ignore[method-assign]
 
     def __init__(
         self,

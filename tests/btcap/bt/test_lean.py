@@ -6,7 +6,6 @@ from __future__ import annotations
 import enum
 import pickle
 import sys
-import traceback
 
 import msgspec
 import pytest
@@ -22,7 +21,6 @@ from btcap import (
     TreeError,
 )
 from btcap.bt.messages import NodeStatus
-from btcap.bt.specialize import interned_members
 from btcap.bt.state import _FastEnumType
 
 
@@ -126,52 +124,3 @@ def test_a_parallel_starting_over_resets_only_what_ran() -> None:
     assert (slow.state, second.state, third.state) == (State.PAUSED, State.PAUSED, State.IDLE)
     assert tree.tick() is State.SUCCEEDED  # starting over: slow and what ran below it reset
     assert (first.resets, second.resets, third.resets, quick.resets) == (1, 1, 0, 0)
-
-
-_CPYTHON_311 = sys.implementation.name == "cpython" and sys.version_info[:2] == (3, 11)
-
-
-class Documented(Leaf):
-    """A leaf as the docs write one, with a branch and a line that raises."""
-
-    __slots__ = ("fail", "result")
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name)
-        self.result, self.fail = True, False
-
-    def on_tick(self) -> State:
-        if self.fail:
-            raise RuntimeError("asked to")
-        return State.SUCCEEDED if self.result else State.FAILED
-
-
-def test_a_leaf_returning_state_members_reads_them_as_constants() -> None:
-    leaf = Documented("d")
-    tree = Tree(leaf)
-    tree.setup()
-    assert tree.tick() is State.SUCCEEDED
-    leaf.result = False
-    assert tree.tick() is State.FAILED
-    code = Documented.on_tick.__code__
-    if _CPYTHON_311:
-        assert State.SUCCEEDED in code.co_consts
-        assert State.FAILED in code.co_consts
-    leaf.fail = True
-    assert tree.tick() is State.ERROR
-    assert leaf.error is not None
-    frames = [f for f in traceback.extract_tb(leaf.error.__traceback__) if f.name == "on_tick"]
-    assert frames[-1].line == 'raise RuntimeError("asked to")'  # line numbers kept
-
-
-def test_only_the_module_global_state_is_interned() -> None:
-    def shadowed(self: object) -> object:
-        State = {"SUCCEEDED": 1}  # noqa: N806 - a local of that name is not the enum
-        return State["SUCCEEDED"]
-
-    def other_global(self: object) -> object:
-        return enum.Enum  # a global that is not State
-
-    for fn in (shadowed, other_global):
-        assert interned_members(fn, State) is fn
-    assert interned_members(Documented.on_tick, State)(Documented("x")) is State.SUCCEEDED
