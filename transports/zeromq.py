@@ -33,15 +33,14 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
+from btcap.transports.zmq_io import allow_sockets, batch_io_threads, read_frames, read_plain
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     EVENTS,
-    NOBLOCK,
     POLLIN,
     SCHEMES,
     Monitor,
-    allow_sockets,
     check_id,
     check_transport_args,
     fd_of,
@@ -127,6 +126,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             zmq.Context() if self._own_ctx else zmq.Context.shadow(base.underlying)
         )
         allow_sockets(self._ctx)
+        batch_io_threads(self._ctx)
         try:
             self._router, self._events = open_router(
                 self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id
@@ -272,17 +272,13 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             return
         router = self._router
         secure = self.curve is not None
+        recv, get = router.recv, router.getsockopt  # bound once: see zmq_io
         stats, budget = self.stats, _BATCH
         try:
             while budget > 0:
                 malformed, budget = stats.malformed, budget - 1
                 try:
-                    if secure:
-                        frames = self._authenticated(router.recv_multipart(NOBLOCK, copy=False))
-                    else:
-                        frames = router.recv_multipart(NOBLOCK)
-                        if frames:  # the name its routing id claims (see open_dealer)
-                            frames[0] = frames[0].partition(b"/")[0]
+                    frames = self._authenticated(read_frames(recv)) if secure else read_plain(recv)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
@@ -296,7 +292,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     return
                 budget -= _JUNK_COST if stats.malformed != malformed else 0
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
-                if not router.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
+                if not get(EVENTS) & POLLIN:  # type: ignore[operator]
                     return
         except zmq.ZMQError as exc:
             if not self._closed:
@@ -323,21 +319,23 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if peer not in self._configured:  # gone for good unless it speaks again
                 self._fate(peer, self._strangers.lapsed(peer))
 
-    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
+    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes | memoryview]:
         member, problem = authenticated(frames)
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return []
         if self._blocked(frames[0].bytes, member):
             return []
-        return [member, *(f.bytes for f in frames[1:])]
+        return [member, *(f.buffer for f in frames[1:])]
 
-    def _handle(self, frames: list[bytes], deliver: Deliver) -> None:
+    def _handle(self, frames: list[bytes | memoryview], deliver: Deliver) -> None:
         if len(frames) != 2:
-            self._malformed("frame count", frames[0], f"{len(frames)} frames")
+            self._malformed("frame count", bytes(frames[0]), f"{len(frames)} frames")
             return
-        ident, body = frames
+        ident, body = bytes(frames[0]), frames[1]  # the id is bytes already: no copy
         kind = body[0] if body else -1
+        if kind != _MSG_BYTE:
+            body = bytes(body)
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
             if peer is None:
