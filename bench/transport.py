@@ -54,7 +54,7 @@ from btcap.bench.transport_peers import (
 from btcap.transports import InProcessNetwork, KeyPair, ZmqTransport
 from btcap.transports.security import write_key_pair
 
-__all__ = ["Ping", "Pong", "run"]
+__all__ = ["Ping", "Pong", "measure", "raw_zmq_tcp_blocking", "run", "zmq_tcp"]
 
 SCENARIOS = (
     "local",
@@ -154,6 +154,11 @@ async def _zmq_remote(
             yield ask, [pid]
 
 
+def zmq_tcp(loop: str = "asyncio") -> contextlib.AbstractAsyncContextManager[Scenario]:
+    """The runtime's ask over tcp to an echo actor in another process (no keys)."""
+    return _zmq_remote("main-tcp", _TCP, _TCP, loop)
+
+
 @contextlib.asynccontextmanager
 async def _raw_zmq_tcp(loop: str, keys: str | None = None) -> AsyncIterator[Scenario]:
     """pyzmq's own asyncio sockets, DEALER here, ROUTER echo there (with ``keys``,
@@ -181,7 +186,7 @@ async def _raw_zmq_tcp(loop: str, keys: str | None = None) -> AsyncIterator[Scen
 
 
 @contextlib.asynccontextmanager
-async def _raw_zmq_tcp_blocking() -> AsyncIterator[Scenario]:
+async def raw_zmq_tcp_blocking() -> AsyncIterator[Scenario]:
     """The floor: blocking pyzmq on both sides, no event loop in the way."""
     with child("--raw-peer-blocking", _TCP) as (endpoint, pid):
         ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
@@ -201,7 +206,7 @@ async def _raw_zmq_tcp_blocking() -> AsyncIterator[Scenario]:
             ctx.term()
 
 
-async def _measure(ask: Ask, count: int, samples: list[float]) -> None:
+async def measure(ask: Ask, count: int, samples: list[float]) -> None:
     """Append ``count`` per-call latencies in microseconds to ``samples``."""
     clock = time.perf_counter_ns
     for i in range(count):
@@ -223,11 +228,11 @@ def _scenarios(
         "zmq_ipc": lambda: _zmq_remote(
             "main-ipc", f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock", loop
         ),
-        "zmq_tcp": lambda: _zmq_remote("main-tcp", _TCP, _TCP, loop),
+        "zmq_tcp": lambda: zmq_tcp(loop),
         "zmq_tcp_curve": lambda: _zmq_remote("main-curve", _TCP, _TCP, loop, tmp),
         "raw_zmq_tcp": lambda: _raw_zmq_tcp(loop),
         "raw_zmq_tcp_curve": lambda: _raw_zmq_tcp(loop, tmp),
-        "raw_zmq_tcp_blocking": _raw_zmq_tcp_blocking,
+        "raw_zmq_tcp_blocking": raw_zmq_tcp_blocking,
     }
     names = SCENARIOS if loop == "asyncio" else TCP_SCENARIOS
     return {name: every[name] for name in names}
@@ -258,7 +263,7 @@ async def _run_all(loop: str, warmup: int, count: int, rounds: int) -> dict[str,
                 gc.collect()
                 for name, (ask, pids) in setups.items():
                     here, peer = time.process_time(), sum(cpu_of(p) for p in pids)
-                    await _measure(ask, per_round, samples[name])
+                    await measure(ask, per_round, samples[name])
                     cpu_here[name] += time.process_time() - here
                     cpu_peer[name] += sum(cpu_of(p) for p in pids) - peer
             asks = per_round * rounds
