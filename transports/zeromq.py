@@ -33,7 +33,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.zmq_io import allow_sockets, batch_io_threads, read_frames, read_plain
+from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
@@ -126,7 +126,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             zmq.Context() if self._own_ctx else zmq.Context.shadow(base.underlying)
         )
         allow_sockets(self._ctx)
-        batch_io_threads(self._ctx)
         try:
             self._router, self._events = open_router(
                 self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id

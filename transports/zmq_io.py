@@ -7,14 +7,12 @@ the codec decodes without a copy: a path every message takes.
 
 from __future__ import annotations
 
-import os
-import sys
 from collections.abc import Callable
 from typing import Any
 
 import zmq
 
-__all__ = ["allow_sockets", "batch_io_threads", "read_frames", "read_plain"]
+__all__ = ["allow_sockets", "read_frames", "read_plain"]
 
 NOBLOCK = int(zmq.NOBLOCK)
 
@@ -26,23 +24,6 @@ def allow_sockets(ctx: zmq.Context[Any]) -> None:
     limit = min(int(ctx.get(zmq.SOCKET_LIMIT)), 16_384)
     if int(ctx.get(zmq.MAX_SOCKETS)) < limit:
         ctx.set(zmq.MAX_SOCKETS, limit)
-
-
-def batch_io_threads(ctx: zmq.Context[Any]) -> None:
-    """Run the context's I/O threads under ``SCHED_BATCH`` (Linux; no privilege needed).
-
-    Each send wakes an I/O thread; a normal thread woken on a busy core preempts the
-    event loop there at once, so a send costs a context switch (an auction's call for bids
-    to ten peers: ten). Batch threads are never woken ahead of a running one: they run on
-    an idle core, when the loop waits, or at the next scheduler tick, taking what queued
-    meanwhile in one go. Only takes effect before the context's first socket.
-    """
-    if sys.platform == "linux" and _BATCH_ENV not in os.environ:
-        ctx.set(zmq.THREAD_SCHED_POLICY, os.SCHED_BATCH)
-
-
-_BATCH_ENV = "BTCAP_ZMQ_NO_BATCH"
-"""Set (to anything) to leave ZeroMQ's I/O threads under the normal policy."""
 
 
 def read_plain(recv: Callable[..., Any]) -> list[bytes | memoryview]:
