@@ -108,7 +108,8 @@ async def _rounds(
         won = await auctioneer.assign(task)
         t1 = clock()
         if not isinstance(won, Assigned):
-            raise RuntimeError(f"bench auction: round {i} with {len(bidders)} bidders unassigned")
+            why = getattr(won, "reasons", won)
+            raise RuntimeError(f"bench auction: round {i} with {len(bidders)} unassigned: {why}")
         # Free the winner: the cancel travels ahead of the next call for bids.
         system.tell(Address(won.robot, MissionControl.PATH), CancelExecution(execution, "bench"))
         if i >= warmup:

@@ -333,8 +333,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             return
         ident, body = bytes(frames[0]), frames[1]  # the id is bytes already: no copy
         kind = body[0] if body else -1
-        if kind != _MSG_BYTE:
-            body = bytes(body)
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
             if peer is None:
@@ -367,7 +365,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
         elif kind == _HELLO_BYTE:
-            where, instance = split_hello(body[1:])
+            where, instance = split_hello(bytes(body[1:]))
             try:
                 peer, endpoint = parse_hello(ident, where, self.system_id)
             except ValueError as exc:
@@ -376,9 +374,9 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
         elif kind == REFUSAL:
-            self._refused_by(ident, body[1:])
+            self._refused_by(ident, bytes(body[1:]))
         else:
-            self._malformed("unknown frame kind", ident, repr(body[:8]))
+            self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
 
     def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).
