@@ -30,17 +30,20 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import gc
 import itertools
 import os
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Address, configure_logging
+from btcap.bench import transport as transport_bench
+from btcap.bench.auction_report import table
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.cpumeter import CpuMeter
 from btcap.bt.state import State
@@ -59,6 +62,9 @@ from btcap.transports.security import write_key_pair
 __all__ = ["run"]
 
 BIDDERS = (1, 3, 10, 50)
+REFERENCE_BIDDERS = 10
+ASK_REFERENCE = 1000
+"""tcp asks measured right before and after the 10-bidder rounds (plain tcp), each way."""
 WINDOW_S = 5.0  # long, so an auction that did not close early would show
 # Heartbeats every second, as a deployed team would run: with 51 agents on two cores, the
 # default 0.1 s (all-to-all, 25 000 messages a second) would be most of what they do.
@@ -102,7 +108,8 @@ async def _rounds(
         won = await auctioneer.assign(task)
         t1 = clock()
         if not isinstance(won, Assigned):
-            raise RuntimeError(f"bench auction: round {i} with {len(bidders)} bidders unassigned")
+            why = getattr(won, "reasons", won)
+            raise RuntimeError(f"bench auction: round {i} with {len(bidders)} unassigned: {why}")
         # Free the winner: the cancel travels ahead of the next call for bids.
         system.tell(Address(won.robot, MissionControl.PATH), CancelExecution(execution, "bench"))
         if i >= warmup:
@@ -153,7 +160,12 @@ async def _bench_inproc(
 
 
 async def _all_sizes(
-    origin: Agent, names: Sequence[str], warmup: int, count: int, cpu: CpuMeter
+    origin: Agent,
+    names: Sequence[str],
+    warmup: int,
+    count: int,
+    cpu: CpuMeter,
+    reference: Callable[[], Awaitable[None]] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     lat: dict[str, Any] = {}
     early: dict[str, Any] = {}
@@ -163,16 +175,24 @@ async def _all_sizes(
     for n in BIDDERS:
         # Spread the bidders over every process (names were dealt round robin).
         await _rounds(origin, names[:n], warmup, 0)
+        if reference is not None and n == REFERENCE_BIDDERS:
+            await reference()  # right before and after: the same conditions
         cpu.start()
         samples, closed = await _rounds(origin, names[:n], 0, count)
         cpu_ms[str(n)] = cpu.per_round_ms(count)
+        if reference is not None and n == REFERENCE_BIDDERS:
+            await reference()
         lat[str(n)] = percentiles(samples)
         early[str(n)] = {"rounds": count, "early": closed}
     return lat, early, cpu_ms
 
 
 async def _bench_zmq(
-    warmup: int, count: int, processes: int, keys: Path | None = None
+    warmup: int,
+    count: int,
+    processes: int,
+    keys: Path | None = None,
+    asks: dict[str, list[float]] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     """Rounds over tcp; with ``keys`` (a directory of every agent's certificates, which is
     also the allow-list) every agent, the origin included, runs CURVE."""
@@ -197,12 +217,35 @@ async def _bench_zmq(
         transport = ZmqTransport(
             "origin", f"tcp://{_LOCAL}:*", reg, peers=peers, keys=pair, trusted=team
         )
+        meter = CpuMeter([p.pid for p in procs])
         async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
             await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
-            return await _all_sizes(o, names, warmup, count, CpuMeter([p.pid for p in procs]))
+            if asks is None:
+                return await _all_sizes(o, names, warmup, count, meter)
+            async with _asks(asks) as reference:
+                return await _all_sizes(o, names, warmup, count, meter, reference)
     finally:
         for p in procs:
             p.stop()
+
+
+@contextlib.asynccontextmanager
+async def _asks(samples: dict[str, list[float]]) -> AsyncIterator[Callable[[], Awaitable[None]]]:
+    """What an auction round is compared to, measured in the same run: a tcp ask of the
+    runtime (to an echo actor in another process) and blocking pyzmq's round trip."""
+    async with (
+        transport_bench.zmq_tcp() as (ask, _),
+        transport_bench.raw_zmq_tcp_blocking() as (floor, _),
+    ):
+        for i in range(ASK_REFERENCE):
+            await ask(i)
+            await floor(i)
+
+        async def measure() -> None:
+            for name, call in (("zmq_tcp_ask", ask), ("raw_zmq_tcp_blocking", floor)):
+                await transport_bench.measure(call, ASK_REFERENCE, samples.setdefault(name, []))
+
+        yield measure
 
 
 # -- remote tick and fail-over -------------------------------------------------------------
@@ -295,65 +338,6 @@ async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[f
     return samples
 
 
-# -- report --------------------------------------------------------------------------------
-
-
-def _table(data: dict[str, Any]) -> str:
-    rounds, cpu = data["round_ms"], data["round_cpu_ms"]
-    lines = [
-        "auction round, call for bids -> accepted award (ms); cpu = CPU ms per round",
-        f"{'bidders':>7} | {'inproc p50':>10} {'p99':>7} {'cpu':>6} | "
-        f"{'tcp p50':>7} {'p99':>7} {'cpu here':>8} {'cpu bidders':>11}",
-    ]
-    for n in BIDDERS:
-        k = str(n)
-        a, b = rounds["inproc"][k], rounds["zmq_tcp"][k]
-        ca, cb = cpu["inproc"][k], cpu["zmq_tcp"][k]
-        lines.append(
-            f"{n:>7} | {a['p50']:>10.3f} {a['p99']:>7.3f} {ca['this_process']:>6.2f} | "
-            f"{b['p50']:>7.3f} {b['p99']:>7.3f} {cb['this_process']:>8.2f} "
-            f"{cb['bidder_processes']:>11.2f}"
-        )
-    setup = data["setup"]
-    ok = "yes" if data["early_close"]["all"] else "NO"
-    lines.append(
-        f"every round closed early: {ok} (window {WINDOW_S} s); bidders over tcp in "
-        f"{setup['bidder_processes']} processes; load average "
-        f"{setup['load_average'][0]:.1f} -> {setup['load_average'][1]:.1f}"
-    )
-    lines.append("")
-    lines.append(_curve_table(data))
-    t, f = data["remote_tick_ms"], data["failover_s"]
-    lines.append(f"remote tick round trip (tcp): p50 {t['p50']:.3f} ms, p99 {t['p99']:.3f} ms")
-    lines.append(
-        f"fail-over at speed-up 1: p50 {f['p50']:.3f} s, max {f['max']:.3f} s "
-        f"({f['repeats']} kills)"
-    )
-    return "\n".join(lines)
-
-
-def _curve_table(data: dict[str, Any]) -> str:
-    rounds, cpu = data["round_ms"], data["round_cpu_ms"]
-    lines = [
-        "auction round over tcp, plain vs CURVE (ms; cpu = here + bidders, CPU ms per round)",
-        f"{'bidders':>7} | {'plain p50':>9} {'p99':>7} {'cpu':>6} | "
-        f"{'CURVE p50':>9} {'p99':>7} {'cpu':>6} | {'ratio p50':>9} {'p99':>5} {'cpu':>5}",
-    ]
-    for n in BIDDERS:
-        k = str(n)
-        a, b = rounds["zmq_tcp"][k], rounds["zmq_tcp_curve"][k]
-        ca, cb = (
-            c[k]["this_process"] + c[k]["bidder_processes"]
-            for c in (cpu["zmq_tcp"], cpu["zmq_tcp_curve"])
-        )
-        lines.append(
-            f"{n:>7} | {a['p50']:>9.3f} {a['p99']:>7.3f} {ca:>6.2f} | "
-            f"{b['p50']:>9.3f} {b['p99']:>7.3f} {cb:>6.2f} | "
-            f"{b['p50'] / a['p50']:>9.2f} {b['p99'] / a['p99']:>5.2f} {cb / ca:>5.2f}"
-        )
-    return "\n".join(lines)
-
-
 def _team_keys(directory: Path, robots: Sequence[str]) -> Path:
     """A certificate pair per robot in ``directory``, which doubles as the allow-list
     (it holds every member's public ``NAME.key``)."""
@@ -369,7 +353,8 @@ async def _run(quick: bool) -> dict[str, Any]:
     processes = 4
     load_before = os.getloadavg()[0]
     inproc, inproc_early, inproc_cpu = await _bench_inproc(warmup, count)
-    zmq_tcp, zmq_early, zmq_cpu = await _bench_zmq(warmup, count, processes)
+    asks: dict[str, list[float]] = {}
+    zmq_tcp, zmq_early, zmq_cpu = await _bench_zmq(warmup, count, processes, asks=asks)
     with tempfile.TemporaryDirectory(prefix="btcap-bench-keys-") as tmp:
         keys = _team_keys(Path(tmp), ["origin", *_bidder_names(max(BIDDERS))])
         curve, curve_early, curve_cpu = await _bench_zmq(warmup, count, processes, keys)
@@ -379,8 +364,18 @@ async def _run(quick: bool) -> dict[str, Any]:
         for e in (inproc_early, zmq_early, curve_early)
         for v in e.values()
     )
+    ask_us = {name: percentiles(values) for name, values in asks.items()}
+    k = str(REFERENCE_BIDDERS)
     return {
         "round_ms": {"inproc": inproc, "zmq_tcp": zmq_tcp, "zmq_tcp_curve": curve},
+        "ask_us": ask_us,
+        "round_to_ask": {
+            "bidders": REFERENCE_BIDDERS,
+            "round_p50_over_tcp_ask_p50": zmq_tcp[k]["p50"] * 1e3 / ask_us["zmq_tcp_ask"]["p50"],
+            "round_p50_over_floor_p50": zmq_tcp[k]["p50"]
+            * 1e3
+            / ask_us["raw_zmq_tcp_blocking"]["p50"],
+        },
         "round_cpu_ms": {"inproc": inproc_cpu, "zmq_tcp": zmq_cpu, "zmq_tcp_curve": curve_cpu},
         "early_close": {
             "inproc": inproc_early,
@@ -413,7 +408,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     """Measure, print a table, write ``bench/results/auction.json``."""
     configure_logging("error")  # the executors this benchmark kills are logged as lost
     data = asyncio.run(_run(quick))
-    print(_table(data))
+    print(table(data, WINDOW_S))
     path = write_result("auction", data)
     print(f"wrote {path}")
     return data

@@ -1,41 +1,60 @@
 """Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
 
-The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport --peer``).
-Two peer figures are measured in the same run: pyzmq's own asyncio DEALER/ROUTER echo
-over tcp (``raw_zmq_tcp``, what the runtime is compared to as a ratio) and blocking
-pyzmq on both sides (``raw_zmq_tcp_blocking``, the floor with no event loop at all).
-All scenarios are set up at once and measured in interleaved rounds, so a machine whose
-load drifts during the run still gives every scenario the same conditions.
+The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport --peer``,
+see :mod:`bench.transport_peers`). Peer figures measured in the same run: blocking pyzmq
+on both sides (``raw_zmq_tcp_blocking``: the floor with no event loop at all, and what
+every figure is given as a ratio to) and pyzmq's own asyncio DEALER/ROUTER echo
+(``raw_zmq_tcp``). All scenarios are set up at once and measured in interleaved rounds,
+so a machine whose load drifts still gives every scenario the same conditions. Besides
+wall time, each scenario's CPU time per ask is counted (``time.process_time`` here, the
+peer process's from ``/proc``: every thread, so ZeroMQ's I/O threads count), which a
+shared machine's load moves far less.
 
-Run ``python -m btcap.bench transport [--quick]`` or ``python -m btcap.bench.transport [--quick]``.
+With uvloop installed (the optional ``fast`` extra) the tcp scenarios run a second
+time with both sides on uvloop, against their own blocking floor in that pass.
+
+Run ``python -m btcap.bench transport [--quick] [--loop asyncio|uvloop|both]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import gc
 import os
 import shutil
-import subprocess
-import sys
 import tempfile
 import time
 import uuid
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from typing import Any
 
 import msgspec
 import zmq
 import zmq.asyncio
 
-from btcap.actors import Actor, ActorSystem, Address, Message, configure_logging, handler
+from btcap.actors import ActorSystem, Address, configure_logging
 from btcap.bench.common import percentiles, write_result
-from btcap.transports import InProcessNetwork, KeyPair, MessageRegistry, ZmqTransport
+from btcap.bench.cpumeter import cpu_of
+from btcap.bench.transport_peers import (
+    LOOPS,
+    Echo,
+    Ping,
+    Pong,
+    child,
+    peer_keys,
+    registry,
+    run_on,
+    secure,
+    serve_peer,
+    serve_raw_peer,
+    serve_raw_peer_blocking,
+    uvloop_installed,
+)
+from btcap.transports import InProcessNetwork, KeyPair, ZmqTransport
 from btcap.transports.security import write_key_pair
 
-__all__ = ["Ping", "Pong", "run"]
+__all__ = ["Ping", "Pong", "measure", "raw_zmq_tcp_blocking", "run", "zmq_tcp"]
 
 SCENARIOS = (
     "local",
@@ -48,51 +67,32 @@ SCENARIOS = (
     "raw_zmq_tcp_curve",
     "raw_zmq_tcp_blocking",
 )
-_READY = "READY "
+TCP_SCENARIOS = ("zmq_tcp", "zmq_tcp_curve", "raw_zmq_tcp_blocking")
+"""What the uvloop pass measures: the runtime over tcp and its floor."""
+FLOOR = "raw_zmq_tcp_blocking"
 _TCP = "tcp://127.0.0.1:*"
 _PAYLOAD = "x" * 32
 
-
-class Ping(Message):
-    seq: int
-    text: str
-
-
-class Pong(Message):
-    seq: int
-
-
-class Echo(Actor):
-    """Replies from a sync handler, so local asks take the direct-call fast path."""
-
-    @handler
-    def ping(self, msg: Ping) -> Pong:
-        return Pong(msg.seq)
-
-
-def _registry() -> MessageRegistry:
-    return MessageRegistry([Ping, Pong])
-
-
-# -- scenarios: each yields an ``ask(i)`` that does one round trip ------------------------
+# -- scenarios: each yields an ``ask(i)`` that does one round trip, and its peer pids ------
 
 Ask = Callable[[int], Awaitable[Any]]
+Scenario = tuple[Ask, list[int]]
 
 
 @contextlib.asynccontextmanager
-async def _local() -> AsyncIterator[Ask]:
-    async with ActorSystem("local", registry=_registry()) as system:
+async def _local() -> AsyncIterator[Scenario]:
+    async with ActorSystem("local", registry=registry()) as system:
         ref = system.spawn(Echo(), "echo")
 
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        yield ask
+        yield ask, []
 
 
 @contextlib.asynccontextmanager
-async def _inproc_transport() -> AsyncIterator[Ask]:
-    reg = _registry()
+async def _inproc_transport() -> AsyncIterator[Scenario]:
+    reg = registry()
     net = InProcessNetwork(reg)
     async with (
         ActorSystem(transport=net.transport("a"), registry=reg) as a,
@@ -104,13 +104,13 @@ async def _inproc_transport() -> AsyncIterator[Ask]:
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        yield ask
+        yield ask, []
 
 
 @contextlib.asynccontextmanager
-async def _zmq_inproc() -> AsyncIterator[Ask]:
+async def _zmq_inproc() -> AsyncIterator[Scenario]:
     tag = uuid.uuid4().hex[:8]
-    reg_a, reg_b = _registry(), _registry()
+    reg_a, reg_b = registry(), registry()
     tb = ZmqTransport("b", f"inproc://bench-b-{tag}", reg_b)
     ta = ZmqTransport("a", f"inproc://bench-a-{tag}", reg_a, peers={"b": tb.endpoint})
     async with (
@@ -123,7 +123,7 @@ async def _zmq_inproc() -> AsyncIterator[Ask]:
         async def ask(i: int) -> Any:
             return await ref.ask(Ping(i, _PAYLOAD))
 
-        yield ask
+        yield ask, []
 
 
 def _make_keys(folder: str) -> None:
@@ -134,21 +134,16 @@ def _make_keys(folder: str) -> None:
         shutil.copy(public, f"{folder}/team")
 
 
-def _secure(name: str, keys: str | None) -> dict[str, Any]:
-    if keys is None:
-        return {}
-    return {"keys": f"{keys}/{name}.key_secret", "trusted": f"{keys}/team"}
-
-
 @contextlib.asynccontextmanager
 async def _zmq_remote(
-    system_id: str, bind: str, peer_bind: str, keys: str | None = None
-) -> AsyncIterator[Ask]:
+    system_id: str, bind: str, peer_bind: str, loop: str, keys: str | None = None
+) -> AsyncIterator[Scenario]:
     """Our system here, the echo actor's system in another OS process (CURVE with keys)."""
-    with _child("--peer", peer_bind, *(("--keys", keys) if keys else ())) as endpoint:
-        reg = _registry()
+    args = ("--peer", peer_bind, "--loop", loop, *(("--keys", keys) if keys else ()))
+    with child(*args) as (endpoint, pid):
+        reg = registry()
         transport = ZmqTransport(
-            system_id, bind, reg, peers={"peer": endpoint}, **_secure(system_id, keys)
+            system_id, bind, reg, peers={"peer": endpoint}, **secure(system_id, keys)
         )
         async with ActorSystem(transport=transport, registry=reg) as system:
             ref = system.ref(Address("peer", "echo"))
@@ -156,19 +151,24 @@ async def _zmq_remote(
             async def ask(i: int) -> Any:
                 return await ref.ask(Ping(i, _PAYLOAD), timeout=10.0)
 
-            yield ask
+            yield ask, [pid]
+
+
+def zmq_tcp(loop: str = "asyncio") -> contextlib.AbstractAsyncContextManager[Scenario]:
+    """The runtime's ask over tcp to an echo actor in another process (no keys)."""
+    return _zmq_remote("main-tcp", _TCP, _TCP, loop)
 
 
 @contextlib.asynccontextmanager
-async def _raw_zmq_tcp(keys: str | None = None) -> AsyncIterator[Ask]:
-    """The peer figure: pyzmq's own asyncio sockets, DEALER here, ROUTER echo there
-    (with ``keys``, CURVE-encrypted; no ZAP, which costs only at the handshake)."""
-    args = ("--keys", keys) if keys else ()
-    with _child("--raw-peer", "tcp://127.0.0.1:*", *args) as endpoint:
+async def _raw_zmq_tcp(loop: str, keys: str | None = None) -> AsyncIterator[Scenario]:
+    """pyzmq's own asyncio sockets, DEALER here, ROUTER echo there (with ``keys``,
+    CURVE-encrypted; no ZAP, which costs only at the handshake)."""
+    args = ("--loop", loop, *(("--keys", keys) if keys else ()))
+    with child("--raw-peer", _TCP, *args) as (endpoint, pid):
         sock = zmq.asyncio.Context.instance().socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
         if keys is not None:
-            mine, server = KeyPair.load(f"{keys}/main-curve.key_secret"), _peer_keys(keys)
+            mine, server = KeyPair.load(f"{keys}/main-curve.key_secret"), peer_keys(keys)
             sock.setsockopt(zmq.CURVE_SERVERKEY, server.public)
             sock.setsockopt(zmq.CURVE_PUBLICKEY, mine.public)
             sock.setsockopt(zmq.CURVE_SECRETKEY, mine.secret)
@@ -180,15 +180,15 @@ async def _raw_zmq_tcp(keys: str | None = None) -> AsyncIterator[Ask]:
                 await sock.send(payload)
                 return await sock.recv()
 
-            yield ask
+            yield ask, [pid]
         finally:
             sock.close(0)
 
 
 @contextlib.asynccontextmanager
-async def _raw_zmq_tcp_blocking() -> AsyncIterator[Ask]:
+async def raw_zmq_tcp_blocking() -> AsyncIterator[Scenario]:
     """The floor: blocking pyzmq on both sides, no event loop in the way."""
-    with _child("--raw-peer-blocking", "tcp://127.0.0.1:*") as endpoint:
+    with child("--raw-peer-blocking", _TCP) as (endpoint, pid):
         ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
         sock = ctx.socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
@@ -200,13 +200,13 @@ async def _raw_zmq_tcp_blocking() -> AsyncIterator[Ask]:
                 sock.send(payload)
                 return sock.recv()
 
-            yield ask
+            yield ask, [pid]
         finally:
             sock.close(0)
             ctx.term()
 
 
-async def _measure(ask: Ask, count: int, samples: list[float]) -> None:
+async def measure(ask: Ask, count: int, samples: list[float]) -> None:
     """Append ``count`` per-call latencies in microseconds to ``samples``."""
     clock = time.perf_counter_ns
     for i in range(count):
@@ -215,192 +215,109 @@ async def _measure(ask: Ask, count: int, samples: list[float]) -> None:
         samples.append((clock() - t0) / 1000.0)
 
 
-# -- peer processes ---------------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def _child(*args: str) -> Iterator[str]:
-    """Run a peer process; yield the endpoint it bound; stop it (stdin EOF) on exit."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "btcap.bench.transport", *args],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        line = proc.stdout.readline()
-        if not line.startswith(_READY):
-            raise RuntimeError(f"peer {args} did not start: {line!r}")
-        yield line[len(_READY) :].strip()
-    finally:
-        if proc.stdin is not None:
-            proc.stdin.close()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        if proc.stdout is not None:
-            proc.stdout.close()
-
-
-async def _until_stdin_closes() -> None:
-    """Peers live until their parent closes our stdin (or dies, which closes it too)."""
-    loop = asyncio.get_running_loop()
-    done = loop.create_future()
-    fd = sys.stdin.fileno()
-
-    def readable() -> None:
-        if not os.read(fd, 4096) and not done.done():
-            done.set_result(None)
-
-    loop.add_reader(fd, readable)
-    try:
-        await done
-    finally:
-        loop.remove_reader(fd)
-
-
-def _peer_keys(keys: str) -> KeyPair:
-    return KeyPair.load(f"{keys}/peer.key_secret")
-
-
-async def _serve_peer(bind: str, keys: str | None) -> None:
-    reg = _registry()
-    transport = ZmqTransport("peer", bind, reg, **_secure("peer", keys))
-    async with ActorSystem(transport=transport, registry=reg) as system:
-        system.spawn(Echo(), "echo")
-        print(_READY + transport.endpoint, flush=True)
-        await _until_stdin_closes()
-
-
-def _serve_raw_peer_blocking(bind: str) -> None:
-    ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
-    sock = ctx.socket(zmq.ROUTER)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.bind(bind)
-    print(_READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
-    poller = zmq.Poller()
-    poller.register(sock, zmq.POLLIN)
-    poller.register(sys.stdin.fileno(), zmq.POLLIN)
-    try:
-        while True:
-            ready = dict(poller.poll())
-            if sock in ready:
-                sock.send_multipart(sock.recv_multipart())
-            if sys.stdin.fileno() in ready and not os.read(sys.stdin.fileno(), 4096):
-                return
-    finally:
-        sock.close(0)
-        ctx.term()
-
-
-async def _serve_raw_peer(bind: str, keys: str | None) -> None:
-    ctx = zmq.asyncio.Context.instance()
-    sock = ctx.socket(zmq.ROUTER)
-    sock.setsockopt(zmq.LINGER, 0)
-    if keys is not None:
-        pair = _peer_keys(keys)
-        sock.setsockopt(zmq.CURVE_SERVER, 1)
-        sock.setsockopt(zmq.CURVE_SECRETKEY, pair.secret)
-    sock.bind(bind)
-    print(_READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
-
-    async def echo() -> None:
-        while True:
-            frames = await sock.recv_multipart()
-            await sock.send_multipart(frames)
-
-    task = asyncio.ensure_future(echo())
-    try:
-        await _until_stdin_closes()
-    finally:
-        task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await task
-        sock.close(0)
-
-
 # -- the benchmark ----------------------------------------------------------------------
 
 
-async def _run_all(warmup: int, count: int, rounds: int) -> dict[str, dict[str, float]]:
+def _scenarios(
+    tmp: str, loop: str
+) -> dict[str, Callable[[], contextlib.AbstractAsyncContextManager[Scenario]]]:
+    every: dict[str, Callable[[], contextlib.AbstractAsyncContextManager[Scenario]]] = {
+        "local": _local,
+        "inproc_transport": _inproc_transport,
+        "zmq_inproc": _zmq_inproc,
+        "zmq_ipc": lambda: _zmq_remote(
+            "main-ipc", f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock", loop
+        ),
+        "zmq_tcp": lambda: zmq_tcp(loop),
+        "zmq_tcp_curve": lambda: _zmq_remote("main-curve", _TCP, _TCP, loop, tmp),
+        "raw_zmq_tcp": lambda: _raw_zmq_tcp(loop),
+        "raw_zmq_tcp_curve": lambda: _raw_zmq_tcp(loop, tmp),
+        "raw_zmq_tcp_blocking": raw_zmq_tcp_blocking,
+    }
+    names = SCENARIOS if loop == "asyncio" else TCP_SCENARIOS
+    return {name: every[name] for name in names}
+
+
+async def _run_all(loop: str, warmup: int, count: int, rounds: int) -> dict[str, Any]:
     """Every scenario set up at once, then measured in interleaved rounds.
 
     On a shared machine the load drifts; interleaving gives each scenario the same
-    conditions, so the ratios to the raw pyzmq figure hold even when absolutes move.
+    conditions, so the ratios to the blocking floor hold even when absolutes move.
     """
     tmp = tempfile.mkdtemp(prefix="btcap-bench-")
     _make_keys(tmp)
     try:
         async with contextlib.AsyncExitStack() as stack:
-            scenarios: dict[str, Callable[[], contextlib.AbstractAsyncContextManager[Ask]]] = {
-                "local": _local,
-                "inproc_transport": _inproc_transport,
-                "zmq_inproc": _zmq_inproc,
-                "zmq_ipc": lambda: _zmq_remote(
-                    "main-ipc", f"ipc://{tmp}/main.sock", f"ipc://{tmp}/peer.sock"
-                ),
-                "zmq_tcp": lambda: _zmq_remote("main-tcp", _TCP, _TCP),
-                "zmq_tcp_curve": lambda: _zmq_remote("main-curve", _TCP, _TCP, tmp),
-                "raw_zmq_tcp": _raw_zmq_tcp,
-                "raw_zmq_tcp_curve": lambda: _raw_zmq_tcp(tmp),
-                "raw_zmq_tcp_blocking": _raw_zmq_tcp_blocking,
+            setups = {
+                name: await stack.enter_async_context(make())
+                for name, make in _scenarios(tmp, loop).items()
             }
-            asks = {
-                name: await stack.enter_async_context(make()) for name, make in scenarios.items()
-            }
-            samples: dict[str, list[float]] = {name: [] for name in asks}
-            for ask in asks.values():
+            samples: dict[str, list[float]] = {name: [] for name in setups}
+            cpu_here = dict.fromkeys(setups, 0.0)
+            cpu_peer = dict.fromkeys(setups, 0.0)
+            for ask, _pids in setups.values():
                 for i in range(warmup):
                     await ask(i)
             per_round = max(1, count // rounds)
             for _ in range(rounds):
                 gc.collect()
-                for name, ask in asks.items():
-                    await _measure(ask, per_round, samples[name])
-            return {name: percentiles(values) for name, values in samples.items()}
+                for name, (ask, pids) in setups.items():
+                    here, peer = time.process_time(), sum(cpu_of(p) for p in pids)
+                    await measure(ask, per_round, samples[name])
+                    cpu_here[name] += time.process_time() - here
+                    cpu_peer[name] += sum(cpu_of(p) for p in pids) - peer
+            asks = per_round * rounds
+            return {
+                name: {
+                    **percentiles(values),
+                    "cpu_here_us": cpu_here[name] / asks * 1e6,
+                    "cpu_peer_us": cpu_peer[name] / asks * 1e6 if setups[name][1] else 0.0,
+                }
+                for name, values in samples.items()
+            }
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _table(ask_us: dict[str, dict[str, float]]) -> str:
-    raw = ask_us["raw_zmq_tcp"]["p50"]
+def _ratios(ask_us: dict[str, dict[str, float]]) -> dict[str, float]:
+    floor = ask_us[FLOOR]["p50"]
+    return {name: p["p50"] / floor for name, p in ask_us.items()}
+
+
+def _table(loop: str, ask_us: dict[str, dict[str, float]]) -> str:
+    ratio = _ratios(ask_us)
     lines = [
-        f"{'ask round trip':<22} {'p50 us':>9} {'p99 us':>9} {'p50 / raw tcp':>14}",
-        "-" * 57,
+        f"ask round trip on {loop}: p50/p99 wall us; CPU us per ask here + in the peer process",
+        f"{'scenario':<22} {'p50':>8} {'p99':>8} {'p50/floor':>10} {'cpu here':>9} {'cpu peer':>9}",
+        "-" * 70,
     ]
-    for name in SCENARIOS:
-        p = ask_us[name]
-        lines.append(f"{name:<22} {p['p50']:>9.1f} {p['p99']:>9.1f} {p['p50'] / raw:>14.2f}")
-    curve = ask_us["zmq_tcp_curve"]["p50"] / ask_us["raw_zmq_tcp_curve"]["p50"]
-    lines.append(f"zmq_tcp_curve / raw_zmq_tcp_curve (p50): {curve:.2f}")
+    for name, p in ask_us.items():
+        lines.append(
+            f"{name:<22} {p['p50']:>8.1f} {p['p99']:>8.1f} {ratio[name]:>10.2f} "
+            f"{p['cpu_here_us']:>9.1f} {p['cpu_peer_us']:>9.1f}"
+        )
+    lines.append(f"floor: {FLOOR} (blocking pyzmq on both sides, same run)")
     return "\n".join(lines)
 
 
-def run(quick: bool = False) -> dict[str, Any]:
+def run(quick: bool = False, loop: str = "both") -> dict[str, Any]:
     """Measure every scenario, print a table and write ``bench/results/transport.json``."""
     configure_logging("warning")  # hellos log at info; keep the table readable
     warmup, count = (500, 3_000) if quick else (3_000, 20_000)
-    load = os.getloadavg()
-    ask_us = asyncio.run(_run_all(warmup, count, rounds=10))
-    data: dict[str, Any] = {
-        "ask_us": ask_us,
-        "ratio_to_raw_zmq_tcp": {
-            name: ask_us[name]["p50"] / ask_us["raw_zmq_tcp"]["p50"] for name in SCENARIOS
-        },
-        "curve_ratio_to_raw_zmq_tcp_curve": ask_us["zmq_tcp_curve"]["p50"]
-        / ask_us["raw_zmq_tcp_curve"]["p50"],
-        "samples": count,
-        "warmup": warmup,
-        "quick": quick,
+    loops = [name for name in LOOPS if loop in (name, "both")]
+    if loop == "both" and not uvloop_installed():
+        loops = ["asyncio"]  # the fast extra is optional
+    data: dict[str, Any] = {"samples": count, "warmup": warmup, "quick": quick, "floor": FLOOR}
+    for name in loops:
+        load = os.getloadavg()
+        ask_us = run_on(name, _run_all(name, warmup, count, rounds=10))
+        key = "" if name == "asyncio" else f"_{name}"
+        data[f"ask_us{key}"] = ask_us
+        data[f"ratio_to_floor{key}"] = _ratios(ask_us)
         # Two processes share the machine's cores: a busy machine shows in the figures.
-        "loadavg_before": load,
-        "loadavg_after": os.getloadavg(),
-    }
-    print(_table(ask_us))
-    print(f"load average before/after: {load[0]:.2f} / {data['loadavg_after'][0]:.2f}")
+        data[f"loadavg{key}"] = {"before": load, "after": os.getloadavg()}
+        print(_table(name, ask_us))
+        print(f"load average before/after: {load[0]:.2f} / {os.getloadavg()[0]:.2f}\n")
     path = write_result("transport", data)
     print(f"wrote {path}")
     return data
@@ -409,6 +326,12 @@ def run(quick: bool = False) -> dict[str, Any]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m btcap.bench.transport", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer samples, for CI smoke runs")
+    parser.add_argument(
+        "--loop",
+        choices=(*LOOPS, "both"),
+        default="both",
+        help="event loop(s) to measure on (uvloop: the optional 'fast' extra); default both",
+    )
     role = parser.add_mutually_exclusive_group()
     role.add_argument("--peer", metavar="BIND", help="(internal) serve an echo actor system")
     role.add_argument("--raw-peer", metavar="BIND", help="(internal) serve a raw zmq echo")
@@ -417,15 +340,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--raw-peer-blocking", metavar="BIND", help="(internal) serve a blocking zmq echo"
     )
     args = parser.parse_args(argv)
+    peer_loop = "asyncio" if args.loop == "both" else args.loop
     if args.peer:
         configure_logging("warning")  # to stderr: stdout carries the READY line
-        asyncio.run(_serve_peer(args.peer, args.keys))
+        run_on(peer_loop, serve_peer(args.peer, args.keys))
     elif args.raw_peer:
-        asyncio.run(_serve_raw_peer(args.raw_peer, args.keys))
+        run_on(peer_loop, serve_raw_peer(args.raw_peer, args.keys))
     elif args.raw_peer_blocking:
-        _serve_raw_peer_blocking(args.raw_peer_blocking)
+        serve_raw_peer_blocking(args.raw_peer_blocking)
     else:
-        run(quick=args.quick)
+        run(quick=args.quick, loop=args.loop)
     return 0
 
 

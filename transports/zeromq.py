@@ -33,15 +33,14 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
+from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     EVENTS,
-    NOBLOCK,
     POLLIN,
     SCHEMES,
     Monitor,
-    allow_sockets,
     check_id,
     check_transport_args,
     fd_of,
@@ -272,17 +271,13 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             return
         router = self._router
         secure = self.curve is not None
+        recv, get = router.recv, router.getsockopt  # bound once: see zmq_io
         stats, budget = self.stats, _BATCH
         try:
             while budget > 0:
                 malformed, budget = stats.malformed, budget - 1
                 try:
-                    if secure:
-                        frames = self._authenticated(router.recv_multipart(NOBLOCK, copy=False))
-                    else:
-                        frames = router.recv_multipart(NOBLOCK)
-                        if frames:  # the name its routing id claims (see open_dealer)
-                            frames[0] = frames[0].partition(b"/")[0]
+                    frames = self._authenticated(read_frames(recv)) if secure else read_plain(recv)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
@@ -296,7 +291,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     return
                 budget -= _JUNK_COST if stats.malformed != malformed else 0
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
-                if not router.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
+                if not get(EVENTS) & POLLIN:  # type: ignore[operator]
                     return
         except zmq.ZMQError as exc:
             if not self._closed:
@@ -323,20 +318,20 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if peer not in self._configured:  # gone for good unless it speaks again
                 self._fate(peer, self._strangers.lapsed(peer))
 
-    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes]:
+    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes | memoryview]:
         member, problem = authenticated(frames)
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return []
         if self._blocked(frames[0].bytes, member):
             return []
-        return [member, *(f.bytes for f in frames[1:])]
+        return [member, *(f.buffer for f in frames[1:])]
 
-    def _handle(self, frames: list[bytes], deliver: Deliver) -> None:
+    def _handle(self, frames: list[bytes | memoryview], deliver: Deliver) -> None:
         if len(frames) != 2:
-            self._malformed("frame count", frames[0], f"{len(frames)} frames")
+            self._malformed("frame count", bytes(frames[0]), f"{len(frames)} frames")
             return
-        ident, body = frames
+        ident, body = bytes(frames[0]), frames[1]  # the id is bytes already: no copy
         kind = body[0] if body else -1
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
@@ -370,7 +365,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
         elif kind == _HELLO_BYTE:
-            where, instance = split_hello(body[1:])
+            where, instance = split_hello(bytes(body[1:]))
             try:
                 peer, endpoint = parse_hello(ident, where, self.system_id)
             except ValueError as exc:
@@ -379,9 +374,9 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
         elif kind == REFUSAL:
-            self._refused_by(ident, body[1:])
+            self._refused_by(ident, bytes(body[1:]))
         else:
-            self._malformed("unknown frame kind", ident, repr(body[:8]))
+            self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
 
     def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
         """Connect to a peer that announced itself (False: refused, counted and logged).

@@ -74,15 +74,6 @@ def check_id(system_id: str) -> str | None:
     return None
 
 
-def allow_sockets(ctx: zmq.Context[Any]) -> None:
-    """Each peer costs a DEALER and a monitor pair: libzmq's default of 1023 sockets per
-    context runs out at about 340 peers, sooner for robots sharing a process. Raised to
-    16,384; this only takes effect before the context's first socket."""
-    limit = min(int(ctx.get(zmq.SOCKET_LIMIT)), 16_384)
-    if int(ctx.get(zmq.MAX_SOCKETS)) < limit:
-        ctx.set(zmq.MAX_SOCKETS, limit)
-
-
 def fd_of(sock: zmq.Socket[bytes]) -> int:
     fd = sock.getsockopt(zmq.FD)
     assert isinstance(fd, int)
