@@ -198,7 +198,9 @@ UNSUPPORTED: dict[str, str] = {
     "Script": "btcap has no scripting language; use a node type of your own",
     "ScriptCondition": "btcap has no scripting language; use Compare or a node of your own",
     "Precondition": "btcap has no scripting language; use WhileDoElse with a condition node",
-    "UnsetBlackboard": "btcap wires node outputs to inputs; there is no blackboard entry to unset",
+    "UnsetBlackboard": "btcap's blackboard entries keep their last value; nothing unsets one",
+    "TryCatch": "btcap has no node that runs a cleanup child after its "
+    "others failed or were halted; use Fallback(Sequence(...), Sequence(cleanup, AlwaysFailure))",
     "SkipUnlessUpdated": "btcap has no SKIPPED state",
     "WaitValueUpdate": "btcap has no blackboard update stamps",
     "ManualSelector": "it asks a person on a terminal; btcap trees never block on input",
@@ -230,7 +232,7 @@ BUILTINS: tuple[str, ...] = (
     *("SkipUnlessUpdated", "WaitValueUpdate", *(f"Loop{k}" for k in ("Int", "Double"))),
     *("LoopString", "LoopBool", "AlwaysSuccess", "AlwaysFailure", "Sleep", "Script"),
     *("ScriptCondition", "SetBlackboard", "UnsetBlackboard", "WasEntryUpdated", "SubTree"),
-    *("ManualSelector", "SubTreePlus"),
+    *("ManualSelector", "SubTreePlus", "TryCatch"),
 )
 
 

@@ -107,7 +107,7 @@ def test_btcap_builtins_are_spelt_with_their_prefix_in_xml() -> None:
 @pytest.mark.parametrize(
     ("kind", "message"),
     [
-        ("TryCatch", "BehaviorTree.CPP's built-in TryCatch is not mapped to a btcap node"),
+        ("TryCatch", "BehaviorTree.CPP's TryCatch has no btcap equivalent: btcap has no node"),
         ("WasEntryUpdated", "BehaviorTree.CPP's WasEntryUpdated has no btcap equivalent"),
     ],
 )
