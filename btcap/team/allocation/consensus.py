@@ -220,7 +220,7 @@ class ConsensusAssigner(Allocator):
                 return
             if await within(clock, self.window_s / 4, mine.agreed.wait()) is not None:
                 return
-            self._retry(sorted(self.core.waiting_for()))
+            self._retry()
 
     async def _award(self, mine: _Pending) -> Assigned | Unassigned | None:
         """Award the task to its winner; None: it declined, so agree again without it."""
@@ -291,9 +291,10 @@ class ConsensusAssigner(Allocator):
         self.stats.messages += 1
 
     def _offer(self, robots: Iterable[str]) -> None:
-        """Tell ``robots`` our open tasks."""
+        """Tell ``robots`` our open tasks (none: nothing to tell; a robot that knew some
+        learns they closed when it bids for one)."""
         robots = list(robots)
-        if robots:
+        if robots and self.core.own_tasks():
             tasks = [t.spec for t in self.core.own_tasks()]
             offer = ConsensusTasks(self.robot, self.core.version, tasks)
             for robot in robots:
@@ -330,16 +331,13 @@ class ConsensusAssigner(Allocator):
         )
         self._send(robot, prices)
 
-    def _retry(self, robots: Iterable[str]) -> None:
+    def _retry(self) -> None:
         """Silent candidates (a message may have been lost): the task set to those that
         have not reported on it, the prices to those that must bid again."""
-        market = self.core.market
-        for robot in robots:
-            report = market.reports.get(robot)
-            if report is None or report.version != market.version:
-                self._offer([robot])
-            else:
-                self._prices_to(robot, market.board(robot))
+        offer, boards = self.core.retry()
+        self._offer(offer)
+        for robot, board in boards:
+            self._prices_to(robot, board)
 
     def _costs(self) -> dict[ExecutionId, float]:
         """This robot's cost for each open task it may take (cached while its body's

@@ -216,9 +216,15 @@ class Consensus(Generic[T]):
         return out
 
     def _price(self, task: ExecutionId) -> tuple[float, str | None]:
-        if task.origin == self.robot:
+        """A task's price and holder as we know them; from a board of an older task set,
+        nothing (its prices may have been reset: a bid too low is refused, with news)."""
+        origin = task.origin
+        if origin == self.robot:
             return self.market.top.get(task, (0.0, None))
-        return self._prices.get(task.origin, {}).get(task, (0.0, None))
+        board, offer = self._boards.get(origin), self._offers.get(origin)
+        if board is None or offer is not None and board.version < offer.version:
+            return (0.0, None)
+        return self._prices[origin].get(task, (0.0, None))
 
     def _lost(self, task: ExecutionId, tasks: Mapping[ExecutionId, Task[T]]) -> bool:
         """Whether our claim on ``task`` was outbid or refused (not merely unanswered)."""
@@ -335,6 +341,19 @@ class Consensus(Generic[T]):
             if not self.market.owed and not self._lost_own(costs):
                 break
         return reports, boards
+
+    def retry(self) -> tuple[list[str], list[tuple[str, Board]]]:
+        """For the candidates this origin still waits for (a message may have been
+        lost): those to tell the task set again (they have not reported on it), and the
+        boards for those that must bid again."""
+        market, offer, boards = self.market, [], []
+        for robot in sorted(market.waiting_for() - {self.robot}):
+            report = market.reports.get(robot)
+            if report is None or report.version != market.version:
+                offer.append(robot)
+            else:
+                boards.append((robot, market.board(robot)))
+        return offer, boards
 
     def _lost_own(self, costs: Mapping[ExecutionId, float]) -> bool:
         task = self.claim.task
