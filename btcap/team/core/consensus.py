@@ -222,7 +222,7 @@ class Consensus(Generic[T]):
         if origin == self.robot:
             return self.market.top.get(task, (0.0, None))
         board, offer = self._boards.get(origin), self._offers.get(origin)
-        if board is None or offer is not None and board.version < offer.version:
+        if board is None or (offer is not None and board.version < offer.version):
             return (0.0, None)
         return self._prices[origin].get(task, (0.0, None))
 

@@ -300,7 +300,8 @@ def test_a_claim_lost_is_said_again_when_the_origin_retries() -> None:
     assert t.speak("a")  # its claim, lost
     assert not t.speak("a")  # nothing new to say
     offer_to, boards = t.origin.retry()
-    assert offer_to == ["a"] and not boards
+    assert offer_to == ["a"]
+    assert not boards
     for to, m in t.retry(ORIGIN):
         t.deliver(to, m)
     said = t.speak("a")
