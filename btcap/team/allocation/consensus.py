@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from btcap.actors import Supervision, TimeSource, handler, within
 from btcap.team.allocation.award import offer
+from btcap.team.allocation.own_costs import OwnCosts
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
@@ -44,7 +45,6 @@ from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import (
     Bid,
-    CallForBids,
     ConsensusClaim,
     ConsensusPrices,
     ConsensusTasks,
@@ -105,8 +105,7 @@ class ConsensusAssigner(Allocator):
         self.stats: ConsensusStats = ConsensusStats()
         self._pending: dict[ExecutionId, _Pending] = {}
         self._impls: dict[str, str] = {}  # the implementation of each robot's claim
-        self._prices: dict[ExecutionId, tuple[OpenTask, Bid | str]] = {}
-        self._idle: bool | None = None  # the body's state the prices were made in
+        self._own = OwnCosts(robot, pricer)
         self._said_version = 0  # the version of our tasks the team was told
         self._seq = itertools.count(1)
         self._ids = itertools.count(1)
@@ -156,7 +155,7 @@ class ConsensusAssigner(Allocator):
             if len(self._forgot) < self.core.max_members:
                 self._forgot.add(robot)
         elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
-            self._prices.clear()  # preconditions may be met now
+            self._own.clear()  # preconditions may be met now
         self._soon()
 
     # -- the strategy -----------------------------------------------------------------
@@ -244,8 +243,7 @@ class ConsensusAssigner(Allocator):
 
     def _implementation(self, win: Claim) -> str:
         if win.robot == self.robot:
-            price = self._prices.get(win.task) if win.task is not None else None
-            return price[1].implementation if price and isinstance(price[1], Bid) else ""
+            return self._own.implementation(win.task) if win.task is not None else ""
         return self._impls.get(win.robot, "")
 
     # -- one step: price, bid, tell ------------------------------------------------------
@@ -261,7 +259,7 @@ class ConsensusAssigner(Allocator):
         self._scheduled = False
         if self._system is None or not self.system.running:
             return
-        reports, boards = self.core.step(self._costs())
+        reports, boards = self.core.step(self._own.costs(self.core.tasks()))
         if self.core.claim.task is not None and self.pricer is not None:
             self.pricer.claimed(self.core.claim.task)  # its award is one we asked for
         self._count()
@@ -303,11 +301,7 @@ class ConsensusAssigner(Allocator):
     def _claim_to(self, report: Report) -> None:
         """Tell a task's origin our claim (and why we cannot bid for its other tasks)."""
         claim = report.claim
-        why = [
-            (t, answer)
-            for t, (_spec, answer) in self._prices.items()
-            if isinstance(answer, str) and t.origin == report.origin
-        ]
+        why = self._own.why(report.origin)
         impl = self._implementation(claim) if claim.task is not None else ""
         cost = claim.cost if claim.task is not None else 0.0
         says = ConsensusClaim(
@@ -338,42 +332,6 @@ class ConsensusAssigner(Allocator):
         self._offer(offer)
         for robot, board in boards:
             self._prices_to(robot, board)
-
-    def _costs(self) -> dict[ExecutionId, float]:
-        """This robot's cost for each open task it may take (cached while its body's
-        state and the task stay the same); a holder's bid counts ``margin`` lower."""
-        pricer = self.pricer
-        if pricer is None:
-            return {}
-        idle = pricer.idle
-        if idle != self._idle:
-            self._prices.clear()
-            self._idle = idle
-        tasks = self.core.tasks()
-        for gone in self._prices.keys() - tasks.keys():
-            del self._prices[gone]
-        costs: dict[ExecutionId, float] = {}
-        for execution, task in tasks.items():
-            if self.robot not in task.candidates:
-                continue
-            spec = task.spec
-            cached = self._prices.get(execution)
-            if cached is None or cached[0] is not spec:
-                cfb = CallForBids(
-                    AuctionId(execution.origin, 0, execution.incarnation),
-                    spec.interface,
-                    spec.identity,
-                    spec.inputs,
-                    spec.holder,
-                )
-                got = pricer.evaluate(cfb)
-                cached = (spec, got if isinstance(got, Bid) else got.reason)
-                self._prices[execution] = cached
-            bid = cached[1]
-            if isinstance(bid, Bid):
-                held = spec.holder_robot == self.robot
-                costs[execution] = bid.cost * (1.0 - spec.margin) if held else bid.cost
-        return costs
 
     def _count(self) -> None:
         """Report what the core refused or dropped since last time, at a falling rate."""
