@@ -26,6 +26,8 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+import msgspec
+
 from btcap.actors import Supervision, TimeSource, handler, within
 from btcap.team.allocation.award import offer
 from btcap.team.allocation.own_costs import OwnCosts
@@ -293,7 +295,10 @@ class ConsensusAssigner(Allocator):
         learns they closed when it bids for one)."""
         robots = list(robots)
         if robots and self.core.own_tasks():
-            tasks = [t.spec for t in self.core.own_tasks()]
+            tasks = [  # with the candidates left (a robot that declined is not one)
+                msgspec.structs.replace(t.spec, candidates=sorted(t.candidates))
+                for t in self.core.own_tasks()
+            ]
             offer = ConsensusTasks(self.robot, self.core.version, tasks)
             for robot in robots:
                 self._send(robot, offer)

@@ -86,6 +86,7 @@ class Consensus(Generic[T]):
         self._basis: tuple[object, ...] | None = None
         self._told: dict[str, tuple[int, int]] = {}  # origin -> (stamp, version) it heard
         self._owe: set[str] = set()  # origins to tell our claim again
+        self._barred: set[ExecutionId] = set()  # refused us until its task set changes
 
     @property
     def refused(self) -> int:
@@ -178,8 +179,13 @@ class Consensus(Generic[T]):
                 self.dropped += len(board.prices) - self.max_tasks
         self._boards[origin] = board
         self._prices[origin] = {t: (p, h) for t, p, h in board.prices[: self.max_tasks]}
-        if board.heard < self.claim.stamp:
+        mine = self.claim
+        if board.heard < mine.stamp:
             self._owe.add(origin)
+        elif mine.task is not None and mine.task.origin == origin:
+            price, holder = self._prices[origin].get(mine.task, (math.inf, None))
+            if holder != self.robot and price < mine.bid:
+                self._barred.add(mine.task)  # refused, not outbid: not ours to take
         return True
 
     def hear(self, sender: str, claim: Claim, version: int) -> bool:
@@ -262,12 +268,16 @@ class Consensus(Generic[T]):
         ceilings = {o: self._ceiling(o, most) for o in {t.origin for t in open_costs}}
         basis = (self._versions(), open_costs, ceilings)
         same = self._basis == basis
+        if self._basis is not None and self._basis[0] != basis[0]:
+            self._barred.clear()
         if same and mine.stamp > 0 and (mine.task is None or not self._lost(mine.task, tasks)):
             return False
         self._basis = basis
         best: tuple[float, str, ExecutionId, float] | None = None
         second = math.inf
         for want, cost in open_costs.items():
+            if want in self._barred:
+                continue
             net = cost + self._price(want)[0]
             if net >= ceilings[want.origin]:
                 continue  # dearer than claiming nothing
