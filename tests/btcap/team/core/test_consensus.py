@@ -400,3 +400,18 @@ def test_the_tasks_of_a_lost_origin_go_with_it() -> None:
     agreed(t)
     assert t.robots["a"].claim.task == tid(0)
     assert task.id not in t.origin.tasks()
+
+
+def test_a_robot_refused_a_task_it_may_not_take_stops_bidding_for_it() -> None:
+    """A robot that believes it may take a task (its news is stale or wrong) is refused,
+    not outbid: it leaves that task until the task set changes, instead of bidding again
+    and again in the same instant."""
+    t = Team({"a": {0: 1.0}, "b": {0: 5.0}}, 1)
+    t.origin.restrict(tid(0), "a")
+    stale = Offer(ORIGIN, t.origin.version, (Task(tid(0), frozenset({"a", "b"}), None),))
+    t.deliver("a", stale)
+    t.told[ORIGIN] = t.origin.version
+    t.deliver("b", Offer(ORIGIN, t.origin.version, tuple(t.origin.own_tasks())))
+    t.run(limit=50)
+    assert t.assignment() == {tid(0): "b"}
+    assert t.robots["a"].claim.task is None
