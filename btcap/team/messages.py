@@ -34,6 +34,7 @@ __all__ = [
     "CallForBids",
     "CancelExecution",
     "ConsensusClaim",
+    "ConsensusPrices",
     "ConsensusTasks",
     "Contact",
     "CostChanged",
@@ -253,10 +254,11 @@ class ConsensusTasks(Message):
 
 
 class ConsensusClaim(Message):
-    """The sender's claim (``task`` at ``cost`` with ``implementation``, or none) under its
-    ``stamp``; ``view``: the claim stamp and task version of every member it has merged,
-    as (robot, stamp, version); ``why``: tasks it cannot bid for, and why. ``seq`` grows
-    with every message of the sender."""
+    """The sender's claim to a task's origin (``task`` at ``cost`` with ``implementation``,
+    bidding the price ``bid``; or none) under its ``stamp``, made having merged the
+    origin's task set ``seen``; ``most``: its dearest cost among the open tasks (the
+    origin's ceiling follows it); ``why``: tasks it cannot bid for, and why. ``seq``
+    grows with every message of the sender; ``view`` is unused (kept for older peers)."""
 
     robot: str
     seq: int
@@ -266,6 +268,23 @@ class ConsensusClaim(Message):
     implementation: str
     view: list[tuple[str, int, int]]
     why: list[tuple[ExecutionId, str]] = []
+    bid: float = 0.0
+    most: float = 0.0
+    seen: int = 0
+
+
+class ConsensusPrices(Message):
+    """An origin's price board in its task set ``version``, numbered ``seq``, sent to a
+    robot that must bid again: (task, price, holder) for each open task; ``heard``: the
+    recipient's newest claim stamp it reflects; ``ceiling``: the cost of claiming
+    nothing."""
+
+    robot: str
+    version: int
+    seq: int
+    heard: int
+    prices: list[tuple[ExecutionId, float, str | None]]
+    ceiling: float
 
 
 # -- executions --------------------------------------------------------------------------
@@ -358,6 +377,7 @@ CAPABILITY_MESSAGES: tuple[type[Message], ...] = (
     AwardReply,
     ConsensusTasks,
     ConsensusClaim,
+    ConsensusPrices,
     ExecutionInputs,
     ExecutionStatus,
     PauseExecution,

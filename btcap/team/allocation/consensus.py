@@ -2,20 +2,20 @@
 
 Every robot runs a :class:`ConsensusAssigner`. An origin offers its pending capability
 executions to the team; each robot prices them itself (the bids of
-:class:`~btcap.team.runtime.executor.ExecutorSide`), claims the one it does cheapest among those
-where it beats the current winner, and tells every member its claim; conflicts are
-resolved by the best bid, as in CBAA (:mod:`btcap.team.core.consensus`). When the team
-agrees, or after ``window_s`` without agreement, the origin awards each task to the
-winner it sees, confirmed as in the auction (award -> accept/decline, then leases), so a
-task never runs twice even if the views still differed.
+:class:`~btcap.team.runtime.executor.ExecutorSide`) and runs its part of the auction
+algorithm (:mod:`btcap.team.core.consensus`): it bids for the task where its cost plus the
+task's price is least, and only the task's origin, which keeps the prices of its own
+tasks (:mod:`btcap.team.core.market`), hears the bid. Robots that were outbid, or bid on
+stale prices, are sent the new prices and bid again; when every candidate holds a task or
+wants none, or after ``window_s`` without agreement, the origin awards each task to its
+holder, confirmed as in the auction (award -> accept/decline, then leases), so a task
+never runs twice even if the views still differed.
 
-When to use it: a team where no robot should decide for the others, where several
-robots hold mission trees and would otherwise award the same robot from separate
-auctions, or whose links are flaky (a lost member's claims simply vanish and what it
-held is re-allocated by the others; a task's allocation needs no single robot but its
-origin). It costs more messages than the auction (every change goes to every member:
-O(n^2) per round) and gives the sequential greedy assignment, not the optimum (use
-``optimal`` for small central teams).
+When to use it: a team where no robot should decide for the others (each chooses its own
+task from its own costs, which never leave it), where several robots hold mission trees
+and would otherwise award the same robot from separate auctions, or whose links are flaky
+(a lost member's bids simply vanish and what it held is auctioned again). It comes within
+1 % of the optimum's total cost (one task per robot), in a few messages per robot.
 """
 
 from __future__ import annotations
@@ -26,8 +26,11 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+import msgspec
+
 from btcap.actors import Supervision, TimeSource, handler, within
 from btcap.team.allocation.award import offer
+from btcap.team.allocation.own_costs import OwnCosts
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
@@ -38,14 +41,14 @@ from btcap.team.allocation.strategy import (
 )
 from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.award import AwardRound, bounded
-from btcap.team.core.consensus import Claim, Consensus, Task, Vector
+from btcap.team.core.consensus import Board, Claim, Consensus, Report, Task
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.messages import (
     Bid,
-    CallForBids,
     ConsensusClaim,
+    ConsensusPrices,
     ConsensusTasks,
     OpenTask,
 )
@@ -59,7 +62,8 @@ log = get_logger("btcap.team.consensus")
 
 @dataclass(slots=True)
 class ConsensusStats(AuctionStats):
-    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window."""
+    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window;
+    ``messages``: consensus messages sent (offers, claims and prices)."""
 
     messages: int = 0  #: consensus messages sent
     refused: int = 0  #: messages speaking for another robot, or with an impossible cost
@@ -89,7 +93,7 @@ class ConsensusAssigner(Allocator):
         *,
         window_s: float = 1.0,
         award_timeout_s: float = 0.5,
-        max_tasks: int = 64,
+        max_tasks: int = 256,
         team: TeamView | None = None,
         pricer: Pricer | None = None,
     ) -> None:
@@ -103,16 +107,16 @@ class ConsensusAssigner(Allocator):
         self.stats: ConsensusStats = ConsensusStats()
         self._pending: dict[ExecutionId, _Pending] = {}
         self._impls: dict[str, str] = {}  # the implementation of each robot's claim
-        self._prices: dict[ExecutionId, tuple[OpenTask, Bid | str]] = {}
-        self._idle: bool | None = None  # the body's state the prices were made in
-        self._said: tuple[Claim, dict[str, tuple[int, int]]] | None = None
-        self._said_version = 0
+        self._own = OwnCosts(robot, pricer)
+        self._said_version = 0  # the version of our tasks the team was told
         self._seq = itertools.count(1)
         self._ids = itertools.count(1)
         self._unsubscribe: Callable[[], None] | None = None
-        self._behind: set[str] = set()  # members missing what we hold: tell them all
+        self._behind: set[str] = set()  # members missing our open tasks
         self._scheduled = False
         self._watchers: list[AuctionWatcher] = []
+        self._hello: set[str] = set()
+        self._forgot: set[str] = set()  # members we lost (if they come back, say hello)
 
     def watch(self, watcher: AuctionWatcher) -> Callable[[], None]:
         """Report each task's allocation to ``watcher`` as it opens and ends, as the
@@ -143,13 +147,17 @@ class ConsensusAssigner(Allocator):
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event is TeamEvent.JOINED:
             self.core.join(robot)
-            self._behind.add(robot)  # it needs what we hold, changed or not
+            self._behind.add(robot)  # it needs our open tasks, changed or not
+            if robot in self._forgot:  # we lost it: if it has tasks we forgot, it must say
+                self._hello.add(robot)
         elif event in (TeamEvent.LEFT, TeamEvent.FAILED):
             self.core.lose(robot)
             self._impls.pop(robot, None)
             self._behind.discard(robot)
+            if len(self._forgot) < self.core.max_members:
+                self._forgot.add(robot)
         elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
-            self._prices.clear()  # preconditions may be met now
+            self._own.clear()  # preconditions may be met now
         self._soon()
 
     # -- the strategy -----------------------------------------------------------------
@@ -213,7 +221,7 @@ class ConsensusAssigner(Allocator):
                 return
             if await within(clock, self.window_s / 4, mine.agreed.wait()) is not None:
                 return
-            self._tell_all(sorted(self.core.waiting_for()))
+            self._retry()
 
     async def _award(self, mine: _Pending) -> Assigned | Unassigned | None:
         """Award the task to its winner; None: it declined, so agree again without it."""
@@ -237,15 +245,14 @@ class ConsensusAssigner(Allocator):
 
     def _implementation(self, win: Claim) -> str:
         if win.robot == self.robot:
-            price = self._prices.get(win.task) if win.task is not None else None
-            return price[1].implementation if price and isinstance(price[1], Bid) else ""
+            return self._own.implementation(win.task) if win.task is not None else ""
         return self._impls.get(win.robot, "")
 
-    # -- one step: price, select, tell --------------------------------------------------
+    # -- one step: price, bid, tell ------------------------------------------------------
     def _soon(self) -> None:
         """Step once this turn of the event loop is over: what arrives meanwhile is merged
-        first and goes out in one message per member (CBAA's round), and the tasks a tree
-        asks for in one tick are offered together."""
+        first and goes out in one message per robot (a round of the auction), and the
+        tasks a tree asks for in one tick are offered together."""
         if not self._scheduled:
             self._scheduled = True
             asyncio.get_running_loop().call_soon(self._step)
@@ -254,90 +261,82 @@ class ConsensusAssigner(Allocator):
         self._scheduled = False
         if self._system is None or not self.system.running:
             return
-        self.core.select(self._costs())
+        reports, boards = self.core.step(self._own.costs(self.core.tasks()))
         if self.core.claim.task is not None and self.pricer is not None:
             self.pricer.claimed(self.core.claim.task)  # its award is one we asked for
         self._count()
         if self.core.converged():
             for p in self._pending.values():
                 p.agreed.set()
-        now = (self.core.claim, self.core.vector())
-        tasks_changed = self.core.version != self._said_version
-        if tasks_changed or now != self._said:
-            self._said, self._said_version = now, self.core.version
-            told = self.core.members - {self.robot}
-            if not tasks_changed:  # those behind need the open tasks, changed or not
-                self._tell_all(sorted(self._behind & told))
-                told -= self._behind
-            self._tell_all(sorted(told), tasks=tasks_changed)
+        told = self.core.members - {self.robot}
+        if self.core.version != self._said_version:
+            self._said_version = self.core.version
+            self._offer(sorted(told))
         else:
-            self._tell_all(sorted(self._behind & self.core.members))
+            self._offer(sorted(self._behind & told))
         self._behind.clear()
+        for report in reports:
+            self._hello.discard(report.origin)
+            self._claim_to(report)
+        for robot in sorted(self._hello & told):  # tell a (re)joined member where we are
+            self._claim_to(Report(robot, self.core.claim, 0))
+        self._hello.clear()
+        for robot, board in boards:
+            self._prices_to(robot, board)
 
-    def _tell_all(self, robots: Iterable[str], *, tasks: bool = True) -> None:
-        """Tell ``robots`` this robot's claim and view (and its open tasks)."""
-        robots = list(robots)
-        if not robots or self._system is None or not self.system.running:
+    def _send(self, robot: str, msg: ConsensusTasks | ConsensusClaim | ConsensusPrices) -> None:
+        if self._system is None or not self.system.running:
             return
-        claim, vector = self.core.claim, self.core.vector()
-        impl = self._implementation(claim) if claim.task is not None else ""
-        why: dict[str, list[tuple[ExecutionId, str]]] = {}  # by origin: only it needs them
-        for t, (_spec, answer) in self._prices.items():
-            if isinstance(answer, str):
-                why.setdefault(t.origin, []).append((t, answer))
-        offer = None
-        if tasks:
-            offer = ConsensusTasks(
-                self.robot, self.core.version, [t.spec for t in self.core.own_tasks()]
-            )
-        view = [(r, s, v) for r, (s, v) in sorted(vector.items())]
-        cost = claim.cost if claim.task is not None else 0.0
-        seq = next(self._seq)
-        for robot in robots:
-            to = Address(robot, self.PATH)
-            if offer is not None:
-                self.system.tell(to, offer, sender=self.address)
-            says = ConsensusClaim(
-                self.robot, seq, claim.stamp, claim.task, cost, impl, view, why.get(robot, [])
-            )
-            self.system.tell(to, says, sender=self.address)
-            self.stats.messages += 1 + (offer is not None)
+        self.system.tell(Address(robot, self.PATH), msg, sender=self.address)
+        self.stats.messages += 1
 
-    def _costs(self) -> dict[ExecutionId, float]:
-        """This robot's cost for each open task it may take (cached while its body's
-        state and the task stay the same); a holder's bid counts ``margin`` lower."""
-        pricer = self.pricer
-        if pricer is None:
-            return {}
-        idle = pricer.idle
-        if idle != self._idle:
-            self._prices.clear()
-            self._idle = idle
-        tasks = self.core.tasks()
-        for gone in self._prices.keys() - tasks.keys():
-            del self._prices[gone]
-        costs: dict[ExecutionId, float] = {}
-        for execution, task in tasks.items():
-            if self.robot not in task.candidates:
-                continue
-            spec = task.spec
-            cached = self._prices.get(execution)
-            if cached is None or cached[0] is not spec:
-                cfb = CallForBids(
-                    AuctionId(execution.origin, 0, execution.incarnation),
-                    spec.interface,
-                    spec.identity,
-                    spec.inputs,
-                    spec.holder,
-                )
-                got = pricer.evaluate(cfb)
-                cached = (spec, got if isinstance(got, Bid) else got.reason)
-                self._prices[execution] = cached
-            bid = cached[1]
-            if isinstance(bid, Bid):
-                held = spec.holder_robot == self.robot
-                costs[execution] = bid.cost * (1.0 - spec.margin) if held else bid.cost
-        return costs
+    def _offer(self, robots: Iterable[str]) -> None:
+        """Tell ``robots`` our open tasks (none: nothing to tell; a robot that knew some
+        learns they closed when it bids for one)."""
+        robots = list(robots)
+        if robots and self.core.own_tasks():
+            tasks = [  # with the candidates left (a robot that declined is not one)
+                msgspec.structs.replace(t.spec, candidates=sorted(t.candidates))
+                for t in self.core.own_tasks()
+            ]
+            offer = ConsensusTasks(self.robot, self.core.version, tasks)
+            for robot in robots:
+                self._send(robot, offer)
+
+    def _claim_to(self, report: Report) -> None:
+        """Tell a task's origin our claim (and why we cannot bid for its other tasks)."""
+        claim = report.claim
+        why = self._own.why(report.origin)
+        impl = self._implementation(claim) if claim.task is not None else ""
+        cost = claim.cost if claim.task is not None else 0.0
+        says = ConsensusClaim(
+            self.robot,
+            next(self._seq),
+            claim.stamp,
+            claim.task,
+            cost,
+            impl,
+            [],
+            why,
+            claim.bid,
+            claim.most,
+            report.version,
+        )
+        self._send(report.origin, says)
+
+    def _prices_to(self, robot: str, board: Board) -> None:
+        prices = ConsensusPrices(
+            self.robot, board.version, board.seq, board.heard, list(board.prices), board.ceiling
+        )
+        self._send(robot, prices)
+
+    def _retry(self) -> None:
+        """Silent candidates (a message may have been lost): the task set to those that
+        have not reported on it, the prices to those that must bid again."""
+        offer, boards = self.core.retry()
+        self._offer(offer)
+        for robot, board in boards:
+            self._prices_to(robot, board)
 
     def _count(self) -> None:
         """Report what the core refused or dropped since last time, at a falling rate."""
@@ -359,7 +358,7 @@ class ConsensusAssigner(Allocator):
     def on_tasks(self, msg: ConsensusTasks) -> None:
         sender = self.sender
         if msg.robot != sender:
-            self.core.refused += 1
+            self.core.refuse()
         elif self._member(sender):
             tasks = (Task(t.execution, frozenset(t.candidates), t) for t in msg.tasks)
             self.core.offer(sender, msg.version, tasks)
@@ -370,28 +369,31 @@ class ConsensusAssigner(Allocator):
         sender = self.sender
         if not self._member(sender):
             return  # a stranger, or a member we lost: its state is not kept
-        claim = Claim(msg.robot, msg.stamp, msg.task, msg.cost if msg.task else math.inf)
-        view = {r: (s, v) for r, s, v in msg.view[: self.core.max_members]}
-        before = self.core.views.get(sender)
-        if self.core.hear(sender, msg.seq, claim, view):
-            fresh = self.core.claims.get(sender) is claim
-            if fresh:
-                self._impls[sender] = msg.implementation
-            if self._missed(before, self.core.views[sender], fresh):
-                self._behind.add(sender)
+        claim = Claim(
+            msg.robot,
+            msg.stamp,
+            msg.task,
+            msg.cost if msg.task else math.inf,
+            msg.bid,
+            msg.most if math.isfinite(msg.most) else 0.0,
+        )
+        if self.core.hear(sender, claim, msg.seen) and msg.task is not None:
+            self._impls[sender] = msg.implementation
+        if msg.seen < self.core.version and sender in self.core.market.candidates():
+            self._behind.add(sender)  # it speaks from an older task set: it missed ours
         for execution, why in msg.why[: self.core.max_tasks]:
             p = self._pending.get(execution)
             if p is not None and sender in p.task.candidates:
                 p.why[sender] = bounded(why)
         self._soon()
 
-    def _missed(self, before: Vector | None, now: Vector, fresh: bool) -> bool:
-        """Whether a peer needs our word again: it retried (no ``fresh`` claim, the same
-        view) still without it (ours was lost), or its view of us went backwards (it lost
-        us and took us back, forgetting our tasks). Not on every message it sent while
-        ours was on its way: that would double the traffic of a round."""
-        ours, seen = (self.core.claim.stamp, self.core.version), now.get(self.robot, (0, 0))
-        if before is None or seen == ours:
-            return False
-        was = before.get(self.robot, (0, 0))
-        return (not fresh and now == before) or seen[0] < was[0] or seen[1] < was[1]
+    @handler
+    def on_prices(self, msg: ConsensusPrices) -> None:
+        sender = self.sender
+        if msg.robot != sender:
+            self.core.refuse()
+        elif self._member(sender):
+            prices = tuple(msg.prices[: self.core.max_tasks])
+            board = Board(sender, msg.version, msg.seq, msg.heard, prices, msg.ceiling)
+            self.core.price(board)
+        self._soon()

@@ -60,7 +60,8 @@ class BatchStrategy:
 
 @dataclass(frozen=True, slots=True)
 class ConsensusStrategy:
-    """``consensus``: no auctioneer; every robot takes part alike (CBAA), see
+    """``consensus``: no auctioneer; every robot bids for its own task (the auction
+    algorithm run by the robots), see
     :mod:`btcap.team.allocation.consensus`."""
 
     name: str = "consensus"

@@ -13,7 +13,7 @@ role       may send
 robot      everything (it bids, runs and reports work, and may run missions)
 operator   membership (heartbeats, goodbyes, rosters), its repository, queries,
            and what an origin sends: calls for bids, awards, inputs, keep-alives,
-           pause and cancel, consensus offers and claims, declining (``NoBid``)
+           pause and cancel, consensus offers, claims and prices, declining (``NoBid``)
 observer   queries only: :class:`StatusQuery`, :class:`ActivityQuery`,
            :class:`DeparturesQuery`
 =========  ===================================================================
@@ -29,6 +29,7 @@ from btcap.team.messages import (
     CallForBids,
     CancelExecution,
     ConsensusClaim,
+    ConsensusPrices,
     ConsensusTasks,
     DeparturesQuery,
     ExecutionInputs,
@@ -72,6 +73,7 @@ OPERATOR_SENDS: frozenset[type[Message]] = OBSERVER_SENDS | {
     CancelExecution,
     ConsensusTasks,
     ConsensusClaim,
+    ConsensusPrices,
     # it implements nothing: when asked to bid, it declines
     NoBid,
 }

@@ -60,8 +60,9 @@ async def test_a_mission_completes_with_the_cheapest_robot_and_no_auctioneer() -
             await tree.shutdown()
 
 
-async def test_parallel_tasks_get_the_greedy_conflict_free_assignment() -> None:
-    """The greedy trap: b does task 1 cheapest and gets it; c takes task 2 at 100."""
+async def test_parallel_tasks_escape_the_greedy_trap() -> None:
+    """The greedy trap: b does task 1 cheapest, but giving it task 1 leaves task 2 to c
+    at 100; the auction gives b task 2 and c task 1 (4 in all, not 101)."""
     costs = {"b": {1: 1.0, 2: 2.0}, "c": {1: 2.0, 2: 100.0}}
     with anyio.fail_after(20):
         probe = Probe()
@@ -75,7 +76,7 @@ async def test_parallel_tasks_get_the_greedy_conflict_free_assignment() -> None:
             n2 = COUNT.node_type()("n2", inputs={"x": 2})
             tree = a.mission(Parallel("both", children=[n1, n2]))
             await tick_until(tree, lambda _s: bool(n1.assignments and n2.assignments), "both")
-            assert (n1.assignments, n2.assignments) == (["b"], ["c"])
+            assert (n1.assignments, n2.assignments) == (["c"], ["b"])
             assert _cons(a).stats.declined_awards == 0
             await tree.shutdown()
 
@@ -108,7 +109,7 @@ async def test_two_origins_never_award_the_same_robot() -> None:
 
 
 async def test_a_winner_lost_mid_consensus_has_its_task_reallocated() -> None:
-    """b claims the task while the team cannot agree yet (member s never speaks), then
+    """b claims the task while the team cannot agree yet (candidate s never speaks), then
     fails silently: its claim goes with it, c claims the task, and once s has left the
     team agrees and c runs it. b never gets an award."""
     with anyio.fail_after(20):
@@ -118,9 +119,10 @@ async def test_a_winner_lost_mid_consensus_has_its_task_reallocated() -> None:
             b = await t.add("b", [count_impl("b", 1.0, probe)])
             await t.add("c", [count_impl("c", 2.0, probe, after=3)])
             everyone = {"a", "b", "c", "s"}
-            async with silent_member(t.net, "s", [], t.clock):
+            # s could run it (dearly) but never bids: the team cannot agree while it is there
+            async with silent_member(t.net, "s", [count_impl("s", 9.0, probe)], t.clock):
                 await until(lambda: all(x.team.alive() == everyone for x in t.agents.values()))
-                await until(lambda: len(a.repository.providers(COUNT.identity)) == 2)
+                await until(lambda: len(a.repository.providers(COUNT.identity)) == 3)
                 node = COUNT.node_type()("count", inputs={"x": 1})
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 core = _cons(a).core
@@ -229,8 +231,8 @@ async def test_a_hostile_peer_is_held_to_its_own_word_and_to_the_bounds() -> Non
                 m.tell(to, ConsensusClaim("b", 1, 9, None, 0.0, "", []))  # in b's name
                 stats = _cons(a).stats
                 await until(lambda: stats.refused == 2, "the claims in b's name refused")
-                assert stats.dropped == 1000 - 64
-                assert len(_cons(a).core.tasks()) == 64
+                assert stats.dropped == 1000 - 256
+                assert len(_cons(a).core.tasks()) == 256
                 node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 state = await tick_until(tree, lambda s: s is not State.RUNNING)
@@ -248,9 +250,11 @@ async def test_a_robot_joining_mid_consensus_hears_the_open_tasks_at_once() -> N
         async with team(strategy="consensus", reevaluate_s=None, auction_window_s=window) as t:
             a = await t.add("a")
             await t.add("c", [count_impl("c", 5.0, probe)])
-            async with silent_member(t.net, "s", [], t.clock):  # no agreement: a waits
+            # s could run it but never bids: no agreement, a waits
+            async with silent_member(t.net, "s", [count_impl("s", 9.0, probe)], t.clock):
                 await until(lambda: "s" in _cons(a).core.members, "s to be a member")
-                await until(lambda: a.repository.providers(COUNT.identity) == {"c"}, "c known")
+                known = {"c", "s"}
+                await until(lambda: a.repository.providers(COUNT.identity) == known, "c, s known")
                 node = COUNT.node_type()("count", inputs={"x": 1})
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda _s: bool(_cons(a).core.winners()), "a claim")

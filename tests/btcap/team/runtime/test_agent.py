@@ -26,6 +26,7 @@ from btcap.team.messages import (
     CallForBids,
     CancelExecution,
     ConsensusClaim,
+    ConsensusPrices,
     ConsensusTasks,
     Contact,
     CostChanged,
@@ -118,6 +119,11 @@ SAMPLES: dict[type[Message], list[Message]] = {
     ConsensusClaim: [
         ConsensusClaim("b", 7, 2, E1, 2.5, "count-b", [("a", 1, 3), ("b", 2, 0)]),
         ConsensusClaim("b", 8, 3, None, 0.0, "", [], [(E2, "busy")]),
+        ConsensusClaim("b", 9, 4, E1, 2.5, "count-b", [], [], 7.25, 30.0, 3),
+    ],
+    ConsensusPrices: [
+        ConsensusPrices("a", 3, 9, 4, [(E1, 7.25, "b"), (E2, 0.0, None)], 30.5),
+        ConsensusPrices("a", 4, 10, 0, [], 0.0),
     ],
 }
 
