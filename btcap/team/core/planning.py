@@ -109,35 +109,66 @@ def _greedy(cost: Matrix, got: list[int]) -> None:
             used.add(r)
 
 
-def _improve(cost: Matrix, got: list[int]) -> None:
-    """Best-improvement local search in place: exchange the robots of two tasks, or move a
-    task to a free robot (and give the robot it left to a task without one), while that
-    lowers the total cost (strictly, so it ends)."""
+#: Up to this many tasks or robots, the local search also rotates three tasks' robots
+#: (a short chain; O(n^3) memory per step); beyond, pairwise exchanges only.
+CHAIN_MAX = 64
+
+
+def _square(cost: Matrix) -> Matrix:
+    """``cost`` padded to a square matrix, "no bid" as a large finite cost: a padding row
+    is a task nobody needs (free on any robot: its robot stays free), a padding column a
+    robot nobody has (free for any task: that task waits for the next wave). A
+    permutation of the square then places as many tasks as it can, and its least total
+    is the rectangular optimum (the cheapest tasks start first)."""
     import numpy as np
 
     tasks, robots = cost.shape
-    for _step in range(tasks * robots + 1):  # each step lowers the cost; a bound anyway
-        held = [t for t in range(tasks) if got[t] >= 0]
-        if not held:
-            return
-        h = np.array(held)
-        r = np.array([got[t] for t in held])
-        now = cost[h, r]
-        cross = cost[np.ix_(h, r)]  # cross[i, j]: task held[i] on robot r[j]
-        exchange = cross + cross.T - now[:, None] - now[None, :]
-        free = np.setdiff1d(np.arange(robots), r)
-        move = cost[np.ix_(h, free)] - now[:, None] if free.size else np.empty((len(h), 0))
-        gain_x = float(np.min(exchange)) if exchange.size else 0.0
-        gain_m = float(np.min(move)) if move.size else 0.0
-        if min(gain_x, gain_m) >= -1e-9 * max(1.0, float(now.sum())):
-            return
-        if gain_x <= gain_m:
-            i, j = divmod(int(np.argmin(exchange)), len(h))
-            got[held[i]], got[held[j]] = int(r[j]), int(r[i])
+    n = max(tasks, robots)
+    finite = cost[np.isfinite(cost)]
+    big = 2.0 * (1.0 + float(np.abs(finite).sum()))
+    square: Matrix = np.zeros((n, n))
+    square[:tasks, :robots] = np.where(np.isfinite(cost), cost, big)
+    return square
+
+
+def _improve(cost: Matrix, got: list[int]) -> None:
+    """Best-improvement local search in place, on the team's total cost: exchange the
+    robots of two tasks, or rotate those of three (a chain), while that lowers the total
+    (strictly, so it ends). Moves to a free robot and a waiting task taking a robot over
+    are exchanges with the padding (see :func:`_square`)."""
+    import numpy as np
+
+    tasks, robots = cost.shape
+    sq = _square(cost)
+    n = sq.shape[0]
+    used = {r for r in got if r >= 0}
+    spare = iter(r for r in range(n) if r not in used)
+    perm = np.array([r if r >= 0 else next(spare) for r in got] + list(spare), dtype=np.intp)
+    rows = np.arange(n)
+    chains = n <= CHAIN_MAX
+    for _step in range(n * n + 1):  # each step lowers the cost; a bound anyway
+        now = sq[rows, perm]
+        cross = sq[:, perm]  # cross[i, j]: task i on task j's robot
+        tol = 1e-9 * max(1.0, float(np.abs(now).sum()))
+        swap = cross + cross.T - now[:, None] - now[None, :]
+        gain2 = float(swap.min())
+        gain3 = 0.0
+        if chains:  # i takes j's robot, j takes k's, k takes i's
+            rot = cross[:, :, None] + cross[None, :, :] + cross.T[:, None, :]
+            rot -= now[:, None, None] + now[None, :, None] + now[None, None, :]
+            rot[rows, rows, :] = rot[:, rows, rows] = rot[rows, :, rows] = np.inf  # not 3
+            gain3 = float(rot.min())
+        if min(gain2, gain3) >= -tol:
+            break
+        if gain2 <= gain3:
+            i, j = divmod(int(np.argmin(swap)), n)
+            perm[i], perm[j] = perm[j], perm[i]
         else:
-            i, k = divmod(int(np.argmin(move)), free.size)
-            got[held[i]] = int(free[k])
-            _greedy(cost, got)
+            i, j, k = np.unravel_index(int(np.argmin(rot)), rot.shape)
+            perm[i], perm[j], perm[k] = perm[j], perm[k], perm[i]
+    for t in range(tasks):
+        r = int(perm[t])
+        got[t] = r if r < robots and math.isfinite(cost[t, r]) else -1
 
 
 def sequential_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
