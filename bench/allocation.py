@@ -50,10 +50,10 @@ from btcap.actors import ManualClock
 from btcap.bench.common import write_result
 from btcap.sim.distance import DistanceCache, path_length
 from btcap.sim.grid import GridMap
+from btcap.team.allocation.strategies import names as strategy_names
 from btcap.team.capabilities.capability import Capability, CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.core.members import TeamEvent
-from btcap.team.allocation.strategies import names as strategy_names
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
@@ -67,10 +67,12 @@ SIZES = ((5, 5), (20, 20), (50, 50), (10, 20))
 QUICK_SIZES = ((5, 5), (10, 10), (5, 10))
 #: Traffic that is not allocation (membership, gossip, the executions themselves).
 NOT_ALLOCATION = frozenset(
-    "Heartbeat Roster RosterRequest ActivityQuery Activity Goodbye ProbeRequest Vouch "
-    "RepositoryState RepositoryQuery ExecutionInputs ExecutionStatus PauseExecution "
-    "CancelExecution KeepAlive CostChanged".split()
-)
+    {
+        "Heartbeat", "Roster", "RosterRequest", "ActivityQuery", "Activity", "Goodbye",
+        "ProbeRequest", "Vouch", "RepositoryState", "RepositoryQuery", "ExecutionInputs",
+        "ExecutionStatus", "PauseExecution", "CancelExecution", "KeepAlive", "CostChanged",
+    }
+)  # fmt: skip
 STEP_S = 0.5  # how often the origin ticks its mission (clock seconds)
 SETTLE_S = 35.0  # after the last event: failure detection and one re-evaluation
 
@@ -223,9 +225,9 @@ async def allocate(
             for tree in trees:
                 tree.tick()
             lost = {names[r] for r in failed}
-            held = {n.execution.robot for n in nodes if n.execution is not None} - lost
+            busy = {n.execution.robot for n in nodes if n.execution is not None} - lost
             room = min(tasks, len(agents) - len(joining) - len(failed))
-            settled = len(held) >= room
+            settled = len(busy) >= room
             if settled and now >= last + (SETTLE_S if reevaluate_s is not None else 0.0):
                 break
             await clock.sleep(STEP_S)

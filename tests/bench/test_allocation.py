@@ -93,7 +93,8 @@ def test_the_bench_runs_every_strategy_on_chosen_instances(
 ) -> None:
     monkeypatch.setattr("btcap.bench.allocation.write_result", lambda name, data: None)
     out = main(["--seeds", "5", "--map", "cave:7", "--sizes", "3x4", "--static"])
-    assert out["seeds"] == [5, 5] and out["map"] == "<cave 80x60 seed=7>"
+    assert out["seeds"] == [5, 5]
+    assert out["map"] == "<cave 80x60 seed=7>"
     assert set(out["cost_ratio"]["3x4"]) >= {"auction", "optimal", "sequential", "consensus"}
     assert out["cost_ratio"]["3x4"]["optimal"]["mean"] == pytest.approx(1.0)
     assert "3x4" in capsys.readouterr().out

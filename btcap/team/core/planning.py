@@ -166,8 +166,8 @@ def _improve(cost: Matrix, got: list[int]) -> None:
             i, j = divmod(int(np.argmin(swap)), n)
             perm[i], perm[j] = perm[j], perm[i]
         else:
-            i, j, k = np.unravel_index(int(np.argmin(rot)), rot.shape)
-            perm[i], perm[j], perm[k] = perm[j], perm[k], perm[i]
+            a, b, c = (int(x) for x in np.unravel_index(int(np.argmin(rot)), rot.shape))
+            perm[a], perm[b], perm[c] = perm[b], perm[c], perm[a]
     for t in range(tasks):
         r = int(perm[t])
         got[t] = r if r < robots and math.isfinite(cost[t, r]) else -1
