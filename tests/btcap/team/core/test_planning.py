@@ -132,9 +132,8 @@ def test_sequential_plans_are_valid_and_no_exchange_or_chain_of_three_improves(
     used = [r for r in got if r is not None]
     assert len(used) == len(set(used))
     assert all(math.isfinite(cost[t, int(r[1:])]) for t, r in enumerate(got) if r)
-    # As many tasks served as the optimum serves, at no more than greedy's cost.
-    best = optimal_plan(bids_of(cost), set())
-    assert len(used) == sum(r is not None for r in best)
+    # No more than greedy's cost when every task or robot is served (a local search:
+    # serving more can take a longer chain than three, which the optimum finds).
     finite = np.where(np.isfinite(cost), cost, 1e6)
     if len(used) == min(cost.shape):
         assert total(cost, got) <= greedy_total(finite) + 1e-9
