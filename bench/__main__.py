@@ -13,12 +13,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m btcap.bench", description=__doc__)
     parser.add_argument("name", choices=(*BENCHES, "all"), help="which benchmark to run")
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
-    args = parser.parse_args(argv)
+    args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
+    if rest and names != ("allocation",):  # only allocation takes options of its own
+        parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False
     for name in names:
+        module = importlib.import_module(f"btcap.bench.{name}")
+        if rest:  # ``allocation --seeds 1000-1019 --map cave:7``
+            module.main(rest, quick=args.quick)
+            continue
         # A probe (``attacks``) returns False when a check failed; benchmarks return None.
-        failed |= importlib.import_module(f"btcap.bench.{name}").run(quick=args.quick) is False
+        failed |= module.run(quick=args.quick) is False
     return 1 if failed else 0
 
 

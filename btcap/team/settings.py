@@ -125,9 +125,10 @@ StrategyName = Annotated[
     str,
     msgspec.Meta(
         min_length=1,
-        description="How auctions competing for the same robots are awarded: `auction` (each "
-        "to its cheapest free bidder, by regret), `sequential` (a greedy plan improved by "
-        "exchanges), `optimal` (least total cost), `arrival` (each as it closes), "
+        description="How auctions competing for the same robots are awarded: `optimal` (the "
+        "default: least total cost), `auction` (the paper's: each to its cheapest free "
+        "bidder, by regret), `sequential` (a greedy plan improved by exchanges and chains), "
+        "`arrival` (each as it closes), "
         "`consensus` (decentralised, no auctioneer), or the name of an installed "
         "`btcap.strategies` plug-in.",
     ),
@@ -214,7 +215,7 @@ class Allocation(msgspec.Struct, kw_only=True, forbid_unknown_fields=True, froze
 
     reevaluate_s: ReevaluateS = 30.0
     move_margin: MoveMargin = 0.2
-    strategy: StrategyName = "auction"
+    strategy: StrategyName = "optimal"
     rebid_on_join: RebidOnJoin = None
     queue_after_current: QueueAfterCurrent = False
     max_lease_s: MaxLeaseS = 300.0

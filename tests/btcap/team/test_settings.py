@@ -72,7 +72,7 @@ def test_the_code_defaults_are_the_library_defaults_of_the_blocks() -> None:
         1.0,
         0.5,
     )
-    assert (cfg.reevaluate_s, cfg.move_margin, cfg.strategy) == (30.0, 0.2, "auction")
+    assert (cfg.reevaluate_s, cfg.move_margin, cfg.strategy) == (30.0, 0.2, "optimal")
     assert (cfg.rebid_on_join, cfg.queue_after_current) == (None, False)
 
 

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 
 from btcap.team.allocation.strategies import check_strategy, names
@@ -87,12 +90,68 @@ def test_sequential_improves_greedy_with_exchanges_and_moves_to_free_robots() ->
     assert len({r for r in got if r is not None}) == 3
 
 
-def test_sequential_lowers_the_cost_it_does_not_trade_it_for_more_tasks() -> None:
-    # Only r0 can do t0; greedy gives r0 t1 (1 < 3). Moving t1 to r1 (2) would serve t0
-    # too but raise the batch's cost: t0 waits for the next robot that comes free.
+def test_sequential_serves_as_many_tasks_as_it_can_like_the_optimum() -> None:
+    # Only r0 can do t0; greedy gives r0 t1 (1 < 3). Moving t1 to r1 (2) serves t0 too:
+    # a task left without a robot counts as a "no bid" cost, far above any bid.
     cost = np.array([[3.0, math.inf], [1.0, 2.0]])
-    assert sequential_plan(bids_of(cost), set()) == [None, "r00"]
-    assert optimal_plan(bids_of(cost), set()) == ["r00", "r01"]  # serves as many as it can
+    assert sequential_plan(bids_of(cost), set()) == ["r00", "r01"]
+    assert optimal_plan(bids_of(cost), set()) == ["r00", "r01"]
+
+
+def test_sequential_rotates_three_robots_where_no_exchange_of_two_helps() -> None:
+    # Greedy: t0-r2 (1), t1-r0 (1), t2-r1 (9) = 11; no two tasks gain by exchanging
+    # robots, but the chain t0->r1, t1->r2, t2->r0 costs 3 + 2 + 5 = 10, the optimum.
+    cost = np.array([[7.0, 3.0, 1.0], [1.0, 7.0, 2.0], [5.0, 9.0, 9.0]])
+    assert sequential_plan(bids_of(cost), set()) == ["r01", "r02", "r00"]
+    assert total(cost, optimal_plan(bids_of(cost), set())) == 10.0
+
+
+def test_with_more_tasks_than_robots_the_first_wave_is_the_cheapest() -> None:
+    # Greedy: t0-r0 (1), then t1-r1 (4): 5. Letting t2 take r1 over (2) and t1 wait
+    # costs 3, the least any first wave of two tasks costs.
+    cost = np.array([[1.0, 3.0], [9.0, 4.0], [10.0, 2.0]])
+    assert sequential_plan(bids_of(cost), set()) == ["r00", None, "r01"]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.integers(1, 9).flatmap(
+        lambda t: st.integers(1, 9).flatmap(
+            lambda r: st.lists(
+                st.one_of(st.integers(1, 60).map(float), st.just(math.inf)),
+                min_size=t * r,
+                max_size=t * r,
+            ).map(lambda xs: np.array(xs).reshape(t, r))
+        )
+    )
+)
+def test_sequential_plans_are_valid_and_no_exchange_or_chain_of_three_improves(
+    cost: np.ndarray,
+) -> None:
+    got = sequential_plan(bids_of(cost), set())
+    used = [r for r in got if r is not None]
+    assert len(used) == len(set(used))
+    assert all(math.isfinite(cost[t, int(r[1:])]) for t, r in enumerate(got) if r)
+    # No more than greedy's cost when every task or robot is served (a local search:
+    # serving more can take a longer chain than three, which the optimum finds).
+    finite = np.where(np.isfinite(cost), cost, 1e6)
+    if len(used) == min(cost.shape):
+        assert total(cost, got) <= greedy_total(finite) + 1e-9
+    # Locally optimal: padded to a square with "no bid" dear and waiting free, no
+    # rotation of two or three tasks' robots lowers the total.
+    n = max(cost.shape)
+    sq = np.zeros((n, n))
+    sq[: cost.shape[0], : cost.shape[1]] = finite
+    perm = [int(r[1:]) if r else -1 for r in got] + [-1] * (n - len(got))
+    spare = iter(sorted(set(range(n)) - {p for p in perm if p >= 0}))
+    perm = [p if p >= 0 else next(spare) for p in perm]
+    now = sum(sq[t, perm[t]] for t in range(n))
+    for k in (2, 3):
+        for tasks in itertools.permutations(range(n), k):
+            moved = list(perm)
+            for a, b in zip(tasks, tasks[1:] + tasks[:1], strict=True):
+                moved[a] = perm[b]
+            assert sum(sq[t, moved[t]] for t in range(n)) >= now - 1e-6
 
 
 @pytest.mark.parametrize("seed", range(8))
