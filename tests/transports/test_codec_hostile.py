@@ -3,7 +3,6 @@ CodecError like any other bad frame, in either direction, and fails fast."""
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import msgspec
@@ -36,14 +35,13 @@ def test_a_moderately_nested_value_decodes() -> None:
 
 
 @pytest.mark.parametrize("depth", [5_000, 1_000_000])
-def test_nesting_past_the_limit_is_a_codec_error_and_cheap(depth: int) -> None:
-    frame = nested_frame(depth)
-    start = time.process_time()
-    with pytest.raises(CodecError, match="nested too deeply"):
-        CODEC.decode(frame)
-    # CPU time, so other processes do not count: a logged traceback per frame cost ~100 ms
-    # of it, refusing costs well under a millisecond.
-    assert time.process_time() - start < 0.05
+def test_nesting_past_the_limit_is_a_codec_error_without_a_traceback(depth: int) -> None:
+    # A RecursionError's traceback logged per hostile frame cost ~100 ms each: the codec
+    # error chains nothing that a receiver would format. (No timing here: load decides it.)
+    with pytest.raises(CodecError, match="nested too deeply") as refused:
+        CODEC.decode(nested_frame(depth))
+    assert refused.value.__cause__ is None
+    assert refused.value.__suppress_context__
 
 
 def test_encoding_a_value_nested_too_deeply_is_a_codec_error() -> None:
