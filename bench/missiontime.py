@@ -43,7 +43,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -108,14 +108,17 @@ def nearest_first(
     objects: Sequence[tuple[Cell, bool]],
     *,
     at: Sequence[Cell] | None = None,
+    by: Literal["distance", "finish"] = "distance",
 ) -> Reference:
     """The offline nearest-first schedule of identifying every object and carrying each
     contaminated one (``objects``: cell, contaminated) to ``grid.decon_area``.
 
     ``robots`` start at ``at`` (default: all at ``grid.start``), free at time 0. Whenever
     robots are free, the nearest (free robot, pending task it can do) pair is started
-    first; ties go to the lower robot index, then object, then Identify. ValueError if a
-    task has no robot able to do it, or an object no path to it.
+    first; ties go to the lower robot index, then object, then Identify. ``by="finish"``
+    measures "nearest" by when the task would end instead of by path length (a robot
+    that works faster counts as nearer). ValueError if a task has no robot able to do it,
+    or an object no path to it.
     """
     cells = at if at is not None else [grid.start] * len(robots)
     if len(cells) != len(robots):
@@ -135,19 +138,39 @@ def nearest_first(
     pos = [(int(c[0]), int(c[1])) for c in cells]
     free_at = [0.0] * len(robots)
     pending: dict[tuple[int, int], float] = {(o, 0): 0.0 for o in range(len(objects))}
+
+    def task(t: float, r: int, o: int, k: int) -> tuple[float, Cell]:
+        """When robot ``r`` free at ``t`` would end task (o, k), and where it would be."""
+        model, cell = robots[r], objects[o][0]
+        end = t + metres(pos[r], cell) / model.speed_mps
+        end += model.operation(_KINDS[k]).duration_s
+        if k == 1:
+            end += metres(cell, grid.decon_area) / model.speed_mps
+            cell = grid.decon_area
+        return end, cell
+
+    def nearest(t: float) -> tuple[int, int, int] | None:
+        """(robot, object, kind) of the nearest free robot and pending task it can do."""
+        best: tuple[float, int, int, int] | None = None
+        for r, model in enumerate(robots):
+            if free_at[r] > t:
+                continue
+            for (o, k), since in pending.items():
+                if since > t or not model.can(_KINDS[k]):
+                    continue
+                near = metres(pos[r], objects[o][0]) if by == "distance" else task(t, r, o, k)[0]
+                if best is None or (near, r, o, k) < best:
+                    best = (near, r, o, k)
+        return None if best is None else best[1:]
+
     jobs: list[Job] = []
     t = 0.0
     while True:
-        while (pick := _nearest(t, robots, free_at, pending, pos, objects, metres)) is not None:
+        while (pick := nearest(t)) is not None:
             r, o, k = pick
             del pending[(o, k)]
-            model, cell = robots[r], objects[o][0]
-            end = t + metres(pos[r], cell) / model.speed_mps
-            end += model.operation(_KINDS[k]).duration_s
-            if k == 1:
-                end += metres(cell, grid.decon_area) / model.speed_mps
-                cell = grid.decon_area
-            elif objects[o][1]:
+            end, cell = task(t, r, o, k)
+            if k == 0 and objects[o][1]:
                 pending[(o, 1)] = end  # found contaminated as it ends
             jobs.append(Job(r, _KINDS[k], o, t, end))
             pos[r], free_at[r] = cell, end
@@ -156,29 +179,6 @@ def nearest_first(
             break
         t = min(later)
     return Reference(max((j.end for j in jobs), default=0.0), tuple(jobs))
-
-
-def _nearest(
-    t: float,
-    robots: Sequence[RobotModel],
-    free_at: list[float],
-    pending: dict[tuple[int, int], float],
-    pos: list[Cell],
-    objects: Sequence[tuple[Cell, bool]],
-    metres: Any,
-) -> tuple[int, int, int] | None:
-    """(robot, object, kind) of the nearest free robot and pending task it can do."""
-    best: tuple[float, int, int, int] | None = None
-    for r, model in enumerate(robots):
-        if free_at[r] > t:
-            continue
-        for (o, k), since in pending.items():
-            if since > t or not model.can(_KINDS[k]):
-                continue
-            key = (metres(pos[r], objects[o][0]), r, o, k)
-            if best is None or key < best:
-                best = key
-    return None if best is None else best[1:]
 
 
 def scenario(
@@ -200,7 +200,7 @@ def scenario(
     )
 
 
-def reference_of(s: Scenario) -> Reference:
+def reference_of(s: Scenario, by: Literal["distance", "finish"] = "distance") -> Reference:
     """The reference for scenario ``s``: its objects as the runner scatters them."""
     grid = s.grid()
     state = MissionState.scatter(
@@ -208,7 +208,7 @@ def reference_of(s: Scenario) -> Reference:
     )
     models = s.models()
     robots = [models[r.model] for r in s.robots]
-    return nearest_first(grid, robots, [(o.cell, o.contaminated) for o in state.objects])
+    return nearest_first(grid, robots, [(o.cell, o.contaminated) for o in state.objects], by=by)
 
 
 def _worst_mean(values: list[float]) -> dict[str, float]:
@@ -230,12 +230,16 @@ def run(
     t0 = time.perf_counter()
     out: dict[str, Any] = {"objects": OBJECTS, "seeds": seeds, "strategies": strategies}
     out |= {"reference_s": {}, "mission_s": {}, "vs_reference": {}, "vs_sequential": {}}
-    out["not_completed"] = {}
+    out |= {"finish_first_s": {}, "vs_finish_first": {}, "not_completed": {}}
     with tempfile.TemporaryDirectory() as tmp:
         team_file = Path(tmp) / "team.yaml"
         team_file.write_text(TEAM_FILE)
         for n in robots:
             ref = {seed: reference_of(scenario(n, seed, "optimal", team_file)) for seed in seeds}
+            soon = {
+                seed: reference_of(scenario(n, seed, "optimal", team_file), "finish")
+                for seed in seeds
+            }
             times: dict[str, dict[int, float]] = {s: {} for s in strategies}
             failed: dict[str, int] = {s: 0 for s in strategies}
             for seed in seeds:
@@ -245,9 +249,12 @@ def run(
                     failed[strategy] += not result.completed
                 load.append(os.getloadavg()[0])
             key = str(n)
-            out["reference_s"][key] = round(
-                statistics.mean(r.mission_time_s for r in ref.values()), 1
-            )
+            for name, refs in (("reference_s", ref), ("finish_first_s", soon)):
+                out[name][key] = round(statistics.mean(r.mission_time_s for r in refs.values()), 1)
+            out["vs_finish_first"][key] = {
+                s: _worst_mean([v[seed] / soon[seed].mission_time_s for seed in seeds])
+                for s, v in times.items()
+            }
             out["mission_s"][key] = {
                 s: round(statistics.mean(v.values()), 1) for s, v in times.items()
             }
@@ -270,26 +277,31 @@ def run(
 
 
 def _print(out: dict[str, Any]) -> None:
+    """Mission times, then one table of mean (worst) ratios per comparison."""
     strategies: list[str] = out["strategies"]
     print(
         f"mission time, fixed task list ({out['objects']} objects known at the start), "
-        f"seeds {out['seeds']}: mean s; / nearest-first reference mean (worst); "
-        "/ sequential mean (worst)"
+        f"seeds {out['seeds']}"
     )
-    width = 34
-    print(f"{'robots':>6} {'ref s':>7} " + " ".join(f"{s:>{width}}" for s in strategies))
+    head = f"{'robots':>6} " + " ".join(f"{s:>15}" for s in strategies)
+    print(f"{head} {'nearest-first':>15} {'finish-first':>15}   (mean s; ! not completed)")
     for key, ref in out["reference_s"].items():
         cells = []
         for s in strategies:
-            vr = out["vs_reference"][key][s]
-            cell = f"{out['mission_s'][key][s]:.0f} {vr['mean']:.3f} ({vr['max']:.3f})"
-            if key in out["vs_sequential"]:
-                vs = out["vs_sequential"][key][s]
-                cell += f" {vs['mean']:.3f} ({vs['max']:.3f})"
-            if out["not_completed"][key][s]:
-                cell += f" !{out['not_completed'][key][s]}"
-            cells.append(f"{cell:>{width}}")
-        print(f"{key:>6} {ref:>7.0f} " + " ".join(cells))
+            lost = out["not_completed"][key][s]
+            cells.append(f"{out['mission_s'][key][s]:.0f}{f' !{lost}' if lost else '':>3}")
+        soon = out["finish_first_s"][key]
+        print(f"{key:>6} " + " ".join(f"{c:>15}" for c in cells) + f" {ref:>15.0f} {soon:>15.0f}")
+    for title, table in (
+        ("/ the nearest-first reference", "vs_reference"),
+        ("/ sequential", "vs_sequential"),
+        ("/ the finish-first reference", "vs_finish_first"),
+    ):
+        print(f"mission time {title}: mean (worst) over the seeds")
+        print(head)
+        for key, by in out[table].items():
+            cells = [f"{by[s]['mean']:.3f} ({by[s]['max']:.3f})" for s in strategies]
+            print(f"{key:>6} " + " ".join(f"{c:>15}" for c in cells))
     la = out["load_average"]
     print(f"({out['seconds']} s; load average {la['min']}-{la['max']})")
 
