@@ -47,6 +47,21 @@ def test_each_free_robot_takes_the_nearest_task_it_can_do() -> None:
     assert ref.mission_time_s == 24.0
 
 
+def test_finish_first_counts_the_faster_robot_as_nearer() -> None:
+    objects = [((0, 9), False), ((0, 6), False), ((0, 2), True)]
+    ref = nearest_first(CORRIDOR, [H, S], objects, by="finish")
+    # t=0: s ends object 2 first (1 s + 1 s); h then ends object 1 soonest (6 + 10 s).
+    # At 2 s, s goes on to object 0 (7 m: 3.5 + 1 s); h carries object 2 when it comes
+    # free at 16: 4 m back, 8 m on, 4 s. Slower than nearest-first here (32 s, not 24).
+    assert ref.schedule == (
+        Job(1, "identify", 2, 0.0, 2.0),
+        Job(0, "identify", 1, 0.0, 16.0),
+        Job(1, "identify", 0, 2.0, 6.5),
+        Job(0, "decontaminate", 2, 16.0, 32.0),
+    )
+    assert ref.mission_time_s == 32.0
+
+
 def test_robots_start_where_they_are_told() -> None:
     # s starts at the right end: 1 m from object 0; h at the left, 2 m from object 1.
     ref = nearest_first(CORRIDOR, [H, S], [((0, 9), False), ((0, 2), False)], at=[(0, 0), (0, 10)])
