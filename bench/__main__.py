@@ -6,7 +6,17 @@ import argparse
 import importlib
 from collections.abc import Sequence
 
-BENCHES = ("tick", "transport", "auction", "sim", "allocation", "membership", "monitor", "attacks")
+BENCHES = (
+    "tick",
+    "transport",
+    "auction",
+    "sim",
+    "allocation",
+    "membership",
+    "monitor",
+    "attacks",
+    "missiontime",
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -15,12 +25,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
-    if rest and names != ("allocation",):  # only allocation takes options of its own
+    if rest and names not in (("allocation",), ("missiontime",)):  # take options of their own
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False
     for name in names:
         module = importlib.import_module(f"btcap.bench.{name}")
-        if rest:  # ``allocation --seeds 1000-1019 --map cave:7``
+        if rest:  # ``allocation --seeds 1000-1019 --map cave:7``, ``missiontime --robots 5``
             module.main(rest, quick=args.quick)
             continue
         # A probe (``attacks``) returns False when a check failed; benchmarks return None.
