@@ -49,11 +49,13 @@ from btcap.bench.cpumeter import CpuMeter
 from btcap.bt.state import State
 from btcap.team.allocation.auction import Assigned, AssignmentTask
 from btcap.team.capabilities.proxies import RemoteExecution
+from btcap.team.core.bounds import Budgets
 from btcap.team.demo import ECHO, implementations
 from btcap.team.deployment.launch import AgentSpec, spawn_agents
 from btcap.team.ids import ExecutionId
 from btcap.team.messages import CancelExecution
 from btcap.team.runtime.agent import Agent, AgentConfig
+from btcap.team.runtime.executor import CALLS_BURST, CALLS_PER_S
 from btcap.team.runtime.mission import MissionControl
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork, KeyPair, TeamKeys, ZmqTransport
@@ -85,8 +87,15 @@ async def _until(cond: Callable[[], bool], limit: float, what: str) -> None:
 # -- auction rounds ------------------------------------------------------------------------
 
 
+def _budget() -> Budgets:
+    """The bidders' budget of calls for bids from one auctioneer, mirrored: a bidder leaves
+    calls over it unanswered (btcap.team.runtime.executor), so rounds started faster would
+    measure the 5 s window. Rounds run back to back until the mirror says wait."""
+    return Budgets(CALLS_PER_S, CALLS_BURST - 16)
+
+
 async def _rounds(
-    origin: Agent, bidders: Sequence[str], warmup: int, count: int
+    origin: Agent, bidders: Sequence[str], warmup: int, count: int, budget: Budgets
 ) -> tuple[list[float], int]:
     """Per-round latency in ms, and how many measured rounds closed early."""
     auctioneer = origin.allocator
@@ -99,6 +108,8 @@ async def _rounds(
     early = 0
     clock = time.perf_counter_ns
     for i in range(warmup + count):
+        while not budget.allow("origin", time.monotonic()):
+            await asyncio.sleep(1 / CALLS_PER_S)  # noqa: ASYNC110 (a refill, not an event)
         execution = ExecutionId(origin.robot, f"bench/{len(bidders)}", next(ids))
         task = AssignmentTask(execution, ECHO.name, identity, _INPUTS, candidates, lease_s)
         closes = auctioneer.stats.early_closes
@@ -123,7 +134,7 @@ def _bidder_names(n: int) -> list[str]:
 
 
 def _origin_config() -> AgentConfig:
-    return AgentConfig(auction_window_s=WINDOW_S, **TEAM_TIMING)
+    return AgentConfig(auction_window_s=WINDOW_S, strategy="optimal", **TEAM_TIMING)
 
 
 async def _bench_inproc(
@@ -172,13 +183,14 @@ async def _all_sizes(
     cpu_ms: dict[str, Any] = {}
     await asyncio.sleep(0.5)  # let the joins settle
     await cpu.calibrate(1.0)
+    budget = _budget()
     for n in BIDDERS:
         # Spread the bidders over every process (names were dealt round robin).
-        await _rounds(origin, names[:n], warmup, 0)
+        await _rounds(origin, names[:n], warmup, 0, budget)
         if reference is not None and n == REFERENCE_BIDDERS:
             await reference()  # right before and after: the same conditions
         cpu.start()
-        samples, closed = await _rounds(origin, names[:n], 0, count)
+        samples, closed = await _rounds(origin, names[:n], 0, count, budget)
         cpu_ms[str(n)] = cpu.per_round_ms(count)
         if reference is not None and n == REFERENCE_BIDDERS:
             await reference()
