@@ -70,13 +70,16 @@ def _swap() -> Handover:
 def test_nothing_is_adopted_until_every_leg_is_reserved() -> None:
     h = _swap()
     h.accepted(TA)
-    assert h.commit() == [] and h.phase is Phase.RESERVING
+    assert h.commit() == []
+    assert h.phase is Phase.RESERVING
     assert h.tick(4.9) == []
     h.accepted(TB)
     legs = h.commit()
-    assert {leg.execution for leg in legs} == {TA, TB} and h.phase is Phase.COMMITTED
+    assert {leg.execution for leg in legs} == {TA, TB}
+    assert h.phase is Phase.COMMITTED
     assert h.commit() == []  # once
-    assert h.declined(TA, "late") == [] and h.tick(99.0) == []  # committed stays so
+    assert h.declined(TA, "late") == []
+    assert h.tick(99.0) == []
 
 
 def test_a_declined_leg_cancels_the_reserved_ones_and_nothing_moves() -> None:
@@ -84,7 +87,8 @@ def test_a_declined_leg_cancels_the_reserved_ones_and_nothing_moves() -> None:
     h.accepted(TA)
     cancel = h.declined(TB, "busy")
     assert [leg.execution for leg in cancel] == [TA]
-    assert h.phase is Phase.ABORTED and "busy" in h.why
+    assert h.phase is Phase.ABORTED
+    assert "busy" in h.why
     h.accepted(TB)  # a late acceptance after the abort
     assert h.commit() == []
 
@@ -99,7 +103,9 @@ def test_the_deadline_aborts_an_unanswered_exchange() -> None:
 def test_reports_on_other_executions_change_nothing() -> None:
     h = _swap()
     h.accepted(TC)
-    assert h.declined(TC, "x") == [] and h.phase is Phase.RESERVING and not h.reserved
+    assert h.declined(TC, "x") == []
+    assert h.phase is Phase.RESERVING
+    assert not h.reserved
 
 
 def test_the_body_holds_an_exchanged_task_beside_the_one_it_hands_over() -> None:
@@ -110,7 +116,8 @@ def test_the_body_holds_an_exchanged_task_beside_the_one_it_hands_over() -> None
     assert body.wait_cost() is None  # takes nothing else meanwhile
     assert body.reserve_exchange(TC, 1.0, handing=TB) is not None  # one at a time
     assert body.release(TB) == TA  # commit: the old run goes, the new one has the body
-    assert body.running == TA and body.queued is None
+    assert body.running == TA
+    assert body.queued is None
 
 
 def test_an_aborted_exchange_leaves_the_body_as_it_was() -> None:
@@ -118,4 +125,6 @@ def test_an_aborted_exchange_leaves_the_body_as_it_was() -> None:
     body.take(TB, 10.0)
     body.reserve_exchange(TA, 1.0, handing=TB)
     assert body.release(TA) is None
-    assert body.running == TB and body.queued is None and body.wait_cost() is None
+    assert body.running == TB
+    assert body.queued is None
+    assert body.wait_cost() is None
