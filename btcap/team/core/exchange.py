@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 from btcap.team.ids import ExecutionId
 
-__all__ = ["Exchange", "Handover", "Leg", "Phase", "Running", "find_exchanges"]
+__all__ = ["Exchange", "Handover", "Leg", "Phase", "Running", "find_exchanges", "pays"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +72,12 @@ class Exchange:
 Cross = Mapping[tuple[str, ExecutionId], float]
 
 
+def pays(before: float, after: float, margin: float) -> bool:
+    """Whether a cycle costing ``before`` now and ``after`` exchanged is worth the switch:
+    the total falls by more than ``margin`` of ``before``."""
+    return math.isfinite(before) and after < before * (1.0 - margin) - 1e-9
+
+
 def _cycle(cycle: Sequence[Running], cross: Cross, margin: float) -> Exchange | None:
     """Each task of ``cycle`` goes to the next one's robot; None unless all can take theirs
     and the total falls by more than ``margin`` of the cycle's current total."""
@@ -84,7 +90,7 @@ def _cycle(cycle: Sequence[Running], cross: Cross, margin: float) -> Exchange | 
         legs.append(Leg(task.execution, task.robot, to, cost))
     before = sum(t.cost for t in cycle)
     after = sum(leg.cost for leg in legs)
-    if not math.isfinite(before) or after >= before * (1.0 - margin) - 1e-9:
+    if not pays(before, after, margin):
         return None
     return Exchange(tuple(legs), before, after)
 
