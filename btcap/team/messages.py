@@ -179,13 +179,16 @@ class RepositoryQuery(Message):
 class CallForBids(Message):
     """Who can run ``interface`` with these inputs, and at what cost? Answers go to the
     auctioneer named in the auction's id. ``holder``: running work is re-evaluated, and
-    the robot running execution ``holder`` bids what finishing it there would cost."""
+    the robot running execution ``holder`` bids what finishing it there would cost.
+    ``handing``: an exchange; the robot running ``handing`` bids as if it handed that over
+    (no wait), and may be awarded this task beside it."""
 
     auction: AuctionId
     interface: str
     identity: str
     inputs: dict[str, Any]
     holder: ExecutionId | None = None
+    handing: ExecutionId | None = None
 
 
 class Bid(Message):
@@ -218,6 +221,9 @@ class Award(Message):
     inputs: dict[str, Any]
     lease_s: float
     paused: bool = False
+    #: An exchange: the winner holds this (paused) beside ``handing``, which it runs and
+    #: hands over; it starts when ``handing`` is released.
+    handing: ExecutionId | None = None
 
 
 class AwardReply(Message):

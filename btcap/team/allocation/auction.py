@@ -61,6 +61,7 @@ class SingleItemAuction(Allocator):
     """
 
     PATH = "auctioneer"
+    exchanges = True
     #: A peer's bad answer must never stop a robot's auctioneer.
     supervision = Supervision.RESUME
 
@@ -134,7 +135,12 @@ class SingleItemAuction(Allocator):
             self._report(opened)
         try:
             cfb = CallForBids(
-                auction_id, task.interface, task.identity, dict(task.inputs), task.holder
+                auction_id,
+                task.interface,
+                task.identity,
+                dict(task.inputs),
+                task.holder,
+                task.handing,
             )
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
@@ -170,6 +176,9 @@ class SingleItemAuction(Allocator):
                 won = award.result()
             else:
                 self._queue.took(won.robot)
+                held = [b.cost for b in outcome.ranking if b.robot == task.holder_robot]
+                if held:
+                    won = dataclasses.replace(won, held=held[0])
             return won
         finally:
             if self._watchers:  # ``won`` None: cancelled while awarding

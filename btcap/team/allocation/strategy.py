@@ -118,6 +118,9 @@ class Allocator(Actor, abc.ABC):
 
     #: Where it is spawned on every robot (its peers address it there).
     PATH: ClassVar[str]
+    #: Whether it passes an exchange (``AssignmentTask.handing``) on to the bidders, so
+    #: re-evaluation may exchange running work between two busy robots through it.
+    exchanges: ClassVar[bool] = False
     stats: AuctionStats
 
     @abc.abstractmethod

@@ -80,6 +80,7 @@ class AwardRound:
             dict(task.inputs),
             task.lease_s,
             task.paused,
+            task.handing,
         )
 
     def accepted(self) -> Assigned:

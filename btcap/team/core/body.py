@@ -88,6 +88,20 @@ class Body:
             return False
         raise RuntimeError(f"body busy with {self.running} and {self.queued}")
 
+    def reserve_exchange(
+        self, execution: ExecutionId, cost: float, handing: ExecutionId
+    ) -> str | None:
+        """Hold ``execution`` paused beside the running ``handing``, which this robot hands
+        over in an exchange (:mod:`btcap.team.core.exchange`); why not, or None. It waits
+        in the queue's place: when ``handing`` is released it runs, and releasing it first
+        (the exchange aborted) leaves the body as it was."""
+        if handing != self.running:
+            return f"not running {handing} (running {self.running})"
+        if self.queued is not None:
+            return f"busy with {self.running} and {self.queued}"
+        self.queued, self._queued_cost = execution, cost
+        return None
+
     def release(self, execution: ExecutionId) -> ExecutionId | None:
         """``execution`` ended or was dropped; returns the queued one that now runs, if any."""
         if execution == self.queued:

@@ -88,6 +88,13 @@ class HostLeases(Generic[R]):
                 f"award of {execution}: lease_s {award.lease_s:g} is over this robot's "
                 f"max_lease_s {self.max_lease_s:g}"
             )
+        if award.handing is not None and award.handing in self.hosted:
+            # An exchange: held paused beside the run handed over, in the queue's place.
+            if self.body.running != award.handing or self.body.queued is not None:
+                return f"exchange for {award.handing}: not running it alone"
+            if award.handing.origin != execution.origin:
+                return f"exchange for {award.handing}: another origin's run"
+            return None
         return self.body.busy_reason()
 
     def repeated(self, sender: str, award: Award) -> bool:
@@ -103,6 +110,11 @@ class HostLeases(Generic[R]):
         self.hosted[award.execution] = Hosted(
             award.execution, run, inputs, award.lease_s * self.lease_share, now, paused=award.paused
         )
+        if award.handing is not None and self.body.running == award.handing:
+            why = self.body.reserve_exchange(award.execution, cost, award.handing)
+            if why is not None:  # checked by refuse_award: cannot happen
+                raise RuntimeError(why)
+            return False
         return self.body.take(award.execution, cost)
 
     # -- the origin's messages -----------------------------------------------------------

@@ -30,6 +30,11 @@ class AssignmentTask:
     holder: ExecutionId | None = None
     holder_robot: str | None = None
     margin: float = 0.0
+    #: An exchange: the robot running ``handing`` bids as if it handed it over, and holds
+    #: the award paused beside it (:mod:`btcap.team.core.exchange`).
+    handing: ExecutionId | None = None
+    #: Added to the holder's bid after the margin (an exchange: what the other leg saves).
+    credit: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,6 +44,7 @@ class Assigned:
     robot: str
     implementation: str
     cost: float
+    held: float | None = None  # re-evaluation: the holder's fresh bid, if it made one
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,7 +62,7 @@ def against_holder(task: AssignmentTask, outcome: AuctionOutcome) -> AssignmentT
     held = next((b.cost for b in outcome.ranking if b.robot == task.holder_robot), None)
     if held is None:  # no fresh bid to compare with: the work stays where it is
         return dataclasses.replace(task, reserve=0.0)
-    beat = held * (1.0 - task.margin)
+    beat = held * (1.0 - task.margin) + task.credit
     return dataclasses.replace(
         task, reserve=beat if task.reserve is None else min(task.reserve, beat)
     )

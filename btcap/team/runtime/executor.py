@@ -129,7 +129,14 @@ class ExecutorSide:
         """This robot's answer to a call for bids (reserves nothing)."""
         impls = self.repository.local_implementations(cfb.interface, cfb.identity)
         holding = cfb.holder is not None and self.body.holds(cfb.holder)
-        wait = 0.0 if holding else self.body.wait_cost()  # re-evaluated: what is left
+        handing = (
+            cfb.handing is not None
+            and cfb.handing == self.body.running
+            and self.body.queued is None
+            and cfb.handing.origin == cfb.auction.auctioneer != self.robot
+        )
+        # re-evaluated: what is left; an exchange: as if it handed its own over
+        wait = 0.0 if holding or handing else self.body.wait_cost()
         if not impls or wait is None:
             return NoBid(cfb.auction, self.robot, "busy" if impls else "no matching implementation")
         if self.slot is None and cfb.auction.auctioneer != self.robot:

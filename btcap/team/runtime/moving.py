@@ -6,10 +6,18 @@ again: the robot running it bids what finishing there would cost now, and anothe
 wins only with a bid at least ``move_margin`` below that. The winner's run starts paused
 and becomes the work's *replacement*, which the capability node adopts on its next tick;
 the old run is cancelled only then, so there is no gap and the task never runs twice.
+
+Then two busy robots may *exchange* their running work (:mod:`btcap.team.core.exchange`):
+task A goes to B's robot, B bidding as if it handed its own task over and holding A's
+new run paused beside it; then task B to A's robot the same way. Only if both were taken
+and the pair's total (the holders' fresh bids before, the new bids after) falls by more
+than the margin do both become replacements, adopted as above; otherwise both new runs
+are cancelled, unstarted, and nothing moved.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
@@ -18,6 +26,7 @@ from btcap.team.allocation.strategy import Allocator
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import LocalExecution, RemoteExecution
 from btcap.team.core.bounds import Budgets
+from btcap.team.core.exchange import pays
 from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
@@ -33,6 +42,9 @@ log = get_logger("btcap.mission")
 #: A teammate's news sets off work at most this often per auction window, after a burst.
 NEWS_PER_WINDOW = 1.0
 NEWS_BURST = 4.0
+#: At most this many pairs of busy robots are tried for an exchange per re-evaluation
+#: (the dearest running work first): each try is an auction.
+EXCHANGE_PAIRS = 256
 
 Handle = LocalExecution | RemoteExecution
 
@@ -143,6 +155,8 @@ class Reevaluation:
                 for ex in sorted(self.mc.active.values(), key=lambda e: (-e.cost, str(e.id))):
                     if self.movable(ex):
                         await self._offer(ex)
+                if self.mc.allocator.exchanges:
+                    await self._exchanges()
                 if not self._again:
                     return
         finally:
@@ -188,3 +202,93 @@ class Reevaluation:
             to=won.robot,
             cost=won.cost,
         )
+
+    async def _exchanges(self) -> None:
+        """Swaps of running work between two busy robots, neither this one, each running
+        one task of this origin's: the dearest work first, each robot in one swap."""
+        mc = self.mc
+        by_robot: dict[str, list[Handle]] = {}
+        for ex in mc.active.values():
+            if isinstance(ex, RemoteExecution) and ex.robot != mc.robot and self.movable(ex):
+                by_robot.setdefault(ex.robot, []).append(ex)
+        solo = sorted(
+            (held[0] for held in by_robot.values() if len(held) == 1),
+            key=lambda e: (-e.cost, str(e.id)),
+        )
+        swapped: set[str] = set()
+        pairs = itertools.islice(itertools.combinations(solo, 2), EXCHANGE_PAIRS)
+        for a, b in pairs:
+            if a.robot not in swapped and b.robot not in swapped and await self._swap(a, b):
+                swapped |= {a.robot, b.robot}
+
+    async def _swap(self, a: Handle, b: Handle) -> bool:
+        """Exchange ``a`` and ``b``'s robots if the pair's total falls by the margin."""
+        # Task a to b's robot while the pair could still gain (b's last known cost)...
+        first = await self._leg(a, b, 0.0, b.cost)
+        if first is None:
+            return False
+        held_a = first[1].held
+        # ... then b to a's robot only if the pair's total falls by the margin.
+        credit = -1e300 if held_a is None else held_a * (1.0 - self.margin) - first[1].cost
+        second = await self._leg(b, a, self.margin, credit)
+        if second is None:
+            first[0].cancel("exchange off")
+            return False
+        (new_a, won_a), (new_b, won_b) = first, second
+        before = (won_a.held or 0.0) + (won_b.held or 0.0)
+        held = won_a.held is not None and won_b.held is not None
+        if not (held and pays(before, won_a.cost + won_b.cost, self.margin)) or not (
+            self.movable(a) and self.movable(b)
+        ):
+            new_a.cancel("exchange off")
+            new_b.cancel("exchange off")
+            return False
+        mc = self.mc
+        for old, new in ((a, new_a), (b, new_b)):
+            old.replacement = new
+            mc.active[new.id] = new
+        mc.stats.moved += 2
+        log.info(
+            "mission.exchanging",
+            robot=mc.robot,
+            executions=[str(a.id), str(b.id)],
+            robots=[a.robot, b.robot],
+            before=before,
+            after=won_a.cost + won_b.cost,
+        )
+        return True
+
+    async def _leg(
+        self, x: Handle, y: Handle, margin: float, credit: float
+    ) -> tuple[Handle, Assigned] | None:
+        """``x``'s task offered to ``y``'s robot, which bids as if it handed ``y`` over
+        and holds the new run paused beside it; ``x``'s robot bids as its holder."""
+        mc = self.mc
+        node = x.node
+        iface = type(node).INTERFACE
+        if y.robot not in mc.repository.providers(iface.identity) & mc.alive():
+            return None
+        if not (self.movable(x) and self.movable(y)):
+            return None
+        task = AssignmentTask(
+            mc.new_execution(node),
+            iface.name,
+            iface.identity,
+            dict(node.inputs),
+            frozenset({x.robot, y.robot}),
+            mc.config.lease_s,
+            paused=True,
+            holder=x.id,
+            holder_robot=x.robot,
+            margin=margin,
+            handing=y.id,
+            credit=credit,
+        )
+        won = await mc.allocator.assign(task)
+        if not isinstance(won, Assigned):
+            return None
+        new = mc.handle(task.execution, won, node)
+        if won.robot != y.robot:  # the holder is never awarded its own work: a bad peer
+            new.cancel("exchange off")
+            return None
+        return new, won
