@@ -152,7 +152,8 @@ class Checker:
             tables = {
                 "members": (len(a.team.members), names - 1),
                 "repository entries": (len(a.repository.team), names - 1),
-                "origin leases": (len(mc.origin.tracked), tasks),
+                # a task being handed over holds the old run and its paused successor
+                "origin leases": (len(mc.origin.tracked), 2 * tasks),
                 "active executions": (len(mc.active), 2 * tasks),
                 "hosted runs": (len(mc.host.hosted), 2),
                 "local runs": (len(mc.executor.local_runs), tasks),
