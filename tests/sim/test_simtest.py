@@ -185,6 +185,10 @@ def test_a_bad_plan_file_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[
         # (membership/repository.py).
         "seed-879.json",
         "seed-532.json",
+        # consensus: a robot moving on from a task it held reset the task's price to 0,
+        # which drew it back; it traded two origins' tasks for ever in no clock time
+        # (core/market.py; hung, the per-test timeout fails it).
+        "heavy-70055.json",
     ],
 )
 def test_found_bugs_stay_fixed(name: str) -> None:

@@ -129,10 +129,16 @@ class Market(Generic[T]):
             else:
                 self.version += 1
 
-    def _free(self, task: ExecutionId | None) -> None:
-        """Its holder went: a new auction for the task, which everyone must hear of."""
+    def _free(self, task: ExecutionId | None, *, keep_price: bool = False) -> None:
+        """Its holder went: everyone must hear of the task again. A holder that moved on to
+        another task leaves the price where it was (prices that fell back to 0 drew it
+        back, and two origins' tasks could trade one robot for ever: heavy sim-test seed
+        70055); one that failed or declined leaves a new auction."""
         if task is not None:
-            self.top.pop(task, None)
+            if keep_price and task in self.top:
+                self.top[task] = (self.top[task][0], None)
+            else:
+                self.top.pop(task, None)
         self.version += 1
 
     def _holds(self, robot: str, task: ExecutionId | None) -> bool:
@@ -158,7 +164,7 @@ class Market(Generic[T]):
                 self.owed.add(robot)  # it says it again: our answer was lost
             return False
         if old is not None and old.claim.task != claim.task and self._holds(robot, old.claim.task):
-            self._free(old.claim.task)  # it moved on
+            self._free(old.claim.task, keep_price=True)  # it moved on
         self.reports[robot] = _Report(version, claim)
         self._raise(claim.most)
         task = self.tasks.get(claim.task) if claim.task is not None else None
