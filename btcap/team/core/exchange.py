@@ -11,30 +11,27 @@ cycle's total falls by more than ``margin`` of what the cycle costs now, the sam
 hysteresis as moving work to a free robot, so near-equal pairs never trade back and
 forth.
 
-Executing one is a two-phase hand-over (:class:`Handover`), so no task runs twice and
-none is dropped: every leg's new run is first *reserved* (its target accepts it paused,
-beside the run it is handing over); only when every leg is reserved are they *committed*
-(each node adopts its replacement, which cancels the old run, as a move to a free robot
-does). A leg declined, lost or not answered before the deadline aborts the whole
-exchange: the reserved paused runs are cancelled and every task stays where it was. A
-paused run never starts without its node's inputs, and its lease lapses with its origin,
-so an origin that dies mid-exchange leaves nothing running twice.
+Re-evaluation carries out swaps only (``Reevaluation._swap`` in
+:mod:`btcap.team.runtime.moving`): each leg's new run is first accepted *paused* by its
+target, beside the run it hands over; only when both legs are accepted and :func:`pays`
+holds do the nodes adopt their replacements (each adoption cancels the old run, as a
+move to a free robot does); otherwise both paused runs are cancelled and every task
+stays where it was. Chains of three are chosen here (``chain=3``, used by
+``python -m btcap.bench.exchanges`` to estimate their worth) but not carried out yet.
 
-Sans-IO: decided on explicit costs and explicit time; the shell asks for the costs and
-sends the awards.
+Sans-IO: decided on explicit costs; the shell asks for the costs and sends the awards.
 """
 
 from __future__ import annotations
 
-import enum
 import itertools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from btcap.team.ids import ExecutionId
 
-__all__ = ["Exchange", "Handover", "Leg", "Phase", "Running", "find_exchanges", "pays"]
+__all__ = ["Exchange", "Leg", "Running", "find_exchanges", "pays"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,66 +131,3 @@ def find_exchanges(
         busy |= robots
         chosen.append(ex)
     return chosen
-
-
-class Phase(enum.Enum):
-    RESERVING = "reserving"
-    COMMITTED = "committed"
-    ABORTED = "aborted"
-
-
-@dataclass(slots=True)
-class Handover:
-    """The two-phase hand-over of one exchange, decided on explicit time.
-
-    The shell awards every leg paused (its target keeps running the task it hands over)
-    and reports each answer here. :meth:`commit` says when every leg is reserved: then,
-    and only then, each node may adopt its replacement. :meth:`abort` lists the reserved
-    legs whose paused runs must be cancelled.
-    """
-
-    exchange: Exchange
-    deadline: float
-    phase: Phase = Phase.RESERVING
-    reserved: set[ExecutionId] = field(default_factory=set)
-    why: str = ""
-
-    def accepted(self, execution: ExecutionId) -> None:
-        """``execution``'s new run was accepted, paused, by its leg's target."""
-        if self.phase is Phase.RESERVING and self._leg(execution) is not None:
-            self.reserved.add(execution)
-
-    def declined(self, execution: ExecutionId, why: str) -> list[Leg]:
-        """A leg could not be reserved (declined, lost, or its task ended or moved): the
-        exchange is off; returns the reserved legs to cancel."""
-        if self.phase is not Phase.RESERVING or self._leg(execution) is None:
-            return []
-        return self._abort(f"{execution}: {why}")
-
-    def tick(self, now: float) -> list[Leg]:
-        """Past the deadline with a leg unanswered: the exchange is off (as declined)."""
-        if self.phase is Phase.RESERVING and now >= self.deadline and not self.ready:
-            return self._abort("not every leg reserved in time")
-        return []
-
-    @property
-    def ready(self) -> bool:
-        return all(leg.execution in self.reserved for leg in self.exchange.legs)
-
-    def commit(self) -> list[Leg]:
-        """Every leg reserved: the legs whose nodes adopt their replacements now (each
-        adoption cancels the old run). Nothing before that."""
-        if self.phase is not Phase.RESERVING or not self.ready:
-            return []
-        self.phase = Phase.COMMITTED
-        return list(self.exchange.legs)
-
-    def _abort(self, why: str) -> list[Leg]:
-        self.phase = Phase.ABORTED
-        self.why = why
-        cancel = [leg for leg in self.exchange.legs if leg.execution in self.reserved]
-        self.reserved.clear()
-        return cancel
-
-    def _leg(self, execution: ExecutionId) -> Leg | None:
-        return next((leg for leg in self.exchange.legs if leg.execution == execution), None)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from btcap.team.core.body import Body
-from btcap.team.core.exchange import Handover, Phase, Running, find_exchanges
+from btcap.team.core.exchange import Running, find_exchanges
 from btcap.team.ids import ExecutionId
 
 TA, TB, TC = (ExecutionId("base", f"t{n}", n) for n in (1, 2, 3))
@@ -59,53 +59,6 @@ def test_a_robot_with_two_running_tasks_is_not_a_candidate() -> None:
 def test_bad_settings_are_refused(margin: float, chain: int) -> None:
     with pytest.raises(ValueError, match="exchange"):
         find_exchanges([], {}, margin, chain=chain)
-
-
-def _swap() -> Handover:
-    running = [Running(TA, "a", 10.0), Running(TB, "b", 10.0)]
-    (ex,) = find_exchanges(running, {("b", TA): 1.0, ("a", TB): 1.0}, 0.2)
-    return Handover(ex, deadline=5.0)
-
-
-def test_nothing_is_adopted_until_every_leg_is_reserved() -> None:
-    h = _swap()
-    h.accepted(TA)
-    assert h.commit() == []
-    assert h.phase is Phase.RESERVING
-    assert h.tick(4.9) == []
-    h.accepted(TB)
-    legs = h.commit()
-    assert {leg.execution for leg in legs} == {TA, TB}
-    assert h.phase is Phase.COMMITTED
-    assert h.commit() == []  # once
-    assert h.declined(TA, "late") == []
-    assert h.tick(99.0) == []
-
-
-def test_a_declined_leg_cancels_the_reserved_ones_and_nothing_moves() -> None:
-    h = _swap()
-    h.accepted(TA)
-    cancel = h.declined(TB, "busy")
-    assert [leg.execution for leg in cancel] == [TA]
-    assert h.phase is Phase.ABORTED
-    assert "busy" in h.why
-    h.accepted(TB)  # a late acceptance after the abort
-    assert h.commit() == []
-
-
-def test_the_deadline_aborts_an_unanswered_exchange() -> None:
-    h = _swap()
-    h.accepted(TB)
-    assert [leg.execution for leg in h.tick(5.0)] == [TB]
-    assert h.phase is Phase.ABORTED
-
-
-def test_reports_on_other_executions_change_nothing() -> None:
-    h = _swap()
-    h.accepted(TC)
-    assert h.declined(TC, "x") == []
-    assert h.phase is Phase.RESERVING
-    assert not h.reserved
 
 
 def test_the_body_holds_an_exchanged_task_beside_the_one_it_hands_over() -> None:
