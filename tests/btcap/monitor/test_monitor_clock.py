@@ -17,7 +17,7 @@ from btcap.monitor import read_record
 async def _shown(monitor: Monitor, robot: str) -> None:
     """Until ``robot`` is in the monitor's snapshot (the caller's fail_after bounds it;
     a fixed sleep would depend on the machine's load)."""
-    while robot not in monitor.snapshot()["robots"]:
+    while robot not in monitor.snapshot()["robots"]:  # noqa: ASYNC110 (no event to wait on)
         await asyncio.sleep(0.01)
 
 
