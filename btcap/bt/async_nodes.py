@@ -172,7 +172,9 @@ class LatchedIfThenElse(Composite):
 
     def check_children(self) -> None:
         if len(self.children) < 2:
-            raise TreeError(f"IfThenElse {self.name!r} needs a condition and a then-branch")
+            raise TreeError(
+                f"{type(self).__name__} {self.name!r} needs a condition and a then-branch"
+            )
 
     def on_setup(self) -> None:
         self.check_children()
