@@ -131,7 +131,10 @@ async def test_hearsay_is_not_dialled_in_bulk() -> None:
             assert sum(introduced) == 8
             assert len(ta.peers()) == 8
             assert ta.stats.by_reason["too many strangers"] == 192
-            assert open_fds() - base <= 8 * 3
+            # Each dialled stranger holds about three descriptors (24 measured here);
+            # the slack is for descriptors other parts of the process open or close
+            # meanwhile. Dialling all 200 would hold about 600.
+            assert open_fds() - base <= 8 * 3 + 16
 
 
 async def test_a_hello_flood_keeps_at_most_max_strangers() -> None:
