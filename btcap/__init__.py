@@ -71,6 +71,9 @@ if TYPE_CHECKING:
     from btcap.bt.registry import NodeRegistry, RegistryError, default_registry
     from btcap.bt.render import render_dot, render_text
     from btcap.bt.state import (
+        FAILED,
+        RUNNING,
+        SUCCEEDED,
         BtcapWarning,
         IllegalTransition,
         RestartLoopWarning,
@@ -167,6 +170,9 @@ _EXPORTS = {
     "btcap.bt.registry": ("NodeRegistry", "RegistryError", "default_registry"),
     "btcap.bt.render": ("render_dot", "render_text"),
     "btcap.bt.state": (
+        "FAILED",
+        "RUNNING",
+        "SUCCEEDED",
         "BtcapWarning",
         "IllegalTransition",
         "RestartLoopWarning",
@@ -204,6 +210,9 @@ if not TYPE_CHECKING:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
+    "FAILED",
+    "RUNNING",
+    "SUCCEEDED",
     "Action",
     "Agent",
     "AgentConfig",

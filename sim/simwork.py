@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.composites import Parallel, ReactiveSequence, Sequence
 from btcap.bt.node import Leaf, Node
-from btcap.bt.state import State
+from btcap.bt.state import RUNNING, SUCCEEDED, State
 from btcap.bt.tree import Tree
 from btcap.sim.simcheck import Checker
 from btcap.sim.simplan import CAPABILITIES, Plan, TaskSpec
@@ -50,8 +50,8 @@ class Job(Leaf):
         self.outputs["run"] = self._run
         if now - self._started >= self.inputs["duration"]:
             self._checker.end(self._run)
-            return State.SUCCEEDED
-        return State.RUNNING
+            return SUCCEEDED
+        return RUNNING
 
     def on_shutdown(self) -> None:
         self._checker.end(self._run)

@@ -12,7 +12,7 @@ from typing import Any, ClassVar
 from btcap.bt.composites import ReactiveSequence
 from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
-from btcap.bt.state import State
+from btcap.bt.state import RUNNING, SUCCEEDED, State
 from btcap.bt.tree import Tree
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
@@ -50,8 +50,8 @@ class EchoLeaf(Leaf):
         self.outputs["robot"] = self.options["robot"]
         duration = self.options["duration_s"]
         if self.inputs["stop"] or (duration > 0 and now - self._started >= duration):
-            return State.SUCCEEDED
-        return State.RUNNING
+            return SUCCEEDED
+        return RUNNING
 
     def on_reset(self) -> None:
         self._ticks = 0

@@ -100,6 +100,24 @@ def test_state_is_still_the_enum() -> None:
     assert State._missing_("x") is None  # inherited from Enum: the full lookup
 
 
+def test_the_documented_leaf_returns_the_states_themselves() -> None:
+    import btcap
+
+    assert (btcap.SUCCEEDED, btcap.FAILED, btcap.RUNNING) == (
+        State.SUCCEEDED,
+        State.FAILED,
+        State.RUNNING,
+    )
+    assert btcap.SUCCEEDED is State.SUCCEEDED and btcap.FAILED is State.FAILED
+    assert btcap.RUNNING is State.RUNNING
+
+    class Ready(btcap.Leaf):
+        def on_tick(self) -> State:
+            return btcap.SUCCEEDED
+
+    assert btcap.Tree(Ready("ready")).tick() is State.SUCCEEDED
+
+
 @pytest.mark.skipif(sys.version_info >= (3, 12), reason="the check exists where the toll does")
 def test_a_fast_enum_refuses_members_that_need_binding() -> None:
     with pytest.raises(TypeError, match="no descriptors"):
