@@ -297,7 +297,8 @@ class ActorSystem:
                 return result
             actor._receive(msg, future_reply(fut))
         else:
-            if self.transport is None:
+            transport = self.transport
+            if transport is None:
                 raise DeadLetter(f"no transport to reach {address}")
             limit = self.ask_timeout if timeout is None else timeout
             corr = next(self._corr)
@@ -310,7 +311,7 @@ class ActorSystem:
                 self._pending[corr] = (address.system, fut, math.inf)
                 timer = arm_timer(self.clock, limit, fut)
             try:
-                self._send(Envelope(Kind.ASK, self.address, address, msg, corr))
+                transport.send(Envelope(Kind.ASK, self.address, address, msg, corr))
                 return await fut
             except Expired:
                 raise _timed_out(address, msg, limit) from None
@@ -349,8 +350,7 @@ class ActorSystem:
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
-            self._dead_letter(env.recipient, env.msg)
-            return
+            return self._dead_letter(env.recipient, env.msg)
         self.transport.send(env)
 
     def _on_envelope(self, env: Envelope) -> None:
@@ -399,7 +399,8 @@ class ActorSystem:
         actor._receive(env.msg, reply, env.sender.system)
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
-        me = Address(self.id, env.recipient.path)
+        to = env.recipient  # a broadcast's reply names us, not "*":
+        me = to if to.system == self.id else Address(self.id, to.path)
         if error is None and result is not None and not isinstance(result, Message):
             error = TypeError(f"reply of type {type(result).__qualname__} is not a Message")
         if error is None:
