@@ -1,14 +1,18 @@
 """Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
 
-The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport --peer``,
-see :mod:`bench.transport_peers`). Peer figures measured in the same run: blocking pyzmq
-on both sides (``raw_zmq_tcp_blocking``: the floor with no event loop at all, and what
-every figure is given as a ratio to) and pyzmq's own asyncio DEALER/ROUTER echo
-(``raw_zmq_tcp``). All scenarios are set up at once and measured in interleaved rounds,
-so a machine whose load drifts still gives every scenario the same conditions. Besides
-wall time, each scenario's CPU time per ask is counted (``time.process_time`` here, the
-peer process's from ``/proc``: every thread, so ZeroMQ's I/O threads count), which a
-shared machine's load moves far less.
+The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport
+--peer``, see :mod:`bench.transport_peers`). Peer figures measured in the same run:
+blocking pyzmq on both sides (``raw_zmq_tcp_blocking``: the floor with no event loop at
+all, and what every figure is given as a ratio to; ``raw_zmq_tcp_blocking_curve`` the
+same over CURVE, what CURVE figures are also given against), pyzmq's own asyncio
+DEALER/ROUTER echo (``raw_zmq_tcp``), and the cheapest ask an event loop allows, hand-
+written without btcap (``floor_tcp*``, :mod:`bench.transport_floor`): the table splits
+btcap's gap to blocking pyzmq into the event loop's share and btcap's own. All scenarios
+are set up at once and measured in interleaved rounds, so a machine whose load drifts
+still gives every scenario the same conditions. Besides wall time, each scenario's CPU
+time per ask is counted (``time.process_time`` here, the peer process's from ``/proc``:
+every thread, so ZeroMQ's I/O threads count), which a shared machine's load moves far
+less.
 
 With uvloop installed (the optional ``fast`` extra) the tcp scenarios run a second
 time with both sides on uvloop, against their own blocking floor in that pass.
@@ -330,11 +334,12 @@ def _table(loop: str, ask_us: dict[str, dict[str, float]]) -> str:
         f"blocking floor of the same security ({FLOOR_CURVE} for *_curve)"
     )
     for name, split in _splits(ask_us).items():
+        share = split["loop_share_of_gap"]
+        said = f"{share:.0%}" if 0.0 <= share <= 1.0 else "lost in the noise"
         lines.append(
             f"{name}: {split['to_blocking']:.2f}x blocking = event-loop floor "
             f"{split['loop_floor_to_blocking']:.2f}x x btcap over that floor "
-            f"{split['to_loop_floor']:.2f}x (the loop's share of the gap: "
-            f"{split['loop_share_of_gap']:.0%})"
+            f"{split['to_loop_floor']:.2f}x (the loop's share of the gap: {said})"
         )
     return "\n".join(lines)
 
@@ -349,7 +354,8 @@ def run(quick: bool = False, loop: str = "both") -> dict[str, Any]:
     data: dict[str, Any] = {"samples": count, "warmup": warmup, "quick": quick, "floor": FLOOR}
     for name in loops:
         load = os.getloadavg()
-        ask_us = run_on(name, _run_all(name, warmup, count, rounds=10))
+        # Many short rounds: a burst of load elsewhere lands on every scenario alike.
+        ask_us = run_on(name, _run_all(name, warmup, count, rounds=10 if quick else 40))
         key = "" if name == "asyncio" else f"_{name}"
         data[f"ask_us{key}"] = ask_us
         data[f"ratio_to_floor{key}"] = _ratios(ask_us)
