@@ -31,6 +31,7 @@ import zmq
 
 from btcap.bench.transport_peers import READY, Ping, child, peer_keys, until_stdin_closes
 from btcap.transports import KeyPair
+from btcap.transports.zmq_sockets import fd_of
 
 __all__ = ["floor_tcp", "raw_zmq_tcp_blocking", "serve_blocking", "serve_floor"]
 
@@ -103,13 +104,14 @@ async def serve_floor(bind: str, keys: str | None, reply_to: str | None) -> None
             send(sock.recv(NOBLOCK), NOBLOCK)
 
     readable = _drain(router, echo)
-    loop.add_reader(router.getsockopt(zmq.FD), readable)
+    fd = fd_of(router)
+    loop.add_reader(fd, readable)
     loop.call_soon(readable)
     print(READY + router.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
     try:
         await until_stdin_closes()
     finally:
-        loop.remove_reader(router.getsockopt(zmq.FD))
+        loop.remove_reader(fd)
         for sock in (router, dealer):
             if sock is not None:
                 sock.close(0)
@@ -188,14 +190,14 @@ async def floor_tcp(
         readable = _drain(inbox, on_reply)
     else:
         readable = _drain(inbox, waiter.handle)
-    fd = inbox.getsockopt(zmq.FD)
+    fd = fd_of(inbox)
     try:
         with child(*args) as (endpoint, pid):
             dealer.connect(endpoint)
             loop.add_reader(fd, readable)
             send, get, recv, new = dealer.send, inbox.getsockopt, inbox.recv, loop.create_future
 
-            async def ask(i: int) -> bytes:
+            async def ask(i: int) -> Any:
                 send(PAYLOAD, NOBLOCK)
                 if get(EVENTS) & POLLIN:  # type: ignore[operator]
                     if pair:

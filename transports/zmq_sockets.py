@@ -151,7 +151,10 @@ def write(
         reject(stats, system, "too large to send", to.encode(), f"{len(frame)} bytes")
         return
     try:
-        _send(sock, frame, NOBLOCK, len(frame) < _COPY_THRESHOLD)
+        if len(frame) < _COPY_THRESHOLD:
+            _send(sock, frame, NOBLOCK)
+        else:
+            _send(sock, frame, NOBLOCK, False)
     except zmq.ZMQError as exc:  # zmq.Again: the peer's queue is full
         stats.undeliverable += 1
         why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
