@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
+import time
 import uuid
 from collections.abc import Coroutine
 from functools import partial
@@ -13,14 +15,21 @@ from typing import Any, TypeVar
 import anyio
 from anyio.abc import TaskGroup
 
-from btcap.actors.cell import ActorCell, Reply
+from btcap.actors.cell import ActorCell
 from btcap.actors.clock import Clock, TimeSource
 from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
 from btcap.actors.stats import SystemStats
-from btcap.actors.timers import Expired, arm_timer, relay_reply
+from btcap.actors.timers import (
+    AskDeadlines,
+    Expired,
+    arm_timer,
+    future_reply,
+    on_the_wall,
+    relay_reply,
+)
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
@@ -81,7 +90,10 @@ class ActorSystem:
         self._actors: dict[str, ActorCell] = {}
         self._names = itertools.count(1)
         self._corr = itertools.count(1)
-        self._pending: dict[int, tuple[str, asyncio.Future[Any]]] = {}  # corr -> (peer, reply)
+        # corr -> (peer, reply, deadline on time.monotonic: inf off the wall)
+        self._pending: dict[int, tuple[str, asyncio.Future[Any], float]] = {}
+        self._deadlines = AskDeadlines(self._pending)
+        self._wall = on_the_wall(self.clock)  # asks time out on the wall: see AskDeadlines
         self._tasks: set[asyncio.Task[Any]] = set()
         self._tg: TaskGroup | None = None
         self._closing = False
@@ -143,8 +155,10 @@ class ActorSystem:
             task.cancel()
         if tasks:
             await asyncio.gather(*tasks, return_exceptions=True)
-        pending, self._pending = self._pending, {}
-        for _peer, fut in pending.values():
+        pending = list(self._pending.values())
+        self._pending.clear()
+        self._deadlines.cancel()
+        for _peer, fut, _deadline in pending:
             if not fut.done():
                 fut.set_exception(SystemClosed(f"actor system {self.id} shut down"))
 
@@ -265,13 +279,7 @@ class ActorSystem:
         if include_self:
             self.tell(Address(self.id, path), msg)
 
-    async def ask(
-        self,
-        address: Address,
-        msg: Any,
-        *,
-        timeout: float | None = None,
-    ) -> Any:
+    async def ask(self, address: Address, msg: Any, *, timeout: float | None = None) -> Any:
         """Request/response to any address; see :meth:`ActorRef.ask`."""
         if self._closing:
             raise SystemClosed(f"actor system {self.id} is shutting down")
@@ -287,21 +295,30 @@ class ActorSystem:
                 if isinstance(result, asyncio.Future):
                     return await self.await_deferred(address, msg, result, timeout)
                 return result
-            actor._receive(msg, _future_reply(fut))
+            actor._receive(msg, future_reply(fut))
         else:
-            if self.transport is None:
+            transport = self.transport
+            if transport is None:
                 raise DeadLetter(f"no transport to reach {address}")
+            limit = self.ask_timeout if timeout is None else timeout
             corr = next(self._corr)
-            self._pending[corr] = (address.system, fut)
+            if self._wall:  # no timer of its own: one for every pending ask
+                deadline = time.monotonic() + limit
+                self._pending[corr] = (address.system, fut, deadline)
+                self._deadlines.arm(deadline)
+                timer = None
+            else:
+                self._pending[corr] = (address.system, fut, math.inf)
+                timer = arm_timer(self.clock, limit, fut)
             try:
-                self._send(Envelope(Kind.ASK, self.address, address, msg, corr))
-            except BaseException:
-                self._pending.pop(corr, None)
-                raise
-            try:
-                return await self._reply_within(fut, timeout, address, msg)
+                transport.send(Envelope(Kind.ASK, self.address, address, msg, corr))
+                return await fut
+            except Expired:
+                raise _timed_out(address, msg, limit) from None
             finally:
                 self._pending.pop(corr, None)
+                if timer is not None:
+                    timer.cancel()
         return await self._reply_within(fut, timeout, address, msg)
 
     async def await_deferred(
@@ -327,16 +344,13 @@ class ActorSystem:
         try:
             return await fut
         except Expired:
-            raise AskTimeout(
-                f"no reply from {address} to {type(msg).__qualname__} within {limit} s"
-            ) from None
+            raise _timed_out(address, msg, limit) from None
         finally:
             timer.cancel()
 
     def _send(self, env: Envelope) -> None:
         if self.transport is None:
-            self._dead_letter(env.recipient, env.msg)
-            return
+            return self._dead_letter(env.recipient, env.msg)
         self.transport.send(env)
 
     def _on_envelope(self, env: Envelope) -> None:
@@ -385,7 +399,8 @@ class ActorSystem:
         actor._receive(env.msg, reply, env.sender.system)
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
-        me = Address(self.id, env.recipient.path)
+        to = env.recipient  # a broadcast's reply names us, not "*":
+        me = to if to.system == self.id else Address(self.id, to.path)
         if error is None and result is not None and not isinstance(result, Message):
             error = TypeError(f"reply of type {type(result).__qualname__} is not a Message")
         if error is None:
@@ -431,13 +446,5 @@ class ActorSystem:
             self._tg.cancel_scope.cancel()
 
 
-def _future_reply(fut: asyncio.Future[Any]) -> Reply:
-    def reply(result: Any, error: BaseException | None) -> None:
-        if fut.done():
-            return
-        if error is None:
-            fut.set_result(result)
-        else:
-            fut.set_exception(error)
-
-    return reply
+def _timed_out(address: Address, msg: Any, limit: float) -> AskTimeout:
+    return AskTimeout(f"no reply from {address} to {type(msg).__qualname__} within {limit} s")

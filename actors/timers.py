@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 from typing import Any
 
+from btcap.actors.cell import Reply
 from btcap.actors.clock import ClockTimer, ManualClock, TimeSource
 from btcap.actors.errors import ActorError
 
-__all__ = ["Expired", "arm_timer", "relay_reply"]
+__all__ = ["AskDeadlines", "Expired", "arm_timer", "future_reply", "on_the_wall", "relay_reply"]
 
 
 class Expired(ActorError):
@@ -29,6 +31,60 @@ def arm_timer(
     if math.isinf(clock.speedup):  # another virtual clock: a sleep on it
         return asyncio.ensure_future(_expire_after(clock, limit, fut))
     return asyncio.get_running_loop().call_later(limit, _expire, fut)
+
+
+def on_the_wall(clock: TimeSource) -> bool:
+    """Whether an ask's limit on ``clock`` is wall time (see :func:`arm_timer`)."""
+    return not isinstance(clock, ManualClock) and not math.isinf(clock.speedup)
+
+
+class AskDeadlines:
+    """Wall-clock limits of a system's remote asks on one loop timer, not one per ask.
+
+    A timer per ask cost a TimerHandle, a heap push and a cancel on every round trip
+    (~2 us, the hottest path there is). Here an ask only stores its deadline next to its
+    future in ``pending`` (corr -> (peer, future, deadline)); one timer is armed at the
+    soonest deadline it knows of (an ask with a later one costs a comparison), and when
+    it fires it fails what has expired with :class:`Expired` and re-arms at the soonest
+    left. Expiry stays exact: no ask is failed before its limit.
+    """
+
+    __slots__ = ("_at", "_pending", "_timer")
+
+    def __init__(self, pending: dict[int, tuple[str, asyncio.Future[Any], float]]) -> None:
+        self._pending = pending
+        self._timer: asyncio.TimerHandle | None = None
+        self._at = math.inf
+
+    def arm(self, deadline: float) -> None:
+        """Make sure the timer fires no later than ``deadline`` (``time.monotonic``)."""
+        if self._at <= deadline:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+        self._at = deadline
+        self._timer = asyncio.get_running_loop().call_at(deadline, self._fire)
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer, self._at = None, math.inf
+
+    def _fire(self) -> None:
+        self._timer, self._at = None, math.inf
+        now = time.monotonic()
+        soonest = math.inf
+        for _peer, fut, deadline in list(self._pending.values()):
+            if fut.done():
+                continue  # its ask pops it
+            if deadline <= now:
+                fut.set_exception(Expired())  # its ask pops it and raises AskTimeout
+            elif deadline < soonest:
+                soonest = deadline
+        if soonest < math.inf:
+            # A loop whose clock is not time.monotonic (uvloop's is cached per
+            # iteration) may fire a little early: then this re-arms and fires again.
+            self.arm(soonest)
 
 
 def relay_reply(waiter: asyncio.Future[Any], fut: asyncio.Future[Any]) -> None:
@@ -51,3 +107,17 @@ def _expire(fut: asyncio.Future[Any]) -> None:
 async def _expire_after(clock: TimeSource, seconds: float, fut: asyncio.Future[Any]) -> None:
     await clock.sleep(seconds)
     _expire(fut)
+
+
+def future_reply(fut: asyncio.Future[Any]) -> Reply:
+    """The reply callback of a local ask: settles ``fut`` (unless it timed out)."""
+
+    def reply(result: Any, error: BaseException | None) -> None:
+        if fut.done():
+            return
+        if error is None:
+            fut.set_result(result)
+        else:
+            fut.set_exception(error)
+
+    return reply

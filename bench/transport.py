@@ -1,14 +1,18 @@
 """Ask round-trip latency: local fast path, in-process transport, ZeroMQ inproc/ipc/tcp.
 
-The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport --peer``,
-see :mod:`bench.transport_peers`). Peer figures measured in the same run: blocking pyzmq
-on both sides (``raw_zmq_tcp_blocking``: the floor with no event loop at all, and what
-every figure is given as a ratio to) and pyzmq's own asyncio DEALER/ROUTER echo
-(``raw_zmq_tcp``). All scenarios are set up at once and measured in interleaved rounds,
-so a machine whose load drifts still gives every scenario the same conditions. Besides
-wall time, each scenario's CPU time per ask is counted (``time.process_time`` here, the
-peer process's from ``/proc``: every thread, so ZeroMQ's I/O threads count), which a
-shared machine's load moves far less.
+The ipc and tcp peers run in another OS process (``python -m btcap.bench.transport
+--peer``, see :mod:`bench.transport_peers`). Peer figures measured in the same run:
+blocking pyzmq on both sides (``raw_zmq_tcp_blocking``: the floor with no event loop at
+all, and what every figure is given as a ratio to; ``raw_zmq_tcp_blocking_curve`` the
+same over CURVE, what CURVE figures are also given against), pyzmq's own asyncio
+DEALER/ROUTER echo (``raw_zmq_tcp``), and the cheapest ask an event loop allows, hand-
+written without btcap (``floor_tcp*``, :mod:`bench.transport_floor`): the table splits
+btcap's gap to blocking pyzmq into the event loop's share and btcap's own. All scenarios
+are set up at once and measured in interleaved rounds, so a machine whose load drifts
+still gives every scenario the same conditions. Besides wall time, each scenario's CPU
+time per ask is counted (``time.process_time`` here, the peer process's from ``/proc``:
+every thread, so ZeroMQ's I/O threads count), which a shared machine's load moves far
+less.
 
 With uvloop installed (the optional ``fast`` extra) the tcp scenarios run a second
 time with both sides on uvloop, against their own blocking floor in that pass.
@@ -36,6 +40,12 @@ import zmq.asyncio
 from btcap.actors import ActorSystem, Address, configure_logging
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.cpumeter import cpu_of
+from btcap.bench.transport_floor import (
+    floor_tcp,
+    raw_zmq_tcp_blocking,
+    serve_blocking,
+    serve_floor,
+)
 from btcap.bench.transport_peers import (
     LOOPS,
     Echo,
@@ -48,7 +58,6 @@ from btcap.bench.transport_peers import (
     secure,
     serve_peer,
     serve_raw_peer,
-    serve_raw_peer_blocking,
     uvloop_installed,
 )
 from btcap.transports import InProcessNetwork, KeyPair, ZmqTransport
@@ -56,6 +65,15 @@ from btcap.transports.security import write_key_pair
 
 __all__ = ["Ping", "Pong", "measure", "raw_zmq_tcp_blocking", "run", "zmq_tcp"]
 
+FLOORS = (
+    "floor_tcp",
+    "floor_tcp_curve",
+    "floor_tcp_pair",
+    "floor_tcp_pair_curve",
+    "raw_zmq_tcp_blocking",
+    "raw_zmq_tcp_blocking_curve",
+)
+"""The hand-written floors of :mod:`bench.transport_floor`, with blocking pyzmq last."""
 SCENARIOS = (
     "local",
     "inproc_transport",
@@ -65,11 +83,18 @@ SCENARIOS = (
     "zmq_tcp_curve",
     "raw_zmq_tcp",
     "raw_zmq_tcp_curve",
-    "raw_zmq_tcp_blocking",
+    *FLOORS,
 )
-TCP_SCENARIOS = ("zmq_tcp", "zmq_tcp_curve", "raw_zmq_tcp_blocking")
-"""What the uvloop pass measures: the runtime over tcp and its floor."""
+TCP_SCENARIOS = ("zmq_tcp", "zmq_tcp_curve", *FLOORS)
+"""What the uvloop pass measures: the runtime over tcp and its floors."""
 FLOOR = "raw_zmq_tcp_blocking"
+FLOOR_CURVE = "raw_zmq_tcp_blocking_curve"
+SPLITS = (
+    ("zmq_tcp", "floor_tcp_pair", FLOOR),
+    ("zmq_tcp_curve", "floor_tcp_pair_curve", FLOOR_CURVE),
+)
+"""btcap's ask, the hand-written event-loop ask of the same shape, and blocking pyzmq:
+how much of the gap is the event loop's and how much btcap's."""
 _TCP = "tcp://127.0.0.1:*"
 _PAYLOAD = "x" * 32
 
@@ -185,27 +210,6 @@ async def _raw_zmq_tcp(loop: str, keys: str | None = None) -> AsyncIterator[Scen
             sock.close(0)
 
 
-@contextlib.asynccontextmanager
-async def raw_zmq_tcp_blocking() -> AsyncIterator[Scenario]:
-    """The floor: blocking pyzmq on both sides, no event loop in the way."""
-    with child("--raw-peer-blocking", _TCP) as (endpoint, pid):
-        ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
-        sock = ctx.socket(zmq.DEALER)
-        sock.setsockopt(zmq.LINGER, 0)
-        sock.connect(endpoint)
-        payload = msgspec.msgpack.encode(Ping(0, _PAYLOAD))
-        try:
-
-            async def ask(i: int) -> Any:
-                sock.send(payload)
-                return sock.recv()
-
-            yield ask, [pid]
-        finally:
-            sock.close(0)
-            ctx.term()
-
-
 async def measure(ask: Ask, count: int, samples: list[float]) -> None:
     """Append ``count`` per-call latencies in microseconds to ``samples``."""
     clock = time.perf_counter_ns
@@ -232,7 +236,12 @@ def _scenarios(
         "zmq_tcp_curve": lambda: _zmq_remote("main-curve", _TCP, _TCP, loop, tmp),
         "raw_zmq_tcp": lambda: _raw_zmq_tcp(loop),
         "raw_zmq_tcp_curve": lambda: _raw_zmq_tcp(loop, tmp),
+        "floor_tcp": lambda: floor_tcp(loop),
+        "floor_tcp_curve": lambda: floor_tcp(loop, tmp),
+        "floor_tcp_pair": lambda: floor_tcp(loop, pair=True),
+        "floor_tcp_pair_curve": lambda: floor_tcp(loop, tmp, pair=True),
         "raw_zmq_tcp_blocking": raw_zmq_tcp_blocking,
+        "raw_zmq_tcp_blocking_curve": lambda: raw_zmq_tcp_blocking(tmp),
     }
     names = SCENARIOS if loop == "asyncio" else TCP_SCENARIOS
     return {name: every[name] for name in names}
@@ -284,19 +293,54 @@ def _ratios(ask_us: dict[str, dict[str, float]]) -> dict[str, float]:
     return {name: p["p50"] / floor for name, p in ask_us.items()}
 
 
+def _blocking_of(name: str) -> str:
+    """The blocking floor a scenario compares with: the CURVE one for a CURVE scenario."""
+    return FLOOR_CURVE if name.endswith("_curve") else FLOOR
+
+
+def _ratios_same_security(ask_us: dict[str, dict[str, float]]) -> dict[str, float]:
+    return {name: p["p50"] / ask_us[_blocking_of(name)]["p50"] for name, p in ask_us.items()}
+
+
+def _splits(ask_us: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Per btcap tcp scenario: the event-loop floor's share of the gap and btcap's own."""
+    out = {}
+    for name, floor, blocking in SPLITS:
+        ours, loop_floor, block = (ask_us[n]["p50"] for n in (name, floor, blocking))
+        out[name] = {
+            "to_blocking": ours / block,
+            "loop_floor_to_blocking": loop_floor / block,
+            "to_loop_floor": ours / loop_floor,
+            "loop_share_of_gap": (loop_floor - block) / (ours - block) if ours > block else 1.0,
+        }
+    return out
+
+
 def _table(loop: str, ask_us: dict[str, dict[str, float]]) -> str:
-    ratio = _ratios(ask_us)
+    ratio, same = _ratios(ask_us), _ratios_same_security(ask_us)
     lines = [
         f"ask round trip on {loop}: p50/p99 wall us; CPU us per ask here + in the peer process",
-        f"{'scenario':<22} {'p50':>8} {'p99':>8} {'p50/floor':>10} {'cpu here':>9} {'cpu peer':>9}",
-        "-" * 70,
+        f"{'scenario':<27} {'p50':>7} {'p99':>8} {'/floor':>7} {'/block':>7} "
+        f"{'cpu here':>8} {'cpu peer':>8}",
+        "-" * 79,
     ]
     for name, p in ask_us.items():
         lines.append(
-            f"{name:<22} {p['p50']:>8.1f} {p['p99']:>8.1f} {ratio[name]:>10.2f} "
-            f"{p['cpu_here_us']:>9.1f} {p['cpu_peer_us']:>9.1f}"
+            f"{name:<27} {p['p50']:>7.1f} {p['p99']:>8.1f} {ratio[name]:>7.2f} {same[name]:>7.2f} "
+            f"{p['cpu_here_us']:>8.1f} {p['cpu_peer_us']:>8.1f}"
         )
-    lines.append(f"floor: {FLOOR} (blocking pyzmq on both sides, same run)")
+    lines.append(
+        f"/floor: to {FLOOR} (blocking pyzmq on both sides, same run); /block: to the "
+        f"blocking floor of the same security ({FLOOR_CURVE} for *_curve)"
+    )
+    for name, split in _splits(ask_us).items():
+        share = split["loop_share_of_gap"]
+        said = f"{share:.0%}" if 0.0 <= share <= 1.0 else "lost in the noise"
+        lines.append(
+            f"{name}: {split['to_blocking']:.2f}x blocking = event-loop floor "
+            f"{split['loop_floor_to_blocking']:.2f}x x btcap over that floor "
+            f"{split['to_loop_floor']:.2f}x (the loop's share of the gap: {said})"
+        )
     return "\n".join(lines)
 
 
@@ -310,10 +354,13 @@ def run(quick: bool = False, loop: str = "both") -> dict[str, Any]:
     data: dict[str, Any] = {"samples": count, "warmup": warmup, "quick": quick, "floor": FLOOR}
     for name in loops:
         load = os.getloadavg()
-        ask_us = run_on(name, _run_all(name, warmup, count, rounds=10))
+        # Many short rounds: a burst of load elsewhere lands on every scenario alike.
+        ask_us = run_on(name, _run_all(name, warmup, count, rounds=10 if quick else 40))
         key = "" if name == "asyncio" else f"_{name}"
         data[f"ask_us{key}"] = ask_us
         data[f"ratio_to_floor{key}"] = _ratios(ask_us)
+        data[f"ratio_to_blocking_same_security{key}"] = _ratios_same_security(ask_us)
+        data[f"gap_split{key}"] = _splits(ask_us)
         # Two processes share the machine's cores: a busy machine shows in the figures.
         data[f"loadavg{key}"] = {"before": load, "after": os.getloadavg()}
         print(_table(name, ask_us))
@@ -339,6 +386,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     role.add_argument(
         "--raw-peer-blocking", metavar="BIND", help="(internal) serve a blocking zmq echo"
     )
+    role.add_argument(
+        "--floor-peer", metavar="BIND", help="(internal) serve a hand-written event-loop echo"
+    )
+    parser.add_argument("--reply-to", metavar="ENDPOINT", help="(internal) the floor's shape")
     args = parser.parse_args(argv)
     peer_loop = "asyncio" if args.loop == "both" else args.loop
     if args.peer:
@@ -347,7 +398,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif args.raw_peer:
         run_on(peer_loop, serve_raw_peer(args.raw_peer, args.keys))
     elif args.raw_peer_blocking:
-        serve_raw_peer_blocking(args.raw_peer_blocking)
+        serve_blocking(args.raw_peer_blocking, args.keys)
+    elif args.floor_peer:
+        run_on(peer_loop, serve_floor(args.floor_peer, args.keys, args.reply_to))
     else:
         run(quick=args.quick, loop=args.loop)
     return 0

@@ -24,6 +24,7 @@ from btcap.transports import KeyPair, MessageRegistry, ZmqTransport
 
 __all__ = [
     "LOOPS",
+    "READY",
     "Echo",
     "Ping",
     "Pong",
@@ -32,6 +33,7 @@ __all__ = [
     "registry",
     "run_on",
     "secure",
+    "until_stdin_closes",
     "uvloop_installed",
 ]
 
@@ -108,7 +110,7 @@ def child(*args: str) -> Iterator[tuple[str, int]]:
             proc.stdout.close()
 
 
-async def _until_stdin_closes() -> None:
+async def until_stdin_closes() -> None:
     """Peers live until their parent closes our stdin (or dies, which closes it too)."""
     loop = asyncio.get_running_loop()
     done = loop.create_future()
@@ -141,28 +143,7 @@ async def serve_peer(bind: str, keys: str | None) -> None:
     async with ActorSystem(transport=transport, registry=reg) as system:
         system.spawn(Echo(), "echo")
         print(READY + transport.endpoint, flush=True)
-        await _until_stdin_closes()
-
-
-def serve_raw_peer_blocking(bind: str) -> None:
-    ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context()
-    sock = ctx.socket(zmq.ROUTER)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.bind(bind)
-    print(READY + sock.getsockopt_string(zmq.LAST_ENDPOINT), flush=True)
-    poller = zmq.Poller()
-    poller.register(sock, zmq.POLLIN)
-    poller.register(sys.stdin.fileno(), zmq.POLLIN)
-    try:
-        while True:
-            ready = dict(poller.poll())
-            if sock in ready:
-                sock.send_multipart(sock.recv_multipart())
-            if sys.stdin.fileno() in ready and not os.read(sys.stdin.fileno(), 4096):
-                return
-    finally:
-        sock.close(0)
-        ctx.term()
+        await until_stdin_closes()
 
 
 async def serve_raw_peer(bind: str, keys: str | None) -> None:
@@ -183,7 +164,7 @@ async def serve_raw_peer(bind: str, keys: str | None) -> None:
 
     task = asyncio.ensure_future(echo())
     try:
-        await _until_stdin_closes()
+        await until_stdin_closes()
     finally:
         task.cancel()
         with contextlib.suppress(asyncio.CancelledError):

@@ -43,10 +43,12 @@ class Codec:
     the registry has grown since it was made.
     """
 
-    __slots__ = ("_decoder", "_encoder", "_registry", "_version")
+    __slots__ = ("_decoder", "_encoder", "_registry", "_types", "_version")
 
     def __init__(self, registry: MessageRegistry) -> None:
         self._registry = registry
+        # The registry's own set, which grows in place: ``in`` on it, not a method call.
+        self._types = registry._types
         self._encoder = msgspec.msgpack.Encoder()
         self._version = -1
         self._decoder: msgspec.msgpack.Decoder[Any] = msgspec.msgpack.Decoder()
@@ -69,7 +71,7 @@ class Codec:
 
     def encode(self, env: Envelope) -> bytes:
         msg = env.msg
-        if msg is not None and type(msg) not in self._registry:
+        if msg is not None and type(msg) not in self._types:
             raise CodecError(f"message type {type(msg).__qualname__} is not registered")
         try:
             return self._encoder.encode(env)
@@ -79,7 +81,9 @@ class Codec:
             raise CodecError(f"{type(msg).__qualname__} is nested too deeply") from None
 
     def decode(self, data: bytes | memoryview) -> Envelope:
-        decoder = self._refresh()
+        decoder = self._decoder
+        if self._version != self._registry._version:
+            decoder = self._refresh()
         try:
             kind, sender, recipient, msg, corr = decoder.decode(data)
         except (msgspec.DecodeError, UnicodeDecodeError) as exc:  # bad UTF-8 is not wrapped

@@ -228,7 +228,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             self.stats.undeliverable += 1
             self.stats.drop(f"no peer {target}")
             return
-        self._write(target, dealer, _MSG, data)
+        write(dealer, _MSG + data, self.max_message_bytes, self.stats, self.system_id, target)
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
         write(sock, kind + data, self.max_message_bytes, self.stats, self.system_id, sid)
@@ -271,7 +271,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             return
         router = self._router
         secure = self.curve is not None
-        recv, get = router.recv, router.getsockopt  # bound once: see zmq_io
+        # Bound once: see zmq_io. ``get``, not ``getsockopt``: no enum made of the answer.
+        recv, get = router.recv, router.get
         stats, budget = self.stats, _BATCH
         try:
             while budget > 0:

@@ -134,6 +134,7 @@ def _until_stopped(
     :class:`Stopped` once it has wound down."""
     import anyio
 
+    from btcap.actors.loops import loop_factory
     from btcap.team.deployment.agentconfig import AgentConfigError
     from btcap.transports.zmq_claims import NameTaken
 
@@ -158,8 +159,13 @@ def _until_stopped(
                     break
 
     try:
+        # uvloop when installed (see actors/loops.py); a bad BTCAP_LOOP is a CliError.
+        factory = loop_factory()
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    try:
         try:
-            anyio.run(main)
+            anyio.run(main, backend_options={"loop_factory": factory})
         except BaseExceptionGroup as group:
             leaf: BaseException = group
             while isinstance(leaf, BaseExceptionGroup) and len(leaf.exceptions) == 1:

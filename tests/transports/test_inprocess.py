@@ -353,3 +353,46 @@ async def test_unencoded_network_hands_over_the_same_objects() -> None:
             await a.ref("b/peer").ask(Get())
             assert peer(b).received == [note]
             assert peer(b).received[0] is note
+
+
+# -- ask deadlines: one loop timer for every pending ask -----------------------------------
+
+
+async def test_a_shorter_ask_limit_fires_before_a_longer_one_armed_first() -> None:
+    """Remote asks share one timer armed at the soonest deadline: a later ask with a
+    shorter limit must move it earlier, and the longer ask still time out after it."""
+    net = InProcessNetwork(registry())
+    with anyio.fail_after(5):
+        async with team(net, "a", "b") as (a, _b):
+            net.isolate("b")
+            slow = asyncio.ensure_future(a.ref("b/peer").ask(Ping(0), timeout=0.6))
+            await asyncio.sleep(0)
+            assert a.pending_asks == 1
+            with pytest.raises(AskTimeout, match=r"within 0\.02 s"):
+                await a.ref("b/peer").ask(Ping(1), timeout=0.02)
+            assert not slow.done()
+            assert a.pending_asks == 1
+            with pytest.raises(AskTimeout, match=r"within 0\.6 s"):
+                await slow
+            assert a.pending_asks == 0
+            net.heal("b")
+            # Answered asks are never failed by the shared timer, and it still re-arms.
+            for n in range(3):
+                assert (await a.ref("b/peer").ask(Ping(n), timeout=0.05, expect=Pong)).n == n + 1
+            net.isolate("b")
+            with pytest.raises(AskTimeout):
+                await a.ref("b/peer").ask(Ping(0), timeout=0.02)
+
+
+async def test_a_cancelled_remote_ask_leaves_nothing_pending() -> None:
+    net = InProcessNetwork(registry())
+    with anyio.fail_after(5):
+        async with team(net, "a", "b") as (a, _b):
+            net.isolate("b")
+            task = asyncio.ensure_future(a.ref("b/peer").ask(Ping(0), timeout=30))
+            await asyncio.sleep(0)
+            assert a.pending_asks == 1
+            task.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await task
+            assert a.pending_asks == 0

@@ -33,6 +33,7 @@ import anyio
 import msgspec
 
 from btcap.actors import Clock, configure_logging
+from btcap.actors.loops import loop_factory
 from btcap.errors import BtcapError
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.capabilities.loader import load_callable
@@ -209,9 +210,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         print(f"agent spec: {exc}", file=sys.stderr)
         return 2
+    try:
+        factory = loop_factory()  # uvloop when installed: see actors/loops.py
+    except ValueError as exc:
+        print(f"agent: {exc}", file=sys.stderr)
+        return 2
     configure_logging(specs[0].log_level)
     try:
-        asyncio.run(_main_async(specs))
+        with asyncio.Runner(loop_factory=factory) as runner:
+            runner.run(_main_async(specs))
     except KeyboardInterrupt:
         pass
     except BaseExceptionGroup as group:
