@@ -12,6 +12,7 @@ from btcap.bench.allocation import Events, allocate
 from btcap.bench.exchanges import exchanged
 from btcap.team.core.hosting import HostLeases
 from btcap.team.ids import ExecutionId
+from btcap.team.runtime import moving
 
 
 def test_crossed_robots_are_exchanged_until_nothing_pays() -> None:
@@ -83,3 +84,28 @@ def test_a_swap_within_the_margin_is_not_made() -> None:
     cost = np.array([[5.0, 45.0], [6.0, 50.0]])  # 55 against 51: within 0.2
     got = asyncio.run(asyncio.wait_for(allocate(cost, "auction", Events((0.0, 10.0)), 30.0, 0), 30))
     assert got.final == [0, 1]
+
+
+CHAIN = np.array([[5.0, 50.0, 40.0], [4.0, 2.0, 50.0], [50.0, 10.0, 1.0]])
+
+
+@pytest.mark.parametrize("strategy", ["auction", "optimal", "sequential"])
+def test_three_busy_robots_in_a_crossed_chain_exchange_all_three(
+    strategy: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Arrivals leave task 0 on r01, task 1 on r02, task 2 on r00 (54); each robot is next
+    # to the task it does not run (8 in all), and no swap of two of them pays.
+    twice = _watch_runs(monkeypatch)
+    got = asyncio.run(
+        asyncio.wait_for(allocate(CHAIN, strategy, Events((0.0, 10.0, 20.0)), 30.0, 0), 30)
+    )
+    assert got.final == [0, 1, 2]
+    assert twice == []
+
+
+def test_without_chains_the_crossed_three_stay_crossed(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(moving, "EXCHANGE_CHAIN", 2)
+    got = asyncio.run(
+        asyncio.wait_for(allocate(CHAIN, "auction", Events((0.0, 10.0, 20.0)), 30.0, 0), 30)
+    )
+    assert got.final == [1, 2, 0]
