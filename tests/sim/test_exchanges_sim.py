@@ -1,0 +1,105 @@
+"""Exchanges of running work between busy robots in the grid simulator: real agents,
+real bids from where each robot is as it drives, on the virtual clock.
+
+Two Huskies at the two ends of a corridor: the first Explore (to the middle) goes to
+``a``, the nearer; the second (back to ``a``'s end) arrives two seconds later, when only
+``b`` is free, so ``b`` drives the whole corridor while ``a`` drives away from the goal
+it could reach at once. No robot is free, so only an exchange of the two busy robots
+mends it.
+"""
+
+from __future__ import annotations
+
+import anyio
+import msgspec
+import numpy as np
+import pytest
+
+from btcap import Parallel, Sequence, Tree, Wait
+from btcap.actors import ActorSystem, ManualClock
+from btcap.sim.capabilities import EXPLORE
+from btcap.sim.grid import GridMap
+from btcap.sim.hosts import InProcessHost, agent_config, registry
+from btcap.sim.manager import SimConfig, SimulationManager
+from btcap.sim.scenario import check_scenario
+from btcap.sim.scenariofile import Scenario
+from btcap.sim.store import MissionState, ObjectStore
+from btcap.team.allocation.auction import SingleItemAuction
+from btcap.team.runtime.agent import Agent
+
+LENGTH = 101  # cells: a Husky drives 1 m/s, so the corridor takes 100 s
+
+
+def scenario(strategy: str) -> Scenario:
+    data = {
+        "name": "crossed",
+        "objects": 1,
+        "robots": [{"name": "a", "model": "husky"}, {"name": "b", "model": "husky"}],
+        "allocation": {"strategy": strategy, "reevaluate_s": 5.0},
+    }
+    return check_scenario(msgspec.convert(data, Scenario))
+
+
+async def crossed(strategy: str) -> tuple[list[str], list[str], float]:
+    """Robots that ran each Explore, in order, and when both had arrived."""
+    s = scenario(strategy)
+    free = np.ones((3, LENGTH), dtype=np.bool_)
+    grid = GridMap(free, start=(1, 0), decon_area=(0, LENGTH // 2))
+    clock = ManualClock()
+    reg = registry()
+    state = MissionState(grid, [], rng=np.random.default_rng(0))
+    manager = SimulationManager(state, SimConfig(0.5, 0.0, 0.0, 0))
+    models = s.models()
+    manager.add_robot("a", models["husky"], (1, 0))
+    manager.add_robot("b", models["husky"], (1, LENGTH - 1))
+    far = EXPLORE.node_type()("to_middle", inputs={"goal": (1, LENGTH // 2 - 2)})
+    home = EXPLORE.node_type()("to_a_end", inputs={"goal": (1, 1)})
+    tree = Tree(
+        Parallel("both", children=[far, Sequence("later", children=[Wait(seconds=2.0), home])])
+    )
+    async with (
+        clock.autojump(),
+        InProcessHost(s, clock, reg, grid) as robots,
+        ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as sim,
+    ):
+        sim.spawn(manager, SimulationManager.PATH)
+        sim.spawn(ObjectStore(state), ObjectStore.PATH)
+        operator = Agent(
+            "operator",
+            transport=robots.transport("operator"),
+            clock=clock,
+            config=agent_config(s),
+            registry=reg,
+        )
+        async with operator:
+            for name in ("a", "b"):
+                manager.robot_up(name)
+                robots.start(name)
+            while operator.repository.providers(EXPLORE.identity) < {"a", "b"}:
+                await clock.sleep(0.05)
+            operator.mission(tree)
+            start = clock.now()
+            final = await tree.run(2.0, timeout_s=400)
+            assert final.name == "SUCCEEDED", final
+            took = clock.now() - start
+            await tree.shutdown()
+    return far.assignments, home.assignments, took
+
+
+@pytest.mark.parametrize("strategy", ["optimal", "auction"])
+async def test_two_crossed_huskies_exchange_their_drives(strategy: str) -> None:
+    with anyio.fail_after(60):
+        far, home, took = await crossed(strategy)
+    assert (far, home) == (["a", "b"], ["b", "a"])
+    # b would have driven the whole corridor (100 s; 161.5 s with the Explore itself)
+    assert took < 130
+
+
+async def test_without_exchanges_the_crossed_huskies_drive_on(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(SingleItemAuction, "exchanges", False)
+    with anyio.fail_after(60):
+        far, home, took = await crossed("optimal")
+    assert (far, home) == (["a"], ["b"])
+    assert took > 150
