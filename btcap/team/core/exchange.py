@@ -140,21 +140,23 @@ class Ledger:
     are not auctioned again and again.
 
     ``held[x]``: the latest bid of ``x``'s robot for finishing ``x`` (a holder bids in
-    every re-evaluation); ``cross[(y, x)]``: the latest bid of the robot running ``y`` for
-    task ``x`` as if it handed ``y`` over (an exchange leg; infinite: it declined). A
-    cycle is worth trying only if its total, with every leg not asked yet priced 0, could
-    fall by more than the margin (:meth:`may_pay`). With bids that follow each robot (the
-    contract of :mod:`btcap.team.core.body`) a cycle's possible gain does not grow while
-    its robots make progress: each holder's bid falls by the progress its robot made and
-    each leg's by at most that much, so a cycle that did not pay is tried again only once
-    a bid rose (a blocked path) or its work changed (new executions, new keys).
+    every re-evaluation); ``cross[(y, x)]``: the bid of the robot running ``y`` for task
+    ``x`` as if it handed ``y`` over (an exchange leg; infinite: it declined), with what
+    finishing ``y`` cost that robot then. A cycle is worth trying only if it could pay
+    by these bids (:meth:`may_pay`), each leg nobody bid for yet priced 0 and each leg
+    bid for earlier lowered by the progress its robot made since (how much its own
+    estimate fell): with bids that follow the robot (:mod:`btcap.team.core.body`) and
+    costs that are paths, a robot that came ``d`` closer to its goal is at most ``d``
+    closer to any other task. So a cycle whose gain was too small is asked again only
+    once the margin's share of what is left has fallen below that gain, a bid rose (a
+    blocked path), or its work changed (new executions, new keys).
     """
 
     __slots__ = ("cross", "held")
 
     def __init__(self) -> None:
         self.held: dict[ExecutionId, float] = {}
-        self.cross: dict[tuple[ExecutionId, ExecutionId], float] = {}
+        self.cross: dict[tuple[ExecutionId, ExecutionId], tuple[float, float | None]] = {}
 
     def holder(self, execution: ExecutionId, cost: float) -> None:
         """``execution``'s robot says finishing it costs ``cost`` now."""
@@ -162,7 +164,8 @@ class Ledger:
 
     def leg(self, handing: ExecutionId, execution: ExecutionId, cost: float | None) -> None:
         """The robot running ``handing`` bid ``cost`` for ``execution`` (None: declined)."""
-        self.cross[(handing, execution)] = math.inf if cost is None else cost
+        bid = math.inf if cost is None else cost
+        self.cross[(handing, execution)] = (bid, self.held.get(handing))
 
     def keep(self, live: Collection[ExecutionId]) -> None:
         """Forget what was said about executions that ended or moved."""
@@ -173,14 +176,24 @@ class Ledger:
         """What finishing ``task`` costs its robot, as last heard."""
         return self.held.get(task.execution, task.cost)
 
+    def leg_cost(self, handing: ExecutionId, execution: ExecutionId) -> float | None:
+        """The least the robot running ``handing`` may bid for ``execution`` now, by what
+        it said before (None: it was never asked)."""
+        said = self.cross.get((handing, execution))
+        if said is None:
+            return None
+        bid, then = said
+        now = self.held.get(handing)
+        progress = 0.0 if then is None or now is None else max(0.0, then - now)
+        return max(0.0, bid - progress)
+
     def may_pay(self, cycle: Sequence[Running], margin: float) -> bool:
-        """Whether ``cycle`` (each task to the next one's robot) could pay, pricing every
-        leg nobody bid for yet at 0."""
+        """Whether ``cycle`` (each task to the next one's robot) could pay (see the class)."""
         before = sum(self.cost(t) for t in cycle)
-        after = sum(
-            self.cross.get((cycle[(i + 1) % len(cycle)].execution, t.execution), 0.0)
-            for i, t in enumerate(cycle)
-        )
+        after = 0.0
+        for i, t in enumerate(cycle):
+            leg = self.leg_cost(cycle[(i + 1) % len(cycle)].execution, t.execution)
+            after += 0.0 if leg is None else leg
         return pays(before, after, margin)
 
     def first_unknown(self, cycle: Sequence[Running]) -> tuple[Running, ...]:
