@@ -14,6 +14,7 @@ import anyio
 import msgspec
 import numpy as np
 import pytest
+from runwatch import watch_runs
 
 from btcap import Parallel, Sequence, Tree, Wait
 from btcap.actors import ActorSystem, ManualClock
@@ -87,12 +88,16 @@ async def crossed(strategy: str) -> tuple[list[str], list[str], float]:
 
 
 @pytest.mark.parametrize("strategy", ["optimal", "auction"])
-async def test_two_crossed_huskies_exchange_their_drives(strategy: str) -> None:
+async def test_two_crossed_huskies_exchange_their_drives(
+    strategy: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    twice = watch_runs(monkeypatch)
     with anyio.fail_after(60):
         far, home, took = await crossed(strategy)
     assert (far, home) == (["a", "b"], ["b", "a"])
     # b would have driven the whole corridor (100 s; 161.5 s with the Explore itself)
     assert took < 130
+    assert twice == []
 
 
 async def test_without_exchanges_the_crossed_huskies_drive_on(
