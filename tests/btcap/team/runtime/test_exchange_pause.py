@@ -3,17 +3,18 @@ exchange waits behind its old run, so pausing adopts the replacement (paused) at
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from typing import Any
+
 import anyio
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until
 
 from btcap import Parallel, State
 
 
-def near_one(robot_for_one: bool) -> object:
+def near_one(robot_for_one: bool) -> Callable[[Mapping[str, Any]], float]:
     """A bid 1 for x == 1 (10 otherwise), or the other way round."""
-    return lambda i: (
-        (1.0 if i["x"] == 1 else 10.0) if robot_for_one else (10.0 if i["x"] == 1 else 1.0)
-    )
+    return lambda i: 1.0 if (i["x"] == 1) == robot_for_one else 10.0
 
 
 async def test_a_node_paused_before_it_adopts_its_exchange_holds_nobody_up() -> None:
@@ -21,8 +22,8 @@ async def test_a_node_paused_before_it_adopts_its_exchange_holds_nobody_up() -> 
         probe = Probe()
         async with team(reevaluate_s=1000.0) as t:  # news only: the rising estimates
             a = await t.add("a")
-            await t.add("b", [count_impl("b", near_one(True), probe)])  # type: ignore[arg-type]
-            await t.add("c", [count_impl("c", near_one(False), probe)])  # type: ignore[arg-type]
+            await t.add("b", [count_impl("b", near_one(True), probe)])
+            await t.add("c", [count_impl("c", near_one(False), probe)])
             await t.converged()
             n1 = COUNT.node_type()("n1", inputs={"x": 2})
             n2 = COUNT.node_type()("n2", inputs={"x": 1})
