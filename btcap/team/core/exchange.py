@@ -206,14 +206,21 @@ class Ledger:
         return tuple(cycle)
 
     def cycles(
-        self, running: Sequence[Running], margin: float, *, chain: int = 3
+        self,
+        running: Sequence[Running],
+        margin: float,
+        *,
+        chain: int = 3,
+        chain_of: int | None = None,
     ) -> Iterator[tuple[Running, ...]]:
         """Cycles worth an auction, in order: pairs, then (``chain`` 3) chains of three in
-        both directions, each from ``running`` as given (the dearest first, say); each
-        rotated by :meth:`first_unknown`. Lazy: the caller's answers to earlier cycles
-        (new bids in the ledger) decide whether later ones are still worth it."""
+        both directions among the first ``chain_of`` tasks (all: None), each from
+        ``running`` as given (the dearest first, say); each rotated by
+        :meth:`first_unknown`. Lazy: the caller's answers to earlier cycles (new bids in
+        the ledger) decide whether later ones are still worth it."""
         for size in range(2, chain + 1):
-            for group in itertools.combinations(running, size):
+            pool = running if size == 2 or chain_of is None else running[:chain_of]
+            for group in itertools.combinations(pool, size):
                 orders = [group] if size == 2 else [group, (group[0], group[2], group[1])]
                 for order in orders:
                     if self.may_pay(order, margin):

@@ -46,6 +46,9 @@ NEWS_BURST = 4.0
 EXCHANGE_TRIES = 256
 #: The longest cycle of busy robots exchanged at run time (3: pairs and chains of three).
 EXCHANGE_CHAIN = 3
+#: Chains of three are looked for among this many of the dearest running tasks (the
+#: choice looks at every triple: 2 x C(n, 3) cycles).
+CHAIN_AMONG = 32
 
 Handle = LocalExecution | RemoteExecution
 
@@ -246,7 +249,8 @@ class Reevaluation:
         chain = EXCHANGE_CHAIN if len(solo) > 2 else 2
         exchanged: set[str] = set()
         tries = 0
-        for cycle in self.ledger.cycles(running, self.margin, chain=chain):
+        cycles = self.ledger.cycles(running, self.margin, chain=chain, chain_of=CHAIN_AMONG)
+        for cycle in cycles:
             if tries >= EXCHANGE_TRIES:
                 mc.stats.exchange_tries_left_off += 1
                 return

@@ -134,3 +134,9 @@ def test_cycles_come_pairs_first_then_both_chains_and_start_at_an_unknown_leg() 
     assert ledger.leg_cost(TB, TA) == 1.0
     ledger.keep({TA})
     assert ledger.leg_cost(TB, TA) is None
+
+
+def test_chains_are_looked_for_among_the_first_tasks_only() -> None:
+    ta, tb, tc, td = (Running(ExecutionId("base", f"u{n}", n), f"r{n}", 10.0) for n in range(4))
+    assert sum(len(c) == 3 for c in Ledger().cycles([ta, tb, tc, td], 0.2)) == 8
+    assert sum(len(c) == 3 for c in Ledger().cycles([ta, tb, tc, td], 0.2, chain_of=3)) == 2
