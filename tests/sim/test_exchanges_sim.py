@@ -31,60 +31,78 @@ from btcap.team.runtime.agent import Agent
 LENGTH = 101  # cells: a Husky drives 1 m/s, so the corridor takes 100 s
 
 
-def scenario(strategy: str) -> Scenario:
+Cell = tuple[int, int]
+
+
+def scenario(strategy: str, names: list[str]) -> Scenario:
     data = {
         "name": "crossed",
         "objects": 1,
-        "robots": [{"name": "a", "model": "husky"}, {"name": "b", "model": "husky"}],
+        "robots": [{"name": n, "model": "husky"} for n in names],
         "allocation": {"strategy": strategy, "reevaluate_s": 5.0},
     }
     return check_scenario(msgspec.convert(data, Scenario))
 
 
-async def crossed(strategy: str) -> tuple[list[str], list[str], float]:
-    """Robots that ran each Explore, in order, and when both had arrived."""
-    s = scenario(strategy)
-    free = np.ones((3, LENGTH), dtype=np.bool_)
-    grid = GridMap(free, start=(1, 0), decon_area=(0, LENGTH // 2))
+async def drives(
+    strategy: str, shape: Cell, robots: dict[str, Cell], goals: list[tuple[Cell, float]]
+) -> tuple[list[list[str]], float]:
+    """Huskies starting at ``robots`` on an open map of ``shape``, each goal an Explore
+    asked for after its delay: the robots that ran each, in order, and when all were
+    done."""
+    s = scenario(strategy, list(robots))
+    grid = GridMap(np.ones(shape, dtype=np.bool_), start=(0, 0), decon_area=(0, 1))
     clock = ManualClock()
     reg = registry()
     state = MissionState(grid, [], rng=np.random.default_rng(0))
     manager = SimulationManager(state, SimConfig(0.5, 0.0, 0.0, 0))
     models = s.models()
-    manager.add_robot("a", models["husky"], (1, 0))
-    manager.add_robot("b", models["husky"], (1, LENGTH - 1))
-    far = EXPLORE.node_type()("to_middle", inputs={"goal": (1, LENGTH // 2 - 2)})
-    home = EXPLORE.node_type()("to_a_end", inputs={"goal": (1, 1)})
-    tree = Tree(
-        Parallel("both", children=[far, Sequence("later", children=[Wait(seconds=2.0), home])])
-    )
+    for name, cell in robots.items():
+        manager.add_robot(name, models["husky"], cell)
+    nodes = [EXPLORE.node_type()(f"g{i}", inputs={"goal": g}) for i, (g, _d) in enumerate(goals)]
+    later = [
+        Sequence(f"after{i}", children=[Wait(seconds=d), n]) if d > 0 else n
+        for i, (n, (_g, d)) in enumerate(zip(nodes, goals, strict=True))
+    ]
+    tree = Tree(Parallel("all", children=later))
     async with (
         clock.autojump(),
-        InProcessHost(s, clock, reg, grid) as robots,
-        ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as sim,
+        InProcessHost(s, clock, reg, grid) as host,
+        ActorSystem("sim", transport=host.transport("sim"), registry=reg, clock=clock) as sim,
     ):
         sim.spawn(manager, SimulationManager.PATH)
         sim.spawn(ObjectStore(state), ObjectStore.PATH)
         operator = Agent(
             "operator",
-            transport=robots.transport("operator"),
+            transport=host.transport("operator"),
             clock=clock,
             config=agent_config(s),
             registry=reg,
         )
         async with operator:
-            for name in ("a", "b"):
+            for name in robots:
                 manager.robot_up(name)
-                robots.start(name)
-            while operator.repository.providers(EXPLORE.identity) < {"a", "b"}:
+                host.start(name)
+            while operator.repository.providers(EXPLORE.identity) < set(robots):
                 await clock.sleep(0.05)
             operator.mission(tree)
             start = clock.now()
-            final = await tree.run(2.0, timeout_s=400)
+            final = await tree.run(2.0, timeout_s=600)
             assert final.name == "SUCCEEDED", final
             took = clock.now() - start
             await tree.shutdown()
-    return far.assignments, home.assignments, took
+    return [n.assignments for n in nodes], took
+
+
+async def crossed(strategy: str) -> tuple[list[str], list[str], float]:
+    """Robots that ran each Explore, in order, and when both had arrived."""
+    ran, took = await drives(
+        strategy,
+        (3, LENGTH),
+        {"a": (1, 0), "b": (1, LENGTH - 1)},
+        [((1, LENGTH // 2 - 2), 0.0), ((1, 1), 2.0)],
+    )
+    return ran[0], ran[1], took
 
 
 @pytest.mark.parametrize("strategy", ["optimal", "auction"])
