@@ -141,7 +141,8 @@ class Reevaluation:
         if ex.robot != sender:
             return f"cost of {msg.execution} from another robot than its executor {ex.robot}"
         ex.cost = msg.cost
-        self.ledger.holder(msg.execution, msg.cost)
+        if self.mc.allocator.exchanges:  # kept only where exchanges forget it again
+            self.ledger.holder(msg.execution, msg.cost)
         if self.mc.config.reevaluate_s is not None:  # None: this origin never moves work
             self.news()
         return None
