@@ -125,6 +125,8 @@ class Reevaluation:
     def news(self) -> None:
         """The team changed, or it is time: look at the running work again."""
         if not self.mc.active:
+            if self.ledger.held or self.ledger.cross:
+                self.ledger.keep(())  # nothing runs: nothing said is of use
             return
         if self._running:
             self._again = True
