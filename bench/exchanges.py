@@ -4,9 +4,11 @@
 strategy's real team on the allocation bench's instances (:mod:`btcap.bench.allocation`),
 then applies :func:`btcap.team.core.exchange.find_exchanges` to its final allocation until
 no exchange is left, and prints total cost / optimum before and after. The bench's bids
-are static (a task costs a robot the same while it runs), so this is what re-evaluation
-with exchanges would reach once the team is busy, not yet a run of the team doing it:
-exchanges are not wired into re-evaluation (see docs/allocation.md).
+are static (a task costs a robot the same while it runs), so this is what exchanges
+would reach with full knowledge once the team is busy. Re-evaluation carries out swaps
+and chains of three at run time (``btcap.team.runtime.moving``), choosing which to try
+from the bids it has heard rather than from every robot's cost, one re-evaluation at a
+time; the allocation bench's dynamic rows measure that (see docs/allocation.md).
 """
 
 from __future__ import annotations

@@ -363,8 +363,18 @@ class Capability(Node):
             self._exec = None
 
     def on_untick(self) -> None:
-        if self._exec is not None:
-            self._exec.pause()
+        ex = self._exec
+        if ex is not None:
+            if ex.moving():
+                # Adopted as it pauses: in an exchange the other task waits behind this
+                # one's old run, which only the adoption releases (it must not wait for
+                # this node's next tick, which may never come).
+                nxt = ex.hand_over()
+                if nxt is not None:
+                    ex.cancel(f"moved to {nxt.robot}")
+                    self._exec = ex = nxt
+                    self.assignments.append(nxt.robot)
+            ex.pause()
             return
         if self._request is not None:
             # Paused before an executor was found: no work may start for a paused node,

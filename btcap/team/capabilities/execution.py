@@ -29,6 +29,9 @@ class Execution(Protocol):
     def hand_over(self) -> Execution | None:
         """The execution that takes over from this one (work moved to a cheaper robot)."""
 
+    def moving(self) -> bool:
+        """Whether a replacement waits to be adopted (and this run has not finished)."""
+
 
 class AssignmentRequest:
     """An assignment in progress; the capability node polls ``done`` on its ticks."""

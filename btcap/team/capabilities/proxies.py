@@ -94,6 +94,9 @@ class LocalExecution(_Handle):
     def lost(self) -> bool:
         return False
 
+    def moving(self) -> bool:
+        return self.replacement is not None and self._moving()
+
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
         if self.replacement is not None and self._moving():
             return None, {}  # moved: the node adopts the replacement
@@ -130,6 +133,15 @@ class RemoteExecution(_Handle):
     @property
     def state(self) -> RunState:
         return self.tracked.state
+
+    def moving(self) -> bool:
+        t = self.tracked
+        return (
+            not t.lost
+            and self.replacement is not None
+            and t.state not in RUN_DONE
+            and (self._moving())
+        )
 
     def step(self, inputs: Mapping[str, Any]) -> tuple[State | None, dict[str, Any]]:
         t = self.tracked

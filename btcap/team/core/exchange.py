@@ -11,13 +11,15 @@ cycle's total falls by more than ``margin`` of what the cycle costs now, the sam
 hysteresis as moving work to a free robot, so near-equal pairs never trade back and
 forth.
 
-Re-evaluation carries out swaps only (``Reevaluation._swap`` in
+Re-evaluation carries out swaps and chains of three (``Reevaluation._cycle`` in
 :mod:`btcap.team.runtime.moving`): each leg's new run is first accepted *paused* by its
-target, beside the run it hands over; only when both legs are accepted and :func:`pays`
+target, beside the run it hands over; only when every leg is accepted and :func:`pays`
 holds do the nodes adopt their replacements (each adoption cancels the old run, as a
-move to a free robot does); otherwise both paused runs are cancelled and every task
-stays where it was. Chains of three are chosen here (``chain=3``, used by
-``python -m btcap.bench.exchanges`` to estimate their worth) but not carried out yet.
+move to a free robot does); otherwise every paused run is cancelled and every task
+stays where it was. :func:`find_exchanges` chooses from full knowledge (the offline
+estimate ``python -m btcap.bench.exchanges``); at run time the origin knows only what
+bidders already said, kept in a :class:`Ledger`, which says which cycles are worth an
+auction at all.
 
 Sans-IO: decided on explicit costs; the shell asks for the costs and sends the awards.
 """
@@ -26,12 +28,12 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 from btcap.team.ids import ExecutionId
 
-__all__ = ["Exchange", "Leg", "Running", "find_exchanges", "pays"]
+__all__ = ["Exchange", "Ledger", "Leg", "Running", "find_exchanges", "pays"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,3 +133,95 @@ def find_exchanges(
         busy |= robots
         chosen.append(ex)
     return chosen
+
+
+class Ledger:
+    """What bidders already said about running work, so that exchanges which cannot pay
+    are not auctioned again and again.
+
+    ``held[x]``: the latest bid of ``x``'s robot for finishing ``x`` (a holder bids in
+    every re-evaluation); ``cross[(y, x)]``: the bid of the robot running ``y`` for task
+    ``x`` as if it handed ``y`` over (an exchange leg; infinite: it declined), with what
+    finishing ``y`` cost that robot then. A cycle is worth trying only if it could pay
+    by these bids (:meth:`may_pay`), each leg nobody bid for yet priced 0 and each leg
+    bid for earlier lowered by the progress its robot made since (how much its own
+    estimate fell): with bids that follow the robot (:mod:`btcap.team.core.body`) and
+    costs that are paths, a robot that came ``d`` closer to its goal is at most ``d``
+    closer to any other task. So a cycle whose gain was too small is asked again only
+    once the margin's share of what is left has fallen below that gain, a bid rose (a
+    blocked path), or its work changed (new executions, new keys).
+    """
+
+    __slots__ = ("cross", "held")
+
+    def __init__(self) -> None:
+        self.held: dict[ExecutionId, float] = {}
+        self.cross: dict[tuple[ExecutionId, ExecutionId], tuple[float, float | None]] = {}
+
+    def holder(self, execution: ExecutionId, cost: float) -> None:
+        """``execution``'s robot says finishing it costs ``cost`` now."""
+        self.held[execution] = cost
+
+    def leg(self, handing: ExecutionId, execution: ExecutionId, cost: float | None) -> None:
+        """The robot running ``handing`` bid ``cost`` for ``execution`` (None: declined)."""
+        bid = math.inf if cost is None else cost
+        self.cross[(handing, execution)] = (bid, self.held.get(handing))
+
+    def keep(self, live: Collection[ExecutionId]) -> None:
+        """Forget what was said about executions that ended or moved."""
+        self.held = {x: c for x, c in self.held.items() if x in live}
+        self.cross = {k: c for k, c in self.cross.items() if k[0] in live and k[1] in live}
+
+    def cost(self, task: Running) -> float:
+        """What finishing ``task`` costs its robot, as last heard."""
+        return self.held.get(task.execution, task.cost)
+
+    def leg_cost(self, handing: ExecutionId, execution: ExecutionId) -> float | None:
+        """The least the robot running ``handing`` may bid for ``execution`` now, by what
+        it said before (None: it was never asked)."""
+        said = self.cross.get((handing, execution))
+        if said is None:
+            return None
+        bid, then = said
+        now = self.held.get(handing)
+        progress = 0.0 if then is None or now is None else max(0.0, then - now)
+        return max(0.0, bid - progress)
+
+    def may_pay(self, cycle: Sequence[Running], margin: float) -> bool:
+        """Whether ``cycle`` (each task to the next one's robot) could pay (see the class)."""
+        before = sum(self.cost(t) for t in cycle)
+        after = 0.0
+        for i, t in enumerate(cycle):
+            leg = self.leg_cost(cycle[(i + 1) % len(cycle)].execution, t.execution)
+            after += 0.0 if leg is None else leg
+        return pays(before, after, margin)
+
+    def first_unknown(self, cycle: Sequence[Running]) -> tuple[Running, ...]:
+        """``cycle`` rotated so that its first leg is one nobody bid for yet (that bid
+        decides most often whether the rest is asked at all)."""
+        n = len(cycle)
+        for i in range(n):
+            if (cycle[(i + 1) % n].execution, cycle[i].execution) not in self.cross:
+                return tuple(cycle[i:]) + tuple(cycle[:i])
+        return tuple(cycle)
+
+    def cycles(
+        self,
+        running: Sequence[Running],
+        margin: float,
+        *,
+        chain: int = 3,
+        chain_of: int | None = None,
+    ) -> Iterator[tuple[Running, ...]]:
+        """Cycles worth an auction, in order: pairs, then (``chain`` 3) chains of three in
+        both directions among the first ``chain_of`` tasks (all: None), each from
+        ``running`` as given (the dearest first, say); each rotated by
+        :meth:`first_unknown`. Lazy: the caller's answers to earlier cycles (new bids in
+        the ledger) decide whether later ones are still worth it."""
+        for size in range(2, chain + 1):
+            pool = running if size == 2 or chain_of is None else running[:chain_of]
+            for group in itertools.combinations(pool, size):
+                orders = [group] if size == 2 else [group, (group[0], group[2], group[1])]
+                for order in orders:
+                    if self.may_pay(order, margin):
+                        yield self.first_unknown(order)

@@ -17,16 +17,15 @@ are cancelled, unstarted, and nothing moved.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
 from btcap.bt.state import State
-from btcap.team.allocation.strategy import Allocator
+from btcap.team.allocation.strategy import Allocator, AuctionRecord
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import LocalExecution, RemoteExecution
 from btcap.team.core.bounds import Budgets
-from btcap.team.core.exchange import pays
+from btcap.team.core.exchange import Ledger, Running, pays
 from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
@@ -42,9 +41,14 @@ log = get_logger("btcap.mission")
 #: A teammate's news sets off work at most this often per auction window, after a burst.
 NEWS_PER_WINDOW = 1.0
 NEWS_BURST = 4.0
-#: At most this many pairs of busy robots are tried for an exchange per re-evaluation
-#: (the dearest running work first): each try is an auction.
-EXCHANGE_PAIRS = 256
+#: At most this many exchanges (pairs, then chains) are tried per re-evaluation (the
+#: dearest running work first): each try is one auction per leg until a leg says no.
+EXCHANGE_TRIES = 256
+#: The longest cycle of busy robots exchanged at run time (3: pairs and chains of three).
+EXCHANGE_CHAIN = 3
+#: Chains of three are looked for among this many of the dearest running tasks (the
+#: choice looks at every triple: 2 x C(n, 3) cycles).
+CHAIN_AMONG = 32
 
 Handle = LocalExecution | RemoteExecution
 
@@ -82,6 +86,8 @@ class Reevaluation:
         #: re-evaluation (an auction per running task) or waiting work's auctions:
         #: NEWS_BURST at once, then one per auction window; more waits for the periodic look.
         self.news_budget = Budgets(NEWS_PER_WINDOW / window, NEWS_BURST)
+        #: What bidders said about the running work (which exchanges may pay).
+        self.ledger = Ledger()
 
     def budget(self, robot: str, now: float) -> bool:
         """Whether news from ``robot`` may set off work now (spent if so)."""
@@ -100,7 +106,10 @@ class Reevaluation:
             self.mc.start_task(self._every(cfg.reevaluate_s, sleep), name="re-evaluation")
         if cfg.reevaluate_s is None and cfg.rebid_on_join is None:
             return []
-        return [self.mc.repository.subscribe(self._capabilities)]
+        stop = [self.mc.repository.subscribe(self._capabilities)]
+        if self.mc.allocator.exchanges:
+            stop.append(self.mc.allocator.watch(self._heard))
+        return stop
 
     def _capabilities(self, robot: str) -> None:
         if self.budget(robot, self.mc.now()):
@@ -116,6 +125,8 @@ class Reevaluation:
     def news(self) -> None:
         """The team changed, or it is time: look at the running work again."""
         if not self.mc.active:
+            if self.ledger.held or self.ledger.cross:
+                self.ledger.keep(())  # nothing runs: nothing said is of use
             return
         if self._running:
             self._again = True
@@ -132,6 +143,8 @@ class Reevaluation:
         if ex.robot != sender:
             return f"cost of {msg.execution} from another robot than its executor {ex.robot}"
         ex.cost = msg.cost
+        if self.mc.allocator.exchanges:  # kept only where exchanges forget it again
+            self.ledger.holder(msg.execution, msg.cost)
         if self.mc.config.reevaluate_s is not None:  # None: this origin never moves work
             self.news()
         return None
@@ -203,9 +216,27 @@ class Reevaluation:
             cost=won.cost,
         )
 
+    def _heard(self, record: AuctionRecord) -> None:
+        """What bidders said in a re-evaluation or exchange auction, for the ledger."""
+        task, outcome = record.task, record.outcome
+        if outcome is None or task.holder is None:
+            return
+        bids = {b.robot: b.cost for b in outcome.ranking}
+        held = bids.get(task.holder_robot or "")
+        if held is not None:
+            self.ledger.holder(task.holder, held)
+        if task.handing is not None:
+            to = next(iter(task.candidates - {task.holder_robot}), None)
+            if to in bids:
+                self.ledger.leg(task.handing, task.holder, bids[to])
+            elif to in outcome.declined:
+                self.ledger.leg(task.handing, task.holder, None)
+
     async def _exchanges(self) -> None:
-        """Swaps of running work between two busy robots, neither this one, each running
-        one task of this origin's: the dearest work first, each robot in one swap."""
+        """Exchanges of running work between busy robots, neither this one, each running
+        one task of this origin's: pairs (the dearest work first), then chains of three,
+        each robot in one exchange; a cycle is auctioned only if what its bidders already
+        said leaves it a chance to pay (:class:`~btcap.team.core.exchange.Ledger`)."""
         mc = self.mc
         by_robot: dict[str, list[Handle]] = {}
         for ex in mc.active.values():
@@ -215,46 +246,67 @@ class Reevaluation:
             (held[0] for held in by_robot.values() if len(held) == 1),
             key=lambda e: (-e.cost, str(e.id)),
         )
-        swapped: set[str] = set()
-        pairs = itertools.islice(itertools.combinations(solo, 2), EXCHANGE_PAIRS)
-        for a, b in pairs:
-            if a.robot not in swapped and b.robot not in swapped and await self._swap(a, b):
-                swapped |= {a.robot, b.robot}
+        self.ledger.keep(mc.active.keys())
+        handles = {ex.id: ex for ex in solo}
+        running = [Running(ex.id, ex.robot, ex.cost) for ex in solo]
+        chain = EXCHANGE_CHAIN if len(solo) > 2 else 2
+        exchanged: set[str] = set()
+        tries = 0
+        cycles = self.ledger.cycles(running, self.margin, chain=chain, chain_of=CHAIN_AMONG)
+        for cycle in cycles:
+            if tries >= EXCHANGE_TRIES:
+                mc.stats.exchange_tries_left_off += 1
+                return
+            if any(t.robot in exchanged for t in cycle):
+                continue
+            tries += 1
+            if await self._cycle([handles[t.execution] for t in cycle]):
+                exchanged |= {t.robot for t in cycle}
 
-    async def _swap(self, a: Handle, b: Handle) -> bool:
-        """Exchange ``a`` and ``b``'s robots if the pair's total falls by the margin."""
-        # Task a to b's robot while the pair could still gain (b's last known cost)...
-        first = await self._leg(a, b, 0.0, b.cost)
-        if first is None:
-            return False
-        held_a = first[1].held
-        # ... then b to a's robot only if the pair's total falls by the margin.
-        credit = -1e300 if held_a is None else held_a * (1.0 - self.margin) - first[1].cost
-        second = await self._leg(b, a, self.margin, credit)
-        if second is None:
-            first[0].cancel("exchange off")
-            return False
-        (new_a, won_a), (new_b, won_b) = first, second
-        before = (won_a.held or 0.0) + (won_b.held or 0.0)
-        held = won_a.held is not None and won_b.held is not None
-        if not (held and pays(before, won_a.cost + won_b.cost, self.margin)) or not (
-            self.movable(a) and self.movable(b)
-        ):
-            new_a.cancel("exchange off")
-            new_b.cancel("exchange off")
-            return False
+    async def _cycle(self, cycle: list[Handle]) -> bool:
+        """Give each task of ``cycle`` to the next one's robot if the total falls by more
+        than the margin: leg by leg, each accepted paused and only while the cycle could
+        still gain (each leg's bid must stay below what the legs so far saved plus the
+        last known costs of the tasks still to go); all adopted, or none."""
         mc = self.mc
-        for old, new in ((a, new_a), (b, new_b)):
+        n, m = len(cycle), self.margin
+        legs: list[tuple[Handle, Assigned]] = []
+        for i, x in enumerate(cycle):
+            y = cycle[(i + 1) % n]
+            done = [won for _new, won in legs]
+            if any(won.held is None for won in done):
+                credit = -1e300
+            elif i < n - 1:
+                rest = sum(self.ledger.held.get(t.id, t.cost) for t in cycle[i + 1 :])
+                credit = sum((won.held or 0.0) - won.cost for won in done) + rest
+            else:
+                credit = sum((won.held or 0.0) * (1.0 - m) - won.cost for won in done)
+            leg = await self._leg(x, y, m if i == n - 1 else 0.0, credit)
+            if leg is None:
+                for new, _won in legs:
+                    new.cancel("exchange off")
+                return False
+            legs.append(leg)
+        won_all = [won for _new, won in legs]
+        before = sum(won.held or 0.0 for won in won_all)
+        after = sum(won.cost for won in won_all)
+        held = all(won.held is not None for won in won_all)
+        if not (held and pays(before, after, m)) or not all(self.movable(x) for x in cycle):
+            for new, _won in legs:
+                new.cancel("exchange off")
+            return False
+        for old, (new, _won) in zip(cycle, legs, strict=True):
             old.replacement = new
             mc.active[new.id] = new
-        mc.stats.moved += 2
+        mc.stats.moved += n
+        mc.stats.exchanged += 1
         log.info(
             "mission.exchanging",
             robot=mc.robot,
-            executions=[str(a.id), str(b.id)],
-            robots=[a.robot, b.robot],
+            executions=[str(x.id) for x in cycle],
+            robots=[x.robot for x in cycle],
             before=before,
-            after=won_a.cost + won_b.cost,
+            after=after,
         )
         return True
 

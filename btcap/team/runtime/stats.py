@@ -16,6 +16,8 @@ class MissionStats:
     hosted: int = 0
     declined: int = 0
     moved: int = 0
+    exchanged: int = 0  #: exchanges of running work made (pairs and chains; see moving)
+    exchange_tries_left_off: int = 0  #: re-evaluations that stopped at EXCHANGE_TRIES
     refused: int = 0  #: messages a peer had no right to send, or that made no sense
     errors: int = 0  #: failures of this robot's own code (bid functions, builds), logged
     news_ignored: int = 0  #: teammates' news over their budget (see Reevaluation.budget)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from btcap.team.core.body import Body
-from btcap.team.core.exchange import Running, find_exchanges
+from btcap.team.core.exchange import Ledger, Running, find_exchanges
 from btcap.team.ids import ExecutionId
 
 TA, TB, TC = (ExecutionId("base", f"t{n}", n) for n in (1, 2, 3))
@@ -81,3 +81,62 @@ def test_an_aborted_exchange_leaves_the_body_as_it_was() -> None:
     assert body.running == TB
     assert body.queued is None
     assert body.wait_cost() is None
+
+
+# -- the ledger: which exchanges are worth an auction -----------------------------------
+
+RA, RB, RC = Running(TA, "a", 10.0), Running(TB, "b", 10.0), Running(TC, "c", 10.0)
+
+
+def test_a_cycle_nobody_bid_for_is_worth_a_try_once() -> None:
+    ledger = Ledger()
+    assert ledger.may_pay([RA, RB], 0.2)  # unknown legs priced 0
+    ledger.leg(TB, TA, 17.0)  # b would take ta for 17: more than the pair may cost
+    assert not ledger.may_pay([RA, RB], 0.2)
+    assert not ledger.may_pay([RB, RA], 0.2)  # the same cycle, started at the other leg
+    ledger.leg(TC, TB, None)  # c declined tb
+    assert not ledger.may_pay([RB, RC], 0.0)
+
+
+def test_a_cycle_is_asked_again_once_the_robots_progress_could_make_it_pay() -> None:
+    ledger = Ledger()
+    ledger.holder(TA, 10.0)
+    ledger.holder(TB, 10.0)
+    ledger.leg(TB, TA, 9.0)  # b for ta; b had 10 left then
+    ledger.leg(TA, TB, 9.0)  # 18 against 20: within the margin
+    assert not ledger.may_pay([RA, RB], 0.2)
+    # Both drove 4 on: each leg may have fallen by as much; a gain of 2 is still too little
+    ledger.holder(TA, 6.0)
+    ledger.holder(TB, 6.0)
+    assert ledger.leg_cost(TB, TA) == 5.0
+    assert not ledger.may_pay([RA, RB], 0.2)  # 10 against 12
+    ledger.holder(TA, 4.0)  # 6 on: 6 against 8 may pay
+    ledger.holder(TB, 4.0)
+    assert ledger.may_pay([RA, RB], 0.2)
+    ledger.holder(TB, 20.0)  # a rise is no progress: the legs stay as bid
+    assert ledger.leg_cost(TB, TA) == 9.0
+
+
+def test_cycles_come_pairs_first_then_both_chains_and_start_at_an_unknown_leg() -> None:
+    ledger = Ledger()
+    ledger.leg(TB, TA, 1.0)  # a -> b known (cheap)
+    cycles = list(ledger.cycles([RA, RB, RC], 0.2))
+    heads = [tuple(t.execution for t in c) for c in cycles]
+    assert heads == [
+        (TB, TA),  # the pair a, b starts at the leg b -> a, nobody bid for it yet
+        (TA, TC),
+        (TB, TC),
+        (TB, TC, TA),  # a -> b -> c -> a: a -> b is known, start at b -> c
+        (TA, TC, TB),
+    ]
+    assert [len(c) for c in ledger.cycles([RA, RB, RC], 0.2, chain=2)] == [2, 2, 2]
+    ledger.keep({TA, TB})  # tc ended: what was said about it is forgotten
+    assert ledger.leg_cost(TB, TA) == 1.0
+    ledger.keep({TA})
+    assert ledger.leg_cost(TB, TA) is None
+
+
+def test_chains_are_looked_for_among_the_first_tasks_only() -> None:
+    ta, tb, tc, td = (Running(ExecutionId("base", f"u{n}", n), f"r{n}", 10.0) for n in range(4))
+    assert sum(len(c) == 3 for c in Ledger().cycles([ta, tb, tc, td], 0.2)) == 8
+    assert sum(len(c) == 3 for c in Ledger().cycles([ta, tb, tc, td], 0.2, chain_of=3)) == 2
