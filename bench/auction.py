@@ -12,10 +12,10 @@
   because every invited bidder had answered. The tcp rounds run twice: plain
   (``zmq_tcp``), then with a CURVE key pair for every agent and the team's public keys as
   each one's allow-list (``zmq_tcp_curve``); the table gives the ratio CURVE / plain.
-  Rounds run back to back in bursts of :data:`BURST_ROUNDS`; between bursts the bench
-  waits until the bidders' budget of calls from one auctioneer (#19: 256 at once, then 64
-  a second) has room for a whole burst again, so no round waits out the window for a call
-  left unanswered, and none is paced into a cold start. ``round_ms[...]["isolated"]``:
+  Rounds run back to back; once the bidders' budget of calls from one auctioneer (#19: 256
+  at once, then 64 a second; mirrored here) runs dry, the bench waits until it has room
+  for :data:`BURST_ROUNDS` more, so no round waits out the window for a call left
+  unanswered, and none is paced into a cold start. ``round_ms[...]["isolated"]``:
   rounds with 10 bidders one every :data:`ISOLATED_GAP_S` (every thread asleep in
   between), as an auction in a mission mostly is: waking them up is in that figure.
 - **round_cpu_ms**: CPU time per round (every thread, so ZeroMQ's I/O threads count) of
@@ -66,7 +66,8 @@ __all__ = ["run"]
 BIDDERS = (1, 3, 10, 50)
 REFERENCE_BIDDERS = 10
 BURST_ROUNDS = 100
-"""Rounds back to back before the bench lets the bidders' budget of calls refill."""
+"""Rounds back to back, at least, once the bidders' budget of calls has run dry: the bench
+waits for it to refill this many."""
 ISOLATED_GAP_S = 0.05
 SETTLE_S = 3.0
 """After the last join: 51 agents exchange rosters for about 2 s (a burst of CPU that must
@@ -99,13 +100,18 @@ def _budget() -> Budgets:
     return Budgets(CALLS_PER_S, CALLS_BURST - 16)
 
 
-async def _room(budget: Budgets, rounds: int, cpu: CpuMeter | None) -> None:
-    """Wait (uncounted) until the mirror of the bidders' budget has room for ``rounds``."""
+async def _room(budget: Budgets, cpu: CpuMeter | None, refill_s: float) -> None:
+    """Take one call from the mirror of the bidders' budget; once it runs dry, wait
+    (uncounted) ``refill_s`` for it to refill."""
+    now = time.monotonic()
+    if budget.allow("origin", now):
+        return
     if cpu is not None:
         cpu.pause()
     # a token bucket refills with time; no event to wait for
-    while not budget.allow("origin", time.monotonic(), rounds):  # noqa: ASYNC110
-        await asyncio.sleep(1 / CALLS_PER_S)
+    while not budget.allow("origin", now):
+        await asyncio.sleep(refill_s)
+        now, refill_s = time.monotonic(), 1 / CALLS_PER_S
     if cpu is not None:
         cpu.resume()
 
@@ -130,13 +136,10 @@ async def _rounds(
     samples: list[float] = []
     early = 0
     clock = time.perf_counter_ns
-    total = warmup + count
-    for i in range(total):
+    for i in range(warmup + count):
         if gap_s > 0:
             await asyncio.sleep(gap_s)
-            await _room(budget, 1, None)
-        elif i % BURST_ROUNDS == 0:
-            await _room(budget, min(BURST_ROUNDS, total - i), cpu)
+        await _room(budget, cpu, BURST_ROUNDS / CALLS_PER_S)
         execution = ExecutionId(origin.robot, f"bench/{len(bidders)}", next(ids))
         task = AssignmentTask(execution, ECHO.name, identity, _INPUTS, candidates, lease_s)
         closes = auctioneer.stats.early_closes
