@@ -54,13 +54,11 @@ _RECV_HWM = 10_000
 _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
 """A DEALER only sends: what else arrives is junk, and libzmq drops the connection."""
-# ZMTP heartbeats: the ROUTER PINGs each link a second and drops it after 3 s without a
-# PONG; its PINGs carry a 3 s TTL, so the DEALER drops the link after 3 s without one (one
-# side pings: half the traffic of both, which on a host of many agents kept a core busy).
-# Else a cut link waits for TCP's backed-off retransmission once healed and a crashed
-# host's inbound link stays for good. libzmq's I/O thread pings and times out without the
-# GIL, so a stalled event loop drops no healthy link. A dial into a partition gives up
-# after 1 s (SYN retries: 1, 3, 7 s...) and is redone after RECONNECT_IVL.
+# ZMTP heartbeats (DEALERs and ROUTER): a PING a second, the connection dropped after 3 s
+# of silence, else a cut link waits for TCP's backed-off retransmission once healed and a
+# crashed host's inbound link stays for good. libzmq's I/O thread pings and times out
+# without the GIL, so a stalled event loop drops no healthy link. A dial into a partition
+# gives up after 1 s (SYN retries: 1, 3, 7 s...) and is redone after RECONNECT_IVL.
 _PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
 
 
@@ -97,7 +95,6 @@ def open_router(
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
     sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
     sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
-    sock.setsockopt(zmq.HEARTBEAT_TTL, _PING_TIMEOUT_MS)
     if curve is not None:
         curve.server(sock)
     # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
@@ -196,6 +193,8 @@ def open_dealer(
     sock.setsockopt(zmq.SNDHWM, _SEND_HWM)
     sock.setsockopt(zmq.RCVHWM, 1)
     sock.setsockopt(zmq.MAXMSGSIZE, _DEALER_MAX_IN)
+    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
+    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
     sock.setsockopt(zmq.CONNECT_TIMEOUT, _CONNECT_TIMEOUT_MS)
     if curve is not None:
         try:
