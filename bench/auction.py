@@ -12,16 +12,18 @@
   because every invited bidder had answered. The tcp rounds run twice: plain
   (``zmq_tcp``), then with a CURVE key pair for every agent and the team's public keys as
   each one's allow-list (``zmq_tcp_curve``); the table gives the ratio CURVE / plain.
+  Rounds run back to back; once the bidders' budget of calls from one auctioneer (#19: 256
+  at once, then 64 a second; mirrored here) runs dry, the bench waits until it has room
+  for :data:`BURST_ROUNDS` more, so no round waits out the window for a call left
+  unanswered, and none is paced into a cold start. ``round_ms[...]["isolated"]``:
+  rounds with 10 bidders one every :data:`ISOLATED_GAP_S` (every thread asleep in
+  between), as an auction in a mission mostly is: waking them up is in that figure.
 - **round_cpu_ms**: CPU time per round (every thread, so ZeroMQ's I/O threads count) of
-  this process and of the bidder processes, minus what they burn idle (heartbeats, host
-  trees). On a small shared machine this says more than wall time: a 50-bidder round
-  cannot take less wall time than its CPU time divided by the cores.
-- **remote_tick_ms**: the origin's ``tree.tick()`` sends inputs (seq n) to an executor in
-  another process; timed until ``execution.acked >= n`` (the executor's status for them
-  arrived back).
-- **failover_s**: the executing robot's process is SIGKILLed; timed until the capability
-  runs again on another robot (its execution is set, on another robot, and running), at
-  speed-up 1 with the default :class:`~btcap.team.runtime.agent.AgentConfig`.
+  this process and of the bidder processes during the bursts, minus what they burn idle
+  (heartbeats, host trees; measured once the joins have settled). On a small shared
+  machine this says more than wall time: a 50-bidder round cannot take less wall time
+  than its CPU time divided by the cores.
+- **remote_tick_ms**, **failover_s**: see :mod:`bench.auction_remote`.
 
 Run ``python -m btcap.bench auction [--quick]`` or ``python -m btcap.bench.auction [--quick]``.
 """
@@ -40,15 +42,13 @@ from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Address, configure_logging
 from btcap.bench import transport as transport_bench
+from btcap.bench.auction_remote import bench_remote
 from btcap.bench.auction_report import table
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.cpumeter import CpuMeter
-from btcap.bt.state import State
 from btcap.team.allocation.auction import Assigned, AssignmentTask
-from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.core.bounds import Budgets
 from btcap.team.demo import ECHO, implementations
 from btcap.team.deployment.launch import AgentSpec, spawn_agents
@@ -65,13 +65,19 @@ __all__ = ["run"]
 
 BIDDERS = (1, 3, 10, 50)
 REFERENCE_BIDDERS = 10
+BURST_ROUNDS = 100
+"""Rounds back to back, at least, once the bidders' budget of calls has run dry: the bench
+waits for it to refill this many."""
+ISOLATED_GAP_S = 0.05
+SETTLE_S = 3.0
+"""After the last join: 51 agents exchange rosters for about 2 s (a burst of CPU that must
+not count as idle, nor overlap the first rounds)."""
 ASK_REFERENCE = 1000
 """tcp asks measured right before and after the 10-bidder rounds (plain tcp), each way."""
 WINDOW_S = 5.0  # long, so an auction that did not close early would show
 # Heartbeats every second, as a deployed team would run: with 51 agents on two cores, the
 # default 0.1 s (all-to-all, 25 000 messages a second) would be most of what they do.
 TEAM_TIMING: dict[str, Any] = {"heartbeat_s": 1.0, "failure_timeout_s": 5.0}
-MISSION_TICK_HZ = 100.0  # how often the origin ticks its tree while waiting for fail-over
 _INPUTS = {"value": 1, "stop": False}
 _LOCAL = "127.0.0.1"
 
@@ -94,10 +100,33 @@ def _budget() -> Budgets:
     return Budgets(CALLS_PER_S, CALLS_BURST - 16)
 
 
+async def _room(budget: Budgets, cpu: CpuMeter | None, refill_s: float) -> None:
+    """Take one call from the mirror of the bidders' budget; once it runs dry, wait
+    (uncounted) ``refill_s`` for it to refill."""
+    now = time.monotonic()
+    if budget.allow("origin", now):
+        return
+    if cpu is not None:
+        cpu.pause()
+    # a token bucket refills with time; no event to wait for
+    while not budget.allow("origin", now):
+        await asyncio.sleep(refill_s)
+        now, refill_s = time.monotonic(), 1 / CALLS_PER_S
+    if cpu is not None:
+        cpu.resume()
+
+
 async def _rounds(
-    origin: Agent, bidders: Sequence[str], warmup: int, count: int, budget: Budgets
+    origin: Agent,
+    bidders: Sequence[str],
+    warmup: int,
+    count: int,
+    budget: Budgets,
+    cpu: CpuMeter | None = None,
+    gap_s: float = 0.0,
 ) -> tuple[list[float], int]:
-    """Per-round latency in ms, and how many measured rounds closed early."""
+    """Per-round latency in ms, and how many measured rounds closed early: in bursts of
+    back-to-back rounds, or one every ``gap_s``."""
     auctioneer = origin.allocator
     system = origin.system
     candidates = frozenset(bidders)
@@ -108,9 +137,9 @@ async def _rounds(
     early = 0
     clock = time.perf_counter_ns
     for i in range(warmup + count):
-        # a token bucket refills with time; no event to wait for
-        while not budget.allow("origin", time.monotonic()):  # noqa: ASYNC110
-            await asyncio.sleep(1 / CALLS_PER_S)
+        if gap_s > 0:
+            await asyncio.sleep(gap_s)
+        await _room(budget, cpu, BURST_ROUNDS / CALLS_PER_S)
         execution = ExecutionId(origin.robot, f"bench/{len(bidders)}", next(ids))
         task = AssignmentTask(execution, ECHO.name, identity, _INPUTS, candidates, lease_s)
         closes = auctioneer.stats.early_closes
@@ -182,8 +211,8 @@ async def _all_sizes(
     lat: dict[str, Any] = {}
     early: dict[str, Any] = {}
     cpu_ms: dict[str, Any] = {}
-    await asyncio.sleep(0.5)  # let the joins settle
-    await cpu.calibrate(1.0)
+    await asyncio.sleep(SETTLE_S)  # let the joins settle
+    await cpu.calibrate(2.0)
     budget = _budget()
     for n in BIDDERS:
         # Spread the bidders over every process (names were dealt round robin).
@@ -191,13 +220,24 @@ async def _all_sizes(
         if reference is not None and n == REFERENCE_BIDDERS:
             await reference()  # right before and after: the same conditions
         cpu.start()
-        samples, closed = await _rounds(origin, names[:n], 0, count, budget)
+        samples, closed = await _rounds(origin, names[:n], 0, count, budget, cpu)
         cpu_ms[str(n)] = cpu.per_round_ms(count)
         if reference is not None and n == REFERENCE_BIDDERS:
             await reference()
-        lat[str(n)] = percentiles(samples)
+        lat[str(n)] = _spread(samples)
         early[str(n)] = {"rounds": count, "early": closed}
+        if n == REFERENCE_BIDDERS:
+            isolated, closed = await _rounds(
+                origin, names[:n], 0, max(20, count // 4), budget, gap_s=ISOLATED_GAP_S
+            )
+            lat["isolated"] = _spread(isolated)
+            early["isolated"] = {"rounds": len(isolated), "early": closed}
     return lat, early, cpu_ms
+
+
+def _spread(samples: Sequence[float]) -> dict[str, float]:
+    ordered = sorted(samples)
+    return {**percentiles(ordered), "p90": ordered[round(0.9 * (len(ordered) - 1))]}
 
 
 async def _bench_zmq(
@@ -261,96 +301,6 @@ async def _asks(samples: dict[str, list[float]]) -> AsyncIterator[Callable[[], A
         yield measure
 
 
-# -- remote tick and fail-over -------------------------------------------------------------
-
-
-def _executor_spec(i: int) -> AgentSpec:
-    return AgentSpec(
-        robot=f"x{i}", factory="btcap.team.demo:implementations", factory_args={"cost": 1.0 + i}
-    )
-
-
-async def _bench_remote(
-    warmup: int, ticks: int, failovers: int
-) -> tuple[list[float], list[float], dict[str, Any]]:
-    """Remote tick round trips (ms) on the first executor, then fail-over times (s)."""
-    procs = spawn_agents([_executor_spec(i) for i in range(failovers + 1)], timeout=60.0)
-    by_robot = {p.robot: p for p in procs}
-    try:
-        reg = protocol_registry()
-        peers = {p.robot: p.endpoint for p in procs}
-        transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
-        async with Agent("origin", transport=transport, registry=reg) as origin:
-            await _until(
-                lambda: len(origin.repository.providers(ECHO.identity)) == len(procs),
-                30.0,
-                "executors joined",
-            )
-            node = ECHO.node_type()("echo", inputs={"value": 0})
-            tree = origin.mission(SequenceNode("root", children=[node]))
-            period = 1.0 / MISSION_TICK_HZ
-
-            async def running_on_new(old: str | None, limit: float) -> None:
-                deadline = time.monotonic() + limit
-                while True:
-                    tree.tick()
-                    ex = node.execution
-                    if ex is not None and ex.robot != old and node.state is State.RUNNING:
-                        return
-                    if time.monotonic() > deadline:
-                        raise TimeoutError(f"bench auction: not re-assigned in {limit} s")
-                    await asyncio.sleep(period)
-
-            await running_on_new(None, 10.0)
-            rtt = await _remote_ticks(node, tree, warmup, ticks)
-            failover: list[float] = []
-            for _ in range(failovers):
-                victim = node.execution
-                assert victim is not None
-                proc = by_robot[victim.robot]
-                # Let the new executor settle into its lease before failing it.
-                await asyncio.sleep(0.3)
-                t0 = time.perf_counter()
-                proc.kill()
-                await running_on_new(victim.robot, 10.0)
-                failover.append(time.perf_counter() - t0)
-            node.set_input("stop", True)
-            await _until(lambda: tree.tick() is State.SUCCEEDED, 5.0, "echo finished")
-            info = {
-                "assignments": list(node.assignments),
-                "mission_tick_hz": MISSION_TICK_HZ,
-                "lost": origin.mission_control.stats.lost,
-            }
-            await tree.shutdown()
-            return rtt, failover, info
-    finally:
-        for p in procs:
-            p.stop()
-
-
-async def _remote_ticks(node: Any, tree: Any, warmup: int, count: int) -> list[float]:
-    ex = node.execution
-    if not isinstance(ex, RemoteExecution):
-        raise RuntimeError("bench auction: expected a remote execution")
-    samples: list[float] = []
-    clock = time.perf_counter_ns
-    for i in range(warmup + count):
-        if i == warmup:
-            gc.collect()
-        node.set_input("value", i)
-        t0 = clock()
-        tree.tick()
-        n = ex.tracked.seq
-        # Spin: the status comes back within a fraction of a millisecond.
-        while ex.tracked.acked < n:  # noqa: ASYNC110 - a spin is the measurement
-            await asyncio.sleep(0)
-        if i >= warmup:
-            samples.append((clock() - t0) / 1e6)
-    if node.outputs.get("robot") != ex.robot:
-        raise RuntimeError("bench auction: outputs did not come back from the executor")
-    return samples
-
-
 def _team_keys(directory: Path, robots: Sequence[str]) -> Path:
     """A certificate pair per robot in ``directory``, which doubles as the allow-list
     (it holds every member's public ``NAME.key``)."""
@@ -371,7 +321,7 @@ async def _run(quick: bool) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="btcap-bench-keys-") as tmp:
         keys = _team_keys(Path(tmp), ["origin", *_bidder_names(max(BIDDERS))])
         curve, curve_early, curve_cpu = await _bench_zmq(warmup, count, processes, keys)
-    rtt, failover, info = await _bench_remote(tick_warmup, ticks, failovers)
+    rtt, failover, info = await bench_remote(tick_warmup, ticks, failovers)
     all_early = all(
         v["early"] == v["rounds"]
         for e in (inproc_early, zmq_early, curve_early)
@@ -408,6 +358,8 @@ async def _run(quick: bool) -> dict[str, Any]:
             "rounds": count,
             "warmup_rounds": warmup,
             "window_s": WINDOW_S,
+            "burst_rounds": BURST_ROUNDS,
+            "isolated_gap_s": ISOLATED_GAP_S,
             "bidder_processes": processes,
             "remote_ticks": ticks,
             "failover": info,

@@ -31,6 +31,21 @@ def table(data: dict[str, Any], window_s: float) -> str:
         f"{setup['bidder_processes']} processes; load average "
         f"{setup['load_average'][0]:.1f} -> {setup['load_average'][1]:.1f}"
     )
+    k = str(data["round_to_ask"]["bidders"])
+    lines.append(
+        f"{k} bidders, p50 / p90 (ms): back to back (bursts of {setup['burst_rounds']}) "
+        + ", ".join(
+            f"{name} {rounds[name][k]['p50']:.3f} / {rounds[name][k]['p90']:.3f}"
+            for name in ("inproc", "zmq_tcp", "zmq_tcp_curve")
+        )
+    )
+    lines.append(
+        f"{k} bidders, one round every {setup['isolated_gap_s'] * 1e3:.0f} ms, p50 / p90 (ms): "
+        + ", ".join(
+            f"{name} {rounds[name]['isolated']['p50']:.3f} / {rounds[name]['isolated']['p90']:.3f}"
+            for name in ("inproc", "zmq_tcp", "zmq_tcp_curve")
+        )
+    )
     a, r = data["ask_us"], data["round_to_ask"]
     lines.append(
         f"same run, {r['bidders']} bidders over tcp: round p50 = "

@@ -2,7 +2,7 @@
 
 On a small shared machine CPU per round says more than wall time, and only the work the
 rounds add counts: what the processes burn idle (heartbeats, host trees) is measured first
-and taken off.
+and taken off, and waits between bursts of rounds can be left out (:meth:`CpuMeter.pause`).
 """
 
 from __future__ import annotations
@@ -35,6 +35,8 @@ class CpuMeter:
         self.pids = list(pids)
         self.idle_self = 0.0
         self.idle_children = 0.0
+        self._spent = (0.0, 0.0, 0.0)
+        self._start: tuple[float, float, float] | None = None
 
     def _read(self) -> tuple[float, float, float]:
         kids = sum(cpu_of(pid) for pid in self.pids)
@@ -48,13 +50,27 @@ class CpuMeter:
         self.idle_children = (c1 - c0) / (w1 - w0)
 
     def start(self) -> None:
+        """Count from now, afresh."""
+        self._spent = (0.0, 0.0, 0.0)
         self._start = self._read()
 
+    def pause(self) -> None:
+        """Stop counting (waits between the rounds are not theirs) until :meth:`resume`."""
+        if self._start is not None:
+            (w0, s0, c0), (w1, s1, c1) = self._start, self._read()
+            wall, own, kids = self._spent
+            self._spent = (wall + w1 - w0, own + s1 - s0, kids + c1 - c0)
+            self._start = None
+
+    def resume(self) -> None:
+        """Count again after :meth:`pause`."""
+        if self._start is None:
+            self._start = self._read()
+
     def per_round_ms(self, rounds: int) -> dict[str, float]:
-        w1, s1, c1 = self._read()
-        w0, s0, c0 = self._start
-        wall = w1 - w0
-        out = {"this_process": (s1 - s0 - self.idle_self * wall) / rounds * 1e3}
+        self.pause()
+        wall, own, kids = self._spent
+        out = {"this_process": (own - self.idle_self * wall) / rounds * 1e3}
         if self.pids:
-            out["bidder_processes"] = (c1 - c0 - self.idle_children * wall) / rounds * 1e3
+            out["bidder_processes"] = (kids - self.idle_children * wall) / rounds * 1e3
         return out

@@ -1,0 +1,55 @@
+"""ZMTP heartbeats: only the ROUTER pings, yet a DEALER whose peer went silent drops the
+link (the TTL in the ROUTER's PINGs) and dials afresh. A peer process stopped with
+SIGSTOP keeps its tcp connections open in the kernel, so without heartbeats the link
+would look alive for ever."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+
+import anyio
+import pytest
+from anyio.streams.buffered import BufferedByteReceiveStream
+
+from btcap.actors import Address
+from tests.transports.peer_process import READY, Echo, Echoed
+from tests.transports.test_zeromq import PEER_SCRIPT, eventually, zmq_system
+
+pytestmark = pytest.mark.slow
+
+
+async def test_a_dealer_drops_its_link_to_a_peer_gone_silent() -> None:
+    with anyio.fail_after(30):
+        async with zmq_system("parent", "tcp://127.0.0.1:*") as (system, transport):
+            args = [sys.executable, str(PEER_SCRIPT), "--id", "child", "--bind"]
+            args += ["tcp://127.0.0.1:*", "--peer", f"parent={transport.endpoint}"]
+            args += ["--lifetime", "30"]
+            process = await anyio.open_process(args, stdin=subprocess.PIPE, stderr=None)
+            try:
+                assert process.stdout is not None
+                line = await BufferedByteReceiveStream(process.stdout).receive_until(b"\n", 4096)
+                assert line.decode().startswith(READY)
+                await eventually(lambda: "child" in transport.peers(), "child said hello")
+                echo = system.ref(Address("child", "echo"))
+                assert await echo.ask(Echo("up")) == Echoed("up", "child")
+                link = transport.routing_id("child")
+                os.kill(process.pid, signal.SIGSTOP)
+                try:
+                    # PINGs every 1 s carry a 3 s TTL: the link goes within about 4 s,
+                    # and a fresh DEALER (a new routing id) dials again.
+                    await eventually(
+                        lambda: transport.routing_id("child") != link,
+                        "the link to the silent peer dropped and redialled",
+                        limit=15.0,
+                    )
+                finally:
+                    os.kill(process.pid, signal.SIGCONT)
+                assert await echo.ask(Echo("back"), timeout=10.0) == Echoed("back", "child")
+            finally:
+                process.kill()
+                with anyio.CancelScope(shield=True):
+                    await process.wait()
+                await process.aclose()
