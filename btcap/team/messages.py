@@ -181,7 +181,9 @@ class CallForBids(Message):
     auctioneer named in the auction's id. ``holder``: running work is re-evaluated, and
     the robot running execution ``holder`` bids what finishing it there would cost.
     ``handing``: an exchange; the robot running ``handing`` bids as if it handed that over
-    (no wait), and may be awarded this task beside it."""
+    (no wait), and may be awarded this task beside it. ``extended``: a time-extended call;
+    a robot too busy to take the task still says what it would cost it after the work it
+    holds (a :class:`Bid` with ``after``), so the planner knows what waiting costs."""
 
     auction: AuctionId
     interface: str
@@ -189,15 +191,22 @@ class CallForBids(Message):
     inputs: dict[str, Any]
     holder: ExecutionId | None = None
     handing: ExecutionId | None = None
+    extended: bool = False
 
 
 class Bid(Message):
-    """A cost (lower is better) for running the capability with one implementation."""
+    """A cost (lower is better) for running the capability with one implementation.
+
+    ``after`` > 0: a time-extended bid (see :attr:`CallForBids.extended`): the robot is
+    busy and ``cost`` is what the task would cost it once the work it holds is done, of
+    which ``after`` is that work; it says what waiting for this robot costs and is never
+    awarded."""
 
     auction: AuctionId
     robot: str
     cost: float
     implementation: str
+    after: float = 0.0
 
 
 class NoBid(Message):

@@ -40,11 +40,14 @@ def evaluate(
     *,
     wait: float | None,
     unmet: Callable[[B], str | None],
+    later: bool = False,
 ) -> Evaluation:
     """Bid ``wait`` (what the body must finish first; None: busy) plus the cheapest cost.
 
     ``unmet`` says why an implementation's preconditions do not hold. Ties go to the
     implementation whose name sorts first, so the same robot always bids the same way.
+    ``later``: the robot cannot take the task now and bids what it would cost after
+    ``wait`` (a time-extended bid, ``Bid.after``).
     """
     if not implementations:
         return Evaluation(NoBid(cfb.auction, robot, "no matching implementation"))
@@ -70,4 +73,5 @@ def evaluate(
             best = (cost, impl.name)
     if best is None:
         return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
-    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1]), errors)
+    after = max(wait, 1e-9) if later else 0.0  # > 0 marks it, even for a zero wait
+    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], after), errors)

@@ -61,6 +61,13 @@ class Body:
             return self._running_cost
         return None
 
+    def committed_cost(self) -> float:
+        """What the body must finish before it could start anything new: the running
+        work's latest estimate and the queued one's cost (a time-extended bid's wait)."""
+        if self.running is None:
+            return 0.0
+        return self._running_cost + (self._queued_cost if self.queued is not None else 0.0)
+
     def estimate(self, execution: ExecutionId, cost: float) -> None:
         """A fresh estimate of what finishing ``execution`` costs (see the module's
         contract): if it runs, a task queued behind it waits that long, not as long as it

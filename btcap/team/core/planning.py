@@ -45,7 +45,7 @@ if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents 
 
     Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 
-__all__ = ["CHAIN_MAX", "optimal_plan", "regret", "sequential_plan"]
+__all__ = ["CHAIN_MAX", "DEFERRAL", "optimal_plan", "regret", "sequential_plan"]
 
 Plan = list[str | None]
 
@@ -75,18 +75,40 @@ def _matrix(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> tuple[list[str], 
     return robots, cost
 
 
-def optimal_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
-    """For each task (its awardable bids), the robot that gets it in an assignment of least
-    total cost, each robot at most once and never one already ``taken``; None for a task
-    that gets no robot."""
+#: How much more a task left waiting costs than its best time-extended bid (see
+#: :func:`optimal_plan`): more than 1, so that of two tasks that cost the same now, the
+#: one that would end later if it waited starts first (the mission ends with its last
+#: task). Chosen from ``python -m btcap.bench missiontime`` (1.25-2 gave the same).
+DEFERRAL = 1.5
+
+
+def optimal_plan(
+    bids: Sequence[Sequence[Bid]], taken: Set[str], *, deferral: float = DEFERRAL
+) -> Plan:
+    """For each task (its bids), the robot that gets it in an assignment of least total
+    cost, each robot at most once and never one already ``taken``; None for a task that
+    gets no robot.
+
+    Time-extended bids (``Bid.after``, from robots busy now) are never planned; they say
+    what a task left waiting would cost: ``deferral`` times its cheapest one. When tasks
+    outnumber the free robots, the tasks that start are those for which starting now
+    saves most against waiting (least total of the started tasks' costs plus the waiting
+    tasks' deferral): a free robot does not take a task a busy robot would do far more
+    cheaply soon, and a task that only it does well (or that would end last) goes first.
+    Without time-extended bids, the cheapest set of tasks that can run together starts.
+    """
     import numpy as np
     from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
 
-    robots, cost = _matrix(bids, taken)
+    now = [[b for b in task if not b.after] for task in bids]
+    robots, cost = _matrix(now, taken)
     if not robots or not bids:
         return [None] * len(bids)
+    wait = [min((b.cost for b in task if b.after), default=0.0) for task in bids]
+    if len(bids) > len(robots) and any(wait):  # who waits matters: price the waiting
+        cost = cost - deferral * np.array(wait)[:, None]
     finite = cost[np.isfinite(cost)]
-    big = 2.0 * (1.0 + float(finite.sum()))  # the stand-in for "no bid"
+    big = 2.0 * (1.0 + float(np.abs(finite).sum()))  # the stand-in for "no bid"
     rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
     plan: Plan = [None] * len(bids)
     for t, r in zip(rows, cols, strict=True):
@@ -176,8 +198,8 @@ def _improve(cost: Matrix, got: list[int]) -> None:
 def sequential_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
     """The greedy assignment (cheapest robot-task pair first, then the next), improved by
     exchanges, chains of three, moves to free robots and waiting tasks taking robots over;
-    same contract as :func:`optimal_plan`."""
-    robots, cost = _matrix(bids, taken)
+    same contract as :func:`optimal_plan` (time-extended bids are left out)."""
+    robots, cost = _matrix([[b for b in task if not b.after] for task in bids], taken)
     if not robots or not bids:
         return [None] * len(bids)
     got = [-1] * len(bids)

@@ -45,6 +45,12 @@ class BatchPolicy(Protocol):
     already ``taken`` in the batch; it returns a robot per auction, or None to award
     without a plan. ``first`` gets each waiting auction's bids still free, its planned
     robot first, and returns the index of the one that awards next.
+
+    A policy may also say ``extended = True`` (time-extended bids; absent means False):
+    its calls for bids ask busy robots what each new task would cost them after the
+    work they hold, and ``plan`` gets those bids (``Bid.after`` > 0) after each
+    auction's awardable ones. They are never awarded: a plan naming such a robot is
+    awarded to the cheapest free bidder instead.
     """
 
     @property
@@ -78,12 +84,19 @@ class _ByRegret:
 
 
 class Planned:
-    """A planning policy: ``planner`` gives the batch's robots; the cheapest award first."""
+    """A planning policy: ``planner`` gives the batch's robots; the cheapest award first.
+    ``extended``: the planner is also given time-extended bids (see :class:`BatchPolicy`)."""
 
     batches = True
 
-    def __init__(self, planner: Callable[[Sequence[Sequence[Bid]], Set[str]], Plan]) -> None:
+    def __init__(
+        self,
+        planner: Callable[[Sequence[Sequence[Bid]], Set[str]], Plan],
+        *,
+        extended: bool = False,
+    ) -> None:
         self.planner = planner
+        self.extended = extended
 
     def plan(self, bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan | None:
         return self.planner(bids, taken)
@@ -106,7 +119,7 @@ class _ByArrival:
 
 AUCTION: BatchPolicy = _ByRegret()
 SEQUENTIAL: BatchPolicy = Planned(sequential_plan)
-OPTIMAL: BatchPolicy = Planned(optimal_plan)
+OPTIMAL: BatchPolicy = Planned(optimal_plan, extended=True)
 ARRIVAL: BatchPolicy = _ByArrival()
 
 
@@ -180,10 +193,12 @@ class AwardQueue:
                 return None
             if all(c.plan is None for c in self._closed):
                 batch = [c.bids(self.taken) for c in self._closed]
+                if getattr(policy, "extended", False):
+                    batch = [b + c.outcome.later() for b, c in zip(batch, self._closed)]
                 robots = policy.plan(batch, self.taken) or [None] * len(batch)
                 for closed, robot in zip(self._closed, robots, strict=True):
                     closed.plan = robot
-            nxt = self._closed[policy.first([c.bids(self.taken) for c in self._closed])]
+            nxt = self._closed[policy.first([c.bids(self._held(c)) for c in self._closed])]
         self._closed.remove(nxt)
         self._awarding = nxt
         return nxt.auction
@@ -194,8 +209,16 @@ class AwardQueue:
         closed = self._awarding
         if closed is None or closed.auction != auction:
             raise ValueError(f"auction {auction} is not the one awarding")
-        reasons = passed_over(closed.outcome, closed.reserve, self.taken)
-        return AwardRound(auction, task, closed.bids(self.taken), reasons)
+        held = self._held(closed)
+        reasons = passed_over(closed.outcome, closed.reserve, held)
+        return AwardRound(auction, task, closed.bids(held), reasons)
+
+    def _held(self, closed: _Closed) -> Set[str]:
+        """The robots ``closed`` may not be awarded: those taken in the batch and those
+        the plan gives another auction still waiting (a task the plan leaves waiting
+        does not take a robot planned for another, nor does a declined award)."""
+        planned = {c.plan for c in self._closed if c is not closed and c.plan is not None}
+        return self.taken | planned if planned else self.taken
 
     def took(self, robot: str) -> None:
         """``robot`` accepted a task of this batch."""
