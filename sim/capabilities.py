@@ -6,6 +6,8 @@ target (and, to decontaminate, on to the decontamination area) times its distanc
 factor, plus the operation's duration. The same estimate, asked again while the robot
 drives or works, says what finishing would cost from where it is now: the drive left and
 the work left (its :class:`~btcap.sim.robot.Body` hears of every cell and operation).
+Other work, asked while the robot carries an object, is priced from the decontamination
+area, where the carry leaves it (a time-extended bid: after the work it holds).
 """
 
 from __future__ import annotations
@@ -123,7 +125,7 @@ def robot_setup(
                 target = inputs.get(o.target)
                 left = None if target is None else body.left_s(o.op, int(target), duration)
             if left is None:  # not under way: drive there, work, (carry the object on)
-                cost = travel(body.position, at) + duration
+                cost = travel(body.bound_for(grid.decon_area), at) + duration
                 if o.then_decon:
                     cost += travel(at, grid.decon_area)
             elif o.then_decon and body.phase == "carry":

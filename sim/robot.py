@@ -40,6 +40,13 @@ class Body(Actor):
             self._work_since = self._now()
         self.op, self.target, self.phase = msg.op, msg.target, msg.phase
 
+    def bound_for(self, decon_area: Cell) -> Cell:
+        """Where the work under way leaves the robot: the decontamination area while it
+        carries an object there (or works at it), else where it is now."""
+        if self.op == "decontaminate" and self.phase in ("carry", "work"):
+            return decon_area
+        return self.position
+
     def left_s(self, op: str, target: int, duration_s: float) -> float | None:
         """Clock seconds of work left on ``op`` on ``target`` if it takes ``duration_s``:
         None if it is not under way (not begun, or a drive to it is all there is so far),

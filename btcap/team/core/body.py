@@ -9,6 +9,8 @@ further from done (and back again once the estimate is refreshed); and only an e
 that follows the robot can rise when its path gets blocked, news the run's origin
 re-evaluates on at once (:mod:`btcap.team.core.costwatch`). Read the robot's pose and
 progress when asked (odometry, the action server's feedback), not the values at award.
+A bid for *other* work made while busy (a queued task, or a time-extended bid,
+``Bid.after``) prices that work from where the work held leaves the robot, after it.
 """
 
 from __future__ import annotations
