@@ -197,16 +197,18 @@ class CallForBids(Message):
 class Bid(Message):
     """A cost (lower is better) for running the capability with one implementation.
 
-    ``after`` > 0: a time-extended bid (see :attr:`CallForBids.extended`): the robot is
-    busy and ``cost`` is what the task would cost it once the work it holds is done, of
-    which ``after`` is that work; it says what waiting for this robot costs and is never
-    awarded."""
+    ``after``: the work the robot must finish first, included in ``cost`` (a busy robot
+    that may queue the task, or one bidding for later). ``later``: a time-extended bid
+    (see :attr:`CallForBids.extended`): the robot is too busy to take the task and says
+    what it would cost it once its work is done, so a planner knows what waiting costs;
+    never awarded."""
 
     auction: AuctionId
     robot: str
     cost: float
     implementation: str
     after: float = 0.0
+    later: bool = False
 
 
 class NoBid(Message):

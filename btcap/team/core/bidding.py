@@ -73,5 +73,4 @@ def evaluate(
             best = (cost, impl.name)
     if best is None:
         return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
-    after = max(wait, 1e-9) if later else 0.0  # > 0 marks it, even for a zero wait
-    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], after), errors)
+    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], wait, later), errors)

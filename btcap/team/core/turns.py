@@ -48,7 +48,7 @@ class BatchPolicy(Protocol):
 
     A policy may also say ``extended = True`` (time-extended bids; absent means False):
     its calls for bids ask busy robots what each new task would cost them after the
-    work they hold, and ``plan`` gets those bids (``Bid.after`` > 0) after each
+    work they hold, and ``plan`` gets those bids (``Bid.later``) after each
     auction's awardable ones. They are never awarded: a plan naming such a robot is
     awarded to the cheapest free bidder instead.
     """
@@ -131,10 +131,17 @@ class _Closed:
     outcome: AuctionOutcome
     reserve: float | None
     plan: str | None = None  # a planning policy's robot for it
+    planned: bool = False  # a plan was made for it (``plan`` None: it waits)
 
     def bids(self, taken: Set[str]) -> list[Bid]:
-        """What may be awarded, best first: the planned robot, then the cheapest free."""
+        """What may be awarded, best first: the planned robot, then the cheapest free
+        (a busy robot that could queue it only if planned); nothing for a task the plan
+        leaves waiting."""
         bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
+        if self.planned:
+            if self.plan is None:
+                return []
+            bids = [b for b in bids if b.robot == self.plan or not b.after]
         return sorted(bids, key=lambda b: b.robot != self.plan)
 
 
@@ -191,13 +198,13 @@ class AwardQueue:
             wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
             if any(wanted & invited for invited in self._open.values()):
                 return None
-            if all(c.plan is None for c in self._closed):
+            if not any(c.planned for c in self._closed):
                 batch = [c.bids(self.taken) for c in self._closed]
                 if getattr(policy, "extended", False):
                     batch = [b + c.outcome.later() for b, c in zip(batch, self._closed)]
-                robots = policy.plan(batch, self.taken) or [None] * len(batch)
-                for closed, robot in zip(self._closed, robots, strict=True):
-                    closed.plan = robot
+                robots = policy.plan(batch, self.taken)
+                for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
+                    closed.plan, closed.planned = robot, robots is not None
             nxt = self._closed[policy.first([c.bids(self._held(c)) for c in self._closed])]
         self._closed.remove(nxt)
         self._awarding = nxt
@@ -211,6 +218,9 @@ class AwardQueue:
             raise ValueError(f"auction {auction} is not the one awarding")
         held = self._held(closed)
         reasons = passed_over(closed.outcome, closed.reserve, held)
+        if closed.planned and closed.plan is None:
+            for b in closed.outcome.awardable(closed.reserve):
+                reasons.setdefault(b.robot, "busy with the plan's other work: this task waits")
         return AwardRound(auction, task, closed.bids(held), reasons)
 
     def _held(self, closed: _Closed) -> Set[str]:

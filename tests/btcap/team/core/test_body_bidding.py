@@ -40,7 +40,7 @@ def unmet(impl: Impl) -> str | None:
 def test_the_cheapest_allowed_implementation_bids_with_the_wait() -> None:
     impls = [Impl("dear", 5.0), Impl("cheap", 1.0, needs="precondition x"), Impl("ok", 2.0)]
     ev = evaluate(CFB, "b", impls, {}, wait=3.0, unmet=unmet)
-    assert ev.answer == Bid(A1, "b", 5.0, "ok")
+    assert ev.answer == Bid(A1, "b", 5.0, "ok", 3.0)  # 3 of it the wait
 
 
 def test_ties_go_to_the_first_name_and_broken_bid_functions_are_reported() -> None:
@@ -152,7 +152,7 @@ def test_a_busy_robot_bids_for_later_only_when_asked_and_it_is_never_awarded() -
     later = evaluate(
         CFB, "r", [Impl("a", 5.0)], {}, wait=body.committed_cost(), unmet=unmet, later=True
     )
-    assert later.answer == Bid(A1, "r", 25.0, "a", 20.0)
+    assert later.answer == Bid(A1, "r", 25.0, "a", 20.0, later=True)
     now = evaluate(CFB, "s", [Impl("a", 7.0)], {}, wait=0.0, unmet=unmet)
     assert now.answer == Bid(A1, "s", 7.0, "a")
     auction = Auction(A1, "Count", frozenset({"r", "s"}), 1.0)

@@ -195,7 +195,7 @@ def test_strategy_names_are_checked() -> None:
 
 def later(robot: str, cost: float, after: float) -> Bid:
     """A time-extended bid: ``robot`` is busy for ``after`` first."""
-    return Bid(A1, robot, cost, "i", after)
+    return Bid(A1, robot, cost, "i", after, later=True)
 
 
 def test_a_task_a_busy_robot_does_far_cheaper_soon_waits_for_it() -> None:
@@ -228,3 +228,22 @@ def test_time_extended_bids_change_nothing_when_every_task_gets_a_robot(n: int, 
         total(cost, optimal_plan(plain, set()))
     )
     assert "busy" not in optimal_plan(extended, set())
+
+
+def queued(robot: str, cost: float, after: float) -> Bid:
+    """``robot`` is busy for ``after`` and may queue the task (``queue_after_current``)."""
+    return Bid(A1, robot, cost, "i", after)
+
+
+def test_a_busy_robot_queues_a_waiting_task_only_as_its_best_robot_by_the_margin() -> None:
+    # f is free and takes "a"; "b" waits: q (busy, may queue) does it for 20 against
+    # 40 on f: q queues it. "c": q2 bids 30 against f's 33, within the margin: it waits.
+    a = [bid("f", 5.0), queued("q", 50.0, 10.0)]
+    b = [bid("f", 40.0), queued("q", 20.0, 10.0)]
+    c = [bid("f", 33.0), queued("q2", 30.0, 10.0)]
+    assert optimal_plan([a, b, c], set()) == ["f", "q", None]
+    # one queued task per robot, the largest saving first
+    d = [bid("f", 100.0), queued("q", 10.0, 5.0)]
+    assert optimal_plan([a, b, d], set()) == ["f", None, "q"]
+    # without the margin rule no busy robot is planned
+    assert optimal_plan([a, b, c], set(), queue_margin=1.0) == ["f", None, None]
