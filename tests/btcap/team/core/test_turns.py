@@ -143,7 +143,10 @@ def test_an_extended_policy_plans_with_bids_for_later_but_never_awards_them() ->
     near = Auction(A1, "Move", frozenset({"f", "b"}), 1.0)
     far = Auction(A2, "Move", frozenset({"f", "c"}), 1.0)
     for a, bids in (
-        (near, [Bid(A1, "f", 10.0, "i"), Bid(A1, "b", 12.0, "i", 5.0, later=True)]),  # b: 12 after 5
+        (
+            near,
+            [Bid(A1, "f", 10.0, "i"), Bid(A1, "b", 12.0, "i", 5.0, later=True)],
+        ),  # b: 12 after 5
         (far, [Bid(A2, "f", 50.0, "i"), Bid(A2, "c", 200.0, "i", 100.0, later=True)]),
     ):
         queue.opened(a.id, a.invited)
