@@ -201,7 +201,9 @@ class AwardQueue:
             if not any(c.planned for c in self._closed):
                 batch = [c.bids(self.taken) for c in self._closed]
                 if getattr(policy, "extended", False):
-                    batch = [b + c.outcome.later() for b, c in zip(batch, self._closed)]
+                    batch = [
+                        b + c.outcome.later() for b, c in zip(batch, self._closed, strict=True)
+                    ]
                 robots = policy.plan(batch, self.taken)
                 for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
                     closed.plan, closed.planned = robot, robots is not None

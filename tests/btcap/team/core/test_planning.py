@@ -223,7 +223,7 @@ def test_time_extended_bids_change_nothing_when_every_task_gets_a_robot(n: int, 
     rng = np.random.default_rng(seed)
     cost = rng.uniform(1.0, 100.0, (n, n + 1))
     plain = bids_of(cost)
-    extended = [b + [later("busy", float(rng.uniform(1, 300)), 1.0)] for b in plain]
+    extended = [[*b, later("busy", float(rng.uniform(1, 300)), 1.0)] for b in plain]
     assert total(cost, optimal_plan(extended, set())) == pytest.approx(
         total(cost, optimal_plan(plain, set()))
     )
