@@ -5,11 +5,15 @@ The auctioneer holds every closed auction of a batch (the auctions that ran at t
 time for the same robots) until none still collecting bids competes for those robots, so
 it sees the batch's full bid matrix. The strategies differ in what they do with it:
 
-- ``optimal`` (the default): the batch's least total cost (the Hungarian method, scipy);
-  with more tasks than free robots, the cheapest set of tasks that can start together
-  (the first wave), the others waiting for the next robot that comes free. Chosen from
-  ``python -m btcap.bench allocation``: the best total cost at every size measured, at
-  the same messages and CPU as the others (O(n^3), 6 ms for 100 x 100).
+- ``optimal`` (the default): the batch's least total cost (the Hungarian method, scipy),
+  with time-extended bids: busy robots say what each task would cost them later, and
+  with more tasks than free robots the tasks that start are those for which waiting
+  would cost most against starting now (without busy robots' bids: the cheapest set of
+  tasks that can start together, the first wave); the others wait for the next robot
+  that comes free, or are queued on a busy robot that is clearly their best. Chosen from
+  ``python -m btcap.bench allocation`` (the best total cost at every size measured, at
+  the same messages and CPU as the others; O(n^3), 6 ms for 100 x 100) and ``python -m
+  btcap.bench missiontime`` (the only strategy near the offline reference).
 - ``auction`` (the paper's single-item auction with re-auctions): each auction is
   awarded on its own, to its cheapest bidder still free; the order is by *regret* (the
   auction whose best free bid is furthest below its second-best goes first, one with a
