@@ -107,34 +107,35 @@ def optimal_plan(
     costs plus the waiting tasks' deferral), so a free robot does not take a task a busy
     robot would do far more cheaply soon, and a task only it does well (or that would end
     last) goes first. Without bids from busy robots, the cheapest set of tasks that can
-    run together starts. Then a busy robot that may queue one more task (not
-    ``Bid.later``) is given a task still waiting if it is that task's best robot by
-    ``queue_margin`` (time-extended assignment: it starts the moment the robot is free),
-    the largest saving first, one each.
+    run together starts. Before that, a busy robot that may queue one more task (not
+    ``Bid.later``) is given a task if it is that task's best robot by ``queue_margin``
+    against every other bid, free or busy (time-extended assignment: it starts the
+    moment the robot is free), the largest saving first, one each.
     """
     import numpy as np
     from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
 
-    now = [[b for b in task if not b.after and not b.later] for task in bids]
-    robots, cost = _matrix(now, taken)
     plan: Plan = [None] * len(bids)
-    wait = [min((b.cost for b in task if b.after or b.later), default=0.0) for task in bids]
-    if robots and bids:
-        if len(bids) > len(robots) and any(wait):  # who waits matters: price the waiting
+    _queue(bids, taken, plan, queue_margin)
+    left = [t for t, robot in enumerate(plan) if robot is None]
+    now = [[b for b in bids[t] if not b.after and not b.later] for t in left]
+    robots, cost = _matrix(now, taken)
+    wait = [min((b.cost for b in bids[t] if b.after or b.later), default=0.0) for t in left]
+    if robots and left:
+        if len(left) > len(robots) and any(wait):  # who waits matters: price the waiting
             cost = cost - deferral * np.array(wait)[:, None]
         finite = cost[np.isfinite(cost)]
         big = 2.0 * (1.0 + float(np.abs(finite).sum()))  # the stand-in for "no bid"
         rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
         for t, r in zip(rows, cols, strict=True):
             if math.isfinite(cost[t, r]):
-                plan[t] = robots[r]
-    _queue(bids, taken, plan, queue_margin)
+                plan[left[t]] = robots[r]
     return plan
 
 
 def _queue(bids: Sequence[Sequence[Bid]], taken: Set[str], plan: Plan, margin: float) -> None:
-    """Give tasks still waiting to busy robots that may queue one and are their best
-    robot by ``margin``, the largest saving first, one task each (in place)."""
+    """Give tasks to busy robots that may queue one and are their best robot by
+    ``margin``, the largest saving first, one task each (in place)."""
     offers: list[tuple[float, int, str]] = []
     for t, task in enumerate(bids):
         if plan[t] is not None:
