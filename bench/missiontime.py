@@ -15,6 +15,9 @@ speeds and durations of ``paper_team``), 3, 5, 8 and 10 robots, all starting at 
 start cell; bebops are left out, they only explore. 20 objects on the mission's cave
 (120 x 80, seed 7), half of them contaminated on average, placed by the scenario seed.
 
+A strategy name ending in ``+queue`` (``optimal+queue``, run by default) runs with
+``queue_after_current``: a busy robot may hold one more task (time-extended assignment).
+
 **The reference** (:func:`nearest_first`) is an event simulation that knows, from time 0,
 every object's cell and whether it is contaminated, every robot's cell, speed and
 capabilities and every operation's duration. Whenever robots are free, the free robot
@@ -32,7 +35,9 @@ sometimes the slower of the two.
 Reported, for every registered strategy and team size, over the seeds: the mission time
 (mean), its ratio to the reference's (mean and worst over the seeds), to
 ``sequential``'s on the same seed and to finish-first's (mean and worst), the runs not
-completed, and the load average while it ran.
+completed, the load average while it ran, and whether the default strategy met the
+target: a mean at most :data:`TARGET` times the reference's at every team size and never
+slower than ``sequential`` on a seed.
 """
 
 from __future__ import annotations
@@ -82,6 +87,14 @@ models:
     identify: {duration_s: 2.0}
 """
 MODELS = ("husky", "spot")
+#: A strategy name ending in this runs with ``queue_after_current`` (time-extended
+#: assignment: a busy robot holds one more task and starts it the moment it is free).
+QUEUE = "+queue"
+#: Run by default beside every registered strategy.
+QUEUED = ("optimal+queue",)
+#: The target (issue 21): the default strategy's mission time at most this many times
+#: the reference's (mean over the seeds), and never above ``sequential``'s.
+TARGET = 1.02
 #: The reference's order of the two tasks of one object, for ties.
 _KINDS = ("identify", "decontaminate")
 
@@ -188,8 +201,10 @@ def scenario(
     robots: int, seed: int, strategy: str, team_file: Path, *, objects: int = OBJECTS
 ) -> Scenario:
     """The fixed-task-list mission: ``robots`` huskies and spots in turn, ``objects``
-    objects each with a loop of its own, an exact simulation."""
+    objects each with a loop of its own, an exact simulation. ``strategy`` may end in
+    :data:`QUEUE` (``optimal+queue``): a busy robot may also queue one more task."""
     team = [RobotEntry(f"{MODELS[i % 2]}{i // 2 + 1}", MODELS[i % 2]) for i in range(robots)]
+    name, queue = strategy.removesuffix(QUEUE), strategy.endswith(QUEUE)
     return Scenario(
         name=f"known-tasks-{robots}",
         robots=team,
@@ -199,7 +214,7 @@ def scenario(
         object_workers=max(1, objects),
         team_file=str(team_file),
         sim=SimSettings(delay_jitter=0.0, failure_chance=0.0),
-        allocation=Allocation(strategy=strategy),
+        allocation=Allocation(strategy=name, queue_after_current=queue),
     )
 
 
@@ -228,7 +243,7 @@ def run(
     """Every strategy's mission time against the reference and ``sequential``; writes
     ``bench/results/missiontime.json``."""
     seeds = list(seeds) if seeds is not None else list(QUICK_SEEDS if quick else SEEDS)
-    strategies = list(strategies) if strategies is not None else strategy_names()
+    strategies = list(strategies) if strategies is not None else [*strategy_names(), *QUEUED]
     load = [os.getloadavg()[0]]
     t0 = time.perf_counter()
     out: dict[str, Any] = {"objects": OBJECTS, "seeds": seeds, "strategies": strategies}
@@ -272,11 +287,23 @@ def run(
                     for s, v in times.items()
                 }
             out["not_completed"][key] = failed
+    out["target"] = _verdict(out)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     out["load_average"] = {"min": round(min(load), 2), "max": round(max(load), 2)}
     _print(out)
     write_result("missiontime", out)
     return out
+
+
+def _verdict(out: dict[str, Any]) -> dict[str, Any]:
+    """Whether the default strategy met the target at every team size measured."""
+    default = Allocation().strategy
+    if default not in out["strategies"] or "sequential" not in out["strategies"]:
+        return {"strategy": default, "met": None}  # not measured beside sequential
+    ref = {k: v[default]["mean"] for k, v in out["vs_reference"].items()}
+    seq = {k: v[default]["max"] for k, v in out["vs_sequential"].items()}
+    met = all(r <= TARGET for r in ref.values()) and all(q <= 1.0 for q in seq.values())
+    return {"strategy": default, "met": met, "vs_reference_mean": ref, "vs_sequential_worst": seq}
 
 
 def _print(out: dict[str, Any]) -> None:
@@ -305,6 +332,12 @@ def _print(out: dict[str, Any]) -> None:
         for key, by in out[table].items():
             cells = [f"{by[s]['mean']:.3f} ({by[s]['max']:.3f})" for s in strategies]
             print(f"{key:>6} " + " ".join(f"{c:>15}" for c in cells))
+    v = out.get("target", {})
+    if v.get("met") is not None:
+        print(
+            f"target (default {v['strategy']}: mean <= {TARGET} x the reference at every size, "
+            f"never slower than sequential on a seed): {'met' if v['met'] else 'NOT met'}"
+        )
     la = out["load_average"]
     print(f"({out['seconds']} s; load average {la['min']}-{la['max']})")
 
@@ -317,7 +350,7 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str,
     p.add_argument("--quick", action="store_true", default=quick)
     p.add_argument("--seeds", type=seed_list, help="scenario seeds, e.g. 1-5 or 3,7")
     p.add_argument("--robots", help="team sizes, e.g. 3,5,8,10")
-    p.add_argument("--strategies", help="strategy names, e.g. optimal,sequential")
+    p.add_argument("--strategies", help="strategy names, e.g. optimal,sequential,optimal+queue")
     a = p.parse_args(argv)
     try:
         sizes = [int(n) for n in a.robots.split(",")] if a.robots else list(ROBOTS)
@@ -326,7 +359,7 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str,
     if any(n < 1 for n in sizes):
         p.error(f"--robots {a.robots!r}: expected team sizes of at least 1")
     names = a.strategies.split(",") if a.strategies else None
-    unknown = sorted(set(names or ()) - set(strategy_names()))
+    unknown = sorted({n.removesuffix(QUEUE) for n in names or ()} - set(strategy_names()))
     if unknown:
         p.error(
             f"--strategies: {', '.join(unknown)}; expected some of {', '.join(strategy_names())}"

@@ -6,6 +6,9 @@ target (and, to decontaminate, on to the decontamination area) times its distanc
 factor, plus the operation's duration. The same estimate, asked again while the robot
 drives or works, says what finishing would cost from where it is now: the drive left and
 the work left (its :class:`~btcap.sim.robot.Body` hears of every cell and operation).
+A bid for other work *after* the work held (to queue it, or a time-extended bid; see
+:func:`~btcap.team.core.bidding.bidding_after`) starts where that work leaves the robot:
+the end of the run it drives for, or the decontamination area while it carries.
 """
 
 from __future__ import annotations
@@ -13,9 +16,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
-from btcap import Port, Sequence, Tree
+from btcap import Leaf, Port, Sequence, State, Tree
 from btcap.actors import Actor
 from btcap.sim.distance import Cell, DistanceCache, path_length
 from btcap.sim.grid import GridMap
@@ -24,6 +27,7 @@ from btcap.sim.model import RobotModel
 from btcap.sim.robot import Body
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
+from btcap.team.core.bidding import bidding_after
 
 __all__ = [
     "DECONTAMINATE",
@@ -97,6 +101,45 @@ def _target(inputs: Mapping[str, Any], key: str) -> Cell | None:
     return (int(value[0]), int(value[1]))
 
 
+class _Heading(Leaf):
+    """Tells the robot's body which run it now drives for and where that run leaves it
+    (its goal; for a carry, the decontamination area), so bids for later made meanwhile
+    start there; forgotten when the run stops (halted, reset or shut down)."""
+
+    __slots__ = ("_body", "_end", "_op", "_told")
+    INPUTS: ClassVar[Any] = {
+        "goal": Port(tuple[int, int] | None, None),
+        "target": Port(int | None, None),
+    }
+
+    def setup_heading(self, body: Body, op: str, end: Cell | None) -> None:
+        self._body, self._op, self._end = body, op, end
+        self._told: tuple[tuple[str, int, Cell], Cell] | None = None
+
+    def on_tick(self) -> State:
+        goal, target = self.inputs["goal"], self.inputs["target"]
+        if goal is not None:
+            cell = (int(goal[0]), int(goal[1]))
+            key = (self._op, -1 if target is None else int(target), cell)
+            self._told = self._body.heading = (key, self._end or cell)
+        return State.SUCCEEDED
+
+    def _forget(self) -> None:
+        told = getattr(self, "_told", None)
+        if told is not None and self._body.heading is told:
+            self._body.heading = None
+        self._told = None
+
+    def on_untick(self) -> None:
+        self._forget()
+
+    def on_reset(self) -> None:
+        self._forget()
+
+    def on_shutdown(self) -> None:
+        self._forget()
+
+
 def robot_setup(
     robot: str, model: RobotModel, grid: GridMap, *, manager: str = "sim/manager"
 ) -> RobotSetup:
@@ -117,13 +160,15 @@ def robot_setup(
             at = _target(inputs, o.goal)
             if at is None or not grid.is_free(at):
                 return None
+            target = None if o.target is None else inputs.get(o.target)
             if o.target is None:  # explore: where the robot stands
                 left = body.left_s(o.op, -1, duration) if body.position == at else None
             else:
-                target = inputs.get(o.target)
                 left = None if target is None else body.left_s(o.op, int(target), duration)
             if left is None:  # not under way: drive there, work, (carry the object on)
-                cost = travel(body.position, at) + duration
+                task = (o.op, -1 if target is None else int(target), at)
+                start = body.bound_for(grid.decon_area, task) if bidding_after() else body.position
+                cost = travel(start, at) + duration
                 if o.then_decon:
                     cost += travel(at, grid.decon_area)
             elif o.then_decon and body.phase == "carry":
@@ -135,14 +180,18 @@ def robot_setup(
         def build() -> Tree:
             i, out = o.interface.bridge_types()
             bi = i(name="inputs")
+            heading = _Heading("heading")
+            heading.setup_heading(body, o.op, grid.decon_area if o.then_decon else None)
             move = MoveToLeaf("drive", robot=robot, manager=manager)
             leaf = OperateLeaf(o.leaf, robot=robot, manager=manager, op=o.op)
             bo = out(name="outputs") if o.result is not None else None
-            children = [bi, move, leaf] if bo is None else [bi, move, leaf, bo]
+            children = [bi, heading, move, leaf] if bo is None else [bi, heading, move, leaf, bo]
             tree = Tree(Sequence(o.op, children=children))
             tree.wire(bi, o.goal, move, "goal")
+            tree.wire(bi, o.goal, heading, "goal")
             if o.target is not None:
                 tree.wire(bi, o.target, leaf, "target")
+                tree.wire(bi, o.target, heading, "target")
             if bo is not None and o.result is not None:
                 tree.wire(leaf, o.result, bo, o.result)
             return tree

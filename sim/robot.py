@@ -26,6 +26,9 @@ class Body(Actor):
         self.target = -1
         self.phase = ""
         self._work_since = 0.0  # clock time its timed work began
+        #: The run it drives for, (op, target, goal), and the cell that run ends on; told
+        #: by the run's own tree as it starts, forgotten when it stops.
+        self.heading: tuple[tuple[str, int, Cell], Cell] | None = None
 
     def _now(self) -> float:
         return self._system.clock.now() if self._system is not None else 0.0
@@ -39,6 +42,18 @@ class Body(Actor):
         if msg.phase == "work" and not (same and self.phase == "work"):
             self._work_since = self._now()
         self.op, self.target, self.phase = msg.op, msg.target, msg.phase
+
+    def bound_for(self, decon_area: Cell, task: tuple[str, int, Cell]) -> Cell:
+        """Where the work the robot holds leaves it, to price ``task`` (op, target, goal)
+        after that work: the decontamination area while it carries an object there (or
+        works at it), the end of the run it drives for (``heading``), else where it is
+        (and for that very run: its own bid is what finishing costs from here)."""
+        if self.op == "decontaminate" and self.phase in ("carry", "work"):
+            return decon_area
+        h = self.heading
+        if h is not None and h[0] != task:
+            return h[1]
+        return self.position
 
     def left_s(self, op: str, target: int, duration_s: float) -> float | None:
         """Clock seconds of work left on ``op`` on ``target`` if it takes ``duration_s``:

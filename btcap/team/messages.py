@@ -1,5 +1,4 @@
-"""Messages of the capability layer: team membership, repository gossip, auctions,
-executions.
+"""Messages of the capability layer: team membership, repository gossip, auctions, executions.
 
 Every type here is registered by :func:`btcap.team.runtime.protocol.protocol_registry`,
 so it travels between robots over any transport. Values of capability ports travel as
@@ -181,7 +180,7 @@ class CallForBids(Message):
     auctioneer named in the auction's id. ``holder``: running work is re-evaluated, and
     the robot running execution ``holder`` bids what finishing it there would cost.
     ``handing``: an exchange; the robot running ``handing`` bids as if it handed that over
-    (no wait), and may be awarded this task beside it."""
+    (no wait), and may be awarded this task beside it. ``extended``: too busy, bid for later."""
 
     auction: AuctionId
     interface: str
@@ -189,15 +188,19 @@ class CallForBids(Message):
     inputs: dict[str, Any]
     holder: ExecutionId | None = None
     handing: ExecutionId | None = None
+    extended: bool = False
 
 
 class Bid(Message):
-    """A cost (lower is better) for running the capability with one implementation."""
+    """A cost (lower is better) with one implementation, ``after`` of it a wait;
+    ``later``: too busy, what it would cost once free (to plan with, never awarded)."""
 
     auction: AuctionId
     robot: str
     cost: float
     implementation: str
+    after: float = 0.0
+    later: bool = False
 
 
 class NoBid(Message):
@@ -282,8 +285,7 @@ class ConsensusClaim(Message):
 class ConsensusPrices(Message):
     """An origin's price board in its task set ``version``, numbered ``seq``, sent to a
     robot that must bid again: (task, price, holder) for each open task; ``heard``: the
-    recipient's newest claim stamp it reflects; ``ceiling``: the cost of claiming
-    nothing."""
+    recipient's newest claim stamp it reflects; ``ceiling``: cost of claiming nothing."""
 
     robot: str
     version: int
@@ -301,8 +303,7 @@ class RunState(enum.Enum):
     so the core needs no behaviour tree; the values are the node states' (the executor
     reports its implementation's root state), so the wire bytes are the same. LOST is what
     an executor reports for an execution it does not (or no longer) have; its wire value is
-    ``"shutdown"``.
-    """
+    ``"shutdown"``."""
 
     UNINITIALIZED = "uninitialized"
     IDLE = "idle"

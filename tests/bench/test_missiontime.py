@@ -99,12 +99,18 @@ def test_the_bench_compares_strategies_with_the_reference_and_sequential(
     written: dict[str, object] = {}
     monkeypatch.setattr(missiontime, "write_result", lambda name, data: written.update(data))
     argv = ["missiontime", "--quick", "--robots", "3", "--seeds", "1"]
-    assert bench_main([*argv, "--strategies", "sequential,auction"]) == 0
-    assert written["not_completed"] == {"3": {"sequential": 0, "auction": 0}}
+    assert bench_main([*argv, "--strategies", "sequential,optimal,optimal+queue"]) == 0
+    assert written["not_completed"] == {"3": {"sequential": 0, "optimal": 0, "optimal+queue": 0}}
     assert written["vs_sequential"]["3"]["sequential"] == {"mean": 1.0, "max": 1.0}  # type: ignore[index]
-    ratio = written["vs_reference"]["3"]["auction"]  # type: ignore[index]
-    assert 0.5 < ratio["mean"] <= ratio["max"] < 3
-    assert "load average" in capsys.readouterr().out
+    for name in ("optimal", "optimal+queue"):
+        ratio = written["vs_reference"]["3"][name]  # type: ignore[index]
+        assert 0.5 < ratio["mean"] <= ratio["max"] < 3
+    target = written["target"]
+    assert target["strategy"] == "optimal"  # type: ignore[index]
+    assert isinstance(target["met"], bool)  # type: ignore[index]
+    out = capsys.readouterr().out
+    assert "load average" in out
+    assert "target (default optimal" in out
 
 
 def test_the_bench_names_a_bad_option(capsys: pytest.CaptureFixture[str]) -> None:

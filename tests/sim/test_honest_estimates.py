@@ -26,8 +26,10 @@ from btcap.sim.robot import Body
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import builtin_scenarios, check_scenario, grow_team, load_scenario
 from btcap.sim.scenariofile import Scenario
+from btcap.team.core.bidding import evaluate
 from btcap.team.core.costwatch import CostWatch
-from btcap.team.ids import ExecutionId
+from btcap.team.ids import AuctionId, ExecutionId
+from btcap.team.messages import Bid, CallForBids
 
 #: A hand-over undone within this many clock seconds is one too many.
 UNDONE_S = 5.0
@@ -172,3 +174,54 @@ def test_an_estimate_that_rises_during_a_drive_is_news() -> None:
     assert not watch.see(execution, impl.bid(inputs))  # type: ignore[attr-defined]
     body.on_position(PositionUpdate("spot1", grid.start))
     assert watch.see(execution, impl.bid(inputs))  # type: ignore[attr-defined]
+
+
+def test_a_bid_for_later_starts_where_the_held_work_leaves_the_robot() -> None:
+    grid = GridMap.generate_cave(60, 40, seed=2)
+    far = max(
+        ((r, c) for r in range(grid.height) for c in range(grid.width) if grid.is_free((r, c))),
+        key=lambda cell: abs(cell[0] - grid.start[0]) + abs(cell[1] - grid.start[1]),
+    )
+    body, impl = _identify_bid(grid, grid.start)
+    cfb = CallForBids(AuctionId("operator", 1), "IdentifyObject", "", {})
+
+    def bid(inputs: dict[str, object], wait: float) -> float:
+        answer = evaluate(cfb, "spot1", [impl], inputs, wait=wait, unmet=lambda i: None).answer  # type: ignore[list-item]
+        assert isinstance(answer, Bid)
+        return answer.cost
+
+    # It drives to identify object 3 at ``far`` (the run's tree tells the body so).
+    body.heading = (("identify", 3, far), far)
+    other = {"object": 4, "at": far}
+    from_here = impl.bid(other)  # type: ignore[attr-defined]
+    assert from_here > 2.0 + 10
+    assert bid(other, 0.0) == pytest.approx(from_here)  # free, or an exchange: from here
+    assert bid(other, 5.0) == pytest.approx(5.0 + 2.0)  # after the held run: from far
+    held = {"object": 3, "at": far}
+    assert bid(held, 5.0) == pytest.approx(5.0 + from_here)  # its own run: from here
+    # Carrying an object, later work starts at the decontamination area.
+    body.heading = None
+    body.on_position(PositionUpdate("spot1", grid.start, "decontaminate", 7, "carry"))
+    at_decon = {"object": 4, "at": grid.decon_area}
+    assert bid(at_decon, 5.0) == pytest.approx(5.0 + 2.0)
+    assert bid(at_decon, 0.0) > 5.0 + 2.0 + 10
+
+
+def test_a_run_tells_the_body_where_it_leaves_the_robot_until_it_stops() -> None:
+    grid = GridMap.generate_cave(60, 40, seed=2)
+    setup = robot_setup("husky1", paper_team()["husky"], grid)
+    body = setup.actors[Body.PATH]
+    assert isinstance(body, Body)
+    cases = (
+        ("MoveToDecontamination", "decontaminate", grid.decon_area),
+        ("IdentifyObject", "identify", (3, 4)),
+    )
+    for interface, op, end in cases:
+        impl = next(i for i in setup.implementations if i.interface.name == interface)
+        inputs, heading = impl.build().root.children[:2]
+        heading.setup()
+        inputs.outputs["at"], inputs.outputs["object"] = (3, 4), 7
+        heading.tick()
+        assert body.heading == ((op, 7, (3, 4)), end)
+        heading.shutdown()
+        assert body.heading is None

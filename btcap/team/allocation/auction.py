@@ -77,6 +77,7 @@ class SingleItemAuction(Allocator):
         super().__init__()
         self.robot = robot
         self.policy = policy
+        self._extended = bool(getattr(policy, "extended", False))
         self.team = team
         self.window_s = window_s
         self.award_timeout_s = award_timeout_s
@@ -141,6 +142,8 @@ class SingleItemAuction(Allocator):
                 dict(task.inputs),
                 task.holder,
                 task.handing,
+                # time-extended: busy robots say what a new task would cost them later
+                self._extended and task.holder is None and task.handing is None,
             )
             for robot in sorted(task.candidates):
                 system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)

@@ -35,10 +35,16 @@ class AuctionOutcome:
 
     def awardable(self, reserve: float | None = None) -> list[Bid]:
         """The bids to award in turn, cheapest first; with a reserve, only those below it
-        (moving running work must pay off)."""
+        (moving running work must pay off). Time-extended bids (``Bid.later``) are never
+        awarded: they say what the task would cost later."""
         if reserve is None:
-            return list(self.ranking)
-        return [b for b in self.ranking if b.cost < reserve]
+            return [b for b in self.ranking if not b.later]
+        return [b for b in self.ranking if b.cost < reserve and not b.later]
+
+    def later(self) -> list[Bid]:
+        """The time-extended bids, cheapest first: what the task would cost each busy robot
+        after the work it holds."""
+        return [b for b in self.ranking if b.later]
 
 
 @dataclass(slots=True)

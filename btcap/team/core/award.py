@@ -29,7 +29,9 @@ def passed_over(
     reasons = dict(outcome.declined)
     reasons.update((robot, "no answer") for robot in outcome.silent)
     for bid in outcome.ranking:
-        if reserve is not None and bid.cost >= reserve:
+        if bid.later:
+            reasons[bid.robot] = f"busy (would cost {bid.cost:g} after its current work)"
+        elif reserve is not None and bid.cost >= reserve:
             reasons[bid.robot] = f"bid {bid.cost:g} not below {reserve:g}"
         elif bid.robot in taken:
             reasons[bid.robot] = "took another task of the same round"

@@ -3,12 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Protocol, TypeVar
 
 from btcap.team.messages import Bid, CallForBids, NoBid
 
-__all__ = ["Bidder", "Evaluation", "evaluate"]
+__all__ = ["Bidder", "Evaluation", "bidding_after", "evaluate"]
+
+_AFTER: ContextVar[bool] = ContextVar("btcap_bidding_after", default=False)
+
+
+def bidding_after() -> bool:
+    """Whether the bid being priced now is for after the work the robot holds (to queue
+    the task, or a time-extended bid): an implementation's bid function prices it from
+    where that work leaves the robot, not from where it is (see
+    :mod:`btcap.team.core.body`)."""
+    return _AFTER.get()
 
 
 class Bidder(Protocol):
@@ -40,16 +51,35 @@ def evaluate(
     *,
     wait: float | None,
     unmet: Callable[[B], str | None],
+    later: bool = False,
 ) -> Evaluation:
     """Bid ``wait`` (what the body must finish first; None: busy) plus the cheapest cost.
 
     ``unmet`` says why an implementation's preconditions do not hold. Ties go to the
     implementation whose name sorts first, so the same robot always bids the same way.
+    ``later``: the robot cannot take the task now and bids what it would cost after
+    ``wait`` (a time-extended bid, ``Bid.after``).
     """
     if not implementations:
         return Evaluation(NoBid(cfb.auction, robot, "no matching implementation"))
     if wait is None:
         return Evaluation(NoBid(cfb.auction, robot, "busy"))
+    token = _AFTER.set(wait > 0)
+    try:
+        return _cheapest(cfb, robot, implementations, inputs, wait, unmet, later)
+    finally:
+        _AFTER.reset(token)
+
+
+def _cheapest(
+    cfb: CallForBids,
+    robot: str,
+    implementations: Sequence[B],
+    inputs: Mapping[str, Any],
+    wait: float,
+    unmet: Callable[[B], str | None],
+    later: bool,
+) -> Evaluation:
     best: tuple[float, str] | None = None
     reasons: list[str] = []
     errors: list[tuple[str, Exception]] = []
@@ -70,4 +100,4 @@ def evaluate(
             best = (cost, impl.name)
     if best is None:
         return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
-    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1]), errors)
+    return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], wait, later), errors)

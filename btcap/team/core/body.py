@@ -9,6 +9,8 @@ further from done (and back again once the estimate is refreshed); and only an e
 that follows the robot can rise when its path gets blocked, news the run's origin
 re-evaluates on at once (:mod:`btcap.team.core.costwatch`). Read the robot's pose and
 progress when asked (odometry, the action server's feedback), not the values at award.
+A bid for *other* work made while busy (a queued task, or a time-extended bid,
+``Bid.after``) prices that work from where the work held leaves the robot, after it.
 """
 
 from __future__ import annotations
@@ -60,6 +62,13 @@ class Body:
         if self.queue_after_current and self.queued is None:
             return self._running_cost
         return None
+
+    def committed_cost(self) -> float:
+        """What the body must finish before it could start anything new: the running
+        work's latest estimate and the queued one's cost (a time-extended bid's wait)."""
+        if self.running is None:
+            return 0.0
+        return self._running_cost + (self._queued_cost if self.queued is not None else 0.0)
 
     def estimate(self, execution: ExecutionId, cost: float) -> None:
         """A fresh estimate of what finishing ``execution`` costs (see the module's

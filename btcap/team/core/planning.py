@@ -5,11 +5,15 @@ The auctioneer holds every closed auction of a batch (the auctions that ran at t
 time for the same robots) until none still collecting bids competes for those robots, so
 it sees the batch's full bid matrix. The strategies differ in what they do with it:
 
-- ``optimal`` (the default): the batch's least total cost (the Hungarian method, scipy);
-  with more tasks than free robots, the cheapest set of tasks that can start together
-  (the first wave), the others waiting for the next robot that comes free. Chosen from
-  ``python -m btcap.bench allocation``: the best total cost at every size measured, at
-  the same messages and CPU as the others (O(n^3), 6 ms for 100 x 100).
+- ``optimal`` (the default): the batch's least total cost (the Hungarian method, scipy),
+  with time-extended bids: busy robots say what each task would cost them later, and
+  with more tasks than free robots the tasks that start are those for which waiting
+  would cost most against starting now (without busy robots' bids: the cheapest set of
+  tasks that can start together, the first wave); the others wait for the next robot
+  that comes free, or are queued on a busy robot that is clearly their best. Chosen from
+  ``python -m btcap.bench allocation`` (the best total cost at every size measured, at
+  the same messages and CPU as the others; O(n^3), 6 ms for 100 x 100) and ``python -m
+  btcap.bench missiontime`` (the only strategy near the offline reference).
 - ``auction`` (the paper's single-item auction with re-auctions): each auction is
   awarded on its own, to its cheapest bidder still free; the order is by *regret* (the
   auction whose best free bid is furthest below its second-best goes first, one with a
@@ -45,7 +49,7 @@ if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents 
 
     Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 
-__all__ = ["CHAIN_MAX", "optimal_plan", "regret", "sequential_plan"]
+__all__ = ["CHAIN_MAX", "DEFERRAL", "QUEUE_MARGIN", "optimal_plan", "regret", "sequential_plan"]
 
 Plan = list[str | None]
 
@@ -75,24 +79,78 @@ def _matrix(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> tuple[list[str], 
     return robots, cost
 
 
-def optimal_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
-    """For each task (its awardable bids), the robot that gets it in an assignment of least
-    total cost, each robot at most once and never one already ``taken``; None for a task
-    that gets no robot."""
+#: How much more a task left waiting costs than its best bid from a busy robot (see
+#: :func:`optimal_plan`): more than 1, so that of two tasks that cost the same now, the
+#: one that would end later if it waited starts first (the mission ends with its last
+#: task). Chosen from ``python -m btcap.bench missiontime`` (1.25-2 gave the same).
+DEFERRAL = 1.5
+#: A busy robot queues a task (``queue_after_current``) only if it is the task's best
+#: robot by this share: below every other bid, free or busy, times (1 - margin).
+QUEUE_MARGIN = 0.2
+
+
+def optimal_plan(
+    bids: Sequence[Sequence[Bid]],
+    taken: Set[str],
+    *,
+    deferral: float = DEFERRAL,
+    queue_margin: float = QUEUE_MARGIN,
+) -> Plan:
+    """For each task (its bids), the robot that gets it in an assignment of least total
+    cost, each robot at most once and never one already ``taken``; None for a task that
+    gets no robot.
+
+    Bids from busy robots (``Bid.after`` > 0: for later, or to queue the task) say what a
+    task left waiting would cost: ``deferral`` times its cheapest one. The free robots
+    are planned first: when tasks outnumber them, the tasks that start are those for
+    which starting now saves most against waiting (least total of the started tasks'
+    costs plus the waiting tasks' deferral), so a free robot does not take a task a busy
+    robot would do far more cheaply soon, and a task only it does well (or that would end
+    last) goes first. Without bids from busy robots, the cheapest set of tasks that can
+    run together starts. Before that, a busy robot that may queue one more task (not
+    ``Bid.later``) is given a task if it is that task's best robot by ``queue_margin``
+    against every other bid, free or busy (time-extended assignment: it starts the
+    moment the robot is free), the largest saving first, one each.
+    """
     import numpy as np
     from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
 
-    robots, cost = _matrix(bids, taken)
-    if not robots or not bids:
-        return [None] * len(bids)
-    finite = cost[np.isfinite(cost)]
-    big = 2.0 * (1.0 + float(finite.sum()))  # the stand-in for "no bid"
-    rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
     plan: Plan = [None] * len(bids)
-    for t, r in zip(rows, cols, strict=True):
-        if math.isfinite(cost[t, r]):
-            plan[t] = robots[r]
+    _queue(bids, taken, plan, queue_margin)
+    left = [t for t, robot in enumerate(plan) if robot is None]
+    now = [[b for b in bids[t] if not b.after and not b.later] for t in left]
+    robots, cost = _matrix(now, taken)
+    wait = [min((b.cost for b in bids[t] if b.after or b.later), default=0.0) for t in left]
+    if robots and left:
+        if len(left) > len(robots) and any(wait):  # who waits matters: price the waiting
+            cost = cost - deferral * np.array(wait)[:, None]
+        finite = cost[np.isfinite(cost)]
+        big = 2.0 * (1.0 + float(np.abs(finite).sum()))  # the stand-in for "no bid"
+        rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
+        for t, r in zip(rows, cols, strict=True):
+            if math.isfinite(cost[t, r]):
+                plan[left[t]] = robots[r]
     return plan
+
+
+def _queue(bids: Sequence[Sequence[Bid]], taken: Set[str], plan: Plan, margin: float) -> None:
+    """Give tasks to busy robots that may queue one and are their best robot by
+    ``margin``, the largest saving first, one task each (in place)."""
+    offers: list[tuple[float, int, str]] = []
+    for t, task in enumerate(bids):
+        if plan[t] is not None:
+            continue
+        for b in task:
+            if not b.after or b.later or b.robot in taken:
+                continue
+            rest = min((o.cost for o in task if o.robot != b.robot), default=math.inf)
+            if b.cost < (1.0 - margin) * rest:
+                offers.append((b.cost - rest, t, b.robot))
+    used = {r for r in plan if r is not None}
+    for _saving, t, robot in sorted(offers):
+        if plan[t] is None and robot not in used:
+            plan[t] = robot
+            used.add(robot)
 
 
 def _greedy(cost: Matrix, got: list[int]) -> None:
@@ -176,8 +234,8 @@ def _improve(cost: Matrix, got: list[int]) -> None:
 def sequential_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
     """The greedy assignment (cheapest robot-task pair first, then the next), improved by
     exchanges, chains of three, moves to free robots and waiting tasks taking robots over;
-    same contract as :func:`optimal_plan`."""
-    robots, cost = _matrix(bids, taken)
+    same contract as :func:`optimal_plan` (time-extended bids are left out)."""
+    robots, cost = _matrix([[b for b in task if not b.later] for task in bids], taken)
     if not robots or not bids:
         return [None] * len(bids)
     got = [-1] * len(bids)

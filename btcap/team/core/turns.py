@@ -45,6 +45,12 @@ class BatchPolicy(Protocol):
     already ``taken`` in the batch; it returns a robot per auction, or None to award
     without a plan. ``first`` gets each waiting auction's bids still free, its planned
     robot first, and returns the index of the one that awards next.
+
+    A policy may also say ``extended = True`` (time-extended bids; absent means False):
+    its calls for bids ask busy robots what each new task would cost them after the
+    work they hold, and ``plan`` gets those bids (``Bid.later``) after each
+    auction's awardable ones. They are never awarded: a plan naming such a robot is
+    awarded to the cheapest free bidder instead.
     """
 
     @property
@@ -78,12 +84,19 @@ class _ByRegret:
 
 
 class Planned:
-    """A planning policy: ``planner`` gives the batch's robots; the cheapest award first."""
+    """A planning policy: ``planner`` gives the batch's robots; the cheapest award first.
+    ``extended``: the planner is also given time-extended bids (see :class:`BatchPolicy`)."""
 
     batches = True
 
-    def __init__(self, planner: Callable[[Sequence[Sequence[Bid]], Set[str]], Plan]) -> None:
+    def __init__(
+        self,
+        planner: Callable[[Sequence[Sequence[Bid]], Set[str]], Plan],
+        *,
+        extended: bool = False,
+    ) -> None:
         self.planner = planner
+        self.extended = extended
 
     def plan(self, bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan | None:
         return self.planner(bids, taken)
@@ -106,7 +119,7 @@ class _ByArrival:
 
 AUCTION: BatchPolicy = _ByRegret()
 SEQUENTIAL: BatchPolicy = Planned(sequential_plan)
-OPTIMAL: BatchPolicy = Planned(optimal_plan)
+OPTIMAL: BatchPolicy = Planned(optimal_plan, extended=True)
 ARRIVAL: BatchPolicy = _ByArrival()
 
 
@@ -118,10 +131,17 @@ class _Closed:
     outcome: AuctionOutcome
     reserve: float | None
     plan: str | None = None  # a planning policy's robot for it
+    planned: bool = False  # a plan was made for it (``plan`` None: it waits)
 
     def bids(self, taken: Set[str]) -> list[Bid]:
-        """What may be awarded, best first: the planned robot, then the cheapest free."""
+        """What may be awarded, best first: the planned robot, then the cheapest free
+        (a busy robot that could queue it only if planned); nothing for a task the plan
+        leaves waiting."""
         bids = [b for b in self.outcome.awardable(self.reserve) if b.robot not in taken]
+        if self.planned:
+            if self.plan is None:
+                return []
+            bids = [b for b in bids if b.robot == self.plan or not b.after]
         return sorted(bids, key=lambda b: b.robot != self.plan)
 
 
@@ -178,12 +198,16 @@ class AwardQueue:
             wanted = {b.robot for c in self._closed for b in c.outcome.ranking}
             if any(wanted & invited for invited in self._open.values()):
                 return None
-            if all(c.plan is None for c in self._closed):
+            if not any(c.planned for c in self._closed):
                 batch = [c.bids(self.taken) for c in self._closed]
-                robots = policy.plan(batch, self.taken) or [None] * len(batch)
-                for closed, robot in zip(self._closed, robots, strict=True):
-                    closed.plan = robot
-            nxt = self._closed[policy.first([c.bids(self.taken) for c in self._closed])]
+                if getattr(policy, "extended", False):
+                    batch = [
+                        b + c.outcome.later() for b, c in zip(batch, self._closed, strict=True)
+                    ]
+                robots = policy.plan(batch, self.taken)
+                for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
+                    closed.plan, closed.planned = robot, robots is not None
+            nxt = self._closed[policy.first([c.bids(self._held(c)) for c in self._closed])]
         self._closed.remove(nxt)
         self._awarding = nxt
         return nxt.auction
@@ -194,8 +218,19 @@ class AwardQueue:
         closed = self._awarding
         if closed is None or closed.auction != auction:
             raise ValueError(f"auction {auction} is not the one awarding")
-        reasons = passed_over(closed.outcome, closed.reserve, self.taken)
-        return AwardRound(auction, task, closed.bids(self.taken), reasons)
+        held = self._held(closed)
+        reasons = passed_over(closed.outcome, closed.reserve, held)
+        if closed.planned and closed.plan is None:
+            for b in closed.outcome.awardable(closed.reserve):
+                reasons.setdefault(b.robot, "busy with the plan's other work: this task waits")
+        return AwardRound(auction, task, closed.bids(held), reasons)
+
+    def _held(self, closed: _Closed) -> Set[str]:
+        """The robots ``closed`` may not be awarded: those taken in the batch and those
+        the plan gives another auction still waiting (a task the plan leaves waiting
+        does not take a robot planned for another, nor does a declined award)."""
+        planned = {c.plan for c in self._closed if c is not closed and c.plan is not None}
+        return self.taken | planned if planned else self.taken
 
     def took(self, robot: str) -> None:
         """``robot`` accepted a task of this batch."""

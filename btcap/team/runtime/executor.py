@@ -137,6 +137,10 @@ class ExecutorSide:
         )
         # re-evaluated: what is left; an exchange: as if it handed its own over
         wait = 0.0 if holding or handing else self.body.wait_cost()
+        # time-extended: too busy to take it, it says what the task would cost it later
+        later = wait is None and cfb.extended and cfb.holder is None and cfb.handing is None
+        if later:
+            wait = self.body.committed_cost()
         if not impls or wait is None:
             return NoBid(cfb.auction, self.robot, "busy" if impls else "no matching implementation")
         if self.slot is None and cfb.auction.auctioneer != self.robot:
@@ -146,7 +150,13 @@ class ExecutorSide:
         except TreeError as exc:
             return NoBid(cfb.auction, self.robot, str(exc))
         ev = evaluate(
-            cfb, self.robot, impls, inputs, wait=wait, unmet=lambda i: self.unmet(i.preconditions)
+            cfb,
+            self.robot,
+            impls,
+            inputs,
+            wait=wait,
+            unmet=lambda i: self.unmet(i.preconditions),
+            later=later,
         )
         for name, err in ev.errors:
             self.stats.errors += 1

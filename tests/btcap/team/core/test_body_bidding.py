@@ -40,7 +40,7 @@ def unmet(impl: Impl) -> str | None:
 def test_the_cheapest_allowed_implementation_bids_with_the_wait() -> None:
     impls = [Impl("dear", 5.0), Impl("cheap", 1.0, needs="precondition x"), Impl("ok", 2.0)]
     ev = evaluate(CFB, "b", impls, {}, wait=3.0, unmet=unmet)
-    assert ev.answer == Bid(A1, "b", 5.0, "ok")
+    assert ev.answer == Bid(A1, "b", 5.0, "ok", 3.0)  # 3 of it the wait
 
 
 def test_ties_go_to_the_first_name_and_broken_bid_functions_are_reported() -> None:
@@ -138,3 +138,31 @@ def test_a_fresh_estimate_of_the_running_work_is_what_a_queued_task_waits() -> N
     body.estimate(queued, 3.0)  # queued: priced from here, not after the running work
     assert body.release(running) == queued
     assert body.wait_cost() == 30.0
+
+
+def test_a_busy_robot_bids_for_later_only_when_asked_and_it_is_never_awarded() -> None:
+    body = Body()
+    e1, e2 = ExecutionId("o", "n", 1), ExecutionId("o", "n", 2)
+    assert body.committed_cost() == 0.0
+    body.take(e1, 30.0)
+    assert body.wait_cost() is None  # busy, no queue: no bid for now
+    body.estimate(e1, 20.0)
+    assert body.committed_cost() == 20.0  # what is left of its work
+    # a time-extended call: what the task would cost after the 20 of work it holds
+    later = evaluate(
+        CFB, "r", [Impl("a", 5.0)], {}, wait=body.committed_cost(), unmet=unmet, later=True
+    )
+    assert later.answer == Bid(A1, "r", 25.0, "a", 20.0, later=True)
+    now = evaluate(CFB, "s", [Impl("a", 7.0)], {}, wait=0.0, unmet=unmet)
+    assert now.answer == Bid(A1, "s", 7.0, "a")
+    auction = Auction(A1, "Count", frozenset({"r", "s"}), 1.0)
+    for answer in (later.answer, now.answer):
+        assert isinstance(answer, Bid)
+        auction.offer(answer)
+    outcome = auction.outcome()
+    assert [b.robot for b in outcome.awardable()] == ["s"]
+    assert [b.robot for b in outcome.later()] == ["r"]
+    queued = Body(queue_after_current=True)
+    queued.take(e1, 30.0)
+    queued.take(e2, 4.0)
+    assert queued.committed_cost() == 34.0

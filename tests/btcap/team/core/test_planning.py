@@ -191,3 +191,59 @@ def test_strategy_names_are_checked() -> None:
     assert check_strategy("sequential") == "sequential"
     with pytest.raises(ValueError, match="'fastest': expected one of auction, sequential"):
         check_strategy("fastest")
+
+
+def later(robot: str, cost: float, after: float) -> Bid:
+    """A time-extended bid: ``robot`` is busy for ``after`` first."""
+    return Bid(A1, robot, cost, "i", after, later=True)
+
+
+def test_a_task_a_busy_robot_does_far_cheaper_soon_waits_for_it() -> None:
+    # one free robot f; "near" is cheap for f (10) but busy b would do it for 12 in all;
+    # "far" costs f 50 and anyone else 200 if it waits: f takes far, near waits for b
+    near = [bid("f", 10.0), later("b", 12.0, 5.0)]
+    far = [bid("f", 50.0), later("c", 200.0, 100.0)]
+    assert optimal_plan([near, far], set()) == [None, "f"]
+    # without the time-extended bids: the cheapest task starts, as before
+    assert optimal_plan([near[:1], far[:1]], set()) == ["f", None]
+    # a busy robot is never planned
+    assert optimal_plan([[later("b", 1.0, 0.5)]], set()) == [None]
+
+
+def test_of_two_tasks_costing_the_same_the_one_that_would_end_later_starts() -> None:
+    # f costs 100 on either; waiting, "short" costs 100 + 10 of wait, "long" 300 + 10
+    short = [bid("f", 100.0), later("g", 110.0, 10.0)]
+    long = [bid("f", 100.0), later("g", 310.0, 10.0)]
+    assert optimal_plan([short, long], set()) == [None, "f"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 6), st.integers(0, 10_000))
+def test_time_extended_bids_change_nothing_when_every_task_gets_a_robot(n: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    cost = rng.uniform(1.0, 100.0, (n, n + 1))
+    plain = bids_of(cost)
+    extended = [[*b, later("busy", float(rng.uniform(1, 300)), 1.0)] for b in plain]
+    assert total(cost, optimal_plan(extended, set())) == pytest.approx(
+        total(cost, optimal_plan(plain, set()))
+    )
+    assert "busy" not in optimal_plan(extended, set())
+
+
+def queued(robot: str, cost: float, after: float) -> Bid:
+    """``robot`` is busy for ``after`` and may queue the task (``queue_after_current``)."""
+    return Bid(A1, robot, cost, "i", after)
+
+
+def test_a_busy_robot_queues_a_waiting_task_only_as_its_best_robot_by_the_margin() -> None:
+    # f is free and takes "a"; "b" waits: q (busy, may queue) does it for 20 against
+    # 40 on f: q queues it. "c": q2 bids 30 against f's 33, within the margin: it waits.
+    a = [bid("f", 5.0), queued("q", 50.0, 10.0)]
+    b = [bid("f", 40.0), queued("q", 20.0, 10.0)]
+    c = [bid("f", 33.0), queued("q2", 30.0, 10.0)]
+    assert optimal_plan([a, b, c], set()) == ["f", "q", None]
+    # one queued task per robot, the largest saving first
+    d = [bid("f", 100.0), queued("q", 10.0, 5.0)]
+    assert optimal_plan([a, b, d], set()) == ["f", None, "q"]
+    # without the margin rule no busy robot is planned
+    assert optimal_plan([a, b, c], set(), queue_margin=1.0) == ["f", None, None]

@@ -135,3 +135,30 @@ def test_an_auction_given_up_frees_the_turn() -> None:
     queue.finished(A3)  # cancelled while awarding
     assert queue.awarding is None
     assert queue.next_turn() is None
+
+
+def test_an_extended_policy_plans_with_bids_for_later_but_never_awards_them() -> None:
+    queue = AwardQueue(OPTIMAL)
+    assert getattr(OPTIMAL, "extended", False)
+    near = Auction(A1, "Move", frozenset({"f", "b"}), 1.0)
+    far = Auction(A2, "Move", frozenset({"f", "c"}), 1.0)
+    for a, bids in (
+        (
+            near,
+            [Bid(A1, "f", 10.0, "i"), Bid(A1, "b", 12.0, "i", 5.0, later=True)],
+        ),  # b: 12 after 5
+        (far, [Bid(A2, "f", 50.0, "i"), Bid(A2, "c", 200.0, "i", 100.0, later=True)]),
+    ):
+        queue.opened(a.id, a.invited)
+        for b in bids:
+            assert a.offer(b)
+        close(queue, a, 1.0)
+    # f takes the far task; the near one, cheaper for f, waits for b and does not take
+    # f first (a task the plan leaves waiting never takes a robot planned for another)
+    assert queue.next_turn() == A2
+    assert queue.round(A2, task(2)).next() is not None
+    award_to(queue, A2, "f")
+    assert queue.next_turn() == A1
+    round_ = queue.round(A1, task(1))
+    assert round_.next() is None  # b's bid for later is not awarded, f is taken
+    assert "busy" in round_.result().reasons["b"]

@@ -205,8 +205,10 @@ async def test_late_joiner_wins_next_auction_without_cancelling_healthy_work(
             tree_b, node_b = echo_mission(origin, "b")
             await until(tree_b, running_on(node_b, "r1"))
             assert origin.allocator.outcomes
-            ranking = [bid.robot for bid in origin.allocator.outcomes[-1].ranking]
-            assert ranking == ["r1", "r3"]  # r2 is busy and declined
+            outcome = origin.allocator.outcomes[-1]
+            assert [bid.robot for bid in outcome.awardable()] == ["r1", "r3"]
+            # r2 is busy: it only says what the task would cost it later (optimal asks)
+            assert [bid.robot for bid in outcome.later()] == ["r2"]
 
             await echo_follows(tree_a, node_a, [11, 12], "r2")
             await echo_follows(tree_b, node_b, [21, 22], "r1")

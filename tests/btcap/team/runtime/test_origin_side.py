@@ -18,13 +18,16 @@ from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Effect, Refused, Send
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
-from btcap.team.ids import incarnation_tag
+from btcap.team.ids import AuctionId, ExecutionId, incarnation_tag
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import (
+    Bid,
+    CallForBids,
     CancelExecution,
     ExecutionInputs,
     ExecutionStatus,
+    NoBid,
     RepositoryState,
     RunState,
 )
@@ -182,3 +185,21 @@ async def test_cancelling_a_remote_handle_tells_its_executor_through_the_host() 
         assert host.sent == [("b", CancelExecution(ex.id, "reset"))]
         assert side.active == {}
         assert side.leases.tracked == {}
+
+
+def test_a_busy_robot_bids_for_later_only_when_the_call_is_time_extended() -> None:
+    repo = CapabilityRepository("a")
+    repo.add_implementation(count_impl("a", 5.0, Probe()))
+    body = Body()
+    executor = ExecutorSide("a", repo, body, MissionStats(), lambda: 0.0)
+    aid = AuctionId("a", 1)
+    cfb = CallForBids(aid, "Count", COUNT.identity, {"x": 1})
+    assert executor.evaluate(cfb) == Bid(aid, "a", 5.0, "count-a")  # idle: a plain bid
+    body.take(ExecutionId("a", "n", 1), 7.0)
+    assert isinstance(executor.evaluate(cfb), NoBid)  # busy, no queue: as before
+    extended = CallForBids(aid, "Count", COUNT.identity, {"x": 1}, extended=True)
+    # busy: what the task would cost after the 7 of work it holds, never to award
+    assert executor.evaluate(extended) == Bid(aid, "a", 12.0, "count-a", 7.0, later=True)
+    # re-evaluation and exchanges never ask for bids for later
+    held = CallForBids(aid, "Count", COUNT.identity, {}, ExecutionId("o", "n", 2), None, True)
+    assert isinstance(executor.evaluate(held), NoBid)
