@@ -12,6 +12,7 @@ get a heartbeat in turns, ``fanout`` a period, so they (re)join.
 
 from __future__ import annotations
 
+import math
 import random
 import time
 from collections.abc import Callable
@@ -84,8 +85,9 @@ class Membership(Actor):
         self.fanout = fanout
         self._others = Turns(random.Random(f"others {robot}"))
         self._asked = Introductions(failure_timeout_s)
-        #: Whose roster we take, until when: one that just met us (its welcome) or that
-        #: we asked; nobody else may make us dial endpoints of its choosing.
+        #: Whose roster we take, until when: a member's welcome, once per its join (no
+        #: deadline: how soon it learns of us depends on gossip and load), or one we
+        #: asked for; nobody else may make us dial endpoints of its choosing.
         self._rosters_due: dict[str, float] = {}
         self._listeners: list[Listener] = []
 
@@ -187,7 +189,7 @@ class Membership(Actor):
         for event, robot in step.events:
             self._emit(event, robot)
             if event is TeamEvent.JOINED:
-                self._expect_roster(robot, self.system.clock.now())
+                self._expect_roster(robot, self.system.clock.now(), welcome=True)
                 self._welcome(robot)
         if step.unknown and sender is not None:
             self._introduce(sender, step.unknown)
@@ -240,8 +242,8 @@ class Membership(Actor):
             for r in self.table.members
             if r != robot and (endpoint := transport.endpoint_of(r)) is not None
         ]
-        if contacts:
-            self.system.tell(Address(robot, self.PATH), Roster(contacts))
+        # Sent even when empty: it uses up the one roster the newcomer takes unasked.
+        self.system.tell(Address(robot, self.PATH), Roster(contacts))
 
     def _introduce(self, sender: str, unknown: list[str]) -> None:
         """Robots a member mentions that we do not know get a heartbeat if we can reach
@@ -296,11 +298,12 @@ class Membership(Actor):
         running, queued = self._activity()
         return Activity(self.robot, running, queued)
 
-    def _expect_roster(self, robot: str, now: float) -> None:
+    def _expect_roster(self, robot: str, now: float, *, welcome: bool = False) -> None:
         due = self._rosters_due
         for r in [r for r, until in due.items() if until < now or r not in self.table.members]:
             del due[r]
-        due[robot] = now + self.failure_timeout_s
+        until = math.inf if welcome else now + self.failure_timeout_s
+        due[robot] = max(until, due.get(robot, until))
 
     def _from_member(
         self, msg: Roster | RosterRequest | ActivityQuery | ProbeRequest | Vouch

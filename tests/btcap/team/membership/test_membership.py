@@ -228,3 +228,24 @@ async def test_a_roster_nobody_asked_for_is_refused() -> None:
                 Address("a", Membership.PATH), Roster([Contact("ghost", "tcp://127.0.0.1:9")])
             )
             await until(lambda: a.team.refused == refused + 1, "the roster refused")
+
+
+async def test_a_welcome_is_taken_however_late_but_once_per_join() -> None:
+    """How soon a member learns of us depends on gossip and load: its welcome roster is
+    taken whenever it comes (a deadline refused it under load, with a warning), but a
+    member gets one unasked roster per join, no more."""
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            for _ in range(10):  # 2 s, four failure timeouts: x stays a member
+                await p.clock.advance(0.2)
+                await p.send("x", Heartbeat("x", 1, 0))
+            assert events == [(TeamEvent.JOINED, "x")]
+            await p.send("x", Roster([Contact("y", "inproc://y")]))
+            assert p.m.refused == 0
+            await p.send("x", Roster([Contact("y", "inproc://y")]))
+            assert p.m.refused == 1
+            await p.send("x", Heartbeat("x", 2, 0))  # a new life joins: one welcome more
+            await p.send("x", Roster([]))
+            await p.send("x", Roster([]))
+            assert p.m.refused == 2
