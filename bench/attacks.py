@@ -107,6 +107,7 @@ class Health:
     failures: list[str] = field(default_factory=list)
     asks: list[float] = field(default_factory=list)
     ask_errors: int = 0
+    ask_bound_s: float = ASK_BOUND_S
 
 
 def open_files() -> int:
@@ -169,7 +170,9 @@ async def _ask_loop(origin: Agent, health: Health, stop: asyncio.Event) -> None:
         seq += 1
         t0 = time.perf_counter()
         try:
-            await origin.system.ask(Address("r1", "probe"), Ping(seq), timeout=2 * ASK_BOUND_S)
+            await origin.system.ask(
+                Address("r1", "probe"), Ping(seq), timeout=2 * health.ask_bound_s
+            )
         except Exception:
             health.ask_errors += 1
         health.asks.append(time.perf_counter() - t0)
@@ -241,15 +244,19 @@ async def _latecomer(endpoint: str, r1: Agent) -> bool:
         ctx.term()
 
 
-def _healthy(f: dict[str, Any]) -> bool:
-    return not f["false_failures"] and f["ask_max_ms"] <= 1000 * ASK_BOUND_S
+def _healthy(f: dict[str, Any], health: Health) -> bool:
+    return not f["false_failures"] and f["ask_max_ms"] <= 1000 * health.ask_bound_s
 
 
-async def probe(quick: bool, *, more: bool = True) -> list[Check]:
+async def probe(quick: bool, *, more: bool = True, ask_bound_s: float = ASK_BOUND_S) -> list[Check]:
     """Run the attacks against a fresh team; one :class:`Check` per attack plus the mission
-    (and, with ``more``, the :data:`MORE_PROBES`, each on a team of its own)."""
+    (and, with ``more``, the :data:`MORE_PROBES`, each on a team of its own).
+
+    ``ask_bound_s``: the slowest ask to the target that still counts as served. The bench
+    judges latency (0.5 s); a test on a loaded machine passes a bound only a stalled
+    target breaks."""
     counts = Counts.of(quick)
-    health = Health()
+    health = Health(ask_bound_s=ask_bound_s)
     checks: list[Check] = []
     async with _team() as (r1, origin):
         await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
@@ -282,18 +289,18 @@ async def probe(quick: bool, *, more: bool = True) -> list[Check]:
             f["team_unchanged"] = r1.repository.team == team_before
             ok = f["team_unchanged"] and f["rss_after_mb"] - f["rss_before_mb"] <= RSS_SLACK_MB
             ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
-            checks.append(Check("fake_states", ok and _healthy(f), f))
+            checks.append(Check("fake_states", ok and _healthy(f, health), f))
 
             f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health)
             ok = f["stats"]["malformed"] + f["stats"]["received"] >= counts.junk
-            checks.append(Check("junk", ok and _healthy(f), f))
+            checks.append(Check("junk", ok and _healthy(f, health), f))
 
             f = await _attack(
                 "oversized", lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES), r1, health
             )
             # Cut off by libzmq before the decoder saw it (it would count as malformed).
             ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
-            checks.append(Check("oversized", ok and _healthy(f), f))
+            checks.append(Check("oversized", ok and _healthy(f, health), f))
 
             f = await _attack(
                 "hello_flood", lambda: hello_flood(endpoint, counts.hellos), r1, health
@@ -301,7 +308,7 @@ async def probe(quick: bool, *, more: bool = True) -> list[Check]:
             f["latecomer_accepted"] = await _latecomer(endpoint, r1)
             ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
             ok = ok and f["latecomer_accepted"]
-            checks.append(Check("hello_flood", ok and _healthy(f), f))
+            checks.append(Check("hello_flood", ok and _healthy(f, health), f))
 
             node.set_input("value", 2)
             await _until(lambda: node.outputs["value"] == 2, 5.0)
