@@ -11,9 +11,9 @@ from typing import Any
 
 from btcap.actors.cell import Reply
 from btcap.actors.clock import ClockTimer, ManualClock, TimeSource
-from btcap.actors.errors import ActorError
+from btcap.actors.errors import ActorError, AskTimeout
 
-__all__ = ["AskDeadlines", "Expired", "arm_timer", "future_reply", "on_the_wall", "relay_reply"]
+__all__ = ["AskDeadlines", "Expired", "arm_timer", "future_reply", "on_the_wall", "relay_reply", "timed_out"]
 
 
 class Expired(ActorError):
@@ -121,3 +121,8 @@ def future_reply(fut: asyncio.Future[Any]) -> Reply:
             fut.set_exception(error)
 
     return reply
+
+
+def timed_out(address: object, msg: Any, limit: float) -> AskTimeout:
+    """The error an ask raises when no reply came within ``limit`` seconds."""
+    return AskTimeout(f"no reply from {address} to {type(msg).__qualname__} within {limit} s")
