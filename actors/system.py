@@ -41,6 +41,8 @@ __all__ = ["ActorSystem", "Failure", "runtime_messages"]
 log = get_logger("btcap.actors")
 
 A = TypeVar("A", bound=ActorCell)
+# Kind's members as constants: on 3.11 ``Kind.X`` goes through EnumType's attribute hook.
+_ASK, _REPLY, _FAIL = Kind.ASK, Kind.REPLY, Kind.FAIL
 
 
 class Failure(Message):
@@ -303,16 +305,14 @@ class ActorSystem:
                 raise DeadLetter(f"no transport to reach {address}")
             limit = self.ask_timeout if timeout is None else timeout
             corr = next(self._corr)
-            if self._wall:  # no timer of its own: one for every pending ask
-                deadline = time.monotonic() + limit
-                self._pending[corr] = (address.system, fut, deadline)
+            # On the wall no timer of its own, one for every pending ask (AskDeadlines).
+            timer = None if self._wall else arm_timer(self.clock, limit, fut)
+            deadline = time.monotonic() + limit if timer is None else math.inf
+            self._pending[corr] = (address.system, fut, deadline)
+            if deadline < self._deadlines.at:  # else armed soon enough: no call
                 self._deadlines.arm(deadline)
-                timer = None
-            else:
-                self._pending[corr] = (address.system, fut, math.inf)
-                timer = arm_timer(self.clock, limit, fut)
             try:
-                transport.send(Envelope(Kind.ASK, self.address, address, msg, corr))
+                transport.send(Envelope(_ASK, self.address, address, msg, corr))
                 return await fut
             except Expired:
                 raise timed_out(address, msg, limit) from None
@@ -357,7 +357,7 @@ class ActorSystem:
     def _on_envelope(self, env: Envelope) -> None:
         """Entry point for everything a transport received."""
         kind = env.kind
-        if kind is Kind.REPLY or kind is Kind.FAIL:
+        if kind is _REPLY or kind is _FAIL:
             pending = self._pending.get(env.corr)
             # Only the system that was asked may answer: correlation ids are guessable.
             if pending is None or pending[0] != env.sender.system or pending[1].done():
@@ -366,7 +366,7 @@ class ActorSystem:
             del self._pending[env.corr]
             fut = pending[1]
             msg = env.msg
-            if kind is Kind.FAIL:
+            if kind is _FAIL:
                 if isinstance(msg, Failure):
                     if msg.error_type == "DeadLetter":
                         fut.set_exception(DeadLetter(f"{env.sender}: {msg.detail}"))
@@ -396,7 +396,7 @@ class ActorSystem:
         if h is not None and h.local_only:  # whatever sender it names: it came from outside
             self._refusals.refuse(env, self.stats.refused, self._reply_remote)
             return
-        reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
+        reply = partial(self._reply_remote, env) if kind is _ASK else None
         actor._receive(env.msg, reply, env.sender.system, h)
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
@@ -407,7 +407,7 @@ class ActorSystem:
         if error is None:
             try:  # the transport's own send, not _send(): one call less on the hot path
                 send = self._send if self.transport is None else self.transport.send
-                send(Envelope(Kind.REPLY, me, env.sender, result, env.corr))
+                send(Envelope(_REPLY, me, env.sender, result, env.corr))
                 return
             except CodecError as exc:  # e.g. an unregistered reply type
                 error = exc
@@ -437,7 +437,7 @@ class ActorSystem:
             emit("actors.dropped", reason=reason, to=str(address), message=name, count=n)
 
     def _count_failure(self, kind: str) -> int:
-        self.stats.failures[kind] = n = self.stats.failures.get(kind, 0) + 1
+        n = self.stats.failures[kind] = self.stats.failures.get(kind, 0) + 1
         return n
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None:
@@ -446,4 +446,3 @@ class ActorSystem:
             self._failure = (where, exc)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
-
