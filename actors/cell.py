@@ -129,10 +129,8 @@ def _settle(reply: Reply, fut: asyncio.Future[Any]) -> None:
         reply(fut.result(), None)
 
 
-_RUNTIME_NAMES = frozenset(
-    "_as_failure _call_now _can_call_now _drain _enqueue _failed _handler_for _live_host "
-    "_receive _schedule_drain _unhandled".split()
-)
+_NAMES = "_as_failure _call_now _can_call_now _drain _enqueue _failed _handler_for _live_host"
+_RUNTIME_NAMES = frozenset(f"{_NAMES} _receive _schedule_drain _unhandled".split())
 
 
 class Host(Protocol):
