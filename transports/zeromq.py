@@ -355,7 +355,9 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
                 return
             try:
-                env = self.codec.decode(memoryview(body)[1:])
+                # A Frame's buffer is a memoryview already: sliced as it is, not wrapped again.
+                view = body if type(body) is memoryview else memoryview(body)
+                env = self.codec.decode(view[1:])
             except CodecError as exc:
                 self._malformed("bad envelope", ident, str(exc)[:200])
                 return
