@@ -33,7 +33,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain
+from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain, remove_ipc_file
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
@@ -50,7 +50,6 @@ from btcap.transports.zmq_sockets import (
     open_router,
     parse_hello,
     reject,
-    remove_ipc_file,
     send_frame,
     unsent,
     write,

@@ -10,8 +10,6 @@ be dropped there as from an unknown peer.
 from __future__ import annotations
 
 import asyncio
-import contextlib
-import os
 import secrets
 import sys
 import time
@@ -411,14 +409,6 @@ class RouterEvents:
     def close(self) -> None:
         self.router.disable_monitor()
         self.socket.close(0)
-
-
-def remove_ipc_file(endpoint: str) -> None:
-    """Delete the socket file of an ``ipc://`` endpoint this process bound (libzmq removes
-    it only later, from its own thread, and not at all if the process exits first)."""
-    if endpoint.startswith("ipc://") and not endpoint.startswith("ipc://@"):
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(endpoint.removeprefix("ipc://"))
 
 
 def check_endpoint(endpoint: str, *, dial: bool) -> str | None:
