@@ -42,7 +42,7 @@ log = get_logger("btcap.actors")
 
 A = TypeVar("A", bound=ActorCell)
 # Kind's members as constants: on 3.11 ``Kind.X`` goes through EnumType's attribute hook.
-_ASK, _REPLY, _FAIL = Kind.ASK, Kind.REPLY, Kind.FAIL
+_TELL, _ASK, _REPLY, _FAIL = Kind.TELL, Kind.ASK, Kind.REPLY, Kind.FAIL
 
 
 class Failure(Message):
@@ -273,12 +273,12 @@ class ActorSystem:
             else:
                 actor._receive(msg, None)
         else:
-            self._send(Envelope(Kind.TELL, sender or self.address, address, msg))
+            self._send(Envelope(_TELL, sender or self.address, address, msg))
 
     def broadcast(self, path: str, msg: Message, *, include_self: bool = False) -> None:
         """Send to the actor at ``path`` on every peer system."""
         if self.transport is not None:
-            self._send(Envelope(Kind.TELL, self.address, Address(BROADCAST, path), msg))
+            self._send(Envelope(_TELL, self.address, Address(BROADCAST, path), msg))
         if include_self:
             self.tell(Address(self.id, path), msg)
 
@@ -388,7 +388,7 @@ class ActorSystem:
                 dropped["broadcast_unhandled"] = dropped.get("broadcast_unhandled", 0) + 1
                 return
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
-            if kind is Kind.ASK:
+            if kind is _ASK:
                 gone = DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
                 self._reply_remote(env, None, gone)
             return
@@ -417,7 +417,7 @@ class ActorSystem:
         else:
             failure = Failure(type(error).__qualname__, str(error))
         try:
-            self._send(Envelope(Kind.FAIL, me, env.sender, failure, env.corr))
+            self._send(Envelope(_FAIL, me, env.sender, failure, env.corr))
         except CodecError:
             # The transport's codec does not know Failure (see runtime_messages()).
             self._count_drop("reply_unencodable", env.sender, failure)
