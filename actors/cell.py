@@ -129,21 +129,8 @@ def _settle(reply: Reply, fut: asyncio.Future[Any]) -> None:
         reply(fut.result(), None)
 
 
-_RUNTIME_NAMES = frozenset(
-    {
-        "_as_failure",
-        "_call_now",
-        "_can_call_now",
-        "_drain",
-        "_enqueue",
-        "_failed",
-        "_handler_for",
-        "_live_host",
-        "_receive",
-        "_schedule_drain",
-        "_unhandled",
-    }
-)
+_NAMES = "_as_failure _call_now _can_call_now _drain _enqueue _failed _handler_for _live_host"
+_RUNTIME_NAMES = frozenset(f"{_NAMES} _receive _schedule_drain _unhandled".split())
 
 
 class Host(Protocol):
@@ -285,15 +272,19 @@ class ActorCell:
                     break
         return h
 
-    def _receive(self, msg: Any, reply: Reply | None, sender: str | None = None) -> None:
+    def _receive(
+        self, msg: Any, reply: Reply | None, sender: str | None = None, h: _Handler | None = None
+    ) -> None:
         """Deliver a message: handle it now if idle and sync, else queue it.
 
-        ``sender`` is the system the transport authenticated (None: this system).
+        ``sender`` is the system the transport authenticated (None: this system); ``h``
+        the handler of ``msg``'s type if the caller looked it up already.
         """
         if self._busy or self._mailbox:
             self._enqueue(msg, reply, sender)
             return
-        h = self._handler_for(type(msg))
+        if h is None:
+            h = self._handler_for(type(msg))
         if h is None:
             self._unhandled(msg, reply)
             return
@@ -310,7 +301,10 @@ class ActorCell:
         else:
             self._busy = False
             if reply is not None:
-                _reply(reply, result)
+                if isinstance(result, asyncio.Future):
+                    _reply(reply, result)
+                else:  # _reply() inlined: the hot path of a remote ask
+                    reply(result, None)
         if self._mailbox and self._system is not None:
             self._schedule_drain()
 

@@ -17,7 +17,7 @@ from anyio.abc import TaskGroup
 
 from btcap.actors.cell import ActorCell
 from btcap.actors.clock import Clock, TimeSource
-from btcap.actors.errors import ActorError, ActorFailed, AskTimeout, DeadLetter, SystemClosed
+from btcap.actors.errors import ActorError, ActorFailed, DeadLetter, SystemClosed
 from btcap.actors.ref import ActorRef
 from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
@@ -29,6 +29,7 @@ from btcap.actors.timers import (
     future_reply,
     on_the_wall,
     relay_reply,
+    timed_out,
 )
 from btcap.transports.base import BROADCAST, Transport
 from btcap.transports.codec import CodecError, Envelope, Kind
@@ -40,6 +41,8 @@ __all__ = ["ActorSystem", "Failure", "runtime_messages"]
 log = get_logger("btcap.actors")
 
 A = TypeVar("A", bound=ActorCell)
+# Kind's members as constants: on 3.11 ``Kind.X`` goes through EnumType's attribute hook.
+_TELL, _ASK, _REPLY, _FAIL = Kind.TELL, Kind.ASK, Kind.REPLY, Kind.FAIL
 
 
 class Failure(Message):
@@ -270,12 +273,12 @@ class ActorSystem:
             else:
                 actor._receive(msg, None)
         else:
-            self._send(Envelope(Kind.TELL, sender or self.address, address, msg))
+            self._send(Envelope(_TELL, sender or self.address, address, msg))
 
     def broadcast(self, path: str, msg: Message, *, include_self: bool = False) -> None:
         """Send to the actor at ``path`` on every peer system."""
         if self.transport is not None:
-            self._send(Envelope(Kind.TELL, self.address, Address(BROADCAST, path), msg))
+            self._send(Envelope(_TELL, self.address, Address(BROADCAST, path), msg))
         if include_self:
             self.tell(Address(self.id, path), msg)
 
@@ -283,8 +286,8 @@ class ActorSystem:
         """Request/response to any address; see :meth:`ActorRef.ask`."""
         if self._closing:
             raise SystemClosed(f"actor system {self.id} is shutting down")
-        loop = asyncio.get_running_loop()
-        fut: asyncio.Future[Any] = loop.create_future()
+        # The C Future on the running loop: loop.create_future() is a Python call more.
+        fut: asyncio.Future[Any] = asyncio.Future()
         if address.system == self.id:
             actor = self._actors.get(address.path)
             if actor is None:
@@ -302,19 +305,17 @@ class ActorSystem:
                 raise DeadLetter(f"no transport to reach {address}")
             limit = self.ask_timeout if timeout is None else timeout
             corr = next(self._corr)
-            if self._wall:  # no timer of its own: one for every pending ask
-                deadline = time.monotonic() + limit
-                self._pending[corr] = (address.system, fut, deadline)
+            # On the wall no timer of its own, one for every pending ask (AskDeadlines).
+            timer = None if self._wall else arm_timer(self.clock, limit, fut)
+            deadline = time.monotonic() + limit if timer is None else math.inf
+            self._pending[corr] = (address.system, fut, deadline)
+            if deadline < self._deadlines.at:  # else armed soon enough: no call
                 self._deadlines.arm(deadline)
-                timer = None
-            else:
-                self._pending[corr] = (address.system, fut, math.inf)
-                timer = arm_timer(self.clock, limit, fut)
             try:
-                transport.send(Envelope(Kind.ASK, self.address, address, msg, corr))
+                transport.send(Envelope(_ASK, self.address, address, msg, corr))
                 return await fut
             except Expired:
-                raise _timed_out(address, msg, limit) from None
+                raise timed_out(address, msg, limit) from None
             finally:
                 self._pending.pop(corr, None)
                 if timer is not None:
@@ -344,7 +345,7 @@ class ActorSystem:
         try:
             return await fut
         except Expired:
-            raise _timed_out(address, msg, limit) from None
+            raise timed_out(address, msg, limit) from None
         finally:
             timer.cancel()
 
@@ -356,7 +357,7 @@ class ActorSystem:
     def _on_envelope(self, env: Envelope) -> None:
         """Entry point for everything a transport received."""
         kind = env.kind
-        if kind is Kind.REPLY or kind is Kind.FAIL:
+        if kind is _REPLY or kind is _FAIL:
             pending = self._pending.get(env.corr)
             # Only the system that was asked may answer: correlation ids are guessable.
             if pending is None or pending[0] != env.sender.system or pending[1].done():
@@ -365,7 +366,7 @@ class ActorSystem:
             del self._pending[env.corr]
             fut = pending[1]
             msg = env.msg
-            if kind is Kind.FAIL:
+            if kind is _FAIL:
                 if isinstance(msg, Failure):
                     if msg.error_type == "DeadLetter":
                         fut.set_exception(DeadLetter(f"{env.sender}: {msg.detail}"))
@@ -387,16 +388,17 @@ class ActorSystem:
                 dropped["broadcast_unhandled"] = dropped.get("broadcast_unhandled", 0) + 1
                 return
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
-            if kind is Kind.ASK:
+            if kind is _ASK:
                 gone = DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
                 self._reply_remote(env, None, gone)
             return
-        h = actor._handler_for(type(env.msg))
+        h = actor._handlers.get(type(env.msg)) if actor._handlers else None  # a call less
+        h = h or actor._handler_for(type(env.msg))
         if h is not None and h.local_only:  # whatever sender it names: it came from outside
             self._refusals.refuse(env, self.stats.refused, self._reply_remote)
             return
-        reply = partial(self._reply_remote, env) if kind is Kind.ASK else None
-        actor._receive(env.msg, reply, env.sender.system)
+        reply = partial(self._reply_remote, env) if kind is _ASK else None
+        actor._receive(env.msg, reply, env.sender.system, h)
 
     def _reply_remote(self, env: Envelope, result: Any, error: BaseException | None) -> None:
         to = env.recipient  # a broadcast's reply names us, not "*":
@@ -404,8 +406,9 @@ class ActorSystem:
         if error is None and result is not None and not isinstance(result, Message):
             error = TypeError(f"reply of type {type(result).__qualname__} is not a Message")
         if error is None:
-            try:
-                self._send(Envelope(Kind.REPLY, me, env.sender, result, env.corr))
+            try:  # the transport's own send, not _send(): one call less on the hot path
+                send = self._send if self.transport is None else self.transport.send
+                send(Envelope(_REPLY, me, env.sender, result, env.corr))
                 return
             except CodecError as exc:  # e.g. an unregistered reply type
                 error = exc
@@ -414,7 +417,7 @@ class ActorSystem:
         else:
             failure = Failure(type(error).__qualname__, str(error))
         try:
-            self._send(Envelope(Kind.FAIL, me, env.sender, failure, env.corr))
+            self._send(Envelope(_FAIL, me, env.sender, failure, env.corr))
         except CodecError:
             # The transport's codec does not know Failure (see runtime_messages()).
             self._count_drop("reply_unencodable", env.sender, failure)
@@ -435,7 +438,7 @@ class ActorSystem:
             emit("actors.dropped", reason=reason, to=str(address), message=name, count=n)
 
     def _count_failure(self, kind: str) -> int:
-        self.stats.failures[kind] = n = self.stats.failures.get(kind, 0) + 1
+        n = self.stats.failures[kind] = self.stats.failures.get(kind, 0) + 1
         return n
 
     def _escalated(self, where: Address | None, exc: BaseException) -> None:
@@ -444,7 +447,3 @@ class ActorSystem:
             self._failure = (where, exc)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
-
-
-def _timed_out(address: Address, msg: Any, limit: float) -> AskTimeout:
-    return AskTimeout(f"no reply from {address} to {type(msg).__qualname__} within {limit} s")

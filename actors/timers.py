@@ -11,9 +11,17 @@ from typing import Any
 
 from btcap.actors.cell import Reply
 from btcap.actors.clock import ClockTimer, ManualClock, TimeSource
-from btcap.actors.errors import ActorError
+from btcap.actors.errors import ActorError, AskTimeout
 
-__all__ = ["AskDeadlines", "Expired", "arm_timer", "future_reply", "on_the_wall", "relay_reply"]
+__all__ = [
+    "AskDeadlines",
+    "Expired",
+    "arm_timer",
+    "future_reply",
+    "on_the_wall",
+    "relay_reply",
+    "timed_out",
+]
 
 
 class Expired(ActorError):
@@ -49,29 +57,29 @@ class AskDeadlines:
     left. Expiry stays exact: no ask is failed before its limit.
     """
 
-    __slots__ = ("_at", "_pending", "_timer")
+    __slots__ = ("_pending", "_timer", "at")
 
     def __init__(self, pending: dict[int, tuple[str, asyncio.Future[Any], float]]) -> None:
         self._pending = pending
         self._timer: asyncio.TimerHandle | None = None
-        self._at = math.inf
+        self.at = math.inf  #: when the timer fires (inf: not armed)
 
     def arm(self, deadline: float) -> None:
         """Make sure the timer fires no later than ``deadline`` (``time.monotonic``)."""
-        if self._at <= deadline:
+        if self.at <= deadline:
             return
         if self._timer is not None:
             self._timer.cancel()
-        self._at = deadline
+        self.at = deadline
         self._timer = asyncio.get_running_loop().call_at(deadline, self._fire)
 
     def cancel(self) -> None:
         if self._timer is not None:
             self._timer.cancel()
-        self._timer, self._at = None, math.inf
+        self._timer, self.at = None, math.inf
 
     def _fire(self) -> None:
-        self._timer, self._at = None, math.inf
+        self._timer, self.at = None, math.inf
         now = time.monotonic()
         soonest = math.inf
         for _peer, fut, deadline in list(self._pending.values()):
@@ -121,3 +129,8 @@ def future_reply(fut: asyncio.Future[Any]) -> Reply:
             fut.set_exception(error)
 
     return reply
+
+
+def timed_out(address: object, msg: Any, limit: float) -> AskTimeout:
+    """The error an ask raises when no reply came within ``limit`` seconds."""
+    return AskTimeout(f"no reply from {address} to {type(msg).__qualname__} within {limit} s")

@@ -344,6 +344,19 @@ def _table(loop: str, ask_us: dict[str, dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
+def readme_row(ask_us: dict[str, dict[str, float]]) -> str:
+    """The README performance table's ask row, from the stock loop's figures."""
+    ours, block = ask_us["zmq_tcp"]["p50"], ask_us[FLOOR]["p50"]
+    curve, block_curve = ask_us["zmq_tcp_curve"]["p50"], ask_us[FLOOR_CURVE]["p50"]
+    floor, x = ask_us["floor_tcp_pair"]["p50"], "\u00d7"
+    return (
+        f"| ask round trip over ZeroMQ tcp (CURVE), another process | {ours:.0f} µs "
+        f"({curve:.0f} µs) | blocking pyzmq {block:.0f} µs ({ours / block:.2f}{x}; CURVE "
+        f"{block_curve:.0f} µs, {curve / block_curve:.2f}{x}); a hand-written asyncio ask "
+        f"{floor:.0f} µs |"
+    )
+
+
 def run(quick: bool = False, loop: str = "both") -> dict[str, Any]:
     """Measure every scenario, print a table and write ``bench/results/transport.json``."""
     configure_logging("warning")  # hellos log at info; keep the table readable
@@ -365,6 +378,8 @@ def run(quick: bool = False, loop: str = "both") -> dict[str, Any]:
         data[f"loadavg{key}"] = {"before": load, "after": os.getloadavg()}
         print(_table(name, ask_us))
         print(f"load average before/after: {load[0]:.2f} / {os.getloadavg()[0]:.2f}\n")
+    if "ask_us" in data:
+        print(f"README row:\n{readme_row(data['ask_us'])}\n")
     path = write_result("transport", data)
     print(f"wrote {path}")
     return data

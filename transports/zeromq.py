@@ -33,11 +33,13 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain
+from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain, remove_ipc_file
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
+    COPY_THRESHOLD,
     EVENTS,
+    NOBLOCK,
     POLLIN,
     SCHEMES,
     Monitor,
@@ -48,7 +50,8 @@ from btcap.transports.zmq_sockets import (
     open_router,
     parse_hello,
     reject,
-    remove_ipc_file,
+    send_frame,
+    unsent,
     write,
 )
 
@@ -113,6 +116,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.max_message_bytes = max_message_bytes
+        # Frames shorter than this are copied into zmq and within bounds: sent inline.
+        self._small = min(COPY_THRESHOLD, max_message_bytes + 1)
         self.system_id = system_id
         self.stats = TransportStats()
         self.codec = Codec(registry)
@@ -216,19 +221,25 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
 
     # -- sending ----------------------------------------------------------------------
     def send(self, env: Envelope) -> None:
-        data = self.codec.encode(env)
+        frame = _MSG + self.codec.encode(env)
         target = env.recipient.system
-        if target == BROADCAST:
+        dealer = self._dealers.get(target)  # none for a broadcast: "*" is no peer id
+        if dealer is not None and len(frame) < self._small:  # write() inlined: hot path
+            try:
+                send_frame(dealer, frame, NOBLOCK)
+            except zmq.ZMQError as exc:
+                unsent(self.stats, target, exc)
+            else:
+                self.stats.sent += 1
+        elif target == BROADCAST:
             for sid, sock in list(self._dealers.items()):
                 if sid not in self._observers:  # they ask; team news is not for them
-                    self._write(sid, sock, _MSG, data)
-            return
-        dealer = self._dealers.get(target)
-        if dealer is None:
+                    write(sock, frame, self.max_message_bytes, self.stats, self.system_id, sid)
+        elif dealer is None:
             self.stats.undeliverable += 1
             self.stats.drop(f"no peer {target}")
-            return
-        write(dealer, _MSG + data, self.max_message_bytes, self.stats, self.system_id, target)
+        else:
+            write(dealer, frame, self.max_message_bytes, self.stats, self.system_id, target)
 
     def _write(self, sid: str, sock: zmq.Socket[bytes], kind: bytes, data: bytes) -> None:
         write(sock, kind + data, self.max_message_bytes, self.stats, self.system_id, sid)
@@ -343,7 +354,9 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
                 return
             try:
-                env = self.codec.decode(memoryview(body)[1:])
+                # A Frame's buffer is a memoryview already: sliced as it is, not wrapped again.
+                view = body if type(body) is memoryview else memoryview(body)
+                env = self.codec.decode(view[1:])
             except CodecError as exc:
                 self._malformed("bad envelope", ident, str(exc)[:200])
                 return
@@ -378,40 +391,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             self._refused_by(ident, bytes(body[1:]))
         else:
             self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
-
-    def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
-        """Connect to a peer that announced itself (False: refused, counted and logged).
-        Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
-        ident = peer.encode()
-        known = self._endpoints.get(peer)
-        if self._second(peer, endpoint, known, instance):
-            return False
-        if known == endpoint or peer in self._configured:
-            return True
-        if known is None and not accept:
-            self.stats.unknown_peer += 1
-            reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
-            return False
-        if known is None and self._strangers.full():
-            self.remove_peer(self._strangers.oldest() or peer)  # the oldest makes room
-        if known is None and len(self._dealers) >= self.max_peers:
-            stranger = self._strangers.oldest()  # the longest silent one makes room
-            if stranger is None:
-                self.stats.unknown_peer += 1
-                why = f"already {len(self._dealers)}"
-                reject(self.stats, self.system_id, "too many peers", ident, why)
-                return False
-            self.remove_peer(stranger)
-        try:
-            self._connect(peer, endpoint)
-        except (ValueError, RuntimeError) as exc:
-            self._malformed("bad hello", ident, str(exc)[:200])
-            return False
-        if known is None:
-            self._stranger(peer)
-        event = "transport.peer_joined" if known is None else "transport.peer_moved"
-        log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
-        return True
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
         self.stats.malformed += 1

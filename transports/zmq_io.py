@@ -7,12 +7,14 @@ the codec decodes without a copy: a path every message takes.
 
 from __future__ import annotations
 
+import contextlib
+import os
 from collections.abc import Callable
 from typing import Any
 
 import zmq
 
-__all__ = ["allow_sockets", "read_frames", "read_plain"]
+__all__ = ["allow_sockets", "read_frames", "read_plain", "remove_ipc_file"]
 
 NOBLOCK = int(zmq.NOBLOCK)
 
@@ -45,3 +47,11 @@ def read_frames(recv: Callable[..., Any]) -> list[zmq.Frame]:
     while parts[-1].more:
         parts.append(recv(NOBLOCK, copy=False))
     return parts
+
+
+def remove_ipc_file(endpoint: str) -> None:
+    """Delete the socket file of an ``ipc://`` endpoint this process bound (libzmq removes
+    it only later, from its own thread, and not at all if the process exits first)."""
+    if endpoint.startswith("ipc://") and not endpoint.startswith("ipc://@"):
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(endpoint.removeprefix("ipc://"))

@@ -21,11 +21,11 @@ from __future__ import annotations
 import asyncio
 import enum
 from collections import OrderedDict
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
-from btcap.transports.zmq_sockets import SCHEMES, Monitor, check_id
+from btcap.transports.zmq_sockets import SCHEMES, Monitor, check_id, reject
 
 __all__ = ["UNREACHABLE_TRIES", "Fate", "PeerBook", "PeerFates"]
 
@@ -116,6 +116,9 @@ class PeerFates:
 
     system_id: str
     stats: TransportStats
+    accept_hello: bool
+    max_peers: int
+    _dealers: dict[str, Any]
     _strangers: PeerBook
     _endpoints: dict[str, str]
     _configured: set[str]
@@ -131,7 +134,9 @@ class PeerFates:
 
         def _connect(self, system_id: str, endpoint: str) -> None: ...
 
-        def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool: ...
+        def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool: ...
+
+        def _malformed(self, reason: str, ident: bytes, detail: str) -> None: ...
 
     def forget(self, system_id: str) -> None:
         """A peer has gone (declared failed, or left): stop dialling it, close its sockets
@@ -197,3 +202,37 @@ class PeerFates:
 
     def _forget(self, peer: str, met: float) -> None:
         self._fate(peer, self._strangers.expired(peer, met))
+
+    def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
+        """Connect to a peer that announced itself (False: refused, counted and logged).
+        Peers cost sockets: made-up ids must neither exhaust them nor keep a newcomer out."""
+        ident = peer.encode()
+        known = self._endpoints.get(peer)
+        if self._second(peer, endpoint, known, instance):
+            return False
+        if known == endpoint or peer in self._configured:
+            return True
+        if known is None and not accept:
+            self.stats.unknown_peer += 1
+            reject(self.stats, self.system_id, "unknown peer", ident, "hello refused")
+            return False
+        if known is None and self._strangers.full():
+            self.remove_peer(self._strangers.oldest() or peer)  # the oldest makes room
+        if known is None and len(self._dealers) >= self.max_peers:
+            stranger = self._strangers.oldest()  # the longest silent one makes room
+            if stranger is None:
+                self.stats.unknown_peer += 1
+                why = f"already {len(self._dealers)}"
+                reject(self.stats, self.system_id, "too many peers", ident, why)
+                return False
+            self.remove_peer(stranger)
+        try:
+            self._connect(peer, endpoint)
+        except (ValueError, RuntimeError) as exc:
+            self._malformed("bad hello", ident, str(exc)[:200])
+            return False
+        if known is None:
+            self._stranger(peer)
+        event = "transport.peer_joined" if known is None else "transport.peer_moved"
+        log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)
+        return True

@@ -10,8 +10,6 @@ be dropped there as from an unknown peer.
 from __future__ import annotations
 
 import asyncio
-import contextlib
-import os
 import secrets
 import sys
 import time
@@ -129,9 +127,9 @@ def reject(stats: TransportStats, system: str, reason: str, ident: bytes, detail
         )
 
 
-_COPY_THRESHOLD = 65_536
+COPY_THRESHOLD = 65_536
 """Smaller payloads are copied into the frame (cheaper than tracking a zero-copy buffer)."""
-_send = _BackendSocket.send
+send_frame = _BackendSocket.send
 """pyzmq's compiled send, without the Python wrapper ``zmq.Socket.send`` puts around it
 for DRAFT options we never use: ~0.7 us less per message, and every message is sent."""
 
@@ -151,16 +149,21 @@ def write(
         reject(stats, system, "too large to send", to.encode(), f"{len(frame)} bytes")
         return
     try:
-        if len(frame) < _COPY_THRESHOLD:
-            _send(sock, frame, NOBLOCK)
+        if len(frame) < COPY_THRESHOLD:
+            send_frame(sock, frame, NOBLOCK)
         else:
-            _send(sock, frame, NOBLOCK, False)
+            send_frame(sock, frame, NOBLOCK, False)
     except zmq.ZMQError as exc:  # zmq.Again: the peer's queue is full
-        stats.undeliverable += 1
-        why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
-        stats.drop(f"peer {to} {why}")
+        unsent(stats, to, exc)
     else:
         stats.sent += 1
+
+
+def unsent(stats: TransportStats, to: str, exc: zmq.ZMQError) -> None:
+    """Count a frame the peer ``to`` could not be sent (zmq.Again: its queue is full)."""
+    stats.undeliverable += 1
+    why = "backed up" if exc.errno == zmq.EAGAIN else exc.strerror
+    stats.drop(f"peer {to} {why}")
 
 
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:
@@ -406,14 +409,6 @@ class RouterEvents:
     def close(self) -> None:
         self.router.disable_monitor()
         self.socket.close(0)
-
-
-def remove_ipc_file(endpoint: str) -> None:
-    """Delete the socket file of an ``ipc://`` endpoint this process bound (libzmq removes
-    it only later, from its own thread, and not at all if the process exits first)."""
-    if endpoint.startswith("ipc://") and not endpoint.startswith("ipc://@"):
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(endpoint.removeprefix("ipc://"))
 
 
 def check_endpoint(endpoint: str, *, dial: bool) -> str | None:

@@ -23,6 +23,7 @@ from tests.transports.test_zeromq import (
     eventually,
     inbox,
     note_arrives,
+    registry,
     zmq_system,
 )
 
@@ -148,3 +149,29 @@ async def test_a_hello_flood_keeps_at_most_max_strangers() -> None:
                     socks.append(sock)
                 await eventually(lambda: ta.hellos == 30, "every hello handled")
             assert len(ta.peers()) == 4
+
+
+def test_frames_a_peer_cannot_take_are_counted_never_raised() -> None:
+    """Sends never block: to a peer nobody answers, frames queue up to the send limit and
+    the rest are counted undeliverable (backed up); a frame over ``max_message_bytes`` is
+    not sent at all. The counts add up to what was sent."""
+    probe: zmq.Socket[bytes] = zmq.Context.instance().socket(zmq.ROUTER)
+    port = probe.bind_to_random_port("tcp://127.0.0.1")
+    probe.close(0)  # a port nobody listens on now
+    transport = ZmqTransport(
+        "a", TCP, registry(), peers={"b": f"tcp://127.0.0.1:{port}"}, max_message_bytes=2048
+    )
+    try:
+        stats = transport.stats
+        sent_before = stats.sent  # the hello
+        count = 10_100  # over the DEALER's send limit of 10,000
+        for i in range(count):
+            transport.send(
+                Envelope(Kind.TELL, Address("a", "x"), Address("b", "inbox"), Note(str(i)))
+            )
+        transport.send(Envelope(Kind.TELL, Address("a", "x"), Address("b", "y"), Note("n" * 4000)))
+        assert stats.sent - sent_before + stats.undeliverable == count + 1
+        assert stats.by_reason["peer b backed up"] >= 100
+        assert stats.by_reason["too large to send"] == 1
+    finally:
+        transport.close()
