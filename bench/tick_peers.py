@@ -210,7 +210,8 @@ def markdown(data: dict[str, Any]) -> str:
         f"| py_trees {us['py_trees'][m] / 1000:.2f} / {us['py_trees'][p] / 1000:.2f} µs/node "
         f"({ratio[m]:.0f}{x} / {ratio[p]:.0f}{x}) |",
         f"| leaf written `return State.SUCCEEDED` | {forms['State.SUCCEEDED']:.0f} ns/node "
-        f"| a module constant: {forms['module constant']:.0f} ns/node |",
+        f"| `return SUCCEEDED` (`from btcap import SUCCEEDED`, as the docs show): "
+        f"{forms['module constant']:.0f} ns/node |",
         f"| memory, flat / mixed trees of 100,000 nodes | {mem['btcap']['flat']:.0f} / "
         f"{mem['btcap']['mixed']:.0f} B/node | py_trees {mem['py_trees']['flat']:.0f} / "
         f"{mem['py_trees']['mixed']:.0f} B/node ({mem['ratio']['flat']:.2f}{x} / "
