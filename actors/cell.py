@@ -17,6 +17,7 @@ from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, ClassVar, Protocol, TypeVar, overload
 
 from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
+from btcap.transports.fastenum import FastEnumType
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address
 
@@ -33,7 +34,7 @@ _HANDLER_ATTR = "__actor_handles__"
 _LOCAL_ONLY_ATTR = "__actor_local_only__"
 
 
-class Supervision(enum.Enum):
+class Supervision(enum.Enum, metaclass=FastEnumType):
     """What happens to an actor whose handler raised.
 
     RESUME keeps its state and goes on; RESTART calls :meth:`Actor.on_restart` (up to

@@ -8,12 +8,13 @@ from typing import Any, Union
 import msgspec
 
 from btcap.errors import BtcapError
+from btcap.transports.fastenum import FastEnumType
 from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["Codec", "CodecError", "Envelope", "Kind"]
 
 
-class Kind(enum.IntEnum):
+class Kind(enum.IntEnum, metaclass=FastEnumType):
     """What an envelope is for; asks and their replies share a correlation id."""
 
     TELL = 0

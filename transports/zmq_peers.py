@@ -24,6 +24,7 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
 from btcap.transports.base import TransportStats
+from btcap.transports.fastenum import FastEnumType
 from btcap.transports.log import get_logger
 from btcap.transports.zmq_sockets import SCHEMES, Monitor, check_id, reject
 
@@ -35,7 +36,7 @@ UNREACHABLE_TRIES = 3
 """Failed dials after which a stranger that never spoke is dropped."""
 
 
-class Fate(enum.Enum):
+class Fate(enum.Enum, metaclass=FastEnumType):
     """What to do with a peer, as :class:`PeerBook` decides."""
 
     KEEP = "keep"

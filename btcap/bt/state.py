@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import enum
-import sys
-from types import FunctionType
-from typing import Any
 
 from btcap.errors import BtcapError
+from btcap.transports.fastenum import FastEnumType
 
 __all__ = [
     "ACTIVE",
@@ -24,32 +22,7 @@ __all__ = [
 ]
 
 
-class _FastEnumType(enum.EnumType):
-    """EnumType without the toll of its ``__getattr__`` on every ``State.X`` (Python 3.11).
-
-    On CPython 3.11 a metaclass defining ``__getattr__`` sends every class attribute
-    lookup through a Python-level call of ``type.__getattribute__``: ``State.SUCCEEDED``
-    cost ~70 ns, ten times a module constant, on every tick of a leaf written as the
-    docs show. With ``object.__getattribute__`` the interpreter reads the class's own
-    dict in C (members live there); anything else (inherited methods) falls back to the
-    full lookup. Own-dict values must then need no binding, which ``__init__`` checks.
-    Python 3.12 dropped ``EnumType.__getattr__``; there this class changes nothing.
-    """
-
-    if sys.version_info < (3, 12):
-        __getattribute__ = object.__getattribute__
-
-        def __getattr__(cls, name: str) -> Any:
-            return type.__getattribute__(cls, name)
-
-        def __init__(cls, *args: Any, **kwargs: Any) -> None:
-            super().__init__(*args, **kwargs)
-            for key, value in vars(cls).items():
-                if hasattr(type(value), "__get__") and not isinstance(value, FunctionType):
-                    raise TypeError(f"{cls.__name__}.{key}: no descriptors in a fast enum")
-
-
-class State(enum.Enum, metaclass=_FastEnumType):
+class State(enum.Enum, metaclass=FastEnumType):
     """The state of a node after its last action.
 
     UNASSIGNED and ASSIGNED belong to capability nodes still waiting for (or just given)

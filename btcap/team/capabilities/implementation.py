@@ -23,11 +23,12 @@ from btcap.bt.state import State, TreeError
 from btcap.bt.tree import Tree
 from btcap.bt.utility import Utility
 from btcap.team.capabilities.capability import CapabilityInterface, InputBridge, OutputBridge
+from btcap.transports.fastenum import FastEnumType
 
 __all__ = ["BidFunction", "Implementation", "ImplementationRun", "Precondition", "Scope"]
 
 
-class Scope(enum.Enum):
+class Scope(enum.Enum, metaclass=FastEnumType):
     LOCAL = "local"
     REMOTE = "remote"
 
