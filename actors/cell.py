@@ -16,8 +16,8 @@ from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, ClassVar, Protocol, TypeVar, overload
 
+from btcap._enum import FastEnumType
 from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
-from btcap.transports.fastenum import FastEnumType
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address
 

@@ -22,9 +22,11 @@ from btcap_sources import ROOTS, modules
 from test_startup import _loaded
 
 #: Lowest first. A module belongs to the longest prefix listed here. btcap._lazy (the
-#: lazy re-exports of the package ``__init__`` modules, stdlib only) is the base of all.
+#: lazy re-exports of the package ``__init__`` modules) and btcap._enum (an Enum metaclass
+#: for hot paths), stdlib only, are the base of all.
 LAYERS = (
     "btcap._lazy",
+    "btcap._enum",
     "btcap.errors",
     "btcap.transports",
     "btcap.actors",

@@ -7,8 +7,8 @@ from typing import Any, Union
 
 import msgspec
 
+from btcap._enum import FastEnumType
 from btcap.errors import BtcapError
-from btcap.transports.fastenum import FastEnumType
 from btcap.transports.message import Address, Message, MessageRegistry
 
 __all__ = ["Codec", "CodecError", "Envelope", "Kind"]

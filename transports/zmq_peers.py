@@ -23,8 +23,8 @@ import enum
 from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
+from btcap._enum import FastEnumType
 from btcap.transports.base import TransportStats
-from btcap.transports.fastenum import FastEnumType
 from btcap.transports.log import get_logger
 from btcap.transports.zmq_sockets import SCHEMES, Monitor, check_id, reject
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import enum
 
+from btcap._enum import FastEnumType
 from btcap.errors import BtcapError
-from btcap.transports.fastenum import FastEnumType
 
 __all__ = [
     "ACTIVE",

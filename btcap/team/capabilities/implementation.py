@@ -17,13 +17,13 @@ from typing import Any
 
 import msgspec
 
+from btcap._enum import FastEnumType
 from btcap.actors import TimeSource
 from btcap.bt.node import Node
 from btcap.bt.state import State, TreeError
 from btcap.bt.tree import Tree
 from btcap.bt.utility import Utility
 from btcap.team.capabilities.capability import CapabilityInterface, InputBridge, OutputBridge
-from btcap.transports.fastenum import FastEnumType
 
 __all__ = ["BidFunction", "Implementation", "ImplementationRun", "Precondition", "Scope"]
 

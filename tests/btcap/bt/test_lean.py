@@ -20,8 +20,8 @@ from btcap import (
     Tree,
     TreeError,
 )
+from btcap._enum import FastEnumType
 from btcap.bt.messages import NodeStatus
-from btcap.transports.fastenum import FastEnumType
 
 
 class Counting(Leaf):
