@@ -207,12 +207,12 @@ class AwardQueue:
                 robots = policy.plan(batch, self.taken)
                 for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
                     closed.plan, closed.planned = robot, robots is not None
-            closed = self._closed
+            waiting = self._closed
             # one waiting (most batches): it goes first whatever its bids
             nxt = (
-                closed[0]
-                if len(closed) == 1
-                else closed[policy.first([c.bids(self._held(c)) for c in closed])]
+                waiting[0]
+                if len(waiting) == 1
+                else waiting[policy.first([c.bids(self._held(c)) for c in waiting])]
             )
         self._closed.remove(nxt)
         self._awarding = nxt
