@@ -8,16 +8,15 @@ imports it, so the layers stay one-way.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, ClassVar, Protocol, runtime_checkable
-
-import msgspec
 
 from btcap.actors.services import Service
 from btcap.bt.node import Leaf, Node
-from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_name
+from btcap.bt.ports import Port, PortMap, normalize_ports, type_name
 from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
+from btcap.team.capabilities.conversion import Where, convert
 from btcap.team.capabilities.execution import AssignmentRequest, Execution
 from btcap.transports.log import get_logger
 
@@ -32,9 +31,6 @@ __all__ = [
 ]
 
 log = get_logger("btcap.capability")
-#: What a conversion names in its errors: the text, or a function making it (a call for
-#: bids converts its inputs on every robot; the text is needed only when one is wrong).
-Where = str | Callable[[], str]
 
 #: Where a robot's actor system runs its :class:`Assigner` (mission control).
 ASSIGNER_PATH = "mission_control"
@@ -116,29 +112,11 @@ class CapabilityInterface:
     def convert_inputs(self, values: Mapping[str, Any], where: Where) -> dict[str, Any]:
         """Inputs from the wire, back to their declared types (missing ones: None).
         ``where`` (or what it returns: formatted only for an error) names them."""
-        return _convert(self.inputs, values, where, "input")
+        return convert(self.inputs, values, where, "input")
 
     def convert_outputs(self, values: Mapping[str, Any], where: Where) -> dict[str, Any]:
         """Outputs from the wire, back to their declared types (missing ones: None)."""
-        return _convert(self.outputs, values, where, "output")
-
-
-def _convert(ports: PortMap, values: Mapping[str, Any], where: Where, kind: str) -> dict[str, Any]:
-    # check_value's conversion inline (every call for bids converts its inputs): the text
-    # naming the value is made, and check_value called for its error, only when it fails.
-    out: dict[str, Any] = {}
-    for key, port in ports.items():
-        value = values.get(key)
-        t = port.type
-        if value is None or t is Any:
-            out[key] = value
-            continue
-        try:
-            out[key] = msgspec.convert(value, t, strict=False)
-        except (msgspec.ValidationError, TypeError):
-            named = where() if callable(where) else where
-            out[key] = check_value(value, t, f"{named} {kind} {key!r}")  # raises, saying why
-    return out
+        return convert(self.outputs, values, where, "output")
 
 
 class _Bridge(Leaf):
