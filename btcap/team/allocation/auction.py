@@ -185,9 +185,16 @@ class SingleItemAuction(Allocator):
             return won
         finally:
             if self._watchers:  # ``won`` None: cancelled while awarding
-                end = dataclasses.replace(opened, task=task, closed=clock.now(), result=won)
                 passed = {} if award is None else dict(award.reasons)
-                self._report(dataclasses.replace(end, outcome=outcome, passed=passed))
+                end = dataclasses.replace(
+                    opened,
+                    task=task,
+                    closed=clock.now(),
+                    result=won,
+                    outcome=outcome,
+                    passed=passed,
+                )
+                self._report(end)
             self._turns.pop(auction_id, None)
             self._queue.finished(auction_id)
             self._next_turn()

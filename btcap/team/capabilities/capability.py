@@ -13,9 +13,10 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from btcap.actors.services import Service
 from btcap.bt.node import Leaf, Node
-from btcap.bt.ports import Port, PortMap, check_value, normalize_ports, type_name
+from btcap.bt.ports import Port, PortMap, normalize_ports, type_name
 from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
+from btcap.team.capabilities.conversion import Where, convert
 from btcap.team.capabilities.execution import AssignmentRequest, Execution
 from btcap.transports.log import get_logger
 
@@ -108,21 +109,14 @@ class CapabilityInterface:
             )
         return self._bridges
 
-    def convert_inputs(self, values: Mapping[str, Any], where: str) -> dict[str, Any]:
-        """Inputs from the wire, back to their declared types (missing ones: None)."""
-        return _convert(self.inputs, values, f"{where} input")
+    def convert_inputs(self, values: Mapping[str, Any], where: Where) -> dict[str, Any]:
+        """Inputs from the wire, back to their declared types (missing ones: None).
+        ``where`` (or what it returns: formatted only for an error) names them."""
+        return convert(self.inputs, values, where, "input")
 
-    def convert_outputs(self, values: Mapping[str, Any], where: str) -> dict[str, Any]:
+    def convert_outputs(self, values: Mapping[str, Any], where: Where) -> dict[str, Any]:
         """Outputs from the wire, back to their declared types (missing ones: None)."""
-        return _convert(self.outputs, values, f"{where} output")
-
-
-def _convert(ports: PortMap, values: Mapping[str, Any], where: str) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, port in ports.items():
-        value = values.get(key)
-        out[key] = None if value is None else check_value(value, port.type, f"{where} {key!r}")
-    return out
+        return convert(self.outputs, values, where, "output")
 
 
 class _Bridge(Leaf):

@@ -113,15 +113,20 @@ class Budgets:
 
     def allow(self, peer: str, now: float, cost: float = 1.0) -> bool:
         """Whether ``peer`` may have ``cost`` more of this robot's work now (spent if so)."""
-        b = self._buckets.get(peer)
+        buckets = self._buckets
+        b = buckets.get(peer)
         if b is None:
-            b = self._buckets[peer] = _Bucket(self.burst, now)
-            if len(self._buckets) > self.max_peers:
-                self._buckets.popitem(last=False)
+            b = buckets[peer] = _Bucket(self.burst, now)
+            if len(buckets) > self.max_peers:
+                buckets.popitem(last=False)
         else:
-            self._buckets.move_to_end(peer)
-            b.tokens = min(self.burst, b.tokens + max(0.0, now - b.at) * self.rate)
-            b.at = max(b.at, now)
+            buckets.move_to_end(peer)
+            # refilled for the time since it was last used (a clock going back adds nothing)
+            tokens = b.tokens
+            if now > b.at:
+                tokens += (now - b.at) * self.rate
+                b.at = now
+            b.tokens = tokens if tokens < self.burst else self.burst
         if b.tokens >= cost:
             b.tokens -= cost
             return True

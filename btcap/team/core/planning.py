@@ -112,13 +112,16 @@ def optimal_plan(
     against every other bid, free or busy (time-extended assignment: it starts the
     moment the robot is free), the largest saving first, one each.
     """
-    import numpy as np
-    from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
-
     plan: Plan = [None] * len(bids)
     _queue(bids, taken, plan, queue_margin)
     left = [t for t, robot in enumerate(plan) if robot is None]
     now = [[b for b in bids[t] if not b.after and not b.later] for t in left]
+    if len(left) == 1:  # most auctions: one task, no matrix needed
+        plan[left[0]] = _cheapest_free(now[0], taken)
+        return plan
+    import numpy as np
+    from scipy.optimize import linear_sum_assignment  # scipy: only for this strategy
+
     robots, cost = _matrix(now, taken)
     wait = [min((b.cost for b in bids[t] if b.after or b.later), default=0.0) for t in left]
     if robots and left:
@@ -131,6 +134,22 @@ def optimal_plan(
             if math.isfinite(cost[t, r]):
                 plan[left[t]] = robots[r]
     return plan
+
+
+def _cheapest_free(bids: Sequence[Bid], taken: Set[str]) -> str | None:
+    """One task: what the Hungarian method gives a one-row matrix (the cheapest robot not
+    ``taken``, ties to the robot whose name sorts first; none if no finite bid), without
+    building the matrix (a robot's cost is its least bid, as in :func:`_matrix`)."""
+    cost: dict[str, float] = {}
+    for b in bids:
+        if b.robot not in taken:
+            cost[b.robot] = min(cost.get(b.robot, math.inf), b.cost)
+    best: tuple[float, str] | None = None
+    for robot in sorted(cost):
+        c = cost[robot]
+        if math.isfinite(c) and (best is None or c < best[0]):
+            best = (c, robot)
+    return None if best is None else best[1]
 
 
 def _queue(bids: Sequence[Sequence[Bid]], taken: Set[str], plan: Plan, margin: float) -> None:

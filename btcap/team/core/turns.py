@@ -207,7 +207,13 @@ class AwardQueue:
                 robots = policy.plan(batch, self.taken)
                 for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
                     closed.plan, closed.planned = robot, robots is not None
-            nxt = self._closed[policy.first([c.bids(self._held(c)) for c in self._closed])]
+            waiting = self._closed
+            # one waiting (most batches): it goes first whatever its bids
+            nxt = (
+                waiting[0]
+                if len(waiting) == 1
+                else waiting[policy.first([c.bids(self._held(c)) for c in waiting])]
+            )
         self._closed.remove(nxt)
         self._awarding = nxt
         return nxt.auction

@@ -146,7 +146,9 @@ class ExecutorSide:
         if self.slot is None and cfb.auction.auctioneer != self.robot:
             return NoBid(cfb.auction, self.robot, "no remote capability slot")
         try:
-            inputs = impls[0].interface.convert_inputs(cfb.inputs, f"call for bids {cfb.auction}")
+            inputs = impls[0].interface.convert_inputs(
+                cfb.inputs, lambda: f"call for bids {cfb.auction}"
+            )
         except TreeError as exc:
             return NoBid(cfb.auction, self.robot, str(exc))
         ev = evaluate(
@@ -197,7 +199,7 @@ class ExecutorSide:
             return impl
         assert self.runs is not None
         try:
-            inputs = impl.interface.convert_inputs(msg.inputs, f"award {msg.execution}")
+            inputs = impl.interface.convert_inputs(msg.inputs, lambda: f"award {msg.execution}")
             cost = impl.cost(inputs)
             if cost is None:
                 return f"{impl.name} cannot execute these inputs"

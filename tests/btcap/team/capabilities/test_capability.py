@@ -377,3 +377,25 @@ async def test_a_capability_node_asks_the_assigner_its_system_provides() -> None
             tree.attach(system)
             assert tree.tick() is State.UNASSIGNED
             assert recorder.asked == [("count", {"x": 2, "stop": False}, True)]
+
+
+def test_inputs_from_the_wire_are_converted_and_a_wrong_one_named_lazily() -> None:
+    from btcap import Port
+
+    iface = CapabilityInterface(
+        "Go", inputs={"x": int, "path": tuple[float, ...], "any": Port(Any, None)}
+    )
+    named: list[str] = []
+
+    def where() -> str:
+        named.append("asked")
+        return "call for bids a#1"
+
+    got = iface.convert_inputs({"x": 3, "path": [1, 2.5], "any": [1]}, where)
+    assert got == {"x": 3, "path": (1.0, 2.5), "any": [1]}
+    assert iface.convert_inputs({}, where) == {"x": None, "path": None, "any": None}
+    assert named == []  # the text is made only for an error
+    with pytest.raises(TreeError, match=r"^call for bids a#1 input 'x': expected int, got str"):
+        iface.convert_inputs({"x": "three"}, where)
+    with pytest.raises(TreeError, match=r"^award e input 'path': expected tuple"):
+        iface.convert_inputs({"path": 5}, "award e")

@@ -247,3 +247,37 @@ def test_a_busy_robot_queues_a_waiting_task_only_as_its_best_robot_by_the_margin
     assert optimal_plan([a, b, d], set()) == ["f", None, "q"]
     # without the margin rule no busy robot is planned
     assert optimal_plan([a, b, c], set(), queue_margin=1.0) == ["f", None, None]
+
+
+def _hungarian_one(bids: list[Bid], taken: set[str]) -> str | None:
+    """The general path for one task: its bid matrix through scipy's Hungarian method."""
+    robots = sorted({b.robot for b in bids} - taken)
+    if not robots:
+        return None
+    row = np.full((1, len(robots)), math.inf)
+    for b in bids:
+        if b.robot in robots:
+            j = robots.index(b.robot)
+            row[0, j] = min(row[0, j], b.cost)
+    finite = row[np.isfinite(row)]
+    big = 2.0 * (1.0 + float(np.abs(finite).sum()))
+    _, cols = linear_sum_assignment(np.where(np.isfinite(row), row, big))
+    return robots[cols[0]] if math.isfinite(row[0, cols[0]]) else None
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["a", "b", "c", "d", "e"]),
+            st.sampled_from([0.0, 1.0, 2.0, 2.5, math.inf, math.nan]),
+        ),
+        max_size=8,
+    ),
+    st.sets(st.sampled_from(["a", "b", "c", "d", "e"]), max_size=3),
+)
+def test_one_task_plans_as_the_hungarian_method_ties_included(
+    pairs: list[tuple[str, float]], taken: set[str]
+) -> None:
+    bids = [bid(r, c) for r, c in pairs]
+    assert optimal_plan([bids], taken) == [_hungarian_one(bids, taken)]
