@@ -46,7 +46,7 @@ from btcap.actors import Address, configure_logging
 from btcap.bench import transport as transport_bench
 from btcap.bench.auction_remote import bench_remote
 from btcap.bench.auction_report import table
-from btcap.bench.common import percentiles, write_result
+from btcap.bench.common import percentiles, wait_until, write_result
 from btcap.bench.cpumeter import CpuMeter
 from btcap.team.allocation.auction import Assigned, AssignmentTask
 from btcap.team.core.bounds import Budgets
@@ -80,14 +80,6 @@ WINDOW_S = 5.0  # long, so an auction that did not close early would show
 TEAM_TIMING: dict[str, Any] = {"heartbeat_s": 1.0, "failure_timeout_s": 5.0}
 _INPUTS = {"value": 1, "stop": False}
 _LOCAL = "127.0.0.1"
-
-
-async def _until(cond: Callable[[], bool], limit: float, what: str) -> None:
-    deadline = time.monotonic() + limit
-    while not cond():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"bench auction: {what} within {limit} s")
-        await asyncio.sleep(0.01)
 
 
 # -- auction rounds ------------------------------------------------------------------------
@@ -193,7 +185,7 @@ async def _bench_inproc(
             started.append(a)
         await origin.__aenter__()
         started.append(origin)
-        await _until(lambda: set(names) <= origin.team.alive(), 20.0, "bidders joined")
+        await wait_until(lambda: set(names) <= origin.team.alive(), 20.0, "bidders joined")
         return await _all_sizes(origin, names, warmup, count, CpuMeter())
     finally:
         for a in reversed(started):
@@ -272,7 +264,7 @@ async def _bench_zmq(
         )
         meter = CpuMeter([p.pid for p in procs])
         async with Agent("origin", transport=transport, registry=reg, config=_origin_config()) as o:
-            await _until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
+            await wait_until(lambda: set(names) <= o.team.alive(), 30.0, "bidders joined")
             if asks is None:
                 return await _all_sizes(o, names, warmup, count, meter)
             async with _asks(asks) as reference:

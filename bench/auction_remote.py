@@ -13,10 +13,10 @@ from __future__ import annotations
 import asyncio
 import gc
 import time
-from collections.abc import Callable
 from typing import Any
 
 from btcap import ReactiveSequence as SequenceNode
+from btcap.bench.common import wait_until
 from btcap.bt.state import State
 from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.demo import ECHO
@@ -29,14 +29,6 @@ __all__ = ["bench_remote"]
 
 MISSION_TICK_HZ = 100.0  # how often the origin ticks its tree while waiting for fail-over
 _LOCAL = "127.0.0.1"
-
-
-async def _until(cond: Callable[[], bool], limit: float, what: str) -> None:
-    deadline = time.monotonic() + limit
-    while not cond():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"bench auction: {what} within {limit} s")
-        await asyncio.sleep(0.01)
 
 
 def _executor_spec(i: int) -> AgentSpec:
@@ -56,7 +48,7 @@ async def bench_remote(
         peers = {p.robot: p.endpoint for p in procs}
         transport = ZmqTransport("origin", f"tcp://{_LOCAL}:*", reg, peers=peers)
         async with Agent("origin", transport=transport, registry=reg) as origin:
-            await _until(
+            await wait_until(
                 lambda: len(origin.repository.providers(ECHO.identity)) == len(procs),
                 30.0,
                 "executors joined",
@@ -90,7 +82,7 @@ async def bench_remote(
                 await running_on_new(victim.robot, 10.0)
                 failover.append(time.perf_counter() - t0)
             node.set_input("stop", True)
-            await _until(lambda: tree.tick() is State.SUCCEEDED, 5.0, "echo finished")
+            await wait_until(lambda: tree.tick() is State.SUCCEEDED, 5.0, "echo finished")
             info = {
                 "assignments": list(node.assignments),
                 "mission_tick_hz": MISSION_TICK_HZ,

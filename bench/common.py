@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import platform
 import statistics
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
-__all__ = ["RESULTS", "machine", "percentiles", "write_result"]
+__all__ = ["RESULTS", "machine", "percentiles", "wait_until", "write_result"]
 
 
 def percentiles(samples: Sequence[float]) -> dict[str, float]:
@@ -39,3 +41,12 @@ def write_result(name: str, data: dict[str, Any]) -> Path:
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps({**data, "_machine": machine()}, indent=2, sort_keys=True) + "\n")
     return path
+
+
+async def wait_until(cond: Callable[[], bool], limit: float, what: str) -> None:
+    """Poll ``cond`` every 10 ms; a TimeoutError names ``what`` once ``limit`` s pass."""
+    deadline = time.monotonic() + limit
+    while not cond():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"bench: {what} within {limit} s")
+        await asyncio.sleep(0.01)
