@@ -111,7 +111,7 @@ class ExecutorSide:
                 continue
             impl = run.implementation
             try:
-                cost = impl.cost(impl.interface.convert_inputs(dict(inputs), str(execution)))
+                cost = impl.cost(impl.interface.convert_inputs(dict(inputs), execution.__str__))
             except Exception as exc:  # a broken estimate is no news; the run goes on
                 self.stats.errors += 1
                 log.error(
