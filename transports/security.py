@@ -305,17 +305,17 @@ class Curve:
             auth.stop()
 
 
-def authenticated(frames: list[zmq.Frame]) -> tuple[bytes, str]:
-    """Who sent a received message, and what is wrong with it ("" if nothing).
+def authenticated(ident: bytes, part: zmq.Frame) -> tuple[bytes, str]:
+    """Who sent a received message (its routing id ``ident``, ``part`` one of its parts),
+    and what is wrong with it ("" if nothing).
 
     The ``User-Id`` is the member ZAP authenticated; the routing id is the sender's
     choice (its name, a ``/`` and a per-connection suffix), only checked for a lie. An
     observer speaking for that member (``NAME+TAG``) is itself. On a problem the routing
     id is returned, for the log.
     """
-    ident = frames[0].bytes
     try:
-        user = str(frames[-1].get("User-Id")).encode()
+        user = str(part.get("User-Id")).encode()
     except zmq.ZMQError:  # not past ZAP: never trust a missing stamp
         return ident, "unauthenticated"
     if ident == user or ident.startswith(user + b"/"):

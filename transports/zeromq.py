@@ -33,7 +33,13 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.zmq_io import allow_sockets, read_frames, read_plain, remove_ipc_file
+from btcap.transports.zmq_io import (
+    Received,
+    allow_sockets,
+    read_plain,
+    read_secure,
+    remove_ipc_file,
+)
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
@@ -283,25 +289,24 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         router = self._router
         secure = self.curve is not None
         # Bound once: see zmq_io. ``get``, not ``getsockopt``: no enum made of the answer.
-        recv, get = router.recv, router.get
-        stats, budget = self.stats, _BATCH
+        recv, get, handle = router.recv, router.get, self._handle
+        budget = _BATCH
         try:
             while budget > 0:
-                malformed, budget = stats.malformed, budget - 1
                 try:
-                    frames = self._authenticated(read_frames(recv)) if secure else read_plain(recv)
+                    got = self._authenticated(*read_secure(recv)) if secure else read_plain(recv)
                 except zmq.Again:  # a spurious wake-up: rare, so try first, ask never
                     return
                 try:
-                    if frames:
-                        self._handle(frames, deliver)
+                    junk = got is None or handle(got, deliver)
                 except Exception as exc:  # a bug here must not stall the receiver
+                    junk = True
                     self.stats.malformed += 1
                     self.stats.drop("receiver error")
                     log.error("transport.handle_failed", system=self.system_id, exc_info=exc)
                 if self._deliver is None:  # closed by whoever we delivered to
                     return
-                budget -= _JUNK_COST if stats.malformed != malformed else 0
+                budget -= _JUNK_COST if junk else 1
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
                 if not get(EVENTS) & POLLIN:  # type: ignore[operator]
                     return
@@ -330,20 +335,20 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if peer not in self._configured:  # gone for good unless it speaks again
                 self._fate(peer, self._strangers.lapsed(peer))
 
-    def _authenticated(self, frames: list[zmq.Frame]) -> list[bytes | memoryview]:
-        member, problem = authenticated(frames)
+    def _authenticated(self, ident: bytes, part: zmq.Frame, extra: int) -> Received | None:
+        member, problem = authenticated(ident, part)
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
-            return []
-        if self._blocked(frames[0].bytes, member):
-            return []
-        return [member, *(f.buffer for f in frames[1:])]
+            return None
+        if self._blocked(ident, member):
+            return None
+        return member, part.buffer, extra
 
-    def _handle(self, frames: list[bytes | memoryview], deliver: Deliver) -> None:
-        if len(frames) != 2:
-            self._malformed("frame count", bytes(frames[0]), f"{len(frames)} frames")
-            return
-        ident, body = bytes(frames[0]), frames[1]  # the id is bytes already: no copy
+    def _handle(self, got: Received, deliver: Deliver) -> bool:
+        """Take one message (see zmq_io); True if it was junk, which costs the batch more."""
+        ident, body, extra = got
+        if extra:
+            return self._malformed("frame count", ident, f"{extra + 2} frames")
         kind = body[0] if body else -1
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
@@ -352,49 +357,50 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
-                return
+                return False
             try:
-                # A Frame's buffer is a memoryview already: sliced as it is, not wrapped again.
-                view = body if type(body) is memoryview else memoryview(body)
-                env = self.codec.decode(view[1:])
+                # A Frame's buffer is a memoryview already: sliced without a copy.
+                env = self.codec.decode(body[1:])
             except CodecError as exc:
-                self._malformed("bad envelope", ident, str(exc)[:200])
-                return
+                return self._malformed("bad envelope", ident, str(exc)[:200])
             if env.sender.system != peer:
-                self._malformed("sender mismatch", ident, f"claims {env.sender.system[:64]!r}")
-                return
+                return self._malformed(
+                    "sender mismatch", ident, f"claims {env.sender.system[:64]!r}"
+                )
             to = env.recipient.system
             if to != self.system_id and to != BROADCAST:
-                self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
-                return
+                return self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
             self.stats.received += 1
             if self._strangers.since:
                 self._strangers.vouched(peer)
             if self._limited and peer in self._limited and self._screen(peer, env):
-                return
+                return False
             try:
                 deliver(env)
             except Exception as exc:  # a bug above us must not stop the receive loop
                 log.error(
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
-        elif kind == _HELLO_BYTE:
+            return False
+        malformed = self.stats.malformed  # what a hello or a refusal may find wrong
+        if kind == _HELLO_BYTE:
             where, instance = split_hello(bytes(body[1:]))
             try:
                 peer, endpoint = parse_hello(ident, where, self.system_id)
             except ValueError as exc:
-                self._malformed("bad hello", ident, str(exc))
-                return
+                return self._malformed("bad hello", ident, str(exc))
             if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
         elif kind == REFUSAL:
             self._refused_by(ident, bytes(body[1:]))
         else:
-            self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
+            return self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
+        return self.stats.malformed != malformed
 
-    def _malformed(self, reason: str, ident: bytes, detail: str) -> None:
+    def _malformed(self, reason: str, ident: bytes, detail: str) -> bool:
         self.stats.malformed += 1
         reject(self.stats, self.system_id, reason, ident, detail)
+        return True
 
     @property
     def closed(self) -> bool:

@@ -2,7 +2,8 @@
 
 Receiving reads a part's ``more`` flag rather than asking ``RCVMORE`` (pyzmq turns every
 socket option into an enum on each call) and keeps the body in the frame's buffer, which
-the codec decodes without a copy: a path every message takes.
+the codec decodes without a copy: a path every message takes, so a message comes back as
+a tuple, not a list of parts (btcap's have one part after the routing id).
 """
 
 from __future__ import annotations
@@ -14,9 +15,13 @@ from typing import Any
 
 import zmq
 
-__all__ = ["allow_sockets", "read_frames", "read_plain", "remove_ipc_file"]
+__all__ = ["Received", "allow_sockets", "read_plain", "read_secure", "remove_ipc_file"]
 
 NOBLOCK = int(zmq.NOBLOCK)
+
+Received = tuple[bytes, memoryview, int]
+"""A received message: who sent it (its routing id's name), its first part's buffer and
+how many parts followed that one (read and dropped: a message of btcap's has one)."""
 
 
 def allow_sockets(ctx: zmq.Context[Any]) -> None:
@@ -28,25 +33,28 @@ def allow_sockets(ctx: zmq.Context[Any]) -> None:
         ctx.set(zmq.MAX_SOCKETS, limit)
 
 
-def read_plain(recv: Callable[..., Any]) -> list[bytes | memoryview]:
-    """One message from a ROUTER without keys: the name its routing id claims (see
-    ``open_dealer``), then its parts' buffers (a ROUTER's id always has one after it).
-    Raises ``zmq.Again`` when nothing is queued."""
-    frames: list[bytes | memoryview] = [recv(NOBLOCK).partition(b"/")[0]]
+def read_plain(recv: Callable[..., Any]) -> Received:
+    """One message from a ROUTER without keys, named by what its routing id claims (see
+    ``open_dealer``). Raises ``zmq.Again`` when nothing is queued."""
+    ident: bytes = recv(NOBLOCK).partition(b"/")[0]
     part = recv(NOBLOCK, copy=False)
-    frames.append(part.buffer)
+    return ident, part.buffer, _rest(recv, part) if part.more else 0
+
+
+def read_secure(recv: Callable[..., Any]) -> tuple[bytes, zmq.Frame, int]:
+    """One message from a ROUTER with keys: its routing id, its first part as a frame
+    (ZAP's ``User-Id`` is a property of every part) and how many parts followed it."""
+    ident: bytes = recv(NOBLOCK)
+    part = recv(NOBLOCK, copy=False)
+    return ident, part, _rest(recv, part) if part.more else 0
+
+
+def _rest(recv: Callable[..., Any], part: zmq.Frame) -> int:
+    extra = 0
     while part.more:
         part = recv(NOBLOCK, copy=False)
-        frames.append(part.buffer)
-    return frames
-
-
-def read_frames(recv: Callable[..., Any]) -> list[zmq.Frame]:
-    """One message as frames (with keys: ZAP's ``User-Id`` is a frame property)."""
-    parts: list[zmq.Frame] = [recv(NOBLOCK, copy=False)]
-    while parts[-1].more:
-        parts.append(recv(NOBLOCK, copy=False))
-    return parts
+        extra += 1
+    return extra
 
 
 def remove_ipc_file(endpoint: str) -> None:
