@@ -18,13 +18,15 @@ Where = str | Callable[[], str]
 
 
 def convert(ports: PortMap, values: Mapping[str, Any], where: Where, kind: str) -> dict[str, Any]:
-    """``values`` by port (missing ones: None), each converted to its port's type as
-    :func:`~btcap.bt.ports.check_value` does (inline: the text naming a value is made,
-    and check_value called for its error, only when the conversion fails)."""
+    """``values`` by port (missing ones: None), each converted to its port's type and
+    held to its constraints (a port's ``Meta``: a peer's value is no more trusted than a
+    tree file's) as :func:`~btcap.bt.ports.check_port` does (inline: the text naming a
+    value is made, and check_value called for its error, only when the conversion
+    fails)."""
     out: dict[str, Any] = {}
     for key, port in ports.items():
         value = values.get(key)
-        t = port.type
+        t = port.checked
         if value is None or t is Any:
             out[key] = value
             continue
@@ -32,5 +34,6 @@ def convert(ports: PortMap, values: Mapping[str, Any], where: Where, kind: str) 
             out[key] = msgspec.convert(value, t, strict=False)
         except (msgspec.ValidationError, TypeError):
             named = where() if callable(where) else where
-            out[key] = check_value(value, t, f"{named} {kind} {key!r}")  # raises, saying why
+            # raises, saying why
+            out[key] = check_value(value, port.type, f"{named} {kind} {key!r}", port.meta)
     return out

@@ -399,3 +399,25 @@ def test_inputs_from_the_wire_are_converted_and_a_wrong_one_named_lazily() -> No
         iface.convert_inputs({"x": "three"}, where)
     with pytest.raises(TreeError, match=r"^award e input 'path': expected tuple"):
         iface.convert_inputs({"path": 5}, "award e")
+
+
+def test_inputs_from_the_wire_are_held_to_their_ports_constraints() -> None:
+    import msgspec
+
+    from btcap import Port
+
+    iface = CapabilityInterface(
+        "Go",
+        inputs={
+            "speed": Port(float, 1.0, meta=msgspec.Meta(ge=0, le=2)),
+            "tag": Port(str, "", meta=msgspec.Meta(max_length=4)),
+        },
+        outputs={"count": Port(int, 0, meta=msgspec.Meta(ge=0))},
+    )
+    assert iface.convert_inputs({"speed": 2, "tag": "ab"}, "x") == {"speed": 2.0, "tag": "ab"}
+    with pytest.raises(TreeError, match=r"^call for bids a#1 input 'speed': must be >= 0 and <= 2"):
+        iface.convert_inputs({"speed": 5.0}, "call for bids a#1")
+    with pytest.raises(TreeError, match=r"^award e input 'tag': .*length"):
+        iface.convert_inputs({"tag": "x" * 5000}, "award e")
+    with pytest.raises(TreeError, match=r"^report r output 'count': must be >= 0, got -1"):
+        iface.convert_outputs({"count": -1}, "report r")
