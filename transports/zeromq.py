@@ -147,6 +147,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             raise
         bound = self._router.getsockopt_string(zmq.LAST_ENDPOINT)
         self._fd = fd_of(self._router)
+        # Bound once, not per wake-up. ``get``, not ``getsockopt``: no enum of the answer.
+        self._recv, self._get = self._router.recv, self._router.get
         self.endpoint: str = advertise or bound
         self.bound_endpoint: str = bound
         self._dealers: dict[str, zmq.Socket[bytes]] = {}
@@ -286,10 +288,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         deliver = self._deliver
         if deliver is None:
             return
-        router = self._router
         secure = self.curve is not None
-        # Bound once: see zmq_io. ``get``, not ``getsockopt``: no enum made of the answer.
-        recv, get, handle = router.recv, router.get, self._handle
+        recv, get, handle = self._recv, self._get, self._handle
         budget = _BATCH
         try:
             while budget > 0:
