@@ -11,9 +11,8 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import ReactiveSequence
-from btcap.actors import ActorSystem, ManualClock
+from btcap.actors import Actor, ActorSystem, ManualClock, handler
 from btcap.team.deployment.deploy import observe_team
-from btcap.actors import Actor, handler
 from btcap.team.membership.membership import MAX_ANSWERS_DUE, Membership, TeamEvent
 from btcap.team.messages import (
     Contact,
@@ -291,7 +290,7 @@ async def test_a_member_owes_its_welcome_and_an_answer_to_each_request() -> None
     a little later for another) while its welcome is still on its way: its welcome and
     both answers are taken, in whatever order they come; a roster more is refused."""
     with anyio.fail_after(5):
-        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
             x = Asked()
             p.systems["x"].spawn(x, Membership.PATH)
             await p.send("x", mentioning("z1"))
@@ -308,7 +307,7 @@ async def test_a_member_owes_its_welcome_and_an_answer_to_each_request() -> None
 
 async def test_an_answer_is_due_until_the_failure_timeout_the_welcome_until_taken() -> None:
     with anyio.fail_after(5):
-        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
             await p.send("x", mentioning("z1"))
             await p.clock.advance(0.6)  # the answer is late: refused; the welcome is not
             await p.send("x", Heartbeat("x", 1, 0))
@@ -322,7 +321,7 @@ async def test_what_a_member_may_owe_us_is_bounded_and_forgotten_when_it_leaves(
     (the other robots are asked about once an answer came), so x can make us take at
     most that many rosters plus its welcome; what its life owed is gone with it."""
     with anyio.fail_after(5):
-        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
             x = Asked()
             p.systems["x"].spawn(x, Membership.PATH)
             for i in range(2 * MAX_ANSWERS_DUE):
