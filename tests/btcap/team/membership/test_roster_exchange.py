@@ -82,6 +82,15 @@ async def test_a_starting_team_learns_itself_with_no_roster_refused() -> None:
                 )
             )
             await clock.sleep(20.0)
+            # A latecomer told of one robot only: its welcome and its answers both come.
+            late = Dialling(net, "late", {"b00"})
+            agents.append(
+                await stack.enter_async_context(
+                    Agent("late", transport=late, clock=clock, config=CONFIG)
+                )
+            )
+            everyone |= {"late"}
+            await clock.sleep(10.0)
             assert {a.team.robot: a.team.alive() for a in agents} == dict.fromkeys(
                 everyone, everyone
             )
