@@ -43,6 +43,9 @@ log = get_logger("btcap.team")
 
 Listener = Callable[[TeamEvent, str], None]
 _DEFAULT = Timing()
+MAX_ANSWERS_DUE = 3
+"""Answers to our roster requests one member may owe us at once (besides its welcome):
+what a member can make us dial stays bounded; more questions wait for an answer."""
 
 
 class Membership(Actor):
@@ -85,10 +88,11 @@ class Membership(Actor):
         self.fanout = fanout
         self._others = Turns(random.Random(f"others {robot}"))
         self._asked = Introductions(failure_timeout_s)
-        #: Whose roster we take, until when: a member's welcome, once per its join (no
-        #: deadline: how soon it learns of us depends on gossip and load), or one we
-        #: asked for; nobody else may make us dial endpoints of its choosing.
-        self._rosters_due: dict[str, float] = {}
+        #: The rosters each member owes us, by deadline: its welcome, once per its join
+        #: (no deadline: how soon it learns of us depends on gossip and load), and the
+        #: answer to each request we sent it (at most MAX_ANSWERS_DUE at once). Nobody
+        #: else may make us dial endpoints of its choosing. Forgotten when it departs.
+        self._rosters_due: dict[str, list[float]] = {}
         self._listeners: list[Listener] = []
 
     @property
@@ -124,6 +128,8 @@ class Membership(Actor):
         return self.table.alive()
 
     def _emit(self, event: TeamEvent, robot: str) -> None:
+        if event in (TeamEvent.FAILED, TeamEvent.LEFT):
+            self._rosters_due.pop(robot, None)  # what its life owed us, it never will
         emit = log.debug if event is TeamEvent.FREED else log.info  # routine, not a change
         emit("team.event", robot=self.robot, change=event.value, member=robot)
         for listener in list(self._listeners):
@@ -189,7 +195,7 @@ class Membership(Actor):
         for event, robot in step.events:
             self._emit(event, robot)
             if event is TeamEvent.JOINED:
-                self._expect_roster(robot, self.system.clock.now(), welcome=True)
+                self._rosters_due[robot] = [math.inf]  # its welcome, whenever it comes
                 self._welcome(robot)
         if step.unknown and sender is not None:
             self._introduce(sender, step.unknown)
@@ -249,17 +255,17 @@ class Membership(Actor):
         """Robots a member mentions that we do not know get a heartbeat if we can reach
         them (they welcome us), else the member is asked where they are."""
         now = self.system.clock.now()
-        due = self._asked.due(unknown, now)
-        if not due:
-            return
         transport = self.system.transport
         reachable = transport.peers() if transport is not None else frozenset()
+        if not self._may_ask(sender, now):  # the others wait for a member we may ask
+            unknown = [r for r in unknown if r in reachable]
+        due = self._asked.due(unknown, now)
         for robot in due:
             if robot in reachable:
                 self._beat_to(robot)
         ask = [r for r in due if r not in reachable]
-        if ask and sender in self.table.members:
-            self._expect_roster(sender, now)
+        if ask:
+            self._rosters_due[sender].append(now + self.failure_timeout_s)
             self.system.tell(Address(sender, self.PATH), RosterRequest(ask))
 
     @handler
@@ -272,8 +278,8 @@ class Membership(Actor):
             endpoint = transport.endpoint_of(robot) if robot in self.table.members else None
             if endpoint is not None:
                 contacts.append(Contact(robot, endpoint))
-        if contacts:
-            self.system.tell(Address(self.sender, self.PATH), Roster(contacts))
+        # Sent even when empty: it is the answer the asker waits for.
+        self.system.tell(Address(self.sender, self.PATH), Roster(contacts))
 
     @handler
     def on_roster(self, msg: Roster) -> None:
@@ -282,8 +288,7 @@ class Membership(Actor):
         transport = self.system.transport
         if not self._from_member(msg) or transport is None:
             return
-        due = self._rosters_due.pop(self.sender, None)
-        if due is None or self.system.clock.now() > due:
+        if not self._take_roster(self.sender, self.system.clock.now()):
             self._refuse(msg, detail="a roster nobody asked for")
             return
         for c in msg.contacts[: self.table.max_members]:
@@ -298,12 +303,29 @@ class Membership(Actor):
         running, queued = self._activity()
         return Activity(self.robot, running, queued)
 
-    def _expect_roster(self, robot: str, now: float, *, welcome: bool = False) -> None:
-        due = self._rosters_due
-        for r in [r for r, until in due.items() if until < now or r not in self.table.members]:
-            del due[r]
-        until = math.inf if welcome else now + self.failure_timeout_s
-        due[robot] = max(until, due.get(robot, until))
+    def _owed(self, robot: str, now: float) -> list[float]:
+        """The deadlines of the rosters ``robot`` (a member) still owes us, late ones
+        dropped."""
+        owed = self._rosters_due.setdefault(robot, [])
+        owed[:] = [until for until in owed if until >= now]
+        return owed
+
+    def _may_ask(self, robot: str, now: float) -> bool:
+        """Whether a roster request to ``robot`` may go out: a member that does not owe
+        us :data:`MAX_ANSWERS_DUE` answers already."""
+        if robot not in self.table.members:
+            return False
+        return sum(until != math.inf for until in self._owed(robot, now)) < MAX_ANSWERS_DUE
+
+    def _take_roster(self, robot: str, now: float) -> bool:
+        """Count a roster from ``robot`` against what it owes us, the soonest due first
+        (the rosters carry no question: whichever comes, a later one may still be due).
+        False: it owes us none."""
+        owed = self._owed(robot, now)
+        if not owed:
+            return False
+        owed.remove(min(owed))
+        return True
 
     def _from_member(
         self, msg: Roster | RosterRequest | ActivityQuery | ProbeRequest | Vouch

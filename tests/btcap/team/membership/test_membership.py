@@ -11,10 +11,19 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 
 from btcap import ReactiveSequence
-from btcap.actors import ActorSystem, ManualClock
+from btcap.actors import Actor, ActorSystem, ManualClock, handler
 from btcap.team.deployment.deploy import observe_team
-from btcap.team.membership.membership import Membership, TeamEvent
-from btcap.team.messages import Contact, Goodbye, Heartbeat, ProbeRequest, Roster, Vouch
+from btcap.team.membership.membership import MAX_ANSWERS_DUE, Membership, TeamEvent
+from btcap.team.messages import (
+    Contact,
+    Goodbye,
+    Heard,
+    Heartbeat,
+    ProbeRequest,
+    Roster,
+    RosterRequest,
+    Vouch,
+)
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import Address, InProcessNetwork, Message
 
@@ -246,6 +255,87 @@ async def test_a_welcome_is_taken_however_late_but_once_per_join() -> None:
             await p.send("x", Roster([Contact("y", "inproc://y")]))
             assert p.m.refused == 1
             await p.send("x", Heartbeat("x", 2, 0))  # a new life joins: one welcome more
+            await p.send("x", Roster([]))
+            await p.send("x", Roster([]))
+            assert p.m.refused == 2
+
+
+class Asked(Actor):
+    """A peer's membership that only notes the roster requests it gets."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.requests: list[list[str]] = []
+
+    @handler
+    def on_roster_request(self, msg: RosterRequest) -> None:
+        self.requests.append(list(msg.robots))
+
+    @handler
+    def on_heartbeat(self, msg: Heartbeat) -> None:
+        pass
+
+    @handler
+    def on_roster(self, msg: Roster) -> None:
+        pass
+
+
+def mentioning(*robots: str, incarnation: int = 1) -> Heartbeat:
+    """x's heartbeat with news of ``robots`` (no peers of ours: we must ask x where)."""
+    return Heartbeat("x", incarnation, 0, False, 0, [Heard(r, 1, 0) for r in robots])
+
+
+async def test_a_member_owes_its_welcome_and_an_answer_to_each_request() -> None:
+    """x's news names robots we cannot reach, so we ask x where they are (once now, once
+    a little later for another) while its welcome is still on its way: its welcome and
+    both answers are taken, in whatever order they come; a roster more is refused."""
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
+            x = Asked()
+            p.systems["x"].spawn(x, Membership.PATH)
+            await p.send("x", mentioning("z1"))
+            await p.clock.advance(0.05)
+            await p.send("x", mentioning("z2"))
+            assert x.requests == [["z1"], ["z2"]]
+            await p.send("x", Roster([Contact("z1", "inproc://z1")]))  # an answer
+            await p.send("x", Roster([]))  # the welcome
+            await p.send("x", Roster([Contact("z2", "inproc://z2")]))  # the other answer
+            assert p.m.refused == 0
+            await p.send("x", Roster([Contact("z3", "inproc://z3")]))  # more than we asked
+            assert p.m.refused == 1
+
+
+async def test_an_answer_is_due_until_the_failure_timeout_the_welcome_until_taken() -> None:
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
+            await p.send("x", mentioning("z1"))
+            await p.clock.advance(0.6)  # the answer is late: refused; the welcome is not
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Roster([]))
+            await p.send("x", Roster([]))
+            assert p.m.refused == 1
+
+
+async def test_what_a_member_may_owe_us_is_bounded_and_forgotten_when_it_leaves() -> None:
+    """However many robots x names, at most MAX_ANSWERS_DUE requests to it are open
+    (the other robots are asked about once an answer came), so x can make us take at
+    most that many rosters plus its welcome; what its life owed is gone with it."""
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
+            x = Asked()
+            p.systems["x"].spawn(x, Membership.PATH)
+            for i in range(2 * MAX_ANSWERS_DUE):
+                await p.send("x", mentioning(f"z{i}"))
+            assert x.requests == [[f"z{i}"] for i in range(MAX_ANSWERS_DUE)]
+            await p.send("x", Roster([]))  # an answer: room for one question more
+            await p.send("x", mentioning("z0", "z9"))
+            assert x.requests[-1] == ["z9"]  # z0 was asked about already
+            for _ in range(MAX_ANSWERS_DUE + 2):
+                await p.send("x", Roster([]))
+            assert p.m.refused == 1  # the open answers and the welcome, then nothing
+            await p.send("x", mentioning("y1"))
+            await p.send("x", Goodbye("x", 1))
+            await p.send("x", Heartbeat("x", 2, 0))  # a new life: only its welcome is due
             await p.send("x", Roster([]))
             await p.send("x", Roster([]))
             assert p.m.refused == 2
