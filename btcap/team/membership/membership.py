@@ -207,11 +207,12 @@ class Membership(Actor):
             return True
         return self._refuse(msg, claims=robot[:64])
 
-    def _refuse(self, msg: object, **why: str) -> bool:
-        """Count and (at a falling rate) log a refused message; False, for the caller."""
+    def _refuse(self, msg: object, *, harmless: bool = False, **why: str) -> bool:
+        """Count and (at a falling rate) log a refused message; False, for the caller.
+        A ``harmless`` one (it could not have made us do anything) is logged at debug."""
         self.refused += 1
         if worth_logging(self.refused):
-            log.warning(
+            (log.debug if harmless else log.warning)(
                 "team.refused",
                 robot=self.robot,
                 sender=self.sender,
@@ -289,12 +290,17 @@ class Membership(Actor):
         if not self._from_member(msg) or transport is None:
             return
         if not self._take_roster(self.sender, self.system.clock.now()):
-            self._refuse(msg, detail="a roster nobody asked for")
+            # A robot the others failed while it kept them is welcomed again by each:
+            # routine, and harmless when the roster names nobody we would dial.
+            news = any(self._unknown(c.robot) for c in msg.contacts[: self.table.max_members])
+            self._refuse(msg, harmless=not news, detail="a roster nobody asked for")
             return
         for c in msg.contacts[: self.table.max_members]:
-            known = c.robot == self.robot or c.robot in self.table.members
-            if not known and transport.introduce(c.robot, c.endpoint):
+            if self._unknown(c.robot) and transport.introduce(c.robot, c.endpoint):
                 self._beat_to(c.robot)
+
+    def _unknown(self, robot: str) -> bool:
+        return robot != self.robot and robot not in self.table.members
 
     @handler
     def on_activity_query(self, msg: ActivityQuery) -> Activity | None:

@@ -260,6 +260,29 @@ async def test_a_welcome_is_taken_however_late_but_once_per_join() -> None:
             assert p.m.refused == 2
 
 
+async def test_an_unasked_roster_naming_nobody_new_is_refused_without_a_warning() -> None:
+    """A robot the others declared failed while it kept them is welcomed again by each:
+    those rosters are refused (counted) but name nobody it would dial, so they are no
+    warning; one naming a robot it does not know still is."""
+    from structlog.testing import capture_logs
+
+    with anyio.fail_after(5):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+            await p.send("x", Heartbeat("x", 1, 0))
+            await p.send("x", Roster([]))  # its welcome
+            with capture_logs() as logs:
+                await p.send("x", Roster([Contact("x", "inproc://x")]))  # known only
+                await p.send("x", Roster([]))
+                assert p.m.refused == 2
+                assert [e["log_level"] for e in logs if e["event"] == "team.refused"] == [
+                    "debug",
+                    "debug",
+                ]
+                await p.send("x", Roster([Contact("y", "inproc://y")]))  # would dial y
+            assert p.m.refused == 3
+            assert [e["log_level"] for e in logs if e["event"] == "team.refused"][-1] == "warning"
+
+
 class Asked(Actor):
     """A peer's membership that only notes the roster requests it gets."""
 
