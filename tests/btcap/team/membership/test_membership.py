@@ -267,7 +267,7 @@ async def test_an_unasked_roster_naming_nobody_new_is_refused_without_a_warning(
     from structlog.testing import capture_logs
 
     with anyio.fail_after(5):
-        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
+        async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _events):
             await p.send("x", Heartbeat("x", 1, 0))
             await p.send("x", Roster([]))  # its welcome
             with capture_logs() as logs:
