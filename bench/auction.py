@@ -89,7 +89,7 @@ waits for it to refill this many."""
 ISOLATED_GAP_S = 0.05
 SETTLE_S = 3.0
 """After the last join: 51 agents exchange rosters for about 2 s (a burst of CPU that must
-not count as idle, nor overlap the first rounds); a team of 11 in 1 s. Quick: 0.6 of it."""
+not count as idle, nor overlap the first rounds); a team of 11 in under 0.5 s."""
 ASK_REFERENCE = 1000
 """tcp asks measured right before and after the 10-bidder rounds (plain tcp), each way."""
 WINDOW_S = 5.0  # long, so an auction that did not close early would show
@@ -102,8 +102,8 @@ _LOCAL = "127.0.0.1"
 
 class Plan(NamedTuple):
     warmup: int
-    count: int
-    quick: bool  # shorter waits for the joins to settle and for idle CPU
+    rounds: int
+    quick: bool  # small teams: shorter waits for the joins to settle and for idle CPU
 
 
 Figures = tuple[dict[str, Any], dict[str, Any], dict[str, Any]]
@@ -240,10 +240,11 @@ async def _all_sizes(
     lat: dict[str, Any] = {}
     early: dict[str, Any] = {}
     cpu_ms: dict[str, Any] = {}
-    warmup, count = plan.warmup, plan.count
-    settle, calm = (SETTLE_S, 2.0) if len(names) > 11 else (1.0, 1.0)
-    await asyncio.sleep(settle * (0.6 if plan.quick else 1))  # let the joins settle
-    await cpu.calibrate(calm / (2 if plan.quick else 1))
+    warmup, count = plan.warmup, plan.rounds
+    # a crowded team's roster burst must end before idle CPU is measured, quick or not
+    settle, calm = (SETTLE_S, 2.0) if len(names) > 11 else (0.5, 0.5) if plan.quick else (1, 1)
+    await asyncio.sleep(settle)  # let the joins settle
+    await cpu.calibrate(calm)
     budget = _budget()
     for label, n in rows:
         # Spread the bidders over every process (names were dealt round robin).
@@ -279,7 +280,7 @@ async def _bench_zmq(
 
         async def reference(label: str, n: int) -> None:
             if label != CROWDED:  # the floor is not crowded: its row of 10 serves both
-                await floor.measure(n, max(10, plan.count // 2))
+                await floor.measure(n, max(10, plan.rounds // 2))
             if ask is not None and label == str(REFERENCE_BIDDERS):
                 await ask()
 

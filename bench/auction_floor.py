@@ -155,7 +155,7 @@ class FloorRound:
 
     def _readable(self) -> None:
         get, recv = self._router.get, self._router.recv
-        while get(EVENTS) & POLLIN:
+        while get(EVENTS) & POLLIN:  # type: ignore[operator]
             recv(NOBLOCK)  # the bidder's routing id
             kind, r, bidder, cost, _ = decode(recv(NOBLOCK))
             want, rnd, n = self._want

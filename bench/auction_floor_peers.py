@@ -42,7 +42,7 @@ __all__ = [
 ]
 
 VARIANTS = ("blocking", "asyncio")
-SIZES = {"call": 149, "bid": 87, "award": 107, "accept": 73, "cancel": 73}
+SIZES = {"call": 149, "bid": 91, "award": 116, "accept": 78, "cancel": 83}
 """Bytes on the wire per message of btcap's round (its frame: kind byte and envelope)."""
 CALL, BID, AWARD, ACCEPT, CANCEL = range(5)
 NOBLOCK = int(zmq.NOBLOCK)
@@ -183,7 +183,7 @@ def _drain(router: zmq.Socket[bytes], send: Callable[..., Any], index: int) -> C
     get, recv = router.get, router.recv
 
     def readable() -> None:
-        while get(EVENTS) & POLLIN:
+        while get(EVENTS) & POLLIN:  # type: ignore[operator]
             recv(NOBLOCK)  # the asker's routing id
             out = _answer(recv(NOBLOCK), index)
             if out is not None:
