@@ -131,7 +131,7 @@ class SingleItemAuction(Allocator):
         self._open[auction_id] = (auction, done)
         self._queue.opened(auction_id, auction.invited)
         self.stats.auctions += 1
-        called, opened_at = task, clock.now()  # a watcher's record is made only for one
+        opened_at = clock.now()  # a watcher's record is made only for a watcher
         if self._watchers:
             self._report(AuctionRecord(auction_id, task, opened_at))
         try:
@@ -155,7 +155,7 @@ class SingleItemAuction(Allocator):
             self._queue.dropped(auction_id)
             self._next_turn()  # others may have waited for this one
             if self._watchers:
-                self._report(AuctionRecord(auction_id, called, opened_at, clock.now()))
+                self._report(AuctionRecord(auction_id, task, opened_at, clock.now()))
             raise
         if auction.answered_all:
             self.stats.early_closes += 1

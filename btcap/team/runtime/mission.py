@@ -271,7 +271,7 @@ class MissionControl(Actor):
             return
         answer = self.executor.bid(sender, msg)
         if answer is None:
-            self.refused(self.sender, msg, "over its budget of calls for bids")
+            self.refused(sender, msg, "over its budget of calls for bids")
             return
         to = Address(auctioneer, SingleItemAuction.PATH)
         self.system.tell(to, answer, sender=self.address)
