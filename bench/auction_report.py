@@ -63,6 +63,11 @@ def table(data: dict[str, Any], window_s: float) -> str:
             f"{aio:>6.3f} {b['p50'] / blk:>5.2f} {b['p50'] / aio:>5.2f}"
         )
     setup = data["setup"]
+    if setup.get("crowded_row"):
+        lines.append(
+            "team = the origin and its bidders, one team per row (a deployment: one robot per"
+            " computer), but 10/51: the first 10 of the team of 51, a crowded host"
+        )
     ok = "yes" if data["early_close"]["all"] else "NO"
     lines.append(
         f"every round closed early: {ok} (window {window_s} s); bidders over tcp in "
