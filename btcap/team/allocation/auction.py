@@ -131,9 +131,9 @@ class SingleItemAuction(Allocator):
         self._open[auction_id] = (auction, done)
         self._queue.opened(auction_id, auction.invited)
         self.stats.auctions += 1
-        opened = AuctionRecord(auction_id, task, clock.now())
+        opened_at = clock.now()  # a watcher's record is made only for a watcher
         if self._watchers:
-            self._report(opened)
+            self._report(AuctionRecord(auction_id, task, opened_at))
         try:
             cfb = CallForBids(
                 auction_id,
@@ -145,16 +145,17 @@ class SingleItemAuction(Allocator):
                 # time-extended: busy robots say what a new task would cost them later
                 self._extended and task.holder is None and task.handing is None,
             )
+            me = self.address
             for robot in sorted(task.candidates):
-                system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=self.address)
+                system.tell(Address(robot, ASSIGNER_PATH), cfb, sender=me)
             if not auction.closed(clock.now()):
-                await within(clock, self.window_s, done.wait())
+                await self._window(done)
         except BaseException:
             del self._open[auction_id]
             self._queue.dropped(auction_id)
             self._next_turn()  # others may have waited for this one
             if self._watchers:
-                self._report(dataclasses.replace(opened, closed=clock.now()))
+                self._report(AuctionRecord(auction_id, task, opened_at, clock.now()))
             raise
         if auction.answered_all:
             self.stats.early_closes += 1
@@ -186,18 +187,25 @@ class SingleItemAuction(Allocator):
         finally:
             if self._watchers:  # ``won`` None: cancelled while awarding
                 passed = {} if award is None else dict(award.reasons)
-                end = dataclasses.replace(
-                    opened,
-                    task=task,
-                    closed=clock.now(),
-                    result=won,
-                    outcome=outcome,
-                    passed=passed,
-                )
+                end = AuctionRecord(auction_id, task, opened_at, clock.now(), outcome, won, passed)
                 self._report(end)
             self._turns.pop(auction_id, None)
             self._queue.finished(auction_id)
             self._next_turn()
+
+    async def _window(self, done: asyncio.Event) -> None:
+        """Until every invited robot answered (``done``) or the window passed. On a real
+        clock a loop timer ends the wait: ``within``'s timeout context costs more, once
+        a round; on a virtual one, ``within`` as ever (the order runs reproduce by)."""
+        wall = self.system.clock.to_wall(self.window_s)
+        if wall <= 0:
+            await within(self.system.clock, self.window_s, done.wait())
+            return
+        timer = asyncio.get_running_loop().call_later(wall, done.set)
+        try:
+            await done.wait()
+        finally:
+            timer.cancel()
 
     def _next_turn(self) -> None:
         """Let the closed auction whose turn it is award (see :class:`AwardQueue`)."""

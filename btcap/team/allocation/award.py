@@ -34,13 +34,22 @@ async def offer(
     with ``log``. ``min_wall``: the least wall time to wait on a fast real clock."""
     system = actor.system
     clock = system.clock
+    # On a real clock the ask's own limit (one loop timer for all of a system's asks)
+    # bounds the wait, not a timeout context of its own; on a virtual one, ``within``.
+    wall = clock.to_wall(timeout_s)
+    limit = max(wall, min_wall) if wall > 0 else None
     while (ask := award.next()) is not None:
         robot = award.offered.robot
         executor = system.ref(Address(robot, ASSIGNER_PATH))
         try:
-            reply = await within(
-                clock, timeout_s, executor.ask(ask, expect=AwardReply), min_wall=min_wall
-            )
+            if limit is None:
+                asked = executor.ask(ask, expect=AwardReply)
+                reply = await within(clock, timeout_s, asked, min_wall=min_wall)
+            else:
+                try:
+                    reply = await executor.ask(ask, expect=AwardReply, timeout=limit)
+                except AskTimeout:
+                    reply = None
             if reply is None:
                 raise AskTimeout(
                     f"no reply from {executor.address} to the award within {timeout_s} clock s"

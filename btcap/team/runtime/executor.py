@@ -6,8 +6,11 @@ knows the robot's implementations, builds runs and loads them into the slot.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from typing import Any
+
+import structlog
 
 from btcap.bt.state import TreeError
 from btcap.team.capabilities.implementation import (
@@ -34,6 +37,20 @@ from btcap.transports.log import get_logger
 __all__ = ["ExecutorSide"]
 
 log = get_logger("btcap.mission")
+_std_log = logging.getLogger("btcap.mission")
+
+
+def _info_kept() -> bool:
+    """Whether an info event of ``btcap.mission`` goes anywhere: structlog's call costs
+    microseconds even for an event it drops (one a round, on the winner). It does when
+    the ``logging`` logger takes info, or structlog runs without a level filter (such as
+    ``structlog.testing.capture_logs``)."""
+    if _std_log.isEnabledFor(logging.INFO):
+        return True
+    return structlog.is_configured() and (
+        structlog.stdlib.filter_by_level not in structlog.get_config()["processors"]
+    )
+
 
 #: Calls for bids one auctioneer may have priced at once, then per clock second: a tree
 #: that asks for many capabilities in one tick opens as many auctions at once.
@@ -251,7 +268,8 @@ class ExecutorSide:
         """Stop and remove a run the core dropped."""
         if self.slot is not None:
             self.slot.unload(e.execution)
-        log.info("mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why)
+        if _info_kept():
+            log.info("mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why)
         self.close(e.run)
 
     def close(self, run: ImplementationRun) -> None:

@@ -265,12 +265,13 @@ class MissionControl(Actor):
     @handler
     def on_call_for_bids(self, msg: CallForBids) -> None:
         auctioneer = msg.auction.auctioneer
-        if self.sender != auctioneer:  # nobody may have our bids sent to a third robot
-            self.refused(self.sender, msg, f"call for bids of {auctioneer}'s auction")
+        sender = self.sender
+        if sender != auctioneer:  # nobody may have our bids sent to a third robot
+            self.refused(sender, msg, f"call for bids of {auctioneer}'s auction")
             return
-        answer = self.executor.bid(self.sender, msg)
+        answer = self.executor.bid(sender, msg)
         if answer is None:
-            self.refused(self.sender, msg, "over its budget of calls for bids")
+            self.refused(sender, msg, "over its budget of calls for bids")
             return
         to = Address(auctioneer, SingleItemAuction.PATH)
         self.system.tell(to, answer, sender=self.address)

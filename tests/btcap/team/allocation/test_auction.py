@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from btcap import Parallel, ReactiveSequence, State
 from btcap.actors import Actor, handler
+from btcap.team.allocation.strategy import AuctionRecord
 from btcap.team.core.auction import Auction
 from btcap.team.ids import AuctionId
 from btcap.team.messages import Award, AwardReply, Bid, CallForBids, CancelExecution, NoBid
@@ -158,10 +159,12 @@ async def test_equal_costs_are_broken_by_robot_id() -> None:
             await tree.shutdown()
 
 
-async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None:
+@pytest.mark.parametrize("real_time", [False, True], ids=["virtual", "wall"])
+async def test_a_silent_member_holds_the_auction_until_the_window_ends(real_time: bool) -> None:
+    # On the wall a loop timer ends the window; on a virtual clock, ``within``.
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(auction_window_s=2.0) as t:
+        async with team(auction_window_s=2.0, real_time=real_time) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             async with silent_member(t.net, "s", [count_impl("s", 0.1, probe)], t.clock):
                 await knows(a, "s")
@@ -169,7 +172,8 @@ async def test_a_silent_member_holds_the_auction_until_the_window_ends() -> None
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 start = t.clock.now()
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
-                assert t.clock.now() - start >= 2.0  # the auction waited its whole window
+                # the auction waited its whole window (on the wall: to the timer's resolution)
+                assert t.clock.now() - start >= 2.0 - (1e-3 if real_time else 0.0)
                 out = a.allocator.outcomes[-1]
                 assert out is not None
                 assert out.silent == {"s"}
@@ -331,20 +335,28 @@ class SlowExecutor(Actor):
         self.cancels.append(msg)
 
 
-async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder() -> None:
+@pytest.mark.parametrize("real_time", [False, True], ids=["virtual", "wall"])
+async def test_an_award_that_timed_out_is_withdrawn_and_goes_to_the_next_bidder(
+    real_time: bool,
+) -> None:
+    # On the wall the award ask's own limit ends the wait; on a virtual clock, ``within``.
     with anyio.fail_after(10):
         probe = Probe()
-        async with team(award_timeout_s=0.5) as t:
+        records: list[AuctionRecord] = []
+        async with team(award_timeout_s=0.5, real_time=real_time) as t:
             a = await t.add("a", [count_impl("a", 5.0, probe)])
             slow = SlowExecutor("f", 1.0)
             async with silent_member(
                 t.net, "f", [count_impl("f", 1.0, probe)], t.clock, {"mission_control": slow}
             ):
                 await knows(a, "f")
+                a.allocator.watch(records.append)
                 node = COUNT.node_type()("count", inputs={"x": 1})
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda _s: node.state is State.RUNNING, "running")
                 assert node.assignments == ["a"]
+                why = "no reply from f/mission_control to the award within 0.5 clock s"
+                assert records[-1].passed["f"] == f"no answer to the award ({why})"
                 assert [w.execution for w in slow.awards] == [node.execution.id]  # type: ignore[union-attr]
                 assert a.allocator.stats.declined_awards == 1
                 # f finally takes the award, too late: the withdrawal follows right behind.

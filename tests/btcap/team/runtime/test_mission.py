@@ -4,6 +4,7 @@ joins, preconditions, and hostile or stray protocol messages."""
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
@@ -115,6 +116,35 @@ async def test_remote_execution_streams_io_both_ways_every_tick() -> None:
             assert node.outputs["y"] == -9
             await until(lambda: _no_trace(a) and _no_trace(b) and probe.live("b") == 0, "no trace")
             assert b.mission_control.stats.hosted == 1
+            await tree.shutdown()
+
+
+@pytest.mark.parametrize("wanted", ["captured", "info", "warning"])
+async def test_a_hosted_run_ending_is_logged_at_info_when_info_is_wanted(
+    wanted: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    # The executor checks the level before it logs (a dropped event still cost a structlog
+    # call, once a round): info, or structlog without a level filter, still gets it.
+    with anyio.fail_after(10):
+        probe = Probe()
+        caplog.set_level(logging.INFO if wanted == "info" else logging.WARNING, "btcap.mission")
+        async with team() as t:
+            a, _b = await t.origin_and_executor(probe)
+            node = _count()
+            tree = a.mission(ReactiveSequence("root", children=[node]))
+            await _running_on(tree, node, "b")
+            execution = str(node.execution.id)  # type: ignore[union-attr]
+            if wanted == "captured":
+                with capture_logs() as events:
+                    tree.reset()
+                    await until(lambda: probe.live("b") == 0, "the run ended")
+                done = [e for e in events if e["event"] == "mission.hosted_done"]
+                assert [e["execution"] for e in done] == [execution]
+            else:
+                tree.reset()
+                await until(lambda: probe.live("b") == 0, "the run ended")
+                logged = [r for r in caplog.records if "mission.hosted_done" in r.getMessage()]
+                assert len(logged) == (1 if wanted == "info" else 0), caplog.text
             await tree.shutdown()
 
 
