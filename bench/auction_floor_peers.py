@@ -19,6 +19,8 @@ from typing import Any
 import msgspec
 import zmq
 
+from btcap.bench.transport_peers import until_stdin_closes
+
 __all__ = [
     "ACCEPT",
     "AWARD",
@@ -164,18 +166,10 @@ async def _serve_async(
         loop.add_reader(fd, readable)
         loop.call_soon(readable)  # edge-triggered: what came before we watched
         fds.append(fd)
-    done = loop.create_future()
-    stdin = sys.stdin.fileno()
-
-    def closed() -> None:
-        if not os.read(stdin, 4096) and not done.done():
-            done.set_result(None)
-
-    loop.add_reader(stdin, closed)
     try:
-        await done
+        await until_stdin_closes()
     finally:
-        for fd in (*fds, stdin):
+        for fd in fds:
             loop.remove_reader(fd)
 
 
