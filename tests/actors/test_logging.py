@@ -196,3 +196,25 @@ def test_a_terminal_gets_colours_unless_no_color(
         seen = reader.read(4096)
     assert b"tty.event" in seen
     assert (b"\x1b[" in seen) is coloured
+
+
+@pytest.mark.usefixtures("unconfigured")
+def test_wanted_says_whether_an_event_would_go_anywhere() -> None:
+    """A hot path may skip an event nobody keeps: not taken by ``logging`` and structlog
+    unconfigured (or configured to filter by level) means dropped; a ``logging`` level
+    that takes it, or structlog capturing without a level filter, means kept."""
+    from btcap.transports.log import wanted
+
+    name = "btcap.test_wanted"
+    logging.getLogger(name).setLevel(logging.WARNING)
+    try:
+        assert not wanted(name, logging.INFO)
+        assert wanted(name, logging.WARNING)
+        configure_logging("warning")
+        assert not wanted(name, logging.INFO)  # configured, filtered by level
+        with structlog.testing.capture_logs():
+            assert wanted(name, logging.INFO)
+        logging.getLogger(name).setLevel(logging.INFO)
+        assert wanted(name, logging.INFO)
+    finally:
+        logging.getLogger(name).setLevel(logging.NOTSET)

@@ -10,8 +10,6 @@ import logging
 from collections.abc import Callable, Mapping
 from typing import Any
 
-import structlog
-
 from btcap.bt.state import TreeError
 from btcap.team.capabilities.implementation import (
     Implementation,
@@ -32,24 +30,11 @@ from btcap.team.membership.repository import CapabilityRepository
 from btcap.team.messages import Award, Bid, CallForBids, CostChanged, NoBid
 from btcap.team.runtime.stats import MissionStats
 from btcap.team.settings import MissionConfig
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, wanted
 
 __all__ = ["ExecutorSide"]
 
 log = get_logger("btcap.mission")
-_std_log = logging.getLogger("btcap.mission")
-
-
-def _info_kept() -> bool:
-    """Whether an info event of ``btcap.mission`` goes anywhere: structlog's call costs
-    microseconds even for an event it drops (one a round, on the winner). It does when
-    the ``logging`` logger takes info, or structlog runs without a level filter (such as
-    ``structlog.testing.capture_logs``)."""
-    if _std_log.isEnabledFor(logging.INFO):
-        return True
-    return structlog.is_configured() and (
-        structlog.stdlib.filter_by_level not in structlog.get_config()["processors"]
-    )
 
 
 #: Calls for bids one auctioneer may have priced at once, then per clock second: a tree
@@ -268,7 +253,7 @@ class ExecutorSide:
         """Stop and remove a run the core dropped."""
         if self.slot is not None:
             self.slot.unload(e.execution)
-        if _info_kept():
+        if wanted("btcap.mission", logging.INFO):  # once a round, on the winner
             log.info("mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why)
         self.close(e.run)
 
