@@ -45,8 +45,16 @@ function same(a, b) {
   return ka.length === Object.keys(b).length && ka.every((k) => Object.hasOwn(b, k) && same(a[k], b[k]));
 }
 
-// What two auctions of one node must share to be shown as one row (view.py, _SAME).
-const SAME = ["capability", "auctioneer", "why", "bids", "declined", "reasons", "winner"];
+// What two auctions of one node must share to be shown as one row (view.py, _SAME, _WON).
+const SAME = ["capability", "auctioneer", "why", "winner"], WON = ["bids", "declined", "reasons"];
+// Who bid, declined or was passed over, without what they asked (view.py, _who).
+const who = (a) => [a.bids.map(([r]) => r).sort(), Object.keys(a.declined).sort(),
+  Object.keys(a.reasons).sort()];
+// Two closed auctions of one node that ended the same way (view.py, _alike).
+function alike(a, b) {
+  if (!SAME.every((f) => same(a[f], b[f]))) return false;
+  return a.winner !== null ? WON.every((f) => same(a[f], b[f])) : same(who(a), who(b));
+}
 // A closed auction that ended as the last one for its node did joins that one's row (view.py, _fold).
 function fold(row) {
   let last = null, before = false;
@@ -54,7 +62,7 @@ function fold(row) {
     if (other === row) before = true;
     else if (before && other.node === row.node) { last = other; break; }
   }
-  if (!last || last.closed === null || !SAME.every((f) => same(last[f], row[f]))) return;
+  if (!last || last.closed === null || !alike(last, row)) return;
   Object.assign(row, { count: last.count + 1, first: last.first });
   S.auctions.delete(last.id);
 }

@@ -256,8 +256,9 @@ async def test_robot_names_from_the_network_are_shown_as_text(browser: WebDriver
 async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
     browser: WebDriver,
 ) -> None:
-    """A task nobody takes is retried for minutes, another one's auctions in between:
-    a row per task with its count and time span, folded alike on the page and the server."""
+    """A task nobody takes is retried for minutes, another one's auctions in between, a
+    bidder's cost changing each time: a row per task with its count and time span, folded
+    alike on the page and the server."""
     nodes = ["operator:mission/loop_1/decontaminate", "operator:mission/loop_2/decontaminate"]
     with anyio.fail_after(60):
         async with Monitor(port=0, title="retries") as monitor:
@@ -273,9 +274,11 @@ async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
                               "capability": "MoveToDecontamination", "node": node,
                               "candidates": ["husky1"],
                               "why": "retry: nobody took it last time"})  # fmt: skip
-                monitor.emit({**base, "t": t + 0.5, "phase": "close", "bids": [],
-                              "declined": declined, "reasons": declined,
-                              "winner": None})  # fmt: skip
+                cost = 300.0 - n  # kept out: not below the reserve
+                reasons = {**declined, "bebop1": f"bid {cost:g} not below {cost / 2:g}"}
+                monitor.emit({**base, "t": t + 0.5, "phase": "close",
+                              "bids": [["bebop1", cost]], "declined": declined,
+                              "reasons": reasons, "winner": None})  # fmt: skip
                 monitor.flush()
             await _wait(browser, "two rows", lambda d: _count(d, "tr[data-auction]") == 2)
             rows = browser.execute_script(
