@@ -116,7 +116,8 @@ def _check_timeline_colours(driver: WebDriver) -> None:
     assert len(set(legend.values())) == len(legend)  # a colour each
     far = [min(_distance(c, s) for s in states) for c in legend.values()]
     assert min(far) >= 80, (legend, states)  # not only other values: other colours
-    assert bars and all(legend[cap] == fill for cap, fill in bars)
+    assert bars
+    assert all(legend[cap] == fill for cap, fill in bars)
 
 
 def _distance(a: str, b: str) -> float:
@@ -227,8 +228,8 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
             assert _count(browser, ".card") == 4
             # after the run nobody hosts anything: no slot is drawn running (they are
             # ticked, waiting), and the robot that left is drawn gone, with its badge
-            assert _slots(browser) == {"operator": "idle", "husky1": "idle", "husky2": "idle",
-                                       "bebop1": "gone"}  # fmt: skip
+            slots = {"operator": "idle", "husky1": "idle", "husky2": "idle", "bebop1": "gone"}
+            await _wait(browser, f"the slots drawn {slots}", lambda d: _slots(d) == slots)
             assert _text(browser, '.tree-block.gone[data-robot="bebop1"] h3 .gone') == "· left"
             _check_timeline_colours(browser)
             await _screenshot(browser, tmp_path / "live.png")

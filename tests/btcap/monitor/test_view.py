@@ -93,13 +93,14 @@ def test_retries_nobody_took_fold_whatever_the_busy_robot_asked() -> None:
     forty retries of one decontamination, each a row of its own before): one row, the
     latest bids, while the same robots bid and nobody takes it."""
     view = TeamView()
+    why = "retry: nobody took it last time"
     for n in range(1, 41):
         cost = 600.0 - 5 * n
         busy = {"husky1": f"busy (would cost {cost:g} after its current work)"}
         base = {"k": "auction", "id": f"operator#{n}", "execution": f"{NODE_A}#1"}
         view.apply({**base, "t": 10.5 * n, "phase": "open", "auctioneer": "operator",
                     "capability": "MoveToDecontamination", "node": NODE_A,
-                    "candidates": ["husky1"], "why": "retry: nobody took it last time"})  # fmt: skip
+                    "candidates": ["husky1"], "why": why})  # fmt: skip
         view.apply({**base, "t": 10.5 * n + 0.5, "phase": "close", "bids": [["husky1", cost]],
                     "declined": {}, "reasons": busy, "winner": None})  # fmt: skip
     assert _rows(view) == [("operator#40", 40, 10.5, 420.0)]
