@@ -18,11 +18,14 @@ Events are JSON objects with a clock time ``t`` and a kind ``k``:
   ``why``) or closed (``phase`` ``close``: ``bids`` ``[[robot, cost], ...]`` cheapest
   first, ``declined`` (would not bid) and ``reasons`` (why a robot was passed over:
   no answer, a bid not below the reserve, the award declined) per robot, ``winner``).
-  An auction that closes exactly as the last one for the same node did (same capability,
-  auctioneer, why, bids, declines, reasons and winner: a retry nobody took, a
-  re-evaluation that kept the work where it was) is folded into that one's row, which then
-  stands for ``count`` auctions held from ``first`` to ``opened`` (the latest) and takes
-  the latest one's place: a task retried for minutes is one row, not a table of copies.
+  An auction that closes as the last one for the same node did is folded into that one's
+  row, which then stands for ``count`` auctions held from ``first`` to ``opened`` (the
+  latest) and shows the latest one's bids: a task retried for minutes is one row, not a
+  table of copies. Alike means the same capability, auctioneer, why and winner, and then,
+  for one that somebody won, the same bids, declines and reasons; for one nobody took (a
+  retry, a re-evaluation that kept the work where it was) the same robots bidding,
+  declining and passed over, whatever they asked: a busy robot's cost changes as it
+  drives, and every retry would otherwise be a row of its own.
 - ``finished``: the run is over: ``result`` (``succeeded``, ``failed`` or ``stopped``)
   and ``summary``, one line for a person ("mission succeeded after 1337 s"). The picture
   keeps the last one (a page shows the final state, not a lost connection).
@@ -43,7 +46,9 @@ MAX_AUCTIONS = 200
 MAX_MARKS = 500
 
 #: What two auctions of one node must share to be shown as one row.
-_SAME = ("capability", "auctioneer", "why", "bids", "declined", "reasons", "winner")
+_SAME = ("capability", "auctioneer", "why", "winner")
+#: What they must share as well when somebody won: exactly the same auction.
+_WON = ("bids", "declined", "reasons")
 
 
 class TeamView:
@@ -153,7 +158,7 @@ class TeamView:
             elif before and other["node"] == row["node"]:
                 last = other
                 break
-        if last is None or last["closed"] is None or any(last[f] != row[f] for f in _SAME):
+        if last is None or last["closed"] is None or not _alike(last, row):
             return
         row.update(count=last["count"] + 1, first=last["first"])
         del self.auctions[last["id"]]
@@ -168,3 +173,17 @@ class TeamView:
             "marks": self.marks,
             "finished": self.finished,
         }
+
+
+def _alike(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Two closed auctions of one node that ended the same way (see the module's doc)."""
+    if any(a[f] != b[f] for f in _SAME):
+        return False
+    if a["winner"] is not None:
+        return all(a[f] == b[f] for f in _WON)
+    return _who(a) == _who(b)
+
+
+def _who(row: dict[str, Any]) -> tuple[list[str], list[str], list[str]]:
+    """Who bid, who declined and who was passed over, without what they asked or why."""
+    return sorted(r for r, _ in row["bids"]), sorted(row["declined"]), sorted(row["reasons"])

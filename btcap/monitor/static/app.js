@@ -8,9 +8,14 @@ const STATES = ["idle", "running", "succeeded", "failed", "error", "unassigned",
   "paused", "shutdown"];
 const FILL = { idle: "#dfe3e8", running: "#f5b942", succeeded: "#4bb982", failed: "#e05a5a",
   error: "#9b2c4a", unassigned: "#b29cf7", assigned: "#5cc3ee", paused: "#f7e3a1",
-  shutdown: "#f4f5f7", uninitialized: "#f4f5f7" };
-const PALETTE = ["#5cc3ee", "#f5b942", "#8fd694", "#c39bd3", "#f1948a", "#76d7c4", "#f8c471",
-  "#aab7f5", "#e6b0aa", "#a9cce3"];
+  shutdown: "#f4f5f7", uninitialized: "#f4f5f7", gone: "#ffffff" };
+// The timeline's capability colours: far from every state's fill above (darker, at least
+// 80 apart in RGB), so that a bar is never read as a node state; the timeline has a
+// legend of its own.
+const PALETTE = ["#3a6ea5", "#a05195", "#6b6b2a", "#2a7a4a", "#665191", "#1d6b66", "#2f4b7c",
+  "#355c3c"];
+// Below this a fitted tree's text is too small to read: it scrolls instead.
+const MIN_FIT = 0.8;
 
 let S = null;            // the picture
 let dirty = false;
@@ -45,8 +50,16 @@ function same(a, b) {
   return ka.length === Object.keys(b).length && ka.every((k) => Object.hasOwn(b, k) && same(a[k], b[k]));
 }
 
-// What two auctions of one node must share to be shown as one row (view.py, _SAME).
-const SAME = ["capability", "auctioneer", "why", "bids", "declined", "reasons", "winner"];
+// What two auctions of one node must share to be shown as one row (view.py, _SAME, _WON).
+const SAME = ["capability", "auctioneer", "why", "winner"], WON = ["bids", "declined", "reasons"];
+// Who bid, declined or was passed over, without what they asked (view.py, _who).
+const who = (a) => [a.bids.map(([r]) => r).sort(), Object.keys(a.declined).sort(),
+  Object.keys(a.reasons).sort()];
+// Two closed auctions of one node that ended the same way (view.py, _alike).
+function alike(a, b) {
+  if (!SAME.every((f) => same(a[f], b[f]))) return false;
+  return a.winner !== null ? WON.every((f) => same(a[f], b[f])) : same(who(a), who(b));
+}
 // A closed auction that ended as the last one for its node did joins that one's row (view.py, _fold).
 function fold(row) {
   let last = null, before = false;
@@ -54,7 +67,7 @@ function fold(row) {
     if (other === row) before = true;
     else if (before && other.node === row.node) { last = other; break; }
   }
-  if (!last || last.closed === null || !SAME.every((f) => same(last[f], row[f]))) return;
+  if (!last || last.closed === null || !alike(last, row)) return;
   Object.assign(row, { count: last.count + 1, first: last.first });
   S.auctions.delete(last.id);
 }
@@ -195,7 +208,7 @@ function drawTimeline() {
       const a = x(r.start), b = x(r.end ?? S.t), w = Math.max(2, b - a);
       const bad = r.result && r.result !== "succeeded";
       const bar = el("svg:rect", { x: a, y: y + 4, width: w, height: laneH - 8, rx: 2,
-        fill: colourOf(r.capability), class: bad ? "bar bad" : "bar" });
+        fill: colourOf(r.capability), class: bad ? "bar bad" : "bar", "data-capability": r.capability });
       bar.append(el("svg:title", { text: `${r.capability} for ${r.origin} (${r.node})\n` +
         `${fmt(r.start)}–${r.end === null ? "now" : fmt(r.end)} s: ${r.result ?? "running"}` +
         (r.why ? `\n${r.why}` : "") }));
@@ -214,7 +227,13 @@ function drawTimeline() {
   });
   svg.append(el("svg:line", { x1: x(S.t), x2: x(S.t), y1: top - 4,
     y2: top + laneH * names.length, class: "now" }));
-  box.replaceChildren(svg);
+  const caps = [...new Set(runs.map((r) => r.capability))];
+  const key = el("div", { class: "legend caps" }, ...caps.map((c) => {
+    const swatch = el("i");
+    swatch.style.background = colourOf(c);
+    return el("span", { "data-capability": c }, swatch, c);
+  }));
+  box.replaceChildren(svg, key);
 }
 function niceStep(raw) {
   const p = 10 ** Math.floor(Math.log10(Math.max(raw, 1e-6)));
@@ -244,12 +263,23 @@ function layout(nodes) {
   roots.forEach((r) => place(r, 0));
   return { pos, kids, cols: Math.max(next, 1), rows: depth + 1 };
 }
-// A tree wider than its panel is drawn to fit (the default) or at 100 % with a scroll bar.
+// What a node is drawn as. A robot that left or failed is gone, with all it hosted; a
+// slot hosting nothing is idle: it stays "running" (ticked, waiting for work) all its life.
+function shown(n, gone, kids) {
+  if (gone) return "gone";
+  if (n.type === "RemoteCapabilitySlot" && n.state === "running" && !kids.has(n.id)) return "idle";
+  return n.state;
+}
+// A tree wider than its panel is drawn to fit (the default, but never below MIN_FIT: a
+// wider one scrolls) or at 100 % with a scroll bar.
 function drawTree(robotName, treeName, tree) {
-  const { pos, cols, rows } = layout(tree.nodes);
+  const { pos, kids, cols, rows } = layout(tree.nodes);
   const w = cols * (NODE_W + GAP_X) + GAP_X, h = rows * (NODE_H + GAP_Y) + 6;
   const room = Math.max(300, document.getElementById("trees").clientWidth - 4);
-  const k = w > room && document.getElementById("fit").checked ? room / w : 1;
+  const k = w > room && document.getElementById("fit").checked ? Math.max(MIN_FIT, room / w) : 1;
+  const status = S.robots[robotName].status;
+  const gone = treeName.endsWith("-host") && (status === "left" || status === "failed");
+  const parents = new Set([...kids].filter(([, ch]) => ch.length).map(([id]) => id));
   const svg = el("svg:svg", { width: w * k, height: h * k, viewBox: `0 0 ${w} ${h}`,
     "data-tree": treeName, "data-zoom": k.toFixed(3), "data-wide": w > room ? "yes" : null });
   const at = (id) => { const p = pos.get(id); return { x: GAP_X + p.x * (NODE_W + GAP_X), y: 4 + p.d * (NODE_H + GAP_Y) }; };
@@ -259,24 +289,27 @@ function drawTree(robotName, treeName, tree) {
   for (const n of tree.nodes) {
     if (n.parent === null || !byId.has(n.parent)) continue;
     const a = at(n.parent), b = at(n.id);
-    const active = ACTIVE.has(n.state) && ACTIVE.has(byId.get(n.parent).state);
+    const active = !gone && ACTIVE.has(n.state) && ACTIVE.has(byId.get(n.parent).state);
     const my = (a.y + NODE_H + b.y) / 2;
     svg.append(el("svg:path", { class: active ? "edge active" : "edge",
       d: `M${a.x + NODE_W / 2},${a.y + NODE_H} V${my} H${b.x + NODE_W / 2} V${b.y}` }));
   }
   for (const n of tree.nodes) {
     const p = at(n.id);
-    const cls = `node${n.cap ? " cap" : ""}${ACTIVE.has(n.state) ? " active" : ""}`;
-    const g = el("svg:g", { class: cls, "data-state": n.state, "data-node": n.id,
+    const state = shown(n, gone, parents);
+    const cls = `node${n.cap ? " cap" : ""}${ACTIVE.has(state) ? " active" : ""}`;
+    const g = el("svg:g", { class: cls, "data-state": state, "data-node": n.id,
       transform: `translate(${p.x},${p.y})` });
+    const dashed = state === "shutdown" || state === "uninitialized" || state === "gone";
     g.append(el("svg:rect", { width: NODE_W, height: NODE_H, rx: n.cap ? 9 : 3,
-      fill: FILL[n.state] ?? FILL.idle,
-      "stroke-dasharray": n.state === "shutdown" || n.state === "uninitialized" ? "3 2" : null }));
+      fill: FILL[state] ?? FILL.idle, "stroke-dasharray": dashed ? "3 2" : null }));
     const where = n.cap ? running.get(`${robotName}:${n.id}`) : null;
+    const said = gone ? `robot ${status}` : state;
     g.append(el("svg:text", { x: 6, y: 13, class: "name", text: fit(n.name, NODE_W - 10, 6.4) }));
     g.append(el("svg:text", { x: 6, y: 26, class: "type",
-      text: fit(where ? `${n.type} → ${where}` : `${n.type} · ${n.state}`, NODE_W - 10, 5.2) }));
-    g.append(el("svg:title", { text: `${n.id}\n${n.type}: ${n.state}${where ? ` on ${where}` : ""}` }));
+      text: fit(where ? `${n.type} → ${where}` : `${n.type} · ${said}`, NODE_W - 10, 5.2) }));
+    const last = state !== n.state ? ` (${gone ? "last seen" : "ticked, hosting nothing"}: ${n.state})` : "";
+    g.append(el("svg:title", { text: `${n.id}\n${n.type}: ${said}${last}${where ? ` on ${where}` : ""}` }));
     svg.append(g);
   }
   return svg;
@@ -295,9 +328,11 @@ function drawTrees() {
       const k = +svg.dataset.zoom;
       wide ||= svg.dataset.wide === "yes";
       const div = el("div", { class: "tree-scroll", "data-key": key }, svg);
-      blocks.push([host, el("div", { class: host ? "tree-block host" : "tree-block mission",
+      const gone = host && (S.robots[name].status === "left" || S.robots[name].status === "failed");
+      blocks.push([host, el("div", { class: `tree-block ${host ? "host" : "mission"}${gone ? " gone" : ""}`,
         "data-robot": name }, el("h3", {}, `${name} `, el("small", { text: t }),
-        k < 1 ? el("small", { class: "zoomed", text: ` · ${Math.round(k * 100)} %` }) : null), div)]);
+        k < 1 ? el("small", { class: "zoomed", text: ` · ${Math.round(k * 100)} %` }) : null,
+        gone ? el("small", { class: "gone", text: ` · ${S.robots[name].status}` }) : null), div)]);
       requestAnimationFrame(() => { div.scrollLeft = scroll.get(key) ?? 0; });
     }
   }
@@ -306,10 +341,23 @@ function drawTrees() {
 }
 
 // -- auctions -------------------------------------------------------------------------------
+// A re-evaluation that kept the work where it was: nothing changed (hidden when filtered).
+const kept = (a) => a.why.startsWith("re-evaluation") && a.closed !== null && !a.winner;
 function drawAuctions() {
   const box = document.getElementById("auctions");
-  const list = [...S.auctions.values()].reverse().slice(0, 14);
-  if (!list.length) { box.replaceChildren(el("div", { class: "empty", text: "no auctions yet" })); return; }
+  const all = [...S.auctions.values()].reverse();
+  const informative = document.getElementById("informative").checked;
+  const shownRows = informative ? all.filter((a) => !kept(a)) : all;
+  const hidden = all.length - shownRows.length;
+  const note = document.getElementById("hidden");
+  note.textContent = hidden ? `${hidden} hidden` : "";
+  note.title = hidden ? `${hidden} ${hidden === 1 ? "row" : "rows"} of re-evaluations that kept the work where it was` : "";
+  const list = shownRows.slice(0, 14);
+  if (!list.length) {
+    box.replaceChildren(el("div", { class: "empty",
+      text: all.length ? "no informative auctions yet" : "no auctions yet" }));
+    return;
+  }
   const table = el("table", {}, el("tr", {}, ...["t [s]", "capability", "why", "bids"].map((h) => el("th", { text: h }))));
   for (const a of list) {
     const bids = el("td");
@@ -322,14 +370,14 @@ function drawAuctions() {
     for (const [r, why] of Object.entries(a.declined)) {  // would not bid
       bids.append(el("span", { class: "bid no", title: why, text: `${r} declined` }));
     }
-    const kept = a.why.startsWith("re-evaluation") && a.closed !== null && !a.winner;
+    const stays = kept(a);
     if (a.closed === null) bids.append(el("span", { class: "why", text: "open…" }));
-    else if (kept) bids.append(el("span", { class: "why", text: "stays" }));
+    else if (stays) bids.append(el("span", { class: "why", text: "stays" }));
     else if (!a.winner) bids.append(el("span", { class: "why re", text: "nobody took it" }));
     const re = a.why !== "first request" && !a.why.startsWith("new run");
     const many = a.count > 1;  // identical auctions of one node, folded (view.py)
     const span = many ? `${a.count} identical auctions from ${fmt(a.first)} s to ${fmt(a.opened)} s` : null;
-    table.append(el("tr", { "data-auction": a.id, "data-count": a.count, class: kept ? "kept" : null },
+    table.append(el("tr", { "data-auction": a.id, "data-count": a.count, class: stays ? "kept" : null },
       el("td", { class: "num", title: span, text: many ? `${fmt(a.first)}–${fmt(a.opened)}` : fmt(a.opened) }),
       el("td", { title: `${a.id} · ${a.node}` }, el("b", { text: a.capability }), el("br"),
         el("span", { class: "why", text: a.node.split("/").slice(-2).join("/") })),
@@ -403,10 +451,12 @@ document.getElementById("play").onclick = () => send({ op: S && S.replay && S.re
 document.getElementById("seek").onchange = (e) => send({ op: "seek", t: +e.target.value });
 document.getElementById("speed").onchange = (e) => send({ op: "speed", speed: +e.target.value });
 document.getElementById("fit").onchange = schedule;
-document.getElementById("legend").append(...STATES.slice(0, 8).map((s) => {
-  const swatch = el("i");
+document.getElementById("informative").onchange = schedule;
+document.getElementById("legend").append(...[...STATES.slice(0, 8), "gone"].map((s) => {
+  const swatch = el("i", { class: s === "gone" ? "gone" : null,
+    title: s === "gone" ? "a robot that left or failed: its slot and what it hosted" : null });
   swatch.style.background = FILL[s];
-  return el("span", {}, swatch, s);
+  return el("span", { "data-state": s }, swatch, s === "gone" ? "gone (left, failed)" : s);
 }));
 window.addEventListener("resize", schedule);
 connect();

@@ -99,6 +99,40 @@ async def _wait(driver: WebDriver, what: str, ok: Callable[[WebDriver], bool]) -
     await asyncio.to_thread(wait)
 
 
+def _check_timeline_colours(driver: WebDriver) -> None:
+    """Each capability has one colour in the timeline, in a legend of its own, and none is
+    near a colour the trees' legend gives a node state."""
+    js = """const fill = (e) => getComputedStyle(e).fill;
+        const bg = (e) => getComputedStyle(e).backgroundColor;
+        return [
+          [...document.querySelectorAll('#legend i')].map(bg),
+          [...document.querySelectorAll('.legend.caps span')].map(
+            (s) => [s.dataset.capability, bg(s.querySelector('i'))]),
+          [...document.querySelectorAll('.lane rect.bar')].map(
+            (b) => [b.dataset.capability, fill(b)])];"""
+    states, key, bars = driver.execute_script(js)
+    legend = dict(key)
+    assert len(legend) == len(key) >= 2  # a capability named once
+    assert len(set(legend.values())) == len(legend)  # a colour each
+    far = [min(_distance(c, s) for s in states) for c in legend.values()]
+    assert min(far) >= 80, (legend, states)  # not only other values: other colours
+    assert bars
+    assert all(legend[cap] == fill for cap, fill in bars)
+
+
+def _distance(a: str, b: str) -> float:
+    """How far apart two CSS colours ``rgb(r, g, b)`` are in RGB."""
+    rgb = [[float(v) for v in c[c.index("(") + 1 : -1].split(",")[:3]] for c in (a, b)]
+    return float(sum((x - y) ** 2 for x, y in zip(*rgb, strict=True)) ** 0.5)
+
+
+def _slots(driver: WebDriver) -> dict[str, str]:
+    """How each robot's slot is drawn: robot -> the state it shows."""
+    js = """return [...document.querySelectorAll('.tree-block.host')].map((b) =>
+        [b.dataset.robot, b.querySelector('[data-node="slot"]').dataset.state]);"""
+    return dict(driver.execute_script(js))
+
+
 async def _screenshot(driver: WebDriver, *paths: Path) -> None:
     def shoot() -> None:
         height = driver.execute_script("return document.body.scrollHeight")
@@ -192,6 +226,12 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
             )
             assert _count(browser, '[data-node="mission"][data-state="succeeded"]') == 1
             assert _count(browser, ".card") == 4
+            # after the run nobody hosts anything: no slot is drawn running (they are
+            # ticked, waiting), and the robot that left is drawn gone, with its badge
+            slots = {"operator": "idle", "husky1": "idle", "husky2": "idle", "bebop1": "gone"}
+            await _wait(browser, f"the slots drawn {slots}", lambda d: _slots(d) == slots)
+            assert _text(browser, '.tree-block.gone[data-robot="bebop1"] h3 .gone') == "· left"
+            _check_timeline_colours(browser)
             await _screenshot(browser, tmp_path / "live.png")
             live = monitor.snapshot()["finished"]
             await _wait(browser, "the finished badge", lambda d: _count(d, ".mode.finished") == 1)
@@ -210,6 +250,15 @@ async def test_a_simulated_mission_live_and_replayed(browser: WebDriver, tmp_pat
                 paths.append(DOCS)
             await _screenshot(browser, *paths)
             assert _count(browser, "#summary[hidden]") == 1  # not over yet
+            # while husky1 is down its slot is drawn gone, and drawn again once it is back
+            ups = [(e["t"], e["change"]) for e in replay.events
+                   if e["k"] == "team" and e["robot"] == "husky1"]  # fmt: skip
+            down = next(k for k, (_, change) in enumerate(ups) if change == "failed")
+            replay.seek((ups[down][0] + ups[down + 1][0]) / 2)
+            await _wait(browser, "husky1 gone", lambda d: _slots(d).get("husky1") == "gone")
+            assert _text(browser, '.tree-block.gone[data-robot="husky1"] h3 .gone') == "· failed"
+            replay.seek(ups[down + 1][0] + 1.0)
+            await _wait(browser, "husky1 back", lambda d: _slots(d).get("husky1") != "gone")
             replay.seek(replay.end)  # the end: how the run ended, as the live page said
             await _wait(browser, "the finished badge", lambda d: _count(d, ".mode.finished") == 1)
             assert _text(browser, "#summary.succeeded") == live["summary"]
@@ -256,8 +305,9 @@ async def test_robot_names_from_the_network_are_shown_as_text(browser: WebDriver
 async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
     browser: WebDriver,
 ) -> None:
-    """A task nobody takes is retried for minutes, another one's auctions in between:
-    a row per task with its count and time span, folded alike on the page and the server."""
+    """A task nobody takes is retried for minutes, another one's auctions in between, a
+    bidder's cost changing each time: a row per task with its count and time span, folded
+    alike on the page and the server."""
     nodes = ["operator:mission/loop_1/decontaminate", "operator:mission/loop_2/decontaminate"]
     with anyio.fail_after(60):
         async with Monitor(port=0, title="retries") as monitor:
@@ -273,9 +323,11 @@ async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
                               "capability": "MoveToDecontamination", "node": node,
                               "candidates": ["husky1"],
                               "why": "retry: nobody took it last time"})  # fmt: skip
-                monitor.emit({**base, "t": t + 0.5, "phase": "close", "bids": [],
-                              "declined": declined, "reasons": declined,
-                              "winner": None})  # fmt: skip
+                cost = 300.0 - n  # kept out: not below the reserve
+                reasons = {**declined, "bebop1": f"bid {cost:g} not below {cost / 2:g}"}
+                monitor.emit({**base, "t": t + 0.5, "phase": "close",
+                              "bids": [["bebop1", cost]], "declined": declined,
+                              "reasons": reasons, "winner": None})  # fmt: skip
                 monitor.flush()
             await _wait(browser, "two rows", lambda d: _count(d, "tr[data-auction]") == 2)
             rows = browser.execute_script(
@@ -291,6 +343,52 @@ async def test_identical_auctions_of_a_node_show_as_one_row_with_a_count(
             server = json.loads(json.dumps({k: monitor.snapshot()[k] for k in PICTURE}))
             assert [a["count"] for a in server["auctions"]] == [6, 6]
             await _wait(browser, "the same picture as the server's", lambda d: _page(d) == server)
+
+
+async def test_re_evaluations_that_changed_nothing_are_hidden_unless_asked_for(
+    browser: WebDriver,
+) -> None:
+    """Every running task is re-auctioned now and then and nearly always stays where it is:
+    "informative only" (the default) hides those rows and says how many it hides."""
+    nodes = ["operator:mission/identify", "operator:mission/clean"]
+    with anyio.fail_after(60):
+        async with Monitor(port=0, title="re-evaluations") as monitor:
+            await asyncio.to_thread(browser.get, monitor.url)
+            await _wait(browser, "the live badge", lambda d: _count(d, ".mode.live") == 1)
+
+            def auction(n: int, node: str, why: str, winner: str | None, cost: float) -> None:
+                base = {"k": "auction", "id": f"operator#{n}", "execution": f"{node}#1"}
+                monitor.emit({**base, "t": float(n), "phase": "open", "auctioneer": "operator",
+                              "capability": "Identify", "node": node,
+                              "candidates": ["husky1", "husky2"], "why": why})  # fmt: skip
+                reasons = {} if winner else {"husky1": f"bid {cost:g} not below {cost / 2:g}"}
+                monitor.emit({**base, "t": n + 0.5, "phase": "close",
+                              "bids": [["husky1", cost]], "declined": {"husky2": "busy"},
+                              "reasons": reasons, "winner": winner})  # fmt: skip
+
+            auction(1, nodes[0], "first request", "husky1", 300.0)
+            auction(2, nodes[1], "first request", "husky1", 200.0)
+            for n in range(3, 9):  # the first task stays on husky1, its cost falling
+                auction(n, nodes[0], "re-evaluation: may move from husky1", None, 300.0 - n)
+            auction(9, nodes[1], "re-evaluation: may move from husky1", None, 190.0)
+            auction(10, nodes[1], "re-evaluation: husky2 joined; husky1 runs it", "husky2", 9.0)
+            monitor.flush()
+
+            def rows(d: WebDriver) -> list[str]:
+                js = """return [...document.querySelectorAll('tr[data-auction]')].map(
+                    (r) => r.dataset.auction);"""
+                return list(d.execute_script(js))
+
+            shown = ["operator#10", "operator#2", "operator#1"]
+            await _wait(browser, "the informative rows", lambda d: rows(d) == shown)
+            assert _text(browser, "#hidden") == "2 hidden"  # #8 (x6) and #9
+            browser.find_element(By.ID, "informative").click()
+            every = ["operator#10", "operator#9", "operator#8", "operator#2", "operator#1"]
+            await _wait(browser, "every row", lambda d: rows(d) == every)
+            assert _text(browser, '[data-auction="operator#8"] .count') == "\u00d76"
+            assert _text(browser, "#hidden") == ""
+            browser.find_element(By.ID, "informative").click()
+            await _wait(browser, "the informative rows again", lambda d: rows(d) == shown)
 
 
 class _Step(Leaf):
@@ -318,15 +416,32 @@ async def test_a_tree_wider_than_its_panel_is_fitted_or_shown_at_100_percent(
                 w, natural, panel = d.execute_script(js, svg)
                 return float(w), float(natural), float(panel)
 
+            def scroll_width(d: WebDriver) -> float:
+                scroll = d.find_element(By.CSS_SELECTOR, ".tree-scroll")
+                return float(d.execute_script("return arguments[0].scrollWidth", scroll))
+
             drawn, natural, panel = sizes(browser)
             assert natural > 2 * panel  # 40 leaves: far wider than the panel
-            assert drawn <= panel  # fitted by default, nothing cut off
-            assert _text(browser, ".tree-block .zoomed").endswith(" %")
+            # fitted by default, but not below 80 % (its text would be too small to read):
+            # what does not fit then scrolls
+            assert drawn == pytest.approx(0.8 * natural, abs=1)
+            assert scroll_width(browser) > panel
+            assert _text(browser, ".tree-block .zoomed") == "· 80 %"
             browser.find_element(By.ID, "fit").click()  # at 100 %, with a scroll bar
             await _wait(browser, "the tree at 100 %", lambda d: sizes(d)[0] == sizes(d)[1])
-            scroll = browser.find_element(By.CSS_SELECTOR, ".tree-scroll")
-            assert browser.execute_script("return arguments[0].scrollWidth", scroll) > panel
+            assert scroll_width(browser) > panel
             assert _count(browser, ".tree-block .zoomed") == 0
             browser.find_element(By.ID, "fit").click()
-            await _wait(browser, "the tree fitted again", lambda d: sizes(d)[0] <= panel)
+            await _wait(browser, "the tree fitted again", lambda d: sizes(d)[0] < natural)
+            # one just wider than the panel is fitted whole
+            narrow = Tree(Sequence("narrow", children=[_Step(f"s_{k}") for k in range(7)]))
+            narrow.setup()
+            monitor.add_tree(narrow, robot="bob")
+            monitor.flush()
+            svg = '#trees svg[data-tree="narrow"]'
+            await _wait(browser, "the narrow tree", lambda d: _count(d, svg) == 1)
+            drawn, natural, panel = sizes(browser)
+            assert natural > panel > 0.8 * natural  # the test's window: 1500 px wide
+            assert drawn <= panel
     await tree.shutdown()
+    await narrow.shutdown()

@@ -23,6 +23,7 @@ def _auction(
     bids: list[list[Any]] | None = None,
     declined: dict[str, str] | None = None,
     winner: str | None = None,
+    reasons: dict[str, str] | None = None,
     close: bool = True,
 ) -> None:
     """Auction ``operator#n`` for ``node`` opened at ``t`` and closed at ``t + 0.5``."""
@@ -33,7 +34,7 @@ def _auction(
     if close:
         declined = BUSY if declined is None else declined
         view.apply({**base, "t": t + 0.5, "phase": "close", "bids": bids or [],
-                    "declined": declined, "reasons": dict(declined),
+                    "declined": declined, "reasons": reasons or dict(declined),
                     "winner": winner})  # fmt: skip
 
 
@@ -71,7 +72,9 @@ def test_an_auction_that_ended_otherwise_starts_a_row_of_its_own() -> None:
     _auction(view, 5, 5.0, declined={"husky1": "busy"})  # other declines
     _auction(view, 6, 6.0, declined={"husky1": "busy"})
     _auction(view, 7, 7.0, bids=[["husky1", 376.0]], declined={})  # a bid, kept out
-    _auction(view, 8, 8.0, bids=[["husky1", 377.0]], declined={})  # another cost
+    _auction(view, 8, 8.0, bids=[["husky1", 376.0], ["spot1", 400.0]], declined={})  # 2 bids
+    _auction(view, 9, 9.0, bids=[["husky1", 376.0]], declined={}, winner="husky1")
+    _auction(view, 10, 10.0, bids=[["husky1", 377.0]], declined={}, winner="husky1")  # cost
     counts = [(i, c) for i, c, _, _ in _rows(view)]
     assert counts == [
         ("operator#2", 2),
@@ -80,7 +83,43 @@ def test_an_auction_that_ended_otherwise_starts_a_row_of_its_own() -> None:
         ("operator#6", 2),
         ("operator#7", 1),
         ("operator#8", 1),
+        ("operator#9", 1),
+        ("operator#10", 1),
     ]
+
+
+def test_retries_nobody_took_fold_whatever_the_busy_robot_asked() -> None:
+    """A busy robot's cost falls as it drives to its current work (what full-team shows:
+    forty retries of one decontamination, each a row of its own before): one row, the
+    latest bids, while the same robots bid and nobody takes it."""
+    view = TeamView()
+    why = "retry: nobody took it last time"
+    for n in range(1, 41):
+        cost = 600.0 - 5 * n
+        busy = {"husky1": f"busy (would cost {cost:g} after its current work)"}
+        base = {"k": "auction", "id": f"operator#{n}", "execution": f"{NODE_A}#1"}
+        view.apply({**base, "t": 10.5 * n, "phase": "open", "auctioneer": "operator",
+                    "capability": "MoveToDecontamination", "node": NODE_A,
+                    "candidates": ["husky1"], "why": why})  # fmt: skip
+        view.apply({**base, "t": 10.5 * n + 0.5, "phase": "close", "bids": [["husky1", cost]],
+                    "declined": {}, "reasons": busy, "winner": None})  # fmt: skip
+    assert _rows(view) == [("operator#40", 40, 10.5, 420.0)]
+    assert view.snapshot()["auctions"][0]["bids"] == [["husky1", 400.0]]
+
+
+def test_re_evaluations_that_kept_the_holder_fold_per_node_and_holder() -> None:
+    """Every 30 s each running task is re-auctioned and stays (huskies-bebop-joins: 121 of
+    its 189 auctions): a row per task and holder, not a row per look."""
+    view = TeamView()
+    n = 0
+    for k in range(10):
+        for node, holder, other in ((NODE_A, "husky1", "husky2"), (NODE_B, "husky2", "husky1")):
+            n += 1
+            cost = 300.0 - 30 * k
+            reasons = {other: "busy", holder: f"bid {cost:g} not below {0.8 * cost:g}"}
+            _auction(view, n, 30.0 * k, node, why=f"re-evaluation: may move from {holder}",
+                     bids=[[holder, cost]], declined={other: "busy"}, reasons=reasons)  # fmt: skip
+    assert [(i, c) for i, c, _, _ in _rows(view)] == [("operator#19", 10), ("operator#20", 10)]
 
 
 def test_declines_in_another_order_are_the_same_and_an_open_auction_is_not_folded() -> None:
