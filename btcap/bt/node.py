@@ -18,6 +18,7 @@ from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
 from btcap.bt.specialize import own_copies
 from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
+from btcap.bt.told import tell_error
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
 
@@ -367,6 +368,7 @@ class Node(Actor):
             exc_info=exc,
         )
         self._set(_ERROR)
+        tell_error(self, exc, action)
         return _ERROR
 
     def _not_ready(self, action: str) -> None:

@@ -17,10 +17,11 @@ import argparse
 import importlib
 import signal
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
-from btcap.bt.state import TreeError
+from btcap.bt.state import NodeErrorWarning, TreeError, UnassignableWarning
 from btcap.errors import BtcapError
 
 __all__ = ["CliError", "Stopped", "build_parser", "main"]
@@ -68,6 +69,10 @@ def configure_logging(level: str, *, json: bool = False) -> None:
     from btcap.actors import configure_logging as configure
 
     configure(level, json=json)
+    # A command's log shows each node error and each capability nobody can take; the
+    # warnings that tell a library's user of them by default would say it twice.
+    for told in (NodeErrorWarning, UnassignableWarning):
+        warnings.filterwarnings("ignore", category=told)
 
 
 def _version() -> str:
