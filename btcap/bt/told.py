@@ -35,11 +35,9 @@ _TEXT = 300
 def tell_error(node: _Node, exc: BaseException, action: str) -> None:
     """Warn about ``node``'s error in ``action`` unless its tree already told one of it.
 
-    A :class:`NodeErrorWarning` a filter turned into an error is raised on unchanged, so
-    the nodes above do not wrap it in errors of their own.
+    A filter may turn the warning into an error: it then leaves the tick unchanged (the
+    nodes above raise it on, see ``Node._fail``).
     """
-    if isinstance(exc, NodeErrorWarning):
-        raise exc
     tree = node._tree
     path = node.path
     if tree is not None:
@@ -70,5 +68,4 @@ def tell_error(node: _Node, exc: BaseException, action: str) -> None:
         tb.tb_lineno,
         module=where.get("__name__", "btcap"),
         registry=where.setdefault("__warningregistry__", {}),
-        module_globals=where,
     )
