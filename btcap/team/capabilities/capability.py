@@ -18,7 +18,7 @@ from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.team.capabilities.conversion import Where, convert
 from btcap.team.capabilities.execution import AssignmentRequest, Execution
-from btcap.team.capabilities.unassignable import tell_nobody, tell_timeout
+from btcap.team.capabilities.unassignable import nobody_able, tell_nobody, tell_timeout
 from btcap.transports.log import get_logger
 
 __all__ = [
@@ -327,15 +327,15 @@ class Capability(Node):
             if self._waits & (self._waits - 1) == 0:  # the 1st, 2nd, 4th, 8th ... time
                 iface = type(self).INTERFACE.name
                 # Waiting for a busy robot is routine; nobody able to do it is news.
-                busy = any("busy" in why for why in req.why.values())
-                (log.info if busy else log.warning)(
+                news = nobody_able(req.why)
+                (log.warning if news else log.info)(
                     "capability.unassigned",
                     node=self.path,
                     capability=iface,
                     auctions=self._waits,
                     why=req.why,
                 )
-                if not busy:
+                if news:
                     tell_nobody(self, iface, req.why)
             return _UNASSIGNED
         self._exec = req.execution

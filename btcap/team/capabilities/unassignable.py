@@ -17,7 +17,20 @@ from typing import Protocol
 from btcap.bt.host import TreeHost
 from btcap.bt.state import UnassignableWarning
 
-__all__ = ["tell_nobody", "tell_timeout"]
+__all__ = ["nobody_able", "tell_nobody", "tell_timeout"]
+
+#: Reasons that say a robot could take the work but not now (routine while a team is
+#: busy): it was busy, took another task of the same round, kept its own work, did not
+#: answer (yet), bid at or above the reserve, or declined the award.
+_NOT_NOW = (
+    "busy",
+    "took another task",
+    "kept its work",
+    "no claim",
+    "no answer",
+    "not below",
+    "declined the award",
+)
 
 
 class _Capability(Protocol):
@@ -27,6 +40,12 @@ class _Capability(Protocol):
 
     @property
     def path(self) -> str: ...
+
+
+def nobody_able(why: Mapping[str, str]) -> bool:
+    """Whether an empty auction's reasons (robot -> why) say that nobody in the team can
+    take the work at all, rather than that the robots able to are occupied."""
+    return not any(marker in text for text in why.values() for marker in _NOT_NOW)
 
 
 def tell_nobody(node: _Capability, interface: str, why: Mapping[str, str]) -> None:

@@ -30,6 +30,7 @@ from btcap.team.capabilities.capability import (
 from btcap.team.capabilities.execution import AssignmentRequest
 from btcap.team.capabilities.implementation import Implementation, Precondition, Scope
 from btcap.team.capabilities.proxies import LocalExecution
+from btcap.team.capabilities.unassignable import nobody_able
 
 # -- interfaces --------------------------------------------------------------------------
 
@@ -439,3 +440,18 @@ def test_inputs_from_the_wire_are_held_to_their_ports_constraints() -> None:
         iface.convert_inputs({"tag": "x" * 5000}, "award e")
     with pytest.raises(TreeError, match=r"^report r output 'count': must be >= 0, got -1"):
         iface.convert_outputs({"count": -1}, "report r")
+
+
+def test_only_an_auction_nobody_could_win_is_news() -> None:
+    """Robots able but occupied are routine (no warning); only reasons of inability from
+    every robot make an UnassignableWarning."""
+    assert nobody_able({"team": "no live member implements Count"})
+    assert nobody_able({"b": "precondition Scan (local) not met", "c": "no remote capability slot"})
+    for routine in (
+        "busy",
+        "took another task of the same round",
+        "no answer",
+        "declined the award: busy",
+        "bid 5 not below 4",
+    ):
+        assert not nobody_able({"b": "precondition Scan (local) not met", "c": routine})
