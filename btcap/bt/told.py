@@ -50,8 +50,9 @@ def tell_error(node: _Node, exc: BaseException, action: str) -> None:
     message = (
         f"node {path!r} ({type(node).__name__}) raised {type(exc).__name__} in {action}: "
         f"{text}; it is in ERROR now, and its parent decides what follows (a Fallback may "
-        "still succeed). Fix the code that raised, or return FAILED for a failure you "
-        "expect; later errors of this node go to the log only (logger 'btcap')"
+        "still succeed). Fix the code that raised, or report a failure you expect as one "
+        "(return FAILED; an Action's function returns False); later errors of this node "
+        "go to the log only (logger 'btcap')"
     )
     tb = exc.__traceback__
     if tb is None:  # refused by btcap itself (an input a port's constraint refuses)

@@ -336,7 +336,7 @@ class Capability(Node):
                     why=req.why,
                 )
                 if news:
-                    tell_nobody(self, iface, req.why)
+                    tell_nobody(self, iface, req.why, self.options["assignment_timeout_s"])
             return _UNASSIGNED
         self._exec = req.execution
         self._waits, self._waiting_since = 0, None

@@ -48,16 +48,23 @@ def nobody_able(why: Mapping[str, str]) -> bool:
     return not any(marker in text for text in why.values() for marker in _NOT_NOW)
 
 
-def tell_nobody(node: _Capability, interface: str, why: Mapping[str, str]) -> None:
-    """Nobody could take ``node``: each robot's reason in ``why``."""
+def tell_nobody(
+    node: _Capability, interface: str, why: Mapping[str, str], timeout_s: float
+) -> None:
+    """Nobody could take ``node``: each robot's reason in ``why``; ``timeout_s``: its
+    ``assignment_timeout_s`` (0: it waits for ever)."""
     reasons = "; ".join(f"{robot}: {text}" for robot, text in sorted(why.items()))
+    then = (
+        f"; it fails after {timeout_s:g} s unassigned (its assignment_timeout_s)"
+        if timeout_s > 0
+        else ", or set assignment_timeout_s on the node to fail after a wait"
+    )
     _tell(
         node,
         "nobody",
         f"capability {node.path!r} ({interface}): nobody in the team can take it "
         f"({reasons or 'no robot answered'}). It waits unassigned and tries again when "
-        "the team changes; fix what the reasons name, or set assignment_timeout_s on the "
-        "node to fail after a wait",
+        f"the team changes; fix what the reasons name{then}",
     )
 
 
