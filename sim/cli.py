@@ -420,7 +420,7 @@ def run_command(args: argparse.Namespace) -> int:
                 markup=False,
             )
             if (idle := idle_robots_note(result, s.object_workers)) is not None:
-                console.print(idle, markup=False)
+                console.print(idle, markup=False, soft_wrap=True)
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             results.append(result)
