@@ -76,7 +76,16 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         type=int,
         metavar="N",
         help="grow the team to N robots: the scenario's robots' models in turn, named "
-        "MODEL2, MODEL3, ... (full-team --robots 200: 67 huskies, 67 spots, 66 bebops)",
+        "MODEL2, MODEL3, ... (full-team --robots 200: 67 huskies, 67 spots, 66 bebops); "
+        "the mission still runs at most 1 + object_workers capabilities at once, so "
+        "robots beyond that wait unless --object-workers grows it too",
+    )
+    p.add_argument(
+        "--object-workers",
+        type=int,
+        metavar="K",
+        help="identify-and-decontaminate loops the mission tree runs at once (the "
+        "scenario's object_workers: 2 in the built-in ones)",
     )
     p.add_argument(
         "--fast",
@@ -337,6 +346,7 @@ def run_command(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from btcap.cli.monitor import monitored
+    from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
     from btcap.sim.scenario import ScenarioError, grow_team
 
@@ -366,6 +376,10 @@ def run_command(args: argparse.Namespace) -> int:
                 grow_team(s, args.robots)
             except ValueError as exc:
                 raise CliError(f"--robots: {exc}") from None
+        if args.object_workers is not None:
+            if not 1 <= args.object_workers <= 1000:
+                raise CliError(f"--object-workers: expected 1 to 1000, got {args.object_workers}")
+            s.object_workers = args.object_workers
         if args.speedup is not None:
             s.speedup = args.speedup
         if margin is not None:
@@ -405,6 +419,8 @@ def run_command(args: argparse.Namespace) -> int:
                 f"in {time.perf_counter() - started:.1f} s of wall time",
                 markup=False,
             )
+            if (idle := idle_robots_note(result, s.object_workers)) is not None:
+                console.print(idle, markup=False, soft_wrap=True)
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             results.append(result)

@@ -226,3 +226,22 @@ def collect(
         timed_out=final not in DONE and not interrupted,
         interrupted=interrupted,
     )
+
+
+def idle_robots_note(result: MissionResult, object_workers: int) -> str | None:
+    """Why robots of a large team ran nothing, when the mission tree's parallelism may be
+    the reason: it runs one Explore loop and ``object_workers`` identify-and-decontaminate
+    loops, however many robots there are (``btcap run --robots N`` grows the team, not
+    the tree). None when every robot ran something or the team is no larger than that."""
+    at_once = 1 + object_workers
+    idle = [r for r, st in result.robots.items() if not any(st.tasks.values())]
+    if not idle or len(result.robots) <= at_once:
+        return None
+    names = ", ".join(idle[:6]) + (", ..." if len(idle) > 6 else "")
+    loops = f"{object_workers} identify-and-decontaminate loop{'s' if object_workers > 1 else ''}"
+    return (
+        f"{result.scenario}: {len(idle)} of {len(result.robots)} robots ran no task "
+        f"({names}): the mission tree runs one Explore loop and {loops} "
+        f"(object_workers), at most {at_once} capabilities at once; --object-workers N "
+        "runs more identify-and-decontaminate loops"
+    )

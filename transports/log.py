@@ -24,7 +24,9 @@ from structlog.stdlib import LOG_KWARG_NAMES, filter_by_level
 __all__ = ["get_logger", "wanted", "worth_logging"]
 
 # The documented habit of libraries: without it, Python's last-resort handler would
-# print btcap's warnings to stderr in a program that configured no logging.
+# print btcap's warnings to stderr in a program that configured no logging. What a user
+# must see by default (a node's error, a capability nobody can take) is a Python warning
+# instead (btcap.BtcapWarning's categories), which the standard filters quieten.
 logging.getLogger("btcap").addHandler(logging.NullHandler())
 
 _fields = structlog.processors.LogfmtRenderer()

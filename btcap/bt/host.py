@@ -18,8 +18,11 @@ class TreeHost(Protocol):
     """What a node needs from the tree that owns it; :class:`~btcap.bt.tree.Tree` is one.
 
     ``_adopt`` and ``_release`` take the node joining or leaving (a
-    :class:`~btcap.bt.node.Node`).
+    :class:`~btcap.bt.node.Node`); ``_told`` holds the paths of its nodes whose first
+    error was told (:mod:`btcap.bt.told`).
     """
+
+    _told: set[str]
 
     @property
     def name(self) -> str: ...

@@ -17,7 +17,8 @@ from btcap.bt.host import TreeHost
 from btcap.bt.messages import NodeStatus, Reset, Setup, Shutdown, Tick, Untick
 from btcap.bt.ports import PortMap, check_options, check_port, check_wired, normalize_ports
 from btcap.bt.specialize import own_copies
-from btcap.bt.state import ACTIVE, IllegalTransition, State, TreeError
+from btcap.bt.state import ACTIVE, IllegalTransition, NodeErrorWarning, State, TreeError
+from btcap.bt.told import tell_error
 from btcap.bt.utility import Utility
 from btcap.transports.log import get_logger
 
@@ -358,6 +359,8 @@ class Node(Actor):
             self._watch(self, prev, new)
 
     def _fail(self, exc: BaseException, action: str) -> State:
+        if isinstance(exc, NodeErrorWarning):  # a child's, made an error by a filter
+            raise exc
         self.error = exc
         log.error(
             "btcap.node_error",
@@ -367,6 +370,7 @@ class Node(Actor):
             exc_info=exc,
         )
         self._set(_ERROR)
+        tell_error(self, exc, action)
         return _ERROR
 
     def _not_ready(self, action: str) -> None:

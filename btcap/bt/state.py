@@ -15,10 +15,12 @@ __all__ = [
     "SUCCEEDED",
     "BtcapWarning",
     "IllegalTransition",
+    "NodeErrorWarning",
     "RestartLoopWarning",
     "State",
     "TreeError",
     "TreeTimeout",
+    "UnassignableWarning",
 ]
 
 
@@ -100,3 +102,14 @@ class BtcapWarning(UserWarning):
 
 class RestartLoopWarning(BtcapWarning):
     """A node keeps being halted and started again without ever finishing (debug mode)."""
+
+
+class NodeErrorWarning(BtcapWarning):
+    """A node's action raised: said once per node of a tree, pointing at the line that
+    raised. ``warnings.filterwarnings("error", category=NodeErrorWarning)`` makes the
+    first such error raise out of ``Tree.tick`` instead (tests, debugging)."""
+
+
+class UnassignableWarning(BtcapWarning):
+    """Nobody in the team can take a capability (each robot's reason given): said once per
+    capability node while it waits, and when its ``assignment_timeout_s`` ends the wait."""

@@ -61,10 +61,10 @@ class Tree:
         self._observers: list[tuple[Observer, type[Node] | tuple[type[Node], ...]]] = []
         self._tasks: set[asyncio.Task[Any]] = set()
         self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
-        #: Grows when nodes join or leave: a watcher sees the shape changed without a walk.
-        self.version = 0
+        self.version = 0  # grows when nodes join or leave: a watcher needs no walk to see it
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
+        self._told: set[str] = set()  # nodes whose first error was a warning (bt.told)
         self._adopt(root)
         self.debug = debug_default() if debug is None else debug
 

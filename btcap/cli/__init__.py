@@ -17,10 +17,11 @@ import argparse
 import importlib
 import signal
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
-from btcap.bt.state import TreeError
+from btcap.bt.state import NodeErrorWarning, TreeError, UnassignableWarning
 from btcap.errors import BtcapError
 
 __all__ = ["CliError", "Stopped", "build_parser", "main"]
@@ -126,6 +127,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit as exc:  # --help, --version, or an argparse usage error
             return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
         configure_logging(args.log_level, json=args.log_json)
+        # The command's log shows each node error and each capability nobody can take;
+        # the warnings that tell a library's user of them by default would say it twice.
+        for told in (NodeErrorWarning, UnassignableWarning):
+            warnings.filterwarnings("ignore", category=told)
         handler: Callable[[argparse.Namespace], int] = args.handler
         return handler(args)
     except CliError as exc:

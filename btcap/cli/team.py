@@ -76,7 +76,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = mission_cmds.add_parser(
         "run",
         help="join the team as an operator and tick a mission tree to its end",
-        description="Exit status 0 if the mission succeeded, 1 if it failed or timed out.",
+        description="Exit status 0 if the mission succeeded, 1 if it failed or timed out, "
+        "or if the config names seeds and none answered within --wait (then the mission "
+        "is not started, and the line says which seeds and what to check).",
     )
     p.add_argument("tree", metavar="TREE", type=Path)
     _join_options(p, default_wait=10.0)
@@ -339,13 +341,19 @@ async def _join(agent: Agent, config: RobotConfig, wait: float, joining: Joining
 
     complete = await wait_for_team(agent, config.seeds, timeout_s=wait)
     members = ", ".join(sorted(agent.team.members))
+    missing = sorted(set(config.seeds) - set(agent.team.members))
+    if missing and not members:  # a mission nobody could take: say so now, not at --timeout
+        raise CliError(
+            f"no seed answered within {wait} s, so the mission was not started: "
+            f"{joining.silent(missing)}",
+            code=1,
+        )
     print(
         f"{agent.robot} joined the team: {members}"
         if members
         else f"{agent.robot} has no teammates: nobody answered",
         flush=True,
     )
-    missing = sorted(set(config.seeds) - set(agent.team.members))
     if not complete and missing:
         print(
             f"btcap: seeds {', '.join(missing)} did not answer within {wait} s "

@@ -248,3 +248,35 @@ def test_a_grown_team_runs_the_same_to_the_byte_and_never_flaps(tmp_path: Path) 
     result = msgspec.json.decode(first, type=MissionResult)
     assert len(result.robots) == 40
     assert (result.completed, result.robot_failures, result.executions_lost) == (True, 0, 0)
+
+
+@pytest.mark.slow
+def test_a_grown_team_is_told_why_robots_ran_nothing_and_object_workers_grows_the_tree(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--robots 12`` grows the team, not the mission tree (one Explore loop and the
+    scenario's 2 object loops): the run says which robots ran nothing and why, and
+    ``--object-workers`` gives more of them work."""
+
+    def run(*flags: str) -> tuple[MissionResult, str]:
+        out = tmp_path / "-".join(flags)
+        argv = ["run", "full-team", "--robots", "12", "--fast", "--no-record", "--quiet"]
+        assert main([*argv, *flags, "--out", str(out)]) == 0
+        said = capsys.readouterr().out
+        return msgspec.json.decode((out / "result.json").read_bytes(), type=MissionResult), said
+
+    def idle(result: MissionResult) -> list[str]:
+        return [r for r, st in result.robots.items() if not any(st.tasks.values())]
+
+    grown, said = run()
+    assert len(idle(grown)) == 6
+    assert (
+        "full-team: 6 of 12 robots ran no task (husky3, spot3, bebop3, husky4, spot4, "
+        "bebop4): the mission tree runs one Explore loop and 2 identify-and-decontaminate "
+        "loops (object_workers), at most 3 capabilities at once; --object-workers N runs "
+        "more identify-and-decontaminate loops"
+    ) in said
+    wider, _ = run("--object-workers", "8")
+    assert set(idle(wider)) < set(idle(grown))
+    assert wider.mission_time_s < grown.mission_time_s
+    usage_error(capsys, ["run", "--object-workers", "0"], "--object-workers: expected 1 to 1000")

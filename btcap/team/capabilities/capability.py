@@ -18,6 +18,7 @@ from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.team.capabilities.conversion import Where, convert
 from btcap.team.capabilities.execution import AssignmentRequest, Execution
+from btcap.team.capabilities.unassignable import nobody_able, tell_nobody, tell_timeout
 from btcap.transports.log import get_logger
 
 __all__ = [
@@ -198,9 +199,10 @@ class Capability(Node):
     ``local_only`` restricts the auction to this robot.
 
     While nobody can take it, it stays unassigned (the team may change) and says so: a
-    warning with each robot's reason after the first failed auction, then after the 2nd,
-    4th, 8th... ``assignment_timeout_s`` (clock seconds, 0: wait for ever) turns a wait
-    that long into a failure the tree can handle.
+    log warning with each robot's reason after the first failed auction, then after the
+    2nd, 4th, 8th..., and once an :class:`~btcap.bt.state.UnassignableWarning`, which
+    Python shows by default. ``assignment_timeout_s`` (clock seconds, 0: wait for ever)
+    turns a wait that long into a failure the tree can handle.
     """
 
     __slots__ = (
@@ -325,14 +327,16 @@ class Capability(Node):
             if self._waits & (self._waits - 1) == 0:  # the 1st, 2nd, 4th, 8th ... time
                 iface = type(self).INTERFACE.name
                 # Waiting for a busy robot is routine; nobody able to do it is news.
-                busy = any("busy" in why for why in req.why.values())
-                (log.info if busy else log.warning)(
+                news = nobody_able(req.why)
+                (log.warning if news else log.info)(
                     "capability.unassigned",
                     node=self.path,
                     capability=iface,
                     auctions=self._waits,
                     why=req.why,
                 )
+                if news:
+                    tell_nobody(self, iface, req.why, self.options["assignment_timeout_s"])
             return _UNASSIGNED
         self._exec = req.execution
         self._waits, self._waiting_since = 0, None
@@ -347,6 +351,8 @@ class Capability(Node):
             capability=type(self).INTERFACE.name,
             waited_s=round(waited, 3),
         )
+        timeout = self.options["assignment_timeout_s"]
+        tell_timeout(self, type(self).INTERFACE.name, timeout, self._waits)
 
     def _drop(self, reason: str) -> None:
         if self._request is not None:

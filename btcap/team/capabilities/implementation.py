@@ -130,3 +130,10 @@ class Implementation:
         if extra is None:
             return None
         return u.expected_cost + float(extra)
+
+    def why_no_cost(self) -> str:
+        """Whose decision a cost of None was, for the robot's decline: its bid function's
+        (it returned None for these inputs) or its tree's (the utility says it cannot)."""
+        if not self.utility().can_execute:
+            return "cannot execute: its tree's utility says so (can_execute is False)"
+        return "cannot execute these inputs: its bid function returned None"

@@ -92,12 +92,19 @@ def _cheapest(
             cost = impl.cost(inputs)
         except Exception as exc:  # a user's bid function: it must not silence the robot
             errors.append((impl.name, exc))
-            reasons.append(f"{impl.name}: bid failed ({type(exc).__name__})")
+            reasons.append(f"{impl.name}: its bid function raised {type(exc).__name__}")
             continue
         if cost is None:
-            reasons.append(f"{impl.name}: cannot execute")
+            reasons.append(f"{impl.name}: {_why_no_cost(impl)}")
         elif best is None or (cost, impl.name) < best:
             best = (cost, impl.name)
     if best is None:
         return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
     return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], wait, later), errors)
+
+
+def _why_no_cost(impl: Bidder) -> str:
+    """Whose decision it was that ``impl`` cannot run the inputs, if it can tell (an
+    :class:`~btcap.team.capabilities.implementation.Implementation` can)."""
+    why = getattr(impl, "why_no_cost", None)
+    return str(why()) if callable(why) else "cannot execute (its cost is None)"

@@ -204,7 +204,7 @@ class ExecutorSide:
             inputs = impl.interface.convert_inputs(msg.inputs, lambda: f"award {msg.execution}")
             cost = impl.cost(inputs)
             if cost is None:
-                return f"{impl.name} cannot execute these inputs"
+                return f"{impl.name}: {impl.why_no_cost()}"
             run = self.runs.take(impl, msg.execution)
         except Exception as exc:  # a broken implementation declines, never kills the actor
             if not isinstance(exc, TreeError | ValueError):

@@ -113,7 +113,7 @@ def test_agent_refuses_a_bind_beyond_this_host_without_keys(
     assert "network.bind" in capsys.readouterr().err
 
 
-def test_alone_status_fails_and_a_mission_times_out(
+def test_alone_status_fails_and_a_mission_stops_once_no_seed_answered(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     operator = _config(tmp_path, "operator", impl=None, seeds=["ghost"])
@@ -121,23 +121,28 @@ def test_alone_status_fails_and_a_mission_times_out(
     out = capsys.readouterr()
     assert "0 member(s)" in out.out
     assert "seed ghost did not answer" in out.err
-    code = main(
-        [
-            "mission",
-            "run",
-            str(TEAM / "mission.yaml"),
-            "--config",
-            str(operator),
-            "--wait",
-            "0.2",
-            "--timeout",
-            "0.5",
-        ]
-    )
+    mission = ["mission", "run", str(TEAM / "mission.yaml"), "--config", str(operator)]
+    # Not the whole --timeout of a mission nobody can take: it stops after --wait.
+    assert main([*mission, "--wait", "0.2", "--timeout", "5"]) == 1
     out = capsys.readouterr()
-    assert code == 1
-    assert "mission timed out" in out.out
-    assert "greetings/ada: unassigned on nobody" in out.out
+    where = f"ghost at ipc://{tmp_path}/ghost.sock in network.seeds"
+    assert out.err == (
+        "btcap: error: no seed answered within 0.2 s, so the mission was not started: "
+        f"is it up ({where}), or is --wait too short?\n"
+    )
+    assert "mission" not in out.out
+
+
+def test_a_robot_without_seeds_runs_its_mission_alone_until_it_times_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    operator = _config(tmp_path, "operator", impl=None, seeds=[])
+    mission = ["mission", "run", str(TEAM / "mission.yaml"), "--config", str(operator)]
+    assert main([*mission, "--wait", "0.2", "--timeout", "0.5"]) == 1
+    out = capsys.readouterr().out
+    assert "operator has no teammates: nobody answered" in out
+    assert "mission timed out" in out
+    assert "greetings/ada: unassigned on nobody" in out
 
 
 def test_a_bad_mission_tree_fails_before_joining(

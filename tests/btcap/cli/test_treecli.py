@@ -7,6 +7,7 @@ import shutil
 import sys
 import textwrap
 import uuid
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -418,3 +419,31 @@ def test_run_refuses_missing_unknown_and_mistyped_entries(
     need, tree = _need(tmp_path)
     assert main(["tree", "run", "--load", str(need), *args, str(tree)]) != 0
     assert message in capsys.readouterr().err
+
+
+def test_run_tells_a_node_error_once_in_its_log_not_again_as_a_warning(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The command's log line says it; the NodeErrorWarning a library user gets by
+    default would say it twice."""
+    monkeypatch.setattr(btcap.cli, "configure_logging", configure_logging)
+    module = tmp_path / f"broken_{uuid.uuid4().hex[:8]}.py"
+    module.write_text(
+        "from btcap import Leaf, State\n\n\n"
+        "class Grip(Leaf):\n"
+        "    def on_tick(self) -> State:\n"
+        '        raise ValueError("gripper offline")\n'
+    )
+    path = tmp_path / "grip.yaml"
+    path.write_text(
+        "btcap: 1\nroot:\n  type: Fallback\n  name: try\n  children:\n"
+        "    - {type: Grip, name: grip}\n    - {type: AlwaysSuccess, name: skip}\n"
+    )
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        assert main(["tree", "run", "--fast", "--load", str(module), str(path)]) == 0
+    sys.modules.pop(module.stem, None)
+    assert [w.category for w in said] == []
+    err = capsys.readouterr().err
+    assert err.count("btcap.node_error") == 1
+    assert "NodeErrorWarning" not in err

@@ -236,7 +236,8 @@ async def test_robot_declines_when_its_bid_function_says_it_cannot() -> None:
             assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
             out = a.allocator.outcomes[-1]
             assert out is not None
-            assert "cannot execute" in out.declined["b"]
+            why = "count-b: cannot execute these inputs: its bid function returned None"
+            assert out.declined["b"] == why  # whose decision it was
             assert node.assignments == ["a"]
             await tree.shutdown()
 

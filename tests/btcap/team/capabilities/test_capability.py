@@ -9,7 +9,15 @@ import pytest
 from capfixtures import COUNT, Probe, count_impl, step, team, tick_until, until
 from structlog.testing import capture_logs
 
-from btcap import AlwaysSuccess, Parallel, ReactiveSequence, State, Tree, TreeError
+from btcap import (
+    AlwaysSuccess,
+    Parallel,
+    ReactiveSequence,
+    State,
+    Tree,
+    TreeError,
+    UnassignableWarning,
+)
 from btcap.actors import ActorSystem
 from btcap.bt.utility import CANNOT
 from btcap.team.capabilities.capability import (
@@ -22,6 +30,7 @@ from btcap.team.capabilities.capability import (
 from btcap.team.capabilities.execution import AssignmentRequest
 from btcap.team.capabilities.implementation import Implementation, Precondition, Scope
 from btcap.team.capabilities.proxies import LocalExecution
+from btcap.team.capabilities.unassignable import nobody_able
 
 # -- interfaces --------------------------------------------------------------------------
 
@@ -259,11 +268,16 @@ async def test_a_capability_nobody_can_run_says_why_at_a_falling_rate() -> None:
             await t.converged()
             node = COUNT.node_type()("count", inputs={"x": 1}, retry_s=0.1)
             tree = a.mission(ReactiveSequence("root", children=[node]))
-            with capture_logs() as logs:
+            with capture_logs() as logs, pytest.warns(UnassignableWarning) as told:
                 await tick_until(tree, lambda _s: node._waits >= 5, "five empty auctions")
             waits = [e for e in logs if e["event"] == "capability.unassigned"]
             assert [e["auctions"] for e in waits] == [1, 2, 4]
             assert waits[0]["why"] == {"b": "precondition Scan (local) not met"}
+            [w] = told  # once, visible without logging configured
+            assert str(w.message).startswith(
+                "capability 'root/count' (Count): nobody in the team can take it "
+                "(b: precondition Scan (local) not met). It waits unassigned"
+            )
             assert node.state is State.UNASSIGNED
             await tree.shutdown()
 
@@ -289,8 +303,13 @@ async def test_an_assignment_timeout_turns_the_wait_into_a_failure() -> None:
             node = COUNT.node_type()("count", inputs={"x": 1}, assignment_timeout_s=1.0)
             tree = a.mission(ReactiveSequence("root", children=[node]))
             start = a.clock.now()
-            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
+            with pytest.warns(UnassignableWarning) as told:
+                assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
             assert a.clock.now() - start >= 1.0
+            assert [str(w.message).split(":")[0] for w in told] == [
+                "capability 'root/count' (Count)",  # nobody implements it
+                "capability 'root/count' (Count) failed",  # within assignment_timeout_s of 1 s
+            ]
             assert tree.tick() is State.FAILED  # kept until reset
             tree.reset()
             assert tree.tick() is State.RUNNING  # waits (and counts) afresh
@@ -421,3 +440,18 @@ def test_inputs_from_the_wire_are_held_to_their_ports_constraints() -> None:
         iface.convert_inputs({"tag": "x" * 5000}, "award e")
     with pytest.raises(TreeError, match=r"^report r output 'count': must be >= 0, got -1"):
         iface.convert_outputs({"count": -1}, "report r")
+
+
+def test_only_an_auction_nobody_could_win_is_news() -> None:
+    """Robots able but occupied are routine (no warning); only reasons of inability from
+    every robot make an UnassignableWarning."""
+    assert nobody_able({"team": "no live member implements Count"})
+    assert nobody_able({"b": "precondition Scan (local) not met", "c": "no remote capability slot"})
+    for routine in (
+        "busy",
+        "took another task of the same round",
+        "no answer",
+        "declined the award: busy",
+        "bid 5 not below 4",
+    ):
+        assert not nobody_able({"b": "precondition Scan (local) not met", "c": routine})

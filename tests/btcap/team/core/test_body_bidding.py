@@ -54,7 +54,9 @@ def test_nobody_can_bid_says_why() -> None:
     impls = [Impl("x", None), Impl("y", 1.0, needs="precondition p (local) not met")]
     ev = evaluate(CFB, "b", impls, {}, wait=0.0, unmet=unmet)
     assert isinstance(ev.answer, NoBid)
-    assert ev.answer.reason == "x: cannot execute; precondition p (local) not met"
+    assert (
+        ev.answer.reason == "x: cannot execute (its cost is None); precondition p (local) not met"
+    )
     assert evaluate(CFB, "b", [], {}, wait=0.0, unmet=unmet).answer.reason == (  # type: ignore[union-attr]
         "no matching implementation"
     )
