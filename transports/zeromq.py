@@ -23,6 +23,7 @@ import zmq.asyncio
 from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
+from btcap.transports.bounds import MAX_DEPTH, check_nesting
 from btcap.transports.codec import Codec, CodecError, Envelope
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
@@ -359,24 +360,35 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
                 return False
             try:
-                # A Frame's buffer is a memoryview already: sliced without a copy.
-                env = self.codec.decode(body[1:])
+                # A Frame's buffer is a memoryview already: sliced without a copy. The
+                # message stays encoded until its sender, type and size have passed.
+                kind, sender, recipient, raw, corr = self.codec.decode_header(body[1:])
             except CodecError as exc:
                 return self._malformed("bad envelope", ident, str(exc)[:200])
-            if env.sender.system != peer:
-                return self._malformed(
-                    "sender mismatch", ident, f"claims {env.sender.system[:64]!r}"
-                )
-            to = env.recipient.system
+            if sender.system != peer:
+                return self._malformed("sender mismatch", ident, f"claims {sender.system[:64]!r}")
+            to = recipient.system
             if to != self.system_id and to != BROADCAST:
                 return self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
+            limited = self._limited and peer in self._limited
+            if limited and self._refused_type(peer, kind, raw):
+                return False
+            size = len(raw)
+            if size > self.max_non_member_bytes and self._non_member(peer):
+                return self._too_big(peer, size)
+            if size > MAX_DEPTH and (why := check_nesting(raw)) is not None:
+                return self._malformed("nested too much", ident, why)
+            try:
+                msg = self.codec.decode_body(raw)
+            except CodecError as exc:
+                return self._malformed("bad envelope", ident, str(exc)[:200])
             self.stats.received += 1
             if self._strangers.since:
                 self._strangers.vouched(peer)
-            if self._limited and peer in self._limited and self._screen(peer, env):
-                return False
+            if limited:
+                self._observing(peer)
             try:
-                deliver(env)
+                deliver(Envelope(kind, sender, recipient, msg, corr))
             except Exception as exc:  # a bug above us must not stop the receive loop
                 log.error(
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc

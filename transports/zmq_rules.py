@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
 from typing import Any
 
+import msgspec
 import zmq
 
 from btcap.transports.base import TransportStats
-from btcap.transports.codec import Envelope
+from btcap.transports.bounds import message_tag
+from btcap.transports.codec import Codec
 from btcap.transports.identity import OBSERVER, is_observer_id
 from btcap.transports.log import get_logger
 from btcap.transports.security import Curve
@@ -28,14 +31,18 @@ from btcap.transports.zmq_claims import (
 from btcap.transports.zmq_peers import PeerBook
 from btcap.transports.zmq_sockets import Monitor, reject
 
-__all__ = ["REFUSAL", "PeerRules", "split_hello"]
+__all__ = ["NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 
 log = get_logger("btcap.transports")
 
 REFUSAL = b"R"[0]
 """The first byte of a frame telling a newcomer why its name was refused."""
+NON_MEMBER_BYTES = 256 * 1024
+"""Largest message a peer that is no member may send (a roster of 1,024 fits)."""
 _BATCH = 256
 _REFUSED = "not allowed for its role"
+_TOO_BIG = "too big for a non-member"
+_NO_INSTANCE = "hello without an instance token"
 _ANSWER_S = 10.0
 """A refusal counts only this soon after our link to the refusing peer came up."""
 
@@ -48,6 +55,7 @@ class PeerRules:
     endpoint: str
     curve: Curve | None
     stats: TransportStats
+    codec: Codec
     _ctx: zmq.Context[zmq.Socket[bytes]]
     _id: bytes
     _known: dict[bytes, str]
@@ -65,6 +73,9 @@ class PeerRules:
         self._observers: set[str] = set()
         self._observed: dict[str, float] = {}
         self._raw_ident = b""
+        self._members: Callable[[str], bool] | None = None
+        #: Largest message a non-member may send (see :meth:`members`).
+        self.max_non_member_bytes = NON_MEMBER_BYTES
         #: Why a teammate refused us (another live process has our name), or None.
         self.name_taken: str | None = None
 
@@ -123,14 +134,37 @@ class PeerRules:
         self._observers.discard(peer)
         self._observed.pop(peer, None)
 
-    def _screen(self, peer: str, env: Envelope) -> bool:
-        """Whether a limited peer's message is refused (counted, logged at a falling
-        rate). An observer stays a stranger, forgotten once it falls silent."""
-        if env.kind < 2 and type(env.msg) not in self._limited[peer]:  # tell, ask
-            role = self.role_of(peer) or OBSERVER
-            what = f"{role} may not send {type(env.msg).__name__}"
-            reject(self.stats, self.system_id, _REFUSED, peer.encode(), what)
-            return True
+    def members(self, check: Callable[[str], bool] | None) -> None:
+        """Who is a member (``check(peer)``, asked only of a big message): a peer that is
+        none, and an observer, may send messages of at most :attr:`max_non_member_bytes`;
+        None: everyone may send up to the frame limit."""
+        self._members = check
+
+    def _non_member(self, peer: str) -> bool:
+        check = self._members
+        return peer in self._observers or (check is not None and not check(peer))
+
+    def _too_big(self, peer: str, size: int) -> bool:
+        what = f"{size} bytes, at most {self.max_non_member_bytes} from a non-member"
+        reject(self.stats, self.system_id, _TOO_BIG, peer.encode(), what)
+        return True
+
+    def _refused_type(self, peer: str, kind: int, raw: msgspec.Raw) -> bool:
+        """Whether a limited peer's tell or ask is of a type its role may not send (read
+        from its tag, before it is decoded): counted, logged at a falling rate."""
+        if kind >= 2:  # replies reach only who asked
+            return False
+        tag = message_tag(raw)
+        if self.codec.message_type(tag) in self._limited[peer]:
+            return False
+        self.stats.received += 1
+        role = self.role_of(peer) or OBSERVER
+        name = "nil" if tag is None else tag[:64].decode(errors="replace")
+        reject(self.stats, self.system_id, _REFUSED, peer.encode(), f"{role} may not send {name}")
+        return True
+
+    def _observing(self, peer: str) -> None:
+        """An observer stays a stranger, forgotten once it falls silent."""
         if peer in self._observers and self._loop is not None:
             now, met = self._loop.time(), self._observed.get(peer)
             if met is None or now - met > self._strangers.ttl / 8:
@@ -139,7 +173,6 @@ class PeerRules:
                 self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
             else:
                 self._strangers.since[peer] = met  # what the pending _forget looks for
-        return False
 
     # -- names ------------------------------------------------------------------------
     def _hello(self) -> bytes:
@@ -156,7 +189,13 @@ class PeerRules:
     def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool:
         """Whether a hello under a known peer's name from another endpoint comes from a
         second process (our link to the known one is up, the instance differs): refused,
-        logged once and told why. Otherwise (a restart elsewhere) its instance is noted."""
+        logged once and told why. Otherwise (a restart elsewhere) its instance is noted.
+        A hello without an instance would move a known peer on nobody's word (every
+        btcap peer sends one): ignored, counted and logged."""
+        if not instance and known is not None and known != endpoint:
+            what = f"it would move {peer} from {known} to {endpoint[:200]}: ignored"
+            reject(self.stats, self.system_id, _NO_INSTANCE, peer.encode(), what)
+            return True
         monitor = self._monitors.get(peer) if known not in (None, endpoint) else None
         if monitor is not None:
             monitor.drain(_BATCH, self._relink)  # a drop not yet read means a restart
