@@ -19,7 +19,14 @@ from __future__ import annotations
 
 import msgspec
 
-__all__ = ["MAX_CONTAINERS", "MAX_DEPTH", "MAX_SCANNED", "check_nesting", "message_tag"]
+__all__ = [
+    "MAX_CONTAINERS",
+    "MAX_DEPTH",
+    "MAX_SCANNED",
+    "check_nesting",
+    "message_tag",
+    "split_envelope",
+]
 
 MAX_CONTAINERS = 32_768
 """Arrays and maps one message may hold (a path of 30,000 waypoints fits; at most a few
@@ -59,7 +66,7 @@ _SIZED |= {0xC7: (1, 1), 0xC8: (2, 1), 0xC9: (4, 1)}  # ext: a type byte, then t
 _LONG = {0xDC: (2, 1), 0xDD: (4, 1), 0xDE: (2, 2), 0xDF: (4, 2)}
 
 
-def check_nesting(data: bytes | msgspec.Raw) -> str | None:
+def check_nesting(data: bytes | memoryview | msgspec.Raw) -> str | None:
     """Why the MessagePack value ``data`` nests too much (containers, depth), or None.
 
     Malformed or truncated data is left to the decoder (None): this only bounds cost."""
@@ -134,7 +141,7 @@ def _run(raw: bytes, pos: int, n: int, most: int, firsts: bytes) -> int:
     return got
 
 
-def message_tag(raw: bytes | msgspec.Raw) -> bytes | None:
+def message_tag(raw: bytes | memoryview | msgspec.Raw) -> bytes | None:
     """The tag of an encoded message (an array whose first item is its tag string), read
     without decoding it; None if it is not one (nil, or malformed: the decoder says)."""
     data = memoryview(raw)
@@ -157,3 +164,44 @@ def message_tag(raw: bytes | msgspec.Raw) -> bytes | None:
     else:
         return None
     return bytes(data[start : start + n])
+
+
+def split_envelope(data: memoryview) -> tuple[int, str, str, int] | None:
+    """An encoded envelope's kind, sender's and recipient's systems, and where its message
+    starts, read in Python: for a big frame, whose message msgspec would walk to reach
+    the fields after it. None if it is not in the form btcap sends (the decoder says)."""
+    if len(data) < 8 or data[0] != 0x95 or data[1] > 3:
+        return None
+    kind, pos = data[1], 2
+    systems = []
+    for _ in range(2):  # sender, recipient: [system, path]
+        if data[pos] != 0x92:
+            return None
+        pos += 1
+        for part in range(2):
+            got = _str(data, pos)
+            if got is None:
+                return None
+            start, pos = got
+            if part == 0:
+                try:
+                    systems.append(bytes(data[start:pos]).decode())
+                except UnicodeDecodeError:
+                    return None
+    return kind, systems[0], systems[1], pos
+
+
+def _str(data: memoryview, pos: int) -> tuple[int, int] | None:
+    """Where a string at ``pos`` starts and ends, if it is one."""
+    if pos + 3 > len(data):
+        return None
+    b = data[pos]
+    if 0xA0 <= b <= 0xBF:
+        start, n = pos + 1, b & 0x1F
+    elif b == 0xD9:
+        start, n = pos + 2, data[pos + 1]
+    elif b == 0xDA:
+        start, n = pos + 3, int.from_bytes(data[pos + 1 : pos + 3], "big")
+    else:
+        return None
+    return (start, start + n) if start + n <= len(data) else None

@@ -13,8 +13,8 @@ from typing import Any
 import msgspec
 import zmq
 
-from btcap.transports.base import TransportStats
-from btcap.transports.bounds import message_tag
+from btcap.transports.base import BROADCAST, TransportStats
+from btcap.transports.bounds import check_nesting, message_tag, split_envelope
 from btcap.transports.codec import Codec
 from btcap.transports.identity import OBSERVER, is_observer_id
 from btcap.transports.log import get_logger
@@ -31,7 +31,7 @@ from btcap.transports.zmq_claims import (
 from btcap.transports.zmq_peers import PeerBook
 from btcap.transports.zmq_sockets import Monitor, reject
 
-__all__ = ["NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
+__all__ = ["HEAVY_BYTES", "NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 
 log = get_logger("btcap.transports")
 
@@ -41,6 +41,8 @@ NON_MEMBER_BYTES = 256 * 1024
 """Largest message a peer that is no member may send (a roster of 1,024 fits)."""
 _BATCH = 256
 _REFUSED = "not allowed for its role"
+HEAVY_BYTES = 256 * 1024
+"""A frame this big is screened before msgspec sees it, and costs its receiver's turn."""
 _TOO_BIG = "too big for a non-member"
 _NO_INSTANCE = "hello without an instance token"
 _ANSWER_S = 10.0
@@ -80,6 +82,9 @@ class PeerRules:
         self.name_taken: str | None = None
 
     def _relink(self, monitor: Monitor) -> None:
+        raise NotImplementedError  # the transport's
+
+    def _malformed(self, reason: str, ident: bytes, detail: str) -> bool:
         raise NotImplementedError  # the transport's
 
     def _forget(self, peer: str, met: float) -> None:
@@ -144,14 +149,39 @@ class PeerRules:
         check = self._members
         return peer in self._observers or (check is not None and not check(peer))
 
-    def _too_big(self, peer: str, size: int) -> bool:
-        what = f"{size} bytes, at most {self.max_non_member_bytes} from a non-member"
-        reject(self.stats, self.system_id, _TOO_BIG, peer.encode(), what)
-        return True
+    def _prescreen(self, peer: str, ident: bytes, data: memoryview) -> bool | None:
+        """A big frame's checks, its envelope read in Python (msgspec would walk its
+        message to reach the end of the envelope): True if refused, None if its envelope
+        is not in btcap's form (the decoder then checks it)."""
+        split = split_envelope(data)
+        if split is None:
+            return None
+        kind, sender, to, start = split
+        if sender != peer:
+            return self._malformed("sender mismatch", ident, f"claims {sender[:64]!r}")
+        if to != self.system_id and to != BROADCAST:
+            return self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
+        limited = peer in self._limited
+        return self._refused(peer, ident, kind, data[start:], limited)
 
-    def _refused_type(self, peer: str, kind: int, raw: msgspec.Raw) -> bool:
-        """Whether a limited peer's tell or ask is of a type its role may not send (read
-        from its tag, before it is decoded): counted, logged at a falling rate."""
+    def _refused(
+        self, peer: str, ident: bytes, kind: int, raw: msgspec.Raw | memoryview, limited: bool
+    ) -> bool:
+        """Whether a message is refused before it is decoded: one its sender's role may
+        not send (read from its tag), too big for a non-member, or nesting too much."""
+        if limited and self._refused_type(peer, kind, raw):
+            return True
+        size = len(raw)
+        if size > self.max_non_member_bytes and self._non_member(peer):
+            what = f"{size} bytes, at most {self.max_non_member_bytes} from a non-member"
+            reject(self.stats, self.system_id, _TOO_BIG, ident, what)
+            return True
+        if (why := check_nesting(raw)) is not None:
+            return self._malformed("nested too much", ident, why)
+        return False
+
+    def _refused_type(self, peer: str, kind: int, raw: msgspec.Raw | memoryview) -> bool:
+        """Whether a limited peer's tell or ask is of a type its role may not send."""
         if kind >= 2:  # replies reach only who asked
             return False
         tag = message_tag(raw)
