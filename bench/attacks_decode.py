@@ -122,6 +122,14 @@ async def _until(cond: Callable[[], bool], timeout: float) -> bool:
     return True
 
 
+def _failures(me: str, into: list[str]) -> Callable[[TeamEvent, str], None]:
+    def heard(event: TeamEvent, who: str) -> None:
+        if event in (TeamEvent.FAILED, TeamEvent.LEFT):
+            into.append(f"{me} saw {event.value}:{who}")
+
+    return heard
+
+
 @contextlib.asynccontextmanager
 async def _team(keys: Path | None) -> AsyncIterator[tuple[Agent, Agent, _Watch, ZmqTransport]]:
     """r1 and origin running an Echo mission, origin asking r1 every 50 ms; yields the
@@ -146,13 +154,7 @@ async def _team(keys: Path | None) -> AsyncIterator[tuple[Agent, Agent, _Watch, 
     watch = _Watch()
     async with r1, origin:
         for agent in (r1, origin):
-            agent.team.subscribe(
-                lambda ev, who, me=agent.robot: (
-                    watch.failures.append(f"{me} saw {ev.value}:{who}")
-                    if ev in (TeamEvent.FAILED, TeamEvent.LEFT)
-                    else None
-                )
-            )
+            agent.team.subscribe(_failures(agent.robot, watch.failures))
         await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
         node = ECHO.node_type()("echo", inputs={"value": 1})
         assert isinstance(node, Capability)

@@ -66,7 +66,7 @@ class Codec:
         self._encoder = msgspec.msgpack.Encoder()
         self._version = -1
         self._decoder: msgspec.msgpack.Decoder[Any] = msgspec.msgpack.Decoder()
-        self._header = msgspec.msgpack.Decoder(Header)
+        self._header: msgspec.msgpack.Decoder[Header] = msgspec.msgpack.Decoder(Header)
         self._body: msgspec.msgpack.Decoder[Any] = msgspec.msgpack.Decoder()
         self._by_tag: dict[bytes, type[Message]] = {}
 
