@@ -25,6 +25,7 @@ import zmq
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
+from btcap.bench.attacks_decode import probe_decode
 from btcap.bench.attacks_member import probe_members
 from btcap.bench.attacks_nodes import probe as node_actions
 from btcap.bench.attacks_roles import probe_roles
@@ -68,6 +69,7 @@ MORE_PROBES = [
     node_actions,
     probe_roles,
     probe_members,
+    probe_decode,
 ]
 
 

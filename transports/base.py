@@ -80,6 +80,11 @@ class Transport(abc.ABC):
         Transports that authenticate no roles (in-process) ignore it."""
         del table
 
+    def members(self, check: Callable[[str], bool] | None) -> None:
+        """Who is a member of the team (``check(peer)``): others' messages are held to a
+        smaller size. Transports that decode nothing from peers (in-process) ignore it."""
+        del check
+
     def role_of(self, peer: str) -> str | None:
         """A peer's authenticated role, None where roles are not known (no keys)."""
         return None

@@ -11,7 +11,7 @@ from btcap._enum import FastEnumType
 from btcap.errors import BtcapError
 from btcap.transports.message import Address, Message, MessageRegistry
 
-__all__ = ["Codec", "CodecError", "Envelope", "Kind"]
+__all__ = ["Codec", "CodecError", "Envelope", "Header", "Kind"]
 
 
 class Kind(enum.IntEnum, metaclass=FastEnumType):
@@ -33,6 +33,10 @@ class Envelope(msgspec.Struct, array_like=True, gc=False):
     corr: int = 0
 
 
+Header = tuple[Kind, Address, Address, msgspec.Raw, int]
+"""An envelope with its message still encoded: who sent it to whom checked first."""
+
+
 class CodecError(BtcapError, ValueError):
     """A frame could not be decoded into a registered message."""
 
@@ -44,7 +48,16 @@ class Codec:
     the registry has grown since it was made.
     """
 
-    __slots__ = ("_decoder", "_encoder", "_registry", "_types", "_version")
+    __slots__ = (
+        "_body",
+        "_by_tag",
+        "_decoder",
+        "_encoder",
+        "_header",
+        "_registry",
+        "_types",
+        "_version",
+    )
 
     def __init__(self, registry: MessageRegistry) -> None:
         self._registry = registry
@@ -53,6 +66,9 @@ class Codec:
         self._encoder = msgspec.msgpack.Encoder()
         self._version = -1
         self._decoder: msgspec.msgpack.Decoder[Any] = msgspec.msgpack.Decoder()
+        self._header: msgspec.msgpack.Decoder[Header] = msgspec.msgpack.Decoder(Header)
+        self._body: msgspec.msgpack.Decoder[Any] = msgspec.msgpack.Decoder()
+        self._by_tag: dict[bytes, type[Message]] = {}
 
     @property
     def registry(self) -> MessageRegistry:
@@ -67,6 +83,8 @@ class Codec:
                 payload = None
             # A tuple decodes the envelope's array form straight into typed fields.
             self._decoder = msgspec.msgpack.Decoder(tuple[Kind, Address, Address, payload, int])
+            self._body = msgspec.msgpack.Decoder(payload)
+            self._by_tag = {t.__struct_config__.tag.encode(): t for t in types}  # type: ignore[union-attr]
             self._version = self._registry.version
         return self._decoder
 
@@ -94,6 +112,37 @@ class Codec:
             # frame would reach the receiver as an unexpected error, traceback and all.
             raise CodecError("nested too deeply") from None
         return Envelope(kind, sender, recipient, msg, corr)
+
+    def decode_header(self, data: bytes | memoryview) -> Header:
+        """An envelope whose message is left encoded (see :meth:`decode_body`): the
+        receiver checks its sender, the message's type (:meth:`message_type`) and size
+        before paying for the message itself."""
+        try:
+            return self._header.decode(data)
+        except (msgspec.DecodeError, UnicodeDecodeError) as exc:
+            raise CodecError(str(exc)) from None
+        except RecursionError:
+            raise CodecError("nested too deeply") from None
+
+    def message_type(self, tag: bytes | None) -> type[Message] | None:
+        """The registered type of a message tag (:func:`~btcap.transports.bounds.message_tag`)."""
+        if self._version != self._registry._version:
+            self._refresh()
+        return self._by_tag.get(tag) if tag is not None else None
+
+    def decode_body(self, raw: msgspec.Raw) -> Message | None:
+        """The message of a :meth:`decode_header`, decoded now."""
+        decoder = self._body
+        if self._version != self._registry._version:
+            self._refresh()
+            decoder = self._body
+        try:
+            msg: Message | None = decoder.decode(raw)
+        except (msgspec.DecodeError, UnicodeDecodeError) as exc:
+            raise CodecError(str(exc)) from None
+        except RecursionError:
+            raise CodecError("nested too deeply") from None
+        return msg
 
     def encode_message(self, msg: Message) -> bytes:
         """One message on its own, for files and tests."""

@@ -23,6 +23,7 @@ import zmq.asyncio
 from anyio.abc import TaskStatus
 
 from btcap.transports.base import BROADCAST, Deliver, Transport, TransportStats
+from btcap.transports.bounds import MAX_DEPTH
 from btcap.transports.codec import Codec, CodecError, Envelope
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
@@ -41,6 +42,7 @@ from btcap.transports.zmq_io import (
     remove_ipc_file,
 )
 from btcap.transports.zmq_peers import PeerBook, PeerFates
+from btcap.transports.zmq_rules import HEAVY_BYTES as _HEAVY_BYTES
 from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
 from btcap.transports.zmq_sockets import (
     COPY_THRESHOLD,
@@ -74,6 +76,8 @@ _BATCH = 256
 _JUNK_COST = 31
 """More of that turn a malformed message takes: refusing junk can cost more than delivering
 (a frame nested too deeply: ~0.2 ms), so a flood of it lets other callbacks in sooner."""
+_HEAVY = _BATCH // _JUNK_COST + 1
+"""What a message of over :data:`HEAVY_BYTES` costs: all of that turn."""
 
 
 class ZmqTransport(PeerFates, PeerRules, Transport):
@@ -306,7 +310,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     log.error("transport.handle_failed", system=self.system_id, exc_info=exc)
                 if self._deliver is None:  # closed by whoever we delivered to
                     return
-                budget -= _JUNK_COST if junk else 1
+                budget -= junk * _JUNK_COST + 1
                 # Asking is cheaper than ending every drain with a zmq.Again raised.
                 if not get(EVENTS) & POLLIN:  # type: ignore[operator]
                     return
@@ -344,8 +348,9 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             return None
         return member, part.buffer, extra
 
-    def _handle(self, got: Received, deliver: Deliver) -> bool:
-        """Take one message (see zmq_io); True if it was junk, which costs the batch more."""
+    def _handle(self, got: Received, deliver: Deliver) -> int:
+        """Take one message (see zmq_io); how much more of the batch than an ordinary one
+        it costs: 1 (True) if it was junk, :data:`_HEAVY` if it was big."""
         ident, body, extra = got
         if extra:
             return self._malformed("frame count", ident, f"{extra + 2} frames")
@@ -358,30 +363,42 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
                 return False
+            screened = None
+            if len(body) > _HEAVY_BYTES:  # before msgspec walks megabytes to the header's end
+                screened = self._prescreen(peer, ident, body[1:])
+                if screened:
+                    return _HEAVY
             try:
-                # A Frame's buffer is a memoryview already: sliced without a copy.
-                env = self.codec.decode(body[1:])
+                # A Frame's buffer is a memoryview already: sliced without a copy. The
+                # message stays encoded until its sender, type and size have passed.
+                kind, sender, recipient, raw, corr = self.codec.decode_header(body[1:])
             except CodecError as exc:
                 return self._malformed("bad envelope", ident, str(exc)[:200])
-            if env.sender.system != peer:
-                return self._malformed(
-                    "sender mismatch", ident, f"claims {env.sender.system[:64]!r}"
-                )
-            to = env.recipient.system
+            if sender.system != peer:
+                return self._malformed("sender mismatch", ident, f"claims {sender.system[:64]!r}")
+            to = recipient.system
             if to != self.system_id and to != BROADCAST:
                 return self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
+            limited = peer in self._limited
+            checks = screened is None and (limited or len(raw) > MAX_DEPTH)
+            if checks and self._refused(peer, ident, kind, raw, limited):
+                return _HEAVY if len(body) > _HEAVY_BYTES else True
+            try:
+                msg = self.codec.decode_body(raw)
+            except CodecError as exc:
+                return self._malformed("bad envelope", ident, str(exc)[:200])
             self.stats.received += 1
             if self._strangers.since:
                 self._strangers.vouched(peer)
-            if self._limited and peer in self._limited and self._screen(peer, env):
-                return False
+            if limited:
+                self._observing(peer)
             try:
-                deliver(env)
+                deliver(Envelope(kind, sender, recipient, msg, corr))
             except Exception as exc:  # a bug above us must not stop the receive loop
                 log.error(
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
-            return False
+            return screened is not None and _HEAVY
         malformed = self.stats.malformed  # what a hello or a refusal may find wrong
         if kind == _HELLO_BYTE:
             where, instance = split_hello(bytes(body[1:]))

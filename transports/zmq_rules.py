@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
 from typing import Any
 
+import msgspec
 import zmq
 
-from btcap.transports.base import TransportStats
-from btcap.transports.codec import Envelope
+from btcap.transports.base import BROADCAST, TransportStats
+from btcap.transports.bounds import check_nesting, message_tag, split_envelope
+from btcap.transports.codec import Codec
 from btcap.transports.identity import OBSERVER, is_observer_id
 from btcap.transports.log import get_logger
 from btcap.transports.security import Curve
@@ -28,14 +31,20 @@ from btcap.transports.zmq_claims import (
 from btcap.transports.zmq_peers import PeerBook
 from btcap.transports.zmq_sockets import Monitor, reject
 
-__all__ = ["REFUSAL", "PeerRules", "split_hello"]
+__all__ = ["HEAVY_BYTES", "NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 
 log = get_logger("btcap.transports")
 
 REFUSAL = b"R"[0]
 """The first byte of a frame telling a newcomer why its name was refused."""
+NON_MEMBER_BYTES = 256 * 1024
+"""Largest message a peer that is no member may send (a roster of 1,024 fits)."""
 _BATCH = 256
 _REFUSED = "not allowed for its role"
+HEAVY_BYTES = 256 * 1024
+"""A frame this big is screened before msgspec sees it, and costs its receiver's turn."""
+_TOO_BIG = "too big for a non-member"
+_NO_INSTANCE = "hello without an instance token"
 _ANSWER_S = 10.0
 """A refusal counts only this soon after our link to the refusing peer came up."""
 
@@ -48,6 +57,7 @@ class PeerRules:
     endpoint: str
     curve: Curve | None
     stats: TransportStats
+    codec: Codec
     _ctx: zmq.Context[zmq.Socket[bytes]]
     _id: bytes
     _known: dict[bytes, str]
@@ -65,10 +75,16 @@ class PeerRules:
         self._observers: set[str] = set()
         self._observed: dict[str, float] = {}
         self._raw_ident = b""
+        self._members: Callable[[str], bool] | None = None
+        #: Largest message a non-member may send (see :meth:`members`).
+        self.max_non_member_bytes = NON_MEMBER_BYTES
         #: Why a teammate refused us (another live process has our name), or None.
         self.name_taken: str | None = None
 
     def _relink(self, monitor: Monitor) -> None:
+        raise NotImplementedError  # the transport's
+
+    def _malformed(self, reason: str, ident: bytes, detail: str) -> bool:
         raise NotImplementedError  # the transport's
 
     def _forget(self, peer: str, met: float) -> None:
@@ -123,14 +139,62 @@ class PeerRules:
         self._observers.discard(peer)
         self._observed.pop(peer, None)
 
-    def _screen(self, peer: str, env: Envelope) -> bool:
-        """Whether a limited peer's message is refused (counted, logged at a falling
-        rate). An observer stays a stranger, forgotten once it falls silent."""
-        if env.kind < 2 and type(env.msg) not in self._limited[peer]:  # tell, ask
-            role = self.role_of(peer) or OBSERVER
-            what = f"{role} may not send {type(env.msg).__name__}"
-            reject(self.stats, self.system_id, _REFUSED, peer.encode(), what)
+    def members(self, check: Callable[[str], bool] | None) -> None:
+        """Who is a member (``check(peer)``, asked only of a big message): a peer that is
+        none, and an observer, may send messages of at most :attr:`max_non_member_bytes`;
+        None: everyone may send up to the frame limit."""
+        self._members = check
+
+    def _non_member(self, peer: str) -> bool:
+        check = self._members
+        return peer in self._observers or (check is not None and not check(peer))
+
+    def _prescreen(self, peer: str, ident: bytes, data: memoryview) -> bool | None:
+        """A big frame's checks, its envelope read in Python (msgspec would walk its
+        message to reach the end of the envelope): True if refused, None if its envelope
+        is not in btcap's form (the decoder then checks it)."""
+        split = split_envelope(data)
+        if split is None:
+            return None
+        kind, sender, to, start = split
+        if sender != peer:
+            return self._malformed("sender mismatch", ident, f"claims {sender[:64]!r}")
+        if to != self.system_id and to != BROADCAST:
+            return self._malformed("wrong recipient", ident, f"for {to[:64]!r}")
+        limited = peer in self._limited
+        return self._refused(peer, ident, kind, data[start:], limited)
+
+    def _refused(
+        self, peer: str, ident: bytes, kind: int, raw: msgspec.Raw | memoryview, limited: bool
+    ) -> bool:
+        """Whether a message is refused before it is decoded: one its sender's role may
+        not send (read from its tag), too big for a non-member, or nesting too much."""
+        if limited and self._refused_type(peer, kind, raw):
             return True
+        size = len(raw)
+        if size > self.max_non_member_bytes and self._non_member(peer):
+            what = f"{size} bytes, at most {self.max_non_member_bytes} from a non-member"
+            reject(self.stats, self.system_id, _TOO_BIG, ident, what)
+            return True
+        if (why := check_nesting(raw)) is not None:
+            return self._malformed("nested too much", ident, why)
+        return False
+
+    def _refused_type(self, peer: str, kind: int, raw: msgspec.Raw | memoryview) -> bool:
+        """Whether a limited peer's tell or ask is of a type its role may not send."""
+        if kind >= 2:  # replies reach only who asked
+            return False
+        tag = message_tag(raw)
+        if self.codec.message_type(tag) in self._limited[peer]:
+            return False
+        self.stats.received += 1
+        role = self.role_of(peer) or OBSERVER
+        name = "nil" if tag is None else tag[:64].decode(errors="replace")
+        reject(self.stats, self.system_id, _REFUSED, peer.encode(), f"{role} may not send {name}")
+        return True
+
+    def _observing(self, peer: str) -> None:
+        """An observer stays a stranger, forgotten once it falls silent."""
         if peer in self._observers and self._loop is not None:
             now, met = self._loop.time(), self._observed.get(peer)
             if met is None or now - met > self._strangers.ttl / 8:
@@ -139,7 +203,6 @@ class PeerRules:
                 self._loop.call_later(self._strangers.ttl, self._forget, peer, now)
             else:
                 self._strangers.since[peer] = met  # what the pending _forget looks for
-        return False
 
     # -- names ------------------------------------------------------------------------
     def _hello(self) -> bytes:
@@ -156,7 +219,13 @@ class PeerRules:
     def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool:
         """Whether a hello under a known peer's name from another endpoint comes from a
         second process (our link to the known one is up, the instance differs): refused,
-        logged once and told why. Otherwise (a restart elsewhere) its instance is noted."""
+        logged once and told why. Otherwise (a restart elsewhere) its instance is noted.
+        A hello without an instance would move a known peer on nobody's word (every
+        btcap peer sends one): ignored, counted and logged."""
+        if not instance and known is not None and known != endpoint:
+            what = f"it would move {peer} from {known} to {endpoint[:200]}: ignored"
+            reject(self.stats, self.system_id, _NO_INSTANCE, peer.encode(), what)
+            return True
         monitor = self._monitors.get(peer) if known not in (None, endpoint) else None
         if monitor is not None:
             monitor.drain(_BATCH, self._relink)  # a drop not yet read means a restart

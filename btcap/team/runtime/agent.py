@@ -76,6 +76,8 @@ class Agent:
             busy=lambda: not self.mission_control.body.idle,
             activity=self._activity,
         )
+        if transport is not None:  # a non-member's messages are held to a smaller size
+            transport.members(lambda peer: peer in self.team.table.members)
         #: Who failed or left lately (for ``btcap team status``).
         self.departures = DepartureLog(self.team)
         self.repository = CapabilityRepository(robot, team=self.team)
