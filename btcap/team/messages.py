@@ -212,10 +212,11 @@ class NoBid(Message):
 
 
 class Award(Message):
-    """You won: start ``implementation`` now as execution ``execution`` (or, ``paused``,
-    when its first inputs arrive: work being moved must not run twice). The run is the
-    origin's, named in ``execution``; the executor gives it up when no word came from the
-    origin for ``lease_s`` (a little before the origin re-assigns it)."""
+    """You won: take ``implementation`` as execution ``execution``; it starts with the
+    origin's first renewal (or, ``paused``, with its first inputs: work being moved must
+    not run twice). The run is the origin's, named in ``execution``; the executor stops it
+    ``lease_s`` x 0.9 after the newest of its stamps the origin echoed (before the origin
+    may re-assign it: :mod:`btcap.team.core.fence`)."""
 
     auction: AuctionId
     execution: ExecutionId
@@ -236,6 +237,8 @@ class AwardReply(Message):
     robot: str
     accepted: bool
     reason: str = ""
+    #: The winner's clock as it accepted: the origin echoes it to start the run.
+    stamp: float | None = None
 
 
 # -- consensus allocation (no auctioneer) ------------------------------------------------
@@ -327,6 +330,8 @@ class ExecutionInputs(Message):
     execution: ExecutionId
     seq: int
     inputs: dict[str, Any]
+    #: The executor's newest stamp the origin heard: renews the run's lease (None: not).
+    echo: float | None = None
 
 
 class ExecutionStatus(Message):
@@ -338,6 +343,8 @@ class ExecutionStatus(Message):
     outputs: dict[str, Any]
     seq: int = 0
     detail: str = ""
+    #: The executor's clock as it sent this (the origin echoes it in its renewals).
+    stamp: float | None = None
 
 
 class PauseExecution(Message):
@@ -354,10 +361,14 @@ class CancelExecution(Message):
 
 
 class KeepAlive(Message):
-    """Renews the leases of these executions (sent while no tick traffic flows)."""
+    """Renews the leases of these executions (sent while no tick traffic flows). Each
+    execution has its stamp at the same index of ``stamps``: for one the sender runs, its
+    clock now; for one it is the origin of, the receiver's newest stamp it heard (the
+    echo that renews the run: :mod:`btcap.team.core.fence`)."""
 
     robot: str
     executions: list[ExecutionId]
+    stamps: list[float] = []
 
 
 class CostChanged(Message):
