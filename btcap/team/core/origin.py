@@ -167,12 +167,15 @@ class OriginLeases:
             if t is not None and t.executor == sender:
                 t.heard(stamps[i] if i < len(stamps) else None, now)
 
-    def member_gone(self, robot: str, why: str, now: float = -math.inf) -> list[Effect]:
+    def member_gone(
+        self, robot: str, why: str, now: float = -math.inf, *, stopped: bool = False
+    ) -> list[Effect]:
         """``robot`` failed or left: its runs are lost, and their tasks fenced until their
-        leases surely ended (a robot declared failed may be alive, cut off)."""
+        leases surely ended (a robot declared failed may be alive, cut off) — unless it
+        ``stopped`` them (its goodbye comes after its runs were stopped)."""
         out: list[Effect] = []
         for t in [t for t in self.tracked.values() if t.executor == robot]:
-            out += self._lose(t, why, now)
+            out += self._lose(t, why, now, stopped=stopped)
         return out
 
     def expire(self, now: float) -> list[Effect]:

@@ -162,7 +162,10 @@ class MissionControl(Actor):
                 self._reevaluation.news()  # (a join is news once its capabilities are known)
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
             why = f"robot {robot} {event.value}"
-            self.perform(self.origin.member_gone(robot, why, self.now()))
+            # A goodbye is said only after the robot's runs stopped (its mission control
+            # stops before its membership): a robot that left leaves nothing to wait for.
+            left = event is TeamEvent.LEFT
+            self.perform(self.origin.member_gone(robot, why, self.now(), stopped=left))
             self.perform(self.host.origin_gone(robot, f"origin {why}"))
 
     async def _leases(self) -> None:
