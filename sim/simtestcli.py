@@ -30,8 +30,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         description="Run real agents on a seeded faulty network (drops, delays, reordering, "
         "duplicates, partitions, frozen, crashed, joining and leaving robots) on the virtual "
         "clock, checking after every step that no task ever runs on two robots at once "
-        "(crashes, freezes and partitions alike), that nothing is credited to a robot declared failed, that tables "
-        "stay bounded, and that the mission completes once the faults heal. A failing seed "
+        "(crashes, freezes and partitions alike), that nothing is credited to a robot "
+        "declared failed, that tables stay bounded, and that the mission completes once the "
+        "faults heal. A failing seed "
         "prints the command that replays it and a shrunken trace.",
     )
     p.add_argument("--seeds", type=int, default=100, metavar="N", help="seeds to run (100)")

@@ -277,7 +277,9 @@ class HostLeases(Generic[R]):
             h = self.hosted[e]
             if h.started:
                 why = "origin lease lapsed"
-                told.append(Send(h.origin, ExecutionStatus(e, self.robot, RunState.LOST, {}, h.seq, why)))
+                told.append(
+                    Send(h.origin, ExecutionStatus(e, self.robot, RunState.LOST, {}, h.seq, why))
+                )
         return [*self._drop_all(late, "origin lease lapsed"), *told]
 
     def next_end(self) -> float | None:
@@ -292,7 +294,7 @@ class HostLeases(Generic[R]):
         by_robot: dict[str, list[ExecutionId]] = {}
         for e, h in self.hosted.items():
             by_robot.setdefault(h.origin, []).append(e)
-        stamps = (lambda ids: [now] * len(ids)) if now is not None else (lambda ids: [])
         return [
-            Send(r, KeepAlive(self.robot, ids, stamps(ids))) for r, ids in sorted(by_robot.items())
+            Send(r, KeepAlive(self.robot, ids, [] if now is None else [now] * len(ids)))
+            for r, ids in sorted(by_robot.items())
         ]

@@ -56,7 +56,11 @@ class Tracked:
     def heard(self, stamp: float | None, now: float) -> None:
         """Word from the executor, stamped ``stamp``, arrived at ``now``."""
         self.last_heard = max(self.last_heard, now)
-        if stamp is not None and math.isfinite(stamp) and (self.stamp is None or stamp > self.stamp):
+        if (
+            stamp is not None
+            and math.isfinite(stamp)
+            and (self.stamp is None or stamp > self.stamp)
+        ):
             self.stamp = stamp
 
     @property

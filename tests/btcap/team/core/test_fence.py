@@ -101,7 +101,8 @@ def test_a_member_declared_failed_fences_its_task_until_its_run_surely_stopped()
     o.member_gone("b", "robot b failed", now=0.8)
     t2 = o.track(E2, "b", LEASE, now=1.0, stamp=8.0)
     o.member_gone("b", "robot b failed", now=1.2)
-    assert t2.lost and o.fenced("root/carry", 1.2) == pytest.approx(2.0)
+    assert t2.lost
+    assert o.fenced("root/carry", 1.2) == pytest.approx(2.0)
     o.status("b", ExecutionStatus(E2, "b", RunState.LOST, {}, 0, "re-assigned"), now=1.25)
     assert o.fenced("root/carry", 1.25) is None
 
@@ -180,7 +181,6 @@ class _World:
         return end if start <= t < end else t
 
     def run(self, until: float = 12.0) -> None:
-        rng = self.rng
         origin, host = OriginLeases("a"), HostLeases("b", Body())
         award = Award(AuctionId("a", 1), E1, "Carry", "impl", {}, self.lease)
         host.admit(award, "run", {}, 1.0, self.e(0.0))
