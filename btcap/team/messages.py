@@ -212,11 +212,7 @@ class NoBid(Message):
 
 
 class Award(Message):
-    """You won: take ``implementation`` as execution ``execution``; it starts with the
-    origin's first renewal (or, ``paused``, with its first inputs: work being moved must
-    not run twice). The run is the origin's, named in ``execution``; the executor stops it
-    ``lease_s`` x 0.9 after the newest of its stamps the origin echoed (before the origin
-    may re-assign it: :mod:`btcap.team.core.fence`)."""
+    """You won: run ``execution`` from the origin's first renewal (``paused``: its inputs)."""
 
     auction: AuctionId
     execution: ExecutionId
@@ -225,9 +221,7 @@ class Award(Message):
     inputs: dict[str, Any]
     lease_s: float
     paused: bool = False
-    #: An exchange: the winner holds this (paused) beside ``handing``, which it runs and
-    #: hands over; it starts when ``handing`` is released.
-    handing: ExecutionId | None = None
+    handing: ExecutionId | None = None  #: exchanged: held paused until this is released
 
 
 class AwardReply(Message):
@@ -237,8 +231,7 @@ class AwardReply(Message):
     robot: str
     accepted: bool
     reason: str = ""
-    #: The winner's clock as it accepted: the origin echoes it to start the run.
-    stamp: float | None = None
+    stamp: float | None = None  #: the winner's clock: the origin's echo starts the run
 
 
 # -- consensus allocation (no auctioneer) ------------------------------------------------
@@ -330,8 +323,7 @@ class ExecutionInputs(Message):
     execution: ExecutionId
     seq: int
     inputs: dict[str, Any]
-    #: The executor's newest stamp the origin heard: renews the run's lease (None: not).
-    echo: float | None = None
+    echo: float | None = None  #: the executor's newest stamp heard: renews the lease
 
 
 class ExecutionStatus(Message):
@@ -343,8 +335,7 @@ class ExecutionStatus(Message):
     outputs: dict[str, Any]
     seq: int = 0
     detail: str = ""
-    #: The executor's clock as it sent this (the origin echoes it in its renewals).
-    stamp: float | None = None
+    stamp: float | None = None  #: the executor's clock, echoed in the origin's renewals
 
 
 class PauseExecution(Message):
@@ -361,10 +352,7 @@ class CancelExecution(Message):
 
 
 class KeepAlive(Message):
-    """Renews the leases of these executions (sent while no tick traffic flows). Each
-    execution has its stamp at the same index of ``stamps``: for one the sender runs, its
-    clock now; for one it is the origin of, the receiver's newest stamp it heard (the
-    echo that renews the run: :mod:`btcap.team.core.fence`)."""
+    """Renews leases; ``stamps[i]``: the sender's clock, or its echo of ours (core.fence)."""
 
     robot: str
     executions: list[ExecutionId]
