@@ -83,5 +83,7 @@ class Fences:
 
     def expire(self, now: float) -> None:
         """Forget every entry past its time."""
+        if not self._tasks:  # the usual case: checked every keep-alive round
+            return
         for task in list(self._tasks):
             self.until(task, now)
