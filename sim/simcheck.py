@@ -1,11 +1,10 @@
 """The invariants of the deterministic simulation test, checked as the run goes.
 
-- **One executor at a time.** Two runs of the same task tick at the same time for at most
-  the hand-over window: an executor stops a run ``lease_share`` (0.8) x ``lease_s`` after
-  its last word from the origin, and the origin re-assigns once the lease lapses or the
-  executor is declared failed, so only a run cut off from its origin (whose cancel was
-  lost) may overlap its successor, and only that long, plus the longest delay the network
-  gives a message and a tick of each side.
+- **Never two at once.** A run acts from its first tick until it ends (finished, stopped
+  or its robot gone); while it acts, no other run of the same task ticks — not for a
+  tick, whether its robot crashed, froze or was cut off (the fence of
+  :mod:`btcap.team.core.fence`: a run acts only while leased, and the origin starts the
+  next one only once a run it gave up on surely stopped).
 - **A decline means not running.** A robot that declines an award does not hold its
   execution (or the origin would give the task to another robot while it runs here).
 - **Nothing credited after failure.** A task's result comes from a run that started after
@@ -31,8 +30,6 @@ if TYPE_CHECKING:
 
 __all__ = ["Checker", "RunRecord"]
 
-#: The executor's share of a lease (``HostLeases.lease_share``).
-LEASE_SHARE = 0.8
 #: Drop reasons a transport may count (each a distinct key).
 REASONS_KEPT = 16
 
@@ -53,8 +50,6 @@ class RunRecord:
 class Checker:
     """Collects what runs did and what the origin saw; ``violations`` says what broke."""
 
-    window_s: float
-    tick_s: float
     violations: list[str] = field(default_factory=list)
     runs: dict[int, RunRecord] = field(default_factory=dict)
     #: When the origin declared each robot failed: (event count, clock time), in order.
@@ -64,11 +59,10 @@ class Checker:
     #: Executions the origin gave up on (lost: re-assigned), by id.
     lost: set[str] = field(default_factory=set)
     _by_task: dict[str, list[RunRecord]] = field(default_factory=dict)
-    _overlap: dict[tuple[int, int], float] = field(default_factory=dict)
     _reported: set[tuple[int, int]] = field(default_factory=set)
     _next: int = 0
-    #: The longest time two runs of one task ticked at once (a hand-over's length).
-    longest_overlap_s: float = 0.0
+    #: How often a run ticked while another of its task acted (0 unless broken).
+    double_ticks: int = 0
 
     def new_run(self) -> int:
         self._next += 1
@@ -85,22 +79,20 @@ class Checker:
         if rec is None:
             rec = self.runs[run] = RunRecord(run, robot, task, now, now)
             self._by_task.setdefault(task, []).append(rec)
-            step = 0.0
         else:
-            step = min(now - rec.last, self.tick_s)
             rec.last = now
-        for other in self._by_task[task]:  # counted on the newer run's ticks only
-            if other.run >= run or other.ended or other.last < now - 1.5 * self.tick_s:
+        for other in self._by_task[task]:
+            if other.run == run or other.ended:
                 continue
+            self.double_ticks += 1
             pair = (min(run, other.run), max(run, other.run))
-            total = self._overlap[pair] = self._overlap.get(pair, 0.0) + step
-            self.longest_overlap_s = max(self.longest_overlap_s, total)
-            if total > self.window_s and pair not in self._reported:
+            if pair not in self._reported:
                 self._reported.add(pair)
                 a, b = self.runs[pair[0]], self.runs[pair[1]]
                 self.violations.append(
-                    f"{now:.3f} double execution: task {task} runs on {a.robot} (run {a.run}) "
-                    f"and {b.robot} (run {b.run}) at once for over {self.window_s:.2f} s"
+                    f"{now:.3f} double execution: task {task} runs on {a.robot} (run {a.run}, "
+                    f"acting since {a.first:.3f}) and {b.robot} (run {b.run}, since "
+                    f"{b.first:.3f}) at once"
                 )
 
     def end(self, run: int) -> None:

@@ -18,7 +18,7 @@ from btcap.actors import ManualClock
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.sim.faultnet import FaultyNetwork, LinkFaults, NetCounters, Tap
-from btcap.sim.simcheck import LEASE_SHARE, Checker
+from btcap.sim.simcheck import Checker
 from btcap.sim.simplan import ORIGIN, Fault, Plan
 from btcap.sim.simwork import implementations, mission
 from btcap.team.capabilities.capability import Capability
@@ -68,8 +68,7 @@ class Outcome:
     counters: NetCounters
     done: bool = False
     failures: int = 0  #: members the origin declared failed (false ones included)
-    overlap_s: float = 0.0  #: the longest two runs of one task ran at once
-    window_s: float = 0.0  #: what the hand-over window allowed
+    double_ticks: int = 0  #: ticks of a run while another of its task acted (0: none)
 
     @property
     def ok(self) -> bool:
@@ -179,10 +178,6 @@ class _Run:
             holds = body.holds(msg.execution)
             self.checker.declined(sender, str(msg.execution), holds, msg.reason, self.clock.now())
 
-    def window_s(self) -> float:
-        longest = max((f.rates[3] for f in self.plan.faults if f.kind == "net"), default=0.0)
-        return LEASE_SHARE * self.cfg.lease_s + longest + 2.0 / self.cfg.tick_hz
-
 
 def _mirror(to: str) -> Tap:
     def tap(src: str, dest: str, env: object) -> list[str]:
@@ -287,10 +282,9 @@ async def _run(plan: Plan) -> Outcome:
     clock = ManualClock()
     net = FaultyNetwork(clock, random.Random(plan.seed * 7919 + 17), protocol_registry())
     cfg = config_for(plan)
-    r = _Run(plan, clock, net, Checker(0.0, 1.0 / cfg.tick_hz), cfg)
+    r = _Run(plan, clock, net, Checker(), cfg)
     if plan.second:
         r.origins = (ORIGIN, plan.initial[0])
-    r.checker.window_s = r.window_s()
     net.watch = r.watch
     r.note(f"plan: seed {plan.seed}, {plan.strategy}, robots {', '.join(plan.initial)}")
     done = False
@@ -316,8 +310,7 @@ async def _run(plan: Plan) -> Outcome:
         c,
         done,
         r.failures,
-        ch.longest_overlap_s,
-        ch.window_s,
+        ch.double_ticks,
     )
 
 

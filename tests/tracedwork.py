@@ -71,6 +71,13 @@ class TracedWork(Leaf):
     def on_reset(self) -> None:
         self._started = None
 
+    def on_shutdown(self) -> None:
+        """A run that ticked is stopped: its last line (it acted until now)."""
+        if self._started is not None:
+            line = {"t": time.monotonic(), "run": self.tree.name, "stop": True}
+            with open(self.options["trace"], "a") as trace:
+                trace.write(json.dumps(line) + "\n")
+
 
 def implementations(
     robot: str, interfaces: str, trace: str, cost: float = 1.0

@@ -212,10 +212,7 @@ class NoBid(Message):
 
 
 class Award(Message):
-    """You won: start ``implementation`` now as execution ``execution`` (or, ``paused``,
-    when its first inputs arrive: work being moved must not run twice). The run is the
-    origin's, named in ``execution``; the executor gives it up when no word came from the
-    origin for ``lease_s`` (a little before the origin re-assigns it)."""
+    """You won: run ``execution`` from the origin's first renewal (``paused``: its inputs)."""
 
     auction: AuctionId
     execution: ExecutionId
@@ -224,9 +221,7 @@ class Award(Message):
     inputs: dict[str, Any]
     lease_s: float
     paused: bool = False
-    #: An exchange: the winner holds this (paused) beside ``handing``, which it runs and
-    #: hands over; it starts when ``handing`` is released.
-    handing: ExecutionId | None = None
+    handing: ExecutionId | None = None  #: exchanged: held paused until this is released
 
 
 class AwardReply(Message):
@@ -236,6 +231,7 @@ class AwardReply(Message):
     robot: str
     accepted: bool
     reason: str = ""
+    stamp: float | None = None  #: the winner's clock: the origin's echo starts the run
 
 
 # -- consensus allocation (no auctioneer) ------------------------------------------------
@@ -327,6 +323,7 @@ class ExecutionInputs(Message):
     execution: ExecutionId
     seq: int
     inputs: dict[str, Any]
+    echo: float | None = None  #: the executor's newest stamp heard: renews the lease
 
 
 class ExecutionStatus(Message):
@@ -338,6 +335,7 @@ class ExecutionStatus(Message):
     outputs: dict[str, Any]
     seq: int = 0
     detail: str = ""
+    stamp: float | None = None  #: the executor's clock, echoed in the origin's renewals
 
 
 class PauseExecution(Message):
@@ -354,10 +352,11 @@ class CancelExecution(Message):
 
 
 class KeepAlive(Message):
-    """Renews the leases of these executions (sent while no tick traffic flows)."""
+    """Renews leases; ``stamps[i]``: the sender's clock, or its echo of ours (core.fence)."""
 
     robot: str
     executions: list[ExecutionId]
+    stamps: list[float] = []
 
 
 class CostChanged(Message):

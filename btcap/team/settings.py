@@ -86,8 +86,9 @@ HeartbeatFanout = Annotated[
 LeaseS = Annotated[
     float,
     _seconds(
-        "How long an execution lives without word from the other side; the origin renews "
-        "it, the executor gives it up after 0.8 times this"
+        "How long an execution lives without word from the other side: the executor stops "
+        "its run 0.9 times this after the newest of its stamps the origin echoed, and the "
+        "origin starts the task elsewhere only this long after it last heard from it"
     ),
 ]
 KeepaliveS = Annotated[

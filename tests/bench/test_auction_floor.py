@@ -39,7 +39,7 @@ def test_the_floors_messages_are_as_big_as_btcaps_frames() -> None:
         "call": (tell, auctioneer, mission, CallForBids(auction, ECHO.name, ECHO.identity, inputs)),
         "bid": (tell, mission, auctioneer, Bid(auction, "b03", 4.0, "echo")),
         "award": (ask, system, mission, Award(auction, execution, ECHO.name, "echo", inputs, 3.0)),
-        "accept": (reply, mission, system, AwardReply(execution, "b03", True)),
+        "accept": (reply, mission, system, AwardReply(execution, "b03", True, stamp=12.5)),
         "cancel": (tell, system, mission, CancelExecution(execution, "bench")),
     }
     for (name, size), kind in zip(SIZES.items(), range(5), strict=True):

@@ -23,29 +23,36 @@ def _run_both(
         t += TICK
 
 
-def test_two_runs_of_one_task_may_overlap_only_within_the_window() -> None:
-    ok = Checker(window_s=1.0, tick_s=TICK)
-    _run_both(ok, ("r1", 1), ("r2", 2), 0.9)
-    assert ok.violations == []
-    bad = Checker(window_s=1.0, tick_s=TICK)
-    _run_both(bad, ("r1", 1), ("r2", 2), 1.5)
+def test_two_runs_of_one_task_never_act_at_once() -> None:
+    """Not even for a tick: the second run's first tick while the first acts breaks it."""
+    bad = Checker()
+    _run_both(bad, ("r1", 1), ("r2", 2), 0.0)
     assert [kind_of(v) for v in bad.violations] == ["double execution"]
-    assert "t1 runs on r1 (run 1) and r2 (run 2)" in bad.violations[0]
+    assert "t1 runs on r1 (run 1, acting since 0.000) and r2 (run 2" in bad.violations[0]
+    assert bad.double_ticks == 1
+
+
+def test_a_run_acts_until_it_ends_even_without_ticks() -> None:
+    """A run that stopped ticking (cut off, frozen) still acts until it is stopped."""
+    checker = Checker()
+    checker.tick("r1", 1, "t1", 0.0)
+    checker.tick("r2", 2, "t1", 5.0)
+    assert [kind_of(v) for v in checker.violations] == ["double execution"]
 
 
 def test_runs_one_after_the_other_never_overlap() -> None:
-    checker = Checker(window_s=0.5, tick_s=TICK)
+    checker = Checker()
     for k in range(20):
         checker.tick("r1", 1, "t1", k * TICK)
     checker.end(1)
-    for k in range(20, 40):
+    for k in range(19, 40):  # at the instant the first ended, too
         checker.tick("r2", 2, "t1", k * TICK)
     assert checker.violations == []
-    assert checker.longest_overlap_s == 0.0
+    assert checker.double_ticks == 0
 
 
 def test_a_result_given_up_on_is_never_credited() -> None:
-    checker = Checker(window_s=1.0, tick_s=TICK)
+    checker = Checker()
     checker.tick("r1", 1, "t1", 0.0)
     checker.credit("op", "t1", "r1", 1, "op:t1#1", 1.0)
     assert checker.violations == []
@@ -59,7 +66,7 @@ def test_a_result_given_up_on_is_never_credited() -> None:
 
 
 def test_a_decline_of_a_run_held_is_caught() -> None:
-    checker = Checker(window_s=1.0, tick_s=TICK)
+    checker = Checker()
     checker.declined("r1", "op:t1#1", False, "busy", 1.0)
     assert checker.violations == []
     checker.declined("r1", "op:t1#1", True, "awarded before", 1.0)
@@ -89,7 +96,7 @@ def _agent(**sizes: int) -> Any:
 
 
 def test_tables_beyond_what_the_team_can_need_are_caught() -> None:
-    checker = Checker(window_s=1.0, tick_s=TICK)
+    checker = Checker()
     checker.bounds(1.0, [_agent(members=4, repo=4, tracked=3, hosted=2)], names=5, tasks=3)
     assert checker.violations == []
     checker.bounds(2.0, [_agent(members=9, hosted=3)], names=5, tasks=3)

@@ -112,7 +112,7 @@ def test_the_cli_prints_the_replay_command_and_the_shrunken_trace(
     assert "shrunk from " in out
     assert "  |    " in out
     assert "fault: " in out
-    assert "3 seeds, 2 failed (13, 15)" in out
+    assert "3 seeds, 3 failed (13, 14, 15)" in out  # strict: a mirrored tick is enough
     saved = tmp_path / f"seed-{INJECTED}.json"
     assert main(["sim-test", "--plan", str(saved)]) == 1
     assert "double execution" in capsys.readouterr().out
@@ -122,7 +122,7 @@ def test_the_cli_passes_and_replays_one_seed(capsys: pytest.CaptureFixture[str])
     assert main(["sim-test", "--seeds", "4", "--start", "20"]) == 0
     out = capsys.readouterr().out
     assert "4 seeds, 0 failed" in out
-    assert "longest double run " in out
+    assert "0 ticks of a task on two robots at once" in out
     assert main(["sim-test", "--seed", "20", "--trace", "--robots", "3"]) == 0
     out = capsys.readouterr().out
     assert "plan: seed 20" in out
@@ -208,7 +208,10 @@ def test_found_bugs_stay_fixed(name: str) -> None:
         "heavy-11918.json",
     ],
 )
-def test_a_late_award_withdrawn_unanswered_is_stopped_at_its_first_report(name: str) -> None:
+def test_a_late_award_withdrawn_unanswered_never_acts(name: str) -> None:
+    """An award acts only once its origin renews it, which it never does for one it
+    withdrew: the late award is dropped unstarted (it ran beside the next bidder's run
+    for up to 0.5 s when stopped at its first report, before the fence)."""
     outcome = run_plan(load_plan(DATA / name))
     assert outcome.ok, outcome.violations
-    assert outcome.overlap_s <= 0.5  # a status round trip, a tick or two
+    assert outcome.double_ticks == 0

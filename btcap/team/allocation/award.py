@@ -64,7 +64,7 @@ async def offer(
             raise
         if reply.accepted:
             stats.awarded += 1
-            return award.accepted()
+            return award.accepted(reply.stamp)
         stats.declined_awards += 1
         why = award.declined(reply.reason)
         log.info(f"{event}.award_declined", auction=str(award.auction), robot=robot, reason=why)

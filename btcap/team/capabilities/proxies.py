@@ -43,6 +43,8 @@ class HandleOwner(Protocol):
 
     def let_go(self, ex: LocalExecution | RemoteExecution, reason: str) -> None: ...
 
+    def fenced(self, execution: ExecutionId) -> bool: ...
+
     def release(self, execution: ExecutionId, run: ImplementationRun) -> None: ...
 
     def record_success(self, capability: str) -> None: ...
@@ -75,9 +77,10 @@ class _Handle:
 
 
 class LocalExecution(_Handle):
-    """The origin won its own auction: the capability node ticks the run directly."""
+    """The origin won its own auction: the capability node ticks the run directly (not
+    before every run of the task given up on elsewhere surely stopped)."""
 
-    __slots__ = ("run",)
+    __slots__ = ("live", "run")
 
     def __init__(
         self,
@@ -89,6 +92,7 @@ class LocalExecution(_Handle):
     ) -> None:
         super().__init__(side, execution, side.robot, node, cost)
         self.run = run
+        self.live = False
 
     @property
     def lost(self) -> bool:
@@ -102,6 +106,10 @@ class LocalExecution(_Handle):
             return None, {}  # moved: the node adopts the replacement
         if self._side.body.running != self.id:
             return State.ASSIGNED, {}  # queued behind this robot's current work
+        if not self.live:
+            if self._side.fenced(self.id):
+                return State.ASSIGNED, {}  # its task's run given up elsewhere may still act
+            self.live = True
         state, outputs = self.run.step(inputs)
         if state is State.SUCCEEDED:
             self._side.record_success(self.run.implementation.interface.name)
@@ -147,8 +155,12 @@ class RemoteExecution(_Handle):
         t = self.tracked
         if t.lost or (self.replacement is not None and t.state not in RUN_DONE and self._moving()):
             return None, {}  # lost, or moved: the node adopts the replacement
+        if not t.live:  # awarded paused: its inputs start it, once no other run may act
+            if self._side.fenced(self.id):
+                return State.ASSIGNED, {}
+            t.live = True
         t.seq += 1
-        self._side.send(self.robot, ExecutionInputs(self.id, t.seq, dict(inputs)))
+        self._side.send(self.robot, ExecutionInputs(self.id, t.seq, dict(inputs), t.stamp))
         return _NODE_STATE[t.state], t.outputs
 
     def pause(self) -> None:

@@ -70,7 +70,9 @@ class RemoteCapabilitySlot(Leaf):
 
     def on_tick(self) -> State:
         h = self.current
-        if h is None or h.paused or self._host is None:
+        # A run acts only while leased (from its origin's first renewal until its lease
+        # ends; mission control stops it then): a late tick must not act after that.
+        if h is None or h.paused or self._host is None or not h.leased(self.clock.now()):
             return _RUNNING
         state, outputs = h.run.step(h.inputs)
         self._host.hosted_ticked(h, state, outputs)

@@ -85,10 +85,10 @@ class AwardRound:
             task.handing,
         )
 
-    def accepted(self) -> Assigned:
-        """The bidder took the task."""
+    def accepted(self, stamp: float | None = None) -> Assigned:
+        """The bidder took the task (its reply stamped ``stamp``, its clock)."""
         bid = self.offered
-        return Assigned(bid.robot, bid.implementation, bid.cost)
+        return Assigned(bid.robot, bid.implementation, bid.cost, stamp=stamp)
 
     def declined(self, reason: str) -> str:
         """The bidder declined (it became busy): kept, bounded; returns what was kept."""

@@ -2,11 +2,12 @@
 
 An award is taken only from the origin of its execution (who is also its auctioneer),
 only with a lease of at most ``max_lease_s`` and only while the body can take it (that
-this robot bid for it is :class:`~btcap.team.core.bounds.BidBook`'s to say). The origin
-renews a hosted run's lease with every input it sends and with keep-alives; when no word
-came for the award's ``lease_s`` times ``lease_share`` the run is dropped — a little
-before the origin re-assigns it, so the two runs of a partitioned execution never
-overlap. Only the origin may tick, pause or cancel its run, and finished runs keep their
+this robot bid for it is :class:`~btcap.team.core.bounds.BidBook`'s to say). A run acts
+only while leased (:mod:`btcap.team.core.fence`): from the origin's first renewal (its
+inputs or keep-alives, each echoing a stamp this robot sent about the run) until the
+newest echoed stamp plus the award's ``lease_s`` times ``lease_share``, when it is
+stopped whether or not the origin was heard — before the origin may start another run of
+the task. Only the origin may tick, pause or cancel its run, and finished runs keep their
 final status for a while, so a late input is answered with the result rather than with
 "unknown".
 """
@@ -21,6 +22,7 @@ from typing import Any, Generic, TypeVar
 
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Pause, Refused, Send, Start
+from btcap.team.core.fence import EXECUTOR_SHARE
 from btcap.team.ids import ExecutionId
 from btcap.team.messages import (
     RUN_DONE,
@@ -48,12 +50,18 @@ class Hosted(Generic[R]):
     execution: ExecutionId
     run: R
     inputs: dict[str, Any]
-    lease_s: float
-    last_heard: float
+    lease_s: float  #: how long the run lives past an echoed stamp (this robot's clock)
+    taken: float  #: when the award was taken: older stamps are no renewal of this run
+    until: float  #: the lease's end: it is stopped then (unstarted: dropped)
     state: RunState = RunState.ASSIGNED
     outputs: dict[str, Any] = field(default_factory=dict)
     paused: bool = False
     seq: int = 0
+    started: bool = False  #: renewed at least once: it may act
+
+    def leased(self, now: float) -> bool:
+        """Whether the run may act (be ticked) at ``now``."""
+        return self.started and now < self.until
 
     @property
     def origin(self) -> str:
@@ -64,7 +72,12 @@ class HostLeases(Generic[R]):
     """Hosted runs and the body they share with this robot's own runs."""
 
     def __init__(
-        self, robot: str, body: Body, *, lease_share: float = 0.8, max_lease_s: float = math.inf
+        self,
+        robot: str,
+        body: Body,
+        *,
+        lease_share: float = EXECUTOR_SHARE,
+        max_lease_s: float = math.inf,
     ) -> None:
         self.robot = robot
         self.body = body
@@ -106,9 +119,11 @@ class HostLeases(Generic[R]):
         return execution in self.hosted and sender == execution.origin == award.auction.auctioneer
 
     def admit(self, award: Award, run: R, inputs: dict[str, Any], cost: float, now: float) -> bool:
-        """Take a remote award (checked with :meth:`refuse_award`); True if it runs now."""
+        """Take a remote award (checked with :meth:`refuse_award`); True if it has the
+        body now (it acts from the origin's first renewal, if that comes within its lease)."""
+        lease_s = award.lease_s * self.lease_share
         self.hosted[award.execution] = Hosted(
-            award.execution, run, inputs, award.lease_s * self.lease_share, now, paused=award.paused
+            award.execution, run, inputs, lease_s, now, now + lease_s, paused=award.paused
         )
         if award.handing is not None and self.body.running == award.handing:
             why = self.body.reserve_exchange(award.execution, cost, award.handing)
@@ -138,10 +153,11 @@ class HostLeases(Generic[R]):
         inputs = convert(h, msg.inputs)
         if isinstance(inputs, str):  # changes nothing: a bad seq must not hide later inputs
             return [Refused(sender, msg, inputs)]
-        h.last_heard = max(h.last_heard, now)
+        if msg.echo is not None:
+            self._renew(h, msg.echo)
         if msg.seq > h.seq:  # an older input overtaken by a pause must not resume the run
             h.seq, h.inputs, h.paused = msg.seq, inputs, False
-        return [Send(sender, self.status(h))]
+        return [Send(sender, self.status(h, now))]
 
     def pause(self, sender: str, msg: PauseExecution) -> list[Effect]:
         h = self.hosted.get(msg.execution)
@@ -157,29 +173,47 @@ class HostLeases(Generic[R]):
         execution = msg.execution
         if sender != execution.origin:
             return [Refused(sender, msg, f"cancel of {execution} from another than its origin")]
-        if execution not in self.hosted:
+        h = self.hosted.get(execution)
+        if h is None:
             return []
-        return self.drop(execution, msg.reason or "cancelled")
+        why = msg.reason or "cancelled"
+        # A run that may have acted confirms it stopped: its origin need not wait out the
+        # lease before the task runs elsewhere (an unstarted one never acts: no word).
+        done = ExecutionStatus(execution, self.robot, RunState.LOST, {}, h.seq, why)
+        return [*self.drop(execution, why), *([Send(sender, done)] if h.started else [])]
 
     def keepalive(self, sender: str, msg: KeepAlive, now: float) -> None:
-        for execution in msg.executions:
+        stamps = msg.stamps
+        for i, execution in enumerate(msg.executions):
             h = self.hosted.get(execution)
-            if h is not None and h.origin == sender:
-                h.last_heard = max(h.last_heard, now)
+            if h is not None and h.origin == sender and i < len(stamps):
+                self._renew(h, stamps[i])
+
+    def _renew(self, h: Hosted[R], echo: float) -> None:
+        """The origin echoed ``echo``, a stamp of ours: the run may act until ``echo``
+        plus its lease (a stamp from before the award is of another run)."""
+        if echo >= h.taken and math.isfinite(echo):
+            h.started = True
+            h.until = max(h.until, echo + h.lease_s)
 
     # -- the run ----------------------------------------------------------------------
-    def status(self, h: Hosted[R]) -> ExecutionStatus:
-        return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq)
+    def status(self, h: Hosted[R], now: float | None = None) -> ExecutionStatus:
+        """``h``'s report, stamped ``now`` (this robot's clock) for its origin to echo."""
+        return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq, "", now)
 
     def ticked(
-        self, execution: ExecutionId, state: RunState, outputs: dict[str, Any]
+        self,
+        execution: ExecutionId,
+        state: RunState,
+        outputs: dict[str, Any],
+        now: float | None = None,
     ) -> list[Effect]:
         """The slot ticked the run: report it; a finished run is kept as a final status."""
         h = self.hosted.get(execution)
         if h is None:
             return []
         h.state, h.outputs = state, outputs
-        report = self.status(h)
+        report = self.status(h, now)
         out: list[Effect] = [Send(h.origin, report)]
         if state in RUN_DONE:
             self.finished[execution] = report
@@ -235,14 +269,32 @@ class HostLeases(Generic[R]):
         return self._drop_all([e for e, h in self.hosted.items() if h.origin == robot], why)
 
     def expire(self, now: float) -> list[Effect]:
-        late = [e for e, h in self.hosted.items() if now - h.last_heard > h.lease_s]
-        return self._drop_all(late, "origin lease lapsed")
+        """Stop every run whose lease ended, telling the origin of each that acted (so it
+        re-assigns the task at once rather than when its own count runs out)."""
+        late = [e for e, h in self.hosted.items() if now >= h.until]
+        told: list[Effect] = []
+        for e in late:
+            h = self.hosted[e]
+            if h.started:
+                why = "origin lease lapsed"
+                told.append(
+                    Send(h.origin, ExecutionStatus(e, self.robot, RunState.LOST, {}, h.seq, why))
+                )
+        return [*self._drop_all(late, "origin lease lapsed"), *told]
+
+    def next_end(self) -> float | None:
+        """When the earliest lease ends (this robot's clock), or None: nothing hosted."""
+        return min((h.until for h in self.hosted.values()), default=None)
 
     def drop_all(self, why: str) -> list[Effect]:
         return self._drop_all(list(self.hosted), why)
 
-    def keepalives(self) -> list[Send]:
+    def keepalives(self, now: float | None = None) -> list[Send]:
+        """One keep-alive per origin naming the runs held for it, stamped ``now``."""
         by_robot: dict[str, list[ExecutionId]] = {}
         for e, h in self.hosted.items():
             by_robot.setdefault(h.origin, []).append(e)
-        return [Send(r, KeepAlive(self.robot, ids)) for r, ids in sorted(by_robot.items())]
+        return [
+            Send(r, KeepAlive(self.robot, ids, [] if now is None else [now] * len(ids)))
+            for r, ids in sorted(by_robot.items())
+        ]

@@ -45,6 +45,8 @@ class Assigned:
     implementation: str
     cost: float
     held: float | None = None  # re-evaluation: the holder's fresh bid, if it made one
+    #: The winner's clock in its acceptance (echoed to start the run; not compared).
+    stamp: float | None = dataclasses.field(default=None, compare=False)
 
 
 @dataclass(frozen=True, slots=True)

@@ -162,15 +162,29 @@ class MissionControl(Actor):
                 self._reevaluation.news()  # (a join is news once its capabilities are known)
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
             why = f"robot {robot} {event.value}"
-            self.perform(self.origin.member_gone(robot, why))
+            # A goodbye is said only after the robot's runs stopped (its mission control
+            # stops before its membership): a robot that left leaves nothing to wait for.
+            left = event is TeamEvent.LEFT
+            self.perform(self.origin.member_gone(robot, why, self.now(), stopped=left))
             self.perform(self.host.origin_gone(robot, f"origin {why}"))
 
     async def _leases(self) -> None:
+        """Renew every ``keepalive_s``, and stop a hosted run the moment its lease ends
+        (the origin counts on it: :mod:`btcap.team.core.fence`)."""
         clock = self.system.clock
+        every = self.config.keepalive_s
+        renew_at = clock.now() + every
         while True:
-            await clock.sleep(self.config.keepalive_s)
+            end = self.host.next_end()
+            wake = renew_at if end is None else min(renew_at, end)
+            await clock.sleep(max(0.0, wake - clock.now()))
+            now = clock.now()
             try:
-                self.check_leases(clock.now())
+                if now >= renew_at:
+                    renew_at = now + every
+                    self.check_leases(now)
+                else:
+                    self.perform(self.host.expire(now))
             except Exception as exc:  # a bug here must not end lease checking for good
                 self.stats.errors += 1
                 log.error("mission.lease_check_failed", robot=self.robot, exc_info=exc)
@@ -180,7 +194,7 @@ class MissionControl(Actor):
         per peer."""
         self.perform(self.origin.expire(now))
         self.perform(self.host.expire(now))
-        renew = merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives())
+        renew = merge_keepalives(self.robot, self.origin.keepalives(), self.host.keepalives(now))
         self.perform(renew)
         if self.config.reevaluate_s is not None:  # a rising estimate: look again at once
             self.perform(self.executor.cost_news(self.origin_side.inputs_of))
@@ -258,7 +272,7 @@ class MissionControl(Actor):
     @handler
     def on_keepalive(self, msg: KeepAlive) -> None:
         now = self.now()
-        self.origin.keepalive(self.sender, msg.executions, now)
+        self.origin.keepalive(self.sender, msg.executions, now, msg.stamps)
         self.host.keepalive(self.sender, msg, now)
 
     # -- executor side ----------------------------------------------------------------
@@ -279,8 +293,8 @@ class MissionControl(Actor):
     @handler
     def on_award(self, msg: Award) -> AwardReply:
         why = self.executor.accept(self.sender, msg)
-        if why is None:
-            return AwardReply(msg.execution, self.robot, True)
+        if why is None:  # stamped: the origin's echo of it starts the run
+            return AwardReply(msg.execution, self.robot, True, stamp=self.now())
         self.stats.declined += 1
         return AwardReply(msg.execution, self.robot, False, why)
 
@@ -305,4 +319,4 @@ class MissionControl(Actor):
         """Called by the slot after each tick of a hosted run."""
         if state is State.SUCCEEDED:
             self.repository.record_success(hosted.run.implementation.interface.name)
-        self.perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs))
+        self.perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs, self.now()))

@@ -69,7 +69,9 @@ class Mover(Protocol):
 
     def new_execution(self, node: Capability) -> ExecutionId: ...
 
-    def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle: ...
+    def handle(
+        self, execution: ExecutionId, won: Assigned, node: Capability, *, paused: bool = False
+    ) -> Handle: ...
 
     def start_task(self, coro: Any, *, name: str | None = None) -> Any: ...
 
@@ -200,7 +202,8 @@ class Reevaluation:
         won = await mc.allocator.assign(task)
         if not isinstance(won, Assigned):
             return
-        new = mc.handle(task.execution, won, node)  # not ticked until the node adopts it
+        # not ticked until the node adopts it
+        new = mc.handle(task.execution, won, node, paused=True)
         if not self.movable(ex):  # it ended, paused or moved while we asked
             new.cancel("no longer needed")
             return
@@ -339,7 +342,7 @@ class Reevaluation:
         won = await mc.allocator.assign(task)
         if not isinstance(won, Assigned):
             return None
-        new = mc.handle(task.execution, won, node)
+        new = mc.handle(task.execution, won, node, paused=True)
         if won.robot != y.robot:  # the holder is never awarded its own work: a bad peer
             new.cancel("exchange off")
             return None

@@ -26,7 +26,7 @@ from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.membership import Membership
 from btcap.team.membership.repository import CapabilityRepository
-from btcap.team.messages import RUN_DONE, ExecutionStatus
+from btcap.team.messages import RUN_DONE, ExecutionStatus, KeepAlive
 from btcap.team.runtime.executor import ExecutorSide
 from btcap.team.runtime.stats import MissionStats
 from btcap.team.settings import MissionConfig
@@ -131,6 +131,8 @@ class OriginSide:
             self.stats.unassigned += 1
             return req
         execution = self.new_execution(node)
+        # A run of this task given up on may still act: the next one is held until then.
+        fenced = self.leases.fenced(execution.node, self.host.now()) is not None
         task = AssignmentTask(
             execution,
             iface.name,
@@ -138,6 +140,7 @@ class OriginSide:
             inputs,
             frozenset(candidates),
             self.config.lease_s,
+            paused=fenced,
         )
         req.task = self.start_task(self._assign(req, task, node), name=f"assign {execution}")
         return req
@@ -147,23 +150,41 @@ class OriginSide:
         return ExecutionId(self.robot, node.path, next(self._ids), self.team.incarnation)
 
     def remote(
-        self, execution: ExecutionId, robot: str, node: Capability, cost: float
+        self,
+        execution: ExecutionId,
+        won: Assigned,
+        node: Capability,
+        *,
+        paused: bool = False,
     ) -> RemoteExecution:
-        """The handle of an execution ``robot`` accepted; its lease starts now."""
-        tracked = self.leases.track(execution, robot, self.config.lease_s, self.host.now())
-        return RemoteExecution(self, tracked, node, cost)
+        """The handle of an execution ``won.robot`` accepted; its lease starts now, and
+        the echo of its acceptance's stamp goes out at once: the run starts with it."""
+        robot, now = won.robot, self.host.now()
+        lease_s = self.config.lease_s
+        tracked = self.leases.track(execution, robot, lease_s, now, stamp=won.stamp, paused=paused)
+        if won.stamp is not None:
+            self.send(robot, KeepAlive(self.robot, [execution], [won.stamp]))
+        return RemoteExecution(self, tracked, node, won.cost)
 
-    def handle(self, execution: ExecutionId, won: Assigned, node: Capability) -> Handle:
-        """The handle of an execution ``won.robot`` accepted: this robot's own run, ticked
-        by the node, or a proxy of one on another robot (its lease starts now)."""
+    def handle(
+        self, execution: ExecutionId, won: Assigned, node: Capability, *, paused: bool = False
+    ) -> Handle:
+        """The handle of an execution ``won.robot`` accepted (``paused``: awarded to start
+        with its first inputs): this robot's own run, ticked by the node, or a proxy of one
+        on another robot (its lease starts now)."""
         if won.robot == self.robot:
             run = self.executor.local_runs.pop(execution)
             return LocalExecution(self, execution, run, node, won.cost)
-        return self.remote(execution, won.robot, node, won.cost)
+        return self.remote(execution, won, node, paused=paused)
+
+    def fenced(self, execution: ExecutionId) -> bool:
+        """Whether a run of ``execution``'s task given up on may still act (so this one
+        must not start yet)."""
+        return self.leases.fenced(execution.node, self.host.now()) is not None
 
     def let_go(self, ex: Handle, reason: str) -> None:
         """The node let ``ex`` go; a replacement it never adopted goes with it."""
-        self.leases.forget(ex.id)
+        self.leases.forget(ex.id, self.host.now())
         self.active.pop(ex.id, None)
         if ex.replacement is not None:
             ex.replacement.cancel(reason)
@@ -200,7 +221,7 @@ class OriginSide:
             self.stats.unassigned += 1
             return
         self.stats.assigned += 1
-        ex = self.handle(task.execution, won, node)
+        ex = self.handle(task.execution, won, node, paused=task.paused)
         self.active[ex.id] = ex
         req.execution = ex
         if req.cancelled:

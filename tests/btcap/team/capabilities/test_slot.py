@@ -63,7 +63,8 @@ async def test_slot_refuses_a_second_run_and_runs_only_once_set_up() -> None:
 
             def hosted(i: int) -> Hosted[ImplementationRun]:
                 run = count_impl("b", 1.0, probe).instantiate(b.clock)
-                return Hosted(ExecutionId("x", "root", i), run, {"x": 1, "stop": False}, 1.0, 0.0)
+                e, inputs = ExecutionId("x", "root", i), {"x": 1, "stop": False}
+                return Hosted(e, run, inputs, 1.0, 0.0, 1.0)
 
             first = hosted(1)
             assert slot.load(first) is None

@@ -77,7 +77,7 @@ def test_inputs_only_from_the_origin_and_answered_at_once() -> None:
     assert isinstance(refused, Refused)
     assert hl.hosted[E1].inputs == {}
     [reply] = hl.inputs("a", ExecutionInputs(E1, 2, {"x": 2}), 0.2, same)
-    assert reply == Send("a", ExecutionStatus(E1, "b", RunState.ASSIGNED, {}, 2))
+    assert reply == Send("a", ExecutionStatus(E1, "b", RunState.ASSIGNED, {}, 2, "", 0.2))
     # An older input arriving late does not overwrite the newer one.
     hl.inputs("a", ExecutionInputs(E1, 1, {"x": 1}), 0.3, same)
     assert (hl.hosted[E1].inputs, hl.hosted[E1].seq) == ({"x": 2}, 2)
@@ -90,7 +90,7 @@ def test_malformed_inputs_change_nothing() -> None:
     assert isinstance(refused, Refused)
     assert "expected int" in refused.why
     assert hl.hosted[E1].seq == 0
-    assert hl.expire(0.81) != []  # and it did not renew the lease
+    assert hl.expire(0.91) != []  # and it did not renew the lease
 
 
 def test_inputs_for_an_unknown_or_finished_run_get_its_final_word() -> None:
@@ -113,23 +113,38 @@ def test_finished_statuses_are_bounded() -> None:
     assert ExecutionId("a", "n", 0) not in hl.finished
 
 
-def test_the_award_lease_is_honoured_and_given_up_before_the_origin_does() -> None:
+def test_an_award_acts_only_once_renewed_and_stops_at_its_lease_end() -> None:
+    """An award alone starts nothing: an unrenewed one (its origin withdrew it, or never
+    heard the acceptance) is dropped silently at its lease end; a renewed one acts until
+    the echoed stamp plus 0.9 x lease_s, then stops and says so."""
     hl = host()
     take(hl, E1, now=0.0, lease_s=2.0)
-    assert hl.expire(1.59) == []
-    assert hl.expire(1.61) == [Drop(E1, "origin lease lapsed", "run-1")]
+    h = hl.hosted[E1]
+    assert not h.leased(0.1)
+    assert hl.expire(1.79) == []
+    assert hl.expire(1.8) == [Drop(E1, "origin lease lapsed", "run-1")]  # never acted
     assert hl.body.idle
+    take(hl, E2, now=2.0, lease_s=2.0)
+    hl.keepalive("a", KeepAlive("a", [E2], [1.0]), 2.1)  # a stamp from before the award
+    assert not hl.hosted[E2].leased(2.1)
+    hl.keepalive("a", KeepAlive("a", [E2], [2.5]), 3.9)  # late: counts from its stamp
+    assert hl.hosted[E2].leased(3.9)
+    assert hl.next_end() == 2.5 + 1.8
+    assert hl.expire(4.29) == []
+    lapsed = ExecutionStatus(E2, "b", RunState.LOST, {}, 0, "origin lease lapsed")
+    assert hl.expire(4.3) == [Drop(E2, "origin lease lapsed", "run-2"), Send("a", lapsed)]
 
 
 def test_keepalives_and_inputs_renew_only_from_the_origin() -> None:
     hl = host()
     take(hl, E1, now=0.0)
-    hl.keepalive("mallory", KeepAlive("mallory", [E1]), 0.7)
-    assert hl.expire(0.81) == [Drop(E1, "origin lease lapsed", "run-1")]
+    hl.keepalive("mallory", KeepAlive("mallory", [E1], [0.5]), 0.7)
+    hl.keepalive("a", KeepAlive("a", [E1]), 0.7)  # no stamp: no renewal
+    assert hl.expire(0.91) == [Drop(E1, "origin lease lapsed", "run-1")]
     take(hl, E2, now=1.0)
-    hl.keepalive("a", KeepAlive("a", [E2]), 1.7)
+    hl.inputs("a", ExecutionInputs(E2, 1, {}, 1.6), 1.7, same)
     assert hl.expire(2.4) == []
-    assert hl.keepalives() == [Send("a", KeepAlive("b", [E2]))]
+    assert hl.keepalives(2.4) == [Send("a", KeepAlive("b", [E2], [2.4]))]
 
 
 def test_pause_and_cancel_only_from_the_origin() -> None:

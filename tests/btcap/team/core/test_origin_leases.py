@@ -46,11 +46,11 @@ def test_only_the_executor_reports_on_an_execution() -> None:
 
 def test_keepalives_renew_only_from_the_executor() -> None:
     o = OriginLeases("a")
-    o.track(E1, "b", 1.0, now=0.0)
-    o.track(E2, "c", 1.0, now=0.0)
-    o.keepalive("b", [E1, E2], now=0.8)  # b may not renew c's execution
+    o.track(E1, "b", 1.0, now=0.0, stamp=10.0)
+    o.track(E2, "c", 1.0, now=0.0, stamp=20.0)
+    o.keepalive("b", [E1, E2], now=0.8, stamps=[11.0, 11.0])  # b may not renew c's
     assert o.expire(1.5) == lost(E2, "c", "lease lapsed")
-    assert o.keepalives() == [Send("b", KeepAlive("a", [E1]))]
+    assert o.keepalives() == [Send("b", KeepAlive("a", [E1], [11.0]))]
 
 
 def test_a_duplicate_result_is_taken_once() -> None:

@@ -48,17 +48,18 @@ def deliver_to_origin(origin: OriginLeases, effects: list[Effect], now: float) -
 
 def test_award_and_lease_expiry_crossing() -> None:
     """The accept reached the origin late, and its first inputs later still: the executor
-    gave the run up first, so when the inputs come it says so and the origin re-assigns
-    at once, without waiting for its own (later) lease expiry. Nothing ran twice."""
+    gave the (never started) run up first, so when the inputs come it says so and the
+    origin re-assigns at once, without waiting for its own (later) lease expiry. Nothing
+    ran twice: the run never acted."""
     origin, host, award = awarded(lease_s=1.0)
     assert host.refuse_award("a", award) is None
     host.admit(award, "run", {}, 1.0, now=0.0)
-    origin.track(E1, "b", 1.0, now=0.5)  # the accept arrived at 0.5
-    assert host.expire(0.85) == [Drop(E1, "origin lease lapsed", "run")]
+    origin.track(E1, "b", 1.0, now=0.5, stamp=0.0)  # the accept arrived at 0.5
+    assert host.expire(0.9) == [Drop(E1, "origin lease lapsed", "run")]
     assert host.body.idle  # b no longer runs it ...
     assert origin.expire(0.85) == []  # ... while a still believes it does
-    answer = host.inputs("a", ExecutionInputs(E1, 1, {}), 0.9, same)
-    assert deliver_to_origin(origin, answer, 0.9) == lost(
+    answer = host.inputs("a", ExecutionInputs(E1, 1, {}, 0.0), 0.95, same)
+    assert deliver_to_origin(origin, answer, 0.95) == lost(
         E1, "b", "executor no longer has it (unknown execution)"
     )
 

@@ -27,6 +27,7 @@ from btcap.team.messages import (
     CancelExecution,
     ExecutionInputs,
     ExecutionStatus,
+    KeepAlive,
     NoBid,
     RepositoryState,
     RunState,
@@ -203,3 +204,53 @@ def test_a_busy_robot_bids_for_later_only_when_the_call_is_time_extended() -> No
     # re-evaluation and exchanges never ask for bids for later
     held = CallForBids(aid, "Count", COUNT.identity, {}, ExecutionId("o", "n", 2), None, True)
     assert isinstance(executor.evaluate(held), NoBid)
+
+
+async def test_a_task_given_up_on_waits_paused_until_the_old_run_surely_stopped() -> None:
+    """b is declared failed while its run may still act: the task's next run is awarded
+    paused and gets no inputs (its node shows assigned) until b confirms it stopped or
+    the lease passed since a last heard from b; the new run starts with an echo."""
+    with anyio.fail_after(5):
+        host = FakeHost(now=10.0)
+        side, allocator = origin(host, Assigned("b", "count", 1.0, stamp=50.0))
+        node = COUNT.node_type()("count", inputs={"x": 1})
+        req = side.request_assignment(node, {"x": 1})
+        await req.task
+        old = req.execution
+        assert isinstance(old, RemoteExecution)
+        assert host.sent[-1] == ("b", KeepAlive("a", [old.id], [50.0]))  # it starts now
+        assert allocator.asked[0].paused is False
+        host.clock = 11.0  # b is declared failed 1 s on: its lease (3 s) may still run
+        side.leases.member_gone("b", "robot b failed", host.now())
+        assert old.lost
+        allocator.outcome = Assigned("b", "count", 1.0, stamp=60.0)  # b again (it was alive)
+        req = side.request_assignment(node, {"x": 1})
+        await req.task
+        assert allocator.asked[1].paused is True
+        new = req.execution
+        assert isinstance(new, RemoteExecution)
+        host.sent.clear()
+        assert new.step({"x": 1, "stop": False}) == (State.ASSIGNED, {})
+        assert host.sent == []  # held: no inputs, which would start it
+        host.clock = 12.9
+        assert new.step({"x": 1, "stop": False}) == (State.ASSIGNED, {})
+        assert host.sent == []
+        host.clock = 13.0  # 3 s after a last heard from b: its old run stopped by now
+        new.step({"x": 1, "stop": False})
+        assert host.sent == [("b", ExecutionInputs(new.id, 1, {"x": 1, "stop": False}, 60.0))]
+
+
+async def test_a_moved_run_confirming_its_stop_lets_its_successor_start_at_once() -> None:
+    with anyio.fail_after(5):
+        host = FakeHost(now=10.0)
+        side, _allocator = origin(host, Assigned("b", "count", 1.0, stamp=50.0))
+        node = COUNT.node_type()("count", inputs={"x": 1})
+        req = side.request_assignment(node, {"x": 1})
+        await req.task
+        old = req.execution
+        assert isinstance(old, RemoteExecution)
+        side.let_go(old, "moved to a")  # the node adopted a replacement
+        assert side.fenced(old.id)
+        done = ExecutionStatus(old.id, "b", RunState.LOST, {}, 0, "moved to a")
+        side.status("b", done)
+        assert not side.fenced(old.id)
