@@ -1,0 +1,44 @@
+"""Fixtures of the ROS 2 tests: real rclpy nodes, each test on a ROS domain of its own,
+inside the private network namespace ``make test-ros`` runs them in (tests/rosnet.py).
+
+Tests marked ``ros`` need rclpy (installed in .venv-ros, not .venv) and that namespace;
+elsewhere they skip with the reason, so `make test` in .venv skips them and `make
+test-ros` runs them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from collections.abc import Iterator
+
+import pytest
+import rosnet
+
+_DOMAINS = rosnet.domain_ids()
+
+
+def _why_not() -> str | None:
+    if importlib.util.find_spec("rclpy") is None:
+        return "ROS 2 (rclpy) is not installed here: `make test-ros` runs these in .venv-ros"
+    return rosnet.private()
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    why = _why_not()
+    if why is None:
+        return
+    for item in items:
+        if item.get_closest_marker("ros") is not None:
+            item.add_marker(pytest.mark.skip(reason=why))
+
+
+@pytest.fixture
+def ros_domain(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+    """A ROS_DOMAIN_ID no other test of this run uses at the same time; exported, so
+    server processes a test starts join it."""
+    domain = next(_DOMAINS)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.delenv("ROS_NAMESPACE", raising=False)
+    yield domain
+    assert os.environ["ROS_DOMAIN_ID"] == str(domain)
