@@ -25,7 +25,9 @@ def test_a_second_test_gets_another_domain(ros_domain: int) -> None:
 
 
 def test_rclpy_makes_a_node_on_the_tests_domain(ros_domain: int) -> None:
-    import rclpy
+    from btcap.ros.loader import load
+
+    rclpy = load()
     from rclpy.context import Context
 
     context = Context()
