@@ -10,10 +10,14 @@ from __future__ import annotations
 
 import importlib.util
 import os
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
 
 import pytest
 import rosnet
+from rosservers import Servers
+
+from btcap.ros.client import RosBridge
+from btcap.team.rossettings import RosSettings
 
 _DOMAINS = rosnet.domain_ids()
 
@@ -31,6 +35,21 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("ros") is not None:
             item.add_marker(pytest.mark.skip(reason=why))
+
+
+@pytest.fixture
+def servers(ros_domain: int) -> Iterator[Servers]:
+    """The test servers (rosservers.py) in namespace /husky1."""
+    with Servers("/husky1", domain_id=ros_domain) as s:
+        yield s
+
+
+@pytest.fixture
+async def bridge(ros_domain: int) -> AsyncIterator[RosBridge]:
+    """Robot husky1's bridge (namespace /husky1), closed after the test."""
+    async with RosBridge(RosSettings(domain_id=ros_domain), robot="husky1") as b:
+        yield b
+    assert b.node is None
 
 
 @pytest.fixture

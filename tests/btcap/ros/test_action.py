@@ -2,58 +2,26 @@
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator, Callable, Iterator
 from typing import Any
 
 import anyio
 import pytest
 from rosservers import Servers
+from rostools import tick_until, tree_of, wait_for
 
-from btcap.bt.node import Node
 from btcap.bt.state import State
-from btcap.bt.tree import Tree
 from btcap.ros.action import RosAction
 from btcap.ros.client import RosBridge
 from btcap.ros.errors import RosError
-from btcap.team.rossettings import RosSettings
 
 pytestmark = pytest.mark.ros
 
 FIB = "test_msgs/action/Fibonacci"
 
 
-@pytest.fixture
-def servers(ros_domain: int) -> Iterator[Servers]:
-    with Servers("/husky1", domain_id=ros_domain) as s:
-        yield s
-
-
-@pytest.fixture
-async def bridge(ros_domain: int) -> AsyncIterator[RosBridge]:
-    async with RosBridge(RosSettings(domain_id=ros_domain), robot="husky1") as b:
-        yield b
-
-
 def action(bridge: RosBridge, name: str, **kw: Any) -> RosAction:
     inputs = kw.pop("inputs", {"order": 5})
     return RosAction("act", action_type=FIB, action_name=name, bridge=bridge, inputs=inputs, **kw)
-
-
-async def tick_until(
-    tree: Tree, done: Callable[[State], bool] = lambda s: s is not State.RUNNING
-) -> State:
-    """Tick every 2 ms until ``done``; the test's fail_after bounds it."""
-    while True:
-        state = tree.tick()
-        if done(state):
-            return state
-        await anyio.sleep(0.002)
-
-
-def tree_of(node: Node) -> Tree:
-    tree = Tree(node)
-    tree.setup()
-    return tree
 
 
 async def test_a_goal_succeeds_with_feedback_then_the_result(
@@ -105,11 +73,6 @@ async def test_a_missing_server_fails_within_server_timeout_saying_so(
     assert "/husky1/nobody_here" in str(node.error)
 
 
-async def _wait_for(cond: Callable[[], bool]) -> None:
-    while not cond():  # noqa: ASYNC110 (set by ROS threads, not by this loop)
-        await anyio.sleep(0.005)
-
-
 async def test_halt_after_acceptance_cancels_the_goal_and_twice_is_harmless(
     servers: Servers, bridge: RosBridge
 ) -> None:
@@ -117,10 +80,10 @@ async def test_halt_after_acceptance_cancels_the_goal_and_twice_is_harmless(
     with anyio.fail_after(10):
         tree = tree_of(node)
         await tick_until(tree, lambda s: servers.events["fibonacci_hold.accepted"] == 1)
-        await _wait_for(lambda: node._goal is not None and node._goal.handle is not None)
+        await wait_for(lambda: node._goal is not None and node._goal.handle is not None)
         tree.untick()
         tree.untick()
-        await _wait_for(lambda: servers.events["fibonacci_hold.canceled"] == 1)
+        await wait_for(lambda: servers.events["fibonacci_hold.canceled"] == 1)
     assert servers.events["cancel_requests"] == 1
     assert node.state is State.PAUSED
 
@@ -132,8 +95,8 @@ async def test_halt_before_acceptance_cancels_the_goal_once_accepted(
     with anyio.fail_after(10):
         tree = tree_of(node)
         assert tree.tick() is State.RUNNING  # sent: the server accepts LATE_S later
-        await _wait_for(lambda: node._goal is not None)
+        await wait_for(lambda: node._goal is not None)
         tree.untick()  # halted while the server has not accepted it yet
-        await _wait_for(lambda: servers.events["fibonacci_late.canceled"] == 1)
+        await wait_for(lambda: servers.events["fibonacci_late.canceled"] == 1)
     assert servers.events["fibonacci_late.accepted"] == 1
     assert servers.events["cancel_requests"] == 1
