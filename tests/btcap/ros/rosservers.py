@@ -93,7 +93,7 @@ class Servers:
                     if self._stop.is_set():
                         handle.abort()
                         return result
-                    seq.append(seq[-1] + seq[-2])
+                    seq.append((seq[-1] + seq[-2]) % 1_000_003)  # int32
                     feedback = Fibonacci.Feedback(sequence=seq[-3:])
                     handle.publish_feedback(feedback)
                     i += 1
