@@ -11,8 +11,9 @@ Fibonacci actions (test_msgs/action/Fibonacci) under the namespace:
 - ``fibonacci_stream``: feedback at ~1 kHz for ``order`` ms, then succeeds.
 
 Services (std_srvs/srv/SetBool): ``set_bool`` answers ``success=data``; ``set_bool_slow``
-answers after ``SLOW_S``. Topics: with ``pose``, ``pose`` (geometry_msgs/msg/PoseStamped) at 50 Hz; ``echo_out`` repeats what comes in on ``echo_in``
-(std_msgs/msg/String). ``events`` records what the servers saw (accepted, canceled ...).
+answers after ``SLOW_S``. Topics: ``echo_out`` repeats what comes in on ``echo_in``
+(std_msgs/msg/String); given ``pose=(x, y)``, ``pose`` (geometry_msgs/msg/PoseStamped)
+at 50 Hz. ``events`` records what the servers saw (accepted, canceled ...).
 """
 
 from __future__ import annotations
