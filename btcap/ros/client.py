@@ -114,7 +114,7 @@ class RosBridge:
             same = [n for n, ns in names if n == self.settings.node_name and ns == self.namespace]
             if len(same) > 1:
                 raise RosError(
-                    f"ros.namespace: {self.namespace!r} is already claimed by another node "
+                    f"namespace {self.namespace!r} is already claimed by another node "
                     f"named {self.fqn!r} on ROS domain {self.domain_id}; give each robot its "
                     "own namespace"
                 )
