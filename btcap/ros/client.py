@@ -59,6 +59,7 @@ class RosBridge:
         self._clients: dict[tuple[str, str, str], Any] = {}
         self._goals: dict[int, Any] = {}
         self._latest: dict[tuple[str, str], list[Any]] = {}
+        self._wake: Any = None
         self._lock = threading.Lock()
         self._closed = False
 
@@ -246,6 +247,27 @@ class RosBridge:
             self.running().create_subscription(cls, key[1], store, self.qos())
         latest: tuple[Any, float] | None = box[0]
         return latest
+
+    def wake_on(self, callback: Any, loop: Any = None) -> None:
+        """Call ``callback()`` on the event loop ``loop`` (the running one by default)
+        whenever a goal or call answers, so a tree can be ticked as soon as there is news
+        instead of at its next period (feedback does not wake: a 1 kHz stream would keep
+        the loop busy); None stops it."""
+        if callback is None:
+            self._wake = None
+            return
+        import asyncio
+
+        target = loop if loop is not None else asyncio.get_running_loop()
+        self._wake = (target, callback)
+
+    def wake(self) -> None:
+        """From the executor thread: schedule the wake-up callback, if any."""
+        wake = self._wake
+        if wake is not None:
+            loop, callback = wake
+            if not loop.is_closed():
+                loop.call_soon_threadsafe(callback)
 
     def track(self, handle: Any) -> None:
         """A goal to cancel if the bridge closes while it is open."""
