@@ -120,8 +120,8 @@ class RosBridge:
     def _check_claim(self) -> None:
         """RosError if another btcap node holds this namespace: two robots would otherwise
         share one namespace's actions and topics unseen. Each bridge publishes on the
-        hidden topic ``NAMESPACE/_btcap_claim``; the graph counts its publishers by
-        endpoint (node names are not enough: the graph lists two nodes of one name once)."""
+        hidden topic ``NAMESPACE/_btcap_claim`` and counts its publishers in the graph
+        (a node of another name, or a non-btcap node named ``btcap``, is no claim)."""
         from builtin_interfaces.msg import Time
 
         topic = f"{self.namespace.rstrip('/')}/_btcap_claim"
