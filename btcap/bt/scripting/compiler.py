@@ -1,0 +1,244 @@
+"""A parsed script made into Python closures over the blackboard entries it uses.
+
+Compiled once when the tree is built: entry names are resolved to their blackboard then
+(remaps of subtrees included), enum names to their values, literals to constants, so a
+tick runs only the closures. Semantics: :mod:`btcap.bt.scripting.values`.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
+
+from btcap.bt.scripting.parser import Expr, Script
+from btcap.bt.scripting.values import ScriptError, convert, integral, kind, to_bool
+from btcap.bt.scripting.values import to_number, to_text
+
+__all__ = ["Cell", "Compiled", "compile_script"]
+
+Compiled = Callable[[], Any]
+_UNSET = object()
+
+
+class Cell(Protocol):
+    """Where a script finds one entry: its value dict, name there and declared type."""
+
+    values: dict[str, Any]
+    name: str
+    type: Any
+
+    def arrived(self) -> None:
+        """Called before the entry's first value is stored."""
+
+
+def _read(cell: Cell, key: str) -> Compiled:
+    values, name = cell.values, cell.name
+
+    def read() -> Any:
+        v = values.get(name, _UNSET)
+        if v is _UNSET or v is None:
+            raise ScriptError(f"entry {key!r} has no value yet")
+        if v is True or v is False:
+            return int(v)
+        return v
+
+    return read
+
+
+_ARITH: dict[str, Callable[[float, float], float]] = {
+    "+": operator.add,
+    "-": operator.sub,
+    "*": operator.mul,
+    "/": lambda a, b: a / b if b else _divide(a, b),
+}
+
+
+def _divide(a: float, b: float) -> float:
+    """IEEE division by zero, as C++ doubles do."""
+    if a == 0 or a != a:
+        return float("nan")
+    return float("inf") if (a > 0) == (str(b)[0] != "-") else float("-inf")
+
+
+def _number(v: Any) -> bool:
+    return type(v) is int or type(v) is float
+
+
+def _binary(op: str, lhs: Compiled, rhs: Compiled) -> Compiled:
+    if op in _ARITH:
+        f = _ARITH[op]
+
+        def arith() -> Any:
+            a, b = lhs(), rhs()
+            if _number(a) and _number(b):
+                return float(f(a, b))
+            if op == "+" and type(a) is str and type(b) is str:
+                return a + b
+            raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
+
+        return arith
+    if op == "..":
+
+        def concat() -> Any:
+            a, b = lhs(), rhs()
+            if (type(a) is str or type(b) is str) and (_number(a) or type(a) is str) and (
+                _number(b) or type(b) is str
+            ):
+                return to_text(a) + to_text(b)
+            raise ScriptError(f"operator '..': not permitted on a {kind(a)} and a {kind(b)}")
+
+        return concat
+    if op in ("&&", "||"):
+        both = op == "&&"
+
+        def logic() -> Any:
+            a, b = lhs(), rhs()  # both sides run, as in BehaviorTree.CPP
+            if not (_number(a) and _number(b)):
+                raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
+            x, y = to_bool(a, f"operator {op!r}"), to_bool(b, f"operator {op!r}")
+            return float((x and y) if both else (x or y))
+
+        return logic
+    bit = {"&": operator.and_, "|": operator.or_, "^": operator.xor}[op]
+
+    def bitwise() -> Any:
+        a, b = lhs(), rhs()
+        if not (_number(a) and _number(b)):
+            raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
+        what = f"operator {op!r} needs integers"
+        x = integral(a, what) if type(a) is float else a
+        y = integral(b, what) if type(b) is float else b
+        return float(bit(x, y))
+
+    return bitwise
+
+
+def _same(op: str, a: Any, b: Any) -> bool:
+    """One comparison; doubles are equal within float epsilon, as in BehaviorTree.CPP."""
+    if op in ("==", "!="):
+        eq = abs(a - b) <= 1.1920928955078125e-07 if type(a) is float else a == b
+        return eq if op == "==" else not eq
+    return bool({"<": a < b, ">": a > b, "<=": a <= b, ">=": a >= b}[op])
+
+
+def _compare(ops: tuple[str, ...], operands: list[Compiled], enums: Mapping[str, int]) -> Compiled:
+    def compare() -> Any:
+        a = operands[0]()
+        for op, right in zip(ops, operands[1:], strict=True):
+            b = right()
+            if _number(a) and _number(b):
+                ok = _same(op, float(a), float(b))
+            elif type(a) is str and type(b) is str:
+                ok = _same(op, a, b)
+            elif type(a) is str and _number(b):
+                ok = _same(op, to_number(a, enums), float(b))
+            elif _number(a) and type(b) is str:
+                ok = _same(op, float(a), to_number(b, enums))
+            else:
+                raise ScriptError(f"cannot compare a {kind(a)} with a {kind(b)}")
+            if not ok:
+                return 0.0
+            a = b
+        return 1.0
+
+    return compare
+
+
+def _unary(op: str, arg: Compiled) -> Compiled:
+    def unary() -> Any:
+        v = arg()
+        if not _number(v):
+            raise ScriptError(f"operator {op!r}: not permitted on a {kind(v)}")
+        if op == "-":
+            return -float(v)
+        if op == "!":
+            return 0.0 if v else 1.0
+        if not -(2**63) <= v < 2**63:
+            raise ScriptError("number out of range for a bitwise operation")
+        return float(~int(v))
+
+    return unary
+
+
+def _assign(op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, int]) -> Compiled:
+    values, name, declared = cell.values, cell.name, cell.type
+    arith = _ARITH.get(op[0])
+
+    def assign() -> Any:
+        old = values.get(name)
+        if old is None and op != ":=" and declared is Any:
+            raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+        value = rhs()
+        if op in (":=", "="):
+            new = convert(value, old, key, declared, enums)
+        elif old is None:
+            raise ScriptError(f"entry {key!r} has no value for {op!r}")
+        elif _number(value):
+            if not _number(old):
+                raise ScriptError(f"{op!r} needs a number in entry {key!r}")
+            assert arith is not None
+            new = convert(float(arith(old, value)), old, key, declared, enums)
+        elif op == "+=" and type(old) is str:
+            new = old + value
+        else:
+            raise ScriptError(f"{op!r} is not permitted on a {kind(old)} and a {kind(value)}")
+        if name not in values:
+            cell.arrived()
+        values[name] = new
+        return new
+
+    return assign
+
+
+def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -> Compiled:
+    tag = e[0]
+    if tag == "lit":
+        value = e[2]
+        return lambda: value
+    if tag == "name":
+        key = str(e[2])
+        if key in enums:
+            number = float(enums[key])
+            return lambda: number
+        return _read(cells[key], key)
+    if tag == "unary":
+        return _unary(str(e[2]), compile_expr(e[3], cells, enums))  # type: ignore[arg-type]
+    if tag == "bin":
+        sides = [compile_expr(x, cells, enums) for x in e[3:5]]  # type: ignore[arg-type]
+        return _binary(str(e[2]), sides[0], sides[1])
+    if tag == "cmp":
+        operands = [compile_expr(x, cells, enums) for x in e[3]]  # type: ignore[attr-defined]
+        return _compare(e[2], operands, enums)  # type: ignore[arg-type]
+    if tag == "if":
+        cond, then, other = (compile_expr(x, cells, enums) for x in e[2:5])  # type: ignore[arg-type]
+
+        def branch() -> Any:
+            c = cond()
+            yes = (type(c) is str and c != "") or _truthy(c)
+            return then() if yes else other()
+
+        return branch
+    key = str(e[3])
+    return _assign(str(e[2]), key, cells[key], compile_expr(e[4], cells, enums), enums)  # type: ignore[arg-type]
+
+
+def _truthy(c: Any) -> bool:
+    if type(c) is str:
+        return to_number(c, {}) != 0.0
+    return float(c) != 0.0
+
+
+def compile_script(script: Script, cells: Mapping[str, Cell], enums: Mapping[str, int]) -> Compiled:
+    """The script as one closure returning its last statement's value."""
+    parts = [compile_expr(s, cells, enums) for s in script.statements]
+    if len(parts) == 1:
+        return parts[0]
+    *first, last = parts
+
+    def run() -> Any:
+        for f in first:
+            f()
+        return last()
+
+    return run
