@@ -19,6 +19,7 @@ from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
 from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, RegistryError
+from btcap.bt.scripting import parse
 
 __all__ = ["BTCPP_BUILTINS", "KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
 
@@ -47,6 +48,9 @@ BTCPP_BUILTINS = frozenset(
     }
 )
 
+#: The options of BehaviorTree.CPP's nodes that hold scripts.
+_SCRIPT_OPTIONS = {"Script": ("code",), "ScriptCondition": ("code",), "Precondition": ("if",)}
+
 #: How many lines an unknown-type message lists before "...".
 _FIRST_LINES = 5
 
@@ -72,6 +76,8 @@ class Scope:
     #: Entries a node of unknown type uses: whether it writes them is unknown, so no
     #: follow-up error is reported for them.
     unsure: set[str] = dataclasses.field(default_factory=set)
+    #: Entries scripts use: (the node running the script, whether it assigns the entry).
+    scripted: dict[str, list[tuple[Ref, bool]]] = dataclasses.field(default_factory=dict)
 
 
 def literal(text: str, tp: Any) -> Any:
@@ -217,6 +223,9 @@ class ElementReader:
         if std is not None:
             options = self._standard(el, attrs, kind)
             spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
+            for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
+                if code is not None:
+                    self._scripted(code, path, el.line, scope)
         elif kind in BTCPP_BUILTINS:
             self.fail(
                 el.line,
@@ -234,6 +243,15 @@ class ElementReader:
         if spec is not None:
             spec.children = kids
         return spec
+
+    def _scripted(self, code: str, path: str, line: int, scope: Scope) -> None:
+        """The entries a script reads and writes are blackboard entries of the tree."""
+        script = parse(code)
+        for key in dict.fromkeys((*script.reads, *script.writes)):
+            if key in self.registry.script_enums:
+                continue
+            ref = Ref(path, "", line, Any)
+            scope.scripted.setdefault(key, []).append((ref, key in script.writes))
 
     def _name(self, base: str, el: XmlElement, taken: set[str]) -> str | None:
         if not base or "/" in base or "." in base:

@@ -1,0 +1,153 @@
+"""The nodes that run scripts: BehaviorTree.CPP's Script, ScriptCondition and Precondition.
+
+Each holds its script as an option, parsed when the node is made (a syntax error is a
+TreeError naming the column) and compiled when the tree's blackboard is given to it
+(:meth:`ScriptNode.bind`, called by the XML loader): a tree file uses them through
+BehaviorTree.CPP XML, whose blackboard they read and write. A script that fails while
+running fails its node with the reason (BehaviorTree.CPP throws out of the tick).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from btcap.bt.blackboard import Blackboard
+from btcap.bt.decorators import Decorator
+from btcap.bt.node import Leaf, Node
+from btcap.bt.ports import Port
+from btcap.bt.scripting.compiler import Compiled, compile_script
+from btcap.bt.scripting.lexer import ScriptSyntaxError
+from btcap.bt.scripting.parser import Script as Parsed
+from btcap.bt.scripting.parser import parse
+from btcap.bt.scripting.values import ScriptError, to_bool
+from btcap.bt.state import State, TreeError
+
+__all__ = ["Script", "ScriptCondition", "ScriptNode", "ScriptPrecondition", "bind_script"]
+
+_SUCCEEDED, _FAILED, _RUNNING, _ERROR = State.SUCCEEDED, State.FAILED, State.RUNNING, State.ERROR
+
+
+class _EntryCell:
+    """One blackboard entry as a script sees it (resolved through subtree remaps)."""
+
+    __slots__ = ("board", "name", "type", "values")
+
+    def __init__(self, board: Blackboard, key: str) -> None:
+        self.board, self.name = board.owner(key)
+        self.values: dict[str, Any] = self.board.outputs
+        port = self.board.ports.get(self.name)
+        self.type = Any if port is None else port.type
+
+    def arrived(self) -> None:
+        self.board._arrived(self.name)
+
+
+def parsed(code: str, what: str) -> Parsed:
+    """The parsed script, or a TreeError naming ``what`` and the column."""
+    try:
+        return parse(code)
+    except ScriptSyntaxError as exc:
+        raise TreeError(f"{what} {code!r}: {exc}") from None
+
+
+def bind_script(script: Parsed, board: Blackboard, enums: Mapping[str, int]) -> Compiled:
+    """The script compiled over ``board``'s entries (declared untyped if new)."""
+    cells = {}
+    for key in dict.fromkeys((*script.reads, *script.writes)):
+        if key in enums:
+            continue
+        owner, name = board.owner(key)
+        if name not in owner.ports:
+            owner.declare(name, Port(Any))
+        cells[key] = _EntryCell(board, key)
+    return compile_script(script, cells, enums)
+
+
+def _unbound() -> Any:
+    raise ScriptError("the script has no blackboard (load the tree from BehaviorTree.CPP XML)")
+
+
+class ScriptNode(Node):
+    """A node running scripts given as options (:attr:`SCRIPTS` names them)."""
+
+    __slots__ = ("_parsed", "_runs")
+    SCRIPTS: ClassVar[tuple[str, ...]] = ("code",)
+
+    def declare_ports(self) -> None:
+        super().declare_ports()
+        self._parsed = {k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.SCRIPTS}
+        self._runs: dict[str, Compiled] = dict.fromkeys(self.SCRIPTS, _unbound)
+
+    def bind(self, board: Blackboard, enums: Mapping[str, int]) -> None:
+        """Compile the scripts over ``board`` (the tree's blackboard)."""
+        self._runs = {k: bind_script(p, board, enums) for k, p in self._parsed.items()}
+
+    def scripts(self) -> dict[str, Parsed]:
+        return dict(self._parsed)
+
+
+class Script(ScriptNode, Leaf):
+    """Runs its script and succeeds (BehaviorTree.CPP's Script)."""
+
+    __slots__ = ()
+    OPTIONS: ClassVar[dict[str, Any]] = {"code": Port(str, description="the script")}
+
+    def on_tick(self) -> State:
+        self._runs["code"]()
+        return _SUCCEEDED
+
+
+class ScriptCondition(ScriptNode, Leaf):
+    """Succeeds if its script's value is true, else fails (BehaviorTree.CPP's ScriptCondition)."""
+
+    __slots__ = ()
+    OPTIONS: ClassVar[dict[str, Any]] = {"code": Port(str, description="the condition")}
+
+    def on_tick(self) -> State:
+        value = self._runs["code"]()
+        return _SUCCEEDED if to_bool(value, "the condition's value") else _FAILED
+
+
+_ELSE = {"SUCCESS": _SUCCEEDED, "FAILURE": _FAILED, "RUNNING": _RUNNING}
+
+
+class ScriptPrecondition(ScriptNode, Decorator):
+    """Ticks its child if ``if`` is true, else gives ``else`` (BehaviorTree.CPP's
+    Precondition): the condition is checked only until the child runs, and again once
+    the child finished or was unticked."""
+
+    __slots__ = ("_else", "_started")
+    SCRIPTS = ("if",)
+    OPTIONS: ClassVar[dict[str, Any]] = {
+        "if": Port(str, description="the condition"),
+        "else": Port(str, "FAILURE", description="SUCCESS, FAILURE or RUNNING"),
+    }
+
+    def declare_ports(self) -> None:
+        super().declare_ports()
+        word = self.options["else"]
+        if word not in _ELSE:
+            raise TreeError(f"Precondition else={word!r}: expected SUCCESS, FAILURE or RUNNING")
+        self._else = _ELSE[word]
+        self._started = False
+
+    def on_tick(self) -> State:
+        if not self._started:
+            if not to_bool(self._runs["if"](), "the condition's value"):
+                return self._else
+            self._started = True
+        child = self.children[0]
+        s = child.tick()
+        if s is _SUCCEEDED or s is _FAILED or s is _ERROR:
+            self._started = False
+            child.reset()
+            return _FAILED if s is _ERROR else s
+        return s
+
+    def on_untick(self) -> None:
+        super().on_untick()
+        self._started = False
+
+    def on_reset(self) -> None:
+        self._started = False
