@@ -292,7 +292,7 @@ class XmlTranslator:
         specs = dict(paths(root, None))
         sure: set[str] = set()
         scripted = merged(scope.scripted, main)
-        board.scripts.extend(dict.fromkeys(r.path for refs in scripted.values() for r, _ in refs))
+        board.scripts.extend(scope.script_nodes)
         for key in dict.fromkeys([*writers, *readers, *aliases, *scripted]):
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
             if not ws and not al and key in scope.unsure and key not in scripted:

@@ -78,6 +78,8 @@ class Scope:
     unsure: set[str] = dataclasses.field(default_factory=set)
     #: Entries scripts use: (the node running the script, whether it assigns the entry).
     scripted: dict[str, list[tuple[Ref, bool]]] = dataclasses.field(default_factory=dict)
+    #: Paths of the nodes running scripts, in document order.
+    script_nodes: list[str] = dataclasses.field(default_factory=list)
 
 
 def literal(text: str, tp: Any) -> Any:
@@ -247,6 +249,7 @@ class ElementReader:
     def _scripted(self, code: str, path: str, line: int, scope: Scope) -> None:
         """The entries a script reads and writes are blackboard entries of the tree."""
         script = parse(code)
+        scope.script_nodes.append(path)
         for key in dict.fromkeys((*script.reads, *script.writes)):
             if key in self.registry.script_enums:
                 continue

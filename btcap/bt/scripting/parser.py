@@ -4,8 +4,10 @@ The precedence of BehaviorTree.CPP 4.8, lowest first: assignment (``:=`` creates
 entry, ``=`` assigns an existing one, ``+= -= *= /=``; not chained), the conditional
 ``c ? a : b`` (not chained), ``&&`` and ``||`` (one level, left to right), comparisons
 (chained: ``a < b < c``), then one of three families that may not be mixed without
-parentheses: arithmetic (unary ``-``, then ``* /``, then ``+ -``), bitwise (``~`` and
-``!``, then ``&``, then ``| ^``) and string concatenation ``..``. A prefix operator
+parentheses (in one whole expression, comparisons and ``&&`` included): arithmetic (unary ``-``, then ``* /``, then ``+ -``), bitwise (``~`` and
+``!``, then ``&``, then ``| ^``) and string concatenation ``..``. BehaviorTree.CPP 4.8
+groups arithmetic to the right: ``1 - 2 - 3`` is ``1 - (2 - 3)`` and ``8 / 2 * 2`` is
+``8 / (2 * 2)``; the others to the left (checked against it). A prefix operator
 applies to one atom: a literal, an entry name, ``true``/``false`` or a parenthesised
 expression (where new lines are allowed). Statements are separated by ``;``.
 
@@ -57,6 +59,7 @@ class _Parser:
         self.reads: dict[str, int] = {}  # entry -> where first read
         self.writes: dict[str, None] = {}
         self.creates: dict[str, None] = {}
+        self.seen: list[str] = []  # operator families used in the current expression
 
     def peek(self) -> Token:
         tok = self.toks[self.i]
@@ -91,6 +94,15 @@ class _Parser:
         return tuple(out)
 
     def expression(self) -> Expr:
+        """An expression; operator families may not mix within one (parentheses and
+        the middle of ``c ? a : b`` start a new one), as in BehaviorTree.CPP 4.8."""
+        outer, self.seen = self.seen, []
+        try:
+            return self._assignment()
+        finally:
+            self.seen = outer
+
+    def _assignment(self) -> Expr:
         lhs = self.conditional()
         if not self.is_op(*_ASSIGN):
             return lhs
@@ -143,7 +155,7 @@ class _Parser:
 
     def family(self) -> Expr:
         """Operators of one family (arithmetic, bitwise or ``..``), by precedence."""
-        return self.binary(1, [])
+        return self.binary(1, self.seen)
 
     def binary(self, level: int, seen: list[str]) -> Expr:
         lhs = self.prefix(seen)
@@ -157,7 +169,9 @@ class _Parser:
                 raise self.fail("operator cannot be mixed with previous operators")
             seen.append(fam)
             self.take()
-            lhs = ("bin", tok.pos, op, lhs, self.binary(_LEVEL[op] + 1, seen))
+            # BehaviorTree.CPP 4.8 groups arithmetic to the right: 1 - 2 - 3 is 1 - (2 - 3)
+            right = _LEVEL[op] + (fam != "math")
+            lhs = ("bin", tok.pos, op, lhs, self.binary(right, seen))
 
     def prefix(self, seen: list[str]) -> Expr:
         if self.is_op("-", "~", "!"):

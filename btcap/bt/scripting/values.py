@@ -14,12 +14,18 @@ An entry keeps the kind of its first value: a later assignment converts to it or
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from typing import Any
 
 __all__ = ["ScriptError", "convert", "to_bool", "to_number", "to_text"]
 
 _INT64 = 2**63
+_LEADING = re.compile(
+    r"\s*(?P<sign>[+-]?)(?:0[xX](?P<hex>[0-9a-fA-F]+)"
+    r"|(?P<dec>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan))",
+    re.IGNORECASE,
+)
 
 
 class ScriptError(RuntimeError):
@@ -55,15 +61,19 @@ def to_number(text: str, enums: Mapping[str, int]) -> float:
         return 0.0
     if text in enums:
         return float(enums[text])
-    try:
-        return float(text)
-    except ValueError:
-        raise ScriptError(f"the string {text!r} is not a number") from None
+    m = _LEADING.match(text)  # C's strtod: the number the string starts with
+    if m is None:
+        raise ScriptError(f"the string {text!r} is not a number")
+    if m.group("hex"):
+        return float(int(m.group("hex"), 16)) * (-1.0 if m.group("sign") == "-" else 1.0)
+    return float(m.group("sign") + m.group("dec"))
 
 
 def to_bool(value: object, what: str) -> bool:
-    """BehaviorTree.CPP's cast to bool: a double any way, an integer only 0 or 1."""
+    """BehaviorTree.CPP's cast to bool: a double not negative, an integer only 0 or 1."""
     if isinstance(value, float):
+        if value < 0:
+            raise ScriptError(f"{what}: the negative number {to_text(value)} is not a bool")
         return value != 0.0
     if isinstance(value, int):
         if value in (0, 1):
