@@ -48,6 +48,8 @@ BTCPP_BUILTINS = frozenset(
     }
 )
 
+_NO_CONDITIONS = "btcap does not run BehaviorTree.CPP's pre/post conditions yet; use a "
+_NO_CONDITIONS += "Precondition, or a Script after the node"
 #: The options of BehaviorTree.CPP's nodes that hold scripts.
 _SCRIPT_OPTIONS = {"Script": ("code",), "ScriptCondition": ("code",), "Precondition": ("if",)}
 
@@ -78,7 +80,6 @@ class Scope:
     unsure: set[str] = dataclasses.field(default_factory=set)
     #: Entries scripts use: (the node running the script, whether it assigns the entry).
     scripted: dict[str, list[tuple[Ref, bool]]] = dataclasses.field(default_factory=dict)
-    #: Paths of the nodes running scripts, in document order.
     script_nodes: list[str] = dataclasses.field(default_factory=list)
 
 
@@ -195,7 +196,7 @@ class ElementReader:
                 self.fail(el.line, f"<{el.tag}> without an ID naming its node type")
                 return None
         for key in _SCRIPTS.intersection(attrs):
-            self.fail(el.line, f"<{el.tag}> attribute {key!r}: btcap has no scripting language")
+            self.fail(el.line, f"<{el.tag}> attribute {key!r}: {_NO_CONDITIONS}")
             del attrs[key]
         default = attrs.get("ID") or kind.rsplit(".", 1)[-1]  # acme.Grasp: Grasp
         name = self._name(attrs.pop("name", "") or default, el, taken)

@@ -215,7 +215,9 @@ STANDARD: dict[str, Standard] = {
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
     "Sleep": Standard("Wait", {"msec": ("seconds", _seconds)}, ("msec",)),
-    "Script": Standard("Script", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)),
+    "Script": Standard(
+        "Script", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)
+    ),
     "ScriptCondition": Standard(
         "ScriptCondition", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)
     ),

@@ -9,4 +9,12 @@ from btcap.bt.scripting.lexer import ScriptSyntaxError
 from btcap.bt.scripting.parser import Script, parse
 from btcap.bt.scripting.values import ScriptError
 
-__all__ = ["Cell", "Compiled", "Script", "ScriptError", "ScriptSyntaxError", "compile_script", "parse"]
+__all__ = [
+    "Cell",
+    "Compiled",
+    "Script",
+    "ScriptError",
+    "ScriptSyntaxError",
+    "compile_script",
+    "parse",
+]

@@ -12,8 +12,15 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from btcap.bt.scripting.parser import Expr, Script
-from btcap.bt.scripting.values import ScriptError, convert, integral, kind, to_bool
-from btcap.bt.scripting.values import to_number, to_text
+from btcap.bt.scripting.values import (
+    ScriptError,
+    convert,
+    integral,
+    kind,
+    to_bool,
+    to_number,
+    to_text,
+)
 
 __all__ = ["Cell", "Compiled", "compile_script"]
 
@@ -82,8 +89,10 @@ def _binary(op: str, lhs: Compiled, rhs: Compiled) -> Compiled:
 
         def concat() -> Any:
             a, b = lhs(), rhs()
-            if (type(a) is str or type(b) is str) and (_number(a) or type(a) is str) and (
-                _number(b) or type(b) is str
+            if (
+                (type(a) is str or type(b) is str)
+                and (_number(a) or type(a) is str)
+                and (_number(b) or type(b) is str)
             ):
                 return to_text(a) + to_text(b)
             raise ScriptError(f"operator '..': not permitted on a {kind(a)} and a {kind(b)}")

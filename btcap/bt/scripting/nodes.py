@@ -76,7 +76,9 @@ class ScriptNode(Node):
 
     def declare_ports(self) -> None:
         super().declare_ports()
-        self._parsed = {k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.SCRIPTS}
+        self._parsed = {
+            k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.SCRIPTS
+        }
         self._runs: dict[str, Compiled] = dict.fromkeys(self.SCRIPTS, _unbound)
 
     def bind(self, board: Blackboard, enums: Mapping[str, int]) -> None:

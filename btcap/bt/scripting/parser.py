@@ -4,7 +4,8 @@ The precedence of BehaviorTree.CPP 4.8, lowest first: assignment (``:=`` creates
 entry, ``=`` assigns an existing one, ``+= -= *= /=``; not chained), the conditional
 ``c ? a : b`` (not chained), ``&&`` and ``||`` (one level, left to right), comparisons
 (chained: ``a < b < c``), then one of three families that may not be mixed without
-parentheses (in one whole expression, comparisons and ``&&`` included): arithmetic (unary ``-``, then ``* /``, then ``+ -``), bitwise (``~`` and
+parentheses (within one whole expression, comparisons and ``&&`` included):
+arithmetic (unary ``-``, then ``* /``, then ``+ -``), bitwise (``~`` and
 ``!``, then ``&``, then ``| ^``) and string concatenation ``..``. BehaviorTree.CPP 4.8
 groups arithmetic to the right: ``1 - 2 - 3`` is ``1 - (2 - 3)`` and ``8 / 2 * 2`` is
 ``8 / (2 * 2)``; the others to the left (checked against it). A prefix operator

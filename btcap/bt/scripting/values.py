@@ -49,7 +49,7 @@ def to_text(value: object) -> str:
     if isinstance(value, float):
         if math.isnan(value):
             return "nan" if math.copysign(1.0, value) > 0 else "-nan"
-        return "%f" % value
+        return f"{value:f}"
     return str(value)
 
 
@@ -99,9 +99,7 @@ def convert(value: Any, old: Any, key: str, declared: Any, enums: Mapping[str, i
     if isinstance(old, str):
         if isinstance(value, str):
             return value
-        raise ScriptError(
-            f"entry {key!r} holds a string; a {kind(value)} cannot be assigned to it"
-        )
+        raise ScriptError(f"entry {key!r} holds a string; a {kind(value)} cannot be assigned to it")
     if isinstance(value, str):  # BehaviorTree.CPP reads it as a number, kept as a double
         return to_number(value, enums)
     if isinstance(old, float):

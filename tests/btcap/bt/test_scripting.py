@@ -1,0 +1,143 @@
+"""BehaviorTree.CPP 4.8's scripting in btcap: facts checked against BehaviorTree.CPP
+(each expectation below was read off behaviortreepy), errors with file, line and column,
+and the random-script comparison with BehaviorTree.CPP itself where its wheel exists."""
+
+from __future__ import annotations
+
+import enum
+import importlib.util
+import random
+import sys
+from pathlib import Path
+
+import pytest
+
+from btcap import State
+from btcap.bt.files import TreeFileError, loads_tree
+from btcap.bt.registry import NodeRegistry, default_registry
+from btcap.bt.scripting.values import to_text
+
+
+def _tree(body: str, reg: NodeRegistry | None = None):  # type: ignore[no-untyped-def]
+    xml = f'<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>{body}</Sequence></BehaviorTree></root>'
+    return loads_tree(xml, "xml", reg or default_registry(plugins=False))
+
+
+def _run(code: str) -> dict[str, str] | str:
+    t = _tree(f'<Script code="{code}"/>')
+    state = t.tick()
+    if state is not State.SUCCEEDED:
+        return "error"
+    return {k: to_text(v) for k, v in t.blackboard.outputs.items() if v is not None}
+
+
+@pytest.mark.parametrize(
+    ("code", "want"),
+    [
+        ("x:=-3", {"x": "-3.000000"}),  # unary minus gives a double
+        ("x:=+3", {"x": "3"}),
+        ("x:=0x1F", {"x": "31"}),
+        ("x:=1e3", {"x": "1000.000000"}),
+        ("x:=1 - 2 - 3", {"x": "2.000000"}),  # arithmetic groups to the right
+        ("x:=1 - 2 * 3 + 4", {"x": "-9.000000"}),
+        ("x:=8 / 2 * 2", {"x": "2.000000"}),
+        ("x:=1 ^ 1 | 1", {"x": "1.000000"}),  # bitwise to the left
+        ("x:=3 == 3 == 1", {"x": "0.000000"}),  # comparisons chain
+        ("x:=1 || 0 &amp;&amp; 0", {"x": "0.000000"}),
+        ("x:='2abc' == 2", {"x": "1.000000"}),  # strtod reads the leading number
+        ("x:='0x10' == 16", {"x": "1.000000"}),
+        ("x:=2; x='3'", {"x": "3.000000"}),
+        ("x:=1.0; x=2", {"x": "2.000000"}),
+        ("x:=1; x+=1", {"x": "2"}),
+        ("x:='a' .. 1.5 .. 2", {"x": "a1.5000002"}),
+        ("x:=1 ? 2 : 3", {"x": "2"}),
+        ("x:=!1; y:=~5", {"x": "0.000000", "y": "-6.000000"}),
+        ("x:=1; x=2.5", "error"),  # an int entry stays an int
+        ("x:=5; x/=2", "error"),
+        ("x:='s'; x=2", "error"),
+        ("x:=1 &amp;&amp; 2", "error"),  # an int is a bool only as 0 or 1
+        ("x:=-2.0 &amp;&amp; 1", "error"),
+        ("x:=1 .. 2", "error"),
+        ("y = 1", "error"),  # '=' needs an existing entry
+    ],
+)
+def test_scripts_compute_what_behaviortree_cpp_computes(code: str, want: object) -> None:
+    assert _run(code) == want
+
+
+@pytest.mark.parametrize(
+    ("code", "column", "says"),
+    [
+        ("x:=1;", 5, "unexpected trailing separator"),
+        ("x:=2 y:=3", 6, "expected ';'"),
+        ("x:=1+2 | 3", 8, "operator cannot be mixed"),
+        ("x:= 1 + 1 == 2 | 0", 16, "operator cannot be mixed"),
+        ("x:= 1 ? 2 : 3 ? 4 : 5", 15, "operator cannot be chained"),
+        ("x:= 1..2", 6, "invalid suffix on integer literal"),
+        ("x:=trueish", 8, "expected ';'"),
+        ("x:= 3 % 2", 7, "unexpected character '%'"),
+        ("   ", 4, "empty script"),
+    ],
+)
+def test_syntax_errors_name_file_line_and_column(code: str, column: int, says: str) -> None:
+    with pytest.raises(TreeFileError) as err:
+        _tree(f'\n<Script code="{code}"/>')
+    (msg,) = err.value.problems
+    assert msg.startswith("<string>: line 2: <Script> attribute 'code': ")
+    assert f"column {column}: {says}" in msg
+
+
+def test_entries_are_shared_with_ports_and_conditions() -> None:
+    t = _tree(
+        '<Script code="n:=0"/><Script code="n += 1"/><ScriptCondition code="n == 1"/>'
+        '<Precondition if="n &gt; 0" else="FAILURE"><Script code="m := n * 2"/></Precondition>'
+    )
+    assert t.tick() is State.SUCCEEDED
+    assert t.blackboard["m"] == 2.0
+
+
+def test_precondition_gives_else_when_false() -> None:
+    t = _tree('<Precondition if="false" else="SUCCESS"><AlwaysFailure/></Precondition>')
+    assert t.tick() is State.SUCCEEDED
+
+
+def test_application_enums_are_numbers() -> None:
+    class Color(enum.IntEnum):
+        RED = 1
+        BLUE = 2
+
+    reg = default_registry(plugins=False)
+    reg.register_enum(Color)
+    t = _tree(
+        '<Script code="c := BLUE"/><ScriptCondition code="c == BLUE &amp;&amp; \'RED\' == 1"/>', reg
+    )
+    assert t.tick() is State.SUCCEEDED
+    assert t.blackboard["c"] == 2.0
+
+
+def _oracle():  # type: ignore[no-untyped-def]
+    pytest.importorskip(
+        "behaviortreepy",
+        reason="behaviortreepy (BehaviorTree.CPP 4.8) has wheels only for CPython 3.11 "
+        "on x86-64 Linux",
+    )
+    here = str(Path(__file__).parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    spec = importlib.util.find_spec("script_oracle")
+    assert spec is not None
+    import script_oracle
+
+    return script_oracle
+
+
+def test_random_scripts_agree_with_behaviortree_cpp() -> None:
+    oracle = _oracle()
+    ticks = errors = 0
+    for seed in range(80):
+        out = oracle.compare_scripts(oracle.random_script_tree(random.Random(seed)))
+        assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
+        ticks += out.ticks
+        errors += out.error is not None
+    assert ticks > 3  # ticks compared value by value
+    assert errors > 50  # errors, each met by a failed node in btcap
