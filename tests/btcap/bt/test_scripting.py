@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from structlog.testing import capture_logs
 
 from btcap import State
 from btcap.bt.files import TreeFileError, loads_tree
@@ -19,7 +20,8 @@ from btcap.bt.scripting.values import to_text
 
 
 def _tree(body: str, reg: NodeRegistry | None = None):  # type: ignore[no-untyped-def]
-    xml = f'<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>{body}</Sequence></BehaviorTree></root>'
+    xml = f'<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>{body}</Sequence>'
+    xml += "</BehaviorTree></root>"
     return loads_tree(xml, "xml", reg or default_registry(plugins=False))
 
 
@@ -134,10 +136,12 @@ def _oracle():  # type: ignore[no-untyped-def]
 def test_random_scripts_agree_with_behaviortree_cpp() -> None:
     oracle = _oracle()
     ticks = errors = 0
-    for seed in range(80):
-        out = oracle.compare_scripts(oracle.random_script_tree(random.Random(seed)))
-        assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
-        ticks += out.ticks
-        errors += out.error is not None
-    assert ticks > 3  # ticks compared value by value
-    assert errors > 50  # errors, each met by a failed node in btcap
+    with capture_logs() as logs:  # hundreds of node errors, expected: kept, not rendered
+        for seed in range(600):
+            out = oracle.compare_scripts(oracle.random_script_tree(random.Random(seed)))
+            assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
+            ticks += out.ticks
+            errors += out.error is not None
+    assert sum(e["event"] == "btcap.node_error" for e in logs) >= errors
+    assert ticks > 40  # ticks compared value by value
+    assert errors > 400  # errors, each met by a failed node in btcap
