@@ -43,14 +43,22 @@ def _read(cell: Cell, key: str) -> Compiled:
     values, name = cell.values, cell.name
 
     def read() -> Any:
-        v = values.get(name, _UNSET)
-        if v is _UNSET or v is None:
-            raise ScriptError(f"entry {key!r} has no value yet")
-        if v is True or v is False:
-            return int(v)
-        return v
+        v = values.get(name)
+        t = type(v)
+        if t is float or t is int or t is str:
+            return v
+        return _odd_value(v, key)
 
     return read
+
+
+def _odd_value(v: Any, key: str) -> Any:
+    """An entry value that is not a script value: none yet, a bool, or another type."""
+    if v is None:
+        raise ScriptError(f"entry {key!r} has no value yet")
+    if v is True or v is False:
+        return int(v)
+    return v
 
 
 _ARITH: dict[str, Callable[[float, float], float]] = {
@@ -72,17 +80,49 @@ def _number(v: Any) -> bool:
     return type(v) is int or type(v) is float
 
 
-def _binary(op: str, lhs: Compiled, rhs: Compiled) -> Compiled:
+def _arith_error(op: str, a: Any, b: Any) -> Any:
+    if op == "+" and type(a) is str and type(b) is str:
+        return a + b
+    raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
+
+
+def _binary(
+    op: str, lhs: Compiled, rhs: Compiled, const: Any = None, entry: Cell | None = None
+) -> Compiled:
+    """``const``: the right side, if it is a number literal; ``entry``: the left side, if it
+    is an entry (read inline: the usual ``n + 1`` costs one call)."""
     if op in _ARITH:
         f = _ARITH[op]
+        if const is not None and entry is not None:
+            k, values, name, key = const, entry.values, entry.name, entry.name
+
+            def arith_entry_k() -> Any:
+                a = values.get(name)
+                ta = type(a)
+                if ta is float or ta is int:
+                    return float(f(a, k))
+                return _arith_error(op, _odd_value(a, key), k)
+
+            return arith_entry_k
+        if const is not None:
+            k = const
+
+            def arith_k() -> Any:
+                a = lhs()
+                ta = type(a)
+                if ta is float or ta is int:
+                    return float(f(a, k))
+                return _arith_error(op, a, k)
+
+            return arith_k
 
         def arith() -> Any:
-            a, b = lhs(), rhs()
-            if _number(a) and _number(b):
+            a = lhs()
+            b = rhs()
+            ta, tb = type(a), type(b)
+            if (ta is float or ta is int) and (tb is float or tb is int):
                 return float(f(a, b))
-            if op == "+" and type(a) is str and type(b) is str:
-                return a + b
-            raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
+            return _arith_error(op, a, b)
 
         return arith
     if op == "..":
@@ -131,22 +171,44 @@ def _same(op: str, a: Any, b: Any) -> bool:
     return bool({"<": a < b, ">": a > b, "<=": a <= b, ">=": a >= b}[op])
 
 
+_ORDER: dict[str, Callable[[Any, Any], bool]] = {
+    "<": operator.lt,
+    ">": operator.gt,
+    "<=": operator.le,
+    ">=": operator.ge,
+}
+
+
 def _compare(ops: tuple[str, ...], operands: list[Compiled], enums: Mapping[str, int]) -> Compiled:
+    def step(op: str, a: Any, b: Any) -> bool:
+        if _number(a) and _number(b):
+            return _same(op, float(a), float(b))
+        if type(a) is str and type(b) is str:
+            return _same(op, a, b)
+        if type(a) is str and _number(b):
+            return _same(op, to_number(a, enums), float(b))
+        if _number(a) and type(b) is str:
+            return _same(op, float(a), to_number(b, enums))
+        raise ScriptError(f"cannot compare a {kind(a)} with a {kind(b)}")
+
+    if len(ops) == 1 and ops[0] in _ORDER:  # the usual case, numbers inline
+        order, op, left, right = _ORDER[ops[0]], ops[0], operands[0], operands[1]
+
+        def compare1() -> Any:
+            a = left()
+            b = right()
+            ta, tb = type(a), type(b)
+            if (ta is float or ta is int) and (tb is float or tb is int):
+                return 1.0 if order(float(a), float(b)) else 0.0
+            return 1.0 if step(op, a, b) else 0.0
+
+        return compare1
+
     def compare() -> Any:
         a = operands[0]()
         for op, right in zip(ops, operands[1:], strict=True):
             b = right()
-            if _number(a) and _number(b):
-                ok = _same(op, float(a), float(b))
-            elif type(a) is str and type(b) is str:
-                ok = _same(op, a, b)
-            elif type(a) is str and _number(b):
-                ok = _same(op, to_number(a, enums), float(b))
-            elif _number(a) and type(b) is str:
-                ok = _same(op, float(a), to_number(b, enums))
-            else:
-                raise ScriptError(f"cannot compare a {kind(a)} with a {kind(b)}")
-            if not ok:
+            if not step(op, a, b):
                 return 0.0
             a = b
         return 1.0
@@ -173,29 +235,41 @@ def _unary(op: str, arg: Compiled) -> Compiled:
 def _assign(op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, int]) -> Compiled:
     values, name, declared = cell.values, cell.name, cell.type
     arith = _ARITH.get(op[0])
+    untyped = declared is Any
+    plain = op in (":=", "=")
 
-    def assign() -> Any:
-        old = values.get(name)
-        if old is None and op != ":=" and declared is Any:
-            raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
-        value = rhs()
-        if op in (":=", "="):
-            new = convert(value, old, key, declared, enums)
-        elif old is None:
-            raise ScriptError(f"entry {key!r} has no value for {op!r}")
-        elif _number(value):
-            if not _number(old):
-                raise ScriptError(f"{op!r} needs a number in entry {key!r}")
-            assert arith is not None
-            new = convert(float(arith(old, value)), old, key, declared, enums)
-        elif op == "+=" and type(old) is str:
-            new = old + value
-        else:
-            raise ScriptError(f"{op!r} is not permitted on a {kind(old)} and a {kind(value)}")
+    def store(new: Any) -> Any:
         if name not in values:
             cell.arrived()
         values[name] = new
         return new
+
+    def assign() -> Any:
+        old = values.get(name)
+        if old is None and op != ":=" and untyped:
+            raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+        value = rhs()
+        t = type(value)
+        if plain:
+            if (untyped and type(old) is t) or declared is t:  # the same kind: kept as is
+                values[name] = value
+                return value
+            return store(convert(value, old, key, declared, enums))
+        to = type(old)
+        if (to is float or to is int) and (t is float or t is int):
+            assert arith is not None
+            new = float(arith(old, value))
+            if to is float and (untyped or declared is float):
+                values[name] = new
+                return new
+            return store(convert(new, old, key, declared, enums))
+        if old is None:
+            raise ScriptError(f"entry {key!r} has no value for {op!r}")
+        if t is float or t is int:
+            raise ScriptError(f"{op!r} needs a number in entry {key!r}")
+        if op == "+=" and to is str and t is str:
+            return store(old + value)
+        raise ScriptError(f"{op!r} is not permitted on a {kind(old)} and a {kind(value)}")
 
     return assign
 
@@ -215,7 +289,11 @@ def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -
         return _unary(str(e[2]), compile_expr(e[3], cells, enums))  # type: ignore[arg-type]
     if tag == "bin":
         sides = [compile_expr(x, cells, enums) for x in e[3:5]]  # type: ignore[arg-type]
-        return _binary(str(e[2]), sides[0], sides[1])
+        right = e[4]
+        const = right[2] if right[0] == "lit" and type(right[2]) in (int, float) else None  # type: ignore[index]
+        left = e[3]
+        entry = cells.get(str(left[2])) if left[0] == "name" and left[2] not in enums else None  # type: ignore[index]
+        return _binary(str(e[2]), sides[0], sides[1], const, entry)
     if tag == "cmp":
         operands = [compile_expr(x, cells, enums) for x in e[3]]  # type: ignore[attr-defined]
         return _compare(e[2], operands, enums)  # type: ignore[arg-type]
@@ -243,6 +321,23 @@ def compile_script(script: Script, cells: Mapping[str, Cell], enums: Mapping[str
     parts = [compile_expr(s, cells, enums) for s in script.statements]
     if len(parts) == 1:
         return parts[0]
+    if len(parts) == 2:
+        p0, p1 = parts
+
+        def run2() -> Any:
+            p0()
+            return p1()
+
+        return run2
+    if len(parts) == 3:
+        q0, q1, q2 = parts
+
+        def run3() -> Any:
+            q0()
+            q1()
+            return q2()
+
+        return run3
     *first, last = parts
 
     def run() -> Any:

@@ -71,7 +71,7 @@ def _unbound() -> Any:
 class ScriptNode(Node):
     """A node running scripts given as options (:attr:`SCRIPTS` names them)."""
 
-    __slots__ = ("_parsed", "_runs")
+    __slots__ = ("_code", "_parsed", "_runs")
     SCRIPTS: ClassVar[tuple[str, ...]] = ("code",)
 
     def declare_ports(self) -> None:
@@ -80,10 +80,12 @@ class ScriptNode(Node):
             k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.SCRIPTS
         }
         self._runs: dict[str, Compiled] = dict.fromkeys(self.SCRIPTS, _unbound)
+        self._code: Compiled = _unbound  # the first script, called directly
 
     def bind(self, board: Blackboard, enums: Mapping[str, int]) -> None:
         """Compile the scripts over ``board`` (the tree's blackboard)."""
         self._runs = {k: bind_script(p, board, enums) for k, p in self._parsed.items()}
+        self._code = self._runs[self.SCRIPTS[0]]
 
     def scripts(self) -> dict[str, Parsed]:
         return dict(self._parsed)
@@ -96,7 +98,7 @@ class Script(ScriptNode, Leaf):
     OPTIONS: ClassVar[dict[str, Any]] = {"code": Port(str, description="the script")}
 
     def on_tick(self) -> State:
-        self._runs["code"]()
+        self._code()
         return _SUCCEEDED
 
 
@@ -107,7 +109,9 @@ class ScriptCondition(ScriptNode, Leaf):
     OPTIONS: ClassVar[dict[str, Any]] = {"code": Port(str, description="the condition")}
 
     def on_tick(self) -> State:
-        value = self._runs["code"]()
+        value = self._code()
+        if value == 1.0 and type(value) is float:
+            return _SUCCEEDED
         return _SUCCEEDED if to_bool(value, "the condition's value") else _FAILED
 
 
