@@ -145,3 +145,24 @@ def test_random_scripts_agree_with_behaviortree_cpp() -> None:
     assert sum(e["event"] == "btcap.node_error" for e in logs) >= errors
     assert ticks > 40  # ticks compared value by value
     assert errors > 400  # errors, each met by a failed node in btcap
+
+
+def test_raw_ampersand_and_less_than_in_attributes_load_as_in_behaviortree_cpp() -> None:
+    # BehaviorTree.CPP's tutorials write scripts with a raw && (tinyxml2 keeps it).
+    xml = """<?xml version="1.0"?>
+<!-- comments & CDATA stay as they are -->
+<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>
+  <Script code="A:=1; B:=2; s:='x&amp;y'"/>
+  <Precondition if="A>-B && A < 3 && s == 'x&y'" else="FAILURE">
+    <Script code="ok := true"/>
+  </Precondition>
+</Sequence></BehaviorTree></root>"""
+    for text in (xml, xml.encode()):
+        t = loads_tree(text, "xml", default_registry(plugins=False))
+        assert t.tick() is State.SUCCEEDED
+        assert t.blackboard["ok"] == 1
+
+
+def test_other_malformed_xml_is_still_refused_with_its_line() -> None:
+    with pytest.raises(TreeFileError, match=r"line 2: malformed XML"):
+        loads_tree('<root BTCPP_format="4">\n<Script code="a && b/>\n</root>', "xml")
