@@ -7,14 +7,15 @@ write and read each blackboard entry; :mod:`btcap.bt.files.btcpp` then wires the
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import re
 import typing
 from collections.abc import Callable
 from typing import Any
 
+from btcap.bt.files.btcpp_conditions import take_conditions, wrap
 from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, MappingError
+from btcap.bt.files.btcpp_scope import Ref, Scope
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
 from btcap.bt.ports import Port
@@ -24,9 +25,6 @@ from btcap.bt.scripting import parse
 __all__ = ["BTCPP_BUILTINS", "KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
 
 KEY = re.compile(r"^\{(.*)\}$")
-_SCRIPTS = frozenset(
-    {"_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "_onFailure", "_onHalted"}
-)
 _GENERIC = frozenset({"Action", "Condition", "Control", "Decorator"})
 MODEL_KINDS = frozenset({*_GENERIC, "SubTree"})
 
@@ -48,39 +46,11 @@ BTCPP_BUILTINS = frozenset(
     }
 )
 
-_NO_CONDITIONS = "btcap does not run BehaviorTree.CPP's pre/post conditions yet; use a "
-_NO_CONDITIONS += "Precondition, or a Script after the node"
 #: The options of BehaviorTree.CPP's nodes that hold scripts.
 _SCRIPT_OPTIONS = {"Script": ("code",), "ScriptCondition": ("code",), "Precondition": ("if",)}
 
 #: How many lines an unknown-type message lists before "...".
 _FIRST_LINES = 5
-
-
-@dataclasses.dataclass(frozen=True)
-class Ref:
-    """One node port using a blackboard entry."""
-
-    path: str
-    port: str
-    line: int
-    type: Any
-
-
-@dataclasses.dataclass
-class Scope:
-    """The blackboard of one BehaviorTree, as the ports that write and read each entry."""
-
-    tree: str
-    writers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
-    readers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
-    constants: dict[str, tuple[NodeSpec, str]] = dataclasses.field(default_factory=dict)
-    #: Entries a node of unknown type uses: whether it writes them is unknown, so no
-    #: follow-up error is reported for them.
-    unsure: set[str] = dataclasses.field(default_factory=set)
-    #: Entries scripts use: (the node running the script, whether it assigns the entry).
-    scripted: dict[str, list[tuple[Ref, bool]]] = dataclasses.field(default_factory=dict)
-    script_nodes: list[str] = dataclasses.field(default_factory=list)
 
 
 def literal(text: str, tp: Any) -> Any:
@@ -195,15 +165,24 @@ class ElementReader:
             if not kind:
                 self.fail(el.line, f"<{el.tag}> without an ID naming its node type")
                 return None
-        for key in _SCRIPTS.intersection(attrs):
-            self.fail(el.line, f"<{el.tag}> attribute {key!r}: {_NO_CONDITIONS}")
-            del attrs[key]
+        conditions = take_conditions(el, attrs, self.fail)
         default = attrs.get("ID") or kind.rsplit(".", 1)[-1]  # acme.Grasp: Grasp
         name = self._name(attrs.pop("name", "") or default, el, taken)
         if name is None:
             return None
         path = name if parent is None else f"{parent}/{name}"
         self.node_lines[(scope.tree, path)] = el.line
+        if not conditions:
+            return self._build(el, attrs, kind, name, path, scope)
+        for code in conditions.values():
+            scope.add_script(parse(code), path, el.line, self.registry.script_enums)
+        self.node_lines[(scope.tree, f"{path}/{name}")] = el.line
+        inner = self._build(el, attrs, kind, name, f"{path}/{name}", scope)
+        return wrap(inner, name, conditions)
+
+    def _build(
+        self, el: XmlElement, attrs: dict[str, str], kind: str, name: str, path: str, scope: Scope
+    ) -> NodeSpec | None:
         if kind == "SubTree":
             return self.subtree(el, attrs, name, path, scope)
         kids: list[NodeSpec] = []
@@ -228,7 +207,7 @@ class ElementReader:
             spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
             for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
                 if code is not None:
-                    self._scripted(code, path, el.line, scope)
+                    scope.add_script(parse(code), path, el.line, self.registry.script_enums)
         elif kind in BTCPP_BUILTINS:
             self.fail(
                 el.line,
@@ -246,16 +225,6 @@ class ElementReader:
         if spec is not None:
             spec.children = kids
         return spec
-
-    def _scripted(self, code: str, path: str, line: int, scope: Scope) -> None:
-        """The entries a script reads and writes are blackboard entries of the tree."""
-        script = parse(code)
-        scope.script_nodes.append(path)
-        for key in dict.fromkeys((*script.reads, *script.writes)):
-            if key in self.registry.script_enums:
-                continue
-            ref = Ref(path, "", line, Any)
-            scope.scripted.setdefault(key, []).append((ref, key in script.writes))
 
     def _name(self, base: str, el: XmlElement, taken: set[str]) -> str | None:
         if not base or "/" in base or "." in base:

@@ -23,9 +23,18 @@ from btcap.bt.scripting.parser import parse
 from btcap.bt.scripting.values import ScriptError, to_bool
 from btcap.bt.state import State, TreeError
 
-__all__ = ["Script", "ScriptCondition", "ScriptNode", "ScriptPrecondition", "bind_script"]
+__all__ = [
+    "CONDITIONS",
+    "Script",
+    "ScriptCondition",
+    "ScriptConditions",
+    "ScriptNode",
+    "ScriptPrecondition",
+    "bind_script",
+]
 
 _SUCCEEDED, _FAILED, _RUNNING, _ERROR = State.SUCCEEDED, State.FAILED, State.RUNNING, State.ERROR
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
 class _EntryCell:
@@ -77,15 +86,19 @@ class ScriptNode(Node):
     def declare_ports(self) -> None:
         super().declare_ports()
         self._parsed = {
-            k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.SCRIPTS
+            k: parsed(self.options[k], f"{type(self).__name__} {k}") for k in self.script_options()
         }
-        self._runs: dict[str, Compiled] = dict.fromkeys(self.SCRIPTS, _unbound)
+        self._runs: dict[str, Compiled] = dict.fromkeys(self._parsed, _unbound)
         self._code: Compiled = _unbound  # the first script, called directly
+
+    def script_options(self) -> tuple[str, ...]:
+        """The options holding this node's scripts."""
+        return self.SCRIPTS
 
     def bind(self, board: Blackboard, enums: Mapping[str, int]) -> None:
         """Compile the scripts over ``board`` (the tree's blackboard)."""
         self._runs = {k: bind_script(p, board, enums) for k, p in self._parsed.items()}
-        self._code = self._runs[self.SCRIPTS[0]]
+        self._code = next(iter(self._runs.values()), _unbound)
 
     def scripts(self) -> dict[str, Parsed]:
         return dict(self._parsed)
@@ -157,3 +170,72 @@ class ScriptPrecondition(ScriptNode, Decorator):
 
     def on_reset(self) -> None:
         self._started = False
+
+
+#: BehaviorTree.CPP's pre/post-condition attributes and the options of ScriptConditions.
+CONDITIONS = {
+    "_failureIf": "failure_if",
+    "_successIf": "success_if",
+    "_onSuccess": "on_success",
+    "_onFailure": "on_failure",
+    "_post": "post",
+    "_onHalted": "on_halted",
+}
+
+
+class ScriptConditions(ScriptNode, Decorator):
+    """BehaviorTree.CPP's pre/post conditions of one node, as a decorator around it.
+
+    Before a tick that starts the node (it is not running): ``failure_if``, then
+    ``success_if``, if true, give that result without ticking it. When the node (or a
+    pre-condition) gives a result: ``on_success`` or ``on_failure``, then ``post``.
+    ``on_halted`` runs when the running node is unticked. Empty options do nothing.
+    """
+
+    __slots__ = ("_post", "_pre")
+    OPTIONS: ClassVar[dict[str, Any]] = {
+        name: Port(str, "", description=f"BehaviorTree.CPP's {attr}")
+        for attr, name in CONDITIONS.items()
+    }
+
+    def script_options(self) -> tuple[str, ...]:
+        return tuple(k for k in CONDITIONS.values() if self.options[k])
+
+    def declare_ports(self) -> None:
+        super().declare_ports()
+        self._arrange()
+
+    def bind(self, board: Blackboard, enums: Mapping[str, int]) -> None:
+        super().bind(board, enums)
+        self._arrange()
+
+    def _arrange(self) -> None:
+        """The scripts in the order BehaviorTree.CPP runs them."""
+        runs = self._runs
+        pre = (("failure_if", _FAILED), ("success_if", _SUCCEEDED))
+        self._pre = [(runs[k], r) for k, r in pre if k in runs]
+        self._post = {
+            s: [runs[k] for k in (first, "post") if k in runs]
+            for s, first in ((_SUCCEEDED, "on_success"), (_FAILED, "on_failure"))
+        }
+
+    def on_tick(self) -> State:
+        if self.state not in _ACTIVE:
+            for run, result in self._pre:
+                if to_bool(run(), "the pre-condition's value"):
+                    return self._finished(result)
+        s = self.children[0].tick()
+        if s is _SUCCEEDED or s is _FAILED or s is _ERROR:
+            return self._finished(_FAILED if s is _ERROR else s)
+        return s
+
+    def _finished(self, result: State) -> State:
+        for run in self._post[result]:
+            run()
+        return result
+
+    def on_untick(self) -> None:
+        running = self.children[0].state in _ACTIVE
+        super().on_untick()
+        if running and "on_halted" in self._runs:
+            self._runs["on_halted"]()

@@ -499,7 +499,7 @@ ERRORS = [
     (
         _xml('<BehaviorTree ID="Main">\n<AlwaysSuccess _skipIf="x"/>\n</BehaviorTree>'),
         3,
-        "attribute '_skipIf': btcap does not run BehaviorTree.CPP's pre/post conditions",
+        "attribute '_skipIf': it makes the node SKIPPED, a state btcap does not have",
     ),
     (
         _xml('<BehaviorTree ID="Main">\n<Timeout><AlwaysSuccess/></Timeout>\n</BehaviorTree>'),
