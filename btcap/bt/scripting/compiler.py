@@ -7,6 +7,7 @@ tick runs only the closures. Semantics: :mod:`btcap.bt.scripting.values`.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
@@ -25,7 +26,18 @@ from btcap.bt.scripting.values import (
 __all__ = ["Cell", "Compiled", "compile_script"]
 
 Compiled = Callable[[], Any]
-_UNSET = object()
+
+
+class _Empty:
+    """The value of ``..`` on two numbers: none (BehaviorTree.CPP's empty Any)."""
+
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "empty"
+
+
+EMPTY = _Empty()
 
 
 class Cell(Protocol):
@@ -70,10 +82,13 @@ _ARITH: dict[str, Callable[[float, float], float]] = {
 
 
 def _divide(a: float, b: float) -> float:
-    """IEEE division by zero, as C++ doubles do."""
-    if a == 0 or a != a:
-        return float("nan")
-    return float("inf") if (a > 0) == (str(b)[0] != "-") else float("-inf")
+    """IEEE division by zero, as C++ doubles do on x86-64 (0/0 is its default NaN, whose
+    sign bit is set: BehaviorTree.CPP writes it ``-nan``)."""
+    if a != a:
+        return a
+    if a == 0:
+        return -math.nan
+    return math.inf if (a > 0) == (math.copysign(1.0, b) > 0) else -math.inf
 
 
 def _number(v: Any) -> bool:
@@ -135,6 +150,8 @@ def _binary(
                 and (_number(b) or type(b) is str)
             ):
                 return to_text(a) + to_text(b)
+            if _number(a) and _number(b):
+                return EMPTY  # BehaviorTree.CPP gives no value here, an error only if used
             raise ScriptError(f"operator '..': not permitted on a {kind(a)} and a {kind(b)}")
 
         return concat
@@ -168,14 +185,16 @@ def _same(op: str, a: Any, b: Any) -> bool:
     if op in ("==", "!="):
         eq = abs(a - b) <= 1.1920928955078125e-07 if type(a) is float else a == b
         return eq if op == "==" else not eq
-    return bool({"<": a < b, ">": a > b, "<=": a <= b, ">=": a >= b}[op])
+    return _ORDER[op](a, b)
 
 
+#: BehaviorTree.CPP tests the opposite and negates it (``a < b`` is ``not a >= b``), so
+#: a comparison with NaN is true where IEEE's would be false.
 _ORDER: dict[str, Callable[[Any, Any], bool]] = {
-    "<": operator.lt,
-    ">": operator.gt,
-    "<=": operator.le,
-    ">=": operator.ge,
+    "<": lambda a, b: not a >= b,
+    ">": lambda a, b: not a <= b,
+    "<=": lambda a, b: not a > b,
+    ">=": lambda a, b: not a < b,
 }
 
 
@@ -250,6 +269,8 @@ def _assign(op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, in
             raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
         value = rhs()
         t = type(value)
+        if value is EMPTY:
+            raise ScriptError(f"the value assigned to {key!r} is empty ('..' of two numbers)")
         if plain:
             if (untyped and type(old) is t) or declared is t:  # the same kind: kept as is
                 values[name] = value
@@ -302,7 +323,7 @@ def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -
 
         def branch() -> Any:
             c = cond()
-            yes = (type(c) is str and c != "") or _truthy(c)
+            yes = _truthy(c)
             return then() if yes else other()
 
         return branch
@@ -311,8 +332,10 @@ def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -
 
 
 def _truthy(c: Any) -> bool:
+    """The condition of ``c ? a : b``: a string must hold a number (even ``'true'``
+    fails), as in BehaviorTree.CPP 4.8."""
     if type(c) is str:
-        return to_number(c, {}) != 0.0
+        return to_number(c, {}, words=False) != 0.0
     return float(c) != 0.0
 
 

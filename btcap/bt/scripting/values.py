@@ -39,7 +39,7 @@ def kind(value: object) -> str:
         return "double"
     if isinstance(value, int):
         return "integer"
-    return type(value).__name__
+    return "empty value" if repr(value) == "empty" else type(value).__name__
 
 
 def to_text(value: object) -> str:
@@ -53,14 +53,16 @@ def to_text(value: object) -> str:
     return str(value)
 
 
-def to_number(text: str, enums: Mapping[str, int]) -> float:
-    """A string compared with (or assigned to) a number: true/false, an enum, a number."""
-    if text == "true":
-        return 1.0
-    if text == "false":
-        return 0.0
-    if text in enums:
-        return float(enums[text])
+def to_number(text: str, enums: Mapping[str, int], *, words: bool = True) -> float:
+    """A string compared with (or assigned to) a number: true/false, an enum, a number
+    (``words=False``: a number only, as the condition of ``c ? a : b`` reads it)."""
+    if words:
+        if text == "true":
+            return 1.0
+        if text == "false":
+            return 0.0
+        if text in enums:
+            return float(enums[text])
     m = _LEADING.match(text)  # C's strtod: the number the string starts with
     if m is None:
         raise ScriptError(f"the string {text!r} is not a number")

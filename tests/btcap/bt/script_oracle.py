@@ -93,12 +93,66 @@ def expression(rng: random.Random, depth: int = 1) -> str:
     return logical()
 
 
+def _typed(rng: random.Random, kind: str, depth: int = 1) -> str:
+    """An expression that gives a value of ``kind`` without error (mostly): integral
+    numbers for ``int``, numbers for ``double``, text for ``string``, 0/1 for ``bool``."""
+    if depth > 0 and rng.random() < 0.15:
+        c = _typed(rng, "bool", 0)
+        return f"{c} ? {_typed(rng, kind, depth - 1)} : {_typed(rng, kind, 0)}"
+    if kind == "int":
+        atoms = (*INTS, "0", "1", "2", "7", "0x1F", "+4", "true")
+        ops = rng.choice((("+", "-", "*"), ("&", "|", "^")))
+    elif kind == "double":
+        atoms = (*INTS, *REALS, "0.5", "2.5", "3e2", "1.5e-1", "2")
+        ops = ("+", "-", "*", "/")
+    elif kind == "string":
+        atoms = (*TEXTS, *INTS, *REALS, *_STRINGS)
+        ops = ("..",)
+    else:  # a comparison, perhaps two joined by && or ||
+        num = "double" if rng.random() < 0.5 else "string"
+        out = f"{_typed(rng, num, 0)} {rng.choice(('==', '!=', '<', '>', '<=', '>='))} "
+        out += _typed(rng, num, 0)
+        if depth > 0 and rng.random() < 0.3:
+            out = f"({out}) {rng.choice(('&&', '||'))} ({_typed(rng, 'bool', 0)})"
+        return out
+    parts = [rng.choice(atoms) for _ in range(rng.choice((1, 2, 2, 3)))]
+    if kind == "string" and all(p in (*INTS, *REALS) for p in parts):
+        parts.append(rng.choice(TEXTS))
+    out = parts[0]
+    for p in parts[1:]:
+        out += f" {rng.choice(ops)} {p}"
+    if kind == "double" and rng.random() < 0.2:
+        out = f"-({out})"
+    return out
+
+
+_KIND = {**dict.fromkeys(INTS, "int"), **dict.fromkeys(REALS, "double")}
+
+
 def statement(rng: random.Random) -> str:
+    """An assignment or an expression; one in five is anything the grammar allows."""
+    if rng.random() < 0.2:
+        key = rng.choice(KEYS)
+        if rng.random() < 0.75:
+            op = rng.choice((":=", "=", "=", "+=", "-=", "*=", "/=", "+="))
+            return f"{key} {op} {expression(rng)}"
+        return expression(rng)
     key = rng.choice(KEYS)
-    if rng.random() < 0.75:
-        op = rng.choice((":=", "=", "=", "+=", "-=", "*=", "/=", "+="))
-        return f"{key} {op} {expression(rng)}"
-    return expression(rng)
+    kind = _KIND.get(key, "string")
+    if kind == "string":
+        return f"{key} {rng.choice((':=', '=', '+='))} {_typed(rng, 'string')}"
+    op = rng.choice((":=", "=", "+=", "-=", "*=") + (("/=",) if kind == "double" else ()))
+    return f"{key} {op} {_typed(rng, kind)}"
+
+
+def conditions(rng: random.Random) -> str:
+    """Random pre/post-condition attributes (BehaviorTree.CPP's _failureIf and others)."""
+    out = ""
+    for attr in ("_failureIf", "_successIf", "_onSuccess", "_onFailure", "_post"):
+        if rng.random() < 0.35:
+            code = _typed(rng, "bool", 0) if attr.endswith("If") else statement(rng)
+            out += f' {attr}="{_attr(code)}"'
+    return out
 
 
 def _attr(text: str) -> str:
@@ -126,8 +180,10 @@ def random_script_tree(rng: random.Random, nodes: int = 4) -> ScriptTree:
             code = "; ".join(statement(rng) for _ in range(rng.randint(1, 3)))
             el = f'<Script code="{_attr(code)}"/>'
         else:
-            code = expression(rng)
+            code = expression(rng) if rng.random() < 0.2 else _typed(rng, "bool")
             el = f'<ScriptCondition code="{_attr(code)}"/>'
+        if rng.random() < 0.4:
+            el = el.replace("/>", f"{conditions(rng)}/>")
         if rng.random() < 0.5:
             el = f"<ForceSuccess>{el}</ForceSuccess>"
         body.append(el)
