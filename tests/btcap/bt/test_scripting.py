@@ -168,3 +168,23 @@ def test_raw_ampersand_and_less_than_in_attributes_load_as_in_behaviortree_cpp()
 def test_other_malformed_xml_is_still_refused_with_its_line() -> None:
     with pytest.raises(TreeFileError, match=r"line 2: malformed XML"):
         loads_tree('<root BTCPP_format="4">\n<Script code="a && b/>\n</root>', "xml")
+
+
+def test_pre_and_post_conditions_run_around_any_node() -> None:
+    t = _tree(
+        '<RunOnce then_skip="false"><Script code="n := 0; f := 0; h := 0; stop := 0"/></RunOnce>'
+        '<AlwaysSuccess _onSuccess="n += 1" _post="f := n * 10"/>'
+        '<AlwaysFailure _successIf="n == 1" _onSuccess="n += 5" _onFailure="n := -100"/>'
+        '<ReactiveFallback><ScriptCondition code="stop == 1"/>'
+        '<Sleep msec="100000" _failureIf="n > 100" _onHalted="h := h + 1"/></ReactiveFallback>'
+    )
+    assert t.tick() is State.RUNNING  # the Sleep runs
+    assert (t.blackboard["n"], t.blackboard["f"], t.blackboard["h"]) == (6, 10, 0)
+    t.blackboard["stop"] = 1
+    assert t.tick() is State.SUCCEEDED  # the condition halts the Sleep: _onHalted runs
+    assert t.blackboard["h"] == 1
+
+
+def test_skipping_conditions_are_refused_with_the_reason() -> None:
+    with pytest.raises(TreeFileError, match="SKIPPED, a state btcap does not have"):
+        _tree('<AlwaysSuccess _while="true"/>')
