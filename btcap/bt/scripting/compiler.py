@@ -198,7 +198,22 @@ _ORDER: dict[str, Callable[[Any, Any], bool]] = {
 }
 
 
-def _compare(ops: tuple[str, ...], operands: list[Compiled], enums: Mapping[str, int]) -> Compiled:
+_IEEE: dict[str, Callable[[Any, Any], bool]] = {
+    "<": operator.lt,
+    ">": operator.gt,
+    "<=": operator.le,
+    ">=": operator.ge,
+}
+
+
+def _compare(
+    ops: tuple[str, ...],
+    operands: list[Compiled],
+    enums: Mapping[str, int],
+    entries: list[Cell | None] | None = None,
+) -> Compiled:
+    """``entries``: the cell of each operand that is an entry (read inline when both are)."""
+
     def step(op: str, a: Any, b: Any) -> bool:
         if _number(a) and _number(b):
             return _same(op, float(a), float(b))
@@ -211,14 +226,30 @@ def _compare(ops: tuple[str, ...], operands: list[Compiled], enums: Mapping[str,
         raise ScriptError(f"cannot compare a {kind(a)} with a {kind(b)}")
 
     if len(ops) == 1 and ops[0] in _ORDER:  # the usual case, numbers inline
-        order, op, left, right = _ORDER[ops[0]], ops[0], operands[0], operands[1]
+        op, left, right = ops[0], operands[0], operands[1]
+        fast = _IEEE[op]
+        ea, eb = entries if entries and len(entries) == 2 else (None, None)
+        if ea is not None and eb is not None:
+            va, na, vb, nb = ea.values, ea.name, eb.values, eb.name
+
+            def compare_entries() -> Any:
+                a = va.get(na)
+                b = vb.get(nb)
+                ta, tb = type(a), type(b)
+                if (ta is float or ta is int) and (tb is float or tb is int):
+                    fa, fb = float(a), float(b)  # NaN: true, as _ORDER says
+                    return 1.0 if fast(fa, fb) or fa != fa or fb != fb else 0.0
+                return 1.0 if step(op, left(), right()) else 0.0
+
+            return compare_entries
 
         def compare1() -> Any:
             a = left()
             b = right()
             ta, tb = type(a), type(b)
             if (ta is float or ta is int) and (tb is float or tb is int):
-                return 1.0 if order(float(a), float(b)) else 0.0
+                fa, fb = float(a), float(b)  # NaN: true, as _ORDER says
+                return 1.0 if fast(fa, fb) or fa != fa or fb != fb else 0.0
             return 1.0 if step(op, a, b) else 0.0
 
         return compare1
@@ -251,8 +282,12 @@ def _unary(op: str, arg: Compiled) -> Compiled:
     return unary
 
 
-def _assign(op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, int]) -> Compiled:
+def _assign(
+    op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, int], literal: Expr
+) -> Compiled:
     values, name, declared = cell.values, cell.name, cell.type
+    fixed = literal[0] == "lit"  # a literal right side is not called for
+    k = literal[2] if fixed else None
     arith = _ARITH.get(op[0])
     untyped = declared is Any
     plain = op in (":=", "=")
@@ -267,7 +302,7 @@ def _assign(op: str, key: str, cell: Cell, rhs: Compiled, enums: Mapping[str, in
         old = values.get(name)
         if old is None and op != ":=" and untyped:
             raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
-        value = rhs()
+        value = k if fixed else rhs()
         t = type(value)
         if value is EMPTY:
             raise ScriptError(f"the value assigned to {key!r} is empty ('..' of two numbers)")
@@ -317,7 +352,11 @@ def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -
         return _binary(str(e[2]), sides[0], sides[1], const, entry)
     if tag == "cmp":
         operands = [compile_expr(x, cells, enums) for x in e[3]]  # type: ignore[attr-defined]
-        return _compare(e[2], operands, enums)  # type: ignore[arg-type]
+        entries = [
+            cells[str(x[2])] if x[0] == "name" and x[2] not in enums else None
+            for x in e[3]  # type: ignore[attr-defined]
+        ]
+        return _compare(e[2], operands, enums, entries)  # type: ignore[arg-type]
     if tag == "if":
         cond, then, other = (compile_expr(x, cells, enums) for x in e[2:5])  # type: ignore[arg-type]
 
@@ -328,7 +367,9 @@ def compile_expr(e: Expr, cells: Mapping[str, Cell], enums: Mapping[str, int]) -
 
         return branch
     key = str(e[3])
-    return _assign(str(e[2]), key, cells[key], compile_expr(e[4], cells, enums), enums)  # type: ignore[arg-type]
+    value = e[4]
+    rhs = compile_expr(value, cells, enums)  # type: ignore[arg-type]
+    return _assign(str(e[2]), key, cells[key], rhs, enums, value)  # type: ignore[arg-type]
 
 
 def _truthy(c: Any) -> bool:

@@ -54,6 +54,12 @@ def _run(code: str) -> dict[str, str] | str:
         ("x:='a' .. 1.5 .. 2", {"x": "a1.5000002"}),
         ("x:=1 ? 2 : 3", {"x": "2"}),
         ("x:=!1; y:=~5", {"x": "0.000000", "y": "-6.000000"}),
+        (  # NaN (x86-64's, written -nan): every comparison but == is true
+            "d := 0.0 / 0.0; x := d &lt; 1; y := d == d; z := 1 &gt; d",
+            {"d": "-nan", "x": "1.000000", "y": "0.000000", "z": "1.000000"},
+        ),
+        ("1 .. 2; y := 1", {"y": "1"}),  # '..' of two numbers: no value, unused here
+        ("x := 1 .. 2", "error"),
         ("x:=1; x=2.5", "error"),  # an int entry stays an int
         ("x:=5; x/=2", "error"),
         ("x:='s'; x=2", "error"),
