@@ -18,6 +18,7 @@ values first. ``python -m btcap.bench script [--quick]``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import btcap
@@ -36,6 +37,7 @@ class PythonScript(btcap.Leaf):
     """The script's work written as a Python leaf over the same blackboard entries."""
 
     __slots__ = ("values",)
+    values: dict[str, Any]
 
     def on_tick(self) -> btcap.State:
         v = self.values
@@ -58,12 +60,14 @@ def _btcap(python: bool) -> btcap.Tree:
     reg.register(PythonScript)
     leaf = "<PythonScript/>" if python else f'<Script code="{CODE}"/>'
     tree = loads_tree(_xml(leaf), "xml", reg)
+    board = tree.blackboard
+    assert board is not None
     if python:
-        tree.blackboard.declare("a", btcap.Port(float))
-        tree.blackboard.declare("ok", btcap.Port(float))
+        board.declare("a", btcap.Port(float))
+        board.declare("ok", btcap.Port(float))
         for node in tree.root.walk():
             if isinstance(node, PythonScript):
-                node.values = tree.blackboard.outputs
+                node.values = board.outputs
     return tree
 
 
@@ -79,9 +83,10 @@ def run(quick: bool = False) -> dict[str, Any]:
     warmup, count = (20, 200) if quick else (100, 1_000)
     load_start = load_average()
     script, python, theirs = _btcap(False), _btcap(True), _btcpp()
-    ticks = {"script": script.tick, "python": python.tick}
+    ticks: dict[str, Callable[[], object]] = {"script": script.tick, "python": python.tick}
     for tree in (script, python):
         assert tree.tick() is btcap.SUCCEEDED
+        assert tree.blackboard is not None
         values = tree.blackboard.outputs
         assert (values["b"], values["a"], values["ok"]) == (100.5, 202.0, 1.0), values
     if theirs is not None:

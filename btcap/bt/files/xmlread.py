@@ -108,8 +108,8 @@ def read_xml(data: bytes | str, where: str) -> XmlElement:
     parser.CharacterDataHandler = text
     parser.StartDoctypeDeclHandler = refuse
     parser.EntityDeclHandler = refuse
-    if isinstance(data, bytes) and ("&" in (text := data.decode("latin-1")) or "<" in text):
-        data = _lenient(text).encode("latin-1")  # latin-1 maps every byte to itself
+    if isinstance(data, bytes) and ("&" in (raw := data.decode("latin-1")) or "<" in raw):
+        data = _lenient(raw).encode("latin-1")  # latin-1 maps every byte to itself
     elif isinstance(data, str):
         data = _lenient(data)
     try:

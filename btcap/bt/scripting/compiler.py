@@ -112,7 +112,7 @@ def _binary(
             k, values, name, key = const, entry.values, entry.name, entry.name
 
             def arith_entry_k() -> Any:
-                a = values.get(name)
+                a: Any = values.get(name)
                 ta = type(a)
                 if ta is float or ta is int:
                     return float(f(a, k))
@@ -233,8 +233,8 @@ def _compare(
             va, na, vb, nb = ea.values, ea.name, eb.values, eb.name
 
             def compare_entries() -> Any:
-                a = va.get(na)
-                b = vb.get(nb)
+                a: Any = va.get(na)
+                b: Any = vb.get(nb)
                 ta, tb = type(a), type(b)
                 if (ta is float or ta is int) and (tb is float or tb is int):
                     fa, fb = float(a), float(b)  # NaN: true, as _ORDER says
@@ -287,7 +287,7 @@ def _assign(
 ) -> Compiled:
     values, name, declared = cell.values, cell.name, cell.type
     fixed = literal[0] == "lit"  # a literal right side is not called for
-    k = literal[2] if fixed else None
+    k: Any = literal[2] if fixed else None
     arith = _ARITH.get(op[0])
     untyped = declared is Any
     plain = op in (":=", "=")
@@ -299,7 +299,7 @@ def _assign(
         return new
 
     def assign() -> Any:
-        old = values.get(name)
+        old: Any = values.get(name)
         if old is None and op != ":=" and untyped:
             raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
         value = k if fixed else rhs()
