@@ -252,3 +252,95 @@ def compare_scripts(t: ScriptTree, ticks: int = 3) -> ScriptOutcome:
                 n, None, f"tick {n}: btcap {got} {a}\nBehaviorTree.CPP {want} {b}\n{t.xml}"
             )
     return ScriptOutcome(ticks, None, None)
+
+
+# -- pre/post conditions on the node-level random trees ------------------------------------
+
+_COUNTERS = ("s", "f", "p", "h")
+
+
+def with_conditions(root: Any, rng: random.Random) -> Any:
+    """``root`` (a :class:`btcpp_oracle.El`) with counters run by pre/post conditions on
+    some of its nodes, under a Sequence that creates the counters once."""
+    from btcpp_oracle import El
+
+    for el in root.walk():
+        if rng.random() < 0.4:
+            el.attrs["_onSuccess"] = "s += 1"
+            el.attrs["_onFailure"] = "f += 1"
+        if rng.random() < 0.3:
+            el.attrs["_post"] = "p += 1"
+        if el.tag in ("Act",) and rng.random() < 0.5:
+            el.attrs["_onHalted"] = "h += 1"
+        if rng.random() < 0.15:
+            el.attrs["_failureIf"] = f"f > {rng.randint(0, 3)}"
+        if rng.random() < 0.15:
+            el.attrs["_successIf"] = f"s > {rng.randint(0, 3)}"
+    init = El("Script", "init", {"code": "s := 0; f := 0; p := 0; h := 0"})
+    return El("Sequence", "top", {}, [El("RunOnce", "once", {"then_skip": "false"}, [init]), root])
+
+
+def _rechecked(mine: Any, before: dict[int, State]) -> bool:
+    """Whether a node with pre-conditions was ticked after giving a result, by a parent
+    that had not reset it in BehaviorTree.CPP: one still running (a reactive parent
+    re-ticking an earlier child) or an IfThenElse/WhileDoElse (its condition keeps its
+    status). BehaviorTree.CPP skips the pre-conditions then (the node's status is not
+    IDLE); btcap checks them whenever the node is not running (documented)."""
+    from btcap.bt.async_nodes import LatchedIfThenElse
+    from btcap.bt.composites import IfThenElse
+    from btcap.bt.scripting.nodes import ScriptConditions
+
+    for n in mine.tree.root.walk():
+        parent = n.parent_node
+        if isinstance(n, ScriptConditions) and n._pre and parent is not None:
+            if before.get(id(n)) not in (State.SUCCEEDED, State.FAILED) or n.state is State.IDLE:
+                continue
+            if before.get(id(parent)) in _ACTIVE_STATES or isinstance(
+                parent, (IfThenElse, LatchedIfThenElse)
+            ):
+                return True
+    return False
+
+
+_ACTIVE_STATES = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
+
+
+def compare_conditions(root: Any, ticks: int = 10) -> ScriptOutcome:
+    """:func:`btcpp_oracle.compare` with the counters compared after every tick and halt."""
+    from btcpp_oracle import BtcapRun, BtcppRun, document, scripts_of
+
+    xml = document(root)
+    scripts = scripts_of(root)
+    try:
+        theirs = BtcppRun(xml, scripts)
+    except RuntimeError:
+        return ScriptOutcome(0, "refused by BehaviorTree.CPP", None)
+    mine = BtcapRun(xml, scripts)
+
+    def counters() -> tuple[dict[str, str], dict[str, str]]:
+        board = theirs.tree.root_blackboard()
+        a = {k: to_text(v) for k, v in mine.tree.blackboard.outputs.items() if v is not None}
+        return a, {k: board.get_string(k) for k in board.get_keys() if k in _COUNTERS}
+
+    for t in range(ticks):
+        before = {id(n): n.state for n in mine.tree.root.walk()}
+        got = mine.tick()
+        if _rechecked(mine, before):
+            return ScriptOutcome(t, "conditions_checked_when_idle", None)
+        want = theirs.tick()
+        if mine.now:
+            return ScriptOutcome(t, sorted(mine.now)[0], None)
+        a, b = counters()
+        if got != want or a != b:
+            return ScriptOutcome(t, None, f"tick {t}: btcap {got} {a}\nBT.CPP {want} {b}\n{xml}")
+        if mine.later:
+            return ScriptOutcome(t + 1, sorted(mine.later)[0], None)
+    mine.halt()
+    theirs.halt()
+    # BehaviorTree.CPP's haltTree runs every node's _onHalted, running or not (documented);
+    # a parent halting a running child was compared above, tick by tick.
+    a, b = counters()
+    a.pop("h", None), b.pop("h", None)
+    if a != b:
+        return ScriptOutcome(ticks, None, f"halt: btcap {a} BT.CPP {b}\n{xml}")
+    return ScriptOutcome(ticks, None, None)

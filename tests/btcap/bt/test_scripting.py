@@ -8,6 +8,7 @@ import enum
 import importlib.util
 import random
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,7 @@ from structlog.testing import capture_logs
 
 from btcap import State
 from btcap.bt.files import TreeFileError, loads_tree
+from btcap.bt.files.btcpp_nodes import DIFFERENCES
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.scripting.values import to_text
 
@@ -194,3 +196,25 @@ def test_pre_and_post_conditions_run_around_any_node() -> None:
 def test_skipping_conditions_are_refused_with_the_reason() -> None:
     with pytest.raises(TreeFileError, match="SKIPPED, a state btcap does not have"):
         _tree('<AlwaysSuccess _while="true"/>')
+
+
+def test_random_trees_with_pre_and_post_conditions_agree_with_behaviortree_cpp() -> None:
+    oracle = _oracle()
+    import btcpp_oracle
+
+    ticks = ended = 0
+    stopped: set[str] = set()
+    with capture_logs(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # random reactive trees restart branches on purpose
+        for seed in range(300):
+            rng = random.Random(seed)
+            root = oracle.with_conditions(btcpp_oracle.random_tree(rng, 3 + seed % 2), rng)
+            out = oracle.compare_conditions(root)
+            assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
+            ticks += out.ticks
+            ended += out.error is None
+            stopped.add(out.error or "")
+    assert ticks > 1500  # counters compared after every tick and after the halt
+    assert ended > 150
+    documented = {"conditions_checked_when_idle", "refused by BehaviorTree.CPP", ""}
+    assert stopped <= documented | set(DIFFERENCES)
