@@ -14,8 +14,10 @@ from typing import Any, Protocol
 
 from btcap.bt.scripting.parser import Expr, Script
 from btcap.bt.scripting.values import (
+    EXACT,
     ScriptError,
     convert,
+    exact,
     integral,
     kind,
     to_bool,
@@ -96,6 +98,8 @@ def _number(v: Any) -> bool:
 
 
 def _arith_error(op: str, a: Any, b: Any) -> Any:
+    if _number(a) and _number(b):
+        return float(_ARITH[op](exact(a), exact(b)))  # raises for a large integer
     if op == "+" and type(a) is str and type(b) is str:
         return a + b
     raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
@@ -114,7 +118,7 @@ def _binary(
             def arith_entry_k() -> Any:
                 a: Any = values.get(name)
                 ta = type(a)
-                if ta is float or ta is int:
+                if ta is float or (ta is int and -EXACT <= a <= EXACT):
                     return float(f(a, k))
                 return _arith_error(op, _odd_value(a, key), k)
 
@@ -125,7 +129,7 @@ def _binary(
             def arith_k() -> Any:
                 a = lhs()
                 ta = type(a)
-                if ta is float or ta is int:
+                if ta is float or (ta is int and -EXACT <= a <= EXACT):
                     return float(f(a, k))
                 return _arith_error(op, a, k)
 
@@ -135,7 +139,9 @@ def _binary(
             a = lhs()
             b = rhs()
             ta, tb = type(a), type(b)
-            if (ta is float or ta is int) and (tb is float or tb is int):
+            if (ta is float or (ta is int and -EXACT <= a <= EXACT)) and (
+                tb is float or (tb is int and -EXACT <= b <= EXACT)
+            ):
                 return float(f(a, b))
             return _arith_error(op, a, b)
 
@@ -215,6 +221,7 @@ def _compare(
     """``entries``: the cell of each operand that is an entry (read inline when both are)."""
 
     def step(op: str, a: Any, b: Any) -> bool:
+        exact(a), exact(b)  # a large integer is no double
         if _number(a) and _number(b):
             return _same(op, float(a), float(b))
         if type(a) is str and type(b) is str:
@@ -236,7 +243,9 @@ def _compare(
                 a: Any = va.get(na)
                 b: Any = vb.get(nb)
                 ta, tb = type(a), type(b)
-                if (ta is float or ta is int) and (tb is float or tb is int):
+                if (ta is float or (ta is int and -EXACT <= a <= EXACT)) and (
+                    tb is float or (tb is int and -EXACT <= b <= EXACT)
+                ):
                     fa, fb = float(a), float(b)  # NaN: true, as _ORDER says
                     return 1.0 if fast(fa, fb) or fa != fa or fb != fb else 0.0
                 return 1.0 if step(op, left(), right()) else 0.0
@@ -247,7 +256,9 @@ def _compare(
             a = left()
             b = right()
             ta, tb = type(a), type(b)
-            if (ta is float or ta is int) and (tb is float or tb is int):
+            if (ta is float or (ta is int and -EXACT <= a <= EXACT)) and (
+                tb is float or (tb is int and -EXACT <= b <= EXACT)
+            ):
                 fa, fb = float(a), float(b)  # NaN: true, as _ORDER says
                 return 1.0 if fast(fa, fb) or fa != fa or fb != fb else 0.0
             return 1.0 if step(op, a, b) else 0.0
@@ -268,7 +279,7 @@ def _compare(
 
 def _unary(op: str, arg: Compiled) -> Compiled:
     def unary() -> Any:
-        v = arg()
+        v = exact(arg())
         if not _number(v):
             raise ScriptError(f"operator {op!r}: not permitted on a {kind(v)}")
         if op == "-":
@@ -312,13 +323,17 @@ def _assign(
                 return value
             return store(convert(value, old, key, declared, enums))
         to = type(old)
-        if (to is float or to is int) and (t is float or t is int):
+        if (to is float or (to is int and -EXACT <= old <= EXACT)) and (
+            t is float or (t is int and -EXACT <= value <= EXACT)
+        ):
             assert arith is not None
             new = float(arith(old, value))
             if to is float and (untyped or declared is float):
                 values[name] = new
                 return new
             return store(convert(new, old, key, declared, enums))
+        if _number(old) and _number(value):  # a large integer: no double
+            return store(convert(float(arith(exact(old), exact(value))), old, key, declared, enums))  # type: ignore[misc]
         if old is None:
             raise ScriptError(f"entry {key!r} has no value for {op!r}")
         if t is float or t is int:

@@ -158,10 +158,13 @@ class ScriptPrecondition(ScriptNode, Decorator):
             self._started = True
         child = self.children[0]
         s = child.tick()
-        if s is _SUCCEEDED or s is _FAILED or s is _ERROR:
+        if s is _SUCCEEDED or s is _FAILED:
             self._started = False
             child.reset()
-            return _FAILED if s is _ERROR else s
+            return s
+        if s is _ERROR:  # a failure, the child keeps its error for whoever looks
+            self._started = False
+            return _FAILED
         return s
 
     def on_untick(self) -> None:
@@ -224,9 +227,12 @@ class ScriptConditions(ScriptNode, Decorator):
             for run, result in self._pre:
                 if to_bool(run(), "the pre-condition's value"):
                     return self._finished(result)
-        s = self.children[0].tick()
-        if s is _SUCCEEDED or s is _FAILED or s is _ERROR:
-            return self._finished(_FAILED if s is _ERROR else s)
+        child = self.children[0]
+        s = child.tick()
+        if s is _SUCCEEDED or s is _FAILED:
+            return self._finished(s)
+        if s is _ERROR:  # as BehaviorTree.CPP's exception: no post-condition runs
+            raise ScriptError(f"node {child.path!r} failed: {child.error}")
         return s
 
     def _finished(self, result: State) -> State:

@@ -18,9 +18,12 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["ScriptError", "convert", "to_bool", "to_number", "to_text"]
+__all__ = ["EXACT", "ScriptError", "convert", "exact", "to_bool", "to_number", "to_text"]
 
 _INT64 = 2**63
+#: The largest integer a double holds exactly; BehaviorTree.CPP refuses to convert
+#: larger ones (its arithmetic and comparisons work on doubles).
+EXACT = 2**53 - 1
 _LEADING = re.compile(
     r"\s*(?P<sign>[+-]?)(?:0[xX](?P<hex>[0-9a-fA-F]+)"
     r"|(?P<dec>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan))",
@@ -40,6 +43,13 @@ def kind(value: object) -> str:
     if isinstance(value, int):
         return "integer"
     return "empty value" if repr(value) == "empty" else type(value).__name__
+
+
+def exact(value: Any) -> Any:
+    """``value``, unless it is an integer too large to become a double exactly."""
+    if type(value) is int and not -EXACT <= value <= EXACT:
+        raise ScriptError(f"loss of precision converting the integer {value} to a double")
+    return value
 
 
 def to_text(value: object) -> str:
@@ -105,7 +115,7 @@ def convert(value: Any, old: Any, key: str, declared: Any, enums: Mapping[str, i
     if isinstance(value, str):  # BehaviorTree.CPP reads it as a number, kept as a double
         return to_number(value, enums)
     if isinstance(old, float):
-        return float(value)
+        return float(exact(value))
     if isinstance(old, int) and isinstance(value, float):
         return integral(value, f"entry {key!r} holds an integer")
     if isinstance(value, int) and isinstance(old, int):
@@ -127,4 +137,4 @@ def _to_type(value: Any, tp: Any, key: str, enums: Mapping[str, int]) -> Any:
         return to_bool(value, what)
     if tp is int:
         return integral(value, what) if isinstance(value, float) else int(value)
-    return float(value)
+    return float(exact(value))

@@ -184,6 +184,10 @@ def random_script_tree(rng: random.Random, nodes: int = 4) -> ScriptTree:
             el = f'<ScriptCondition code="{_attr(code)}"/>'
         if rng.random() < 0.4:
             el = el.replace("/>", f"{conditions(rng)}/>")
+        if rng.random() < 0.15:
+            guard = _attr(_typed(rng, "bool", 0))
+            other = rng.choice(("SUCCESS", "FAILURE"))
+            el = f'<Precondition if="{guard}" else="{other}">{el}</Precondition>'
         if rng.random() < 0.5:
             el = f"<ForceSuccess>{el}</ForceSuccess>"
         body.append(el)

@@ -62,6 +62,15 @@ def _run(code: str) -> dict[str, str] | str:
         ),
         ("1 .. 2; y := 1", {"y": "1"}),  # '..' of two numbers: no value, unused here
         ("x := 1 .. 2", "error"),
+        (
+            "x := 9007199254740991; y := x + 0",
+            {"x": "9007199254740991", "y": "9007199254740991.000000"},
+        ),
+        ("x := 9007199254740993; y := x + 1", "error"),  # 2**53 + 1 is no double
+        (
+            "x := 9007199254740993; y := x .. 'a'",
+            {"x": "9007199254740993", "y": "9007199254740993a"},
+        ),
         ("x:=1; x=2.5", "error"),  # an int entry stays an int
         ("x:=5; x/=2", "error"),
         ("x:='s'; x=2", "error"),
@@ -218,3 +227,20 @@ def test_random_trees_with_pre_and_post_conditions_agree_with_behaviortree_cpp()
     assert ended > 150
     documented = {"conditions_checked_when_idle", "refused by BehaviorTree.CPP", ""}
     assert stopped <= documented | set(DIFFERENCES)
+
+
+def test_scripts_in_subtrees_use_the_remapped_entries() -> None:
+    xml = """<root BTCPP_format="4" main_tree_to_execute="Main">
+<BehaviorTree ID="Main"><Sequence>
+  <Script code="x := 1; name := 'a'"/>
+  <SubTree ID="Sub" v="{x}"/>
+  <SubTree ID="Auto" _autoremap="true"/>
+  <ScriptCondition code="x == 2 &amp;&amp; name == 'ab'"/>
+</Sequence></BehaviorTree>
+<BehaviorTree ID="Sub"><Script code="v += 1; local := v * 3"/></BehaviorTree>
+<BehaviorTree ID="Auto"><Script code="name += 'b'"/></BehaviorTree>
+</root>"""  # BehaviorTree.CPP 4.8 ends with x = 2 and name = 'ab' in the main tree
+    t = loads_tree(xml, "xml", default_registry(plugins=False))
+    assert t.tick() is State.SUCCEEDED
+    assert t.blackboard is not None
+    assert dict(t.blackboard.outputs) == {"x": 2, "name": "ab"}
