@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 BENCHES = (
     "tick",
+    "script",
     "transport",
     "auction",
     "sim",

@@ -9,6 +9,7 @@ type-valued options such as :class:`~btcap.bt.leaves.Constant`'s ``type`` fit in
 from __future__ import annotations
 
 import difflib
+import enum
 import re
 import types
 import typing
@@ -18,6 +19,7 @@ from typing import Any
 
 from btcap.bt import async_nodes, composites, decorators, leaves
 from btcap.bt.node import Node
+from btcap.bt.scripting import nodes as scripting
 from btcap.bt.state import TreeError
 
 __all__ = [
@@ -86,7 +88,7 @@ class RegistryError(TreeError):
 def _builtin_nodes() -> list[type[Node]]:
     """Every node class the core exports that a file can build (no callables needed)."""
     out: list[type[Node]] = []
-    for module in (composites, async_nodes, decorators, leaves):
+    for module in (composites, async_nodes, decorators, leaves, scripting):
         for name in module.__all__:
             obj = getattr(module, name)
             if isinstance(obj, type) and issubclass(obj, Node) and name not in _NOT_FROM_FILES:
@@ -114,6 +116,8 @@ class NodeRegistry:
         self._types: dict[str, Any] = dict(_BUILTIN_TYPES)
         #: name -> ``user.name`` for user types named like a btcap built-in.
         self._shadow: dict[str, str] = {}
+        #: Names BehaviorTree.CPP scripts read as numbers (its ``registerScriptingEnum``).
+        self.script_enums: dict[str, int] = {}
         self._builtins = frozenset(_builtin_nodes())
         for cls in nodes:
             self.register(cls)
@@ -202,7 +206,25 @@ class NodeRegistry:
         out._names = dict(self._names)
         out._types = dict(self._types)
         out._shadow = dict(self._shadow)
+        out.script_enums = dict(self.script_enums)
         return out
+
+    def register_enum(self, values: type[enum.Enum] | Mapping[str, int]) -> None:
+        """Let BehaviorTree.CPP scripts use these names as numbers: an IntEnum's members,
+        or a mapping of name to value (BehaviorTree.CPP's ``registerScriptingEnum``)."""
+        items = (
+            {m.name: m.value for m in values}
+            if isinstance(values, type) and issubclass(values, enum.Enum)
+            else dict(values)
+        )
+        for name, value in items.items():
+            if not name.isidentifier() or isinstance(value, bool) or not isinstance(value, int):
+                raise RegistryError(
+                    f"script enum {name!r}={value!r}: expected an identifier and an integer"
+                )
+            old = self.script_enums.setdefault(name, value)
+            if old != value:
+                raise RegistryError(f"script enum {name!r} is already {old}, not {value}")
 
     def name_of(self, cls: type[Node]) -> str:
         """The name ``cls`` was registered under (first one, if several)."""

@@ -14,6 +14,7 @@ from typing import Any
 
 from btcap.bt.blackboard import Blackboard
 from btcap.bt.files.btcpp_elements import literal
+from btcap.bt.scripting.nodes import ScriptNode
 from btcap.bt.state import TreeError
 from btcap.bt.tree import Tree
 
@@ -31,6 +32,8 @@ class TreeBoard:
     remaps: dict[str, dict[str, str]] = dataclasses.field(default_factory=dict)
     #: SubTree node path -> its tree's entry -> the literal it starts with.
     initial: dict[str, dict[str, str]] = dataclasses.field(default_factory=dict)
+    #: Paths of the nodes running scripts over this tree's entries.
+    scripts: list[str] = dataclasses.field(default_factory=list)
 
 
 _Pending = tuple[Blackboard | None, dict[str, str], dict[str, str]]
@@ -39,8 +42,15 @@ _Pending = tuple[Blackboard | None, dict[str, str], dict[str, str]]
 class Boards:
     """The blackboards of the trees a builder is building, innermost last."""
 
-    def __init__(self, specs: dict[str, TreeBoard], main: str, entries: Mapping[str, Any]) -> None:
+    def __init__(
+        self,
+        specs: dict[str, TreeBoard],
+        main: str,
+        entries: Mapping[str, Any],
+        enums: Mapping[str, int] | None = None,
+    ) -> None:
         self.specs = specs
+        self.enums = dict(enums or {})
         self.main = main
         #: What the application supplies, set on the main tree's board.
         self.entries = entries
@@ -84,6 +94,14 @@ class Boards:
             except TreeError as exc:
                 fail(f"{ctx}node {path!r} input {port!r} (entry {{{key}}}): {exc}")
             fed.add((path, port))
+        for path in spec.scripts:
+            node = tree.find(path)
+            if isinstance(node, ScriptNode):
+                node.bind(board, self.enums)
+                for script in node.scripts().values():
+                    for key in script.writes:
+                        owner, name = board.owner(key)
+                        owner.writers.setdefault(name, []).append(node.path)
         main = not self.stack and board.name == self.main
         values = {**initial, **self.entries} if main else initial
         for key, value in values.items():

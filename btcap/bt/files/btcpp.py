@@ -291,12 +291,14 @@ class XmlTranslator:
         cells: dict[str, tuple[Any, bool]] = {}
         specs = dict(paths(root, None))
         sure: set[str] = set()
-        for key in dict.fromkeys([*writers, *readers, *aliases]):
+        scripted = merged(scope.scripted, main)
+        board.scripts.extend(scope.script_nodes)
+        for key in dict.fromkeys([*writers, *readers, *aliases, *scripted]):
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
-            if not ws and not al and key in scope.unsure:
+            if not ws and not al and key in scope.unsure and key not in scripted:
                 continue  # perhaps written by a node already reported as unknown
-            if self._is_cell(key, (ws, rs, al), main, specs):
-                self._cell(scope, key, (ws, rs, al), board, cells)
+            if key in scripted or self._is_cell(key, (ws, rs, al), main, specs):
+                self._cell(scope, key, (ws, rs, al), board, cells, scripted.get(key, []))
                 continue
             if ws:
                 w = ws[0]
@@ -360,8 +362,10 @@ class XmlTranslator:
         refs: tuple[list[Ref], list[Ref], list[tuple[Ref, bool]]],
         board: TreeBoard,
         cells: dict[str, tuple[Any, bool]],
+        scripts: list[tuple[Ref, bool]] = (),  # type: ignore[assignment]
     ) -> None:
-        """A blackboard entry: every port using it reads or writes it, one type for all."""
+        """A blackboard entry: every port using it reads or writes it, one type for all
+        (scripts take the type the ports give it, or the type of its first value)."""
         ws, rs, al = refs
         if key in scope.constants:
             self._constant(key, scope, rs[0].type if rs else Any)
@@ -375,7 +379,7 @@ class XmlTranslator:
         if key.startswith("@"):
             self.globals.add(key[1:])
         else:
-            cells[key] = (tp, bool(written))
+            cells[key] = (tp, bool(written) or any(w for _, w in scripts))
 
     def _constant(self, key: str, scope: Scope, tp: Any) -> Any:
         """Type a SetBlackboard value by the port that reads it."""

@@ -7,25 +7,24 @@ write and read each blackboard entry; :mod:`btcap.bt.files.btcpp` then wires the
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import re
 import typing
 from collections.abc import Callable
 from typing import Any
 
+from btcap.bt.files.btcpp_conditions import take_conditions, wrap
 from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, MappingError
+from btcap.bt.files.btcpp_scope import Ref, Scope
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
 from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, RegistryError
+from btcap.bt.scripting import parse
 
 __all__ = ["BTCPP_BUILTINS", "KEY", "MODEL_KINDS", "ElementReader", "Ref", "Scope", "literal"]
 
 KEY = re.compile(r"^\{(.*)\}$")
-_SCRIPTS = frozenset(
-    {"_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "_onFailure", "_onHalted"}
-)
 _GENERIC = frozenset({"Action", "Condition", "Control", "Decorator"})
 MODEL_KINDS = frozenset({*_GENERIC, "SubTree"})
 
@@ -47,31 +46,11 @@ BTCPP_BUILTINS = frozenset(
     }
 )
 
+#: The options of BehaviorTree.CPP's nodes that hold scripts.
+_SCRIPT_OPTIONS = {"Script": ("code",), "ScriptCondition": ("code",), "Precondition": ("if",)}
+
 #: How many lines an unknown-type message lists before "...".
 _FIRST_LINES = 5
-
-
-@dataclasses.dataclass(frozen=True)
-class Ref:
-    """One node port using a blackboard entry."""
-
-    path: str
-    port: str
-    line: int
-    type: Any
-
-
-@dataclasses.dataclass
-class Scope:
-    """The blackboard of one BehaviorTree, as the ports that write and read each entry."""
-
-    tree: str
-    writers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
-    readers: dict[str, list[Ref]] = dataclasses.field(default_factory=dict)
-    constants: dict[str, tuple[NodeSpec, str]] = dataclasses.field(default_factory=dict)
-    #: Entries a node of unknown type uses: whether it writes them is unknown, so no
-    #: follow-up error is reported for them.
-    unsure: set[str] = dataclasses.field(default_factory=set)
 
 
 def literal(text: str, tp: Any) -> Any:
@@ -186,15 +165,24 @@ class ElementReader:
             if not kind:
                 self.fail(el.line, f"<{el.tag}> without an ID naming its node type")
                 return None
-        for key in _SCRIPTS.intersection(attrs):
-            self.fail(el.line, f"<{el.tag}> attribute {key!r}: btcap has no scripting language")
-            del attrs[key]
+        conditions = take_conditions(el, attrs, self.fail)
         default = attrs.get("ID") or kind.rsplit(".", 1)[-1]  # acme.Grasp: Grasp
         name = self._name(attrs.pop("name", "") or default, el, taken)
         if name is None:
             return None
         path = name if parent is None else f"{parent}/{name}"
         self.node_lines[(scope.tree, path)] = el.line
+        if not conditions:
+            return self._build(el, attrs, kind, name, path, scope)
+        for code in conditions.values():
+            scope.add_script(parse(code), path, el.line, self.registry.script_enums)
+        self.node_lines[(scope.tree, f"{path}/{name}")] = el.line
+        inner = self._build(el, attrs, kind, name, f"{path}/{name}", scope)
+        return wrap(inner, name, conditions)
+
+    def _build(
+        self, el: XmlElement, attrs: dict[str, str], kind: str, name: str, path: str, scope: Scope
+    ) -> NodeSpec | None:
         if kind == "SubTree":
             return self.subtree(el, attrs, name, path, scope)
         kids: list[NodeSpec] = []
@@ -217,6 +205,9 @@ class ElementReader:
         if std is not None:
             options = self._standard(el, attrs, kind)
             spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
+            for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
+                if code is not None:
+                    scope.add_script(parse(code), path, el.line, self.registry.script_enums)
         elif kind in BTCPP_BUILTINS:
             self.fail(
                 el.line,

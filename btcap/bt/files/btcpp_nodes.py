@@ -20,6 +20,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
+from btcap.bt.scripting import ScriptSyntaxError, parse
 from btcap.errors import BtcapError
 
 __all__ = [
@@ -95,6 +96,24 @@ def _no_skip(text: str) -> None:
         )
 
 
+def script_code(text: str) -> str:
+    """A script, parsed now so a syntax error names its column (nodes parse it once more
+    from the cache)."""
+    try:
+        parse(text)
+    except ScriptSyntaxError as exc:
+        raise MappingError(f"{exc} in script {text!r}") from None
+    return text
+
+
+def _else(text: str) -> str:
+    if text not in ("SUCCESS", "FAILURE", "RUNNING"):
+        raise MappingError(
+            f"expected SUCCESS, FAILURE or RUNNING, got {text!r} (btcap has no SKIPPED)"
+        )
+    return text
+
+
 @dataclasses.dataclass(frozen=True)
 class Standard:
     """A standard node: the btcap type, and per attribute the btcap option and converter.
@@ -133,6 +152,12 @@ DIFFERENCES: dict[str, str] = {
     "resets it: WhileDoElse's condition while a branch runs, IfThenElse's after it failed "
     "without an else branch. A btcap leaf runs on every tick it gets. Condition nodes "
     "and synchronous actions run on every tick in both.",
+    "script_errors": "Scripts follow BehaviorTree.CPP 4.8's grammar, types and "
+    "conversions (docs/btcpp.md, Scripts). A script that fails while running (an entry "
+    "without a value, a conversion refused) fails its node with the reason, where "
+    "BehaviorTree.CPP throws out of the tick; a syntax error, or an assignment to "
+    "something other than an entry, is refused when the file loads, where "
+    "BehaviorTree.CPP refuses it when the tree is created or ticked.",
     "parallel_decides_per_child": "BehaviorTree.CPP's Parallel checks its thresholds after "
     "each child and stops ticking once decided (success checked first); btcap's ticks "
     "every unfinished child, then decides (failure wins a tie). They differ only when "
@@ -190,14 +215,23 @@ STANDARD: dict[str, Standard] = {
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
     "Sleep": Standard("Wait", {"msec": ("seconds", _seconds)}, ("msec",)),
+    "Script": Standard(
+        "Script", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)
+    ),
+    "ScriptCondition": Standard(
+        "ScriptCondition", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)
+    ),
+    "Precondition": Standard(
+        "ScriptPrecondition",
+        {"if": ("if", script_code), "else": ("else", _else)},
+        ("if",),
+        differs=("script_errors",),
+    ),
 }
 
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {
     "WasEntryUpdated": "btcap has no blackboard update stamps",
-    "Script": "btcap has no scripting language; use a node type of your own",
-    "ScriptCondition": "btcap has no scripting language; use Compare or a node of your own",
-    "Precondition": "btcap has no scripting language; use WhileDoElse with a condition node",
     "UnsetBlackboard": "btcap's blackboard entries keep their last value; nothing unsets one",
     "TryCatch": "btcap has no node that runs a cleanup child after its "
     "others failed or were halted; use Fallback(Sequence(...), Sequence(cleanup, AlwaysFailure))",

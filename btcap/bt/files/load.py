@@ -73,7 +73,9 @@ def _load(
     finally:
         for text in translator.warnings:
             warnings.warn(text, TreeFileWarning, stacklevel=4)
-    boards = Boards(translator.boards, translator.main, entries or {})
+    boards = Boards(
+        translator.boards, translator.main, entries or {}, translator.registry.script_enums
+    )
     try:
         return Builder(spec, where, translator.registry, base, stack, {}, boards).build_main(clock)
     except TreeFileError as exc:

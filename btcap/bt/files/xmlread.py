@@ -1,6 +1,8 @@
 """A small, safe XML reader that keeps the line of every element, for error messages.
 
-Built on the standard library's expat parser. Tree files come from other people, so
+Built on the standard library's expat parser. Like tinyxml2, which BehaviorTree.CPP
+reads its files with, it takes a raw ``&`` or ``<`` in an attribute value as itself
+(scripts write ``a > 1 && b``). Tree files come from other people, so
 document type declarations are refused outright (no entity expansion, no external
 entities: what defusedxml forbids), and the text is parsed without fetching anything.
 """
@@ -8,6 +10,7 @@ entities: what defusedxml forbids), and the text is parsed without fetching anyt
 from __future__ import annotations
 
 import dataclasses
+import re
 from typing import Any
 from xml.parsers import expat
 
@@ -32,6 +35,39 @@ class XmlElement:
     children: list[XmlElement] = dataclasses.field(default_factory=list)
     text: str = ""
     where: str = ""
+
+
+#: Comments, CDATA, processing instructions (left alone) and start tags (attributes fixed).
+_MARKUP = re.compile(
+    r"<!--.*?-->|<!\[CDATA\[.*?\]\]>|<\?.*?\?>"
+    r"|<[A-Za-z_:][\w:.-]*(?:\s+[^\s=/>]+\s*=\s*(?:\"[^\"]*\"|'[^']*'))*\s*/?>",
+    re.DOTALL,
+)
+_QUOTED = re.compile(r"\"[^\"]*\"|'[^']*'")
+_RAW = re.compile(r"&(?!(?:amp|lt|gt|quot|apos|#[0-9]+|#x[0-9a-fA-F]+);)|<")
+
+
+def _escape_raw(m: re.Match[str]) -> str:
+    return "&amp;" if m.group() == "&" else "&lt;"
+
+
+def _lenient(text: str) -> str:
+    """``text`` with a raw ``&`` or ``<`` inside attribute values escaped.
+
+    BehaviorTree.CPP reads its files with tinyxml2, which keeps such characters as they
+    are (its tutorials write ``code="a > 1 && b"``); XML parsers refuse them. Only
+    attribute values change, and no line moves.
+    """
+
+    def tag(m: re.Match[str]) -> str:
+        markup = m.group()
+        if not markup.startswith("<") or markup[1] in "!?":
+            return markup
+        return _QUOTED.sub(
+            lambda q: q.group()[0] + _RAW.sub(_escape_raw, q.group()[1:-1]) + q.group()[0], markup
+        )
+
+    return _MARKUP.sub(tag, text)
 
 
 class _Refused(Exception):
@@ -72,6 +108,10 @@ def read_xml(data: bytes | str, where: str) -> XmlElement:
     parser.CharacterDataHandler = text
     parser.StartDoctypeDeclHandler = refuse
     parser.EntityDeclHandler = refuse
+    if isinstance(data, bytes) and ("&" in (raw := data.decode("latin-1")) or "<" in raw):
+        data = _lenient(raw).encode("latin-1")  # latin-1 maps every byte to itself
+    elif isinstance(data, str):
+        data = _lenient(data)
     try:
         parser.Parse(data, True)
     except _Refused as exc:

@@ -36,6 +36,7 @@ KNOWN_DIFFERENCES = {
     "loop_after_running",
     "memory_reset_by_retry",
     "parallel_decides_per_child",
+    "script_errors",  # shown in tests/btcap/bt/test_scripting.py
 }
 
 

@@ -492,14 +492,14 @@ ERRORS = [
         "<Wiggle>: unknown node type 'Wiggle' (1 element, line 4): register it (--load MODULE)",
     ),
     (
-        _xml('<BehaviorTree ID="Main">\n<Script code="x:=1"/>\n</BehaviorTree>'),
+        _xml('<BehaviorTree ID="Main">\n<Script code="x:=1;"/>\n</BehaviorTree>'),
         3,
-        "btcap has no scripting language",
+        "<Script> attribute 'code': column 5: unexpected trailing separator",
     ),
     (
         _xml('<BehaviorTree ID="Main">\n<AlwaysSuccess _skipIf="x"/>\n</BehaviorTree>'),
         3,
-        "attribute '_skipIf': btcap has no scripting language",
+        "attribute '_skipIf': it makes the node SKIPPED, a state btcap does not have",
     ),
     (
         _xml('<BehaviorTree ID="Main">\n<Timeout><AlwaysSuccess/></Timeout>\n</BehaviorTree>'),
