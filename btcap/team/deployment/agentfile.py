@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
+from btcap.team.rossettings import RosSettings
 from btcap.team.settings import Allocation, Timing
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "Keys",
     "Network",
     "Plugin",
+    "RosSettings",
     "Seed",
     "Timing",
 ]
@@ -160,4 +162,10 @@ class AgentFile(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     )
     plugin: Annotated[
         Plugin | None, _doc("Python code run beside the capability files; null: none.")
+    ] = None
+    ros: Annotated[
+        RosSettings | None,
+        _doc(
+            "The robot's ROS 2 node (docs/ros2.md); null: no ROS, and nothing of ROS is imported."
+        ),
     ] = None

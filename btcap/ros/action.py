@@ -1,0 +1,244 @@
+"""RosAction: a ROS 2 action goal as a tree node, BehaviorTree.ROS2's RosActionNode in
+btcap's terms.
+
+Inputs are the Goal's fields, typed from the interface (as ros_bt_py does); outputs are
+the Result's fields and, prefixed ``feedback_``, the latest Feedback's, copied at each
+tick while the goal runs. The node never waits: the goal is sent with rclpy's
+``send_goal_async`` and the answers arrive on the bridge's executor thread, which only
+records them in the goal's :class:`_Goal`; the tick reads them. Halting cancels the goal,
+also when the server has not accepted it yet (the answer, when it comes, is cancelled
+then: the race BehaviorTree.ROS2 #18/#53 and Nav2 #6426 report); halting twice does
+nothing more. Every way to fail says why in ``node.error``; no timeout is a success.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any, ClassVar
+
+from btcap.bt.ports import Port, normalize_ports
+from btcap.bt.state import State
+from btcap.ros.base import RosLeaf, now, seconds
+from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
+
+__all__ = ["FEEDBACK_PREFIX", "RosAction"]
+
+_RUNNING = State.RUNNING
+_SUCCEEDED = State.SUCCEEDED
+
+#: action_msgs/GoalStatus codes of a goal's end, by name.
+_ENDS = {4: "succeeded", 5: "canceled", 6: "aborted"}
+_REJECTED = -1
+
+FEEDBACK_PREFIX = "feedback_"
+
+
+class _Goal:
+    """One goal's answers, written by the executor thread, read by the tick."""
+
+    __slots__ = (
+        "bridge",
+        "error",
+        "feedback",
+        "feedback_at",
+        "feedback_seen",
+        "halted",
+        "handle",
+        "lock",
+        "result",
+        "sent_at",
+        "status",
+    )
+
+    def __init__(self, bridge: Any) -> None:
+        self.bridge = bridge
+        self.lock = threading.Lock()
+        self.handle: Any = None
+        self.halted = False
+        self.status: int | None = None
+        self.result: Any = None
+        self.error: str | None = None
+        self.feedback: Any = None
+        self.feedback_at = 0.0
+        self.feedback_seen: Any = None
+        self.sent_at = now()
+
+    # executor thread
+    def on_response(self, future: Any) -> None:
+        try:
+            handle = future.result()
+        except Exception as exc:
+            self.error = f"the goal request failed: {exc}"
+            return
+        if handle is None or not handle.accepted:
+            self.status = _REJECTED
+            return
+        with self.lock:
+            self.handle = handle
+            self.feedback_at = now()
+            cancel = self.halted
+        self.bridge.track(handle)
+        if cancel:  # halted before the server accepted: cancel it now
+            handle.cancel_goal_async()
+            self.bridge.untrack(handle)
+            return
+        handle.get_result_async().add_done_callback(self.on_result)
+
+    def on_result(self, future: Any) -> None:
+        try:
+            answer = future.result()
+        except Exception as exc:
+            self.error = f"the result request failed: {exc}"
+            return
+        self.result = answer.result
+        self.status = answer.status
+        self.bridge.untrack(self.handle)
+
+    def on_feedback(self, message: Any) -> None:
+        self.feedback = message.feedback
+        self.feedback_at = now()
+
+    # tick thread
+    def halt(self) -> None:
+        """Cancel the goal (now if accepted, else as soon as it is); once."""
+        with self.lock:
+            if self.halted:
+                return
+            self.halted = True
+            handle = self.handle
+        if handle is not None and self.status is None:
+            handle.cancel_goal_async()
+            self.bridge.untrack(handle)
+
+
+class RosAction(RosLeaf):
+    """Sends a goal to a ROS 2 action server and runs until its result.
+
+    SUCCEEDED when the goal succeeds (the Result's fields in the outputs); FAILED, with
+    the reason in ``error``, when it is aborted, canceled by the server or rejected, when
+    no server answers within ``server_timeout`` (seconds), when ``feedback_timeout`` passes
+    without feedback, or when the server leaves the graph mid-goal.
+    """
+
+    __slots__ = ("_goal", "_types", "_waiting_since")
+    KIND: ClassVar[str] = "action"
+    OPTIONS: ClassVar[dict[str, Any]] = {
+        "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
+        "action_name": Port(str, description="resolved in the robot's namespace"),
+        "server_timeout": seconds("how long to wait for the server and its goal answer", 1.0),
+        "wait_for_server_timeout": seconds(
+            "how long to wait for the server to appear; null: server_timeout", None
+        ),
+        "feedback_timeout": seconds("fail after this long without feedback; null: never", None),
+    }
+
+    def declare_ports(self) -> None:
+        cls = interface(self.options["action_type"], "action")
+        self._types = cls
+        goal = field_types(cls.Goal)
+        self.input_ports = normalize_ports(
+            {k: Port(port_type(t) | None, None, f"Goal field ({t})") for k, t in goal.items()},
+            f"{self.name}.inputs",
+        )
+        outs = {k: Port(port_type(t) | None, None, f"Result ({t})") for k, t in _fields(cls.Result)}
+        for k, t in _fields(cls.Feedback):
+            outs[FEEDBACK_PREFIX + k] = Port(port_type(t) | None, None, f"latest Feedback ({t})")
+        self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
+        self._goal: _Goal | None = None
+        self._waiting_since: float | None = None
+
+    @property
+    def action_name(self) -> str:
+        return self.bridge.resolve(self.options["action_name"])
+
+    def _what(self) -> str:
+        return f"action {self.action_name} ({self.options['action_type']})"
+
+    def on_tick(self) -> State:
+        goal = self._goal
+        if goal is None:
+            return self._send()
+        fb = goal.feedback
+        if fb is not None and fb is not goal.feedback_seen:
+            goal.feedback_seen = fb
+            outputs = self.outputs
+            for k, v in to_plain(fb).items():
+                outputs[FEEDBACK_PREFIX + k] = v
+        if goal.status is not None:
+            return self._finish(goal)
+        if goal.error is not None:
+            self._goal = None
+            return self.failed(f"{self._what()}: {goal.error}")
+        t = now()
+        if goal.handle is None:
+            if t - goal.sent_at > self.options["server_timeout"]:
+                self._stop()
+                return self.failed(
+                    f"{self._what()}: no answer to the goal within server_timeout "
+                    f"{self.options['server_timeout']} s"
+                )
+            return _RUNNING
+        limit = self.options["feedback_timeout"]
+        if limit is not None and t - goal.feedback_at > limit:
+            self._stop()
+            return self.failed(f"{self._what()}: no feedback for feedback_timeout {limit} s")
+        if not self.bridge.action_client(
+            self.options["action_type"], self.options["action_name"]
+        ).server_is_ready():
+            self._stop()
+            return self.failed(f"{self._what()}: the server left during the goal")
+        return _RUNNING
+
+    def _send(self) -> State:
+        bridge = self.bridge
+        client = bridge.action_client(self.options["action_type"], self.options["action_name"])
+        if not client.server_is_ready():
+            t = now()
+            if self._waiting_since is None:
+                self._waiting_since = t
+            limit = self.options["wait_for_server_timeout"] or self.options["server_timeout"]
+            if t - self._waiting_since > limit:
+                self._waiting_since = None
+                return self.failed(f"{self._what()}: no server after {limit} s")
+            return _RUNNING
+        self._waiting_since = None
+        msg = fill(self._types.Goal, self.inputs, f"{self._what()} goal")
+        goal = self._goal = _Goal(bridge)
+        outputs = self.outputs
+        for k in outputs:
+            outputs[k] = None
+        future = client.send_goal_async(msg, feedback_callback=goal.on_feedback)
+        future.add_done_callback(goal.on_response)
+        return _RUNNING
+
+    def _finish(self, goal: _Goal) -> State:
+        self._goal = None
+        status = goal.status
+        if status == 4:
+            outputs = self.outputs
+            for k, v in to_plain(goal.result).items():
+                outputs[k] = v
+            return _SUCCEEDED
+        if status == _REJECTED:
+            return self.failed(f"{self._what()}: the goal was rejected by the server")
+        end = _ENDS.get(status or 0, f"ended with status {status}")
+        return self.failed(f"{self._what()}: the goal was {end}")
+
+    def _stop(self) -> None:
+        goal, self._goal = self._goal, None
+        self._waiting_since = None
+        if goal is not None:
+            goal.halt()
+
+    def on_untick(self) -> None:
+        self._stop()
+
+    def on_reset(self) -> None:
+        self._stop()
+
+    def on_shutdown(self) -> None:
+        self._stop()
+
+
+def _fields(cls: Any) -> list[tuple[str, str]]:
+    return list(field_types(cls).items())

@@ -1,0 +1,243 @@
+"""The robot's ROS 2 client: one rclpy node on an executor thread of its own.
+
+The tree never waits on ROS: nodes call rclpy's non-blocking calls (``send_goal_async``,
+``call_async``, ``publish``) from the tick, and rclpy's callbacks run on the bridge's
+executor thread, where they only store what arrived (a result, the latest feedback or
+message) for the next tick to read. Nothing crosses into the event loop, so a 1 kHz
+feedback stream costs the loop nothing; :meth:`RosBridge.start` (imports, discovery) runs
+in a worker thread when awaited. :meth:`RosBridge.close` cancels the goals still open,
+destroys the node and joins the thread: nothing of ROS is left running.
+
+Names resolve in the robot's namespace (``navigate_to_pose`` -> ``/husky1/navigate_to_pose``),
+as rclpy does for relative names of a node in that namespace; an absolute name is kept.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from types import TracebackType
+from typing import Any
+
+import anyio
+
+from btcap.actors import ActorSystem, Service
+from btcap.ros.errors import RosError
+from btcap.ros.interfaces import interface
+from btcap.ros.loader import load
+from btcap.team.rossettings import Qos, RosSettings, check_namespace
+
+__all__ = ["ROS_BRIDGE", "RosBridge"]
+
+#: The service under which a robot's actor system holds its bridge; nodes find it there.
+ROS_BRIDGE: Service[RosBridge] = Service("ros-bridge")
+
+#: How long start() watches the graph for another node with the same name (discovery).
+CLAIM_WAIT_S = 0.5
+
+
+class RosBridge:
+    """One robot's rclpy node, context and executor thread.
+
+    ``RosBridge(settings, robot="husky1")`` joins domain ``settings.domain_id`` as node
+    ``/husky1/btcap``. Use ``async with`` (or :meth:`start` and :meth:`close`); give it to
+    a tree's actor system with :meth:`provide` so ROS nodes built from files find it.
+    """
+
+    def __init__(self, settings: RosSettings | None = None, *, robot: str = "") -> None:
+        self.settings = settings if settings is not None else RosSettings()
+        if self.settings.namespace is None and not robot:
+            self.namespace = "/"
+        else:
+            self.namespace = self.settings.namespace_of(robot)
+        self.rclpy: Any = None
+        self.node: Any = None
+        self._context: Any = None
+        self._executor: Any = None
+        self._thread: threading.Thread | None = None
+        self._clients: dict[tuple[str, str, str], Any] = {}
+        self._goals: dict[int, Any] = {}
+        self._lock = threading.Lock()
+        self._closed = False
+
+    # -- life cycle ---------------------------------------------------------------
+    def start(self) -> RosBridge:
+        """Load rclpy, join the domain, make the node, start the executor thread (blocks
+        for imports and a short graph check: await :meth:`__aenter__` from a loop)."""
+        if self.node is not None:
+            return self
+        if self._closed:
+            raise RosError("this RosBridge was closed; make a new one")
+        rclpy = self.rclpy = load()
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+
+        context = self._context = Context()
+        rclpy.init(context=context, domain_id=self.settings.domain_id)
+        try:
+            self.node = rclpy.create_node(
+                self.settings.node_name, namespace=self.namespace, context=context
+            )
+            self._executor = SingleThreadedExecutor(context=context)
+            self._executor.add_node(self.node)
+            self._thread = threading.Thread(
+                target=self._spin, name=f"btcap-ros{self.fqn}", daemon=True
+            )
+            self._thread.start()
+            self._check_claim()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    @property
+    def fqn(self) -> str:
+        """The node's fully qualified name (``/husky1/btcap``)."""
+        return f"{self.namespace.rstrip('/')}/{self.settings.node_name}"
+
+    def _spin(self) -> None:
+        executor = self._executor
+        try:
+            executor.spin()
+        except Exception:  # the context was shut down under it: closing
+            if not self._closed:
+                raise
+
+    def _check_claim(self) -> None:
+        """RosError if another node already has this node's name in the graph: two
+        robots would otherwise share one namespace's actions and topics unseen."""
+        deadline = time.monotonic() + CLAIM_WAIT_S
+        while True:
+            names = self.node.get_node_names_and_namespaces()
+            same = [n for n, ns in names if n == self.settings.node_name and ns == self.namespace]
+            if len(same) > 1:
+                raise RosError(
+                    f"ros.namespace: {self.namespace!r} is already claimed by another node "
+                    f"named {self.fqn!r} on ROS domain {self.domain_id}; give each robot its "
+                    "own namespace"
+                )
+            if time.monotonic() >= deadline:
+                return
+            time.sleep(0.05)
+
+    @property
+    def domain_id(self) -> int:
+        return int(self._context.get_domain_id()) if self._context is not None else -1
+
+    def close(self) -> None:
+        """Cancel open goals, destroy the node, stop and join the executor thread, leave
+        the domain. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        with self._lock:
+            goals, self._goals = list(self._goals.values()), {}
+        for handle in goals:
+            with contextlib.suppress(Exception):  # the server may be gone: nothing to cancel
+                handle.cancel_goal_async()
+        if self._executor is not None:
+            self._executor.shutdown(timeout_sec=2.0)
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        if self.node is not None:
+            for (kind, _, _), client in self._clients.items():
+                if kind == "action":
+                    client.destroy()
+                else:
+                    self.node.destroy_client(client)
+            self._clients.clear()
+            self.node.destroy_node()
+        if self._context is not None and self._context.ok():
+            self.rclpy.shutdown(context=self._context)
+        self.node = None
+
+    async def __aenter__(self) -> RosBridge:
+        await anyio.to_thread.run_sync(self.start)
+        return self
+
+    async def __aexit__(
+        self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        await anyio.to_thread.run_sync(self.close)
+
+    # -- finding it ---------------------------------------------------------------
+    def provide(self, system: ActorSystem) -> None:
+        """Let the ROS nodes of trees on ``system`` use this bridge."""
+        system.services.provide(ROS_BRIDGE, self)
+
+    @staticmethod
+    def of(system: ActorSystem | None) -> RosBridge | None:
+        return None if system is None else system.services.get(ROS_BRIDGE)
+
+    # -- what nodes use -----------------------------------------------------------
+    def running(self) -> Any:
+        """The rclpy node; RosError when the bridge is not started or closed."""
+        if self.node is None:
+            state = "closed" if self._closed else "not started"
+            raise RosError(f"ROS bridge {self.fqn}: {state}")
+        return self.node
+
+    def resolve(self, name: str) -> str:
+        """``name`` in the robot's namespace (``/husky1/navigate_to_pose``)."""
+        if not name:
+            raise RosError("empty ROS name: expected an action, service or topic name")
+        if name.startswith("/"):
+            return check_namespace(name, "ROS name") if name != "/" else name
+        if name.startswith("~"):
+            name = f"{self.settings.node_name}{name[1:]}"
+        return check_namespace(f"{self.namespace.rstrip('/')}/{name}", "ROS name")
+
+    def qos(self, qos: Qos | None = None) -> Any:
+        """An rclpy QoSProfile from ``qos`` (the settings' default when None)."""
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        q = qos if qos is not None else self.settings.qos
+        return QoSProfile(
+            depth=q.depth,
+            reliability=ReliabilityPolicy.RELIABLE
+            if q.reliability == "reliable"
+            else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL
+            if q.durability == "transient_local"
+            else DurabilityPolicy.VOLATILE,
+        )
+
+    def action_client(self, type_name: str, name: str) -> Any:
+        """The (shared) ActionClient of action ``name`` of type ``type_name``."""
+        key = ("action", type_name, self.resolve(name))
+        client = self._clients.get(key)
+        if client is None:
+            from rclpy.action import ActionClient
+
+            cls = interface(type_name, "action")
+            client = self._clients[key] = ActionClient(self.running(), cls, key[2])
+        return client
+
+    def service_client(self, type_name: str, name: str) -> Any:
+        """The (shared) service client of ``name`` of type ``type_name``."""
+        key = ("service", type_name, self.resolve(name))
+        client = self._clients.get(key)
+        if client is None:
+            cls = interface(type_name, "srv")
+            client = self._clients[key] = self.running().create_client(cls, key[2])
+        return client
+
+    def server_ready(self, kind: str, type_name: str, name: str) -> bool:
+        """Whether an action (``kind="action"``) or service server answers ``name`` now."""
+        if kind == "action":
+            return bool(self.action_client(type_name, name).server_is_ready())
+        return bool(self.service_client(type_name, name).service_is_ready())
+
+    def track(self, handle: Any) -> None:
+        """A goal to cancel if the bridge closes while it is open."""
+        with self._lock:
+            self._goals[id(handle)] = handle
+
+    def open_goals(self) -> int:
+        """How many goals are open (sent, accepted, no result yet)."""
+        return len(self._goals)
+
+    def untrack(self, handle: Any) -> None:
+        with self._lock:
+            self._goals.pop(id(handle), None)

@@ -1,0 +1,92 @@
+"""The ``ros:`` block of agent and scenario files: which ROS 2 graph a robot joins.
+
+Plain msgspec types, importing nothing of ROS, so the one settings schema (and ``btcap
+schema agent``) covers the block while an agent without it never loads the bridge
+(:mod:`btcap.ros`, which reads these settings when the block is there). Names follow
+ROS 2's rules, checked here so a bad one is refused as the file is read, naming the field.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Literal
+
+import msgspec
+
+__all__ = ["Qos", "RosSettings", "check_namespace", "check_node_name"]
+
+_TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
+_NAMESPACE = re.compile(rf"^(/{_TOKEN})+$|^/$")
+_NODE = re.compile(rf"^{_TOKEN}$")
+
+
+def _doc(text: str) -> msgspec.Meta:
+    return msgspec.Meta(description=text)
+
+
+def check_namespace(value: str, where: str = "namespace") -> str:
+    """``value`` if it is an absolute ROS 2 namespace (``/husky1``), else ValueError."""
+    if not _NAMESPACE.match(value):
+        raise ValueError(
+            f"{where}: {value!r} is no ROS 2 namespace: expected '/' and names of letters, "
+            "digits and '_' not starting with a digit ('/husky1', '/team/husky1')"
+        )
+    return value
+
+
+def check_node_name(value: str, where: str = "node_name") -> str:
+    """``value`` if it is a ROS 2 node name (``btcap``), else ValueError."""
+    if not _NODE.match(value):
+        raise ValueError(
+            f"{where}: {value!r} is no ROS 2 node name: expected letters, digits and '_', "
+            "not starting with a digit"
+        )
+    return value
+
+
+class Qos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
+    """A quality-of-service profile: the defaults of a robot, or one node's own."""
+
+    reliability: Annotated[
+        Literal["reliable", "best_effort"],
+        _doc("`reliable` (resent until received) or `best_effort` (sensor data)."),
+    ] = "reliable"
+    durability: Annotated[
+        Literal["volatile", "transient_local"],
+        _doc("`volatile`, or `transient_local` (late joiners get the last `depth` messages)."),
+    ] = "volatile"
+    depth: Annotated[
+        int, msgspec.Meta(ge=1, le=10000, description="History depth (keep last).")
+    ] = 10
+
+
+class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
+    """The robot's ROS 2 node: where in the ROS graph its tree nodes live."""
+
+    domain_id: Annotated[
+        Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
+        _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
+    ] = None
+    namespace: Annotated[
+        str | None,
+        _doc(
+            "The robot's namespace: every action, service and topic name of its tree nodes "
+            "that does not start with '/' is resolved in it (`navigate_to_pose` -> "
+            "`/husky1/navigate_to_pose`); null: '/' and the robot's name."
+        ),
+    ] = None
+    node_name: Annotated[str, _doc("The name of the robot's ROS 2 node.")] = "btcap"
+    qos: Annotated[Qos, _doc("QoS of topics whose node sets none.")] = msgspec.field(
+        default_factory=Qos
+    )
+
+    def __post_init__(self) -> None:
+        if self.namespace is not None:
+            check_namespace(self.namespace)
+        check_node_name(self.node_name)
+
+    def namespace_of(self, robot: str) -> str:
+        """The namespace, ``/ROBOT`` when none is set (ValueError if that is no name)."""
+        if self.namespace is not None:
+            return self.namespace
+        return check_namespace(f"/{robot}", f"namespace (from the robot's name {robot!r})")

@@ -1,0 +1,63 @@
+"""Fixtures of the ROS 2 tests: real rclpy nodes, each test on a ROS domain of its own,
+inside the private network namespace ``make test-ros`` runs them in (tests/rosnet.py).
+
+Tests marked ``ros`` need rclpy (installed in .venv-ros, not .venv) and that namespace;
+elsewhere they skip with the reason, so `make test` in .venv skips them and `make
+test-ros` runs them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from collections.abc import AsyncIterator, Iterator
+
+import pytest
+import rosnet
+from rosservers import Servers
+
+from btcap.ros.client import RosBridge
+from btcap.team.rossettings import RosSettings
+
+_DOMAINS = rosnet.domain_ids()
+
+
+def _why_not() -> str | None:
+    if importlib.util.find_spec("rclpy") is None:
+        return "ROS 2 (rclpy) is not installed here: `make test-ros` runs these in .venv-ros"
+    return rosnet.private()
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    why = _why_not()
+    if why is None:
+        return
+    for item in items:
+        if item.get_closest_marker("ros") is not None:
+            item.add_marker(pytest.mark.skip(reason=why))
+
+
+@pytest.fixture
+def servers(ros_domain: int) -> Iterator[Servers]:
+    """The test servers (rosservers.py) in namespace /husky1."""
+    with Servers("/husky1", domain_id=ros_domain) as s:
+        yield s
+
+
+@pytest.fixture
+async def bridge(ros_domain: int) -> AsyncIterator[RosBridge]:
+    """Robot husky1's bridge (namespace /husky1), closed after the test."""
+    async with RosBridge(RosSettings(domain_id=ros_domain), robot="husky1") as b:
+        yield b
+    assert b.node is None
+
+
+@pytest.fixture
+def ros_domain(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+    """A ROS_DOMAIN_ID no other test of this run uses at the same time; exported, so
+    server processes a test starts join it."""
+    domain = next(_DOMAINS)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.delenv("ROS_NAMESPACE", raising=False)
+    yield domain
+    assert os.environ["ROS_DOMAIN_ID"] == str(domain)
