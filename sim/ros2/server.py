@@ -14,6 +14,7 @@ import asyncio
 import concurrent.futures
 import math
 import threading
+from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
@@ -103,6 +104,9 @@ class _RobotServer:
         # As the manager last said (the event loop writes, executions read: plain values).
         self.cell: Cell = start
         self.phase = ""
+        #: Goals taken per action (navigate_to_pose, explore, ...), for a run's record.
+        self.served: Counter[str] = Counter()
+        self._lock = threading.Lock()
         group = ReentrantCallbackGroup()
         accept: Callable[[Any], CancelResponse] = lambda _: CancelResponse.ACCEPT  # noqa: E731
         self.servers = [
@@ -149,6 +153,10 @@ class _RobotServer:
         )
 
     # -- executions, on the executor's threads ----------------------------------------
+    def _count(self, action: str) -> None:
+        with self._lock:
+            self.served[action] += 1
+
     def _wait(
         self, goal: Any, answer: concurrent.futures.Future[SimResult], feedback: Callable[[], None]
     ) -> SimResult | None:
@@ -169,6 +177,7 @@ class _RobotServer:
     def _navigate(self, goal: Any) -> Any:
         p = goal.request.pose.pose.position
         target = cell_of(p.x, p.y, self.cell_size_m)
+        self._count("navigate_to_pose")
         answer = self.manager.ask(MoveTo(self.robot, target))
         told: list[Cell] = []
 
@@ -195,6 +204,7 @@ class _RobotServer:
 
     def _operation(self, op: str) -> Callable[[Any], Any]:
         def execute(goal: Any) -> Any:
+            self._count(op)
             answer = self.manager.ask(Operate(self.robot, op, int(goal.request.target)))
             told: list[str] = []
 
@@ -281,6 +291,10 @@ class SimServers:
         server = self.robots.get(msg.robot)
         if server is not None and self.context.ok():
             server.publish(msg)
+
+    def served(self) -> dict[str, dict[str, int]]:
+        """Goals each robot's servers took, per action."""
+        return {name: dict(server.served) for name, server in self.robots.items()}
 
     def close(self) -> None:
         """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
