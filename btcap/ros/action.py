@@ -16,7 +16,7 @@ from __future__ import annotations
 import threading
 from typing import Any, ClassVar
 
-from btcap.bt.ports import Port, normalize_ports
+from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import RosLeaf, now, seconds
 from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
@@ -140,9 +140,9 @@ class RosAction(RosLeaf):
             {k: Port(port_type(t) | None, None, f"Goal field ({t})") for k, t in goal.items()},
             f"{self.name}.inputs",
         )
-        outs = {k: Port(port_type(t) | None, None, f"Result ({t})") for k, t in _fields(cls.Result)}
+        outs = {k: Port(port_type(t), NO_DEFAULT, f"Result ({t})") for k, t in _fields(cls.Result)}
         for k, t in _fields(cls.Feedback):
-            outs[FEEDBACK_PREFIX + k] = Port(port_type(t) | None, None, f"latest Feedback ({t})")
+            outs[FEEDBACK_PREFIX + k] = Port(port_type(t), NO_DEFAULT, f"latest Feedback ({t})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._goal: _Goal | None = None
         self._waiting_since: float | None = None

@@ -58,6 +58,7 @@ class RosBridge:
         self._thread: threading.Thread | None = None
         self._clients: dict[tuple[str, str, str], Any] = {}
         self._goals: dict[int, Any] = {}
+        self._latest: dict[tuple[str, str], list[Any]] = {}
         self._lock = threading.Lock()
         self._closed = False
 
@@ -113,7 +114,7 @@ class RosBridge:
             same = [n for n, ns in names if n == self.settings.node_name and ns == self.namespace]
             if len(same) > 1:
                 raise RosError(
-                    f"ros.namespace: {self.namespace!r} is already claimed by another node "
+                    f"namespace {self.namespace!r} is already claimed by another node "
                     f"named {self.fqn!r} on ROS domain {self.domain_id}; give each robot its "
                     "own namespace"
                 )
@@ -228,6 +229,23 @@ class RosBridge:
         if kind == "action":
             return bool(self.action_client(type_name, name).server_is_ready())
         return bool(self.service_client(type_name, name).service_is_ready())
+
+    def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
+        """The latest message of ``topic`` and when it came (``time.monotonic``), or None
+        before the first; the subscription starts at the first call and lasts as long as
+        the bridge. For cost functions that read a topic (a robot's pose)."""
+        key = (type_name, self.resolve(topic))
+        box = self._latest.get(key)
+        if box is None:
+            box = self._latest[key] = [None]
+
+            def store(message: Any, box: list[Any] = box) -> None:  # executor thread
+                box[0] = (message, time.monotonic())
+
+            cls = interface(type_name, "msg")
+            self.running().create_subscription(cls, key[1], store, self.qos())
+        latest: tuple[Any, float] | None = box[0]
+        return latest
 
     def track(self, handle: Any) -> None:
         """A goal to cancel if the bridge closes while it is open."""

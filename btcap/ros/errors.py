@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from btcap.errors import BtcapError
+from btcap.bt.state import TreeError
 
 __all__ = ["INSTALL_HINT", "RosError", "RosMissing"]
 
@@ -14,8 +14,9 @@ INSTALL_HINT = (
 )
 
 
-class RosError(BtcapError, RuntimeError):
-    """A ROS interface, name or call that cannot work, said in one line."""
+class RosError(TreeError, RuntimeError):
+    """A ROS interface, name or call that cannot work, said in one line. A TreeError, so
+    the tree and capability file loaders report a bad interface naming the file."""
 
 
 class RosMissing(RosError, ImportError):

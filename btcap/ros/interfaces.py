@@ -15,10 +15,12 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+import msgspec
+
 from btcap.ros.errors import RosError
 from btcap.ros.loader import load
 
-__all__ = ["field_types", "fill", "interface", "port_type", "to_plain"]
+__all__ = ["check_field", "field_types", "fill", "interface", "port_type", "to_plain"]
 
 _KINDS = ("msg", "srv", "action")
 _NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)$")
@@ -88,6 +90,35 @@ def port_type(ros_type: str) -> Any:
     return dict[str, Any]
 
 
+def _int_bounds(ros_type: str) -> tuple[int, int] | None:
+    if ros_type in ("byte", "char", "octet"):
+        return (0, 255)
+    m = re.fullmatch(r"(u?)int(8|16|32|64)", ros_type)
+    if m is None:
+        return None
+    bits = int(m[2])
+    return (0, 2**bits - 1) if m[1] else (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
+
+
+def check_field(value: Any, ros_type: str, where: str) -> Any:
+    """``value`` as field type ``ros_type`` wants it (an int where a float is wanted
+    becomes a float); RosError naming ``where`` when it does not fit. rclpy checks field
+    types only with ROS_PYTHON_CHECK_FIELDS, and a wrong one fails deep in C otherwise."""
+    kind = port_type(ros_type)
+    if kind is dict[str, Any] or (
+        isinstance(value, list) and value and isinstance(value[0], Mapping)
+    ):
+        return value
+    try:
+        out = msgspec.convert(value, kind, strict=True)
+    except msgspec.ValidationError as exc:
+        raise RosError(f"{where}: {value!r} does not fit {ros_type} ({exc})") from None
+    bounds = _int_bounds(ros_type)
+    if bounds is not None and not bounds[0] <= out <= bounds[1]:
+        raise RosError(f"{where}: {value!r} is out of {ros_type}'s range {bounds[0]}..{bounds[1]}")
+    return out
+
+
 def fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
     """A ``msg_cls`` with ``values`` set (nested messages from dicts); RosError naming
     ``where`` and the field when a name or value does not fit."""
@@ -98,6 +129,7 @@ def fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
             continue
         if key not in types:
             raise RosError(f"{where}: no field {key!r}; fields: {', '.join(types) or 'none'}")
+        value = check_field(value, types[key], f"{where}.{key}")
         try:
             setattr(msg, key, _value(getattr(msg, key), types[key], value, f"{where}.{key}"))
         except (AssertionError, TypeError, ValueError) as exc:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.bt.ports import Port, normalize_ports
+from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import RosLeaf, now, seconds
 from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
@@ -46,7 +46,7 @@ class RosService(RosLeaf):
         )
         self.output_ports = normalize_ports(
             {
-                k: Port(port_type(t) | None, None, f"Response field ({t})")
+                k: Port(port_type(t), NO_DEFAULT, f"Response field ({t})")
                 for k, t in field_types(cls.Response).items()
             },
             f"{self.name}.outputs",

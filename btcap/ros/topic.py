@@ -13,7 +13,7 @@ from typing import Any, ClassVar
 
 from msgspec import Meta
 
-from btcap.bt.ports import Port, normalize_ports
+from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import QOS_OPTIONS, RosLeaf, now, qos_of, seconds
 from btcap.ros.errors import RosError
@@ -105,9 +105,9 @@ class RosSubscribe(RosLeaf):
                 f"node {self.name!r}: {self.options['topic_type']} has no field "
                 f"{', '.join(map(repr, unknown))}; fields: {', '.join(types)}"
             )
-        outs = {"message": Port(dict[str, Any] | None, None, "the latest message")}
+        outs = {"message": Port(dict[str, Any], NO_DEFAULT, "the latest message")}
         for f in chosen:
-            outs[f] = Port(port_type(types[f]) | None, None, f"field ({types[f]})")
+            outs[f] = Port(port_type(types[f]), NO_DEFAULT, f"field ({types[f]})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._subscription: Any = None
         self._latest: tuple[Any, float] | None = None

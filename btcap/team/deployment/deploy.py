@@ -11,6 +11,7 @@ import time
 from collections.abc import AsyncIterator, Callable, Iterable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ from btcap.bt.files import load_tree
 from btcap.bt.registry import NodeRegistry
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
+from btcap.errors import BtcapError
 from btcap.team.capabilities.capability import Capability
 from btcap.team.core.effects import Lost
 from btcap.team.deployment.agentconfig import RobotConfig
@@ -54,7 +56,48 @@ async def open_agent(
     once. ``robot``/``ephemeral``/``implementations=False`` make a short-lived observer or
     operator from the same file; ``insecure`` allows a keyless bind other hosts can
     reach."""
+    ros = _ros_side(config, robot or config.robot) if implementations else None
+    if ros is not None:
+        ros.register(registry)
+        try:
+            await ros.start()
+        except BtcapError as exc:  # ROS missing, a namespace taken: one line, the field
+            raise config.error("ros", str(exc)) from None
+    try:
+        async with _serving(
+            config, registry, ros, robot, implementations, ephemeral, insecure
+        ) as agent:
+            yield agent
+    finally:
+        if ros is not None:
+            await ros.close()
+
+
+def _ros_side(config: RobotConfig, robot: str) -> Any | None:
+    """The ROS side of an agent whose file has a ``ros:`` block (btcap/ros/agent.py,
+    through the ``btcap.ros`` entry point: nothing of it is imported otherwise)."""
+    settings = config.spec.ros
+    if settings is None:
+        return None
+    found = list(metadata.entry_points(group="btcap.ros", name="agent"))
+    if not found:
+        raise config.error("ros", "the ROS bridge (btcap.ros) is not installed with btcap")
+    return found[0].load()(settings, robot)
+
+
+@asynccontextmanager
+async def _serving(
+    config: RobotConfig,
+    registry: NodeRegistry,
+    ros: Any | None,
+    robot: str | None,
+    implementations: bool,
+    ephemeral: bool,
+    insecure: bool,
+) -> AsyncIterator[Agent]:
     _, impls = config.load_capabilities(registry, implementations=implementations)
+    if ros is not None:
+        impls = ros.wrap(impls)
     plugged = config.load_plugin(factory=implementations)
     messages = plugged.messages
     transport = config.transport(messages, robot=robot, ephemeral=ephemeral, insecure=insecure)
@@ -67,6 +110,8 @@ async def open_agent(
         registry=messages,
         actors=plugged.actors,
     )
+    if ros is not None:
+        ros.attach(agent.system)
     try:
         async with agent:
             yield agent

@@ -11,8 +11,9 @@ Fibonacci actions (test_msgs/action/Fibonacci) under the namespace:
 - ``fibonacci_stream``: feedback at ~1 kHz for ``order`` ms, then succeeds.
 
 Services (std_srvs/srv/SetBool): ``set_bool`` answers ``success=data``; ``set_bool_slow``
-answers after ``SLOW_S``. Topic: ``echo_out`` repeats what comes in on ``echo_in``
-(std_msgs/msg/String). ``events`` records what the servers saw (accepted, canceled ...).
+answers after ``SLOW_S``. Topics: ``echo_out`` repeats what comes in on ``echo_in``
+(std_msgs/msg/String); given ``pose=(x, y)``, ``pose`` (geometry_msgs/msg/PoseStamped)
+at 50 Hz. ``events`` records what the servers saw (accepted, canceled ...).
 """
 
 from __future__ import annotations
@@ -35,8 +36,15 @@ SLOW_S = 3.0
 class Servers:
     """The test servers of one namespace; ``with Servers(...)`` starts and stops them."""
 
-    def __init__(self, namespace: str = "/husky1", *, domain_id: int | None = None) -> None:
+    def __init__(
+        self,
+        namespace: str = "/husky1",
+        *,
+        domain_id: int | None = None,
+        pose: tuple[float, float] | None = None,
+    ) -> None:
         self.namespace = namespace
+        self.pose = pose
         self.domain_id = domain_id
         self.events: Counter[str] = Counter()
         self._stop = threading.Event()
@@ -93,7 +101,7 @@ class Servers:
                     if self._stop.is_set():
                         handle.abort()
                         return result
-                    seq.append(seq[-1] + seq[-2])
+                    seq.append((seq[-1] + seq[-2]) % 1_000_003)  # int32
                     feedback = Fibonacci.Feedback(sequence=seq[-3:])
                     handle.publish_feedback(feedback)
                     i += 1
@@ -142,6 +150,14 @@ class Servers:
         node.create_subscription(
             String, "echo_in", lambda m: echo.publish(String(data=m.data.upper())), 10
         )
+        if self.pose is not None:
+            from geometry_msgs.msg import PoseStamped
+
+            where = node.create_publisher(PoseStamped, "pose", 10)
+            msg = PoseStamped()
+            msg.header.frame_id = "map"
+            msg.pose.position.x, msg.pose.position.y = map(float, self.pose)
+            self.pose_timer = node.create_timer(0.02, lambda: where.publish(msg))
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self.executor.add_node(node)
         self.thread = threading.Thread(target=self._spin, daemon=True)

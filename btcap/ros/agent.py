@@ -1,0 +1,73 @@
+"""What an agent whose file has a ``ros:`` block runs beside it (``btcap agent``), found
+by the agent through the ``btcap.ros`` entry point so that nothing of this package is
+imported by an agent without the block.
+
+It registers the ROS node types for the robot's tree files, starts the robot's
+:class:`~btcap.ros.client.RosBridge` (in a worker thread: imports and discovery never
+hold the event loop) before the implementation files are loaded, makes every
+implementation whose tree calls ROS servers bid only while they answer, gives the
+bridge to the agent's actor system, and closes it when the agent stops.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import anyio
+
+from btcap.actors import ActorSystem
+from btcap.bt.node import Node
+from btcap.bt.registry import NodeRegistry
+from btcap.ros.action import RosAction
+from btcap.ros.capability import servers_of, with_ros
+from btcap.ros.client import RosBridge
+from btcap.ros.service import RosService
+from btcap.ros.topic import RosPublish, RosSubscribe, RosWaitForMessage
+from btcap.team.capabilities.implementation import Implementation
+from btcap.team.rossettings import RosSettings
+
+__all__ = ["NODE_TYPES", "RosAgent", "register"]
+
+#: The ROS node types, by the names tree files use.
+NODE_TYPES: tuple[type[Node], ...] = (
+    RosAction,
+    RosService,
+    RosPublish,
+    RosSubscribe,
+    RosWaitForMessage,
+)
+
+
+def register(registry: NodeRegistry) -> NodeRegistry:
+    """Add the ROS node types to ``registry`` (those it lacks) and return it."""
+    for cls in NODE_TYPES:
+        if cls.__name__ not in registry:
+            registry.register(cls)
+    return registry
+
+
+class RosAgent:
+    """The ROS side of one agent: see the module docstring."""
+
+    def __init__(self, settings: RosSettings, robot: str) -> None:
+        self.bridge = RosBridge(settings, robot=robot)
+
+    def register(self, registry: NodeRegistry) -> None:
+        register(registry)
+
+    async def start(self) -> None:
+        await anyio.to_thread.run_sync(self.bridge.start)
+
+    def wrap(self, implementations: Iterable[Implementation]) -> list[Implementation]:
+        out = []
+        for impl in implementations:
+            made = impl.build()
+            out.append(with_ros(impl, self.bridge) if servers_of(made) else impl)
+        return out
+
+    def attach(self, system: ActorSystem) -> None:
+        self.bridge.provide(system)
+
+    async def close(self) -> None:
+        with anyio.CancelScope(shield=True):
+            await anyio.to_thread.run_sync(self.bridge.close)
