@@ -10,7 +10,7 @@ UV_VERSION := 0.13.9
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
-.PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros lock-ros
+.PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros bench-ros-sim lock-ros
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -114,6 +114,10 @@ test-ros: $(ROS_VENV)/.installed-sim
 
 bench-ros: $(ROS_VENV)/.installed
 	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench ros $(ARGS)
+
+# The simulator behind ROS 2 against the direct simulation, same mission, same run.
+bench-ros-sim: $(ROS_VENV)/.installed-sim
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench.ros_sim $(ARGS)
 
 lock-ros:
 	$(BIN)/uv pip compile --quiet --python-version 3.11 --python-platform x86_64-manylinux_2_28 \

@@ -1,34 +1,33 @@
 """A robot's side of the simulator behind ROS 2: action clients for its navigation and its
 operations and a subscription to its state, awaited from the mission's event loop.
 
-Imports rclpy: loaded in a thread by :mod:`btcap.sim.ros2.host`. The clients' callbacks run
-on an executor thread of their own and hand everything to the event loop; a coroutine
-cancelled while its goal runs cancels the goal (the servers then stop the robot).
+Each robot has a :class:`~btcap.ros.client.RosBridge` of its own (the ROS 2 bridge's
+client: one rclpy node ``/<robot>/btcap``, its own context and DDS participant, an executor
+thread, goals still open cancelled when it closes), as a real robot's agent does. Its
+callbacks run on that thread and hand everything to the event loop; a coroutine cancelled
+while its goal runs cancels the goal (the servers then stop the robot). Imports rclpy:
+loaded in a thread by :mod:`btcap.sim.ros2.host`.
 """
 
 from __future__ import annotations
 
 import asyncio
-import threading
 from typing import Any
 
-import rclpy
 from action_msgs.msg import GoalStatus
 from btcap_sim_msgs.action import NavigateToPose
 from btcap_sim_msgs.action import Operate as OperateAction
 from btcap_sim_msgs.msg import RobotState
-from rclpy.action import ActionClient
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.task import Future
 
 from btcap.actors import Actor
+from btcap.ros.client import RosBridge
 from btcap.sim.distance import Cell
 from btcap.sim.messages import PositionUpdate, SimResult
 from btcap.sim.model import RobotModel
-from btcap.sim.ros2.names import OPERATIONS, RobotNames
+from btcap.sim.ros2.names import NAVIGATE_TYPE, OPERATE_TYPE, OPERATIONS, RobotNames
 from btcap.sim.ros2.server import pose_at
+from btcap.team.rossettings import RosSettings
 
 __all__ = ["RobotLink", "RobotLinks"]
 
@@ -57,32 +56,31 @@ async def _awaited(fut: Future, loop: asyncio.AbstractEventLoop) -> Any:
 
 
 class RobotLink:
-    """One robot's clients: :meth:`navigate` and :meth:`operate` answer as the manager's
-    asks do (a :class:`~btcap.sim.messages.SimResult`); every state the robot publishes is
-    told to ``body`` (its :class:`~btcap.sim.robot.Body`, once spawned)."""
+    """One robot's clients, on its bridge: :meth:`navigate` and :meth:`operate` answer as
+    the manager's asks do (a :class:`~btcap.sim.messages.SimResult`); every state the robot
+    publishes is told to ``body`` (its :class:`~btcap.sim.robot.Body`, once spawned)."""
 
     def __init__(
         self,
-        node: Node,
+        bridge: RosBridge,
         robot: str,
         model: RobotModel,
         loop: asyncio.AbstractEventLoop,
         cell_size_m: float,
     ) -> None:
-        self.node = node
+        self.bridge = bridge
         self.robot = robot
         self.loop = loop
         self.cell_size_m = cell_size_m
         self.body: Actor | None = None
         names = RobotNames(robot)
-        self.nav = ActionClient(node, NavigateToPose, names.navigate)
+        # Names relative to the bridge's namespace (/<robot>), as a real robot's file has them.
+        self.nav = bridge.action_client(NAVIGATE_TYPE, "navigate_to_pose")
         self.ops = {
-            op: ActionClient(node, OperateAction, names.operate(op))
-            for op in OPERATIONS
-            if model.can(op)
+            op: bridge.action_client(OPERATE_TYPE, op) for op in OPERATIONS if model.can(op)
         }
         self.cell: Cell | None = None
-        node.create_subscription(RobotState, names.state, self._on_state, 100)
+        bridge.running().create_subscription(RobotState, names.state, self._on_state, bridge.qos())
 
     def wait_for_servers(self, timeout_s: float) -> list[str]:
         """Wait for the robot's action servers (a thread); the names of those not found."""
@@ -104,16 +102,19 @@ class RobotLink:
         if body is not None and body._system is not None:
             body.ref.tell(update)
 
-    async def _run(self, client: ActionClient, goal: Any) -> tuple[bool, Any]:
+    async def _run(self, client: Any, goal: Any) -> tuple[bool, Any]:
         """Send ``goal``; (whether it succeeded, its result). Cancelled: the goal is too."""
         handle = await _awaited(client.send_goal_async(goal), self.loop)
         if not handle.accepted:
             return False, None
+        self.bridge.track(handle)  # cancelled if the bridge closes while it runs
         try:
             got = await _awaited(handle.get_result_async(), self.loop)
         except asyncio.CancelledError:
             handle.cancel_goal_async()
             raise
+        finally:
+            self.bridge.untrack(handle)
         return got.status == GoalStatus.STATUS_SUCCEEDED, got.result
 
     def _here(self) -> tuple[int, int]:
@@ -143,8 +144,8 @@ class RobotLink:
 
 
 class RobotLinks:
-    """The robots' side: one rclpy context of their own (one DDS participant, apart from
-    the servers'), a node per robot, spun by an executor thread until :meth:`close`.
+    """The robots' side: a started :class:`~btcap.ros.client.RosBridge` per robot (its
+    node in its namespace) and the robot's clients on it, until :meth:`close`.
 
     Made in a thread (it imports and starts rclpy)."""
 
@@ -156,34 +157,24 @@ class RobotLinks:
         cell_size_m: float,
         domain_id: int | None = None,
     ) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes: list[Node] = []
+        self.bridges: list[RosBridge] = []
         self.links: dict[str, RobotLink] = {}
-        for name, model in robots.items():
-            node = Node(f"btcap_{name}", context=self.context)
-            self.nodes.append(node)
-            self.links[name] = RobotLink(node, name, model, loop, cell_size_m)
-            self.executor.add_node(node)
-        self.thread = threading.Thread(target=self._spin, name="btcap robots ros2", daemon=True)
-        self.thread.start()
-
-    def _spin(self) -> None:
         try:
-            self.executor.spin()
-        except Exception:
-            if self.context.ok():
-                raise
+            for name, model in robots.items():
+                bridge = RosBridge(RosSettings(domain_id=domain_id), robot=name)
+                self.bridges.append(bridge)
+                bridge.start()
+                self.links[name] = RobotLink(bridge, name, model, loop, cell_size_m)
+        except BaseException:
+            self.close()
+            raise
 
     def wait_for_servers(self, timeout_s: float = DISCOVERY_S) -> list[str]:
         """Every robot's action servers found (a thread); the names of those not found."""
         return [m for link in self.links.values() for m in link.wait_for_servers(timeout_s)]
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5.0)
-        for node in self.nodes:
-            node.destroy_node()
-        if self.context.ok():
-            rclpy.shutdown(context=self.context)
-        self.thread.join(timeout=5.0)
+        """Close every robot's bridge: open goals cancelled, nodes destroyed, threads
+        joined (blocks: a thread)."""
+        for bridge in self.bridges:
+            bridge.close()

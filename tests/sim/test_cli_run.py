@@ -248,3 +248,21 @@ def test_a_grown_team_runs_the_same_to_the_byte_and_never_flaps(tmp_path: Path) 
     result = msgspec.json.decode(first, type=MissionResult)
     assert len(result.robots) == 40
     assert (result.completed, result.robot_failures, result.executions_lost) == (True, 0, 0)
+
+
+def test_ros2_is_refused_with_fast_or_distributed_and_without_ros(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--ros2`` runs on the wall clock in this process; where rclpy or the simulated
+    robots' interfaces are missing it says how to get them, in one line, before any run."""
+    out = str(tmp_path / "out")
+    for flag in ("--fast", "--distributed"):
+        usage_error(capsys, ["run", "--ros2", flag, "--out", out], "--ros2", "not with --fast")
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "rclpy" else real(name, *a)
+    )
+    usage_error(capsys, ["run", "--ros2", "--out", out], "rclpy", "make ros-sim", ".venv-ros")
+    assert not (tmp_path / "out" / "result.json").exists()
