@@ -8,6 +8,7 @@ import asyncio
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 import anyio
@@ -31,9 +32,12 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 OUTCOME = ("objects", "found", "identified", "contaminated", "decontaminated", "coverage")
 
 
-def _navigate_then_cancel(domain: int, goal_xy: tuple[float, float], after: int) -> dict[str, Any]:
-    """A plain rclpy client (a thread): send husky1 a navigation goal, cancel it after
-    ``after`` feedback messages; what it saw."""
+def _navigate_then_cancel(
+    domain: int, goal_xy: tuple[float, float], after: int, heard: Callable[[], bool]
+) -> dict[str, Any]:
+    """A plain rclpy client (a thread): once the pose topic's publisher ``heard`` of its
+    subscription, send husky1 a navigation goal and cancel it after ``after`` feedback
+    messages; what it saw."""
     from btcap.ros.loader import load
 
     rclpy = load()
@@ -56,6 +60,9 @@ def _navigate_then_cancel(domain: int, goal_xy: tuple[float, float], after: int)
         )
         client = ActionClient(node, NavigateToPose, "/husky1/navigate_to_pose")
         assert client.wait_for_server(timeout_sec=20.0)
+        deadline = time.monotonic() + 20.0
+        while not heard() and time.monotonic() < deadline:  # discovery: every pose counts
+            executor.spin_once(timeout_sec=0.05)
         goal = NavigateToPose.Goal()
         goal.pose.header.frame_id = "map"
         goal.pose.pose.position.x, goal.pose.pose.position.y = goal_xy
@@ -69,7 +76,7 @@ def _navigate_then_cancel(domain: int, goal_xy: tuple[float, float], after: int)
         handle = sent.result()
         seen["accepted"] = handle.accepted
         deadline = time.monotonic() + 20.0
-        while len(seen["feedback"]) < after and time.monotonic() < deadline:
+        while min(len(seen["feedback"]), seen["poses"]) < after and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         cancel = handle.cancel_goal_async()
         executor.spin_until_future_complete(cancel, timeout_sec=20.0)
@@ -101,7 +108,7 @@ async def test_navigation_feedback_and_a_cancel_that_stops_the_robot(ros_domain:
     goal_xy = (float(far[1]) * grid.cell_size_m, float(far[0]) * grid.cell_size_m)
     reg = registry()
     net = InProcessNetwork(reg)
-    clock = Clock(20.0)
+    clock = Clock(5.0)  # the drive takes about half a minute of wall time: time to cancel
     with anyio.fail_after(120):
         async with ActorSystem(
             "sim", transport=net.transport("sim"), registry=reg, clock=clock
@@ -121,7 +128,11 @@ async def test_navigation_feedback_and_a_cancel_that_stops_the_robot(ros_domain:
             )
             manager.on_position = servers.publish
             try:
-                seen = await anyio.to_thread.run_sync(_navigate_then_cancel, ros_domain, goal_xy, 3)
+                pub = servers.robots["husky1"].pose_pub
+                heard = lambda: pub.get_subscription_count() > 0  # noqa: E731
+                seen = await anyio.to_thread.run_sync(
+                    _navigate_then_cancel, ros_domain, goal_xy, 3, heard
+                )
                 at = manager.position("husky1")
                 await clock.sleep(5.0)  # stopped: it stays where the cancel left it
                 assert manager.position("husky1") == at
