@@ -66,6 +66,8 @@ class _Manager:
         self.ref = ref
         # As the in-process leaves ask: an hour of the clock, in wall seconds, with margin.
         self.timeout = max(2.0, clock.to_wall(3600.0) * 3 + 2.0)
+        #: Set as the servers close: executions still waiting give up (the robot stops).
+        self.closing = threading.Event()
 
     def ask(self, msg: MoveTo | Operate) -> concurrent.futures.Future[SimResult]:
         async def ask() -> SimResult:
@@ -168,7 +170,7 @@ class _RobotServer:
                 return answer.result(timeout=_POLL_S)
             except concurrent.futures.TimeoutError:
                 pass
-            if goal.is_cancel_requested or not context.ok():
+            if goal.is_cancel_requested or self.manager.closing.is_set() or not context.ok():
                 self.manager.stop(self.robot)
                 answer.cancel()
                 return None
@@ -265,7 +267,7 @@ class SimServers:
     ) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
-        link = _Manager(loop, manager, clock)
+        link = self._manager = _Manager(loop, manager, clock)
         # Each robot runs at most a drive and an operation at once (plus one superseded,
         # ending): threads enough that no execution waits for a thread.
         threads = 3 * len(robots) + 2
@@ -298,6 +300,7 @@ class SimServers:
 
     def close(self) -> None:
         """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
+        self._manager.closing.set()
         self.executor.shutdown(timeout_sec=5.0)
         for node in self.nodes:
             node.destroy_node()
