@@ -69,9 +69,11 @@ class _Goal:
             handle = future.result()
         except Exception as exc:
             self.error = f"the goal request failed: {exc}"
+            self.bridge.wake()
             return
         if handle is None or not handle.accepted:
             self.status = _REJECTED
+            self.bridge.wake()
             return
         with self.lock:
             self.handle = handle
@@ -83,16 +85,19 @@ class _Goal:
             self.bridge.untrack(handle)
             return
         handle.get_result_async().add_done_callback(self.on_result)
+        self.bridge.wake()
 
     def on_result(self, future: Any) -> None:
         try:
             answer = future.result()
         except Exception as exc:
             self.error = f"the result request failed: {exc}"
+            self.bridge.wake()
             return
         self.result = answer.result
         self.status = answer.status
         self.bridge.untrack(self.handle)
+        self.bridge.wake()
 
     def on_feedback(self, message: Any) -> None:
         self.feedback = message.feedback

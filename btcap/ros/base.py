@@ -83,6 +83,8 @@ class RosLeaf(Leaf):
                     "robot's agent file a `ros:` block, or pass bridge= / call "
                     "RosBridge.provide(system)"
                 )
+        if self._bridge.conflict is not None:
+            raise RosError(f"node {self.path!r}: {self._bridge.conflict}")
         return self._bridge
 
     def failed(self, why: str) -> State:

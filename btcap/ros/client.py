@@ -27,14 +27,21 @@ from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
+from btcap.transports.log import get_logger
 
 __all__ = ["ROS_BRIDGE", "RosBridge"]
+
+log = get_logger("btcap.ros")
 
 #: The service under which a robot's actor system holds its bridge; nodes find it there.
 ROS_BRIDGE: Service[RosBridge] = Service("ros-bridge")
 
-#: How long start() watches the graph for another node with the same name (discovery).
-CLAIM_WAIT_S = 0.5
+#: How long start() watches the graph for another btcap node in its namespace before it
+#: returns: DDS discovery takes tens of milliseconds here, at times over 1.5 s on a
+#: loaded machine. The executor thread keeps watching for WATCH_S more: a twin seen then
+#: makes every ROS node of this robot fail with the reason (``conflict``), logged once.
+CLAIM_WAIT_S = 1.5
+WATCH_S = 10.0
 
 
 class RosBridge:
@@ -59,6 +66,11 @@ class RosBridge:
         self._clients: dict[tuple[str, str, str], Any] = {}
         self._goals: dict[int, Any] = {}
         self._latest: dict[tuple[str, str], list[Any]] = {}
+        self._wake: Any = None
+        self._claim: Any = None
+        self._watch: Any = None
+        #: Why this robot must not use ROS (a twin in its namespace), or None.
+        self.conflict: str | None = None
         self._lock = threading.Lock()
         self._closed = False
 
@@ -106,21 +118,32 @@ class RosBridge:
                 raise
 
     def _check_claim(self) -> None:
-        """RosError if another node already has this node's name in the graph: two
-        robots would otherwise share one namespace's actions and topics unseen."""
-        deadline = time.monotonic() + CLAIM_WAIT_S
-        while True:
-            names = self.node.get_node_names_and_namespaces()
-            same = [n for n, ns in names if n == self.settings.node_name and ns == self.namespace]
-            if len(same) > 1:
-                raise RosError(
-                    f"namespace {self.namespace!r} is already claimed by another node "
-                    f"named {self.fqn!r} on ROS domain {self.domain_id}; give each robot its "
-                    "own namespace"
-                )
-            if time.monotonic() >= deadline:
-                return
+        """RosError if another btcap node holds this namespace: two robots would otherwise
+        share one namespace's actions and topics unseen. Each bridge publishes on the
+        hidden topic ``NAMESPACE/_btcap_claim``; the graph counts its publishers by
+        endpoint (node names are not enough: the graph lists two nodes of one name once)."""
+        from builtin_interfaces.msg import Time
+
+        topic = f"{self.namespace.rstrip('/')}/_btcap_claim"
+        self._claim = self.node.create_publisher(Time, topic, 1)
+        why = (
+            f"namespace {self.namespace!r} is already claimed by another btcap node "
+            f"({self.fqn!r}) on ROS domain {self.domain_id}; give each robot its own namespace"
+        )
+        started = time.monotonic()
+        while time.monotonic() < started + CLAIM_WAIT_S:
+            if self.node.count_publishers(topic) > 1:
+                raise RosError(why)
             time.sleep(0.05)
+
+        def watch() -> None:  # executor thread: a twin discovered late
+            if self.conflict is None and self.node.count_publishers(topic) > 1:
+                self.conflict = why
+                log.error("btcap.ros.namespace_claimed", namespace=self.namespace, why=why)
+            if self.conflict is not None or time.monotonic() > started + WATCH_S:
+                self._watch.cancel()
+
+        self._watch = self.node.create_timer(0.25, watch)
 
     @property
     def domain_id(self) -> int:
@@ -173,7 +196,10 @@ class RosBridge:
 
     # -- what nodes use -----------------------------------------------------------
     def running(self) -> Any:
-        """The rclpy node; RosError when the bridge is not started or closed."""
+        """The rclpy node; RosError when the bridge is not started, closed, or shares its
+        namespace with another robot."""
+        if self.conflict is not None:
+            raise RosError(f"ROS bridge {self.fqn}: {self.conflict}")
         if self.node is None:
             state = "closed" if self._closed else "not started"
             raise RosError(f"ROS bridge {self.fqn}: {state}")
@@ -246,6 +272,27 @@ class RosBridge:
             self.running().create_subscription(cls, key[1], store, self.qos())
         latest: tuple[Any, float] | None = box[0]
         return latest
+
+    def wake_on(self, callback: Any, loop: Any = None) -> None:
+        """Call ``callback()`` on the event loop ``loop`` (the running one by default)
+        whenever a goal or call answers, so a tree can be ticked as soon as there is news
+        instead of at its next period (feedback does not wake: a 1 kHz stream would keep
+        the loop busy); None stops it."""
+        if callback is None:
+            self._wake = None
+            return
+        import asyncio
+
+        target = loop if loop is not None else asyncio.get_running_loop()
+        self._wake = (target, callback)
+
+    def wake(self) -> None:
+        """From the executor thread: schedule the wake-up callback, if any."""
+        wake = self._wake
+        if wake is not None:
+            loop, callback = wake
+            if not loop.is_closed():
+                loop.call_soon_threadsafe(callback)
 
     def track(self, handle: Any) -> None:
         """A goal to cancel if the bridge closes while it is open."""

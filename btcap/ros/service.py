@@ -100,7 +100,9 @@ class RosService(RosLeaf):
         for k in outputs:
             outputs[k] = None
         self._sent_at = now()
-        self._future = client.call_async(request)
+        future = self._future = client.call_async(request)
+        bridge = self.bridge
+        future.add_done_callback(lambda _: bridge.wake())
         return _RUNNING
 
     def _stop(self) -> None:
