@@ -12,6 +12,7 @@ loaded in a thread by :mod:`btcap.sim.ros2.host`.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 from typing import Any
 
 from action_msgs.msg import GoalStatus
@@ -157,14 +158,17 @@ class RobotLinks:
         cell_size_m: float,
         domain_id: int | None = None,
     ) -> None:
-        self.bridges: list[RosBridge] = []
+        self.bridges = {
+            name: RosBridge(RosSettings(domain_id=domain_id), robot=name) for name in robots
+        }
         self.links: dict[str, RobotLink] = {}
         try:
+            # Each start watches the graph for a twin of its node for a while: all at once.
+            workers = min(len(robots), 16)
+            with concurrent.futures.ThreadPoolExecutor(workers, "btcap robot ros2") as pool:
+                list(pool.map(RosBridge.start, self.bridges.values()))  # raises the first error
             for name, model in robots.items():
-                bridge = RosBridge(RosSettings(domain_id=domain_id), robot=name)
-                self.bridges.append(bridge)
-                bridge.start()
-                self.links[name] = RobotLink(bridge, name, model, loop, cell_size_m)
+                self.links[name] = RobotLink(self.bridges[name], name, model, loop, cell_size_m)
         except BaseException:
             self.close()
             raise
@@ -176,5 +180,5 @@ class RobotLinks:
     def close(self) -> None:
         """Close every robot's bridge: open goals cancelled, nodes destroyed, threads
         joined (blocks: a thread)."""
-        for bridge in self.bridges:
+        for bridge in self.bridges.values():
             bridge.close()
