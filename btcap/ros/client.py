@@ -120,8 +120,8 @@ class RosBridge:
     def _check_claim(self) -> None:
         """RosError if another btcap node holds this namespace: two robots would otherwise
         share one namespace's actions and topics unseen. Each bridge publishes on the
-        hidden topic ``NAMESPACE/_btcap_claim``; the graph counts its publishers by
-        endpoint (node names are not enough: the graph lists two nodes of one name once)."""
+        hidden topic ``NAMESPACE/_btcap_claim`` and counts its publishers in the graph
+        (a node of another name, or a non-btcap node named ``btcap``, is no claim)."""
         from builtin_interfaces.msg import Time
 
         topic = f"{self.namespace.rstrip('/')}/_btcap_claim"
@@ -136,11 +136,21 @@ class RosBridge:
                 raise RosError(why)
             time.sleep(0.05)
 
+        # A twin refused at its own start holds its claim at most CLAIM_WAIT_S: only one
+        # that stays longer is a robot started beside this one, unseen at both starts.
+        persist = CLAIM_WAIT_S + 1.0
+        since: list[float] = []
+
         def watch() -> None:  # executor thread: a twin discovered late
-            if self.conflict is None and self.node.count_publishers(topic) > 1:
-                self.conflict = why
-                log.error("btcap.ros.namespace_claimed", namespace=self.namespace, why=why)
-            if self.conflict is not None or time.monotonic() > started + WATCH_S:
+            t = time.monotonic()
+            if self.node.count_publishers(topic) > 1:
+                since[:] = since or [t]
+                if t - since[0] >= persist and self.conflict is None:
+                    self.conflict = why
+                    log.error("btcap.ros.namespace_claimed", namespace=self.namespace, why=why)
+            else:
+                since.clear()
+            if self.conflict is not None or (t > started + WATCH_S and not since):
                 self._watch.cancel()
 
         self._watch = self.node.create_timer(0.25, watch)

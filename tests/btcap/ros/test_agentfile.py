@@ -50,13 +50,19 @@ async def test_two_agents_claiming_one_namespace_the_second_is_refused_in_one_li
 ) -> None:
     registry = default_registry()
     with anyio.fail_after(30):
-        async with open_agent(husky1(ros_domain), registry):
+        async with open_agent(husky1(ros_domain), registry) as first:
             # Discovery can take seconds on a loaded machine: the second watches longer
             # (it stops as soon as it sees the first), so the outcome does not hang on load.
             monkeypatch.setattr(client, "CLAIM_WAIT_S", 15.0)
             with pytest.raises(AgentConfigError) as err:
                 async with open_agent(husky1(ros_domain, robot="impostor"), default_registry()):
                     pass
+            # The first robot is not harmed by a twin that was refused: its watch waits
+            # (2.5 s, its claim check's 1.5 s + 1 s) for a twin that stays.
+            bridge = client.RosBridge.of(first.system)
+            assert bridge is not None
+            await anyio.sleep(3.0)
+            assert bridge.conflict is None
     line = str(err.value)
     assert "\n" not in line
     assert "husky1.yaml: ros: namespace '/husky1' is already claimed by another btcap node" in line
