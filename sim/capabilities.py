@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 from btcap import Leaf, Port, Sequence, State, Tree
 from btcap.actors import Actor
@@ -35,6 +35,7 @@ __all__ = [
     "IDENTIFY",
     "INTERFACES",
     "ROBOT_CACHE_SIZE",
+    "Drive",
     "RobotSetup",
     "robot_setup",
 ]
@@ -140,10 +141,45 @@ class _Heading(Leaf):
         self._forget()
 
 
+class Drive(Protocol):
+    """Makes the leaves through which an implementation reaches the robot's body: by
+    default the simulation manager's messages; :mod:`btcap.sim.ros2` reaches it through
+    ROS 2 interfaces instead."""
+
+    def move(self, name: str) -> Leaf:
+        """A leaf that drives to input ``goal``."""
+        ...
+
+    def operate(self, name: str, op: str) -> Leaf:
+        """A leaf that runs ``op`` on input ``target`` (outputs ``found``, ``contaminated``)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class _ManagerDrive:
+    """The leaves that ask the simulation manager directly."""
+
+    robot: str
+    manager: str
+
+    def move(self, name: str) -> Leaf:
+        return MoveToLeaf(name, robot=self.robot, manager=self.manager)
+
+    def operate(self, name: str, op: str) -> Leaf:
+        return OperateLeaf(name, robot=self.robot, manager=self.manager, op=op)
+
+
 def robot_setup(
-    robot: str, model: RobotModel, grid: GridMap, *, manager: str = "sim/manager"
+    robot: str,
+    model: RobotModel,
+    grid: GridMap,
+    *,
+    manager: str = "sim/manager",
+    drive: Drive | None = None,
 ) -> RobotSetup:
-    """The implementations of one simulated robot (only those its model can do)."""
+    """The implementations of one simulated robot (only those its model can do), whose
+    leaves ``drive`` makes (default: asking ``manager``)."""
+    drive = drive or _ManagerDrive(robot, manager)
     body = Body(robot, grid.start)
     cache = DistanceCache(grid.free, maxsize=ROBOT_CACHE_SIZE)
     cf = model.cost_factor
@@ -182,8 +218,8 @@ def robot_setup(
             bi = i(name="inputs")
             heading = _Heading("heading")
             heading.setup_heading(body, o.op, grid.decon_area if o.then_decon else None)
-            move = MoveToLeaf("drive", robot=robot, manager=manager)
-            leaf = OperateLeaf(o.leaf, robot=robot, manager=manager, op=o.op)
+            move = drive.move("drive")
+            leaf = drive.operate(o.leaf, o.op)
             bo = out(name="outputs") if o.result is not None else None
             children = [bi, heading, move, leaf] if bo is None else [bi, heading, move, leaf, bo]
             tree = Tree(Sequence(o.op, children=children))

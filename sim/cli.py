@@ -70,6 +70,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "separate hosts; the simulation and the mission tree stay in this process (wall "
         "clock at the scenario's speed-up, so not with --fast)",
     )
+    p.add_argument(
+        "--ros2",
+        action="store_true",
+        help="every robot reached through ROS 2 interfaces the simulation serves in its "
+        "namespace (`make ros-sim`, then .venv-ros/bin/python -m btcap; ROS_DOMAIN_ID applies)",
+    )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
         "--robots",
@@ -309,6 +315,8 @@ async def _run_one(
     fast: bool,
     stopper: _Stopper,
     monitor: Monitor | None = None,
+    *,
+    ros2: bool = False,
 ) -> MissionResult:
     from rich.live import Live
 
@@ -319,6 +327,8 @@ async def _run_one(
         from btcap.sim.distributed import run_distributed
 
         runner = run_distributed
+    if ros2:
+        runner = functools.partial(run_scenario, ros2=True)
     if monitor is not None:
         runner = functools.partial(runner, monitor=monitor)
     stop = stopper.event()
@@ -367,6 +377,11 @@ def run_command(args: argparse.Namespace) -> int:
         raise CliError(
             "--fast runs in one process on virtual time: not with --distributed or --speedup"
         )
+    if args.ros2:
+        from btcap.sim.ros2 import ros2_refused
+
+        if (why := ros2_refused(fast=args.fast, distributed=args.distributed)) is not None:
+            raise CliError(why)
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
@@ -402,14 +417,14 @@ def run_command(args: argparse.Namespace) -> int:
     with _Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
+            pace += ", robots through ROS 2" if args.ros2 else ""
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"
             if args.compare and args.record is not None:
                 record = args.record.with_name(f"{args.record.stem}-{s.name}.jsonl")
-            run = functools.partial(
-                _run_one, s, console, args.quiet, args.distributed, args.fast, stopper
-            )
+            flags = (args.quiet, args.distributed, args.fast)
+            run = functools.partial(_run_one, s, console, *flags, stopper, ros2=args.ros2)
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()

@@ -18,7 +18,7 @@ import anyio.abc
 import msgspec
 
 from btcap.actors import TimeSource
-from btcap.sim.capabilities import robot_setup
+from btcap.sim.capabilities import RobotSetup, robot_setup
 from btcap.sim.grid import GridMap
 from btcap.sim.messages import SIM_MESSAGES
 from btcap.sim.metrics import RobotError
@@ -154,8 +154,7 @@ class InProcessHost:
         try:
             if before is not None:  # a robot that left must be gone before it comes back
                 await before.wait()
-            model = next(r.model for r in self.s.robots if r.name == name)
-            setup = robot_setup(name, self.models[model], self.grid)
+            setup = self.setup(name)
             agent = Agent(
                 name,
                 transport=self.net.transport(name),
@@ -181,6 +180,11 @@ class InProcessHost:
             record_error(self.errors, self.clock.now(), name, exc)
         finally:
             gone.set()
+
+    def setup(self, name: str) -> RobotSetup:
+        """What robot ``name`` brings to its agent, each time it starts."""
+        model = next(r.model for r in self.s.robots if r.name == name)
+        return robot_setup(name, self.models[model], self.grid)
 
     def leave(self, name: str) -> None:
         ev = self._stop.get(name)

@@ -14,6 +14,7 @@ holds is what finishing costs from here, not from where it started.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,6 +96,9 @@ class SimulationManager(Actor):
         self._clock: TimeSource | None = None
         self._by_index: list[_Robot] = []  # world index -> robot
         self._cells = self.world.positions  # as the bodies were last told
+        #: Where the robots' state goes instead of their bodies' actors, if set: the
+        #: simulator behind ROS 2 publishes it (see :mod:`btcap.sim.ros2`).
+        self.on_position: Callable[[PositionUpdate], None] | None = None
 
     def add_robot(self, name: str, model: RobotModel, cell: Cell | None = None) -> None:
         if name in self.robots:
@@ -238,7 +242,10 @@ class SimulationManager(Actor):
         if op is not None:
             msg.op, msg.target = op.event.kind, op.target
             msg.phase = "done" if op is done else "work" if op.working else "carry"
-        self.system.ref(Address(r.name, "body")).tell(msg)
+        if self.on_position is not None:
+            self.on_position(msg)
+        else:
+            self.system.ref(Address(r.name, "body")).tell(msg)
 
     @handler
     def on_operate(self, msg: Operate) -> SimResult | asyncio.Future[SimResult]:

@@ -8,6 +8,7 @@ OS process over ZeroMQ (see :mod:`btcap.sim.distributed`). Both record the same
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -74,6 +75,7 @@ async def run_scenario(
     host: HostFactory | None = None,
     stop: anyio.Event | None = None,
     monitor: Monitor | None = None,
+    ros2: bool = False,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
@@ -83,8 +85,11 @@ async def run_scenario(
     log lines, which then fall at the same instants in every run of a seed).
 
     Robots are hosted in this process unless ``host`` says otherwise (see
-    :func:`sim.distributed.run_distributed`). A robot that crashes is logged, taken out
-    of the simulation and listed in the result's ``errors``; the mission goes on.
+    :func:`sim.distributed.run_distributed`); ``ros2`` hosts them in this process with
+    their bodies reached only through ROS 2 interfaces the simulation serves (see
+    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts). A robot
+    that crashes is logged, taken out of the simulation and listed in the result's
+    ``errors``; the mission goes on.
 
     A ``monitor`` is shown the operator (its membership view), the mission tree and every
     robot hosted in this process; it is detached when the mission ends, so it keeps the
@@ -103,6 +108,12 @@ async def run_scenario(
     models = s.models()
     for r in s.robots:
         manager.add_robot(r.name, models[r.model])
+    if ros2:
+        if host is not None:
+            raise ValueError("run_scenario: ros2 hosts the robots itself; give no host")
+        from btcap.sim.ros2.host import Ros2Host
+
+        host = functools.partial(Ros2Host, manager=manager)
     mlog = MissionLog()
     cfg = agent_config(s)
     async with (

@@ -381,11 +381,18 @@ def test_nothing_outside_btcap_ros_imports_it() -> None:
     def about_ros(mod: str) -> bool:
         return any(part.startswith("ros") for part in mod.split(".")[1:])
 
+    # The simulator behind ROS 2 is entered from `btcap run --ros2` only: the CLI's check
+    # (btcap.sim.ros2 imports nothing of ROS) and the runner's host, each imported inside
+    # the function that runs with --ros2 (the host loads rclpy in a thread).
+    entries = {("btcap.sim.cli", "btcap.sim.ros2"), ("btcap.sim.runner", "btcap.sim.ros2.host")}
     bad = sorted(
         f"{mod} imports {dep}"
         for mod, deps in GRAPH.items()
         if not about_ros(mod)
         for dep in deps
-        if dep.startswith("btcap.") and about_ros(dep) and dep != "btcap.team.rossettings"
+        if dep.startswith("btcap.")
+        and about_ros(dep)
+        and dep != "btcap.team.rossettings"
+        and (mod, dep) not in entries
     )
     assert not bad, "\n".join(bad)

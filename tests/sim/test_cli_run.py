@@ -280,3 +280,21 @@ def test_a_grown_team_is_told_why_robots_ran_nothing_and_object_workers_grows_th
     assert set(idle(wider)) < set(idle(grown))
     assert wider.mission_time_s < grown.mission_time_s
     usage_error(capsys, ["run", "--object-workers", "0"], "--object-workers: expected 1 to 1000")
+
+
+def test_ros2_is_refused_with_fast_or_distributed_and_without_ros(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--ros2`` runs on the wall clock in this process; where rclpy or the simulated
+    robots' interfaces are missing it says how to get them, in one line, before any run."""
+    out = str(tmp_path / "out")
+    for flag in ("--fast", "--distributed"):
+        usage_error(capsys, ["run", "--ros2", flag, "--out", out], "--ros2", "not with --fast")
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "rclpy" else real(name, *a)
+    )
+    usage_error(capsys, ["run", "--ros2", "--out", out], "rclpy", "make ros-sim", ".venv-ros")
+    assert not (tmp_path / "out" / "result.json").exists()

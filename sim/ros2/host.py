@@ -1,0 +1,155 @@
+"""Robots reached through ROS 2: the in-process host, with the simulation manager served as
+ROS 2 interfaces (:mod:`~btcap.sim.ros2.server`) and every robot's implementations driving
+their leaves through those interfaces (:mod:`~btcap.sim.ros2.client`).
+
+rclpy is imported and started in a thread as the host is entered, before the mission
+starts, so the event loop never waits on it, and only when asked for (``btcap run --ros2``):
+``btcap --help`` and every other run never load it. The robots' agents still form their
+team, bid and run their capabilities over btcap's own transport, as in-process robots do;
+what reaches their bodies (drive, explore, identify, decontaminate, where they are) goes over
+DDS, in the ``ROS_DOMAIN_ID`` of the environment (0 if unset).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from typing import TYPE_CHECKING, Any
+
+import anyio
+
+from btcap.actors import ActorRef, ActorSystem, TimeSource
+from btcap.errors import BtcapError
+from btcap.sim.capabilities import RobotSetup, robot_setup
+from btcap.sim.grid import GridMap
+from btcap.sim.hosts import InProcessHost
+from btcap.sim.manager import SimulationManager
+from btcap.sim.model import RobotModel
+from btcap.sim.robot import Body
+from btcap.sim.ros2 import ros2_missing
+from btcap.sim.scenario import Scenario
+from btcap.transports import Address, MessageRegistry
+from btcap.transports.log import get_logger
+
+if TYPE_CHECKING:
+    from btcap.sim.ros2.client import RobotLinks
+    from btcap.sim.ros2.server import SimServers
+
+__all__ = ["Ros2Host", "Ros2Unavailable"]
+
+log = get_logger("btcap.sim")
+
+#: The system the servers ask the simulation manager from.
+SYSTEM_ID = "ros2-sim"
+
+
+class Ros2Unavailable(BtcapError, RuntimeError):
+    """ROS 2 or the simulated robots' interfaces are not installed here."""
+
+
+def _start(
+    loop: asyncio.AbstractEventLoop,
+    manager: ActorRef[Any],
+    robots: dict[str, RobotModel],
+    grid: GridMap,
+    clock: TimeSource,
+) -> tuple[SimServers, RobotLinks]:
+    """Import rclpy, serve the robots, connect their clients and wait until each client
+    found its servers (blocks: a thread)."""
+    from btcap.ros.loader import load
+
+    load()  # rclpy, with the wheels' import-time warnings silenced (btcap.ros.loader)
+    from btcap.sim.ros2.client import RobotLinks
+    from btcap.sim.ros2.server import SimServers
+
+    size = grid.cell_size_m
+    servers = SimServers(loop, manager, robots, cell_size_m=size, start=grid.start, clock=clock)
+    try:
+        links = RobotLinks(loop, robots, cell_size_m=size)
+    except BaseException:
+        servers.close()
+        raise
+    try:
+        missing = links.wait_for_servers()
+    except BaseException:
+        _close(servers, links)
+        raise
+    if missing:
+        _close(servers, links)
+        raise Ros2Unavailable(f"ROS 2: no server found for {', '.join(missing)}")
+    return servers, links
+
+
+def _close(servers: SimServers, links: RobotLinks) -> None:
+    try:
+        links.close()
+    finally:
+        servers.close()
+
+
+class Ros2Host(InProcessHost):
+    """:class:`~btcap.sim.hosts.InProcessHost` with every robot's body behind ROS 2; the
+    ``manager`` is the run's simulation manager (its robots' state is published, not told).
+
+    Needs a real clock (DDS runs in real time): a speed-up, not a virtual clock.
+    """
+
+    def __init__(
+        self,
+        s: Scenario,
+        clock: TimeSource,
+        reg: MessageRegistry,
+        grid: GridMap,
+        *,
+        manager: SimulationManager,
+    ) -> None:
+        if not math.isfinite(clock.speedup):
+            raise ValueError("robots behind ROS 2 run on a real clock (a speed-up), not --fast")
+        super().__init__(s, clock, reg, grid)
+        self.manager = manager
+        self.servers: SimServers | None = None
+        self.links: RobotLinks | None = None
+
+    async def __aenter__(self) -> Ros2Host:
+        why = ros2_missing()
+        if why is not None:
+            raise Ros2Unavailable(why)
+        system = ActorSystem(
+            SYSTEM_ID, transport=self.net.transport(SYSTEM_ID), registry=self.reg, clock=self.clock
+        )
+        await self._stack.enter_async_context(system)
+        ref = system.ref(Address.parse("sim/manager"))
+        robots = {r.name: self.models[r.model] for r in self.s.robots}
+        loop = asyncio.get_running_loop()
+        try:
+            servers, self.links = await anyio.to_thread.run_sync(
+                _start, loop, ref, robots, self.grid, self.clock
+            )
+        except BaseException:
+            await self._stack.aclose()
+            raise
+        self.servers = servers
+        # Closed after the robots have stopped (the stack unwinds the task group first).
+        self._stack.push_async_callback(self._close)
+        self.manager.on_position = servers.publish
+        await super().__aenter__()
+        return self
+
+    async def _close(self) -> None:
+        self.manager.on_position = None
+        servers, links = self.servers, self.links
+        self.servers = self.links = None
+        if servers is not None and links is not None:
+            log.info("sim.ros2_served", goals=servers.served())
+            await anyio.to_thread.run_sync(_close, servers, links)
+
+    def setup(self, name: str) -> RobotSetup:
+        from btcap.sim.ros2.leaves import RosDrive
+
+        if self.links is None:
+            raise RuntimeError("Ros2Host: start robots inside `async with host`")
+        link = self.links.links[name]
+        model = next(r.model for r in self.s.robots if r.name == name)
+        setup = robot_setup(name, self.models[model], self.grid, drive=RosDrive(link))
+        link.body = setup.actors[Body.PATH]
+        return setup
