@@ -18,11 +18,9 @@ pytestmark = pytest.mark.slow
 def checks() -> dict[str, Check]:
     """The original probe; the others run on teams of their own below (and all of them in
     ``python -m btcap.bench attacks``), so each stays well within a test's time limit."""
-    # How fast the target answers depends on the machine's load (the bench reports it);
-    # here an ask counts as served unless the target stalls for most of a lease (3 s).
-    result = asyncio.run(
-        asyncio.wait_for(probe(quick=True, more=False, ask_bound_s=2.0), timeout=40)
-    )
+    # The probe judges by counts (an ask counts as served unless the target stalls for
+    # a lease, 3 s), so it passes on a loaded machine; latencies are figures.
+    result = asyncio.run(asyncio.wait_for(probe(quick=True, more=False), timeout=60))
     return {c.name: c for c in result}
 
 
