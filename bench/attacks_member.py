@@ -274,14 +274,16 @@ async def _sybil(quick: bool, ghosts: int | None = None) -> Result:
     async with _team(SYBIL_CONFIG) as team:
         r1, origin = team["r1"], team["origin"]
         false_failures: list[str] = []
-        for agent in team.values():
-            agent.team.subscribe(
-                lambda e, r, me=agent.system.id: (
-                    false_failures.append(f"{me} saw {r} fail")
-                    if e is TeamEvent.FAILED and r in team
-                    else None
-                )
-            )
+
+        def watch(me: str) -> Callable[[TeamEvent, str], None]:
+            def seen(event: TeamEvent, robot: str) -> None:
+                if event is TeamEvent.FAILED and robot in team:
+                    false_failures.append(f"{me} saw {robot} fail")
+
+            return seen
+
+        for name, agent in team.items():
+            agent.team.subscribe(watch(name))
         joins: list[str] = []
         r1.team.subscribe(lambda e, r: joins.append(r) if e is TeamEvent.JOINED else None)
         held_peak = 0

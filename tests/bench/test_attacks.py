@@ -66,9 +66,10 @@ def test_no_node_action_attack_succeeds(node_checks: dict[str, Check]) -> None:
 
 
 def test_a_keyless_sybil_is_forgotten() -> None:
-    """bench/attacks_member.py: made-up members with big capability lists cost bounded
-    memory, and their files, memory and idle CPU are given back once they fall silent."""
-    ((name, passed, figures),) = asyncio.run(asyncio.wait_for(probe_sybil(True), timeout=50))
+    """bench/attacks_member.py: made-up members with big capability lists, beating 5 s
+    then silent, twice, with the default timing: all forgotten, their files, memory and
+    idle CPU given back after each flood, no robot falsely failed."""
+    ((name, passed, figures),) = asyncio.run(asyncio.wait_for(probe_sybil(True), timeout=120))
     assert name == "sybil"
     assert passed, json.dumps(figures)
 
