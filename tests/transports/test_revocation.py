@@ -110,14 +110,17 @@ async def test_a_key_added_is_admitted_and_a_broken_folder_changes_nothing(
             ta = secure("a", keys, trusted_poll_s=POLL_S)
             await stack.enter_async_context(serving(ta))
             assert ta.curve is not None
-            # A half-copied certificate: the folder does not load; a keeps its keys.
-            (keys / "team" / "late.key").write_text("not a certificate\n")
+            # A broken certificate: the folder does not load; a keeps its keys.
+            (keys / "team" / "late.tmp").write_text("not a certificate\n")
+            (keys / "team" / "late.tmp").replace(keys / "team" / "late.key")
             await eventually(
                 lambda: any(e["event"] == "transport.trusted_not_reloaded" for e in logs),
                 "the reload failure said",
             )
             assert set(ta.curve.team) == {"a", "b", "mallory"}
-            shutil.copy(keys / "late.key", keys / "team" / "late.key")
+            # Copied in as the docs say: under another name, then renamed (never half-read).
+            shutil.copy(keys / "late.key", keys / "team" / "late.tmp")
+            (keys / "team" / "late.tmp").replace(keys / "team" / "late.key")
             curve = ta.curve
             await eventually(lambda: "late" in curve.team, "late's key admitted")
             tl = ZmqTransport(
