@@ -22,6 +22,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import gc
+import itertools
 import os
 import time
 from collections.abc import AsyncIterator, Callable
@@ -61,7 +62,8 @@ CHURN_BEATS = 300
 CHURN_S = 3.0
 CHURN_MAX_AUCTIONS = 15  # a burst of news, then one per auction window (1 s)
 FD_SLACK = 16
-RSS_SLACK_MB = 32.0  #: RSS allowed above the baseline a few seconds after each flood
+RSS_SLACK_MB = 40.0  #: RSS allowed above the baseline a few seconds after the first flood
+REPEAT_SLACK_MB = 16.0  #: RSS each further flood may add (before the trim: 40-100 MB)
 BEAT_S = 5.0  #: how long each ghost beats before it falls silent
 FLOODS = 2
 #: The library's default timing (failure_timeout_s 0.5 s, lease 1 s): no false failure.
@@ -347,7 +349,11 @@ async def _sybil(quick: bool, ghosts: int | None = None) -> Result:
         }
         ok = (
             all(f["ghosts_left"] == 0 for f in floods)
-            and all(f["rss_after_mb"] - rss0 <= RSS_SLACK_MB for f in floods)
+            and floods[0]["rss_after_mb"] - rss0 <= RSS_SLACK_MB
+            and all(
+                b["rss_after_mb"] - a["rss_after_mb"] <= REPEAT_SLACK_MB
+                for a, b in itertools.pairwise(floods)
+            )
             and fds1 <= fds0 + FD_SLACK
             and cpu1 <= cpu0 + CPU_SLACK
             and not false_failures
