@@ -6,7 +6,10 @@ attack at a time: a flood of hellos with distinct ids, big fake repository state
 invented robots, messages of unknown types, wrong schemas or nested 100,000 deep, and
 an oversized frame.
 Each check prints a PASS/FAIL line with its figures; :func:`run` returns False if one
-failed (``python -m btcap.bench attacks [--quick]`` then exits non-zero).
+failed (``python -m btcap.bench attacks [--quick]`` then exits non-zero). Verdicts are
+counts (inputs refused or delivered, peers and files held afterwards, asks unanswered,
+false failures), each waited for up to :data:`SETTLE_S`, never how fast: the machine's
+load decides that, and the latencies are figures.
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ MAX_MESSAGE_BYTES = 1 << 20
 STRANGER_TTL_S = 0.3  # r1 drops a peer that only said hello (teammates beat every 0.1 s)
 FD_SLACK = 8  # open files allowed above the baseline once an attack is over
 RSS_SLACK_MB = 64.0  # RSS growth allowed for the fake states (100 MB sent in full mode)
-ASK_BOUND_S = 0.5  # slowest acceptable ask round trip to the target while attacked
+ASK_TIMEOUT_S = 3.0  # an ask unanswered this long (the team's lease) was not served
+SETTLE_S = 30.0  # how long the target may take to drain an attack on a loaded machine
 TICK_S = 0.01
 #: Both robots share this process's loop with the probe, whose gc.collect() for the memory
 #: figures can pause it for a good part of a second in a big process (the test suite):
@@ -109,7 +113,7 @@ class Health:
     failures: list[str] = field(default_factory=list)
     asks: list[float] = field(default_factory=list)
     ask_errors: int = 0
-    ask_bound_s: float = ASK_BOUND_S
+    ask_timeout_s: float = ASK_TIMEOUT_S
 
 
 def open_files() -> int:
@@ -172,27 +176,42 @@ async def _ask_loop(origin: Agent, health: Health, stop: asyncio.Event) -> None:
         seq += 1
         t0 = time.perf_counter()
         try:
-            await origin.system.ask(
-                Address("r1", "probe"), Ping(seq), timeout=2 * health.ask_bound_s
-            )
+            await origin.system.ask(Address("r1", "probe"), Ping(seq), timeout=health.ask_timeout_s)
         except Exception:
             health.ask_errors += 1
         health.asks.append(time.perf_counter() - t0)
         await asyncio.sleep(0.05)
 
 
-async def _attack(name: str, fn: Callable[[], None], r1: Agent, health: Health) -> dict[str, Any]:
-    """Run one attack to the end, let the target drain, and return before/after figures."""
+async def _attack(
+    name: str,
+    fn: Callable[[], None],
+    r1: Agent,
+    health: Health,
+    drained: Callable[[dict[str, int]], bool] = lambda _: True,
+) -> dict[str, Any]:
+    """Run one attack to the end, let the target drain (until ``drained`` says so of the
+    counters that moved and the files opened are closed again, up to :data:`SETTLE_S`),
+    and return before/after figures."""
     t1 = _zmq(r1)
     gc.collect()
     stats_before = _counters(r1)
     before = {"fds": open_files(), "rss_mb": rss_mb(), "peers": len(t1.peers())}
     asks_before, failures_before = len(health.asks), len(health.failures)
+    errors_before = health.ask_errors
     t0 = time.perf_counter()
     await asyncio.to_thread(fn)
     sent_s = time.perf_counter() - t0
     peak_rss = rss_mb()
     await asyncio.sleep(0.5)  # the target drains what is queued; lingering sockets close
+
+    def moved() -> dict[str, int]:
+        return {k: v - stats_before.get(k, 0) for k, v in _counters(r1).items()}
+
+    settled = await _eventually(
+        lambda: drained(moved()) and open_files() <= before["fds"] + FD_SLACK, SETTLE_S
+    )
+    drain_s = time.perf_counter() - t0 - sent_s
     gc.collect()
     during = health.asks[asks_before:]
     return {
@@ -205,11 +224,23 @@ async def _attack(name: str, fn: Callable[[], None], r1: Agent, health: Health) 
         "rss_after_mb": round(rss_mb(), 1),
         "peers_before": before["peers"],
         "peers_after": len(t1.peers()),
+        "drained": settled,
+        "drain_s": round(drain_s, 3),
         "ask_max_ms": round(1000 * max(during, default=0.0), 1),
         "asks": len(during),
+        "ask_errors": health.ask_errors - errors_before,
         "false_failures": health.failures[failures_before:],
-        "stats": {k: v - stats_before.get(k, 0) for k, v in _counters(r1).items()},
+        "stats": moved(),
     }
+
+
+async def _eventually(cond: Callable[[], bool], timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            return False
+        await asyncio.sleep(TICK_S)
+    return True
 
 
 def _zmq(agent: Agent) -> ZmqTransport:
@@ -239,26 +270,21 @@ async def _latecomer(endpoint: str, r1: Agent) -> bool:
     ctx: zmq.Context[Any] = zmq.Context()
     try:
         with dealer(ctx, "latecomer", endpoint):
-            with contextlib.suppress(TimeoutError):
-                await _until(lambda: "latecomer" in _zmq(r1).peers(), 2.0)
-            return "latecomer" in _zmq(r1).peers()
+            return await _eventually(lambda: "latecomer" in _zmq(r1).peers(), SETTLE_S)
     finally:
         ctx.term()
 
 
-def _healthy(f: dict[str, Any], health: Health) -> bool:
-    return not f["false_failures"] and f["ask_max_ms"] <= 1000 * health.ask_bound_s
+def _healthy(f: dict[str, Any]) -> bool:
+    """The origin kept the target and had every ask answered (how fast is a figure)."""
+    return not f["false_failures"] and f["ask_errors"] == 0 and f["drained"]
 
 
-async def probe(quick: bool, *, more: bool = True, ask_bound_s: float = ASK_BOUND_S) -> list[Check]:
+async def probe(quick: bool, *, more: bool = True) -> list[Check]:
     """Run the attacks against a fresh team; one :class:`Check` per attack plus the mission
-    (and, with ``more``, the :data:`MORE_PROBES`, each on a team of its own).
-
-    ``ask_bound_s``: the slowest ask to the target that still counts as served. The bench
-    judges latency (0.5 s); a test on a loaded machine passes a bound only a stalled
-    target breaks."""
+    (and, with ``more``, the :data:`MORE_PROBES`, each on a team of its own)."""
     counts = Counts.of(quick)
-    health = Health(ask_bound_s=ask_bound_s)
+    health = Health()
     checks: list[Check] = []
     async with _team() as (r1, origin):
         await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
@@ -291,31 +317,41 @@ async def probe(quick: bool, *, more: bool = True, ask_bound_s: float = ASK_BOUN
             f["team_unchanged"] = r1.repository.team == team_before
             ok = f["team_unchanged"] and f["rss_after_mb"] - f["rss_before_mb"] <= RSS_SLACK_MB
             ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
-            checks.append(Check("fake_states", ok and _healthy(f, health), f))
+            checks.append(Check("fake_states", ok and _healthy(f), f))
 
-            f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health)
-            ok = f["stats"]["malformed"] + f["stats"]["received"] >= counts.junk
-            checks.append(Check("junk", ok and _healthy(f, health), f))
+            def all_junk(moved: dict[str, int]) -> bool:
+                return moved["malformed"] + moved["received"] >= counts.junk
+
+            f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health, all_junk)
+            checks.append(Check("junk", all_junk(f["stats"]) and _healthy(f), f))
 
             f = await _attack(
-                "oversized", lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES), r1, health
+                "oversized",
+                lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES),
+                r1,
+                health,
+                lambda moved: moved["disconnects"] >= 1,
             )
             # Cut off by libzmq before the decoder saw it (it would count as malformed).
             ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
-            checks.append(Check("oversized", ok and _healthy(f, health), f))
+            checks.append(Check("oversized", ok and _healthy(f), f))
 
             f = await _attack(
-                "hello_flood", lambda: hello_flood(endpoint, counts.hellos), r1, health
+                "hello_flood",
+                lambda: hello_flood(endpoint, counts.hellos),
+                r1,
+                health,
+                lambda _: len(_zmq(r1).peers()) <= MAX_PEERS,
             )
             f["latecomer_accepted"] = await _latecomer(endpoint, r1)
             ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
             ok = ok and f["latecomer_accepted"]
-            checks.append(Check("hello_flood", ok and _healthy(f, health), f))
+            checks.append(Check("hello_flood", ok and _healthy(f), f))
 
             node.set_input("value", 2)
-            await _until(lambda: node.outputs["value"] == 2, 5.0)
+            await _until(lambda: node.outputs["value"] == 2, SETTLE_S)
             node.set_input("stop", True)
-            await _until(lambda: tree.root.state is State.SUCCEEDED, 5.0)
+            await _until(lambda: tree.root.state is State.SUCCEEDED, SETTLE_S)
         except TimeoutError:
             pass
         finally:

@@ -115,6 +115,11 @@ class SwimNet:
         lo, hi = self.latency_s
         self._at(self.now + self._rng.uniform(lo, hi), _DELIVER, to, sender, msg)
 
+    def inject(self, at: float, sender: str, to: str, msg: Message) -> None:
+        """Deliver ``msg`` to ``to`` at ``at`` from ``sender``, who need not be a robot of
+        the net (a made-up member: what is sent to it goes nowhere)."""
+        self._at(at, _DELIVER, to, sender, msg)
+
     def run_until(self, until: float) -> None:
         queue = self._queue
         while queue and queue[0][0] <= until:

@@ -169,7 +169,7 @@ class Refusals:
         if known_as is None:
             why = (
                 f"refused {address}: its key {fp} is not in our trusted folder "
-                "(keys.trusted): if it is a teammate, add its NAME.key there and restart"
+                "(keys.trusted): if it is a teammate, add its NAME.key there (read within 2 s)"
             )
         else:
             why = f"refused {address}: its key {fp} is {known_as}'s, not allowed here"

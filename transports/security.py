@@ -143,11 +143,13 @@ class TeamKeys:
     transport. ``roles`` maps names to :data:`~btcap.transports.identity.ROLES`; a member
     it leaves out is a robot (files always say: see :meth:`load`)."""
 
-    __slots__ = ("_by_key", "_by_name", "_roles")
+    __slots__ = ("_by_key", "_by_name", "_roles", "folder")
 
     def __init__(
         self, members: Mapping[str, bytes], roles: Mapping[str, str] | None = None
     ) -> None:
+        #: The directory it was loaded from (:meth:`load`), watched for revocations.
+        self.folder: Path | None = None
         self._by_name: dict[str, bytes] = {}
         self._by_key: dict[bytes, str] = {}
         self._roles: dict[str, str] = {}
@@ -181,9 +183,11 @@ class TeamKeys:
         except OSError as exc:
             raise ValueError(f"{folder}: cannot read ({exc})") from None
         try:
-            return cls(members, roles)
+            team = cls(members, roles)
         except ValueError as exc:
             raise ValueError(f"{folder}: {exc}") from None
+        team.folder = folder
+        return team
 
     def key_of(self, name: str) -> bytes | None:
         return self._by_name.get(name)
@@ -252,10 +256,11 @@ class Curve:
     transport wants a context of its own.
     """
 
-    __slots__ = ("_auth", "keys", "team")
+    __slots__ = ("_auth", "_own", "keys", "team")
 
     def __init__(self, system_id: str, keys: KeyPair, team: TeamKeys) -> None:
         member = member_of(system_id)  # an observer uses its member's key
+        self._own = system_id
         if team.key_of(member) != keys.public:
             raise ValueError(
                 f"system {system_id!r}: its public key is not the team's certificate "
@@ -282,6 +287,19 @@ class Curve:
         sock.setsockopt(zmq.CURVE_SERVERKEY, server_key)
         sock.setsockopt(zmq.CURVE_SECRETKEY, self.keys.secret)
         sock.setsockopt(zmq.CURVE_PUBLICKEY, self.keys.public)
+
+    def trust(self, team: TeamKeys) -> set[str]:
+        """Admit ``team`` from now on (ZAP asks it at every handshake); the members whose
+        key it no longer holds (removed, or replaced by another key) are returned: their
+        links were made with a key we now refuse. Raises ValueError, trusting nothing new,
+        if ``team`` lacks our own key."""
+        member = member_of(self._own)
+        if team.key_of(member) != self.keys.public:
+            raise ValueError(f"{team.folder}: holds no {member}.key with our public key")
+        old, self.team = self.team, team
+        if self._auth is not None:
+            self._auth.team = team
+        return {name for name in old if team.key_of(name) != old.key_of(name)}
 
     def start(self, context: zmq.Context[Any], refused: Refused | None = None) -> None:
         """Run the ZAP handler on the running asyncio loop (telling ``refused`` whom it

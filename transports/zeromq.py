@@ -15,6 +15,7 @@ a ``send`` and a ``RCVMORE`` query: most of what a round trip costs in Python.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 from typing import Any
 
@@ -34,6 +35,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
+from btcap.transports.trust import DEFAULT_POLL_S, watch_trusted
 from btcap.transports.zmq_io import (
     Received,
     allow_sockets,
@@ -102,6 +104,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
     its own; ``inproc://`` is refused). Without keys it binds loopback/ipc/inproc only
     unless ``insecure=True``. ``max_message_bytes`` bounds a frame: libzmq cuts off a
     connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
+    A trusted folder is polled every ``trusted_poll_s`` seconds (0: never): a key removed
+    from it is refused and its links closed (:mod:`~btcap.transports.trust`).
     """
 
     def __init__(
@@ -121,10 +125,12 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         max_message_bytes: int = DEFAULT_MAX_MESSAGE_BYTES,
         stranger_ttl_s: float = 30.0,
         max_strangers: int = 64,
+        trusted_poll_s: float = DEFAULT_POLL_S,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
+        self.trusted_poll_s = trusted_poll_s
         self.max_message_bytes = max_message_bytes
         # Frames shorter than this are copied into zmq and within bounds: sent inline.
         self._small = min(COPY_THRESHOLD, max_message_bytes + 1)
@@ -281,10 +287,19 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         loop.call_soon(self._on_events)
         for monitor in self._monitors.values():
             self._watch(monitor)
+        folder = None if self.curve is None else self.curve.team.folder
+        watch = None
+        if folder is not None and self.trusted_poll_s > 0:
+            poll = watch_trusted(self.system_id, folder, self.trusted_poll_s, self._trust)
+            watch = asyncio.create_task(poll)
         task_status.started()
         try:
             await self._stopped
         finally:
+            if watch is not None:
+                watch.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await watch
             self.close()
         self._raise_if_refused()
 
@@ -344,7 +359,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         if problem:
             self._malformed(problem, member, "not the member ZAP admitted")
             return None
-        if self._blocked(ident, member):
+        if self._blocked(ident, member, part):
             return None
         return member, part.buffer, extra
 

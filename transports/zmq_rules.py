@@ -6,6 +6,9 @@ transport calls these hooks from its receive path; the state they keep is theirs
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import os
+import socket
 import time
 from collections.abc import Callable
 from typing import Any
@@ -16,9 +19,9 @@ import zmq
 from btcap.transports.base import BROADCAST, TransportStats
 from btcap.transports.bounds import check_nesting, message_tag, split_envelope
 from btcap.transports.codec import Codec
-from btcap.transports.identity import OBSERVER, is_observer_id
+from btcap.transports.identity import OBSERVER, is_observer_id, member_of
 from btcap.transports.log import get_logger
-from btcap.transports.security import Curve
+from btcap.transports.security import Curve, TeamKeys
 from btcap.transports.zmq_claims import (
     TELL_S,
     Claims,
@@ -78,6 +81,7 @@ class PeerRules:
         self._members: Callable[[str], bool] | None = None
         #: Largest message a non-member may send (see :meth:`members`).
         self.max_non_member_bytes = NON_MEMBER_BYTES
+        self._revoked: set[bytes] = set()  #: members whose key left the trusted folder
         #: Why a teammate refused us (another live process has our name), or None.
         self.name_taken: str | None = None
 
@@ -88,6 +92,9 @@ class PeerRules:
         raise NotImplementedError  # the transport's
 
     def _forget(self, peer: str, met: float) -> None:
+        raise NotImplementedError  # the transport's
+
+    def remove_peer(self, system_id: str) -> None:
         raise NotImplementedError  # the transport's
 
     # -- where peers are --------------------------------------------------------------
@@ -208,13 +215,44 @@ class PeerRules:
     def _hello(self) -> bytes:
         return hello_payload(self.endpoint, self._claims.instance)
 
-    def _blocked(self, raw: bytes, member: bytes) -> bool:
-        """With keys: whether a connection belongs to a refused second process."""
+    def _blocked(self, raw: bytes, member: bytes, part: zmq.Frame) -> bool:
+        """With keys: whether a connection belongs to a refused second process, or was
+        made with a key we no longer trust (then it is cut)."""
         self._raw_ident = raw
         if self._claims.refused_links and self._claims.blocked(raw):
             reject(self.stats, self.system_id, "name taken", member, "a refused second process")
             return True
+        if self._revoked and member.partition(b"+")[0] in self._revoked:
+            reject(self.stats, self.system_id, "key revoked", member, "key no longer trusted")
+            _cut(part)
+            return True
         return False
+
+    # -- revocation -------------------------------------------------------------------
+    def _trust(self, team: TeamKeys) -> None:
+        """Admit the reloaded ``team`` (see :mod:`~btcap.transports.trust`): ZAP refuses
+        a removed or replaced key from now on, our links to its member are closed and
+        what comes over its links into us is dropped, each cut at its next message."""
+        assert self.curve is not None
+        old = set(self.curve.team)
+        revoked = self.curve.trust(team)
+        self._revoked = {n.encode() for n in revoked} | {
+            n for n in self._revoked if n.decode() not in team
+        }
+        for peer in set(self._dealers) | set(self._known.values()):
+            if member_of(peer) in revoked:
+                self.remove_peer(peer)
+            else:
+                self._classify(peer)  # its role may have changed
+        added = sorted(set(team) - old)
+        if revoked or added:
+            log.warning(
+                "transport.trusted_reloaded",
+                system=self.system_id,
+                revoked=sorted(revoked),
+                added=added,
+                detail=f"keys.trusted: {team.folder} changed: links of revoked keys closed",
+            )
 
     def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool:
         """Whether a hello under a known peer's name from another endpoint comes from a
@@ -271,3 +309,14 @@ class PeerRules:
 
     def _stop_rules(self) -> None:
         self._claims.done_telling()
+
+
+def _cut(part: zmq.Frame) -> None:
+    """Close the TCP connection ``part`` came over (libzmq then drops it and the peer's
+    reconnection meets ZAP, which refuses the key): shut down on a duplicate of its
+    descriptor, so libzmq's own is never closed under it."""
+    with contextlib.suppress(zmq.ZMQError, OSError, ValueError):
+        fd = int(part.get(zmq.SRCFD))
+        if fd >= 0:
+            with socket.socket(fileno=os.dup(fd)) as sock:
+                sock.shutdown(socket.SHUT_RDWR)

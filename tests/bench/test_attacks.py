@@ -18,11 +18,9 @@ pytestmark = pytest.mark.slow
 def checks() -> dict[str, Check]:
     """The original probe; the others run on teams of their own below (and all of them in
     ``python -m btcap.bench attacks``), so each stays well within a test's time limit."""
-    # How fast the target answers depends on the machine's load (the bench reports it);
-    # here an ask counts as served unless the target stalls for most of a lease (3 s).
-    result = asyncio.run(
-        asyncio.wait_for(probe(quick=True, more=False, ask_bound_s=2.0), timeout=40)
-    )
+    # The probe judges by counts (an ask counts as served unless the target stalls for
+    # a lease, 3 s), so it passes on a loaded machine; latencies are figures.
+    result = asyncio.run(asyncio.wait_for(probe(quick=True, more=False), timeout=60))
     return {c.name: c for c in result}
 
 
@@ -68,9 +66,10 @@ def test_no_node_action_attack_succeeds(node_checks: dict[str, Check]) -> None:
 
 
 def test_a_keyless_sybil_is_forgotten() -> None:
-    """bench/attacks_member.py: made-up members with big capability lists cost bounded
-    memory, and their files, memory and idle CPU are given back once they fall silent."""
-    ((name, passed, figures),) = asyncio.run(asyncio.wait_for(probe_sybil(True), timeout=50))
+    """bench/attacks_member.py: made-up members with big capability lists, beating 5 s
+    then silent, twice, with the default timing: all forgotten, their files, memory and
+    idle CPU given back after each flood, no robot falsely failed."""
+    ((name, passed, figures),) = asyncio.run(asyncio.wait_for(probe_sybil(True), timeout=120))
     assert name == "sybil"
     assert passed, json.dumps(figures)
 

@@ -22,13 +22,14 @@ by ``1 + health`` (health up to :data:`MAX_HEALTH`). Design and bound: docs/memb
 
 from __future__ import annotations
 
-import math
 import random
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from btcap.team.core.gossip import ProbeOrder, Rumours
 from btcap.team.core.members import Hearsay, Member, MemberTable, Suspicion, TeamEvent
+from btcap.team.core.newcomers import Newcomers
+from btcap.team.core.timeouts import ALPHA, BETA, MAX_HEALTH, MAX_RELAYS, SwimParams
 from btcap.team.messages import Heard, Heartbeat, ProbeRequest, Vouch
 from btcap.transports.message import Message
 
@@ -41,76 +42,17 @@ __all__ = [
     "SwimParams",
 ]
 
-ALPHA = 4.0  #: suspicion timeout, in periods per decade of team size (Lifeguard's alpha)
-BETA = 6.0  #: the longest suspicion timeout, in shortest ones (Lifeguard's beta)
-CONFIRMATIONS = 3  #: independent confirmations that bring a suspicion to its shortest
-RETRANSMIT = 4  #: each news item is passed on RETRANSMIT·⌈log10(team + 1)⌉ times (lambda)
-MAX_HEALTH = 8  #: the local health multiplier's ceiling (Lifeguard's awareness)
-MAX_RELAYS = 64  #: indirect probes run for others at once (a flood of requests is dropped)
-
-
-@dataclass(frozen=True, slots=True)
-class SwimParams:
-    """The protocol's settings; everything else scales with the team by itself."""
-
-    period_s: float  #: a probe per period (the ``heartbeat_s`` setting)
-    floor_s: float  #: the shortest suspicion timeout (the ``failure_timeout_s`` setting)
-    news: int = 8  #: news items per message (the ``heartbeat_fanout`` setting)
-    indirect: int = 3  #: members asked to probe an unanswering one (SWIM's k)
-    max_members: int = 1024
-
-    def __post_init__(self) -> None:
-        if not self.floor_s > self.period_s:
-            raise ValueError("failure_timeout_s: must exceed heartbeat_s")
-
-    @property
-    def probe_timeout_s(self) -> float:
-        """How long a direct probe waits before asking others (half a period)."""
-        return self.period_s / 2
-
-    def suspicion_bounds(self, team: int) -> tuple[float, float]:
-        """The shortest and longest suspicion timeouts in a team of ``team`` robots:
-        ``alpha·log10(team)`` periods and beta times that, neither below the floor (a floor
-        the user set is what they get where it is longer than the scaled timeouts)."""
-        scaled = ALPHA * math.log10(max(team, 1)) * self.period_s
-        lo = max(self.floor_s, scaled)
-        return lo, max(lo, BETA * scaled)
-
-    def suspicion_s(self, team: int, confirmations: int) -> float:
-        """Lifeguard's timeout: the longest with no independent confirmation, down to the
-        shortest with :data:`CONFIRMATIONS` of them (logarithmically)."""
-        lo, hi = self.suspicion_bounds(team)
-        k = min(CONFIRMATIONS, team - 2)
-        if k < 1:
-            return lo
-        done = math.log(min(confirmations, k) + 1) / math.log(k + 1)
-        return max(lo, hi - (hi - lo) * done)
-
-    def retransmits(self, team: int) -> int:
-        """How many times each news item is passed on."""
-        return RETRANSMIT * max(1, math.ceil(math.log10(team + 1)))
-
-    def hearsay_window_s(self, team: int) -> float:
-        """A refutation passed on by others counts only this long after our last direct
-        word from the robot: the longest suspicion plus two periods."""
-        return self.suspicion_bounds(team)[1] + 2 * self.period_s
-
-    def detection_bound_s(self, team: int) -> float:
-        """The stated bound on detecting a dead robot once someone probed it: the probe's
-        period, the suspicion's spread (every news item is sent ``retransmits`` times, one
-        a period at least) and the longest suspicion timeout. O(log team)."""
-        return self.period_s * (2 + self.retransmits(team)) + self.suspicion_bounds(team)[1]
-
 
 @dataclass(slots=True)
 class Step:
     """What one input made the protocol do: messages to send (to a robot's membership),
-    team events in order, and robots mentioned that are no members (worth an
-    introduction)."""
+    team events in order, robots mentioned that are no members (worth an introduction)
+    and newcomers that answered us (worth a welcome)."""
 
     sends: list[tuple[str, Message]] = field(default_factory=list)
     events: list[tuple[TeamEvent, str]] = field(default_factory=list)
     unknown: list[str] = field(default_factory=list)
+    confirmed: list[str] = field(default_factory=list)
 
 
 @dataclass(slots=True)
@@ -156,6 +98,8 @@ class Swim:
         self.repo_version = repo_version
         self.busy = busy
         self.refuted = 0  #: suspicions of this robot it refuted
+        self.forgotten = 0  #: members forgotten without ever answering us
+        self.newcomers = Newcomers(rng)
         self._rng = rng
         self._order = ProbeOrder(rng)
         self._probe: _Probe | None = None
@@ -219,10 +163,17 @@ class Swim:
         """A period starts: the last probe concludes, suspicions that ran out become
         failures, and the next member is probed."""
         step = Step()
-        self._conclude(now)
+        self._conclude(now, step)
         for robot in self.table.expire(now, self.timeout_of):
             self.rumours.drop(robot)
             step.events.append((TeamEvent.FAILED, robot))
+        for robot in self.newcomers.silent(self.members, now, self.params.forget_s(self.team())):
+            self.table.goodbye(robot, self.members[robot].incarnation)
+            self.rumours.drop(robot)
+            self.forgotten += 1
+            step.events.append((TeamEvent.FAILED, robot))
+        for robot, nonce in self.newcomers.due(self.members, now, self.period_s):
+            step.sends.append((robot, self.heartbeat(to=robot, probe=nonce)))
         self._relays = {n: r for n, r in self._relays.items() if r.until > now}
         target = self._next_target(now)
         if target is not None:
@@ -241,25 +192,27 @@ class Swim:
         """The probe timeout passed: if the target has not answered, ask others."""
         step = Step()
         probe = self._probe
-        if probe is None or probe.acked or probe.helpers:
-            return step
-        others = [r for r in self.members if r != probe.target]
+        if probe is None or probe.acked or probe.helpers or probe.target in self.newcomers:
+            return step  # (nobody else knows a member that never answered us)
+        others = [r for r in self.members if r != probe.target and r not in self.newcomers]
         k = min(self.params.indirect, len(others))
         probe.helpers = tuple(self._rng.sample(sorted(others), k)) if k else ()
         for helper in probe.helpers:
             step.sends.append((helper, ProbeRequest(probe.target, probe.number)))
         return step
 
-    def _conclude(self, now: float) -> None:
+    def _conclude(self, now: float, step: Step) -> None:
         probe, self._probe = self._probe, None
         if probe is None:
             return
         m = self.members.get(probe.target)
         if probe.acked:
             self.health = max(self.health - 1, 0)
+            if self.newcomers.confirm(probe.target):
+                self._confirmed(probe.target, step)
             return
-        if m is None:
-            return
+        if m is None or m.robot in self.newcomers:
+            return  # its silence says nothing of us, and it is forgotten unless it answers
         if m.suspicion is None:
             # The first to find it silent may be the one whose network is failing
             # (Lifeguard: slow down, by each helper that did not even say it was trying;
@@ -298,30 +251,42 @@ class Swim:
             robot, msg.incarnation, msg.repo_version, now, msg.busy, msg.beat
         )
         news = self.rumours.about(robot)
-        if events and events[-1] is TeamEvent.JOINED:  # passed on: others may not know it
-            self.rumours.add(Heard(robot, msg.incarnation, msg.beat))
+        nonce = 0  # a newcomer is probed at once; passed on once it answers
+        if events and events[-1] is TeamEvent.JOINED:
+            nonce = self.newcomers.joined(robot, now)
         elif news is not None and news.suspect and robot not in self.table.suspected:
             self.rumours.drop(robot)  # heard it ourselves: stop spreading the doubt
         step.events.extend((event, robot) for event in events)
-        self._news(robot, msg.heard, now, step)
+        # Of others, what a member says counts once it answered us; of us, always.
+        self._news(robot, msg.heard, now, step, robot in self.newcomers)
         member = robot in self.members
-        if msg.probe and member:
-            step.sends.append((robot, self.heartbeat(to=robot, ack=msg.probe)))
+        if (msg.probe or nonce) and member:
+            step.sends.append((robot, self.heartbeat(to=robot, probe=nonce, ack=msg.probe)))
         if msg.ack and member:
             self._acked(robot, msg.ack, step)
         return step
+
+    def _confirmed(self, robot: str, step: Step) -> None:
+        """A newcomer answered us: others may not know it yet."""
+        m = self.members[robot]
+        self.rumours.add(Heard(robot, m.incarnation, m.beat))
+        step.confirmed.append(robot)
 
     def _acked(self, robot: str, number: int, step: Step) -> None:
         probe = self._probe
         if probe is not None and probe.number == number and probe.target == robot:
             probe.acked = True
+        if self.newcomers.answered(robot, number):
+            self._confirmed(robot, step)
         relay = self._relays.pop(number, None)
         if relay is not None and relay.target == robot:
             m = self.members[robot]
             vouch = Vouch(robot, relay.number, m.incarnation, m.beat)
             step.sends.append((relay.requester, vouch))
 
-    def _news(self, sender: str, heard: Iterable[Heard], now: float, step: Step) -> None:
+    def _news(
+        self, sender: str, heard: Iterable[Heard], now: float, step: Step, unconfirmed: bool
+    ) -> None:
         team = self.team()
         window = self.params.hearsay_window_s(team)
         for n, h in enumerate(heard):
@@ -330,6 +295,8 @@ class Swim:
             if h.robot == self.robot:
                 if h.suspect and h.incarnation == self.incarnation:
                     self._refute(h.beat)
+                continue
+            if unconfirmed:
                 continue
             if h.suspect:
                 # A robot speaks only for itself: news of a suspicion says its sender holds
@@ -360,6 +327,8 @@ class Swim:
         step = Step()
         if sender not in self.members or msg.target not in self.members or sender == msg.target:
             return step
+        if sender in self.newcomers:
+            return step
         if len(self._relays) >= MAX_RELAYS:
             return step
         self._numbers += 1
@@ -389,7 +358,7 @@ class Swim:
         """Nobody listens where ``robot`` said (the transport cannot connect): suspect it
         now, not in its round-robin turn; refuted by its own newer beat, as any other."""
         m = self.members.get(robot)
-        if m is not None and m.suspicion is None:
+        if m is not None and m.suspicion is None and robot not in self.newcomers:
             self._suspect(m, now)
 
     def on_goodbye(self, robot: str, incarnation: int) -> Step:

@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable
 
 from btcap.actors import Actor, Address, Supervision, handler
+from btcap.actors.heap import HeapTrim
 from btcap.team.core.gossip import Introductions, Turns
 from btcap.team.core.members import Member, MemberTable, TeamEvent
 from btcap.team.core.swim import Step, Swim, SwimParams
@@ -85,6 +86,7 @@ class Membership(Actor):
         # Seeded by name: the same team probes in the same order every run (the fast sim).
         self.swim = Swim(robot, time.time_ns(), params, random.Random(f"probes {robot}"))
         self.refused = 0  #: messages sent in another robot's name, or by strangers
+        self.heap = HeapTrim()  #: gives back what forgotten made-up members cost
         self.fanout = fanout
         self._others = Turns(random.Random(f"others {robot}"))
         self._asked = Introductions(failure_timeout_s)
@@ -144,6 +146,7 @@ class Membership(Actor):
         self.start_task(self._run(), name=f"membership {self.robot}")
 
     def on_stop(self) -> None:
+        self.heap.cancel()
         system = self._system
         if system is not None and system.transport is not None:
             system.broadcast(self.PATH, Goodbye(self.robot, self.incarnation))
@@ -172,7 +175,10 @@ class Membership(Actor):
         peers that are no members, in turns."""
         if self.swim.set_state(self._repo_version(), self._body_busy()):
             self.system.broadcast(self.PATH, self.swim.heartbeat())
+        forgotten = self.swim.forgotten
         self._apply(self.swim.tick(now), None)
+        if self.swim.forgotten != forgotten:
+            self.heap.burst()
         transport = self.system.transport
         if transport is None:
             return
@@ -196,7 +202,8 @@ class Membership(Actor):
             self._emit(event, robot)
             if event is TeamEvent.JOINED:
                 self._rosters_due[robot] = [math.inf]  # its welcome, whenever it comes
-                self._welcome(robot)
+        for robot in step.confirmed:  # it answered our probe: worth the team's roster
+            self._welcome(robot)
         if step.unknown and sender is not None:
             self._introduce(sender, step.unknown)
 
@@ -239,15 +246,17 @@ class Membership(Actor):
             self._apply(self.swim.on_vouch(self.sender, msg, self.system.clock.now()), None)
 
     def _welcome(self, robot: str) -> None:
-        """Let a newcomer know us at once, and whom else to meet."""
-        self._beat_to(robot)
+        """Tell a newcomer that answered us whom else to meet (it knows us: the probe it
+        answered was our heartbeat). Members that never answered us are not named."""
         transport = self.system.transport
         if transport is None:
             return
         contacts = [
             Contact(r, endpoint)
             for r in self.table.members
-            if r != robot and (endpoint := transport.endpoint_of(r)) is not None
+            if r != robot
+            and r not in self.swim.newcomers
+            and (endpoint := transport.endpoint_of(r)) is not None
         ]
         # Sent even when empty: it uses up the one roster the newcomer takes unasked.
         self.system.tell(Address(robot, self.PATH), Roster(contacts))

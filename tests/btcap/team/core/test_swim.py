@@ -22,9 +22,13 @@ DEFAULTS = SwimParams(period_s=0.1, floor_s=0.5)  # the library's defaults
 
 
 def robot(name: str = "a", team: tuple[str, ...] = ("b", "c", "d", "e")) -> Swim:
+    """``name`` with ``team`` joined, each answering the probe its join brought."""
     s = Swim(name, 1, DEFAULTS, random.Random(0))
     for other in team:
-        s.on_heartbeat(Heartbeat(other, 1, 0), 0.0)
+        [(_, probe)] = s.on_heartbeat(Heartbeat(other, 1, 0), 0.0).sends
+        assert isinstance(probe, Heartbeat)
+        s.on_heartbeat(Heartbeat(other, 1, 0, ack=probe.probe), 0.0)
+    assert len(s.newcomers) == 0
     return s
 
 

@@ -109,7 +109,9 @@ async def test_goodbye_of_the_current_incarnation_only() -> None:
 async def test_a_member_silent_to_probes_is_suspected_then_failed() -> None:
     with anyio.fail_after(5):
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, events):
-            await p.send("x", Heartbeat("x", 1, 0))  # x never answers a probe
+            x = Asked()
+            p.systems["x"].spawn(x, Membership.PATH)
+            await confirmed(p, x)  # x answers the probe its join brought, then no other
             await p.clock.advance(0.4)
             await p.send("x", Heartbeat("x", 1, 0))  # its own word ends the suspicion
             assert p.m.table.suspected == {}
@@ -284,11 +286,12 @@ async def test_an_unasked_roster_naming_nobody_new_is_refused_without_a_warning(
 
 
 class Asked(Actor):
-    """A peer's membership that only notes the roster requests it gets."""
+    """A peer's membership that only notes the roster requests and probes it gets."""
 
     def __init__(self) -> None:
         super().__init__()
         self.requests: list[list[str]] = []
+        self.probes: list[int] = []
 
     @handler
     def on_roster_request(self, msg: RosterRequest) -> None:
@@ -296,11 +299,20 @@ class Asked(Actor):
 
     @handler
     def on_heartbeat(self, msg: Heartbeat) -> None:
-        pass
+        if msg.probe:
+            self.probes.append(msg.probe)
 
     @handler
     def on_roster(self, msg: Roster) -> None:
         pass
+
+
+async def confirmed(p: Peers, x: Asked, incarnation: int = 1) -> None:
+    """x joins and answers the probe its join brought: from then on its news counts."""
+    await p.send("x", Heartbeat("x", incarnation, 0))
+    await p.clock.advance(0)  # our probe reaches x
+    await p.send("x", Heartbeat("x", incarnation, 0, ack=x.probes[-1]))
+    assert "x" not in p.m.swim.newcomers
 
 
 def mentioning(*robots: str, incarnation: int = 1) -> Heartbeat:
@@ -316,6 +328,7 @@ async def test_a_member_owes_its_welcome_and_an_answer_to_each_request() -> None
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
             x = Asked()
             p.systems["x"].spawn(x, Membership.PATH)
+            await confirmed(p, x)
             await p.send("x", mentioning("z1"))
             await p.clock.advance(0.05)
             await p.send("x", mentioning("z2"))
@@ -331,7 +344,11 @@ async def test_a_member_owes_its_welcome_and_an_answer_to_each_request() -> None
 async def test_an_answer_is_due_until_the_failure_timeout_the_welcome_until_taken() -> None:
     with anyio.fail_after(5):
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
+            x = Asked()
+            p.systems["x"].spawn(x, Membership.PATH)
+            await confirmed(p, x)
             await p.send("x", mentioning("z1"))
+            assert x.requests == [["z1"]]
             await p.clock.advance(0.6)  # the answer is late: refused; the welcome is not
             await p.send("x", Heartbeat("x", 1, 0))
             await p.send("x", Roster([]))
@@ -347,6 +364,7 @@ async def test_what_a_member_may_owe_us_is_bounded_and_forgotten_when_it_leaves(
         async with membership(heartbeat_s=0.1, failure_timeout_s=0.5) as (p, _):
             x = Asked()
             p.systems["x"].spawn(x, Membership.PATH)
+            await confirmed(p, x)
             for i in range(2 * MAX_ANSWERS_DUE):
                 await p.send("x", mentioning(f"z{i}"))
             assert x.requests == [[f"z{i}"] for i in range(MAX_ANSWERS_DUE)]
