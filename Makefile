@@ -126,7 +126,7 @@ $(ROS1_VENV)/.installed: $(VENV)/.installed-dev
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
 			--no-install-recommends $(ROS1_APT) >/dev/null; \
 	else echo "make ros1: Debian's python3-rospy is not installed and apt-get as root is not \
-	available: run 'apt-get install --no-install-recommends $(ROS1_APT)' as root"; exit 1; fi
+	available: run 'apt-get install --no-install-recommends $(ROS1_APT)' as root" >&2; exit 1; fi
 	@test -x $(ROS1_BIN)/python || $(BIN)/python -m venv $(ROS1_VENV)
 	$(BIN)/python -c 'import site; print("import site; site.addsitedir(%r)" % site.getsitepackages()[0])' \
 		>$(ROS1_SITE)/btcap-venv.pth
