@@ -10,7 +10,8 @@ UV_VERSION := 0.13.9
 LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
-.PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros bench-ros-sim lock-ros
+.PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros bench-ros-sim \
+	lock-ros ros1 test-ros1
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -127,5 +128,38 @@ lock-ros:
 		--generate-hashes --custom-compile-command "make lock-ros" -c requirements-ros.txt \
 		-c requirements-dev.txt requirements-ros-build.in -o requirements-ros-build.txt
 
+# ROS 1 (issue #34): Debian's own ros_comm 1.15 / actionlib 1.14 packages (apt, as root), seen
+# from .venv-ros1, a venv of its own: .venv's packages through one .pth, then Debian's
+# /usr/lib/python3/dist-packages as a plain path line after them, so a module both have
+# comes from .venv's lock and Debian's .pth hooks do not run. Not in .venv itself: there
+# Debian's unlocked packages (PyYAML, cryptography, ...) would be importable unseen.
+ROS1_APT := python3-rospy python3-rosmaster python3-roslaunch python3-actionlib \
+	python3-geometry-msgs python3-std-msgs python3-std-srvs python3-nav-msgs \
+	python3-move-base-msgs python3-rostopic python3-rosservice python3-genpy python3-rosnode
+ROS1_VENV := .venv-ros1
+ROS1_BIN := $(ROS1_VENV)/bin
+ROS1_SITE = $(ROS1_VENV)/lib/python3.11/site-packages
+DEBIAN_SITE := /usr/lib/python3/dist-packages
+
+$(ROS1_VENV)/.installed: $(VENV)/.installed-dev
+	@if [ -e $(DEBIAN_SITE)/rospy/__init__.py ]; then :; \
+	elif command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+			--no-install-recommends $(ROS1_APT) >/dev/null; \
+	else echo "make ros1: Debian's python3-rospy is not installed and apt-get as root is not \
+	available: run 'apt-get install --no-install-recommends $(ROS1_APT)' as root" >&2; exit 1; fi
+	@test -x $(ROS1_BIN)/python || $(BIN)/python -m venv $(ROS1_VENV)
+	$(BIN)/python -c 'import site; print("import site; site.addsitedir(%r)" % site.getsitepackages()[0])' \
+		>$(ROS1_SITE)/btcap-venv.pth
+	echo $(DEBIAN_SITE) >$(ROS1_SITE)/zz-debian-ros1.pth
+	$(ROS1_BIN)/python -c 'import rospy, actionlib, rosmaster, genpy'
+	@touch $@
+
+ros1: $(ROS1_VENV)/.installed
+
+# The ROS 1 tests (tests/btcap/ros1): each starts its own rosmaster on a free loopback port.
+test-ros1: $(ROS1_VENV)/.installed
+	$(ROS1_BIN)/python -m pytest tests/btcap/ros1 -p no:cacheprovider $(ARGS)
+
 clean:
-	rm -rf $(VENV) $(ROS_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(ROS_VENV) $(ROS1_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -1,0 +1,124 @@
+"""ROS 1 interfaces by name: Debian's real genpy message, service and action classes,
+their port types, and filling / reading them, with one clear line for bad input."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from btcap.ros.errors import RosError
+from btcap.ros.interfaces1 import (
+    Action1,
+    Service1,
+    field_types1,
+    fill1,
+    interface1,
+    port_type1,
+    to_plain1,
+)
+
+pytestmark = pytest.mark.ros1
+
+
+def test_an_action_is_actionlibs_generated_classes_by_either_spelling() -> None:
+    from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseGoal
+
+    action = interface1("move_base_msgs/MoveBase", "action")
+    assert isinstance(action, Action1)
+    assert (action.Action, action.Goal, action.Feedback) == (
+        MoveBaseAction,
+        MoveBaseGoal,
+        MoveBaseFeedback,
+    )
+    assert interface1("move_base_msgs/action/MoveBase", "action") == action
+    assert field_types1(action.Goal) == {"target_pose": "geometry_msgs/PoseStamped"}
+
+
+def test_a_service_and_a_message() -> None:
+    srv = interface1("std_srvs/SetBool", "srv")
+    assert isinstance(srv, Service1)
+    assert field_types1(srv.Request) == {"data": "bool"}
+    assert field_types1(srv.Response) == {"success": "bool", "message": "string"}
+    header = interface1("std_msgs/msg/Header", "msg")
+    assert field_types1(header) == {"seq": "uint32", "stamp": "time", "frame_id": "string"}
+    assert port_type1("time") == port_type1("std_msgs/Header") == dict[str, Any]
+    assert port_type1("float64[36]") == list[float]
+    assert port_type1("uint32") is int
+
+
+def test_a_goal_is_filled_from_plain_values_and_read_back() -> None:
+    action = interface1("move_base_msgs/MoveBase", "action")
+    values = {
+        "target_pose": {
+            "header": {"frame_id": "map", "stamp": {"secs": 3, "nsecs": 5}},
+            "pose": {"position": {"x": 1, "y": 2.5}, "orientation": {"w": 1.0}},
+        }
+    }
+    goal = fill1(action.Goal, values, "goal")
+    assert goal.target_pose.pose.position.x == 1.0
+    assert isinstance(goal.target_pose.pose.position.x, float)
+    plain = to_plain1(goal)
+    assert plain["target_pose"]["header"] == {
+        "seq": 0,
+        "stamp": {"secs": 3, "nsecs": 5},
+        "frame_id": "map",
+    }
+    assert plain["target_pose"]["pose"]["position"] == {"x": 1.0, "y": 2.5, "z": 0.0}
+
+
+def test_sequences_of_messages_and_byte_arrays() -> None:
+    path = fill1(
+        interface1("nav_msgs/Path", "msg"),
+        {"poses": [{"pose": {"position": {"x": 1}}}, {"pose": {"position": {"x": 2}}}]},
+        "path",
+    )
+    assert [p.pose.position.x for p in path.poses] == [1.0, 2.0]
+    array = fill1(interface1("std_msgs/UInt8MultiArray", "msg"), {"data": [1, 2, 255]}, "a")
+    assert array.data == b"\x01\x02\xff"
+    assert to_plain1(array)["data"] == [1, 2, 255]
+    with pytest.raises(RosError, match=r"^a\.data\[0\]: 256 is out of uint8"):
+        fill1(interface1("std_msgs/UInt8MultiArray", "msg"), {"data": [256]}, "a")
+
+
+@pytest.mark.parametrize(
+    ("type_name", "kind", "says"),
+    [
+        ("no_such_msgs/Thing", "action", "no package 'no_such_msgs' with msg types"),
+        ("move_base_msgs/Fly", "action", "move_base_msgs has no action 'Fly'; it has MoveBase"),
+        ("std_msgs/Nope", "msg", "std_msgs has no msg 'Nope'; it has Bool, Byte"),
+        ("std_srvs/SetBool", "msg", "no package 'std_srvs' with msg types"),
+        ("std_srvs/srv/SetBool", "action", "expected a action, not a srv"),
+        ("SetBool", "srv", "expected 'package/Name'"),
+    ],
+)
+def test_an_unknown_type_is_one_line_naming_it(type_name: str, kind: str, says: str) -> None:
+    with pytest.raises(RosError, match="ROS 1 interface type") as info:
+        interface1(type_name, kind)
+    assert says in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("values", "says"),
+    [
+        ({"target": {}}, "goal: no field 'target'; fields: target_pose"),
+        ({"target_pose": {"pose": {"position": {"x": "far"}}}}, "goal.target_pose.pose.position.x"),
+        ({"target_pose": 3}, "goal.target_pose: 3 does not fit geometry_msgs/PoseStamped"),
+        ({"target_pose": {"header": {"seq": -1}}}, "out of uint32's range"),
+        ({"target_pose": {"header": {"stamp": 5}}}, "expected {secs, nsecs}"),
+    ],
+)
+def test_wrong_goal_fields_are_one_line_naming_the_field(values: dict, says: str) -> None:
+    action = interface1("move_base_msgs/MoveBase", "action")
+    with pytest.raises(RosError) as info:
+        fill1(action.Goal, values, "goal")
+    assert says in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_a_fixed_arrays_length_is_refused_before_the_wire() -> None:
+    cls = interface1("geometry_msgs/PoseWithCovariance", "msg")
+    with pytest.raises(RosError, match=r"^pose: ") as info:
+        fill1(cls, {"covariance": [0.0] * 3}, "pose")
+    assert "\n" not in str(info.value)
