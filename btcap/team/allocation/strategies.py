@@ -47,6 +47,12 @@ class BatchStrategy:
     name: str
     policy: BatchPolicy
 
+    @property
+    def modules(self) -> tuple[str, ...]:
+        """What the policy imports when it first plans (a robot imports them as it starts,
+        in a worker thread)."""
+        return tuple(getattr(self.policy, "modules", ()))
+
     def allocator(self, robot: RobotContext) -> Allocator:
         s = robot.settings
         return SingleItemAuction(

@@ -5,6 +5,8 @@ remote capability slot."""
 from __future__ import annotations
 
 import asyncio
+import importlib
+import sys
 import weakref
 from collections.abc import Iterable, Mapping
 from types import TracebackType
@@ -43,6 +45,12 @@ class Agent:
     contains a slot to do other work beside it. ``strategy`` allocates the tasks of
     this robot's capability nodes: a registered name (:mod:`btcap.team.allocation.strategies`) or a
     :class:`~btcap.team.allocation.strategy.Strategy` object; by default ``config.strategy``.
+
+    Nothing may hold the robot's event loop for long (its heartbeats would stop and its
+    team declare it failed): as it starts, the agent imports in a worker thread what its
+    strategy loads on first use (``Strategy.modules``: numpy and scipy for the planning
+    strategies, about a second of CPU), so its first batch of auctions finds them loaded.
+    Not awaited: a robot that never plans a batch does not wait for them to listen.
     """
 
     def __init__(
@@ -114,6 +122,9 @@ class Agent:
         await self.system.__aenter__()
         try:
             s = self.system
+            cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
+            if cold:
+                s.start_task(asyncio.to_thread(_import, cold), name=f"imports of {self.robot}")
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.departures, DepartureLog.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
@@ -174,3 +185,9 @@ class Agent:
             )
         finally:
             await tree.shutdown()
+
+
+def _import(modules: list[str]) -> None:
+    """Import ``modules`` (in a worker thread: see :class:`Agent`)."""
+    for name in modules:
+        importlib.import_module(name)
