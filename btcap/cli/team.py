@@ -202,9 +202,9 @@ def _agent(args: argparse.Namespace) -> int:
         )
 
     async def serve() -> None:
-        async with (
+        async with (  # the monitor first: its imports (aiohttp) must not hold a member's loop
+            serving(args.monitor, config.robot) as monitor,
             open_agent(config, registry, insecure=args.insecure) as agent,
-            serving(args.monitor, agent.robot) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
@@ -292,9 +292,9 @@ def _mission(args: argparse.Namespace) -> int:
     joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
-        async with (
-            open_agent(config, registry, robot=robot) as agent,
+        async with (  # the monitor first: its imports must not hold a member's loop
             serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,
+            open_agent(config, registry, robot=robot) as agent,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)

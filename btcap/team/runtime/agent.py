@@ -13,6 +13,7 @@ from types import TracebackType
 from typing import Any
 
 from btcap.actors import Actor, ActorSystem, TimeSource
+from btcap.actors.loops import report_stalls
 from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
@@ -50,7 +51,9 @@ class Agent:
     team declare it failed): as it starts, the agent imports in a worker thread what its
     strategy loads on first use (``Strategy.modules``: numpy and scipy for the planning
     strategies, about a second of CPU), so its first batch of auctions finds them loaded.
-    Not awaited: a robot that never plans a batch does not wait for them to listen.
+    Not awaited: a robot that never plans a batch does not wait for them to listen. In
+    asyncio's debug mode (``python -X dev``) a callback that holds the loop longer than
+    50 ms is reported (:func:`btcap.actors.loops.report_stalls`).
     """
 
     def __init__(
@@ -119,6 +122,7 @@ class Agent:
         return [e for e in (body.running,) if e], [e for e in (body.queued,) if e]
 
     async def __aenter__(self) -> Agent:
+        report_stalls(asyncio.get_running_loop())  # in asyncio's debug mode
         await self.system.__aenter__()
         try:
             s = self.system
