@@ -108,7 +108,8 @@ class _Stalls(logging.Filter):
             and len(args) == 2
         ):
             return True
-        text, seconds = str(args[0]), args[1]
+        text, took = str(args[0]), args[1]
+        seconds = float(took) if isinstance(took, int | float) else 0.0
         m = _SITE.search(text)
         site = (m.group(1) or m.group(2)) if m else text[:120]
         if site not in self.seen and len(self.seen) < MAX_SITES:
@@ -116,7 +117,7 @@ class _Stalls(logging.Filter):
             _log.warning(
                 "loop.stalled",
                 callback=site,
-                seconds=round(float(seconds), 3),
+                seconds=round(seconds, 3),
                 handle=text[:400],
                 fix="run CPU work in a worker thread, import heavy modules before joining",
             )

@@ -21,6 +21,7 @@ import time
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from btcap.bench.common import write_result
 
@@ -38,7 +39,7 @@ def _stamp(line: str) -> float | None:
     return datetime.fromisoformat(text).replace(tzinfo=UTC).timestamp()
 
 
-def one_run(btcap: str | None, logs: Path) -> dict[str, object]:
+def one_run(btcap: str | None, logs: Path) -> dict[str, Any]:
     """One run of the example: whether the mission succeeded, when its first task was
     assigned (mission seconds), and the robots' member_failed lines before its end."""
     env = dict(os.environ, BTCAP_TEAM_LOGS=str(logs))
@@ -77,13 +78,12 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> int:
     parser.add_argument("--runs", type=int, default=3 if quick else 20)
     parser.add_argument("--btcap", help="the btcap command to run (default: this install's)")
     args = parser.parse_args(argv)
-    runs = []
+    runs: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="btcap-team-runs.") as tmp:
         for i in range(args.runs):
             run = one_run(args.btcap, Path(tmp) / str(i))
             runs.append(run)
             fails = run["false_failures"]
-            assert isinstance(fails, list)
             print(
                 f"run {i + 1}/{args.runs}: mission {'ok' if run['succeeded'] else 'FAILED'}, "
                 f"first assignment at {run['first_assigned_s']} s, "
@@ -92,10 +92,10 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> int:
             )
             for line in fails:
                 print(f"    {line}", flush=True)
-    total = sum(len(r["false_failures"]) for r in runs)  # type: ignore[arg-type]
+    total = sum(len(r["false_failures"]) for r in runs)
     hit = sum(1 for r in runs if r["false_failures"])
     ok = sum(1 for r in runs if r["succeeded"])
-    firsts = sorted(float(r["first_assigned_s"]) for r in runs if r["first_assigned_s"] is not None)  # type: ignore[arg-type]
+    firsts = sorted(r["first_assigned_s"] for r in runs if r["first_assigned_s"] is not None)
     print(
         f"{args.runs} runs: {ok} missions succeeded; {total} member_failed lines of live "
         f"members, in {hit} runs; first assignment {firsts[0] if firsts else '-'}"
