@@ -180,6 +180,20 @@ def _until_stopped(
     return result[0]
 
 
+async def _monitor_imports(wanted: bool, *, serve: bool) -> None:
+    """Import the monitor (and its web server if it will ``serve``) in a worker thread
+    before the robot joins: it opens once the agent has (it needs the agent), and its
+    imports (aiohttp: a third of a second) would hold a member's event loop."""
+    if not wanted:
+        return
+    import importlib
+
+    import anyio
+
+    for name in ["btcap.monitor.monitor", *(["btcap.monitor.server"] if serve else [])]:
+        await anyio.to_thread.run_sync(importlib.import_module, name)
+
+
 # -- btcap agent -------------------------------------------------------------------------
 def _agent(args: argparse.Namespace) -> int:
     import anyio
@@ -202,9 +216,10 @@ def _agent(args: argparse.Namespace) -> int:
         )
 
     async def serve() -> None:
-        async with (  # the monitor first: its imports (aiohttp) must not hold a member's loop
-            serving(args.monitor, config.robot) as monitor,
+        await _monitor_imports(args.monitor is not None, serve=args.monitor is not None)
+        async with (
             open_agent(config, registry, insecure=args.insecure) as agent,
+            serving(args.monitor, agent.robot) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
@@ -292,9 +307,11 @@ def _mission(args: argparse.Namespace) -> int:
     joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
-        async with (  # the monitor first: its imports must not hold a member's loop
-            serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,
+        wanted = args.monitor is not None or args.record is not None
+        await _monitor_imports(wanted, serve=args.monitor is not None)
+        async with (
             open_agent(config, registry, robot=robot) as agent,
+            serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)

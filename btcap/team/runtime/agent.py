@@ -5,6 +5,7 @@ remote capability slot."""
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures.thread  # noqa: F401  asyncio.to_thread's pool, loaded before joining
 import importlib
 import sys
 import weakref
@@ -48,12 +49,13 @@ class Agent:
     :class:`~btcap.team.allocation.strategy.Strategy` object; by default ``config.strategy``.
 
     Nothing may hold the robot's event loop for long (its heartbeats would stop and its
-    team declare it failed): as it starts, the agent imports in a worker thread what its
-    strategy loads on first use (``Strategy.modules``: numpy and scipy for the planning
-    strategies, about a second of CPU), so its first batch of auctions finds them loaded.
-    Not awaited: a robot that never plans a batch does not wait for them to listen. In
-    asyncio's debug mode (``python -X dev``) a callback that holds the loop longer than
-    50 ms is reported (:func:`btcap.actors.loops.report_stalls`).
+    team declare it failed): when a mission tree is first attached (this robot will hold
+    auctions), the agent imports in a worker thread what its strategy loads on first use
+    (``Strategy.modules``: numpy and scipy for the planning strategies, about a second of
+    CPU), so its first batch of auctions, planned in a worker thread too, rarely waits
+    for them. A robot that only runs others' work never imports them. In asyncio's debug
+    mode (``python -X dev``) a callback that holds the loop longer than 50 ms is reported
+    (:func:`btcap.actors.loops.report_stalls`).
     """
 
     def __init__(
@@ -104,6 +106,7 @@ class Agent:
         self._host_task: asyncio.Task[Any] | None = None
         self._extra = dict(actors or {})
         self._missions: weakref.WeakSet[Tree] = weakref.WeakSet()
+        self._importing = False  # the strategy's modules (see the class)
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         """A teammate declared failed or gone costs nothing more: the transport stops
@@ -126,9 +129,6 @@ class Agent:
         await self.system.__aenter__()
         try:
             s = self.system
-            cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
-            if cold:
-                s.start_task(asyncio.to_thread(_import, cold), name=f"imports of {self.robot}")
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.departures, DepartureLog.PATH)
             s.spawn(self.repository, CapabilityRepository.PATH)
@@ -170,6 +170,10 @@ class Agent:
         A mission tree still attached when the agent exits is shut down with it.
         """
         tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
+        cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
+        if cold and not self._importing:  # for this robot's auctions, off the loop
+            self._importing = True
+            self.system.start_task(asyncio.to_thread(_import, cold), name=f"{self.robot} imports")
         tree.clock = self.clock
         tree.attach(self.system)
         self._missions.add(tree)
