@@ -49,8 +49,8 @@ class BatchStrategy:
 
     @property
     def modules(self) -> tuple[str, ...]:
-        """What the policy imports when it first plans (a robot imports them as it starts,
-        in a worker thread)."""
+        """What the policy imports when it first plans (a robot imports them in a worker
+        thread when it first attaches a mission)."""
         return tuple(getattr(self.policy, "modules", ()))
 
     def allocator(self, robot: RobotContext) -> Allocator:

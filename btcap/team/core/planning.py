@@ -62,7 +62,8 @@ __all__ = [
 Plan = list[str | None]
 
 #: What planning a batch of more than one task imports (about a second of CPU, which
-#: must never hold an event loop: a robot imports them in a worker thread as it starts).
+#: must never hold an event loop: a robot imports them in a worker thread when it first
+#: attaches a mission).
 #: A single task is planned without them.
 PLANNING_MODULES = ("numpy", "scipy.optimize")
 

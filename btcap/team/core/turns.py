@@ -57,7 +57,7 @@ class BatchPolicy(Protocol):
     clock: see :attr:`AwardQueue.off_loop`), so it must be a pure function of its
     arguments. A policy may name in ``modules`` (absent: none) what its ``plan`` imports
     when it first plans such a batch (numpy, scipy); a robot imports them in a worker
-    thread when it starts, so no import ever holds its event loop.
+    thread when it first attaches a mission, so no import ever holds its event loop.
     """
 
     @property
