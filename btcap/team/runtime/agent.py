@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures.thread  # noqa: F401  asyncio.to_thread's pool, loaded before joining
+import contextlib
 import importlib
 import sys
 import weakref
@@ -13,7 +14,7 @@ from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
-from btcap.actors import Actor, ActorSystem, TimeSource
+from btcap.actors import Actor, ActorSystem, SystemClosed, TimeSource
 from btcap.actors.loops import report_stalls
 from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
@@ -172,8 +173,10 @@ class Agent:
         tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
         cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
         if cold and not self._importing:  # for this robot's auctions, off the loop
-            self._importing = True
-            self.system.start_task(asyncio.to_thread(_import, cold), name=f"{self.robot} imports")
+            with contextlib.suppress(SystemClosed):  # not started: its first plan imports them
+                work = asyncio.to_thread(_import, cold)
+                self.system.start_task(work, name=f"{self.robot} imports")
+                self._importing = True
         tree.clock = self.clock
         tree.attach(self.system)
         self._missions.add(tree)
