@@ -182,6 +182,20 @@ def _until_stopped(
     return result[0]
 
 
+async def _monitor_imports(wanted: bool, *, serve: bool) -> None:
+    """Import the monitor (and its web server if it will ``serve``) in a worker thread
+    before the robot joins: it opens once the agent has (it needs the agent), and its
+    imports (aiohttp: a third of a second) would hold a member's event loop."""
+    if not wanted:
+        return
+    import importlib
+
+    import anyio
+
+    for name in ["btcap.monitor.monitor", *(["btcap.monitor.server"] if serve else [])]:
+        await anyio.to_thread.run_sync(importlib.import_module, name)
+
+
 # -- btcap agent -------------------------------------------------------------------------
 def _agent(args: argparse.Namespace) -> int:
     import anyio
@@ -204,6 +218,7 @@ def _agent(args: argparse.Namespace) -> int:
         )
 
     async def serve() -> None:
+        await _monitor_imports(args.monitor is not None, serve=args.monitor is not None)
         async with (
             open_agent(config, registry, insecure=args.insecure) as agent,
             serving(args.monitor, agent.robot) as monitor,
@@ -294,6 +309,8 @@ def _mission(args: argparse.Namespace) -> int:
     joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
+        wanted = args.monitor is not None or args.record is not None
+        await _monitor_imports(wanted, serve=args.monitor is not None)
         async with (
             open_agent(config, registry, robot=robot) as agent,
             serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,

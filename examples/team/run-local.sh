@@ -5,6 +5,7 @@
 # everything, and exits 0 only if the mission succeeded.
 #
 #   examples/team/run-local.sh            # from anywhere; BTCAP=... to pick the command
+#   BTCAP_TEAM_LOGS=DIR examples/team/run-local.sh   # also keep each robot's log in DIR
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -26,6 +27,9 @@ cleanup() {
         kill -KILL "$pid" 2>/dev/null || true
         wait "$pid" 2>/dev/null || true
     done
+    if [[ -n "${BTCAP_TEAM_LOGS:-}" ]]; then
+        mkdir -p "$BTCAP_TEAM_LOGS" && cp "$work"/*.log "$BTCAP_TEAM_LOGS"/ 2>/dev/null || true
+    fi
     rm -rf "$work"
 }
 trap cleanup EXIT

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import asyncio
+import logging
+import time
+from collections.abc import Iterator
+from typing import Any
 
 import pytest
+from structlog.testing import capture_logs
 
-from btcap.actors.loops import LOOP_ENV, loop_name, run
+from btcap.actors.loops import LOOP_ENV, STALL_S, loop_name, report_stalls, run
 
 uvloop = pytest.importorskip("uvloop")  # the optional 'fast' extra (in dev)
 
@@ -40,3 +45,63 @@ def test_uvloop_asked_for_but_missing_is_an_error(monkeypatch: pytest.MonkeyPatc
     assert loop_name({}) == "asyncio"
     with pytest.raises(ValueError, match="uvloop is not installed"):
         loop_name({LOOP_ENV: "uvloop"})
+
+
+def _burn(seconds: float) -> None:
+    """Hold the loop for ``seconds`` of this thread's CPU time (wall time is longer still,
+    however loaded the machine: so the loop's own timing always sees a stall)."""
+    start = time.thread_time()
+    while time.thread_time() - start < seconds:
+        pass
+
+
+def hog_callback() -> None:
+    _burn(2 * STALL_S)
+
+
+async def hog_task() -> None:
+    _burn(2 * STALL_S)
+
+
+async def _stalls(debug: bool) -> tuple[bool, float]:
+    loop = asyncio.get_running_loop()
+    loop.set_debug(debug)
+    armed = report_stalls(loop)
+    for _ in range(2):  # the same sites twice: reported once each
+        loop.call_soon(hog_callback)
+        await asyncio.sleep(0)
+        await loop.create_task(hog_task())
+    return armed, loop.slow_callback_duration
+
+
+@pytest.fixture
+def no_stall_filter() -> Iterator[None]:
+    yield
+    asyncio_log = logging.getLogger("asyncio")
+    for f in list(asyncio_log.filters):
+        asyncio_log.removeFilter(f)
+
+
+def _reported(logs: list[dict[str, Any]]) -> list[str]:
+    return [e["callback"] for e in logs if e["event"] == "loop.stalled" and "hog" in e["callback"]]
+
+
+@pytest.mark.usefixtures("no_stall_filter")
+@pytest.mark.parametrize("loop", ["asyncio", "uvloop"])
+def test_in_debug_mode_a_stall_is_reported_once_per_callback_with_its_name(loop: str) -> None:
+    with capture_logs() as logs:
+        armed, threshold = run(_stalls(debug=True), {LOOP_ENV: loop})
+    assert armed
+    assert threshold == STALL_S
+    assert sorted(_reported(logs)) == ["hog_callback", "hog_task"]
+    stalled = next(e for e in logs if e.get("callback") == "hog_task")
+    assert stalled["log_level"] == "warning"
+    assert stalled["seconds"] >= 2 * STALL_S
+
+
+@pytest.mark.usefixtures("no_stall_filter")
+def test_out_of_debug_mode_nothing_is_timed() -> None:
+    with capture_logs() as logs:
+        armed, _ = run(_stalls(debug=False), {LOOP_ENV: "asyncio"})
+    assert not armed
+    assert _reported(logs) == []

@@ -5,12 +5,13 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import itertools
 from collections import deque
 from collections.abc import Callable
 
-from btcap.actors import Supervision, handler, within
+from btcap.actors import Supervision, SystemClosed, handler, within
 from btcap.team.allocation.award import offer
 from btcap.team.allocation.strategy import (
     Allocator,
@@ -24,7 +25,7 @@ from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.award import AwardRound
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned, against_holder
-from btcap.team.core.turns import AUCTION, AwardQueue, BatchPolicy
+from btcap.team.core.turns import AUCTION, AwardQueue, BatchPolicy, PlanJob
 from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid, CallForBids, NoBid
 from btcap.transports import Address
@@ -57,7 +58,10 @@ class SingleItemAuction(Allocator):
     together by its ``policy`` (see :mod:`btcap.team.core.turns`): a robot that comes
     free gets the task best for the team, not the one whose auction closed first.
     ``team`` (the robot's membership) closes an auction early when an invited robot is
-    lost.
+    lost. On a real clock a batch of more than one auction is planned in a worker thread
+    (a planning policy's CPU, milliseconds to seconds for a big batch, must not hold the
+    event loop); a batch of one, most auctions, is planned at once. On a virtual clock
+    every plan is made at once (time does not pass meanwhile, and runs reproduce).
     """
 
     PATH = "auctioneer"
@@ -105,6 +109,7 @@ class SingleItemAuction(Allocator):
                 log.error("auction.watcher_failed", robot=self.robot, exc_info=exc)
 
     def on_start(self) -> None:
+        self._queue.off_loop = self.system.clock.to_wall(1.0) > 0  # a real clock
         if self.team is not None:
             self._unsubscribe = self.team.subscribe(self._on_team)
 
@@ -212,6 +217,20 @@ class SingleItemAuction(Allocator):
         turn = self._queue.next_turn()
         if turn is not None:
             self._turns.pop(turn).set()
+        elif (job := self._queue.planning()) is not None:
+            with contextlib.suppress(SystemClosed):  # leaving: its auctions end unawarded
+                self.system.start_task(self._plan(job), name=f"plan of {self.robot}'s batch")
+
+    async def _plan(self, job: PlanJob) -> None:
+        """Plan ``job`` in a worker thread, then let the batch award. A policy that
+        raises is logged and the batch awards without a plan."""
+        try:
+            robots = await asyncio.to_thread(self.policy.plan, job.bids, job.taken)
+        except Exception as exc:
+            log.error("auction.plan_failed", robot=self.robot, exc_info=exc)
+            robots = None
+        self._queue.planned(job, robots)
+        self._next_turn()
 
     @handler(Bid, NoBid)
     def on_answer(self, msg: Bid | NoBid) -> None:

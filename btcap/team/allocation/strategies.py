@@ -47,6 +47,12 @@ class BatchStrategy:
     name: str
     policy: BatchPolicy
 
+    @property
+    def modules(self) -> tuple[str, ...]:
+        """What the policy imports when it first plans (a robot imports them in a worker
+        thread when it first attaches a mission)."""
+        return tuple(getattr(self.policy, "modules", ()))
+
     def allocator(self, robot: RobotContext) -> Allocator:
         s = robot.settings
         return SingleItemAuction(

@@ -133,7 +133,14 @@ class Allocator(Actor, abc.ABC):
 
 
 class Strategy(Protocol):
-    """An allocation strategy: registered by ``name``, one allocator per robot."""
+    """An allocation strategy: registered by ``name``, one allocator per robot.
+
+    A strategy may also name in ``modules`` (absent: none) the heavy modules it imports
+    only when it first needs them (numpy, scipy: a second of CPU): the robot imports them
+    in a worker thread when it first attaches a mission, so that import never holds its
+    event loop (see :class:`~btcap.team.runtime.agent.Agent`). Its work on the loop must
+    stay short (~50 ms at most per callback): CPU-heavy steps run in a worker thread.
+    """
 
     @property
     def name(self) -> str: ...

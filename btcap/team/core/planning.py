@@ -49,9 +49,23 @@ if TYPE_CHECKING:  # numpy (and scipy) only for the planning strategies: agents 
 
     Matrix = np.ndarray[tuple[int, int], np.dtype[np.float64]]
 
-__all__ = ["CHAIN_MAX", "DEFERRAL", "QUEUE_MARGIN", "optimal_plan", "regret", "sequential_plan"]
+__all__ = [
+    "CHAIN_MAX",
+    "DEFERRAL",
+    "PLANNING_MODULES",
+    "QUEUE_MARGIN",
+    "optimal_plan",
+    "regret",
+    "sequential_plan",
+]
 
 Plan = list[str | None]
+
+#: What planning a batch of more than one task imports (about a second of CPU, which
+#: must never hold an event loop: a robot imports them in a worker thread when it first
+#: attaches a mission).
+#: A single task is planned without them.
+PLANNING_MODULES = ("numpy", "scipy.optimize")
 
 
 def regret(bids: Sequence[Bid]) -> tuple[float, float, str]:
@@ -254,6 +268,8 @@ def sequential_plan(bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan:
     """The greedy assignment (cheapest robot-task pair first, then the next), improved by
     exchanges, chains of three, moves to free robots and waiting tasks taking robots over;
     same contract as :func:`optimal_plan` (time-extended bids are left out)."""
+    if len(bids) == 1:  # one task: the greedy choice, which nothing improves
+        return [_cheapest_free([b for b in bids[0] if not b.later], taken)]
     robots, cost = _matrix([[b for b in task if not b.later] for task in bids], taken)
     if not robots or not bids:
         return [None] * len(bids)

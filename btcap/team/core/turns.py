@@ -17,7 +17,7 @@ from typing import Protocol
 
 from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.award import AwardRound, passed_over
-from btcap.team.core.planning import optimal_plan, regret, sequential_plan
+from btcap.team.core.planning import PLANNING_MODULES, optimal_plan, regret, sequential_plan
 from btcap.team.core.task import AssignmentTask
 from btcap.team.ids import AuctionId
 from btcap.team.messages import Bid
@@ -29,6 +29,7 @@ __all__ = [
     "SEQUENTIAL",
     "AwardQueue",
     "BatchPolicy",
+    "PlanJob",
     "Planned",
 ]
 
@@ -51,6 +52,12 @@ class BatchPolicy(Protocol):
     work they hold, and ``plan`` gets those bids (``Bid.later``) after each
     auction's awardable ones. They are never awarded: a plan naming such a robot is
     awarded to the cheapest free bidder instead.
+
+    ``plan`` of a batch of more than one auction may run in a worker thread (on a real
+    clock: see :attr:`AwardQueue.off_loop`), so it must be a pure function of its
+    arguments. A policy may name in ``modules`` (absent: none) what its ``plan`` imports
+    when it first plans such a batch (numpy, scipy); a robot imports them in a worker
+    thread when it first attaches a mission, so no import ever holds its event loop.
     """
 
     @property
@@ -85,7 +92,8 @@ class _ByRegret:
 
 class Planned:
     """A planning policy: ``planner`` gives the batch's robots; the cheapest award first.
-    ``extended``: the planner is also given time-extended bids (see :class:`BatchPolicy`)."""
+    ``extended``: the planner is also given time-extended bids; ``modules``: what the
+    planner imports on first use (see :class:`BatchPolicy`)."""
 
     batches = True
 
@@ -94,9 +102,11 @@ class Planned:
         planner: Callable[[Sequence[Sequence[Bid]], Set[str]], Plan],
         *,
         extended: bool = False,
+        modules: tuple[str, ...] = (),
     ) -> None:
         self.planner = planner
         self.extended = extended
+        self.modules = modules
 
     def plan(self, bids: Sequence[Sequence[Bid]], taken: Set[str]) -> Plan | None:
         return self.planner(bids, taken)
@@ -118,9 +128,19 @@ class _ByArrival:
 
 
 AUCTION: BatchPolicy = _ByRegret()
-SEQUENTIAL: BatchPolicy = Planned(sequential_plan)
-OPTIMAL: BatchPolicy = Planned(optimal_plan, extended=True)
+SEQUENTIAL: BatchPolicy = Planned(sequential_plan, modules=PLANNING_MODULES)
+OPTIMAL: BatchPolicy = Planned(optimal_plan, extended=True, modules=PLANNING_MODULES)
 ARRIVAL: BatchPolicy = _ByArrival()
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PlanJob:
+    """A batch to plan away from the caller (:meth:`AwardQueue.planning`): the policy's
+    ``plan(bids, taken)``, whose result goes back through :meth:`AwardQueue.planned`."""
+
+    bids: list[list[Bid]]
+    taken: frozenset[str]
+    closed: tuple[object, ...]  # the batch as it was: a plan for another one is dropped
 
 
 @dataclass(slots=True, eq=False)
@@ -150,10 +170,20 @@ class AwardQueue:
     closed auction awards next (:meth:`next_turn`, through its ``policy``), one at a
     time, and the robots ``taken`` by the batch so far (they bid as if idle, so they
     wait for the next batch). The caller tells it each step, with no clock of its own.
+
+    With :attr:`off_loop` set, a batch of more than one auction is not planned in
+    :meth:`next_turn`: the caller takes it from :meth:`planning`, plans it where it
+    likes (a worker thread: a big batch costs milliseconds to seconds of CPU) and hands
+    the plan back to :meth:`planned`; no auction of the batch awards meanwhile. A batch
+    of one is planned at once (a single task needs no matrix).
     """
 
-    def __init__(self, policy: BatchPolicy) -> None:
+    def __init__(self, policy: BatchPolicy, *, off_loop: bool = False) -> None:
         self.policy = policy
+        #: Whether batches of more than one auction are planned by the caller.
+        self.off_loop = off_loop
+        self._job: PlanJob | None = None  # a batch being planned by the caller
+        self._job_out = False  # ... and handed out by :meth:`planning`
         #: Robots that accepted a task of this batch (forgotten when the batch is done).
         self.taken: set[str] = set()
         self._open: dict[AuctionId, frozenset[str]] = {}  # collecting bids: who is invited
@@ -199,14 +229,17 @@ class AwardQueue:
             if any(wanted & invited for invited in self._open.values()):
                 return None
             if not any(c.planned for c in self._closed):
+                if self._job is not None:
+                    return None  # its plan is being made
                 batch = [c.bids(self.taken) for c in self._closed]
                 if getattr(policy, "extended", False):
                     batch = [
                         b + c.outcome.later() for b, c in zip(batch, self._closed, strict=True)
                     ]
-                robots = policy.plan(batch, self.taken)
-                for closed, robot in zip(self._closed, robots or [None] * len(batch), strict=True):
-                    closed.plan, closed.planned = robot, robots is not None
+                if self.off_loop and len(batch) > 1:
+                    self._job = PlanJob(batch, frozenset(self.taken), tuple(self._closed))
+                    return None
+                self._apply(policy.plan(batch, self.taken))
             waiting = self._closed
             # one waiting (most batches): it goes first whatever its bids
             nxt = (
@@ -217,6 +250,32 @@ class AwardQueue:
         self._closed.remove(nxt)
         self._awarding = nxt
         return nxt.auction
+
+    def planning(self) -> PlanJob | None:
+        """The batch :meth:`next_turn` left to the caller to plan (see :attr:`off_loop`),
+        once: None if there is none, or it was handed out already."""
+        if self._job is None or self._job_out:
+            return None
+        self._job_out = True
+        return self._job
+
+    def planned(self, job: PlanJob, robots: Plan | None) -> bool:
+        """The plan of ``job`` (None: award without one, as a policy may say). Taken only
+        if the batch is still the one planned (no auction joined or left it, no robot
+        was taken since): else dropped, and :meth:`next_turn` asks for a new plan.
+        Call :meth:`next_turn` after it."""
+        if job is not self._job:
+            return False
+        self._job, self._job_out = None, False
+        if job.closed != tuple(self._closed) or job.taken != self.taken:
+            return False
+        self._apply(robots)
+        return True
+
+    def _apply(self, robots: Plan | None) -> None:
+        """Give each closed auction its planned robot (``robots`` None: no plan)."""
+        for closed, robot in zip(self._closed, robots or [None] * len(self._closed), strict=True):
+            closed.plan, closed.planned = robot, robots is not None
 
     def round(self, auction: AuctionId, task: AssignmentTask) -> AwardRound:
         """The award of the auction whose turn it is: its free bids, the planned robot

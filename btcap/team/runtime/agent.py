@@ -5,12 +5,17 @@ remote capability slot."""
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures.thread  # noqa: F401  asyncio.to_thread's pool, loaded before joining
+import contextlib
+import importlib
+import sys
 import weakref
 from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
-from btcap.actors import Actor, ActorSystem, TimeSource
+from btcap.actors import Actor, ActorSystem, SystemClosed, TimeSource
+from btcap.actors.loops import report_stalls
 from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
@@ -43,6 +48,15 @@ class Agent:
     contains a slot to do other work beside it. ``strategy`` allocates the tasks of
     this robot's capability nodes: a registered name (:mod:`btcap.team.allocation.strategies`) or a
     :class:`~btcap.team.allocation.strategy.Strategy` object; by default ``config.strategy``.
+
+    Nothing may hold the robot's event loop for long (its heartbeats would stop and its
+    team declare it failed): when a mission tree is first attached (this robot will hold
+    auctions), the agent imports in a worker thread what its strategy loads on first use
+    (``Strategy.modules``: numpy and scipy for the planning strategies, about a second of
+    CPU), so its first batch of auctions, planned in a worker thread too, rarely waits
+    for them. A robot that only runs others' work never imports them. In asyncio's debug
+    mode (``python -X dev``) a callback that holds the loop longer than 50 ms is reported
+    (:func:`btcap.actors.loops.report_stalls`).
     """
 
     def __init__(
@@ -95,6 +109,7 @@ class Agent:
         self._host_task: asyncio.Task[Any] | None = None
         self._extra = dict(actors or {})
         self._missions: weakref.WeakSet[Tree] = weakref.WeakSet()
+        self._importing = False  # the strategy's modules (see the class)
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         """A teammate declared failed or gone costs nothing more: the transport stops
@@ -113,6 +128,7 @@ class Agent:
         return [e for e in (body.running,) if e], [e for e in (body.queued,) if e]
 
     async def __aenter__(self) -> Agent:
+        report_stalls(asyncio.get_running_loop())  # in asyncio's debug mode
         await self.system.__aenter__()
         try:
             s = self.system
@@ -157,6 +173,12 @@ class Agent:
         A mission tree still attached when the agent exits is shut down with it.
         """
         tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
+        cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
+        if cold and not self._importing:  # for this robot's auctions, off the loop
+            with contextlib.suppress(SystemClosed):  # not started: its first plan imports them
+                work = asyncio.to_thread(_import, cold)
+                self.system.start_task(work, name=f"{self.robot} imports")
+                self._importing = True
         tree.clock = self.clock
         tree.attach(self.system)
         self._missions.add(tree)
@@ -176,3 +198,9 @@ class Agent:
             )
         finally:
             await tree.shutdown()
+
+
+def _import(modules: list[str]) -> None:
+    """Import ``modules`` (in a worker thread: see :class:`Agent`)."""
+    for name in modules:
+        importlib.import_module(name)

@@ -281,3 +281,4 @@ def test_one_task_plans_as_the_hungarian_method_ties_included(
 ) -> None:
     bids = [bid(r, c) for r, c in pairs]
     assert optimal_plan([bids], taken) == [_hungarian_one(bids, taken)]
+    assert sequential_plan([bids], taken) == [_hungarian_one(bids, taken)]  # no numpy either

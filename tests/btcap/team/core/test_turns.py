@@ -162,3 +162,43 @@ def test_an_extended_policy_plans_with_bids_for_later_but_never_awards_them() ->
     round_ = queue.round(A1, task(1))
     assert round_.next() is None  # b's bid for later is not awarded, f is taken
     assert "busy" in round_.result().reasons["b"]
+
+
+def test_off_the_loop_a_batch_of_two_is_planned_by_the_caller_and_one_at_once() -> None:
+    """The caller plans a batch of more than one auction (in a worker thread) and hands
+    the plan back; no auction awards meanwhile. A batch of one is planned at once."""
+    queue = AwardQueue(OPTIMAL, off_loop=True)
+    close(queue, auction(queue, A1, 1.0, a=1.0, b=2.0), now=1.0)
+    assert queue.next_turn() == A1  # alone: planned at once, no job
+    assert queue.planning() is None
+    award_to(queue, A1, "a")
+    first = auction(queue, A2, 2.0, a=1.0, b=1.5)
+    second = auction(queue, A3, 2.0, a=1.0, b=9.0)  # only a does it well
+    close(queue, first, now=2.0)
+    close(queue, second, now=2.0)
+    assert queue.next_turn() is None
+    job = queue.planning()
+    assert job is not None
+    assert len(job.bids) == 2
+    assert queue.planning() is None  # handed out once
+    assert queue.next_turn() is None  # its plan is being made
+    assert queue.planned(job, OPTIMAL.plan(job.bids, job.taken))
+    assert queue.next_turn() == A3  # the cheapest award first: a for A3, as planned
+    award = queue.round(A3, task(3))
+    assert award.next() is not None
+    assert award.offered.robot == "a"
+
+
+def test_a_plan_for_a_batch_that_changed_meanwhile_is_dropped_and_made_again() -> None:
+    queue = AwardQueue(OPTIMAL, off_loop=True)
+    close(queue, auction(queue, A1, 1.0, a=1.0, b=2.0), now=1.0)
+    close(queue, auction(queue, A2, 1.0, a=1.0, b=3.0), now=1.0)
+    assert queue.next_turn() is None
+    old = queue.planning()
+    assert old is not None
+    queue.finished(A2)  # given up while waiting for its turn
+    assert not queue.planned(old, ["b", "a"])
+    assert queue.next_turn() == A1  # a batch of one now: planned at once
+    award = queue.round(A1, task(1))
+    assert award.next() is not None
+    assert award.offered.robot == "a"
