@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+import asyncio
+from collections.abc import Callable, Coroutine
+from typing import TYPE_CHECKING, Any, Protocol
 
 from btcap.bt.node import Node
-from btcap.bt.state import ACTIVE, DONE, State, TreeTimeout
+from btcap.bt.state import ACTIVE, DONE, State, TreeError, TreeTimeout
 
 if TYPE_CHECKING:
-    from btcap.actors import TimeSource
+    from btcap.actors import ActorSystem, TimeSource
 
-__all__ = ["Runnable", "run_tree", "running_paths"]
+__all__ = ["Runnable", "run_tree", "running_paths", "start_task", "tick_once"]
 
 
 class Runnable(Protocol):
@@ -20,6 +21,7 @@ class Runnable(Protocol):
     name: str
     root: Node
     clock: TimeSource
+    woken: bool
 
     def tick(self) -> State: ...
     def untick(self) -> None: ...
@@ -31,9 +33,14 @@ async def run_tree(
     until: Callable[[State], bool] | None,
     max_ticks: int | None,
     timeout_s: float | None,
+    wake: bool = False,
 ) -> State:
     """:meth:`Tree.run <btcap.bt.tree.Tree.run>`: tick drift-free at ``rate_hz`` until
-    ``until(state)`` (default: a result); at a limit, untick and raise TreeTimeout."""
+    ``until(state)`` (default: a result); at a limit, untick and raise TreeTimeout.
+
+    With ``wake``, a tick after which a node asked to be ticked again (``tree.woken``)
+    is followed at once by the next, as BehaviorTree.CPP's ``tickWhileRunning`` cuts its
+    sleep short; the period counts from there."""
     if not rate_hz > 0:
         raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
     if max_ticks is not None and max_ticks < 1:
@@ -53,6 +60,10 @@ async def run_tree(
             return state
         if max_ticks is not None and ticks >= max_ticks:
             raise _halt(tree, "max_ticks", max_ticks, state, ticks)
+        if wake and tree.woken:
+            tree.woken = False
+            deadline = clock.now()
+            continue
         deadline += period
         now = clock.now()
         if deadline < now - period:  # fell far behind: skip, don't burst
@@ -61,6 +72,32 @@ async def run_tree(
             await clock.sleep_until(end)  # not a tick later: the limit is the limit
             raise _halt(tree, "timeout_s", timeout_s, state, ticks)
         await clock.sleep_until(deadline)
+
+
+def tick_once(tree: Runnable) -> State:
+    """BehaviorTree.CPP's ``tickOnce``: tick, and tick again at once while the tree is
+    running and a node asked for it since (a request left by a tick that ended the run
+    stays for the next call, as BehaviorTree.CPP's wake-up signal does)."""
+    state = tree.tick()
+    while state is State.RUNNING and tree.woken:
+        tree.woken = False
+        state = tree.tick()
+    return state
+
+
+def start_task(
+    tree: Runnable, coro: Coroutine[Any, Any, Any], name: str | None
+) -> asyncio.Task[Any]:
+    """A node's background task: on the tree's actor system, else on the running loop."""
+    system: ActorSystem | None = getattr(tree, "system", None)
+    if system is not None:
+        return system.start_task(coro, name=name)
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:
+        coro.close()
+        raise TreeError(f"tree {tree.name!r}: background work needs a running event loop") from None
+    return loop.create_task(coro, name=name)
 
 
 def _halt(tree: Runnable, limit: str, value: float, state: State, ticks: int) -> TreeTimeout:

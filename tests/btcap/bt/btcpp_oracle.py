@@ -213,9 +213,15 @@ def _progress(node: Node) -> bool:
 
 
 class BtcapRun:
-    """The XML loaded by btcap's loader; ticks report the root, the log and differences."""
+    """The XML loaded by btcap's loader; ticks report the root, the log and differences.
 
-    def __init__(self, xml: str, scripts: dict[str, str]) -> None:
+    ``once``: each tick is :meth:`Tree.tick_once <btcap.bt.tree.Tree.tick_once>`
+    (BehaviorTree.CPP's ``tickOnce``), else :meth:`Tree.tick` (its ``tickExactlyOnce``);
+    every root tick inside it is checked and watched for differences on its own.
+    """
+
+    def __init__(self, xml: str, scripts: dict[str, str], once: bool = False) -> None:
+        self.once = once
         reg = default_registry(plugins=False)
         reg.register(Act)
         reg.register(Cond)
@@ -225,6 +231,8 @@ class BtcapRun:
         self.later: set[str] = set()  # differences that may show from the next tick
         self.decided: list[Parallel] = []  # Parallels that gave a result in this tick
         self.tree.observe(self._watch)
+        self._tick = self.tree.tick
+        self.tree.tick = self._root_tick  # type: ignore[method-assign]  # what tick_once calls
 
     def _watch(self, node: Node, old: State, new: State) -> None:
         parent = node.parent_node
@@ -245,9 +253,15 @@ class BtcapRun:
         _Script.current = self.run
         self.run.log = []
         try:
-            state, ticked = record_ticks(self.tree, self.tree.tick)
+            state = self.tree.tick_once() if self.once else self.tree.tick()
         finally:
             _Script.current = None
+        return _FROM_STATE.get(state, "R"), self.run.log
+
+    def _root_tick(self) -> State:
+        """One root tick: checked, and watched for the differences it may show."""
+        self.now |= self.later  # one that may show from this tick on, within a tick_once
+        state, ticked = record_ticks(self.tree, self._tick)
         check_halting(self.tree, ticked)
         seen = {id(n) for n in ticked}
         done = (State.SUCCEEDED, State.FAILED)
@@ -268,7 +282,7 @@ class BtcapRun:
                     if isinstance(up, (Parallel, _Counting)):
                         self.later.add("memory_reset_by_retry")
                     up = up.parent_node
-        return _FROM_STATE.get(state, "R"), self.run.log
+        return state
 
     def halt(self) -> list[str]:
         _Script.current = self.run
@@ -283,7 +297,8 @@ class BtcapRun:
 class BtcppRun:
     """The XML in BehaviorTree.CPP 4.8, with the same scripted leaves."""
 
-    def __init__(self, xml: str, scripts: dict[str, str]) -> None:
+    def __init__(self, xml: str, scripts: dict[str, str], once: bool = False) -> None:
+        self.once = once
         self.scripts = scripts
         self.counts: dict[str, int] = {}
         self.log: list[str] = []
@@ -305,7 +320,8 @@ class BtcppRun:
 
     def tick(self) -> tuple[str, list[str]]:
         self.log = []
-        return _FROM_BT[self.tree.tick_exactly_once()], self.log
+        tick = self.tree.tick_once if self.once else self.tree.tick_exactly_once
+        return _FROM_BT[tick()], self.log
 
     def halt(self) -> list[str]:
         self.log = []
@@ -322,14 +338,15 @@ class Outcome:
     mismatch: str | None
 
 
-def compare(root: El, ticks: int = 10) -> Outcome:
+def compare(root: El, ticks: int = 10, once: bool = False) -> Outcome:
+    """Tick by tick in both, by ``tickExactlyOnce`` or (``once``) by ``tickOnce``."""
     xml = document(root)
     scripts = scripts_of(root)
     try:
-        theirs = BtcppRun(xml, scripts)
+        theirs = BtcppRun(xml, scripts, once)
     except RuntimeError as exc:  # e.g. "A ReactiveSequence cannot have more than one async child"
         return Outcome(0, f"refused by BehaviorTree.CPP: {exc}", None)
-    mine = BtcapRun(xml, scripts)
+    mine = BtcapRun(xml, scripts, once)
     for t in range(ticks):
         got, want = mine.tick(), theirs.tick()
         if mine.now:

@@ -50,13 +50,16 @@ def test_every_generated_node_type_is_mapped() -> None:
 
 # Random reactive trees restart branches on purpose; btcap's warning about that is noise here.
 @pytest.mark.filterwarnings("ignore::btcap.bt.state.RestartLoopWarning")
-def test_random_trees_agree_with_behaviortree_cpp() -> None:
+@pytest.mark.parametrize("once", [False, True], ids=["tickExactlyOnce", "tickOnce"])
+def test_random_trees_agree_with_behaviortree_cpp(once: bool) -> None:
+    """Tree.tick is tickExactlyOnce, Tree.tick_once is tickOnce (a node that yields asks
+    to be ticked again at once: AsyncSequence, AsyncFallback, a retry of an instant child)."""
     stopped: Counter[str] = Counter()
     seen: Counter[str] = Counter()
     compared_ticks = 0
     for seed in range(2500):
         root = random_tree(random.Random(seed), max_depth=4 + seed % 2)
-        out = compare(root, ticks=10)
+        out = compare(root, ticks=10, once=once)
         assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
         compared_ticks += out.ticks
         stopped[out.stopped_by or "compared to the end"] += 1
