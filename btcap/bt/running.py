@@ -12,7 +12,17 @@ from btcap.bt.state import ACTIVE, DONE, State, TreeError, TreeTimeout
 if TYPE_CHECKING:
     from btcap.actors import ActorSystem, TimeSource
 
-__all__ = ["Runnable", "run_tree", "running_paths", "start_task", "tick_once"]
+__all__ = [
+    "WAKES_IN_A_ROW",
+    "Runnable",
+    "run_tree",
+    "running_paths",
+    "start_task",
+    "tick_once",
+]
+
+#: Ticks at once, in a row, that :func:`run_tree` makes for nodes that ask for them.
+WAKES_IN_A_ROW = 10_000
 
 
 class Runnable(Protocol):
@@ -40,7 +50,9 @@ async def run_tree(
 
     With ``wake``, a tick after which a node asked to be ticked again (``tree.woken``)
     is followed at once by the next, as BehaviorTree.CPP's ``tickWhileRunning`` cuts its
-    sleep short; the period counts from there."""
+    sleep short; the period counts from there. After :data:`WAKES_IN_A_ROW` such ticks the
+    period is kept once, so that a tree that always asks (a ``Repeat`` forever of a child
+    that succeeds at once) still lets clock time pass and the run reach its limits."""
     if not rate_hz > 0:
         raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
     if max_ticks is not None and max_ticks < 1:
@@ -52,7 +64,7 @@ async def run_tree(
     period = 1.0 / rate_hz
     deadline = clock.now()
     end = None if timeout_s is None else deadline + timeout_s
-    ticks = 0
+    ticks = woken = 0
     while True:
         state = tree.tick()
         ticks += 1
@@ -60,11 +72,13 @@ async def run_tree(
             return state
         if max_ticks is not None and ticks >= max_ticks:
             raise _halt(tree, "max_ticks", max_ticks, state, ticks)
-        if wake and tree.woken:
+        if wake and tree.woken and woken < WAKES_IN_A_ROW:
             tree.woken = False
-            deadline = clock.now()
-            continue
-        deadline += period
+            woken += 1
+            deadline = clock.now()  # the next tick now, yet through the loop (never blocking it)
+        else:
+            woken = 0
+            deadline += period
         now = clock.now()
         if deadline < now - period:  # fell far behind: skip, don't burst
             deadline = now
@@ -77,7 +91,8 @@ async def run_tree(
 def tick_once(tree: Runnable) -> State:
     """BehaviorTree.CPP's ``tickOnce``: tick, and tick again at once while the tree is
     running and a node asked for it since (a request left by a tick that ended the run
-    stays for the next call, as BehaviorTree.CPP's wake-up signal does)."""
+    stays for the next call, as BehaviorTree.CPP's wake-up signal does). As there, a tree
+    that always asks (a ``Repeat`` forever of a child that succeeds at once) never returns."""
     state = tree.tick()
     while state is State.RUNNING and tree.woken:
         tree.woken = False

@@ -212,6 +212,17 @@ def _progress(node: Node) -> bool:
     return isinstance(node, Fallback) and node._current > 0
 
 
+#: Root ticks in one tickOnce taken for a tree that keeps waking itself up: one whose
+#: reactive parent restarts a yielding child every tick never returns, in either.
+WAKING_FOREVER = 500
+#: What :func:`compare` reports for such a tree (BehaviorTree.CPP is not asked: it hangs).
+WAKES_FOREVER = "wakes forever (tickOnce never returns in either)"
+
+
+class WakingForever(Exception):
+    """btcap's tick_once went past WAKING_FOREVER root ticks."""
+
+
 class BtcapRun:
     """The XML loaded by btcap's loader; ticks report the root, the log and differences.
 
@@ -222,6 +233,7 @@ class BtcapRun:
 
     def __init__(self, xml: str, scripts: dict[str, str], once: bool = False) -> None:
         self.once = once
+        self.root_ticks = 0
         reg = default_registry(plugins=False)
         reg.register(Act)
         reg.register(Cond)
@@ -252,6 +264,7 @@ class BtcapRun:
     def tick(self) -> tuple[str, list[str]]:
         _Script.current = self.run
         self.run.log = []
+        self.root_ticks = 0
         try:
             state = self.tree.tick_once() if self.once else self.tree.tick()
         finally:
@@ -261,6 +274,9 @@ class BtcapRun:
     def _root_tick(self) -> State:
         """One root tick: checked, and watched for the differences it may show."""
         self.now |= self.later  # one that may show from this tick on, within a tick_once
+        self.root_ticks += 1
+        if self.root_ticks > WAKING_FOREVER:
+            raise WakingForever
         state, ticked = record_ticks(self.tree, self._tick)
         check_halting(self.tree, ticked)
         seen = {id(n) for n in ticked}
@@ -348,9 +364,13 @@ def compare(root: El, ticks: int = 10, once: bool = False) -> Outcome:
         return Outcome(0, f"refused by BehaviorTree.CPP: {exc}", None)
     mine = BtcapRun(xml, scripts, once)
     for t in range(ticks):
-        got, want = mine.tick(), theirs.tick()
-        if mine.now:
+        try:
+            got = mine.tick()
+        except WakingForever:
+            return Outcome(t, WAKES_FOREVER, None)
+        if mine.now:  # before BehaviorTree.CPP's tick, which may not return then (tickOnce)
             return Outcome(t, sorted(mine.now)[0], None)
+        want = theirs.tick()
         if got != want:
             return Outcome(t, None, f"tick {t}: btcap {got} BehaviorTree.CPP {want}\n{xml}")
         if mine.later:
