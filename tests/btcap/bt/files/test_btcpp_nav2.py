@@ -1,5 +1,6 @@
 """A dry run of the Nav2-shaped navigator of ``examples/nav2/``: Nav2's control nodes
-decide as Nav2's (:mod:`btcap.bt.nav2_nodes`), the others stood in for say so."""
+decide as Nav2's (:mod:`btcap.bt.nav2_nodes`), the others stood in for say so; and what
+a file written for BehaviorTree.CPP v3 or with its defaults is told."""
 
 from __future__ import annotations
 
@@ -9,7 +10,16 @@ from typing import Any
 import anyio
 import pytest
 
-from btcap import Node, State, Subtree, Tree, default_registry, load_tree, loads_tree
+from btcap import (
+    Node,
+    State,
+    Subtree,
+    Tree,
+    TreeFileError,
+    default_registry,
+    load_tree,
+    loads_tree,
+)
 from btcap.actors import ManualClock
 from btcap.bt.files import TreeFileWarning
 
@@ -68,3 +78,26 @@ def test_a_control_stood_in_for_says_so() -> None:
     with pytest.warns(TreeFileWarning, match="PersistentSequence is Nav2's.*stand-in ticks"):
         tree = loads_tree(text, "xml", default_registry(plugins=False), stub_missing=True)
     assert isinstance(tree.root, Node)
+
+
+def _problems(body: str) -> list[str]:
+    text = f'<root BTCPP_format="4"><BehaviorTree ID="M">{body}</BehaviorTree></root>'
+    try:
+        loads_tree(text, "xml", default_registry(plugins=False), name="t.xml")
+    except TreeFileError as exc:
+        return exc.problems
+    return []
+
+
+def test_runonce_without_then_skip_says_why() -> None:
+    (problem,) = _problems("<RunOnce><AlwaysSuccess/></RunOnce>")
+    assert problem.endswith(
+        "<RunOnce> needs attribute 'then_skip': BehaviorTree.CPP's default, then_skip=true, "
+        'returns SKIPPED after the first run, which btcap does not have; write then_skip="false" '
+        "to repeat the first result"
+    )
+
+
+def test_v3_sequence_star_hints_at_v4_sequence_with_memory() -> None:
+    problems = _problems("<SequenceStar><AlwaysSuccess/></SequenceStar>")
+    assert "v4 calls it SequenceWithMemory" in problems[0]
