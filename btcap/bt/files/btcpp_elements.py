@@ -238,12 +238,10 @@ class ElementReader:
         return spec
 
     def _name(self, base: str, el: XmlElement, taken: set[str]) -> str | None:
-        if not base or "/" in base or "." in base:
-            self.fail(
-                el.line,
-                f"<{el.tag}> name {base!r}: btcap node names cannot be empty or contain '/' or '.'",
-            )
+        if not base:
+            self.fail(el.line, f"<{el.tag}> name {base!r}: btcap node names cannot be empty")
             return None
+        base = base.replace("/", "_").replace(".", "_")  # they separate btcap's paths
         name, k = base, 2
         while name in taken:  # BehaviorTree.CPP allows equal sibling names, btcap does not
             name, k = f"{base}_{k}", k + 1

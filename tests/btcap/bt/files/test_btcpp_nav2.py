@@ -101,3 +101,13 @@ def test_runonce_without_then_skip_says_why() -> None:
 def test_v3_sequence_star_hints_at_v4_sequence_with_memory() -> None:
     problems = _problems("<SequenceStar><AlwaysSuccess/></SequenceStar>")
     assert "v4 calls it SequenceWithMemory" in problems[0]
+
+
+def test_names_with_slashes_and_dots_load_with_underscores() -> None:
+    """As MoveIt Pro's files name nodes ("Move/To.Pose"); btcap's paths use both."""
+    text = (
+        '<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence name="arm/move.to">'
+        '<AlwaysSuccess name="a.b"/></Sequence></BehaviorTree></root>'
+    )
+    tree = loads_tree(text, "xml", default_registry(plugins=False))
+    assert tree.find("arm_move_to/a_b").name == "a_b"
