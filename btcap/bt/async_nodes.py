@@ -11,7 +11,10 @@ They exist so that a BehaviorTree.CPP file means in btcap what it means there (i
   ``C`` starts failing, where a plain Sequence would have run L0 and L1 in the first.
   A child that was running and now gives its result does not yield: the next child is
   ticked in the same tick. BehaviorTree.CPP 4.8's SequenceWithMemory yields the same way;
-  it maps to :class:`AsyncSequenceWithMemory`.
+  it maps to :class:`AsyncSequenceWithMemory`. Yielding, they ask to be ticked again at
+  once (:func:`~btcap.bt.host.wake`), which :meth:`Tree.tick_once
+  <btcap.bt.tree.Tree.tick_once>` honours and :meth:`Tree.tick <btcap.bt.tree.Tree.tick>`
+  leaves for the next tick.
 - :class:`WhileDoElse` re-checks its condition every tick like :class:`IfThenElse`, but
   while the condition is RUNNING it returns RUNNING and leaves the branch that was
   running alone: not ticked, and not halted either (an IfThenElse unticks it). The branch
@@ -31,6 +34,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 from btcap.bt.composites import Composite, Fallback, IfThenElse, Sequence
+from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
@@ -73,6 +77,7 @@ class AsyncSequence(Sequence):
                 i += 1
                 if instant and i < n:
                     self._current = i
+                    wake(self)
                     return _RUNNING
             elif s is _FAILED or s is _ERROR:
                 self._current = i if self._RESUME_FAILED else 0
@@ -116,6 +121,7 @@ class AsyncFallback(Fallback):
                 i += 1
                 if instant and i < n:
                     self._current = i
+                    wake(self)
                     return _RUNNING
             elif s is _SUCCEEDED:
                 self._current = 0

@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 from msgspec import Meta
 
+from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
@@ -171,7 +172,9 @@ class FailureIsRunning(Remap):
 
 class _Counting(Decorator):
     """Counts attempts; the count survives an untick (a paused branch resumes where it was)
-    and is forgotten on reset or once the decorator gives its result."""
+    and is forgotten on reset or once the decorator gives its result. Starting another
+    attempt after a child that finished at once, it asks to be ticked again at once
+    (:func:`~btcap.bt.host.wake`, as BehaviorTree.CPP's RetryUntilSuccessful and Repeat)."""
 
     __slots__ = ("count",)
 
@@ -193,6 +196,7 @@ class Retry(_Counting):
 
     def on_tick(self) -> State:
         child = self.children[0]
+        instant = child.state not in _ACTIVE
         s = child.tick()
         if s is _SUCCEEDED:
             self.count = 0
@@ -204,6 +208,8 @@ class Retry(_Counting):
             return _FAILED
         self.count += 1
         child.reset()  # the next tick starts a fresh attempt
+        if instant:
+            wake(self)
         return _RUNNING
 
 
@@ -223,6 +229,7 @@ class Repeat(_Counting):
         if not self.options["times"]:
             return _SUCCEEDED
         child = self.children[0]
+        instant = child.state not in _ACTIVE
         s = child.tick()
         if s is not _SUCCEEDED:
             if s is _FAILED or s is _ERROR:
@@ -235,6 +242,8 @@ class Repeat(_Counting):
             self.count = 0
             return _SUCCEEDED
         child.reset()
+        if instant:
+            wake(self)
         return _RUNNING
 
 
@@ -250,6 +259,7 @@ class RepeatUntilSuccess(_Counting):
 
     def on_tick(self) -> State:
         child = self.children[0]
+        instant = child.state not in _ACTIVE
         s = _result(child.tick())
         if s is not _FAILED:
             if s is _SUCCEEDED:
@@ -261,6 +271,8 @@ class RepeatUntilSuccess(_Counting):
             self.count = 0
             return _FAILED
         child.reset()
+        if instant:
+            wake(self)
         return _RUNNING
 
 
@@ -272,6 +284,7 @@ class RepeatUntilFailure(_Counting):
 
     def on_tick(self) -> State:
         child = self.children[0]
+        instant = child.state not in _ACTIVE
         s = _result(child.tick())
         if s is _FAILED:
             self.count = 0
@@ -284,6 +297,8 @@ class RepeatUntilFailure(_Counting):
             self.count = 0
             return _FAILED
         child.reset()
+        if instant:
+            wake(self)
         return _RUNNING
 
 

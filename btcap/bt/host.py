@@ -11,7 +11,7 @@ if TYPE_CHECKING:
 
     from btcap.actors import ActorSystem, TimeSource
 
-__all__ = ["TreeHost"]
+__all__ = ["TreeHost", "wake"]
 
 
 class TreeHost(Protocol):
@@ -23,6 +23,7 @@ class TreeHost(Protocol):
     """
 
     _told: set[str]
+    woken: bool
 
     @property
     def name(self) -> str: ...
@@ -35,3 +36,11 @@ class TreeHost(Protocol):
     ) -> asyncio.Task[Any]: ...
     def _adopt(self, node: Any) -> None: ...
     def _release(self, node: Any) -> None: ...
+
+
+def wake(node: Any) -> None:
+    """Ask the tree of ``node`` to tick again at once, as BehaviorTree.CPP's
+    ``emitWakeUpSignal``: honoured by ``Tree.tick_once`` and ``Tree.run(wake=True)``."""
+    tree = node._tree
+    if tree is not None:
+        tree.woken = True

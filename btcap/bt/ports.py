@@ -25,6 +25,7 @@ __all__ = [
     "check_value",
     "check_wired",
     "type_name",
+    "wire_problem",
 ]
 
 
@@ -238,4 +239,19 @@ def check_wired(
             inputs[key] = check_port(value, port, f"node {node!r} input {key!r}")
         except TreeError as exc:
             return exc
+    return None
+
+
+def wire_problem(src: Any, source_port: str, dst: Any, target_port: str) -> str | None:
+    """Why ``src.source_port`` cannot feed ``dst.target_port`` (nodes), or None."""
+    out = src.output_ports.get(source_port)
+    if out is None:
+        have = ", ".join(src.output_ports) or "none"
+        return f"{src.path!r} has no output {source_port!r} (outputs: {have})"
+    inp = dst.input_ports.get(target_port)
+    if inp is None:
+        have = ", ".join(dst.input_ports) or "none"
+        return f"{dst.path!r} has no input {target_port!r} (inputs: {have})"
+    if not assignable(out.type, inp.type):
+        return f"output is {type_name(out.type)} but the input expects {type_name(inp.type)}"
     return None

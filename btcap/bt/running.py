@@ -2,16 +2,27 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+import asyncio
+from collections.abc import Callable, Coroutine
+from typing import TYPE_CHECKING, Any, Protocol
 
 from btcap.bt.node import Node
-from btcap.bt.state import ACTIVE, DONE, State, TreeTimeout
+from btcap.bt.state import ACTIVE, DONE, State, TreeError, TreeTimeout
 
 if TYPE_CHECKING:
-    from btcap.actors import TimeSource
+    from btcap.actors import ActorSystem, TimeSource
 
-__all__ = ["Runnable", "run_tree", "running_paths"]
+__all__ = [
+    "WAKES_IN_A_ROW",
+    "Runnable",
+    "run_tree",
+    "running_paths",
+    "start_task",
+    "tick_once",
+]
+
+#: Ticks at once, in a row, that :func:`run_tree` makes for nodes that ask for them.
+WAKES_IN_A_ROW = 10_000
 
 
 class Runnable(Protocol):
@@ -20,6 +31,7 @@ class Runnable(Protocol):
     name: str
     root: Node
     clock: TimeSource
+    woken: bool
 
     def tick(self) -> State: ...
     def untick(self) -> None: ...
@@ -31,9 +43,16 @@ async def run_tree(
     until: Callable[[State], bool] | None,
     max_ticks: int | None,
     timeout_s: float | None,
+    wake: bool = False,
 ) -> State:
     """:meth:`Tree.run <btcap.bt.tree.Tree.run>`: tick drift-free at ``rate_hz`` until
-    ``until(state)`` (default: a result); at a limit, untick and raise TreeTimeout."""
+    ``until(state)`` (default: a result); at a limit, untick and raise TreeTimeout.
+
+    With ``wake``, a tick after which a node asked to be ticked again (``tree.woken``)
+    is followed at once by the next, as BehaviorTree.CPP's ``tickWhileRunning`` cuts its
+    sleep short; the period counts from there. After :data:`WAKES_IN_A_ROW` such ticks the
+    period is kept once, so that a tree that always asks (a ``Repeat`` forever of a child
+    that succeeds at once) still lets clock time pass and the run reach its limits."""
     if not rate_hz > 0:
         raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
     if max_ticks is not None and max_ticks < 1:
@@ -45,7 +64,7 @@ async def run_tree(
     period = 1.0 / rate_hz
     deadline = clock.now()
     end = None if timeout_s is None else deadline + timeout_s
-    ticks = 0
+    ticks = woken = 0
     while True:
         state = tree.tick()
         ticks += 1
@@ -53,7 +72,13 @@ async def run_tree(
             return state
         if max_ticks is not None and ticks >= max_ticks:
             raise _halt(tree, "max_ticks", max_ticks, state, ticks)
-        deadline += period
+        if wake and tree.woken and woken < WAKES_IN_A_ROW:
+            tree.woken = False
+            woken += 1
+            deadline = clock.now()  # the next tick now, yet through the loop (never blocking it)
+        else:
+            woken = 0
+            deadline += period
         now = clock.now()
         if deadline < now - period:  # fell far behind: skip, don't burst
             deadline = now
@@ -61,6 +86,33 @@ async def run_tree(
             await clock.sleep_until(end)  # not a tick later: the limit is the limit
             raise _halt(tree, "timeout_s", timeout_s, state, ticks)
         await clock.sleep_until(deadline)
+
+
+def tick_once(tree: Runnable) -> State:
+    """BehaviorTree.CPP's ``tickOnce``: tick, and tick again at once while the tree is
+    running and a node asked for it since (a request left by a tick that ended the run
+    stays for the next call, as BehaviorTree.CPP's wake-up signal does). As there, a tree
+    that always asks (a ``Repeat`` forever of a child that succeeds at once) never returns."""
+    state = tree.tick()
+    while state is State.RUNNING and tree.woken:
+        tree.woken = False
+        state = tree.tick()
+    return state
+
+
+def start_task(
+    tree: Runnable, coro: Coroutine[Any, Any, Any], name: str | None
+) -> asyncio.Task[Any]:
+    """A node's background task: on the tree's actor system, else on the running loop."""
+    system: ActorSystem | None = getattr(tree, "system", None)
+    if system is not None:
+        return system.start_task(coro, name=name)
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:
+        coro.close()
+        raise TreeError(f"tree {tree.name!r}: background work needs a running event loop") from None
+    return loop.create_task(coro, name=name)
 
 
 def _halt(tree: Runnable, limit: str, value: float, state: State, ticks: int) -> TreeTimeout:

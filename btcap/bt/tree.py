@@ -9,9 +9,10 @@ from typing import TYPE_CHECKING, Any
 from btcap.actors import Clock, TimeSource
 from btcap.bt.blackboard import Blackboard
 from btcap.bt.debug import RestartMonitor, debug_default
+from btcap.bt.host import wake
 from btcap.bt.node import Node, Observer
-from btcap.bt.ports import PortMap, assignable, type_name
-from btcap.bt.running import run_tree
+from btcap.bt.ports import PortMap, wire_problem
+from btcap.bt.running import run_tree, start_task, tick_once
 from btcap.bt.state import ACTIVE, DONE, State, TreeError
 from btcap.bt.utility import Utility
 
@@ -62,6 +63,7 @@ class Tree:
         self._tasks: set[asyncio.Task[Any]] = set()
         self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
         self.version = 0  # grows when nodes join or leave: a watcher needs no walk to see it
+        self.woken = False  # a node asked to be ticked again at once (see tick_once)
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
         self._told: set[str] = set()  # nodes whose first error was a warning (bt.told)
@@ -163,23 +165,9 @@ class Tree:
         Type-checked now: raises TreeError naming both ends and the types.
         """
         src, dst = self._resolve(source), self._resolve(target)
-        out = src.output_ports.get(source_port)
-        if out is None:
-            raise TreeError(
-                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: {src.path!r} "
-                f"has no output {source_port!r} (outputs: {', '.join(src.output_ports) or 'none'})"
-            )
-        inp = dst.input_ports.get(target_port)
-        if inp is None:
-            raise TreeError(
-                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: {dst.path!r} "
-                f"has no input {target_port!r} (inputs: {', '.join(dst.input_ports) or 'none'})"
-            )
-        if not assignable(out.type, inp.type):
-            raise TreeError(
-                f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: output is "
-                f"{type_name(out.type)} but the input expects {type_name(inp.type)}"
-            )
+        problem = wire_problem(src, source_port, dst, target_port)
+        if problem:
+            raise TreeError(f"wire {src.path}.{source_port} -> {dst.path}.{target_port}: {problem}")
         if any(w.target is dst and w.target_port == target_port for w in self.wires):
             raise TreeError(f"input {dst.path}.{target_port} is already wired")
         w = Wire(src, source_port, dst, target_port)
@@ -251,7 +239,8 @@ class Tree:
             )
 
     def tick(self) -> State:
-        """One tick of the whole tree; sets the tree up on first use."""
+        """One tick of the whole tree (BehaviorTree.CPP's ``tickExactlyOnce``: a node's
+        request to be ticked again at once waits for the next tick); sets the tree up."""
         root = self.root
         if not root._ready:
             self.setup()
@@ -264,6 +253,13 @@ class Tree:
             monitor.flush()  # after the tick: an error filter fails the caller, not a node
         return state
 
+    tick_exactly_once = tick
+
+    def tick_once(self) -> State:
+        """BehaviorTree.CPP's ``tickOnce``: a tick, repeated at once while the tree runs and
+        a node asked for it (an AsyncSequence, AsyncFallback or Repeat that yielded)."""
+        return tick_once(self)
+
     async def run(
         self,
         rate_hz: float = 10.0,
@@ -271,15 +267,19 @@ class Tree:
         until: Callable[[State], bool] | None = None,
         max_ticks: int | None = None,
         timeout_s: float | None = None,
+        wake: bool = False,
     ) -> State:
         """Tick at ``rate_hz`` (clock time, drift-free) until a result or ``until(state)``.
+
+        With ``wake`` a node's request to be ticked again is honoured at once, without
+        waiting for the period: BehaviorTree.CPP's ``tickWhileRunning``.
 
         ``max_ticks`` and ``timeout_s`` (clock seconds) limit the run. A run that reaches
         a limit first halts the tree (unticks it: background work is cancelled, progress
         kept, so a later run resumes) and raises :class:`~btcap.bt.state.TreeTimeout`
         naming the limit and the nodes still running; nothing is left running.
         """
-        return await run_tree(self, rate_hz, until, max_ticks, timeout_s)
+        return await run_tree(self, rate_hz, until, max_ticks, timeout_s, wake)
 
     def tick_until_result(self, max_ticks: int = 1_000_000) -> State:
         """Tick synchronously until succeeded/failed/error (for trees with no waits)."""
@@ -324,17 +324,7 @@ class Tree:
         self, coro: Coroutine[Any, Any, Any], *, name: str | None = None
     ) -> asyncio.Task[Any]:
         """Background work of a node, awaited by :meth:`shutdown` (and the system's, if any)."""
-        if self.system is not None:
-            task = self.system.start_task(coro, name=name)
-        else:
-            try:
-                loop = asyncio.get_running_loop()
-            except RuntimeError:
-                coro.close()
-                raise TreeError(
-                    f"tree {self.name!r}: background work needs a running event loop"
-                ) from None
-            task = loop.create_task(coro, name=name)
+        task = start_task(self, coro, name)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
         return task
@@ -432,7 +422,11 @@ class Subtree(Node):
     def on_tick(self) -> State:
         for key, (n, p) in self._in_map.items():
             n.inputs[p] = self.inputs[key]
-        s = self.inner.root.tick()
+        inner = self.inner
+        s = inner.root.tick()
+        if inner.woken:  # one tree ticks: the request is the outer tree's
+            inner.woken = False
+            wake(self)
         for key, (n, p) in self._out_map.items():
             self.outputs[key] = n.outputs[p]
         return s

@@ -133,6 +133,14 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     p.add_argument("--max-ticks", type=int, default=None, help="halt after this many ticks")
     p.add_argument(
+        "--wake",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="tick again at once when a node asks to (an AsyncSequence that yielded), as "
+        "BehaviorTree.CPP's tickWhileRunning; --no-wake: once per period, as its "
+        "tickExactlyOnce (default: on for .xml files, off for others)",
+    )
+    p.add_argument(
         "--fast",
         action="store_true",
         help="virtual time: waits and timeouts pass at once, the run is reproducible",

@@ -128,13 +128,14 @@ async def _tick(
         ticks += 1
         return state in DONE
 
+    wake = args.wake if args.wake is not None else args.file.suffix.lower() == ".xml"
     stopped: TreeTimeout | None = None
     jumps = clock.autojump() if clock is not None else contextlib.nullcontext()
     try:
         async with jumps:
             try:
                 state = await tree.run(
-                    args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout
+                    args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout, wake=wake
                 )
             except TreeTimeout as exc:
                 state, stopped = exc.state, exc

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 from btcap.bt.files.btcpp_conditions import take_conditions, wrap
-from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, MappingError
+from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, V3_NAMES, MappingError
 from btcap.bt.files.btcpp_scope import Ref, Scope
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
@@ -70,7 +70,9 @@ def literal(text: str, tp: Any) -> Any:
 
 
 def _near(word: str, registry: NodeRegistry) -> str:
-    """' (did you mean X?)' among the types an XML element may name."""
+    """' (did you mean X?)' among the types an XML element may name (v3's renamed)."""
+    if word in V3_NAMES:
+        return f" (BehaviorTree.CPP v3's name; v4 calls it {V3_NAMES[word]})"
     names = [n for n in registry if not n.startswith("user.") and registry.xml_type(n) is not None]
     names += STANDARD
     near = difflib.get_close_matches(word, names, n=3, cutoff=0.7)
@@ -227,12 +229,10 @@ class ElementReader:
         return spec
 
     def _name(self, base: str, el: XmlElement, taken: set[str]) -> str | None:
-        if not base or "/" in base or "." in base:
-            self.fail(
-                el.line,
-                f"<{el.tag}> name {base!r}: btcap node names cannot be empty or contain '/' or '.'",
-            )
+        if not base:
+            self.fail(el.line, f"<{el.tag}> name {base!r}: btcap node names cannot be empty")
             return None
+        base = base.replace("/", "_").replace(".", "_")  # they separate btcap's paths
         name, k = base, 2
         while name in taken:  # BehaviorTree.CPP allows equal sibling names, btcap does not
             name, k = f"{base}_{k}", k + 1
@@ -244,7 +244,8 @@ class ElementReader:
         options = dict(std.fixed)
         for key in std.required:
             if key not in attrs:
-                self.fail(el.line, f"<{el.tag}> needs attribute {key!r}")
+                why = f": {std.why_required}" if std.why_required else ""
+                self.fail(el.line, f"<{el.tag}> needs attribute {key!r}{why}")
         for key, (option, convert) in std.attrs.items():
             if key not in attrs:
                 continue

@@ -28,6 +28,7 @@ __all__ = [
     "DIFFERENCES",
     "STANDARD",
     "UNSUPPORTED",
+    "V3_NAMES",
     "Standard",
     "node_table",
     "parse_bool",
@@ -127,6 +128,8 @@ class Standard:
     attrs: dict[str, tuple[str, Callable[[str], Any]]] = dataclasses.field(default_factory=dict)
     required: tuple[str, ...] = ()
     fixed: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: Why a ``required`` attribute BehaviorTree.CPP has a default for must be written.
+    why_required: str = ""
     #: Keys of :data:`DIFFERENCES` this node shows; empty: it decides as BehaviorTree.CPP.
     differs: tuple[str, ...] = ()
 
@@ -210,7 +213,13 @@ STANDARD: dict[str, Standard] = {
     "Timeout": Standard("Timeout", {"msec": ("seconds", _timeout)}, ("msec",)),
     "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
     "RunOnce": Standard(
-        "RunOnce", {"then_skip": ("", _no_skip)}, ("then_skip",), fixed={"forever": True}
+        "RunOnce",
+        {"then_skip": ("", _no_skip)},
+        ("then_skip",),
+        fixed={"forever": True},
+        why_required="BehaviorTree.CPP's default, then_skip=true, returns SKIPPED after the "
+        'first run, which btcap does not have; write then_skip="false" to repeat the first '
+        "result",
     ),
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
@@ -228,6 +237,9 @@ STANDARD: dict[str, Standard] = {
         differs=("script_errors",),
     ),
 }
+
+#: BehaviorTree.CPP v3's node names that v4 renamed, with the v4 name.
+V3_NAMES: dict[str, str] = {"SequenceStar": "SequenceWithMemory"}
 
 #: Standard nodes btcap cannot run as BehaviorTree.CPP does, and why.
 UNSUPPORTED: dict[str, str] = {

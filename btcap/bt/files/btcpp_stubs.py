@@ -7,8 +7,13 @@ model, with its ports, much as BehaviorTree.CPP's substitution rules put a
 ``TestNode`` in its place:
 
 - an ``<Action>`` or ``<Condition>`` returns a scripted result, SUCCESS by default;
-- a ``<Decorator>`` returns its child's result; a ``<Control>`` ticks its children as
-  a ``Sequence`` does.
+- Nav2's control and decorator nodes (``RecoveryNode``, ``PipelineSequence``,
+  ``RoundRobin``, ``RateController``, ``SingleTrigger``) decide as Nav2's own
+  (:mod:`btcap.bt.nav2_nodes`);
+- any other ``<Decorator>`` returns its child's result and any other ``<Control>`` ticks
+  its children as a ``Sequence`` does; the load warns about every such control and
+  Nav2's other decorators (:func:`stand_in_note`): a flow stood in for changes what the
+  tree does.
 
 A type no model declares is stubbed from its use (:func:`infer_models`). Port types
 are read from the model where it gives them (``double``, ``int``, ``bool``,
@@ -43,11 +48,19 @@ from btcap.bt.files.btcpp_elements import KEY, MODEL_KINDS, literal
 from btcap.bt.files.parse import decode, read_bytes
 from btcap.bt.files.schema import TreeFileError
 from btcap.bt.files.xmlread import XmlElement
+from btcap.bt.nav2_nodes import NAV2_NODES, NAV2_STOOD_IN
 from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port
 from btcap.bt.state import DONE, State, TreeError
 
-__all__ = ["StubScripts", "cpp_type", "infer_models", "load_scripts", "make_stub"]
+__all__ = [
+    "StubScripts",
+    "cpp_type",
+    "infer_models",
+    "load_scripts",
+    "make_stub",
+    "stand_in_note",
+]
 
 _CPP: dict[str, Any] = {
     "bool": bool,
@@ -222,6 +235,17 @@ _BASES: dict[str, type[Node]] = {
 }
 
 
+def _used_types(trees: Iterable[XmlElement]) -> set[str]:
+    """The node types the ``trees`` use (element names, and ``ID`` of generic ones)."""
+    found: set[str] = set()
+    stack = [c for t in trees for c in t.children]
+    while stack:
+        el = stack.pop()
+        stack.extend(el.children)
+        found.add(el.attrs.get("ID", "") if el.tag in MODEL_KINDS else el.tag)
+    return found
+
+
 def infer_models(
     trees: Iterable[XmlElement], wanted: Callable[[str], bool]
 ) -> dict[str, XmlElement]:
@@ -279,6 +303,9 @@ def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:
         if port.tag in ("output_port", "inout_port"):
             outs[name] = Port(optional)
     base = _BASES[model.tag]
+    if model.tag in ("Control", "Decorator") and kind in NAV2_NODES:
+        base = NAV2_NODES[kind]
+        ins.update(base.INPUTS)  # Nav2's own ports, typed, with its defaults
     if base is not StubLeaf and (kind in scripts.types):
         raise TreeFileError(
             [
@@ -287,6 +314,8 @@ def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:
             ]
         )
     doc = f"Stand-in for {kind}, built from its <TreeNodesModel> {model.tag} (line {model.line})."
+    if kind in NAV2_NODES:
+        doc = f"Nav2's {kind}, with the ports of its <TreeNodesModel> (line {model.line})."
     return type(
         kind,
         (base,),
@@ -300,3 +329,27 @@ def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:
             "SCRIPTS": scripts,
         },
     )
+
+
+def stand_in_note(model: XmlElement, trees: Iterable[XmlElement]) -> str | None:
+    """What a run must be told about the stand-in for ``model``'s type: any control, and
+    Nav2's decorators btcap does not model (None for the others, for Nav2's own here, and
+    for a type only declared: ``trees`` are checked for a use, unless empty)."""
+    kind = model.attrs["ID"]
+    if kind in NAV2_NODES or model.tag not in ("Control", "Decorator"):
+        return None
+    trees = list(trees)
+    if trees and kind not in _used_types(trees):
+        return None
+    does = (
+        "ticks its children as a Sequence"
+        if model.tag == "Control"
+        else ("returns its child's result")
+    )
+    if kind in NAV2_STOOD_IN:
+        return (
+            f"{kind} is Nav2's, and needs {NAV2_STOOD_IN[kind]}: its stand-in {does}, not as Nav2's"
+        )
+    if model.tag == "Decorator":
+        return None
+    return f"{kind} is a Control btcap does not know: its stand-in {does}"

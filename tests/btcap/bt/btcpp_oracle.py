@@ -212,10 +212,28 @@ def _progress(node: Node) -> bool:
     return isinstance(node, Fallback) and node._current > 0
 
 
-class BtcapRun:
-    """The XML loaded by btcap's loader; ticks report the root, the log and differences."""
+#: Root ticks in one tickOnce taken for a tree that keeps waking itself up: one whose
+#: reactive parent restarts a yielding child every tick never returns, in either.
+WAKING_FOREVER = 500
+#: What :func:`compare` reports for such a tree (BehaviorTree.CPP is not asked: it hangs).
+WAKES_FOREVER = "wakes forever (tickOnce never returns in either)"
 
-    def __init__(self, xml: str, scripts: dict[str, str]) -> None:
+
+class WakingForever(Exception):
+    """btcap's tick_once went past WAKING_FOREVER root ticks."""
+
+
+class BtcapRun:
+    """The XML loaded by btcap's loader; ticks report the root, the log and differences.
+
+    ``once``: each tick is :meth:`Tree.tick_once <btcap.bt.tree.Tree.tick_once>`
+    (BehaviorTree.CPP's ``tickOnce``), else :meth:`Tree.tick` (its ``tickExactlyOnce``);
+    every root tick inside it is checked and watched for differences on its own.
+    """
+
+    def __init__(self, xml: str, scripts: dict[str, str], once: bool = False) -> None:
+        self.once = once
+        self.root_ticks = 0
         reg = default_registry(plugins=False)
         reg.register(Act)
         reg.register(Cond)
@@ -225,6 +243,8 @@ class BtcapRun:
         self.later: set[str] = set()  # differences that may show from the next tick
         self.decided: list[Parallel] = []  # Parallels that gave a result in this tick
         self.tree.observe(self._watch)
+        self._tick = self.tree.tick
+        self.tree.tick = self._root_tick  # type: ignore[method-assign]  # what tick_once calls
 
     def _watch(self, node: Node, old: State, new: State) -> None:
         parent = node.parent_node
@@ -244,10 +264,20 @@ class BtcapRun:
     def tick(self) -> tuple[str, list[str]]:
         _Script.current = self.run
         self.run.log = []
+        self.root_ticks = 0
         try:
-            state, ticked = record_ticks(self.tree, self.tree.tick)
+            state = self.tree.tick_once() if self.once else self.tree.tick()
         finally:
             _Script.current = None
+        return _FROM_STATE.get(state, "R"), self.run.log
+
+    def _root_tick(self) -> State:
+        """One root tick: checked, and watched for the differences it may show."""
+        self.now |= self.later  # one that may show from this tick on, within a tick_once
+        self.root_ticks += 1
+        if self.root_ticks > WAKING_FOREVER:
+            raise WakingForever
+        state, ticked = record_ticks(self.tree, self._tick)
         check_halting(self.tree, ticked)
         seen = {id(n) for n in ticked}
         done = (State.SUCCEEDED, State.FAILED)
@@ -268,7 +298,7 @@ class BtcapRun:
                     if isinstance(up, (Parallel, _Counting)):
                         self.later.add("memory_reset_by_retry")
                     up = up.parent_node
-        return _FROM_STATE.get(state, "R"), self.run.log
+        return state
 
     def halt(self) -> list[str]:
         _Script.current = self.run
@@ -283,7 +313,8 @@ class BtcapRun:
 class BtcppRun:
     """The XML in BehaviorTree.CPP 4.8, with the same scripted leaves."""
 
-    def __init__(self, xml: str, scripts: dict[str, str]) -> None:
+    def __init__(self, xml: str, scripts: dict[str, str], once: bool = False) -> None:
+        self.once = once
         self.scripts = scripts
         self.counts: dict[str, int] = {}
         self.log: list[str] = []
@@ -305,7 +336,8 @@ class BtcppRun:
 
     def tick(self) -> tuple[str, list[str]]:
         self.log = []
-        return _FROM_BT[self.tree.tick_exactly_once()], self.log
+        tick = self.tree.tick_once if self.once else self.tree.tick_exactly_once
+        return _FROM_BT[tick()], self.log
 
     def halt(self) -> list[str]:
         self.log = []
@@ -322,18 +354,23 @@ class Outcome:
     mismatch: str | None
 
 
-def compare(root: El, ticks: int = 10) -> Outcome:
+def compare(root: El, ticks: int = 10, once: bool = False) -> Outcome:
+    """Tick by tick in both, by ``tickExactlyOnce`` or (``once``) by ``tickOnce``."""
     xml = document(root)
     scripts = scripts_of(root)
     try:
-        theirs = BtcppRun(xml, scripts)
+        theirs = BtcppRun(xml, scripts, once)
     except RuntimeError as exc:  # e.g. "A ReactiveSequence cannot have more than one async child"
         return Outcome(0, f"refused by BehaviorTree.CPP: {exc}", None)
-    mine = BtcapRun(xml, scripts)
+    mine = BtcapRun(xml, scripts, once)
     for t in range(ticks):
-        got, want = mine.tick(), theirs.tick()
-        if mine.now:
+        try:
+            got = mine.tick()
+        except WakingForever:
+            return Outcome(t, WAKES_FOREVER, None)
+        if mine.now:  # before BehaviorTree.CPP's tick, which may not return then (tickOnce)
             return Outcome(t, sorted(mine.now)[0], None)
+        want = theirs.tick()
         if got != want:
             return Outcome(t, None, f"tick {t}: btcap {got} BehaviorTree.CPP {want}\n{xml}")
         if mine.later:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import anyio
 import pytest
 
 from btcap import (
@@ -14,12 +15,15 @@ from btcap import (
     Leaf,
     ParallelAll,
     ReactiveSequence,
+    Retry,
     Sequence,
     State,
+    Subtree,
     Tree,
     TreeError,
     WhileDoElse,
 )
+from btcap.actors import ManualClock
 from btcap.bt.invariants import tick_checked as tick
 from btcap.bt.node import Node
 
@@ -134,3 +138,42 @@ def test_parallel_all_refuses_a_threshold_it_can_never_meet() -> None:
     tree = Tree(ParallelAll("p", children=[Scripted("a", S)], max_failures=2))
     with pytest.raises(TreeError, match=r"max_failures 2 can never be met with 1 children"):
         tree.setup()
+
+
+# -- the two tick modes (BehaviorTree.CPP's tickOnce and tickExactlyOnce) ---------------
+
+
+def test_tick_once_ticks_again_at_once_when_a_node_yields() -> None:
+    """An AsyncSequence of three instant children: 1 tickOnce, 3 tickExactlyOnce."""
+    leaves = [Scripted(f"l{i}", S) for i in range(3)]
+    once = Tree(AsyncSequence("a", children=leaves))
+    assert once.tick_once() is S
+    assert [leaf.ticks for leaf in leaves] == [1, 1, 1]
+    exactly = Tree(AsyncSequence("a", children=[Scripted(f"m{i}", S) for i in range(3)]))
+    assert [exactly.tick(), exactly.tick(), exactly.tick()] == [R, R, S]
+    assert Tree.tick_exactly_once is Tree.tick
+
+
+def test_a_retry_of_an_instant_child_asks_to_be_ticked_again_not_of_a_running_one() -> None:
+    instant = Tree(Retry("r", children=[Scripted("a", F, S)], retries=1))
+    assert instant.tick_once() is S
+    running = Tree(Retry("r", children=[Scripted("b", R, F, S)], retries=1))
+    assert [running.tick_once(), running.tick_once()] == [R, R]  # the retry waits a tick
+    assert running.tick_once() is S
+
+
+def test_a_subtree_passes_its_nodes_request_to_the_outer_tree() -> None:
+    inner = Tree(AsyncSequence("a", children=[Scripted("x", S), Scripted("y", S)]))
+    outer = Tree(Sequence("s", children=[Subtree(inner, "sub")]))
+    assert outer.tick_once() is S
+
+
+async def test_run_with_wake_ticks_again_without_waiting_for_the_period() -> None:
+    with anyio.fail_after(5):
+        for wake, elapsed in ((True, 0.0), (False, 0.2)):
+            clock = ManualClock()
+            leaves = [Scripted(f"l{i}", S) for i in range(3)]
+            tree = Tree(AsyncSequence("a", children=leaves), clock=clock)
+            async with clock.autojump():
+                assert await tree.run(10.0, wake=wake) is S
+            assert clock.now() == pytest.approx(elapsed)

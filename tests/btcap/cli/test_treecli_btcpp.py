@@ -51,8 +51,11 @@ def test_a_nav2_tree_dry_runs_as_its_script_says(
     args = ["tree", "run", "--fast", *STUBS, "--stub-script", str(script), str(DRY_RUN)]
     assert main(args) == 1
     out = capsys.readouterr().out
-    assert "FollowPath 'FollowPath'  [failed]" in out
-    assert out.endswith("failed after 2 ticks\n")
+    # Nav2's RecoveryNode: FollowPath's own recovery, then the navigator's in turn, until
+    # its RoundRobin (wrap_around false by default) has none left.
+    assert "RecoveryNode 'NavigateRecovery'  [failed]" in out
+    assert "RoundRobin 'RecoveryActions'  [failed]" in out
+    assert out.endswith("failed after 5 ticks\n")
 
 
 def test_main_picks_the_tree_to_run(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

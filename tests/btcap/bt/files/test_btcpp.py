@@ -618,11 +618,6 @@ ERRORS = [
         "<SubTree ID='Leg'> port 'gaol': the tree neither reads it from outside (goal)",
     ),
     (
-        _xml('<BehaviorTree ID="Main">\n<AlwaysSuccess name="a.b"/>\n</BehaviorTree>'),
-        3,
-        "name 'a.b': btcap node names cannot be empty or contain '/' or '.'",
-    ),
-    (
         _xml(
             '<BehaviorTree ID="Main"><Move goal="1;2"/></BehaviorTree>\n<TreeNodesModel>\n'
             '<Action ID="Move">\n<input_port name="goal"/>\n<output_port name="dist"/>\n'
