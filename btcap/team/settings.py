@@ -88,7 +88,8 @@ LeaseS = Annotated[
     _seconds(
         "How long an execution lives without word from the other side: the executor stops "
         "its run 0.9 times this after the newest of its stamps the origin echoed, and the "
-        "origin starts the task elsewhere only this long after it last heard from it"
+        "origin starts the task elsewhere only this long after that stamp arrived; "
+        "`keepalive_s` and the origin's tick period must stay well under 0.9 times this"
     ),
 ]
 KeepaliveS = Annotated[
@@ -199,7 +200,7 @@ class Timing(msgspec.Struct, kw_only=True, forbid_unknown_fields=True, frozen=Tr
     heartbeat_s: HeartbeatS = 0.1
     failure_timeout_s: FailureTimeoutS = 0.5
     heartbeat_fanout: HeartbeatFanout = 8
-    lease_s: LeaseS = 1.0
+    lease_s: LeaseS = 0.8
     keepalive_s: KeepaliveS = 0.2
     auction_window_s: AuctionWindowS = 1.0
     award_timeout_s: AwardTimeoutS = 0.5

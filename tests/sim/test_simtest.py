@@ -189,6 +189,10 @@ def test_a_bad_plan_file_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[
         # which drew it back; it traded two origins' tasks for ever in no clock time
         # (core/market.py; hung, the per-test timeout fails it).
         "heavy-70055.json",
+        # consensus: an origin that forgot a robot (a false failure) and had no open task
+        # never made it say its claim again: it held a task that had closed for ever, and
+        # another origin's tasks never ran (core/consensus.py; not live).
+        "heavy-781.json",
     ],
 )
 def test_found_bugs_stay_fixed(name: str) -> None:

@@ -87,6 +87,7 @@ class Consensus(Generic[T]):
         self._told: dict[str, tuple[int, int]] = {}  # origin -> (stamp, version) it heard
         self._owe: set[str] = set()  # origins to tell our claim again
         self._barred: set[ExecutionId] = set()  # refused us until its task set changes
+        self._forgot: set[str] = set()  # members lost: their claims to us were dropped
 
     @property
     def refused(self) -> int:
@@ -98,16 +99,25 @@ class Consensus(Generic[T]):
 
     # -- the team ---------------------------------------------------------------------
     def join(self, robot: str) -> None:
-        """A member to hear from (its earlier life, if any, was forgotten when it was lost)."""
+        """A member to hear from (its earlier life, if any, was forgotten when it was lost).
+        One we lost is owed our board: it may still claim a task of ours that closed while
+        it was lost, having told us (unheard), and only a board whose ``heard`` is below
+        its claim makes it say the claim again (heavy sim-test seed 781: two robots held a
+        closed task for ever, the origin having no open task to offer them)."""
         if robot not in self.members and len(self.members) < self.max_members:
             self.members.add(robot)
             self.market.join(robot)
+            if robot in self._forgot:
+                self._forgot.discard(robot)
+                self.market.owed.add(robot)
 
     def lose(self, robot: str) -> None:
         """A member left or failed: its bids go (what it held is free again), and so do
         its tasks."""
         if robot == self.robot:
             return
+        if robot in self.members and len(self._forgot) < self.max_members:
+            self._forgot.add(robot)
         self.members.discard(robot)
         self.market.lose(robot)
         for table in (self._offers, self._boards, self._prices, self._told):

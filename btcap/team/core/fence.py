@@ -10,8 +10,9 @@ and the clocks' rates differ from true time by at most :data:`DRIFT` (±1 %).
   was withdrawn and arrives late never runs) and is stopped when the lease ends, with or
   without word from the origin. A stamp is older than the renewal echoing it, so however
   late a renewal arrives it never leases a run past the echoed stamp's time plus the share.
-- **The origin** counts from when it last heard from the executor (any word, at or after
-  the newest stamp it echoes): ``lease_s`` later on its clock, the run can no longer act,
+- **The origin** counts from when the newest stamp it echoes arrived (the stamp is older
+  than that; words without a newer stamp renew nothing): ``lease_s`` later on its clock,
+  the run can no longer act,
   as ``lease_s / (1 + DRIFT)`` true seconds exceed ``lease_s x EXECUTOR_SHARE /
   (1 - DRIFT)`` by :data:`STOP_SLACK` x ``lease_s`` (the executor's time to stop). Until
   then a task whose run it gave up on (its robot declared failed, the run moved or
@@ -33,8 +34,8 @@ __all__ = ["DRIFT", "EXECUTOR_SHARE", "STOP_SLACK", "Fences", "executor_lease_s"
 DRIFT = 0.01
 #: The share of ``lease_s`` an executor's run lives past the stamp its origin echoed.
 EXECUTOR_SHARE = 0.9
-#: What is left for the executor to stop its run, as a share of ``lease_s`` (0.08: 80 ms
-#: at the default 1 s lease), with both clocks at the worst drift.
+#: What is left for the executor to stop its run, as a share of ``lease_s`` (0.08: 64 ms
+#: at the default 0.8 s lease), with both clocks at the worst drift.
 STOP_SLACK = 1.0 / (1.0 + DRIFT) - EXECUTOR_SHARE / (1.0 - DRIFT)
 
 

@@ -50,6 +50,8 @@ class Tracked:
     lost: bool = False
     #: The executor's newest stamp heard (its clock), echoed in every renewal.
     stamp: float | None = None
+    #: When (this robot's clock) :attr:`stamp` arrived.
+    stamp_at: float = -math.inf
     #: The run may have acted: awarded to start, or sent inputs (a paused one is not).
     live: bool = True
 
@@ -62,12 +64,17 @@ class Tracked:
             and (self.stamp is None or stamp > self.stamp)
         ):
             self.stamp = stamp
+            self.stamp_at = now
 
     @property
     def fenced_until(self) -> float:
         """From when on (this robot's clock) the run surely acts no more without renewals:
-        the newest echoed stamp was heard at or before ``last_heard``."""
-        return self.last_heard + self.lease_s
+        ``lease_s`` after the newest stamp we echo arrived (the stamp is older than that;
+        words without a newer stamp renew nothing there). Without a stamp the run never
+        started; counted from ``last_heard`` all the same."""
+        if self.stamp is None:
+            return self.last_heard + self.lease_s
+        return self.stamp_at + self.lease_s
 
 
 class OriginLeases:
@@ -91,7 +98,8 @@ class OriginLeases:
         paused: bool = False,
     ) -> Tracked:
         """The award was accepted (its reply stamped ``stamp``): the lease starts now."""
-        t = Tracked(execution, executor, lease_s, now, stamp=stamp, live=not paused)
+        t = Tracked(execution, executor, lease_s, now, live=not paused)
+        t.heard(stamp, now)
         self.tracked[execution] = t
         return t
 

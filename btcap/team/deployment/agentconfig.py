@@ -12,7 +12,7 @@ A versioned YAML (or JSON) file; paths in it are relative to the file::
       advertise: tcp://10.0.0.1:7001     # what peers dial (required for a wildcard bind)
       seeds: [{robot: beta, endpoint: tcp://10.0.0.2:7002}]
     keys: {secret: keys/alpha.key_secret, trusted: keys/team}
-    timing: {tick_hz: 10, heartbeat_s: 0.1, failure_timeout_s: 0.5, lease_s: 1.0}
+    timing: {tick_hz: 10, heartbeat_s: 0.1, failure_timeout_s: 0.5, lease_s: 0.8}
     allocation: {rebid_on_join: 0.25}
     plugin:                              # optional: Python code beside the files
       factory: mypkg.robots:make         # make(robot, **args): implementations (and actors)

@@ -67,7 +67,7 @@ def test_the_code_defaults_are_the_library_defaults_of_the_blocks() -> None:
         8,
     )
     assert (cfg.lease_s, cfg.keepalive_s, cfg.auction_window_s, cfg.award_timeout_s) == (
-        1.0,
+        0.8,
         0.2,
         1.0,
         0.5,

@@ -415,3 +415,20 @@ def test_a_robot_refused_a_task_it_may_not_take_stops_bidding_for_it() -> None:
     t.run(limit=50)
     assert t.assignment() == {tid(0): "b"}
     assert t.robots["a"].claim.task is None
+
+
+def test_a_robot_lost_while_it_held_a_task_that_closed_lets_it_go_when_back() -> None:
+    """The origin declares "a" (alive, cut off) failed while "a" holds its task, closes
+    the task, and hears "a" again: with no open task to offer, its board alone makes "a"
+    say its claim again and learn the task closed (heavy sim-test seed 781: two robots
+    held a closed task for ever, and another origin's tasks never ran)."""
+    t = Team({"a": {0: 1.0}}, 1)
+    t.run()
+    assert t.assignment() == {tid(0): "a"}
+    t.origin.lose("a")  # declared failed: its claim and hold are dropped
+    t.origin.close(tid(0))  # done (or re-assigned) meanwhile: nobody holds it to tell
+    t.origin.join("a")  # back
+    t.run()
+    assert tid(0) not in t.robots["a"].tasks()
+    assert t.robots["a"].claim.task is None
+    assert t.origin.market.reports["a"].claim == t.robots["a"].claim

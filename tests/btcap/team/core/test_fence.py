@@ -10,6 +10,7 @@ import random
 from dataclasses import dataclass, field
 from typing import Any
 
+import msgspec
 import pytest
 
 from btcap.team.core.body import Body
@@ -107,6 +108,21 @@ def test_a_member_declared_failed_fences_its_task_until_its_run_surely_stopped()
     assert o.fenced("root/carry", 1.25) is None
 
 
+def test_the_fence_counts_from_when_the_newest_stamp_arrived() -> None:
+    """Words without a newer stamp (unstamped, or overtaken) renew nothing on the
+    executor, so they do not push the fence back: it opens ``lease_s`` after the newest
+    stamp we echo arrived, not after the last word."""
+    o = OriginLeases("a")
+    t = o.track(E1, "b", LEASE, now=0.0, stamp=7.0)
+    o.status("b", ExecutionStatus(E1, "b", RunState.RUNNING, {}, 1, "", 7.2), now=0.2)
+    o.status("b", ExecutionStatus(E1, "b", RunState.RUNNING, {}, 2, "", None), now=0.3)
+    o.keepalive("b", [E1], now=0.35, stamps=[math.nan])
+    o.status("b", ExecutionStatus(E1, "b", RunState.RUNNING, {}, 3, "", 7.1), now=0.4)
+    assert (t.stamp, t.last_heard) == (7.2, 0.4)
+    o.member_gone("b", "robot b failed", now=0.5)
+    assert o.fenced("root/carry", 0.5) == pytest.approx(0.2 + LEASE)
+
+
 def test_a_moved_run_fences_its_task_until_its_robot_confirms() -> None:
     o, h = OriginLeases("a"), HostLeases("b", Body())
     award = Award(AuctionId("a", 1), E1, "Carry", "impl", {}, LEASE)
@@ -144,6 +160,7 @@ class _World:
     origin_rate: float = 1.0
     executor_rate: float = 1.0
     loss: float = 0.0
+    unstamped: float = 0.0  # this share of b's words carry no stamp (renewing nothing)
     delay: float = 0.01
     long_delay: float = 0.0  # some messages are held this long (a burst after a freeze)
     cut: tuple[float, float, str] = (math.inf, math.inf, "both")  # a partition, or one way
@@ -242,10 +259,16 @@ class _World:
                         self.send(t, keep.to, keep.message)
                 elif ev.kind == "executor tick" and E1 in host.hosted:
                     report = host.status(host.hosted[E1], now_e)
+                    if self.rng.random() < self.unstamped:
+                        report = msgspec.structs.replace(report, stamp=None)
                     self.send(t, "a", report)
                     keep = host.keepalives(now_e)
                     for k in keep:
-                        self.send(t, k.to, k.message)
+                        msg = k.message
+                        if self.rng.random() < self.unstamped:
+                            nan = [math.nan] * len(msg.stamps)
+                            msg = msgspec.structs.replace(msg, stamps=nan)
+                        self.send(t, k.to, msg)
                 elif ev.kind == "declare":
                     for eff in origin.member_gone("b", "robot b failed", now_o):
                         if isinstance(eff, Send):
@@ -263,6 +286,7 @@ def _world(seed: int, fence: bool = True) -> _World:
     w.origin_rate = rng.uniform(1 - DRIFT, 1 + DRIFT)
     w.executor_rate = rng.uniform(1 - DRIFT, 1 + DRIFT)
     w.loss = rng.choice([0.0, 0.05, 0.3])
+    w.unstamped = rng.choice([0.0, 0.0, 0.5, 0.9])
     w.delay = rng.choice([0.005, 0.05, 0.3])
     w.long_delay = rng.choice([0.0, 0.0, 2.0, 6.0])
     start = rng.uniform(0.5, 4.0)
