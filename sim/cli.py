@@ -110,8 +110,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--record",
         type=Path,
         metavar="FILE",
-        help="record trees, runs, auctions and team events as JSON Lines for btcap replay "
-        "(default: monitor.jsonl in the output folder)",
+        help="record trees, runs, auctions and team events for btcap replay: MCAP for "
+        "Foxglove if FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output "
+        "folder)",
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
@@ -339,6 +340,19 @@ async def _run_one(
         return await runner(s, on_progress=show, stop=stop)
 
 
+def _metadata(s: Scenario, *, fast: bool, distributed: bool) -> dict[str, str]:
+    """What a recording says about its run: scenario, seed, strategy and every setting."""
+    import msgspec
+
+    return {
+        "scenario": s.name,
+        "seed": str(s.seed),
+        "strategy": s.allocation.strategy,
+        "mode": "fast" if fast else "distributed" if distributed else "speed-up",
+        "settings": msgspec.json.encode(s).decode(),
+    }
+
+
 def run_command(args: argparse.Namespace) -> int:
     import asyncio
 
@@ -406,14 +420,16 @@ def run_command(args: argparse.Namespace) -> int:
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"
             if args.compare and args.record is not None:
-                record = args.record.with_name(f"{args.record.stem}-{s.name}.jsonl")
+                suffix = args.record.suffix or ".jsonl"
+                record = args.record.with_name(f"{args.record.stem}-{s.name}{suffix}")
             run = functools.partial(
                 _run_one, s, console, args.quiet, args.distributed, args.fast, stopper
             )
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
-            result = asyncio.run(monitored(args.monitor, keep, s.name, write))
+            meta = _metadata(s, fast=args.fast, distributed=args.distributed)
+            result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
             console.print(
                 f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
                 f"in {time.perf_counter() - started:.1f} s of wall time",
