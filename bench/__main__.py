@@ -14,6 +14,7 @@ BENCHES = (
     "allocation",
     "membership",
     "monitor",
+    "recording",
     "attacks",
     "missiontime",
 )

@@ -110,9 +110,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--record",
         type=Path,
         metavar="FILE",
-        help="record trees, runs, auctions and team events for btcap replay: MCAP for "
-        "Foxglove if FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output "
-        "folder)",
+        help="record trees, runs, auctions and team events for btcap replay, as MCAP if "
+        "FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output folder)",
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
@@ -340,19 +339,6 @@ async def _run_one(
         return await runner(s, on_progress=show, stop=stop)
 
 
-def _metadata(s: Scenario, *, fast: bool, distributed: bool) -> dict[str, str]:
-    """What a recording says about its run: scenario, seed, strategy and every setting."""
-    import msgspec
-
-    return {
-        "scenario": s.name,
-        "seed": str(s.seed),
-        "strategy": s.allocation.strategy,
-        "mode": "fast" if fast else "distributed" if distributed else "speed-up",
-        "settings": msgspec.json.encode(s).decode(),
-    }
-
-
 def run_command(args: argparse.Namespace) -> int:
     import asyncio
 
@@ -362,7 +348,7 @@ def run_command(args: argparse.Namespace) -> int:
     from btcap.cli.monitor import monitored
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, grow_team
+    from btcap.sim.scenario import ScenarioError, grow_team, run_metadata
 
     console = Console()
     if args.compare:
@@ -428,7 +414,7 @@ def run_command(args: argparse.Namespace) -> int:
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
-            meta = _metadata(s, fast=args.fast, distributed=args.distributed)
+            meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
             result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
             console.print(
                 f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "

@@ -196,5 +196,5 @@ def log_line(ev: Event) -> tuple[int, str, str] | None:
         return (_INFO if won else _WARNING), won or "", f"{text} (bids: {bids})"
     if kind == "finished":
         level = _INFO if ev["result"] == "succeeded" else _WARNING
-        return level, "btcap", f"mission {ev['result']}: {ev['summary']}"
+        return level, "btcap", f"{ev['result']}: {ev['summary']}"
     return None
