@@ -59,7 +59,7 @@ def run(quick: bool = False) -> dict[str, Any]:
             wall_med = {c: statistics.median(w for w, _ in times[c]) for c in CONDITIONS}
             cpu_med = {c: statistics.median(p for _, p in times[c]) for c in CONDITIONS}
             sizes = {c: (folder / f"{name}.{c}").stat().st_size for c in ("jsonl", "mcap")}
-            row = {
+            row: dict[str, Any] = {
                 "simulated_s": sim_s,
                 "wall_s": wall_med,
                 "cpu_s": cpu_med,

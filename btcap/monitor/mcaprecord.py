@@ -105,7 +105,7 @@ class McapRecorder:
             return
         self._closed = True
         try:
-            self._writer.finish()
+            self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.close()
         except OSError as exc:
             self._failed(exc)
