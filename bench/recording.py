@@ -1,10 +1,13 @@
 """What a recording costs a ``--fast`` run: the paper's scenarios run in the fast mode
-with no monitor (``none``), recording JSON Lines (``jsonl``) and recording MCAP
-(``mcap``), taking turns in the same process so load hits all three alike.
+with no monitor (``none``), a monitor that writes nothing (``monitor``), recording JSON
+Lines (``jsonl``) and recording MCAP (``mcap``), taking turns in the same process so load
+hits all alike.
 
 Reported per scenario: the median wall and process CPU time of each condition, the
-ratios ``jsonl / none`` and ``mcap / none`` (the budget: ≤ 1.05), the files' sizes, their
-size per simulated minute and the MCAP file's size as a share of the JSON Lines one.
+ratios ``jsonl / none`` and ``mcap / none`` (the budget: ≤ 1.05), the same over the
+monitor alone (what writing the file adds), the files' sizes, their size per simulated
+minute and the MCAP file's size as a share of the JSON Lines one. On a shared machine
+the CPU ratios are the steady ones; wall ratios follow the load.
 
 Run ``python -m btcap.bench recording [--quick]``.
 """
@@ -27,7 +30,7 @@ from btcap.sim.scenario import load_scenario
 __all__ = ["run"]
 
 SCENARIOS = ("single-husky", "huskies-bebop-joins", "full-team")
-CONDITIONS = ("none", "jsonl", "mcap")
+CONDITIONS = ("none", "monitor", "jsonl", "mcap")
 
 
 async def _once(name: str, condition: str, folder: Path) -> tuple[float, float, float]:
@@ -37,7 +40,7 @@ async def _once(name: str, condition: str, folder: Path) -> tuple[float, float, 
     if condition == "none":
         result = await run_fast(scenario)
     else:
-        path = folder / f"{name}.{condition}"
+        path = None if condition == "monitor" else folder / f"{name}.{condition}"
         async with Monitor(port=None, record=path, title=name) as monitor:
             result = await run_fast(scenario, monitor=monitor)
     return time.perf_counter() - wall, time.process_time() - cpu, result.mission_time_s
@@ -65,6 +68,11 @@ def run(quick: bool = False) -> dict[str, Any]:
                 "cpu_s": cpu_med,
                 **{f"{c}_wall_ratio": wall_med[c] / wall_med["none"] for c in ("jsonl", "mcap")},
                 **{f"{c}_cpu_ratio": cpu_med[c] / cpu_med["none"] for c in ("jsonl", "mcap")},
+                # the file alone: recording against the same monitor writing nothing
+                **{
+                    f"{c}_over_monitor_cpu": cpu_med[c] / cpu_med["monitor"]
+                    for c in ("jsonl", "mcap")
+                },
                 "bytes": sizes,
                 "bytes_per_sim_min": {c: sizes[c] / (sim_s / 60) for c in sizes},
                 "mcap_over_jsonl": sizes["mcap"] / sizes["jsonl"],
@@ -73,7 +81,9 @@ def run(quick: bool = False) -> dict[str, Any]:
             print(
                 f"{name:20} sim {sim_s:6.0f} s | wall none {wall_med['none']:6.2f} s, "
                 f"jsonl x{row['jsonl_wall_ratio']:.3f}, mcap x{row['mcap_wall_ratio']:.3f} | "
-                f"cpu jsonl x{row['jsonl_cpu_ratio']:.3f}, mcap x{row['mcap_cpu_ratio']:.3f} | "
+                f"cpu jsonl x{row['jsonl_cpu_ratio']:.3f}, mcap x{row['mcap_cpu_ratio']:.3f}, "
+                f"over monitor alone: jsonl x{row['jsonl_over_monitor_cpu']:.3f}, "
+                f"mcap x{row['mcap_over_monitor_cpu']:.3f} | "
                 f"{sizes['jsonl'] / 1024:.0f} KiB jsonl, {sizes['mcap'] / 1024:.0f} KiB mcap "
                 f"({row['mcap_over_jsonl']:.2f}), "
                 f"{row['bytes_per_sim_min']['mcap'] / 1024:.1f} KiB mcap per simulated minute",
