@@ -5,7 +5,8 @@ The log time of a message is its event's clock time (virtual in ``--fast`` runs)
 its sequence number is its place in the event stream, so a replay reads the events back
 in exactly the order the JSON Lines recorder wrote them, and two runs of a deterministic
 simulation write the same bytes. Chunks are zstd-compressed; the file is flushed after
-every batch, so a run that is killed leaves a file readable up to its last whole chunk.
+every batch; a chunk is written when it holds 256 KiB or spans 60 s of the clock, so a run
+that is killed leaves a file readable up to its last whole chunk.
 """
 
 from __future__ import annotations
@@ -33,8 +34,10 @@ __all__ = ["CHUNK_SIZE", "MAGIC", "METADATA_NAME", "McapRecorder", "read_mcap"]
 log = get_logger("btcap.monitor")
 
 MAGIC = b"\x89MCAP0\r\n"
-#: Uncompressed bytes a chunk holds before it is written: what a crash may lose at most.
+#: Uncompressed bytes a chunk holds before it is written ...
 CHUNK_SIZE = 256 * 1024
+#: ... or clock seconds it spans: a crash loses at most this much of a slow live run.
+CHUNK_S = 60.0
 #: The MCAP metadata record that holds the run's settings (scenario, seed, ...).
 METADATA_NAME = "btcap"
 PROFILE = ""  # no ROS: JSON channels
@@ -53,6 +56,7 @@ class McapRecorder:
         metadata: Mapping[str, str] | None = None,
         *,
         chunk_size: int = CHUNK_SIZE,
+        chunk_s: float = CHUNK_S,
     ) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
@@ -63,6 +67,8 @@ class McapRecorder:
         self._writer.add_metadata(METADATA_NAME, dict(sorted(meta.items())))
         self._channels: dict[str, int] = {}
         self._sequence = 0
+        self._chunk_s = chunk_s
+        self._chunk_t: float | None = None  # clock time of the open chunk's first event
         self._closed = False
         self._file.flush()
 
@@ -86,7 +92,13 @@ class McapRecorder:
             self._failed(exc)
 
     def _add(self, ev: Event) -> None:
-        ns = round(float(ev["t"]) * 1e9)
+        t = float(ev["t"])
+        if self._chunk_t is None:
+            self._chunk_t = t
+        elif t >= self._chunk_t + self._chunk_s:  # by the event's clock: the same every run
+            self._writer.flush()  # type: ignore[no-untyped-call]
+            self._chunk_t = t
+        ns = round(t * 1e9)
         self._sequence += 1
         topic, schema = event_schema(ev["k"])
         cid = self._channel(topic, schema)
@@ -125,10 +137,12 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
     topics: dict[int, str] = {}
     found: list[tuple[int, bytes]] = []
     meta: dict[str, str] = {}
+    header = False  # a whole record was read: an MCAP file, perhaps cut short
     with path.open("rb") as f:
         reader = StreamReader(f, record_size_limit=1 << 30)
         try:
             for record in reader.records:
+                header = True
                 if isinstance(record, Channel):
                     topics[record.id] = record.topic
                 elif isinstance(record, Message):
@@ -139,8 +153,8 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
         except InvalidMagic:
             raise ValueError("not an MCAP file (no MCAP magic)") from None
         except (McapError, ValueError, struct.error, zstandard.ZstdError) as exc:
-            # a record cut short (a killed run): what came before it stands
-            if not topics:
+            # a record cut short (a killed run): what came before it stands, if anything
+            if not header:
                 raise ValueError(f"not a readable MCAP file ({exc!r})") from None
     found.sort(key=lambda m: m[0])
     events = []

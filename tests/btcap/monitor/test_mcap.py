@@ -68,6 +68,8 @@ def test_channels_have_their_schemas_and_the_jsonl_events(runs: dict[str, Path])
     events = [m for topic, m in msgs if topic != LOG_TOPIC]
     assert sorted(map(json.dumps, events)) == sorted(map(json.dumps, jsonl))
     assert read_record(runs["one.mcap"]) == jsonl  # in the stream's order, not by time
+    # a chunk at least every 60 s of clock: a crash loses at most a minute of a live run
+    assert summary.statistics.chunk_count >= jsonl[-1]["t"] // 60
     logs = [m for topic, m in msgs if topic == LOG_TOPIC]
     assert any("won by" in m["message"] for m in logs)
     assert {"level", "message", "name", "timestamp"} <= set(logs[0])
