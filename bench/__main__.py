@@ -15,6 +15,7 @@ BENCHES = (
     "allocation",
     "membership",
     "monitor",
+    "recording",
     "attacks",
     "missiontime",
 )

@@ -17,13 +17,13 @@ from btcap.cli import CliError
 from btcap.cli.monitor import add_monitor_option
 from btcap.sim import simtestcli
 from btcap.sim.catalog import builtin_scenarios
+from btcap.sim.runview import progress_line, progress_view, summary_table
 
 if TYPE_CHECKING:  # the simulation is imported when a run starts: --help stays fast
     import asyncio
 
     import anyio
-    from rich.console import Console, Group
-    from rich.table import Table
+    from rich.console import Console
 
     from btcap.monitor import Monitor
     from btcap.sim.metrics import MissionResult
@@ -116,8 +116,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--record",
         type=Path,
         metavar="FILE",
-        help="record trees, runs, auctions and team events as JSON Lines for btcap replay "
-        "(default: monitor.jsonl in the output folder)",
+        help="record trees, runs, auctions and team events for btcap replay, as MCAP if "
+        "FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output folder)",
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
     p.set_defaults(handler=run_command)
@@ -137,85 +137,6 @@ def resolve_scenario(ref: str) -> Scenario:
             f"scenario {ref!r}: no such file, and not a built-in ({', '.join(builtins)})"
         )
     return load_scenario(path)
-
-
-def _progress_line(p: Progress, name: str) -> str:
-    """The live table as one plain line, for logs."""
-    s = p.summary
-    robots = ", ".join(
-        f"{robot} {p.tasks.get(robot, 'idle') if up else 'away'}" for robot, up in p.present.items()
-    )
-    return (
-        f"{name} t={p.time:.0f} s: found {s.get('found', 0):.0f}/{s.get('objects', 0):.0f}, "
-        f"identified {s.get('identified', 0):.0f}, decontaminated "
-        f"{s.get('decontaminated', 0):.0f}, explored {100 * float(s.get('coverage', 0)):.0f}%; "
-        f"{robots}"
-    )
-
-
-def _progress_view(p: Progress, name: str) -> Table:
-    from rich.table import Table
-
-    t = Table(title=f"{name} - t = {p.time:7.0f} s", expand=False)
-    t.add_column("robot")
-    t.add_column("status")
-    t.add_column("current task")
-    for robot, present in p.present.items():
-        t.add_row(robot, "up" if present else "[red]away[/red]", p.tasks.get(robot, "-"))
-    s = p.summary
-    t.caption = (
-        f"found {s.get('found', 0)}/{s.get('objects', 0)}  identified {s.get('identified', 0)}  "
-        f"contaminated {s.get('contaminated', 0)}  decontaminated {s.get('decontaminated', 0)}  "
-        f"explored {100 * float(s.get('coverage', 0)):.0f}%"
-    )
-    return t
-
-
-def summary_table(results: list[MissionResult]) -> Group:
-    from rich.console import Group
-    from rich.table import Table
-    from rich.text import Text
-
-    head = Table(title="mission summary")
-    head.add_column("")
-    for r in results:
-        head.add_column(r.scenario, justify="right")
-    rows: list[tuple[str, list[str]]] = [
-        ("completed", ["yes" if r.completed else "NO" for r in results]),
-        ("mission time [s]", [f"{r.mission_time_s:.0f}" for r in results]),
-        (
-            "objects found",
-            [f"{r.summary['found']:.0f}/{r.summary['objects']:.0f}" for r in results],
-        ),
-        ("decontaminated", [f"{r.summary['decontaminated']:.0f}" for r in results]),
-        ("auctions", [str(r.auctions) for r in results]),
-        ("executions lost", [str(r.executions_lost) for r in results]),
-        ("re-assigned", [str(r.reassigned) for r in results]),
-        ("moved (cheaper)", [str(r.moved) for r in results]),
-        ("robot failures", [str(r.robot_failures) for r in results]),
-        ("robots left", [str(r.robots_left) for r in results]),
-        ("robot errors", [str(len(r.errors)) for r in results]),
-    ]
-    for label, cells in rows:
-        head.add_row(Text(label), *cells)  # Text: '[s]' is a unit, not rich markup
-    parts: list[Any] = [head]
-    for r in results:
-        for e in r.errors:
-            parts.append(Text(f"{r.scenario}: {e.robot} at {e.time:.0f} s: {e.error}", "red"))
-        if r.timed_out:
-            parts.append(Text(f"{r.scenario}: stopped at its time limit", "red"))
-        if r.interrupted:
-            parts.append(Text(f"{r.scenario}: interrupted before the end", "red"))
-    for r in results:
-        t = Table(title=f"{r.scenario}: robots")
-        for col in ("robot", "model", "utilisation", "tasks", "distance [m]"):
-            right = col in ("utilisation", "distance [m]")
-            t.add_column(Text(col), justify="right" if right else "left")
-        for name, st in r.robots.items():
-            tasks = ", ".join(f"{k} {v}" for k, v in sorted(st.tasks.items())) or "-"
-            t.add_row(name, st.model, f"{100 * st.utilisation:.0f}%", tasks, f"{st.distance_m:.0f}")
-        parts.append(t)
-    return Group(*parts)
 
 
 def _out_dir(args: argparse.Namespace, name: str) -> Path:
@@ -337,14 +258,14 @@ async def _run_one(
     if not console.is_terminal:  # a log: a line every LINE_EVERY_S of mission time
 
         def line(p: Progress) -> None:
-            console.print(_progress_line(p, s.name), markup=False, highlight=False, soft_wrap=True)
+            console.print(progress_line(p, s.name), markup=False, highlight=False, soft_wrap=True)
 
         every = {"progress_every_s": LINE_EVERY_S, "progress_clock": "mission"}
         return await runner(s, on_progress=line, stop=stop, **every)
     with Live(console=console, refresh_per_second=8, transient=True) as live:
 
         def show(p: Progress) -> None:
-            live.update(_progress_view(p, s.name))
+            live.update(progress_view(p, s.name))
 
         return await runner(s, on_progress=show, stop=stop)
 
@@ -358,7 +279,7 @@ def run_command(args: argparse.Namespace) -> int:
     from btcap.cli.monitor import monitored
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, grow_team
+    from btcap.sim.scenario import ScenarioError, grow_team, run_metadata
 
     console = Console()
     if args.compare:
@@ -422,13 +343,15 @@ def run_command(args: argparse.Namespace) -> int:
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"
             if args.compare and args.record is not None:
-                record = args.record.with_name(f"{args.record.stem}-{s.name}.jsonl")
+                suffix = args.record.suffix or ".jsonl"
+                record = args.record.with_name(f"{args.record.stem}-{s.name}{suffix}")
             flags = (args.quiet, args.distributed, args.fast)
             run = functools.partial(_run_one, s, console, *flags, stopper, ros2=args.ros2)
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
-            result = asyncio.run(monitored(args.monitor, keep, s.name, write))
+            meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
+            result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
             console.print(
                 f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
                 f"in {time.perf_counter() - started:.1f} s of wall time",

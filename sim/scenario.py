@@ -46,6 +46,7 @@ __all__ = [
     "check_scenario",
     "grow_team",
     "load_scenario",
+    "run_metadata",
 ]
 
 _RESERVED = ("sim", "operator")
@@ -224,3 +225,16 @@ def grow_team(s: Scenario, robots: int) -> None:
         count[model] = n
         names.add(f"{model}{n}")
         s.robots.append(RobotEntry(f"{model}{n}", model))
+
+
+def run_metadata(s: Scenario, *, fast: bool, distributed: bool) -> dict[str, str]:
+    """What a recording says about its run (MCAP metadata, the JSON Lines header):
+    scenario, seed, strategy, how it ran and every setting, as JSON."""
+    mode = "fast" if fast else "distributed" if distributed else "speed-up"
+    return {
+        "scenario": s.name,
+        "seed": str(s.seed),
+        "strategy": s.allocation.strategy,
+        "mode": mode,
+        "settings": msgspec.json.encode(s).decode(),
+    }

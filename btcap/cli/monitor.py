@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
@@ -53,18 +53,22 @@ def add_monitor_option(p: argparse.ArgumentParser) -> None:
 
 @contextlib.asynccontextmanager
 async def serving(
-    address: tuple[str, int] | None, title: str, record: Path | None = None
+    address: tuple[str, int] | None,
+    title: str,
+    record: Path | None = None,
+    metadata: Mapping[str, str] | None = None,
 ) -> AsyncIterator[Monitor | None]:
-    """A started monitor serving ``address`` and/or recording to ``record`` for the
-    block (neither: None, no monitor at all); prints where the page is."""
+    """A started monitor serving ``address`` and/or recording to ``record`` (MCAP if it
+    ends ``.mcap``, with ``metadata``) for the block (neither: None, no monitor at all);
+    prints where the page is."""
     if address is None and record is None:
         yield None
         return
     from btcap.monitor.monitor import Monitor
 
     host, port = address if address is not None else ("127.0.0.1", None)
-    monitor = Monitor(host=host, port=port, record=record, title=title)
     try:
+        monitor = Monitor(host=host, port=port, record=record, title=title, metadata=metadata)
         await monitor.start()
     except OSError as exc:
         raise CliError(str(exc)) from None
@@ -81,9 +85,10 @@ async def monitored(
     record: Path | None,
     title: str,
     run: Callable[[Monitor | None], Awaitable[T]],
+    metadata: Mapping[str, str] | None = None,
 ) -> T:
     """``run(monitor)`` inside :func:`serving`."""
-    async with serving(address, title, record) as monitor:
+    async with serving(address, title, record, metadata) as monitor:
         return await run(monitor)
 
 
@@ -94,7 +99,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         description="Serve a recording (btcap run writes monitor.jsonl into its output "
         "folder; --record FILE elsewhere) on the monitor page, with play, pause and seek.",
     )
-    p.add_argument("file", type=Path, metavar="FILE", help="a recording (JSON Lines)")
+    p.add_argument("file", type=Path, metavar="FILE", help="a recording (JSON Lines or MCAP)")
     p.add_argument(
         "--monitor",
         type=parse_address,
@@ -110,6 +115,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         metavar="PNG",
         help="instead of serving, draw the recording's timeline (a lane per robot) to PNG",
     )
+    p.add_argument(
+        "--to-mcap",
+        type=Path,
+        metavar="MCAP",
+        help="instead of serving, write the recording as MCAP for Foxglove (docs/foxglove.md)",
+    )
     p.set_defaults(handler=replay_command)
 
 
@@ -123,6 +134,8 @@ def replay_command(args: argparse.Namespace) -> int:
         replay = Replay.open(args.file, speed=args.speed)
     except (RecordError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    if args.to_mcap is not None:
+        return _to_mcap(args.file, replay.events, args.to_mcap)
     if args.plot is not None:
         from btcap.monitor.plot import plot_record  # matplotlib only for a plot
 
@@ -135,6 +148,22 @@ def replay_command(args: argparse.Namespace) -> int:
     host, port = args.monitor
     with contextlib.suppress(KeyboardInterrupt):
         asyncio.run(_serve(replay, host, port))
+    return 0
+
+
+def _to_mcap(source: Path, events: list[dict[str, object]], out: Path) -> int:
+    """The events as an MCAP recording of the same run would hold them (same bytes)."""
+    from btcap.monitor.mcaprecord import McapRecorder
+    from btcap.monitor.record import RecordError, read_metadata
+
+    try:
+        meta = read_metadata(source)
+        recorder = McapRecorder(out, meta)
+    except (RecordError, OSError) as exc:
+        raise CliError(f"--to-mcap {out}: {getattr(exc, 'strerror', None) or exc}") from None
+    recorder.write(events)
+    recorder.close()
+    print(f"wrote {out} ({len(events)} events)")
     return 0
 
 

@@ -88,8 +88,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "--record",
         type=Path,
         metavar="FILE",
-        help="record the mission's runs, auctions and the team's joins and failures as "
-        "JSON Lines for btcap replay or a script",
+        help="record the mission's runs, auctions and the team's joins and failures for "
+        "btcap replay or a script: MCAP for Foxglove if FILE ends .mcap, else JSON Lines",
     )
     p.set_defaults(handler=_mission)
 
@@ -313,7 +313,12 @@ def _mission(args: argparse.Namespace) -> int:
         await _monitor_imports(wanted, serve=args.monitor is not None)
         async with (
             open_agent(config, registry, robot=robot) as agent,
-            serving(args.monitor, f"mission {args.tree.name}", args.record) as monitor,
+            serving(
+                args.monitor,
+                f"mission {args.tree.name}",
+                args.record,
+                {"tree": str(args.tree), "robot": robot},
+            ) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -29,7 +29,7 @@ from btcap.actors import TimeSource
 from btcap.bt.tree import Tree
 from btcap.monitor.hub import Hub
 from btcap.monitor.net import is_loopback
-from btcap.monitor.record import Recorder
+from btcap.monitor.record import open_recorder
 from btcap.monitor.taps import TreeTap
 from btcap.monitor.view import Event, TeamView
 from btcap.team.allocation.auction import Assigned, AuctionRecord
@@ -60,6 +60,8 @@ class Monitor:
 
     ``port`` None serves nothing (record only); 0 picks a free port (see :attr:`url`).
     ``host`` is loopback unless you say otherwise: the page shows your whole team.
+    ``record`` ending ``.mcap`` records MCAP for Foxglove, anything else JSON Lines;
+    ``metadata`` (scenario, seed, settings ...) is written at the recording's start.
     """
 
     def __init__(
@@ -71,6 +73,7 @@ class Monitor:
         batch_hz: float = 20.0,
         title: str = "btcap team",
         viewpoint: str | None = None,
+        metadata: Mapping[str, str] | None = None,
     ) -> None:
         if not 0 < batch_hz <= 20:
             raise ValueError(f"batch_hz {batch_hz}: expected a rate in (0, 20] per second")
@@ -81,7 +84,7 @@ class Monitor:
         self._hub = Hub()
         self._address = (host, port)
         self._server: MonitorServer | None = None
-        self._recorder = Recorder(Path(record)) if record is not None else None
+        self._recorder = open_recorder(Path(record), metadata) if record is not None else None
         self._pending: list[Event] = []
         self._taps: list[TreeTap] = []
         self._status: dict[str, str] = {}

@@ -1,14 +1,18 @@
-"""Recordings: a monitor's events as JSON Lines, one event a line after a header line.
+"""Recordings: a monitor's events as JSON Lines, one event a line after a header line
+(which holds the run's metadata), or as MCAP for Foxglove (a path ending ``.mcap``:
+:mod:`btcap.monitor.mcaprecord`).
 
 The file is flushed after every batch, so a run that crashes leaves a recording up to
-its last batch; :func:`read_record` reads it back for a replay or a plot.
+its last batch (MCAP: its last whole chunk); :func:`read_record` reads either back for a
+replay or a plot.
 """
 
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import msgspec
 
@@ -16,7 +20,15 @@ from btcap.errors import BtcapError
 from btcap.monitor.view import Event, TeamView
 from btcap.transports.log import get_logger
 
-__all__ = ["FORMAT", "RecordError", "Recorder", "read_record"]
+__all__ = [
+    "FORMAT",
+    "RecordError",
+    "Recorder",
+    "Recording",
+    "open_recorder",
+    "read_metadata",
+    "read_record",
+]
 
 log = get_logger("btcap.monitor")
 
@@ -35,16 +47,39 @@ class RecordError(BtcapError, ValueError):
     """A recording cannot be read: the message names the file and line."""
 
 
-class Recorder:
-    """Appends batches of events to ``path`` (created with its folder, or replaced)."""
+class Recording(Protocol):
+    """Where a monitor's batches go: JSON Lines or MCAP."""
 
-    def __init__(self, path: Path) -> None:
+    path: Path
+
+    def write(self, batch: list[Event]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def open_recorder(path: Path, metadata: Mapping[str, str] | None = None) -> Recording:
+    """A recorder for ``path``: MCAP if it ends ``.mcap``, else JSON Lines."""
+    if path.suffix.lower() == ".mcap":
+        from btcap.monitor.mcaprecord import McapRecorder  # mcap only when asked for
+
+        return McapRecorder(path, metadata)
+    return Recorder(path, metadata)
+
+
+class Recorder:
+    """Appends batches of events to ``path`` (created with its folder, or replaced);
+    ``metadata`` (the run's settings) goes into the header line as ``meta``."""
+
+    def __init__(self, path: Path, metadata: Mapping[str, str] | None = None) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self._file = path.open("wb")
-        self._file.write(_encode.encode({"format": FORMAT, "version": VERSION}) + b"\n")
+        head: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+        if metadata:
+            head["meta"] = dict(metadata)
+        self._file.write(_encode.encode(head) + b"\n")
 
-    def write(self, batch: list[Event]) -> None:
+    def write(self, batch: Iterable[Event]) -> None:
         if self._file.closed:
             return
         try:
@@ -67,8 +102,52 @@ class Recorder:
 
 
 def read_record(path: str | Path) -> list[Event]:
-    """The events of a recording, in order; a bad file is refused naming the line."""
+    """The events of a recording (JSON Lines or MCAP), in order; a bad file is refused
+    naming the line (JSON Lines) or the message (MCAP)."""
     path = Path(path)
+    try:
+        with path.open("rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    if head.startswith(b"\x89MCAP"):
+        return _read_mcap(path)[0]
+    return _read_lines(path)
+
+
+def read_metadata(path: str | Path) -> dict[str, str]:
+    """The run's metadata a recording holds (scenario, seed, ...; empty if none)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            first = f.readline()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    if first.startswith(b"\x89MCAP"):
+        return _read_mcap(path)[1]
+    try:
+        meta = _decode.decode(first).get("meta", {})
+    except msgspec.DecodeError:
+        return {}
+    return {str(k): str(v) for k, v in meta.items()} if isinstance(meta, dict) else {}
+
+
+def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
+    from btcap.monitor.mcaprecord import read_mcap
+
+    try:
+        events, meta = read_mcap(path)
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    except ValueError as exc:
+        raise RecordError(f"{path}: {exc}") from None
+    view = TeamView()
+    for number, obj in enumerate(events, 1):
+        _check(view, obj, f"{path}: message {number}")
+    return events, meta
+
+
+def _read_lines(path: Path) -> list[Event]:
     try:
         lines = path.read_bytes().splitlines()
     except OSError as exc:
@@ -95,21 +174,22 @@ def read_record(path: str | Path) -> list[Event]:
                 raise RecordError(f"{path}:1: recording version {obj.get('version')!r}, "
                                   f"this btcap reads version {VERSION}")  # fmt: skip
             continue
-        t = obj.get("t")
-        if (
-            isinstance(t, bool)
-            or not isinstance(t, int | float)
-            or not isinstance(obj.get("k"), str)
-        ):
-            raise RecordError(f"{path}:{number}: an event needs a time 't' and a kind 'k'")
-        try:
-            for name in _NAMES:
-                if name in obj and not isinstance(obj[name], str):
-                    raise TypeError(f"{name!r} is {obj[name]!r}, expected a name")
-            view.apply(obj)
-        except KeyError as exc:
-            raise RecordError(f"{path}:{number}: a {obj['k']!r} event: no {exc}") from None
-        except (TypeError, ValueError, AttributeError) as exc:
-            raise RecordError(f"{path}:{number}: a {obj['k']!r} event: {exc}") from None
+        _check(view, obj, f"{path}:{number}")
         events.append(obj)
     return events
+
+
+def _check(view: TeamView, obj: Event, where: str) -> None:
+    """Refuse an event a replay could not fold, naming ``where`` it is."""
+    t = obj.get("t")
+    if isinstance(t, bool) or not isinstance(t, int | float) or not isinstance(obj.get("k"), str):
+        raise RecordError(f"{where}: an event needs a time 't' and a kind 'k'")
+    try:
+        for name in _NAMES:
+            if name in obj and not isinstance(obj[name], str):
+                raise TypeError(f"{name!r} is {obj[name]!r}, expected a name")
+        view.apply(obj)
+    except KeyError as exc:
+        raise RecordError(f"{where}: a {obj['k']!r} event: no {exc}") from None
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise RecordError(f"{where}: a {obj['k']!r} event: {exc}") from None

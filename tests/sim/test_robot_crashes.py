@@ -16,13 +16,13 @@ from rich.console import Console
 import btcap.sim.hosts
 from btcap.actors import Supervision, handler
 from btcap.sim.capabilities import RobotSetup, robot_setup
-from btcap.sim.cli import summary_table
 from btcap.sim.grid import GridMap
 from btcap.sim.messages import PositionUpdate
 from btcap.sim.metrics import MissionResult
 from btcap.sim.model import RobotModel
 from btcap.sim.robot import Body
 from btcap.sim.runner import run_scenario
+from btcap.sim.runview import summary_table
 from btcap.sim.scenario import Scenario, load_scenario
 
 pytestmark = pytest.mark.slow

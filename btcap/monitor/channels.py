@@ -1,0 +1,200 @@
+"""The channels of an MCAP recording: one typed JSON channel per monitor event kind, and
+Foxglove's ``foxglove.Log`` for the lines a person reads (who joined, who won what, why).
+
+Every channel is JSON-encoded with a JSON Schema (MCAP's ``json`` message encoding,
+``jsonschema`` schema encoding), so Foxglove and Lichtblick show the fields by name.
+No installed package ships Foxglove's JSON Schemas (the Foxglove SDK builds protobuf
+ones inside its binary), so ``foxglove.Log``'s is written here from Foxglove's published
+definition of the message: a timestamp, a level, a message, a name, a file and a line.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from btcap.monitor.view import Event
+
+__all__ = ["EVENT_TOPICS", "LOG_SCHEMA", "LOG_TOPIC", "OTHER_TOPIC", "event_schema", "log_line"]
+
+_STR = {"type": "string"}
+_NUM = {"type": "number"}
+_STR_OR_NULL = {"type": ["string", "null"]}
+_NAME_MAP = {"type": "object", "additionalProperties": {"type": "string"}}
+
+
+def _obj(title: str, desc: str, props: dict[str, Any], required: list[str]) -> dict[str, Any]:
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title,
+        "description": desc,
+        "type": "object",
+        "properties": {"t": _NUM, "k": _STR, **props},
+        "required": ["t", "k", *required],
+    }
+
+
+_NODE = {
+    "type": "object",
+    "properties": {
+        "id": _STR,
+        "name": _STR,
+        "type": _STR,
+        "parent": _STR_OR_NULL,
+        "cap": {"type": "boolean"},
+        "state": _STR,
+    },
+    "required": ["id", "name", "type", "parent", "cap", "state"],
+}
+
+#: Event kind -> (topic, JSON Schema of its messages: the monitor's event as it is).
+EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
+    "robot": (
+        "/btcap/robots",
+        _obj("btcap.Robot", "A robot is part of the picture.", {"robot": _STR}, ["robot"]),
+    ),
+    "tree": (
+        "/btcap/trees",
+        _obj(
+            "btcap.Tree",
+            "The structure of one tree of a robot, with each node's state.",
+            {"robot": _STR, "tree": _STR, "nodes": {"type": "array", "items": _NODE}},
+            ["robot", "tree", "nodes"],
+        ),
+    ),
+    "states": (
+        "/btcap/states",
+        _obj(
+            "btcap.NodeStates",
+            "The latest state of each node of a tree that changed since the last batch.",
+            {"robot": _STR, "tree": _STR, "states": _NAME_MAP},
+            ["robot", "tree", "states"],
+        ),
+    ),
+    "team": (
+        "/btcap/team",
+        _obj(
+            "btcap.TeamChange",
+            "A robot joined, left or failed.",
+            {"robot": _STR, "change": {"enum": ["joined", "left", "failed"]}},
+            ["robot", "change"],
+        ),
+    ),
+    "run": (
+        "/btcap/runs",
+        _obj(
+            "btcap.Run",
+            "An execution started (a robot runs an origin's capability) or ended.",
+            {
+                "phase": {"enum": ["start", "end"]},
+                "execution": _STR,
+                "robot": _STR,
+                "origin": _STR,
+                "node": _STR,
+                "capability": _STR,
+                "result": _STR,
+                "why": _STR_OR_NULL,
+            },
+            ["phase", "execution"],
+        ),
+    ),
+    "auction": (
+        "/btcap/auctions",
+        _obj(
+            "btcap.Auction",
+            "An auction opened (why, candidates) or closed (bids cheapest first, declines, "
+            "who was passed over and why, the winner).",
+            {
+                "phase": {"enum": ["open", "close"]},
+                "id": _STR,
+                "execution": _STR,
+                "auctioneer": _STR,
+                "capability": _STR,
+                "node": _STR,
+                "candidates": {"type": "array", "items": _STR},
+                "why": _STR,
+                "bids": {
+                    "type": "array",
+                    "items": {"type": "array", "prefixItems": [_STR, _NUM]},
+                },
+                "declined": _NAME_MAP,
+                "reasons": _NAME_MAP,
+                "winner": _STR_OR_NULL,
+            },
+            ["phase", "id", "execution"],
+        ),
+    ),
+    "finished": (
+        "/btcap/finished",
+        _obj(
+            "btcap.Finished",
+            "How the run ended, with a line for a person.",
+            {"result": {"enum": ["succeeded", "failed", "stopped"]}, "summary": _STR},
+            ["result", "summary"],
+        ),
+    ),
+}
+
+#: Events of a kind this btcap does not know (a newer monitor's): kept, untyped.
+OTHER_TOPIC = (
+    "/btcap/other",
+    _obj("btcap.Event", "A monitor event of another kind.", {}, []),
+)
+
+LOG_TOPIC = "/log"
+#: ``foxglove.Log``: levels 0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
+LOG_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "foxglove.Log",
+    "description": "A log message",
+    "type": "object",
+    "properties": {
+        "timestamp": {
+            "type": "object",
+            "title": "time",
+            "properties": {
+                "sec": {"type": "integer", "minimum": 0},
+                "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
+            },
+        },
+        "level": {"title": "foxglove.LogLevel", "enum": [0, 1, 2, 3, 4, 5]},
+        "message": {"type": "string"},
+        "name": {"type": "string"},
+        "file": {"type": "string"},
+        "line": {"type": "integer", "minimum": 0},
+    },
+}
+
+_INFO, _WARNING = 2, 3
+
+
+def event_schema(kind: str) -> tuple[str, dict[str, Any]]:
+    """The topic and schema an event of ``kind`` is written to."""
+    return EVENT_TOPICS.get(kind, OTHER_TOPIC)
+
+
+def log_line(ev: Event) -> tuple[int, str, str] | None:
+    """The ``foxglove.Log`` line an event is told as: (level, name, message), or None for
+    kinds that are pictures rather than news (trees, states)."""
+    kind = ev["k"]
+    if kind == "team":
+        level = _INFO if ev["change"] == "joined" else _WARNING
+        return level, ev["robot"], f"{ev['robot']} {ev['change']}"
+    if kind == "run":
+        if ev["phase"] == "start":
+            text = f"{ev['robot']} runs {ev['capability']} for {ev['origin']} ({ev['node']})"
+            return _INFO, ev["robot"], text
+        why = f": {ev['why']}" if ev.get("why") else ""
+        level = _INFO if ev["result"] == "succeeded" else _WARNING
+        return level, ev.get("robot", ""), f"run {ev['execution']} {ev['result']}{why}"
+    if kind == "auction":
+        if ev["phase"] == "open":
+            text = f"auction {ev['id']} for {ev['capability']} ({ev['node']}): {ev['why']}"
+            return _INFO, ev["auctioneer"], text
+        bids = ", ".join(f"{r} {c:.1f}" for r, c in ev["bids"]) or "none"
+        won = ev["winner"]
+        text = f"auction {ev['id']} closed: {'won by ' + won if won else 'nobody took it'}"
+        return (_INFO if won else _WARNING), won or "", f"{text} (bids: {bids})"
+    if kind == "finished":
+        level = _INFO if ev["result"] == "succeeded" else _WARNING
+        return level, "btcap", f"{ev['result']}: {ev['summary']}"
+    return None

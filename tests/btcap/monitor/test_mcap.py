@@ -1,0 +1,139 @@
+"""MCAP recordings read back with the ``mcap`` library's own reader: typed channels with
+their schemas, the same events as the JSON Lines recording of the same ``--fast`` run,
+the same bytes twice, the converter equal to the direct recording, and a file cut short
+still readable up to its last whole chunk."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+import btcap.cli
+from btcap.cli import main
+from btcap.monitor.channels import EVENT_TOPICS, LOG_TOPIC
+from btcap.monitor.mcaprecord import McapRecorder
+from btcap.monitor.record import RecordError, read_metadata, read_record
+from btcap.monitor.replay import Replay
+
+SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same --fast run recorded twice as MCAP and once as JSON Lines."""
+    base = tmp_path_factory.mktemp("runs")
+    saved = btcap.cli.configure_logging
+    btcap.cli.configure_logging = lambda level, json=False: None  # type: ignore[assignment]
+    try:
+        files = {}
+        for name in ("one.mcap", "two.mcap", "run.jsonl"):
+            out = base / name.replace(".", "-")
+            args = ["run", str(SMALL), "--fast", "--quiet", "--out", str(out)]
+            assert main([*args, "--record", str(base / name)]) == 0
+            files[name] = base / name
+    finally:
+        btcap.cli.configure_logging = saved
+    return files
+
+
+def _messages(path: Path) -> tuple[Any, list[tuple[str, dict[str, Any]]]]:
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        msgs = [(ch.topic, json.loads(m.data)) for _, ch, m in reader.iter_messages()]
+    return summary, msgs
+
+
+@pytest.mark.slow
+def test_channels_have_their_schemas_and_the_jsonl_events(runs: dict[str, Path]) -> None:
+    summary, msgs = _messages(runs["one.mcap"])
+    jsonl = read_record(runs["run.jsonl"])
+    kinds = Counter(ev["k"] for ev in jsonl)
+    assert {"tree", "states", "auction", "run", "team", "finished"} <= set(kinds)
+    for ch in summary.channels.values():
+        schema = summary.schemas[ch.schema_id]
+        assert (ch.message_encoding, schema.encoding) == ("json", "jsonschema")
+        if ch.topic == LOG_TOPIC:
+            assert schema.name == "foxglove.Log"
+        else:
+            kind = next(k for k, (topic, _) in EVENT_TOPICS.items() if topic == ch.topic)
+            assert schema.name == EVENT_TOPICS[kind][1]["title"]
+            assert json.loads(schema.data)["title"] == schema.name
+            assert summary.statistics.channel_message_counts[ch.id] == kinds[kind]
+    events = [m for topic, m in msgs if topic != LOG_TOPIC]
+    assert sorted(map(json.dumps, events)) == sorted(map(json.dumps, jsonl))
+    assert read_record(runs["one.mcap"]) == jsonl  # in the stream's order, not by time
+    # a chunk at least every 60 s of clock: a crash loses at most a minute of a live run
+    assert summary.statistics.chunk_count >= jsonl[-1]["t"] // 60
+    logs = [m for topic, m in msgs if topic == LOG_TOPIC]
+    assert any("won by" in m["message"] for m in logs)
+    assert {"level", "message", "name", "timestamp"} <= set(logs[0])
+
+
+@pytest.mark.slow
+def test_metadata_and_the_same_bytes_twice(runs: dict[str, Path]) -> None:
+    assert runs["one.mcap"].read_bytes() == runs["two.mcap"].read_bytes()
+    with runs["one.mcap"].open("rb") as f:
+        (meta,) = list(make_reader(f).iter_metadata())
+    assert meta.name == "btcap"
+    assert meta.metadata["scenario"] == "small"
+    assert {"seed", "strategy", "btcap_version", "settings"} <= set(meta.metadata)
+    assert read_metadata(runs["run.jsonl"]) == {
+        k: v for k, v in meta.metadata.items() if k != "btcap_version"
+    }
+
+
+@pytest.mark.slow
+def test_the_converter_writes_what_the_run_recorded(
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "converted.mcap"
+    assert main(["replay", str(runs["run.jsonl"]), "--to-mcap", str(out)]) == 0
+    assert out.read_bytes() == runs["one.mcap"].read_bytes()
+    assert "wrote" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_a_replay_of_the_mcap_ends_as_the_jsonl_one(runs: dict[str, Path]) -> None:
+    ends = []
+    for name in ("one.mcap", "run.jsonl"):
+        replay = Replay.open(runs[name])
+        replay.seek(replay.end)
+        state = replay.snapshot()
+        ends.append({k: v for k, v in state.items() if k != "title"})
+    assert ends[0] == ends[1]
+
+
+@pytest.mark.slow
+def test_a_file_cut_short_is_read_up_to_its_last_whole_chunk(
+    runs: dict[str, Path], tmp_path: Path
+) -> None:
+    events = read_record(runs["run.jsonl"])
+    path = tmp_path / "killed.mcap"
+    recorder = McapRecorder(path, {"scenario": "small"}, chunk_size=4096)
+    try:
+        for i in range(0, len(events), 10):
+            recorder.write(events[i : i + 10])  # flushed after each batch: what a kill leaves
+        data = path.read_bytes()  # not closed yet: no summary, no footer
+    finally:
+        recorder.close()
+    cut = tmp_path / "cut.mcap"
+    seen = []
+    for size in (len(data), len(data) * 2 // 3, len(data) // 2):
+        cut.write_bytes(data[: size - 7])  # mid-record, as a kill mid-write leaves it
+        got = read_record(cut)
+        assert got == events[: len(got)]
+        seen.append(len(got))
+    assert seen[0] >= seen[1] >= seen[2] > 0
+
+
+def test_a_file_that_is_not_mcap_is_refused_naming_it(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 3)
+    with pytest.raises(RecordError, match=r"bad\.mcap: not a readable MCAP file"):
+        read_record(bad)
