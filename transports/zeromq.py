@@ -45,7 +45,7 @@ from btcap.transports.zmq_io import (
 )
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import HEAVY_BYTES as _HEAVY_BYTES
-from btcap.transports.zmq_rules import REFUSAL, PeerRules, split_hello
+from btcap.transports.zmq_rules import PeerRules
 from btcap.transports.zmq_sockets import (
     COPY_THRESHOLD,
     EVENTS,
@@ -58,7 +58,6 @@ from btcap.transports.zmq_sockets import (
     fd_of,
     open_dealer,
     open_router,
-    parse_hello,
     reject,
     send_frame,
     unsent,
@@ -72,7 +71,6 @@ log = get_logger("btcap.transports")
 _MSG = b"M"
 _HELLO = b"H"
 _MSG_BYTE = _MSG[0]
-_HELLO_BYTE = _HELLO[0]
 _BATCH = 256
 """Messages handled per reader callback before other callbacks get a turn."""
 _JUNK_COST = 31
@@ -414,20 +412,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                     "transport.deliver_failed", system=self.system_id, peer=peer, exc_info=exc
                 )
             return screened is not None and _HEAVY
-        malformed = self.stats.malformed  # what a hello or a refusal may find wrong
-        if kind == _HELLO_BYTE:
-            where, instance = split_hello(bytes(body[1:]))
-            try:
-                peer, endpoint = parse_hello(ident, where, self.system_id)
-            except ValueError as exc:
-                return self._malformed("bad hello", ident, str(exc))
-            if self._admit(peer, endpoint, self.accept_hello, instance):
-                self.hellos += 1
-        elif kind == REFUSAL:
-            self._refused_by(ident, bytes(body[1:]))
-        else:
-            return self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
-        return self.stats.malformed != malformed
+        return self._control(ident, kind, body)
 
     def _malformed(self, reason: str, ident: bytes, detail: str) -> bool:
         self.stats.malformed += 1

@@ -32,12 +32,14 @@ from btcap.transports.zmq_claims import (
     split_hello,
 )
 from btcap.transports.zmq_peers import PeerBook
-from btcap.transports.zmq_sockets import Monitor, reject
+from btcap.transports.zmq_sockets import Monitor, parse_hello, reject
 
 __all__ = ["HEAVY_BYTES", "NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 
 log = get_logger("btcap.transports")
 
+HELLO_BYTE = b"H"[0]
+"""The first byte of a hello frame."""
 REFUSAL = b"R"[0]
 """The first byte of a frame telling a newcomer why its name was refused."""
 NON_MEMBER_BYTES = 256 * 1024
@@ -70,6 +72,8 @@ class PeerRules:
     _strangers: PeerBook
     _loop: asyncio.AbstractEventLoop | None
     _stopped: asyncio.Future[None] | None
+    accept_hello: bool
+    hellos: int
 
     def _init_rules(self) -> None:
         self._claims = Claims(self.system_id)
@@ -93,6 +97,9 @@ class PeerRules:
 
     def _forget(self, peer: str, met: float) -> None:
         raise NotImplementedError  # the transport's
+
+    def _admit(self, peer: str, endpoint: str, accept: bool, instance: str = "") -> bool:
+        raise NotImplementedError  # the transport's (PeerFates)
 
     def remove_peer(self, system_id: str) -> None:
         raise NotImplementedError  # the transport's
@@ -280,6 +287,23 @@ class PeerRules:
         if sock is not None and self._loop is not None:
             self._loop.call_later(TELL_S, self._claims.done_telling, sock)
         return True
+
+    def _control(self, ident: bytes, kind: int, body: memoryview) -> bool:
+        """A frame that is no message: a hello, a refusal, or junk (then True)."""
+        malformed = self.stats.malformed  # what a hello or a refusal may find wrong
+        if kind == HELLO_BYTE:
+            where, instance = split_hello(bytes(body[1:]))
+            try:
+                peer, endpoint = parse_hello(ident, where, self.system_id)
+            except ValueError as exc:
+                return self._malformed("bad hello", ident, str(exc))
+            if self._admit(peer, endpoint, self.accept_hello, instance):
+                self.hellos += 1
+        elif kind == REFUSAL:
+            self._refused_by(ident, bytes(body[1:]))
+        else:
+            return self._malformed("unknown frame kind", ident, repr(bytes(body[:8])))
+        return self.stats.malformed != malformed
 
     def _refused_by(self, ident: bytes, text: bytes) -> None:
         """A teammate says another live process has our name: stop serving."""

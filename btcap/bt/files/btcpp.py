@@ -42,7 +42,7 @@ from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, ElementReader, Ref, Sc
 from btcap.bt.files.btcpp_entries import before, entry_type, merged, passing, paths
 from btcap.bt.files.btcpp_lines import check_subtree_model, insert_problem
 from btcap.bt.files.btcpp_nodes import UNSUPPORTED, MappingError, parse_bool
-from btcap.bt.files.btcpp_stubs import infer_models, load_scripts, make_stub, stand_in_note
+from btcap.bt.files.btcpp_stubs import infer_models, load_scripts, make_stub, stub_notes
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -202,19 +202,14 @@ class XmlTranslator:
                 msgs = exc.problems if isinstance(exc, TreeFileError) else [str(exc)]
                 self.problems.extend(msgs)
                 continue
-            if note := stand_in_note(model, self.trees.values()):
+            for note in stub_notes(None, model, self.trees.values()):
                 self.warnings.append(f"{model.where or self.where}: line {model.line}: {note}")
             self.reader.seen_models[kind] = self.models.pop(kind)  # its own ports
         unsure = infer_models(self.trees.values(), lambda k: self._unknown(k, registry))
         for kind, model in unsure.items():
             registry.register(make_stub(model, scripts), kind)
-            if note := stand_in_note(model, ()):
+            for note in stub_notes(kind, model, ()):
                 self.warnings.append(f"{model.where or self.where}: line {model.line}: {note}")
-            ports = ", ".join(p.attrs["name"] for p in model.children) or "none"
-            self.warnings.append(
-                f"{model.where or self.where}: line {model.line}: {kind} is declared in no "
-                f"<TreeNodesModel>; stubbed from its use ({model.tag}; inputs: {ports})"
-            )
         self.registry = self.reader.registry = registry
 
     def _unknown(self, kind: str, registry: NodeRegistry) -> bool:

@@ -60,6 +60,7 @@ __all__ = [
     "load_scripts",
     "make_stub",
     "stand_in_note",
+    "stub_notes",
 ]
 
 _CPP: dict[str, Any] = {
@@ -329,6 +330,20 @@ def make_stub(model: XmlElement, scripts: StubScripts) -> type[Node]:
             "SCRIPTS": scripts,
         },
     )
+
+
+def stub_notes(kind: str | None, model: XmlElement, trees: Iterable[XmlElement]) -> list[str]:
+    """What to tell of a stand-in: that it may decide otherwise than the node it stands for
+    (:func:`stand_in_note`) and, for a ``kind`` declared in no model, what it was stubbed
+    from (its use in a tree)."""
+    notes = [note] if (note := stand_in_note(model, trees)) else []
+    if kind is not None:
+        ports = ", ".join(p.attrs["name"] for p in model.children) or "none"
+        notes.append(
+            f"{kind} is declared in no <TreeNodesModel>; stubbed from its use "
+            f"({model.tag}; inputs: {ports})"
+        )
+    return notes
 
 
 def stand_in_note(model: XmlElement, trees: Iterable[XmlElement]) -> str | None:
