@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import inspect
 import warnings
 
@@ -12,11 +13,20 @@ from btcap_sources import modules
 from btcap import BtcapError
 
 
+#: The simulator's ROS 2 side imports rclpy's messages at its top: walked only where ROS 2
+#: is installed (``make test-ros`` runs no walk; an import of them without it is refused
+#: by ``btcap run --ros2`` before they load).
+NEEDS_ROS = {"btcap.sim.ros2.client", "btcap.sim.ros2.server"}
+HAS_ROS = importlib.util.find_spec("rclpy") is not None
+
+
 def _exceptions() -> dict[str, type[Exception]]:
     """The public exception classes defined in btcap's modules, by qualified name."""
     found: dict[str, type[Exception]] = {}
     for dotted in modules():  # the mapped folders too (actors/ is btcap.actors)
         if dotted.rpartition(".")[2] == "__main__":  # running it is running the CLI
+            continue
+        if dotted in NEEDS_ROS and not HAS_ROS:
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)

@@ -12,10 +12,12 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
+from btcap.errors import BtcapError
+
 __all__ = ["ScriptSyntaxError", "Token", "tokenize"]
 
 
-class ScriptSyntaxError(ValueError):
+class ScriptSyntaxError(BtcapError, ValueError):
     """A script that does not parse; ``column`` is 1-based within the script."""
 
     def __init__(self, message: str, column: int, line: int = 1) -> None:

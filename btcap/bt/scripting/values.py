@@ -18,6 +18,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from btcap.errors import BtcapError
+
 __all__ = ["EXACT", "ScriptError", "convert", "exact", "to_bool", "to_number", "to_text"]
 
 _INT64 = 2**63
@@ -31,7 +33,7 @@ _LEADING = re.compile(
 )
 
 
-class ScriptError(RuntimeError):
+class ScriptError(BtcapError, RuntimeError):
     """A script failed while running (BehaviorTree.CPP throws at the same points)."""
 
 
