@@ -4,7 +4,6 @@ processes) is not cut short by pytest-timeout's 60 s default before its own boun
 from __future__ import annotations
 
 import pytest
-
 from conftest import SLOW_TIMEOUT_S
 
 
