@@ -47,3 +47,18 @@ def _restore_logging() -> Iterator[None]:
     root.handlers[:] = handlers
     root.setLevel(level)
     structlog.configure(**config)
+
+
+#: pytest-timeout's bound for a test marked ``slow`` that sets none of its own: such a
+#: test runs whole missions or OS processes, and bounds its waits itself with
+#: ``anyio.fail_after`` (up to 300 s). The default 60 s (pyproject) would cut it short on
+#: a machine loaded 5-15 deep on 2 cores (CI's are that busy) although nothing hangs.
+#: The bound catches hangs; it does not measure speed.
+SLOW_TIMEOUT_S = 900.0
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Give ``slow`` tests without a ``timeout`` marker :data:`SLOW_TIMEOUT_S`."""
+    for item in items:
+        if item.get_closest_marker("slow") and item.get_closest_marker("timeout") is None:
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))

@@ -17,6 +17,31 @@ from btcap.sim.scenario import Event, Scenario, load_scenario
 from btcap.transports import MessageRegistry
 
 DATA = Path(__file__).resolve().parent / "data"
+#: Wall seconds a run may take: a bound for hangs, far above the ~10 s one takes quiet.
+RUN_S = 300.0
+
+
+def scenario(name: str) -> Scenario:
+    """A test scenario for robots in processes, on the wall clock at 1000 times real time:
+    its time limit (20000 s: 20 s of wall time, which a machine loaded 12 deep on 2 cores
+    spends starting the processes and running them slowly) ten times longer, and its
+    protocol timing three times, up to the 300 s a lease may be (a 100 ms lease lapsed
+    there again and again: the operator renews on the wall, and a loaded machine holds a
+    process off for longer). The mission then takes as long as it takes, and no robot
+    fails that did not."""
+    s = load_scenario(DATA / f"{name}.yaml")
+    a = s.agent
+    agent = msgspec.structs.replace(
+        a,
+        heartbeat_s=3 * a.heartbeat_s,
+        failure_timeout_s=3 * a.failure_timeout_s,
+        lease_s=3 * a.lease_s,
+        keepalive_s=3 * a.keepalive_s,
+        auction_window_s=3 * a.auction_window_s,
+        award_timeout_s=3 * a.award_timeout_s,
+    )
+    return msgspec.structs.replace(s, time_limit_s=10 * s.time_limit_s, agent=agent)
+
 
 pytestmark = pytest.mark.slow
 
@@ -36,9 +61,9 @@ class Hosts:
 
 
 async def test_small_mission_completes_with_robots_in_separate_processes() -> None:
-    s = load_scenario(DATA / "small.yaml")
+    s = scenario("small")
     hosts = Hosts()
-    with anyio.fail_after(60):
+    with anyio.fail_after(RUN_S):
         result = await run_scenario(s, host=hosts)
     assert result.completed
     assert result.errors == []
@@ -54,7 +79,7 @@ async def test_small_mission_completes_with_robots_in_separate_processes() -> No
 
 
 async def test_a_robot_process_that_dies_is_reported_and_the_team_finishes() -> None:
-    s = load_scenario(DATA / "small.yaml")
+    s = scenario("small")
     hosts = Hosts()
     killed: list[float] = []
 
@@ -64,7 +89,7 @@ async def test_a_robot_process_that_dies_is_reported_and_the_team_finishes() -> 
             bebop.send_signal(signal.SIGKILL)  # the Bebop's computer dies mid-mission
             killed.append(p.time)
 
-    with anyio.fail_after(60):
+    with anyio.fail_after(RUN_S):
         result = await run_scenario(s, host=hosts, on_progress=kill_bebop)
     assert killed
     assert [(e.robot, e.error) for e in result.errors] == [
@@ -75,8 +100,8 @@ async def test_a_robot_process_that_dies_is_reported_and_the_team_finishes() -> 
 
 
 async def test_run_distributed_is_run_scenario_with_process_hosts() -> None:
-    with anyio.fail_after(60):
-        result = await run_distributed(load_scenario(DATA / "small.yaml"))
+    with anyio.fail_after(RUN_S):
+        result = await run_distributed(scenario("small"))
     assert result.completed
     assert result.errors == []
 
@@ -85,14 +110,14 @@ async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> Non
     """The Bebop joins and leaves a millisecond of wall time later, long before its
     process listens: it is stopped then, not left running until the mission ends."""
     s = msgspec.structs.replace(
-        load_scenario(DATA / "dynamic.yaml"),
+        scenario("dynamic"),
         events=[
             Event(at=30, robot="bebop1", kind="join"),
             Event(at=31, robot="bebop1", kind="leave"),
         ],
     )
     hosts = Hosts()
-    with anyio.fail_after(60):
+    with anyio.fail_after(RUN_S):
         result = await run_scenario(s, host=hosts)
     assert result.completed
     assert result.errors == []
@@ -104,7 +129,7 @@ async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> Non
 async def test_a_frozen_robot_process_is_declared_failed_and_credited_nothing() -> None:
     """SIGSTOP, unannounced: the team declares the Spot failed, its identification moves
     to the Husky, and nothing the Spot was doing is recorded as done after the verdict."""
-    s = load_scenario(DATA / "small.yaml")
+    s = scenario("small")
     hosts = Hosts()
     frozen: list[float] = []
 
@@ -113,7 +138,7 @@ async def test_a_frozen_robot_process_is_declared_failed_and_credited_nothing() 
             hosts.made[0].fail("spot1")  # SIGSTOP; thawed when the run ends
             frozen.append(p.time)
 
-    with anyio.fail_after(90):
+    with anyio.fail_after(RUN_S):
         result = await run_scenario(
             s, host=hosts, on_progress=freeze_spot_mid_task, progress_every_s=0.001
         )

@@ -7,7 +7,7 @@ from typing import Any
 import anyio
 import pytest
 from rosservers import Servers
-from rostools import tick_until, tree_of, wait_for
+from rostools import FOUND_S, tick_until, tree_of, wait_for
 
 from btcap.bt.state import State
 from btcap.ros.action import RosAction
@@ -21,6 +21,7 @@ FIB = "test_msgs/action/Fibonacci"
 
 def action(bridge: RosBridge, name: str, **kw: Any) -> RosAction:
     inputs = kw.pop("inputs", {"order": 5})
+    kw.setdefault("server_timeout", FOUND_S)  # the server is there, unless a test says
     return RosAction("act", action_type=FIB, action_name=name, bridge=bridge, inputs=inputs, **kw)
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import anyio
 import pytest
-from rostools import tick_until, tree_of, wait_for
+from rostools import FOUND_S, tick_until, tree_of, wait_for
 
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
@@ -76,7 +76,12 @@ async def test_a_1khz_feedback_stream_does_not_stall_ticking(
     """300 feedback messages at ~1 kHz: the tick keeps going (the callbacks only store),
     and sees the feedback change many times, not once at the end."""
     node = RosAction(
-        "act", action_type=FIB, action_name="fibonacci_stream", bridge=bridge, inputs={"order": 300}
+        "act",
+        action_type=FIB,
+        action_name="fibonacci_stream",
+        bridge=bridge,
+        inputs={"order": 300},
+        server_timeout=FOUND_S,
     )
     ticks = 0
     changes: set[int] = set()
@@ -100,7 +105,12 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     servers: object, bridge: RosBridge
 ) -> None:
     node = RosAction(
-        "act", action_type=FIB, action_name="fibonacci", bridge=bridge, inputs={"order": 5}
+        "act",
+        action_type=FIB,
+        action_name="fibonacci",
+        bridge=bridge,
+        inputs={"order": 5},
+        server_timeout=FOUND_S,
     )
     node.inputs["order"] = "five"  # as a wire from a wrongly typed output would
     with anyio.fail_after(10):
@@ -137,7 +147,12 @@ async def test_closing_the_bridge_cancels_open_goals_and_leaves_no_thread(
     before = set(threading.enumerate())
     bridge = await RosBridge(RosSettings(domain_id=ros_domain), robot="husky1").__aenter__()
     node = RosAction(
-        "act", action_type=FIB, action_name="fibonacci_hold", bridge=bridge, inputs={"order": 1}
+        "act",
+        action_type=FIB,
+        action_name="fibonacci_hold",
+        bridge=bridge,
+        inputs={"order": 1},
+        server_timeout=FOUND_S,
     )
     with anyio.fail_after(10):
         tree: Tree = tree_of(node)

@@ -10,6 +10,7 @@ import anyio
 import pytest
 from capfixtures import team, until
 from rosservers import Servers
+from rostools import FOUND_S
 
 from btcap.bt.composites import Sequence
 from btcap.bt.ports import Port
@@ -36,7 +37,7 @@ def build() -> Tree:
     ib, ob = COMPUTE.bridge_types()
     i, act, o = (
         ib(name="in"),
-        RosAction("fib", action_type=FIB, action_name="fibonacci"),
+        RosAction("fib", action_type=FIB, action_name="fibonacci", server_timeout=FOUND_S),
         ob(name="out"),
     )
     tree = Tree(Sequence("compute", children=[i, act, o]))

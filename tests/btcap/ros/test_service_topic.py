@@ -5,7 +5,7 @@ from __future__ import annotations
 import anyio
 import pytest
 from rosservers import Servers
-from rostools import tick_until, tree_of
+from rostools import FOUND_S, tick_until, tree_of
 
 from btcap.bt.composites import Parallel
 from btcap.bt.state import State
@@ -23,7 +23,12 @@ async def test_a_service_call_puts_the_response_in_the_outputs(
     servers: Servers, bridge: RosBridge
 ) -> None:
     node = RosService(
-        "call", service_type=SET_BOOL, service_name="set_bool", bridge=bridge, inputs={"data": True}
+        "call",
+        service_type=SET_BOOL,
+        service_name="set_bool",
+        bridge=bridge,
+        inputs={"data": True},
+        server_timeout=FOUND_S,
     )
     with anyio.fail_after(10):
         state = await tick_until(tree_of(node))
