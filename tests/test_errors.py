@@ -12,7 +12,6 @@ from btcap_sources import modules
 
 from btcap import BtcapError
 
-
 #: The simulator's ROS 2 side imports rclpy's messages at its top: walked only where ROS 2
 #: is installed (``make test-ros`` runs no walk; an import of them without it is refused
 #: by ``btcap run --ros2`` before they load).
