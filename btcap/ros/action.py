@@ -125,7 +125,7 @@ class RosAction(RosLeaf):
     without feedback, or when the server leaves the graph mid-goal.
     """
 
-    __slots__ = ("_goal", "_types", "_waiting_since")
+    __slots__ = ("_goal", "_types")
     KIND: ClassVar[str] = "action"
     OPTIONS: ClassVar[dict[str, Any]] = {
         "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
@@ -150,7 +150,6 @@ class RosAction(RosLeaf):
             outs[FEEDBACK_PREFIX + k] = Port(port_type(t), NO_DEFAULT, f"latest Feedback ({t})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._goal: _Goal | None = None
-        self._waiting_since: float | None = None
 
     @property
     def action_name(self) -> str:
@@ -197,16 +196,8 @@ class RosAction(RosLeaf):
     def _send(self) -> State:
         bridge = self.bridge
         client = bridge.action_client(self.options["action_type"], self.options["action_name"])
-        if not client.server_is_ready():
-            t = now()
-            if self._waiting_since is None:
-                self._waiting_since = t
-            limit = self.options["wait_for_server_timeout"] or self.options["server_timeout"]
-            if t - self._waiting_since > limit:
-                self._waiting_since = None
-                return self.failed(f"{self._what()}: no server after {limit} s")
-            return _RUNNING
-        self._waiting_since = None
+        if (missing := self._server_missing(client.server_is_ready())) is not None:
+            return missing
         msg = fill(self._types.Goal, self.inputs, f"{self._what()} goal")
         goal = self._goal = _Goal(bridge)
         outputs = self.outputs

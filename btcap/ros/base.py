@@ -18,6 +18,7 @@ from btcap.team.rossettings import Qos
 __all__ = ["QOS_OPTIONS", "RosLeaf", "now", "qos_of"]
 
 _FAILED = State.FAILED
+_RUNNING = State.RUNNING
 
 #: The clock of ROS timeouts: ROS runs on the wall, whatever the tree's clock speed-up.
 now = time.monotonic
@@ -63,12 +64,13 @@ class RosLeaf(Leaf):
     the one given as ``bridge=`` (Python), else the one its tree's actor system provides
     (an agent with a ``ros:`` block)."""
 
-    __slots__ = ("_bridge",)
+    __slots__ = ("_bridge", "_waiting_since")
     #: The interface kind the type option names: ``action``, ``srv`` or ``msg``.
     KIND: ClassVar[str] = "msg"
 
     def __init__(self, *args: Any, bridge: RosBridge | None = None, **kwargs: Any) -> None:
         self._bridge = bridge
+        self._waiting_since: float | None = None
         super().__init__(*args, **kwargs)
 
     @property
@@ -86,6 +88,25 @@ class RosLeaf(Leaf):
         if self._bridge.conflict is not None:
             raise RosError(f"node {self.path!r}: {self._bridge.conflict}")
         return self._bridge
+
+    def _what(self) -> str:
+        """The ROS interface this node talks to, for its errors."""
+        return repr(self.path)
+
+    def _server_missing(self, ready: bool) -> State | None:
+        """None once the server is ready; until then RUNNING, and FAILED (saying so) once
+        it was missing longer than ``wait_for_server_timeout`` (else ``server_timeout``)."""
+        if ready:
+            self._waiting_since = None
+            return None
+        t = now()
+        if self._waiting_since is None:
+            self._waiting_since = t
+        limit = self.options["wait_for_server_timeout"] or self.options["server_timeout"]
+        if t - self._waiting_since > limit:
+            self._waiting_since = None
+            return self.failed(f"{self._what()}: no server after {limit} s")
+        return _RUNNING
 
     def failed(self, why: str) -> State:
         """FAILED, with ``why`` (one line) as the node's error."""

@@ -24,7 +24,7 @@ _SUCCEEDED = State.SUCCEEDED
 class RosService(RosLeaf):
     """Calls a ROS 2 service with its inputs; SUCCEEDED with the response in its outputs."""
 
-    __slots__ = ("_future", "_sent_at", "_types", "_waiting_since")
+    __slots__ = ("_future", "_sent_at", "_types")
     KIND: ClassVar[str] = "srv"
     OPTIONS: ClassVar[dict[str, Any]] = {
         "service_type": Port(str, description="e.g. `std_srvs/srv/SetBool`"),
@@ -53,7 +53,6 @@ class RosService(RosLeaf):
         )
         self._future: Any = None
         self._sent_at = 0.0
-        self._waiting_since: float | None = None
 
     def _client(self) -> Any:
         return self.bridge.service_client(
@@ -85,16 +84,8 @@ class RosService(RosLeaf):
 
     def _call(self) -> State:
         client = self._client()
-        if not client.service_is_ready():
-            t = now()
-            if self._waiting_since is None:
-                self._waiting_since = t
-            limit = self.options["wait_for_server_timeout"] or self.options["server_timeout"]
-            if t - self._waiting_since > limit:
-                self._waiting_since = None
-                return self.failed(f"{self._what()}: no server after {limit} s")
-            return _RUNNING
-        self._waiting_since = None
+        if (missing := self._server_missing(client.service_is_ready())) is not None:
+            return missing
         request = fill(self._types.Request, self.inputs, f"{self._what()} request")
         outputs = self.outputs
         for k in outputs:
