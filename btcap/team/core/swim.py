@@ -299,11 +299,14 @@ class Swim:
             if unconfirmed:
                 continue
             if h.suspect:
-                # A robot speaks only for itself: news of a suspicion says its sender holds
-                # it (honest robots pass on only what they hold), so the sender counts as a
-                # suspector, never the robot named in ``by`` (else a liar could name others
-                # and bring every suspicion to its shortest timeout).
-                if self.table.suspect(h.robot, h.incarnation, h.beat, sender, now):
+                # A robot speaks only for itself: the sender counts as a suspector only
+                # when it names itself (it found the robot silent), never the robot it
+                # names (else a liar could name others and bring every suspicion to its
+                # shortest timeout). A suspicion it passes on starts one here but confirms
+                # nothing: relays are no independent confirmations, and our own suspicion
+                # echoed back by those we told brought itself to its shortest timeout.
+                by = sender if h.by == sender else ""
+                if self.table.suspect(h.robot, h.incarnation, h.beat, by, now):
                     self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, h.by))
                 continue
             result = self.table.hearsay(h.robot, h.incarnation, h.beat, now, window_s=window)
