@@ -299,13 +299,13 @@ class Swim:
             if unconfirmed:
                 continue
             if h.suspect:
-                # A robot speaks only for itself: the sender counts as a suspector only
-                # when it names itself (it found the robot silent), never the robot it
-                # names (else a liar could name others and bring every suspicion to its
-                # shortest timeout). A suspicion it passes on starts one here but confirms
-                # nothing: relays are no independent confirmations, and our own suspicion
-                # echoed back by those we told brought itself to its shortest timeout.
-                by = sender if h.by == sender else ""
+                # A robot speaks only for itself: news of a suspicion says its sender holds
+                # it (honest robots pass on only what they hold), so the sender counts as a
+                # suspector, never the robot named in ``by`` (else a liar could name others
+                # and bring every suspicion to its shortest timeout). Except our own
+                # suspicion passed back to us: those we told confirm nothing (its echoes
+                # brought one lossy probe's suspicion to the floor, ahead of the refutation).
+                by = "" if h.by == self.robot else sender
                 if self.table.suspect(h.robot, h.incarnation, h.beat, by, now):
                     self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, h.by))
                 continue
