@@ -302,8 +302,11 @@ class Swim:
                 # A robot speaks only for itself: news of a suspicion says its sender holds
                 # it (honest robots pass on only what they hold), so the sender counts as a
                 # suspector, never the robot named in ``by`` (else a liar could name others
-                # and bring every suspicion to its shortest timeout).
-                if self.table.suspect(h.robot, h.incarnation, h.beat, sender, now):
+                # and bring every suspicion to its shortest timeout). Except our own
+                # suspicion passed back to us: those we told confirm nothing (its echoes
+                # brought one lossy probe's suspicion to the floor, ahead of the refutation).
+                by = "" if h.by == self.robot else sender
+                if self.table.suspect(h.robot, h.incarnation, h.beat, by, now):
                     self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, h.by))
                 continue
             result = self.table.hearsay(h.robot, h.incarnation, h.beat, now, window_s=window)
