@@ -19,7 +19,7 @@ from pathlib import Path
 from btcap.transports.log import get_logger
 from btcap.transports.security import TeamKeys
 
-__all__ = ["DEFAULT_POLL_S", "listing", "watch_trusted"]
+__all__ = ["DEFAULT_POLL_S", "first_listing", "listing", "watch_trusted"]
 
 log = get_logger("btcap.transports")
 
@@ -45,13 +45,29 @@ def listing(folder: Path) -> Listing:
     return tuple(sorted(found))
 
 
+def first_listing(trusted: object) -> Listing | None:
+    """What a watcher compares with first: the folder as the keys were loaded, taken
+    before loading them (a change in between is then seen, and loaded again), not when
+    the watcher starts (a key removed in between would go unseen)."""
+    if isinstance(trusted, (str, os.PathLike)):
+        return listing(Path(trusted))
+    folder = getattr(trusted, "folder", None)
+    return listing(folder) if isinstance(folder, Path) else None
+
+
 async def watch_trusted(
-    system: str, folder: Path, poll_s: float, trust: Callable[[TeamKeys], None]
+    system: str,
+    folder: Path,
+    poll_s: float,
+    trust: Callable[[TeamKeys], None],
+    seen: Listing | None = None,
 ) -> None:
-    """Every ``poll_s`` seconds, if ``folder``'s listing changed, load it (in a thread)
-    and hand the new allow-list to ``trust`` (which may refuse it with a ValueError:
-    said once, the old keys kept). Runs until cancelled."""
-    seen = await asyncio.to_thread(listing, folder)
+    """Every ``poll_s`` seconds, if ``folder``'s listing changed since ``seen`` (by
+    default: when the watch starts), load it (in a thread) and hand the new allow-list
+    to ``trust`` (which may refuse it with a ValueError: said once, the old keys kept).
+    Runs until cancelled."""
+    if seen is None:
+        seen = await asyncio.to_thread(listing, folder)
     problem = ""
     while True:
         await asyncio.sleep(poll_s)

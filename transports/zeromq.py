@@ -35,7 +35,7 @@ from btcap.transports.security import (
     authenticated,
     curve_for,
 )
-from btcap.transports.trust import DEFAULT_POLL_S, watch_trusted
+from btcap.transports.trust import DEFAULT_POLL_S, first_listing, watch_trusted
 from btcap.transports.zmq_io import (
     Received,
     allow_sockets,
@@ -127,6 +127,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
+        self._first_listing = first_listing(trusted)  # before the keys load
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
         self.trusted_poll_s = trusted_poll_s
         self.max_message_bytes = max_message_bytes
@@ -288,7 +289,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         folder = None if self.curve is None else self.curve.team.folder
         watch = None
         if folder is not None and self.trusted_poll_s > 0:
-            poll = watch_trusted(self.system_id, folder, self.trusted_poll_s, self._trust)
+            every, seen = self.trusted_poll_s, self._first_listing
+            poll = watch_trusted(self.system_id, folder, every, self._trust, seen)
             watch = asyncio.create_task(poll)
         task_status.started()
         try:

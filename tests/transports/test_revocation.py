@@ -147,3 +147,16 @@ def test_the_listing_sees_removal_and_rewrite(keys: Path) -> None:
     (team / "b.key").unlink()
     assert [n for n, _, _ in listing(team)] == ["a.key", "mallory.key"]
     assert listing(keys / "nowhere") == ()
+
+
+async def test_a_key_removed_before_serving_starts_is_still_revoked(keys: Path) -> None:
+    """The watch compares with the folder as the keys were loaded, not as it is when
+    serving starts (on a loaded machine that gap is long): a key removed in between is
+    refused all the same."""
+    with anyio.fail_after(20):
+        ta = secure("a", keys, trusted_poll_s=POLL_S)
+        (keys / "team" / "mallory.key").unlink()
+        async with serving(ta):
+            curve = ta.curve
+            assert curve is not None
+            await eventually(lambda: "mallory" not in curve.team, "mallory's key dropped")
