@@ -15,6 +15,7 @@ from typing import Any
 
 from btcap.bt.files.btcpp_conditions import take_conditions, wrap
 from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, V3_NAMES, MappingError
+from btcap.bt.files.btcpp_rules import check_reactive
 from btcap.bt.files.btcpp_scope import Ref, Scope
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
@@ -205,6 +206,7 @@ class ElementReader:
         options: dict[str, Any] = {}
         std = STANDARD.get(kind)
         if std is not None:
+            check_reactive(el, kind, self.fail)
             options = self._standard(el, attrs, kind)
             spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
             for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
