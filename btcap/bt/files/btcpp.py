@@ -295,7 +295,14 @@ class XmlTranslator:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
         spec = SubtreeSpec(root=root, wires=wires, public=public)
-        return _Def(spec, inputs, outputs, cells, frozenset(sure), frozenset(scope.unsure - {*inputs, *outputs, *cells}))
+        return _Def(
+            spec,
+            inputs,
+            outputs,
+            cells,
+            frozenset(sure),
+            frozenset(scope.unsure - {*inputs, *outputs, *cells}),
+        )
 
     def _is_cell(
         self,

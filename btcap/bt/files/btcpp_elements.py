@@ -208,7 +208,8 @@ class ElementReader:
         if std is not None:
             check_reactive(el, kind, self.fail)
             options = self._standard(el, attrs, kind)
-            spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
+            btcap = std.from_input if attrs else std.btcap
+            spec = self._ports(el, attrs, btcap, name, path, scope, options, kind)
             for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
                 if code is not None:
                     scope.add_script(parse(code), path, el.line, self.registry.script_enums)
@@ -244,6 +245,7 @@ class ElementReader:
     def _standard(self, el: XmlElement, attrs: dict[str, str], kind: str) -> dict[str, Any]:
         std = STANDARD[kind]
         options = dict(std.fixed)
+        entries: dict[str, str] = {}
         for key in std.required:
             if key not in attrs:
                 why = f": {std.why_required}" if std.why_required else ""
@@ -253,6 +255,9 @@ class ElementReader:
                 continue
             text = attrs.pop(key)
             if KEY.match(text):
+                if std.from_input:  # read as BehaviorTree.CPP reads it (read_options)
+                    entries[key] = text
+                    continue
                 self.fail(
                     el.line,
                     f"<{el.tag}> attribute {key!r}={text!r}: btcap takes this "
@@ -270,6 +275,7 @@ class ElementReader:
             known = ", ".join(std.attrs) or "none"
             self.fail(el.line, f"<{el.tag}> has no attribute {key!r} (attributes: {known})")
         attrs.clear()
+        attrs.update(entries)  # the ports of std.from_input
         return options
 
     def _ports(

@@ -111,7 +111,7 @@ def check_reactive(el: XmlElement, kind: str, fail: Callable[[int, str], None]) 
             fail(
                 child.line,
                 f"<{child.tag} ID={ident!r}> directly below a ReactiveSequence: "
-                f"BehaviorTree.CPP 4.8 refuses it (\"Unknown node type: {child.tag}\", its "
+                f'BehaviorTree.CPP 4.8 refuses it ("Unknown node type: {child.tag}", its '
                 f"check of a ReactiveSequence's children reads the element name); write "
                 f"<{ident or 'TYPE'}/>",
             )
@@ -120,7 +120,7 @@ def check_reactive(el: XmlElement, kind: str, fail: Callable[[int, str], None]) 
     if len(asyncs) > 1:
         fail(
             el.line,
-            f"<{el.tag}>: BehaviorTree.CPP 4.8 refuses it: \"A ReactiveSequence cannot have "
+            f'<{el.tag}>: BehaviorTree.CPP 4.8 refuses it: "A ReactiveSequence cannot have '
             f'more than one async child." (<AsyncSequence> children at lines '
             f"{', '.join(asyncs)})",
         )

@@ -396,11 +396,7 @@ def stub_registry(
         return None
     registry = registry.copy()
     for kind, model in list(models.items()):
-        if (
-            model.tag == "SubTree"
-            or kind in BTCPP_BUILTINS
-            or registry.xml_type(kind) is not None
-        ):
+        if model.tag == "SubTree" or kind in BTCPP_BUILTINS or registry.xml_type(kind) is not None:
             continue
         try:
             registry.register(make_stub(model, scripts), kind)
