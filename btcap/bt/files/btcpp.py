@@ -44,6 +44,7 @@ from btcap.bt.files.btcpp_lines import check_subtree_model, insert_problem
 from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
 from btcap.bt.files.btcpp_rules import BUILTIN_PORTS, check_builtin_model
 from btcap.bt.files.btcpp_stubs import stub_registry
+from btcap.bt.files.btcpp_uses import EntryUses
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -104,6 +105,8 @@ class XmlTranslator:
         self.source = source  # the file itself, if read from one (include cycles)
         self.reader = ElementReader(where, registry, {}, self._subtree)
         self.problems = self.reader.problems
+        #: Each node's ports using entries, and the entries the application must set.
+        self.uses = EntryUses()
         #: What BehaviorTree.CPP warns about and btcap reads anyway.
         self.warnings: list[str] = []
         self.trees: dict[str, XmlElement] = {}
@@ -269,6 +272,7 @@ class XmlTranslator:
         board = self.boards.setdefault(scope.tree, TreeBoard())
         cells: dict[str, tuple[Any, bool]] = {}
         specs = dict(paths(root, None))
+        order = {path: i for i, path in enumerate(specs)}  # depth first
         sure: set[str] = set()
         scripted = merged(scope.scripted, main)
         board.scripts.extend(scope.script_nodes)
@@ -276,6 +280,9 @@ class XmlTranslator:
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
             if not ws and not al and key in scope.unsure and key not in scripted:
                 continue  # perhaps written by a node already reported as unknown
+            self.uses.add(scope.tree, key, (ws, rs, al), scripted.get(key, []))
+            where = self.tree_where.get(scope.tree, self.where)
+            self.uses.need(scope.tree, key, (ws, rs, al), scripted.get(key, []), order, where)
             if key in scripted or self._is_cell(key, (ws, rs, al), main, specs):
                 self._cell(scope, key, (ws, rs, al), board, cells, scripted.get(key, []))
                 continue
@@ -398,6 +405,8 @@ class XmlTranslator:
         if done is None or self._too_deep(el, tid, at + self.heights[tid]):
             return None
         check_subtree_model(self.models, tid, done, self.fail)
+        if not auto:
+            self.uses.not_passed(tid, set(attrs), f"<SubTree ID={tid!r}> at line {el.line}")
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
         for key, (tp, written) in done.cells.items():  # one entry inside and out
             if key in attrs or auto:

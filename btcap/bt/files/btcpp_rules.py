@@ -63,7 +63,7 @@ _TAGS = {"input_port": "input", "output_port": "output", "inout_port": "inout"}
 
 
 def _an(word: str) -> str:
-    return f"an {word}" if word[0] in "AEIOU" else f"a {word}"
+    return f"an {word}" if word[0].upper() in "AEIOU" else f"a {word}"
 
 
 def check_builtin_model(model: XmlElement, fail: Fail, where: str) -> None:
