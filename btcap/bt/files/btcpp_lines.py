@@ -46,9 +46,12 @@ def insert_problem(problems: list[str], problem: str) -> None:
 class Ports(Protocol):
     """A translated BehaviorTree's public ports, and the entries only unknown types use."""
 
-    inputs: Mapping[str, Any]
-    outputs: Mapping[str, Any]
-    unsure: frozenset[str]
+    @property
+    def inputs(self) -> Mapping[str, Any]: ...
+    @property
+    def outputs(self) -> Mapping[str, Any]: ...
+    @property
+    def unsure(self) -> frozenset[str]: ...
 
 
 def check_subtree_model(
