@@ -382,37 +382,15 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from btcap.bt.files import file_info
-    from btcap.bt.render import render_text
+    from btcap.cli.treeshow import show
 
-    tree = _load(args, args.file)
-    info = file_info(tree)
-    if info.description:
-        print(info.description)
-    sys.stdout.write(render_text(tree))
-    return 0
+    return show(_load(args, args.file))
 
 
 def _dot(args: argparse.Namespace) -> int:
-    from btcap.bt.render import render_dot
-    from btcap.cli.graphviz import PICTURES, graphviz
+    from btcap.cli.treeshow import dot
 
-    tree = _load(args, args.file)
-    text = render_dot(tree)
-    out: Path | None = args.output
-    if out is None:
-        sys.stdout.write(text)
-        return 0
-    picture = PICTURES.get(out.suffix.lower())
-    try:
-        if picture is None:
-            out.write_text(text, encoding="utf-8")
-        else:
-            out.write_bytes(graphviz(text, picture))
-    except OSError as exc:
-        raise CliError(f"{out}: cannot write: {exc.strerror or exc}") from None
-    print(f"wrote {out}", file=sys.stderr)
-    return 0
+    return dot(_load(args, args.file), args.output)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ from typing import Any
 import msgspec.yaml
 
 from btcap.actors import ManualClock
+from btcap.bt.files.btcpp_uses import entry_uses
 from btcap.bt.leaves import LOG_LOGGER
 from btcap.bt.node import Node
 from btcap.bt.render import render_text
@@ -40,6 +41,11 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
     clock = ManualClock() if args.fast else None
     tree = load(clock)
     tree.debug = tree.debug or args.debug
+    uses = entry_uses(tree)
+    for need in uses.needed(tree.name) if uses else ():
+        if need.via or need.key not in args.entries:
+            todo = "" if need.via else f" and it was not set (--set {need.key}=VALUE)"
+            print(f"{need.where}: line {need.line}: {need.describe()}{todo}", file=sys.stderr)
     caps = [n.path for n in _all_nodes(tree) if isinstance(n, Capability)]
     if caps:
         raise CliError(
