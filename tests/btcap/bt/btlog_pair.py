@@ -61,7 +61,9 @@ def settled(files: list[tuple[Path, Path]], quiet: int = 3, limit_s: float = 30.
     while same < quiet and time.monotonic() < deadline:
         time.sleep(0.03)
         now = [cpp.stat().st_size for _, cpp in files]
-        full = all(size >= _expected(ours, cpp) for size, (ours, cpp) in zip(now, files))
+        full = all(
+            size >= _expected(ours, cpp) for size, (ours, cpp) in zip(now, files, strict=True)
+        )
         same = same + 1 if full and now == sizes else 0
         sizes = now
 

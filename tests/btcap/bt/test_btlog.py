@@ -116,7 +116,8 @@ SUBTREES = """<root BTCPP_format="4" main_tree_to_execute="Main">
 <SubTree ID="Sub"/><Inverter name="inv"><Cond name="c"/></Inverter>
 <WhileDoElse name="wde"><SubTree ID="Leaf" name="guard"/><Act name="w"/><Act name="x"/>
 </WhileDoElse></Sequence></BehaviorTree>
-<BehaviorTree ID="Sub"><Fallback name="f"><SubTree ID="Leaf"/><Act name="b"/></Fallback></BehaviorTree>
+<BehaviorTree ID="Sub"><Fallback name="f"><SubTree ID="Leaf"/><Act name="b"/></Fallback>
+</BehaviorTree>
 <BehaviorTree ID="Leaf"><Cond name="d"/></BehaviorTree></root>"""
 
 

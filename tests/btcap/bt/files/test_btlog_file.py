@@ -9,9 +9,9 @@ import anyio
 import pytest
 
 from btcap import AlwaysFailure, AlwaysSuccess, Fallback, Inverter, Sequence, State, Tree
+from btcap.actors import ManualClock
 from btcap.bt.files.btcpp_status import FAILURE, IDLE, RUNNING, SUCCESS
 from btcap.bt.files.btlog import HEADER, BtlogError, BtlogRecorder, read_btlog
-from btcap.actors import ManualClock
 from btcap.bt.leaves import Wait
 
 
@@ -38,7 +38,7 @@ def test_each_tick_is_on_disk_before_the_run_ends(tmp_path: Path) -> None:
     assert tree.tick() is State.RUNNING
     first = read_btlog(path)
     assert [(u, s) for _, u, s in first.transitions] == [(1, RUNNING), (2, RUNNING)]
-    assert 'name="wait"' in first.xml and '_uid="2"' in first.xml
+    assert '<Sleep name="wait" _uid="2" msec="200"/>' in first.xml
     rec.close()
     assert "tick" not in tree.__dict__  # the tree is left as it was
 
