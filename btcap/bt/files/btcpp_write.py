@@ -29,7 +29,8 @@ _TAGS["SequenceWithMemory"] = "SequenceWithMemory"  # btcap's own, decides as th
 
 #: Attribute value from the btcap option, by the converter that read it (inverse of it).
 _FORMAT: dict[str, Any] = {
-    "parse_int": str,
+    # None: btcap's Parallel fails once success is lost, as BehaviorTree.CPP's does with -1
+    "parse_int": lambda v: "-1" if v is None else str(v),
     "_cycles": str,
     "_attempts": lambda v: "-1" if v is None else str(v),
     "_seconds": lambda v: str(round(v * 1000)),
