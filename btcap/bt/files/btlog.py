@@ -83,7 +83,9 @@ class BtlogRecorder:
     """Write ``tree``'s run to ``path`` (a ``.btlog``) while it ticks, until :meth:`close`.
 
     Attach before the first tick; a usable context manager. ``tree.untick()`` and
-    ``tree.reset()`` are logged as BehaviorTree.CPP's ``haltTree``.
+    ``tree.reset()`` are logged as BehaviorTree.CPP's ``haltTree``. The tree's shape is
+    the one it had when the recorder was made (the XML is written then): nodes added
+    later are not logged. One recorder per tree at a time.
     """
 
     def __init__(self, tree: Tree, path: str | Path, *, flush_s: float = 0.01) -> None:
