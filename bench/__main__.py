@@ -16,6 +16,7 @@ BENCHES = (
     "membership",
     "monitor",
     "recording",
+    "btlog",
     "attacks",
     "missiontime",
 )

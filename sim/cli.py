@@ -120,6 +120,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output folder)",
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
+    p.add_argument(
+        "--btlog",
+        type=Path,
+        metavar="OUT.btlog",
+        help="log the mission tree's run as BehaviorTree.CPP's file logger does, for Groot2 "
+        "to replay (with --compare, one file per scenario: OUT-NAME.btlog)",
+    )
     p.set_defaults(handler=run_command)
     simtestcli.add_parser(sub)
 
@@ -238,6 +245,7 @@ async def _run_one(
     monitor: Monitor | None = None,
     *,
     ros2: bool = False,
+    btlog: Path | None = None,
 ) -> MissionResult:
     from rich.live import Live
 
@@ -252,6 +260,8 @@ async def _run_one(
         runner = functools.partial(run_scenario, ros2=True)
     if monitor is not None:
         runner = functools.partial(runner, monitor=monitor)
+    if btlog is not None:
+        runner = functools.partial(runner, btlog=btlog)
     stop = stopper.event()
     if quiet:
         return await runner(s, stop=stop)
@@ -303,6 +313,8 @@ def run_command(args: argparse.Namespace) -> int:
 
         if (why := ros2_refused(fast=args.fast, distributed=args.distributed)) is not None:
             raise CliError(why)
+    if args.btlog is not None and args.btlog.suffix != ".btlog":
+        raise CliError(f"--btlog {args.btlog}: a tree log for Groot2 must be named *.btlog")
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
@@ -346,7 +358,12 @@ def run_command(args: argparse.Namespace) -> int:
                 suffix = args.record.suffix or ".jsonl"
                 record = args.record.with_name(f"{args.record.stem}-{s.name}{suffix}")
             flags = (args.quiet, args.distributed, args.fast)
-            run = functools.partial(_run_one, s, console, *flags, stopper, ros2=args.ros2)
+            btlog = args.btlog
+            if args.compare and btlog is not None:
+                btlog = btlog.with_name(f"{btlog.stem}-{s.name}.btlog")
+            run = functools.partial(
+                _run_one, s, console, *flags, stopper, ros2=args.ros2, btlog=btlog
+            )
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
@@ -361,6 +378,8 @@ def run_command(args: argparse.Namespace) -> int:
                 console.print(idle, markup=False, soft_wrap=True)
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
+            if btlog is not None:
+                console.print(f"wrote {btlog} (open it in Groot2)", markup=False)
             results.append(result)
             if stopper.signum is not None:
                 console.print(f"interrupted by {signal.Signals(stopper.signum).name}")

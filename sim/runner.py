@@ -8,10 +8,12 @@ OS process over ZeroMQ (see :mod:`btcap.sim.distributed`). Both record the same
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import anyio
@@ -19,6 +21,7 @@ import numpy as np
 
 from btcap import State, Tree
 from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
+from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
 from btcap.sim.grid import GridMap
@@ -76,6 +79,7 @@ async def run_scenario(
     stop: anyio.Event | None = None,
     monitor: Monitor | None = None,
     ros2: bool = False,
+    btlog: Path | None = None,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
@@ -94,6 +98,9 @@ async def run_scenario(
     A ``monitor`` is shown the operator (its membership view), the mission tree and every
     robot hosted in this process; it is detached when the mission ends, so it keeps the
     last states rather than the shutdown, and told how the mission ended.
+
+    ``btlog``: the mission tree's run is written there as BehaviorTree.CPP's file logger
+    writes one (:class:`~btcap.bt.files.btlog.BtlogRecorder`), for Groot2 to replay.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -193,7 +200,8 @@ async def run_scenario(
             watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
             watch.mission_clock = progress_clock == "mission"
             watch.stop = stop
-            final = await tree.run(cfg.tick_hz, until=watch)
+            with BtlogRecorder(tree, btlog) if btlog else contextlib.nullcontext():
+                final = await tree.run(cfg.tick_hz, until=watch)
             ev_task.cancel()
             if stop.is_set():
                 log.info("sim.interrupted", scenario=s.name)  # asked for: no warning

@@ -19,6 +19,7 @@ import msgspec.yaml
 
 from btcap.actors import ManualClock
 from btcap.bt.files.btcpp_uses import entry_uses
+from btcap.bt.files.btlog import BtlogError, BtlogRecorder
 from btcap.bt.leaves import LOG_LOGGER
 from btcap.bt.node import Node
 from btcap.bt.render import render_text
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
             f"{args.file}: capability nodes ({', '.join(caps)}) are run by a team, not by "
             f"'btcap tree run'; run the tree on an agent (btcap mission run)"
         )
-    with _log_nodes_shown():
+    with _log_nodes_shown(), _btlog(tree, args.btlog):
         state, ticks, text, stopped = asyncio.run(_tick(tree, clock, args, timeout))
     sys.stdout.write(text)
     plural = "s" if ticks != 1 else ""
@@ -102,6 +103,25 @@ def _timeout(text: str) -> float | None:
     if not 0 < seconds < math.inf:
         raise CliError(f"--timeout {text}: expected seconds > 0, or 0 or none for no limit")
     return seconds
+
+
+@contextlib.contextmanager
+def _btlog(tree: Tree, path: Path | None) -> Iterator[None]:
+    """``--btlog``: the run logged for Groot2 while it lasts (what was written stays)."""
+    if path is None:
+        yield
+        return
+    try:
+        recorder = BtlogRecorder(tree, path)
+    except OSError as exc:
+        raise CliError(f"--btlog {path}: cannot write: {exc.strerror or exc}") from None
+    except BtlogError as exc:
+        raise CliError(f"--btlog {exc}") from None
+    try:
+        yield
+    finally:
+        recorder.close()
+        print(f"wrote {path} ({recorder.transitions} transitions)", file=sys.stderr)
 
 
 @contextlib.contextmanager
