@@ -298,11 +298,20 @@ def run_command(args: argparse.Namespace) -> int:
         raise CliError(
             "--fast runs in one process on virtual time: not with --distributed or --speedup"
         )
-    if args.ros2:
-        from btcap.sim.ros2 import ros2_refused
+    for s in scenarios:
+        if args.ros2 or s.ros is not None:
+            from btcap.sim.ros2 import ros2_refused
 
-        if (why := ros2_refused(fast=args.fast, distributed=args.distributed)) is not None:
-            raise CliError(why)
+            why = ros2_refused(fast=args.fast, distributed=args.distributed)
+            if why is not None:
+                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
+            from btcap.sim.scenario import check_ros_names
+            from btcap.sim.scenariofile import ScenarioRos
+
+            try:
+                check_ros_names(s, s.ros or ScenarioRos())
+            except ScenarioError as exc:
+                raise CliError(str(exc)) from None
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
@@ -338,7 +347,7 @@ def run_command(args: argparse.Namespace) -> int:
     with _Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
-            pace += ", robots through ROS 2" if args.ros2 else ""
+            pace += ", robots through ROS 2" if args.ros2 or s.ros is not None else ""
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"

@@ -87,7 +87,8 @@ async def run_scenario(
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`); ``ros2`` hosts them in this process with
     their bodies reached only through ROS 2 interfaces the simulation serves (see
-    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts). A robot
+    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts), as does a
+    scenario with a ``ros`` block (its settings; ``ros2`` alone: their defaults). A robot
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
@@ -108,7 +109,7 @@ async def run_scenario(
     models = s.models()
     for r in s.robots:
         manager.add_robot(r.name, models[r.model])
-    if ros2:
+    if ros2 or s.ros is not None:
         if host is not None:
             raise ValueError("run_scenario: ros2 hosts the robots itself; give no host")
         from btcap.sim.ros2.host import Ros2Host
