@@ -279,7 +279,7 @@ def run_command(args: argparse.Namespace) -> int:
     from btcap.cli.monitor import monitored
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, grow_team, run_metadata
+    from btcap.sim.scenario import ScenarioError, check_ros_names, grow_team, run_metadata
 
     console = Console()
     if args.compare:
@@ -301,17 +301,15 @@ def run_command(args: argparse.Namespace) -> int:
     for s in scenarios:
         if args.ros2 or s.ros is not None:
             from btcap.sim.ros2 import ros2_refused
-
-            why = ros2_refused(fast=args.fast, distributed=args.distributed)
-            if why is not None:
-                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
-            from btcap.sim.scenario import check_ros_names
             from btcap.sim.scenariofile import ScenarioRos
 
             try:
                 check_ros_names(s, s.ros or ScenarioRos())
             except ScenarioError as exc:
                 raise CliError(str(exc)) from None
+            why = ros2_refused(fast=args.fast, distributed=args.distributed)
+            if why is not None:
+                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
