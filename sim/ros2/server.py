@@ -313,6 +313,11 @@ class SimServers:
         """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
         self._manager.closing.set()
         self.executor.shutdown(timeout_sec=5.0)
+        # Action servers are not destroyed with their node: left alone they stay in the
+        # ROS graph, and clients would go on seeing a server that no longer answers.
+        for robot in self.robots.values():
+            for action in robot.servers:
+                action.destroy()
         for node in self.nodes:
             node.destroy_node()
         if self.context.ok():

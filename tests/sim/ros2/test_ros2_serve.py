@@ -8,11 +8,11 @@ from __future__ import annotations
 import os
 import re
 import signal
-import subprocess
 import sys
 from collections.abc import AsyncIterator, Callable
 from contextlib import AsyncExitStack, asynccontextmanager
 from pathlib import Path
+from typing import BinaryIO
 
 import anyio
 import anyio.abc
@@ -27,14 +27,19 @@ def _btcap(*args: str) -> list[str]:
     return [sys.executable, "-m", "btcap", *args]
 
 
+def _files(out: Path) -> tuple[BinaryIO, BinaryIO]:
+    return open(out.with_suffix(".out"), "wb"), open(out.with_suffix(".err"), "wb")
+
+
 @asynccontextmanager
 async def _process(
     args: list[str], out: Path, env: dict[str, str]
 ) -> AsyncIterator[anyio.abc.Process]:
     """``args`` with stdout and stderr to ``out`` (.out, .err); killed and reaped on exit
     if still running."""
-    with open(out.with_suffix(".out"), "wb") as stdout, open(out.with_suffix(".err"), "wb") as err:
-        proc = await anyio.open_process(args, stdout=stdout, stderr=err, env=env)
+    stdout, stderr = _files(out)
+    with stdout, stderr:
+        proc = await anyio.open_process(args, stdout=stdout, stderr=stderr, env=env)
     try:
         yield proc
     finally:
