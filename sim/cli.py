@@ -74,7 +74,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--ros2",
         action="store_true",
         help="every robot reached through ROS 2 interfaces the simulation serves in its "
-        "namespace (`make ros-sim`, then .venv-ros/bin/python -m btcap; ROS_DOMAIN_ID applies)",
+        "namespace, with the scenario's `ros:` block (a file with one runs so without this "
+        "flag) or its defaults (`make ros-sim`, then .venv-ros/bin/python -m btcap)",
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
