@@ -129,4 +129,5 @@ def test_run_with_the_block_without_ros_says_how_to_install_it(
 def test_sim_serve_without_ros_says_how_to_install_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    _usage(capsys, ["sim", "serve", str(_file(tmp_path, ""))], "needs ROS 2's rclpy", "make ros-sim")
+    argv = ["sim", "serve", str(_file(tmp_path, ""))]
+    _usage(capsys, argv, "needs ROS 2's rclpy", "make ros-sim")
