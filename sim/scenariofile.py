@@ -297,8 +297,8 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
         _doc(
             "The robots behind ROS 2 (docs/ros2-sim.md): `btcap run` and `btcap sim serve` "
             "serve each through ROS 2 interfaces in its namespace, as `--ros2` does; needs "
-            "ROS 2 and the simulator's interfaces (`make ros-sim`). null: robots reached "
-            "directly, unless `--ros2`."
+            "ROS 2 and the simulator's interfaces (`make ros-sim`); the fast mode (`btcap "
+            "sweep`) leaves it aside. null: robots reached directly, unless `--ros2`."
         ),
     ] = None
     source: Annotated[

@@ -7,10 +7,12 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import anyio
 import pytest
 
 import btcap.cli
 from btcap.cli import main
+from btcap.sim.runner import run_fast
 from btcap.sim.scenario import ScenarioError, load_scenario
 from btcap.team.rossettings import Qos, RosSettings
 
@@ -59,6 +61,18 @@ def test_the_block_gives_each_robot_its_settings(tmp_path: Path) -> None:
 
 def test_without_the_block_the_robots_are_reached_directly(tmp_path: Path) -> None:
     assert load_scenario(_file(tmp_path, "")).ros is None
+
+
+@pytest.mark.slow
+async def test_the_fast_mode_leaves_the_block_aside(tmp_path: Path) -> None:
+    """A sweep runs a scenario on virtual time, which DDS cannot follow: its robots are
+    reached directly, as without the block (no ROS needed)."""
+    small = (Path(__file__).parent / "data" / "small.yaml").read_text()
+    path = tmp_path / "small.yaml"
+    path.write_text(small + "ros: {namespace: '/cave/{robot}'}\n")
+    with anyio.fail_after(120):
+        result = await run_fast(load_scenario(path))
+    assert result.completed, result.summary
 
 
 @pytest.mark.parametrize(
