@@ -4,24 +4,22 @@ only while those servers are in the ROS graph (real rclpy nodes)."""
 
 from __future__ import annotations
 
-import asyncio
 from collections.abc import Callable
 
 import anyio
 import numpy as np
 import pytest
+from simserving import serving
 
-from btcap.actors import ActorSystem, Clock
+from btcap.actors import Clock
 from btcap.bt.tree import Tree
 from btcap.sim.capabilities import robot_setup
 from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.hosts import registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.model import paper_team
 from btcap.sim.scenario import load_scenario
 from btcap.sim.scenariofile import ScenarioRos
 from btcap.sim.store import MissionState
-from btcap.transports import Address, InProcessNetwork
 
 pytestmark = pytest.mark.ros
 
@@ -40,7 +38,6 @@ async def test_implementations_are_rosaction_nodes_bidding_while_their_servers_a
     load()
     from btcap.ros import RosAction, RosBridge, Server, servers_of, with_ros
     from btcap.sim.ros2.names import NAVIGATE_TYPE, OPERATE_TYPE
-    from btcap.sim.ros2.server import SimServers
     from btcap.sim.ros2.steps import CellPose, RosDrive
 
     ros = ScenarioRos(domain_id=ros_domain, namespace="/team/{robot}")
@@ -49,8 +46,6 @@ async def test_implementations_are_rosaction_nodes_bidding_while_their_servers_a
     state = MissionState.scatter(grid, 2, 0.5, np.random.default_rng(1))
     manager = SimulationManager(state, SimConfig(failure_chance=0.0))
     manager.add_robot("husky1", husky)
-    reg = registry()
-    net = InProcessNetwork(reg)
     clock = Clock(100.0)
     here = {"goal": grid.start}
     with anyio.fail_after(60):
@@ -70,26 +65,8 @@ async def test_implementations_are_rosaction_nodes_bidding_while_their_servers_a
             navigate = bridge.action_client(NAVIGATE_TYPE, "navigate_to_pose")
             assert navigate._action_name == "/team/husky1/navigate_to_pose"
             assert explore.bid(here) is None  # nobody serves husky1 yet
-            async with ActorSystem(
-                "sim", transport=net.transport("sim"), registry=reg, clock=clock
-            ) as sim:
-                sim.spawn(manager, SimulationManager.PATH)
-                loop = asyncio.get_running_loop()
-                servers = await anyio.to_thread.run_sync(
-                    lambda: SimServers(
-                        loop,
-                        sim.ref(Address.parse("sim/manager")),
-                        {"husky1": husky},
-                        cell_size_m=grid.cell_size_m,
-                        start=grid.start,
-                        clock=clock,
-                        ros=ros,
-                    )
-                )
-                try:
-                    await _until(lambda: explore.bid(here) is not None)
-                    assert explore.bid(here) == husky.operation("explore").duration_s
-                finally:
-                    await anyio.to_thread.run_sync(servers.close)
-                # Its servers left the graph (destroyed as they close): it bids no more.
-                await _until(lambda: explore.bid(here) is None)
+            async with serving(manager, {"husky1": husky}, grid, clock, ros=ros):
+                await _until(lambda: explore.bid(here) is not None)
+                assert explore.bid(here) == husky.operation("explore").duration_s
+            # Its servers left the graph (destroyed as they close): it bids no more.
+            await _until(lambda: explore.bid(here) is None)
