@@ -74,7 +74,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--ros2",
         action="store_true",
         help="every robot reached through ROS 2 interfaces the simulation serves in its "
-        "namespace (`make ros-sim`, then .venv-ros/bin/python -m btcap; ROS_DOMAIN_ID applies)",
+        "namespace, with the scenario's `ros:` block (a file with one runs so without this "
+        "flag) or its defaults (`make ros-sim`, then .venv-ros/bin/python -m btcap)",
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
@@ -289,7 +290,7 @@ def run_command(args: argparse.Namespace) -> int:
     from btcap.cli.monitor import monitored
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, grow_team, run_metadata
+    from btcap.sim.scenario import ScenarioError, check_ros_names, grow_team, run_metadata
 
     console = Console()
     if args.compare:
@@ -308,11 +309,18 @@ def run_command(args: argparse.Namespace) -> int:
         raise CliError(
             "--fast runs in one process on virtual time: not with --distributed or --speedup"
         )
-    if args.ros2:
-        from btcap.sim.ros2 import ros2_refused
+    for s in scenarios:
+        if args.ros2 or s.ros is not None:
+            from btcap.sim.ros2 import ros2_refused
+            from btcap.sim.scenariofile import ScenarioRos
 
-        if (why := ros2_refused(fast=args.fast, distributed=args.distributed)) is not None:
-            raise CliError(why)
+            try:
+                check_ros_names(s, s.ros or ScenarioRos())
+            except ScenarioError as exc:
+                raise CliError(str(exc)) from None
+            why = ros2_refused(fast=args.fast, distributed=args.distributed)
+            if why is not None:
+                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
     if args.btlog is not None and args.btlog.suffix != ".btlog":
         raise CliError(f"--btlog {args.btlog}: a tree log for Groot2 must be named *.btlog")
     margin = args.rebid_on_join
@@ -350,7 +358,7 @@ def run_command(args: argparse.Namespace) -> int:
     with _Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
-            pace += ", robots through ROS 2" if args.ros2 else ""
+            pace += ", robots through ROS 2" if args.ros2 or s.ros is not None else ""
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"

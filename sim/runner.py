@@ -91,7 +91,9 @@ async def run_scenario(
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`); ``ros2`` hosts them in this process with
     their bodies reached only through ROS 2 interfaces the simulation serves (see
-    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts). A robot
+    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts), as does a
+    scenario with a ``ros`` block on a real clock (its settings; ``ros2`` alone: their
+    defaults; the fast mode leaves the block aside). A robot
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
@@ -115,7 +117,9 @@ async def run_scenario(
     models = s.models()
     for r in s.robots:
         manager.add_robot(r.name, models[r.model])
-    if ros2:
+    # A scenario's block puts its robots behind ROS 2 on the wall clock; on virtual time
+    # (the fast mode, `btcap sweep`) DDS cannot follow, and they are reached directly.
+    if ros2 or (s.ros is not None and math.isfinite(clock.speedup)):
         if host is not None:
             raise ValueError("run_scenario: ros2 hosts the robots itself; give no host")
         from btcap.sim.ros2.host import Ros2Host
