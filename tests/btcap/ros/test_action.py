@@ -63,14 +63,14 @@ async def test_abort_and_reject_fail_naming_the_status(
     assert f"/husky1/{name}" in str(node.error)
 
 
-async def test_a_missing_server_fails_within_server_timeout_saying_so(
+async def test_a_missing_server_fails_within_wait_for_server_timeout_saying_so(
     bridge: RosBridge,
 ) -> None:
-    node = action(bridge, "nobody_here", server_timeout=0.2)
+    node = action(bridge, "nobody_here", wait_for_server_timeout=0.2)
     with anyio.fail_after(10):
         state = await tick_until(tree_of(node))
     assert state is State.FAILED
-    assert "no server after 0.2 s" in str(node.error)
+    assert "no server within wait_for_server_timeout 0.2 s" in str(node.error)
     assert "/husky1/nobody_here" in str(node.error)
 
 
