@@ -25,7 +25,7 @@ from btcap.ros.client import RosBridge, Waker
 from btcap.ros.errors import RosError
 from btcap.team.rossettings import Qos
 
-__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "now", "qos_of"]
+__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "now", "qos_of"]
 
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
@@ -223,3 +223,18 @@ class RosLeaf(Leaf):
         """FAILED, with ``why`` (one line) as the node's error."""
         self.error = RosError(f"{type(self).__name__} {self.path!r}: {why}")
         return _FAILED
+
+
+def give(bridge: RosBridge, tree: Any) -> int:
+    """Let the ROS nodes of ``tree`` (a Tree, Subtrees' inner trees too) that have no
+    bridge use ``bridge`` (``btcap tree run --ros``); how many there are."""
+    count = 0
+    for node in tree.nodes():
+        inner = getattr(node, "inner", None)
+        if inner is not None:
+            count += give(bridge, inner)
+        elif isinstance(node, RosLeaf):
+            count += 1
+            if node._bridge is None:
+                node._bridge = bridge
+    return count
