@@ -143,8 +143,8 @@ def ros_problems(problems: list[str], args: argparse.Namespace) -> list[str]:
         return problems
     if importlib.util.find_spec("rclpy") is None:
         how = (
-            "ROS 2 is not installed in this Python: install it with `make ros` and run "
-            ".venv-ros/bin/btcap (docs/ros2.md)"
+            "ROS 2 is not installed in this Python: install it with `make ros`, then run "
+            "`.venv-ros/bin/python -m btcap tree ... --ros` (docs/ros2.md)"
         )
     else:
         how = "add --ros (and --ros-namespace NS: the robot's namespace)"
