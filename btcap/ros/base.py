@@ -168,7 +168,7 @@ class RosLeaf(Leaf):
                 loop = asyncio.get_running_loop()
             except RuntimeError:  # ticked outside a loop: read at the next tick
                 loop = None
-            if loop is not None and self._tree is not None:
+            if loop is not None and self._tree is not None and bridge.nudges:
                 waker = Waker(self._tree, loop)
 
             def hook(minor: bool = False) -> None:  # executor thread

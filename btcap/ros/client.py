@@ -6,8 +6,9 @@ executor thread, where they store what arrived (a result, the latest feedback or
 for the next tick to read, and hand the news to the event loop through a :class:`Waker`:
 the node's tree is ticked soon instead of at its next period, one hand-over at a time and
 feedback at most every :data:`FEEDBACK_WAKE_S`, so a 1 kHz feedback stream does not flood
-the loop. :meth:`RosBridge.start` (imports, discovery) runs in a worker thread when awaited. :meth:`RosBridge.close` cancels the goals still open,
-destroys the node and joins the thread: nothing of ROS is left running.
+the loop. :meth:`RosBridge.start` (imports, discovery) runs in a worker thread when
+awaited. :meth:`RosBridge.close` cancels the goals still open, destroys the node and joins
+the thread: nothing of ROS is left running.
 
 Names resolve in the robot's namespace (``navigate_to_pose`` -> ``/husky1/navigate_to_pose``),
 as rclpy does for relative names of a node in that namespace; an absolute name is kept.
@@ -107,6 +108,9 @@ class RosBridge:
         self._watch: Any = None
         #: Why this robot must not use ROS (a twin in its namespace), or None.
         self.conflict: str | None = None
+        #: Whether news (a goal answered...) ticks the node's tree soon; False: it waits
+        #: for the tree's next periodic tick (as before 0.2.0; for measurements).
+        self.nudges = True
         self._lock = threading.Lock()
         self._closed = False
 

@@ -65,8 +65,10 @@ async def test_names_from_the_blackboard_resolve_in_the_robot_namespace(
         with anyio.fail_after(20):
             state = await tick_until(tree)
         assert state is State.FAILED
-        assert "action /husky1/fibonacci_abort (test_msgs/action/Fibonacci): the goal was " \
+        assert (
+            "action /husky1/fibonacci_abort (test_msgs/action/Fibonacci): the goal was "
             "aborted" in str(fib.error)
+        )
         await tree.shutdown()
 
 

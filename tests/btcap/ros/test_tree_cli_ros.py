@@ -35,7 +35,7 @@ def fib_xml(tmp_path: Path) -> Path:
 
 
 def test_the_cli_knows_the_ros_node_types_by_name() -> None:
-    assert ROS_TYPES == tuple(cls.__name__ for cls in NODE_TYPES)
+    assert tuple(cls.__name__ for cls in NODE_TYPES) == ROS_TYPES
 
 
 def test_without_ros_each_ros_node_type_is_one_line_saying_so(
@@ -45,7 +45,9 @@ def test_without_ros_each_ros_node_type_is_one_line_saying_so(
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 2, lines
     assert "unknown node type" not in "".join(lines)
-    assert lines[0].startswith(f"{fib_xml}: line 4: <RosAction>: node type 'RosAction' needs ROS 2:")
+    assert lines[0].startswith(
+        f"{fib_xml}: line 4: <RosAction>: node type 'RosAction' needs ROS 2:"
+    )
     assert lines[1].startswith(f"{fib_xml}: line 6: <RosService>: node type 'RosService' needs")
     if importlib.util.find_spec("rclpy") is None:
         assert "install it with `make ros`" in lines[0]

@@ -54,7 +54,9 @@ async def test_goal_answers_response_and_message_tick_the_tree(
     with Servers("/husky1", domain_id=ros_domain, pose=(1.0, 2.0)) as servers:
         with anyio.fail_after(20):
             await wait_for(lambda: bridge.server_ready("action", FIB, "fibonacci"))
-            await wait_for(lambda: bridge.server_ready("service", "std_srvs/srv/SetBool", "set_bool"))
+            await wait_for(
+                lambda: bridge.server_ready("service", "std_srvs/srv/SetBool", "set_bool")
+            )
             root = Sequence(
                 "seq",
                 children=[
@@ -75,7 +77,9 @@ async def test_goal_answers_response_and_message_tick_the_tree(
                         inputs={"data": True},
                     ),
                     RosWaitForMessage(
-                        "pose", topic_type="geometry_msgs/msg/PoseStamped", topic_name="pose",
+                        "pose",
+                        topic_type="geometry_msgs/msg/PoseStamped",
+                        topic_name="pose",
                         bridge=bridge,
                     ),
                 ],
