@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
-from btcap.cli.treeros import add_ros_options, ros_problems, use_ros
+from btcap.cli.rostree import add_ros_options, ros_problems, use_ros
 
 if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help stays fast
     from btcap.actors import ManualClock

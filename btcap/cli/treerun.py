@@ -24,7 +24,7 @@ from btcap.bt.render import render_text
 from btcap.bt.state import DONE, State, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
-from btcap.cli.treeros import bridge_for, wanted
+from btcap.cli.rostree import bridge_for, wanted
 from btcap.team.capabilities.capability import Capability
 
 __all__ = ["run"]

@@ -11,7 +11,7 @@ import pytest
 from rosservers import Servers
 
 from btcap.cli import main
-from btcap.cli.treeros import ROS_TYPES
+from btcap.cli.rostree import ROS_TYPES
 from btcap.ros.agent import NODE_TYPES
 
 FIB_XML = """<root BTCPP_format="4">
