@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import SERVER_OPTIONS, RosLeaf, now, seconds
+from btcap.ros.base import SERVER_OPTIONS, RosLeaf, name_input, now, seconds
 from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["FEEDBACK_PREFIX", "RosAction"]
@@ -140,6 +140,7 @@ class RosAction(RosLeaf):
     __slots__ = ("_goal", "_last", "_types")
     KIND: ClassVar[str] = "action"
     NAME_PORT: ClassVar[str] = "action_name"
+    INPUTS: ClassVar[dict[str, Any]] = name_input("action_name", "action")
     OPTIONS: ClassVar[dict[str, Any]] = {
         "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
         **SERVER_OPTIONS,

@@ -25,7 +25,7 @@ from btcap.ros.client import RosBridge, Waker
 from btcap.ros.errors import RosError
 from btcap.team.rossettings import Qos
 
-__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "now", "qos_of"]
+__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "name_input", "now", "qos_of"]
 
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
@@ -59,6 +59,12 @@ WAIT_FOR_SERVER_S = 10.0
 #: How long a node waits for the answer of a server it found: a goal's acceptance, or a
 #: service's response (which includes the service's own work; set it per node).
 SERVER_S = 5.0
+
+
+def name_input(port: str, what: str) -> dict[str, Port]:
+    """The INPUTS of a ROS node class: its name port (its interface's fields are added
+    per node, from its type)."""
+    return {port: Port(str, description=f"the {what}'s name, in the robot's namespace")}
 
 
 def seconds_options(what: str) -> dict[str, Port]:
@@ -114,11 +120,8 @@ class RosLeaf(Leaf):
             self.set_input(self.NAME_PORT, named)
 
     def name_port(self) -> dict[str, Port]:
-        """The name's input port, for :meth:`declare_ports`."""
-        what = {"action_name": "action", "service_name": "service"}.get(self.NAME_PORT, "topic")
-        return {
-            self.NAME_PORT: Port(str, description=f"the {what}'s name, in the robot's namespace")
-        }
+        """The name's input port (the class's INPUTS), for :meth:`declare_ports`."""
+        return dict(type(self).INPUTS)
 
     def with_name_port(self, fields: dict[str, Port], of: str) -> dict[str, Port]:
         """``fields`` (an interface's, as inputs) after the name port; RosError if one of

@@ -13,7 +13,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import RosLeaf, now, seconds_options
+from btcap.ros.base import RosLeaf, name_input, now, seconds_options
 from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["RosService"]
@@ -28,6 +28,7 @@ class RosService(RosLeaf):
     __slots__ = ("_client", "_future", "_name", "_sent_at", "_types")
     KIND: ClassVar[str] = "srv"
     NAME_PORT: ClassVar[str] = "service_name"
+    INPUTS: ClassVar[dict[str, Any]] = name_input("service_name", "service")
     OPTIONS: ClassVar[dict[str, Any]] = {
         "service_type": Port(str, description="e.g. `std_srvs/srv/SetBool`"),
         **seconds_options("service"),

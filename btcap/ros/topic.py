@@ -20,7 +20,7 @@ from msgspec import Meta
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import QOS_OPTIONS, RosLeaf, now, qos_of, seconds
+from btcap.ros.base import QOS_OPTIONS, RosLeaf, name_input, now, qos_of, seconds
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
@@ -43,11 +43,15 @@ def _drop(node: RosLeaf, what: Any, destroy: str) -> None:
         getattr(bridge.node, destroy)(what)
 
 
+_NAME = name_input("topic_name", "topic")
+
+
 class RosPublish(RosLeaf):
     """Publishes a message made of its inputs: once (SUCCEEDED), or every ``1/rate_hz``
     seconds while ticked (RUNNING until halted)."""
 
     __slots__ = ("_next_at", "_publisher", "_topic", "_types")
+    INPUTS: ClassVar[dict[str, Any]] = _NAME
     OPTIONS: ClassVar[dict[str, Any]] = {
         **_TOPIC,
         "rate_hz": Port(float | None, None, "publish at this rate; null: once", Meta(gt=0)),
@@ -104,6 +108,7 @@ class RosSubscribe(RosLeaf):
     condition); FAILED before, saying so."""
 
     __slots__ = ("_latest", "_seen", "_since", "_subscription", "_topic", "_types", "_waits")
+    INPUTS: ClassVar[dict[str, Any]] = _NAME
     OPTIONS: ClassVar[dict[str, Any]] = {
         **_TOPIC,
         "fields": Port(list[str] | None, None, "fields to outputs; null: all top-level"),
