@@ -16,12 +16,17 @@ from rostools import FOUND_S, wait_for
 from btcap.actors import ManualClock
 from btcap.bt.composites import Sequence
 from btcap.bt.node import Node
-from btcap.bt.state import State
+from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.ros.action import RosAction
 from btcap.ros.client import FEEDBACK_WAKE_S, RosBridge, Waker
 from btcap.ros.service import RosService
 from btcap.ros.topic import RosWaitForMessage
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
+from btcap.team.core.hosting import Hosted
+from btcap.team.ids import ExecutionId
+from btcap.team.runtime.agent import Agent
 
 pytestmark = pytest.mark.ros
 
@@ -130,3 +135,38 @@ def test_the_waker_coalesces_what_comes_before_the_loop_takes_it() -> None:
         assert not waker.pending
     finally:
         loop.close()
+
+
+async def test_news_of_a_run_in_an_agents_slot_ticks_the_robots_tree(
+    servers: Servers, bridge: RosBridge
+) -> None:
+    """The implementation's tree is ticked by the robot's host tree (its slot): the
+    news of its RosAction ticks the host tree, whose clock never moves here."""
+    iface = CapabilityInterface("Fib")
+    impl = Implementation(
+        "fib",
+        iface,
+        lambda: RosAction(
+            "fib",
+            action_type=FIB,
+            action_name="fibonacci",
+            bridge=bridge,
+            server_timeout=FOUND_S,
+            inputs={"order": 3},
+        ),
+    )
+    with anyio.fail_after(20):
+        await wait_for(lambda: bridge.server_ready("action", FIB, "fibonacci"))
+        async with Agent("husky1", clock=ManualClock(), implementations=[impl]) as agent:
+            slot = agent.mission_control.slot
+            assert slot is not None
+            run = impl.instantiate(agent.clock)
+            hosted = Hosted(ExecutionId("x", "root", 1), run, {}, 1.0, 0.0, 10.0, started=True)
+            assert slot.load(hosted) is None
+            agent.host.nudge()  # the run's first tick; the rest comes from ROS's news
+            await wait_for(lambda: run.tree.root.state in DONE)
+            assert agent.clock.now() == 0.0
+            assert run.tree.root.state is State.SUCCEEDED, run.tree.root.error
+            slot.unload(hosted.execution)
+            await run.close()
+    assert servers.events["fibonacci.succeeded"] == 1
