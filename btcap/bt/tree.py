@@ -12,7 +12,7 @@ from btcap.bt.debug import RestartMonitor, debug_default
 from btcap.bt.host import wake
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, wire_problem
-from btcap.bt.running import run_tree, start_task, tick_once
+from btcap.bt.running import Alarm, nudge, run_tree, start_task, tick_once
 from btcap.bt.state import ACTIVE, DONE, State, TreeError
 from btcap.bt.utility import Utility
 
@@ -64,6 +64,7 @@ class Tree:
         self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
         self.version = 0  # grows when nodes join or leave: a watcher needs no walk to see it
         self.woken = False  # a node asked to be ticked again at once (see tick_once)
+        self.alarm = Alarm()  # news from outside: tick soon (nudge)
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
         self._told: set[str] = set()  # nodes whose first error was a warning (bt.told)
@@ -255,6 +256,10 @@ class Tree:
 
     tick_exactly_once = tick
 
+    def nudge(self) -> None:
+        """Tick soon: news for a node came from outside (:func:`~btcap.bt.running.nudge`)."""
+        nudge(self)
+
     def tick_once(self) -> State:
         """BehaviorTree.CPP's ``tickOnce``: a tick, repeated at once while the tree runs and
         a node asked for it (an AsyncSequence, AsyncFallback or Repeat that yielded)."""
@@ -415,6 +420,7 @@ class Subtree(Node):
 
     def on_setup(self) -> None:
         self.inner.clock = self.clock
+        self.inner.alarm.outer = self._tree  # news inside: the outer tree ticks
         host = self._tree
         self.inner._share_monitor(host._monitor if isinstance(host, Tree) else None)
         self.inner.setup(provided=list(self._in_map.values()))

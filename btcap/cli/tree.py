@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
+from btcap.cli.rostree import add_ros_options, ros_problems, use_ros
 from btcap.cli.treeargs import add_run_arguments
 
 if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help stays fast
@@ -59,6 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="capability interface file: its capabilities and their <Name>Inputs/"
         "<Name>Outputs bridges become node types (repeatable)",
     )
+    add_ros_options(types)
 
     xml = argparse.ArgumentParser(add_help=False)
     group = xml.add_argument_group("BehaviorTree.CPP XML")
@@ -153,6 +155,7 @@ def _registry(args: argparse.Namespace) -> NodeRegistry:
         if not path.is_file():
             raise CliError(f"--interfaces {path}: no such file")
         register_interfaces(registry, load_interfaces(path, registry))
+    use_ros(args, registry)
     return registry
 
 
@@ -304,7 +307,8 @@ def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None
                 **_xml_options(args),
             )
     except TreeFileError as exc:
-        raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
+        problems = [*exc.problems, *_hints(path, exc.problems, args)]
+        raise TreeFileError(ros_problems(problems, args)) from None
 
 
 # -- subcommands ------------------------------------------------------------------------
@@ -330,7 +334,7 @@ def _validate(args: argparse.Namespace) -> int:
             continue
         with _warnings_shown():
             problems = validate_file(path, registry, **options)
-        problems += _hints(path, problems, args)
+        problems = ros_problems(problems + _hints(path, problems, args), args)
         if problems:
             for line in problems:
                 print(line, file=sys.stderr)

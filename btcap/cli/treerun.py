@@ -26,6 +26,7 @@ from btcap.bt.render import render_text
 from btcap.bt.state import DONE, State, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
+from btcap.cli.rostree import bridge_for, wanted
 from btcap.team.capabilities.capability import Capability
 
 __all__ = ["run"]
@@ -38,6 +39,8 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     timeout = _timeout(args.timeout)
+    if args.fast and wanted(args):
+        raise CliError("--fast with --ros: ROS 2 runs on the wall clock, not on virtual time")
     args.entries = _entries(args.set, args.set_file)
     clock = ManualClock() if args.fast else None
     tree = load(clock)
@@ -158,7 +161,7 @@ async def _tick(
     stopped: TreeTimeout | None = None
     jumps = clock.autojump() if clock is not None else contextlib.nullcontext()
     try:
-        async with jumps:
+        async with bridge_for(args, tree), jumps:
             try:
                 state = await tree.run(
                     args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout, wake=wake
