@@ -26,6 +26,7 @@ if TYPE_CHECKING:
         SequenceWithMemory,
         Switch,
     )
+    from btcap.bt.foreach import ParallelForEach
     from btcap.bt.decorators import (
         Decorator,
         Delay,
@@ -127,6 +128,7 @@ _EXPORTS = {
         "SequenceWithMemory",
         "Switch",
     ),
+    "btcap.bt.foreach": ("ParallelForEach",),
     "btcap.bt.decorators": (
         "Decorator",
         "Delay",
@@ -264,6 +266,7 @@ __all__ = [
     "OutputBridge",
     "Parallel",
     "ParallelAll",
+    "ParallelForEach",
     "Port",
     "Precondition",
     "ReactiveFallback",

@@ -195,6 +195,8 @@ class Tree:
             self.blackboard.check(self.name)
         wired = {(id(n), key) for n in self.nodes() for key, _, _ in n._pulls or ()}
         wired.update((id(n), key) for n, key in provided)
+        # Inputs a parent sets before ticking them (a ParallelForEach's lanes' items).
+        wired.update((id(c), k) for n in self.nodes() for c, k in getattr(n, "feeds", tuple)())
         for n in self.nodes():
             cls = type(n)
             k = len(n.children)
