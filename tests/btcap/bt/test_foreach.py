@@ -21,7 +21,6 @@ from btcap import (
     loads_tree,
 )
 from btcap.bt.invariants import tick_checked as tick
-from btcap.bt.registry import NodeRegistry
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 
@@ -238,7 +237,7 @@ subtrees:
 
 
 def test_a_tree_file_builds_lanes_from_one_subtree() -> None:
-    tree = loads_tree(LANES_YAML, NodeRegistry())
+    tree = loads_tree(LANES_YAML)
     each = tree.root
     assert isinstance(each, ParallelForEach)
     assert tick(tree) is S
