@@ -11,7 +11,9 @@ object is released to the carry pool the moment it is identified, and identifica
 never waits on exploration or on a carry.
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
-runs again; a goal that another exploration covered leaves the list.
+runs again; a goal that another exploration covered leaves the list. Items are told
+apart by id: an object dropped by a failing robot keeps its lane (re-assigned with the
+capability), which is told where the object now lies.
 """
 
 from __future__ import annotations
@@ -51,7 +53,9 @@ def pool_lanes(models: Seq[RobotModel]) -> tuple[int, int, int]:
 
 class WatchWork(ClaimWork):
     """Lists the work of ``kind`` waiting in the store, asking again every ``poll_s``:
-    RUNNING while more may come, SUCCEEDED with the last list once it is complete."""
+    RUNNING while more may come or some is left, SUCCEEDED once none is left nor can
+    come. (It lists on after the list is complete: a list left as it was then would keep
+    offering work done since, which a lane would try again and again.)"""
 
     __slots__ = ()
     OUTPUTS: ClassVar[Any] = {"items": list[tuple[int, int, int]], "complete": bool}
@@ -75,7 +79,7 @@ class WatchWork(ClaimWork):
         self._again_at = self.clock.now() + self.options["poll_s"]
         self.outputs["items"] = [tuple(i) for i in reply.items]
         self.outputs["complete"] = reply.complete
-        return State.SUCCEEDED if reply.complete else State.RUNNING
+        return State.SUCCEEDED if reply.complete and not reply.items else State.RUNNING
 
     async def _list(self) -> WorkList:
         try:
@@ -120,7 +124,9 @@ def pool_mission_tree(
         watch = WatchWork(f"list_{kind}", kind=kind, store=store)
         caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes)]
         lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps)]
-        each = ParallelForEach(f"each_{kind}", children=lane, retry_failed=True)
+        # Items told apart by their id: an object dropped elsewhere is the same object,
+        # its running lane told where it now lies, not a second lane started for it.
+        each = ParallelForEach(f"each_{kind}", children=lane, retry_failed=True, key=0)
         for ln, cap in zip(lane, caps, strict=True):
             if kind == "goal":
                 wires.append((ln, "at", cap, "goal"))

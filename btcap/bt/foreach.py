@@ -35,10 +35,12 @@ class ParallelForEach(Node):
       ``item``), which gets the lane's item, checked against that input's type, before
       every tick of the lane. ``max_concurrency`` (default: every child) lanes run at once.
     - ``items`` is read on every tick and may grow (or lose items) while the node runs;
-      items are told apart by value, so they must be hashable. A new item starts in the
-      first free lane, in the list's order; an item runs at most once at a time, and an
-      item whose lane succeeded does not run again until the node starts over. An item
-      that leaves the list while its lane runs goes on running.
+      items are told apart by value (hashable), or with option ``key`` by their element
+      ``key`` (a tuple's index or a mapping's key): an item whose key is running gets its
+      latest value before every tick of its lane (work whose details changed). A new item
+      starts in the first free lane, in the list's order; an item runs at most once at a
+      time, and an item whose lane succeeded does not run again until the node starts
+      over. An item that leaves the list while its lane runs goes on running.
     - A lane that fails (or errs) ends that item: with ``retry_failed`` the item runs again
       while it is still listed (the list's source decides when it is no longer worth it),
       otherwise it is counted in ``failed`` and not run again.
@@ -53,7 +55,7 @@ class ParallelForEach(Node):
     lanes run now.
     """
 
-    __slots__ = ("_finished", "_lanes", "_lost", "_restart")
+    __slots__ = ("_finished", "_lanes", "_lost", "_restart", "_values")
     MIN_CHILDREN: ClassVar[int] = 1
     MAX_CHILDREN: ClassVar[int | None] = None
     INPUTS: ClassVar[Any] = {
@@ -65,11 +67,13 @@ class ParallelForEach(Node):
         "max_concurrency": Port(int, 0, "lanes running at once; 0: every child"),
         "item_port": Port(str, "item", "the input of each lane that gets its item"),
         "retry_failed": Port(bool, False, "run an item again after its lane failed"),
+        "key": Port(int | str | None, None, "tell items apart by this element of each"),
     }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._lanes: list[Hashable | None] = []  # the item each lane runs, by child index
+        self._lanes: list[Hashable | None] = []  # the key of each lane's item, by child
+        self._values: list[Any] = []  # and the item's latest value
         self._finished: set[Hashable] = set()
         self._lost: set[Hashable] = set()
         self._restart = False
@@ -102,69 +106,77 @@ class ParallelForEach(Node):
     def on_setup(self) -> None:
         self.check_children()
         self._lanes = [None] * len(self.children)
+        self._values = [None] * len(self.children)
+
+    def _key(self, item: Any) -> Hashable:
+        key = self.options["key"]
+        try:
+            k = item if key is None else item[key]
+            hash(k)
+        except (TypeError, KeyError, IndexError):
+            what = "is not hashable" if key is None else f"has no hashable element {key!r}"
+            raise TreeError(
+                f"node {self.path!r} (ParallelForEach): item {item!r} {what}"
+            ) from None
+        return k  # type: ignore[no-any-return]
+
+    def _run(self, i: int, item: Any) -> State:
+        lane = self.children[i]
+        key = self.options["item_port"]
+        lane.inputs[key] = check_port(item, lane.input_ports[key], f"{lane.path}.{key}")
+        return lane.tick()
+
+    def _ended(self, i: int, s: State) -> bool:
+        """Book lane ``i``'s state ``s``; True if its item is done with (for now)."""
+        k = self._lanes[i]
+        if s is _SUCCEEDED:
+            self._finished.add(k)
+        elif s is _FAILED or s is _ERROR:
+            if not self.options["retry_failed"]:
+                self._lost.add(k)
+        else:
+            return False
+        self._lanes[i] = self._values[i] = None
+        return True
 
     def on_tick(self) -> State:
         if self._restart:  # ticked again after its result: start over
             self._forget()
-        children = self.children
-        lanes = self._lanes
-        if len(lanes) != len(children):
-            lanes.extend([None] * (len(children) - len(lanes)))
-        key = self.options["item_port"]
-        running = set()
-        for i, item in enumerate(lanes):  # the lanes under way
-            if item is None:
-                continue
-            lane = children[i]
-            lane.inputs[key] = check_port(item, lane.input_ports[key], f"{lane.path}.{key}")
-            s = lane.tick()
-            if s is _SUCCEEDED:
-                self._finished.add(item)
-                lanes[i] = None
-            elif s is _FAILED or s is _ERROR:
-                if not self.options["retry_failed"]:
-                    self._lost.add(item)
-                lanes[i] = None
-            else:
-                running.add(item)
+        n = len(self.children)
+        if len(self._lanes) != n:
+            self._lanes.extend([None] * (n - len(self._lanes)))
+            self._values.extend([None] * (n - len(self._values)))
         items = self.inputs["items"] or []
+        latest = {self._key(item): item for item in items}
+        running: set[Hashable] = set()
+        for i, k in enumerate(self._lanes):  # the lanes under way
+            if k is None:
+                continue
+            value = self._values[i] = latest.get(k, self._values[i])
+            if not self._ended(i, self._run(i, value)):
+                running.add(k)
         width = self.width()
-        free = [i for i, item in enumerate(lanes) if item is None]
+        free = [i for i, k in enumerate(self._lanes) if k is None]
         waiting = False
-        for item in items:
-            try:
-                if item in running or item in self._finished or item in self._lost:
-                    continue
-            except TypeError:
-                raise TreeError(
-                    f"node {self.path!r} (ParallelForEach): item {item!r} is not hashable"
-                ) from None
+        for k, item in latest.items():
+            if k in running or k in self._finished or k in self._lost:
+                continue
             if len(running) >= width or not free:
                 waiting = True
                 break
             i = free.pop(0)
-            lane = children[i]
+            lane = self.children[i]
             if lane.state is not _IDLE:
                 lane.reset()  # every item starts from a fresh lane
-            lanes[i] = item
-            lane.inputs[key] = check_port(item, lane.input_ports[key], f"{lane.path}.{key}")
-            s = lane.tick()
-            if s is _SUCCEEDED:
-                self._finished.add(item)
-                lanes[i] = None
+            self._lanes[i], self._values[i] = k, item
+            s = self._run(i, item)
+            if not self._ended(i, s):
+                running.add(k)
+            elif s is _SUCCEEDED:
                 free.insert(0, i)
-            elif s is _FAILED or s is _ERROR:
-                if not self.options["retry_failed"]:
-                    self._lost.add(item)
-                lanes[i] = None
-            else:
-                running.add(item)
         out = self.outputs
-        out["succeeded"], out["failed"], out["running"] = (
-            len(self._finished),
-            len(self._lost),
-            len(running),
-        )
+        out["succeeded"], out["failed"] = len(self._finished), len(self._lost)
+        out["running"] = len(running)
         if running or waiting or not self.inputs["complete"]:
             return _RUNNING
         self._restart = True
@@ -175,6 +187,7 @@ class ParallelForEach(Node):
             if c.state is not _IDLE:
                 c.reset()
         self._lanes = [None] * len(self.children)
+        self._values = [None] * len(self.children)
         self._finished.clear()
         self._lost.clear()
         self._restart = False
@@ -186,6 +199,7 @@ class ParallelForEach(Node):
 
     def on_reset(self) -> None:
         self._lanes = [None] * len(self.children)
+        self._values = [None] * len(self.children)
         self._finished.clear()
         self._lost.clear()
         self._restart = False

@@ -242,3 +242,34 @@ def test_a_tree_file_builds_lanes_from_one_subtree() -> None:
     assert isinstance(each, ParallelForEach)
     assert tick(tree) is S
     assert each.outputs["succeeded"] == 3
+
+
+class Pair(Leaf):
+    """Runs while its item's second element is 0; logs every value it is ticked with."""
+
+    INPUTS: ClassVar[Any] = {"item": Port(tuple[int, int])}
+
+    def __init__(self, name: str, seen: list[tuple[int, int]]) -> None:
+        super().__init__(name)
+        self.seen = seen
+
+    def on_tick(self) -> State:
+        self.seen.append(self.inputs["item"])
+        return R if self.inputs["item"][1] == 0 else S
+
+
+def test_with_a_key_a_changed_item_updates_its_running_lane_instead_of_a_second() -> None:
+    seen: list[tuple[int, int]] = []
+    each = ParallelForEach(
+        "each", children=[Pair("a", seen), Pair("b", seen)], key=0, inputs={"items": [(7, 0)]}
+    )
+    tree = Tree(each)
+    assert tick(tree) is R
+    assert seen == [(7, 0)]
+    each.set_input("items", [(7, 0), (7, 1)])  # the same item, changed: no second lane
+    assert tick(tree) is S
+    assert seen == [(7, 0), (7, 1)]
+    with pytest.raises(TreeError, match="has no hashable element 0"):
+        each.set_input("items", [5])
+        each.reset()
+        each.on_tick()
