@@ -6,12 +6,16 @@ catch a hang.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import anyio
 import msgspec
 import numpy as np
 import pytest
 
+import btcap.cli
 import btcap.sim.runner
+from btcap.cli import main
 from btcap.sim.bound import Presence, mission_bound, presence, scenario_bound
 from btcap.sim.grid import GridMap
 from btcap.sim.model import paper_team
@@ -23,6 +27,7 @@ from btcap.sim.store import MissionState
 pytestmark = pytest.mark.slow  # whole missions (the suite's bound for them: conftest)
 
 RUN_S = 300.0
+SMALL = Path(__file__).parent / "data" / "small.yaml"
 
 
 def scenario(name: str, seed: int, mission: str = "pool") -> Scenario:
@@ -113,3 +118,14 @@ def test_the_bound_is_below_every_paper_mission_run() -> None:
         scenario("full-team", 1).grid(), 10, 0.5, np.random.default_rng(1)
     )
     assert sum(o.contaminated for o in state.objects) == 7
+
+
+def test_btcap_run_takes_the_mission_and_prints_the_bound_beside_the_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+    argv = ["run", str(SMALL), "--fast", "--mission", "pool", "--no-record", "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 0
+    line = capsys.readouterr().out.replace("\n", " ")
+    assert "small: 3 robots, pool mission," in line
+    assert "s of mission (lower bound " in line
