@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, cast
 
 from btcap.bench.common import write_result
 from btcap.sim.catalog import builtin_scenarios
@@ -42,7 +42,7 @@ def _goal(detail: str) -> tuple[int, int] | None:
 
 async def _one(seed: int, mission: str) -> dict[str, Any]:
     s = load_scenario(builtin_scenarios()["huskies-bebop-joins"])
-    s.seed, s.mission = seed, mission
+    s.seed, s.mission = seed, cast(Literal["paper", "pool"], mission)
     join = next(e.at for e in s.events if e.kind == "join")
     joiner = next(e.robot for e in s.events if e.kind == "join")
     models = s.models()
@@ -75,7 +75,9 @@ async def _one(seed: int, mission: str) -> dict[str, Any]:
     first = next((i for i in tl if i.robot == joiner and i.start >= join), None)
     out["joiner_first_task_after_s"] = None if first is None else round(first.start - join, 1)
     if not running:
-        drives = [i for i in tl if i.robot != joiner and i.kind == "move" and i.start <= join < i.end]
+        drives = [
+            i for i in tl if i.robot != joiner and i.kind == "move" and i.start <= join < i.end
+        ]
         nxt = {
             d.robot: next(
                 (i for i in tl if i.robot == d.robot and i.kind == "explore" and i.start >= d.end),
@@ -102,7 +104,9 @@ async def _one(seed: int, mission: str) -> dict[str, Any]:
     h_cost = drive_left_m * husky.cost_factor + max(0.0, dur_h - worked)
     h_time = drive_left_m / husky.speed_mps + max(0.0, dur_h - worked)
     goal = goal_of.get(id(drive[-1])) if drive else None
-    bebop_m = path_length(distance_field(grid.free, goal), grid.start, grid.cell_size_m) if goal else None
+    bebop_m = (
+        path_length(distance_field(grid.free, goal), grid.start, grid.cell_size_m) if goal else None
+    )
     out |= {
         "phase": phase,
         "explorer": ex.robot,

@@ -25,13 +25,13 @@ import asyncio
 import statistics
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, cast
 
 from btcap.bench.common import write_result
 from btcap.sim.bound import scenario_bound
+from btcap.sim.catalog import builtin_scenarios
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import Scenario, grow_team, load_scenario
-from btcap.sim.catalog import builtin_scenarios
 
 __all__ = ["SCENARIOS", "TARGET", "main", "run", "scenario"]
 
@@ -58,7 +58,7 @@ def scenario(name: str, seed: int, mission: str) -> Scenario:
         grow_team(s, robots)
         s.name = name
     s.seed = seed
-    s.mission = mission
+    s.mission = cast(Literal["paper", "pool"], mission)
     return s
 
 

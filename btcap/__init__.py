@@ -26,7 +26,6 @@ if TYPE_CHECKING:
         SequenceWithMemory,
         Switch,
     )
-    from btcap.bt.foreach import ParallelForEach
     from btcap.bt.decorators import (
         Decorator,
         Delay,
@@ -56,6 +55,7 @@ if TYPE_CHECKING:
         save_tree,
         validate_file,
     )
+    from btcap.bt.foreach import ParallelForEach
     from btcap.bt.leaves import (
         Action,
         AlwaysFailure,

@@ -103,7 +103,7 @@ def _finish(robots: Sequence[Presence], since: float, work: float) -> float:
 
 
 def _disc_cells(radius_cells: float) -> int:
-    r = int(math.floor(radius_cells))
+    r = math.floor(radius_cells)
     d = np.arange(-r, r + 1)
     return int((d[:, None] ** 2 + d[None, :] ** 2 <= radius_cells**2).sum())
 
@@ -143,10 +143,14 @@ def mission_bound(
     for cell, dirty in objects:
         found = float(cover[index[cell]]) if cell in index else math.inf
         drive = path_length(from_start, cell, cs)
-        ident = min(
-            (max(found, present[i].start + drive / models[i].speed_mps) + dur(i, "identify"))
-            for i in able["identify"]
-        ) if able["identify"] else math.inf
+        ident = (
+            min(
+                (max(found, present[i].start + drive / models[i].speed_mps) + dur(i, "identify"))
+                for i in able["identify"]
+            )
+            if able["identify"]
+            else math.inf
+        )
         end = ident
         if dirty:
             back = path_length(from_decon, cell, cs)
@@ -194,10 +198,11 @@ def mission_bound(
     # -- carries after their release ------------------------------------------------------
     release_s = 0.0
     carriers = [present[i] for i in able["decontaminate"]]
-    for t, _, _ in release:
-        later = [(w, a) for r, w, a in release if r >= t]
-        driven = sorted((a for _, a in later), reverse=True)[:k_carry]  # perhaps before t
-        release_s = max(release_s, _finish(carriers, t, sum(w for w, _ in later) - sum(driven)))
+    for since, _, _ in release:
+        later = [(w, a) for r, w, a in release if r >= since]
+        driven = sorted((a for _, a in later), reverse=True)[:k_carry]  # perhaps before
+        total = sum(w for w, _ in later) - sum(driven)
+        release_s = max(release_s, _finish(carriers, since, total))
     seconds = max(chains, work_s, release_s)
     return Bound(round(seconds, 1), round(chains, 1), round(work_s, 1), round(release_s, 1))
 

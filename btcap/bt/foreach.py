@@ -115,9 +115,7 @@ class ParallelForEach(Node):
             hash(k)
         except (TypeError, KeyError, IndexError):
             what = "is not hashable" if key is None else f"has no hashable element {key!r}"
-            raise TreeError(
-                f"node {self.path!r} (ParallelForEach): item {item!r} {what}"
-            ) from None
+            raise TreeError(f"node {self.path!r} (ParallelForEach): item {item!r} {what}") from None
         return k  # type: ignore[no-any-return]
 
     def _run(self, i: int, item: Any) -> State:

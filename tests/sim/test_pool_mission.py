@@ -114,9 +114,7 @@ def test_the_bound_is_below_every_paper_mission_run() -> None:
     for name, seconds in (("full-team", 1330.0), ("huskies-bebop-joins", 1410.5)):
         s = scenario(name, 1, "paper")
         assert scenario_bound(s).seconds <= seconds
-    state = MissionState.scatter(
-        scenario("full-team", 1).grid(), 10, 0.5, np.random.default_rng(1)
-    )
+    state = MissionState.scatter(scenario("full-team", 1).grid(), 10, 0.5, np.random.default_rng(1))
     assert sum(o.contaminated for o in state.objects) == 7
 
 

@@ -125,15 +125,16 @@ def test_a_growing_list_runs_each_item_once_at_most_n_at_once() -> None:
     starts = [item for what, item in log if what == "start"]
     assert sorted(starts) == [0, 2, 4, 7, 13, 21]  # each exactly once
     assert starts.index(4) < starts.index(21) < starts.index(0)  # in the list's order
-    assert each.outputs["succeeded"] == 6 and each.outputs["failed"] == 0
+    assert (each.outputs["succeeded"], each.outputs["failed"]) == (6, 0)
 
 
 def test_it_waits_for_complete_and_for_items_that_come_later() -> None:
-    tree, source, each, log = build(2)
+    tree, source, each, _ = build(2)
     for _ in range(3):
         assert tick(tree) is R  # an empty list that may still grow
     source.items = [1]
-    assert tick(tree) is R and running(each) == [1]
+    assert tick(tree) is R
+    assert running(each) == [1]
     assert tick(tree) is R  # item 1 done, but the list is not complete
     source.complete = True
     assert tick(tree) is S
@@ -178,7 +179,8 @@ def test_failed_items_fail_the_node_or_run_again_with_retry() -> None:
     source.items, source.complete = [3, 1], True
     while (state := tick(tree)) is R:
         pass
-    assert state is F and each.outputs["failed"] == 1 and each.outputs["succeeded"] == 1
+    assert state is F
+    assert (each.outputs["failed"], each.outputs["succeeded"]) == (1, 1)
 
     tree, source, each, log = build(2, retry=True, failing={3})
     source.items, source.complete = [3, 1], True
@@ -193,7 +195,7 @@ def test_failed_items_fail_the_node_or_run_again_with_retry() -> None:
 
 
 def test_started_again_after_its_result_it_forgets_the_items_done() -> None:
-    tree, source, each, log = build(1)
+    tree, source, _, log = build(1)
     source.items, source.complete = [0], True
     assert tick(tree) is S
     assert tick(tree) is S
@@ -205,7 +207,8 @@ def test_items_are_checked_against_the_lane_input_type() -> None:
     source.complete = True
     source.items = ["x"]  # type: ignore[list-item]
     tick(tree)
-    assert each.state is State.ERROR and "lane0.item: expected int" in str(each.error)
+    assert each.state is State.ERROR
+    assert "lane0.item: expected int" in str(each.error)
 
 
 def test_bad_configurations_are_refused_when_the_tree_is_validated() -> None:
@@ -269,7 +272,7 @@ def test_with_a_key_a_changed_item_updates_its_running_lane_instead_of_a_second(
     each.set_input("items", [(7, 0), (7, 1)])  # the same item, changed: no second lane
     assert tick(tree) is S
     assert seen == [(7, 0), (7, 1)]
+    each.set_input("items", [5])
+    each.reset()
     with pytest.raises(TreeError, match="has no hashable element 0"):
-        each.set_input("items", [5])
-        each.reset()
         each.on_tick()
