@@ -21,6 +21,7 @@ from btcap import (
     loads_tree,
 )
 from btcap.bt.invariants import tick_checked as tick
+from btcap.bt.registry import default_registry
 
 S, F, R = State.SUCCEEDED, State.FAILED, State.RUNNING
 
@@ -276,3 +277,31 @@ def test_with_a_key_a_changed_item_updates_its_running_lane_instead_of_a_second(
     each.reset()
     with pytest.raises(TreeError, match="has no hashable element 0"):
         each.on_tick()
+
+
+class Taken(Leaf):
+    """Records its item and succeeds (a lane in an XML file)."""
+
+    INPUTS: ClassVar[Any] = {"item": Port(int)}
+    seen: ClassVar[list[int]] = []
+
+    def on_tick(self) -> State:
+        Taken.seen.append(self.inputs["item"])
+        return S
+
+
+def test_behaviortree_cpp_xml_spells_it_with_the_btcap_prefix_and_feeds_it_an_entry() -> None:
+    registry = default_registry(plugins=False)
+    registry.register(Taken)
+    xml = """<root BTCPP_format="4" main_tree_to_execute="M"><BehaviorTree ID="M">
+      <btcap.ParallelForEach items="{todo}" complete="{no_more}" max_concurrency="1">
+        <Taken/><Taken/>
+      </btcap.ParallelForEach></BehaviorTree></root>"""
+    tree = loads_tree(xml, "xml", registry)
+    assert tree.blackboard is not None
+    tree.blackboard["todo"], tree.blackboard["no_more"] = [3], False
+    Taken.seen.clear()
+    assert tick(tree) is R
+    tree.blackboard["todo"], tree.blackboard["no_more"] = [3, 4, 5], True  # it grew
+    assert tick(tree) is S  # one at a time: a lane done at once takes the next item
+    assert Taken.seen == [3, 4, 5]
