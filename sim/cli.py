@@ -95,6 +95,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "scenario's object_workers: 2 in the built-in ones)",
     )
     p.add_argument(
+        "--mission",
+        choices=("paper", "pool"),
+        help="the mission tree: paper (the paper's loops; the built-in scenarios' choice) or "
+        "pool (a lane per goal, object to identify and object to carry)",
+    )
+    p.add_argument(
         "--fast",
         action="store_true",
         help="virtual time that jumps whenever every robot waits: as fast as the computation "
@@ -288,6 +294,7 @@ def run_command(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from btcap.cli.monitor import monitored
+    from btcap.sim.bound import scenario_bound
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
     from btcap.sim.scenario import ScenarioError, check_ros_names, grow_team, run_metadata
@@ -336,6 +343,8 @@ def run_command(args: argparse.Namespace) -> int:
             if not 1 <= args.object_workers <= 1000:
                 raise CliError(f"--object-workers: expected 1 to 1000, got {args.object_workers}")
             s.object_workers = args.object_workers
+        if args.mission is not None:
+            s.mission = args.mission
         if args.speedup is not None:
             s.speedup = args.speedup
         if margin is not None:
@@ -377,12 +386,17 @@ def run_command(args: argparse.Namespace) -> int:
             started = time.perf_counter()
             meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
             result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
+            wall = time.perf_counter() - started
+            bound = scenario_bound(s).seconds
             console.print(
-                f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
-                f"in {time.perf_counter() - started:.1f} s of wall time",
+                f"{s.name}: {len(s.robots)} robots, {s.mission} mission, "
+                f"{result.mission_time_s:.0f} s of mission (lower bound {bound:.0f} s: "
+                f"{result.mission_time_s / bound if bound else math.inf:.2f}x) in {wall:.1f} s "
+                "of wall time",
                 markup=False,
             )
-            if (idle := idle_robots_note(result, s.object_workers)) is not None:
+            idle = idle_robots_note(result, s.object_workers) if s.mission == "paper" else None
+            if idle is not None:
                 console.print(idle, markup=False, soft_wrap=True)
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)

@@ -29,6 +29,7 @@ from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
+from btcap.sim.pool import pool_lanes, pool_mission_tree
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
 from btcap.team.capabilities.capability import Capability
@@ -194,7 +195,7 @@ async def run_scenario(
                     await clock.sleep_until(t0 + e.at)
                     apply(e)
 
-            tree = mission_tree(object_workers=s.object_workers)
+            tree = _mission(s)
             operator.mission(tree)
             tree.observe(mlog)
             if monitor is not None:
@@ -229,6 +230,15 @@ async def run_scenario(
                 monitor.finish(*_outcome(result, s))
             await tree.shutdown()
     return result
+
+
+def _mission(s: Scenario) -> Tree:
+    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`."""
+    if s.mission == "paper":
+        return mission_tree(object_workers=s.object_workers)
+    models = s.models()
+    explore, identify, carry = pool_lanes([models[r.model] for r in s.robots])
+    return pool_mission_tree(explorers=explore, identifiers=identify, carriers=carry)
 
 
 def _outcome(result: MissionResult, s: Scenario) -> tuple[str, str]:

@@ -281,6 +281,15 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
             description="Identify-and-decontaminate loops of the mission tree, run in parallel.",
         ),
     ] = 1
+    mission: Annotated[
+        Literal["paper", "pool"],
+        _doc(
+            "The mission tree: `paper`, the paper's (one Explore loop beside "
+            "`object_workers` identify-and-decontaminate loops), or `pool` (a lane per "
+            "goal, object to identify and object to carry, as many at once of each as "
+            "robots can do it; objects go to the carry pool once identified)."
+        ),
+    ] = "paper"
     team_file: Annotated[
         str | None,
         _doc(

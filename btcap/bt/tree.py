@@ -15,28 +15,12 @@ from btcap.bt.ports import PortMap, wire_problem
 from btcap.bt.running import Alarm, nudge, run_tree, start_task, tick_once
 from btcap.bt.state import ACTIVE, DONE, State, TreeError
 from btcap.bt.utility import Utility
+from btcap.bt.wires import Wire
 
 if TYPE_CHECKING:
     from btcap.actors import ActorSystem
 
 __all__ = ["Subtree", "Tree", "Wire"]
-
-
-class Wire:
-    """An output of one node feeding an input of another, pulled when the input's node ticks."""
-
-    __slots__ = ("source", "source_port", "target", "target_port")
-
-    def __init__(self, source: Node, source_port: str, target: Node, target_port: str) -> None:
-        self.source = source
-        self.source_port = source_port
-        self.target = target
-        self.target_port = target_port
-
-    def __repr__(self) -> str:
-        return (
-            f"Wire({self.source.path}.{self.source_port} -> {self.target.path}.{self.target_port})"
-        )
 
 
 class Tree:
@@ -196,6 +180,8 @@ class Tree:
             self.blackboard.check(self.name)
         wired = {(id(n), key) for n in self.nodes() for key, _, _ in n._pulls or ()}
         wired.update((id(n), key) for n, key in provided)
+        # Inputs a parent sets before ticking them (a ParallelForEach's lanes' items).
+        wired.update((id(c), k) for n in self.nodes() for c, k in getattr(n, "feeds", tuple)())
         for n in self.nodes():
             cls = type(n)
             k = len(n.children)
