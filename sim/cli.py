@@ -351,7 +351,9 @@ def run_command(args: argparse.Namespace) -> int:
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
             meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
-            result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
+            result = asyncio.run(
+                monitored(args.monitor, keep, s.name, write, meta, foxglove=args.foxglove)
+            )
             console.print(
                 f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
                 f"in {time.perf_counter() - started:.1f} s of wall time",

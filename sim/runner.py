@@ -28,6 +28,7 @@ from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
+from btcap.sim.worldfeed import WorldFeed
 from btcap.team.capabilities.capability import Capability
 from btcap.team.membership.membership import TeamEvent
 from btcap.team.runtime.agent import Agent
@@ -91,8 +92,8 @@ async def run_scenario(
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
-    A ``monitor`` is shown the operator (its membership view), the mission tree and every
-    robot hosted in this process; it is detached when the mission ends, so it keeps the
+    A ``monitor`` is shown the operator (its membership view), the mission tree, every
+    robot hosted in this process and the simulated world (:mod:`btcap.sim.worldfeed`); it is detached when the mission ends, so it keeps the
     last states rather than the shutdown, and told how the mission ended.
     """
     s = check_scenario(scenario)
@@ -123,6 +124,9 @@ async def run_scenario(
         simsys.spawn(manager, SimulationManager.PATH)
         if monitor is not None:
             monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
+            feed = WorldFeed(manager)  # the map, then robots and objects step by step
+            monitor.emit(feed.map_event(clock.now()))
+            monitor.add_source(feed.sample)
             if isinstance(robots, InProcessHost):
                 robots.on_agent = monitor.add_agent
         simsys.spawn(ObjectStore(state), ObjectStore.PATH)
