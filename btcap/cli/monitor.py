@@ -92,7 +92,7 @@ async def serving(
             print(f"monitor: {monitor.url}", flush=True)
         if foxglove is not None:
             fhost = f"[{foxglove[0]}]" if ":" in foxglove[0] else foxglove[0]
-            print(f"foxglove: ws://{fhost}:{monitor.foxglove_port}", flush=True)
+            print(f"foxglove: ws://{fhost}:{monitor.live.port}", flush=True)
         yield monitor
     finally:
         await monitor.stop()

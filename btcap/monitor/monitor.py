@@ -209,11 +209,11 @@ class Monitor:
         await self.stop()
 
     @property
-    def foxglove_port(self) -> int:
-        """The port the Foxglove server listens on (after :meth:`start`)."""
+    def live(self) -> FoxgloveLive:
+        """The Foxglove server (after :meth:`start`): its ``port``, its subscriptions."""
         if self._live is None:
             raise RuntimeError("this monitor serves no Foxglove channels (foxglove=None)")
-        return self._live.port
+        return self._live
 
     @property
     def url(self) -> str:
