@@ -30,7 +30,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
-    if rest and names not in (("allocation",), ("missiontime",)):  # take options of their own
+    if rest and names not in (("allocation",), ("missiontime",), ("recording",)):  # options
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False
     for name in names:

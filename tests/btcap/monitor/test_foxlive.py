@@ -5,6 +5,7 @@ advertised and receives on each what the MCAP recording of the same run holds.""
 from __future__ import annotations
 
 import json
+import re
 import struct
 from collections import Counter
 from pathlib import Path
@@ -63,19 +64,21 @@ async def test_a_client_receives_every_channel_during_a_run(tmp_path: Path) -> N
             anyio.create_task_group() as tg,
         ):
             tg.start_soon(_watch, ws, topics, got)
-            while len(topics) < ADVERTISED or monitor.live.subscriptions < len(topics):
-                await anyio.sleep(0.01)  # the server has every subscription: none is missed
+            # the server has every subscription before the run: no message is missed
+            while len(topics) < ADVERTISED or monitor.live.subscriptions < len(topics):  # noqa: ASYNC110 - counters (one on the SDK's thread), no event to wait on
+                await anyio.sleep(0.01)
             await run_fast(load_scenario(SMALL), monitor=monitor)
             monitor.flush()
             sent = monitor.live.sent
-            while sum(got.values()) < sent:
+            while sum(got.values()) < sent:  # noqa: ASYNC110 - a counter, no event to wait on
                 await anyio.sleep(0.01)
             tg.cancel_scope.cancel()
     from mcap.reader import make_reader
 
     with record.open("rb") as f:
         summary = make_reader(f).get_summary()
-    assert summary is not None and summary.statistics is not None
+    assert summary is not None
+    assert summary.statistics is not None
     recorded = {
         ch.topic: summary.statistics.channel_message_counts[ch.id]
         for ch in summary.channels.values()
@@ -92,3 +95,21 @@ def test_run_serves_foxglove_on_loopback(
     args = ["run", str(SMALL), "--fast", "--quiet", "--no-record", "--out", str(tmp_path)]
     assert main([*args, "--foxglove", "0"]) == 0
     assert "foxglove: ws://127.0.0.1:" in capsys.readouterr().out
+
+
+def test_the_example_layout_is_current_and_shows_our_channels() -> None:
+    """examples/foxglove/btcap.json is what make_layout.py makes, and every topic its
+    panels read is one btcap sends."""
+    import importlib.util
+
+    root = Path(__file__).parents[3] / "examples" / "foxglove"
+    spec = importlib.util.spec_from_file_location("make_layout", root / "make_layout.py")
+    assert spec is not None
+    assert spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    text = (root / "btcap.json").read_text()
+    assert text == module.render()
+    ours = {"/log", *SCENE_TOPICS, *(topic for topic, _ in EVENT_TOPICS.values())}
+    read = set(re.findall(r'"(/[a-z/]+)', text))
+    assert {"/map", "/scene/robots", "/log", "/btcap/auctions", "/btcap/world"} <= read <= ours

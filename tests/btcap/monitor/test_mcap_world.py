@@ -58,9 +58,11 @@ def _fits(value: Any, schema: dict[str, Any], where: str) -> None:
         for i, v in enumerate(value):
             _fits(v, schema["items"], f"{where}[{i}]")
     elif kind == "number":
-        assert isinstance(value, int | float) and not isinstance(value, bool), where
+        assert isinstance(value, int | float), where
+        assert not isinstance(value, bool), where
     elif kind == "integer":
-        assert isinstance(value, int) and not isinstance(value, bool), where
+        assert isinstance(value, int), where
+        assert not isinstance(value, bool), where
     elif kind in ("string", "boolean"):
         assert isinstance(value, str if kind == "string" else bool), where
 
@@ -74,7 +76,8 @@ def test_the_world_is_drawn_in_foxglove_schemas(
         reader = make_reader(f)
         summary = reader.get_summary()
         msgs = [(ch.topic, json.loads(m.data)) for _, ch, m in reader.iter_messages()]
-    assert summary is not None and summary.statistics is not None
+    assert summary is not None
+    assert summary.statistics is not None
     topics = {ch.topic: ch for ch in summary.channels.values()}
     assert set(SCENE_TOPICS) <= set(topics)
     for topic, schema in SCENE_TOPICS.items():
@@ -97,7 +100,8 @@ def test_the_world_is_drawn_in_foxglove_schemas(
         "/scene/robots": sum("robots" in ev for ev in worlds),
         "/scene/objects": sum("objects" in ev for ev in worlds),
     }
-    assert kinds["map"] == 1 and all(expected.values())
+    assert kinds["map"] == 1
+    assert all(expected.values())
     assert {t: counts[topics[t].id] for t in expected} == expected
 
     # the grid is the map, bottom row first; every pose is on a free cell of it
@@ -105,7 +109,8 @@ def test_the_world_is_drawn_in_foxglove_schemas(
     (map_ev,) = [ev for ev in events if ev["k"] == "map"]
     rows, cell = map_ev["rows"], map_ev["cell_m"]
     data = base64.b64decode(grid["data"])
-    assert grid["column_count"] == len(rows[0]) and len(data) == grid["row_stride"] * len(rows)
+    assert grid["column_count"] == len(rows[0])
+    assert len(data) == grid["row_stride"] * len(rows)
     walls = [data[i * grid["row_stride"] + j * 4] < 100 for i in range(len(rows))
              for j in range(len(rows[0]))]  # fmt: skip
     assert walls == [ch == "#" for row in reversed(rows) for ch in row]
@@ -120,7 +125,8 @@ def test_the_world_is_drawn_in_foxglove_schemas(
     # robots carry their label in their own frame; the objects end as the mission did
     last = {t: m for t, m in msgs if t in ("/scene/robots", "/scene/objects")}
     labels = {e["frame_id"]: e["texts"][0]["text"] for e in last["/scene/robots"]["entities"]}
-    assert set(labels) == robots and all(r in labels[r] for r in robots)
+    assert set(labels) == robots
+    assert all(r in labels[r] for r in robots)
     status = Counter(
         next(kv["value"] for kv in e["metadata"] if kv["key"] == "status")
         for e in last["/scene/objects"]["entities"]
@@ -141,5 +147,6 @@ def test_a_map_is_drawn_upside_up() -> None:
     assert grid["timestamp"] == {"sec": 2, "nsec": 500_000_000}
     pixels = base64.b64decode(grid["data"])
     assert [pixels[i * 4] for i in range(4)] == [235, 150, 60, 235]  # ". :" then "# ."
-    assert grid["cell_size"] == {"x": 0.5, "y": 0.5} and grid["column_count"] == 2
+    assert grid["cell_size"] == {"x": 0.5, "y": 0.5}
+    assert grid["column_count"] == 2
     assert [e["id"] for e in areas["entities"]] == ["decon", "start"]
