@@ -93,8 +93,9 @@ async def run_scenario(
     ``errors``; the mission goes on.
 
     A ``monitor`` is shown the operator (its membership view), the mission tree, every
-    robot hosted in this process and the simulated world (:mod:`btcap.sim.worldfeed`); it is detached when the mission ends, so it keeps the
-    last states rather than the shutdown, and told how the mission ended.
+    robot hosted in this process and the simulated world (:mod:`btcap.sim.worldfeed`);
+    it is detached when the mission ends, so it keeps the last states rather than the
+    shutdown, and told how the mission ended.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)

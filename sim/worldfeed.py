@@ -54,8 +54,9 @@ class WorldFeed:
         m = self.manager
         cells = m.world.positions
         poses = {name: self._xy(*cells[r.index].tolist()) for name, r in m.robots.items()}
-        robots = {name: {"up": r.up, "task": _task(r.busy, r.move_event)}
-                  for name, r in m.robots.items()}  # fmt: skip
+        robots = {
+            name: {"up": r.up, "task": _task(r.busy, r.move_event)} for name, r in m.robots.items()
+        }
         objects = [self._object(o) for o in m.state.objects]
         ev: Event = {"t": m.now(), "k": "world"}
         for part, value in (("poses", poses), ("robots", robots), ("objects", objects)):

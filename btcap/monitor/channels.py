@@ -16,7 +16,7 @@ from typing import Any
 import msgspec
 
 from btcap.monitor.foxschemas import LOG, time_of
-from btcap.monitor.scene import scene_messages
+from btcap.monitor.scene import OBJECT_COLORS, scene_messages
 from btcap.monitor.view import Event
 
 __all__ = [
@@ -66,8 +66,7 @@ _OBJECT = {
         "id": {"type": "integer"},
         "x": _NUM,
         "y": _NUM,
-        "status": {"enum": ["hidden", "found", "contaminated", "clean", "carried",
-                            "decontaminated"]},  # fmt: skip
+        "status": {"enum": list(OBJECT_COLORS)},
         "by": _STR_OR_NULL,
     },
     "required": ["id", "x", "y", "status"],
@@ -156,8 +155,7 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
             "btcap.Map",
             "The simulated map, once: rows top first (# wall, . free, : out of reach), a "
             "cell's side in metres, the start and decontamination area as [x, y] metres.",
-            {"rows": {"type": "array", "items": _STR}, "cell_m": _NUM,
-             "start": _XY, "decon": _XY},  # fmt: skip
+            {"rows": {"type": "array", "items": _STR}, "cell_m": _NUM, "start": _XY, "decon": _XY},
             ["rows", "cell_m", "start", "decon"],
         ),
     ),

@@ -21,7 +21,7 @@ from typing import Any
 
 import foxglove
 import msgspec
-from foxglove.websocket import ChannelView, Client
+from foxglove.websocket import ChannelView, Client, ServerListener
 
 from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, messages
 from btcap.monitor.scene import SCENE_TOPICS
@@ -37,7 +37,7 @@ LATCHED = frozenset({*SCENE_TOPICS, "/btcap/map", "/btcap/world", "/btcap/robots
 _encode = msgspec.json.Encoder()
 
 
-class _Listener(foxglove.ServerListener):
+class _Listener(ServerListener):
     """The SDK's callbacks (on its thread): subscriptions are counted and handed to the
     event loop, which sends the latched message."""
 

@@ -63,7 +63,9 @@ _QUATERNION = _obj(
 _POSE = _obj(
     "foxglove.Pose", "A position and orientation", position=_VECTOR3, orientation=_QUATERNION
 )
-_COLOR = _obj("foxglove.Color", "A color in RGBA format, each 0 to 1", r=_NUM, g=_NUM, b=_NUM, a=_NUM)
+_COLOR = _obj(
+    "foxglove.Color", "A color in RGBA format, each 0 to 1", r=_NUM, g=_NUM, b=_NUM, a=_NUM
+)
 _KEY_VALUE = _obj("foxglove.KeyValuePair", "A key with its value", key=_STR, value=_STR)
 
 #: ``foxglove.Log``: levels 0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal.

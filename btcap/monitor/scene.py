@@ -72,8 +72,14 @@ def _entity(stamp: dict[str, int], frame: str, eid: str, **prims: Any) -> dict[s
 
 
 def _text(text: str, z: float, size: float = 14.0) -> dict[str, Any]:
-    return {"pose": _pose(0.0, 0.0, z), "billboard": True, "font_size": size,
-            "scale_invariant": True, "color": _WHITE, "text": text}  # fmt: skip
+    return {
+        "pose": _pose(0.0, 0.0, z),
+        "billboard": True,
+        "font_size": size,
+        "scale_invariant": True,
+        "color": _WHITE,
+        "text": text,
+    }
 
 
 def scene_messages(ev: Event, ns: int) -> list[Message]:
@@ -108,8 +114,11 @@ def _map(ev: Event, stamp: dict[str, int]) -> list[Message]:
         ("decon", ev["decon"], (0.1, 0.8, 0.8, 0.5), "decontamination area"),
         ("start", ev["start"], (0.8, 0.8, 0.1, 0.4), "start"),
     ):
-        cube = {"pose": _pose(x, y, 0.05), "size": {"x": cell, "y": cell, "z": 0.1},
-                "color": _color(color)}  # fmt: skip
+        cube = {
+            "pose": _pose(x, y, 0.05),
+            "size": {"x": cell, "y": cell, "z": 0.1},
+            "color": _color(color),
+        }
         text = {**_text(label, 0.6, 12.0), "pose": _pose(x, y, 0.6)}
         areas.append(_entity(stamp, MAP_FRAME, eid, cubes=[cube], texts=[text]))
     scene = {"deletions": [], "entities": areas}
@@ -121,8 +130,13 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
     poses: dict[str, list[float]] | None = ev.get("poses")
     if poses is not None:
         transforms = [
-            {"timestamp": stamp, "parent_frame_id": MAP_FRAME, "child_frame_id": robot,
-             "translation": {"x": x, "y": y, "z": 0.0}, "rotation": _IDENTITY}  # fmt: skip
+            {
+                "timestamp": stamp,
+                "parent_frame_id": MAP_FRAME,
+                "child_frame_id": robot,
+                "translation": {"x": x, "y": y, "z": 0.0},
+                "rotation": _IDENTITY,
+            }
             for robot, (x, y) in poses.items()
         ]
         out.append(("/tf", FRAME_TRANSFORMS, {"transforms": transforms}))
@@ -132,12 +146,21 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
         for robot, r in robots.items():
             up = bool(r["up"])
             state = "up" if up else "down"
-            sphere = {"pose": _pose(0.0, 0.0, 0.4), "size": {"x": 0.8, "y": 0.8, "z": 0.8},
-                      "color": _color(_UP if up else _DOWN)}  # fmt: skip
+            sphere = {
+                "pose": _pose(0.0, 0.0, 0.4),
+                "size": {"x": 0.8, "y": 0.8, "z": 0.8},
+                "color": _color(_UP if up else _DOWN),
+            }
             meta = [{"key": "state", "value": state}, {"key": "task", "value": r["task"]}]
             entities.append(
-                _entity(stamp, robot, f"robot/{robot}", metadata=meta, spheres=[sphere],
-                        texts=[_text(f"{robot} ({state})\n{r['task']}", 1.3)])  # fmt: skip
+                _entity(
+                    stamp,
+                    robot,
+                    f"robot/{robot}",
+                    metadata=meta,
+                    spheres=[sphere],
+                    texts=[_text(f"{robot} ({state})\n{r['task']}", 1.3)],
+                )
             )
         out.append(("/scene/robots", SCENE_UPDATE, {"deletions": [], "entities": entities}))
     objects: list[dict[str, Any]] | None = ev.get("objects")
@@ -146,11 +169,16 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
         for o in objects:
             status, by = o["status"], o.get("by")
             frame, x, y, z = (by, 0.0, 0.0, 1.0) if by else (MAP_FRAME, o["x"], o["y"], 0.2)
-            cube = {"pose": _pose(x, y, z), "size": {"x": 0.4, "y": 0.4, "z": 0.4},
-                    "color": _color(OBJECT_COLORS.get(status, OBJECT_COLORS["found"]))}  # fmt: skip
+            cube = {
+                "pose": _pose(x, y, z),
+                "size": {"x": 0.4, "y": 0.4, "z": 0.4},
+                "color": _color(OBJECT_COLORS.get(status, OBJECT_COLORS["found"])),
+            }
             meta = [{"key": "status", "value": status}]
             entities.append(_entity(stamp, frame, f"object/{o['id']}", metadata=meta, cubes=[cube]))
         # entities of objects gone from the list are dropped: all deleted, then these
         deletion = {"timestamp": stamp, "type": 1, "id": ""}
-        out.append(("/scene/objects", SCENE_UPDATE, {"deletions": [deletion], "entities": entities}))
+        out.append(
+            ("/scene/objects", SCENE_UPDATE, {"deletions": [deletion], "entities": entities})
+        )
     return out
