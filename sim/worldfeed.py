@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from btcap.monitor.view import Event
 from btcap.sim.manager import SimulationManager
@@ -29,7 +30,7 @@ class WorldFeed:
         grid = manager.state.grid
         self._cell = grid.cell_size_m
         self._height = grid.height
-        self._last: dict[str, Any] = {}
+        self._keys: dict[str, Any] = {}
 
     def _xy(self, row: int, col: int) -> list[float]:
         """A cell's centre in the ``map`` frame (x along columns, y up from the last row)."""
@@ -50,19 +51,39 @@ class WorldFeed:
         }
 
     def sample(self) -> Event | None:
-        """The parts of the world that changed since the last sample (``world``), or None."""
+        """The parts of the world that changed since the last sample (``world``), or None.
+        Each part is compared by a cheap key first (the step's cells as bytes, the robots'
+        operations, the objects' fields) and only built when that changed."""
         m = self.manager
-        cells = m.world.positions
-        poses = {name: self._xy(*cells[r.index].tolist()) for name, r in m.robots.items()}
-        robots = {
-            name: {"up": r.up, "task": _task(r.busy, r.move_event)} for name, r in m.robots.items()
+        robots = m.robots.values()
+        cells = m.cells
+        keys = {
+            "poses": cells.tobytes(),
+            "robots": tuple(
+                (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in robots
+            ),
+            "objects": tuple(
+                (o.found, o.identified, o.decontaminated, o.carried_by, o.cell)
+                for o in m.state.objects
+            ),
         }
-        objects = [self._object(o) for o in m.state.objects]
         ev: Event = {"t": m.now(), "k": "world"}
-        for part, value in (("poses", poses), ("robots", robots), ("objects", objects)):
-            if self._last.get(part) != value:
-                self._last[part] = ev[part] = value
+        for part, key in keys.items():
+            if self._keys.get(part) != key:
+                self._keys[part] = key
+                ev[part] = self._part(part, cells)
         return ev if len(ev) > 2 else None
+
+    def _part(self, part: str, cells: NDArray[np.intp]) -> Any:
+        m = self.manager
+        if part == "poses":
+            return {name: self._xy(*cells[r.index].tolist()) for name, r in m.robots.items()}
+        if part == "robots":
+            return {
+                name: {"up": r.up, "task": _task(r.busy, r.move_event)}
+                for name, r in m.robots.items()
+            }
+        return [self._object(o) for o in m.state.objects]
 
     def _object(self, o: SimObject) -> dict[str, Any]:
         if o.decontaminated:
