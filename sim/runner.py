@@ -92,10 +92,9 @@ async def run_scenario(
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
-    A ``monitor`` is shown the operator (its membership view), the mission tree, every
-    robot hosted in this process and the simulated world (:mod:`btcap.sim.worldfeed`);
-    it is detached when the mission ends, so it keeps the last states rather than the
-    shutdown, and told how the mission ended.
+    A ``monitor`` is shown the operator (its membership view), the mission tree and every
+    robot hosted in this process; it is detached when the mission ends, so it keeps the
+    last states rather than the shutdown, and told how the mission ended.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -125,7 +124,9 @@ async def run_scenario(
         simsys.spawn(manager, SimulationManager.PATH)
         if monitor is not None:
             monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
-            feed = WorldFeed(manager)  # the map, then robots and objects step by step
+            # The simulated world too (btcap.sim.worldfeed): the map, then robots and objects
+            # step by step, for Foxglove's 3D panel.
+            feed = WorldFeed(manager)
             monitor.emit(feed.map_event(clock.now()))
             monitor.add_source(feed.sample)
             if isinstance(robots, InProcessHost):
