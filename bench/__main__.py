@@ -32,7 +32,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
-    own = (("allocation",), ("missiontime",), ("missionbound",))  # take options of their own
+    own = (("allocation",), ("missiontime",), ("missionbound",), ("recording",))  # options
     if rest and names not in own:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False

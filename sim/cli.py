@@ -385,7 +385,9 @@ def run_command(args: argparse.Namespace) -> int:
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
             meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
-            result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
+            result = asyncio.run(
+                monitored(args.monitor, keep, s.name, write, meta, foxglove=args.foxglove)
+            )
             wall = time.perf_counter() - started
             bound = scenario_bound(s).seconds
             console.print(

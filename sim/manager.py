@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from btcap.actors import Actor, TimeSource, handler
 from btcap.sim.distance import Cell
@@ -109,6 +110,12 @@ class SimulationManager(Actor):
         self.robots[name] = r = _Robot(name, i, model)
         self._by_index.append(r)
         self._cells = self.world.positions
+
+    @property
+    def cells(self) -> NDArray[np.intp]:
+        """``(n, 2)`` cells of all robots as of the last step, by world index (the array
+        the step computed: read it, do not change it)."""
+        return self._cells
 
     def position(self, name: str) -> Cell:
         return self.world.position(self.robots[name].index)

@@ -32,6 +32,7 @@ from btcap.sim.mission import mission_tree
 from btcap.sim.pool import pool_lanes, pool_mission_tree
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
+from btcap.sim.worldfeed import WorldFeed
 from btcap.team.capabilities.capability import Capability
 from btcap.team.membership.membership import TeamEvent
 from btcap.team.runtime.agent import Agent
@@ -135,6 +136,11 @@ async def run_scenario(
         simsys.spawn(manager, SimulationManager.PATH)
         if monitor is not None:
             monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
+            # The simulated world too (btcap.sim.worldfeed): the map, then robots and objects
+            # step by step, for Foxglove's 3D panel.
+            feed = WorldFeed(manager)
+            monitor.emit(feed.map_event(clock.now()))
+            monitor.add_source(feed.sample)
             if isinstance(robots, InProcessHost):
                 robots.on_agent = monitor.add_agent
         simsys.spawn(ObjectStore(state), ObjectStore.PATH)

@@ -49,6 +49,14 @@ def add_monitor_option(p: argparse.ArgumentParser) -> None:
         metavar="[HOST:]PORT",
         help="serve the live monitor page (loopback unless HOST is given; 0: a free port)",
     )
+    p.add_argument(
+        "--foxglove",
+        type=parse_address,
+        metavar="[HOST:]PORT",
+        help="serve the monitor's channels to Foxglove or Lichtblick over the Foxglove "
+        "WebSocket protocol (loopback unless HOST is given; 0: a free port; needs "
+        "btcap[foxglove])",
+    )
 
 
 @contextlib.asynccontextmanager
@@ -57,24 +65,34 @@ async def serving(
     title: str,
     record: Path | None = None,
     metadata: Mapping[str, str] | None = None,
+    *,
+    foxglove: tuple[str, int] | None = None,
 ) -> AsyncIterator[Monitor | None]:
     """A started monitor serving ``address`` and/or recording to ``record`` (MCAP if it
-    ends ``.mcap``, with ``metadata``) for the block (neither: None, no monitor at all);
-    prints where the page is."""
-    if address is None and record is None:
+    ends ``.mcap``, with ``metadata``) and/or serving Foxglove on ``foxglove`` for the
+    block (none of them: None, no monitor at all); prints where each is served."""
+    if address is None and record is None and foxglove is None:
         yield None
         return
     from btcap.monitor.monitor import Monitor
 
     host, port = address if address is not None else ("127.0.0.1", None)
     try:
-        monitor = Monitor(host=host, port=port, record=record, title=title, metadata=metadata)
+        monitor = Monitor(
+            host=host, port=port, record=record, title=title, metadata=metadata, foxglove=foxglove
+        )
         await monitor.start()
-    except OSError as exc:
+    except ImportError as exc:
+        raise CliError(f"--foxglove needs the Foxglove SDK: pip install 'btcap[foxglove]' "
+                       f"({exc})") from None  # fmt: skip
+    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
         raise CliError(str(exc)) from None
     try:
         if address is not None:
             print(f"monitor: {monitor.url}", flush=True)
+        if foxglove is not None:
+            fhost = f"[{foxglove[0]}]" if ":" in foxglove[0] else foxglove[0]
+            print(f"foxglove: ws://{fhost}:{monitor.live.port}", flush=True)
         yield monitor
     finally:
         await monitor.stop()
@@ -86,9 +104,11 @@ async def monitored(
     title: str,
     run: Callable[[Monitor | None], Awaitable[T]],
     metadata: Mapping[str, str] | None = None,
+    *,
+    foxglove: tuple[str, int] | None = None,
 ) -> T:
     """``run(monitor)`` inside :func:`serving`."""
-    async with serving(address, title, record, metadata) as monitor:
+    async with serving(address, title, record, metadata, foxglove=foxglove) as monitor:
         return await run(monitor)
 
 

@@ -182,7 +182,7 @@ def _until_stopped(
     return result[0]
 
 
-async def _monitor_imports(wanted: bool, *, serve: bool) -> None:
+async def _monitor_imports(wanted: bool, *, serve: bool, foxglove: bool = False) -> None:
     """Import the monitor (and its web server if it will ``serve``) in a worker thread
     before the robot joins: it opens once the agent has (it needs the agent), and its
     imports (aiohttp: a third of a second) would hold a member's event loop."""
@@ -192,7 +192,8 @@ async def _monitor_imports(wanted: bool, *, serve: bool) -> None:
 
     import anyio
 
-    for name in ["btcap.monitor.monitor", *(["btcap.monitor.server"] if serve else [])]:
+    names = ["btcap.monitor.monitor", *(["btcap.monitor.server"] if serve else [])]
+    for name in names + (["btcap.monitor.foxlive"] if foxglove else []):
         await anyio.to_thread.run_sync(importlib.import_module, name)
 
 
@@ -218,10 +219,12 @@ def _agent(args: argparse.Namespace) -> int:
         )
 
     async def serve() -> None:
-        await _monitor_imports(args.monitor is not None, serve=args.monitor is not None)
+        fox = args.foxglove is not None
+        await _monitor_imports(args.monitor is not None or fox, serve=args.monitor is not None,
+                               foxglove=fox)  # fmt: skip
         async with (
             open_agent(config, registry, insecure=args.insecure) as agent,
-            serving(args.monitor, agent.robot) as monitor,
+            serving(args.monitor, agent.robot, foxglove=args.foxglove) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)
@@ -309,8 +312,9 @@ def _mission(args: argparse.Namespace) -> int:
     joining = Joining(config.seeds)
 
     async def run() -> MissionReport:
-        wanted = args.monitor is not None or args.record is not None
-        await _monitor_imports(wanted, serve=args.monitor is not None)
+        fox = args.foxglove is not None
+        wanted = args.monitor is not None or args.record is not None or fox
+        await _monitor_imports(wanted, serve=args.monitor is not None, foxglove=fox)
         async with (
             open_agent(config, registry, robot=robot) as agent,
             serving(
@@ -318,6 +322,7 @@ def _mission(args: argparse.Namespace) -> int:
                 f"mission {args.tree.name}",
                 args.record,
                 {"tree": str(args.tree), "robot": robot},
+                foxglove=args.foxglove,
             ) as monitor,
         ):
             if monitor is not None:

@@ -3,18 +3,31 @@ Foxglove's ``foxglove.Log`` for the lines a person reads (who joined, who won wh
 
 Every channel is JSON-encoded with a JSON Schema (MCAP's ``json`` message encoding,
 ``jsonschema`` schema encoding), so Foxglove and Lichtblick show the fields by name.
-No installed package ships Foxglove's JSON Schemas (the Foxglove SDK builds protobuf
-ones inside its binary), so ``foxglove.Log``'s is written here from Foxglove's published
-definition of the message: a timestamp, a level, a message, a name, a file and a line.
+A simulation's ``map`` and ``world`` events are drawn as well, as Foxglove's 3D panel
+reads them (:mod:`btcap.monitor.scene`); the Foxglove schemas are in
+:mod:`btcap.monitor.foxschemas`. :func:`messages` is what a recording and the live
+Foxglove server both send for one event.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import msgspec
+
+from btcap.monitor.foxschemas import LOG, time_of
+from btcap.monitor.scene import OBJECT_COLORS, scene_messages
 from btcap.monitor.view import Event
 
-__all__ = ["EVENT_TOPICS", "LOG_SCHEMA", "LOG_TOPIC", "OTHER_TOPIC", "event_schema", "log_line"]
+__all__ = [
+    "EVENT_TOPICS",
+    "LOG_SCHEMA",
+    "LOG_TOPIC",
+    "OTHER_TOPIC",
+    "event_schema",
+    "log_line",
+    "messages",
+]
 
 _STR = {"type": "string"}
 _NUM = {"type": "number"}
@@ -44,6 +57,19 @@ _NODE = {
         "state": _STR,
     },
     "required": ["id", "name", "type", "parent", "cap", "state"],
+}
+
+_XY = {"type": "array", "prefixItems": [_NUM, _NUM], "minItems": 2, "maxItems": 2}
+_OBJECT = {
+    "type": "object",
+    "properties": {
+        "id": {"type": "integer"},
+        "x": _NUM,
+        "y": _NUM,
+        "status": {"enum": list(OBJECT_COLORS)},
+        "by": _STR_OR_NULL,
+    },
+    "required": ["id", "x", "y", "status"],
 }
 
 #: Event kind -> (topic, JSON Schema of its messages: the monitor's event as it is).
@@ -123,6 +149,37 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
             ["phase", "id", "execution"],
         ),
     ),
+    "map": (
+        "/btcap/map",
+        _obj(
+            "btcap.Map",
+            "The simulated map, once: rows top first (# wall, . free, : out of reach), a "
+            "cell's side in metres, the start and decontamination area as [x, y] metres.",
+            {"rows": {"type": "array", "items": _STR}, "cell_m": _NUM, "start": _XY, "decon": _XY},
+            ["rows", "cell_m", "start", "decon"],
+        ),
+    ),
+    "world": (
+        "/btcap/world",
+        _obj(
+            "btcap.World",
+            "What changed in the simulated world, each part whole: robots' poses "
+            "([x, y] metres), robots' state and task, objects and their status.",
+            {
+                "poses": {"type": "object", "additionalProperties": _XY},
+                "robots": {
+                    "type": "object",
+                    "additionalProperties": {
+                        "type": "object",
+                        "properties": {"up": {"type": "boolean"}, "task": _STR},
+                        "required": ["up", "task"],
+                    },
+                },
+                "objects": {"type": "array", "items": _OBJECT},
+            },
+            [],
+        ),
+    ),
     "finished": (
         "/btcap/finished",
         _obj(
@@ -142,29 +199,10 @@ OTHER_TOPIC = (
 
 LOG_TOPIC = "/log"
 #: ``foxglove.Log``: levels 0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
-LOG_SCHEMA: dict[str, Any] = {
-    "$schema": "https://json-schema.org/draft/2020-12/schema",
-    "title": "foxglove.Log",
-    "description": "A log message",
-    "type": "object",
-    "properties": {
-        "timestamp": {
-            "type": "object",
-            "title": "time",
-            "properties": {
-                "sec": {"type": "integer", "minimum": 0},
-                "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
-            },
-        },
-        "level": {"title": "foxglove.LogLevel", "enum": [0, 1, 2, 3, 4, 5]},
-        "message": {"type": "string"},
-        "name": {"type": "string"},
-        "file": {"type": "string"},
-        "line": {"type": "integer", "minimum": 0},
-    },
-}
+LOG_SCHEMA: dict[str, Any] = LOG
 
 _INFO, _WARNING = 2, 3
+_encode = msgspec.json.Encoder()
 
 
 def event_schema(kind: str) -> tuple[str, dict[str, Any]]:
@@ -198,3 +236,20 @@ def log_line(ev: Event) -> tuple[int, str, str] | None:
         level = _INFO if ev["result"] == "succeeded" else _WARNING
         return level, "btcap", f"{ev['result']}: {ev['summary']}"
     return None
+
+
+def messages(ev: Event) -> tuple[int, list[tuple[str, dict[str, Any], bytes]]]:
+    """What one event is sent as, at its clock time in nanoseconds: its typed channel,
+    its ``foxglove.Log`` line if it has one, and its drawing if it is of the world
+    (``(topic, schema, JSON)`` each)."""
+    ns = round(float(ev["t"]) * 1e9)
+    topic, schema = event_schema(ev["k"])
+    out = [(topic, schema, _encode.encode(ev))]
+    line = log_line(ev)
+    if line is not None:
+        level, name, text = line
+        msg = {"timestamp": time_of(ns), "level": level, "message": text, "name": name,
+               "file": "", "line": 0}  # fmt: skip
+        out.append((LOG_TOPIC, LOG_SCHEMA, _encode.encode(msg)))
+    out += [(t, s, _encode.encode(m)) for t, s, m in scene_messages(ev, ns)]
+    return ns, out

@@ -1,5 +1,6 @@
 """MCAP recordings: the monitor's events on typed JSON channels, with ``foxglove.Log``
-lines and the run's metadata, for Foxglove, Lichtblick and ``btcap replay``.
+lines, a simulation's world drawn for Foxglove's 3D panel and the run's metadata, for
+Foxglove, Lichtblick and ``btcap replay`` (:func:`btcap.monitor.channels.messages`).
 
 The log time of a message is its event's clock time (virtual in ``--fast`` runs), and
 its sequence number is its place in the event stream, so a replay reads the events back
@@ -25,7 +26,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 import btcap
-from btcap.monitor.channels import LOG_SCHEMA, LOG_TOPIC, event_schema, log_line
+from btcap.monitor.channels import LOG_TOPIC, messages
 from btcap.monitor.view import Event
 from btcap.transports.log import get_logger
 
@@ -98,19 +99,11 @@ class McapRecorder:
         elif t >= self._chunk_t + self._chunk_s:  # by the event's clock: the same every run
             self._writer.flush()  # type: ignore[no-untyped-call]
             self._chunk_t = t
-        ns = round(t * 1e9)
+        ns, out = messages(ev)
         self._sequence += 1
-        topic, schema = event_schema(ev["k"])
-        cid = self._channel(topic, schema)
-        self._writer.add_message(cid, ns, _encode.encode(ev), ns, self._sequence)
-        line = log_line(ev)
-        if line is not None:
-            level, name, text = line
-            sec, nsec = divmod(max(ns, 0), 1_000_000_000)
-            msg = {"timestamp": {"sec": sec, "nsec": nsec}, "level": level,
-                   "message": text, "name": name, "file": "", "line": 0}  # fmt: skip
-            cid = self._channel(LOG_TOPIC, LOG_SCHEMA)
-            self._writer.add_message(cid, ns, _encode.encode(msg), ns, self._sequence)
+        for topic, schema, data in out:
+            cid = self._channel(topic, schema)
+            self._writer.add_message(cid, ns, data, ns, self._sequence)
 
     def close(self) -> None:
         if self._closed:

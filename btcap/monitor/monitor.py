@@ -39,6 +39,7 @@ from btcap.team.runtime.agent import Agent
 from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:
+    from btcap.monitor.foxlive import FoxgloveLive
     from btcap.monitor.server import MonitorServer
 
 __all__ = ["FOLLOW_EVERY_S", "RESULTS", "Monitor"]
@@ -62,6 +63,8 @@ class Monitor:
     ``host`` is loopback unless you say otherwise: the page shows your whole team.
     ``record`` ending ``.mcap`` records MCAP for Foxglove, anything else JSON Lines;
     ``metadata`` (scenario, seed, settings ...) is written at the recording's start.
+    ``foxglove`` ``(host, port)`` serves the recording's channels live over the Foxglove
+    WebSocket protocol (:mod:`btcap.monitor.foxlive`; the ``foxglove-sdk`` package).
     """
 
     def __init__(
@@ -74,6 +77,7 @@ class Monitor:
         title: str = "btcap team",
         viewpoint: str | None = None,
         metadata: Mapping[str, str] | None = None,
+        foxglove: tuple[str, int] | None = None,
     ) -> None:
         if not 0 < batch_hz <= 20:
             raise ValueError(f"batch_hz {batch_hz}: expected a rate in (0, 20] per second")
@@ -84,6 +88,9 @@ class Monitor:
         self._hub = Hub()
         self._address = (host, port)
         self._server: MonitorServer | None = None
+        self._foxglove = foxglove
+        self._live: FoxgloveLive | None = None
+        self._sources: list[Callable[[], Event | None]] = []
         self._recorder = open_recorder(Path(record), metadata) if record is not None else None
         self._pending: list[Event] = []
         self._taps: list[TreeTap] = []
@@ -98,6 +105,8 @@ class Monitor:
         self._finished = False
         if port is not None and not is_loopback(host):
             log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
+        if foxglove is not None and not is_loopback(foxglove[0]):
+            log.warning("monitor.public", host=foxglove[0], note="Foxglove: anyone sees the team")
 
     # -- life cycle -------------------------------------------------------------------
     async def start(self) -> None:
@@ -112,6 +121,17 @@ class Monitor:
                 self._server = None
                 if self._recorder is not None:
                     self._recorder.close()  # nobody calls stop() after a failed start
+                raise
+        if self._foxglove is not None:
+            from btcap.monitor.foxlive import FoxgloveLive  # the SDK only when serving it
+
+            try:
+                self._live = FoxgloveLive(*self._foxglove)
+            except BaseException:
+                if self._server is not None:
+                    await self._server.stop()
+                if self._recorder is not None:
+                    self._recorder.close()
                 raise
         self._pace(None)
 
@@ -176,6 +196,8 @@ class Monitor:
             await self._server.stop()
         if self._recorder is not None:
             self._recorder.close()
+        if self._live is not None:
+            self._live.close()
 
     async def __aenter__(self) -> Monitor:
         await self.start()
@@ -185,6 +207,13 @@ class Monitor:
         self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
     ) -> None:
         await self.stop()
+
+    @property
+    def live(self) -> FoxgloveLive:
+        """The Foxglove server (after :meth:`start`): its ``port``, its subscriptions."""
+        if self._live is None:
+            raise RuntimeError("this monitor serves no Foxglove channels (foxglove=None)")
+        return self._live
 
     @property
     def url(self) -> str:
@@ -240,6 +269,25 @@ class Monitor:
 
         self._detach.append(detach)
         return detach
+
+    def add_source(self, sample: Callable[[], Event | None]) -> Callable[[], None]:
+        """Call ``sample`` at every batch and hand on the event it returns, if any (a
+        simulation's world: :mod:`btcap.sim.worldfeed`). Returns a detach (which samples
+        once more, so the last change is kept)."""
+        self._sources.append(sample)
+
+        def detach() -> None:
+            if sample in self._sources:
+                self._sample(sample)
+                self._sources.remove(sample)
+
+        self._detach.append(detach)
+        return detach
+
+    def _sample(self, sample: Callable[[], Event | None]) -> None:
+        ev = sample()
+        if ev is not None:
+            self._pending.append(ev)
 
     # -- events -----------------------------------------------------------------------
     def emit(self, ev: Event) -> None:
@@ -346,6 +394,8 @@ class Monitor:
         """Hand every change since the last flush on, as one batch; returns it."""
         for tap in self._taps:
             self._flush_tap(tap)
+        for sample in self._sources:
+            self._sample(sample)
         batch, self._pending = self._pending, []
         if not batch:
             return batch
@@ -353,6 +403,8 @@ class Monitor:
             self.view.apply(ev)
         if self._recorder is not None:
             self._recorder.write(batch)
+        if self._live is not None:
+            self._live.write(batch)
         self._hub.publish(batch)
         return batch
 

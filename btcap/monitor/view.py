@@ -29,6 +29,8 @@ Events are JSON objects with a clock time ``t`` and a kind ``k``:
 - ``finished``: the run is over: ``result`` (``succeeded``, ``failed`` or ``stopped``)
   and ``summary``, one line for a person ("mission succeeded after 1337 s"). The picture
   keeps the last one (a page shows the final state, not a lost connection).
+- ``map`` and ``world``: a simulation's map and what changed in it (robots' poses and
+  tasks, objects), for Foxglove (:mod:`btcap.monitor.scene`); the picture ignores them.
 """
 
 from __future__ import annotations

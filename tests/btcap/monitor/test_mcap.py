@@ -19,6 +19,7 @@ from btcap.monitor.channels import EVENT_TOPICS, LOG_TOPIC
 from btcap.monitor.mcaprecord import McapRecorder
 from btcap.monitor.record import RecordError, read_metadata, read_record
 from btcap.monitor.replay import Replay
+from btcap.monitor.scene import SCENE_TOPICS
 
 SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
 
@@ -54,18 +55,20 @@ def test_channels_have_their_schemas_and_the_jsonl_events(runs: dict[str, Path])
     summary, msgs = _messages(runs["one.mcap"])
     jsonl = read_record(runs["run.jsonl"])
     kinds = Counter(ev["k"] for ev in jsonl)
-    assert {"tree", "states", "auction", "run", "team", "finished"} <= set(kinds)
+    assert {"tree", "states", "auction", "run", "team", "finished", "map", "world"} <= set(kinds)
     for ch in summary.channels.values():
         schema = summary.schemas[ch.schema_id]
         assert (ch.message_encoding, schema.encoding) == ("json", "jsonschema")
         if ch.topic == LOG_TOPIC:
             assert schema.name == "foxglove.Log"
+        elif ch.topic in SCENE_TOPICS:  # the world drawn (test_mcap_world.py)
+            assert schema.name == SCENE_TOPICS[ch.topic]["title"]
         else:
             kind = next(k for k, (topic, _) in EVENT_TOPICS.items() if topic == ch.topic)
             assert schema.name == EVENT_TOPICS[kind][1]["title"]
             assert json.loads(schema.data)["title"] == schema.name
             assert summary.statistics.channel_message_counts[ch.id] == kinds[kind]
-    events = [m for topic, m in msgs if topic != LOG_TOPIC]
+    events = [m for topic, m in msgs if topic.startswith("/btcap/")]
     assert sorted(map(json.dumps, events)) == sorted(map(json.dumps, jsonl))
     assert read_record(runs["one.mcap"]) == jsonl  # in the stream's order, not by time
     # a chunk at least every 60 s of clock: a crash loses at most a minute of a live run

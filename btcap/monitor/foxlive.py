@@ -1,0 +1,118 @@
+"""The monitor's channels live over the Foxglove WebSocket protocol (``--foxglove``).
+
+The Foxglove SDK (``pip install 'btcap[foxglove]'``, package ``foxglove-sdk``) serves
+them: its server runs on a thread of its own (Rust), and a message handed to it is queued
+there, so the event loop only encodes each batch's messages once, as the MCAP recorder
+does (:func:`btcap.monitor.channels.messages`: the same topics, schemas and bytes, the
+clock time as log time). Foxglove or Lichtblick connect to ``ws://HOST:PORT``.
+
+Every channel btcap knows is advertised at the start, so a client can subscribe before
+the run sends anything. A client that subscribes later is sent, on subscribing, the last
+message of each channel that is a picture rather than news (the map, the scene, the
+trees): Foxglove's 3D panel shows the world at once, not from the next change.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Iterable
+from typing import Any
+
+import foxglove
+import msgspec
+from foxglove.websocket import ChannelView, Client, ServerListener
+
+from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, messages
+from btcap.monitor.scene import SCENE_TOPICS
+from btcap.monitor.view import Event
+
+__all__ = ["BACKLOG", "LATCHED", "FoxgloveLive"]
+
+#: Messages the SDK queues per client before it drops the oldest (a slow client).
+BACKLOG = 4096
+#: Topics whose last message a client is sent when it subscribes.
+LATCHED = frozenset({*SCENE_TOPICS, "/btcap/map", "/btcap/world", "/btcap/robots"})
+
+_encode = msgspec.json.Encoder()
+
+
+class _Listener(ServerListener):
+    """The SDK's callbacks (on its thread): subscriptions are counted and handed to the
+    event loop, which sends the latched message."""
+
+    def __init__(self, live: FoxgloveLive, loop: asyncio.AbstractEventLoop) -> None:
+        self._live, self._loop = live, loop
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        with self._live.lock:
+            self._live.subscriptions += 1
+        self._loop.call_soon_threadsafe(self._live.resend, channel.topic)
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        with self._live.lock:
+            self._live.subscriptions -= 1
+
+
+class FoxgloveLive:
+    """A Foxglove WebSocket server on ``host``:``port`` (0: a free one) sending every
+    batch of monitor events as :func:`~btcap.monitor.channels.messages`; call in the
+    event loop."""
+
+    def __init__(self, host: str, port: int) -> None:
+        self._context = foxglove.Context()
+        self._channels: dict[str, foxglove.Channel] = {}
+        self._last: dict[str, tuple[bytes, int]] = {}
+        self.lock = threading.Lock()
+        self.subscriptions = 0  #: channels subscribed, over all clients (for tests)
+        self.sent = 0  #: messages handed to the SDK
+        for topic, schema in [
+            *EVENT_TOPICS.values(),
+            (LOG_TOPIC, LOG_SCHEMA),
+            *SCENE_TOPICS.items(),
+        ]:
+            self._channel(topic, schema)
+        listener = _Listener(self, asyncio.get_running_loop())
+        self._server = foxglove.start_server(
+            name="btcap",
+            host=host,
+            port=port,
+            context=self._context,
+            server_listener=listener,
+            message_backlog_size=BACKLOG,
+        )
+        self.port: int = self._server.port
+        self._closed = False
+
+    def _channel(self, topic: str, schema: dict[str, Any]) -> foxglove.Channel:
+        ch = self._channels.get(topic)
+        if ch is None:
+            sdk_schema = foxglove.Schema(
+                name=schema["title"], encoding="jsonschema", data=_encode.encode(schema)
+            )
+            ch = self._channels[topic] = foxglove.Channel(
+                topic, schema=sdk_schema, message_encoding="json", context=self._context
+            )
+        return ch
+
+    def write(self, batch: Iterable[Event]) -> None:
+        if self._closed:
+            return
+        for ev in batch:
+            ns, out = messages(ev)
+            for topic, schema, data in out:
+                self._channel(topic, schema).log(data, log_time=ns)
+                self.sent += 1
+                if topic in LATCHED:
+                    self._last[topic] = (data, ns)
+
+    def resend(self, topic: str) -> None:
+        """Send ``topic``'s last message again (a client subscribed to it)."""
+        last = self._last.get(topic)
+        if last is not None and not self._closed:
+            self._channels[topic].log(last[0], log_time=last[1])
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._server.stop()

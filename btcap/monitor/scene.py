@@ -1,0 +1,184 @@
+"""The simulated world as Foxglove's 3D panel draws it: the map as a ``foxglove.Grid``,
+robots as ``foxglove.SceneUpdate`` entities in frames of their own placed by
+``foxglove.FrameTransforms``, objects and the decontamination area as entities.
+
+Made from two monitor events a simulation emits (see :mod:`btcap.sim.worldfeed`):
+
+- ``map``, once: ``rows`` (top row first; ``#`` wall, ``.`` free, ``:`` free but out of
+  reach), ``cell_m`` (a cell's side in metres), ``start`` and ``decon`` (``[x, y]``).
+- ``world``, whenever something changed: ``poses`` ``{robot: [x, y]}``, ``robots``
+  ``{robot: {"up": bool, "task": str}}`` and ``objects`` (``[{"id", "x", "y", "status",
+  "by"}]``, ``status`` one of :data:`OBJECT_COLORS`), each present only when that part
+  changed, and then whole, so the latest message of a topic is the whole picture (what
+  Foxglove shows after a seek).
+
+Positions are metres in the ``map`` frame: x along the columns, y up the rows (row 0 of
+the map at the top, as in its file), the grid's corner at the origin.
+"""
+
+from __future__ import annotations
+
+import base64
+from typing import Any
+
+from btcap.monitor.foxschemas import FRAME_TRANSFORMS, GRID, SCENE_UPDATE, time_of
+from btcap.monitor.view import Event
+
+__all__ = ["MAP_FRAME", "OBJECT_COLORS", "SCENE_TOPICS", "scene_messages"]
+
+MAP_FRAME = "map"
+#: Topic -> schema of the scene's channels.
+SCENE_TOPICS: dict[str, dict[str, Any]] = {
+    "/map": GRID,
+    "/scene/areas": SCENE_UPDATE,
+    "/tf": FRAME_TRANSFORMS,
+    "/scene/robots": SCENE_UPDATE,
+    "/scene/objects": SCENE_UPDATE,
+}
+
+_RGBA = {"#": (60, 60, 60, 255), ".": (235, 235, 235, 255), ":": (150, 150, 150, 255)}
+_FIELDS = [
+    {"name": name, "offset": i, "type": 1}  # uint8
+    for i, name in enumerate(("red", "green", "blue", "alpha"))
+]
+#: An object's colour by its status (r, g, b, a).
+OBJECT_COLORS = {
+    "hidden": (0.6, 0.6, 0.6, 0.35),  # not found yet (the simulation knows where)
+    "found": (1.0, 0.8, 0.0, 1.0),  # found, not identified
+    "contaminated": (0.9, 0.1, 0.1, 1.0),  # identified as contaminated
+    "clean": (0.2, 0.7, 0.2, 1.0),  # identified as not contaminated
+    "carried": (0.9, 0.4, 0.0, 1.0),  # on its way to the decontamination area
+    "decontaminated": (0.1, 0.4, 0.9, 1.0),
+}
+_UP, _DOWN = (0.2, 0.4, 1.0, 1.0), (0.5, 0.5, 0.5, 0.8)
+_WHITE = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
+_IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+_FOREVER = {"sec": 0, "nsec": 0}
+
+Message = tuple[str, dict[str, Any], dict[str, Any]]
+
+
+def _color(c: tuple[float, float, float, float]) -> dict[str, float]:
+    return {"r": c[0], "g": c[1], "b": c[2], "a": c[3]}
+
+
+def _pose(x: float, y: float, z: float = 0.0) -> dict[str, Any]:
+    return {"position": {"x": x, "y": y, "z": z}, "orientation": _IDENTITY}
+
+
+def _entity(stamp: dict[str, int], frame: str, eid: str, **prims: Any) -> dict[str, Any]:
+    entity = {"timestamp": stamp, "frame_id": frame, "id": eid, "lifetime": _FOREVER}
+    return {**entity, "frame_locked": frame != MAP_FRAME, **prims}
+
+
+def _text(text: str, z: float, size: float = 14.0) -> dict[str, Any]:
+    return {
+        "pose": _pose(0.0, 0.0, z),
+        "billboard": True,
+        "font_size": size,
+        "scale_invariant": True,
+        "color": _WHITE,
+        "text": text,
+    }
+
+
+def scene_messages(ev: Event, ns: int) -> list[Message]:
+    """The Foxglove messages a ``map`` or ``world`` event at ``ns`` is drawn as
+    (``(topic, schema, message)``); none for other kinds."""
+    kind = ev["k"]
+    if kind == "map":
+        return _map(ev, time_of(ns))
+    if kind == "world":
+        return _world(ev, time_of(ns))
+    return []
+
+
+def _map(ev: Event, stamp: dict[str, int]) -> list[Message]:
+    rows: list[str] = ev["rows"]
+    cell = float(ev["cell_m"])
+    width = len(rows[0]) if rows else 0
+    data = b"".join(bytes(_RGBA.get(ch, _RGBA["#"])) for row in reversed(rows) for ch in row)
+    grid = {
+        "timestamp": stamp,
+        "frame_id": MAP_FRAME,
+        "pose": _pose(0.0, 0.0),
+        "column_count": width,
+        "cell_size": {"x": cell, "y": cell},
+        "row_stride": 4 * width,
+        "cell_stride": 4,
+        "fields": _FIELDS,
+        "data": base64.b64encode(data).decode("ascii"),
+    }
+    areas = []
+    for eid, (x, y), color, label in (
+        ("decon", ev["decon"], (0.1, 0.8, 0.8, 0.5), "decontamination area"),
+        ("start", ev["start"], (0.8, 0.8, 0.1, 0.4), "start"),
+    ):
+        cube = {
+            "pose": _pose(x, y, 0.05),
+            "size": {"x": cell, "y": cell, "z": 0.1},
+            "color": _color(color),
+        }
+        text = {**_text(label, 0.6, 12.0), "pose": _pose(x, y, 0.6)}
+        areas.append(_entity(stamp, MAP_FRAME, eid, cubes=[cube], texts=[text]))
+    scene = {"deletions": [], "entities": areas}
+    return [("/map", GRID, grid), ("/scene/areas", SCENE_UPDATE, scene)]
+
+
+def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
+    out: list[Message] = []
+    poses: dict[str, list[float]] | None = ev.get("poses")
+    if poses is not None:
+        transforms = [
+            {
+                "timestamp": stamp,
+                "parent_frame_id": MAP_FRAME,
+                "child_frame_id": robot,
+                "translation": {"x": x, "y": y, "z": 0.0},
+                "rotation": _IDENTITY,
+            }
+            for robot, (x, y) in poses.items()
+        ]
+        out.append(("/tf", FRAME_TRANSFORMS, {"transforms": transforms}))
+    robots: dict[str, dict[str, Any]] | None = ev.get("robots")
+    if robots is not None:
+        entities = []
+        for robot, r in robots.items():
+            up = bool(r["up"])
+            state = "up" if up else "down"
+            sphere = {
+                "pose": _pose(0.0, 0.0, 0.4),
+                "size": {"x": 0.8, "y": 0.8, "z": 0.8},
+                "color": _color(_UP if up else _DOWN),
+            }
+            meta = [{"key": "state", "value": state}, {"key": "task", "value": r["task"]}]
+            entities.append(
+                _entity(
+                    stamp,
+                    robot,
+                    f"robot/{robot}",
+                    metadata=meta,
+                    spheres=[sphere],
+                    texts=[_text(f"{robot} ({state})\n{r['task']}", 1.3)],
+                )
+            )
+        out.append(("/scene/robots", SCENE_UPDATE, {"deletions": [], "entities": entities}))
+    objects: list[dict[str, Any]] | None = ev.get("objects")
+    if objects is not None:
+        entities = []
+        for o in objects:
+            status, by = o["status"], o.get("by")
+            frame, x, y, z = (by, 0.0, 0.0, 1.0) if by else (MAP_FRAME, o["x"], o["y"], 0.2)
+            cube = {
+                "pose": _pose(x, y, z),
+                "size": {"x": 0.4, "y": 0.4, "z": 0.4},
+                "color": _color(OBJECT_COLORS.get(status, OBJECT_COLORS["found"])),
+            }
+            meta = [{"key": "status", "value": status}]
+            entities.append(_entity(stamp, frame, f"object/{o['id']}", metadata=meta, cubes=[cube]))
+        # entities of objects gone from the list are dropped: all deleted, then these
+        deletion = {"timestamp": stamp, "type": 1, "id": ""}
+        out.append(
+            ("/scene/objects", SCENE_UPDATE, {"deletions": [deletion], "entities": entities})
+        )
+    return out

@@ -1,0 +1,115 @@
+"""The live Foxglove server (``--foxglove``): a WebSocket client speaking the SDK's
+subprotocol connects while a ``--fast`` run goes on, subscribes to every channel it is
+advertised and receives on each what the MCAP recording of the same run holds."""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+from collections import Counter
+from pathlib import Path
+
+import anyio
+import pytest
+
+import btcap.cli
+from btcap.cli import main
+from btcap.monitor import Monitor
+from btcap.monitor.channels import EVENT_TOPICS
+from btcap.monitor.scene import SCENE_TOPICS
+from btcap.sim.runner import run_fast
+from btcap.sim.scenario import load_scenario
+
+websockets = pytest.importorskip("websockets")
+pytest.importorskip("foxglove")
+
+SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
+#: The SDK's server (foxglove-sdk 0.30) speaks the Foxglove WebSocket protocol under this
+#: name and refuses the older ``foxglove.websocket.v1``.
+SUBPROTOCOL = "foxglove.sdk.v1"
+_MESSAGE_DATA = 1  # a binary frame's opcode
+#: Channels advertised before anything is sent: every event kind's, the log, the scene.
+ADVERTISED = len(EVENT_TOPICS) + 1 + len(SCENE_TOPICS)
+
+
+async def _watch(ws: object, topics: dict[int, str], got: Counter[str]) -> None:
+    """Subscribe to every channel advertised; count the messages of each."""
+    async for frame in ws:  # type: ignore[attr-defined]
+        if isinstance(frame, str):
+            msg = json.loads(frame)
+            if msg["op"] == "advertise":
+                subs = []
+                for ch in msg["channels"]:
+                    sub = len(topics) + 1
+                    topics[sub] = ch["topic"]
+                    subs.append({"id": sub, "channelId": ch["id"]})
+                await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))  # type: ignore[attr-defined]
+        elif frame[0] == _MESSAGE_DATA:
+            (sub,) = struct.unpack_from("<I", frame, 1)
+            got[topics[sub]] += 1
+
+
+@pytest.mark.slow
+async def test_a_client_receives_every_channel_during_a_run(tmp_path: Path) -> None:
+    record = tmp_path / "run.mcap"
+    topics: dict[int, str] = {}
+    got: Counter[str] = Counter()
+    with anyio.fail_after(60):
+        async with (
+            Monitor(port=None, record=record, foxglove=("127.0.0.1", 0)) as monitor,
+            websockets.connect(
+                f"ws://127.0.0.1:{monitor.live.port}", subprotocols=[SUBPROTOCOL]
+            ) as ws,
+            anyio.create_task_group() as tg,
+        ):
+            tg.start_soon(_watch, ws, topics, got)
+            # the server has every subscription before the run: no message is missed
+            while len(topics) < ADVERTISED or monitor.live.subscriptions < len(topics):  # noqa: ASYNC110 - counters (one on the SDK's thread), no event to wait on
+                await anyio.sleep(0.01)
+            await run_fast(load_scenario(SMALL), monitor=monitor)
+            monitor.flush()
+            sent = monitor.live.sent
+            while sum(got.values()) < sent:  # noqa: ASYNC110 - a counter, no event to wait on
+                await anyio.sleep(0.01)
+            tg.cancel_scope.cancel()
+    from mcap.reader import make_reader
+
+    with record.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    assert summary.statistics is not None
+    recorded = {
+        ch.topic: summary.statistics.channel_message_counts[ch.id]
+        for ch in summary.channels.values()
+    }
+    assert set(topics.values()) == set(recorded)  # advertised up front: every channel
+    assert dict(got) == recorded  # before the run's end: the monitor still served
+
+
+@pytest.mark.slow
+def test_run_serves_foxglove_on_loopback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+    args = ["run", str(SMALL), "--fast", "--quiet", "--no-record", "--out", str(tmp_path)]
+    assert main([*args, "--foxglove", "0"]) == 0
+    assert "foxglove: ws://127.0.0.1:" in capsys.readouterr().out
+
+
+def test_the_example_layout_is_current_and_shows_our_channels() -> None:
+    """examples/foxglove/btcap.json is what make_layout.py makes, and every topic its
+    panels read is one btcap sends."""
+    import importlib.util
+
+    root = Path(__file__).parents[3] / "examples" / "foxglove"
+    spec = importlib.util.spec_from_file_location("make_layout", root / "make_layout.py")
+    assert spec is not None
+    assert spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    text = (root / "btcap.json").read_text()
+    assert text == module.render()
+    ours = {"/log", *SCENE_TOPICS, *(topic for topic, _ in EVENT_TOPICS.values())}
+    read = set(re.findall(r'"(/[a-z/]+)', text))
+    assert {"/map", "/scene/robots", "/log", "/btcap/auctions", "/btcap/world"} <= read <= ours

@@ -1,0 +1,152 @@
+"""The simulated world in an MCAP recording, read back with the ``mcap`` library: the map
+as ``foxglove.Grid``, poses as ``foxglove.FrameTransforms``, robots, objects and areas as
+``foxglove.SceneUpdate``; each message fits its schema; counts follow the JSON Lines
+recording of the same ``--fast`` run; the end matches the mission's result."""
+
+from __future__ import annotations
+
+import base64
+import json
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import anyio
+import pytest
+from mcap.reader import make_reader
+
+from btcap.monitor import Monitor
+from btcap.monitor.record import read_record
+from btcap.monitor.scene import SCENE_TOPICS, scene_messages
+from btcap.sim.metrics import MissionResult
+from btcap.sim.runner import run_fast
+from btcap.sim.scenario import load_scenario
+
+SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
+
+
+async def _record(path: Path) -> MissionResult:
+    with anyio.fail_after(60):
+        async with Monitor(port=None, record=path, title="small") as monitor:
+            return await run_fast(load_scenario(SMALL), monitor=monitor)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, MissionResult]:
+    base = tmp_path_factory.mktemp("world")
+    result = anyio.run(_record, base / "run.mcap")
+    anyio.run(_record, base / "run.jsonl")
+    return base / "run.mcap", base / "run.jsonl", result
+
+
+def _fits(value: Any, schema: dict[str, Any], where: str) -> None:
+    """``value`` has the shape ``schema`` says: no field it does not name, every field
+    it requires, numbers, strings and booleans where it says so (enough JSON Schema for
+    the Foxglove schemas)."""
+    kind = schema.get("type")
+    if "enum" in schema:
+        assert value in schema["enum"], where
+    elif kind == "object":
+        assert isinstance(value, dict), where
+        props = schema.get("properties", {})
+        assert set(schema.get("required", [])) <= set(value), where
+        for k, v in value.items():
+            assert k in props, f"{where}.{k}: not in the schema"
+            _fits(v, props[k], f"{where}.{k}")
+    elif kind == "array":
+        assert isinstance(value, list), where
+        for i, v in enumerate(value):
+            _fits(v, schema["items"], f"{where}[{i}]")
+    elif kind == "number":
+        assert isinstance(value, int | float), where
+        assert not isinstance(value, bool), where
+    elif kind == "integer":
+        assert isinstance(value, int), where
+        assert not isinstance(value, bool), where
+    elif kind in ("string", "boolean"):
+        assert isinstance(value, str if kind == "string" else bool), where
+
+
+@pytest.mark.slow
+def test_the_world_is_drawn_in_foxglove_schemas(
+    recorded: tuple[Path, Path, MissionResult],
+) -> None:
+    mcap, jsonl, result = recorded
+    with mcap.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        msgs = [(ch.topic, json.loads(m.data)) for _, ch, m in reader.iter_messages()]
+    assert summary is not None
+    assert summary.statistics is not None
+    topics = {ch.topic: ch for ch in summary.channels.values()}
+    assert set(SCENE_TOPICS) <= set(topics)
+    for topic, schema in SCENE_TOPICS.items():
+        ch = topics[topic]
+        name = summary.schemas[ch.schema_id].name
+        assert name == schema["title"] == json.loads(summary.schemas[ch.schema_id].data)["title"]
+        assert name in ("foxglove.Grid", "foxglove.SceneUpdate", "foxglove.FrameTransforms")
+    for topic, m in msgs:
+        if topic in SCENE_TOPICS:
+            _fits(m, SCENE_TOPICS[topic], topic)
+    events = read_record(jsonl)
+    assert events == read_record(mcap)
+    kinds = Counter(ev["k"] for ev in events)
+    worlds = [ev for ev in events if ev["k"] == "world"]
+    counts = summary.statistics.channel_message_counts
+    expected = {
+        "/map": kinds["map"],
+        "/scene/areas": kinds["map"],
+        "/tf": sum("poses" in ev for ev in worlds),
+        "/scene/robots": sum("robots" in ev for ev in worlds),
+        "/scene/objects": sum("objects" in ev for ev in worlds),
+    }
+    assert kinds["map"] == 1
+    assert all(expected.values())
+    assert {t: counts[topics[t].id] for t in expected} == expected
+
+    # the grid is the map, bottom row first; every pose is on a free cell of it
+    (grid,) = [m for t, m in msgs if t == "/map"]
+    (map_ev,) = [ev for ev in events if ev["k"] == "map"]
+    rows, cell = map_ev["rows"], map_ev["cell_m"]
+    data = base64.b64decode(grid["data"])
+    assert grid["column_count"] == len(rows[0])
+    assert len(data) == grid["row_stride"] * len(rows)
+    walls = [data[i * grid["row_stride"] + j * 4] < 100 for i in range(len(rows))
+             for j in range(len(rows[0]))]  # fmt: skip
+    assert walls == [ch == "#" for row in reversed(rows) for ch in row]
+    robots = {r.name for r in load_scenario(SMALL).robots}
+    for t, m in msgs:
+        if t == "/tf":
+            assert {tf["child_frame_id"] for tf in m["transforms"]} == robots
+            for tf in m["transforms"]:
+                x, y = tf["translation"]["x"], tf["translation"]["y"]
+                assert rows[len(rows) - 1 - int(y // cell)][int(x // cell)] != "#"
+
+    # robots carry their label in their own frame; the objects end as the mission did
+    last = {t: m for t, m in msgs if t in ("/scene/robots", "/scene/objects")}
+    labels = {e["frame_id"]: e["texts"][0]["text"] for e in last["/scene/robots"]["entities"]}
+    assert set(labels) == robots
+    assert all(r in labels[r] for r in robots)
+    status = Counter(
+        next(kv["value"] for kv in e["metadata"] if kv["key"] == "status")
+        for e in last["/scene/objects"]["entities"]
+    )
+    done = result.summary
+    assert status["decontaminated"] == done["decontaminated"] > 0
+    assert sum(n for s, n in status.items() if s != "hidden") == done["found"]
+    identified = ("contaminated", "clean", "carried", "decontaminated")
+    assert sum(status[s] for s in identified) == done["identified"]
+
+
+def test_a_map_is_drawn_upside_up() -> None:
+    """Row 0 of the map file is the top of the picture: the grid's last row."""
+    ev = {"t": 2.5, "k": "map", "rows": ["#.", ".:"], "cell_m": 0.5,
+          "start": [0.25, 0.25], "decon": [0.75, 0.75]}  # fmt: skip
+    (t1, _, grid), (t2, _, areas) = scene_messages(ev, 2_500_000_000)
+    assert (t1, t2) == ("/map", "/scene/areas")
+    assert grid["timestamp"] == {"sec": 2, "nsec": 500_000_000}
+    pixels = base64.b64decode(grid["data"])
+    assert [pixels[i * 4] for i in range(4)] == [235, 150, 60, 235]  # ". :" then "# ."
+    assert grid["cell_size"] == {"x": 0.5, "y": 0.5}
+    assert grid["column_count"] == 2
+    assert [e["id"] for e in areas["entities"]] == ["decon", "start"]
