@@ -19,15 +19,17 @@ from typing import Any, ClassVar
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import RosLeaf, now, seconds
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
+from btcap.ros.versions import Types
 
 __all__ = ["FEEDBACK_PREFIX", "RosAction"]
 
 _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 
-#: action_msgs/GoalStatus codes of a goal's end, by name.
-_ENDS = {4: "succeeded", 5: "canceled", 6: "aborted"}
+#: action_msgs/GoalStatus codes of a goal's end, by name; ROS 1's are 100 + actionlib's
+#: (btcap.ros.facade1.end_code; its SUCCEEDED is 4).
+_ENDS = {4: "succeeded", 5: "canceled", 6: "aborted", 102: "preempted", 104: "aborted"}
+_ENDS |= {108: "recalled", 109: "lost"}
 _REJECTED = -1
 
 FEEDBACK_PREFIX = "feedback_"
@@ -138,15 +140,19 @@ class RosAction(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = interface(self.options["action_type"], "action")
+        types = self.types
+        cls = types.interface(self.options["action_type"], "action")
         self._types = cls
-        goal = field_types(cls.Goal)
+        port_type, goal = types.port_type, types.field_types(cls.Goal)
         self.input_ports = normalize_ports(
             {k: Port(port_type(t) | None, None, f"Goal field ({t})") for k, t in goal.items()},
             f"{self.name}.inputs",
         )
-        outs = {k: Port(port_type(t), NO_DEFAULT, f"Result ({t})") for k, t in _fields(cls.Result)}
-        for k, t in _fields(cls.Feedback):
+        outs = {
+            k: Port(port_type(t), NO_DEFAULT, f"Result ({t})")
+            for k, t in _fields(types, cls.Result)
+        }
+        for k, t in _fields(types, cls.Feedback):
             outs[FEEDBACK_PREFIX + k] = Port(port_type(t), NO_DEFAULT, f"latest Feedback ({t})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._goal: _Goal | None = None
@@ -166,7 +172,7 @@ class RosAction(RosLeaf):
         if fb is not None and fb is not goal.feedback_seen:
             goal.feedback_seen = fb
             outputs = self.outputs
-            for k, v in to_plain(fb).items():
+            for k, v in self.types.to_plain(fb).items():
                 outputs[FEEDBACK_PREFIX + k] = v
         if goal.status is not None:
             return self._finish(goal)
@@ -198,7 +204,7 @@ class RosAction(RosLeaf):
         client = bridge.action_client(self.options["action_type"], self.options["action_name"])
         if (missing := self._server_missing(client.server_is_ready())) is not None:
             return missing
-        msg = fill(self._types.Goal, self.inputs, f"{self._what()} goal")
+        msg = self.types.fill(self._types.Goal, self.inputs, f"{self._what()} goal")
         goal = self._goal = _Goal(bridge)
         outputs = self.outputs
         for k in outputs:
@@ -212,7 +218,7 @@ class RosAction(RosLeaf):
         status = goal.status
         if status == 4:
             outputs = self.outputs
-            for k, v in to_plain(goal.result).items():
+            for k, v in self.types.to_plain(goal.result).items():
                 outputs[k] = v
             return _SUCCEEDED
         if status == _REJECTED:
@@ -236,5 +242,5 @@ class RosAction(RosLeaf):
         self._stop()
 
 
-def _fields(cls: Any) -> list[tuple[str, str]]:
-    return list(field_types(cls).items())
+def _fields(types: Types, cls: Any) -> list[tuple[str, str]]:
+    return list(types.field_types(cls).items())

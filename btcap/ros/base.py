@@ -13,6 +13,7 @@ from btcap.bt.ports import Port
 from btcap.bt.state import State
 from btcap.ros.client import RosBridge
 from btcap.ros.errors import RosError
+from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos
 
 __all__ = ["QOS_OPTIONS", "RosLeaf", "now", "qos_of"]
@@ -67,11 +68,19 @@ class RosLeaf(Leaf):
     __slots__ = ("_bridge", "_waiting_since")
     #: The interface kind the type option names: ``action``, ``srv`` or ``msg``.
     KIND: ClassVar[str] = "msg"
+    #: The ROS version's interface functions when no bridge is given (ROS 1's node types,
+    #: btcap.ros.nodes1, hold ROS1); a given bridge's own otherwise.
+    TYPES: ClassVar[Types] = ROS2
 
     def __init__(self, *args: Any, bridge: RosBridge | None = None, **kwargs: Any) -> None:
         self._bridge = bridge
         self._waiting_since: float | None = None
         super().__init__(*args, **kwargs)
+
+    @property
+    def types(self) -> Types:
+        """The interface functions of the node's ROS version."""
+        return self._bridge.types if self._bridge is not None else self.TYPES
 
     @property
     def bridge(self) -> RosBridge:

@@ -13,7 +13,6 @@ from typing import Any, ClassVar
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import RosLeaf, now, seconds
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["RosService"]
 
@@ -36,7 +35,9 @@ class RosService(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["service_type"], "srv")
+        types = self.types
+        field_types, port_type = types.field_types, types.port_type
+        cls = self._types = types.interface(self.options["service_type"], "srv")
         self.input_ports = normalize_ports(
             {
                 k: Port(port_type(t) | None, None, f"Request field ({t})")
@@ -73,7 +74,7 @@ class RosService(RosLeaf):
             if exc is not None:
                 return self.failed(f"{self._what()}: the call failed: {exc}")
             outputs = self.outputs
-            for k, v in to_plain(future.result()).items():
+            for k, v in self.types.to_plain(future.result()).items():
                 outputs[k] = v
             return _SUCCEEDED
         limit = self.options["server_timeout"]
@@ -86,7 +87,7 @@ class RosService(RosLeaf):
         client = self._client()
         if (missing := self._server_missing(client.service_is_ready())) is not None:
             return missing
-        request = fill(self._types.Request, self.inputs, f"{self._what()} request")
+        request = self.types.fill(self._types.Request, self.inputs, f"{self._what()} request")
         outputs = self.outputs
         for k in outputs:
             outputs[k] = None

@@ -17,7 +17,6 @@ from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import QOS_OPTIONS, RosLeaf, now, qos_of, seconds
 from btcap.ros.errors import RosError
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["RosPublish", "RosSubscribe", "RosWaitForMessage"]
 
@@ -43,7 +42,9 @@ class RosPublish(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["topic_type"], "msg")
+        types = self.types
+        cls = self._types = types.interface(self.options["topic_type"], "msg")
+        field_types, port_type = types.field_types, types.port_type
         self.input_ports = normalize_ports(
             {
                 k: Port(port_type(t) | None, None, f"message field ({t})")
@@ -65,7 +66,7 @@ class RosPublish(RosLeaf):
         t = now()
         if rate is None or t >= self._next_at:
             where = f"topic {self.options['topic_name']} ({self.options['topic_type']})"
-            self._publisher.publish(fill(self._types, self.inputs, where))
+            self._publisher.publish(self.types.fill(self._types, self.inputs, where))
             if rate is None:
                 return _SUCCEEDED
             self._next_at = max(self._next_at + 1.0 / rate, t)
@@ -94,8 +95,9 @@ class RosSubscribe(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["topic_type"], "msg")
-        types = field_types(cls)
+        port_type = self.types.port_type
+        cls = self._types = self.types.interface(self.options["topic_type"], "msg")
+        types = self.types.field_types(cls)
         chosen = self.options["fields"]
         if chosen is None:
             chosen = list(types)
@@ -137,7 +139,7 @@ class RosSubscribe(RosLeaf):
         if message is self._seen:
             return
         self._seen = message
-        plain = to_plain(message)
+        plain = self.types.to_plain(message)
         outputs = self.outputs
         outputs["message"] = plain
         for k in outputs:
