@@ -85,9 +85,9 @@ class Servers:
 
     def stop(self) -> None:
         process = self.process
+        assert process.stdin is not None
+        process.stdin.close()
         if process.returncode is None:
-            assert process.stdin is not None
-            process.stdin.close()
             try:
                 process.wait(timeout=10)
             except subprocess.TimeoutExpired:
