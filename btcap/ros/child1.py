@@ -17,6 +17,7 @@ Run as ``python -m btcap.ros.child1 FD NODE_NAME`` with ``ROS_MASTER_URI`` and
 
 from __future__ import annotations
 
+import contextlib
 import io
 import queue
 import socket
@@ -222,6 +223,10 @@ class Child:
             return
         self.post(wire1.Reply(frame.qid, _bytes(response)))
 
+    @property
+    def stopping(self) -> bool:
+        return self._stopping.is_set()
+
     def stop(self) -> None:
         """Cancel open goals, unregister everything, leave the master, flush, end the
         writer."""
@@ -230,10 +235,8 @@ class Child:
             goals = list(self.goals.values())
             self.goals.clear()
         for handle in goals:
-            try:
+            with contextlib.suppress(Exception):  # the publisher is gone: nothing to cancel
                 handle.cancel()
-            except Exception:  # the publisher is already gone: nothing to cancel with
-                pass
         if goals:
             time.sleep(0.1)  # let the cancels reach the servers before the goal topic goes
         for entry in self.clients.values():
@@ -285,6 +288,12 @@ def main(argv: list[str]) -> int:
         conn.send_bytes(wire1.encode(wire1.Up(error=text[0] if text else repr(exc))))
         return 1
     child.post(wire1.Up())
+
+    def on_shutdown(reason: str) -> None:  # rospy's thread: the master, or our own stop
+        if not child.stopping:
+            child.post(wire1.Up(error=reason))
+
+    rospy.core.add_preshutdown_hook(on_shutdown)
     child.serve()
     return 0
 

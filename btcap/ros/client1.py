@@ -15,6 +15,7 @@ the master and exit, and reaps it.
 
 from __future__ import annotations
 
+import contextlib
 import http.client
 import itertools
 import os
@@ -151,10 +152,8 @@ class Ros1Bridge(RosBridge):
         self._closed = True
         process, conn = self.process, self._conn
         if conn is not None:
-            try:
+            with contextlib.suppress(RosError):  # the process is gone already
                 self.send(wire1.Stop())
-            except RosError:
-                pass  # the process is gone already
         if process is not None:
             try:
                 process.wait(timeout=STOP_S)

@@ -109,7 +109,7 @@ class _FeedbackMessage:
 class GoalHandle1:
     """One goal: ``accepted``, ``cancel_goal_async`` and ``get_result_async``."""
 
-    __slots__ = ("accepted", "bridge", "client", "feedback_callback", "gid", "response", "ended")
+    __slots__ = ("accepted", "bridge", "client", "ended", "feedback_callback", "gid", "response")
 
     def __init__(self, client: ActionClient1, gid: int, feedback_callback: Any) -> None:
         self.client = client

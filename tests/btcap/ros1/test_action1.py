@@ -42,7 +42,9 @@ async def test_a_goal_succeeds_with_feedback_then_the_result(
 
             assert await run(node, watch) is State.SUCCEEDED, node.error
             assert node.outputs["result"] == 10
-            assert seen and seen[-1] == 4 and seen == sorted(seen)
+            assert seen
+            assert seen[-1] == 4
+            assert seen == sorted(seen)
     assert servers.events["count.succeeded"] == 1
 
 

@@ -29,8 +29,9 @@ async def run(
     node: Node, done: Callable[[State], bool] = lambda s: s is not State.RUNNING
 ) -> State:
     """Tick ``node`` (in a tree of its own) every 2 ms until ``done``."""
-    tree = node._tree if node._tree is not None else Tree(node)
-    if node._tree is None or tree.root.state is State.IDLE:
+    tree = node._tree
+    if tree is None:
+        tree = Tree(node)
         tree.setup()
     while True:
         state = tree.tick()
