@@ -68,7 +68,8 @@ def probe_master(uri: str) -> None:
     why = ""
     try:
         with xmlrpc.client.ServerProxy(uri, transport=_Transport()) as proxy:
-            code, status, _ = proxy.getPid("/btcap_probe")
+            answer: Any = proxy.getPid("/btcap_probe")
+        code, status = answer[0], answer[1]
         if code == 1:
             return
         why = f"it refused getPid: {status}"
@@ -114,11 +115,11 @@ class Ros1Bridge(RosBridge):
         probe_master(self.master_uri)
         ours, theirs = socket.socketpair()
         env = dict(os.environ, ROS_MASTER_URI=self.master_uri, ROS_NAMESPACE=self.namespace)
+        child = "btcap.ros.child1"
         try:
             with theirs:
                 self.process = subprocess.Popen(
-                    [sys.executable, "-m", "btcap.ros.child1", str(theirs.fileno())]
-                    + [self.settings.node_name],
+                    [sys.executable, "-m", child, str(theirs.fileno()), self.settings.node_name],
                     pass_fds=(theirs.fileno(),),
                     env=env,
                     stdin=subprocess.DEVNULL,

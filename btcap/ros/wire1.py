@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 
-class _Frame(msgspec.Struct, array_like=True, tag=True, frozen=True):
+class _Frame(msgspec.Struct, array_like=True, tag=True):
     pass
 
 
@@ -137,8 +137,10 @@ encode = _encoder.encode
 
 
 def decode_down(data: bytes) -> Down:
-    return _down.decode(data)
+    frame: Down = _down.decode(data)
+    return frame
 
 
 def decode_up(data: bytes) -> UpFrame:
-    return _up.decode(data)
+    frame: UpFrame = _up.decode(data)
+    return frame
