@@ -4,10 +4,12 @@ over a pipe of :mod:`btcap.ros.wire1` frames.
 rospy allows one ``init_node`` per process and runs its callbacks on threads of its own,
 so each robot's ROS 1 side lives here, in a child process, and the agent's process never
 imports rospy's node machinery. The main thread reads the bridge's frames and acts on them
-(rospy's publish and actionlib's ``send_goal`` do not block); rospy's threads only post
-frames to a writer thread, which keeps just the latest feedback of a goal and the latest
-message of a topic while earlier ones wait, so a flood costs the pipe at most one frame per
-write. A poller thread reports each action and service server's readiness on change.
+(rospy's publish and actionlib's ``send_goal`` do not block). rospy's threads write a
+goal's acceptance and end and a call's reply at once (a thread handoff more would cost
+each round trip); feedback and topic messages go through a writer thread, which keeps just
+the latest of a goal or topic while earlier ones wait, so a flood costs the pipe at most
+one frame per write and never holds rospy's thread. A poller thread reports each action
+and service server's readiness on change.
 ``Stop`` (or the pipe closing: the agent is gone) cancels the open goals, unregisters
 every publisher, subscriber and client from the master, and exits.
 
@@ -59,36 +61,48 @@ class Child:
         self.goals: dict[int, Any] = {}  # gid -> ClientGoalHandle
         self.ready: dict[int, bool] = {}
         self.lock = threading.Lock()
+        self._send = threading.Lock()
         self._out: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._latest: dict[tuple[str, int], Any] = {}
         self._stopping = threading.Event()
-        self._writer = threading.Thread(target=self._write, name="btcap-ros1-writer")
+        self._writer = threading.Thread(target=self._writer_loop, name="btcap-ros1-writer")
         self._poller = threading.Thread(target=self._poll, name="btcap-ros1-poller", daemon=True)
 
     # -- frames out (any thread) --------------------------------------------------------
-    def post(self, frame: Any) -> None:
-        self._out.put(frame)
+    def post(self, frame: Any, flush: tuple[str, int] | None = None) -> None:
+        """Write ``frame`` now, after the frame of key ``flush`` still waiting, if any (a
+        goal's last feedback goes before its end)."""
+        with self._send:
+            if flush is not None:
+                with self.lock:
+                    waiting = self._latest.pop(flush, None)
+                if waiting is not None:
+                    self._write(waiting)
+            self._write(frame)
 
     def post_latest(self, key: tuple[str, int], frame: Any) -> None:
-        """Post ``frame``, replacing one of the same key not yet written."""
+        """Have the writer thread send ``frame``, replacing one of the same key not yet
+        sent: a flood costs one frame per write, and rospy's thread never waits on it."""
         with self.lock:
             fresh = key not in self._latest
             self._latest[key] = frame
         if fresh:
             self._out.put(key)
 
-    def _write(self) -> None:
+    def _write(self, frame: Any) -> None:
+        with contextlib.suppress(OSError):  # the bridge is gone: the main thread sees EOF
+            self.conn.send_bytes(wire1.encode(frame))
+
+    def _writer_loop(self) -> None:
         while True:
-            item = self._out.get()
-            if item is None:
+            key = self._out.get()
+            if key is None:
                 return
-            if isinstance(item, tuple):
+            with self._send:
                 with self.lock:
-                    item = self._latest.pop(item)
-            try:
-                self.conn.send_bytes(wire1.encode(item))
-            except OSError:  # the bridge is gone: the main thread sees EOF and stops
-                return
+                    frame = self._latest.pop(key, None)
+                if frame is not None:
+                    self._write(frame)
 
     # -- readiness -------------------------------------------------------------------
     def _poll(self) -> None:
@@ -201,7 +215,8 @@ class Child:
                 result = handle.get_result()
                 data = _bytes(result) if result is not None else b""
                 status = handle.get_goal_status()
-                self.post(wire1.Done(gid, status, handle.get_goal_status_text(), data))
+                done = wire1.Done(gid, status, handle.get_goal_status_text(), data)
+                self.post(done, flush=("f", gid))
             elif state in (comm.ACTIVE, comm.PREEMPTING) and not accepted[0]:
                 accepted[0] = True
                 self.post(wire1.Accepted(gid))

@@ -114,6 +114,8 @@ class Ros1Bridge(RosBridge):
             raise RosError("this Ros1Bridge was closed; make a new one")
         probe_master(self.master_uri)
         ours, theirs = socket.socketpair()
+        for end in (ours, theirs):  # blocking, whatever socket.setdefaulttimeout says
+            end.setblocking(True)  # (rospy sets one: its fd would be non-blocking)
         env = dict(os.environ, ROS_MASTER_URI=self.master_uri, ROS_NAMESPACE=self.namespace)
         child = "btcap.ros.child1"
         try:
@@ -242,6 +244,8 @@ class Ros1Bridge(RosBridge):
         self._lost("its rospy process ended")
 
     def _dispatch(self, frame: Any) -> None:
+        """Hand a frame to what waits on it; the nodes' own callbacks wake the tree (as
+        they do on ROS 2), so this never does."""
         if isinstance(frame, wire1.Feedback):
             handle = self._handles.get(frame.gid)
             if handle is not None:
@@ -258,12 +262,10 @@ class Ros1Bridge(RosBridge):
             handle = self._handles.get(frame.gid)
             if handle is not None:
                 handle.on_accepted()
-                self.wake()
         elif isinstance(frame, wire1.Done):
             handle = self._handles.pop(frame.gid, None)
             if handle is not None:
                 handle.on_done(frame)
-                self.wake()
         elif isinstance(frame, wire1.Reply):
             call = self._calls.pop(frame.qid, None)
             if call is not None:
@@ -272,7 +274,6 @@ class Ros1Bridge(RosBridge):
                     future.set(exception=RosError(frame.error))
                 else:
                     future.set(types.Response().deserialize(frame.data))
-                self.wake()
         elif isinstance(frame, wire1.Up) and frame.error and not self._closed:
             self.conflict = f"the ROS 1 node {self.fqn} was shut down: {frame.error}"
             log.error("btcap.ros1.shutdown", node=self.fqn, why=frame.error)

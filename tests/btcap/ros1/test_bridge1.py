@@ -4,6 +4,7 @@ taking the robot's name fails the first robot's nodes saying why."""
 
 from __future__ import annotations
 
+import socket
 import threading
 
 import anyio
@@ -76,3 +77,26 @@ async def test_a_second_node_taking_the_robots_name_fails_the_first_saying_why(
     assert "\n" not in line
     assert "the ROS 1 node /husky1/btcap was shut down: " in line
     assert "new node registered with same name" in line
+
+
+async def test_a_process_default_socket_timeout_does_not_break_the_pipe(
+    master: Master, servers: Servers
+) -> None:
+    """rospy (in a process that is also a ROS 1 node) sets socket.setdefaulttimeout: the
+    bridge's socket pair would then be non-blocking and its reader end at once."""
+    old = socket.getdefaulttimeout()
+    socket.setdefaulttimeout(5.0)
+    try:
+        with anyio.fail_after(30):
+            async with bridge_on(master) as bridge:
+                node = RosAction(
+                    "act",
+                    action_type="actionlib/Test",
+                    action_name="count",
+                    bridge=bridge,
+                    inputs={"goal": 2},
+                    server_timeout=FOUND_S,
+                )
+                assert await run(node) is State.SUCCEEDED, node.error
+    finally:
+        socket.setdefaulttimeout(old)
