@@ -63,8 +63,9 @@ def _start_master(home: Path) -> tuple[subprocess.Popen[bytes], str]:
     while True:
         try:
             with xmlrpc.client.ServerProxy(uri) as proxy:
-                if proxy.getPid("/bench")[0] == 1:
-                    return master, uri
+                answer: Any = proxy.getPid("/bench")
+            if answer[0] == 1:
+                return master, uri
         except OSError:
             pass
         if time.monotonic() > deadline or master.poll() is not None:
@@ -180,6 +181,14 @@ async def _measure(uri: str, rounds: int) -> dict[str, Any]:
     }
 
 
+def _reap(proc: subprocess.Popen[Any]) -> None:
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
 def run(quick: bool = False) -> dict[str, Any]:
     """Measure, print and write ``bench/results/ros1.json``."""
     with tempfile.TemporaryDirectory(prefix="btcap-bench-ros1-") as home:
@@ -190,20 +199,14 @@ def run(quick: bool = False) -> dict[str, Any]:
             load_before = os.getloadavg()[0]
             data = asyncio.run(_measure(uri, 50 if quick else 300))
         finally:
-            for proc in (server, master):
-                if proc is None:
-                    continue
-                if proc is server and server.stdin is not None:
+            if server is not None:
+                if server.stdin is not None:
                     server.stdin.close()
-                else:
-                    proc.terminate()
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-            if server is not None and server.stdout is not None:
-                server.stdout.close()
+                _reap(server)
+                if server.stdout is not None:
+                    server.stdout.close()
+            master.terminate()
+            _reap(master)
     data["loadavg"] = {"before": load_before, "after": os.getloadavg()[0]}
     data["quick"] = quick
     print("goal -> result round trip (µs, p50 / p99):")

@@ -14,13 +14,10 @@ from __future__ import annotations
 import io
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from btcap.ros import wire1
 from btcap.ros.errors import RosError
-
-if TYPE_CHECKING:
-    from btcap.ros.client1 import Ros1Bridge
 
 __all__ = [
     "ActionClient1",
@@ -36,6 +33,21 @@ __all__ = [
 
 #: actionlib_msgs/GoalStatus codes.
 PREEMPTED, SUCCEEDED, REJECTED, RECALLED = 2, 3, 5, 8
+
+
+class Ros1Bridge(Protocol):
+    """What these clients ask of :class:`btcap.ros.client1.Ros1Bridge`."""
+
+    def next_id(self) -> int: ...
+    def send(self, frame: wire1.Down) -> None: ...
+    def open(self, kind: str, type_name: str, name: str, qos: tuple[int, bool]) -> int: ...
+    def drop(self, cid: int) -> None: ...
+    def open_goal(self, handle: GoalHandle1) -> None: ...
+    def call(self, client: ServiceClient1, data: bytes) -> Future1: ...
+    def forget_call(self, future: Future1) -> None: ...
+    def subscribe(
+        self, sub: Subscription1, type_name: str, name: str, qos: tuple[int, bool]
+    ) -> None: ...
 
 
 def end_code(status: int) -> int:
