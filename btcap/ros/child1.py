@@ -38,6 +38,8 @@ __all__ = ["main"]
 #: services (a master lookup and a probe connection, as rospy's wait_for_service does).
 ACTION_POLL_S = 0.02
 SERVICE_POLL_S = 0.1
+#: How long closing waits for the servers to acknowledge the open goals' cancels.
+CANCEL_ACK_S = 5.0
 _KINDS = {"action": "action", "service": "srv", "publisher": "msg", "subscriber": "msg"}
 
 
@@ -58,7 +60,7 @@ class Child:
         self.actionlib = actionlib
         self.conn = conn
         self.clients: dict[int, tuple[str, Any, Any]] = {}  # cid -> (kind, types, client)
-        self.goals: dict[int, Any] = {}  # gid -> ClientGoalHandle
+        self.goals: dict[int, tuple[Any, Any]] = {}  # gid -> (ClientGoalHandle, its client)
         self.ready: dict[int, bool] = {}
         self.lock = threading.Lock()
         self._send = threading.Lock()
@@ -169,9 +171,9 @@ class Child:
         elif isinstance(frame, wire1.Goal):
             self._send_goal(frame)
         elif isinstance(frame, wire1.Cancel):
-            handle = self.goals.get(frame.gid)
-            if handle is not None:
-                handle.cancel()
+            goal = self.goals.get(frame.gid)
+            if goal is not None:
+                goal[0].cancel()
         elif isinstance(frame, wire1.Call):
             threading.Thread(target=self._call, args=(frame,), daemon=True).start()
         elif isinstance(frame, wire1.Open):
@@ -226,7 +228,7 @@ class Child:
 
         goal = types.Goal().deserialize(frame.data)
         with self.lock:
-            self.goals[gid] = client.send_goal(goal, on_transition, on_feedback)
+            self.goals[gid] = (client.send_goal(goal, on_transition, on_feedback), client)
 
     def _call(self, frame: wire1.Call) -> None:
         _, types, proxy = self.clients[frame.cid]
@@ -249,11 +251,16 @@ class Child:
         with self.lock:
             goals = list(self.goals.values())
             self.goals.clear()
-        for handle in goals:
+        for handle, _ in goals:
             with contextlib.suppress(Exception):  # the publisher is gone: nothing to cancel
                 handle.cancel()
-        if goals:
-            time.sleep(0.1)  # let the cancels reach the servers before the goal topic goes
+        # The cancels leave on rospy's publisher threads: unregistering before the servers
+        # acknowledged them could drop them. Wait (a bound) for each still-reachable one.
+        waiting = self.actionlib.CommState.WAITING_FOR_CANCEL_ACK
+        deadline = time.monotonic() + CANCEL_ACK_S
+        while goals and time.monotonic() < deadline:
+            goals = [(h, c) for h, c in goals if h.get_comm_state() == waiting and _action_ready(c)]
+            time.sleep(0.01)
         for entry in self.clients.values():
             _unregister(*entry)
         self.clients.clear()
