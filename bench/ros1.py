@@ -8,7 +8,8 @@ server (``actionlib/Test`` ``instant``: SUCCEEDED at once) in a process of its o
 (``python -m btcap.bench.ros1 serve``). The peer is a SimpleActionClient in this process
 (its ``send_goal`` then ``wait_for_result``, the usual shape); btcap's node is ticked by
 the event loop when the bridge says a goal answered (``wake_on``). They take turns round by
-round, so load elsewhere on the machine lands on both alike.
+round, who goes first alternating (the server has just served either one alike), so load
+elsewhere on the machine lands on both alike.
 """
 
 from __future__ import annotations
@@ -163,9 +164,12 @@ async def _measure(uri: str, rounds: int) -> dict[str, Any]:
                 peer.round_trip()
                 await _node_round_trip(tree, woken)
             actionlib_s, btcap_s = [], []
-            for _ in range(rounds):
-                actionlib_s.append(peer.round_trip())
+            for i in range(rounds):  # who goes first alternates: neither follows the other
+                if i % 2:
+                    actionlib_s.append(peer.round_trip())
                 btcap_s.append(await _node_round_trip(tree, woken))
+                if not i % 2:
+                    actionlib_s.append(peer.round_trip())
             bridge.wake_on(None)
     finally:
         peer.close()
