@@ -7,7 +7,7 @@ import anyio
 import pytest
 from conftest import Servers
 from rosmaster1 import Master
-from tools1 import FOUND_S, bridge_on, run, settle
+from tools1 import FOUND_S, bridge_on, registered, run, settle
 
 from btcap.bt.state import State
 from btcap.ros.client1 import Ros1Bridge
@@ -177,6 +177,7 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     assert "\n" not in line
     assert "goal.goal: 'five' does not fit int32" in line
     assert servers.events["count.goal"] == 0
+    assert not [r for r in registered(master) if "/husky1/btcap" in r]  # nothing left
     with pytest.raises(Exception, match=r"node 'act' .*has no input 'gaol'; inputs: goal"):
         RosAction("act", action_type=TEST, action_name="count", inputs={"gaol": 5})
 
