@@ -16,8 +16,10 @@ BENCHES = (
     "membership",
     "monitor",
     "recording",
+    "btlog",
     "attacks",
     "missiontime",
+    "missionbound",
 )
 #: Benchmarks that need what `make venv` does not install, left out of ``all``: ``ros``
 #: needs ROS 2 and a private network namespace (`make bench-ros`), ``ros1`` Debian's rospy
@@ -31,7 +33,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
-    if rest and names not in (("allocation",), ("missiontime",)):  # take options of their own
+    own = (("allocation",), ("missiontime",), ("missionbound",))  # take options of their own
+    if rest and names not in own:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False
     for name in names:

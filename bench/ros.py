@@ -12,6 +12,9 @@ load elsewhere on the machine lands on both alike.
   client waits on a threading.Event set by its result callback (its usual shape);
   btcap's node is ticked by the event loop when the bridge says a goal answered
   (``RosBridge.wake_on``), as a runner ticking on news would, and also polled at 1 kHz.
+- The same inside a tree run as an agent runs its trees (``Tree.run`` at 10 Hz, the
+  agents' default tick): with the news nudging the tree (the default), and without
+  (``RosBridge.nudges = False``: the result waits for the next periodic tick).
 - Jitter: a tree ticked at 200 Hz (drift-free) for a few seconds; how late each tick
   is, with the tree idle and with a RosAction whose server streams feedback at 1 kHz.
 """
@@ -33,6 +36,7 @@ from btcap.bt.node import Node
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
 from btcap.ros.action import RosAction
+from btcap.ros.base import give
 from btcap.ros.client import RosBridge
 from btcap.ros.loader import load
 from btcap.team.rossettings import RosSettings
@@ -41,6 +45,8 @@ __all__ = ["run"]
 
 FIB = "test_msgs/action/Fibonacci"
 NAMESPACE = "/bench"
+#: The agents' default tick rate (``timing.tick_hz``).
+AGENT_HZ = 10.0
 _RUNNING = State.RUNNING
 
 
@@ -117,6 +123,16 @@ async def _node_round_trip(tree: Tree, woken: asyncio.Event | None) -> float:
     return time.perf_counter() - t0
 
 
+async def _run_round_trip(tree: Tree, rate_hz: float) -> float:
+    """One goal through the RosAction at ``tree``'s root, the tree run at ``rate_hz``."""
+    tree.reset()
+    t0 = time.perf_counter()
+    state = await tree.run(rate_hz)
+    if state is not State.SUCCEEDED:
+        raise RuntimeError(f"bench: the goal ended {state.value}: {tree.root.error}")
+    return time.perf_counter() - t0
+
+
 async def _jitter(root: Node, seconds: float, rate_hz: float = 200.0) -> dict[str, Any]:
     """How late each tick of ``root`` at ``rate_hz`` is (µs), ticked for ``seconds``."""
     tree = Tree(root)
@@ -158,6 +174,22 @@ async def _measure(domain: int, rounds: int, seconds: float) -> dict[str, Any]:
                 woken_s.append(await _node_round_trip(tree, woken))
                 polled_s.append(await _node_round_trip(tree, None))
             b.wake_on(None)
+            await tree.shutdown()
+            run_s: dict[str, list[float]] = {"rclpy": [], "nudged": [], "periodic": []}
+            for i in range(min(rounds, 100)):  # periodic: ~1 period (100 ms) a round
+                for nudges in (True, False):
+                    b.nudges = nudges
+                    ran = Tree(
+                        RosAction("rt", action_type=FIB, action_name="instant", inputs={"order": 1})
+                    )
+                    give(b, ran)
+                    if nudges or i < 30:
+                        run_s["nudged" if nudges else "periodic"].append(
+                            await _run_round_trip(ran, AGENT_HZ)
+                        )
+                    await ran.shutdown()
+                run_s["rclpy"].append(peer.round_trip())
+            b.nudges = True
             idle = await _jitter(AlwaysRunning("idle"), seconds)
             stream = RosAction(
                 "stream",
@@ -178,8 +210,12 @@ async def _measure(domain: int, rounds: int, seconds: float) -> dict[str, Any]:
             ("btcap_polled_1khz_us", polled_s),
         )
     }
+    runs = {f"{k}_us": percentiles([s * 1e6 for s in v]) for k, v in run_s.items()}
     return {
         "round_trip": rt,
+        "round_trip_tree_run_10hz": runs,
+        "ratio_nudged_to_rclpy_p50": runs["nudged_us"]["p50"] / runs["rclpy_us"]["p50"],
+        "ratio_periodic_to_rclpy_p50": runs["periodic_us"]["p50"] / runs["rclpy_us"]["p50"],
         "ratio_woken_to_rclpy_p50": rt["btcap_woken_us"]["p50"] / rt["rclpy_us"]["p50"],
         "ratio_polled_to_rclpy_p50": rt["btcap_polled_1khz_us"]["p50"] / rt["rclpy_us"]["p50"],
         "jitter_200hz": {"idle": idle, "with_1khz_feedback": fed},
@@ -214,6 +250,11 @@ def run(quick: bool = False) -> dict[str, Any]:
         print(f"  {name:24s} {p['p50']:8.0f} / {p['p99']:8.0f}")
     print(f"  ratio btcap (woken) / rclpy, p50: {data['ratio_woken_to_rclpy_p50']:.2f}")
     print(f"  ratio btcap (polled 1 kHz) / rclpy, p50: {data['ratio_polled_to_rclpy_p50']:.2f}")
+    print(f"goal -> result round trip, tree run at {AGENT_HZ:g} Hz (µs, p50 / p99):")
+    for name, p in data["round_trip_tree_run_10hz"].items():
+        print(f"  {name:24s} {p['p50']:8.0f} / {p['p99']:8.0f}")
+    print(f"  ratio nudged / rclpy, p50: {data['ratio_nudged_to_rclpy_p50']:.2f}")
+    print(f"  ratio periodic / rclpy, p50: {data['ratio_periodic_to_rclpy_p50']:.2f}")
     j = data["jitter_200hz"]
     for name, v in j.items():
         p = v["late_us"]

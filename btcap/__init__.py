@@ -55,6 +55,7 @@ if TYPE_CHECKING:
         save_tree,
         validate_file,
     )
+    from btcap.bt.foreach import ParallelForEach
     from btcap.bt.leaves import (
         Action,
         AlwaysFailure,
@@ -127,6 +128,7 @@ _EXPORTS = {
         "SequenceWithMemory",
         "Switch",
     ),
+    "btcap.bt.foreach": ("ParallelForEach",),
     "btcap.bt.decorators": (
         "Decorator",
         "Delay",
@@ -264,6 +266,7 @@ __all__ = [
     "OutputBridge",
     "Parallel",
     "ParallelAll",
+    "ParallelForEach",
     "Port",
     "Precondition",
     "ReactiveFallback",

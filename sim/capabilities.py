@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
-from btcap import Leaf, Port, Sequence, State, Tree
+from btcap import Leaf, Node, Port, Sequence, State, Tree
 from btcap.actors import Actor
 from btcap.sim.distance import Cell, DistanceCache, path_length
 from btcap.sim.grid import GridMap
@@ -37,6 +37,7 @@ __all__ = [
     "ROBOT_CACHE_SIZE",
     "Drive",
     "RobotSetup",
+    "Step",
     "robot_setup",
 ]
 
@@ -141,18 +142,32 @@ class _Heading(Leaf):
         self._forget()
 
 
+@dataclass(frozen=True, slots=True)
+class Step:
+    """Nodes that do one part of an implementation, in this order: the first takes its
+    input (``goal`` to drive, ``target`` to operate), the last gives its outputs
+    (``found``, ``contaminated``); ``wires`` (source, port, target, port) join them."""
+
+    nodes: tuple[Node, ...]
+    wires: tuple[tuple[Node, str, Node, str], ...] = ()
+
+
 class Drive(Protocol):
-    """Makes the leaves through which an implementation reaches the robot's body: by
-    default the simulation manager's messages; :mod:`btcap.sim.ros2` reaches it through
-    ROS 2 interfaces instead."""
+    """Makes the nodes through which an implementation reaches the robot's body: by
+    default leaves that ask the simulation manager; :mod:`btcap.sim.ros2` reaches it
+    through the robot's ROS 2 actions (RosAction nodes) instead."""
 
-    def move(self, name: str) -> Leaf:
-        """A leaf that drives to input ``goal``."""
+    def move(self, name: str) -> Leaf | Step:
+        """What drives to input ``goal``."""
         ...
 
-    def operate(self, name: str, op: str) -> Leaf:
-        """A leaf that runs ``op`` on input ``target`` (outputs ``found``, ``contaminated``)."""
+    def operate(self, name: str, op: str) -> Leaf | Step:
+        """What runs ``op`` on input ``target`` (outputs ``found``, ``contaminated``)."""
         ...
+
+
+def _step(made: Leaf | Step) -> Step:
+    return made if isinstance(made, Step) else Step((made,))
 
 
 @dataclass(frozen=True, slots=True)
@@ -218,15 +233,18 @@ def robot_setup(
             bi = i(name="inputs")
             heading = _Heading("heading")
             heading.setup_heading(body, o.op, grid.decon_area if o.then_decon else None)
-            move = drive.move("drive")
-            leaf = drive.operate(o.leaf, o.op)
+            move = _step(drive.move("drive"))
+            work = _step(drive.operate(o.leaf, o.op))
+            leaf = work.nodes[-1]
             bo = out(name="outputs") if o.result is not None else None
-            children = [bi, heading, move, leaf] if bo is None else [bi, heading, move, leaf, bo]
-            tree = Tree(Sequence(o.op, children=children))
-            tree.wire(bi, o.goal, move, "goal")
+            children = [bi, heading, *move.nodes, *work.nodes]
+            tree = Tree(Sequence(o.op, children=children if bo is None else [*children, bo]))
+            for wire in (*move.wires, *work.wires):
+                tree.wire(*wire)
+            tree.wire(bi, o.goal, move.nodes[0], "goal")
             tree.wire(bi, o.goal, heading, "goal")
             if o.target is not None:
-                tree.wire(bi, o.target, leaf, "target")
+                tree.wire(bi, o.target, work.nodes[0], "target")
                 tree.wire(bi, o.target, heading, "target")
             if bo is not None and o.result is not None:
                 tree.wire(leaf, o.result, bo, o.result)

@@ -74,7 +74,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--ros2",
         action="store_true",
         help="every robot reached through ROS 2 interfaces the simulation serves in its "
-        "namespace (`make ros-sim`, then .venv-ros/bin/python -m btcap; ROS_DOMAIN_ID applies)",
+        "namespace, with the scenario's `ros:` block (a file with one runs so without this "
+        "flag) or its defaults (`make ros-sim`, then .venv-ros/bin/python -m btcap)",
     )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
@@ -92,6 +93,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         metavar="K",
         help="identify-and-decontaminate loops the mission tree runs at once (the "
         "scenario's object_workers: 2 in the built-in ones)",
+    )
+    p.add_argument(
+        "--mission",
+        choices=("paper", "pool"),
+        help="the mission tree: paper (the paper's loops; the built-in scenarios' choice) or "
+        "pool (a lane per goal, object to identify and object to carry)",
     )
     p.add_argument(
         "--fast",
@@ -120,6 +127,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "FILE ends .mcap, else JSON Lines (default: monitor.jsonl in the output folder)",
     )
     p.add_argument("--no-record", action="store_true", help="write no recording")
+    p.add_argument(
+        "--btlog",
+        type=Path,
+        metavar="OUT.btlog",
+        help="log the mission tree's run as BehaviorTree.CPP's file logger does, for Groot2 "
+        "to replay (with --compare, one file per scenario: OUT-NAME.btlog)",
+    )
     p.set_defaults(handler=run_command)
     simtestcli.add_parser(sub)
 
@@ -238,6 +252,7 @@ async def _run_one(
     monitor: Monitor | None = None,
     *,
     ros2: bool = False,
+    btlog: Path | None = None,
 ) -> MissionResult:
     from rich.live import Live
 
@@ -252,6 +267,8 @@ async def _run_one(
         runner = functools.partial(run_scenario, ros2=True)
     if monitor is not None:
         runner = functools.partial(runner, monitor=monitor)
+    if btlog is not None:
+        runner = functools.partial(runner, btlog=btlog)
     stop = stopper.event()
     if quiet:
         return await runner(s, stop=stop)
@@ -277,9 +294,10 @@ def run_command(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from btcap.cli.monitor import monitored
+    from btcap.sim.bound import scenario_bound
     from btcap.sim.metrics import idle_robots_note
     from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, grow_team, run_metadata
+    from btcap.sim.scenario import ScenarioError, check_ros_names, grow_team, run_metadata
 
     console = Console()
     if args.compare:
@@ -298,11 +316,20 @@ def run_command(args: argparse.Namespace) -> int:
         raise CliError(
             "--fast runs in one process on virtual time: not with --distributed or --speedup"
         )
-    if args.ros2:
-        from btcap.sim.ros2 import ros2_refused
+    for s in scenarios:
+        if args.ros2 or s.ros is not None:
+            from btcap.sim.ros2 import ros2_refused
+            from btcap.sim.scenariofile import ScenarioRos
 
-        if (why := ros2_refused(fast=args.fast, distributed=args.distributed)) is not None:
-            raise CliError(why)
+            try:
+                check_ros_names(s, s.ros or ScenarioRos())
+            except ScenarioError as exc:
+                raise CliError(str(exc)) from None
+            why = ros2_refused(fast=args.fast, distributed=args.distributed)
+            if why is not None:
+                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
+    if args.btlog is not None and args.btlog.suffix != ".btlog":
+        raise CliError(f"--btlog {args.btlog}: a tree log for Groot2 must be named *.btlog")
     margin = args.rebid_on_join
     if margin is not None and not 0 < margin < 1:
         raise CliError(f"--rebid-on-join: expected a fraction within (0, 1), got {margin:g}")
@@ -316,6 +343,8 @@ def run_command(args: argparse.Namespace) -> int:
             if not 1 <= args.object_workers <= 1000:
                 raise CliError(f"--object-workers: expected 1 to 1000, got {args.object_workers}")
             s.object_workers = args.object_workers
+        if args.mission is not None:
+            s.mission = args.mission
         if args.speedup is not None:
             s.speedup = args.speedup
         if margin is not None:
@@ -338,7 +367,7 @@ def run_command(args: argparse.Namespace) -> int:
     with _Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
-            pace += ", robots through ROS 2" if args.ros2 else ""
+            pace += ", robots through ROS 2" if args.ros2 or s.ros is not None else ""
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"
@@ -346,21 +375,33 @@ def run_command(args: argparse.Namespace) -> int:
                 suffix = args.record.suffix or ".jsonl"
                 record = args.record.with_name(f"{args.record.stem}-{s.name}{suffix}")
             flags = (args.quiet, args.distributed, args.fast)
-            run = functools.partial(_run_one, s, console, *flags, stopper, ros2=args.ros2)
+            btlog = args.btlog
+            if args.compare and btlog is not None:
+                btlog = btlog.with_name(f"{btlog.stem}-{s.name}.btlog")
+            run = functools.partial(
+                _run_one, s, console, *flags, stopper, ros2=args.ros2, btlog=btlog
+            )
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()
             meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
             result = asyncio.run(monitored(args.monitor, keep, s.name, write, meta))
+            wall = time.perf_counter() - started
+            bound = scenario_bound(s).seconds
             console.print(
-                f"{s.name}: {len(s.robots)} robots, {result.mission_time_s:.0f} s of mission "
-                f"in {time.perf_counter() - started:.1f} s of wall time",
+                f"{s.name}: {len(s.robots)} robots, {s.mission} mission, "
+                f"{result.mission_time_s:.0f} s of mission (lower bound {bound:.0f} s: "
+                f"{result.mission_time_s / bound if bound else math.inf:.2f}x) in {wall:.1f} s "
+                "of wall time",
                 markup=False,
             )
-            if (idle := idle_robots_note(result, s.object_workers)) is not None:
+            idle = idle_robots_note(result, s.object_workers) if s.mission == "paper" else None
+            if idle is not None:
                 console.print(idle, markup=False, soft_wrap=True)
             if keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
+            if btlog is not None:
+                console.print(f"wrote {btlog} (open it in Groot2)", markup=False)
             results.append(result)
             if stopper.signum is not None:
                 console.print(f"interrupted by {signal.Signals(stopper.signum).name}")

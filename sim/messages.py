@@ -8,11 +8,13 @@ __all__ = [
     "SIM_MESSAGES",
     "Claim",
     "ClaimReply",
+    "ListWork",
     "MoveTo",
     "Operate",
     "PositionUpdate",
     "SimResult",
     "StopRobot",
+    "WorkList",
 ]
 
 
@@ -82,6 +84,19 @@ class ClaimReply(Message):
     identified: bool = False
 
 
+class ListWork(Message):
+    """Ask the store what work waits: ``kind`` is ``goal``, ``identify`` or ``carry``."""
+
+    kind: str
+
+
+class WorkList(Message):
+    """The work of a kind, each ``(id, row, col)``; ``complete``: no more will come."""
+
+    items: list[tuple[int, int, int]]
+    complete: bool
+
+
 SIM_MESSAGES: tuple[type[Message], ...] = (
     MoveTo,
     StopRobot,
@@ -90,4 +105,6 @@ SIM_MESSAGES: tuple[type[Message], ...] = (
     PositionUpdate,
     Claim,
     ClaimReply,
+    ListWork,
+    WorkList,
 )

@@ -8,10 +8,12 @@ OS process over ZeroMQ (see :mod:`btcap.sim.distributed`). Both record the same
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import anyio
@@ -19,6 +21,7 @@ import numpy as np
 
 from btcap import State, Tree
 from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
+from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
 from btcap.sim.grid import GridMap
@@ -26,6 +29,7 @@ from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
+from btcap.sim.pool import pool_lanes, pool_mission_tree
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
 from btcap.team.capabilities.capability import Capability
@@ -76,6 +80,7 @@ async def run_scenario(
     stop: anyio.Event | None = None,
     monitor: Monitor | None = None,
     ros2: bool = False,
+    btlog: Path | None = None,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
@@ -87,13 +92,18 @@ async def run_scenario(
     Robots are hosted in this process unless ``host`` says otherwise (see
     :func:`sim.distributed.run_distributed`); ``ros2`` hosts them in this process with
     their bodies reached only through ROS 2 interfaces the simulation serves (see
-    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts). A robot
+    :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts), as does a
+    scenario with a ``ros`` block on a real clock (its settings; ``ros2`` alone: their
+    defaults; the fast mode leaves the block aside). A robot
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
     A ``monitor`` is shown the operator (its membership view), the mission tree and every
     robot hosted in this process; it is detached when the mission ends, so it keeps the
     last states rather than the shutdown, and told how the mission ended.
+
+    ``btlog``: the mission tree's run is written there as BehaviorTree.CPP's file logger
+    writes one (:class:`~btcap.bt.files.btlog.BtlogRecorder`), for Groot2 to replay.
     """
     s = check_scenario(scenario)
     clock = clock or Clock(s.speedup)
@@ -108,7 +118,9 @@ async def run_scenario(
     models = s.models()
     for r in s.robots:
         manager.add_robot(r.name, models[r.model])
-    if ros2:
+    # A scenario's block puts its robots behind ROS 2 on the wall clock; on virtual time
+    # (the fast mode, `btcap sweep`) DDS cannot follow, and they are reached directly.
+    if ros2 or (s.ros is not None and math.isfinite(clock.speedup)):
         if host is not None:
             raise ValueError("run_scenario: ros2 hosts the robots itself; give no host")
         from btcap.sim.ros2.host import Ros2Host
@@ -183,7 +195,7 @@ async def run_scenario(
                     await clock.sleep_until(t0 + e.at)
                     apply(e)
 
-            tree = mission_tree(object_workers=s.object_workers)
+            tree = _mission(s)
             operator.mission(tree)
             tree.observe(mlog)
             if monitor is not None:
@@ -193,7 +205,8 @@ async def run_scenario(
             watch = _Watch(tree, s, manager, robots, mlog, started, on_progress, progress_every_s)
             watch.mission_clock = progress_clock == "mission"
             watch.stop = stop
-            final = await tree.run(cfg.tick_hz, until=watch)
+            with BtlogRecorder(tree, btlog) if btlog else contextlib.nullcontext():
+                final = await tree.run(cfg.tick_hz, until=watch)
             ev_task.cancel()
             if stop.is_set():
                 log.info("sim.interrupted", scenario=s.name)  # asked for: no warning
@@ -217,6 +230,15 @@ async def run_scenario(
                 monitor.finish(*_outcome(result, s))
             await tree.shutdown()
     return result
+
+
+def _mission(s: Scenario) -> Tree:
+    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`."""
+    if s.mission == "paper":
+        return mission_tree(object_workers=s.object_workers)
+    models = s.models()
+    explore, identify, carry = pool_lanes([models[r.model] for r in s.robots])
+    return pool_mission_tree(explorers=explore, identifiers=identify, carriers=carry)
 
 
 def _outcome(result: MissionResult, s: Scenario) -> tuple[str, str]:

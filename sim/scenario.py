@@ -27,6 +27,7 @@ from btcap.sim.scenariofile import (
     MapSpec,
     RobotEntry,
     Scenario,
+    ScenarioRos,
     SimSettings,
 )
 from btcap.team.filecheck import field_first, not_finite
@@ -43,6 +44,7 @@ __all__ = [
     "ScenarioError",
     "SimSettings",
     "builtin_scenarios",
+    "check_ros_names",
     "check_scenario",
     "grow_team",
     "load_scenario",
@@ -107,7 +109,22 @@ def _check(s: Scenario, where: str) -> Scenario:
         )
     _check_events(s, bad)
     _check_map(s, bad)
+    if s.ros is not None:
+        check_ros_names(s, s.ros)
     return s
+
+
+def check_ros_names(s: Scenario, ros: ScenarioRos) -> None:
+    """ScenarioError, naming the file and robot, if a robot's name makes no ROS 2
+    namespace under ``ros`` (the scenario's block, or the defaults ``--ros2`` uses)."""
+    for i, r in enumerate(s.robots):
+        try:
+            ros.namespace_of(r.name)
+        except ValueError as exc:
+            raise ScenarioError(
+                f"{s.source}: robots[{i}].name: {r.name!r} makes no ROS 2 namespace "
+                f"({exc}); expected letters, digits and '_' behind ROS 2"
+            ) from None
 
 
 def _check_events(s: Scenario, bad: _Bad) -> None:

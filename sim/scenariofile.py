@@ -14,6 +14,7 @@ import msgspec
 
 from btcap.sim.grid import GridMap
 from btcap.sim.model import RobotModel, load_team, paper_team
+from btcap.team.rossettings import Qos, RosSettings, check_namespace, check_node_name
 from btcap.team.settings import (
     Allocation,
     AuctionWindowS,
@@ -35,6 +36,7 @@ __all__ = [
     "MapSpec",
     "RobotEntry",
     "Scenario",
+    "ScenarioRos",
     "SimSettings",
 ]
 
@@ -150,6 +152,59 @@ class SimSettings(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     ] = 0.05
 
 
+#: What ``ros.namespace`` replaces by each robot's name.
+ROBOT_FIELD = "{robot}"
+
+
+class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
+    """The simulated robots behind ROS 2: the graph they join, each robot's namespace and
+    node, the QoS of their topics. The file having this block puts them there, as
+    ``--ros2`` does (with these defaults); each robot's node gets the agent file's ``ros``
+    settings (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
+
+    domain_id: Annotated[
+        Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
+        _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
+    ] = None
+    namespace: Annotated[
+        str,
+        _doc(
+            "Each robot's namespace, `{robot}` standing for its name: its navigation action "
+            "(`navigate_to_pose`), operations (`explore`, `identify`, `decontaminate`), "
+            "`pose` and `state` topics and `stop` service are served there."
+        ),
+    ] = "/" + ROBOT_FIELD
+    node_name: Annotated[str, _doc("The name of each robot's ROS 2 node (in its namespace).")] = (
+        "btcap"
+    )
+    qos: Annotated[Qos, _doc("QoS of the robots' topics (the `pose` topic, subscriptions).")] = (
+        msgspec.field(default_factory=Qos)
+    )
+
+    def __post_init__(self) -> None:
+        if ROBOT_FIELD not in self.namespace:
+            raise ValueError(
+                f"namespace: {self.namespace!r} has no {ROBOT_FIELD}: expected a pattern "
+                "giving each robot a namespace of its own ('/{robot}', '/team/{robot}')"
+            )
+        check_namespace(self.namespace.replace(ROBOT_FIELD, "robot"))
+        check_node_name(self.node_name)
+
+    def namespace_of(self, robot: str) -> str:
+        """``robot``'s namespace (ValueError if its name makes no ROS name)."""
+        ns = self.namespace.replace(ROBOT_FIELD, robot)
+        return check_namespace(ns, f"ros.namespace (for robot {robot!r})")
+
+    def settings(self, robot: str) -> RosSettings:
+        """The ``ros`` settings of ``robot``'s node, as its agent file would have them."""
+        return RosSettings(
+            domain_id=self.domain_id,
+            namespace=self.namespace_of(robot),
+            node_name=self.node_name,
+            qos=self.qos,
+        )
+
+
 class AgentTiming(Timing, frozen=True):
     """Every robot's protocol timing (:class:`~btcap.team.settings.Timing`), in simulated
     seconds (the clock runs on mission time, scaled by the speed-up like everything else).
@@ -226,6 +281,15 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
             description="Identify-and-decontaminate loops of the mission tree, run in parallel.",
         ),
     ] = 1
+    mission: Annotated[
+        Literal["paper", "pool"],
+        _doc(
+            "The mission tree: `paper`, the paper's (one Explore loop beside "
+            "`object_workers` identify-and-decontaminate loops), or `pool` (a lane per "
+            "goal, object to identify and object to carry, as many at once of each as "
+            "robots can do it; objects go to the carry pool once identified)."
+        ),
+    ] = "paper"
     team_file: Annotated[
         str | None,
         _doc(
@@ -237,6 +301,15 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
     sim: Annotated[SimSettings, _doc("The simulation's pace and randomness.")] = SimSettings()
     agent: Annotated[AgentTiming, _doc("Every robot's protocol timing.")] = AgentTiming()
     allocation: Annotated[Allocation, _doc("How work is allocated and moved.")] = Allocation()
+    ros: Annotated[
+        ScenarioRos | None,
+        _doc(
+            "The robots behind ROS 2 (docs/ros2-sim.md): `btcap run` and `btcap sim serve` "
+            "serve each through ROS 2 interfaces in its namespace, as `--ros2` does; needs "
+            "ROS 2 and the simulator's interfaces (`make ros-sim`); the fast mode (`btcap "
+            "sweep`) leaves it aside. null: robots reached directly, unless `--ros2`."
+        ),
+    ] = None
     source: Annotated[
         str,
         msgspec.Meta(

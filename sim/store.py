@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from btcap.actors import Actor, handler
 from btcap.sim.distance import Cell
 from btcap.sim.grid import GridMap
-from btcap.sim.messages import Claim, ClaimReply
+from btcap.sim.messages import Claim, ClaimReply, ListWork, WorkList
 
 __all__ = ["Goal", "MissionState", "ObjectStore", "SimObject"]
 
@@ -194,6 +194,23 @@ class MissionState:
             return ClaimReply("done")
         raise ValueError(f"claim kind {kind!r}: expected 'goal' or 'object'")
 
+    def work_list(self, kind: str) -> WorkList:
+        """The work of ``kind`` waiting now (a pool mission's lanes take it, without
+        claims): goals not yet explored, found objects not yet identified, objects found
+        contaminated and not yet carried away; ``complete`` once no more can come."""
+        explored = self.exploration_complete
+        if kind == "goal":
+            items = [(g.id, *g.cell) for g in self.goals.values() if not g.done]
+            return WorkList(items, explored)
+        found = [o for o in self.objects if o.found and not o.finished]
+        if kind == "identify":
+            items = [(o.id, *o.cell) for o in found if o.identified is None and not o.carried_by]
+            return WorkList(items, explored)
+        if kind == "carry":
+            items = [(o.id, *o.cell) for o in found if o.identified]
+            return WorkList(items, explored and all(o.identified is not None for o in found))
+        raise ValueError(f"work kind {kind!r}: expected 'goal', 'identify' or 'carry'")
+
     # -- objects ----------------------------------------------------------------------
     def identify(self, obj: int) -> bool:
         o = self.objects[obj]
@@ -246,3 +263,9 @@ class ObjectStore(Actor):
         if msg.kind not in ("goal", "object"):
             return ClaimReply("done")
         return self.state.claim(msg.claimant, msg.kind)
+
+    @handler
+    def on_list_work(self, msg: ListWork) -> WorkList:
+        if msg.kind not in ("goal", "identify", "carry"):
+            return WorkList([], True)
+        return self.state.work_list(msg.kind)

@@ -8,7 +8,7 @@ each node's state, and outputs as values.
 from __future__ import annotations
 
 import typing
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from btcap.bt.composites import Composite
@@ -19,7 +19,11 @@ from btcap.bt.ports import type_name
 from btcap.bt.state import State
 from btcap.bt.tree import Subtree, Tree
 
-__all__ = ["render_dot", "render_text"]
+__all__ = ["EntryLines", "render_dot", "render_text"]
+
+#: (tree name, node path within it) -> lines saying which entries the node's ports use
+#: (a BehaviorTree.CPP file's ``{goal}``: :mod:`btcap.bt.files.btcpp_uses`).
+EntryLines = Callable[[str, str], list[str]]
 
 _STATE_COLOURS = {
     State.UNINITIALIZED: "white",
@@ -52,9 +56,19 @@ def _options(about: NodeDescription) -> list[str]:
     return [f"{key}={_fmt(value)}" for key, value in about.options.items()]
 
 
-def _detail_lines(node: Node, about: NodeDescription, states: bool) -> list[str]:
+def _detail_lines(
+    node: Node, about: NodeDescription, states: bool, entries: list[str]
+) -> list[str]:
     lines = []
+    named = set()  # ports shown by their entry (and the wire it became, if it did)
+    for line in entries:
+        key = line.split()[1]
+        named.add(key)
+        wired = about.wired.get(key) if line.startswith("in ") else None
+        lines.append(f"{line} (wire from {wired})" if wired else line)
     for key in node.input_ports:
+        if key in named:
+            continue
         if key in about.wired:
             lines.append(f"in  {key} <- {about.wired[key]}")
         elif key in about.inputs:
@@ -82,35 +96,50 @@ def _head(node: Node, about: NodeDescription, states: bool) -> str:
     return head
 
 
-def render_text(tree: Tree, *, states: bool | None = None) -> str:
+def _no_entries(tree: str, path: str) -> list[str]:
+    return []
+
+
+def render_text(
+    tree: Tree, *, states: bool | None = None, entries: EntryLines | None = None
+) -> str:
     """An indented outline of the tree; ``states`` defaults to "if it has been ticked"."""
     show = _ticked(tree) if states is None else states
     n_nodes = sum(1 for _ in tree.nodes())
     lines = [f"tree {tree.name!r}: {n_nodes} nodes, {len(tree.wires)} wires"]
-    lines.extend(_text_lines(wire_sources(tree), tree.root, "", "", show))
+    rows = _Rows(show, entries or _no_entries)
+    lines.extend(rows.lines(tree.name, wire_sources(tree), tree.root, "", ""))
     return "\n".join(lines) + "\n"
 
 
-def _text_lines(
-    wires: dict[tuple[int, str], str], node: Node, first: str, rest: str, states: bool
-) -> Iterator[str]:
-    about = describe(node, wires)
-    yield first + _head(node, about, states)
-    kids = [(wires, c) for c in node.children]
-    if isinstance(node, Subtree):
-        kids.append((wire_sources(node.inner), node.inner.root))
-    bar = "│   " if kids else "    "
-    for line in _detail_lines(node, about, states):
-        yield rest + bar + "· " + line
-    for i, (w, child) in enumerate(kids):
-        last = i == len(kids) - 1
-        yield from _text_lines(
-            w,
-            child,
-            rest + ("└── " if last else "├── "),
-            rest + ("    " if last else "│   "),
-            states,
-        )
+class _Rows:
+    """The outline's lines, node by node."""
+
+    def __init__(self, states: bool, entries: EntryLines) -> None:
+        self.states = states
+        self.entries = entries
+
+    def lines(
+        self, tree: str, wires: dict[tuple[int, str], str], node: Node, first: str, rest: str
+    ) -> Iterator[str]:
+        about = describe(node, wires)
+        yield first + _head(node, about, self.states)
+        kids = [(tree, wires, c) for c in node.children]
+        if isinstance(node, Subtree):
+            kids.append((node.inner.name, wire_sources(node.inner), node.inner.root))
+        bar = "│   " if kids else "    "
+        uses = self.entries(tree, node.path)
+        for line in _detail_lines(node, about, self.states, uses):
+            yield rest + bar + "· " + line
+        for i, (t, w, child) in enumerate(kids):
+            last = i == len(kids) - 1
+            yield from self.lines(
+                t,
+                w,
+                child,
+                rest + ("└── " if last else "├── "),
+                rest + ("    " if last else "│   "),
+            )
 
 
 def _q(text: str) -> str:
@@ -128,8 +157,16 @@ def _shape(node: Node) -> tuple[str, str]:
     return "ellipse", "filled"
 
 
-def render_dot(tree: Tree, *, states: bool | None = None) -> str:
+def render_dot(
+    tree: Tree,
+    *,
+    states: bool | None = None,
+    entries: EntryLines | None = None,
+    note: Sequence[str] = (),
+) -> str:
     """Graphviz DOT: solid child edges, dashed data wires labelled ``output -> input``.
+
+    ``note``: lines drawn in a note beside the tree (what the application must set).
 
     Subtrees are drawn as clusters below their Subtree node. Node ids are node paths
     (prefixed by the Subtree node's path inside subtrees), so they are unique.
@@ -141,12 +178,18 @@ def render_dot(tree: Tree, *, states: bool | None = None) -> str:
         '  node [fontname="Helvetica", fontsize=11];',
         '  edge [fontname="Helvetica", fontsize=9];',
     ]
-    _dot_tree(tree, "", out, "  ", show)
+    _dot_tree(tree, "", out, "  ", (show, entries or _no_entries))
+    if note:
+        out.append(f"  {_q('note')} [shape=note, label={_q(chr(10).join(note))}];")
     out.append("}")
     return "\n".join(out) + "\n"
 
 
-def _dot_tree(tree: Tree, prefix: str, out: list[str], indent: str, states: bool) -> None:
+def _dot_tree(
+    tree: Tree, prefix: str, out: list[str], indent: str, how: tuple[bool, EntryLines]
+) -> None:
+    states, entries = how
+
     def ident(node: Node) -> str:
         return _q(prefix + node.path)
 
@@ -154,6 +197,7 @@ def _dot_tree(tree: Tree, prefix: str, out: list[str], indent: str, states: bool
     for node in tree.nodes():
         shape, style = _shape(node)
         label = [type(node).__name__, node.name, *_options(describe(node, wires))]
+        label += entries(tree.name, node.path)
         if states:
             label.append(f"[{node.state.value}]")
         colour = _STATE_COLOURS[node.state] if states else "white"
@@ -177,7 +221,7 @@ def _dot_tree(tree: Tree, prefix: str, out: list[str], indent: str, states: bool
             out.append(f"{indent}subgraph {cluster} {{")
             out.append(f"{indent}  label={_q(f'subtree {node.inner.name}')};")
             out.append(f"{indent}  style=dashed;")
-            _dot_tree(node.inner, inner_prefix, out, indent + "  ", states)
+            _dot_tree(node.inner, inner_prefix, out, indent + "  ", how)
             out.append(f"{indent}}}")
             out.append(
                 f"{indent}{ident(node)} -> {_q(inner_prefix + node.inner.root.path)} "

@@ -6,6 +6,7 @@ import asyncio
 from collections.abc import Callable, Coroutine
 from typing import TYPE_CHECKING, Any, Protocol
 
+from btcap.actors import Clock, ManualClock
 from btcap.bt.node import Node
 from btcap.bt.state import ACTIVE, DONE, State, TreeError, TreeTimeout
 
@@ -14,7 +15,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "WAKES_IN_A_ROW",
+    "Alarm",
     "Runnable",
+    "nudge",
     "run_tree",
     "running_paths",
     "start_task",
@@ -25,6 +28,34 @@ __all__ = [
 WAKES_IN_A_ROW = 10_000
 
 
+class Alarm:
+    """How news from outside reaches a tree's run: :func:`nudge` sets ``nudged`` and rings
+    ``future``, the sleep of :func:`run_tree` between two ticks; a tree ticked by another
+    (a Subtree's, an implementation's in a robot's slot) passes it on to ``outer``."""
+
+    __slots__ = ("future", "nudged", "outer", "running")
+
+    def __init__(self) -> None:
+        self.nudged = False
+        self.running = False
+        self.future: asyncio.Future[None] | None = None
+        self.outer: Any = None
+
+
+def nudge(tree: Any) -> None:
+    """Tick ``tree`` soon, ahead of its period: there is news for one of its nodes (a ROS
+    goal answered). On the event loop's thread (hand over with ``call_soon_threadsafe``).
+    The tree that runs it (itself, or the one that ticks it) ticks once at once, however
+    many nudges came meanwhile; its periodic ticks keep their times."""
+    alarm: Alarm = tree.alarm
+    while not alarm.running and alarm.outer is not None:
+        alarm = alarm.outer.alarm
+    alarm.nudged = True
+    future = alarm.future
+    if future is not None and not future.done():
+        future.set_result(None)
+
+
 class Runnable(Protocol):
     """What :func:`run_tree` needs of a tree; :class:`~btcap.bt.tree.Tree` is one."""
 
@@ -32,6 +63,7 @@ class Runnable(Protocol):
     root: Node
     clock: TimeSource
     woken: bool
+    alarm: Alarm
 
     def tick(self) -> State: ...
     def untick(self) -> None: ...
@@ -52,7 +84,10 @@ async def run_tree(
     is followed at once by the next, as BehaviorTree.CPP's ``tickWhileRunning`` cuts its
     sleep short; the period counts from there. After :data:`WAKES_IN_A_ROW` such ticks the
     period is kept once, so that a tree that always asks (a ``Repeat`` forever of a child
-    that succeeds at once) still lets clock time pass and the run reach its limits."""
+    that succeeds at once) still lets clock time pass and the run reach its limits.
+
+    A :func:`nudge` (news from outside: a ROS goal answered) ticks the tree at once,
+    an extra tick that leaves the periodic ticks' times as they were."""
     if not rate_hz > 0:
         raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
     if max_ticks is not None and max_ticks < 1:
@@ -65,27 +100,67 @@ async def run_tree(
     deadline = clock.now()
     end = None if timeout_s is None else deadline + timeout_s
     ticks = woken = 0
-    while True:
-        state = tree.tick()
-        ticks += 1
-        if stop(state):
-            return state
-        if max_ticks is not None and ticks >= max_ticks:
-            raise _halt(tree, "max_ticks", max_ticks, state, ticks)
-        if wake and tree.woken and woken < WAKES_IN_A_ROW:
-            tree.woken = False
-            woken += 1
-            deadline = clock.now()  # the next tick now, yet through the loop (never blocking it)
-        else:
-            woken = 0
-            deadline += period
-        now = clock.now()
-        if deadline < now - period:  # fell far behind: skip, don't burst
-            deadline = now
-        if end is not None and timeout_s is not None and deadline > end:
-            await clock.sleep_until(end)  # not a tick later: the limit is the limit
-            raise _halt(tree, "timeout_s", timeout_s, state, ticks)
+    early = False
+    alarm = tree.alarm
+    alarm.running = True
+    try:
+        while True:
+            state = tree.tick()
+            ticks += 1
+            if stop(state):
+                return state
+            if max_ticks is not None and ticks >= max_ticks:
+                raise _halt(tree, "max_ticks", max_ticks, state, ticks)
+            if wake and tree.woken and woken < WAKES_IN_A_ROW:
+                tree.woken = False
+                woken += 1
+                deadline = clock.now()  # the next tick now, yet through the loop
+            elif not early:  # a nudged tick was an extra: the period's deadline stands
+                woken = 0
+                deadline += period
+            now = clock.now()
+            if deadline < now - period:  # fell far behind: skip, don't burst
+                deadline = now
+            if end is not None and timeout_s is not None and deadline > end:
+                await clock.sleep_until(end)  # not a tick later: the limit is the limit
+                raise _halt(tree, "timeout_s", timeout_s, state, ticks)
+            early = await _sleep_until(alarm, clock, deadline)
+    finally:
+        alarm.running = False
+        alarm.nudged = False
+
+
+async def _sleep_until(alarm: Alarm, clock: TimeSource, deadline: float) -> bool:
+    """Sleep until ``deadline`` on ``clock``, or less if nudged: whether it was."""
+    delay = deadline - clock.now()
+    if alarm.nudged or delay <= 0:  # news came during the tick, or the period is over
+        alarm.nudged = False
+        await asyncio.sleep(0)  # through the loop, never holding it
+        return delay > 0
+    loop = asyncio.get_running_loop()
+    future = alarm.future = loop.create_future()
+    handle: Any
+    if isinstance(clock, Clock):  # asyncio.sleep's own way, with the future ours to ring
+        handle = loop.call_later(clock.to_wall(delay), _ring, future)
+    elif isinstance(clock, ManualClock):
+        handle = clock.call_later(delay, _ring, future)
+    else:  # a clock of its own: it sleeps, deaf to nudges
+        alarm.future = None
         await clock.sleep_until(deadline)
+        return False
+    try:
+        await future
+    finally:
+        handle.cancel()
+        alarm.future = None
+    early = alarm.nudged and clock.now() < deadline
+    alarm.nudged = False
+    return early
+
+
+def _ring(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
 
 
 def tick_once(tree: Runnable) -> State:

@@ -12,31 +12,15 @@ from btcap.bt.debug import RestartMonitor, debug_default
 from btcap.bt.host import wake
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, wire_problem
-from btcap.bt.running import run_tree, start_task, tick_once
+from btcap.bt.running import Alarm, nudge, run_tree, start_task, tick_once
 from btcap.bt.state import ACTIVE, DONE, State, TreeError
 from btcap.bt.utility import Utility
+from btcap.bt.wires import Wire
 
 if TYPE_CHECKING:
     from btcap.actors import ActorSystem
 
 __all__ = ["Subtree", "Tree", "Wire"]
-
-
-class Wire:
-    """An output of one node feeding an input of another, pulled when the input's node ticks."""
-
-    __slots__ = ("source", "source_port", "target", "target_port")
-
-    def __init__(self, source: Node, source_port: str, target: Node, target_port: str) -> None:
-        self.source = source
-        self.source_port = source_port
-        self.target = target
-        self.target_port = target_port
-
-    def __repr__(self) -> str:
-        return (
-            f"Wire({self.source.path}.{self.source_port} -> {self.target.path}.{self.target_port})"
-        )
 
 
 class Tree:
@@ -64,6 +48,7 @@ class Tree:
         self.blackboard: Blackboard | None = None  # entries beyond wires (XML trees)
         self.version = 0  # grows when nodes join or leave: a watcher needs no walk to see it
         self.woken = False  # a node asked to be ticked again at once (see tick_once)
+        self.alarm = Alarm()  # news from outside: tick soon (nudge)
         self._monitor: RestartMonitor | None = None
         self._unmonitor: Callable[[], None] | None = None
         self._told: set[str] = set()  # nodes whose first error was a warning (bt.told)
@@ -195,6 +180,8 @@ class Tree:
             self.blackboard.check(self.name)
         wired = {(id(n), key) for n in self.nodes() for key, _, _ in n._pulls or ()}
         wired.update((id(n), key) for n, key in provided)
+        # Inputs a parent sets before ticking them (a ParallelForEach's lanes' items).
+        wired.update((id(c), k) for n in self.nodes() for c, k in getattr(n, "feeds", tuple)())
         for n in self.nodes():
             cls = type(n)
             k = len(n.children)
@@ -254,6 +241,10 @@ class Tree:
         return state
 
     tick_exactly_once = tick
+
+    def nudge(self) -> None:
+        """Tick soon: news for a node came from outside (:func:`~btcap.bt.running.nudge`)."""
+        nudge(self)
 
     def tick_once(self) -> State:
         """BehaviorTree.CPP's ``tickOnce``: a tick, repeated at once while the tree runs and
@@ -415,6 +406,7 @@ class Subtree(Node):
 
     def on_setup(self) -> None:
         self.inner.clock = self.clock
+        self.inner.alarm.outer = self._tree  # news inside: the outer tree ticks
         host = self._tree
         self.inner._share_monitor(host._monitor if isinstance(host, Tree) else None)
         self.inner.setup(provided=list(self._in_map.values()))

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 from btcap.bt.state import TreeError
 from btcap.cli import CliError
+from btcap.cli.rostree import add_ros_options, ros_problems, use_ros
+from btcap.cli.treeargs import add_run_arguments
 
 if TYPE_CHECKING:  # the rest is imported by the subcommand that runs: --help stays fast
     from btcap.actors import ManualClock
@@ -58,6 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="capability interface file: its capabilities and their <Name>Inputs/"
         "<Name>Outputs bridges become node types (repeatable)",
     )
+    add_ros_options(types)
 
     xml = argparse.ArgumentParser(add_help=False)
     group = xml.add_argument_group("BehaviorTree.CPP XML")
@@ -122,49 +125,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "print it with states. At --timeout (default 60 s) or --max-ticks it is halted and "
         "a last line names the nodes still running (exit 3). Log nodes print to stderr.",
     )
-    p.add_argument("file", metavar="FILE", type=Path)
-    p.add_argument("--rate", type=float, default=10.0, help="ticks per second (default 10)")
-    p.add_argument(
-        "--timeout",
-        default="60",
-        metavar="SECONDS",
-        help="halt the tree after this many seconds of clock time (virtual with --fast); "
-        "0 or none: no limit (default 60)",
-    )
-    p.add_argument("--max-ticks", type=int, default=None, help="halt after this many ticks")
-    p.add_argument(
-        "--wake",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="tick again at once when a node asks to (an AsyncSequence that yielded), as "
-        "BehaviorTree.CPP's tickWhileRunning; --no-wake: once per period, as its "
-        "tickExactlyOnce (default: on for .xml files, off for others)",
-    )
-    p.add_argument(
-        "--fast",
-        action="store_true",
-        help="virtual time: waits and timeouts pass at once, the run is reproducible",
-    )
-    p.add_argument(
-        "--debug",
-        action="store_true",
-        help="warn about nodes halted and restarted over and over (also BTCAP_DEBUG=1)",
-    )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="set a blackboard entry of a BehaviorTree.CPP XML tree before ticking, as the "
-        "application would (repeatable); VALUE is read as the entry's type ('1;2' is a list)",
-    )
-    p.add_argument(
-        "--set-file",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="a YAML mapping of blackboard entries to set before ticking (--set wins)",
-    )
+    add_run_arguments(p)
     p.set_defaults(handler=_run)
 
     p = cmds.add_parser(
@@ -194,6 +155,7 @@ def _registry(args: argparse.Namespace) -> NodeRegistry:
         if not path.is_file():
             raise CliError(f"--interfaces {path}: no such file")
         register_interfaces(registry, load_interfaces(path, registry))
+    use_ros(args, registry)
     return registry
 
 
@@ -345,7 +307,8 @@ def _load(args: argparse.Namespace, path: Path, clock: ManualClock | None = None
                 **_xml_options(args),
             )
     except TreeFileError as exc:
-        raise TreeFileError([*exc.problems, *_hints(path, exc.problems, args)]) from None
+        problems = [*exc.problems, *_hints(path, exc.problems, args)]
+        raise TreeFileError(ros_problems(problems, args)) from None
 
 
 # -- subcommands ------------------------------------------------------------------------
@@ -371,7 +334,7 @@ def _validate(args: argparse.Namespace) -> int:
             continue
         with _warnings_shown():
             problems = validate_file(path, registry, **options)
-        problems += _hints(path, problems, args)
+        problems = ros_problems(problems + _hints(path, problems, args), args)
         if problems:
             for line in problems:
                 print(line, file=sys.stderr)
@@ -382,37 +345,15 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from btcap.bt.files import file_info
-    from btcap.bt.render import render_text
+    from btcap.cli.treeshow import show
 
-    tree = _load(args, args.file)
-    info = file_info(tree)
-    if info.description:
-        print(info.description)
-    sys.stdout.write(render_text(tree))
-    return 0
+    return show(_load(args, args.file))
 
 
 def _dot(args: argparse.Namespace) -> int:
-    from btcap.bt.render import render_dot
-    from btcap.cli.graphviz import PICTURES, graphviz
+    from btcap.cli.treeshow import dot
 
-    tree = _load(args, args.file)
-    text = render_dot(tree)
-    out: Path | None = args.output
-    if out is None:
-        sys.stdout.write(text)
-        return 0
-    picture = PICTURES.get(out.suffix.lower())
-    try:
-        if picture is None:
-            out.write_text(text, encoding="utf-8")
-        else:
-            out.write_bytes(graphviz(text, picture))
-    except OSError as exc:
-        raise CliError(f"{out}: cannot write: {exc.strerror or exc}") from None
-    print(f"wrote {out}", file=sys.stderr)
-    return 0
+    return dot(_load(args, args.file), args.output)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -18,12 +18,15 @@ from typing import Any
 import msgspec.yaml
 
 from btcap.actors import ManualClock
+from btcap.bt.files.btcpp_uses import entry_uses
+from btcap.bt.files.btlog import BtlogError, BtlogRecorder
 from btcap.bt.leaves import LOG_LOGGER
 from btcap.bt.node import Node
 from btcap.bt.render import render_text
 from btcap.bt.state import DONE, State, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
+from btcap.cli.rostree import bridge_for, wanted
 from btcap.team.capabilities.capability import Capability
 
 __all__ = ["run"]
@@ -36,17 +39,24 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
     if args.max_ticks is not None and args.max_ticks < 1:
         raise CliError(f"--max-ticks {args.max_ticks}: expected at least 1")
     timeout = _timeout(args.timeout)
+    if args.fast and wanted(args):
+        raise CliError("--fast with --ros: ROS 2 runs on the wall clock, not on virtual time")
     args.entries = _entries(args.set, args.set_file)
     clock = ManualClock() if args.fast else None
     tree = load(clock)
     tree.debug = tree.debug or args.debug
+    uses = entry_uses(tree)
+    for need in uses.needed(tree.name) if uses else ():
+        if need.via or need.key not in args.entries:
+            todo = "" if need.via else f" and it was not set (--set {need.key}=VALUE)"
+            print(f"{need.where}: line {need.line}: {need.describe()}{todo}", file=sys.stderr)
     caps = [n.path for n in _all_nodes(tree) if isinstance(n, Capability)]
     if caps:
         raise CliError(
             f"{args.file}: capability nodes ({', '.join(caps)}) are run by a team, not by "
             f"'btcap tree run'; run the tree on an agent (btcap mission run)"
         )
-    with _log_nodes_shown():
+    with _log_nodes_shown(), _btlog(tree, args.btlog):
         state, ticks, text, stopped = asyncio.run(_tick(tree, clock, args, timeout))
     sys.stdout.write(text)
     plural = "s" if ticks != 1 else ""
@@ -99,6 +109,25 @@ def _timeout(text: str) -> float | None:
 
 
 @contextlib.contextmanager
+def _btlog(tree: Tree, path: Path | None) -> Iterator[None]:
+    """``--btlog``: the run logged for Groot2 while it lasts (what was written stays)."""
+    if path is None:
+        yield
+        return
+    try:
+        recorder = BtlogRecorder(tree, path)
+    except OSError as exc:
+        raise CliError(f"--btlog {path}: cannot write: {exc.strerror or exc}") from None
+    except BtlogError as exc:
+        raise CliError(f"--btlog {exc}") from None
+    try:
+        yield
+    finally:
+        recorder.close()
+        print(f"wrote {path} ({recorder.transitions} transitions)", file=sys.stderr)
+
+
+@contextlib.contextmanager
 def _log_nodes_shown() -> Iterator[None]:
     """Let Log nodes' lines through (info and up) whatever --log-level hides, for the run."""
     logger = logging.getLogger(LOG_LOGGER)
@@ -132,7 +161,7 @@ async def _tick(
     stopped: TreeTimeout | None = None
     jumps = clock.autojump() if clock is not None else contextlib.nullcontext()
     try:
-        async with jumps:
+        async with bridge_for(args, tree), jumps:
             try:
                 state = await tree.run(
                     args.rate, until=count, max_ticks=args.max_ticks, timeout_s=timeout, wake=wake

@@ -9,6 +9,10 @@ records them in the goal's :class:`_Goal`; the tick reads them. Halting cancels 
 also when the server has not accepted it yet (the answer, when it comes, is cancelled
 then: the race BehaviorTree.ROS2 #18/#53 and Nav2 #6426 report); halting twice does
 nothing more. Every way to fail says why in ``node.error``; no timeout is a success.
+
+The news (accepted, rejected, feedback, result) ticks the node's tree soon
+(:meth:`~btcap.ros.base.RosLeaf.news`). ``action_name`` is read when a goal is sent: a
+goal runs to its end on the server it was sent to, whatever the name becomes meanwhile.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import RosLeaf, now, seconds
+from btcap.ros.base import SERVER_OPTIONS, RosLeaf, name_input, now, seconds
 from btcap.ros.versions import Types
 
 __all__ = ["FEEDBACK_PREFIX", "RosAction"]
@@ -40,6 +44,7 @@ class _Goal:
 
     __slots__ = (
         "bridge",
+        "client",
         "error",
         "feedback",
         "feedback_at",
@@ -47,13 +52,18 @@ class _Goal:
         "halted",
         "handle",
         "lock",
+        "name",
+        "news",
         "result",
         "sent_at",
         "status",
     )
 
-    def __init__(self, bridge: Any) -> None:
+    def __init__(self, bridge: Any, client: Any, name: str, news: Any) -> None:
         self.bridge = bridge
+        self.client = client
+        self.name = name
+        self.news = news
         self.lock = threading.Lock()
         self.handle: Any = None
         self.halted = False
@@ -71,11 +81,11 @@ class _Goal:
             handle = future.result()
         except Exception as exc:
             self.error = f"the goal request failed: {exc}"
-            self.bridge.wake()
+            self.news()
             return
         if handle is None or not handle.accepted:
             self.status = _REJECTED
-            self.bridge.wake()
+            self.news()
             return
         with self.lock:
             self.handle = handle
@@ -87,23 +97,24 @@ class _Goal:
             self.bridge.untrack(handle)
             return
         handle.get_result_async().add_done_callback(self.on_result)
-        self.bridge.wake()
+        self.news()
 
     def on_result(self, future: Any) -> None:
         try:
             answer = future.result()
         except Exception as exc:
             self.error = f"the result request failed: {exc}"
-            self.bridge.wake()
+            self.news()
             return
         self.result = answer.result
         self.status = answer.status
         self.bridge.untrack(self.handle)
-        self.bridge.wake()
+        self.news()
 
     def on_feedback(self, message: Any) -> None:
         self.feedback = message.feedback
         self.feedback_at = now()
+        self.news(True)
 
     # tick thread
     def halt(self) -> None:
@@ -123,46 +134,53 @@ class RosAction(RosLeaf):
 
     SUCCEEDED when the goal succeeds (the Result's fields in the outputs); FAILED, with
     the reason in ``error``, when it is aborted, canceled by the server or rejected, when
-    no server answers within ``server_timeout`` (seconds), when ``feedback_timeout`` passes
-    without feedback, or when the server leaves the graph mid-goal.
+    no server appears within ``wait_for_server_timeout`` or answers the goal within
+    ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, or
+    when the server leaves the graph mid-goal.
     """
 
-    __slots__ = ("_goal", "_types")
+    __slots__ = ("_goal", "_last", "_types")
     KIND: ClassVar[str] = "action"
+    NAME_PORT: ClassVar[str] = "action_name"
+    INPUTS: ClassVar[dict[str, Any]] = name_input("action_name", "action")
     OPTIONS: ClassVar[dict[str, Any]] = {
         "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
-        "action_name": Port(str, description="resolved in the robot's namespace"),
-        "server_timeout": seconds("how long to wait for the server and its goal answer", 1.0),
-        "wait_for_server_timeout": seconds(
-            "how long to wait for the server to appear; null: server_timeout", None
-        ),
+        **SERVER_OPTIONS,
         "feedback_timeout": seconds("fail after this long without feedback; null: never", None),
     }
 
     def declare_ports(self) -> None:
-        types = self.types
-        cls = types.interface(self.options["action_type"], "action")
+        cls = self.types.interface(self.options["action_type"], "action")
         self._types = cls
-        port_type, goal = types.port_type, types.field_types(cls.Goal)
+        goal = self.types.field_types(cls.Goal)
+        fields = {
+            k: Port(self.types.port_type(t) | None, None, f"Goal field ({t})")
+            for k, t in goal.items()
+        }
         self.input_ports = normalize_ports(
-            {k: Port(port_type(t) | None, None, f"Goal field ({t})") for k, t in goal.items()},
+            self.with_name_port(fields, f"{self.options['action_type']} Goal"),
             f"{self.name}.inputs",
         )
         outs = {
-            k: Port(port_type(t), NO_DEFAULT, f"Result ({t})")
-            for k, t in _fields(types, cls.Result)
+            k: Port(self.types.port_type(t), NO_DEFAULT, f"Result ({t})")
+            for k, t in _fields(self.types, cls.Result)
         }
-        for k, t in _fields(types, cls.Feedback):
-            outs[FEEDBACK_PREFIX + k] = Port(port_type(t), NO_DEFAULT, f"latest Feedback ({t})")
+        for k, t in _fields(self.types, cls.Feedback):
+            outs[FEEDBACK_PREFIX + k] = Port(
+                self.types.port_type(t), NO_DEFAULT, f"latest Feedback ({t})"
+            )
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._goal: _Goal | None = None
+        self._last = ""
 
     @property
     def action_name(self) -> str:
-        return self.bridge.resolve(self.options["action_name"])
+        """The action's name, resolved: the running goal's, else the input's now."""
+        return self._goal.name if self._goal is not None else self.ros_name()
 
     def _what(self) -> str:
-        return f"action {self.action_name} ({self.options['action_type']})"
+        name = self._goal.name if self._goal is not None else self._last or "?"
+        return f"action {name} ({self.options['action_type']})"
 
     def on_tick(self) -> State:
         goal = self._goal
@@ -192,20 +210,20 @@ class RosAction(RosLeaf):
         if limit is not None and t - goal.feedback_at > limit:
             self._stop()
             return self.failed(f"{self._what()}: no feedback for feedback_timeout {limit} s")
-        if not self.bridge.action_client(
-            self.options["action_type"], self.options["action_name"]
-        ).server_is_ready():
+        if not goal.client.server_is_ready():
             self._stop()
             return self.failed(f"{self._what()}: the server left during the goal")
         return _RUNNING
 
     def _send(self) -> State:
         bridge = self.bridge
-        client = bridge.action_client(self.options["action_type"], self.options["action_name"])
-        if (missing := self._server_missing(client.server_is_ready())) is not None:
+        name = self._last = self.ros_name()
+        client = bridge.action_client(self.options["action_type"], name)
+        if (missing := self._server_missing(client.server_is_ready(), name)) is not None:
             return missing
-        msg = self.types.fill(self._types.Goal, self.inputs, f"{self._what()} goal")
-        goal = self._goal = _Goal(bridge)
+        fields = {k: v for k, v in self.inputs.items() if k != "action_name"}
+        msg = self.types.fill(self._types.Goal, fields, f"{self._what()} goal")
+        goal = self._goal = _Goal(bridge, client, name, self.news())
         outputs = self.outputs
         for k in outputs:
             outputs[k] = None

@@ -1,9 +1,19 @@
-"""What every ROS tree node shares: finding the robot's bridge, the timeout ports, the
-QoS ports, and failing with the reason in ``node.error``."""
+"""What every ROS tree node shares: finding the robot's bridge, the name port
+(``action_name``, ``service_name``, ``topic_name``), the timeout and QoS options, telling
+the tree there is news, and failing with the reason in ``node.error``.
+
+The name is an input port, as in BehaviorTree.ROS2: a literal (``action_name="navigate"``
+in XML, ``inputs={"action_name": ...}`` in YAML, the ``action_name=`` keyword in Python)
+or read from a blackboard entry or a wire (``action_name="{nav_action}"``), resolved in
+the robot's namespace. It is read when a node starts its work (a goal, a call, a wait,
+a publisher or subscription); a change while the work runs takes effect at the next.
+"""
 
 from __future__ import annotations
 
+import asyncio
 import time
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 from msgspec import Meta
@@ -11,12 +21,12 @@ from msgspec import Meta
 from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
 from btcap.bt.state import State
-from btcap.ros.client import RosBridge
+from btcap.ros.client import RosBridge, Waker
 from btcap.ros.errors import RosError
 from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos
 
-__all__ = ["QOS_OPTIONS", "RosLeaf", "now", "qos_of"]
+__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "name_input", "now", "qos_of"]
 
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING
@@ -42,6 +52,35 @@ def seconds(description: str, default: float | None) -> Port:
     return Port(kind, default, description, _SECONDS)
 
 
+#: How long a node waits for its server to appear in the ROS graph (DDS discovery) before
+#: it fails: tens of milliseconds on an idle machine, but over 1.5 s was seen with 2 cores
+#: at load 12 (BehaviorTree.ROS2's 0.5 s, or our former 1 s, failed there); 10 s still
+#: fails a server that is really missing within a bound a person waits for.
+WAIT_FOR_SERVER_S = 10.0
+#: How long a node waits for the answer of a server it found: a goal's acceptance, or a
+#: service's response (which includes the service's own work; set it per node).
+SERVER_S = 5.0
+
+
+def name_input(port: str, what: str) -> dict[str, Port]:
+    """The INPUTS of a ROS node class: its name port (its interface's fields are added
+    per node, from its type)."""
+    return {port: Port(str, description=f"the {what}'s name, in the robot's namespace")}
+
+
+def seconds_options(what: str) -> dict[str, Port]:
+    return {
+        "wait_for_server_timeout": seconds(
+            f"how long to wait for the {what} to appear in the ROS graph (discovery)",
+            WAIT_FOR_SERVER_S,
+        ),
+        "server_timeout": seconds(f"how long to wait for the {what}'s answer", SERVER_S),
+    }
+
+
+SERVER_OPTIONS = seconds_options("server")
+
+
 def qos_of(node: Leaf, bridge: RosBridge) -> Any:
     """The node's QoS options over the robot's defaults, as an rclpy QoSProfile."""
     base = bridge.settings.qos
@@ -65,9 +104,11 @@ class RosLeaf(Leaf):
     the one given as ``bridge=`` (Python), else the one its tree's actor system provides
     (an agent with a ``ros:`` block)."""
 
-    __slots__ = ("_bridge", "_waiting_since")
+    __slots__ = ("_bridge", "_news", "_waiting_for", "_waiting_since")
     #: The interface kind the type option names: ``action``, ``srv`` or ``msg``.
     KIND: ClassVar[str] = "msg"
+    #: The input port naming the action, service or topic.
+    NAME_PORT: ClassVar[str] = "topic_name"
     #: The ROS version's interface functions when no bridge is given (ROS 1's node types,
     #: btcap.ros.nodes1, hold ROS1); a given bridge's own otherwise.
     TYPES: ClassVar[Types] = ROS2
@@ -75,7 +116,76 @@ class RosLeaf(Leaf):
     def __init__(self, *args: Any, bridge: RosBridge | None = None, **kwargs: Any) -> None:
         self._bridge = bridge
         self._waiting_since: float | None = None
+        self._waiting_for = ""
+        self._news: Callable[[bool], None] | None = None
+        named = kwargs.pop(self.NAME_PORT, None)  # Python's shorthand for the input
         super().__init__(*args, **kwargs)
+        if named is not None:
+            self.set_input(self.NAME_PORT, named)
+
+    def name_port(self) -> dict[str, Port]:
+        """The name's input port (the class's INPUTS), for :meth:`declare_ports`."""
+        return dict(type(self).INPUTS)
+
+    def with_name_port(self, fields: dict[str, Port], of: str) -> dict[str, Port]:
+        """``fields`` (an interface's, as inputs) after the name port; RosError if one of
+        them is called like it."""
+        if self.NAME_PORT in fields:
+            raise RosError(
+                f"node {self.name!r}: {of} has a field {self.NAME_PORT!r}, which is the "
+                f"name port of {type(self).__name__}; it cannot be an input too"
+            )
+        return {**self.name_port(), **fields}
+
+    def literal_name(self) -> str | None:
+        """The name when it is a constant (not read from a wire or the blackboard)."""
+        port = self.NAME_PORT
+        if any(k == port for k, _, _ in self._pulls or ()):
+            return None
+        value = self.inputs.get(port)
+        return value if isinstance(value, str) and value else None
+
+    def ros_name(self) -> str:
+        """The name the input holds now, resolved in the robot's namespace; RosError
+        naming the node and the port when it is no name."""
+        value = self.inputs.get(self.NAME_PORT)
+        if not isinstance(value, str) or not value:
+            got = f"{type(value).__name__} {value!r}" if value is not None else "nothing"
+            raise RosError(
+                f"{type(self).__name__} {self.path!r} input {self.NAME_PORT!r}: expected "
+                f"a non-empty ROS name (str), got {got}"
+            )
+        try:
+            return self.bridge.resolve(value)
+        except RosError as exc:
+            raise RosError(
+                f"{type(self).__name__} {self.path!r} input {self.NAME_PORT!r}: {exc}"
+            ) from None
+
+    def news(self) -> Callable[[bool], None]:
+        """What the bridge's executor thread calls when there is news for this node
+        (``news(minor)``; feedback is minor): its tree is ticked soon (a
+        :class:`~btcap.ros.client.Waker` hands it to the event loop the node ticks on),
+        and the bridge's own hook (:meth:`RosBridge.wake_on`) is called. On the tick."""
+        hook = self._news
+        if hook is None:
+            bridge = self.bridge
+            waker: Waker | None = None
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:  # ticked outside a loop: read at the next tick
+                loop = None
+            if loop is not None and self._tree is not None and bridge.nudges:
+                waker = Waker(self._tree, loop)
+
+            def hook(minor: bool = False) -> None:  # executor thread
+                if waker is not None:
+                    waker(minor)
+                if not minor:
+                    bridge.wake()
+
+            self._news = hook
+        return hook
 
     @property
     def types(self) -> Types:
@@ -102,22 +212,41 @@ class RosLeaf(Leaf):
         """The ROS interface this node talks to, for its errors."""
         return repr(self.path)
 
-    def _server_missing(self, ready: bool) -> State | None:
-        """None once the server is ready; until then RUNNING, and FAILED (saying so) once
-        it was missing longer than ``wait_for_server_timeout`` (else ``server_timeout``)."""
+    def _server_missing(self, ready: bool, name: str) -> State | None:
+        """None once the server of ``name`` is ready; until then RUNNING, and FAILED
+        (saying so) once it was missing longer than ``wait_for_server_timeout``. A name
+        changed while waiting restarts the wait for the new one."""
         if ready:
             self._waiting_since = None
             return None
         t = now()
-        if self._waiting_since is None:
+        if self._waiting_since is None or self._waiting_for != name:
             self._waiting_since = t
-        limit = self.options["wait_for_server_timeout"] or self.options["server_timeout"]
+            self._waiting_for = name
+        limit = self.options["wait_for_server_timeout"]
         if t - self._waiting_since > limit:
             self._waiting_since = None
-            return self.failed(f"{self._what()}: no server after {limit} s")
+            return self.failed(
+                f"{self._what()}: no server within wait_for_server_timeout {limit} s"
+            )
         return _RUNNING
 
     def failed(self, why: str) -> State:
         """FAILED, with ``why`` (one line) as the node's error."""
         self.error = RosError(f"{type(self).__name__} {self.path!r}: {why}")
         return _FAILED
+
+
+def give(bridge: RosBridge, tree: Any) -> int:
+    """Let the ROS nodes of ``tree`` (a Tree, Subtrees' inner trees too) that have no
+    bridge use ``bridge`` (``btcap tree run --ros``); how many there are."""
+    count = 0
+    for node in tree.nodes():
+        inner = getattr(node, "inner", None)
+        if inner is not None:
+            count += give(bridge, inner)
+        elif isinstance(node, RosLeaf):
+            count += 1
+            if node._bridge is None:
+                node._bridge = bridge
+    return count

@@ -38,16 +38,21 @@ class Server(NamedTuple):
 
 
 def servers_of(root: Node | Tree) -> list[Server]:
-    """The action and service servers the RosAction/RosService nodes of a tree call."""
+    """The action and service servers the RosAction/RosService nodes of a tree call, by
+    the names they are given literally (a name read from the blackboard or a wire is
+    known only when the node runs: pass such servers to :func:`with_ros` yourself)."""
     nodes = root.nodes() if isinstance(root, Tree) else root.walk()
     out: list[Server] = []
     for n in nodes:
-        if isinstance(n, RosAction):
-            s = Server("action", n.options["action_type"], n.options["action_name"])
-        elif isinstance(n, RosService):
-            s = Server("service", n.options["service_type"], n.options["service_name"])
-        else:
+        if not isinstance(n, RosAction | RosService):
             continue
+        name = n.literal_name()
+        if name is None:
+            continue
+        if isinstance(n, RosAction):
+            s = Server("action", n.options["action_type"], name)
+        else:
+            s = Server("service", n.options["service_type"], name)
         if s not in out:
             out.append(s)
     return out

@@ -2,11 +2,13 @@
 
 The tree never waits on ROS: nodes call rclpy's non-blocking calls (``send_goal_async``,
 ``call_async``, ``publish``) from the tick, and rclpy's callbacks run on the bridge's
-executor thread, where they only store what arrived (a result, the latest feedback or
-message) for the next tick to read. Nothing crosses into the event loop, so a 1 kHz
-feedback stream costs the loop nothing; :meth:`RosBridge.start` (imports, discovery) runs
-in a worker thread when awaited. :meth:`RosBridge.close` cancels the goals still open,
-destroys the node and joins the thread: nothing of ROS is left running.
+executor thread, where they store what arrived (a result, the latest feedback or message)
+for the next tick to read, and hand the news to the event loop through a :class:`Waker`:
+the node's tree is ticked soon instead of at its next period, one hand-over at a time and
+feedback at most every :data:`FEEDBACK_WAKE_S`, so a 1 kHz feedback stream does not flood
+the loop. :meth:`RosBridge.start` (imports, discovery) runs in a worker thread when
+awaited. :meth:`RosBridge.close` cancels the goals still open, destroys the node and joins
+the thread: nothing of ROS is left running.
 
 Names resolve in the robot's namespace (``navigate_to_pose`` -> ``/husky1/navigate_to_pose``),
 as rclpy does for relative names of a node in that namespace; an absolute name is kept.
@@ -23,6 +25,7 @@ from typing import Any, ClassVar
 import anyio
 
 from btcap.actors import ActorSystem, Service
+from btcap.bt.running import nudge
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
@@ -30,7 +33,7 @@ from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
 
-__all__ = ["ROS_BRIDGE", "RosBridge"]
+__all__ = ["FEEDBACK_WAKE_S", "ROS_BRIDGE", "RosBridge", "Waker"]
 
 log = get_logger("btcap.ros")
 
@@ -43,6 +46,40 @@ ROS_BRIDGE: Service[RosBridge] = Service("ros-bridge")
 #: makes every ROS node of this robot fail with the reason (``conflict``), logged once.
 CLAIM_WAIT_S = 1.5
 WATCH_S = 10.0
+
+#: Feedback ticks a node's tree ahead of its period at most this often (50 Hz): enough to
+#: show progress, where a server's 1 kHz stream would tick the whole tree (and a remote
+#: run's origin, told after every tick) a thousand times a second.
+FEEDBACK_WAKE_S = 0.02
+
+
+class Waker:
+    """News from the executor thread for a tree: ``waker()`` makes the event loop
+    :func:`~btcap.bt.running.nudge` the tree soon (``call_soon_threadsafe``), once however
+    many news come before it does; ``waker(minor=True)`` (feedback) only if the last
+    hand-over was at least :data:`FEEDBACK_WAKE_S` ago."""
+
+    __slots__ = ("_call", "last", "pending", "tree")
+
+    def __init__(self, tree: Any, loop: Any) -> None:
+        self.tree = tree
+        self._call = loop.call_soon_threadsafe
+        self.pending = False
+        self.last = 0.0
+
+    def __call__(self, minor: bool = False) -> None:  # any thread
+        if self.pending or (minor and time.monotonic() - self.last < FEEDBACK_WAKE_S):
+            return
+        self.pending = True
+        try:
+            self._call(self._fire)
+        except RuntimeError:  # the loop is closed: nobody ticks the tree any more
+            self.pending = False
+
+    def _fire(self) -> None:  # the loop's thread
+        self.pending = False
+        self.last = time.monotonic()
+        nudge(self.tree)
 
 
 class RosBridge:
@@ -75,6 +112,9 @@ class RosBridge:
         self._watch: Any = None
         #: Why this robot must not use ROS (a twin in its namespace), or None.
         self.conflict: str | None = None
+        #: Whether news (a goal answered...) ticks the node's tree soon; False: it waits
+        #: for the tree's next periodic tick (as before 0.2.0; for measurements).
+        self.nudges = True
         self._lock = threading.Lock()
         self._closed = False
 
@@ -288,10 +328,11 @@ class RosBridge:
         return latest
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
-        """Call ``callback()`` on the event loop ``loop`` (the running one by default)
-        whenever a goal or call answers, so a tree can be ticked as soon as there is news
-        instead of at its next period (feedback does not wake: a 1 kHz stream would keep
-        the loop busy); None stops it."""
+        """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
+        whenever a goal or call answers or an awaited message comes (feedback does not),
+        for a program that ticks its trees itself; None stops it. Trees run with
+        :meth:`Tree.run <btcap.bt.tree.Tree.run>` (an agent's) need none: the nodes
+        nudge their tree."""
         if callback is None:
             self._wake = None
             return

@@ -1,9 +1,10 @@
 """RosService: one ROS 2 service call as a tree node (BehaviorTree.ROS2's RosServiceNode).
 
 Inputs are the Request's fields, outputs the Response's. The call goes out with rclpy's
-``call_async`` and the response is read at a later tick; ``server_timeout`` bounds both
-the wait for the service and the wait for its response, so a missing or slow server fails
-the node, saying which.
+``call_async`` and the response is read at the tick it brings about (the node's tree is
+ticked soon when it comes); ``wait_for_server_timeout`` bounds the wait for the service
+to appear and ``server_timeout`` the wait for its response, so a missing or slow server
+fails the node, saying which. ``service_name`` is read when a call starts.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import RosLeaf, now, seconds
+from btcap.ros.base import RosLeaf, name_input, now, seconds_options
 
 __all__ = ["RosService"]
 
@@ -23,46 +24,39 @@ _SUCCEEDED = State.SUCCEEDED
 class RosService(RosLeaf):
     """Calls a ROS 2 service with its inputs; SUCCEEDED with the response in its outputs."""
 
-    __slots__ = ("_future", "_sent_at", "_types")
+    __slots__ = ("_client", "_future", "_name", "_sent_at", "_types")
     KIND: ClassVar[str] = "srv"
+    NAME_PORT: ClassVar[str] = "service_name"
+    INPUTS: ClassVar[dict[str, Any]] = name_input("service_name", "service")
     OPTIONS: ClassVar[dict[str, Any]] = {
         "service_type": Port(str, description="e.g. `std_srvs/srv/SetBool`"),
-        "service_name": Port(str, description="resolved in the robot's namespace"),
-        "server_timeout": seconds("how long to wait for the service and its response", 1.0),
-        "wait_for_server_timeout": seconds(
-            "how long to wait for the service to appear; null: server_timeout", None
-        ),
+        **seconds_options("service"),
     }
 
     def declare_ports(self) -> None:
-        types = self.types
-        field_types, port_type = types.field_types, types.port_type
-        cls = self._types = types.interface(self.options["service_type"], "srv")
+        cls = self._types = self.types.interface(self.options["service_type"], "srv")
+        fields = {
+            k: Port(self.types.port_type(t) | None, None, f"Request field ({t})")
+            for k, t in self.types.field_types(cls.Request).items()
+        }
         self.input_ports = normalize_ports(
-            {
-                k: Port(port_type(t) | None, None, f"Request field ({t})")
-                for k, t in field_types(cls.Request).items()
-            },
+            self.with_name_port(fields, f"{self.options['service_type']} Request"),
             f"{self.name}.inputs",
         )
         self.output_ports = normalize_ports(
             {
-                k: Port(port_type(t), NO_DEFAULT, f"Response field ({t})")
-                for k, t in field_types(cls.Response).items()
+                k: Port(self.types.port_type(t), NO_DEFAULT, f"Response field ({t})")
+                for k, t in self.types.field_types(cls.Response).items()
             },
             f"{self.name}.outputs",
         )
         self._future: Any = None
+        self._client: Any = None
+        self._name = "?"
         self._sent_at = 0.0
 
-    def _client(self) -> Any:
-        return self.bridge.service_client(
-            self.options["service_type"], self.options["service_name"]
-        )
-
     def _what(self) -> str:
-        name = self.bridge.resolve(self.options["service_name"])
-        return f"service {name} ({self.options['service_type']})"
+        return f"service {self._name} ({self.options['service_type']})"
 
     def on_tick(self) -> State:
         future = self._future
@@ -84,24 +78,26 @@ class RosService(RosLeaf):
         return _RUNNING
 
     def _call(self) -> State:
-        client = self._client()
-        if (missing := self._server_missing(client.service_is_ready())) is not None:
+        name = self._name = self.ros_name()
+        client = self._client = self.bridge.service_client(self.options["service_type"], name)
+        if (missing := self._server_missing(client.service_is_ready(), name)) is not None:
             return missing
-        request = self.types.fill(self._types.Request, self.inputs, f"{self._what()} request")
+        fields = {k: v for k, v in self.inputs.items() if k != "service_name"}
+        request = self.types.fill(self._types.Request, fields, f"{self._what()} request")
         outputs = self.outputs
         for k in outputs:
             outputs[k] = None
         self._sent_at = now()
         future = self._future = client.call_async(request)
-        bridge = self.bridge
-        future.add_done_callback(lambda _: bridge.wake())
+        news = self.news()
+        future.add_done_callback(lambda _: news(False))
         return _RUNNING
 
     def _stop(self) -> None:
         future, self._future = self._future, None
         self._waiting_since = None
         if future is not None and not future.done():
-            self._client().remove_pending_request(future)
+            self._client.remove_pending_request(future)
 
     def on_untick(self) -> None:
         self._stop()

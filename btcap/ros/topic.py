@@ -2,9 +2,14 @@
 chosen fields, to outputs; optionally only if fresh) and RosWaitForMessage (running until
 a new message arrives).
 
-Port names follow BehaviorTree.ROS2 (``topic_name``); QoS is the robot's default unless
-the node sets ``reliability``, ``durability`` or ``depth``. Messages arrive on the
-bridge's executor thread, which only keeps the latest and when it came.
+Port names follow BehaviorTree.ROS2 (``topic_name``, an input: a literal or a blackboard
+entry); QoS is the robot's default unless the node sets ``reliability``, ``durability``
+or ``depth``. Messages arrive on the bridge's executor thread, which keeps the latest and
+when it came, and ticks the tree soon when a RosWaitForMessage waits for one.
+
+``topic_name`` is read when the node starts (a publish, a run at a rate, a wait; each
+tick of a RosSubscribe): a new name replaces the publisher or subscription, and a
+subscriber then has no message of the new topic yet.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from msgspec import Meta
 
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
-from btcap.ros.base import QOS_OPTIONS, RosLeaf, now, qos_of, seconds
+from btcap.ros.base import QOS_OPTIONS, RosLeaf, name_input, now, qos_of, seconds
 from btcap.ros.errors import RosError
 
 __all__ = ["RosPublish", "RosSubscribe", "RosWaitForMessage"]
@@ -26,47 +31,61 @@ _FAILED = State.FAILED
 
 _TOPIC: dict[str, Any] = {
     "topic_type": Port(str, description="e.g. `geometry_msgs/msg/PoseStamped`"),
-    "topic_name": Port(str, description="resolved in the robot's namespace"),
     **QOS_OPTIONS,
 }
+
+
+def _drop(node: RosLeaf, what: Any, destroy: str) -> None:
+    """Destroy a publisher or subscription of ``node``'s bridge, if it still runs."""
+    bridge = node._bridge
+    if what is not None and bridge is not None and bridge.node is not None:
+        getattr(bridge.node, destroy)(what)
+
+
+_NAME = name_input("topic_name", "topic")
 
 
 class RosPublish(RosLeaf):
     """Publishes a message made of its inputs: once (SUCCEEDED), or every ``1/rate_hz``
     seconds while ticked (RUNNING until halted)."""
 
-    __slots__ = ("_next_at", "_publisher", "_types")
+    __slots__ = ("_next_at", "_publisher", "_topic", "_types")
+    INPUTS: ClassVar[dict[str, Any]] = _NAME
     OPTIONS: ClassVar[dict[str, Any]] = {
         **_TOPIC,
         "rate_hz": Port(float | None, None, "publish at this rate; null: once", Meta(gt=0)),
     }
 
     def declare_ports(self) -> None:
-        types = self.types
-        cls = self._types = types.interface(self.options["topic_type"], "msg")
-        field_types, port_type = types.field_types, types.port_type
+        cls = self._types = self.types.interface(self.options["topic_type"], "msg")
+        fields = {
+            k: Port(self.types.port_type(t) | None, None, f"message field ({t})")
+            for k, t in self.types.field_types(cls).items()
+        }
         self.input_ports = normalize_ports(
-            {
-                k: Port(port_type(t) | None, None, f"message field ({t})")
-                for k, t in field_types(cls).items()
-            },
-            f"{self.name}.inputs",
+            self.with_name_port(fields, self.options["topic_type"]), f"{self.name}.inputs"
         )
         self._publisher: Any = None
+        self._topic = ""
         self._next_at = 0.0
 
     def on_tick(self) -> State:
         bridge = self.bridge
-        if self._publisher is None:
-            name = bridge.resolve(self.options["topic_name"])
-            self._publisher = bridge.running().create_publisher(
-                self._types, name, qos_of(self, bridge)
-            )
+        if self._publisher is None or self.state is not _RUNNING:
+            name = self.ros_name()
+            if name != self._topic:
+                _drop(self, self._publisher, "destroy_publisher")
+                self._publisher = None
+                self._publisher = bridge.running().create_publisher(
+                    self._types, name, qos_of(self, bridge)
+                )
+                self._topic = name
         rate = self.options["rate_hz"]
         t = now()
         if rate is None or t >= self._next_at:
-            where = f"topic {self.options['topic_name']} ({self.options['topic_type']})"
-            self._publisher.publish(self.types.fill(self._types, self.inputs, where))
+            where = f"topic {self._topic} ({self.options['topic_type']})"
+            fields = {k: v for k, v in self.inputs.items() if k != "topic_name"}
+            self._publisher.publish(self.types.fill(self._types, fields, where))
             if rate is None:
                 return _SUCCEEDED
             self._next_at = max(self._next_at + 1.0 / rate, t)
@@ -77,8 +96,8 @@ class RosPublish(RosLeaf):
 
     def on_shutdown(self) -> None:
         publisher, self._publisher = self._publisher, None
-        if publisher is not None and self._bridge is not None and self._bridge.node is not None:
-            self._bridge.node.destroy_publisher(publisher)
+        self._topic = ""
+        _drop(self, publisher, "destroy_publisher")
 
 
 class RosSubscribe(RosLeaf):
@@ -87,7 +106,8 @@ class RosSubscribe(RosLeaf):
     come (and, with ``max_age``, came at most that many seconds ago: a freshness
     condition); FAILED before, saying so."""
 
-    __slots__ = ("_latest", "_seen", "_since", "_subscription", "_types")
+    __slots__ = ("_latest", "_seen", "_since", "_subscription", "_topic", "_types", "_waits")
+    INPUTS: ClassVar[dict[str, Any]] = _NAME
     OPTIONS: ClassVar[dict[str, Any]] = {
         **_TOPIC,
         "fields": Port(list[str] | None, None, "fields to outputs; null: all top-level"),
@@ -95,7 +115,6 @@ class RosSubscribe(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        port_type = self.types.port_type
         cls = self._types = self.types.interface(self.options["topic_type"], "msg")
         types = self.types.field_types(cls)
         chosen = self.options["fields"]
@@ -107,32 +126,47 @@ class RosSubscribe(RosLeaf):
                 f"node {self.name!r}: {self.options['topic_type']} has no field "
                 f"{', '.join(map(repr, unknown))}; fields: {', '.join(types)}"
             )
+        self.input_ports = normalize_ports(self.name_port(), f"{self.name}.inputs")
         outs = {"message": Port(dict[str, Any], NO_DEFAULT, "the latest message")}
         for f in chosen:
-            outs[f] = Port(port_type(types[f]), NO_DEFAULT, f"field ({types[f]})")
+            outs[f] = Port(self.types.port_type(types[f]), NO_DEFAULT, f"field ({types[f]})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._subscription: Any = None
+        self._topic = ""
         self._latest: tuple[Any, float] | None = None
         self._seen: Any = None
         self._since = 0.0
+        self._waits: Any = None  # RosWaitForMessage: news(), while it waits
 
     def on_setup(self) -> None:
-        if self._bridge is not None or (self._tree is not None and self._tree.system is not None):
+        """Subscribe now, so the first tick may have a message, when the name is known
+        (a literal) and there is a bridge; else at the first tick."""
+        known = self._bridge is not None or (
+            self._tree is not None and self._tree.system is not None
+        )
+        if known and self.literal_name() is not None:
             self._subscribe()
 
     def _subscribe(self) -> None:
-        if self._subscription is None:
+        name = self.ros_name()
+        if self._subscription is None or name != self._topic:
             bridge = self.bridge
-            name = bridge.resolve(self.options["topic_name"])
+            _drop(self, self._subscription, "destroy_subscription")
+            self._subscription = None
+            self._latest = None
             self._subscription = bridge.running().create_subscription(
                 self._types, name, self._on_message, qos_of(self, bridge)
             )
+            self._topic = name
 
     def _on_message(self, message: Any) -> None:  # executor thread
         self._latest = (message, now())
+        news = self._waits
+        if news is not None:
+            news(False)
 
     def _what(self) -> str:
-        return f"topic {self.bridge.resolve(self.options['topic_name'])}"
+        return f"topic {self._topic}"
 
     def _take(self, latest: tuple[Any, float]) -> None:
         message = latest[0]
@@ -159,8 +193,9 @@ class RosSubscribe(RosLeaf):
 
     def on_shutdown(self) -> None:
         sub, self._subscription = self._subscription, None
-        if sub is not None and self._bridge is not None and self._bridge.node is not None:
-            self._bridge.node.destroy_subscription(sub)
+        self._topic = ""
+        self._waits = None
+        _drop(self, sub, "destroy_subscription")
 
 
 class RosWaitForMessage(RosSubscribe):
@@ -174,15 +209,24 @@ class RosWaitForMessage(RosSubscribe):
     }
 
     def on_tick(self) -> State:
-        self._subscribe()
         t = now()
-        if self.state is not _RUNNING:
+        if self.state is not _RUNNING or self._subscription is None:
+            self._subscribe()  # the name, read when the wait starts
             self._since = t
+            self._waits = self.news()
         latest = self._latest
         if latest is not None and latest[1] >= self._since:
+            self._waits = None
             self._take(latest)
             return _SUCCEEDED
         limit = self.options["timeout"]
         if limit is not None and t - self._since > limit:
+            self._waits = None
             return self.failed(f"{self._what()}: no message within timeout {limit} s")
         return _RUNNING
+
+    def on_untick(self) -> None:
+        self._waits = None
+
+    def on_reset(self) -> None:
+        self._waits = None

@@ -1,13 +1,15 @@
 """Robots reached through ROS 2: the in-process host, with the simulation manager served as
-ROS 2 interfaces (:mod:`~btcap.sim.ros2.server`) and every robot's implementations driving
-their leaves through those interfaces (:mod:`~btcap.sim.ros2.client`).
+ROS 2 interfaces (:mod:`~btcap.sim.ros2.server`) and every robot's implementations made of
+RosAction nodes on its own bridge (:mod:`~btcap.sim.ros2.steps`,
+:mod:`~btcap.sim.ros2.client`).
 
 rclpy is imported and started in a thread as the host is entered, before the mission
 starts, so the event loop never waits on it, and only when asked for (``btcap run --ros2``):
 ``btcap --help`` and every other run never load it. The robots' agents still form their
 team, bid and run their capabilities over btcap's own transport, as in-process robots do;
 what reaches their bodies (drive, explore, identify, decontaminate, where they are) goes over
-DDS, in the ``ROS_DOMAIN_ID`` of the environment (0 if unset).
+DDS, in the domain, namespaces and QoS of the scenario's ``ros`` block (its defaults: the
+``ROS_DOMAIN_ID`` of the environment, ``/<robot>``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from btcap.sim.manager import SimulationManager
 from btcap.sim.model import RobotModel
 from btcap.sim.robot import Body
 from btcap.sim.ros2 import ros2_missing
-from btcap.sim.scenario import Scenario
+from btcap.sim.scenario import Scenario, check_ros_names
+from btcap.sim.scenariofile import ScenarioRos
 from btcap.transports import Address, MessageRegistry
 from btcap.transports.log import get_logger
 
@@ -53,6 +56,7 @@ def _start(
     robots: dict[str, RobotModel],
     grid: GridMap,
     clock: TimeSource,
+    ros: ScenarioRos,
 ) -> tuple[SimServers, RobotLinks]:
     """Import rclpy, serve the robots, connect their clients and wait until each client
     found its servers (blocks: a thread)."""
@@ -63,9 +67,11 @@ def _start(
     from btcap.sim.ros2.server import SimServers
 
     size = grid.cell_size_m
-    servers = SimServers(loop, manager, robots, cell_size_m=size, start=grid.start, clock=clock)
+    servers = SimServers(
+        loop, manager, robots, cell_size_m=size, start=grid.start, clock=clock, ros=ros
+    )
     try:
-        links = RobotLinks(loop, robots, cell_size_m=size)
+        links = RobotLinks(loop, robots, ros)
     except BaseException:
         servers.close()
         raise
@@ -107,6 +113,8 @@ class Ros2Host(InProcessHost):
             raise ValueError("robots behind ROS 2 run on a real clock (a speed-up), not --fast")
         super().__init__(s, clock, reg, grid)
         self.manager = manager
+        #: The robots' ROS settings: the scenario's ``ros`` block, else its defaults.
+        self.ros = s.ros or ScenarioRos()
         self.servers: SimServers | None = None
         self.links: RobotLinks | None = None
 
@@ -114,6 +122,7 @@ class Ros2Host(InProcessHost):
         why = ros2_missing()
         if why is not None:
             raise Ros2Unavailable(why)
+        check_ros_names(self.s, self.ros)
         system = ActorSystem(
             SYSTEM_ID, transport=self.net.transport(SYSTEM_ID), registry=self.reg, clock=self.clock
         )
@@ -123,7 +132,7 @@ class Ros2Host(InProcessHost):
         loop = asyncio.get_running_loop()
         try:
             servers, self.links = await anyio.to_thread.run_sync(
-                _start, loop, ref, robots, self.grid, self.clock
+                _start, loop, ref, robots, self.grid, self.clock, self.ros
             )
         except BaseException:
             await self._stack.aclose()
@@ -144,12 +153,18 @@ class Ros2Host(InProcessHost):
             await anyio.to_thread.run_sync(_close, servers, links)
 
     def setup(self, name: str) -> RobotSetup:
-        from btcap.sim.ros2.leaves import RosDrive
+        """The robot's implementations, their trees made of RosAction nodes on its bridge
+        (:mod:`btcap.sim.ros2.steps`), each bidding only while the servers it calls are in
+        the ROS graph (:func:`~btcap.ros.capability.with_ros`)."""
+        from btcap.ros.capability import with_ros
+        from btcap.sim.ros2.steps import RosDrive
 
         if self.links is None:
             raise RuntimeError("Ros2Host: start robots inside `async with host`")
         link = self.links.links[name]
         model = next(r.model for r in self.s.robots if r.name == name)
-        setup = robot_setup(name, self.models[model], self.grid, drive=RosDrive(link))
+        drive = RosDrive(link.bridge, self.grid.cell_size_m)
+        setup = robot_setup(name, self.models[model], self.grid, drive=drive)
+        setup.implementations = [with_ros(i, link.bridge) for i in setup.implementations]
         link.body = setup.actors[Body.PATH]
         return setup

@@ -33,13 +33,15 @@ FRAME = "map"
 
 @dataclass(frozen=True, slots=True)
 class RobotNames:
-    """The ROS names of one robot's interfaces, under namespace ``/<robot>``."""
+    """The ROS names of one robot's interfaces, under its namespace (``ns``; None:
+    ``/<robot>``, the default of a scenario's ``ros.namespace``)."""
 
     robot: str
+    ns: str | None = None
 
     @property
     def namespace(self) -> str:
-        return f"/{self.robot}"
+        return self.ns if self.ns is not None else f"/{self.robot}"
 
     @property
     def navigate(self) -> str:

@@ -36,6 +36,7 @@ from btcap.sim.distance import Cell
 from btcap.sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
 from btcap.sim.model import RobotModel
 from btcap.sim.ros2.names import FRAME, OPERATIONS, RobotNames, cell_of, xy_of
+from btcap.sim.scenariofile import ScenarioRos
 
 __all__ = ["SimServers", "pose_at"]
 
@@ -96,13 +97,16 @@ class _RobotServer:
         cell_size_m: float,
         start: Cell,
         clock: TimeSource,
+        ros: ScenarioRos,
     ) -> None:
+        from btcap.ros.client import RosBridge
+
         self.node = node
         self.robot = robot
         self.manager = manager
         self.cell_size_m = cell_size_m
         self.clock = clock
-        names = RobotNames(robot)
+        names = RobotNames(robot, ros.namespace_of(robot))
         # As the manager last said (the event loop writes, executions read: plain values).
         self.cell: Cell = start
         self.phase = ""
@@ -133,7 +137,7 @@ class _RobotServer:
                         callback_group=group,
                     )
                 )
-        self.pose_pub = node.create_publisher(PoseStamped, names.pose, 10)
+        self.pose_pub = node.create_publisher(PoseStamped, names.pose, RosBridge().qos(ros.qos))
         self.state_pub = node.create_publisher(RobotState, names.state, 100)
         node.create_service(Trigger, names.stop, self._stop, callback_group=group)
 
@@ -251,7 +255,8 @@ class SimServers:
     their own, spun by an executor thread until :meth:`close`.
 
     Made in a thread (it imports and starts rclpy); :meth:`publish` is the manager's
-    ``on_position`` hook and runs on the event loop.
+    ``on_position`` hook and runs on the event loop. ``ros`` (a scenario's block; None:
+    its defaults) names the domain (unless ``domain_id``), the namespaces and the QoS.
     """
 
     def __init__(
@@ -264,8 +269,12 @@ class SimServers:
         start: Cell,
         clock: TimeSource,
         domain_id: int | None = None,
+        ros: ScenarioRos | None = None,
     ) -> None:
+        ros = ros or ScenarioRos()
         self.context = Context()
+        if domain_id is None:
+            domain_id = ros.domain_id
         rclpy.init(context=self.context, domain_id=domain_id)
         link = self._manager = _Manager(loop, manager, clock)
         # Each robot runs at most a drive and an operation at once (plus one superseded,
@@ -277,7 +286,9 @@ class SimServers:
         for name, model in robots.items():
             node = Node(f"sim_{name}", context=self.context)
             self.nodes.append(node)
-            self.robots[name] = _RobotServer(node, name, model, link, cell_size_m, start, clock)
+            self.robots[name] = _RobotServer(
+                node, name, model, link, cell_size_m, start, clock, ros
+            )
             self.executor.add_node(node)
         self.thread = threading.Thread(target=self._spin, name="btcap sim ros2", daemon=True)
         self.thread.start()
@@ -302,6 +313,11 @@ class SimServers:
         """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
         self._manager.closing.set()
         self.executor.shutdown(timeout_sec=5.0)
+        # Action servers are not destroyed with their node: left alone they stay in the
+        # ROS graph, and clients would go on seeing a server that no longer answers.
+        for robot in self.robots.values():
+            for action in robot.servers:
+                action.destroy()
         for node in self.nodes:
             node.destroy_node()
         if self.context.ok():

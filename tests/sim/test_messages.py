@@ -27,6 +27,8 @@ def _strategy(hint: Any) -> st.SearchStrategy[Any]:
         return INT64
     if origin is tuple:
         return st.tuples(*(_strategy(a) for a in args))
+    if origin is list:
+        return st.lists(_strategy(args[0]), max_size=5)
     if origin in (typing.Union, types.UnionType):
         return st.one_of(*(_strategy(a) for a in args))
     if hint is type(None):

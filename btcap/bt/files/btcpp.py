@@ -38,11 +38,13 @@ from typing import Any
 
 from btcap.bt.files.board import TreeBoard
 from btcap.bt.files.btcpp_doc import Documents, XmlOptions
-from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, ElementReader, Ref, Scope, literal
+from btcap.bt.files.btcpp_elements import KEY, ElementReader, Ref, Scope, literal
 from btcap.bt.files.btcpp_entries import before, entry_type, merged, passing, paths
 from btcap.bt.files.btcpp_lines import check_subtree_model, insert_problem
-from btcap.bt.files.btcpp_nodes import UNSUPPORTED, MappingError, parse_bool
-from btcap.bt.files.btcpp_stubs import infer_models, load_scripts, make_stub, stub_notes
+from btcap.bt.files.btcpp_nodes import MappingError, parse_bool
+from btcap.bt.files.btcpp_rules import BUILTIN_PORTS, check_builtin_model
+from btcap.bt.files.btcpp_stubs import stub_registry
+from btcap.bt.files.btcpp_uses import EntryUses
 from btcap.bt.files.schema import (
     SCHEMA_VERSION,
     NodeSpec,
@@ -69,6 +71,8 @@ class _Def:
     cells: dict[str, tuple[Any, bool]] = dataclasses.field(default_factory=dict)
     #: Its outputs written whenever it succeeds (:func:`btcpp_entries.before`).
     sure: frozenset[str] = frozenset()
+    #: Entries only a node of unknown type uses: perhaps ports, reported as that type.
+    unsure: frozenset[str] = frozenset()
 
 
 class XmlTranslator:
@@ -101,6 +105,8 @@ class XmlTranslator:
         self.source = source  # the file itself, if read from one (include cycles)
         self.reader = ElementReader(where, registry, {}, self._subtree)
         self.problems = self.reader.problems
+        #: Each node's ports using entries, and the entries the application must set.
+        self.uses = EntryUses()
         #: What BehaviorTree.CPP warns about and btcap reads anyway.
         self.warnings: list[str] = []
         self.trees: dict[str, XmlElement] = {}
@@ -135,6 +141,9 @@ class XmlTranslator:
         self.trees = docs.trees
         self.tree_where = {t: el.where or self.where for t, el in self.trees.items()}
         self.models.update(docs.models)
+        for kind, model in list(self.models.items()):
+            if kind in BUILTIN_PORTS and model.tag != "SubTree":  # BehaviorTree.CPP's ports
+                check_builtin_model(self.models.pop(kind), self.reader.fail, self.where)
         if self.options.stub_missing:
             self._stub()
         if self.problems:
@@ -183,43 +192,17 @@ class XmlTranslator:
 
     def _stub(self) -> None:
         """Register a stand-in for each declared type no registered node type provides."""
-        try:
-            scripts = load_scripts(self.options.stub_script)
-        except TreeFileError as exc:
-            self.problems.extend(exc.problems)
-            return
-        registry = self.registry.copy()
-        for kind, model in list(self.models.items()):
-            if (
-                model.tag == "SubTree"
-                or kind in BTCPP_BUILTINS
-                or registry.xml_type(kind) is not None
-            ):
-                continue
-            try:
-                registry.register(make_stub(model, scripts), kind)
-            except (TreeFileError, RegistryError) as exc:
-                msgs = exc.problems if isinstance(exc, TreeFileError) else [str(exc)]
-                self.problems.extend(msgs)
-                continue
-            for note in stub_notes(None, model, self.trees.values()):
-                self.warnings.append(f"{model.where or self.where}: line {model.line}: {note}")
-            self.reader.seen_models[kind] = self.models.pop(kind)  # its own ports
-        unsure = infer_models(self.trees.values(), lambda k: self._unknown(k, registry))
-        for kind, model in unsure.items():
-            registry.register(make_stub(model, scripts), kind)
-            for note in stub_notes(kind, model, ()):
-                self.warnings.append(f"{model.where or self.where}: line {model.line}: {note}")
-        self.registry = self.reader.registry = registry
-
-    def _unknown(self, kind: str, registry: NodeRegistry) -> bool:
-        """Whether a type used in the XML is neither BehaviorTree.CPP's, known nor modelled."""
-        return not (
-            kind in BTCPP_BUILTINS
-            or kind in UNSUPPORTED
-            or kind in self.models
-            or registry.xml_type(kind) is not None
+        registry = stub_registry(
+            self.registry,
+            self.models,
+            self.trees.values(),
+            self.options.stub_script,
+            self.where,
+            (self.problems, self.warnings),
+            self.reader.seen_models,
         )
+        if registry is not None:
+            self.registry = self.reader.registry = registry
 
     # -- BehaviorTrees ----------------------------------------------------------------
     def _definition(self, tid: str, line: int, at: int = 0) -> _Def | None:
@@ -289,6 +272,7 @@ class XmlTranslator:
         board = self.boards.setdefault(scope.tree, TreeBoard())
         cells: dict[str, tuple[Any, bool]] = {}
         specs = dict(paths(root, None))
+        order = {path: i for i, path in enumerate(specs)}  # depth first
         sure: set[str] = set()
         scripted = merged(scope.scripted, main)
         board.scripts.extend(scope.script_nodes)
@@ -296,6 +280,9 @@ class XmlTranslator:
             ws, rs, al = writers.get(key, []), readers.get(key, []), aliases.get(key, [])
             if not ws and not al and key in scope.unsure and key not in scripted:
                 continue  # perhaps written by a node already reported as unknown
+            self.uses.add(scope.tree, key, (ws, rs, al), scripted.get(key, []))
+            where = self.tree_where.get(scope.tree, self.where)
+            self.uses.need(scope.tree, key, (ws, rs, al), scripted.get(key, []), order, where)
             if key in scripted or self._is_cell(key, (ws, rs, al), main, specs):
                 self._cell(scope, key, (ws, rs, al), board, cells, scripted.get(key, []))
                 continue
@@ -315,7 +302,14 @@ class XmlTranslator:
                 public.inputs[key] = f"{rs[0].path}.{rs[0].port}"
                 inputs[key] = rs[0].type
         spec = SubtreeSpec(root=root, wires=wires, public=public)
-        return _Def(spec, inputs, outputs, cells, frozenset(sure))
+        return _Def(
+            spec,
+            inputs,
+            outputs,
+            cells,
+            frozenset(sure),
+            frozenset(scope.unsure - {*inputs, *outputs, *cells}),
+        )
 
     def _is_cell(
         self,
@@ -410,7 +404,9 @@ class XmlTranslator:
         self.used.add(tid)
         if done is None or self._too_deep(el, tid, at + self.heights[tid]):
             return None
-        check_subtree_model(self.models, tid, done.inputs, done.outputs, self.fail)
+        check_subtree_model(self.models, tid, done, self.fail)
+        if not auto:
+            self.uses.not_passed(tid, set(attrs), f"<SubTree ID={tid!r}> at line {el.line}")
         spec = NodeSpec(type="Subtree", name=name, options={"tree": tid})
         for key, (tp, written) in done.cells.items():  # one entry inside and out
             if key in attrs or auto:
@@ -436,7 +432,10 @@ class XmlTranslator:
                 elif entry:
                     refs = scope.readers if reading else scope.writers
                     refs.setdefault(entry, []).append(Ref(path, key, el.line, tp))
-        for key in attrs:
+        for key, text in attrs.items():
+            if key in done.unsure:  # the unknown type's error says why; perhaps its port
+                scope.unsure.update(m[1] for m in [KEY.match(text)] if m)
+                continue
             self.fail(
                 el.line,
                 f"<SubTree ID={tid!r}> port {key!r}: the tree neither reads it "

@@ -15,6 +15,7 @@ from typing import Any
 
 from btcap.bt.files.btcpp_conditions import take_conditions, wrap
 from btcap.bt.files.btcpp_nodes import STANDARD, UNSUPPORTED, V3_NAMES, MappingError
+from btcap.bt.files.btcpp_rules import check_reactive
 from btcap.bt.files.btcpp_scope import Ref, Scope
 from btcap.bt.files.schema import NodeSpec, is_type_option
 from btcap.bt.files.xmlread import XmlElement
@@ -205,8 +206,10 @@ class ElementReader:
         options: dict[str, Any] = {}
         std = STANDARD.get(kind)
         if std is not None:
+            check_reactive(el, kind, self.fail)
             options = self._standard(el, attrs, kind)
-            spec = self._ports(el, attrs, std.btcap, name, path, scope, options, kind)
+            btcap = std.from_input if attrs else std.btcap
+            spec = self._ports(el, attrs, btcap, name, path, scope, options, kind)
             for code in (options.get(k) for k in _SCRIPT_OPTIONS.get(kind, ())):
                 if code is not None:
                     scope.add_script(parse(code), path, el.line, self.registry.script_enums)
@@ -242,6 +245,7 @@ class ElementReader:
     def _standard(self, el: XmlElement, attrs: dict[str, str], kind: str) -> dict[str, Any]:
         std = STANDARD[kind]
         options = dict(std.fixed)
+        entries: dict[str, str] = {}
         for key in std.required:
             if key not in attrs:
                 why = f": {std.why_required}" if std.why_required else ""
@@ -251,6 +255,9 @@ class ElementReader:
                 continue
             text = attrs.pop(key)
             if KEY.match(text):
+                if std.from_input:  # read as BehaviorTree.CPP reads it (read_options)
+                    entries[key] = text
+                    continue
                 self.fail(
                     el.line,
                     f"<{el.tag}> attribute {key!r}={text!r}: btcap takes this "
@@ -268,6 +275,7 @@ class ElementReader:
             known = ", ".join(std.attrs) or "none"
             self.fail(el.line, f"<{el.tag}> has no attribute {key!r} (attributes: {known})")
         attrs.clear()
+        attrs.update(entries)  # the ports of std.from_input
         return options
 
     def _ports(

@@ -43,20 +43,31 @@ def insert_problem(problems: list[str], problem: str) -> None:
     problems.append(problem)
 
 
+class Ports(Protocol):
+    """A translated BehaviorTree's public ports, and the entries only unknown types use."""
+
+    @property
+    def inputs(self) -> Mapping[str, Any]: ...
+    @property
+    def outputs(self) -> Mapping[str, Any]: ...
+    @property
+    def unsure(self) -> frozenset[str]: ...
+
+
 def check_subtree_model(
-    models: dict[str, XmlElement],
-    tid: str,
-    inputs: Mapping[str, Any],
-    outputs: Mapping[str, Any],
-    fail: Callable[[int, str], None],
+    models: dict[str, XmlElement], tid: str, ports: Ports, fail: Callable[[int, str], None]
 ) -> None:
-    """A ``<SubTree>`` entry of TreeNodesModel must agree with what the tree does."""
+    """A ``<SubTree>`` entry of TreeNodesModel must agree with what the tree does (a port
+    only a node of unknown type may use is that type's problem, reported as such)."""
     model = models.get(tid)
     if model is None or model.tag != "SubTree":
         return
     del models[tid]  # checked once, at its first use
+    inputs, outputs = ports.inputs, ports.outputs
     for port in model.children:
         key = port.attrs.get("name", "")
+        if key in ports.unsure:
+            continue
         if port.tag == "input_port" and key not in inputs:
             fail(
                 port.line,

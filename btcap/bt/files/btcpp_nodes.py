@@ -132,6 +132,9 @@ class Standard:
     why_required: str = ""
     #: Keys of :data:`DIFFERENCES` this node shows; empty: it decides as BehaviorTree.CPP.
     differs: tuple[str, ...] = ()
+    #: The btcap type reading the ``required`` attribute as an input where it names a
+    #: blackboard entry (:mod:`btcap.bt.read_options`); empty: it must be a literal.
+    from_input: str = ""
 
 
 #: Where a mapped node may decide differently from BehaviorTree.CPP 4.8, by key (the
@@ -203,15 +206,21 @@ STANDARD: dict[str, Standard] = {
         {"num_attempts": ("max_attempts", _attempts)},
         ("num_attempts",),
         differs=("loop_after_running", "halt_keeps_progress"),
+        from_input="RepeatUntilSuccessFromInput",
     ),
     "Repeat": Standard(
         "Repeat",
         {"num_cycles": ("times", _cycles)},
         ("num_cycles",),
         differs=("loop_after_running", "halt_keeps_progress"),
+        from_input="RepeatFromInput",
     ),
-    "Timeout": Standard("Timeout", {"msec": ("seconds", _timeout)}, ("msec",)),
-    "Delay": Standard("Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",)),
+    "Timeout": Standard(
+        "Timeout", {"msec": ("seconds", _timeout)}, ("msec",), from_input="TimeoutFromInput"
+    ),
+    "Delay": Standard(
+        "Delay", {"delay_msec": ("seconds", _seconds)}, ("delay_msec",), from_input="DelayFromInput"
+    ),
     "RunOnce": Standard(
         "RunOnce",
         {"then_skip": ("", _no_skip)},
@@ -223,7 +232,9 @@ STANDARD: dict[str, Standard] = {
     ),
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
-    "Sleep": Standard("Wait", {"msec": ("seconds", _seconds)}, ("msec",)),
+    "Sleep": Standard(
+        "Wait", {"msec": ("seconds", _seconds)}, ("msec",), from_input="WaitFromInput"
+    ),
     "Script": Standard(
         "Script", {"code": ("code", script_code)}, ("code",), differs=("script_errors",)
     ),

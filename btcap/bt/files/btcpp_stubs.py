@@ -38,19 +38,21 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Collection, Iterable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
 from btcap.bt.composites import Sequence
 from btcap.bt.decorators import Remap
-from btcap.bt.files.btcpp_elements import KEY, MODEL_KINDS, literal
+from btcap.bt.files.btcpp_elements import BTCPP_BUILTINS, KEY, MODEL_KINDS, literal
+from btcap.bt.files.btcpp_nodes import UNSUPPORTED
 from btcap.bt.files.parse import decode, read_bytes
 from btcap.bt.files.schema import TreeFileError
 from btcap.bt.files.xmlread import XmlElement
 from btcap.bt.nav2_nodes import NAV2_NODES, NAV2_STOOD_IN
 from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port
+from btcap.bt.registry import NodeRegistry, RegistryError
 from btcap.bt.state import DONE, State, TreeError
 
 __all__ = [
@@ -61,6 +63,7 @@ __all__ = [
     "make_stub",
     "stand_in_note",
     "stub_notes",
+    "stub_registry",
 ]
 
 _CPP: dict[str, Any] = {
@@ -368,3 +371,53 @@ def stand_in_note(model: XmlElement, trees: Iterable[XmlElement]) -> str | None:
     if model.tag == "Decorator":
         return None
     return f"{kind} is a Control btcap does not know: its stand-in {does}"
+
+
+def stub_registry(
+    registry: NodeRegistry,
+    models: dict[str, XmlElement],
+    trees: Collection[XmlElement],
+    script: str | os.PathLike[str] | Mapping[str, Any] | None,
+    where: str,
+    reports: tuple[list[str], list[str]],
+    seen: dict[str, XmlElement],
+) -> NodeRegistry | None:
+    """A copy of ``registry`` with a stand-in for each type ``models`` declare and no
+    registered type provides, and for each type used but neither known nor modelled.
+
+    Problems and warnings go to ``reports``; a stubbed model moves to ``seen`` (its
+    ports are its own). None if the stub script cannot be read.
+    """
+    problems, warnings = reports
+    try:
+        scripts = load_scripts(script)
+    except TreeFileError as exc:
+        problems.extend(exc.problems)
+        return None
+    registry = registry.copy()
+    for kind, model in list(models.items()):
+        if model.tag == "SubTree" or kind in BTCPP_BUILTINS or registry.xml_type(kind) is not None:
+            continue
+        try:
+            registry.register(make_stub(model, scripts), kind)
+        except (TreeFileError, RegistryError) as exc:
+            problems.extend(exc.problems if isinstance(exc, TreeFileError) else [str(exc)])
+            continue
+        for note in stub_notes(None, model, trees):
+            warnings.append(f"{model.where or where}: line {model.line}: {note}")
+        seen[kind] = models.pop(kind)
+
+    def unknown(kind: str) -> bool:
+        """Neither BehaviorTree.CPP's, known nor modelled."""
+        return not (
+            kind in BTCPP_BUILTINS
+            or kind in UNSUPPORTED
+            or kind in models
+            or registry.xml_type(kind) is not None
+        )
+
+    for kind, model in infer_models(trees, unknown).items():
+        registry.register(make_stub(model, scripts), kind)
+        for note in stub_notes(kind, model, ()):
+            warnings.append(f"{model.where or where}: line {model.line}: {note}")
+    return registry

@@ -1,8 +1,7 @@
 """Building Trees from a checked tree file, reporting every problem with node path and field.
 
-Building goes on past a problem (a bad node is skipped, its subtree still built) so
-that one load reports all the mistakes in a file, not just the first.
-"""
+Building goes on past a problem (a bad node is skipped, its subtree still built): one
+load reports all the mistakes in a file. Inputs a parent feeds (``feeds``) need no wire."""
 
 from __future__ import annotations
 
@@ -111,6 +110,7 @@ class Builder:
         wired = self.boards.leave(tree, self.fail, ctx) if self.boards is not None else set()
         if tree is None:
             return None
+        wired |= {(c.path, k) for n in tree.nodes() for c, k in getattr(n, "feeds", tuple)()}
         for i, w in enumerate(wires):
             self._wire(tree, i, w, ctx, failed, wired)
         public_in: set[tuple[str, str]] = set()

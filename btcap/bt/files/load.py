@@ -13,6 +13,7 @@ from btcap.bt.files.board import Boards
 from btcap.bt.files.btcpp import XmlTranslator
 from btcap.bt.files.btcpp_doc import XmlOptions
 from btcap.bt.files.btcpp_lines import relabel
+from btcap.bt.files.btcpp_uses import set_entry_uses
 from btcap.bt.files.build import Builder
 from btcap.bt.files.parse import decode, format_of, parse, read_bytes
 from btcap.bt.files.schema import TreeFileError
@@ -77,9 +78,11 @@ def _load(
         translator.boards, translator.main, entries or {}, translator.registry.script_enums
     )
     try:
-        return Builder(spec, where, translator.registry, base, stack, {}, boards).build_main(clock)
+        tree = Builder(spec, where, translator.registry, base, stack, {}, boards).build_main(clock)
     except TreeFileError as exc:
         raise TreeFileError(relabel(exc.problems, where, translator)) from None
+    set_entry_uses(tree, translator.uses)
+    return tree
 
 
 def _format(path: Path) -> LoadFormat:

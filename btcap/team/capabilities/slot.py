@@ -61,6 +61,7 @@ class RemoteCapabilitySlot(Leaf):
         if not self._ready:
             return "slot not set up"
         hosted.run.tree.setup()
+        hosted.run.tree.alarm.outer = self._tree  # news for its nodes: this tree ticks
         self.current = hosted
         return None
 

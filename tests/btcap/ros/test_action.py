@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import anyio
@@ -11,6 +12,7 @@ from rostools import FOUND_S, tick_until, tree_of, wait_for
 
 from btcap.bt.state import State
 from btcap.ros.action import RosAction
+from btcap.ros.base import SERVER_S, WAIT_FOR_SERVER_S
 from btcap.ros.client import RosBridge
 from btcap.ros.errors import RosError
 
@@ -63,14 +65,14 @@ async def test_abort_and_reject_fail_naming_the_status(
     assert f"/husky1/{name}" in str(node.error)
 
 
-async def test_a_missing_server_fails_within_server_timeout_saying_so(
+async def test_a_missing_server_fails_within_wait_for_server_timeout_saying_so(
     bridge: RosBridge,
 ) -> None:
-    node = action(bridge, "nobody_here", server_timeout=0.2)
+    node = action(bridge, "nobody_here", wait_for_server_timeout=0.2)
     with anyio.fail_after(10):
         state = await tick_until(tree_of(node))
     assert state is State.FAILED
-    assert "no server after 0.2 s" in str(node.error)
+    assert "no server within wait_for_server_timeout 0.2 s" in str(node.error)
     assert "/husky1/nobody_here" in str(node.error)
 
 
@@ -101,3 +103,22 @@ async def test_halt_before_acceptance_cancels_the_goal_once_accepted(
         await wait_for(lambda: servers.events["fibonacci_late.canceled"] == 1)
     assert servers.events["fibonacci_late.accepted"] == 1
     assert servers.events["cancel_requests"] == 1
+
+
+async def test_discovery_is_bounded_by_its_own_timeout_not_by_the_answer_one(
+    bridge: RosBridge,
+) -> None:
+    """A server still being discovered after ``server_timeout`` is waited for (up to
+    ``wait_for_server_timeout``, 10 s by default): on a loaded machine discovery takes
+    seconds, while ``server_timeout`` bounds the answer of a server already found."""
+    node = action(bridge, "not_yet", server_timeout=0.1)
+    assert node.options["wait_for_server_timeout"] == WAIT_FOR_SERVER_S == 10.0
+    assert RosAction.OPTIONS["server_timeout"].default == SERVER_S == 5.0
+    with anyio.fail_after(10):
+        tree = tree_of(node)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 0.5:  # five times server_timeout, no server
+            assert tree.tick() is State.RUNNING, node.error
+            await anyio.sleep(0.01)
+    tree.untick()
+    await tree.shutdown()

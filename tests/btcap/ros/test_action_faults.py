@@ -119,7 +119,9 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     line = str(node.error)
     assert "\n" not in line
     assert "goal.order: 'five' does not fit int32" in line
-    with pytest.raises(Exception, match=r"node 'act' .*has no input 'ordr'; inputs: order"):
+    with pytest.raises(
+        Exception, match=r"node 'act' .*has no input 'ordr'; inputs: action_name, order"
+    ):
         RosAction("act", action_type=FIB, action_name="fibonacci", inputs={"ordr": 5})
 
 

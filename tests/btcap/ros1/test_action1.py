@@ -87,9 +87,11 @@ async def test_abort_and_reject_fail_naming_the_status(
 async def test_a_missing_server_fails_within_server_timeout_saying_so(master: Master) -> None:
     with anyio.fail_after(30):
         async with bridge_on(master) as bridge:
-            node = count_node(bridge, 1, "nobody", server_timeout=0.3)
+            node = count_node(bridge, 1, "nobody", wait_for_server_timeout=0.3)
             assert await run(node) is State.FAILED
-    assert str(node.error).endswith(f"action /husky1/nobody ({TEST}): no server after 0.3 s")
+    assert str(node.error).endswith(
+        f"action /husky1/nobody ({TEST}): no server within wait_for_server_timeout 0.3 s"
+    )
 
 
 async def test_halt_after_acceptance_preempts_the_goal(master: Master, servers: Servers) -> None:
@@ -178,7 +180,9 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     assert "goal.goal: 'five' does not fit int32" in line
     assert servers.events["count.goal"] == 0
     assert not [r for r in registered(master) if "/husky1/btcap" in r]  # nothing left
-    with pytest.raises(Exception, match=r"node 'act' .*has no input 'gaol'; inputs: goal"):
+    with pytest.raises(
+        Exception, match=r"node 'act' .*has no input 'gaol'; inputs: action_name, goal"
+    ):
         RosAction("act", action_type=TEST, action_name="count", inputs={"gaol": 5})
 
 

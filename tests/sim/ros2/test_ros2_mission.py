@@ -4,7 +4,6 @@ simulation does."""
 
 from __future__ import annotations
 
-import asyncio
 import threading
 import time
 from collections import Counter
@@ -14,17 +13,16 @@ from typing import Any
 import anyio
 import numpy as np
 import pytest
+from simserving import serving
 from structlog.testing import capture_logs
 
-from btcap.actors import ActorSystem, Clock
+from btcap.actors import Clock
 from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.hosts import registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.model import paper_team
 from btcap.sim.runner import run_fast, run_scenario
 from btcap.sim.scenario import load_scenario
 from btcap.sim.store import MissionState
-from btcap.transports import Address, InProcessNetwork
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -94,8 +92,6 @@ async def test_navigation_feedback_and_a_cancel_that_stops_the_robot(ros_domain:
     from btcap.ros.loader import load
 
     load()
-    from btcap.sim.ros2.server import SimServers
-
     s = load_scenario(builtin_scenarios()["full-team"])
     grid = s.grid()
     state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
@@ -106,39 +102,19 @@ async def test_navigation_feedback_and_a_cancel_that_stops_the_robot(ros_domain:
     free = np.argwhere(grid.free)
     far = free[np.argmax(np.abs(free - np.array(grid.start)).sum(axis=1))]
     goal_xy = (float(far[1]) * grid.cell_size_m, float(far[0]) * grid.cell_size_m)
-    reg = registry()
-    net = InProcessNetwork(reg)
     clock = Clock(5.0)  # the drive takes about half a minute of wall time: time to cancel
     with anyio.fail_after(120):
-        async with ActorSystem(
-            "sim", transport=net.transport("sim"), registry=reg, clock=clock
-        ) as sim:
-            sim.spawn(manager, SimulationManager.PATH)
-            loop = asyncio.get_running_loop()
-            servers = await anyio.to_thread.run_sync(
-                lambda: SimServers(
-                    loop,
-                    sim.ref(Address.parse("sim/manager")),
-                    {"husky1": husky},
-                    cell_size_m=grid.cell_size_m,
-                    start=grid.start,
-                    clock=clock,
-                    domain_id=ros_domain,
-                )
+        async with serving(
+            manager, {"husky1": husky}, grid, clock, domain_id=ros_domain
+        ) as servers:
+            pub = servers.robots["husky1"].pose_pub
+            heard = lambda: pub.get_subscription_count() > 0  # noqa: E731
+            seen = await anyio.to_thread.run_sync(
+                _navigate_then_cancel, ros_domain, goal_xy, 3, heard
             )
-            manager.on_position = servers.publish
-            try:
-                pub = servers.robots["husky1"].pose_pub
-                heard = lambda: pub.get_subscription_count() > 0  # noqa: E731
-                seen = await anyio.to_thread.run_sync(
-                    _navigate_then_cancel, ros_domain, goal_xy, 3, heard
-                )
-                at = manager.position("husky1")
-                await clock.sleep(5.0)  # stopped: it stays where the cancel left it
-                assert manager.position("husky1") == at
-            finally:
-                manager.on_position = None
-                await anyio.to_thread.run_sync(servers.close)
+            at = manager.position("husky1")
+            await clock.sleep(5.0)  # stopped: it stays where the cancel left it
+            assert manager.position("husky1") == at
     assert seen["accepted"]
     assert seen["canceled"]
     assert len(set(seen["feedback"])) >= 3  # a new pose for each cell it drove into

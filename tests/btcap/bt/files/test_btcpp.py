@@ -524,7 +524,7 @@ ERRORS = [
     ),
     (
         _xml(
-            '<BehaviorTree ID="Main">\n<Repeat num_cycles="{n}"><AlwaysSuccess/></Repeat>'
+            '<BehaviorTree ID="Main">\n<Parallel success_count="{n}"><AlwaysSuccess/></Parallel>'
             "\n</BehaviorTree>"
         ),
         3,

@@ -11,6 +11,7 @@ from capfixtures import COUNT, Probe, count_impl, team, tick_until, until
 from structlog.testing import capture_logs
 
 from btcap import AlwaysRunning, Leaf, Parallel, ReactiveSequence, State, Tree, TreeError
+from btcap.bt.running import nudge
 from btcap.team.capabilities.implementation import Implementation, ImplementationRun
 from btcap.team.capabilities.slot import RemoteCapabilitySlot
 from btcap.team.core.hosting import Hosted
@@ -68,6 +69,10 @@ async def test_slot_refuses_a_second_run_and_runs_only_once_set_up() -> None:
 
             first = hosted(1)
             assert slot.load(first) is None
+            # News for a node of the run (a ROS goal answered) ticks the robot's tree.
+            nudge(first.run.tree)
+            assert b.host.alarm.nudged
+            assert not first.run.tree.alarm.nudged
             assert slot.load(hosted(2)) == "slot busy with x:root#1"
             slot.unload(ExecutionId("x", "root", 3))  # not the current one: no effect
             assert slot.current is first
