@@ -130,3 +130,23 @@ async def test_an_agent_on_an_unreachable_master_is_one_line(master: Master) -> 
     line = str(err.value)
     assert "\n" not in line
     assert f"husky1.yaml: ros: ROS 1 master {master.uri} does not answer" in line
+
+
+async def test_a_distance_cost_reads_the_robots_pose_over_ros1(master: Master) -> None:
+    from btcap.ros.capability import distance_cost
+
+    pose = {"header": {"frame_id": "map"}, "pose": {"position": {"x": 3.0, "y": 4.0}}}
+    cost = distance_cost(pose_topic="pose", factor=2.0)
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            assert cost({"goal": [0.0, 0.0]}, bridge) is None  # no pose yet: no bid
+            say = RosPublish(
+                "pose",
+                topic_type="geometry_msgs/PoseStamped",
+                topic_name="pose",
+                rate_hz=20.0,
+                bridge=bridge,
+                inputs=pose,
+            )
+            await run(say, lambda s: bridge.latest("geometry_msgs/PoseStamped", "pose") is not None)
+            assert cost({"goal": [0.0, 0.0]}, bridge) == 10.0
