@@ -11,7 +11,7 @@ LOCK := $(BIN)/uv pip compile --quiet --universal --python-version 3.11 --genera
 	--custom-compile-command "make lock" pyproject.toml requirements-build.in
 
 .PHONY: run test lint docs view bench lock clean venv ros ros-sim test-ros bench-ros bench-ros-sim \
-	lock-ros ros1 test-ros1
+	lock-ros ros1 test-ros1 bench-ros1
 
 # $(call install,LOCKFILE): the locked packages, then btcap itself (no dependency of its
 # own resolved here: all are in the lock) with the locked setuptools.
@@ -160,6 +160,11 @@ ros1: $(ROS1_VENV)/.installed
 # The ROS 1 tests (tests/btcap/ros1): each starts its own rosmaster on a free loopback port.
 test-ros1: $(ROS1_VENV)/.installed
 	$(ROS1_BIN)/python -m pytest tests/btcap/ros1 -p no:cacheprovider $(ARGS)
+
+# The ROS 1 bridge's goal round trip vs actionlib's SimpleActionClient (bench/ros1.py): its
+# own rosmaster on a free loopback port.
+bench-ros1: $(ROS1_VENV)/.installed
+	$(ROS1_BIN)/python -m btcap.bench ros1 $(ARGS)
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) $(ROS1_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

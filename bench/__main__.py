@@ -22,8 +22,9 @@ BENCHES = (
     "missionbound",
 )
 #: Benchmarks that need what `make venv` does not install, left out of ``all``: ``ros``
-#: needs ROS 2 and a private network namespace (`make bench-ros`).
-OPTIONAL = ("ros",)
+#: needs ROS 2 and a private network namespace (`make bench-ros`), ``ros1`` Debian's rospy
+#: (`make bench-ros1`).
+OPTIONAL = ("ros", "ros1")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
         with_ros,
     )
     from btcap.ros.client import ROS_BRIDGE, RosBridge
+    from btcap.ros.client1 import Ros1Bridge
     from btcap.ros.errors import RosError, RosMissing
     from btcap.ros.service import RosService
     from btcap.ros.topic import RosPublish, RosSubscribe, RosWaitForMessage
@@ -33,6 +34,7 @@ __all__ = [
     "NODE_TYPES",
     "ROS_BRIDGE",
     "Qos",
+    "Ros1Bridge",
     "RosAction",
     "RosBridge",
     "RosError",
@@ -63,6 +65,7 @@ __getattr__, __dir__ = lazy_exports(
             "with_ros",
         ],
         "btcap.ros.client": ["ROS_BRIDGE", "RosBridge"],
+        "btcap.ros.client1": ["Ros1Bridge"],
         "btcap.ros.errors": ["RosError", "RosMissing"],
         "btcap.ros.service": ["RosService"],
         "btcap.ros.topic": ["RosPublish", "RosSubscribe", "RosWaitForMessage"],

@@ -23,15 +23,17 @@ from typing import Any, ClassVar
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import SERVER_OPTIONS, RosLeaf, name_input, now, seconds
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
+from btcap.ros.versions import Types
 
 __all__ = ["FEEDBACK_PREFIX", "RosAction"]
 
 _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 
-#: action_msgs/GoalStatus codes of a goal's end, by name.
-_ENDS = {4: "succeeded", 5: "canceled", 6: "aborted"}
+#: action_msgs/GoalStatus codes of a goal's end, by name; ROS 1's are 100 + actionlib's
+#: (btcap.ros.facade1.end_code; its SUCCEEDED is 4).
+_ENDS = {4: "succeeded", 5: "canceled", 6: "aborted", 102: "preempted", 104: "aborted"}
+_ENDS |= {108: "recalled", 109: "lost"}
 _REJECTED = -1
 
 FEEDBACK_PREFIX = "feedback_"
@@ -148,17 +150,25 @@ class RosAction(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = interface(self.options["action_type"], "action")
+        cls = self.types.interface(self.options["action_type"], "action")
         self._types = cls
-        goal = field_types(cls.Goal)
-        fields = {k: Port(port_type(t) | None, None, f"Goal field ({t})") for k, t in goal.items()}
+        goal = self.types.field_types(cls.Goal)
+        fields = {
+            k: Port(self.types.port_type(t) | None, None, f"Goal field ({t})")
+            for k, t in goal.items()
+        }
         self.input_ports = normalize_ports(
             self.with_name_port(fields, f"{self.options['action_type']} Goal"),
             f"{self.name}.inputs",
         )
-        outs = {k: Port(port_type(t), NO_DEFAULT, f"Result ({t})") for k, t in _fields(cls.Result)}
-        for k, t in _fields(cls.Feedback):
-            outs[FEEDBACK_PREFIX + k] = Port(port_type(t), NO_DEFAULT, f"latest Feedback ({t})")
+        outs = {
+            k: Port(self.types.port_type(t), NO_DEFAULT, f"Result ({t})")
+            for k, t in _fields(self.types, cls.Result)
+        }
+        for k, t in _fields(self.types, cls.Feedback):
+            outs[FEEDBACK_PREFIX + k] = Port(
+                self.types.port_type(t), NO_DEFAULT, f"latest Feedback ({t})"
+            )
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._goal: _Goal | None = None
         self._last = ""
@@ -180,7 +190,7 @@ class RosAction(RosLeaf):
         if fb is not None and fb is not goal.feedback_seen:
             goal.feedback_seen = fb
             outputs = self.outputs
-            for k, v in to_plain(fb).items():
+            for k, v in self.types.to_plain(fb).items():
                 outputs[FEEDBACK_PREFIX + k] = v
         if goal.status is not None:
             return self._finish(goal)
@@ -212,7 +222,7 @@ class RosAction(RosLeaf):
         if (missing := self._server_missing(client.server_is_ready(), name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "action_name"}
-        msg = fill(self._types.Goal, fields, f"{self._what()} goal")
+        msg = self.types.fill(self._types.Goal, fields, f"{self._what()} goal")
         goal = self._goal = _Goal(bridge, client, name, self.news())
         outputs = self.outputs
         for k in outputs:
@@ -226,7 +236,7 @@ class RosAction(RosLeaf):
         status = goal.status
         if status == 4:
             outputs = self.outputs
-            for k, v in to_plain(goal.result).items():
+            for k, v in self.types.to_plain(goal.result).items():
                 outputs[k] = v
             return _SUCCEEDED
         if status == _REJECTED:
@@ -250,5 +260,5 @@ class RosAction(RosLeaf):
         self._stop()
 
 
-def _fields(cls: Any) -> list[tuple[str, str]]:
-    return list(field_types(cls).items())
+def _fields(types: Types, cls: Any) -> list[tuple[str, str]]:
+    return list(types.field_types(cls).items())

@@ -50,10 +50,20 @@ class RosAgent:
     """The ROS side of one agent: see the module docstring."""
 
     def __init__(self, settings: RosSettings, robot: str) -> None:
-        self.bridge = RosBridge(settings, robot=robot)
+        if settings.backend == "ros1":
+            from btcap.ros.client1 import Ros1Bridge
+
+            self.bridge: RosBridge = Ros1Bridge(settings, robot=robot)
+        else:
+            self.bridge = RosBridge(settings, robot=robot)
 
     def register(self, registry: NodeRegistry) -> None:
-        register(registry)
+        if self.bridge.types.version == 1:
+            from btcap.ros.nodes1 import register1
+
+            register1(registry)
+        else:
+            register(registry)
 
     async def start(self) -> None:
         await anyio.to_thread.run_sync(self.bridge.start)

@@ -23,6 +23,7 @@ from btcap.bt.ports import Port
 from btcap.bt.state import State
 from btcap.ros.client import RosBridge, Waker
 from btcap.ros.errors import RosError
+from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos
 
 __all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "name_input", "now", "qos_of"]
@@ -108,6 +109,9 @@ class RosLeaf(Leaf):
     KIND: ClassVar[str] = "msg"
     #: The input port naming the action, service or topic.
     NAME_PORT: ClassVar[str] = "topic_name"
+    #: The ROS version's interface functions when no bridge is given (ROS 1's node types,
+    #: btcap.ros.nodes1, hold ROS1); a given bridge's own otherwise.
+    TYPES: ClassVar[Types] = ROS2
 
     def __init__(self, *args: Any, bridge: RosBridge | None = None, **kwargs: Any) -> None:
         self._bridge = bridge
@@ -182,6 +186,11 @@ class RosLeaf(Leaf):
 
             self._news = hook
         return hook
+
+    @property
+    def types(self) -> Types:
+        """The interface functions of the node's ROS version."""
+        return self._bridge.types if self._bridge is not None else self.TYPES
 
     @property
     def bridge(self) -> RosBridge:

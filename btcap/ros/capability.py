@@ -19,7 +19,6 @@ from btcap.bt.node import Node
 from btcap.bt.tree import Tree
 from btcap.ros.action import RosAction
 from btcap.ros.client import RosBridge
-from btcap.ros.interfaces import to_plain
 from btcap.ros.service import RosService
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation, Precondition
@@ -126,7 +125,7 @@ def distance_cost(
 
             if time.monotonic() - at > max_age_s:
                 return None
-        here = _xy(to_plain(message))
+        here = _xy(bridge.types.to_plain(message))
         there = _xy(inputs[goal_input])
         if here is None or there is None:
             return None

@@ -20,7 +20,7 @@ import contextlib
 import threading
 import time
 from types import TracebackType
-from typing import Any
+from typing import Any, ClassVar
 
 import anyio
 
@@ -29,6 +29,7 @@ from btcap.bt.running import nudge
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
+from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
 
@@ -88,6 +89,9 @@ class RosBridge:
     ``/husky1/btcap``. Use ``async with`` (or :meth:`start` and :meth:`close`); give it to
     a tree's actor system with :meth:`provide` so ROS nodes built from files find it.
     """
+
+    #: The interface functions of this bridge's ROS version (ROS 1: client1.Ros1Bridge).
+    types: ClassVar[Types] = ROS2
 
     def __init__(self, settings: RosSettings | None = None, *, robot: str = "") -> None:
         self.settings = settings if settings is not None else RosSettings()

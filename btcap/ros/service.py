@@ -14,7 +14,6 @@ from typing import Any, ClassVar
 from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import RosLeaf, name_input, now, seconds_options
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["RosService"]
 
@@ -35,10 +34,10 @@ class RosService(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["service_type"], "srv")
+        cls = self._types = self.types.interface(self.options["service_type"], "srv")
         fields = {
-            k: Port(port_type(t) | None, None, f"Request field ({t})")
-            for k, t in field_types(cls.Request).items()
+            k: Port(self.types.port_type(t) | None, None, f"Request field ({t})")
+            for k, t in self.types.field_types(cls.Request).items()
         }
         self.input_ports = normalize_ports(
             self.with_name_port(fields, f"{self.options['service_type']} Request"),
@@ -46,8 +45,8 @@ class RosService(RosLeaf):
         )
         self.output_ports = normalize_ports(
             {
-                k: Port(port_type(t), NO_DEFAULT, f"Response field ({t})")
-                for k, t in field_types(cls.Response).items()
+                k: Port(self.types.port_type(t), NO_DEFAULT, f"Response field ({t})")
+                for k, t in self.types.field_types(cls.Response).items()
             },
             f"{self.name}.outputs",
         )
@@ -69,7 +68,7 @@ class RosService(RosLeaf):
             if exc is not None:
                 return self.failed(f"{self._what()}: the call failed: {exc}")
             outputs = self.outputs
-            for k, v in to_plain(future.result()).items():
+            for k, v in self.types.to_plain(future.result()).items():
                 outputs[k] = v
             return _SUCCEEDED
         limit = self.options["server_timeout"]
@@ -84,7 +83,7 @@ class RosService(RosLeaf):
         if (missing := self._server_missing(client.service_is_ready(), name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "service_name"}
-        request = fill(self._types.Request, fields, f"{self._what()} request")
+        request = self.types.fill(self._types.Request, fields, f"{self._what()} request")
         outputs = self.outputs
         for k in outputs:
             outputs[k] = None

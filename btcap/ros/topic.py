@@ -22,7 +22,6 @@ from btcap.bt.ports import NO_DEFAULT, Port, normalize_ports
 from btcap.bt.state import State
 from btcap.ros.base import QOS_OPTIONS, RosLeaf, name_input, now, qos_of, seconds
 from btcap.ros.errors import RosError
-from btcap.ros.interfaces import field_types, fill, interface, port_type, to_plain
 
 __all__ = ["RosPublish", "RosSubscribe", "RosWaitForMessage"]
 
@@ -58,10 +57,10 @@ class RosPublish(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["topic_type"], "msg")
+        cls = self._types = self.types.interface(self.options["topic_type"], "msg")
         fields = {
-            k: Port(port_type(t) | None, None, f"message field ({t})")
-            for k, t in field_types(cls).items()
+            k: Port(self.types.port_type(t) | None, None, f"message field ({t})")
+            for k, t in self.types.field_types(cls).items()
         }
         self.input_ports = normalize_ports(
             self.with_name_port(fields, self.options["topic_type"]), f"{self.name}.inputs"
@@ -86,7 +85,7 @@ class RosPublish(RosLeaf):
         if rate is None or t >= self._next_at:
             where = f"topic {self._topic} ({self.options['topic_type']})"
             fields = {k: v for k, v in self.inputs.items() if k != "topic_name"}
-            self._publisher.publish(fill(self._types, fields, where))
+            self._publisher.publish(self.types.fill(self._types, fields, where))
             if rate is None:
                 return _SUCCEEDED
             self._next_at = max(self._next_at + 1.0 / rate, t)
@@ -116,8 +115,8 @@ class RosSubscribe(RosLeaf):
     }
 
     def declare_ports(self) -> None:
-        cls = self._types = interface(self.options["topic_type"], "msg")
-        types = field_types(cls)
+        cls = self._types = self.types.interface(self.options["topic_type"], "msg")
+        types = self.types.field_types(cls)
         chosen = self.options["fields"]
         if chosen is None:
             chosen = list(types)
@@ -130,7 +129,7 @@ class RosSubscribe(RosLeaf):
         self.input_ports = normalize_ports(self.name_port(), f"{self.name}.inputs")
         outs = {"message": Port(dict[str, Any], NO_DEFAULT, "the latest message")}
         for f in chosen:
-            outs[f] = Port(port_type(types[f]), NO_DEFAULT, f"field ({types[f]})")
+            outs[f] = Port(self.types.port_type(types[f]), NO_DEFAULT, f"field ({types[f]})")
         self.output_ports = normalize_ports(outs, f"{self.name}.outputs")
         self._subscription: Any = None
         self._topic = ""
@@ -174,7 +173,7 @@ class RosSubscribe(RosLeaf):
         if message is self._seen:
             return
         self._seen = message
-        plain = to_plain(message)
+        plain = self.types.to_plain(message)
         outputs = self.outputs
         outputs["message"] = plain
         for k in outputs:

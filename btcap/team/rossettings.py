@@ -61,7 +61,19 @@ class Qos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True)
 
 
 class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
-    """The robot's ROS 2 node: where in the ROS graph its tree nodes live."""
+    """The robot's ROS node: where in the ROS graph its tree nodes live."""
+
+    backend: Annotated[
+        Literal["ros2", "ros1"],
+        _doc(
+            "`ros2` (rclpy, docs/ros2.md) or `ros1` (rospy and actionlib in a process of "
+            "the robot's own, on the master of `master_uri`: docs/ros1.md)."
+        ),
+    ] = "ros2"
+    master_uri: Annotated[
+        str | None,
+        _doc("ROS 1 only: the master's URI; null: `ROS_MASTER_URI`, else http://localhost:11311/."),
+    ] = None
 
     domain_id: Annotated[
         Annotated[int, msgspec.Meta(ge=0, le=232)] | None,

@@ -9,11 +9,15 @@ test-ros1` runs them.
 from __future__ import annotations
 
 import importlib.util
+import subprocess
+import sys
+import threading
+from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from rosmaster1 import Master
+from rosmaster1 import READY_S, Master
 
 
 def _why_not() -> str | None:
@@ -41,3 +45,63 @@ def master(tmp_path: Path) -> Iterator[Master]:
         yield m
     assert m.process is not None
     assert m.process.returncode is not None
+
+
+class Servers:
+    """tests/btcap/ros1/servers1.py running on a master, in namespace ``/husky1``: its
+    events (stdout lines) counted as they come."""
+
+    def __init__(self, master: Master, namespace: str = "/husky1") -> None:
+        env = dict(master.env(), ROS_NAMESPACE=namespace)
+        self.process = subprocess.Popen(
+            [sys.executable, str(Path(__file__).with_name("servers1.py"))],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        self.events: Counter[str] = Counter()
+        self.lines: list[str] = []
+        self._up = threading.Event()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        if not self._up.wait(READY_S):
+            self.stop()
+            raise RuntimeError(f"servers1.py: not up within {READY_S} s")
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            text = line.strip()
+            self.lines.append(text)
+            self.events[text.split(" ")[0]] += 1
+            if text == "up":
+                self._up.set()
+
+    def kill(self) -> None:
+        """Kill the servers (no goodbye to the master), reaped."""
+        self.process.kill()
+        self.process.wait()
+
+    def stop(self) -> None:
+        process = self.process
+        assert process.stdin is not None
+        process.stdin.close()
+        if process.returncode is None:
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        self._reader.join(timeout=5)
+        if process.stdout is not None:
+            process.stdout.close()
+
+
+@pytest.fixture
+def servers(master: Master) -> Iterator[Servers]:
+    s = Servers(master)
+    try:
+        yield s
+    finally:
+        s.stop()

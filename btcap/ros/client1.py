@@ -1,0 +1,339 @@
+"""The robot's ROS 1 client: a rospy node in a child process of its own, behind the same
+bridge interface as ROS 2's :class:`~btcap.ros.client.RosBridge`.
+
+rospy allows one ``init_node`` per process and never gives it up, and its callbacks run on
+its own threads; a robot's ROS 1 side is therefore a child process
+(:mod:`btcap.ros.child1`), one per bridge, spoken to over a socket pair of
+:mod:`btcap.ros.wire1` frames. Sending is a short write from the tick; answers are read by
+one reader thread, which completes the node's futures and stores feedback and messages
+for the next tick, as rclpy's executor thread does, so nothing of ROS 1 ever runs on the
+event loop. :meth:`Ros1Bridge.start` first asks the master its pid over XML-RPC with a short
+timeout (rospy itself would retry an unreachable master forever) and fails in one line;
+:meth:`Ros1Bridge.close` has the process cancel the open goals, unregister everything from
+the master and exit, and reaps it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import http.client
+import itertools
+import os
+import socket
+import subprocess
+import sys
+import threading
+import xmlrpc.client
+from multiprocessing.connection import Connection
+from typing import Any, ClassVar
+
+from btcap.ros import wire1
+from btcap.ros.client import RosBridge
+from btcap.ros.errors import RosError
+from btcap.ros.facade1 import (
+    ActionClient1,
+    Future1,
+    GoalHandle1,
+    Node1,
+    ServiceClient1,
+    Subscription1,
+)
+from btcap.ros.interfaces1 import interface1
+from btcap.ros.versions import ROS1, Types
+from btcap.team.rossettings import Qos, RosSettings
+from btcap.transports.log import get_logger
+
+__all__ = ["Ros1Bridge", "probe_master"]
+
+log = get_logger("btcap.ros")
+
+#: Bounds, not measures: the master answers its pid in milliseconds, the rospy process
+#: registers in about a second (imports), and leaves the master in well under one.
+PROBE_S = 3.0
+START_S = 60.0
+STOP_S = 10.0
+DEFAULT_MASTER = "http://localhost:11311/"
+
+
+class _Transport(xmlrpc.client.Transport):
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        conn = super().make_connection(host)
+        conn.timeout = PROBE_S
+        return conn
+
+
+def probe_master(uri: str) -> None:
+    """Nothing if the ROS 1 master at ``uri`` answers ``getPid``; else RosError saying so
+    in one line (blocks up to PROBE_S: call it off the event loop)."""
+    why = ""
+    try:
+        with xmlrpc.client.ServerProxy(uri, transport=_Transport()) as proxy:
+            answer: Any = proxy.getPid("/btcap_probe")
+        code, status = answer[0], answer[1]
+        if code == 1:
+            return
+        why = f"it refused getPid: {status}"
+    except (OSError, ValueError, xmlrpc.client.Error, http.client.HTTPException) as exc:
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    raise RosError(
+        f"ROS 1 master {uri} does not answer ({why}): start one (`roscore`) or set "
+        "ros.master_uri (else ROS_MASTER_URI) to where it runs"
+    )
+
+
+class Ros1Bridge(RosBridge):
+    """One robot's ROS 1 node ``NAMESPACE/NODE_NAME`` on the master ``settings.master_uri``
+    (else ``ROS_MASTER_URI``, else ``http://localhost:11311/``), in a process of its own.
+    Used exactly as :class:`~btcap.ros.client.RosBridge`."""
+
+    types: ClassVar[Types] = ROS1
+
+    def __init__(self, settings: RosSettings | None = None, *, robot: str = "") -> None:
+        super().__init__(settings, robot=robot)
+        self.master_uri = (
+            self.settings.master_uri or os.environ.get("ROS_MASTER_URI") or DEFAULT_MASTER
+        )
+        self.process: subprocess.Popen[bytes] | None = None
+        self._conn: Connection | None = None
+        self._reader: threading.Thread | None = None
+        self._send_lock = threading.Lock()
+        self._ids = itertools.count(1)
+        self._servers: dict[int, ActionClient1 | ServiceClient1] = {}
+        self._handles: dict[int, GoalHandle1] = {}
+        self._calls: dict[int, tuple[Future1, Any]] = {}
+        self._subs: dict[int, Subscription1] = {}
+        self._dead: str | None = None
+
+    # -- life cycle ---------------------------------------------------------------
+    def start(self) -> Ros1Bridge:
+        """Probe the master, start the rospy process and wait for its node to register
+        (blocks: await :meth:`__aenter__` from a loop)."""
+        if self.node is not None:
+            return self
+        if self._closed:
+            raise RosError("this Ros1Bridge was closed; make a new one")
+        probe_master(self.master_uri)
+        ours, theirs = socket.socketpair()
+        for end in (ours, theirs):  # blocking, whatever socket.setdefaulttimeout says
+            end.setblocking(True)  # (rospy sets one: its fd would be non-blocking)
+        env = dict(os.environ, ROS_MASTER_URI=self.master_uri, ROS_NAMESPACE=self.namespace)
+        child = "btcap.ros.child1"
+        try:
+            with theirs:
+                self.process = subprocess.Popen(
+                    [sys.executable, "-m", child, str(theirs.fileno()), self.settings.node_name],
+                    pass_fds=(theirs.fileno(),),
+                    env=env,
+                    stdin=subprocess.DEVNULL,
+                )
+            conn = self._conn = Connection(ours.detach())
+            if not conn.poll(START_S):
+                raise RosError(f"ROS 1 node {self.fqn}: not up within {START_S} s")
+            up = wire1.decode_up(conn.recv_bytes())
+            if not isinstance(up, wire1.Up) or up.error:
+                why = up.error if isinstance(up, wire1.Up) else f"unexpected {up!r}"
+                raise RosError(f"ROS 1 node {self.fqn} on {self.master_uri}: {why}")
+        except BaseException as exc:
+            self.close()
+            if isinstance(exc, EOFError | OSError):
+                raise RosError(f"ROS 1 node {self.fqn}: its process ended at start") from None
+            raise
+        self.node = Node1(self)
+        self._reader = threading.Thread(target=self._read, name=f"btcap-ros1{self.fqn}")
+        self._reader.start()
+        return self
+
+    @property
+    def domain_id(self) -> int:
+        return -1
+
+    def close(self) -> None:
+        """Have the rospy process cancel the open goals, unregister from the master and
+        exit; reap it and join the reader. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        process, conn = self.process, self._conn
+        if conn is not None:
+            with contextlib.suppress(RosError):  # the process is gone already
+                self.send(wire1.Stop())
+        if process is not None:
+            try:
+                process.wait(timeout=STOP_S)
+            except subprocess.TimeoutExpired:
+                log.warning("btcap.ros1.kill", node=self.fqn, why=f"no exit in {STOP_S} s")
+                process.kill()
+                process.wait()
+        if self._reader is not None:
+            self._reader.join(timeout=STOP_S)
+        if conn is not None:
+            conn.close()
+        self._lost("the bridge closed")
+        self.node = None
+
+    def running(self) -> Any:
+        if self._dead is not None and not self._closed:
+            raise RosError(f"ROS 1 bridge {self.fqn}: {self._dead}")
+        return super().running()
+
+    # -- frames ---------------------------------------------------------------------
+    def next_id(self) -> int:
+        return next(self._ids)
+
+    def send(self, frame: wire1.Down) -> None:
+        """Write one frame to the rospy process (a short write; from any thread)."""
+        conn = self._conn
+        if conn is None or self._dead is not None:
+            raise RosError(f"ROS 1 bridge {self.fqn}: {self._dead or 'not started'}")
+        data = wire1.encode(frame)
+        with self._send_lock:
+            try:
+                conn.send_bytes(data)
+            except OSError as exc:
+                raise RosError(f"ROS 1 bridge {self.fqn}: its process is gone ({exc})") from None
+
+    def open(
+        self, kind: str, type_name: str, name: str, qos: tuple[int, bool] = (10, False)
+    ) -> int:
+        cid = self.next_id()
+        self.running()
+        self.send(wire1.Open(cid, kind, type_name, name, qos[0], qos[1]))
+        return cid
+
+    def drop(self, cid: int) -> None:
+        self._servers.pop(cid, None)
+        self._subs.pop(cid, None)
+        if self._dead is None and not self._closed:
+            self.send(wire1.Drop(cid))
+
+    def open_goal(self, handle: GoalHandle1) -> None:
+        self._handles[handle.gid] = handle
+
+    def call(self, client: ServiceClient1, data: bytes) -> Future1:
+        future, qid = Future1(), self.next_id()
+        self._calls[qid] = (future, client.types)
+        self.send(wire1.Call(client.cid, qid, data))
+        return future
+
+    def forget_call(self, future: Future1) -> None:
+        for qid, (f, _) in list(self._calls.items()):
+            if f is future:
+                del self._calls[qid]
+
+    def subscribe(
+        self, sub: Subscription1, type_name: str, name: str, qos: tuple[int, bool]
+    ) -> None:
+        self._subs[sub.cid] = sub
+        self.running()
+        self.send(wire1.Open(sub.cid, "subscriber", type_name, self.resolve(name), *qos))
+
+    def _read(self) -> None:  # the reader thread
+        conn = self._conn
+        assert conn is not None
+        while True:
+            try:
+                frame = wire1.decode_up(conn.recv_bytes())
+            except (EOFError, OSError):
+                break
+            try:
+                self._dispatch(frame)
+            except Exception as exc:  # a node's callback failed: log it, keep reading
+                log.error(
+                    "btcap.ros1.frame", node=self.fqn, frame=type(frame).__name__, why=str(exc)
+                )
+        self._lost("its rospy process ended")
+
+    def _dispatch(self, frame: Any) -> None:
+        """Hand a frame to what waits on it; the nodes' own callbacks wake the tree (as
+        they do on ROS 2), so this never does."""
+        if isinstance(frame, wire1.Feedback):
+            handle = self._handles.get(frame.gid)
+            if handle is not None:
+                handle.on_feedback(frame.data)
+        elif isinstance(frame, wire1.Message):
+            sub = self._subs.get(frame.cid)
+            if sub is not None:
+                sub.on_message(frame.data)
+        elif isinstance(frame, wire1.Ready):
+            server = self._servers.get(frame.cid)
+            if server is not None:
+                server.ready = frame.ready
+        elif isinstance(frame, wire1.Accepted):
+            handle = self._handles.get(frame.gid)
+            if handle is not None:
+                handle.on_accepted()
+        elif isinstance(frame, wire1.Done):
+            handle = self._handles.pop(frame.gid, None)
+            if handle is not None:
+                handle.on_done(frame)
+        elif isinstance(frame, wire1.Reply):
+            call = self._calls.pop(frame.qid, None)
+            if call is not None:
+                future, types = call
+                if frame.error:
+                    future.set(exception=RosError(frame.error))
+                else:
+                    future.set(types.Response().deserialize(frame.data))
+        elif isinstance(frame, wire1.Up) and frame.error and not self._closed:
+            self.conflict = f"the ROS 1 node {self.fqn} was shut down: {frame.error}"
+            log.error("btcap.ros1.shutdown", node=self.fqn, why=frame.error)
+
+    def _lost(self, why: str) -> None:
+        """The rospy process is gone: fail what waits on it."""
+        if self._dead is None:
+            self._dead = why
+        for server in list(self._servers.values()):
+            server.ready = False
+        handles, self._handles = list(self._handles.values()), {}
+        calls, self._calls = list(self._calls.values()), {}
+        for handle in handles:
+            handle.on_lost(f"the ROS 1 bridge {self.fqn}: {why}")
+        for future, _ in calls:
+            future.set(exception=RosError(f"the ROS 1 bridge {self.fqn}: {why}"))
+        if handles or calls:
+            self.wake()
+
+    # -- what nodes use -----------------------------------------------------------
+    def qos(self, qos: Qos | None = None) -> tuple[int, bool]:
+        """ROS 1 has no QoS: a topic's queue size (``depth``) and whether it latches
+        (``durability: transient_local``)."""
+        q = qos if qos is not None else self.settings.qos
+        return q.depth, q.durability == "transient_local"
+
+    def action_client(self, type_name: str, name: str) -> Any:
+        key = ("action", type_name, self.resolve(name))
+        client = self._clients.get(key)
+        if client is None:
+            types = interface1(type_name, "action")
+            cid = self.next_id()
+            client = self._clients[key] = self._servers[cid] = ActionClient1(self, cid, types)
+            self.running()
+            self.send(wire1.Open(cid, "action", type_name, key[2]))
+        return client
+
+    def service_client(self, type_name: str, name: str) -> Any:
+        key = ("service", type_name, self.resolve(name))
+        client = self._clients.get(key)
+        if client is None:
+            types = interface1(type_name, "srv")
+            cid = self.next_id()
+            client = self._clients[key] = self._servers[cid] = ServiceClient1(self, cid, types)
+            self.running()
+            self.send(wire1.Open(cid, "service", type_name, key[2]))
+        return client
+
+    def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
+        key = (type_name, self.resolve(topic))
+        box = self._latest.get(key)
+        if box is None:
+            import time
+
+            box = self._latest[key] = [None]
+
+            def store(message: Any, box: list[Any] = box) -> None:  # the reader thread
+                box[0] = (message, time.monotonic())
+
+            cls = interface1(type_name, "msg")
+            self.running().create_subscription(cls, key[1], store, self.qos())
+        latest: tuple[Any, float] | None = box[0]
+        return latest
