@@ -96,9 +96,9 @@ class WorldFeed:
                 self._keys[part] = key
                 ev[part] = self._part(part)
         if final or len(ev) > 2 or now >= self._pose_t + self.pose_every_s:
-            key = m.cells.tobytes()
-            if self._keys.get("poses") != key:
-                self._keys["poses"] = key
+            where = m.cells.tobytes()
+            if self._keys.get("poses") != where:
+                self._keys["poses"] = where
                 self._pose_t = now
                 ev["poses"] = self._part("poses")
         return ev if len(ev) > 2 else None

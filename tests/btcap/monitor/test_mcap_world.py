@@ -6,6 +6,7 @@ recording of the same ``--fast`` run; the end matches the mission's result."""
 from __future__ import annotations
 
 import base64
+import itertools
 import json
 from collections import Counter
 from pathlib import Path
@@ -165,7 +166,7 @@ def test_poses_are_thinned_out_and_end_exact(
     the robots ended, as a recording of every step has them."""
     worlds = [ev for ev in read_record(recorded[1]) if ev["k"] == "world"]
     poses = [ev for ev in worlds if "poses" in ev]
-    gaps = [b["t"] - a["t"] for a, b in zip(poses, poses[1:], strict=False)
+    gaps = [b["t"] - a["t"] for a, b in itertools.pairwise(poses)
             if "robots" not in b and "objects" not in b]  # fmt: skip
     assert gaps
     assert min(gaps) >= worldfeed.POSE_EVERY_S > FOLLOW_EVERY_S  # the monitor's batches
