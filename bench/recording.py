@@ -8,7 +8,11 @@ Reported per scenario: the median wall and process CPU time of each condition, t
 ratios ``jsonl / none`` and ``mcap / none`` (the budget: ≤ 1.05), the same over the
 monitor alone (what writing the file adds), the files' sizes, their size per simulated
 minute and the MCAP file's size as a share of the JSON Lines one. On a shared machine
-the CPU ratios are the steady ones; wall ratios follow the load.
+the CPU ratios are the steady ones; wall ratios follow the load. Steadier still, per
+run: the CPU time spent inside the monitor's batches (sampling the simulated world,
+folding, writing the file, serving) as a share of the run's CPU time, both measured in
+the same run (what the events' hooks cost between batches is not in it: the ratios
+hold that). The 1-minute load average is reported beside.
 
 Run ``python -m btcap.bench recording [--quick] [--scenarios full-team] [--repeats 7]``.
 """
@@ -18,10 +22,11 @@ from __future__ import annotations
 import argparse
 import asyncio
 import importlib.util
+import os
 import statistics
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,9 +44,26 @@ if importlib.util.find_spec("foxglove") is not None:
     CONDITIONS += ("foxglove",)
 
 
-async def _once(name: str, condition: str, folder: Path) -> tuple[float, float, float]:
-    """(wall s, CPU s, simulated s) of one fast run of ``name`` under ``condition``."""
+def _timed(f: Callable[..., Any], spent: list[float]) -> Callable[..., Any]:
+    """``f``, adding the CPU time of the event loop's thread each call takes to spent[0]."""
+
+    def timed(*args: Any) -> Any:
+        t = time.thread_time()
+        try:
+            return f(*args)
+        finally:
+            spent[0] += time.thread_time() - t
+
+    return timed
+
+
+async def _once(name: str, condition: str, folder: Path) -> tuple[float, float, float, float]:
+    """(wall s, CPU s, simulated s, CPU s inside the monitor's batches) of one fast run of
+    ``name`` under ``condition``. The last is measured within the run (thread CPU time
+    around every :meth:`Monitor.flush`: sampling the world, folding, writing the file,
+    serving), so it holds at any load, unlike a difference of two runs."""
     scenario = load_scenario(builtin_scenarios()[name])
+    spent = [0.0]
     wall, cpu = time.perf_counter(), time.process_time()
     if condition == "none":
         result = await run_fast(scenario)
@@ -49,8 +71,10 @@ async def _once(name: str, condition: str, folder: Path) -> tuple[float, float, 
         path = None if condition in ("monitor", "foxglove") else folder / f"{name}.{condition}"
         live = ("127.0.0.1", 0) if condition == "foxglove" else None
         async with Monitor(port=None, record=path, title=name, foxglove=live) as monitor:
+            monitor.flush = _timed(monitor.flush, spent)  # type: ignore[method-assign]
             result = await run_fast(scenario, monitor=monitor)
-    return time.perf_counter() - wall, time.process_time() - cpu, result.mission_time_s
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return wall, cpu, result.mission_time_s, spent[0]
 
 
 def main(argv: Sequence[str], quick: bool = False) -> dict[str, Any]:
@@ -70,14 +94,20 @@ def run(
         folder = Path(tmp)
         for name in scenarios:
             times: dict[str, list[tuple[float, float]]] = {c: [] for c in CONDITIONS}
+            inside: dict[str, list[float]] = {c: [] for c in CONDITIONS}
             sim_s = 0.0
+            load = []
             for i in range(repeats):
                 order = CONDITIONS if i % 2 == 0 else CONDITIONS[::-1]
                 for c in order:
-                    wall, cpu, sim_s = asyncio.run(_once(name, c, folder))
+                    wall, cpu, sim_s, spent = asyncio.run(_once(name, c, folder))
                     times[c].append((wall, cpu))
+                    inside[c].append(spent / cpu)
+                    load.append(os.getloadavg()[0])
             wall_med = {c: statistics.median(w for w, _ in times[c]) for c in CONDITIONS}
             cpu_med = {c: statistics.median(p for _, p in times[c]) for c in CONDITIONS}
+            # CPU in the monitor's batches as a share of the run's, per run (load-proof)
+            share = {c: statistics.median(inside[c]) for c in CONDITIONS[1:]}
             sizes = {c: (folder / f"{name}.{c}").stat().st_size for c in ("jsonl", "mcap")}
             shown = CONDITIONS[2:]
             row: dict[str, Any] = {
@@ -85,6 +115,10 @@ def run(
                 "wall_s": wall_med,
                 "cpu_s": cpu_med,
                 "wall_runs": {c: [w for w, _ in times[c]] for c in CONDITIONS},
+                "cpu_runs": {c: [p for _, p in times[c]] for c in CONDITIONS},
+                "batch_cpu_share": share,
+                "batch_cpu_share_runs": {c: inside[c] for c in CONDITIONS[1:]},
+                "load_1min": [min(load), statistics.median(load), max(load)],
                 **{f"{c}_wall_ratio": wall_med[c] / wall_med["none"] for c in shown},
                 **{f"{c}_cpu_ratio": cpu_med[c] / cpu_med["none"] for c in shown},
                 # the file alone: recording against the same monitor writing nothing
@@ -101,6 +135,9 @@ def run(
                 + ", ".join(f"{c} x{row[f'{c}_cpu_ratio']:.3f}" for c in shown)
                 + ", over monitor alone: "
                 + ", ".join(f"{c} x{row[f'{c}_over_monitor_cpu']:.3f}" for c in shown)
+                + " | CPU in batches, share of the run: "
+                + ", ".join(f"{c} {share[c]:.1%}" for c in CONDITIONS[1:])
+                + f" | load {statistics.median(load):.1f}"
                 + " | "
                 f"{sizes['jsonl'] / 1024:.0f} KiB jsonl, {sizes['mcap'] / 1024:.0f} KiB mcap "
                 f"({row['mcap_over_jsonl']:.2f}), "

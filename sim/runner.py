@@ -137,10 +137,10 @@ async def run_scenario(
         if monitor is not None:
             monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
             # The simulated world too (btcap.sim.worldfeed): the map, then robots and objects
-            # step by step, for Foxglove's 3D panel.
+            # step by step (poses every 2 s at most), for Foxglove's 3D panel.
             feed = WorldFeed(manager)
             monitor.emit(feed.map_event(clock.now()))
-            monitor.add_source(feed.sample)
+            monitor.add_source(feed.sample, last=feed.last)
             if isinstance(robots, InProcessHost):
                 robots.on_agent = monitor.add_agent
         simsys.spawn(ObjectStore(state), ObjectStore.PATH)

@@ -1,32 +1,47 @@
 """The simulated world as monitor events: the map once, then what changed.
 
 A monitor samples :meth:`WorldFeed.sample` at every batch (every simulation step on a
-virtual clock), so a recording holds where every robot was, what it was doing and what
-became of every object, step by step, and the same bytes in every ``--fast`` run of a
-seed. Each part (poses, robots' state and task, objects) is sent whole when it changed and
-not at all otherwise: robots that stand still cost nothing. The events' shapes and how
-Foxglove draws them are in :mod:`btcap.monitor.scene`.
+virtual clock), so a recording holds what every robot was doing and what became of every
+object step by step, and the same bytes in every ``--fast`` run of a seed. Each part
+(poses, robots' state and task, objects) is sent whole when it changed and not at all
+otherwise: robots that stand still cost nothing. Poses, the bulk of a recording (robots
+drive most of a mission), are sent at most once per ``pose_every_s`` clock seconds
+(:data:`POSE_EVERY_S`), and at once with a change of a robot's state or task or of an
+object, and by :meth:`WorldFeed.last` at the end: a robot then hops a few cells at a
+time in Foxglove (which draws the latest pose, it interpolates nothing), but stands
+where it was whenever it starts or ends a task. The events' shapes and how Foxglove
+draws them are in :mod:`btcap.monitor.scene`.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from btcap.monitor.view import Event
 from btcap.sim.manager import SimulationManager
 from btcap.sim.store import SimObject
 
-__all__ = ["WorldFeed"]
+__all__ = ["POSE_EVERY_S", "WorldFeed"]
+
+#: Clock seconds between two poses of the robots at most (four simulator steps): a
+#: recording of a drive then costs a quarter of its messages (see the module's doc).
+POSE_EVERY_S = 2.0
 
 
 class WorldFeed:
     """Reads the simulation's ground truth (a :class:`SimulationManager`'s) for a monitor."""
 
-    def __init__(self, manager: SimulationManager) -> None:
+    def __init__(self, manager: SimulationManager, *, pose_every_s: float | None = None) -> None:
+        if pose_every_s is None:
+            pose_every_s = POSE_EVERY_S
+        if not pose_every_s >= 0:
+            raise ValueError(f"pose_every_s {pose_every_s}: expected clock seconds >= 0")
         self.manager = manager
+        self.pose_every_s = pose_every_s
+        self._pose_t = -math.inf  # clock time of the last poses sent
         grid = manager.state.grid
         self._cell = grid.cell_size_m
         self._height = grid.height
@@ -51,14 +66,22 @@ class WorldFeed:
         }
 
     def sample(self) -> Event | None:
-        """The parts of the world that changed since the last sample (``world``), or None.
+        """The parts of the world that changed since the last sample (``world``), or None;
+        poses at most once per :attr:`pose_every_s` unless another part changed too.
         Each part is compared by a cheap key first (the step's cells as bytes, the robots'
         operations, the objects' fields) and only built when that changed."""
+        return self._sample(final=False)
+
+    def last(self) -> Event | None:
+        """:meth:`sample` once more at the end, poses whatever their rate: the final
+        picture is exact."""
+        return self._sample(final=True)
+
+    def _sample(self, *, final: bool) -> Event | None:
         m = self.manager
+        now = m.now()
         robots = m.robots.values()
-        cells = m.cells
         keys = {
-            "poses": cells.tobytes(),
             "robots": tuple(
                 (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in robots
             ),
@@ -67,17 +90,24 @@ class WorldFeed:
                 for o in m.state.objects
             ),
         }
-        ev: Event = {"t": m.now(), "k": "world"}
+        ev: Event = {"t": now, "k": "world"}
         for part, key in keys.items():
             if self._keys.get(part) != key:
                 self._keys[part] = key
-                ev[part] = self._part(part, cells)
+                ev[part] = self._part(part)
+        if final or len(ev) > 2 or now >= self._pose_t + self.pose_every_s:
+            where = m.cells.tobytes()
+            if self._keys.get("poses") != where:
+                self._keys["poses"] = where
+                self._pose_t = now
+                ev["poses"] = self._part("poses")
         return ev if len(ev) > 2 else None
 
-    def _part(self, part: str, cells: NDArray[np.intp]) -> Any:
+    def _part(self, part: str) -> Any:
         m = self.manager
         if part == "poses":
-            return {name: self._xy(*cells[r.index].tolist()) for name, r in m.robots.items()}
+            cells = m.cells.tolist()
+            return {name: self._xy(*cells[r.index]) for name, r in m.robots.items()}
         if part == "robots":
             return {
                 name: {"up": r.up, "task": _task(r.busy, r.move_event)}

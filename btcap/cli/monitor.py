@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, TypeVar
 from btcap.cli import CliError
 
 if TYPE_CHECKING:  # imported when a monitor is asked for: --help and agents stay fast
+    from btcap.monitor.foxlive import FoxgloveLive
     from btcap.monitor.monitor import Monitor
     from btcap.monitor.replay import Replay
 
@@ -127,6 +128,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         metavar="[HOST:]PORT",
         help=f"where to serve the page (default 127.0.0.1:{DEFAULT_PORT})",
     )
+    p.add_argument(
+        "--foxglove",
+        type=parse_address,
+        metavar="[HOST:]PORT",
+        help="also play it to Foxglove over its WebSocket protocol, as it plays on the page "
+        "(loopback unless a host is given; needs btcap[foxglove])",
+    )
     p.add_argument("--speed", type=float, help="clock seconds per wall second")
     p.add_argument("--paused", action="store_true", help="start paused at the beginning")
     p.add_argument(
@@ -167,7 +175,7 @@ def replay_command(args: argparse.Namespace) -> int:
     replay.playing = not args.paused
     host, port = args.monitor
     with contextlib.suppress(KeyboardInterrupt):
-        asyncio.run(_serve(replay, host, port))
+        asyncio.run(_serve(replay, host, port, args.foxglove))
     return 0
 
 
@@ -187,20 +195,51 @@ def _to_mcap(source: Path, events: list[dict[str, object]], out: Path) -> int:
     return 0
 
 
-async def _serve(replay: Replay, host: str, port: int) -> None:
+async def _serve(
+    replay: Replay, host: str, port: int, foxglove: tuple[str, int] | None = None
+) -> None:
     import asyncio
 
     from btcap.monitor.server import MonitorServer  # aiohttp: only when serving
 
+    live = _foxglove(foxglove) if foxglove is not None else None
+    if live is not None:
+        replay.add_sink(live.write)
     server = MonitorServer(replay, host, port)
     try:
         await server.start()
     except OSError as exc:
+        if live is not None:
+            live.close()
         raise CliError(str(exc)) from None
     print(f"replaying {replay.title} ({replay.end - replay.start:.0f} s) on {server.url}")
+    if live is not None and foxglove is not None:
+        fhost = f"[{foxglove[0]}]" if ":" in foxglove[0] else foxglove[0]
+        print(f"foxglove: ws://{fhost}:{live.port}")
     print("press Ctrl-C to stop", flush=True)
     try:
         async with replay:
             await asyncio.Event().wait()
     finally:
         await server.stop()
+        if live is not None:
+            live.close()
+
+
+def _foxglove(address: tuple[str, int]) -> FoxgloveLive:
+    """The Foxglove server a replay plays to (in the event loop), or one clear line."""
+    from btcap.monitor.net import is_loopback
+    from btcap.transports.log import get_logger
+
+    try:
+        from btcap.monitor.foxlive import FoxgloveLive
+    except ImportError as exc:
+        raise CliError(f"--foxglove needs the Foxglove SDK: pip install 'btcap[foxglove]' "
+                       f"({exc})") from None  # fmt: skip
+    if not is_loopback(address[0]):
+        log = get_logger("btcap.monitor")
+        log.warning("monitor.public", host=address[0], note="Foxglove: anyone sees the team")
+    try:
+        return FoxgloveLive(*address)
+    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
+        raise CliError(f"--foxglove {address[0]}:{address[1]}: {exc}") from None

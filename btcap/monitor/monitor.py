@@ -270,15 +270,21 @@ class Monitor:
         self._detach.append(detach)
         return detach
 
-    def add_source(self, sample: Callable[[], Event | None]) -> Callable[[], None]:
+    def add_source(
+        self,
+        sample: Callable[[], Event | None],
+        *,
+        last: Callable[[], Event | None] | None = None,
+    ) -> Callable[[], None]:
         """Call ``sample`` at every batch and hand on the event it returns, if any (a
-        simulation's world: :mod:`btcap.sim.worldfeed`). Returns a detach (which samples
-        once more, so the last change is kept)."""
+        simulation's world: :mod:`btcap.sim.worldfeed`). Returns a detach, which samples
+        once more (with ``last`` if given: a source that thins its events out says all
+        at the end), so the last change is kept."""
         self._sources.append(sample)
 
         def detach() -> None:
             if sample in self._sources:
-                self._sample(sample)
+                self._sample(last or sample)
                 self._sources.remove(sample)
 
         self._detach.append(detach)

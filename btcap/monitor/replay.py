@@ -2,7 +2,9 @@
 
 The picture at any time is the recording's events up to that time folded into a
 :class:`~btcap.monitor.view.TeamView`, exactly as the live monitor folded them: the end
-of a replay is the live page's last state.
+of a replay is the live page's last state. The events are handed on as they play to
+:meth:`Replay.add_sink` as well (``btcap replay --foxglove``: the Foxglove server), which
+see the play forwards only: a seek shows them the events from where it lands.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +43,18 @@ class Replay:
         self._cursor = 0
         self._hub = Hub()
         self._task: asyncio.Task[None] | None = None
+        self._sinks: list[Callable[[list[Event]], None]] = []
         self._apply_until(self.start)
 
     @classmethod
     def open(cls, path: str | Path, **kw: Any) -> Replay:
         return cls(read_record(path), title=kw.pop("title", Path(path).name), **kw)
+
+    def add_sink(self, sink: Callable[[list[Event]], None]) -> None:
+        """Hand ``sink`` the events played so far, then each batch as it plays."""
+        if self._cursor:
+            sink(self.events[: self._cursor])
+        self._sinks.append(sink)
 
     @property
     def hub(self) -> Hub:
@@ -69,9 +79,13 @@ class Replay:
         self.t = min(self.end, self.t + wall_s * self.speed)
         if self.t >= self.end:
             self.playing = False
-        batch = [*self._apply_until(self.t), self._clock()]
+        played = self._apply_until(self.t)
+        batch = [*played, self._clock()]
         self.view.apply(batch[-1])
         self._hub.publish(batch)
+        if played:
+            for sink in self._sinks:
+                sink(played)
         return batch
 
     def seek(self, t: float) -> None:

@@ -113,3 +113,51 @@ def test_the_example_layout_is_current_and_shows_our_channels() -> None:
     ours = {"/log", *SCENE_TOPICS, *(topic for topic, _ in EVENT_TOPICS.values())}
     read = set(re.findall(r'"(/[a-z/]+)', text))
     assert {"/map", "/scene/robots", "/log", "/btcap/auctions", "/btcap/world"} <= read <= ours
+
+
+@pytest.mark.slow
+async def test_a_replay_plays_to_foxglove(tmp_path: Path) -> None:
+    """``btcap replay --foxglove``: a recording played on sends a client every channel's
+    messages, as many as the MCAP recording of the same events holds."""
+    from mcap.reader import make_reader
+
+    from btcap.cli.monitor import _foxglove
+    from btcap.monitor.mcaprecord import McapRecorder
+    from btcap.monitor.record import read_record
+    from btcap.monitor.replay import Replay
+
+    with anyio.fail_after(60):
+        async with Monitor(port=None, record=tmp_path / "run.jsonl") as monitor:
+            await run_fast(load_scenario(SMALL), monitor=monitor)
+    events = read_record(tmp_path / "run.jsonl")
+    recorder = McapRecorder(tmp_path / "run.mcap")
+    recorder.write(events)
+    recorder.close()
+    with (tmp_path / "run.mcap").open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    assert summary.statistics is not None
+    recorded = {ch.topic: summary.statistics.channel_message_counts[ch.id]
+                for ch in summary.channels.values()}  # fmt: skip
+    topics: dict[int, str] = {}
+    got: Counter[str] = Counter()
+    replay = Replay(events)
+    live = _foxglove(("127.0.0.1", 0))
+    try:
+        with anyio.fail_after(60):
+            async with (
+                websockets.connect(f"ws://127.0.0.1:{live.port}", subprotocols=[SUBPROTOCOL]) as ws,
+                anyio.create_task_group() as tg,
+            ):
+                tg.start_soon(_watch, ws, topics, got)
+                while len(topics) < ADVERTISED or live.subscriptions < len(topics):  # noqa: ASYNC110 - counters (one on the SDK's thread), no event to wait on
+                    await anyio.sleep(0.01)
+                replay.add_sink(live.write)  # the events at the start, then as it plays
+                while replay.playing:
+                    replay.step(10.0)  # the play's pace is the replay's: on, step by step
+                while sum(got.values()) < live.sent:  # noqa: ASYNC110 - a counter, no event to wait on
+                    await anyio.sleep(0.01)
+                tg.cancel_scope.cancel()
+    finally:
+        live.close()
+    assert dict(got) == recorded

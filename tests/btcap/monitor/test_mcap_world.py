@@ -6,6 +6,7 @@ recording of the same ``--fast`` run; the end matches the mission's result."""
 from __future__ import annotations
 
 import base64
+import itertools
 import json
 from collections import Counter
 from pathlib import Path
@@ -16,8 +17,10 @@ import pytest
 from mcap.reader import make_reader
 
 from btcap.monitor import Monitor
+from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
 from btcap.monitor.scene import SCENE_TOPICS, scene_messages
+from btcap.sim import worldfeed
 from btcap.sim.metrics import MissionResult
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import load_scenario
@@ -150,3 +153,27 @@ def test_a_map_is_drawn_upside_up() -> None:
     assert grid["cell_size"] == {"x": 0.5, "y": 0.5}
     assert grid["column_count"] == 2
     assert [e["id"] for e in areas["entities"]] == ["decon", "start"]
+
+
+@pytest.mark.slow
+def test_poses_are_thinned_out_and_end_exact(
+    recorded: tuple[Path, Path, MissionResult],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Poses come at most every POSE_EVERY_S of the clock, unless a robot's task or an
+    object changed in the same event (then the pose is exact); the last poses are where
+    the robots ended, as a recording of every step has them."""
+    worlds = [ev for ev in read_record(recorded[1]) if ev["k"] == "world"]
+    poses = [ev for ev in worlds if "poses" in ev]
+    gaps = [b["t"] - a["t"] for a, b in itertools.pairwise(poses)
+            if "robots" not in b and "objects" not in b]  # fmt: skip
+    assert gaps
+    assert min(gaps) >= worldfeed.POSE_EVERY_S > FOLLOW_EVERY_S  # the monitor's batches
+    monkeypatch.setattr(worldfeed, "POSE_EVERY_S", 0.0)  # every step a robot moved
+    anyio.run(_record, tmp_path / "every.jsonl")
+    every = [ev for ev in read_record(tmp_path / "every.jsonl") if "poses" in ev]
+    assert len(every) > len(poses)
+    assert every[-1]["poses"] == poses[-1]["poses"]
+    for ev in poses:  # the same run: where the robots were then, as every step has it
+        assert [e for e in every if e["t"] <= ev["t"]][-1]["poses"] == ev["poses"]
