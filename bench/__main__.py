@@ -18,6 +18,7 @@ BENCHES = (
     "recording",
     "attacks",
     "missiontime",
+    "strategytime",
 )
 #: Benchmarks that need what `make venv` does not install, left out of ``all``: ``ros``
 #: needs ROS 2 and a private network namespace (`make bench-ros`).
@@ -30,7 +31,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer repeats, for CI smoke runs")
     args, rest = parser.parse_known_args(argv)
     names = BENCHES if args.name == "all" else (args.name,)
-    if rest and names not in (("allocation",), ("missiontime",)):  # take options of their own
+    # ``allocation``, ``missiontime`` and ``strategytime`` take options of their own
+    if rest and names not in (("allocation",), ("missiontime",), ("strategytime",)):
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
     failed = False
     for name in names:

@@ -27,7 +27,9 @@ from dataclasses import dataclass
 
 __all__ = ["HOLD_S", "Handovers", "comes_back"]
 
-#: A task handed over is not handed back to the robot it left within this many seconds.
+#: A task handed over is not handed back to the robot it left within this many seconds
+#: (the default of ``MissionConfig.hold_down_s``); a hand-over back within it is *undone*
+#: (counted whatever the hold-down).
 HOLD_S = 60.0
 
 
@@ -71,10 +73,11 @@ class Handovers:
 
     def moved(self, task: Hashable, frm: str, to: str, now: float) -> bool:
         """``task`` went from ``frm`` to ``to``; True if that undid its last hand-over
-        (back to the robot it left less than ``hold_s`` ago)."""
+        (back to the robot it left less than :data:`HOLD_S` ago, whatever ``hold_s``)."""
         last = self._last.get(task)
-        undone = last is not None and last.frm == to and now - last.at < self.hold_s
+        undone = last is not None and last.frm == to and now - last.at < HOLD_S
         self._last[task] = _Handover(frm, to, now)
-        if len(self._last) > 64:  # those past the hold-down bar nothing
-            self._last = {k: h for k, h in self._last.items() if now - h.at < self.hold_s}
+        if len(self._last) > 64:  # those past both windows bar and count nothing
+            keep = max(self.hold_s, HOLD_S)
+            self._last = {k: h for k, h in self._last.items() if now - h.at < keep}
         return undone

@@ -17,7 +17,7 @@ are cancelled, unstarted, and nothing moved.
 Neither undoes itself soon (:mod:`btcap.team.core.handovers`): an exchange is not made
 when a robot handing its task over could do the task it gets and then its own for less
 than the new robot bids (it would take it back once free), and a task is not handed
-back to the robot it left within ``HOLD_S`` (60 s).
+back to the robot it left within ``MissionConfig.hold_down_s`` (60 s).
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ class Reevaluation:
         self.ledger = Ledger()
         #: Who each task (capability node) was handed from lately: not back within the
         #: hold-down.
-        self.handovers = Handovers()
+        self.handovers = Handovers(mc.config.hold_down_s)
 
     def budget(self, robot: str, now: float) -> bool:
         """Whether news from ``robot`` may set off work now (spent if so)."""

@@ -40,9 +40,10 @@ def test_a_task_is_not_handed_back_within_the_hold_down() -> None:
 
 
 def test_a_hand_over_back_within_the_hold_down_is_counted_as_undone() -> None:
-    h = Handovers(hold_s=0.0)  # no hold-down: what undone counts
+    h = Handovers(hold_s=0.0)  # no hold-down: a hand-over back is allowed, and counted
     h.moved("node", "a", "b", 0.0)
     assert h.allows("node", "a", 1.0)
+    assert h.moved("node", "b", "a", 1.0)
     held = Handovers()
     held.moved("node", "a", "b", 0.0)
     assert held.moved("node", "b", "a", 59.0)  # back to a within 60 s: undone
