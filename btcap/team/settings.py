@@ -35,9 +35,9 @@ __all__ = [
     "FailureTimeoutS",
     "HeartbeatFanout",
     "HeartbeatS",
+    "HoldDownS",
     "KeepaliveS",
     "LeaseS",
-    "HoldDownS",
     "MaxLeaseS",
     "MissionConfig",
     "MoveMargin",
@@ -192,6 +192,7 @@ def _check_bounds(settings: msgspec.Struct) -> None:
         raise ValueError(field_first(str(exc))) from None
     finally:
         _CONVERTING.reset(token)
+
 
 HoldDownS = Annotated[
     float,

@@ -3,8 +3,8 @@
 An :class:`Auction` is opened for one capability execution with the set of robots
 invited; it closes as soon as every invited robot that is still alive and not suspected
 of failure has bid or declined, or when its window ends (a suspect is still invited: its
-answer counts if it comes in time, but nobody waits for it). The ranking is by cost, then robot id, so every
-auctioneer given the same bids picks the same winner.
+answer counts if it comes in time, but nobody waits for it). The ranking is by cost, then
+robot id, so every auctioneer given the same bids picks the same winner.
 """
 
 from __future__ import annotations

@@ -240,8 +240,8 @@ async def test_no_auction_waits_for_a_suspected_member() -> None:
                     if first:  # open before the suspicion
                         tree.tick()
                         await until(lambda: bool(a.allocator._open), "the auction to open")
-                        auction, _done = next(iter(a.allocator._open.values()))
-                        await until(lambda: auction.waiting_for == {"s"}, "a's own bid")
+                        opened, _done = next(iter(a.allocator._open.values()))
+                        await until(lambda: opened.waiting_for == {"s"}, "a's own bid")  # noqa: B023
                         t.net.isolate("s")
                     else:  # opened while s is suspected
                         assert "s" in a.team.suspected()
