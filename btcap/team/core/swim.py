@@ -208,7 +208,8 @@ class Swim:
         m = self.members.get(probe.target)
         if probe.acked:
             self.health = max(self.health - 1, 0)
-            if self.newcomers.confirm(probe.target):
+            # (a newcomer that left since it answered is no member to pass on)
+            if self.newcomers.confirm(probe.target) and m is not None:
                 self._confirmed(probe.target, step)
             return
         if m is None or m.robot in self.newcomers:

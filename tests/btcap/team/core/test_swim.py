@@ -318,3 +318,20 @@ def test_the_same_seed_gives_the_same_run() -> None:
         runs.append([(e.at, e.observer, e.event) for e in net.events])
     assert runs[0] == runs[1]
     assert any(event is TeamEvent.FAILED for _, _, event in runs[0])
+
+
+def test_a_newcomer_that_answered_our_probe_and_left_before_it_concluded() -> None:
+    # sim-test (seed in 0-299 on a loaded run): the probe's answer came, then the goodbye;
+    # concluding it must not look the newcomer up as a member any more.
+    a = Swim("a", 1, DEFAULTS, random.Random(0))
+    a.on_heartbeat(Heartbeat("j1", 1, 0), 0.0)  # joined; its nonce never answered
+    # the newcomer's nonce again, then the round robin's probe (number 1)
+    (target, probe) = a.tick(0.1).sends[-1]
+    assert target == "j1"
+    assert isinstance(probe, Heartbeat)
+    assert probe.probe == 1
+    a.on_heartbeat(Heartbeat("j1", 1, 0, ack=probe.probe), 0.12)
+    assert a.on_goodbye("j1", 1).events == [(TeamEvent.LEFT, "j1")]
+    step = a.tick(0.2)
+    assert "j1" not in a.members
+    assert step.confirmed == []
