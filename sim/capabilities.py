@@ -218,7 +218,8 @@ def robot_setup(
                 left = None if target is None else body.left_s(o.op, int(target), duration)
             if left is None:  # not under way: drive there, work, (carry the object on)
                 task = (o.op, -1 if target is None else int(target), at)
-                start = body.bound_for(grid.decon_area, task) if bidding_after() else body.position
+                after = not model.bids_from_here and bidding_after()
+                start = body.bound_for(grid.decon_area, task) if after else body.position
                 cost = travel(start, at) + duration
                 if o.then_decon:
                     cost += travel(at, grid.decon_area)

@@ -74,7 +74,11 @@ class MissionResult(msgspec.Struct):
     such a loss; ``moved``: running work re-evaluated and moved to a clearly cheaper
     robot; ``robot_failures`` and ``robots_left``: the scenario's fail and
     leave events that happened while the mission ran, whether or not the robot was busy;
-    ``errors``: robots that crashed; ``timed_out``: the time limit ended the run."""
+    ``errors``: robots that crashed; ``timed_out``: the time limit ended the run;
+    ``exchanged``: exchanges of running work between busy robots; ``undone``: moves and
+    exchanges that handed a task back to the robot it left within 60 s; ``held_back``:
+    those the hold-down refused; ``foreseen_back``: exchanges not made because a robot
+    would have taken its task back once free (see :mod:`btcap.team.core.handovers`)."""
 
     scenario: str
     completed: bool
@@ -94,6 +98,10 @@ class MissionResult(msgspec.Struct):
     timed_out: bool = False
     interrupted: bool = False
     """Stopped early by the user (SIGINT or SIGTERM): the figures are what was done so far."""
+    exchanged: int = 0
+    undone: int = 0
+    held_back: int = 0
+    foreseen_back: int = 0
 
     def to_json(self) -> bytes:
         return msgspec.json.format(msgspec.json.encode(self), indent=2)
@@ -204,6 +212,7 @@ def collect(
             round(float(manager.world.travelled_m[idx]), 2),
         )
     assignments = {n.path: list(n.assignments) for n in tree.nodes() if isinstance(n, Capability)}
+    mstats = operator.mission_control.stats
     return MissionResult(
         scenario=s.name,
         completed=final is State.SUCCEEDED and state.mission_complete,
@@ -225,6 +234,10 @@ def collect(
         errors=[RobotError(round(e.time - started, 3), e.robot, e.error) for e in errors],
         timed_out=final not in DONE and not interrupted,
         interrupted=interrupted,
+        exchanged=mstats.exchanged,
+        undone=mstats.undone,
+        held_back=mstats.held_back,
+        foreseen_back=mstats.foreseen_back,
     )
 
 

@@ -58,6 +58,15 @@ class RobotModel(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
             description="Carry a contaminated object to the decontamination area; null: cannot."
         ),
     ] = None
+    bids_from_here: Annotated[
+        bool,
+        msgspec.Meta(
+            description="Price every bid from where the robot stands, also one for after the "
+            "work it holds (a bid function that never asks `bidding_after()`, as a "
+            "capability author may write it; the framework then bounds the later cost "
+            "itself). For benches; false: from where that work leaves the robot."
+        ),
+    ] = False
 
     def can(self, op: str) -> bool:
         return getattr(self, op) is not None

@@ -128,6 +128,11 @@ def _commands(block: Block) -> list[list[str]]:
     return [shlex.split(line) for line in lines if line and not line.startswith("#")]
 
 
+def _from_root(arg: str) -> str:
+    """A relative path the docs give from the repository's top, made absolute."""
+    return str(ROOT / arg) if not arg.startswith("-") and (ROOT / arg).exists() else arg
+
+
 def _make_targets() -> set[str]:
     text = (ROOT / "Makefile").read_text()
     return set(re.findall(r"^([\w-]+):", text, re.M))
@@ -135,7 +140,10 @@ def _make_targets() -> set[str]:
 
 @pytest.mark.parametrize("block", _of("sh"), ids=str)
 def test_shell_block_commands_exist(
-    block: Block, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    block: Block,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
 ) -> None:
     monkeypatch.chdir(ROOT)
     for argv in _commands(block):
@@ -147,7 +155,11 @@ def test_shell_block_commands_exist(
         elif Path(head).name == "btcap":
             words = tuple(a for a in args if not a.startswith("-"))[:2]
             if "--help" in args or "--version" in args or words in _RUN:
-                code = btcap.cli.main(args)  # cheap: run it for real
+                # cheap: run it for real, in a folder of its own (a file it writes, such as
+                # --btlog patrol.btlog, must not land in the repository)
+                monkeypatch.chdir(tmp_path)
+                code = btcap.cli.main([_from_root(a) for a in args])
+                monkeypatch.chdir(ROOT)
             else:
                 parser = btcap.cli.build_parser()
                 try:

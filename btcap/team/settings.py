@@ -35,6 +35,7 @@ __all__ = [
     "FailureTimeoutS",
     "HeartbeatFanout",
     "HeartbeatS",
+    "HoldDownS",
     "KeepaliveS",
     "LeaseS",
     "MaxLeaseS",
@@ -193,6 +194,17 @@ def _check_bounds(settings: msgspec.Struct) -> None:
         _CONVERTING.reset(token)
 
 
+HoldDownS = Annotated[
+    float,
+    msgspec.Meta(
+        ge=0,
+        description="A task moved or exchanged to another robot is not handed back to the "
+        "robot it left within this many clock seconds, whatever the bids say then (a robot "
+        "that frees soon would otherwise take back work it just gave away); 0: no hold-down.",
+    ),
+]
+
+
 class Timing(msgspec.Struct, kw_only=True, forbid_unknown_fields=True, frozen=True):
     """Rates and timeouts of the protocol, in clock seconds."""
 
@@ -221,6 +233,7 @@ class Allocation(msgspec.Struct, kw_only=True, forbid_unknown_fields=True, froze
     rebid_on_join: RebidOnJoin = None
     queue_after_current: QueueAfterCurrent = False
     max_lease_s: MaxLeaseS = 300.0
+    hold_down_s: HoldDownS = 60.0
 
     def __post_init__(self) -> None:
         _check_bounds(self)
@@ -250,6 +263,7 @@ class MissionConfig(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     rebid_on_join: RebidOnJoin = _A.rebid_on_join
     queue_after_current: QueueAfterCurrent = _A.queue_after_current
     max_lease_s: MaxLeaseS = _A.max_lease_s
+    hold_down_s: HoldDownS = _A.hold_down_s
 
     def __post_init__(self) -> None:
         _check_bounds(self)

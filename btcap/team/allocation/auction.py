@@ -119,7 +119,9 @@ class SingleItemAuction(Allocator):
             self._unsubscribe = None
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
-        if event in (TeamEvent.LEFT, TeamEvent.FAILED):
+        """A robot lost or suspected: no open auction waits for it any longer (a
+        suspect's answer is still taken if it comes), so none holds its batch either."""
+        if event in (TeamEvent.LEFT, TeamEvent.FAILED, TeamEvent.SUSPECTED):
             now = self.system.clock.now()
             for auction, done in self._open.values():
                 auction.member_lost(robot)
@@ -132,6 +134,8 @@ class SingleItemAuction(Allocator):
         # The auctioneer is the execution's origin: its auctions share its incarnation.
         auction_id = AuctionId(self.robot, next(self._ids), task.execution.incarnation)
         auction = Auction(auction_id, task.interface, task.candidates, clock.now() + self.window_s)
+        if self.team is not None:  # a suspect may bid, but nobody waits for it
+            auction.excuse(self.team.suspected() & task.candidates - {self.robot})
         done = asyncio.Event()
         self._open[auction_id] = (auction, done)
         self._queue.opened(auction_id, auction.invited)

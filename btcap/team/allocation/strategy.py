@@ -56,6 +56,10 @@ class TeamView(Protocol):
 
     def alive(self) -> frozenset[str]: ...
 
+    def suspected(self) -> frozenset[str]:
+        """Members under suspicion of failure: no auction waits for their answer."""
+        ...
+
     def subscribe(self, listener: Callable[[TeamEvent, str], None]) -> Callable[[], None]: ...
 
 

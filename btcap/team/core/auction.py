@@ -1,9 +1,10 @@
 """The single-item auction as pure state (no I/O), so it can be tested without sockets.
 
 An :class:`Auction` is opened for one capability execution with the set of robots
-invited; it closes as soon as every invited robot that is still alive has bid or
-declined, or when its window ends. The ranking is by cost, then robot id, so every
-auctioneer given the same bids picks the same winner.
+invited; it closes as soon as every invited robot that is still alive and not suspected
+of failure has bid or declined, or when its window ends (a suspect is still invited: its
+answer counts if it comes in time, but nobody waits for it). The ranking is by cost, then
+robot id, so every auctioneer given the same bids picks the same winner.
 """
 
 from __future__ import annotations
@@ -86,6 +87,11 @@ class Auction:
     def member_lost(self, robot: str) -> None:
         """A robot left or failed: stop waiting for it."""
         self._pending.discard(robot)
+
+    def excuse(self, robots: frozenset[str] | set[str]) -> None:
+        """``robots`` are suspected of failure: stop waiting for them; an answer that
+        still comes before the auction closes is taken as any other."""
+        self._pending -= robots
 
     @property
     def waiting_for(self) -> frozenset[str]:

@@ -9,17 +9,36 @@ from typing import Any, Protocol, TypeVar
 
 from btcap.team.messages import Bid, CallForBids, NoBid
 
-__all__ = ["Bidder", "Evaluation", "bidding_after", "evaluate"]
+__all__ = ["Bidder", "Evaluation", "bidding_after", "detour", "evaluate"]
 
 _AFTER: ContextVar[bool] = ContextVar("btcap_bidding_after", default=False)
+#: Set while a bid function runs: whether it asked :func:`bidding_after`.
+_ASKED: ContextVar[list[bool] | None] = ContextVar("btcap_bidding_asked", default=None)
 
 
 def bidding_after() -> bool:
     """Whether the bid being priced now is for after the work the robot holds (to queue
     the task, or a time-extended bid): an implementation's bid function prices it from
     where that work leaves the robot, not from where it is (see
-    :mod:`btcap.team.core.body`)."""
+    :mod:`btcap.team.core.body`).
+
+    A bid function that never asks is taken to price from where the robot stands, and
+    the framework prices the later work itself (see :func:`detour`)."""
+    asked = _ASKED.get()
+    if asked is not None:
+        asked[0] = True
     return _AFTER.get()
+
+
+def detour(cost: float, wait: float) -> float:
+    """What a bid priced from where a busy robot stands (``cost``) may cost it after the
+    work it holds, which costs ``wait`` to finish: that work may leave the robot as far
+    away as it costs, and from there the way back is no dearer (costs are paths: the
+    triangle inequality), so at most ``cost + wait``. An upper bound, not a guess: a plan
+    never leaves a task waiting for a busy robot on a bid that was too low (a robot
+    driving away from it), and a bid function that knows where the work leaves the
+    robot (it asks :func:`bidding_after`) bids lower and closer to the truth."""
+    return cost + wait
 
 
 class Bidder(Protocol):
@@ -53,7 +72,8 @@ def evaluate(
     unmet: Callable[[B], str | None],
     later: bool = False,
 ) -> Evaluation:
-    """Bid ``wait`` (what the body must finish first; None: busy) plus the cheapest cost.
+    """Bid ``wait`` (what the body must finish first; None: busy) plus the cheapest cost
+    (for after held work: see :func:`bidding_after`).
 
     ``unmet`` says why an implementation's preconditions do not hold. Ties go to the
     implementation whose name sorts first, so the same robot always bids the same way.
@@ -89,7 +109,7 @@ def _cheapest(
             reasons.append(why)
             continue
         try:
-            cost = impl.cost(inputs)
+            cost = _priced(impl, inputs, wait)
         except Exception as exc:  # a user's bid function: it must not silence the robot
             errors.append((impl.name, exc))
             reasons.append(f"{impl.name}: its bid function raised {type(exc).__name__}")
@@ -101,6 +121,23 @@ def _cheapest(
     if best is None:
         return Evaluation(NoBid(cfb.auction, robot, "; ".join(reasons)), errors)
     return Evaluation(Bid(cfb.auction, robot, wait + best[0], best[1], wait, later), errors)
+
+
+def _priced(impl: Bidder, inputs: Mapping[str, Any], wait: float) -> float | None:
+    """``impl``'s cost for ``inputs``; for after ``wait`` of held work, with the
+    :func:`detour` added unless its bid function asked :func:`bidding_after` (or it has
+    none: a cost that is the tree's alone does not depend on where the robot is)."""
+    if wait <= 0:
+        return impl.cost(inputs)
+    asked = [False]
+    token = _ASKED.set(asked)
+    try:
+        cost = impl.cost(inputs)
+    finally:
+        _ASKED.reset(token)
+    if cost is None or asked[0] or getattr(impl, "bid", True) is None:
+        return cost
+    return detour(cost, wait)
 
 
 def _why_no_cost(impl: Bidder) -> str:

@@ -9,7 +9,8 @@ current one over* (from where it is now, no wait) and by what finishing its curr
 costs it (the estimate it already re-reports for cost news). It is made only when the
 cycle's total falls by more than ``margin`` of what the cycle costs now, the same
 hysteresis as moving work to a free robot, so near-equal pairs never trade back and
-forth.
+forth, and when no robot handing its task over would take it back once free
+(:func:`~btcap.team.core.handovers.comes_back`).
 
 Re-evaluation carries out swaps and chains of three (``Reevaluation._cycle`` in
 :mod:`btcap.team.runtime.moving`): each leg's new run is first accepted *paused* by its
@@ -31,6 +32,7 @@ import math
 from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
+from btcap.team.core.handovers import comes_back
 from btcap.team.ids import ExecutionId
 
 __all__ = ["Exchange", "Ledger", "Leg", "Running", "find_exchanges", "pays"]
@@ -91,6 +93,9 @@ def _cycle(cycle: Sequence[Running], cross: Cross, margin: float) -> Exchange | 
     after = sum(leg.cost for leg in legs)
     if not pays(before, after, margin):
         return None
+    n = len(cycle)
+    if any(comes_back(legs[i - 1].cost, cycle[i].cost, legs[i].cost, margin) for i in range(n)):
+        return None  # a robot would take its task back once free: undone soon after
     return Exchange(tuple(legs), before, after)
 
 

@@ -26,6 +26,9 @@ class TeamEvent(enum.Enum):
     FAILED = "failed"
     CHANGED = "changed"  # its capabilities changed (new repository version)
     FREED = "freed"  # its body came free: waiting work may go to it now
+    #: a suspicion of it started (it may still refute it): auctions stop waiting for its
+    #: answer, though it may still bid
+    SUSPECTED = "suspected"
 
 
 class Hearsay(enum.Enum):

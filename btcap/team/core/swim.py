@@ -208,7 +208,8 @@ class Swim:
         m = self.members.get(probe.target)
         if probe.acked:
             self.health = max(self.health - 1, 0)
-            if self.newcomers.confirm(probe.target):
+            # (a newcomer that left since it answered is no member to pass on)
+            if self.newcomers.confirm(probe.target) and m is not None:
                 self._confirmed(probe.target, step)
             return
         if m is None or m.robot in self.newcomers:
@@ -219,13 +220,16 @@ class Swim:
             # by one when there was none to ask); confirming others' suspicion is no sign.
             missing = len(probe.helpers) - len(probe.nacked) if probe.helpers else 1
             self.health = min(self.health + missing, MAX_HEALTH)
-        self._suspect(m, now)
+        self._suspect(m, now, step)
 
-    def _suspect(self, m: Member, now: float) -> None:
+    def _suspect(self, m: Member, now: float, step: Step) -> None:
+        new = m.robot not in self.table.suspected
         if self.table.suspect(m.robot, m.incarnation, m.beat, self.robot, now):
             s = m.suspicion
             assert s is not None
             self.rumours.add(Heard(m.robot, m.incarnation, s.beat, 0, True, self.robot))
+            if new:
+                step.events.append((TeamEvent.SUSPECTED, m.robot))
 
     def _next_target(self, now: float) -> str | None:
         """Every other period, a suspected member, the one we probed least recently: an
@@ -306,8 +310,11 @@ class Swim:
                 # suspicion passed back to us: those we told confirm nothing (its echoes
                 # brought one lossy probe's suspicion to the floor, ahead of the refutation).
                 by = "" if h.by == self.robot else sender
+                new = h.robot not in self.table.suspected
                 if self.table.suspect(h.robot, h.incarnation, h.beat, by, now):
                     self.rumours.add(Heard(h.robot, h.incarnation, h.beat, 0, True, h.by))
+                    if new:
+                        step.events.append((TeamEvent.SUSPECTED, h.robot))
                 continue
             result = self.table.hearsay(h.robot, h.incarnation, h.beat, now, window_s=window)
             if result is Hearsay.NEWS:
@@ -357,12 +364,14 @@ class Swim:
                 probe.nacked.add(sender)
         return Step()
 
-    def unreachable(self, robot: str, now: float) -> None:
+    def unreachable(self, robot: str, now: float) -> Step:
         """Nobody listens where ``robot`` said (the transport cannot connect): suspect it
         now, not in its round-robin turn; refuted by its own newer beat, as any other."""
+        step = Step()
         m = self.members.get(robot)
         if m is not None and m.suspicion is None and robot not in self.newcomers:
-            self._suspect(m, now)
+            self._suspect(m, now, step)
+        return step
 
     def on_goodbye(self, robot: str, incarnation: int) -> Step:
         step = Step()

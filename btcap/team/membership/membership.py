@@ -129,10 +129,15 @@ class Membership(Actor):
         """Every live member, this robot included."""
         return self.table.alive()
 
+    def suspected(self) -> frozenset[str]:
+        """The members under suspicion now (still members: they may refute it)."""
+        return frozenset(self.table.suspected)
+
     def _emit(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.FAILED, TeamEvent.LEFT):
             self._rosters_due.pop(robot, None)  # what its life owed us, it never will
-        emit = log.debug if event is TeamEvent.FREED else log.info  # routine, not a change
+        # routine, not a change
+        emit = log.debug if event in (TeamEvent.FREED, TeamEvent.SUSPECTED) else log.info
         emit("team.event", robot=self.robot, change=event.value, member=robot)
         for listener in list(self._listeners):
             try:
@@ -183,7 +188,7 @@ class Membership(Actor):
         if transport is None:
             return
         for robot in transport.unreachable() & self.table.members.keys():
-            self.swim.unreachable(robot, now)
+            self._apply(self.swim.unreachable(robot, now), None)
         others = transport.peers() - self.table.members.keys()  # a set operation, in C
         for peer in self._others.take(others, self.fanout) if others else ():
             self._beat_to(peer)

@@ -13,6 +13,11 @@ new run paused beside it; then task B to A's robot the same way. Only if both we
 and the pair's total (the holders' fresh bids before, the new bids after) falls by more
 than the margin do both become replacements, adopted as above; otherwise both new runs
 are cancelled, unstarted, and nothing moved.
+
+Neither undoes itself soon (:mod:`btcap.team.core.handovers`): an exchange is not made
+when a robot handing its task over could do the task it gets and then its own for less
+than the new robot bids (it would take it back once free), and a task is not handed
+back to the robot it left within ``MissionConfig.hold_down_s`` (60 s).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import LocalExecution, RemoteExecution
 from btcap.team.core.bounds import Budgets
 from btcap.team.core.exchange import Ledger, Running, pays
+from btcap.team.core.handovers import Handovers, comes_back
 from btcap.team.core.task import Assigned, AssignmentTask
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
@@ -90,6 +96,9 @@ class Reevaluation:
         self.news_budget = Budgets(NEWS_PER_WINDOW / window, NEWS_BURST)
         #: What bidders said about the running work (which exchanges may pay).
         self.ledger = Ledger()
+        #: Who each task (capability node) was handed from lately: not back within the
+        #: hold-down.
+        self.handovers = Handovers(mc.config.hold_down_s)
 
     def budget(self, robot: str, now: float) -> bool:
         """Whether news from ``robot`` may set off work now (spent if so)."""
@@ -184,6 +193,10 @@ class Reevaluation:
         # Others (this robot too) may take it over; its holder bids what finishing would
         # cost it now.
         others = (mc.repository.providers(iface.identity) & mc.alive()) - {ex.robot}
+        barred = self.handovers.barred(id(node), mc.now())
+        if barred in others:  # it left that robot lately: not back within the hold-down
+            others.discard(barred)
+            mc.stats.held_back += 1
         if not others:
             return
         candidates = others | {ex.robot}
@@ -210,6 +223,7 @@ class Reevaluation:
         ex.replacement = new
         mc.active[new.id] = new
         mc.stats.moved += 1
+        mc.stats.undone += self.handovers.moved(id(node), ex.robot, won.robot, mc.now())
         log.info(
             "mission.moving",
             robot=mc.robot,
@@ -262,9 +276,28 @@ class Reevaluation:
                 return
             if any(t.robot in exchanged for t in cycle):
                 continue
+            if not self._allowed([handles[t.execution] for t in cycle]):
+                mc.stats.held_back += 1
+                continue
             tries += 1
             if await self._cycle([handles[t.execution] for t in cycle]):
                 exchanged |= {t.robot for t in cycle}
+
+    def _allowed(self, cycle: list[Handle]) -> bool:
+        """Whether no task of ``cycle`` would go back to a robot it left lately."""
+        now, n = self.mc.now(), len(cycle)
+        return all(
+            self.handovers.allows(id(x.node), cycle[(i + 1) % n].robot, now)
+            for i, x in enumerate(cycle)
+        )
+
+    def _returns(self, legs: list[Assigned]) -> bool:
+        """Whether a robot of the cycle would take its task back once free: it could do
+        the task it receives, then its own, for less than the new robot bids."""
+        n, m = len(legs), self.margin
+        return any(
+            comes_back(legs[i - 1].cost, legs[i].held or 0.0, legs[i].cost, m) for i in range(n)
+        )
 
     async def _cycle(self, cycle: list[Handle]) -> bool:
         """Give each task of ``cycle`` to the next one's robot if the total falls by more
@@ -294,13 +327,19 @@ class Reevaluation:
         before = sum(won.held or 0.0 for won in won_all)
         after = sum(won.cost for won in won_all)
         held = all(won.held is not None for won in won_all)
-        if not (held and pays(before, after, m)) or not all(self.movable(x) for x in cycle):
+        back = held and pays(before, after, m) and self._returns(won_all)
+        if back:
+            mc.stats.foreseen_back += 1
+        if back or not (held and pays(before, after, m)) or not all(map(self.movable, cycle)):
             for new, _won in legs:
                 new.cancel("exchange off")
             return False
-        for old, (new, _won) in zip(cycle, legs, strict=True):
+        now = mc.now()
+        for i, (old, (new, _won)) in enumerate(zip(cycle, legs, strict=True)):
             old.replacement = new
             mc.active[new.id] = new
+            to = cycle[(i + 1) % n].robot
+            mc.stats.undone += self.handovers.moved(id(old.node), old.robot, to, now)
         mc.stats.moved += n
         mc.stats.exchanged += 1
         log.info(

@@ -65,6 +65,23 @@ def test_member_loss_closes_it() -> None:
     assert auc.outcome().silent == frozenset()
 
 
+def test_a_suspect_is_not_waited_for_but_its_answer_still_counts() -> None:
+    auc = _auction("a", "b", "s")
+    auc.excuse({"s", "z"})  # z: not invited, changes nothing
+    auc.offer(Bid(A1, "a", 3.0, "i"))
+    assert auc.waiting_for == {"b"}
+    assert not auc.closed(0.0)
+    assert auc.offer(Bid(A1, "s", 1.0, "j"))  # the suspect answered after all: it counts
+    assert auc.offer(NoBid(A1, "b", "busy"))
+    assert auc.closed(0.0)  # long before its deadline
+    assert [b.robot for b in auc.outcome().ranking] == ["s", "a"]
+    quiet = _auction("a", "s")
+    quiet.excuse({"s"})
+    quiet.offer(Bid(A1, "a", 3.0, "i"))
+    assert quiet.closed(0.0)  # nobody but the suspect left to answer
+    assert quiet.outcome().silent == frozenset()
+
+
 def test_nobody_invited_is_closed_at_once_with_no_winner() -> None:
     auc = _auction()
     assert auc.closed(0.0)
@@ -203,6 +220,37 @@ async def test_a_member_leaving_closes_the_auction_it_was_silent_in() -> None:
             assert out.silent == frozenset()
             assert node.assignments == ["a"]
             await tree.shutdown()
+
+
+async def test_no_auction_waits_for_a_suspected_member() -> None:
+    # s goes quiet (isolated): once a suspects it, an auction still open stops waiting for
+    # it, and one opened later never waits for it, long before s is declared failed.
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team(auction_window_s=1000.0, failure_timeout_s=500.0) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            async with silent_member(
+                t.net, "s", [count_impl("s", 0.1, probe)], t.clock, failure_timeout_s=500.0
+            ):
+                await knows(a, "s")
+                for first in (True, False):
+                    node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+                    tree = a.mission(ReactiveSequence("root", children=[node]))
+                    start = t.clock.now()
+                    if first:  # open before the suspicion
+                        tree.tick()
+                        await until(lambda: bool(a.allocator._open), "the auction to open")
+                        opened, _done = next(iter(a.allocator._open.values()))
+                        await until(lambda: opened.waiting_for == {"s"}, "a's own bid")  # noqa: B023
+                        t.net.isolate("s")
+                    else:  # opened while s is suspected
+                        assert "s" in a.team.suspected()
+                    status = await tick_until(tree, lambda s: s is not State.RUNNING)
+                    assert status is State.SUCCEEDED
+                    assert node.assignments == ["a"]
+                    assert t.clock.now() - start < 100.0  # neither window nor failure
+                    assert "s" in a.team.suspected()  # still a member, suspected
+                    await tree.shutdown()
 
 
 async def test_invalid_bids_from_a_robot_are_declines_and_the_next_wins() -> None:

@@ -8,9 +8,12 @@ from typing import Any
 
 import pytest
 
+from btcap.bt.leaves import AlwaysSuccess
 from btcap.team.allocation.strategies import check_strategy
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
 from btcap.team.core.auction import REASON_CHARS, Auction
-from btcap.team.core.bidding import evaluate
+from btcap.team.core.bidding import bidding_after, evaluate
 from btcap.team.core.body import Body
 from btcap.team.core.planning import optimal_plan
 from btcap.team.ids import AuctionId, ExecutionId
@@ -26,10 +29,17 @@ class Impl:
     price: float | None
     needs: str | None = None
     broken: bool = False
+    #: prices work after what the robot holds from where that leaves it (its own way)
+    asks: bool = True
+    heard: list[bool] | None = None
 
     def cost(self, inputs: Mapping[str, Any]) -> float | None:
         if self.broken:
             raise ZeroDivisionError("bid")
+        if self.asks:
+            after = bidding_after()
+            if self.heard is not None:
+                self.heard.append(after)
         return self.price
 
 
@@ -41,6 +51,31 @@ def test_the_cheapest_allowed_implementation_bids_with_the_wait() -> None:
     impls = [Impl("dear", 5.0), Impl("cheap", 1.0, needs="precondition x"), Impl("ok", 2.0)]
     ev = evaluate(CFB, "b", impls, {}, wait=3.0, unmet=unmet)
     assert ev.answer == Bid(A1, "b", 5.0, "ok", 3.0)  # 3 of it the wait
+
+
+def test_a_bid_function_that_never_asks_gets_the_detour_for_later_work() -> None:
+    # Priced from where the busy robot stands (5), the task may cost up to the 20 of held
+    # work more: that work may leave the robot as far away as it costs.
+    heard: list[bool] = []
+    naive = evaluate(CFB, "r", [Impl("a", 5.0, asks=False)], {}, wait=20.0, unmet=unmet)
+    assert naive.answer == Bid(A1, "r", 45.0, "a", 20.0)
+    aware = evaluate(CFB, "r", [Impl("a", 5.0, heard=heard)], {}, wait=20.0, unmet=unmet)
+    assert aware.answer == Bid(A1, "r", 25.0, "a", 20.0)  # its own price, trusted
+    assert heard == [True]
+    now = evaluate(CFB, "r", [Impl("a", 5.0, asks=False)], {}, wait=0.0, unmet=unmet)
+    assert now.answer == Bid(A1, "r", 5.0, "a")  # idle: no held work, no detour
+    # the cheapest is chosen on the prices with the detour: a naive 5 is dearer than 20
+    both = [Impl("naive", 5.0, asks=False), Impl("aware", 20.0)]
+    ev = evaluate(CFB, "r", both, {}, wait=20.0, unmet=unmet)
+    assert ev.answer == Bid(A1, "r", 40.0, "aware", 20.0)
+    assert bidding_after() is False  # only while a bid for later is priced
+
+
+def test_an_implementation_without_a_bid_function_needs_no_detour() -> None:
+    tree = Implementation("plain", CapabilityInterface("Count"), lambda: AlwaysSuccess("x"))
+    ev = evaluate(CFB, "r", [tree], {}, wait=20.0, unmet=lambda i: None)
+    assert isinstance(ev.answer, Bid)
+    assert ev.answer.cost == 20.0 + tree.utility().expected_cost
 
 
 def test_ties_go_to_the_first_name_and_broken_bid_functions_are_reported() -> None:

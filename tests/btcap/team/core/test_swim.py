@@ -160,6 +160,25 @@ def test_our_suspicion_passed_back_to_us_confirms_nothing() -> None:
     assert b.members[target].suspicion.confirmations == 1  # type: ignore[union-attr]
 
 
+def test_a_suspicion_starting_is_an_event_once() -> None:
+    # Auctions stop waiting for a suspect on this event (it is a member still).
+    a = robot()
+    assert a.unreachable("c", 0.0).events == [(TeamEvent.SUSPECTED, "c")]
+    assert a.unreachable("c", 0.01).events == []  # suspected already
+    # a teammate's news of a suspicion we did not hold yet
+    inc = a.members["d"].incarnation
+    news = Heard("d", inc, 0, 0, True, "b")
+    step = a.on_heartbeat(Heartbeat("b", 1, 0, heard=[news]), 0.02)
+    assert (TeamEvent.SUSPECTED, "d") in step.events
+    step = a.on_heartbeat(Heartbeat("e", 1, 0, heard=[news]), 0.03)  # another suspector
+    assert (TeamEvent.SUSPECTED, "d") not in step.events
+    # our own probe that went unanswered
+    b = robot()
+    [(target, _)] = b.tick(0.0).sends
+    b.timeout(0.05)
+    assert (TeamEvent.SUSPECTED, target) in b.tick(0.1).events
+
+
 def test_an_unreachable_member_is_suspected_at_once_and_can_refute() -> None:
     a = robot()
     a.unreachable("ghost", 0.0)  # not a member: nothing
@@ -299,3 +318,20 @@ def test_the_same_seed_gives_the_same_run() -> None:
         runs.append([(e.at, e.observer, e.event) for e in net.events])
     assert runs[0] == runs[1]
     assert any(event is TeamEvent.FAILED for _, _, event in runs[0])
+
+
+def test_a_newcomer_that_answered_our_probe_and_left_before_it_concluded() -> None:
+    # sim-test (seed in 0-299 on a loaded run): the probe's answer came, then the goodbye;
+    # concluding it must not look the newcomer up as a member any more.
+    a = Swim("a", 1, DEFAULTS, random.Random(0))
+    a.on_heartbeat(Heartbeat("j1", 1, 0), 0.0)  # joined; its nonce never answered
+    # the newcomer's nonce again, then the round robin's probe (number 1)
+    (target, probe) = a.tick(0.1).sends[-1]
+    assert target == "j1"
+    assert isinstance(probe, Heartbeat)
+    assert probe.probe == 1
+    a.on_heartbeat(Heartbeat("j1", 1, 0, ack=probe.probe), 0.12)
+    assert a.on_goodbye("j1", 1).events == [(TeamEvent.LEFT, "j1")]
+    step = a.tick(0.2)
+    assert "j1" not in a.members
+    assert step.confirmed == []

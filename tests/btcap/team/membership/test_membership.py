@@ -118,9 +118,11 @@ async def test_a_member_silent_to_probes_is_suspected_then_failed() -> None:
             await p.clock.advance(0.2)  # the next probe went unanswered: suspected
             assert set(p.m.table.suspected) == {"x"}
             await p.clock.advance(0.3)  # not yet: the suspicion lasts failure_timeout_s
-            assert events == [(TeamEvent.JOINED, "x")]
+            # each suspicion is news (auctions stop waiting for x), not a failure
+            suspected = [(TeamEvent.JOINED, "x"), *[(TeamEvent.SUSPECTED, "x")] * 2]
+            assert events == suspected
             await p.clock.advance(0.4)
-            assert events == [(TeamEvent.JOINED, "x"), (TeamEvent.FAILED, "x")]
+            assert events == [*suspected, (TeamEvent.FAILED, "x")]
             assert p.m.alive() == {"me"}
 
 
@@ -168,12 +170,14 @@ async def test_join_leave_and_failure_between_agents() -> None:
             # c goes silent: after the failure timeout it counts as failed, and c sees a fail.
             t.net.isolate("c")
             await until(lambda: a.team.alive() == {"a"} and t["c"].team.alive() == {"c"})
-            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED]
-            assert t.seen("c", "a") == [TeamEvent.JOINED, TeamEvent.FAILED]
+            # (suspected first: the news auctions stop waiting on)
+            gone = [TeamEvent.JOINED, TeamEvent.SUSPECTED, TeamEvent.FAILED]
+            assert t.seen("a", "c") == gone
+            assert t.seen("c", "a") == gone
             # Healed, it joins again.
             t.net.heal("c")
             await until(lambda: a.team.alive() == {"a", "c"})
-            assert t.seen("a", "c") == [TeamEvent.JOINED, TeamEvent.FAILED, TeamEvent.JOINED]
+            assert t.seen("a", "c") == [*gone, TeamEvent.JOINED]
 
 
 async def test_restart_with_a_new_incarnation_counts_as_fail_and_join() -> None:

@@ -199,8 +199,10 @@ def test_a_busy_robot_bids_for_later_only_when_the_call_is_time_extended() -> No
     body.take(ExecutionId("a", "n", 1), 7.0)
     assert isinstance(executor.evaluate(cfb), NoBid)  # busy, no queue: as before
     extended = CallForBids(aid, "Count", COUNT.identity, {"x": 1}, extended=True)
-    # busy: what the task would cost after the 7 of work it holds, never to award
-    assert executor.evaluate(extended) == Bid(aid, "a", 12.0, "count-a", 7.0, later=True)
+    # busy: what the task would cost after the 7 of work it holds, never to award; its
+    # bid function never asks bidding_after(), so the 5 is priced from where it stands
+    # and the framework adds the detour bound (the 7 once more): 7 + 5 + 7
+    assert executor.evaluate(extended) == Bid(aid, "a", 19.0, "count-a", 7.0, later=True)
     # re-evaluation and exchanges never ask for bids for later
     held = CallForBids(aid, "Count", COUNT.identity, {}, ExecutionId("o", "n", 2), None, True)
     assert isinstance(executor.evaluate(held), NoBid)
