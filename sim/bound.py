@@ -1,12 +1,15 @@
 """A lower bound on a scenario's mission time: no allocation, tree or timing can beat it.
 
-It ignores auctions, ticks, messages, the simulation's jitter and failures and the
-mission tree, and gives every robot perfect knowledge; it is the largest of three:
+It ignores auctions, ticks, messages, failures and the mission tree, and gives every
+robot perfect knowledge; an operation takes its shortest draw (the simulation draws
+durations within ``jitter`` of the model's: ``duration x (1 - jitter)``, so no draw
+beats the bound); it is the largest of three:
 
 - **chains**: each object's discovery -> identification -> carry, each step by the
   robot able to do it soonest. An object is discovered no earlier than an explorer
-  arriving within its radius of it (straight line from the start, at its speed, from
-  when it is first present) and exploring once; identified no earlier than that and
+  arriving within its radius of it (its shortest path from the start to the nearest
+  cell within that radius, at its speed, from when it is first present: see
+  :func:`cover_times`) and exploring once; identified no earlier than that and
   than an identifier's drive from the start (path length) plus its duration; a
   contaminated one carried no earlier than that and than a decontaminator's drive there,
   then its operation and the carry to the decontamination area. The mission also ends
@@ -34,6 +37,7 @@ from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from btcap.sim.distance import Cell, distance_field, path_length
 from btcap.sim.grid import GridMap
@@ -41,7 +45,7 @@ from btcap.sim.model import RobotModel
 from btcap.sim.scenario import Event, Scenario
 from btcap.sim.store import MissionState
 
-__all__ = ["Bound", "Presence", "mission_bound", "scenario_bound"]
+__all__ = ["Bound", "Presence", "cover_times", "mission_bound", "scenario_bound"]
 
 _KINDS = ("explore", "identify", "decontaminate")
 
@@ -108,14 +112,78 @@ def _disc_cells(radius_cells: float) -> int:
     return int((d[:, None] ** 2 + d[None, :] ** 2 <= radius_cells**2).sum())
 
 
+def _nearest_within(field: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
+    """For every cell, the least ``field`` value over the cells within ``radius`` (cells,
+    Euclidean, as an exploration's disc reaches): a min filter with a disc footprint, one
+    row offset at a time over a sparse table of horizontal minima."""
+    h, w = field.shape
+    r = max(0, math.floor(radius))
+    pad = np.full((h + 2 * r, w + 2 * r), math.inf)
+    pad[r : r + h, r : r + w] = field
+    table = [pad]  # table[k][y, x]: the least of pad[y, x : x + 2**k]
+    while 2 ** len(table) <= 2 * r + 1:
+        prev, step = table[-1], 2 ** (len(table) - 1)
+        nxt = prev.copy()
+        nxt[:, :-step] = np.minimum(prev[:, :-step], prev[:, step:])
+        table.append(nxt)
+    out = np.full((h, w), math.inf)
+    for dy in range(-r, r + 1):
+        half = math.floor(math.sqrt(max(0.0, radius * radius - dy * dy)) + 1e-9)
+        k = (2 * half + 1).bit_length() - 1
+        rows = table[k][r + dy : r + dy + h]
+        left = rows[:, r - half : r - half + w]
+        start = r + half - 2**k + 1
+        right = rows[:, start : start + w]
+        out = np.minimum(out, np.minimum(left, right))
+    return out
+
+
+def cover_times(
+    grid: GridMap,
+    models: Sequence[RobotModel],
+    present: Sequence[Presence] | None = None,
+    jitter: float = 0.0,
+) -> NDArray[np.float64]:
+    """For every cell, the earliest time an exploration can have covered it (``inf``
+    where none can): the soonest a robot able to explore, leaving the start when it is
+    first present, drives to a cell within its radius of it, plus its exploration.
+
+    A lower bound because an exploration covers the disc of its radius around the cell
+    the robot stands on (:meth:`~btcap.sim.store.MissionState.explore`), and a robot
+    reaches a cell no sooner than its shortest 4-connected path over free cells at its
+    speed (the world moves it along such paths; :mod:`btcap.sim.distance`): the least
+    path length over the disc around the covered cell. Never earlier than the straight
+    line less the radius (a path is no shorter than the straight line).
+    """
+    present = list(present) if present is not None else [Presence()] * len(models)
+    cs = grid.cell_size_m
+    steps = distance_field(grid.free, grid.start)
+    start_m = np.where(steps >= 0, steps * cs, math.inf)
+    cover = np.full(grid.shape, math.inf)
+    near: dict[float, NDArray[np.float64]] = {}  # radius -> metres to within it, by cell
+    for i, m in enumerate(models):
+        if not m.can("explore"):
+            continue
+        op = m.operation("explore")
+        if op.radius_m not in near:
+            near[op.radius_m] = _nearest_within(start_m, op.radius_m / cs)
+        cover = np.minimum(
+            cover,
+            present[i].start + near[op.radius_m] / m.speed_mps + op.duration_s * (1 - jitter),
+        )
+    return cover
+
+
 def mission_bound(
     grid: GridMap,
     models: Sequence[RobotModel],
     objects: Sequence[tuple[Cell, bool]],
     present: Sequence[Presence] | None = None,
+    jitter: float = 0.0,
 ) -> Bound:
     """The bound for robots ``models`` (all starting at ``grid.start``, present as
-    ``present`` says: default, always) and ``objects`` (cell, contaminated)."""
+    ``present`` says: default, always) and ``objects`` (cell, contaminated), durations
+    ``jitter`` shorter at most."""
     present = list(present) if present is not None else [Presence()] * len(models)
     cs = grid.cell_size_m
     from_start = distance_field(grid.free, grid.start)
@@ -123,17 +191,11 @@ def mission_bound(
     able = {k: [i for i, m in enumerate(models) if m.can(k)] for k in _KINDS}
 
     def dur(i: int, k: str) -> float:
-        return models[i].operation(k).duration_s
+        return models[i].operation(k).duration_s * (1 - jitter)
 
     # -- chains ---------------------------------------------------------------------
     reach = np.argwhere(grid.reachable)
-    straight = np.hypot(reach[:, 0] - grid.start[0], reach[:, 1] - grid.start[1]) * cs
-    cover = np.full(len(reach), math.inf)
-    for i in able["explore"]:
-        m = models[i]
-        op = m.operation("explore")
-        t = present[i].start + np.maximum(0.0, straight - op.radius_m) / m.speed_mps
-        cover = np.minimum(cover, t + op.duration_s)
+    cover = cover_times(grid, models, present, jitter)[reach[:, 0], reach[:, 1]]
     explored = float(cover.max()) if len(reach) else 0.0
     index = {(int(r), int(c)): j for j, (r, c) in enumerate(reach)}
     chains = explored
@@ -219,4 +281,5 @@ def scenario_bound(s: Scenario) -> Bound:
         [models[r.model] for r in s.robots],
         [(o.cell, o.contaminated) for o in state.objects],
         presence([r.name for r in s.robots], s.events),
+        s.sim.delay_jitter,
     )
