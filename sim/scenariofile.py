@@ -159,8 +159,9 @@ ROBOT_FIELD = "{robot}"
 class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
     """The simulated robots behind ROS 2 (or ROS 1: ``backend``): the graph they join,
     each robot's namespace and node, the QoS of their topics. The file having this block
-    puts them there, as ``--ros2`` (``--ros1``) does with these defaults; each robot's node gets the agent file's ``ros``
-    settings (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
+    puts them there, as ``--ros2`` (``--ros1``) does with these defaults; each robot's
+    node gets the agent file's ``ros`` settings
+    (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
 
     backend: Annotated[
         Literal["ros2", "ros1"],

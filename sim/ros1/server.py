@@ -139,11 +139,8 @@ class SimServers1:
             log.error("sim.ros1_gone", why="the simulation's ROS 1 process ended")
 
     def _ask(self, qid: int, robot: str, what: str, row: int, col: int, target: int) -> None:
-        msg: MoveTo | Operate
-        if what == "move_base":
-            msg = MoveTo(robot, (row, col))
-        else:
-            msg = Operate(robot, what, target)
+        move = what == "move_base"
+        msg: MoveTo | Operate = MoveTo(robot, (row, col)) if move else Operate(robot, what, target)
         with self._lock:
             self.counts.setdefault(robot, Counter())[what] += 1
 
