@@ -10,7 +10,8 @@ its own: those threads ask the simulation through the parent (an ``ask`` frame, 
 an ``answer`` frame) and wait; nothing of rospy is in the mission's process.
 
 Frames are msgspec JSON lists: down ``["config", {...}]``, ``["answer", qid, ok, detail,
-found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``, ``["stop"]``;
+found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``,
+``["withdraw", robot]`` (its servers leave the graph), ``["stop"]``;
 up ``["up", error]``, ``["ask", qid, robot, what, row, col, target]`` (``what``:
 ``move_base`` or an operation), ``["cancel", qid]``. Run as ``python -m
 btcap.sim.ros1.child FD`` with ``ROS_MASTER_URI`` set.
@@ -103,6 +104,10 @@ class Sim:
                 robot = self.robots.get(frame[1])
                 if robot is not None:
                     robot.publish(*frame[2:])
+            elif kind == "withdraw":
+                gone = self.robots.pop(frame[1], None)
+                if gone is not None:
+                    gone.close()
             elif kind == "stop":
                 break
         self.closing.set()
@@ -184,6 +189,8 @@ class _Robot:
         return call
 
     def close(self) -> None:
+        """Leave the ROS graph: the action server, services and topics unregistered."""
+        self.server.action_server.stop()
         for service in self.services:
             service.shutdown("the simulation stopped")
         self.pose_pub.unregister()

@@ -180,6 +180,12 @@ class SimServers1:
         with contextlib.suppress(OSError):
             self._post([*frame, self.clock.now()])
 
+    def withdraw(self, robot: str) -> None:
+        """Take ``robot``'s servers and topics out of the ROS graph (the robot's body is
+        gone; its agent may live on): its clients see them go, its bids stop."""
+        if not self._closed:
+            self._post(["withdraw", robot])
+
     def served(self) -> dict[str, dict[str, int]]:
         """Goals and calls each robot's servers took, per server."""
         with self._lock:
