@@ -185,7 +185,7 @@ bench-ros1: $(ROS1_VENV)/.installed
 # The paper's full-team mission over ROS 1 vs the direct simulation (bench/ros1_sim.py):
 # its own rosmaster on a free loopback port.
 bench-ros1-sim: ros1
-	$(ROS1_BIN)/python -m btcap.bench ros1_sim $(ARGS)
+	$(ROS1_BIN)/python -m btcap.bench.ros1_sim $(ARGS)
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) $(ROS1_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
