@@ -15,6 +15,7 @@ import subprocess
 import tempfile
 import time
 import xmlrpc.client
+from typing import Any
 
 from btcap.errors import BtcapError
 
@@ -84,8 +85,8 @@ class RunMaster:
                 raise RunMasterError(f"rosmaster on port {self.port} exited: {why}")
             try:
                 with xmlrpc.client.ServerProxy(self.uri) as proxy:
-                    code, _, _ = proxy.getPid("/btcap_run")
-                if code == 1:
+                    answer: Any = proxy.getPid("/btcap_run")
+                if answer[0] == 1:
                     return
             except OSError:
                 pass
