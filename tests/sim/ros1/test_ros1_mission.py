@@ -10,7 +10,7 @@ from collections import Counter
 
 import anyio
 import pytest
-from conftest import children
+from simros1 import WHY_NOT, children, loopback
 from structlog.testing import capture_logs
 
 from btcap.sim.catalog import builtin_scenarios
@@ -22,10 +22,13 @@ from btcap.sim.scenariofile import ScenarioRos
 
 pytestmark = [
     pytest.mark.ros1,
+    pytest.mark.skipif(WHY_NOT is not None, reason=str(WHY_NOT)),
     pytest.mark.slow,
     pytest.mark.usefixtures("loopback"),
     pytest.mark.timeout(400),  # a bound: each mission takes about a minute of wall time here
 ]
+
+__all__ = ["loopback"]  # the fixture, used by every test here
 
 #: What a mission's outcome is, in its summary: the same over ROS 1 as directly.
 OUTCOME = ("objects", "found", "identified", "contaminated", "decontaminated", "coverage")

@@ -1,7 +1,8 @@
-"""Fixtures of the simulator-behind-ROS 1 tests: every ROS 1 process on loopback
-(``ROS_IP``), no master, namespace or node name of the environment's. Elsewhere (no rospy,
-no btcap_sim1_msgs, no rosmaster) the tests marked ``ros1`` here skip with the reason:
-`make test-ros1` runs them in .venv-ros1."""
+"""Helpers of the simulator-behind-ROS 1 tests (not a conftest: tests/btcap/ros1 imports
+its own ``conftest`` by that name): why they cannot run here, every ROS 1 process on
+loopback (``ROS_IP``) with no master or namespace of the environment's, and the child
+processes left behind. Elsewhere (no rospy, no btcap_sim1_msgs, no rosmaster) the tests
+skip with the reason: `make test-ros1` runs them in .venv-ros1."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import pytest
 from btcap.sim.ros1 import ros1_missing
 
 
-def _why_not() -> str | None:
+def why_not() -> str | None:
     if (why := ros1_missing()) is not None:
         return why
     if shutil.which("rosmaster", path=f"{os.environ.get('PATH', '')}:/usr/bin") is None:
@@ -22,13 +23,8 @@ def _why_not() -> str | None:
     return None
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    why = _why_not()
-    if why is None:
-        return
-    for item in items:
-        if item.get_closest_marker("ros1") is not None and "sim/ros1" in str(item.path):
-            item.add_marker(pytest.mark.skip(reason=why))
+#: Why the ROS 1 simulator tests cannot run here, or None.
+WHY_NOT = why_not()
 
 
 @pytest.fixture
