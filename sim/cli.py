@@ -77,6 +77,14 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "namespace, with the scenario's `ros:` block (a file with one runs so without this "
         "flag) or its defaults (`make ros-sim`, then .venv-ros/bin/python -m btcap)",
     )
+    p.add_argument(
+        "--ros1",
+        action="store_true",
+        help="every robot reached through ROS 1 as in the paper: a move_base action server "
+        "per robot and the simulation's operations as ROS services, on the scenario's "
+        "`ros.master_uri` or a rosmaster of the run's own on loopback (`backend: ros1` in a "
+        "`ros:` block does the same; `make ros1`, then .venv-ros1/bin/python -m btcap)",
+    )
     p.add_argument("--speedup", type=float, help="override the scenario's clock speed-up")
     p.add_argument(
         "--robots",
@@ -253,6 +261,7 @@ async def _run_one(
     *,
     ros2: bool = False,
     btlog: Path | None = None,
+    ros1: bool = False,
 ) -> MissionResult:
     from rich.live import Live
 
@@ -265,6 +274,8 @@ async def _run_one(
         runner = run_distributed
     if ros2:
         runner = functools.partial(run_scenario, ros2=True)
+    if ros1:
+        runner = functools.partial(run_scenario, ros1=True)
     if monitor is not None:
         runner = functools.partial(runner, monitor=monitor)
     if btlog is not None:
@@ -317,7 +328,10 @@ def run_command(args: argparse.Namespace) -> int:
             "--fast runs in one process on virtual time: not with --distributed or --speedup"
         )
     for s in scenarios:
-        if args.ros2 or s.ros is not None:
+        if args.ros1 and args.ros2:
+            raise CliError("--ros1 and --ros2: one ROS version at a time")
+        if args.ros1 or args.ros2 or s.ros is not None:
+            from btcap.sim.ros1 import ros1_refused, wants_ros1
             from btcap.sim.ros2 import ros2_refused
             from btcap.sim.scenariofile import ScenarioRos
 
@@ -325,9 +339,10 @@ def run_command(args: argparse.Namespace) -> int:
                 check_ros_names(s, s.ros or ScenarioRos())
             except ScenarioError as exc:
                 raise CliError(str(exc)) from None
-            why = ros2_refused(fast=args.fast, distributed=args.distributed)
+            refused = ros1_refused if wants_ros1(args.ros1, args.ros2, s.ros) else ros2_refused
+            why = refused(fast=args.fast, distributed=args.distributed)
             if why is not None:
-                raise CliError(why if args.ros2 else f"{s.source}: ros: {why}")
+                raise CliError(why if args.ros1 or args.ros2 else f"{s.source}: ros: {why}")
     if args.btlog is not None and args.btlog.suffix != ".btlog":
         raise CliError(f"--btlog {args.btlog}: a tree log for Groot2 must be named *.btlog")
     margin = args.rebid_on_join
@@ -367,7 +382,10 @@ def run_command(args: argparse.Namespace) -> int:
     with _Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
-            pace += ", robots through ROS 2" if args.ros2 or s.ros is not None else ""
+            if args.ros1 or args.ros2 or s.ros is not None:
+                from btcap.sim.ros1 import wants_ros1
+
+                pace += f", robots through ROS {2 - wants_ros1(args.ros1, args.ros2, s.ros)}"
             console.print(f"running [bold]{s.name}[/bold] ({pace}) ...")
             folder = out / s.name if args.compare else out
             record = args.record or folder / "monitor.jsonl"
@@ -378,9 +396,8 @@ def run_command(args: argparse.Namespace) -> int:
             btlog = args.btlog
             if args.compare and btlog is not None:
                 btlog = btlog.with_name(f"{btlog.stem}-{s.name}.btlog")
-            run = functools.partial(
-                _run_one, s, console, *flags, stopper, ros2=args.ros2, btlog=btlog
-            )
+            ros = {"ros2": args.ros2, "ros1": args.ros1}
+            run = functools.partial(_run_one, s, console, *flags, stopper, **ros, btlog=btlog)
             keep = None if args.no_record else record
             write = functools.partial(_run_and_write, run, folder, out)
             started = time.perf_counter()

@@ -82,6 +82,7 @@ async def run_scenario(
     monitor: Monitor | None = None,
     ros2: bool = False,
     btlog: Path | None = None,
+    ros1: bool = False,
 ) -> MissionResult:
     """Run the mission until it completes, its time limit passes or ``stop`` is set (the
     result then says ``interrupted``).
@@ -95,7 +96,8 @@ async def run_scenario(
     their bodies reached only through ROS 2 interfaces the simulation serves (see
     :mod:`btcap.sim.ros2`; rclpy is imported in a thread as the run starts), as does a
     scenario with a ``ros`` block on a real clock (its settings; ``ros2`` alone: their
-    defaults; the fast mode leaves the block aside). A robot
+    defaults; the fast mode leaves the block aside); ``ros1`` (or the block's ``backend:
+    ros1``) puts them behind ROS 1 as the paper did (:mod:`btcap.sim.ros1`). A robot
     that crashes is logged, taken out of the simulation and listed in the result's
     ``errors``; the mission goes on.
 
@@ -121,12 +123,17 @@ async def run_scenario(
         manager.add_robot(r.name, models[r.model])
     # A scenario's block puts its robots behind ROS 2 on the wall clock; on virtual time
     # (the fast mode, `btcap sweep`) DDS cannot follow, and they are reached directly.
-    if ros2 or (s.ros is not None and math.isfinite(clock.speedup)):
+    if ros1 or ros2 or (s.ros is not None and math.isfinite(clock.speedup)):
         if host is not None:
-            raise ValueError("run_scenario: ros2 hosts the robots itself; give no host")
-        from btcap.sim.ros2.host import Ros2Host
+            raise ValueError("run_scenario: ros1/ros2 host the robots themselves; give no host")
+        if ros1 or (not ros2 and s.ros is not None and s.ros.backend == "ros1"):
+            from btcap.sim.ros1.host import Ros1Host
 
-        host = functools.partial(Ros2Host, manager=manager)
+            host = functools.partial(Ros1Host, manager=manager)
+        else:
+            from btcap.sim.ros2.host import Ros2Host
+
+            host = functools.partial(Ros2Host, manager=manager)
     mlog = MissionLog()
     cfg = agent_config(s)
     async with (

@@ -157,11 +157,24 @@ ROBOT_FIELD = "{robot}"
 
 
 class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, frozen=True):
-    """The simulated robots behind ROS 2: the graph they join, each robot's namespace and
-    node, the QoS of their topics. The file having this block puts them there, as
-    ``--ros2`` does (with these defaults); each robot's node gets the agent file's ``ros``
-    settings (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
+    """The simulated robots behind ROS 2 (or ROS 1: ``backend``): the graph they join,
+    each robot's namespace and node, the QoS of their topics. The file having this block
+    puts them there, as ``--ros2`` (``--ros1``) does with these defaults; each robot's
+    node gets the agent file's ``ros`` settings
+    (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
 
+    backend: Annotated[
+        Literal["ros2", "ros1"],
+        _doc(
+            "`ros2` (docs/ros2-sim.md), or `ros1`: each robot a `move_base` action server "
+            "and the manager's operations ROS 1 services, as in the paper (docs/ros1.md), "
+            "as `--ros1` does."
+        ),
+    ] = "ros2"
+    master_uri: Annotated[
+        str | None,
+        _doc("ROS 1 only: the master to serve on; null: the run starts its own on loopback."),
+    ] = None
     domain_id: Annotated[
         Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
         _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
@@ -198,6 +211,8 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
     def settings(self, robot: str) -> RosSettings:
         """The ``ros`` settings of ``robot``'s node, as its agent file would have them."""
         return RosSettings(
+            backend=self.backend,
+            master_uri=self.master_uri,
             domain_id=self.domain_id,
             namespace=self.namespace_of(robot),
             node_name=self.node_name,

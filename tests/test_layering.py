@@ -389,6 +389,9 @@ def test_nothing_outside_btcap_ros_imports_it() -> None:
     entries = {
         ("btcap.sim.cli", "btcap.sim.ros2"),
         ("btcap.sim.runner", "btcap.sim.ros2.host"),
+        # and behind ROS 1 from `btcap run --ros1` (or a `backend: ros1` block) alike.
+        ("btcap.sim.cli", "btcap.sim.ros1"),
+        ("btcap.sim.runner", "btcap.sim.ros1.host"),
         ("btcap.cli.tree", "btcap.cli.rostree"),
         ("btcap.cli.treerun", "btcap.cli.rostree"),
     }

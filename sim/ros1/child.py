@@ -1,0 +1,221 @@
+"""The simulation's rospy process: every simulated robot's ROS 1 servers, as the paper set
+them up, driven by :class:`~btcap.sim.ros1.server.SimServers1` over a socket pair.
+
+Per robot, in its namespace: ``move_base`` (an actionlib ``SimpleActionServer`` of
+``move_base_msgs/MoveBaseAction``, feedback a pose per cell driven into, preempt stopping
+the robot), a ``btcap_sim1_msgs/Operate`` service per operation the robot can do, and the
+latched ``pose`` (``geometry_msgs/PoseStamped``) and ``state`` (``btcap_sim1_msgs/RobotState``)
+topics. rospy allows one ``init_node`` per process and runs each goal and call on threads of
+its own: those threads ask the simulation through the parent (an ``ask`` frame, answered by
+an ``answer`` frame) and wait; nothing of rospy is in the mission's process.
+
+Frames are msgspec JSON lists: down ``["config", {...}]``, ``["answer", qid, ok, detail,
+found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``,
+``["withdraw", robot]`` (its servers leave the graph), ``["stop"]``;
+up ``["up", error]``, ``["ask", qid, robot, what, row, col, target]`` (``what``:
+``move_base`` or an operation), ``["cancel", qid]``. Run as ``python -m
+btcap.sim.ros1.child FD`` with ``ROS_MASTER_URI`` set.
+"""
+
+from __future__ import annotations
+
+import itertools
+import socket
+import sys
+import threading
+from multiprocessing.connection import Connection
+from typing import Any
+
+import msgspec
+
+from btcap.sim.ros2.names import FRAME, cell_of, xy_of
+
+__all__ = ["main"]
+
+#: Seconds a goal's thread waits between two looks at its goal (preempted? moved on?).
+POLL_S = 0.01
+
+
+class Sim:
+    """The servers of every robot, on one rospy node."""
+
+    def __init__(self, conn: Connection, config: dict[str, Any]) -> None:
+        import rospy
+
+        self.rospy = rospy
+        self.conn = conn
+        self.size = float(config["cell_size_m"])
+        self.closing = threading.Event()
+        self._send = threading.Lock()
+        self._lock = threading.Lock()
+        self._ids = itertools.count(1)
+        self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
+        start = (int(config["start"][0]), int(config["start"][1]))
+        self.robots = {
+            r["name"]: _Robot(self, r["name"], r["namespace"], r["operations"], start)
+            for r in config["robots"]
+        }
+
+    # -- frames -------------------------------------------------------------------
+    def post(self, frame: list[Any]) -> None:
+        data = msgspec.json.encode(frame)
+        with self._send:
+            self.conn.send_bytes(data)
+
+    def ask(self, robot: str, what: str, cell: tuple[int, int], target: int) -> int:
+        qid = next(self._ids)
+        with self._lock:
+            self._pending[qid] = (threading.Event(), [])
+        self.post(["ask", qid, robot, what, cell[0], cell[1], target])
+        return qid
+
+    def wait(self, qid: int, preempted: Any = None, feedback: Any = None) -> list[Any] | None:
+        """The answer to ``qid``; None (the parent told to cancel it) once ``preempted()``
+        or the process is closing."""
+        with self._lock:
+            done, box = self._pending[qid]
+        try:
+            while not done.wait(POLL_S):
+                if self.closing.is_set() or (preempted is not None and preempted()):
+                    self.post(["cancel", qid])
+                    return None
+                if feedback is not None:
+                    feedback()
+            return box
+        finally:
+            with self._lock:
+                self._pending.pop(qid, None)
+
+    def run(self) -> None:
+        """Act on the parent's frames until ``stop`` or the pipe closing."""
+        while True:
+            try:
+                frame = msgspec.json.decode(self.conn.recv_bytes())
+            except (EOFError, OSError):
+                break
+            kind = frame[0]
+            if kind == "answer":
+                with self._lock:
+                    got = self._pending.get(frame[1])
+                if got is not None:
+                    got[1].extend(frame[2:])
+                    got[0].set()
+            elif kind == "state":
+                robot = self.robots.get(frame[1])
+                if robot is not None:
+                    robot.publish(*frame[2:])
+            elif kind == "withdraw":
+                gone = self.robots.pop(frame[1], None)
+                if gone is not None:
+                    gone.close()
+            elif kind == "stop":
+                break
+        self.closing.set()
+        for robot in self.robots.values():
+            robot.close()
+
+
+class _Robot:
+    """One robot's move_base action server, operation services and topics."""
+
+    def __init__(
+        self, sim: Sim, name: str, namespace: str, operations: list[str], start: tuple[int, int]
+    ) -> None:
+        import actionlib
+        from btcap_sim1_msgs.msg import RobotState
+        from btcap_sim1_msgs.srv import Operate
+        from geometry_msgs.msg import PoseStamped
+        from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
+
+        rospy = sim.rospy
+        self.sim, self.name = sim, name
+        self.cell = start
+        self.phase = ""
+        self._types = (PoseStamped, RobotState, MoveBaseFeedback, MoveBaseResult)
+        ns = namespace.rstrip("/")
+        self.server = actionlib.SimpleActionServer(
+            f"{ns}/move_base", MoveBaseAction, execute_cb=self._navigate, auto_start=False
+        )
+        self.services = [
+            rospy.Service(f"{ns}/{op}", Operate, self._operation(op)) for op in operations
+        ]
+        self.pose_pub = rospy.Publisher(f"{ns}/pose", PoseStamped, queue_size=10, latch=True)
+        self.state_pub = rospy.Publisher(f"{ns}/state", RobotState, queue_size=100, latch=True)
+        self.server.start()
+
+    def pose(self, cell: tuple[int, int], t: float) -> Any:
+        pose = self._types[0]()
+        pose.header.frame_id = FRAME
+        pose.header.stamp = self.sim.rospy.Time.from_sec(max(0.0, t))
+        pose.pose.position.x, pose.pose.position.y = xy_of(cell, self.sim.size)
+        pose.pose.orientation.w = 1.0
+        return pose
+
+    def publish(self, row: int, col: int, op: str, target: int, phase: str, t: float) -> None:
+        self.cell, self.phase = (row, col), phase
+        self.pose_pub.publish(self.pose(self.cell, t))
+        state = self._types[1](row=row, col=col, operation=op, target=target, phase=phase)
+        self.state_pub.publish(state)
+
+    def _navigate(self, goal: Any) -> None:  # the server's execute thread
+        p = goal.target_pose.pose.position
+        target = cell_of(p.x, p.y, self.sim.size)
+        qid = self.sim.ask(self.name, "move_base", target, -1)
+        told: list[tuple[int, int]] = []
+
+        def feedback() -> None:
+            cell = self.cell
+            if told[-1:] != [cell]:
+                told.append(cell)
+                self.server.publish_feedback(self._types[2](base_position=self.pose(cell, 0.0)))
+
+        got = self.sim.wait(qid, self.server.is_preempt_requested, feedback)
+        if got is None:
+            self.server.set_preempted(self._types[3](), "preempted: the robot stopped")
+        elif got[0]:
+            self.server.set_succeeded(self._types[3](), f"at {list(target)}")
+        else:
+            self.server.set_aborted(self._types[3](), str(got[1]))
+
+    def _operation(self, op: str) -> Any:
+        def call(request: Any) -> Any:  # a thread of rospy's per connection
+            qid = self.sim.ask(self.name, op, self.cell, int(request.target))
+            got = self.sim.wait(qid)
+            if got is None:
+                return (False, "the simulation is closing", 0, False)
+            ok, detail, found, contaminated = got
+            return (bool(ok), str(detail), int(found), bool(contaminated))
+
+        return call
+
+    def close(self) -> None:
+        """Leave the ROS graph: the action server, services and topics unregistered."""
+        self.server.action_server.stop()
+        for service in self.services:
+            service.shutdown("the simulation stopped")
+        self.pose_pub.unregister()
+        self.state_pub.unregister()
+
+
+def main(argv: list[str]) -> int:
+    conn = Connection(socket.socket(fileno=int(argv[0])).detach())
+    config = msgspec.json.decode(conn.recv_bytes())[1]
+    try:
+        import rospy
+
+        rospy.init_node("btcap_sim", disable_signals=True)
+        sim = Sim(conn, config)
+    except Exception as exc:
+        text = str(exc).strip().splitlines()
+        conn.send_bytes(msgspec.json.encode(["up", text[0] if text else type(exc).__name__]))
+        return 1
+    sim.post(["up", ""])
+    try:
+        sim.run()
+    finally:
+        rospy.signal_shutdown("the simulation stopped")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,101 @@
+"""A robot's side of the simulator behind ROS 1: its :class:`~btcap.ros.client1.Ros1Bridge`
+(the bridge a real ROS 1 robot's agent runs: a rospy node in its namespace, in a process of
+its own), the clients its implementations' RosAction and RosService nodes share, found
+before the mission starts, and a subscription to its ``state`` topic that keeps its
+:class:`~btcap.sim.robot.Body` (what its bids start from) where the simulation says it is.
+
+Starting and closing block (a thread): :mod:`btcap.sim.ros1.host` calls them off the loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import time
+from typing import Any
+
+from btcap.actors import Actor
+from btcap.ros.client1 import Ros1Bridge
+from btcap.ros.interfaces1 import interface1
+from btcap.sim.messages import PositionUpdate
+from btcap.sim.model import RobotModel
+from btcap.sim.ros1.names1 import MOVE_BASE, MOVE_BASE_TYPE, OPERATE_TYPE, STATE_TYPE
+from btcap.sim.ros2.names import OPERATIONS
+from btcap.team.rossettings import RosSettings
+
+__all__ = ["RobotLink1", "RobotLinks1"]
+
+#: Wall seconds to wait for a robot's servers before the mission starts (a bound).
+DISCOVERY_S = 30.0
+_POLL_S = 0.05
+
+
+class RobotLink1:
+    """One robot's bridge, its clients, and its state told to ``body`` once spawned."""
+
+    def __init__(
+        self, bridge: Ros1Bridge, robot: str, model: RobotModel, loop: asyncio.AbstractEventLoop
+    ) -> None:
+        self.bridge, self.robot, self.loop = bridge, robot, loop
+        self.body: Actor | None = None
+        self.servers = [("action", MOVE_BASE_TYPE, MOVE_BASE)]
+        self.servers += [("service", OPERATE_TYPE, op) for op in OPERATIONS if model.can(op)]
+        for kind, type_name, name in self.servers:  # opened now: found by the time we run
+            self.bridge.server_ready(kind, type_name, name)
+        state = interface1(STATE_TYPE, "msg")
+        bridge.running().create_subscription(state, "state", self._on_state, (100, False))
+
+    def missing(self) -> list[str]:
+        return [
+            self.bridge.resolve(name)
+            for kind, type_name, name in self.servers
+            if not self.bridge.server_ready(kind, type_name, name)
+        ]
+
+    def _on_state(self, msg: Any) -> None:  # the bridge's reader thread
+        update = PositionUpdate(
+            self.robot, (int(msg.row), int(msg.col)), msg.operation, int(msg.target), msg.phase
+        )
+        self.loop.call_soon_threadsafe(self._tell_body, update)
+
+    def _tell_body(self, update: PositionUpdate) -> None:
+        body = self.body
+        if body is not None and body._system is not None:
+            body.ref.tell(update)
+
+
+class RobotLinks1:
+    """A started :class:`~btcap.ros.client1.Ros1Bridge` per robot and its link, until
+    :meth:`close` (made in a thread: each bridge starts a process)."""
+
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        robots: dict[str, RobotModel],
+        settings: dict[str, RosSettings],
+    ) -> None:
+        self.bridges = {name: Ros1Bridge(settings[name], robot=name) for name in robots}
+        self.links: dict[str, RobotLink1] = {}
+        try:
+            workers = min(len(robots), 16)
+            with concurrent.futures.ThreadPoolExecutor(workers, "btcap robot ros1") as pool:
+                list(pool.map(Ros1Bridge.start, self.bridges.values()))
+            for name, model in robots.items():
+                self.links[name] = RobotLink1(self.bridges[name], name, model, loop)
+        except BaseException:
+            self.close()
+            raise
+
+    def wait_for_servers(self, timeout_s: float = DISCOVERY_S) -> list[str]:
+        """Wait until every robot's servers are ready (a thread); the names of those not."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            missing = [m for link in self.links.values() for m in link.missing()]
+            if not missing or time.monotonic() > deadline:
+                return missing
+            time.sleep(_POLL_S)
+
+    def close(self) -> None:
+        """Close every bridge: goals cancelled, the rospy processes gone (a thread)."""
+        for bridge in self.bridges.values():
+            bridge.close()
