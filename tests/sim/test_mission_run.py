@@ -137,15 +137,24 @@ async def test_dynamic_team_mission_survives_joins_leaves_and_failures() -> None
                 assert not iv.ok, iv
 
 
-async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
-    # No failure this time: husky1 is healthy and exploring when the Bebop joins at t=30.
-    s = msgspec.structs.replace(
-        load_scenario(DYNAMIC),
-        allocation=Allocation(rebid_on_join=0.25),
-        events=[e for e in load_scenario(DYNAMIC).events if e.kind != "fail"],
+def rebid_scenario(rebid_on_join: float | None) -> Scenario:
+    """The dynamic scenario without its failure: husky1 is healthy and exploring when
+    the Bebop joins at t=30. No periodic re-evaluation (its first look would fall at t=30
+    too): only the join can move work."""
+    s = load_scenario(DYNAMIC)
+    return msgspec.structs.replace(
+        s,
+        allocation=Allocation(rebid_on_join=rebid_on_join, reevaluate_s=None),
+        events=[e for e in s.events if e.kind != "fail"],
     )
-    with anyio.fail_after(30):
-        result = await run_scenario(s)
+
+
+async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
+    # On the virtual clock: at 1000x on the wall a stall of 0.1 s under load is a lapsed
+    # lease (lease_s 100), so executions lost to load would decide the run, not the rule.
+    s = rebid_scenario(0.25)
+    with anyio.fail_after(40):
+        result = await run_fast(s)
     assert_sound(result, s)
     assert result.moved >= 1
     assert result.executions_lost == result.reassigned == 0  # a move is no loss
@@ -156,6 +165,20 @@ async def test_rebid_on_join_moves_exploration_to_the_joining_bebop() -> None:
     husky_explores = [i for i in result.timeline if i.robot == "husky1" and i.kind == "explore"]
     assert husky_explores
     assert not husky_explores[0].ok
+    # ... by the join: within a tick of it (it would have run to about t=74).
+    joined = next(m.time for m in result.marks if (m.event, m.robot) == ("joined", "bebop1"))
+    assert joined <= husky_explores[0].end <= joined + 1.0
+
+
+async def test_without_rebid_on_join_a_join_moves_no_healthy_work() -> None:
+    """The control: the same run with neither periodic looks nor rebid_on_join."""
+    with anyio.fail_after(40):
+        result = await run_fast(rebid_scenario(None))
+    assert result.completed
+    assert result.moved == 0
+    explore = next(v for k, v in result.assignments.items() if k.endswith("/explore"))
+    assert explore[0] == "husky1"
+    assert next(i for i in result.timeline if i.robot == "husky1" and i.kind == "explore").ok
 
 
 async def test_same_scenario_same_allocation_on_a_manual_clock() -> None:
