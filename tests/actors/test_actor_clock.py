@@ -223,26 +223,29 @@ async def test_advance_refuses_a_busy_loop_and_negative_time() -> None:
 
 
 async def test_sped_up_clock_sleeps_a_fraction_of_the_wall_time() -> None:
-    clock = Clock(speedup=100)
-    with anyio.fail_after(2):
+    clock = Clock(speedup=100_000)
+    # 1000 clock seconds = 10 ms of wall; unsped they would be 1000 s, far past the
+    # fail_after (a wall bound of 0.5 s here failed when the machine stalled the loop).
+    with anyio.fail_after(30):
         start_wall, start_clock = time.monotonic(), clock.now()
-        await clock.sleep(1.0)  # one clock second = 10 ms of wall
+        await clock.sleep(1000.0)
         wall = time.monotonic() - start_wall
-    assert 0.008 <= wall < 0.5
-    assert clock.now() - start_clock >= 0.99  # asyncio may fire a timer a hair early
-    assert clock.to_wall(1.0) == pytest.approx(0.01)
-    assert clock.speedup == 100.0
+    assert wall >= 0.008  # asyncio may fire a timer a hair early
+    assert clock.now() - start_clock >= 999.0
+    assert clock.to_wall(1000.0) == pytest.approx(0.01)
+    assert clock.speedup == 100_000.0
 
 
 async def test_clock_sleep_until_a_clock_deadline() -> None:
     clock = Clock(speedup=1000)
-    with anyio.fail_after(2):
+    with anyio.fail_after(30):
         deadline = clock.now() + 5.0  # 5 ms of wall
         await clock.sleep_until(deadline)
         assert clock.now() >= deadline - 0.01  # asyncio may fire a timer a hair early
-        before = time.monotonic()
-        await clock.sleep_until(deadline - 100.0)  # in the past: no wait
-        assert time.monotonic() - before < 0.05
+    # In the past: no wait. Waiting for the distance instead would take 1000 s of wall,
+    # which the fail_after sees (not a wall bound the machine's load could break).
+    with anyio.fail_after(30):
+        await clock.sleep_until(deadline - 1e6)
 
 
 @pytest.mark.parametrize("speedup", [0, -1.0, float("nan")])
@@ -344,10 +347,10 @@ async def test_within_propagates_the_job_error() -> None:
 async def test_within_on_a_real_clock_bounds_the_wall_time() -> None:
     clock = Clock(speedup=100.0)  # 1 clock s = 10 ms
     never = asyncio.get_running_loop().create_future()
-    with anyio.fail_after(2):
-        # 1 ms of wall for the job against 1 s for the limit: a loaded machine wakes late,
-        # and a limit that expired in the same loop pass as the job would win
-        assert await within(clock, 100.0, _after(clock, 0.1, 7)) == 7
+    with anyio.fail_after(30):
+        # 1 ms of wall for the job against 1000 s for the limit: a loaded machine wakes
+        # late, and a limit that expired in the same loop pass as the job would win
+        assert await within(clock, 100_000.0, _after(clock, 0.1, 7)) == 7
         assert await within(clock, 1.0, never) is None
         # an error of the job's own, even a timeout, is not taken for expiry
         with pytest.raises(TimeoutError, match="own"):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import time
 from collections.abc import AsyncIterator, Iterator
 from contextlib import AsyncExitStack, asynccontextmanager
 
@@ -265,11 +264,11 @@ async def test_remote_handler_failure_arrives_as_actor_failed() -> None:
 async def test_ask_to_a_missing_remote_actor_is_a_quick_dead_letter() -> None:
     net = InProcessNetwork(registry())
     with anyio.fail_after(5):
-        async with team(net, "a", "b", ask_timeout=5.0) as (a, b):
-            start = time.monotonic()
+        # An ask that ran out of time raises AskTimeout, and only after 60 s (beyond
+        # fail_after): a DeadLetter is b's answer, however slowly the machine runs.
+        async with team(net, "a", "b", ask_timeout=60.0) as (a, b):
             with pytest.raises(DeadLetter, match="no actor at b/ghost"):
                 await a.ref("b/ghost").ask(Ping(0))
-            assert time.monotonic() - start < 1.0  # an answer, not the 5 s timeout
             assert b.stats.dead_letters == 1
 
 

@@ -116,10 +116,23 @@ async def test_departed_one_message_peers_do_not_keep_descriptors() -> None:
     with anyio.fail_after(20):
         async with zmq_system("a", TCP, stranger_ttl_s=0.2) as (a, ta):
             base = open_fds()
+            box = inbox(a)
+            dropped = ta.stats.by_reason
             for n in range(20):
                 async with zmq_system(f"visitor-{n}", TCP, peers={"a": ta.endpoint}) as (v, _):
                     v.tell(Address("a", "inbox"), Note(f"hi {n}"))
-                    await note_arrives(a, f"hi {n}")
+                    # A stranger that has not spoken is dropped 0.2 s of wall after its
+                    # hello: a machine that stalls a's loop that long drops its note as
+                    # from an unknown peer (seen once under load). Either way it is one
+                    # more peer to forget.
+                    await eventually(
+                        lambda n=n: (
+                            f"hi {n}" in box.notes
+                            or dropped.get("unknown peer", 0) + len(box.notes) > n
+                        ),
+                        f"visitor-{n}'s note delivered or dropped",
+                    )
+            assert len(box.notes) + dropped.get("unknown peer", 0) == 20
             await eventually(lambda: not ta.peers(), "every visitor forgotten", limit=10)
             await eventually(lambda: open_fds() <= base + 2, "descriptors released", limit=5)
 
