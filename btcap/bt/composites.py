@@ -5,7 +5,9 @@ resume at their running child; :class:`SequenceWithMemory` also resumes at a chi
 failed; :class:`ReactiveSequence` and :class:`ReactiveFallback` tick from their first child
 every tick, so a condition that stops holding pre-empts the work after it. A child that is
 UNASSIGNED, ASSIGNED or PAUSED counts as RUNNING, and a child in ERROR counts as FAILED
-(the child keeps its error).
+(the child keeps its error). A SKIPPED child (BehaviorTree.CPP's ``_skipIf``/``_while``)
+is passed over as BehaviorTree.CPP 4.8 does, and a composite whose every child skipped
+in one run is SKIPPED itself.
 
 Halting: a composite that stops ticking an active child unticks it in that same tick, so
 after every tick only nodes ticked in it are active (:mod:`btcap.bt.invariants` checks
@@ -38,6 +40,7 @@ _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
 _IDLE = State.IDLE
+_SKIPPED = State.SKIPPED
 #: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
@@ -68,6 +71,31 @@ class Composite(Node):
     def on_reset(self) -> None:
         self._high = -1
 
+    def _skipped(self, first: Node, passing: State) -> State:
+        """The rest of a reactive tick from ``first``, a child that gave SKIPPED (a path
+        off the plain loop): BehaviorTree.CPP 4.8 passes over skipped children, a child
+        giving ``passing`` goes on, anything else ends the tick as usual. It is SKIPPED if
+        every child skipped, else ``passing`` once all are through."""
+        children = self.children
+        k = children.index(first)  # identity: nodes do not define __eq__
+        only_skips = k == 0
+        for i in range(k + 1, len(children)):
+            s = children[i].tick()
+            if s is _SKIPPED:
+                continue
+            only_skips = False
+            if s is passing or (passing is _FAILED and s is _ERROR):
+                continue
+            if self._high > i:
+                self._halt_after(i)
+            else:
+                self._high = i
+            if s is _SUCCEEDED or s is _FAILED:
+                return s
+            return _FAILED if s is _ERROR else _RUNNING
+        self._high = len(children) - 1
+        return _SKIPPED if only_skips else passing
+
 
 class ReactiveSequence(Composite):
     """Succeeds when every child succeeds in order; starts from the first child every tick.
@@ -84,6 +112,8 @@ class ReactiveSequence(Composite):
         for c in children:
             s = c.tick()
             if s is not succeeded:
+                if s is _SKIPPED:
+                    return self._skipped(c, succeeded)
                 break
         else:
             self._high = len(children) - 1
@@ -114,6 +144,8 @@ class ReactiveFallback(Composite):
         for c in children:
             s = c.tick()
             if s is not failed and s is not error:
+                if s is _SKIPPED:
+                    return self._skipped(c, failed)
                 break
         else:
             self._high = len(children) - 1
@@ -142,6 +174,34 @@ class _Memory(Composite):
         self._high = -1  # Composite.on_reset, inlined: resets are on a Parallel's tick path
         self._current = 0
 
+    def _skipping(self, i: int, passing: State) -> State:
+        """The rest of a run from child ``i``, which gave SKIPPED (a path off the plain
+        loop), as BehaviorTree.CPP 4.8: skipped children are passed over, and a run in
+        which every child skipped is SKIPPED. The children before ``i`` gave ``passing``
+        or SKIPPED in this run, and their states still say which (nothing resets them
+        before the run ends)."""
+        children = self.children
+        n = len(children)
+        i += 1
+        while i < n:
+            s = children[i].tick()
+            if s is passing or s is _SKIPPED or (passing is _FAILED and s is _ERROR):
+                i += 1
+            elif s is _SUCCEEDED or s is _FAILED or s is _ERROR:
+                self._current = i if type(self)._RESUME_FAILED and passing is _SUCCEEDED else 0
+                return _FAILED if s is _ERROR else s
+            else:
+                self._current = i
+                return _RUNNING
+        self._current = 0
+        for c in children:
+            if c.state is not _SKIPPED:
+                return passing
+        return _SKIPPED
+
+    #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
+    _RESUME_FAILED: ClassVar[bool] = False
+
 
 class Sequence(_Memory):
     """Succeeds when every child succeeds in order; resumes at the running child.
@@ -152,8 +212,6 @@ class Sequence(_Memory):
     """
 
     __slots__ = ()
-    #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
-    _RESUME_FAILED: ClassVar[bool] = False
 
     def on_tick(self) -> State:
         children = self.children
@@ -166,6 +224,8 @@ class Sequence(_Memory):
             elif s is _FAILED or s is _ERROR:
                 self._current = i if self._RESUME_FAILED else 0
                 return _FAILED
+            elif s is _SKIPPED:
+                return self._skipping(i, _SUCCEEDED)
             else:
                 self._current = i
                 return _RUNNING
@@ -211,6 +271,8 @@ class Fallback(_Memory):
             elif s is _SUCCEEDED:
                 self._current = 0
                 return _SUCCEEDED
+            elif s is _SKIPPED:
+                return self._skipping(i, _FAILED)
             else:
                 self._current = i
                 return _RUNNING

@@ -89,14 +89,6 @@ def _cycles(text: str) -> int:
     return n
 
 
-def _no_skip(text: str) -> None:
-    if parse_bool(text):
-        raise MappingError(
-            "then_skip=true returns SKIPPED, which btcap does not have; "
-            "then_skip=false (repeat the first result) maps to btcap's RunOnce"
-        )
-
-
 def script_code(text: str) -> str:
     """A script, parsed now so a syntax error names its column (nodes parse it once more
     from the cache)."""
@@ -223,12 +215,8 @@ STANDARD: dict[str, Standard] = {
     ),
     "RunOnce": Standard(
         "RunOnce",
-        {"then_skip": ("", _no_skip)},
-        ("then_skip",),
-        fixed={"forever": True},
-        why_required="BehaviorTree.CPP's default, then_skip=true, returns SKIPPED after the "
-        'first run, which btcap does not have; write then_skip="false" to repeat the first '
-        "result",
+        {"then_skip": ("then_skip", parse_bool)},
+        fixed={"forever": True, "then_skip": True},
     ),
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
