@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
@@ -179,16 +180,29 @@ class _Memory(Composite):
         loop), as BehaviorTree.CPP 4.8: skipped children are passed over, and a run in
         which every child skipped is SKIPPED. The children before ``i`` gave ``passing``
         or SKIPPED in this run, and their states still say which (nothing resets them
-        before the run ends)."""
+        before the run ends; a memory sequence's failure forgets its skipped ones). With
+        ``_YIELDS`` (AsyncSequence, AsyncFallback) a child that gave ``passing`` at once
+        ends the tick, as in the plain loop."""
         children = self.children
         n = len(children)
         i += 1
         while i < n:
-            s = children[i].tick()
-            if s is passing or s is _SKIPPED or (passing is _FAILED and s is _ERROR):
+            child = children[i]
+            instant = child.state not in _ACTIVE
+            s = child.tick()
+            if s is passing or (passing is _FAILED and s is _ERROR):
+                i += 1
+                if self._YIELDS and instant and i < n:
+                    self._current = i
+                    wake(self)
+                    return _RUNNING
+            elif s is _SKIPPED:
                 i += 1
             elif s is _SUCCEEDED or s is _FAILED or s is _ERROR:
-                self._current = i if type(self)._RESUME_FAILED and passing is _SUCCEEDED else 0
+                if self._RESUME_FAILED and passing is _SUCCEEDED:
+                    self._failed_at(i)
+                else:
+                    self._current = 0
                 return _FAILED if s is _ERROR else s
             else:
                 self._current = i
@@ -199,8 +213,19 @@ class _Memory(Composite):
                 return passing
         return _SKIPPED
 
+    def _failed_at(self, i: int) -> None:
+        """A memory sequence failed at child ``i``: the next run resumes there, and the
+        children it skipped before are IDLE again, as BehaviorTree.CPP keeps a skipped
+        node's status (they belong to no later run)."""
+        self._current = i
+        for c in self.children[:i]:
+            if c.state is _SKIPPED:
+                c._set(_IDLE)
+
     #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
     _RESUME_FAILED: ClassVar[bool] = False
+    #: Whether a child that gave its result at once ends the tick (AsyncSequence).
+    _YIELDS: ClassVar[bool] = False
 
 
 class Sequence(_Memory):
@@ -222,7 +247,10 @@ class Sequence(_Memory):
             if s is _SUCCEEDED:
                 i += 1
             elif s is _FAILED or s is _ERROR:
-                self._current = i if self._RESUME_FAILED else 0
+                if self._RESUME_FAILED:
+                    self._failed_at(i)
+                else:
+                    self._current = 0
                 return _FAILED
             elif s is _SKIPPED:
                 return self._skipping(i, _SUCCEEDED)
@@ -367,6 +395,7 @@ class Parallel(Composite):
         else:
             ok, bad = self._ok, self._bad
         running: list[Node] = []
+        skipped = 0
         for c in pending:
             s = c.tick()
             if s is _SUCCEEDED:
@@ -374,14 +403,18 @@ class Parallel(Composite):
             elif s is _FAILED or s is _ERROR:
                 bad += 1
             else:
+                if s is _SKIPPED:  # not finished: ticked again next time, as in BT.CPP
+                    skipped += 1
                 running.append(c)
         if bad >= self._fail_at:
             result = _FAILED
         elif ok >= self._need:
             result = _SUCCEEDED
+        elif skipped and self.options["success_threshold"] < 0 and ok + skipped >= self._need:
+            result = _SUCCEEDED  # BehaviorTree.CPP 4.8: skipped children count for "all"
         else:
             self._pending, self._ok, self._bad = running, ok, bad
-            return _RUNNING
+            return _SKIPPED if skipped == len(children) else _RUNNING
         for c in running:
             if c.state in _ACTIVE:
                 c.untick()
