@@ -23,8 +23,8 @@ pytest.importorskip(
     reason="behaviortreepy (BehaviorTree.CPP 4.8) has wheels only for CPython 3.11 on x86-64 Linux",
 )
 
-import script_oracle  # noqa: E402
-from btcpp_oracle import WAKES_FOREVER, BtcapRun, BtcppRun, random_tree  # noqa: E402
+import script_oracle
+from btcpp_oracle import WAKES_FOREVER, BtcapRun, BtcppRun, random_tree
 
 
 def _xml(body: str) -> str:
@@ -178,7 +178,7 @@ def test_a_skipped_condition_fails_as_behaviortree_cpp_throws() -> None:
 
 
 @pytest.mark.parametrize("once", [False, True], ids=["tickExactlyOnce", "tickOnce"])
-def test_random_trees_with_skipIf_and_while_agree_with_behaviortree_cpp(once: bool) -> None:
+def test_random_trees_with_skip_if_and_while_agree_with_behaviortree_cpp(once: bool) -> None:
     ticks = ended = 0
     stopped: set[str] = set()
     with capture_logs(), warnings.catch_warnings():
