@@ -37,6 +37,7 @@ from btcap.bt.composites import Composite, Fallback, IfThenElse, Sequence
 from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
+from btcap.bt.skipping import memory_rest
 from btcap.bt.state import State, TreeError
 
 __all__ = [
@@ -88,7 +89,7 @@ class AsyncSequence(Sequence):
                     self._current = 0
                 return _FAILED
             elif s is _SKIPPED:
-                return self._skipping(i, _SUCCEEDED)
+                return memory_rest(self, i, _SUCCEEDED)
             else:
                 self._current = i
                 return _RUNNING
@@ -135,7 +136,7 @@ class AsyncFallback(Fallback):
                 self._current = 0
                 return _SUCCEEDED
             elif s is _SKIPPED:
-                return self._skipping(i, _FAILED)
+                return memory_rest(self, i, _FAILED)
             else:
                 self._current = i
                 return _RUNNING

@@ -1,4 +1,4 @@
-"""Control flow: Sequence, Fallback, their reactive kinds, Parallel, IfThenElse, Switch.
+"""Control flow: Sequence, Fallback, their reactive kinds, Parallel, IfThenElse.
 
 The names mean what BehaviorTree.CPP v4 means. :class:`Sequence` and :class:`Fallback`
 resume at their running child; :class:`SequenceWithMemory` also resumes at a child that
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
+from btcap.bt.skipping import forget_skipped, memory_rest, reactive_rest
 from btcap.bt.state import State, TreeError
 from btcap.bt.utility import Utility, fallback_utility, parallel_utility, sequence_utility
 
@@ -33,7 +33,6 @@ __all__ = [
     "ReactiveSequence",
     "Sequence",
     "SequenceWithMemory",
-    "Switch",
 ]
 
 _RUNNING = State.RUNNING
@@ -72,31 +71,6 @@ class Composite(Node):
     def on_reset(self) -> None:
         self._high = -1
 
-    def _skipped(self, first: Node, passing: State) -> State:
-        """The rest of a reactive tick from ``first``, a child that gave SKIPPED (a path
-        off the plain loop): BehaviorTree.CPP 4.8 passes over skipped children, a child
-        giving ``passing`` goes on, anything else ends the tick as usual. It is SKIPPED if
-        every child skipped, else ``passing`` once all are through."""
-        children = self.children
-        k = children.index(first)  # identity: nodes do not define __eq__
-        only_skips = k == 0
-        for i in range(k + 1, len(children)):
-            s = children[i].tick()
-            if s is _SKIPPED:
-                continue
-            only_skips = False
-            if s is passing or (passing is _FAILED and s is _ERROR):
-                continue
-            if self._high > i:
-                self._halt_after(i)
-            else:
-                self._high = i
-            if s is _SUCCEEDED or s is _FAILED:
-                return s
-            return _FAILED if s is _ERROR else _RUNNING
-        self._high = len(children) - 1
-        return _SKIPPED if only_skips else passing
-
 
 class ReactiveSequence(Composite):
     """Succeeds when every child succeeds in order; starts from the first child every tick.
@@ -114,7 +88,7 @@ class ReactiveSequence(Composite):
             s = c.tick()
             if s is not succeeded:
                 if s is _SKIPPED:
-                    return self._skipped(c, succeeded)
+                    return reactive_rest(self, c, succeeded)
                 break
         else:
             self._high = len(children) - 1
@@ -146,7 +120,7 @@ class ReactiveFallback(Composite):
             s = c.tick()
             if s is not failed and s is not error:
                 if s is _SKIPPED:
-                    return self._skipped(c, failed)
+                    return reactive_rest(self, c, failed)
                 break
         else:
             self._high = len(children) - 1
@@ -175,52 +149,10 @@ class _Memory(Composite):
         self._high = -1  # Composite.on_reset, inlined: resets are on a Parallel's tick path
         self._current = 0
 
-    def _skipping(self, i: int, passing: State) -> State:
-        """The rest of a run from child ``i``, which gave SKIPPED (a path off the plain
-        loop), as BehaviorTree.CPP 4.8: skipped children are passed over, and a run in
-        which every child skipped is SKIPPED. The children before ``i`` gave ``passing``
-        or SKIPPED in this run, and their states still say which (nothing resets them
-        before the run ends; a memory sequence's failure forgets its skipped ones). With
-        ``_YIELDS`` (AsyncSequence, AsyncFallback) a child that gave ``passing`` at once
-        ends the tick, as in the plain loop."""
-        children = self.children
-        n = len(children)
-        i += 1
-        while i < n:
-            child = children[i]
-            instant = child.state not in _ACTIVE
-            s = child.tick()
-            if s is passing or (passing is _FAILED and s is _ERROR):
-                i += 1
-                if self._YIELDS and instant and i < n:
-                    self._current = i
-                    wake(self)
-                    return _RUNNING
-            elif s is _SKIPPED:
-                i += 1
-            elif s is _SUCCEEDED or s is _FAILED or s is _ERROR:
-                if self._RESUME_FAILED and passing is _SUCCEEDED:
-                    self._failed_at(i)
-                else:
-                    self._current = 0
-                return _FAILED if s is _ERROR else s
-            else:
-                self._current = i
-                return _RUNNING
-        self._current = 0
-        for c in children:
-            if c.state is not _SKIPPED:
-                return passing
-        return _SKIPPED
-
     def _failed_at(self, i: int) -> None:
-        """A memory sequence failed at child ``i``: the next run resumes there, and the
-        children it skipped before are IDLE again, as BehaviorTree.CPP keeps a skipped
-        node's status (they belong to no later run)."""
+        """A memory sequence failed at child ``i``: the next run resumes there."""
         self._current = i
-        for c in self.children[:i]:
-            if c.state is _SKIPPED:
-                c._set(_IDLE)
+        forget_skipped(self.children, i)
 
     #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
     _RESUME_FAILED: ClassVar[bool] = False
@@ -253,7 +185,7 @@ class Sequence(_Memory):
                     self._current = 0
                 return _FAILED
             elif s is _SKIPPED:
-                return self._skipping(i, _SUCCEEDED)
+                return memory_rest(self, i, _SUCCEEDED)
             else:
                 self._current = i
                 return _RUNNING
@@ -300,7 +232,7 @@ class Fallback(_Memory):
                 self._current = 0
                 return _SUCCEEDED
             elif s is _SKIPPED:
-                return self._skipping(i, _FAILED)
+                return memory_rest(self, i, _FAILED)
             else:
                 self._current = i
                 return _RUNNING
@@ -470,54 +402,6 @@ class IfThenElse(Composite):
                 *(c.utility() for c in self.children[2:]),
             ]
         )
-
-
-class Switch(Composite):
-    """Ticks the child whose case equals the ``value`` input; the last child is the default.
-
-    ``cases`` lists one value per child (``len(cases) == len(children)``) or one fewer,
-    in which case the last child runs when no case matches; otherwise no match fails.
-    """
-
-    __slots__ = ("_active",)
-    INPUTS: ClassVar[Any] = {"value": Port(Any, None, "the value to switch on")}
-    OPTIONS: ClassVar[Any] = {"cases": Port(list[Any], description="one value per child")}
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._active: Node | None = None
-
-    def check_children(self) -> None:
-        n, k = len(self.children), len(self.options["cases"])
-        if k not in (n, n - 1):
-            raise TreeError(
-                f"Switch {self.name!r}: {k} cases for {n} children; expected {n} or {n - 1}"
-            )
-
-    def on_setup(self) -> None:
-        self.check_children()
-
-    def on_tick(self) -> State:
-        value = self.inputs["value"]
-        cases: list[Any] = self.options["cases"]
-        children = self.children
-        try:
-            chosen: Node | None = children[cases.index(value)]
-        except ValueError:
-            chosen = children[-1] if len(cases) < len(children) else None
-        if self._active is not None and self._active is not chosen:
-            _halt(self._active)
-        self._active = chosen
-        if chosen is None:
-            return _FAILED
-        return _collapse(chosen.tick())
-
-    def on_reset(self) -> None:
-        super().on_reset()
-        self._active = None
-
-    def utility(self) -> Utility:
-        return fallback_utility([c.utility() for c in self.children])
 
 
 def _collapse(s: State) -> State:
