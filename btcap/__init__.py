@@ -24,7 +24,6 @@ if TYPE_CHECKING:
         ReactiveSequence,
         Sequence,
         SequenceWithMemory,
-        Switch,
     )
     from btcap.bt.decorators import (
         Decorator,
@@ -84,6 +83,7 @@ if TYPE_CHECKING:
         TreeTimeout,
         UnassignableWarning,
     )
+    from btcap.bt.switch import Switch
     from btcap.bt.tree import Subtree, Tree, Wire
     from btcap.bt.utility import Utility
     from btcap.errors import BtcapError
@@ -126,8 +126,8 @@ _EXPORTS = {
         "ReactiveSequence",
         "Sequence",
         "SequenceWithMemory",
-        "Switch",
     ),
+    "btcap.bt.switch": ("Switch",),
     "btcap.bt.foreach": ("ParallelForEach",),
     "btcap.bt.decorators": (
         "Decorator",

@@ -37,6 +37,7 @@ from btcap.bt.composites import Composite, Fallback, IfThenElse, Sequence
 from btcap.bt.host import wake
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
+from btcap.bt.skipping import memory_rest
 from btcap.bt.state import State, TreeError
 
 __all__ = [
@@ -52,6 +53,7 @@ _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
+_SKIPPED = State.SKIPPED
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
@@ -64,6 +66,7 @@ class AsyncSequence(Sequence):
     """
 
     __slots__ = ()
+    _YIELDS: ClassVar[bool] = True
 
     def on_tick(self) -> State:
         children = self.children
@@ -80,8 +83,13 @@ class AsyncSequence(Sequence):
                     wake(self)
                     return _RUNNING
             elif s is _FAILED or s is _ERROR:
-                self._current = i if self._RESUME_FAILED else 0
+                if self._RESUME_FAILED:
+                    self._failed_at(i)
+                else:
+                    self._current = 0
                 return _FAILED
+            elif s is _SKIPPED:
+                return memory_rest(self, i, _SUCCEEDED)
             else:
                 self._current = i
                 return _RUNNING
@@ -108,6 +116,7 @@ class AsyncFallback(Fallback):
     """
 
     __slots__ = ()
+    _YIELDS: ClassVar[bool] = True
 
     def on_tick(self) -> State:
         children = self.children
@@ -126,6 +135,8 @@ class AsyncFallback(Fallback):
             elif s is _SUCCEEDED:
                 self._current = 0
                 return _SUCCEEDED
+            elif s is _SKIPPED:
+                return memory_rest(self, i, _FAILED)
             else:
                 self._current = i
                 return _RUNNING
@@ -157,6 +168,8 @@ class WhileDoElse(IfThenElse):
             if len(children) > 2:
                 _halt(children[2])
             return _result(children[1].tick())
+        if s is _SKIPPED:
+            _skipped_condition(self)
         return _RUNNING
 
 
@@ -196,9 +209,11 @@ class LatchedIfThenElse(Composite):
                     return _FAILED
                 self._branch = 2
             else:
+                if s is _SKIPPED:
+                    _skipped_condition(self)
                 return _RUNNING
         s = _result(children[self._branch].tick())
-        if s is not _RUNNING:
+        if s is not _RUNNING:  # a result, or SKIPPED: BehaviorTree.CPP starts over too
             self._branch = 0
         return s
 
@@ -245,6 +260,7 @@ class ParallelAll(Composite):
 
     def on_tick(self) -> State:
         finished = self._finished
+        skipped = 0
         for i, child in enumerate(self.children):
             if i in finished:
                 continue
@@ -254,6 +270,16 @@ class ParallelAll(Composite):
             elif s is _FAILED or s is _ERROR:
                 finished.add(i)
                 self._failures += 1
+            elif s is _SKIPPED:
+                skipped += 1
+        if skipped:  # BehaviorTree.CPP 4.8: every child skipped it, or skipped ones finish it
+            if skipped == len(self.children):
+                return _SKIPPED
+            if skipped + len(finished) >= len(self.children):
+                failed = self._failures >= self.threshold()
+                self.on_reset()
+                return _FAILED if failed else _SUCCEEDED
+            return _RUNNING
         if len(finished) < len(self.children):
             return _RUNNING
         failed = self._failures >= self.threshold()
@@ -263,6 +289,15 @@ class ParallelAll(Composite):
     def on_reset(self) -> None:
         self._finished = set()
         self._failures = 0
+
+
+def _skipped_condition(node: Node) -> None:
+    """A skipped condition leaves nothing to choose: BehaviorTree.CPP 4.8 throws (a logic
+    error in IfThenElse, a child returning IDLE after WhileDoElse); so does this tick."""
+    raise TreeError(
+        f"node {node.path!r} ({type(node).__name__}): its condition was skipped "
+        f"(_skipIf/_while), which leaves no branch to run; BehaviorTree.CPP throws here too"
+    )
 
 
 def _halt(node: Node) -> None:
@@ -275,4 +310,4 @@ def _result(s: State) -> State:
         return s
     if s is _FAILED or s is _ERROR:
         return _FAILED
-    return _RUNNING
+    return _SKIPPED if s is _SKIPPED else _RUNNING

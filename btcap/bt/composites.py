@@ -1,11 +1,13 @@
-"""Control flow: Sequence, Fallback, their reactive kinds, Parallel, IfThenElse, Switch.
+"""Control flow: Sequence, Fallback, their reactive kinds, Parallel, IfThenElse.
 
 The names mean what BehaviorTree.CPP v4 means. :class:`Sequence` and :class:`Fallback`
 resume at their running child; :class:`SequenceWithMemory` also resumes at a child that
 failed; :class:`ReactiveSequence` and :class:`ReactiveFallback` tick from their first child
 every tick, so a condition that stops holding pre-empts the work after it. A child that is
 UNASSIGNED, ASSIGNED or PAUSED counts as RUNNING, and a child in ERROR counts as FAILED
-(the child keeps its error).
+(the child keeps its error). A SKIPPED child (BehaviorTree.CPP's ``_skipIf``/``_while``)
+is passed over as BehaviorTree.CPP 4.8 does, and a composite whose every child skipped
+in one run is SKIPPED itself.
 
 Halting: a composite that stops ticking an active child unticks it in that same tick, so
 after every tick only nodes ticked in it are active (:mod:`btcap.bt.invariants` checks
@@ -19,6 +21,7 @@ from typing import Any, ClassVar
 
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
+from btcap.bt.skipping import forget_skipped, memory_rest, reactive_rest
 from btcap.bt.state import State, TreeError
 from btcap.bt.utility import Utility, fallback_utility, parallel_utility, sequence_utility
 
@@ -30,7 +33,6 @@ __all__ = [
     "ReactiveSequence",
     "Sequence",
     "SequenceWithMemory",
-    "Switch",
 ]
 
 _RUNNING = State.RUNNING
@@ -38,6 +40,7 @@ _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
 _IDLE = State.IDLE
+_SKIPPED = State.SKIPPED
 #: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
@@ -84,6 +87,8 @@ class ReactiveSequence(Composite):
         for c in children:
             s = c.tick()
             if s is not succeeded:
+                if s is _SKIPPED:
+                    return reactive_rest(self, c, succeeded)
                 break
         else:
             self._high = len(children) - 1
@@ -114,6 +119,8 @@ class ReactiveFallback(Composite):
         for c in children:
             s = c.tick()
             if s is not failed and s is not error:
+                if s is _SKIPPED:
+                    return reactive_rest(self, c, failed)
                 break
         else:
             self._high = len(children) - 1
@@ -142,6 +149,16 @@ class _Memory(Composite):
         self._high = -1  # Composite.on_reset, inlined: resets are on a Parallel's tick path
         self._current = 0
 
+    def _failed_at(self, i: int) -> None:
+        """A memory sequence failed at child ``i``: the next run resumes there."""
+        self._current = i
+        forget_skipped(self.children, i)
+
+    #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
+    _RESUME_FAILED: ClassVar[bool] = False
+    #: Whether a child that gave its result at once ends the tick (AsyncSequence).
+    _YIELDS: ClassVar[bool] = False
+
 
 class Sequence(_Memory):
     """Succeeds when every child succeeds in order; resumes at the running child.
@@ -152,8 +169,6 @@ class Sequence(_Memory):
     """
 
     __slots__ = ()
-    #: Whether the next run after a failure resumes at the failed child (SequenceWithMemory).
-    _RESUME_FAILED: ClassVar[bool] = False
 
     def on_tick(self) -> State:
         children = self.children
@@ -164,8 +179,13 @@ class Sequence(_Memory):
             if s is _SUCCEEDED:
                 i += 1
             elif s is _FAILED or s is _ERROR:
-                self._current = i if self._RESUME_FAILED else 0
+                if self._RESUME_FAILED:
+                    self._failed_at(i)
+                else:
+                    self._current = 0
                 return _FAILED
+            elif s is _SKIPPED:
+                return memory_rest(self, i, _SUCCEEDED)
             else:
                 self._current = i
                 return _RUNNING
@@ -211,6 +231,8 @@ class Fallback(_Memory):
             elif s is _SUCCEEDED:
                 self._current = 0
                 return _SUCCEEDED
+            elif s is _SKIPPED:
+                return memory_rest(self, i, _FAILED)
             else:
                 self._current = i
                 return _RUNNING
@@ -305,6 +327,7 @@ class Parallel(Composite):
         else:
             ok, bad = self._ok, self._bad
         running: list[Node] = []
+        skipped = 0
         for c in pending:
             s = c.tick()
             if s is _SUCCEEDED:
@@ -312,14 +335,18 @@ class Parallel(Composite):
             elif s is _FAILED or s is _ERROR:
                 bad += 1
             else:
+                if s is _SKIPPED:  # not finished: ticked again next time, as in BT.CPP
+                    skipped += 1
                 running.append(c)
         if bad >= self._fail_at:
             result = _FAILED
         elif ok >= self._need:
             result = _SUCCEEDED
+        elif skipped and self.options["success_threshold"] < 0 and ok + skipped >= self._need:
+            result = _SUCCEEDED  # BehaviorTree.CPP 4.8: skipped children count for "all"
         else:
             self._pending, self._ok, self._bad = running, ok, bad
-            return _RUNNING
+            return _SKIPPED if skipped == len(children) else _RUNNING
         for c in running:
             if c.state in _ACTIVE:
                 c.untick()
@@ -375,54 +402,6 @@ class IfThenElse(Composite):
                 *(c.utility() for c in self.children[2:]),
             ]
         )
-
-
-class Switch(Composite):
-    """Ticks the child whose case equals the ``value`` input; the last child is the default.
-
-    ``cases`` lists one value per child (``len(cases) == len(children)``) or one fewer,
-    in which case the last child runs when no case matches; otherwise no match fails.
-    """
-
-    __slots__ = ("_active",)
-    INPUTS: ClassVar[Any] = {"value": Port(Any, None, "the value to switch on")}
-    OPTIONS: ClassVar[Any] = {"cases": Port(list[Any], description="one value per child")}
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._active: Node | None = None
-
-    def check_children(self) -> None:
-        n, k = len(self.children), len(self.options["cases"])
-        if k not in (n, n - 1):
-            raise TreeError(
-                f"Switch {self.name!r}: {k} cases for {n} children; expected {n} or {n - 1}"
-            )
-
-    def on_setup(self) -> None:
-        self.check_children()
-
-    def on_tick(self) -> State:
-        value = self.inputs["value"]
-        cases: list[Any] = self.options["cases"]
-        children = self.children
-        try:
-            chosen: Node | None = children[cases.index(value)]
-        except ValueError:
-            chosen = children[-1] if len(cases) < len(children) else None
-        if self._active is not None and self._active is not chosen:
-            _halt(self._active)
-        self._active = chosen
-        if chosen is None:
-            return _FAILED
-        return _collapse(chosen.tick())
-
-    def on_reset(self) -> None:
-        super().on_reset()
-        self._active = None
-
-    def utility(self) -> Utility:
-        return fallback_utility([c.utility() for c in self.children])
 
 
 def _collapse(s: State) -> State:

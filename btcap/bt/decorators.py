@@ -43,15 +43,19 @@ _RUNNING = State.RUNNING
 _SUCCEEDED = State.SUCCEEDED
 _FAILED = State.FAILED
 _ERROR = State.ERROR
+_SKIPPED = State.SKIPPED
 #: ``ACTIVE`` as a tuple: ``in`` then compares by identity, without Enum's Python __hash__.
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
 def _result(s: State) -> State:
-    """A child's state as the decorator sees it: ERROR counts as FAILED, waiting as RUNNING."""
+    """A child's state as the decorator sees it: ERROR counts as FAILED, waiting as RUNNING,
+    SKIPPED stays SKIPPED."""
     if s is _SUCCEEDED or s is _FAILED:
         return s
-    return _FAILED if s is _ERROR else _RUNNING
+    if s is _ERROR:
+        return _FAILED
+    return _SKIPPED if s is _SKIPPED else _RUNNING
 
 
 class Decorator(Node):
@@ -81,8 +85,11 @@ _GENERATED: set[Callable[..., State]] = set()
 
 
 def _remapper(table: dict[State, State]) -> Callable[[Remap], State]:
-    """An ``on_tick`` for one MAP, with the three outcomes bound (no lookup per tick)."""
-    on_success, on_failure, on_running = (table.get(s, s) for s in (_SUCCEEDED, _FAILED, _RUNNING))
+    """An ``on_tick`` for one MAP, with the outcomes bound (no lookup per tick). A SKIPPED
+    child gives SKIPPED unless the MAP says otherwise (BehaviorTree.CPP 4.8's decorators)."""
+    on_success, on_failure, on_running, on_skipped = (
+        table.get(s, s) for s in (_SUCCEEDED, _FAILED, _RUNNING, _SKIPPED)
+    )
     halts = on_running is not _RUNNING
 
     def on_tick(self: Remap) -> State:
@@ -92,6 +99,8 @@ def _remapper(table: dict[State, State]) -> Callable[[Remap], State]:
             return on_success
         if s is _FAILED or s is _ERROR:
             return on_failure
+        if s is _SKIPPED:
+            return on_skipped
         if halts and s in _ACTIVE:
             child.untick()  # it counts as finished: nobody would tick or halt it later
         return on_running
@@ -157,10 +166,11 @@ class RunningIsFailure(Remap):
 
 
 class SuccessIsRunning(Remap):
-    """Keep a branch alive: success counts as running."""
+    """Keep a branch alive: success counts as running (so does a skipped child, as in
+    BehaviorTree.CPP's KeepRunningUntilFailure)."""
 
     __slots__ = ()
-    MAP: ClassVar[dict[State, State]] = {_SUCCEEDED: _RUNNING}
+    MAP: ClassVar[dict[State, State]] = {_SUCCEEDED: _RUNNING, _SKIPPED: _RUNNING}
 
 
 class FailureIsRunning(Remap):
@@ -235,7 +245,7 @@ class Repeat(_Counting):
             if s is _FAILED or s is _ERROR:
                 self.count = 0
                 return _FAILED
-            return _RUNNING
+            return _SKIPPED if s is _SKIPPED else _RUNNING  # skipped: the count is kept
         self.count += 1
         times = self.options["times"]
         if 0 <= times <= self.count:
@@ -289,7 +299,7 @@ class RepeatUntilFailure(_Counting):
         if s is _FAILED:
             self.count = 0
             return _SUCCEEDED
-        if s is _RUNNING:
+        if s is _RUNNING or s is _SKIPPED:
             return s
         self.count += 1
         limit = self.options["max_attempts"]
@@ -336,7 +346,7 @@ class Timeout(_Timed):
             self._since = None
             return _FAILED
         s = _result(self.children[0].tick())
-        if s is not _RUNNING:
+        if s is _SUCCEEDED or s is _FAILED:
             self._since = None
         return s
 
@@ -368,7 +378,7 @@ class Delay(_Timed):
         if self._waited + (now - self._since) < self.options["seconds"]:
             return _RUNNING
         s = _result(self.children[0].tick())
-        if s is not _RUNNING:
+        if s is _SUCCEEDED or s is _FAILED:
             self._since = None
             self._waited = 0.0
         return s
@@ -412,10 +422,14 @@ class Throttle(_Timed):
 
 class RunOnce(Decorator):
     """Runs the child to a result once, then keeps returning that result until reset
-    (``forever``: a reset keeps it too, as BehaviorTree.CPP's RunOnce does)."""
+    (``forever``: a reset keeps it too, as BehaviorTree.CPP's RunOnce does), or SKIPPED
+    with ``then_skip`` (BehaviorTree.CPP's default)."""
 
     __slots__ = ("_done",)
-    OPTIONS: ClassVar[Any] = {"forever": Port(bool, False, "keep the result across resets")}
+    OPTIONS: ClassVar[Any] = {
+        "forever": Port(bool, False, "keep the result across resets"),
+        "then_skip": Port(bool, False, "after the run, give SKIPPED instead of its result"),
+    }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -423,9 +437,9 @@ class RunOnce(Decorator):
 
     def on_tick(self) -> State:
         if self._done is not None:
-            return self._done
+            return _SKIPPED if self.options["then_skip"] else self._done
         s = _result(self.children[0].tick())
-        if s is not _RUNNING:
+        if s is _SUCCEEDED or s is _FAILED:
             self._done = s
         return s
 

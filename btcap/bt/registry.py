@@ -17,7 +17,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from importlib import metadata
 from typing import Any
 
-from btcap.bt import async_nodes, composites, decorators, foreach, leaves, read_options
+from btcap.bt import async_nodes, composites, decorators, foreach, leaves, read_options, switch
 from btcap.bt.node import Node
 from btcap.bt.scripting import nodes as scripting
 from btcap.bt.state import TreeError
@@ -88,7 +88,16 @@ class RegistryError(TreeError):
 def _builtin_nodes() -> list[type[Node]]:
     """Every node class the core exports that a file can build (no callables needed)."""
     out: list[type[Node]] = []
-    for module in (composites, async_nodes, foreach, decorators, leaves, scripting, read_options):
+    for module in (
+        composites,
+        async_nodes,
+        switch,
+        foreach,
+        decorators,
+        leaves,
+        scripting,
+        read_options,
+    ):
         for name in module.__all__:
             obj = getattr(module, name)
             if isinstance(obj, type) and issubclass(obj, Node) and name not in _NOT_FROM_FILES:

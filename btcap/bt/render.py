@@ -36,6 +36,7 @@ _STATE_COLOURS = {
     State.PAUSED: "khaki",
     State.UNASSIGNED: "plum",
     State.ASSIGNED: "orchid",
+    State.SKIPPED: "lightgrey",
 }
 
 

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from btcap.actors import Clock, ManualClock
 from btcap.bt.node import Node
-from btcap.bt.state import ACTIVE, DONE, State, TreeError, TreeTimeout
+from btcap.bt.state import ACTIVE, ENDED, State, TreeError, TreeTimeout
 
 if TYPE_CHECKING:
     from btcap.actors import ActorSystem, TimeSource
@@ -94,7 +94,7 @@ async def run_tree(
         raise ValueError(f"max_ticks must be >= 1 or None, got {max_ticks}")
     if timeout_s is not None and not timeout_s > 0:
         raise ValueError(f"timeout_s must be > 0 or None, got {timeout_s}")
-    stop = until or (lambda s: s in DONE)
+    stop = until or (lambda s: s in ENDED)
     clock = tree.clock
     period = 1.0 / rate_hz
     deadline = clock.now()

@@ -10,8 +10,10 @@ from btcap.errors import BtcapError
 __all__ = [
     "ACTIVE",
     "DONE",
+    "ENDED",
     "FAILED",
     "RUNNING",
+    "SKIPPED",
     "SUCCEEDED",
     "BtcapWarning",
     "IllegalTransition",
@@ -28,7 +30,10 @@ class State(enum.Enum, metaclass=FastEnumType):
     """The state of a node after its last action.
 
     UNASSIGNED and ASSIGNED belong to capability nodes still waiting for (or just given)
-    an executor; control flow treats them, like PAUSED, as RUNNING.
+    an executor; control flow treats them, like PAUSED, as RUNNING. SKIPPED is
+    BehaviorTree.CPP's: a node whose ``_skipIf``/``_while`` said not to run it (or a
+    ``RunOnce`` after its run) did nothing, and its BehaviorTree.CPP-named parent goes on as
+    if it were absent; only those nodes give it, never a capability node or team code.
     """
 
     UNINITIALIZED = "uninitialized"
@@ -41,6 +46,7 @@ class State(enum.Enum, metaclass=FastEnumType):
     PAUSED = "paused"
     UNASSIGNED = "unassigned"
     ASSIGNED = "assigned"
+    SKIPPED = "skipped"
 
 
 # A leaf's tick reads these as globals of its own module (``from btcap import
@@ -49,12 +55,17 @@ class State(enum.Enum, metaclass=FastEnumType):
 SUCCEEDED = State.SUCCEEDED
 FAILED = State.FAILED
 RUNNING = State.RUNNING
+SKIPPED = State.SKIPPED
 
 #: States in which a node has work in progress (and must be unticked when abandoned).
 ACTIVE = frozenset({State.RUNNING, State.ASSIGNED, State.UNASSIGNED})
 
 #: States that end a tick with a result.
 DONE = frozenset({State.SUCCEEDED, State.FAILED, State.ERROR})
+
+#: States that end a run: a result, or a root that skipped itself (BehaviorTree.CPP's
+#: ``tickWhileRunning`` returns SKIPPED then).
+ENDED = DONE | {State.SKIPPED}
 
 
 class TreeError(BtcapError):

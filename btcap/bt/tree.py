@@ -13,7 +13,7 @@ from btcap.bt.host import wake
 from btcap.bt.node import Node, Observer
 from btcap.bt.ports import PortMap, wire_problem
 from btcap.bt.running import Alarm, nudge, run_tree, start_task, tick_once
-from btcap.bt.state import ACTIVE, DONE, State, TreeError
+from btcap.bt.state import ACTIVE, ENDED, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.bt.wires import Wire
 
@@ -273,10 +273,10 @@ class Tree:
         return await run_tree(self, rate_hz, until, max_ticks, timeout_s, wake)
 
     def tick_until_result(self, max_ticks: int = 1_000_000) -> State:
-        """Tick synchronously until succeeded/failed/error (for trees with no waits)."""
+        """Tick synchronously until succeeded/failed/error/skipped (trees with no waits)."""
         for _ in range(max_ticks):
             s = self.tick()
-            if s in DONE:
+            if s in ENDED:
                 return s
         raise TreeError(f"tree {self.name!r} gave no result within {max_ticks} ticks")
 

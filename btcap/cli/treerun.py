@@ -23,7 +23,7 @@ from btcap.bt.files.btlog import BtlogError, BtlogRecorder
 from btcap.bt.leaves import LOG_LOGGER
 from btcap.bt.node import Node
 from btcap.bt.render import render_text
-from btcap.bt.state import DONE, State, TreeTimeout
+from btcap.bt.state import DONE, ENDED, State, TreeTimeout
 from btcap.bt.tree import Subtree, Tree
 from btcap.cli import CliError
 from btcap.cli.rostree import bridge_for, wanted
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace, load: Callable[[ManualClock | None], Tree]) ->
         )
         return 3
     print(f"{state.value} after {ticks} tick{plural}")
-    if state is State.SUCCEEDED:
+    if state is State.SUCCEEDED or state is State.SKIPPED:
         return 0
     return 1 if state in DONE else 3
 
@@ -155,7 +155,7 @@ async def _tick(
     def count(state: State) -> bool:
         nonlocal ticks
         ticks += 1
-        return state in DONE
+        return state in ENDED
 
     wake = args.wake if args.wake is not None else args.file.suffix.lower() == ".xml"
     stopped: TreeTimeout | None = None

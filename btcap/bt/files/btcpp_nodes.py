@@ -89,14 +89,6 @@ def _cycles(text: str) -> int:
     return n
 
 
-def _no_skip(text: str) -> None:
-    if parse_bool(text):
-        raise MappingError(
-            "then_skip=true returns SKIPPED, which btcap does not have; "
-            "then_skip=false (repeat the first result) maps to btcap's RunOnce"
-        )
-
-
 def script_code(text: str) -> str:
     """A script, parsed now so a syntax error names its column (nodes parse it once more
     from the cache)."""
@@ -164,6 +156,10 @@ DIFFERENCES: dict[str, str] = {
     "BehaviorTree.CPP throws out of the tick; a syntax error, or an assignment to "
     "something other than an entry, is refused when the file loads, where "
     "BehaviorTree.CPP refuses it when the tree is created or ticked.",
+    "skipped_condition": "An IfThenElse or WhileDoElse whose condition is skipped "
+    "(_skipIf, _while, a RunOnce after its run) has no branch to run: BehaviorTree.CPP 4.8 "
+    "throws out of the tick (or its tickWhileRunning keeps ticking an IDLE root); btcap "
+    "fails the node with that reason.",
     "parallel_decides_per_child": "BehaviorTree.CPP's Parallel checks its thresholds after "
     "each child and stops ticking once decided (success checked first); btcap's ticks "
     "every unfinished child, then decides (failure wins a tie). They differ only when "
@@ -223,12 +219,8 @@ STANDARD: dict[str, Standard] = {
     ),
     "RunOnce": Standard(
         "RunOnce",
-        {"then_skip": ("", _no_skip)},
-        ("then_skip",),
-        fixed={"forever": True},
-        why_required="BehaviorTree.CPP's default, then_skip=true, returns SKIPPED after the "
-        'first run, which btcap does not have; write then_skip="false" to repeat the first '
-        "result",
+        {"then_skip": ("then_skip", parse_bool)},
+        fixed={"forever": True, "then_skip": True},
     ),
     "AlwaysSuccess": Standard("AlwaysSuccess"),
     "AlwaysFailure": Standard("AlwaysFailure"),
@@ -258,7 +250,7 @@ UNSUPPORTED: dict[str, str] = {
     "UnsetBlackboard": "btcap's blackboard entries keep their last value; nothing unsets one",
     "TryCatch": "btcap has no node that runs a cleanup child after its "
     "others failed or were halted; use Fallback(Sequence(...), Sequence(cleanup, AlwaysFailure))",
-    "SkipUnlessUpdated": "btcap has no SKIPPED state",
+    "SkipUnlessUpdated": "btcap has no blackboard update stamps",
     "WaitValueUpdate": "btcap has no blackboard update stamps",
     "ManualSelector": "it asks a person on a terminal; btcap trees never block on input",
     "SubTreePlus": "it is BehaviorTree.CPP v3; in format 4 use SubTree with _autoremap",

@@ -32,16 +32,25 @@ _STATUS = {
     State.FAILED: FAILURE,
     State.ERROR: FAILURE,  # BehaviorTree.CPP throws; the node failed
     State.IDLE: IDLE,
+    State.SKIPPED: SKIPPED,
 }
 
 _SUCCEEDED, _FAILED, _ERROR = State.SUCCEEDED, State.FAILED, State.ERROR
+_SKIPPED = State.SKIPPED
 
 #: Control nodes whose tick halts every child but the running one (BehaviorTree.CPP 4.8).
 _REACTIVE = frozenset({"ReactiveSequence", "ReactiveFallback"})
+#: Control nodes that reset nothing when all their children skipped (BehaviorTree.CPP 4.8).
+_NO_RESET = frozenset({"Parallel", "ParallelAll", "Switch"})
+#: Decorators that reset a child that returned SKIPPED (BehaviorTree.CPP 4.8).
+_RESET_SKIPPED = frozenset({"Repeat", "RetryUntilSuccessful"})
 
 
 def btcpp_status(state: State) -> int:
-    """A btcap state as BehaviorTree.CPP's status: waiting and paused ones are RUNNING."""
+    """A btcap state as BehaviorTree.CPP's status: waiting and paused ones are RUNNING.
+
+    SKIPPED is what a node returns; BehaviorTree.CPP never makes it a node's status (the
+    node keeps the one it had), so no change in a log carries it."""
     return _STATUS.get(state, RUNNING)
 
 
@@ -151,6 +160,8 @@ class StatusFollower:
 
     def leave(self, uid: int, state: State) -> None:
         """``uid``'s tick returned ``state``: its own rules, its status, its parent's rules."""
+        if state is _SKIPPED:
+            return self._skipped(uid)
         if state is _SUCCEEDED:
             code = SUCCESS
         elif state is _FAILED or state is _ERROR:
@@ -167,6 +178,18 @@ class StatusFollower:
         parent = self._parent[uid]
         if parent and self._rule[parent]:
             self._child_gave(parent, uid, code)
+
+    def _skipped(self, uid: int) -> None:
+        """``uid`` returned SKIPPED: BehaviorTree.CPP keeps its status (a RunOnce after its
+        run; a control node whose children all skipped stays RUNNING, having reset them
+        as after a result, except a Parallel); a Repeat or Retry resets it, a reactive
+        parent halts it."""
+        kind = self._kind[uid]
+        if kind and self._rule[uid] not in (_DECO, _ONCE) and kind not in _NO_RESET:
+            self._reset_children(uid)
+        parent = self._parent[uid]
+        if parent and (self._rule[parent] == _REACT or self._kind[parent] in _RESET_SKIPPED):
+            self._reset_child(uid)
 
     def wrap(self, base: Callable[[Node], State], leaf: bool) -> Callable[[Node], State]:
         """A ``tick`` calling ``base`` (a node class's own) and telling the follower; for

@@ -37,6 +37,7 @@ _FORMAT: dict[str, Any] = {
     "_timeout": lambda v: str(round(v * 1000)),
     "script_code": str,
     "_else": str,
+    "parse_bool": lambda v: "true" if v else "false",
 }
 
 _INDENT = "    "

@@ -34,6 +34,7 @@ __all__ = [
 ]
 
 _SUCCEEDED, _FAILED, _RUNNING, _ERROR = State.SUCCEEDED, State.FAILED, State.RUNNING, State.ERROR
+_SKIPPED = State.SKIPPED
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
@@ -179,6 +180,8 @@ class ScriptPrecondition(ScriptNode, Decorator):
 CONDITIONS = {
     "_failureIf": "failure_if",
     "_successIf": "success_if",
+    "_skipIf": "skip_if",
+    "_while": "while_true",
     "_onSuccess": "on_success",
     "_onFailure": "on_failure",
     "_post": "post",
@@ -190,12 +193,15 @@ class ScriptConditions(ScriptNode, Decorator):
     """BehaviorTree.CPP's pre/post conditions of one node, as a decorator around it.
 
     Before a tick that starts the node (it is not running): ``failure_if``, then
-    ``success_if``, if true, give that result without ticking it. When the node (or a
-    pre-condition) gives a result: ``on_success`` or ``on_failure``, then ``post``.
-    ``on_halted`` runs when the running node is unticked. Empty options do nothing.
+    ``success_if``, then ``skip_if``, if true, give FAILED, SUCCEEDED or SKIPPED without
+    ticking it, and ``while_true``, if false, gives SKIPPED. While the node runs,
+    ``while_true`` turning false halts it (``on_halted`` runs) and gives SKIPPED. When the
+    node (or a pre-condition) gives a result, not SKIPPED: ``on_success`` or
+    ``on_failure``, then ``post``. ``on_halted`` runs when the running node is unticked.
+    Empty options do nothing.
     """
 
-    __slots__ = ("_post", "_pre")
+    __slots__ = ("_post", "_pre", "_while")
     OPTIONS: ClassVar[dict[str, Any]] = {
         name: Port(str, "", description=f"BehaviorTree.CPP's {attr}")
         for attr, name in CONDITIONS.items()
@@ -215,19 +221,32 @@ class ScriptConditions(ScriptNode, Decorator):
     def _arrange(self) -> None:
         """The scripts in the order BehaviorTree.CPP runs them."""
         runs = self._runs
-        pre = (("failure_if", _FAILED), ("success_if", _SUCCEEDED))
-        self._pre = [(runs[k], r) for k, r in pre if k in runs]
+        pre = (
+            ("failure_if", _FAILED, True),
+            ("success_if", _SUCCEEDED, True),
+            ("skip_if", _SKIPPED, True),
+            ("while_true", _SKIPPED, False),
+        )
+        self._pre = [(runs[k], r, when) for k, r, when in pre if k in runs]
+        self._while = runs.get("while_true")
         self._post = {
             s: [runs[k] for k in (first, "post") if k in runs]
             for s, first in ((_SUCCEEDED, "on_success"), (_FAILED, "on_failure"))
         }
 
     def on_tick(self) -> State:
-        if self.state not in _ACTIVE:
-            for run, result in self._pre:
-                if to_bool(run(), "the pre-condition's value"):
-                    return self._finished(result)
         child = self.children[0]
+        if self.state not in _ACTIVE:
+            for run, result, when in self._pre:
+                if to_bool(run(), "the pre-condition's value") is when:
+                    return _SKIPPED if result is _SKIPPED else self._finished(result)
+        elif self._while is not None and not to_bool(self._while(), "the _while value"):
+            if child.state in _ACTIVE:  # halted as BehaviorTree.CPP halts: to start afresh
+                child.untick()
+            child.reset()
+            if "on_halted" in self._runs:
+                self._runs["on_halted"]()
+            return _SKIPPED
         s = child.tick()
         if s is _SUCCEEDED or s is _FAILED:
             return self._finished(s)

@@ -5,10 +5,10 @@
 const MAX_RUNS = 2000, MAX_AUCTIONS = 200, MAX_MARKS = 500;
 const ACTIVE = new Set(["running", "assigned", "unassigned"]);
 const STATES = ["idle", "running", "succeeded", "failed", "error", "unassigned", "assigned",
-  "paused", "shutdown"];
+  "paused", "shutdown", "skipped"];
 const FILL = { idle: "#dfe3e8", running: "#f5b942", succeeded: "#4bb982", failed: "#e05a5a",
   error: "#9b2c4a", unassigned: "#b29cf7", assigned: "#5cc3ee", paused: "#f7e3a1",
-  shutdown: "#f4f5f7", uninitialized: "#f4f5f7", gone: "#ffffff" };
+  shutdown: "#f4f5f7", uninitialized: "#f4f5f7", skipped: "#e9ecef", gone: "#ffffff" };
 // The timeline's capability colours: far from every state's fill above (darker, at least
 // 80 apart in RGB), so that a bar is never read as a node state; the timeline has a
 // legend of its own.

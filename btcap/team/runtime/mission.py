@@ -52,7 +52,10 @@ from btcap.transports.log import get_logger, worth_logging
 __all__ = ["MissionConfig", "MissionControl", "MissionStats"]
 
 #: A hosted run's root state as its origin is told it (same values: the wire is unchanged).
-_RUN_STATE = {s: RunState(s.value) for s in State}
+#: A root that skipped itself did nothing, and succeeded as far as its origin can tell.
+_RUN_STATE: dict[State, RunState] = {
+    s: RunState.SUCCEEDED if s is State.SKIPPED else RunState(s.value) for s in State
+}
 
 log = get_logger("btcap.mission")
 

@@ -39,9 +39,9 @@ from btcap.bt.node import Node
 from btcap.bt.registry import default_registry
 
 _BT = {"S": bt.NodeStatus.SUCCESS, "F": bt.NodeStatus.FAILURE, "R": bt.NodeStatus.RUNNING}
-_FROM_BT = {v: k for k, v in _BT.items()}
+_FROM_BT = {v: k for k, v in _BT.items()} | {bt.NodeStatus.SKIPPED: "K"}
 _STATE = {"S": State.SUCCEEDED, "F": State.FAILED, "R": State.RUNNING}
-_FROM_STATE = {State.SUCCEEDED: "S", State.FAILED: "F", State.ERROR: "E"}
+_FROM_STATE = {State.SUCCEEDED: "S", State.FAILED: "F", State.ERROR: "E", State.SKIPPED: "K"}
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 COMPOSITES = (

@@ -263,12 +263,24 @@ def compare_scripts(t: ScriptTree, ticks: int = 3) -> ScriptOutcome:
 _COUNTERS = ("s", "f", "p", "h")
 
 
-def with_conditions(root: Any, rng: random.Random) -> Any:
+def with_conditions(root: Any, rng: random.Random, skips: bool = False) -> Any:
     """``root`` (a :class:`btcpp_oracle.El`) with counters run by pre/post conditions on
-    some of its nodes, under a Sequence that creates the counters once."""
+    some of its nodes, under a Sequence that creates the counters once. ``skips`` adds
+    ``_skipIf`` and ``_while`` over the counters (not on an IfThenElse's or WhileDoElse's
+    condition: BehaviorTree.CPP throws when that one is skipped)."""
     from btcpp_oracle import El
 
+    conditions = {
+        id(el.children[0]) for el in root.walk() if el.tag in ("IfThenElse", "WhileDoElse")
+    }
     for el in root.walk():
+        if skips and el.tag == "RunOnce" and rng.random() < 0.5:
+            del el.attrs["then_skip"]  # BehaviorTree.CPP's default: SKIPPED after its run
+        if skips and id(el) not in conditions:
+            if rng.random() < 0.2:
+                el.attrs["_skipIf"] = f"{rng.choice('sfp')} == {rng.randint(0, 3)}"
+            if rng.random() < 0.15:
+                el.attrs["_while"] = f"{rng.choice('sfp')} < {rng.randint(1, 6)}"
         if rng.random() < 0.4:
             el.attrs["_onSuccess"] = "s += 1"
             el.attrs["_onFailure"] = "f += 1"
@@ -306,20 +318,29 @@ def _rechecked(mine: Any, before: dict[int, State]) -> bool:
     return False
 
 
+def _condition_skipped(mine: Any) -> bool:
+    """Whether an IfThenElse or WhileDoElse failed on a skipped condition in this tick."""
+    return any(
+        n.state is State.ERROR and "its condition was skipped" in str(n.error)
+        for n in mine.tree.root.walk()
+    )
+
+
 _ACTIVE_STATES = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
-def compare_conditions(root: Any, ticks: int = 10) -> ScriptOutcome:
-    """:func:`btcpp_oracle.compare` with the counters compared after every tick and halt."""
-    from btcpp_oracle import BtcapRun, BtcppRun, document, scripts_of
+def compare_conditions(root: Any, ticks: int = 10, once: bool = False) -> ScriptOutcome:
+    """:func:`btcpp_oracle.compare` with the counters compared after every tick and halt
+    (``once``: ticked by ``tickOnce``, else ``tickExactlyOnce``)."""
+    from btcpp_oracle import WAKES_FOREVER, BtcapRun, BtcppRun, WakingForever, document, scripts_of
 
     xml = document(root)
     scripts = scripts_of(root)
     try:
-        theirs = BtcppRun(xml, scripts)
+        theirs = BtcppRun(xml, scripts, once)
     except RuntimeError:
         return ScriptOutcome(0, "refused by BehaviorTree.CPP", None)
-    mine = BtcapRun(xml, scripts)
+    mine = BtcapRun(xml, scripts, once)
 
     def counters() -> tuple[dict[str, str], dict[str, str]]:
         board = theirs.tree.root_blackboard()
@@ -328,9 +349,14 @@ def compare_conditions(root: Any, ticks: int = 10) -> ScriptOutcome:
 
     for t in range(ticks):
         before = {id(n): n.state for n in mine.tree.root.walk()}
-        got = mine.tick()
+        try:
+            got = mine.tick()
+        except WakingForever:
+            return ScriptOutcome(t, WAKES_FOREVER, None)
         if _rechecked(mine, before):
             return ScriptOutcome(t, "conditions_checked_when_idle", None)
+        if _condition_skipped(mine):  # BehaviorTree.CPP throws, or ticks an IDLE root forever
+            return ScriptOutcome(t, "skipped_condition", None)
         want = theirs.tick()
         if mine.now:
             return ScriptOutcome(t, sorted(mine.now)[0], None)

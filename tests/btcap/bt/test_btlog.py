@@ -164,3 +164,41 @@ def test_random_trees_log_as_behaviortree_cpp_does(once: bool, tmp_path: Path) -
             cases.append((document(root), scripts_of(root)))
     assert len(cases) > 120
     _agree(tmp_path, cases, ticks=10, once=once)
+
+
+#: RunOnce's default then_skip: SKIPPED after its run, which BehaviorTree.CPP never logs
+#: (the node keeps its status); the parents react to it by their own rules.
+SKIPPING = [
+    (
+        '<Sequence name="s"><RunOnce name="o"><Act name="a"/></RunOnce><Cond name="b"/></Sequence>',
+        {"a": "RS", "b": "S"},
+    ),
+    (
+        '<ReactiveSequence name="s"><Cond name="c"/><Sequence name="q"><RunOnce name="o">'
+        '<Act name="a"/></RunOnce></Sequence><Act name="b"/></ReactiveSequence>',
+        {"a": "RS", "b": "RS", "c": "S"},
+    ),
+    (
+        '<Repeat num_cycles="3" name="r"><Fallback name="f"><RunOnce name="o"><Cond name="a"/>'
+        '</RunOnce><RunOnce name="o2"><Cond name="b"/></RunOnce></Fallback></Repeat>',
+        {"a": "F", "b": "F"},
+    ),
+    (
+        '<Parallel name="p" success_count="-1" failure_count="1"><RunOnce name="o">'
+        '<Cond name="a"/></RunOnce><Act name="b"/></Parallel>',
+        {"a": "S", "b": "RRS"},
+    ),
+    (
+        '<IfThenElse name="i"><Cond name="c"/><RunOnce name="o"><Cond name="a"/></RunOnce>'
+        '<Act name="b"/></IfThenElse>',
+        {"a": "S", "b": "RRS", "c": "S"},
+    ),
+]
+
+
+def test_skipped_nodes_log_as_behaviortree_cpp_does(tmp_path: Path) -> None:
+    cases = [
+        (f'<root BTCPP_format="4"><BehaviorTree ID="M">{b}</BehaviorTree></root>', s)
+        for b, s in SKIPPING
+    ]
+    _agree(tmp_path, cases, ticks=5)

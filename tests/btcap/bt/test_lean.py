@@ -85,7 +85,7 @@ def test_state_is_still_the_enum() -> None:
     assert isinstance(State, enum.EnumMeta)
     assert issubclass(State, enum.Enum)
     assert State.SUCCEEDED is State("succeeded") is State["SUCCEEDED"]
-    assert len(list(State)) == len(State.__members__) == 10
+    assert len(list(State)) == len(State.__members__) == 11
     assert State.SUCCEEDED.value == "succeeded"
     assert State.SUCCEEDED.name == "SUCCEEDED"
     assert pickle.loads(pickle.dumps(State.PAUSED)) is State.PAUSED

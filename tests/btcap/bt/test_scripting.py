@@ -202,11 +202,6 @@ def test_pre_and_post_conditions_run_around_any_node() -> None:
     assert t.blackboard["h"] == 1
 
 
-def test_skipping_conditions_are_refused_with_the_reason() -> None:
-    with pytest.raises(TreeFileError, match="SKIPPED, a state btcap does not have"):
-        _tree('<AlwaysSuccess _while="true"/>')
-
-
 def test_random_trees_with_pre_and_post_conditions_agree_with_behaviortree_cpp() -> None:
     oracle = _oracle()
     import btcpp_oracle

@@ -154,7 +154,8 @@ MAPPED = [
     ('<Repeat num_cycles="3"><AlwaysSuccess/></Repeat>', "Repeat", {"times": 3}),
     ('<Timeout msec="1500"><AlwaysSuccess/></Timeout>', "Timeout", {"seconds": 1.5}),
     ('<Delay delay_msec="250"><AlwaysSuccess/></Delay>', "Delay", {"seconds": 0.25}),
-    ('<RunOnce then_skip="false"><AlwaysSuccess/></RunOnce>', "RunOnce", {}),
+    ('<RunOnce then_skip="false"><AlwaysSuccess/></RunOnce>', "RunOnce", {"then_skip": False}),
+    ("<RunOnce><AlwaysSuccess/></RunOnce>", "RunOnce", {"then_skip": True}),
     ('<Sleep msec="20"/>', "Wait", {"seconds": 0.02}),
     ("<AlwaysFailure/>", "AlwaysFailure", {}),
 ]
@@ -497,11 +498,6 @@ ERRORS = [
         "<Script> attribute 'code': column 5: unexpected trailing separator",
     ),
     (
-        _xml('<BehaviorTree ID="Main">\n<AlwaysSuccess _skipIf="x"/>\n</BehaviorTree>'),
-        3,
-        "attribute '_skipIf': it makes the node SKIPPED, a state btcap does not have",
-    ),
-    (
         _xml('<BehaviorTree ID="Main">\n<Timeout><AlwaysSuccess/></Timeout>\n</BehaviorTree>'),
         3,
         "<Timeout> needs attribute 'msec'",
@@ -537,14 +533,6 @@ ERRORS = [
         ),
         3,
         "<Inverter> has no attribute 'colour'",
-    ),
-    (
-        _xml(
-            '<BehaviorTree ID="Main">\n<RunOnce then_skip="true"><AlwaysSuccess/></RunOnce>'
-            "\n</BehaviorTree>"
-        ),
-        3,
-        "SKIPPED, which btcap does not have",
     ),
     (
         _xml(

@@ -89,13 +89,8 @@ def _problems(body: str) -> list[str]:
     return []
 
 
-def test_runonce_without_then_skip_says_why() -> None:
-    (problem,) = _problems("<RunOnce><AlwaysSuccess/></RunOnce>")
-    assert problem.endswith(
-        "<RunOnce> needs attribute 'then_skip': BehaviorTree.CPP's default, then_skip=true, "
-        'returns SKIPPED after the first run, which btcap does not have; write then_skip="false" '
-        "to repeat the first result"
-    )
+def test_runonce_without_then_skip_loads_with_behaviortree_cpps_default() -> None:
+    assert _problems("<RunOnce><AlwaysSuccess/></RunOnce>") == []
 
 
 def test_v3_sequence_star_hints_at_v4_sequence_with_memory() -> None:
