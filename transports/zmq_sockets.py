@@ -53,12 +53,19 @@ _RECV_HWM = 10_000
 _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
 """A DEALER only sends: what else arrives is junk, and libzmq drops the connection."""
-# ZMTP heartbeats (DEALERs and ROUTER): a PING a second, the connection dropped after 3 s
-# of silence, else a cut link waits for TCP's backed-off retransmission once healed and a
-# crashed host's inbound link stays for good. libzmq's I/O thread pings and times out
-# without the GIL, so a stalled event loop drops no healthy link. A dial into a partition
-# gives up after 1 s (SYN retries: 1, 3, 7 s...) and is redone after RECONNECT_IVL.
+# ZMTP heartbeats (DEALERs): a PING a second, the connection dropped after 3 s of
+# silence, else a cut link waits for TCP's backed-off retransmission once healed. libzmq's
+# I/O thread pings and times out without the GIL, so a stalled event loop drops no healthy
+# link. A dial into a partition gives up after 1 s (SYN retries: 1, 3, 7 s...) and is
+# redone after RECONNECT_IVL.
 _PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
+# The ROUTER sends no heartbeats: libzmq 4.3.5 (the newest release, bundled by pyzmq 27)
+# aborts the process on a PING falling due on a connection whose input stopped at RCVHWM
+# and whose socket then failed (a peer that floods and resets, with the agent too busy to
+# drain in time): assertion "!_io_error", stream_engine_base.cpp:310. TCP keepalive,
+# kept by the kernel, drops a crashed host's inbound link instead (~5 s idle, then 3
+# probes 1 s apart); a DEALER's own PINGs still drop a silent peer from the sending side.
+_KEEPALIVE_IDLE_S, _KEEPALIVE_INTVL_S, _KEEPALIVE_CNT = 5, 1, 3
 
 
 def check_id(system_id: str) -> str | None:
@@ -92,8 +99,10 @@ def open_router(
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
-    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
-    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
+    sock.setsockopt(zmq.TCP_KEEPALIVE, 1)  # not HEARTBEAT_IVL: see _KEEPALIVE_IDLE_S
+    sock.setsockopt(zmq.TCP_KEEPALIVE_IDLE, _KEEPALIVE_IDLE_S)
+    sock.setsockopt(zmq.TCP_KEEPALIVE_INTVL, _KEEPALIVE_INTVL_S)
+    sock.setsockopt(zmq.TCP_KEEPALIVE_CNT, _KEEPALIVE_CNT)
     if curve is not None:
         curve.server(sock)
     # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
