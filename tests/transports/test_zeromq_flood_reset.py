@@ -89,7 +89,8 @@ async def test_an_agent_survives_peers_that_flood_its_router_and_reset(pings: bo
         args += ["tcp://127.0.0.1:*", "--lifetime", "50"]
         process = await anyio.open_process(args, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
-            assert process.stdout is not None and process.stdin is not None
+            assert process.stdout is not None
+            assert process.stdin is not None
             line = await BufferedByteReceiveStream(process.stdout).receive_until(b"\n", 4096)
             assert line.decode().startswith(READY)
             port = int(line.decode().rpartition(":")[2])
