@@ -59,12 +59,10 @@ _DEALER_MAX_IN = 16_384
 # link. A dial into a partition gives up after 1 s (SYN retries: 1, 3, 7 s...) and is
 # redone after RECONNECT_IVL.
 _PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
-# The ROUTER sends no heartbeats: libzmq 4.3.5 (the newest release, bundled by pyzmq 27)
-# aborts the process on a PING falling due on a connection whose input stopped at RCVHWM
-# and whose socket then failed (a peer that floods and resets, with the agent too busy to
-# drain in time): assertion "!_io_error", stream_engine_base.cpp:310. TCP keepalive,
-# kept by the kernel, drops a crashed host's inbound link instead (~5 s idle, then 3
-# probes 1 s apart); a DEALER's own PINGs still drop a silent peer from the sending side.
+# No heartbeats on the ROUTER: libzmq 4.3.5 (pyzmq 27's) aborts on assert "!_io_error" when
+# a PING falls due on a link stopped at RCVHWM whose socket then failed (a peer flooded and
+# reset it while we were busy). Kernel TCP keepalive (idle 5 s, 3 probes 1 s apart) drops a
+# crashed host's inbound link instead; DEALERs still ping (tests/transports/*flood_reset*).
 _KEEPALIVE_IDLE_S, _KEEPALIVE_INTVL_S, _KEEPALIVE_CNT = 5, 1, 3
 
 
