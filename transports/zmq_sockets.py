@@ -53,12 +53,17 @@ _RECV_HWM = 10_000
 _SEND_HWM = 10_000
 _DEALER_MAX_IN = 16_384
 """A DEALER only sends: what else arrives is junk, and libzmq drops the connection."""
-# ZMTP heartbeats (DEALERs and ROUTER): a PING a second, the connection dropped after 3 s
-# of silence, else a cut link waits for TCP's backed-off retransmission once healed and a
-# crashed host's inbound link stays for good. libzmq's I/O thread pings and times out
-# without the GIL, so a stalled event loop drops no healthy link. A dial into a partition
-# gives up after 1 s (SYN retries: 1, 3, 7 s...) and is redone after RECONNECT_IVL.
+# ZMTP heartbeats (DEALERs): a PING a second, the connection dropped after 3 s of
+# silence, else a cut link waits for TCP's backed-off retransmission once healed. libzmq's
+# I/O thread pings and times out without the GIL, so a stalled event loop drops no healthy
+# link. A dial into a partition gives up after 1 s (SYN retries: 1, 3, 7 s...) and is
+# redone after RECONNECT_IVL.
 _PING_MS, _PING_TIMEOUT_MS, _CONNECT_TIMEOUT_MS = 1000, 3000, 1000
+# No heartbeats on the ROUTER: libzmq 4.3.5 (pyzmq 27's) aborts on assert "!_io_error" when
+# a PING falls due on a link stopped at RCVHWM whose socket then failed (a peer flooded and
+# reset it while we were busy). Kernel TCP keepalive (idle 5 s, 3 probes 1 s apart) drops a
+# crashed host's inbound link instead; DEALERs still ping (tests/transports/*flood_reset*).
+_KEEPALIVE_IDLE_S, _KEEPALIVE_INTVL_S, _KEEPALIVE_CNT = 5, 1, 3
 
 
 def check_id(system_id: str) -> str | None:
@@ -92,8 +97,10 @@ def open_router(
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
     sock.setsockopt(zmq.MAXMSGSIZE, max_message_bytes)
-    sock.setsockopt(zmq.HEARTBEAT_IVL, _PING_MS)
-    sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, _PING_TIMEOUT_MS)
+    sock.setsockopt(zmq.TCP_KEEPALIVE, 1)  # not HEARTBEAT_IVL: see _KEEPALIVE_IDLE_S
+    sock.setsockopt(zmq.TCP_KEEPALIVE_IDLE, _KEEPALIVE_IDLE_S)
+    sock.setsockopt(zmq.TCP_KEEPALIVE_INTVL, _KEEPALIVE_INTVL_S)
+    sock.setsockopt(zmq.TCP_KEEPALIVE_CNT, _KEEPALIVE_CNT)
     if curve is not None:
         curve.server(sock)
     # No ROUTER_HANDOVER, with keys or without: every connection has a routing id of its
