@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from btcap.actors import Actor, Supervision, handler
+from btcap.bt.running import nudge_holder
 from btcap.bt.state import State
 from btcap.team.allocation.auction import SingleItemAuction
 from btcap.team.allocation.strategy import RobotContext, Strategy
@@ -225,7 +226,9 @@ class MissionControl(Actor):
         if isinstance(e, Send):
             self.send(e.to, e.message)
         elif isinstance(e, Lost):
-            self.active.pop(e.execution, None)
+            handle = self.active.pop(e.execution, None)
+            if handle is not None:  # its node re-assigns the work at once
+                nudge_holder(handle.node)
             self.stats.lost += 1
             where = {"execution": str(e.execution), "executor": e.executor}
             log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
+from btcap.bt.running import nudge_holder
 from btcap.bt.state import State
 from btcap.team.allocation.strategy import Allocator, AuctionRecord
 from btcap.team.capabilities.capability import Capability
@@ -209,6 +210,7 @@ class Reevaluation:
             return
         ex.replacement = new
         mc.active[new.id] = new
+        nudge_holder(ex.node)  # adopted at the node's next tick: now
         mc.stats.moved += 1
         log.info(
             "mission.moving",
@@ -301,6 +303,7 @@ class Reevaluation:
         for old, (new, _won) in zip(cycle, legs, strict=True):
             old.replacement = new
             mc.active[new.id] = new
+            nudge_holder(old.node)
         mc.stats.moved += n
         mc.stats.exchanged += 1
         log.info(
