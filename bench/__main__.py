@@ -19,6 +19,7 @@ BENCHES = (
     "btlog",
     "attacks",
     "missiontime",
+    "mission_step",
     "missionbound",
 )
 #: Benchmarks that need what `make venv` does not install, left out of ``all``: ``ros``

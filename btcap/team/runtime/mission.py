@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from btcap.actors import Actor, Supervision, handler
-from btcap.bt.running import nudge_holder
+from btcap.bt.running import nudge, nudge_holder
 from btcap.bt.state import State
 from btcap.team.allocation.auction import SingleItemAuction
 from btcap.team.allocation.strategy import RobotContext, Strategy
@@ -276,7 +276,21 @@ class MissionControl(Actor):
     def on_keepalive(self, msg: KeepAlive) -> None:
         now = self.now()
         self.origin.keepalive(self.sender, msg.executions, now, msg.stamps)
+        before = self._hosted_now(now)
         self.host.keepalive(self.sender, msg, now)
+        self._hosted_news(before, now)
+
+    def _hosted_now(self, now: float) -> tuple[Any, ...] | None:
+        """What the run in the slot acts on: its inputs, whether paused, whether leased."""
+        slot = self.executor.slot
+        h = None if slot is None else slot.current
+        return None if h is None else (h, h.inputs, h.paused, h.leased(now))
+
+    def _hosted_news(self, before: tuple[Any, ...] | None, now: float) -> None:
+        """The run in the slot may act on news (its first renewal, new inputs): at once,
+        not at the slot tree's next period."""
+        if before is not None and self._hosted_now(now) != before:
+            nudge(before[0].run.tree)
 
     # -- executor side ----------------------------------------------------------------
     @handler
@@ -304,7 +318,9 @@ class MissionControl(Actor):
     @handler
     def on_inputs(self, msg: ExecutionInputs) -> None:
         now = self.now()
+        before = self._hosted_now(now)
         self.perform(self.host.inputs(self.sender, msg, now, self.executor.convert))
+        self._hosted_news(before, now)
 
     @handler
     def on_pause(self, msg: PauseExecution) -> None:
