@@ -14,7 +14,6 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 from btcap.actors.services import Service
 from btcap.bt.node import Leaf, Node
 from btcap.bt.ports import Port, PortMap, normalize_ports, type_name
-from btcap.bt.running import nudge_holder
 from btcap.bt.state import DONE, State, TreeError
 from btcap.bt.utility import Utility
 from btcap.team.capabilities.conversion import Where, convert
@@ -280,7 +279,7 @@ class Capability(Node):
                 ex.cancel(f"moved to {nxt.robot}")
                 self._exec = nxt
                 self.assignments.append(nxt.robot)
-                nudge_holder(self)  # its inputs go out at once, not a period later
+                self.tree.nudge()  # its inputs go out at once, not a period later
                 return _ASSIGNED
             # The executor is lost: re-assign with the latest inputs.
             self._exclude = frozenset({ex.robot})
@@ -343,7 +342,7 @@ class Capability(Node):
         self._exec = req.execution
         self._waits, self._waiting_since = 0, None
         self.assignments.append(req.execution.robot)
-        nudge_holder(self)  # its inputs go out (a run of our own starts) at once
+        self.tree.nudge()  # its inputs go out (a run of our own starts) at once
         return _ASSIGNED
 
     def _give_up(self, waited: float) -> None:
