@@ -19,6 +19,7 @@ BENCHES = (
     "btlog",
     "attacks",
     "missiontime",
+    "mission_step",
     "missionbound",
     "strategytime",
 )

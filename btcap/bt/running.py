@@ -18,6 +18,7 @@ __all__ = [
     "Alarm",
     "Runnable",
     "nudge",
+    "nudge_holder",
     "run_tree",
     "running_paths",
     "start_task",
@@ -54,6 +55,14 @@ def nudge(tree: Any) -> None:
     future = alarm.future
     if future is not None and not future.done():
         future.set_result(None)
+
+
+def nudge_holder(node: Node) -> None:
+    """:func:`nudge` the tree that holds ``node`` (news for it came by message: a result,
+    an assignment); nothing for a node in no tree."""
+    tree = node._tree
+    if tree is not None and getattr(tree, "alarm", None) is not None:
+        nudge(tree)
 
 
 class Runnable(Protocol):

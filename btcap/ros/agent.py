@@ -5,12 +5,14 @@ imported by an agent without the block.
 It registers the ROS node types for the robot's tree files, starts the robot's
 :class:`~btcap.ros.client.RosBridge` (in a worker thread: imports and discovery never
 hold the event loop) before the implementation files are loaded, makes every
-implementation whose tree calls ROS servers bid only while they answer, gives the
+implementation whose tree calls ROS servers bid only while they answer, prices the
+distance bids declared in implementation files (``bid: {distance_from: ...}``), gives the
 bridge to the agent's actor system, and closes it when the agent stops.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 
 import anyio
@@ -19,10 +21,12 @@ from btcap.actors import ActorSystem
 from btcap.bt.node import Node
 from btcap.bt.registry import NodeRegistry
 from btcap.ros.action import RosAction
-from btcap.ros.capability import servers_of, with_ros
+from btcap.ros.capability import RosCost, distance_cost, servers_of, with_ros
 from btcap.ros.client import RosBridge
+from btcap.ros.errors import RosError
 from btcap.ros.service import RosService
 from btcap.ros.topic import RosPublish, RosSubscribe, RosWaitForMessage
+from btcap.team.capabilities.capfiles import DistanceBid, FileBid
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.rossettings import RosSettings
 
@@ -69,11 +73,30 @@ class RosAgent:
         await anyio.to_thread.run_sync(self.bridge.start)
 
     def wrap(self, implementations: Iterable[Implementation]) -> list[Implementation]:
+        """Each implementation bidding only while its servers answer, and at the distance
+        its file declares; RosError naming the file for a pose type that cannot work."""
         out = []
         for impl in implementations:
-            made = impl.build()
-            out.append(with_ros(impl, self.bridge) if servers_of(made) else impl)
+            servers = servers_of(impl.build())
+            bid = impl.bid
+            if isinstance(bid, FileBid) and bid.distance is not None:
+                cost = self.distance(bid.distance)
+                plain = dataclasses.replace(impl, bid=bid.without_distance())
+                out.append(with_ros(plain, self.bridge, servers=servers, cost=cost))
+            else:
+                out.append(with_ros(impl, self.bridge, servers=servers) if servers else impl)
         return out
+
+    def distance(self, d: DistanceBid) -> RosCost:
+        """The cost of a declared distance bid, its pose topic subscribed from now (so
+        that the first call for bids finds a pose)."""
+        try:
+            self.bridge.latest(d.type, d.topic)
+        except RosError as exc:
+            raise RosError(f"{d.where}: bid.distance_from: {exc}") from None
+        return distance_cost(
+            d.to, pose_topic=d.topic, pose_type=d.type, factor=d.factor, max_age_s=d.max_age_s
+        )
 
     def attach(self, system: ActorSystem) -> None:
         self.bridge.provide(system)

@@ -112,7 +112,9 @@ def test_the_cli_prints_the_replay_command_and_the_shrunken_trace(
     assert "shrunk from " in out
     assert "  |    " in out
     assert "fault: " in out
-    assert "3 seeds, 3 failed (13, 14, 15)" in out  # strict: a mirrored tick is enough
+    # strict: a mirrored tick is enough (seed 15's copies no longer meet a second run
+    # since the team's news ticks the mission tree at once; 16's do)
+    assert "3 seeds, 2 failed (13, 14)" in out
     saved = tmp_path / f"seed-{INJECTED}.json"
     assert main(["sim-test", "--plan", str(saved)]) == 1
     assert "double execution" in capsys.readouterr().out

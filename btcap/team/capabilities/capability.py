@@ -279,6 +279,7 @@ class Capability(Node):
                 ex.cancel(f"moved to {nxt.robot}")
                 self._exec = nxt
                 self.assignments.append(nxt.robot)
+                self.tree.nudge()  # its inputs go out at once, not a period later
                 return _ASSIGNED
             # The executor is lost: re-assign with the latest inputs.
             self._exclude = frozenset({ex.robot})
@@ -341,6 +342,7 @@ class Capability(Node):
         self._exec = req.execution
         self._waits, self._waiting_since = 0, None
         self.assignments.append(req.execution.robot)
+        self.tree.nudge()  # its inputs go out (a run of our own starts) at once
         return _ASSIGNED
 
     def _give_up(self, waited: float) -> None:

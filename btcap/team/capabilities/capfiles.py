@@ -20,11 +20,23 @@ inputs and returning a cost or None)::
     tree: echo_impl.yaml
     preconditions: [{capability: Calibrate, scope: local}]
     cost: 2.0
+
+``bid`` may instead declare a distance bid, priced by the ROS bridge of an agent whose
+file has a ``ros:`` block: ``factor`` x the straight-line distance from the robot's latest
+pose on a topic (in its namespace) to an input; no pose yet (or one older than
+``max_age_s``): the robot does not bid. ``function`` adds a function's term as above::
+
+    bid:
+      distance_from: {topic: pose, type: geometry_msgs/msg/PoseStamped, max_age_s: 5.0}
+      to: goal
+      factor: 2.0
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +53,8 @@ from btcap.team.capabilities.loader import load_callable
 
 __all__ = [
     "CapabilityFileError",
+    "DistanceBid",
+    "FileBid",
     "load_implementation",
     "load_interfaces",
     "register_interfaces",
@@ -64,6 +78,61 @@ class _InterfaceFile(msgspec.Struct, forbid_unknown_fields=True):
     interfaces: list[_InterfaceSpec]
 
 
+class _DistanceFrom(msgspec.Struct, forbid_unknown_fields=True):
+    topic: str = "pose"
+    type: str = "geometry_msgs/msg/PoseStamped"
+    max_age_s: float | None = None
+
+
+class _BidSpec(msgspec.Struct, forbid_unknown_fields=True):
+    distance_from: _DistanceFrom
+    to: str
+    factor: float = 1.0
+    function: str | None = None
+
+
+#: A message type as the ROS bridge names them (``pkg/msg/Name``, or ``pkg/Name``).
+_MSG_TYPE = re.compile(r"^[a-z][a-z0-9_]*/(msg/)?[A-Z][A-Za-z0-9]*$")
+
+
+@dataclass(frozen=True, slots=True)
+class DistanceBid:
+    """A distance bid declared in an implementation file (see the module docstring);
+    ``where`` names the file for the bridge's errors."""
+
+    topic: str
+    type: str
+    to: str
+    factor: float
+    max_age_s: float | None
+    where: str
+
+
+class FileBid:
+    """An implementation file's bid: its ``cost`` plus its function's term. A declared
+    :attr:`distance` is the ROS bridge's to price (``btcap.ros`` wraps the
+    implementation); unpriced, the robot does not bid."""
+
+    __slots__ = ("cost", "distance", "function")
+
+    def __init__(
+        self, cost: float, function: BidFunction | None, distance: DistanceBid | None
+    ) -> None:
+        self.cost = cost
+        self.function = function
+        self.distance = distance
+
+    def __call__(self, inputs: Mapping[str, Any]) -> float | None:
+        if self.distance is not None:
+            return None  # not priced: no bridge wrapped this implementation
+        more = self.function(inputs) if self.function is not None else 0.0
+        return None if more is None else self.cost + float(more)
+
+    def without_distance(self) -> FileBid:
+        """This bid but its distance term (the bridge adds that)."""
+        return FileBid(self.cost, self.function, None)
+
+
 class _ImplementationFile(msgspec.Struct, forbid_unknown_fields=True):
     btcap_implementation: int
     name: str
@@ -71,7 +140,7 @@ class _ImplementationFile(msgspec.Struct, forbid_unknown_fields=True):
     tree: str
     preconditions: list[Precondition] = []
     cost: float = 0.0
-    bid: str | None = None
+    bid: str | _BidSpec | None = None
 
 
 def _decode(path: Path, kind: type[Any]) -> Any:
@@ -179,11 +248,33 @@ def load_implementation(
         build()  # fail now, naming the files, rather than at the first award
     except TreeError as exc:
         raise CapabilityFileError(f"{where}: tree: {exc}") from None
-    extra = _load_bid(spec.bid, where) if spec.bid else None
-    cost = spec.cost
-
-    def bid(inputs: Mapping[str, Any]) -> float | None:
-        more = extra(inputs) if extra is not None else 0.0
-        return None if more is None else cost + float(more)
-
+    bid = _file_bid(spec, iface, where)
     return Implementation(spec.name, iface, build, preconditions=tuple(spec.preconditions), bid=bid)
+
+
+def _file_bid(spec: _ImplementationFile, iface: CapabilityInterface, where: str) -> FileBid:
+    given = spec.bid
+    if given is None or isinstance(given, str):
+        return FileBid(spec.cost, _load_bid(given, where) if given else None, None)
+    d = given.distance_from
+    if given.to not in iface.inputs:
+        inputs = ", ".join(iface.inputs) or "none"
+        raise CapabilityFileError(
+            f"{where}: bid.to: {given.to!r} is not an input of {iface.name} (inputs: {inputs})"
+        )
+    if not (given.factor >= 0 and given.factor != float("inf")):
+        raise CapabilityFileError(f"{where}: bid.factor: {given.factor}; expected a number >= 0")
+    if not d.topic:
+        raise CapabilityFileError(f"{where}: bid.distance_from.topic: expected a topic name")
+    if not _MSG_TYPE.match(d.type):
+        raise CapabilityFileError(
+            f"{where}: bid.distance_from.type: {d.type!r}; expected a message type "
+            "'package/msg/Name' (geometry_msgs/msg/PoseStamped)"
+        )
+    if d.max_age_s is not None and not d.max_age_s > 0:
+        raise CapabilityFileError(
+            f"{where}: bid.distance_from.max_age_s: {d.max_age_s}; expected seconds > 0"
+        )
+    function = _load_bid(given.function, where) if given.function else None
+    distance = DistanceBid(d.topic, d.type, given.to, given.factor, d.max_age_s, where)
+    return FileBid(spec.cost, function, distance)

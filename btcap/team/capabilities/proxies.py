@@ -93,6 +93,8 @@ class LocalExecution(_Handle):
         super().__init__(side, execution, side.robot, node, cost)
         self.run = run
         self.live = False
+        # The node ticks the run: news for the run's nodes (a ROS goal answered) is its tree's.
+        run.tree.alarm.outer = node._tree
 
     @property
     def lost(self) -> bool:

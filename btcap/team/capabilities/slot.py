@@ -6,6 +6,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from btcap.actors.services import Service
 from btcap.bt.node import Leaf
+from btcap.bt.running import nudge_holder
 from btcap.bt.state import State, TreeError
 from btcap.team.capabilities.implementation import ImplementationRun
 from btcap.team.core.hosting import Hosted
@@ -63,6 +64,7 @@ class RemoteCapabilitySlot(Leaf):
         hosted.run.tree.setup()
         hosted.run.tree.alarm.outer = self._tree  # news for its nodes: this tree ticks
         self.current = hosted
+        nudge_holder(self)  # its first tick now, not this tree's next period
         return None
 
     def unload(self, execution: ExecutionId) -> None:

@@ -24,6 +24,7 @@ from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.errors import BtcapError
 from btcap.team.capabilities.capability import Capability
+from btcap.team.capabilities.capfiles import FileBid
 from btcap.team.core.effects import Lost
 from btcap.team.deployment.agentconfig import RobotConfig
 from btcap.team.membership.membership import Membership
@@ -97,7 +98,19 @@ async def _serving(
 ) -> AsyncIterator[Agent]:
     _, impls = config.load_capabilities(registry, implementations=implementations)
     if ros is not None:
-        impls = ros.wrap(impls)
+        try:
+            impls = ros.wrap(impls)
+        except BtcapError as exc:  # a pose type that cannot work: one line, the file
+            raise config.error("capabilities.implementations", str(exc)) from None
+    else:
+        for impl in impls:
+            if isinstance(impl.bid, FileBid) and impl.bid.distance is not None:
+                where = impl.bid.distance.where
+                raise config.error(
+                    "capabilities.implementations",
+                    f"{where}: bid.distance_from reads the robot's pose over ROS 2: "
+                    "the agent file needs a ros: block",
+                )
     plugged = config.load_plugin(factory=implementations)
     messages = plugged.messages
     transport = config.transport(messages, robot=robot, ephemeral=ephemeral, insecure=insecure)

@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from btcap.actors import Actor, Supervision, handler
+from btcap.bt.running import nudge, nudge_holder
 from btcap.bt.state import State
 from btcap.team.allocation.auction import SingleItemAuction
 from btcap.team.allocation.strategy import RobotContext, Strategy
@@ -228,7 +229,9 @@ class MissionControl(Actor):
         if isinstance(e, Send):
             self.send(e.to, e.message)
         elif isinstance(e, Lost):
-            self.active.pop(e.execution, None)
+            handle = self.active.pop(e.execution, None)
+            if handle is not None:  # its node re-assigns the work at once
+                nudge_holder(handle.node)
             self.stats.lost += 1
             where = {"execution": str(e.execution), "executor": e.executor}
             log.warning("mission.execution_lost", robot=self.robot, why=e.why, **where)
@@ -276,7 +279,21 @@ class MissionControl(Actor):
     def on_keepalive(self, msg: KeepAlive) -> None:
         now = self.now()
         self.origin.keepalive(self.sender, msg.executions, now, msg.stamps)
+        before = self._hosted_now(now)
         self.host.keepalive(self.sender, msg, now)
+        self._hosted_news(before, now)
+
+    def _hosted_now(self, now: float) -> tuple[Any, ...] | None:
+        """What the run in the slot acts on: its inputs, whether paused, whether leased."""
+        slot = self.executor.slot
+        h = None if slot is None else slot.current
+        return None if h is None else (h, h.inputs, h.paused, h.leased(now))
+
+    def _hosted_news(self, before: tuple[Any, ...] | None, now: float) -> None:
+        """The run in the slot may act on news (its first renewal, new inputs): at once,
+        not at the slot tree's next period."""
+        if before is not None and self._hosted_now(now) != before:
+            nudge(before[0].run.tree)
 
     # -- executor side ----------------------------------------------------------------
     @handler
@@ -304,7 +321,9 @@ class MissionControl(Actor):
     @handler
     def on_inputs(self, msg: ExecutionInputs) -> None:
         now = self.now()
+        before = self._hosted_now(now)
         self.perform(self.host.inputs(self.sender, msg, now, self.executor.convert))
+        self._hosted_news(before, now)
 
     @handler
     def on_pause(self, msg: PauseExecution) -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Awaitable, Callable
 from typing import Any, Protocol
 
+from btcap.bt.running import nudge_holder
 from btcap.bt.state import State
 from btcap.team.allocation.strategy import Allocator, AuctionRecord
 from btcap.team.capabilities.capability import Capability
@@ -222,6 +223,7 @@ class Reevaluation:
             return
         ex.replacement = new
         mc.active[new.id] = new
+        nudge_holder(ex.node)  # adopted at the node's next tick: now
         mc.stats.moved += 1
         mc.stats.undone += self.handovers.moved(id(node), ex.robot, won.robot, mc.now())
         log.info(
@@ -340,6 +342,7 @@ class Reevaluation:
             mc.active[new.id] = new
             to = cycle[(i + 1) % n].robot
             mc.stats.undone += self.handovers.moved(id(old.node), old.robot, to, now)
+            nudge_holder(old.node)
         mc.stats.moved += n
         mc.stats.exchanged += 1
         log.info(

@@ -13,6 +13,7 @@ import itertools
 from collections.abc import Coroutine, Iterable
 from typing import Any, Protocol
 
+from btcap.bt.running import nudge_holder
 from btcap.bt.state import TreeError
 from btcap.team.allocation.strategy import Allocator
 from btcap.team.capabilities.capability import Capability
@@ -213,6 +214,8 @@ class OriginSide:
             raise
         finally:
             req.done = True
+            if not req.cancelled:  # the node acts on the outcome at once, not a period later
+                nudge_holder(node)
         if not isinstance(won, Assigned) or won.robot != self.robot:
             self.withdrawn(task.execution)  # a self-award it gave up on, then took
         if not isinstance(won, Assigned):
@@ -229,8 +232,15 @@ class OriginSide:
             req.execution = None
 
     def status(self, sender: str, msg: ExecutionStatus) -> None:
-        """A report on a remote execution: its outputs typed by the node's interface."""
+        """A report on a remote execution: its outputs typed by the node's interface. One
+        that changed what its node reads (state, outputs, lost) ticks the node's tree soon."""
+        t = self.leases.tracked.get(msg.execution)
+        before = None if t is None else (t.state, t.outputs, t.lost)
         self.host.perform(self.leases.status(sender, msg, self.host.now(), self._convert))
+        if t is not None and (t.state, t.outputs, t.lost) != before:
+            handle = self.active.get(msg.execution)
+            if handle is not None:
+                nudge_holder(handle.node)
         if msg.state in RUN_DONE and msg.execution not in self.leases.tracked:
             handle = self.active.get(msg.execution)
             if isinstance(handle, RemoteExecution) and handle.tracked.state in RUN_DONE:
