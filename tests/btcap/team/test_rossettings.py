@@ -25,7 +25,8 @@ from btcap.team.rossettings import Qos, RosSettings
         ("{qos: {depth: 0}}", "ros.qos.depth: Expected `int` >= 1"),
         (
             "{domian_id: 3}",
-            "ros: Object contains unknown field `domian_id`; expected one of domain_id",
+            "ros: Object contains unknown field `domian_id`; "
+            "expected one of backend, master_uri, domain_id",
         ),
     ],
 )
