@@ -25,7 +25,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
-from btcap.actors import TimeSource
+from btcap.actors import ManualClock, TimeSource
+from btcap.actors.clock import ClockTimer
 from btcap.bt.tree import Tree
 from btcap.monitor.hub import Hub
 from btcap.monitor.net import is_loopback
@@ -101,6 +102,10 @@ class Monitor:
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
         self._task: asyncio.Task[None] | None = None
+        # batches on a ManualClock: a timer of the clock (no task, no future), armed first
+        # by a loop callback where a flusher task would start (same order at a deadline)
+        self._timer: ClockTimer | asyncio.Handle | None = None
+        self._started = False
         self._following: TimeSource | None = None
         self._finished = False
         if port is not None and not is_loopback(host):
@@ -137,11 +142,29 @@ class Monitor:
 
     def _pace(self, clock: TimeSource | None, every_s: float = FOLLOW_EVERY_S) -> None:
         """Batch on the wall (None) or every ``every_s`` of ``clock``."""
+        self._started = True
         if self._task is not None:
             self._task.cancel()
+            self._task = None
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
         self._following = clock
+        if isinstance(clock, ManualClock):
+            self._timer = asyncio.get_running_loop().call_soon(self._arm, clock, every_s)
+            return
         flusher = self._flusher() if clock is None else self._clock_flusher(clock, every_s)
         self._task = asyncio.get_running_loop().create_task(flusher, name="monitor")
+
+    def _arm(self, clock: ManualClock, every_s: float) -> None:
+        """The next batch as a timer of the clock: a wake-up costs the clock one callback
+        rather than a task's step and a future (a batch falls every simulator step)."""
+
+        def fire() -> None:
+            self._safe_flush()
+            self._arm(clock, every_s)  # after the batch, as a sleeping flusher re-arms
+
+        self._timer = clock.call_later(every_s, fire)
 
     def follow(self, clock: TimeSource, *, every_s: float = FOLLOW_EVERY_S) -> None:
         """Batch every ``every_s`` seconds of ``clock`` if it is virtual (an infinite
@@ -151,7 +174,7 @@ class Monitor:
         that keeps pace with the wall changes nothing (batches stay on wall time)."""
         if not every_s > 0:
             raise ValueError(f"every_s {every_s}: expected clock seconds > 0")
-        if self._task is None:
+        if not self._started:
             raise RuntimeError("start the monitor before it follows a clock")
         if math.isinf(clock.speedup):
             self.flush()  # what wall time collected so far: before the clock's batches
@@ -164,7 +187,7 @@ class Monitor:
             detach()
         self._detach.clear()
         self.flush()
-        if self._following is not None and self._task is not None:
+        if self._following is not None and self._started:
             self._pace(None)
 
     def finish(self, result: str, summary: str) -> None:
@@ -184,6 +207,9 @@ class Monitor:
         """Detach from everything, hand on the last changes and how the run ended (see
         :meth:`finish`), close the pages (they keep the final picture) and the file."""
         self.detach()
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
