@@ -17,8 +17,6 @@ clock instead, so the recording of a deterministic run is the same byte for byte
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -29,6 +27,7 @@ from btcap.actors import TimeSource
 from btcap.bt.tree import Tree
 from btcap.monitor.hub import Hub
 from btcap.monitor.net import is_loopback
+from btcap.monitor.pacing import Pacer
 from btcap.monitor.record import open_recorder
 from btcap.monitor.taps import TreeTap
 from btcap.monitor.view import Event, TeamView
@@ -100,8 +99,7 @@ class Monitor:
         self._ended: dict[str, tuple[str, str | None]] = {}  # node -> (result, why)
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
-        self._task: asyncio.Task[None] | None = None
-        self._following: TimeSource | None = None
+        self._pacer = Pacer(self._safe_flush, self.batch_s)
         self._finished = False
         if port is not None and not is_loopback(host):
             log.warning("monitor.public", host=host, note="anyone who can reach it sees the team")
@@ -133,15 +131,7 @@ class Monitor:
                 if self._recorder is not None:
                     self._recorder.close()
                 raise
-        self._pace(None)
-
-    def _pace(self, clock: TimeSource | None, every_s: float = FOLLOW_EVERY_S) -> None:
-        """Batch on the wall (None) or every ``every_s`` of ``clock``."""
-        if self._task is not None:
-            self._task.cancel()
-        self._following = clock
-        flusher = self._flusher() if clock is None else self._clock_flusher(clock, every_s)
-        self._task = asyncio.get_running_loop().create_task(flusher, name="monitor")
+        self._pacer.pace(None, FOLLOW_EVERY_S)
 
     def follow(self, clock: TimeSource, *, every_s: float = FOLLOW_EVERY_S) -> None:
         """Batch every ``every_s`` seconds of ``clock`` if it is virtual (an infinite
@@ -151,11 +141,11 @@ class Monitor:
         that keeps pace with the wall changes nothing (batches stay on wall time)."""
         if not every_s > 0:
             raise ValueError(f"every_s {every_s}: expected clock seconds > 0")
-        if self._task is None:
+        if not self._pacer.started:
             raise RuntimeError("start the monitor before it follows a clock")
         if math.isinf(clock.speedup):
             self.flush()  # what wall time collected so far: before the clock's batches
-            self._pace(clock, every_s)
+            self._pacer.pace(clock, every_s)
 
     def detach(self) -> None:
         """Stop watching (the picture and the page stay, e.g. a finished mission's last
@@ -164,8 +154,8 @@ class Monitor:
             detach()
         self._detach.clear()
         self.flush()
-        if self._following is not None and self._task is not None:
-            self._pace(None)
+        if self._pacer.following is not None and self._pacer.started:
+            self._pacer.pace(None, FOLLOW_EVERY_S)
 
     def finish(self, result: str, summary: str) -> None:
         """Say the run is over and hand it on at once, after the changes before it:
@@ -184,11 +174,7 @@ class Monitor:
         """Detach from everything, hand on the last changes and how the run ended (see
         :meth:`finish`), close the pages (they keep the final picture) and the file."""
         self.detach()
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
+        await self._pacer.stop()
         self.flush()
         if not self._finished:
             self.finish("stopped", "monitoring stopped")
@@ -413,18 +399,6 @@ class Monitor:
             self._live.write(batch)
         self._hub.publish(batch)
         return batch
-
-    async def _flusher(self) -> None:
-        while True:
-            await asyncio.sleep(self.batch_s)
-            self._safe_flush()
-
-    async def _clock_flusher(self, clock: TimeSource, every_s: float) -> None:
-        deadline = clock.now()
-        while True:
-            deadline += every_s
-            await clock.sleep_until(deadline)
-            self._safe_flush()
 
     def _safe_flush(self) -> None:
         try:

@@ -1,10 +1,12 @@
 """Where a monitor's node events come from: one tap per tree.
 
-A tap costs the ticking tree nothing but its capability nodes' transitions, which are
-rare and make the timeline: those are observed and reported at once, with their clock
-time. Every other node's state is read when the monitor flushes (at most 20 times a
-second), and only the nodes whose state differs from the last batch are sent: a page
-sees the latest state of each node per batch, as it would from coalesced changes.
+A tap costs the ticking tree one call per node transition, which are rare (a tick
+mostly leaves every state as it was): capability nodes' transitions make the timeline
+and are reported at once, with their clock time; any other only marks the tap changed.
+The states are read when the monitor flushes (at most 20 times a second), only in a tap
+marked changed (most batches of a ``--fast`` run have none: no walk), and only the nodes
+whose state differs from the last batch are sent: a page sees the latest state of each
+node per batch, as it would from coalesced changes.
 
 The implementation a :class:`~btcap.team.capabilities.slot.RemoteCapabilitySlot` runs for another
 robot is a tree of its own: it is shown below the slot while it runs.
@@ -45,14 +47,26 @@ class TreeTap:
         self._paths: list[str] = []
         self._sent: list[State] = []
         self._runs: dict[Node, tuple[str, str]] = {}  # node -> (execution, executor)
-        self._unobserve = tree.observe(self._changed, only=Capability)
+        self._changed_since = True  # a node changed state since the last batch
+        self._unobserve = tree.observe(self._changed)
+        self._unhosted: list[Callable[[], None]] = []  # the hosted runs' trees observed
 
     def close(self) -> None:
         self._unobserve()
+        self._unobserve_hosted()
+
+    def _unobserve_hosted(self) -> None:
+        for undo in self._unhosted:
+            undo()
+        self._unhosted.clear()
 
     def _changed(self, node: Node, old: State, new: State) -> None:
+        self._changed_since = True
         if isinstance(node, Capability):
             self._capability(node, new)
+
+    def _hosted_changed(self, node: Node, old: State, new: State) -> None:
+        self._changed_since = True
 
     def _capability(self, node: Capability, new: State) -> None:
         ex = node.execution
@@ -97,6 +111,7 @@ class TreeTap:
         """The whole tree as one event (sent at the start and whenever it changed)."""
         own = list(self.tree.nodes())
         self._slots = [n for n in own if isinstance(n, RemoteCapabilitySlot)]
+        self._unobserve_hosted()
         nodes: list[Node] = []
         parents: list[str | None] = []
         paths: list[str] = []
@@ -105,6 +120,8 @@ class TreeTap:
             paths.append(n.path)
             parents.append(n.parent_node.path if n.parent_node is not None else None)
             hosted = n.current if isinstance(n, RemoteCapabilitySlot) else None
+            if hosted is not None:
+                self._unhosted.append(hosted.run.tree.observe(self._hosted_changed))
             for m in hosted.run.tree.nodes() if hosted is not None else ():
                 nodes.append(m)
                 paths.append(f"{n.path}/{m.path}")
@@ -113,6 +130,7 @@ class TreeTap:
                 )
         self._nodes, self._paths, self._shape = nodes, paths, self._shape_now()
         self._sent = [n.state for n in nodes]
+        self._changed_since = False
         for n in own:
             if isinstance(n, Capability) and n.state not in DONE:
                 self._capability(n, n.state)  # a run already under way when attached
@@ -139,6 +157,9 @@ class TreeTap:
         (nodes came or went, or a slot took up or put down a run)."""
         if self._shape_now() != self._shape:
             return self.structure()
+        if not self._changed_since:
+            return None
+        self._changed_since = False
         sent = self._sent
         states: dict[str, str] = {}
         for i, n in enumerate(self._nodes):

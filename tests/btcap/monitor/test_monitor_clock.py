@@ -54,3 +54,47 @@ async def test_follow_needs_a_started_monitor_and_a_period() -> None:
         monitor.follow(ManualClock())
     with pytest.raises(ValueError, match="every_s"):
         monitor.follow(ManualClock(), every_s=0)
+
+
+async def test_batches_on_a_virtual_clock_cost_it_no_wake_up(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A recording must not slow a ``--fast`` run down: a batch is a timer of the clock,
+    and the clock lets the loop settle only after wake-ups that made something ready, so
+    a followed clock settles as often as one nobody watches (issue 32's budget)."""
+    import btcap.actors.clock as clock_module
+
+    settles = [0]
+    settle = clock_module._settle
+
+    async def counted() -> None:
+        settles[0] += 1
+        await settle()
+
+    monkeypatch.setattr(clock_module, "_settle", counted)
+
+    async def run(monitor: Monitor | None) -> int:
+        clock = ManualClock()
+        if monitor is not None:
+            monitor.follow(clock, every_s=0.5)
+        await asyncio.sleep(0)  # the batches' timer is armed as a flusher task would start
+
+        async def steps() -> None:  # a simulator stepping every 0.5 s
+            deadline = 0.0
+            while True:
+                deadline += 0.5
+                await clock.sleep_until(deadline)
+
+        task = asyncio.get_running_loop().create_task(steps())
+        settles[0] = 0
+        await clock.advance(10.0)
+        task.cancel()
+        return settles[0]
+
+    with anyio.fail_after(10):
+        alone = await run(None)
+        async with Monitor(port=None, record=tmp_path / "r.jsonl") as monitor:
+            monitor.emit({"t": 0.0, "k": "robot", "robot": "a"})
+            followed = await run(monitor)
+            assert "a" in monitor.snapshot()["robots"]  # the batches fell all the same
+    assert followed == alone
