@@ -16,12 +16,11 @@ each, in parallel) and stopping them.
 
 from __future__ import annotations
 
-import argparse
 import os
 from collections.abc import Sequence
 from typing import Any
 
-from btcap.bench.ros_sim import compare
+from btcap.bench.ros_sim import cli, compare
 
 __all__ = ["main", "run"]
 
@@ -33,12 +32,7 @@ def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[st
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m btcap.bench.ros1_sim", description=__doc__)
-    p.add_argument("--quick", action="store_true", help="speed-up 100 only, one run each")
-    p.add_argument("--speedup", type=float, action="append", help="speed-ups to run")
-    args = p.parse_args(argv)
-    run(quick=args.quick, speedups=args.speedup)
-    return 0
+    return cli(run, "python -m btcap.bench.ros1_sim", __doc__, argv)
 
 
 if __name__ == "__main__":

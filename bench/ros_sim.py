@@ -24,7 +24,7 @@ import asyncio
 import os
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from btcap.bench.common import write_result
@@ -33,7 +33,7 @@ from btcap.sim.metrics import MissionResult
 from btcap.sim.runner import run_fast, run_scenario
 from btcap.sim.scenario import load_scenario
 
-__all__ = ["compare", "main", "run"]
+__all__ = ["cli", "compare", "main", "run"]
 
 SCENARIO = "full-team"
 OUTCOME = ("objects", "found", "identified", "contaminated", "decontaminated", "coverage")
@@ -106,13 +106,21 @@ def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[st
     return compare("ros2", "ros_sim", speedups, 1 if quick else 3)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m btcap.bench.ros_sim", description=__doc__)
+def cli(
+    bench: Callable[..., dict[str, Any]], prog: str, doc: str | None, argv: Sequence[str] | None
+) -> int:
+    """The command line of this bench and :mod:`btcap.bench.ros1_sim`: ``--quick``,
+    ``--speedup`` given to ``bench`` (their ``run``)."""
+    p = argparse.ArgumentParser(prog=prog, description=doc)
     p.add_argument("--quick", action="store_true", help="speed-up 100 only, one run each")
     p.add_argument("--speedup", type=float, action="append", help="speed-ups to run")
     args = p.parse_args(argv)
-    run(quick=args.quick, speedups=args.speedup)
+    bench(quick=args.quick, speedups=args.speedup)
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli(run, "python -m btcap.bench.ros_sim", __doc__, argv)
 
 
 if __name__ == "__main__":
