@@ -24,7 +24,7 @@ import asyncio
 import os
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from btcap.bench.common import write_result
@@ -33,17 +33,18 @@ from btcap.sim.metrics import MissionResult
 from btcap.sim.runner import run_fast, run_scenario
 from btcap.sim.scenario import load_scenario
 
-__all__ = ["main", "run"]
+__all__ = ["cli", "compare", "main", "run"]
 
 SCENARIO = "full-team"
 OUTCOME = ("objects", "found", "identified", "contaminated", "decontaminated", "coverage")
 
 
-async def _once(speedup: float, ros2: bool) -> tuple[float, MissionResult]:
+async def _once(speedup: float, mode: str) -> tuple[float, MissionResult]:
+    """One run, ``mode`` ``direct``, ``ros1`` or ``ros2``."""
     s = load_scenario(builtin_scenarios()[SCENARIO])
     s.speedup = speedup
     t = time.perf_counter()
-    result = await run_scenario(s, ros2=ros2)
+    result = await run_scenario(s, ros1=mode == "ros1", ros2=mode == "ros2")
     return time.perf_counter() - t, result
 
 
@@ -51,19 +52,19 @@ def _median(xs: list[float]) -> float:
     return statistics.median(xs) if xs else float("nan")
 
 
-def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[str, Any]:
-    speedups = speedups or ((100.0,) if quick else (50.0, 100.0))
-    repeats = 1 if quick else 3
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+def compare(backend: str, result: str, speedups: Sequence[float], repeats: int) -> dict[str, Any]:
+    """The mission through ``backend`` (``ros1`` or ``ros2``: :func:`run_scenario`'s
+    keyword) against the direct run, alternately, ``repeats`` times each per speed-up;
+    written as ``result``. Shared by this bench and :mod:`btcap.bench.ros1_sim`."""
     reference = asyncio.run(run_fast(load_scenario(builtin_scenarios()[SCENARIO])))
     want = {k: reference.summary[k] for k in OUTCOME}
     load = [os.getloadavg()[0]]
     rows: dict[str, Any] = {}
     for speedup in speedups:
-        runs: dict[str, list[tuple[float, MissionResult]]] = {"direct": [], "ros2": []}
+        runs: dict[str, list[tuple[float, MissionResult]]] = {"direct": [], backend: []}
         for _ in range(repeats):
-            for mode in ("direct", "ros2"):
-                runs[mode].append(asyncio.run(_once(speedup, mode == "ros2")))
+            for mode in ("direct", backend):
+                runs[mode].append(asyncio.run(_once(speedup, mode)))
                 load.append(os.getloadavg()[0])
         row: dict[str, Any] = {}
         for mode, got in runs.items():
@@ -75,16 +76,16 @@ def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[st
                 ),
             }
         for key in ("wall_s", "mission_s"):
-            row[f"ratio_{key}"] = round(_median(row["ros2"][key]) / _median(row["direct"][key]), 3)
+            row[f"ratio_{key}"] = round(_median(row[backend][key]) / _median(row["direct"][key]), 3)
         rows[f"{speedup:g}"] = row
         print(
-            f"speed-up {speedup:g}: wall ros2/direct {row['ratio_wall_s']:.2f} "
-            f"(median {_median(row['ros2']['wall_s']):.1f} / "
+            f"speed-up {speedup:g}: wall {backend}/direct {row['ratio_wall_s']:.2f} "
+            f"(median {_median(row[backend]['wall_s']):.1f} / "
             f"{_median(row['direct']['wall_s']):.1f} s), mission time ratio "
-            f"{row['ratio_mission_s']:.2f} ({_median(row['ros2']['mission_s']):.0f} / "
+            f"{row['ratio_mission_s']:.2f} ({_median(row[backend]['mission_s']):.0f} / "
             f"{_median(row['direct']['mission_s']):.0f} s; fast mode "
-            f"{reference.mission_time_s:.0f} s); same outcome: ros2 "
-            f"{row['ros2']['same_outcome']}, direct {row['direct']['same_outcome']}",
+            f"{reference.mission_time_s:.0f} s); same outcome: {backend} "
+            f"{row[backend]['same_outcome']}, direct {row['direct']['same_outcome']}",
             flush=True,
         )
     data = {
@@ -95,17 +96,31 @@ def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[st
         "speedups": rows,
         "load_avg_1m": {"min": min(load), "max": max(load)},
     }
-    print(f"wrote {write_result('ros_sim', data)}")
+    print(f"wrote {write_result(result, data)}")
     return data
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m btcap.bench.ros_sim", description=__doc__)
+def run(quick: bool = False, speedups: Sequence[float] | None = None) -> dict[str, Any]:
+    speedups = speedups or ((100.0,) if quick else (50.0, 100.0))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+    return compare("ros2", "ros_sim", speedups, 1 if quick else 3)
+
+
+def cli(
+    bench: Callable[..., dict[str, Any]], prog: str, doc: str | None, argv: Sequence[str] | None
+) -> int:
+    """The command line of this bench and :mod:`btcap.bench.ros1_sim`: ``--quick``,
+    ``--speedup`` given to ``bench`` (their ``run``)."""
+    p = argparse.ArgumentParser(prog=prog, description=doc)
     p.add_argument("--quick", action="store_true", help="speed-up 100 only, one run each")
     p.add_argument("--speedup", type=float, action="append", help="speed-ups to run")
     args = p.parse_args(argv)
-    run(quick=args.quick, speedups=args.speedup)
+    bench(quick=args.quick, speedups=args.speedup)
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli(run, "python -m btcap.bench.ros_sim", __doc__, argv)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,14 @@ import msgspec
 
 from btcap.sim.grid import GridMap
 from btcap.sim.model import RobotModel, load_team, paper_team
-from btcap.team.rossettings import Qos, RosSettings, check_namespace, check_node_name
+from btcap.team.rossettings import (
+    DomainId,
+    Qos,
+    RosBackend,
+    RosSettings,
+    check_namespace,
+    check_node_name,
+)
 from btcap.team.settings import (
     Allocation,
     AuctionWindowS,
@@ -164,7 +171,7 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
     (:class:`~btcap.team.rossettings.RosSettings`) made from it."""
 
     backend: Annotated[
-        Literal["ros2", "ros1"],
+        RosBackend,
         _doc(
             "`ros2` (docs/ros2-sim.md), or `ros1`: each robot a `move_base` action server "
             "and the manager's operations ROS 1 services, as in the paper (docs/ros1.md), "
@@ -175,10 +182,7 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
         str | None,
         _doc("ROS 1 only: the master to serve on; null: the run starts its own on loopback."),
     ] = None
-    domain_id: Annotated[
-        Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
-        _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
-    ] = None
+    domain_id: DomainId = None
     namespace: Annotated[
         str,
         _doc(

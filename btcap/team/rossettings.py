@@ -13,7 +13,7 @@ from typing import Annotated, Literal
 
 import msgspec
 
-__all__ = ["Qos", "RosSettings", "check_namespace", "check_node_name"]
+__all__ = ["DomainId", "Qos", "RosBackend", "RosSettings", "check_namespace", "check_node_name"]
 
 _TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
 _NAMESPACE = re.compile(rf"^(/{_TOKEN})+$|^/$")
@@ -22,6 +22,16 @@ _NODE = re.compile(rf"^{_TOKEN}$")
 
 def _doc(text: str) -> msgspec.Meta:
     return msgspec.Meta(description=text)
+
+
+#: The ROS a ``ros`` block is for: an agent's (:class:`RosSettings`) and the simulator's
+#: (btcap.sim.scenariofile's ``ScenarioRos``).
+RosBackend = Literal["ros2", "ros1"]
+#: The ROS 2 domain field of both ``ros`` blocks, with its bounds and its doc.
+DomainId = Annotated[
+    Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
+    _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
+]
 
 
 def check_namespace(value: str, where: str = "namespace") -> str:
@@ -64,7 +74,7 @@ class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
     """The robot's ROS node: where in the ROS graph its tree nodes live."""
 
     backend: Annotated[
-        Literal["ros2", "ros1"],
+        RosBackend,
         _doc(
             "`ros2` (rclpy, docs/ros2.md) or `ros1` (rospy and actionlib in a process of "
             "the robot's own, on the master of `master_uri`: docs/ros1.md)."
@@ -75,10 +85,7 @@ class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
         _doc("ROS 1 only: the master's URI; null: `ROS_MASTER_URI`, else http://localhost:11311/."),
     ] = None
 
-    domain_id: Annotated[
-        Annotated[int, msgspec.Meta(ge=0, le=232)] | None,
-        _doc("The ROS 2 domain (0-232; 0-101 on every DDS); null: `ROS_DOMAIN_ID` or 0."),
-    ] = None
+    domain_id: DomainId = None
     namespace: Annotated[
         str | None,
         _doc(

@@ -12,15 +12,13 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import time
-from typing import Any
 
-from btcap.actors import Actor
 from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.interfaces1 import interface1
-from btcap.sim.messages import PositionUpdate
 from btcap.sim.model import RobotModel
 from btcap.sim.ros1.names1 import MOVE_BASE, MOVE_BASE_TYPE, OPERATE_TYPE, STATE_TYPE
 from btcap.sim.ros2.names import OPERATIONS
+from btcap.sim.rosstate import StateLink
 from btcap.team.rossettings import RosSettings
 
 __all__ = ["RobotLink1", "RobotLinks1"]
@@ -30,14 +28,14 @@ DISCOVERY_S = 30.0
 _POLL_S = 0.05
 
 
-class RobotLink1:
+class RobotLink1(StateLink):
     """One robot's bridge, its clients, and its state told to ``body`` once spawned."""
 
     def __init__(
         self, bridge: Ros1Bridge, robot: str, model: RobotModel, loop: asyncio.AbstractEventLoop
     ) -> None:
-        self.bridge, self.robot, self.loop = bridge, robot, loop
-        self.body: Actor | None = None
+        super().__init__(robot, loop)
+        self.bridge = bridge
         self.servers = [("action", MOVE_BASE_TYPE, MOVE_BASE)]
         self.servers += [("service", OPERATE_TYPE, op) for op in OPERATIONS if model.can(op)]
         for kind, type_name, name in self.servers:  # opened now: found by the time we run
@@ -51,17 +49,6 @@ class RobotLink1:
             for kind, type_name, name in self.servers
             if not self.bridge.server_ready(kind, type_name, name)
         ]
-
-    def _on_state(self, msg: Any) -> None:  # the bridge's reader thread
-        update = PositionUpdate(
-            self.robot, (int(msg.row), int(msg.col)), msg.operation, int(msg.target), msg.phase
-        )
-        self.loop.call_soon_threadsafe(self._tell_body, update)
-
-    def _tell_body(self, update: PositionUpdate) -> None:
-        body = self.body
-        if body is not None and body._system is not None:
-            body.ref.tell(update)
 
 
 class RobotLinks1:

@@ -13,26 +13,24 @@ transport; what reaches their bodies goes over ROS 1.
 from __future__ import annotations
 
 import asyncio
-import math
 from typing import Any
 
 import anyio
 
-from btcap.actors import ActorRef, ActorSystem, TimeSource
-from btcap.sim.capabilities import RobotSetup, robot_setup
+from btcap.actors import ActorRef, TimeSource
+from btcap.sim.capabilities import RobotSetup
 from btcap.sim.grid import GridMap
-from btcap.sim.hosts import InProcessHost
 from btcap.sim.manager import SimulationManager
 from btcap.sim.model import RobotModel
-from btcap.sim.robot import Body
 from btcap.sim.ros1 import ros1_missing
 from btcap.sim.ros1.client import RobotLinks1
 from btcap.sim.ros1.master import RunMaster, ros_env
 from btcap.sim.ros1.server import Ros1SimError, SimServers1
 from btcap.sim.ros2.steps import SERVER_TIMEOUT_S
+from btcap.sim.roshost import RosSimHost
 from btcap.sim.scenario import Scenario, check_ros_names
 from btcap.sim.scenariofile import ScenarioRos
-from btcap.transports import Address, MessageRegistry
+from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
 __all__ = ["Ros1Host", "Ros1SimError"]
@@ -104,8 +102,8 @@ def _with_master(ros: ScenarioRos, uri: str) -> ScenarioRos:
     return msgspec.structs.replace(ros, backend="ros1", master_uri=uri)
 
 
-class Ros1Host(InProcessHost):
-    """:class:`~btcap.sim.hosts.InProcessHost` with every robot's body behind ROS 1; the
+class Ros1Host(RosSimHost):
+    """:class:`~btcap.sim.roshost.RosSimHost` with every robot's body behind ROS 1; the
     ``manager`` is the run's simulation manager (its robots' state is published).
 
     Needs a real clock (ROS runs in real time): a speed-up, not a virtual clock.
@@ -120,12 +118,9 @@ class Ros1Host(InProcessHost):
         *,
         manager: SimulationManager,
     ) -> None:
-        if not math.isfinite(clock.speedup):
-            raise ValueError("robots behind ROS 1 run on a real clock (a speed-up), not --fast")
-        super().__init__(s, clock, reg, grid)
-        self.manager = manager
-        #: The robots' ROS settings: the scenario's ``ros`` block, else its defaults.
-        self.ros = s.ros or ScenarioRos(backend="ros1")
+        super().__init__(
+            s, clock, reg, grid, manager=manager, backend="ROS 1", ros=ScenarioRos(backend="ros1")
+        )
         self.started: _Started | None = None
         #: Goals and calls each robot's servers took, per server, once the host closed.
         self.served: dict[str, dict[str, int]] = {}
@@ -137,13 +132,7 @@ class Ros1Host(InProcessHost):
         if why is not None:
             raise Ros1SimError(why)
         check_ros_names(self.s, self.ros)
-        system = ActorSystem(
-            SYSTEM_ID, transport=self.net.transport(SYSTEM_ID), registry=self.reg, clock=self.clock
-        )
-        await self._stack.enter_async_context(system)
-        ref = system.ref(Address.parse("sim/manager"))
-        robots = {r.name: self.models[r.model] for r in self.s.robots}
-        loop = asyncio.get_running_loop()
+        ref, robots, loop = await self._manager_side(SYSTEM_ID)
         started = _Started()
         try:
             await anyio.to_thread.run_sync(
@@ -175,16 +164,11 @@ class Ros1Host(InProcessHost):
     def setup(self, name: str) -> RobotSetup:
         """The robot's implementations, their trees made of ROS 1 RosAction and RosService
         nodes on its bridge, each bidding only while the servers it calls answer."""
-        from btcap.ros.capability import with_ros
         from btcap.sim.ros1.steps import RosDrive1
 
         started = self.started
         if started is None or started.links is None:
             raise RuntimeError("Ros1Host: start robots inside `async with host`")
         link = started.links.links[name]
-        model = next(r.model for r in self.s.robots if r.name == name)
         drive = RosDrive1(link.bridge, self.grid.cell_size_m, self.call_timeout_s)
-        setup = robot_setup(name, self.models[model], self.grid, drive=drive)
-        setup.implementations = [with_ros(i, link.bridge) for i in setup.implementations]
-        link.body = setup.actors[Body.PATH]
-        return setup
+        return self._setup_on(name, link, drive)

@@ -19,7 +19,7 @@ from typing import Any
 
 from btcap.errors import BtcapError
 
-__all__ = ["RunMaster", "RunMasterError", "ros_env"]
+__all__ = ["RunMaster", "RunMasterError", "free_port", "ros_env"]
 
 #: A bound, not a measure: rosmaster answers in about half a second here.
 READY_S = 30.0
@@ -40,30 +40,47 @@ def ros_env(master_uri: str, home: str | None = None) -> dict[str, str]:
     return env
 
 
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
 class RunMaster:
     """One rosmaster process, started by :meth:`start` and stopped by :meth:`stop` (both
-    block: a thread); ``uri`` is its ``ROS_MASTER_URI``."""
+    block: a thread); ``uri`` is its ``ROS_MASTER_URI``. Its logs go to ``home``, else to
+    a temporary folder removed by :meth:`stop` (the ROS 1 tests' master passes its own)."""
 
-    def __init__(self) -> None:
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            self.port: int = s.getsockname()[1]
+    def __init__(self, home: str | None = None) -> None:
+        self.port = free_port()
         self.uri = f"http://127.0.0.1:{self.port}/"
-        self.home = tempfile.mkdtemp(prefix="btcap-rosmaster-")
+        self._own_home = home is None
+        self.home = tempfile.mkdtemp(prefix="btcap-rosmaster-") if home is None else home
         self.process: subprocess.Popen[bytes] | None = None
 
+    @staticmethod
+    def executable() -> str | None:
+        """The ``rosmaster`` to run (Debian's python3-rosmaster), or None."""
+        return shutil.which("rosmaster", path=f"{os.environ.get('PATH', '')}:/usr/bin")
+
+    def env(self) -> dict[str, str]:
+        """The master's environment: :func:`ros_env`, on loopback."""
+        env = ros_env(self.uri, self.home)
+        env["ROS_IP"] = "127.0.0.1"
+        return env
+
     def start(self) -> RunMaster:
-        exe = shutil.which("rosmaster", path=f"{os.environ.get('PATH', '')}:/usr/bin")
+        exe = self.executable()
         if exe is None:
             raise RunMasterError(
                 "--ros1 needs a ROS 1 master: Debian's python3-rosmaster is not installed "
                 "(`make ros1`), or give the scenario's ros.master_uri"
             )
-        env = ros_env(self.uri, self.home)
-        env["ROS_IP"] = "127.0.0.1"
         self.process = subprocess.Popen(
             [exe, "--core", "-p", str(self.port)],
-            env=env,
+            env=self.env(),
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
@@ -95,7 +112,8 @@ class RunMaster:
             time.sleep(0.05)
 
     def stop(self) -> None:
-        """Terminate the master (kill it if it does not go), reap it, remove its logs."""
+        """Terminate the master (kill it if it does not go), reap it, remove its logs
+        (unless ``home`` was given). Idempotent."""
         process = self.process
         if process is not None and process.returncode is None:
             process.terminate()
@@ -106,4 +124,5 @@ class RunMaster:
                 process.wait()
         if process is not None and process.stderr is not None:
             process.stderr.close()
-        shutil.rmtree(self.home, ignore_errors=True)
+        if self._own_home:
+            shutil.rmtree(self.home, ignore_errors=True)

@@ -14,15 +14,13 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
-from typing import Any
 
 from btcap_sim_msgs.msg import RobotState
 
-from btcap.actors import Actor
 from btcap.ros.client import RosBridge
-from btcap.sim.messages import PositionUpdate
 from btcap.sim.model import RobotModel
 from btcap.sim.ros2.names import NAVIGATE_TYPE, OPERATE_TYPE, OPERATIONS
+from btcap.sim.rosstate import StateLink
 from btcap.sim.scenariofile import ScenarioRos
 from btcap.team.rossettings import Qos
 
@@ -35,17 +33,15 @@ DISCOVERY_S = 30.0
 STATE_QOS = Qos(depth=100)
 
 
-class RobotLink:
+class RobotLink(StateLink):
     """One robot's bridge, its action clients, and its state told to ``body`` (its
     :class:`~btcap.sim.robot.Body`, once spawned)."""
 
     def __init__(
         self, bridge: RosBridge, robot: str, model: RobotModel, loop: asyncio.AbstractEventLoop
     ) -> None:
+        super().__init__(robot, loop)
         self.bridge = bridge
-        self.robot = robot
-        self.loop = loop
-        self.body: Actor | None = None
         # Names relative to the bridge's namespace, as a real robot's files have them; the
         # RosAction nodes of its implementations use these clients (the bridge shares them).
         self.clients = [bridge.action_client(NAVIGATE_TYPE, "navigate_to_pose")]
@@ -62,17 +58,6 @@ class RobotLink:
             if not client.wait_for_server(timeout_sec=timeout_s):
                 missing.append(client._action_name)
         return missing
-
-    def _on_state(self, msg: Any) -> None:
-        update = PositionUpdate(
-            self.robot, (int(msg.row), int(msg.col)), msg.operation, int(msg.target), msg.phase
-        )
-        self.loop.call_soon_threadsafe(self._tell_body, update)
-
-    def _tell_body(self, update: PositionUpdate) -> None:
-        body = self.body
-        if body is not None and body._system is not None:
-            body.ref.tell(update)
 
 
 class RobotLinks:

@@ -15,23 +15,21 @@ DDS, in the domain, namespaces and QoS of the scenario's ``ros`` block (its defa
 from __future__ import annotations
 
 import asyncio
-import math
 from typing import TYPE_CHECKING, Any
 
 import anyio
 
-from btcap.actors import ActorRef, ActorSystem, TimeSource
+from btcap.actors import ActorRef, TimeSource
 from btcap.errors import BtcapError
-from btcap.sim.capabilities import RobotSetup, robot_setup
+from btcap.sim.capabilities import RobotSetup
 from btcap.sim.grid import GridMap
-from btcap.sim.hosts import InProcessHost
 from btcap.sim.manager import SimulationManager
 from btcap.sim.model import RobotModel
-from btcap.sim.robot import Body
 from btcap.sim.ros2 import ros2_missing
+from btcap.sim.roshost import RosSimHost
 from btcap.sim.scenario import Scenario, check_ros_names
 from btcap.sim.scenariofile import ScenarioRos
-from btcap.transports import Address, MessageRegistry
+from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
 if TYPE_CHECKING:
@@ -93,8 +91,8 @@ def _close(servers: SimServers, links: RobotLinks) -> None:
         servers.close()
 
 
-class Ros2Host(InProcessHost):
-    """:class:`~btcap.sim.hosts.InProcessHost` with every robot's body behind ROS 2; the
+class Ros2Host(RosSimHost):
+    """:class:`~btcap.sim.roshost.RosSimHost` with every robot's body behind ROS 2; the
     ``manager`` is the run's simulation manager (its robots' state is published, not told).
 
     Needs a real clock (DDS runs in real time): a speed-up, not a virtual clock.
@@ -109,12 +107,7 @@ class Ros2Host(InProcessHost):
         *,
         manager: SimulationManager,
     ) -> None:
-        if not math.isfinite(clock.speedup):
-            raise ValueError("robots behind ROS 2 run on a real clock (a speed-up), not --fast")
-        super().__init__(s, clock, reg, grid)
-        self.manager = manager
-        #: The robots' ROS settings: the scenario's ``ros`` block, else its defaults.
-        self.ros = s.ros or ScenarioRos()
+        super().__init__(s, clock, reg, grid, manager=manager, backend="ROS 2", ros=ScenarioRos())
         self.servers: SimServers | None = None
         self.links: RobotLinks | None = None
 
@@ -123,13 +116,7 @@ class Ros2Host(InProcessHost):
         if why is not None:
             raise Ros2Unavailable(why)
         check_ros_names(self.s, self.ros)
-        system = ActorSystem(
-            SYSTEM_ID, transport=self.net.transport(SYSTEM_ID), registry=self.reg, clock=self.clock
-        )
-        await self._stack.enter_async_context(system)
-        ref = system.ref(Address.parse("sim/manager"))
-        robots = {r.name: self.models[r.model] for r in self.s.robots}
-        loop = asyncio.get_running_loop()
+        ref, robots, loop = await self._manager_side(SYSTEM_ID)
         try:
             servers, self.links = await anyio.to_thread.run_sync(
                 _start, loop, ref, robots, self.grid, self.clock, self.ros
@@ -156,15 +143,9 @@ class Ros2Host(InProcessHost):
         """The robot's implementations, their trees made of RosAction nodes on its bridge
         (:mod:`btcap.sim.ros2.steps`), each bidding only while the servers it calls are in
         the ROS graph (:func:`~btcap.ros.capability.with_ros`)."""
-        from btcap.ros.capability import with_ros
         from btcap.sim.ros2.steps import RosDrive
 
         if self.links is None:
             raise RuntimeError("Ros2Host: start robots inside `async with host`")
         link = self.links.links[name]
-        model = next(r.model for r in self.s.robots if r.name == name)
-        drive = RosDrive(link.bridge, self.grid.cell_size_m)
-        setup = robot_setup(name, self.models[model], self.grid, drive=drive)
-        setup.implementations = [with_ros(i, link.bridge) for i in setup.implementations]
-        link.body = setup.actors[Body.PATH]
-        return setup
+        return self._setup_on(name, link, RosDrive(link.bridge, self.grid.cell_size_m))

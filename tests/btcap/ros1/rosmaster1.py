@@ -1,4 +1,7 @@
-"""A ROS 1 master for one test: ``rosmaster --core -p PORT`` on a free loopback port.
+"""A ROS 1 master for one test: the product's run master
+(:class:`~btcap.sim.ros1.master.RunMaster`, ``rosmaster --core -p PORT`` on a free
+loopback port) with the test's own ``ROS_HOME`` and an environment of no ``ROS_`` variable
+of the caller's.
 
 ``ROS_IP=127.0.0.1`` makes rosmaster (and every rospy node given :meth:`Master.env`) bind
 its XML-RPC and TCPROS servers to loopback only, so nothing of a test is reachable from
@@ -9,40 +12,20 @@ do not see each other. Leaving the ``with`` block terminates the master and reap
 from __future__ import annotations
 
 import os
-import shutil
-import socket
-import subprocess
-import time
 import xmlrpc.client
 from pathlib import Path
 from types import TracebackType
 
-__all__ = ["Master", "free_port"]
+from btcap.sim.ros1.master import READY_S, RunMaster, free_port
 
-#: Readiness is a bound, not a measure: rosmaster answers in about half a second here.
-READY_S = 30.0
-
-
-def free_port() -> int:
-    """A TCP port free on 127.0.0.1 now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
+__all__ = ["READY_S", "Master", "free_port"]
 
 
-class Master:
-    """One rosmaster process; ``uri`` is its ``ROS_MASTER_URI``."""
+class Master(RunMaster):
+    """One rosmaster process; ``uri`` is its ``ROS_MASTER_URI``, its logs in ``home``."""
 
     def __init__(self, home: Path) -> None:
-        self.home = home
-        self.port = free_port()
-        self.uri = f"http://127.0.0.1:{self.port}/"
-        self.process: subprocess.Popen[bytes] | None = None
-
-    @staticmethod
-    def executable() -> str | None:
-        return shutil.which("rosmaster", path=f"{os.environ.get('PATH', '')}:/usr/bin")
+        super().__init__(str(home))
 
     def env(self) -> dict[str, str]:
         """The environment of a ROS 1 process on this master, on loopback."""
@@ -50,8 +33,8 @@ class Master:
         env.update(
             ROS_MASTER_URI=self.uri,
             ROS_IP="127.0.0.1",
-            ROS_HOME=str(self.home),
-            ROS_LOG_DIR=str(self.home / "log"),
+            ROS_HOME=self.home,
+            ROS_LOG_DIR=os.path.join(self.home, "log"),
         )
         return env
 
@@ -59,54 +42,8 @@ class Master:
         return xmlrpc.client.ServerProxy(self.uri)
 
     def __enter__(self) -> Master:
-        exe = self.executable()
-        if exe is None:
-            raise RuntimeError("rosmaster is not installed (Debian's python3-rosmaster)")
-        self.process = subprocess.Popen(
-            [exe, "--core", "-p", str(self.port)],
-            env=self.env(),
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-        )
-        try:
-            self._wait_ready()
-        except BaseException:
-            self.stop()
-            raise
+        self.start()
         return self
-
-    def _wait_ready(self) -> None:
-        assert self.process is not None
-        deadline = time.monotonic() + READY_S
-        while True:
-            if self.process.poll() is not None:
-                err = self.process.stderr.read().decode() if self.process.stderr else ""
-                raise RuntimeError(f"rosmaster on port {self.port} exited: {err.strip()}")
-            try:
-                with self.proxy() as proxy:
-                    code, _, _ = proxy.getPid("/btcap_test")
-                if code == 1:
-                    return
-            except OSError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"rosmaster on port {self.port}: no answer in {READY_S} s")
-            time.sleep(0.05)
-
-    def stop(self) -> None:
-        """Terminate the master (kill it if it does not go) and reap it. Idempotent."""
-        process = self.process
-        if process is None or process.returncode is not None:
-            return
-        process.terminate()
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-        if process.stderr is not None:
-            process.stderr.close()
 
     def __exit__(
         self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
