@@ -118,7 +118,7 @@ bench-ros: $(ROS_VENV)/.installed
 
 # The simulator behind ROS 2 against the direct simulation, same mission, same run.
 bench-ros-sim: $(ROS_VENV)/.installed-sim
-	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench.ros_sim $(ARGS)
+	$(BIN)/python tests/rosnet.py $(ROS_BIN)/python -m btcap.bench.ros.sim2 $(ARGS)
 
 lock-ros:
 	$(BIN)/uv pip compile --quiet --python-version 3.11 --python-platform x86_64-manylinux_2_28 \
@@ -177,15 +177,15 @@ ros1: $(ROS1_VENV)/.installed $(SIM1_OUT)/__init__.py
 test-ros1: ros1
 	$(ROS1_BIN)/python -m pytest tests/btcap/ros1 tests/sim/ros1 -p no:cacheprovider $(ARGS)
 
-# The ROS 1 bridge's goal round trip vs actionlib's SimpleActionClient (bench/ros1.py): its
+# The ROS 1 bridge's goal round trip vs actionlib's SimpleActionClient (bench/ros/ros1.py): its
 # own rosmaster on a free loopback port.
 bench-ros1: $(ROS1_VENV)/.installed
 	$(ROS1_BIN)/python -m btcap.bench ros1 $(ARGS)
 
-# The paper's full-team mission over ROS 1 vs the direct simulation (bench/ros1_sim.py):
+# The paper's full-team mission over ROS 1 vs the direct simulation (bench/ros/sim1.py):
 # its own rosmaster on a free loopback port.
 bench-ros1-sim: ros1
-	$(ROS1_BIN)/python -m btcap.bench.ros1_sim $(ARGS)
+	$(ROS1_BIN)/python -m btcap.bench.ros.sim1 $(ARGS)
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) $(ROS1_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

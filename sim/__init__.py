@@ -3,7 +3,7 @@
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from btcap.sim.distance import (
+    from btcap.sim.world.distance import (
         UNREACHABLE,
         Cell,
         CellLike,
@@ -12,13 +12,13 @@ if TYPE_CHECKING:
         distance_field,
         path_length,
     )
-    from btcap.sim.grid import GridMap, MapError
-    from btcap.sim.world import World
+    from btcap.sim.world.grid import GridMap, MapError
+    from btcap.sim.world.motion import World
 
 #: Imported on first use (see btcap._lazy): ``btcap --help`` lists ``btcap run`` without
 #: loading numpy.
 _EXPORTS = {
-    "btcap.sim.distance": (
+    "btcap.sim.world.distance": (
         "UNREACHABLE",
         "Cell",
         "CellLike",
@@ -27,8 +27,8 @@ _EXPORTS = {
         "distance_field",
         "path_length",
     ),
-    "btcap.sim.grid": ("GridMap", "MapError"),
-    "btcap.sim.world": ("World",),
+    "btcap.sim.world.grid": ("GridMap", "MapError"),
+    "btcap.sim.world.motion": ("World",),
 }
 
 if not TYPE_CHECKING:

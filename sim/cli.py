@@ -11,26 +11,24 @@ import tempfile
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from btcap.cli import CliError
 from btcap.cli.monitor import add_monitor_option
-from btcap.sim import simtestcli
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.runview import progress_line, progress_view, summary_table
+from btcap.sim.faults import cli as simtestcli
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.running.runview import progress_line, progress_view, summary_table
+from btcap.sim.running.stopper import STOPPED_BY, Stopper
 
 if TYPE_CHECKING:  # the simulation is imported when a run starts: --help stays fast
-    import asyncio
-
-    import anyio
     from rich.console import Console
 
     from btcap.monitor import Monitor
-    from btcap.sim.metrics import MissionResult
-    from btcap.sim.runner import Progress
-    from btcap.sim.scenario import Scenario
+    from btcap.sim.mission.scenario import Scenario
+    from btcap.sim.running.metrics import MissionResult
+    from btcap.sim.running.runner import Progress
 
-__all__ = ["add_parser", "resolve_scenario", "run_command"]
+__all__ = ["add_parser", "run_command"]
 
 DEFAULT = "full-team"
 
@@ -146,21 +144,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     simtestcli.add_parser(sub)
 
 
-def resolve_scenario(ref: str) -> Scenario:
-    """A built-in scenario name or a path to a scenario file."""
-    from btcap.sim.scenario import ScenarioError, load_scenario
-
-    builtins = builtin_scenarios()
-    if ref in builtins:
-        return load_scenario(builtins[ref])
-    path = Path(ref)
-    if not path.exists():
-        raise ScenarioError(
-            f"scenario {ref!r}: no such file, and not a built-in ({', '.join(builtins)})"
-        )
-    return load_scenario(path)
-
-
 def _out_dir(args: argparse.Namespace, name: str) -> Path:
     if args.out is not None:
         return Path(args.out)
@@ -181,7 +164,7 @@ def _check_out(out: Path) -> None:
 
 
 def _write(result: MissionResult, out: Path) -> None:
-    from btcap.sim.plots import plot_timeline
+    from btcap.sim.running.plots import plot_timeline
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_bytes(result.to_json())
@@ -203,60 +186,13 @@ async def _run_and_write(
     return result
 
 
-#: What ``btcap run`` exits with when a signal stopped it (128 + the signal's number).
-_STOPPED_BY = {signal.SIGINT: 130, signal.SIGTERM: 143}
-
-
-class _Stopper:
-    """SIGINT and SIGTERM end the run early, still with a result (marked ``interrupted``);
-    a second signal acts as it would without us. Installed for the whole command, so a
-    signal between two scenarios, or before the first starts, is not lost."""
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-        self._event: anyio.Event | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._saved: dict[int, Any] = {}
-
-    def __enter__(self) -> _Stopper:
-        for sig in _STOPPED_BY:
-            self._saved[sig] = signal.signal(sig, self._on_signal)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._restore()
-
-    def _restore(self) -> None:
-        saved, self._saved = self._saved, {}
-        for sig, old in saved.items():
-            signal.signal(sig, old)
-
-    def _on_signal(self, signum: int, _frame: object) -> None:
-        self.signum = signum
-        self._restore()
-        if self._loop is not None and self._event is not None:
-            self._loop.call_soon_threadsafe(self._event.set)
-
-    def event(self) -> anyio.Event:
-        """The stop event of the scenario about to run in this event loop."""
-        import asyncio
-
-        import anyio
-
-        self._loop = asyncio.get_running_loop()
-        self._event = anyio.Event()
-        if self.signum is not None:
-            self._event.set()
-        return self._event
-
-
 async def _run_one(
     s: Scenario,
     console: Console,
     quiet: bool,
     distributed: bool,
     fast: bool,
-    stopper: _Stopper,
+    stopper: Stopper,
     monitor: Monitor | None = None,
     *,
     ros2: bool = False,
@@ -265,11 +201,11 @@ async def _run_one(
 ) -> MissionResult:
     from rich.live import Live
 
-    from btcap.sim.runner import run_fast, run_scenario
+    from btcap.sim.running.runner import run_fast, run_scenario
 
     runner: Callable[..., Awaitable[MissionResult]] = run_fast if fast else run_scenario
     if distributed:
-        from btcap.sim.distributed import run_distributed
+        from btcap.sim.running.distributed import run_distributed
 
         runner = run_distributed
     if ros2:
@@ -305,10 +241,16 @@ def run_command(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from btcap.cli.monitor import monitored
-    from btcap.sim.bound import scenario_bound
-    from btcap.sim.metrics import idle_robots_note
-    from btcap.sim.plots import plot_comparison
-    from btcap.sim.scenario import ScenarioError, check_ros_names, grow_team, run_metadata
+    from btcap.sim.mission.bound import scenario_bound
+    from btcap.sim.mission.scenario import (
+        ScenarioError,
+        check_ros_names,
+        grow_team,
+        resolve_scenario,
+        run_metadata,
+    )
+    from btcap.sim.running.metrics import idle_robots_note
+    from btcap.sim.running.plots import plot_comparison
 
     console = Console()
     if args.compare:
@@ -331,9 +273,9 @@ def run_command(args: argparse.Namespace) -> int:
         if args.ros1 and args.ros2:
             raise CliError("--ros1 and --ros2: one ROS version at a time")
         if args.ros1 or args.ros2 or s.ros is not None:
+            from btcap.sim.mission.scenariofile import ScenarioRos
             from btcap.sim.ros1 import ros1_refused, wants_ros1
             from btcap.sim.ros2 import ros2_refused
-            from btcap.sim.scenariofile import ScenarioRos
 
             try:
                 check_ros_names(s, s.ros or ScenarioRos())
@@ -379,7 +321,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.compare:
         console.print(f"comparing {len(scenarios)} scenarios: {', '.join(named)}", markup=False)
     results: list[MissionResult] = []
-    with _Stopper() as stopper:
+    with Stopper() as stopper:
         for s in scenarios:
             pace = "virtual time" if args.fast else f"speed-up {s.speedup:g}x"
             if args.ros1 or args.ros2 or s.ros is not None:
@@ -442,5 +384,5 @@ def run_command(args: argparse.Namespace) -> int:
         )
     console.print(f"results written to [bold]{out}[/bold] ({written})")
     if stopper.signum is not None:
-        return _STOPPED_BY[signal.Signals(stopper.signum)]
+        return STOPPED_BY[signal.Signals(stopper.signum)]
     return 0 if all(r.completed for r in results) else 1

@@ -52,7 +52,7 @@ def test_the_walk_sees_the_errors_of_every_layer() -> None:
         "btcap.bt.state.TreeError",
         "btcap.team.deployment.launch.AgentFailed",
         "btcap.cli.CliError",
-        "btcap.sim.scenario.ScenarioError",
+        "btcap.sim.mission.scenario.ScenarioError",
     } <= EXCEPTIONS.keys()
 
 
@@ -70,9 +70,9 @@ def test_every_error_btcap_defines_is_a_btcap_error() -> None:
         ("btcap.bt.files.btcpp_nodes.MappingError", ValueError),
         ("btcap.bt.invariants.HaltingViolation", AssertionError),
         ("btcap.monitor.record.RecordError", ValueError),
-        ("btcap.sim.grid.MapError", ValueError),
-        ("btcap.sim.model.TeamFileError", ValueError),
-        ("btcap.sim.scenario.ScenarioError", ValueError),
+        ("btcap.sim.world.grid.MapError", ValueError),
+        ("btcap.sim.world.model.TeamFileError", ValueError),
+        ("btcap.sim.mission.scenario.ScenarioError", ValueError),
     ],
 )
 def test_errors_keep_their_builtin_base(name: str, builtin: type[Exception]) -> None:

@@ -133,7 +133,11 @@ def _package(module: str) -> str:
 
 def test_the_graph_sees_the_whole_package() -> None:
     assert {"btcap.transports.codec", "btcap.actors.system", "btcap.bt.node"} <= MODULES.keys()
-    assert {"btcap.team.runtime.agent", "btcap.sim.runner", "btcap.bench.tick"} <= MODULES.keys()
+    assert {
+        "btcap.team.runtime.agent",
+        "btcap.sim.running.runner",
+        "btcap.bench.speed.tick",
+    } <= MODULES.keys()
     assert set(BARE) == {"actors", "transports", "sim", "bench"}
 
 
@@ -291,7 +295,7 @@ def test_the_checker_catches_what_it_is_for() -> None:
     assert (
         _layer("btcap.actors.system") < _layer("btcap.bt.node") < _layer("btcap.team.runtime.agent")
     )
-    assert _layer("btcap.team.runtime.agent") < _layer("btcap") < _layer("btcap.sim.runner")
+    assert _layer("btcap.team.runtime.agent") < _layer("btcap") < _layer("btcap.sim.running.runner")
     assert _layer("btcap._lazy") < _layer("btcap.transports.base")
     planted = {"btcap.x": {"btcap.y", "msgspec"}, "btcap.y": {"btcap.z"}, "btcap.z": {"zmq"}}
     assert _first_forbidden(planted, "btcap.x", {"msgspec"}) == [
@@ -342,29 +346,83 @@ TEAM_LEVELS = {
     "btcap.team.runtime": 5,
     "btcap.team.deployment": 6,
 }
+#: The simulator's roles (issue 35; sim/*/__init__.py say each in a sentence): the world,
+#: the mission on it, running it (in this process, in one process a robot, or behind
+#: ROS 1 or ROS 2: hosts of one level), the fault simulation that runs whole teams, and
+#: the command line that offers all of them.
+SIM_LEVELS = {
+    "btcap.sim": 0,  # the package's lazy re-exports of the world's types
+    "btcap.sim.world": 0,
+    "btcap.sim.mission": 1,
+    "btcap.sim.running": 2,
+    "btcap.sim.rosbase": 2,
+    "btcap.sim.ros1": 2,
+    "btcap.sim.ros2": 2,
+    "btcap.sim.faults": 3,
+    "btcap.sim.cli": 4,
+}
+#: The benchmarks' roles: shared measuring tools, the benchmarks and probes by kind (none
+#: imports another kind), and the command line that runs them.
+BENCH_LEVELS = {
+    "btcap.bench": 0,
+    "btcap.bench.common": 0,
+    "btcap.bench.cpumeter": 0,
+    "btcap.bench.speed": 1,
+    "btcap.bench.allocation": 2,
+    "btcap.bench.ros": 2,
+    "btcap.bench.attacks": 2,
+    "btcap.bench.__main__": 3,
+}
+ROLES = {"btcap.team": TEAM_LEVELS, "btcap.sim": SIM_LEVELS, "btcap.bench": BENCH_LEVELS}
 
 
-def _team_level(module: str) -> int:
-    found = [p for p in TEAM_LEVELS if module == p or module.startswith(p + ".")]
-    assert found, f"{module}: in no role of TEAM_LEVELS"
-    return TEAM_LEVELS[max(found, key=len)]
+def _level(levels: dict[str, int], module: str) -> int:
+    found = [p for p in levels if module == p or module.startswith(p + ".")]
+    assert found, f"{module}: in no role of its layer's levels"
+    return levels[max(found, key=len)]
+
+
+def _modules_of(layer: str) -> list[str]:
+    return [m for m in MODULES if m == layer or m.startswith(layer + ".")]
 
 
 TEAM_MODULES = [m for m in MODULES if m.startswith("btcap.team.")]
 
 
-def test_every_team_module_has_a_role() -> None:
-    assert {_team_level(m) for m in TEAM_MODULES} == set(TEAM_LEVELS.values())
+@pytest.mark.parametrize("layer", ROLES)
+def test_every_module_has_a_role(layer: str) -> None:
+    levels = ROLES[layer]
+    mods = [m for m in _modules_of(layer) if m != layer or layer in levels]
+    assert {_level(levels, m) for m in mods} == set(levels.values())
 
 
-def test_no_team_module_imports_a_higher_role() -> None:
+@pytest.mark.parametrize("layer", ROLES)
+def test_no_module_imports_a_higher_role(layer: str) -> None:
+    levels = ROLES[layer]
+    mods = [m for m in _modules_of(layer) if m != layer or layer in levels]
     upward = sorted(
         f"{m} -> {dep}"
-        for m in TEAM_MODULES
+        for m in mods
         for dep in GRAPH[m]
-        if dep.startswith("btcap.team.") and _team_level(dep) > _team_level(m)
+        if dep in MODULES
+        and dep.startswith(layer + ".")
+        and _level(levels, dep) > _level(levels, m)
     )
-    assert not upward, f"team modules importing a higher role: {upward}"
+    assert not upward, f"modules importing a higher role: {upward}"
+
+
+def test_roles_of_the_same_level_stay_apart() -> None:
+    """Benchmarks of one kind import no other kind's (the attack probes share nothing with
+    the allocation runs), so each folder reads on its own."""
+    kinds = ("btcap.bench.allocation", "btcap.bench.ros", "btcap.bench.attacks")
+    mixed = sorted(
+        f"{m} -> {dep}"
+        for kind in kinds
+        for m in _modules_of(kind)
+        for dep in GRAPH[m]
+        if any(dep.startswith(other + ".") for other in kinds if other != kind)
+    )
+    assert not mixed, mixed
 
 
 def test_team_modules_stay_under_400_lines() -> None:
@@ -374,7 +432,7 @@ def test_team_modules_stay_under_400_lines() -> None:
 
 def test_nothing_outside_btcap_ros_imports_it() -> None:
     """The bridge is optional (issue 30): only modules that are about ROS themselves (a
-    part of their name starts with ``ros``: btcap.bench.ros, btcap.sim.ros2...) import
+    part of their name starts with ``ros``: btcap.bench.ros.ros2, btcap.sim.ros2...) import
     btcap.ros, and nothing imports those; an agent reaches the bridge only through the
     ``btcap.ros`` entry point, when its file has a ``ros:`` block."""
 
@@ -388,10 +446,10 @@ def test_nothing_outside_btcap_ros_imports_it() -> None:
     # functions that run with --ros (its module top imports nothing of it).
     entries = {
         ("btcap.sim.cli", "btcap.sim.ros2"),
-        ("btcap.sim.runner", "btcap.sim.ros2.host"),
+        ("btcap.sim.running.runner", "btcap.sim.ros2.host"),
         # and behind ROS 1 from `btcap run --ros1` (or a `backend: ros1` block) alike.
         ("btcap.sim.cli", "btcap.sim.ros1"),
-        ("btcap.sim.runner", "btcap.sim.ros1.host"),
+        ("btcap.sim.running.runner", "btcap.sim.ros1.host"),
         ("btcap.cli.tree", "btcap.cli.rostree"),
         ("btcap.cli.treerun", "btcap.cli.rostree"),
     }

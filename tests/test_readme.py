@@ -24,8 +24,8 @@ import yaml
 
 import btcap.cli
 from btcap.bt.files import dump_tree, loads_tree
-from btcap.sim.model import load_team
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.world.model import load_team
 from btcap.team.deployment.agentconfig import load_agent_file
 
 ROOT = Path(__file__).resolve().parent.parent

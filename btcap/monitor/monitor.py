@@ -263,7 +263,7 @@ class Monitor:
         last: Callable[[], Event | None] | None = None,
     ) -> Callable[[], None]:
         """Call ``sample`` at every batch and hand on the event it returns, if any (a
-        simulation's world: :mod:`btcap.sim.worldfeed`). Returns a detach, which samples
+        simulation's world: :mod:`btcap.sim.running.worldfeed`). Returns a detach, which samples
         once more (with ``last`` if given: a source that thins its events out says all
         at the end), so the last change is kept."""
         self._sources.append(sample)

@@ -2,7 +2,7 @@
 robots as ``foxglove.SceneUpdate`` entities in frames of their own placed by
 ``foxglove.FrameTransforms``, objects and the decontamination area as entities.
 
-Made from two monitor events a simulation emits (see :mod:`btcap.sim.worldfeed`):
+Made from two monitor events a simulation emits (see :mod:`btcap.sim.running.worldfeed`):
 
 - ``map``, once: ``rows`` (top row first; ``#`` wall, ``.`` free, ``:`` free but out of
   reach), ``cell_m`` (a cell's side in metres), ``start`` and ``decon`` (``[x, y]``).

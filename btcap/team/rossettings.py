@@ -25,7 +25,7 @@ def _doc(text: str) -> msgspec.Meta:
 
 
 #: The ROS a ``ros`` block is for: an agent's (:class:`RosSettings`) and the simulator's
-#: (btcap.sim.scenariofile's ``ScenarioRos``).
+#: (btcap.sim.mission.scenariofile's ``ScenarioRos``).
 RosBackend = Literal["ros2", "ros1"]
 #: The ROS 2 domain field of both ``ros`` blocks, with its bounds and its doc.
 DomainId = Annotated[

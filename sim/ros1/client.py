@@ -2,7 +2,7 @@
 (the bridge a real ROS 1 robot's agent runs: a rospy node in its namespace, in a process of
 its own), the clients its implementations' RosAction and RosService nodes share, found
 before the mission starts, and a subscription to its ``state`` topic that keeps its
-:class:`~btcap.sim.robot.Body` (what its bids start from) where the simulation says it is.
+:class:`~btcap.sim.world.robot.Body` (what its bids start from) where the simulation says it is.
 
 Starting and closing block (a thread): :mod:`btcap.sim.ros1.host` calls them off the loop.
 """
@@ -15,10 +15,10 @@ import time
 
 from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.interfaces1 import interface1
-from btcap.sim.model import RobotModel
 from btcap.sim.ros1.names1 import MOVE_BASE, MOVE_BASE_TYPE, OPERATE_TYPE, STATE_TYPE
 from btcap.sim.ros2.names import OPERATIONS
-from btcap.sim.rosstate import StateLink
+from btcap.sim.rosbase.state import StateLink
+from btcap.sim.world.model import RobotModel
 from btcap.team.rossettings import RosSettings
 
 __all__ = ["RobotLink1", "RobotLinks1"]

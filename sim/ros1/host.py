@@ -18,18 +18,18 @@ from typing import Any
 import anyio
 
 from btcap.actors import ActorRef, TimeSource
-from btcap.sim.capabilities import RobotSetup
-from btcap.sim.grid import GridMap
-from btcap.sim.manager import SimulationManager
-from btcap.sim.model import RobotModel
+from btcap.sim.mission.capabilities import RobotSetup
+from btcap.sim.mission.scenario import Scenario, check_ros_names
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros1 import ros1_missing
 from btcap.sim.ros1.client import RobotLinks1
 from btcap.sim.ros1.master import RunMaster, ros_env
 from btcap.sim.ros1.server import Ros1SimError, SimServers1
 from btcap.sim.ros2.steps import SERVER_TIMEOUT_S
-from btcap.sim.roshost import RosSimHost
-from btcap.sim.scenario import Scenario, check_ros_names
-from btcap.sim.scenariofile import ScenarioRos
+from btcap.sim.rosbase.host import RosSimHost
+from btcap.sim.world.grid import GridMap
+from btcap.sim.world.manager import SimulationManager
+from btcap.sim.world.model import RobotModel
 from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
@@ -103,7 +103,7 @@ def _with_master(ros: ScenarioRos, uri: str) -> ScenarioRos:
 
 
 class Ros1Host(RosSimHost):
-    """:class:`~btcap.sim.roshost.RosSimHost` with every robot's body behind ROS 1; the
+    """:class:`~btcap.sim.rosbase.host.RosSimHost` with every robot's body behind ROS 1; the
     ``manager`` is the run's simulation manager (its robots' state is published).
 
     Needs a real clock (ROS runs in real time): a speed-up, not a virtual clock.

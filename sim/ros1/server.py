@@ -3,7 +3,7 @@
 mission's side of it.
 
 A reader thread takes the child's ``ask`` frames and asks the
-:class:`~btcap.sim.manager.SimulationManager` through the actor system on the mission's
+:class:`~btcap.sim.world.manager.SimulationManager` through the actor system on the mission's
 event loop (nothing here touches its state), writing each answer back when it comes; a
 ``cancel`` (the goal was preempted) stops the robot, as the ROS 2 servers do. :meth:`publish`
 is the manager's ``on_position`` hook: one short write on the event loop. Starting and
@@ -28,10 +28,10 @@ import msgspec
 
 from btcap.actors import ActorError, ActorRef, TimeSource
 from btcap.errors import BtcapError
-from btcap.sim.distance import Cell
-from btcap.sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
-from btcap.sim.model import RobotModel
 from btcap.sim.ros2.names import OPERATIONS
+from btcap.sim.world.distance import Cell
+from btcap.sim.world.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
+from btcap.sim.world.model import RobotModel
 from btcap.transports.log import get_logger
 
 __all__ = ["Ros1SimError", "SimServers1"]

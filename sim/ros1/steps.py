@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 from btcap import Leaf, Port, State
 from btcap.ros.client import RosBridge
 from btcap.ros.nodes1 import RosAction, RosService
-from btcap.sim.capabilities import Step
+from btcap.sim.mission.capabilities import Step
 from btcap.sim.ros1.names1 import MOVE_BASE, MOVE_BASE_TYPE, OPERATE_TYPE
 from btcap.sim.ros2.steps import SERVER_TIMEOUT_S, CellPose
 
@@ -45,7 +45,7 @@ class OperateAnswer(Leaf):
 
 @dataclass(frozen=True, slots=True)
 class RosDrive1:
-    """A :class:`~btcap.sim.capabilities.Drive` of ROS 1 nodes on ``bridge`` (the robot's
+    """A :class:`~btcap.sim.mission.capabilities.Drive` of ROS 1 nodes on ``bridge`` (the robot's
     :class:`~btcap.ros.client1.Ros1Bridge`), names relative to its namespace.
     ``call_timeout_s``: wall seconds an operation's call may take (its work and, for
     decontaminate, the carry)."""

@@ -2,7 +2,7 @@
 (the bridge a real robot's agent runs: one rclpy node in its namespace, its own context and
 DDS participant, an executor thread, open goals cancelled when it closes), the action
 clients its implementations' RosAction nodes share, found before the mission starts, and a
-subscription to its state that keeps its :class:`~btcap.sim.robot.Body` (what its bids
+subscription to its state that keeps its :class:`~btcap.sim.world.robot.Body` (what its bids
 start from) where the simulation says it is.
 
 Its capabilities reach the simulation only through those RosAction nodes
@@ -18,10 +18,10 @@ import concurrent.futures
 from btcap_sim_msgs.msg import RobotState
 
 from btcap.ros.client import RosBridge
-from btcap.sim.model import RobotModel
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros2.names import NAVIGATE_TYPE, OPERATE_TYPE, OPERATIONS
-from btcap.sim.rosstate import StateLink
-from btcap.sim.scenariofile import ScenarioRos
+from btcap.sim.rosbase.state import StateLink
+from btcap.sim.world.model import RobotModel
 from btcap.team.rossettings import Qos
 
 __all__ = ["RobotLink", "RobotLinks"]
@@ -35,7 +35,7 @@ STATE_QOS = Qos(depth=100)
 
 class RobotLink(StateLink):
     """One robot's bridge, its action clients, and its state told to ``body`` (its
-    :class:`~btcap.sim.robot.Body`, once spawned)."""
+    :class:`~btcap.sim.world.robot.Body`, once spawned)."""
 
     def __init__(
         self, bridge: RosBridge, robot: str, model: RobotModel, loop: asyncio.AbstractEventLoop

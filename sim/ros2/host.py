@@ -21,14 +21,14 @@ import anyio
 
 from btcap.actors import ActorRef, TimeSource
 from btcap.errors import BtcapError
-from btcap.sim.capabilities import RobotSetup
-from btcap.sim.grid import GridMap
-from btcap.sim.manager import SimulationManager
-from btcap.sim.model import RobotModel
+from btcap.sim.mission.capabilities import RobotSetup
+from btcap.sim.mission.scenario import Scenario, check_ros_names
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros2 import ros2_missing
-from btcap.sim.roshost import RosSimHost
-from btcap.sim.scenario import Scenario, check_ros_names
-from btcap.sim.scenariofile import ScenarioRos
+from btcap.sim.rosbase.host import RosSimHost
+from btcap.sim.world.grid import GridMap
+from btcap.sim.world.manager import SimulationManager
+from btcap.sim.world.model import RobotModel
 from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
@@ -92,7 +92,7 @@ def _close(servers: SimServers, links: RobotLinks) -> None:
 
 
 class Ros2Host(RosSimHost):
-    """:class:`~btcap.sim.roshost.RosSimHost` with every robot's body behind ROS 2; the
+    """:class:`~btcap.sim.rosbase.host.RosSimHost` with every robot's body behind ROS 2; the
     ``manager`` is the run's simulation manager (its robots' state is published, not told).
 
     Needs a real clock (DDS runs in real time): a speed-up, not a virtual clock.

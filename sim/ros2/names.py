@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from btcap.sim.distance import Cell
+from btcap.sim.world.distance import Cell
 
 __all__ = [
     "FRAME",

@@ -20,15 +20,15 @@ import anyio
 import numpy as np
 
 from btcap.actors import ActorSystem, Clock
-from btcap.sim.hosts import registry
-from btcap.sim.manager import SimConfig, SimulationManager
-from btcap.sim.messages import PositionUpdate
-from btcap.sim.model import RobotModel
+from btcap.sim.mission.scenario import Scenario, check_ros_names, check_scenario
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros2 import ros2_missing
 from btcap.sim.ros2.host import Ros2Unavailable
-from btcap.sim.scenario import Scenario, check_ros_names, check_scenario
-from btcap.sim.scenariofile import ScenarioRos
-from btcap.sim.store import MissionState
+from btcap.sim.running.hosts import registry
+from btcap.sim.world.manager import SimConfig, SimulationManager
+from btcap.sim.world.messages import PositionUpdate
+from btcap.sim.world.model import RobotModel
+from btcap.sim.world.store import MissionState
 from btcap.transports import Address, InProcessNetwork
 from btcap.transports.log import get_logger
 

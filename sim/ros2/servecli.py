@@ -49,10 +49,10 @@ def _serve(args: argparse.Namespace) -> int:
     import signal
 
     from btcap.cli import CliError
-    from btcap.sim.cli import _STOPPED_BY, _Stopper, resolve_scenario
+    from btcap.sim.mission.scenario import ScenarioError, resolve_scenario
     from btcap.sim.ros2 import ros2_missing
     from btcap.sim.ros2.serve import Served, serve
-    from btcap.sim.scenario import ScenarioError
+    from btcap.sim.running.stopper import STOPPED_BY, Stopper
 
     try:
         s = resolve_scenario(args.scenario)
@@ -69,17 +69,17 @@ def _serve(args: argparse.Namespace) -> int:
         where = ", ".join(f"{robot} at {ns}" for robot, ns in namespaces.items())
         print(f"serving {s.name} behind ROS 2: {where} (stop: Ctrl-C)", flush=True)
 
-    async def main(stopper: _Stopper) -> Served:
+    async def main(stopper: Stopper) -> Served:
         try:
             return await serve(s, stop=stopper.event(), ready=ready)
         except ScenarioError as exc:
             raise CliError(str(exc)) from None
 
-    with _Stopper() as stopper:
+    with Stopper() as stopper:
         served = asyncio.run(main(stopper))
     for robot, goals in served.items():
         took = ", ".join(f"{action} {n}" for action, n in sorted(goals.items())) or "nothing"
         print(f"served {robot}: {took}", flush=True)
     if stopper.signum is not None:
-        return _STOPPED_BY[signal.Signals(stopper.signum)]
+        return STOPPED_BY[signal.Signals(stopper.signum)]
     return 0

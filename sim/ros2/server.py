@@ -1,6 +1,6 @@
 """The simulation manager behind ROS 2: per simulated robot, in its namespace, a navigation
 action with feedback, an action per operation it can do, a pose and a state topic and a stop
-service, each backed by the same :class:`~btcap.sim.manager.SimulationManager`.
+service, each backed by the same :class:`~btcap.sim.world.manager.SimulationManager`.
 
 Imports rclpy: loaded in a thread by :mod:`btcap.sim.ros2.host`, never at start-up. The
 servers run on an rclpy executor thread of their own; each goal's execution blocks one of
@@ -32,11 +32,11 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from btcap.actors import ActorError, ActorRef, TimeSource
-from btcap.sim.distance import Cell
-from btcap.sim.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
-from btcap.sim.model import RobotModel
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros2.names import FRAME, OPERATIONS, RobotNames, cell_of, xy_of
-from btcap.sim.scenariofile import ScenarioRos
+from btcap.sim.world.distance import Cell
+from btcap.sim.world.messages import MoveTo, Operate, PositionUpdate, SimResult, StopRobot
+from btcap.sim.world.model import RobotModel
 
 __all__ = ["SimServers", "pose_at"]
 

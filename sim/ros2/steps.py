@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 from btcap import Leaf, Port, State
 from btcap.ros.action import RosAction
 from btcap.ros.client import RosBridge
-from btcap.sim.capabilities import Step
+from btcap.sim.mission.capabilities import Step
 from btcap.sim.ros2.names import FRAME, NAVIGATE_TYPE, OPERATE_TYPE, xy_of
 
 __all__ = ["SERVER_TIMEOUT_S", "CellPose", "RosDrive"]
@@ -48,7 +48,7 @@ class CellPose(Leaf):
 
 @dataclass(frozen=True, slots=True)
 class RosDrive:
-    """A :class:`~btcap.sim.capabilities.Drive` of RosAction nodes on ``bridge`` (the
+    """A :class:`~btcap.sim.mission.capabilities.Drive` of RosAction nodes on ``bridge`` (the
     robot's), names relative to its namespace."""
 
     bridge: RosBridge

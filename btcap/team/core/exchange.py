@@ -18,7 +18,7 @@ target, beside the run it hands over; only when every leg is accepted and :func:
 holds do the nodes adopt their replacements (each adoption cancels the old run, as a
 move to a free robot does); otherwise every paused run is cancelled and every task
 stays where it was. :func:`find_exchanges` chooses from full knowledge (the offline
-estimate ``python -m btcap.bench.exchanges``); at run time the origin knows only what
+estimate ``python -m btcap.bench.allocation.exchanges``); at run time the origin knows only what
 bidders already said, kept in a :class:`Ledger`, which says which cycles are worth an
 auction at all.
 

@@ -18,8 +18,8 @@ from btcap.cli import main
 from btcap.monitor import Monitor
 from btcap.monitor.channels import EVENT_TOPICS
 from btcap.monitor.scene import SCENE_TOPICS
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.runner import run_fast
 
 websockets = pytest.importorskip("websockets")
 pytest.importorskip("foxglove")

@@ -20,10 +20,10 @@ from btcap.monitor import Monitor
 from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
 from btcap.monitor.scene import SCENE_TOPICS, scene_messages
-from btcap.sim import worldfeed
-from btcap.sim.metrics import MissionResult
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running import worldfeed
+from btcap.sim.running.metrics import MissionResult
+from btcap.sim.running.runner import run_fast
 
 SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
 

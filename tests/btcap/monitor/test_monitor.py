@@ -26,8 +26,8 @@ from btcap.cli.monitor import parse_address
 from btcap.monitor import RecordError, read_record
 from btcap.monitor.hub import BACKLOG, Hub
 from btcap.monitor.server import MonitorServer
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.runner import run_fast
 from btcap.team.demo import ECHO, implementations
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.protocol import protocol_registry

@@ -22,8 +22,8 @@ import pytest
 from btcap import Leaf, Monitor, Parallel, Replay, Sequence, State, Tree
 from btcap.bt.state import DONE
 from btcap.monitor.server import MonitorServer
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.runner import run_fast
 from btcap.team.demo import ECHO, implementations
 from btcap.team.runtime.agent import Agent, AgentConfig
 from btcap.team.runtime.protocol import protocol_registry

@@ -9,8 +9,8 @@ from typing import Any
 import msgspec
 import pytest
 
-from btcap.sim.scenario import AgentTiming
-from btcap.sim.scenario import Allocation as ScenarioAllocation
+from btcap.sim.mission.scenario import AgentTiming
+from btcap.sim.mission.scenario import Allocation as ScenarioAllocation
 from btcap.team.deployment.agentconfig import Allocation as FileAllocation
 from btcap.team.deployment.agentconfig import FileTiming
 from btcap.team.deployment.agentspec import AgentSpec, agent_config

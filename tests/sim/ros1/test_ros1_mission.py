@@ -13,12 +13,12 @@ import pytest
 from simros1 import WHY_NOT, children, loopback
 from structlog.testing import capture_logs
 
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.metrics import MissionResult
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.scenario import Scenario, load_scenario
+from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros1 import host as ros1_host
-from btcap.sim.runner import run_fast, run_scenario
-from btcap.sim.scenario import Scenario, load_scenario
-from btcap.sim.scenariofile import ScenarioRos
+from btcap.sim.running.metrics import MissionResult
+from btcap.sim.running.runner import run_fast, run_scenario
 
 pytestmark = [
     pytest.mark.ros1,

@@ -12,10 +12,10 @@ from typing import Any
 import anyio
 
 from btcap.actors import ActorSystem, TimeSource
-from btcap.sim.grid import GridMap
-from btcap.sim.hosts import registry
-from btcap.sim.manager import SimulationManager
-from btcap.sim.model import RobotModel
+from btcap.sim.running.hosts import registry
+from btcap.sim.world.grid import GridMap
+from btcap.sim.world.manager import SimulationManager
+from btcap.sim.world.model import RobotModel
 from btcap.transports import Address, InProcessNetwork
 
 

@@ -17,12 +17,12 @@ from simserving import serving
 from structlog.testing import capture_logs
 
 from btcap.actors import Clock
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.manager import SimConfig, SimulationManager
-from btcap.sim.model import paper_team
-from btcap.sim.runner import run_fast, run_scenario
-from btcap.sim.scenario import load_scenario
-from btcap.sim.store import MissionState
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.runner import run_fast, run_scenario
+from btcap.sim.world.manager import SimConfig, SimulationManager
+from btcap.sim.world.model import paper_team
+from btcap.sim.world.store import MissionState
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -13,13 +13,13 @@ from simserving import serving
 
 from btcap.actors import Clock
 from btcap.bt.tree import Tree
-from btcap.sim.capabilities import robot_setup
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.manager import SimConfig, SimulationManager
-from btcap.sim.model import paper_team
-from btcap.sim.scenario import load_scenario
-from btcap.sim.scenariofile import ScenarioRos
-from btcap.sim.store import MissionState
+from btcap.sim.mission.capabilities import robot_setup
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.mission.scenariofile import ScenarioRos
+from btcap.sim.world.manager import SimConfig, SimulationManager
+from btcap.sim.world.model import paper_team
+from btcap.sim.world.store import MissionState
 
 pytestmark = pytest.mark.ros
 

@@ -1,13 +1,13 @@
 """Members that never answered us: probed at once, passed on only once they answer,
 forgotten quickly once silent; a keyless flood of made-up members beating a while,
 then silent, is all forgotten within the stated bound, with no false failure (explicit
-time, the library's default timing, the seeded network of :mod:`btcap.sim.swimnet`)."""
+time, the library's default timing, the seeded network of :mod:`btcap.sim.faults.swimnet`)."""
 
 from __future__ import annotations
 
 import random
 
-from btcap.sim.swimnet import SwimNet
+from btcap.sim.faults.swimnet import SwimNet
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.newcomers import RETRIES_PER_PERIOD
 from btcap.team.core.swim import Swim, SwimParams

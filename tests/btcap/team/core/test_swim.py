@@ -1,6 +1,6 @@
 """SWIM failure detection on explicit time: probes, indirect probes, suspicion and
 refutation, Lifeguard's timeouts, liars, bounds; one robot by hand, then whole teams over
-the seeded network of :mod:`btcap.sim.swimnet`."""
+the seeded network of :mod:`btcap.sim.faults.swimnet`."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from btcap.sim.swimnet import SwimNet
+from btcap.sim.faults.swimnet import SwimNet
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.swim import MAX_RELAYS, Swim, SwimParams
 from btcap.team.messages import Heard, Heartbeat, ProbeRequest, Vouch

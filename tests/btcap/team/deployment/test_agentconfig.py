@@ -9,7 +9,7 @@ import msgspec.inspect
 import pytest
 
 from btcap.bt.registry import default_registry
-from btcap.sim.messages import SIM_MESSAGES
+from btcap.sim.world.messages import SIM_MESSAGES
 from btcap.team.deployment.agentconfig import (
     AgentConfigError,
     Allocation,
@@ -269,7 +269,7 @@ def test_a_plugin_adds_implementations_actors_and_messages(tmp_path: Path) -> No
         "plugin:\n"
         "  factory: btcap.team.demo:implementations\n"
         "  args: {cost: 2.5}\n"
-        "  messages: btcap.sim.hosts:registry\n"
+        "  messages: btcap.sim.running.hosts:registry\n"
     )
     config = load_agent_file(_write(tmp_path, text))
     plugged = config.load_plugin()

@@ -19,7 +19,7 @@ from structlog.testing import capture_logs
 
 from btcap import ReactiveSequence as SequenceNode
 from btcap import State, Tree
-from btcap.bench.attacks_nodes import ATTACKS, MODES, REPEAT, node_team, strike
+from btcap.bench.attacks.nodes import ATTACKS, MODES, REPEAT, node_team, strike
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.proxies import RemoteExecution
 from btcap.team.demo import ECHO
