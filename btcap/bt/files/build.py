@@ -59,7 +59,8 @@ class Builder:
         cache: dict[Path, TreeFile],
         boards: Boards | None = None,
     ) -> None:
-        self.spec, self.boards = spec, boards  # boards: an XML file's blackboard entries
+        self.spec = spec
+        self.boards = boards  # an XML file's blackboard entries
         self.where = where
         self.registry = registry
         self.base = base
