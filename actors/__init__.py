@@ -1,7 +1,7 @@
 """The actor runtime: typed actors, addresses, tell/ask, supervision, dead letters."""
 
 from btcap.actors.actor import Actor
-from btcap.actors.cell import ActorCell, Reply, Supervision, handler
+from btcap.actors.cell import ActorCell, Reply, Supervision
 from btcap.actors.clock import Clock, ManualClock, TimeSource, within
 from btcap.actors.errors import (
     ActorError,
@@ -12,11 +12,13 @@ from btcap.actors.errors import (
     Refused,
     SystemClosed,
 )
+from btcap.actors.failure import Failure, runtime_messages
+from btcap.actors.handlers import handler
 from btcap.actors.log import configure_logging
 from btcap.actors.ref import ActorRef
 from btcap.actors.services import Service, Services
 from btcap.actors.stats import SystemStats
-from btcap.actors.system import ActorSystem, Failure, runtime_messages
+from btcap.actors.system import ActorSystem
 from btcap.transports.message import Address, Message
 
 __all__ = [

@@ -14,7 +14,7 @@ __all__ = ["Actor"]
 class Actor(ActorCell):
     """Base class of everything addressable: BT nodes, slots, repositories, auctioneers.
 
-    Declare handlers with :func:`~btcap.actors.cell.handler`; see
+    Declare handlers with :func:`~btcap.actors.handlers.handler`; see
     :class:`~btcap.actors.cell.ActorCell` for how messages are delivered.
     """
 

@@ -9,29 +9,24 @@ from __future__ import annotations
 
 import asyncio
 import enum
-import inspect
-import types as types_mod
 import typing
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
-from typing import Any, ClassVar, Protocol, TypeVar, overload
+from typing import Any, ClassVar, Protocol
 
 from btcap._enum import FastEnumType
 from btcap.actors.errors import ActorFailed, DeadLetter, MailboxFull, SystemClosed
+from btcap.actors.handlers import Handler, collect_handlers, handler
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address
 
+# handler lives in btcap.actors.handlers; still importable from here.
 __all__ = ["ActorCell", "Host", "Reply", "Supervision", "handler"]
 
 log = get_logger("btcap.actors")
 
-F = TypeVar("F", bound=Callable[..., Any])
-
 #: Called once with the handler's result, or with the error that replaces it.
 Reply = Callable[[Any, BaseException | None], None]
-
-_HANDLER_ATTR = "__actor_handles__"
-_LOCAL_ONLY_ATTR = "__actor_local_only__"
 
 
 class Supervision(enum.Enum, metaclass=FastEnumType):
@@ -46,67 +41,6 @@ class Supervision(enum.Enum, metaclass=FastEnumType):
     RESTART = "restart"
     STOP = "stop"
     ESCALATE = "escalate"
-
-
-@overload
-def handler(fn: F, /) -> F: ...
-@overload
-def handler(*types: type[Any], local_only: bool = False) -> Callable[[F], F]: ...
-def handler(*args: Any, local_only: bool = False) -> Any:
-    """Mark a method as the handler of a message type.
-
-    Use bare (the type is read from the annotation of the message parameter) or with the
-    types it handles: ``@handler(Ping, Pong)``. Handlers may be sync or async; what they
-    return is the reply to an ask.
-
-    ``local_only=True`` takes the message only from inside the actor's own system (its
-    actors, tasks and callers); the same message from a transport is refused, counted in
-    ``SystemStats.refused`` and answered with :class:`~btcap.actors.errors.Refused`,
-    whatever sender it names. For actions no peer has a right to (a BT node's tick).
-    """
-    bare = len(args) == 1 and inspect.isfunction(args[0])
-    types = () if bare else args
-
-    def mark(fn: F) -> F:
-        setattr(fn, _HANDLER_ATTR, types)
-        if local_only:
-            setattr(fn, _LOCAL_ONLY_ATTR, True)
-        return fn
-
-    return mark(args[0]) if bare else mark
-
-
-class _Handler:
-    __slots__ = ("fn", "is_async", "local_only")
-
-    def __init__(self, fn: Callable[..., Any]) -> None:
-        self.fn = fn
-        self.is_async = inspect.iscoroutinefunction(fn)
-        self.local_only: bool = getattr(fn, _LOCAL_ONLY_ATTR, False)
-
-
-def _collect_handlers(cls: type[ActorCell]) -> dict[type[Any], _Handler]:
-    table: dict[type[Any], _Handler] = {}
-    for klass in reversed(cls.__mro__):
-        for name, fn in vars(klass).items():
-            declared = getattr(fn, _HANDLER_ATTR, None)
-            if declared is None:
-                continue
-            types = declared
-            if not types:
-                hints = typing.get_type_hints(fn)
-                params = [p for p in inspect.signature(fn).parameters if p != "self"]
-                if not params or params[0] not in hints:
-                    raise TypeError(
-                        f"{cls.__qualname__}.{name}: annotate the message parameter or "
-                        f"name the types in @handler(...)"
-                    )
-                hint = hints[params[0]]
-                union = typing.get_origin(hint) in (typing.Union, types_mod.UnionType)
-                types = typing.get_args(hint) if union else (hint,)
-            for t in types:
-                table[t] = _Handler(fn)
-    return table
 
 
 def _reply(reply: Reply, result: Any) -> None:
@@ -130,8 +64,22 @@ def _settle(reply: Reply, fut: asyncio.Future[Any]) -> None:
         reply(fut.result(), None)
 
 
-_NAMES = "_as_failure _call_now _can_call_now _drain _enqueue _failed _handler_for _live_host"
-_RUNTIME_NAMES = frozenset(f"{_NAMES} _receive _schedule_drain _unhandled".split())
+_RUNTIME_NAMES = frozenset(
+    [
+        "_as_failure",
+        "_call_now",
+        "_can_call_now",
+        "_drain",
+        "_enqueue",
+        "_failed",
+        "_handler_for",
+        "_live_host",
+        "_receive",
+        "_schedule_drain",
+        "_unhandled",
+    ]
+)
+"""The runtime's own methods of a cell: an actor class that defines one is refused."""
 
 
 class Host(Protocol):
@@ -187,7 +135,7 @@ class ActorCell:
 
     supervision: ClassVar[Supervision] = Supervision.RESTART
     max_restarts: ClassVar[int] = 10
-    _handlers: ClassVar[dict[type[Any], _Handler] | None] = None
+    _handlers: ClassVar[dict[type[Any], Handler] | None] = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -260,10 +208,10 @@ class ActorCell:
 
     # -- delivery -------------------------------------------------------------------
     @classmethod
-    def _handler_for(cls, t: type[Any]) -> _Handler | None:
+    def _handler_for(cls, t: type[Any]) -> Handler | None:
         table = cls._handlers
         if table is None:
-            table = cls._handlers = _collect_handlers(cls)
+            table = cls._handlers = collect_handlers(cls)
         h = table.get(t)
         if h is None:
             for base in t.__mro__[1:]:
@@ -274,7 +222,7 @@ class ActorCell:
         return h
 
     def _receive(
-        self, msg: Any, reply: Reply | None, sender: str | None = None, h: _Handler | None = None
+        self, msg: Any, reply: Reply | None, sender: str | None = None, h: Handler | None = None
     ) -> None:
         """Deliver a message: handle it now if idle and sync, else queue it.
 

@@ -1,6 +1,6 @@
 """Mail a recipient refused: counted by kind, logged once per sender and kind.
 
-A ``local_only`` message (see :func:`~btcap.actors.cell.handler`) that came from a
+A ``local_only`` message (see :func:`~btcap.actors.handlers.handler`) that came from a
 transport is an attempt to do what the sender has no right to, so its first occurrence
 from each sender deserves a line of its own; repeats only a reminder at every power of
 two from 1024 on. The table is bounded: a keyless peer can name itself anything, and

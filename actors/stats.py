@@ -15,5 +15,7 @@ class SystemStats:
     dead_letters: int = 0
     escalations: int = 0
     dropped: dict[str, int] = field(default_factory=dict)
-    failures: dict[str, int] = field(default_factory=dict)  # "Actor: Message: Error" -> count
+    failures: dict[str, int] = field(default_factory=dict)
+    """Handler failures by ``Actor class: message type: error type`` (bounded by the code,
+    not by what peers send)."""
     refused: dict[str, int] = field(default_factory=dict)

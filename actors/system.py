@@ -17,7 +17,8 @@ from anyio.abc import TaskGroup
 
 from btcap.actors.cell import ActorCell
 from btcap.actors.clock import Clock, TimeSource
-from btcap.actors.errors import ActorError, ActorFailed, DeadLetter, SystemClosed
+from btcap.actors.errors import ActorError, DeadLetter, SystemClosed
+from btcap.actors.failure import Failure, error_of, failure_of, runtime_messages
 from btcap.actors.ref import ActorRef
 from btcap.actors.refusals import Refusals
 from btcap.actors.services import Services
@@ -36,6 +37,7 @@ from btcap.transports.codec import CodecError, Envelope, Kind
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Address, Message, MessageRegistry
 
+# Failure and runtime_messages live in btcap.actors.failure; still importable from here.
 __all__ = ["ActorSystem", "Failure", "runtime_messages"]
 
 log = get_logger("btcap.actors")
@@ -43,18 +45,6 @@ log = get_logger("btcap.actors")
 A = TypeVar("A", bound=ActorCell)
 # Kind's members as constants: on 3.11 ``Kind.X`` goes through EnumType's attribute hook.
 _TELL, _ASK, _REPLY, _FAIL = Kind.TELL, Kind.ASK, Kind.REPLY, Kind.FAIL
-
-
-class Failure(Message):
-    """The reply to an ask whose handler raised or whose recipient does not exist."""
-
-    error_type: str
-    detail: str
-
-
-def runtime_messages() -> MessageRegistry:
-    """A registry holding the runtime's own message types."""
-    return MessageRegistry([Failure])
 
 
 class ActorSystem:
@@ -365,17 +355,10 @@ class ActorSystem:
                 return
             del self._pending[env.corr]
             fut = pending[1]
-            msg = env.msg
             if kind is _FAIL:
-                if isinstance(msg, Failure):
-                    if msg.error_type == "DeadLetter":
-                        fut.set_exception(DeadLetter(f"{env.sender}: {msg.detail}"))
-                    else:
-                        fut.set_exception(ActorFailed(str(env.sender), msg.error_type, msg.detail))
-                else:
-                    fut.set_exception(ActorFailed(str(env.sender), "Unknown", repr(msg)))
+                fut.set_exception(error_of(env.sender, env.msg))
             else:
-                fut.set_result(msg)
+                fut.set_result(env.msg)
             return
         if env.recipient.system != self.id and env.recipient.system != BROADCAST:
             self._count_drop("wrong_recipient", env.recipient, env.msg)
@@ -384,13 +367,15 @@ class ActorSystem:
         if actor is None:
             if env.recipient.system == BROADCAST:
                 # A broadcast reaches systems that do not host that service: not an error.
-                dropped = self.stats.dropped
-                dropped["broadcast_unhandled"] = dropped.get("broadcast_unhandled", 0) + 1
+                self.stats.dropped["broadcast_unhandled"] = (
+                    self.stats.dropped.get("broadcast_unhandled", 0) + 1
+                )
                 return
             self._dead_letter(env.recipient, env.msg, origin=env.sender)
             if kind is _ASK:
-                gone = DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
-                self._reply_remote(env, None, gone)
+                self._reply_remote(
+                    env, None, DeadLetter(f"no actor at {self.id}/{env.recipient.path}")
+                )
             return
         h = actor._handlers.get(type(env.msg)) if actor._handlers else None  # a call less
         h = h or actor._handler_for(type(env.msg))
@@ -412,10 +397,7 @@ class ActorSystem:
                 return
             except CodecError as exc:  # e.g. an unregistered reply type
                 error = exc
-        if isinstance(error, ActorFailed):
-            failure = Failure(error.error_type, error.detail)
-        else:
-            failure = Failure(type(error).__qualname__, str(error))
+        failure = failure_of(error)
         try:
             self._send(Envelope(_FAIL, me, env.sender, failure, env.corr))
         except CodecError:
@@ -423,19 +405,31 @@ class ActorSystem:
             self._count_drop("reply_unencodable", env.sender, failure)
 
     # -- accounting -------------------------------------------------------------------
-    # Peers can send these without limit: always counted, logged while worth_logging says.
+    # A peer can send any number of these: each is counted, and logged only while
+    # worth_logging says so, so a flood costs a counter, not a flood of lines.
     def _dead_letter(self, address: Address, msg: Any, *, origin: Address | None = None) -> None:
         n = self.stats.dead_letters = self.stats.dead_letters + 1
         if worth_logging(n):
-            via, name = (str(origin) if origin else None), type(msg).__qualname__
-            self._log.info("actors.dead_letter", to=str(address), message=name, origin=via, count=n)
+            self._log.info(
+                "actors.dead_letter",
+                to=str(address),
+                message=type(msg).__qualname__,
+                origin=str(origin) if origin else None,
+                count=n,
+            )
 
     def _count_drop(self, reason: str, address: Address | None, msg: Any) -> None:
         n = self.stats.dropped[reason] = self.stats.dropped.get(reason, 0) + 1
         if worth_logging(n):
-            emit = self._log.info if reason == "late_reply" else self._log.warning  # routine
-            name = type(msg).__qualname__
-            emit("actors.dropped", reason=reason, to=str(address), message=name, count=n)
+            # A reply after its ask timed out or was cancelled is routine, not a fault.
+            emit = self._log.info if reason == "late_reply" else self._log.warning
+            emit(
+                "actors.dropped",
+                reason=reason,
+                to=str(address),
+                message=type(msg).__qualname__,
+                count=n,
+            )
 
     def _count_failure(self, kind: str) -> int:
         n = self.stats.failures[kind] = self.stats.failures.get(kind, 0) + 1

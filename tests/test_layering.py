@@ -332,6 +332,7 @@ def test_no_module_is_too_long_to_read() -> None:
 #: The team layer's roles, lowest first (DESIGN.md; btcap/team/*/__init__.py say each in
 #: a sentence). A team module may import its own level and those below.
 TEAM_LEVELS = {
+    "btcap.team.consensus_messages": 0,
     "btcap.team.filecheck": 0,
     "btcap.team.ids": 0,
     "btcap.team.messages": 0,

@@ -36,26 +36,24 @@ from btcap.transports.security import (
     curve_for,
 )
 from btcap.transports.trust import DEFAULT_POLL_S, first_listing, watch_trusted
+from btcap.transports.zmq_endpoints import SCHEMES, check_id, check_transport_args
 from btcap.transports.zmq_io import (
+    EVENTS,
+    NOBLOCK,
+    POLLIN,
     Received,
     allow_sockets,
+    fd_of,
     read_plain,
     read_secure,
     remove_ipc_file,
 )
+from btcap.transports.zmq_monitors import Monitor
 from btcap.transports.zmq_peers import PeerBook, PeerFates
 from btcap.transports.zmq_rules import HEAVY_BYTES as _HEAVY_BYTES
 from btcap.transports.zmq_rules import PeerRules
 from btcap.transports.zmq_sockets import (
     COPY_THRESHOLD,
-    EVENTS,
-    NOBLOCK,
-    POLLIN,
-    SCHEMES,
-    Monitor,
-    check_id,
-    check_transport_args,
-    fd_of,
     open_dealer,
     open_router,
     reject,

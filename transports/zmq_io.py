@@ -15,9 +15,22 @@ from typing import Any
 
 import zmq
 
-__all__ = ["Received", "allow_sockets", "read_plain", "read_secure", "remove_ipc_file"]
+__all__ = [
+    "EVENTS",
+    "NOBLOCK",
+    "POLLIN",
+    "Received",
+    "allow_sockets",
+    "fd_of",
+    "read_plain",
+    "read_secure",
+    "remove_ipc_file",
+]
 
+# Plain ints: pyzmq's flag enums cost an enum call on every use.
 NOBLOCK = int(zmq.NOBLOCK)
+EVENTS = int(zmq.EVENTS)
+POLLIN = int(zmq.POLLIN)
 
 Received = tuple[bytes, memoryview, int]
 """A received message: who sent it (its routing id's name), its first part's buffer and
@@ -31,6 +44,14 @@ def allow_sockets(ctx: zmq.Context[Any]) -> None:
     limit = min(int(ctx.get(zmq.SOCKET_LIMIT)), 16_384)
     if int(ctx.get(zmq.MAX_SOCKETS)) < limit:
         ctx.set(zmq.MAX_SOCKETS, limit)
+
+
+def fd_of(sock: zmq.Socket[bytes]) -> int:
+    """The descriptor the event loop watches for ``sock``'s input (then read ``EVENTS``:
+    it is edge-triggered)."""
+    fd = sock.getsockopt(zmq.FD)
+    assert isinstance(fd, int)
+    return fd
 
 
 def read_plain(recv: Callable[..., Any]) -> Received:

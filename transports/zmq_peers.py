@@ -26,7 +26,9 @@ from typing import TYPE_CHECKING, Any
 from btcap._enum import FastEnumType
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
-from btcap.transports.zmq_sockets import SCHEMES, Monitor, check_id, reject
+from btcap.transports.zmq_endpoints import SCHEMES, check_id
+from btcap.transports.zmq_monitors import Monitor
+from btcap.transports.zmq_sockets import reject
 
 __all__ = ["UNREACHABLE_TRIES", "Fate", "PeerBook", "PeerFates"]
 

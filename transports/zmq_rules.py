@@ -31,8 +31,10 @@ from btcap.transports.zmq_claims import (
     limits_for,
     split_hello,
 )
+from btcap.transports.zmq_endpoints import parse_hello
+from btcap.transports.zmq_monitors import Monitor
 from btcap.transports.zmq_peers import PeerBook
-from btcap.transports.zmq_sockets import Monitor, parse_hello, reject
+from btcap.transports.zmq_sockets import reject
 
 __all__ = ["HEAVY_BYTES", "NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 

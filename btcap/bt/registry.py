@@ -8,11 +8,7 @@ type-valued options such as :class:`~btcap.bt.leaves.Constant`'s ``type`` fit in
 
 from __future__ import annotations
 
-import difflib
 import enum
-import re
-import types
-import typing
 from collections.abc import Iterable, Iterator, Mapping
 from importlib import metadata
 from typing import Any
@@ -20,8 +16,11 @@ from typing import Any
 from btcap.bt import async_nodes, composites, decorators, foreach, leaves, read_options, switch
 from btcap.bt.node import Node
 from btcap.bt.scripting import nodes as scripting
-from btcap.bt.state import TreeError
+from btcap.bt.spelling import did_you_mean
+from btcap.bt.state import RegistryError
+from btcap.bt.typenames import BUILTIN_TYPES, format_type, parse_type
 
+# RegistryError lives in btcap.bt.state with the other tree errors; still importable here.
 __all__ = [
     "ENTRY_POINT_GROUP",
     "NodeRegistry",
@@ -53,37 +52,6 @@ REMOVED = {
 #: (Action, Condition) or are abstract bases (Decorator, Remap).
 _NOT_FROM_FILES = frozenset({"Action", "Condition", "Decorator", "Remap"})
 
-_BUILTIN_TYPES: dict[str, Any] = {
-    "Any": Any,
-    "None": None,
-    "bool": bool,
-    "bytes": bytes,
-    "dict": dict,
-    "float": float,
-    "frozenset": frozenset,
-    "int": int,
-    "list": list,
-    "object": object,
-    "set": set,
-    "str": str,
-    "tuple": tuple,
-}
-
-#: Generic containers and how many type arguments they take (``None``: tuple's rules).
-_GENERICS: dict[Any, int | None] = {
-    list: 1,
-    set: 1,
-    frozenset: 1,
-    dict: 2,
-    tuple: None,
-}
-
-_TOKEN = re.compile(r"\s*(?:(\.\.\.)|([A-Za-z_][A-Za-z0-9_.]*)|(\S))")
-
-
-class RegistryError(TreeError):
-    """A node type or type name is unknown, duplicated, or a node plugin is broken."""
-
 
 def _builtin_nodes() -> list[type[Node]]:
     """Every node class the core exports that a file can build (no callables needed)."""
@@ -105,12 +73,6 @@ def _builtin_nodes() -> list[type[Node]]:
     return out
 
 
-def _close(word: str, options: Iterable[str]) -> str:
-    """' (did you mean X, Y?)' for a misspelt name, or '' if nothing is close."""
-    near = difflib.get_close_matches(word, list(options), n=3, cutoff=0.6)
-    return f" (did you mean {', '.join(near)}?)" if near else ""
-
-
 class NodeRegistry:
     """Maps type names used in files to node classes, and type names to port types."""
 
@@ -122,7 +84,7 @@ class NodeRegistry:
     ) -> None:
         self._nodes: dict[str, type[Node]] = {}
         self._names: dict[type[Node], str] = {}
-        self._types: dict[str, Any] = dict(_BUILTIN_TYPES)
+        self._types: dict[str, Any] = dict(BUILTIN_TYPES)
         #: name -> ``user.name`` for user types named like a btcap built-in.
         self._shadow: dict[str, str] = {}
         #: Names BehaviorTree.CPP scripts read as numbers (its ``registerScriptingEnum``).
@@ -184,7 +146,7 @@ class NodeRegistry:
             raise RegistryError(f"node type {name!r}: {REMOVED[name]}")
         hint = " (Subtree is built from the file's 'subtrees')" if name in RESERVED else ""
         raise RegistryError(
-            f"unknown node type {name!r}{_close(name, self._nodes) or hint}; "
+            f"unknown node type {name!r}{did_you_mean(name, self._nodes) or hint}; "
             f"'btcap tree nodes' lists the known types"
         )
 
@@ -319,116 +281,11 @@ class NodeRegistry:
 
     def parse_type(self, text: str) -> Any:
         """Turn ``"dict[str, list[float]] | None"`` into the type; no eval involved."""
-        return _TypeParser(text, self._types).parse()
+        return parse_type(text, self._types)
 
     def format_type(self, tp: Any) -> str:
         """The inverse of :meth:`parse_type`; raises RegistryError for unnamed types."""
-        if tp is Any:
-            return "Any"
-        if tp is None or tp is type(None):
-            return "None"
-        origin = typing.get_origin(tp)
-        if origin in (typing.Union, types.UnionType):
-            return " | ".join(self.format_type(a) for a in typing.get_args(tp))
-        if origin is not None and origin in _GENERICS:
-            args = typing.get_args(tp)
-            inner = ", ".join("..." if a is Ellipsis else self.format_type(a) for a in args)
-            return f"{self.format_type(origin)}[{inner}]" if args else self.format_type(origin)
-        for name, known in self._types.items():
-            if known is tp and name != "None":
-                return name
-        raise RegistryError(
-            f"type {tp!r} has no name in files; register it with "
-            f"registry.register_type('{getattr(tp, '__name__', 'Name')}', ...)"
-        )
-
-
-class _TypeParser:
-    """Recursive descent over ``union := term ('|' term)*``, ``term := NAME ['[' args ']']``."""
-
-    def __init__(self, text: str, names: Mapping[str, Any]) -> None:
-        self.text = text
-        self.names = names
-        self.tokens = self._tokenize(text)
-        self.pos = 0
-
-    def _tokenize(self, text: str) -> list[str]:
-        out: list[str] = []
-        for m in _TOKEN.finditer(text):
-            tok = m.group(1) or m.group(2) or m.group(3)
-            if tok is None:
-                continue  # trailing whitespace
-            if m.group(3) is not None and tok not in "[],|":
-                self._fail(f"unexpected character {tok!r}")
-            out.append(tok)
-        return out
-
-    def _fail(self, why: str) -> typing.NoReturn:
-        raise RegistryError(
-            f"type {self.text!r}: {why}; expected e.g. 'float', 'list[int]', "
-            f"'tuple[float, float]', 'dict[str, int]' or 'int | None'"
-        )
-
-    def _peek(self) -> str | None:
-        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
-
-    def _take(self, want: str | None = None) -> str:
-        tok = self._peek()
-        if tok is None:
-            self._fail("unexpected end" + (f", expected {want!r}" if want else ""))
-        if want is not None and tok != want:
-            self._fail(f"expected {want!r}, found {tok!r}")
-        self.pos += 1
-        return tok
-
-    def parse(self) -> Any:
-        if not self.tokens:
-            self._fail("empty type name")
-        tp = self._union()
-        if self._peek() is not None:
-            self._fail(f"unexpected {self._peek()!r}")
-        return tp
-
-    def _union(self) -> Any:
-        members = [self._term()]
-        while self._peek() == "|":
-            self._take("|")
-            members.append(self._term())
-        if len(members) == 1:
-            return members[0]
-        return typing.Union[tuple(members)]  # noqa: UP007 - built at run time
-
-    def _term(self) -> Any:
-        tok = self._take()
-        if tok in "[],|" or tok == "...":
-            self._fail(f"expected a type name, found {tok!r}")
-        if tok not in self.names:
-            self._fail(f"unknown name {tok!r}{_close(tok, self.names)}")
-        base = self.names[tok]
-        if self._peek() != "[":
-            return type(None) if base is None else base
-        if base not in _GENERICS:
-            self._fail(f"{tok!r} takes no type arguments")
-        self._take("[")
-        args: list[Any] = [self._arg(base)]
-        while self._peek() == ",":
-            self._take(",")
-            args.append(self._arg(base))
-        self._take("]")
-        want = _GENERICS[base]
-        if want is not None and len(args) != want:
-            self._fail(f"{tok}[...] takes {want} type argument(s), got {len(args)}")
-        if base is tuple and Ellipsis in args and (len(args) != 2 or args[0] is Ellipsis):
-            self._fail("'...' only fits as tuple[X, ...]")
-        return base[tuple(args)] if len(args) > 1 else base[args[0]]
-
-    def _arg(self, base: Any) -> Any:
-        if self._peek() == "...":
-            if base is not tuple:
-                self._fail("'...' only fits as tuple[X, ...]")
-            self._take()
-            return Ellipsis
-        return self._union()
+        return format_type(tp, self._types)
 
 
 def default_registry(*, plugins: bool = True) -> NodeRegistry:

@@ -18,6 +18,7 @@ __all__ = [
     "BtcapWarning",
     "IllegalTransition",
     "NodeErrorWarning",
+    "RegistryError",
     "RestartLoopWarning",
     "State",
     "TreeError",
@@ -74,6 +75,10 @@ class TreeError(BtcapError):
 
 class IllegalTransition(TreeError):
     """An action was asked of a node in a state that does not allow it."""
+
+
+class RegistryError(TreeError):
+    """A node type or type name is unknown, duplicated, or a node plugin is broken."""
 
 
 class TreeTimeout(TreeError, TimeoutError):

@@ -42,9 +42,10 @@ NODE_TYPES: tuple[type[Node], ...] = (
 )
 
 
-def register(registry: NodeRegistry) -> NodeRegistry:
-    """Add the ROS node types to ``registry`` (those it lacks) and return it."""
-    for cls in NODE_TYPES:
+def register(registry: NodeRegistry, types: Iterable[type[Node]] = NODE_TYPES) -> NodeRegistry:
+    """Add the ROS node types to ``registry`` (those whose names it lacks) and return it;
+    ``types``: another set under the same names (ROS 1's ``nodes1.NODE_TYPES1``)."""
+    for cls in types:
         if cls.__name__ not in registry:
             registry.register(cls)
     return registry
@@ -63,9 +64,9 @@ class RosAgent:
 
     def register(self, registry: NodeRegistry) -> None:
         if self.bridge.types.version == 1:
-            from btcap.ros.nodes1 import register1
+            from btcap.ros.nodes1 import NODE_TYPES1
 
-            register1(registry)
+            register(registry, NODE_TYPES1)
         else:
             register(registry)
 

@@ -2,7 +2,8 @@
 filling their messages from ROS 1's genpy classes (:data:`btcap.ros.versions.ROS1`).
 
 An agent whose ``ros:`` block says ``backend: ros1`` registers these under the usual names
-(``RosAction``...), so its tree files are the ones a ROS 2 robot runs. A node given a
+(``RosAction``...: :func:`btcap.ros.agent.register` given :data:`NODE_TYPES1`), so its
+tree files are the ones a ROS 2 robot runs. A node given a
 :class:`~btcap.ros.client1.Ros1Bridge` as ``bridge=`` takes ROS 1's types from it, so
 Python code may use either set.
 """
@@ -12,7 +13,6 @@ from __future__ import annotations
 from typing import ClassVar
 
 from btcap.bt.node import Node
-from btcap.bt.registry import NodeRegistry
 from btcap.ros import action, service, topic
 from btcap.ros.versions import ROS1, Types
 
@@ -23,7 +23,6 @@ __all__ = [
     "RosService",
     "RosSubscribe",
     "RosWaitForMessage",
-    "register1",
 ]
 
 
@@ -65,11 +64,3 @@ NODE_TYPES1: tuple[type[Node], ...] = (
     RosSubscribe,
     RosWaitForMessage,
 )
-
-
-def register1(registry: NodeRegistry) -> NodeRegistry:
-    """Add the ROS 1 node types to ``registry`` (those whose names it lacks)."""
-    for cls in NODE_TYPES1:
-        if cls.__name__ not in registry:
-            registry.register(cls)
-    return registry

@@ -1,8 +1,11 @@
-"""Messages of the capability layer: team membership, repository gossip, auctions, executions.
+"""Messages of the capability layer: team membership, repository gossip, auctions,
+executions.
 
 Every type here is registered by :func:`btcap.team.runtime.protocol.protocol_registry`,
 so it travels between robots over any transport. Values of capability ports travel as
-``Any`` and are converted back to their declared types on arrival."""
+``Any`` and are converted back to their declared types on arrival. The consensus
+allocation's messages (:mod:`btcap.team.consensus_messages`) and the observers'
+(:mod:`btcap.team.observing`) live in modules of their own and are named here too."""
 
 from __future__ import annotations
 
@@ -11,6 +14,12 @@ from typing import Any
 
 import msgspec
 
+from btcap.team.consensus_messages import (
+    ConsensusClaim,
+    ConsensusPrices,
+    ConsensusTasks,
+    OpenTask,
+)
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.observing import (
     Departed,
@@ -180,7 +189,9 @@ class CallForBids(Message):
     auctioneer named in the auction's id. ``holder``: running work is re-evaluated, and
     the robot running execution ``holder`` bids what finishing it there would cost.
     ``handing``: an exchange; the robot running ``handing`` bids as if it handed that over
-    (no wait), and may be awarded this task beside it. ``extended``: too busy, bid for later."""
+    (no wait), and may be awarded this task beside it. ``extended``: a time-extended call;
+    a robot too busy to take the task still says what it would cost it after the work it
+    holds (a :class:`Bid` with ``after``), so the planner knows what waiting costs."""
 
     auction: AuctionId
     interface: str
@@ -192,8 +203,13 @@ class CallForBids(Message):
 
 
 class Bid(Message):
-    """A cost (lower is better) with one implementation, ``after`` of it a wait;
-    ``later``: too busy, what it would cost once free (to plan with, never awarded)."""
+    """A cost (lower is better) for running the capability with one implementation.
+
+    ``after``: the work the robot must finish first, included in ``cost`` (a busy robot
+    that may queue the task, or one bidding for later). ``later``: a time-extended bid
+    (see :attr:`CallForBids.extended`): the robot is too busy to take the task and says
+    what it would cost it once its work is done, so a planner knows what waiting costs;
+    never awarded."""
 
     auction: AuctionId
     robot: str
@@ -212,7 +228,11 @@ class NoBid(Message):
 
 
 class Award(Message):
-    """You won: run ``execution`` from the origin's first renewal (``paused``: its inputs)."""
+    """You won: take ``implementation`` as execution ``execution``; it starts with the
+    origin's first renewal (or, ``paused``, with its first inputs: work being moved must
+    not run twice). The run is the origin's, named in ``execution``; the executor stops it
+    ``lease_s`` x 0.9 after the newest of its stamps the origin echoed (before the origin
+    may re-assign it: :mod:`btcap.team.core.fence`)."""
 
     auction: AuctionId
     execution: ExecutionId
@@ -221,7 +241,9 @@ class Award(Message):
     inputs: dict[str, Any]
     lease_s: float
     paused: bool = False
-    handing: ExecutionId | None = None  #: exchanged: held paused until this is released
+    #: An exchange: the winner holds this (paused) beside ``handing``, which it runs and
+    #: hands over; it starts when ``handing`` is released.
+    handing: ExecutionId | None = None
 
 
 class AwardReply(Message):
@@ -231,64 +253,8 @@ class AwardReply(Message):
     robot: str
     accepted: bool
     reason: str = ""
-    stamp: float | None = None  #: the winner's clock: the origin's echo starts the run
-
-
-# -- consensus allocation (no auctioneer) ------------------------------------------------
-class OpenTask(msgspec.Struct, frozen=True, array_like=True):
-    """One capability execution an origin wants run, as consensus allocation offers it.
-    ``holder``: running work is re-evaluated; ``holder_robot`` runs it and its bid counts
-    ``margin`` lower, so others must beat it by that much."""
-
-    execution: ExecutionId
-    interface: str
-    identity: str
-    inputs: dict[str, Any]
-    candidates: list[str]
-    holder: ExecutionId | None = None
-    holder_robot: str | None = None
-    margin: float = 0.0
-
-
-class ConsensusTasks(Message):
-    """The sender's open tasks as of ``version`` (newer versions replace older ones)."""
-
-    robot: str
-    version: int
-    tasks: list[OpenTask]
-
-
-class ConsensusClaim(Message):
-    """The sender's claim to a task's origin (``task`` at ``cost`` with ``implementation``,
-    bidding the price ``bid``; or none) under its ``stamp``, made having merged the
-    origin's task set ``seen``; ``most``: its dearest cost among the open tasks (the
-    origin's ceiling follows it); ``why``: tasks it cannot bid for, and why. ``seq``
-    grows with every message of the sender; ``view`` is unused (kept for older peers)."""
-
-    robot: str
-    seq: int
-    stamp: int
-    task: ExecutionId | None
-    cost: float
-    implementation: str
-    view: list[tuple[str, int, int]]
-    why: list[tuple[ExecutionId, str]] = []
-    bid: float = 0.0
-    most: float = 0.0
-    seen: int = 0
-
-
-class ConsensusPrices(Message):
-    """An origin's price board in its task set ``version``, numbered ``seq``, sent to a
-    robot that must bid again: (task, price, holder) for each open task; ``heard``: the
-    recipient's newest claim stamp it reflects; ``ceiling``: cost of claiming nothing."""
-
-    robot: str
-    version: int
-    seq: int
-    heard: int
-    prices: list[tuple[ExecutionId, float, str | None]]
-    ceiling: float
+    #: The winner's clock as it accepted: the origin echoes it to start the run.
+    stamp: float | None = None
 
 
 # -- executions --------------------------------------------------------------------------
@@ -299,7 +265,8 @@ class RunState(enum.Enum):
     so the core needs no behaviour tree; the values are the node states' (the executor
     reports its implementation's root state), so the wire bytes are the same. LOST is what
     an executor reports for an execution it does not (or no longer) have; its wire value is
-    ``"shutdown"``."""
+    ``"shutdown"``.
+    """
 
     UNINITIALIZED = "uninitialized"
     IDLE = "idle"
@@ -323,7 +290,8 @@ class ExecutionInputs(Message):
     execution: ExecutionId
     seq: int
     inputs: dict[str, Any]
-    echo: float | None = None  #: the executor's newest stamp heard: renews the lease
+    #: The executor's newest stamp the origin heard: renews the run's lease (None: not).
+    echo: float | None = None
 
 
 class ExecutionStatus(Message):
@@ -335,7 +303,8 @@ class ExecutionStatus(Message):
     outputs: dict[str, Any]
     seq: int = 0
     detail: str = ""
-    stamp: float | None = None  #: the executor's clock, echoed in the origin's renewals
+    #: The executor's clock as it sent this (the origin echoes it in its renewals).
+    stamp: float | None = None
 
 
 class PauseExecution(Message):
@@ -352,7 +321,10 @@ class CancelExecution(Message):
 
 
 class KeepAlive(Message):
-    """Renews leases; ``stamps[i]``: the sender's clock, or its echo of ours (core.fence)."""
+    """Renews the leases of these executions (sent while no tick traffic flows). Each
+    execution has its stamp at the same index of ``stamps``: for one the sender runs, its
+    clock now; for one it is the origin of, the receiver's newest stamp it heard (the
+    echo that renews the run: :mod:`btcap.team.core.fence`)."""
 
     robot: str
     executions: list[ExecutionId]

@@ -6,9 +6,7 @@ load reports all the mistakes in a file. Inputs a parent feeds (``feeds``) need 
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import typing
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +26,7 @@ from btcap.bt.files.schema import (
 from btcap.bt.node import Node
 from btcap.bt.ports import check_port, type_name
 from btcap.bt.registry import NodeRegistry, RegistryError
+from btcap.bt.spelling import did_you_mean
 from btcap.bt.state import TreeError
 from btcap.bt.tree import Subtree, Tree
 
@@ -60,7 +59,8 @@ class Builder:
         cache: dict[Path, TreeFile],
         boards: Boards | None = None,
     ) -> None:
-        self.spec, self.boards = spec, boards  # boards: an XML file's blackboard entries
+        self.spec = spec
+        self.boards = boards  # an XML file's blackboard entries
         self.where = where
         self.registry = registry
         self.base = base
@@ -313,7 +313,7 @@ class Builder:
             if port is None:
                 self.fail(
                     f"{loc} option {key!r}: unknown option of {spec.type}"
-                    f"{_near(key, declared)}; options: {', '.join(declared) or 'none'}"
+                    f"{did_you_mean(key, declared)}; options: {', '.join(declared) or 'none'}"
                 )
                 ok = False
                 continue
@@ -366,7 +366,7 @@ class Builder:
             known = ", ".join(self.spec.subtrees) or "none"
             self.fail(
                 f"{loc} option 'tree': unknown subtree {ref!r}"
-                f"{_near(ref, self.spec.subtrees)}; subtrees: {known}"
+                f"{did_you_mean(ref, self.spec.subtrees)}; subtrees: {known}"
             )
             return None
         if ref in self._building:
@@ -389,7 +389,7 @@ class Builder:
             if port is None:
                 self.fail(
                     f"{loc} input {key!r}: {spec.type} has no such input"
-                    f"{_near(key, node.input_ports)}; inputs: "
+                    f"{did_you_mean(key, node.input_ports)}; inputs: "
                     f"{', '.join(node.input_ports) or 'none'}"
                 )
                 continue
@@ -435,11 +435,6 @@ class Builder:
 
 def _under(path: str, failed: list[str]) -> bool:
     return any(path == f or path.startswith(f + "/") for f in failed)
-
-
-def _near(word: str, options: Iterable[str]) -> str:
-    near = difflib.get_close_matches(word, list(options), n=3, cutoff=0.6)
-    return f" (did you mean {', '.join(near)}?)" if near else ""
 
 
 def _strip_self(msg: str, name: str, tname: str) -> str:

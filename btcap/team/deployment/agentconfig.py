@@ -63,7 +63,7 @@ from btcap.team.settings import AgentConfig
 from btcap.transports import MessageRegistry, ZmqTransport
 from btcap.transports.identity import OBSERVER, check_member_name, is_observer_id, member_of
 from btcap.transports.security import KeyPair, TeamKeys
-from btcap.transports.zmq_sockets import check_endpoint, check_id
+from btcap.transports.zmq_endpoints import check_endpoint, check_id
 
 __all__ = [
     "AgentConfigError",
