@@ -23,7 +23,7 @@ from btcap.transports.message import Address
 # handler lives in btcap.actors.handlers; still importable from here.
 __all__ = ["ActorCell", "Host", "Reply", "Supervision", "handler"]
 
-log = get_logger("btcap.actors")
+log = get_logger(__name__)
 
 #: Called once with the handler's result, or with the error that replaces it.
 Reply = Callable[[Any, BaseException | None], None]

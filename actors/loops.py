@@ -86,7 +86,7 @@ def run(coro: Coroutine[Any, Any, T], env: Mapping[str, str] = os.environ) -> T:
         return runner.run(coro)
 
 
-_log = get_logger("btcap.actors.loops")
+_log = get_logger(__name__)
 #: The callback's name in asyncio's (and uvloop's) text for it: a task's coroutine, or a
 #: handle's function (``<Handle Actor.method(args) ...>``, ``<TimerHandle when=1 f()>``).
 _SITE = re.compile(r"coro=<([^\s(>]+)|^<(?:Timer)?Handle (?:when=\S+ )?([^\s(>]+)")

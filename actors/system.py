@@ -40,7 +40,7 @@ from btcap.transports.message import Address, Message, MessageRegistry
 # Failure and runtime_messages live in btcap.actors.failure; still importable from here.
 __all__ = ["ActorSystem", "Failure", "runtime_messages"]
 
-log = get_logger("btcap.actors")
+log = get_logger(__name__)
 
 A = TypeVar("A", bound=ActorCell)
 # Kind's members as constants: on 3.11 ``Kind.X`` goes through EnumType's attribute hook.

@@ -22,7 +22,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["HANDSHAKE_EVENTS", "Refusals", "fingerprint"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 REFUSED = int(zmq.EVENT_HANDSHAKE_FAILED_AUTH)
 FAILED = int(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)

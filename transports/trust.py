@@ -21,7 +21,7 @@ from btcap.transports.security import TeamKeys
 
 __all__ = ["DEFAULT_POLL_S", "first_listing", "listing", "watch_trusted"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 DEFAULT_POLL_S = 2.0
 """How often a transport looks at its trusted folder: a removed key is refused and its

@@ -64,7 +64,7 @@ from btcap.transports.zmq_sockets import (
 
 __all__ = ["ZmqTransport"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 _MSG = b"M"
 _HELLO = b"H"

@@ -39,7 +39,7 @@ __all__ = [
     "split_hello",
 ]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 RoleTable = Mapping[str, frozenset[type[Message]] | None]
 """Role -> the message types a peer with that role may tell or ask (None: any)."""

@@ -25,7 +25,7 @@ from btcap.transports.zmq_io import EVENTS, NOBLOCK, POLLIN, fd_of
 
 __all__ = ["DISCONNECTED", "RETRIED", "Monitor", "RouterEvents"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 # Plain ints, as zmq_io's flags: pyzmq's enums cost an enum call on every use.
 DISCONNECTED = int(zmq.EVENT_DISCONNECTED)

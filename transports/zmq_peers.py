@@ -32,7 +32,7 @@ from btcap.transports.zmq_sockets import reject
 
 __all__ = ["UNREACHABLE_TRIES", "Fate", "PeerBook", "PeerFates"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 UNREACHABLE_TRIES = 3
 """Failed dials after which a stranger that never spoke is dropped."""

@@ -38,7 +38,7 @@ from btcap.transports.zmq_sockets import reject
 
 __all__ = ["HEAVY_BYTES", "NON_MEMBER_BYTES", "REFUSAL", "PeerRules", "split_hello"]
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 HELLO_BYTE = b"H"[0]
 """The first byte of a hello frame."""

@@ -20,14 +20,11 @@ from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.refusals import HANDSHAKE_EVENTS
 from btcap.transports.security import Curve
-from btcap.transports.zmq_endpoints import check_id
-from btcap.transports.zmq_io import NOBLOCK, fd_of
+from btcap.transports.zmq_io import NOBLOCK
 from btcap.transports.zmq_monitors import DISCONNECTED, RETRIED, Monitor, RouterEvents
 
 __all__ = [
     "COPY_THRESHOLD",
-    "check_id",
-    "fd_of",
     "open_dealer",
     "open_router",
     "reject",
@@ -35,10 +32,8 @@ __all__ = [
     "unsent",
     "write",
 ]
-# check_id and fd_of moved to zmq_endpoints and zmq_io; named here still for sim.scenario
-# and bench.transport_floor, which import them from this module.
 
-log = get_logger("btcap.transports")
+log = get_logger(__name__)
 
 _RECV_HWM = 10_000
 _SEND_HWM = 10_000

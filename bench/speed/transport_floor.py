@@ -31,7 +31,7 @@ import zmq
 
 from btcap.bench.speed.transport_peers import READY, Ping, child, peer_keys, until_stdin_closes
 from btcap.transports import KeyPair
-from btcap.transports.zmq_sockets import fd_of
+from btcap.transports.zmq_io import fd_of
 
 __all__ = ["floor_tcp", "raw_zmq_tcp_blocking", "serve_blocking", "serve_floor"]
 

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Leaf", "Node", "Observer", "TreeHost"]
 
-log = get_logger("btcap")
+log = get_logger(__name__)
 
 #: Called as ``observer(node, old_state, new_state)`` whenever a node changes state.
 Observer = Callable[["Node", State, State], None]

@@ -237,7 +237,7 @@ def _foxglove(address: tuple[str, int]) -> FoxgloveLive:
         raise CliError(f"--foxglove needs the Foxglove SDK: pip install 'btcap[foxglove]' "
                        f"({exc})") from None  # fmt: skip
     if not is_loopback(address[0]):
-        log = get_logger("btcap.monitor")
+        log = get_logger(__name__)
         log.warning("monitor.public", host=address[0], note="Foxglove: anyone sees the team")
     try:
         return FoxgloveLive(*address)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Joining", "departure_rows"]
 
-log = get_logger("btcap.cli")
+log = get_logger(__name__)
 
 
 class Joining:

@@ -32,7 +32,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["CHUNK_SIZE", "MAGIC", "METADATA_NAME", "McapRecorder", "read_mcap"]
 
-log = get_logger("btcap.monitor")
+log = get_logger(__name__)
 
 MAGIC = b"\x89MCAP0\r\n"
 #: Uncompressed bytes a chunk holds before it is written ...

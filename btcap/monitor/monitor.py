@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
 __all__ = ["FOLLOW_EVERY_S", "RESULTS", "Monitor"]
 
-log = get_logger("btcap.monitor")
+log = get_logger(__name__)
 
 #: Reasons of lost executions kept for the runs they end.
 _MAX_LOST = 1000

@@ -30,7 +30,7 @@ __all__ = [
     "read_record",
 ]
 
-log = get_logger("btcap.monitor")
+log = get_logger(__name__)
 
 FORMAT = "btcap-monitor"
 VERSION = 1

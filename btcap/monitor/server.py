@@ -23,7 +23,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["MonitorServer", "Source"]
 
-log = get_logger("btcap.monitor")
+log = get_logger(__name__)
 
 STATIC = Path(str(files("btcap.monitor") / "static"))
 #: Nothing is loaded from anywhere but this server.

@@ -35,7 +35,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["FEEDBACK_WAKE_S", "ROS_BRIDGE", "RosBridge", "Waker"]
 
-log = get_logger("btcap.ros")
+log = get_logger(__name__)
 
 #: The service under which a robot's actor system holds its bridge; nodes find it there.
 ROS_BRIDGE: Service[RosBridge] = Service("ros-bridge")

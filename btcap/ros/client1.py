@@ -45,7 +45,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["Ros1Bridge", "probe_master"]
 
-log = get_logger("btcap.ros")
+log = get_logger(__name__)
 
 #: Bounds, not measures: the master answers its pid in milliseconds, the rospy process
 #: registers in about a second (imports), and leaves the master in well under one.

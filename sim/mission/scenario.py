@@ -31,7 +31,7 @@ from btcap.sim.mission.scenariofile import (
 )
 from btcap.sim.world.grid import MapError
 from btcap.team.filecheck import field_first, not_finite
-from btcap.transports.zmq_sockets import check_id
+from btcap.transports.zmq_endpoints import check_id
 
 __all__ = [
     "AgentTiming",

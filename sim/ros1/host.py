@@ -35,7 +35,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["Ros1Host", "Ros1SimError"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 #: The system the servers ask the simulation manager from.
 SYSTEM_ID = "ros1-sim"

@@ -36,7 +36,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["Ros1SimError", "SimServers1"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 #: Bounds, not measures: the rospy process imports and registers in about a second.
 START_S = 60.0

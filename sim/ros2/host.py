@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Ros2Host", "Ros2Unavailable"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 #: The system the servers ask the simulation manager from.
 SYSTEM_ID = "ros2-sim"

@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = ["POSE_EVERY_S", "Served", "serve"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 #: Wall seconds between two publications of every robot's pose while it stands still, so
 #: an agent that starts late (a distance bid reads the pose topic) hears where it is.

@@ -36,7 +36,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["ProcessHost", "robot_factory", "run_distributed"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 
 def robot_factory(robot: str, scenario: dict[str, Any]) -> RobotSetup:

@@ -39,7 +39,7 @@ __all__ = [
     "registry",
 ]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 
 def registry() -> MessageRegistry:

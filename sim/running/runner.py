@@ -41,7 +41,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["HostFactory", "Progress", "run_scenario"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 #: Seconds the robots present at the start have to join the team: of the wall on a real
 #: clock, of the clock on a virtual one (where wall time must decide nothing).

@@ -32,7 +32,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["SimConfig", "SimEvent", "SimulationManager"]
 
-log = get_logger("btcap.sim")
+log = get_logger(__name__)
 
 
 @dataclass(slots=True)

@@ -207,7 +207,7 @@ async def test_refused_whatever_sender_the_envelope_names(claimed: str) -> None:
 
 
 def test_the_table_of_senders_is_bounded() -> None:
-    refusals = Refusals("robot", get_logger("btcap.actors"), limit=3)
+    refusals = Refusals("robot", get_logger("btcap.actors.refusals"), limit=3)
     assert refusals.count("a", "Tick") == ("a", 1)
     assert refusals.count("a", "Tick") == ("a", 2)
     assert refusals.count("b", "Tick") == ("b", 1)

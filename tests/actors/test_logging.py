@@ -90,9 +90,9 @@ async def test_standard_logging_turns_the_events_on(caplog: pytest.LogCaptureFix
     with anyio.fail_after(2):
         await _agent_like_run()
     records = [(r.name, r.levelname, r.getMessage().split()[0]) for r in caplog.records]
-    assert ("btcap.actors", "ERROR", "actor.handler_failed") in records
-    assert ("btcap.actors", "INFO", "actors.dead_letter") in records
-    assert ("btcap.actors", "WARNING", "actors.dropped") in records
+    assert ("btcap.actors.cell", "ERROR", "actor.handler_failed") in records
+    assert ("btcap.actors.system", "INFO", "actors.dead_letter") in records
+    assert ("btcap.actors.system", "WARNING", "actors.dropped") in records
     dead = next(r for r in caplog.records if r.getMessage().startswith("actors.dead_letter"))
     assert "to=robot/nobody" in dead.getMessage()
     failed = next(r for r in caplog.records if r.levelname == "ERROR")
@@ -134,7 +134,7 @@ async def test_configure_logging_json_and_level(capsys: pytest.CaptureFixture[st
     events = [line for line in lines if line.startswith("{")]
     assert len(events) == len(lines) == 2, lines
     assert '"event": "actor.handler_failed"' in events[0]
-    assert '"logger": "btcap.actors"' in events[0]
+    assert '"logger": "btcap.actors.cell"' in events[0]
     assert '"event": "actors.dropped"' in events[1]
 
 
@@ -218,3 +218,24 @@ def test_wanted_says_whether_an_event_would_go_anywhere() -> None:
         assert wanted(name, logging.INFO)
     finally:
         logging.getLogger(name).setLevel(logging.NOTSET)
+
+
+def test_every_logger_is_named_after_its_module() -> None:
+    """Logger names follow the packages (``btcap.team.runtime.mission``...), so one
+    ``logging.getLogger("btcap.team").setLevel(...)`` reaches a whole subpackage; the only
+    other name is the BT ``Log`` leaf's, which a tree's author switches on by name."""
+    from btcap_sources import modules
+
+    named = []
+    for mod, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id == "get_logger"
+                and node.args
+            ):
+                arg = node.args[0]
+                if not (isinstance(arg, ast.Name) and arg.id in ("__name__", "LOG_LOGGER")):
+                    named.append(f"{mod}: get_logger({ast.unparse(arg)})")
+    assert not named, named

@@ -41,7 +41,7 @@ __all__ = [
     "Unassigned",
 ]
 
-log = get_logger("btcap.team.allocation.auction")
+log = get_logger(__name__)
 
 
 class SingleItemAuction(Allocator):

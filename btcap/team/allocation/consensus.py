@@ -57,7 +57,7 @@ from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["ConsensusAssigner", "ConsensusStats"]
 
-log = get_logger("btcap.team.consensus")
+log = get_logger(__name__)
 
 
 @dataclass(slots=True)

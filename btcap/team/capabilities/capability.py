@@ -31,7 +31,7 @@ __all__ = [
     "OutputBridge",
 ]
 
-log = get_logger("btcap.capability")
+log = get_logger(__name__)
 
 #: Where a robot's actor system runs its :class:`Assigner` (mission control).
 ASSIGNER_PATH = "mission_control"

@@ -11,7 +11,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["RunFactory"]
 
-log = get_logger("btcap.mission")
+log = get_logger(__name__)
 
 
 class RunFactory:

@@ -57,7 +57,7 @@ __all__ = [
     "spawn_agents",
 ]
 
-log = get_logger("btcap.team.launch")
+log = get_logger(__name__)
 
 
 class AgentFailed(BtcapError):

@@ -18,7 +18,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["Departure", "DepartureLog"]
 
-log = get_logger("btcap.team")
+log = get_logger(__name__)
 
 
 @dataclass(frozen=True, slots=True)

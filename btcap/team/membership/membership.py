@@ -39,7 +39,7 @@ from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["Member", "Membership", "TeamEvent"]
 
-log = get_logger("btcap.team")
+log = get_logger(__name__)
 
 
 Listener = Callable[[TeamEvent, str], None]

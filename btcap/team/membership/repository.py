@@ -16,7 +16,7 @@ from btcap.transports.log import get_logger, worth_logging
 
 __all__ = ["MAX_STATE_COST", "MAX_TEAM_COST", "CapabilityRepository", "state_cost"]
 
-log = get_logger("btcap.team.repository")
+log = get_logger(__name__)
 
 #: What one teammate's capabilities may cost to hold (about bytes; see
 #: :func:`state_cost`): hundreds of interfaces with long port lists fit.

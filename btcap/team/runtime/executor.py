@@ -34,7 +34,7 @@ from btcap.transports.log import get_logger, wanted
 
 __all__ = ["ExecutorSide"]
 
-log = get_logger("btcap.mission")
+log = get_logger(__name__)
 
 
 #: Calls for bids one auctioneer may have priced at once, then per clock second: a tree

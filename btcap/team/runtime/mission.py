@@ -58,7 +58,7 @@ _RUN_STATE: dict[State, RunState] = {
     s: RunState.SUCCEEDED if s is State.SKIPPED else RunState(s.value) for s in State
 }
 
-log = get_logger("btcap.mission")
+log = get_logger(__name__)
 
 
 class MissionControl(Actor):

@@ -43,7 +43,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["Reevaluation"]
 
-log = get_logger("btcap.mission")
+log = get_logger(__name__)
 
 #: A teammate's news sets off work at most this often per auction window, after a burst.
 NEWS_PER_WINDOW = 1.0

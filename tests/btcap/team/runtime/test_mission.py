@@ -127,7 +127,7 @@ async def test_a_hosted_run_ending_is_logged_at_info_when_info_is_wanted(
     # call, once a round): info, or structlog without a level filter, still gets it.
     with anyio.fail_after(10):
         probe = Probe()
-        caplog.set_level(logging.INFO if wanted == "info" else logging.WARNING, "btcap.mission")
+        caplog.set_level(logging.INFO if wanted == "info" else logging.WARNING, "btcap.team")
         async with team() as t:
             a, _b = await t.origin_and_executor(probe)
             node = _count()
