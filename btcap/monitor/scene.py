@@ -173,8 +173,10 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
         entities = []
         for o in objects:
             status, by = o["status"], o.get("by")
-            riding = (by, 0.0, 0.0, ROBOT_M + OBJECT_M / 2)  # on the robot's sphere
-            frame, x, y, z = riding if by else (MAP_FRAME, o["x"], o["y"], OBJECT_M / 2)
+            if by:  # it rides on the robot's sphere
+                frame, x, y, z = str(by), 0.0, 0.0, ROBOT_M + OBJECT_M / 2
+            else:
+                frame, x, y, z = MAP_FRAME, o["x"], o["y"], OBJECT_M / 2
             cube = {
                 "pose": _pose(x, y, z),
                 "size": {"x": OBJECT_M, "y": OBJECT_M, "z": OBJECT_M},
