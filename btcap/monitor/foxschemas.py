@@ -87,12 +87,7 @@ LOG = _root(
         level=_enum(
             "foxglove.LogLevel",
             "Log level",
-            "UNKNOWN",
-            "DEBUG",
-            "INFO",
-            "WARNING",
-            "ERROR",
-            "FATAL",
+            *("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"),
         ),
         message=_STR,
         name=_STR,
