@@ -2,7 +2,12 @@
 Foxglove's ``foxglove.Log`` for the lines a person reads (who joined, who won what, why).
 
 Every channel is JSON-encoded with a JSON Schema (MCAP's ``json`` message encoding,
-``jsonschema`` schema encoding), so Foxglove and Lichtblick show the fields by name.
+``jsonschema`` schema encoding), so Foxglove and Lichtblick show the fields by name. The
+schemas keep to what their JSON Schema reader takes (a channel it cannot read is dropped
+whole): one ``type`` a field, ``properties`` on every object (empty on a map, whose
+entries ``additionalProperties`` describes), ``items`` of one type. A field that may be
+null is typed by its other type, and ``bids``, an array of ``[robot, cost]`` pairs, is
+described but not listed among the properties: that reader takes no arrays of arrays.
 A simulation's ``map`` and ``world`` events are drawn as well, as Foxglove's 3D panel
 reads them (:mod:`btcap.monitor.scene`); the Foxglove schemas are in
 :mod:`btcap.monitor.foxschemas`. :func:`messages` is what a recording and the live
@@ -31,8 +36,8 @@ __all__ = [
 
 _STR = {"type": "string"}
 _NUM = {"type": "number"}
-_STR_OR_NULL = {"type": ["string", "null"]}
-_NAME_MAP = {"type": "object", "additionalProperties": {"type": "string"}}
+_STR_OR_NULL = {"type": "string", "description": "null where there is none"}
+_NAME_MAP = {"type": "object", "properties": {}, "additionalProperties": {"type": "string"}}
 
 
 def _obj(title: str, desc: str, props: dict[str, Any], required: list[str]) -> dict[str, Any]:
@@ -59,14 +64,14 @@ _NODE = {
     "required": ["id", "name", "type", "parent", "cap", "state"],
 }
 
-_XY = {"type": "array", "prefixItems": [_NUM, _NUM], "minItems": 2, "maxItems": 2}
+_XY = {"type": "array", "items": _NUM, "minItems": 2, "maxItems": 2}
 _OBJECT = {
     "type": "object",
     "properties": {
         "id": {"type": "integer"},
         "x": _NUM,
         "y": _NUM,
-        "status": {"enum": list(OBJECT_COLORS)},
+        "status": {"type": "string", "enum": list(OBJECT_COLORS)},
         "by": _STR_OR_NULL,
     },
     "required": ["id", "x", "y", "status"],
@@ -101,7 +106,7 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
         _obj(
             "btcap.TeamChange",
             "A robot joined, left or failed.",
-            {"robot": _STR, "change": {"enum": ["joined", "left", "failed"]}},
+            {"robot": _STR, "change": {"type": "string", "enum": ["joined", "left", "failed"]}},
             ["robot", "change"],
         ),
     ),
@@ -111,7 +116,7 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
             "btcap.Run",
             "An execution started (a robot runs an origin's capability) or ended.",
             {
-                "phase": {"enum": ["start", "end"]},
+                "phase": {"type": "string", "enum": ["start", "end"]},
                 "execution": _STR,
                 "robot": _STR,
                 "origin": _STR,
@@ -128,9 +133,10 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
         _obj(
             "btcap.Auction",
             "An auction opened (why, candidates) or closed (bids cheapest first, declines, "
-            "who was passed over and why, the winner).",
+            "who was passed over and why, the winner). A closed one's bids are an array "
+            "of [robot, cost] pairs, cheapest first.",
             {
-                "phase": {"enum": ["open", "close"]},
+                "phase": {"type": "string", "enum": ["open", "close"]},
                 "id": _STR,
                 "execution": _STR,
                 "auctioneer": _STR,
@@ -138,10 +144,6 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
                 "node": _STR,
                 "candidates": {"type": "array", "items": _STR},
                 "why": _STR,
-                "bids": {
-                    "type": "array",
-                    "items": {"type": "array", "prefixItems": [_STR, _NUM]},
-                },
                 "declined": _NAME_MAP,
                 "reasons": _NAME_MAP,
                 "winner": _STR_OR_NULL,
@@ -166,9 +168,10 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
             "What changed in the simulated world, each part whole: robots' poses "
             "([x, y] metres), robots' state and task, objects and their status.",
             {
-                "poses": {"type": "object", "additionalProperties": _XY},
+                "poses": {"type": "object", "properties": {}, "additionalProperties": _XY},
                 "robots": {
                     "type": "object",
+                    "properties": {},
                     "additionalProperties": {
                         "type": "object",
                         "properties": {"up": {"type": "boolean"}, "task": _STR},
@@ -185,7 +188,10 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
         _obj(
             "btcap.Finished",
             "How the run ended, with a line for a person.",
-            {"result": {"enum": ["succeeded", "failed", "stopped"]}, "summary": _STR},
+            {
+                "result": {"type": "string", "enum": ["succeeded", "failed", "stopped"]},
+                "summary": _STR,
+            },
             ["result", "summary"],
         ),
     ),

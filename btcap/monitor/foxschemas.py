@@ -9,7 +9,11 @@ tables: the same names, types and nesting. ``SceneEntity`` lists the primitive a
 btcap fills (cubes, spheres, texts) in full and the others (arrows, cylinders, lines,
 triangles, models) as arrays of objects: btcap writes none of them.
 
-In JSON, ``bytes`` fields are base64 strings and enumerations are their numbers.
+In JSON, ``bytes`` fields are base64 strings and enumerations are their numbers, each
+enumeration a ``oneOf`` of numeric ``const`` values with their names as titles, as in
+Foxglove's published JSON Schemas. Foxglove Studio and Lichtblick read a JSON Schema only
+that far: every field a single ``type`` (or such a ``oneOf``), every object with its
+``properties`` (tests/btcap/monitor/test_foxglove_subset.py checks every channel's schema).
 """
 
 from __future__ import annotations
@@ -43,6 +47,12 @@ def _array(items: dict[str, Any]) -> dict[str, Any]:
     return {"type": "array", "items": items}
 
 
+def _enum(title: str, desc: str, *names: str) -> dict[str, Any]:
+    """An enumeration as Foxglove writes one: its values 0, 1, ... named by ``names``."""
+    alternatives = [{"title": name, "const": i} for i, name in enumerate(names)]
+    return {"title": title, "description": desc, "oneOf": alternatives}
+
+
 _TIME = {
     "type": "object",
     "title": "time",
@@ -74,7 +84,11 @@ LOG = _root(
         "foxglove.Log",
         "A log message",
         timestamp=_TIME,
-        level={"title": "foxglove.LogLevel", "enum": [0, 1, 2, 3, 4, 5]},
+        level=_enum(
+            "foxglove.LogLevel",
+            "Log level",
+            *("UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"),
+        ),
         message=_STR,
         name=_STR,
         file=_STR,
@@ -87,8 +101,11 @@ _PACKED_FIELD = _obj(
     "A field of each element of packed data",
     name=_STR,
     offset=_UINT,
-    # 0 unknown, 1 uint8, 2 int8, 3 uint16, 4 int16, 5 uint32, 6 int32, 7 float32, 8 float64
-    type={"title": "foxglove.NumericType", "enum": list(range(9))},
+    type=_enum(
+        "foxglove.NumericType",
+        "Numeric type",
+        *("UNKNOWN", "UINT8", "INT8", "UINT16", "INT16", "UINT32", "INT32", "FLOAT32", "FLOAT64"),
+    ),
 )
 
 GRID = _root(
@@ -119,7 +136,7 @@ _TEXT = _obj(
     color=_COLOR,
     text=_STR,
 )
-_UNUSED = _array({"type": "object"})
+_UNUSED = _array({"type": "object", "properties": {}})
 _ENTITY = {
     **_obj(
         "foxglove.SceneEntity",
@@ -145,7 +162,7 @@ _DELETION = _obj(
     "foxglove.SceneEntityDeletion",
     "Removes entities: 0 the one of ``id``, 1 all of the topic",
     timestamp=_TIME,
-    type={"title": "foxglove.SceneEntityDeletionType", "enum": [0, 1]},
+    type=_enum("foxglove.SceneEntityDeletionType", "Deletion type", "MATCHING_ID", "ALL"),
     id=_STR,
 )
 SCENE_UPDATE = _root(

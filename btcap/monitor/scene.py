@@ -54,6 +54,10 @@ _UP, _DOWN = (0.2, 0.4, 1.0, 1.0), (0.5, 0.5, 0.5, 0.8)
 _WHITE = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
 _IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 _FOREVER = {"sec": 0, "nsec": 0}
+#: Drawn sizes in metres: a robot's sphere, an object's cube, an area's square (in cells).
+#: A 120 x 80 m cave fills a 3D panel a few hundred pixels wide, 3 to 4 pixels a metre,
+#: so each is drawn larger than the thing is: a metre would be a dot.
+ROBOT_M, OBJECT_M, AREA_CELLS = 2.5, 1.5, 4
 
 Message = tuple[str, dict[str, Any], dict[str, Any]]
 
@@ -71,9 +75,9 @@ def _entity(stamp: dict[str, int], frame: str, eid: str, **prims: Any) -> dict[s
     return {**entity, "frame_locked": frame != MAP_FRAME, **prims}
 
 
-def _text(text: str, z: float, size: float = 14.0) -> dict[str, Any]:
+def _text(text: str, z: float, size: float = 14.0, y: float = 0.0) -> dict[str, Any]:
     return {
-        "pose": _pose(0.0, 0.0, z),
+        "pose": _pose(0.0, y, z),
         "billboard": True,
         "font_size": size,
         "scale_invariant": True,
@@ -116,10 +120,10 @@ def _map(ev: Event, stamp: dict[str, int]) -> list[Message]:
     ):
         cube = {
             "pose": _pose(x, y, 0.05),
-            "size": {"x": cell, "y": cell, "z": 0.1},
+            "size": {"x": AREA_CELLS * cell, "y": AREA_CELLS * cell, "z": 0.1},
             "color": _color(color),
         }
-        text = {**_text(label, 0.6, 12.0), "pose": _pose(x, y, 0.6)}
+        text = {**_text(label, 0.6, 12.0), "pose": _pose(x, y, 1.0)}
         areas.append(_entity(stamp, MAP_FRAME, eid, cubes=[cube], texts=[text]))
     scene = {"deletions": [], "entities": areas}
     return [("/map", GRID, grid), ("/scene/areas", SCENE_UPDATE, scene)]
@@ -147,11 +151,12 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
             up = bool(r["up"])
             state = "up" if up else "down"
             sphere = {
-                "pose": _pose(0.0, 0.0, 0.4),
-                "size": {"x": 0.8, "y": 0.8, "z": 0.8},
+                "pose": _pose(0.0, 0.0, ROBOT_M / 2),
+                "size": {"x": ROBOT_M, "y": ROBOT_M, "z": ROBOT_M},
                 "color": _color(_UP if up else _DOWN),
             }
             meta = [{"key": "state", "value": state}, {"key": "task", "value": r["task"]}]
+            label = f"{robot} ({state})\n{r['task']}"
             entities.append(
                 _entity(
                     stamp,
@@ -159,7 +164,7 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
                     f"robot/{robot}",
                     metadata=meta,
                     spheres=[sphere],
-                    texts=[_text(f"{robot} ({state})\n{r['task']}", 1.3)],
+                    texts=[_text(label, ROBOT_M + 0.5, y=2 * ROBOT_M)],  # north of it
                 )
             )
         out.append(("/scene/robots", SCENE_UPDATE, {"deletions": [], "entities": entities}))
@@ -168,10 +173,13 @@ def _world(ev: Event, stamp: dict[str, int]) -> list[Message]:
         entities = []
         for o in objects:
             status, by = o["status"], o.get("by")
-            frame, x, y, z = (by, 0.0, 0.0, 1.0) if by else (MAP_FRAME, o["x"], o["y"], 0.2)
+            if by:  # it rides on the robot's sphere
+                frame, x, y, z = str(by), 0.0, 0.0, ROBOT_M + OBJECT_M / 2
+            else:
+                frame, x, y, z = MAP_FRAME, o["x"], o["y"], OBJECT_M / 2
             cube = {
                 "pose": _pose(x, y, z),
-                "size": {"x": 0.4, "y": 0.4, "z": 0.4},
+                "size": {"x": OBJECT_M, "y": OBJECT_M, "z": OBJECT_M},
                 "color": _color(OBJECT_COLORS.get(status, OBJECT_COLORS["found"])),
             }
             meta = [{"key": "status", "value": status}]

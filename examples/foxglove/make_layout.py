@@ -6,7 +6,9 @@ Panels: the 3D panel (the map, the robots with their labels, the objects and the
 decontamination area, seen from above, centred on the default 120 x 80 m cave), the Log
 panel (``/log``), a table of the auctions, the robots' tasks over time as a State
 Transitions plot (a lane per robot of the paper's full team: edit ``ROBOTS`` for another
-team), and a plot of the cheapest bid of each auction as it closed.
+team), and the latest closed auction whole (bids cheapest first, declines, reasons,
+winner). The camera is placed by ``target_offset`` (the point it looks at, in the
+followed frame); Foxglove takes ``target`` only as the followed frame's pose.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ def layout() -> fl.Layout:
                 distance=150.0,
                 phi=0.0,
                 theta_offset=0.0,
-                target=(60.0, 40.0, 0.0),
+                target_offset=(60.0, 40.0, 0.0),
             ),
             topics={
                 "/map": fl.BaseRendererGridTopicSettings(visible=True, color_mode="rgba-fields"),
@@ -54,12 +56,9 @@ def layout() -> fl.Layout:
             show_points=False,
         ),
     )
-    bids = fl.PlotPanel(
-        title="cheapest bid per auction",
-        config=fl.PlotConfig(
-            paths=[fl.PlotSeries(value='/btcap/auctions{phase=="close"}.bids[0][1]')],
-            show_legend=False,
-        ),
+    bids = fl.RawMessagesPanel(
+        title="the latest closed auction",
+        config=fl.RawMessagesConfig(topic_path='/btcap/auctions{phase=="close"}', expansion="all"),
     )
     right = fl.SplitContainer(
         direction="column",

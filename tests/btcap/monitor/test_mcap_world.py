@@ -177,3 +177,29 @@ def test_poses_are_thinned_out_and_end_exact(
     assert every[-1]["poses"] == poses[-1]["poses"]
     for ev in poses:  # the same run: where the robots were then, as every step has it
         assert [e for e in every if e["t"] <= ev["t"]][-1]["poses"] == ev["poses"]
+
+
+@pytest.mark.slow
+def test_robots_objects_and_areas_show_from_above(
+    recorded: tuple[Path, Path, MissionResult],
+) -> None:
+    """Seen from above at the example layout's zoom (a 120 x 80 m cave, 3 to 4 pixels a
+    metre) a drawing under a metre is a dot: robots, objects and the areas are drawn
+    larger, a robot's label beside its sphere, not over it."""
+    mcap = recorded[0]
+    with mcap.open("rb") as f:
+        msgs = [(ch.topic, json.loads(m.data)) for _, ch, m in make_reader(f).iter_messages()]
+    sizes: dict[str, set[float]] = {"spheres": set(), "cubes": set()}
+    for topic, m in msgs:
+        if topic not in ("/scene/robots", "/scene/objects", "/scene/areas"):
+            continue
+        for entity in m["entities"]:
+            for kind, found in sizes.items():
+                found.update(min(p["size"]["x"], p["size"]["y"]) for p in entity.get(kind, []))
+            if topic == "/scene/robots":
+                label = entity["texts"][0]["pose"]["position"]
+                assert abs(label["y"]) >= entity["spheres"][0]["size"]["y"]
+    assert sizes["spheres"]
+    assert sizes["cubes"]
+    assert min(sizes["spheres"]) >= 2.0
+    assert min(sizes["cubes"]) >= 1.5
