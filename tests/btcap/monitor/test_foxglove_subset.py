@@ -17,8 +17,8 @@ import pytest
 from mcap.reader import make_reader
 
 from btcap.monitor import Monitor
-from btcap.sim.runner import run_fast
-from btcap.sim.scenario import load_scenario
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.runner import run_fast
 
 SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
 LAYOUT = Path(__file__).parents[3] / "examples" / "foxglove" / "btcap.json"
