@@ -316,7 +316,7 @@ def _mission(args: argparse.Namespace) -> int:
         wanted = args.monitor is not None or args.record is not None or fox
         await _monitor_imports(wanted, serve=args.monitor is not None, foxglove=fox)
         async with (
-            open_agent(config, registry, robot=robot) as agent,
+            open_agent(config, registry, robot=robot, missions=True) as agent,
             serving(
                 args.monitor,
                 f"mission {args.tree.name}",

@@ -8,8 +8,9 @@ imports rospy's node machinery. The main thread reads the bridge's frames and ac
 goal's acceptance and end and a call's reply at once (a thread handoff more would cost
 each round trip); feedback and topic messages go through a writer thread, which keeps just
 the latest of a goal or topic while earlier ones wait, so a flood costs the pipe at most
-one frame per write and never holds rospy's thread. A poller thread reports each action
-and service server's readiness on change.
+one frame per write and never holds rospy's thread. A poller thread checks each action
+and service server and reports its availability on change, by the rule of
+:mod:`btcap.ros.availability` (one failed check under load does not make a server gone).
 ``Stop`` (or the pipe closing: the agent is gone) cancels the open goals, unregisters
 every publisher, subscriber and client from the master, and exits.
 
@@ -30,6 +31,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from btcap.ros import wire1
+from btcap.ros.availability import Availability
 from btcap.ros.interfaces1 import interface1
 
 __all__ = ["main"]
@@ -62,6 +64,7 @@ class Child:
         self.clients: dict[int, tuple[str, Any, Any]] = {}  # cid -> (kind, types, client)
         self.goals: dict[int, tuple[Any, Any]] = {}  # gid -> (ClientGoalHandle, its client)
         self.ready: dict[int, bool] = {}
+        self.availability: dict[int, Availability] = {}
         self.lock = threading.Lock()
         self._send = threading.Lock()
         self._out: queue.SimpleQueue[Any] = queue.SimpleQueue()
@@ -116,11 +119,14 @@ class Child:
                 last_services = t
             for cid, (kind, _, client) in list(self.clients.items()):
                 if kind == "action":
-                    ready = _action_ready(client)
+                    ok = _action_ready(client)
                 elif kind == "service" and services:
-                    ready = self._service_ready(client.resolved_name)
+                    ok = self._service_ready(client.resolved_name)
                 else:
                     continue
+                ready = self.availability.setdefault(cid, Availability()).check(
+                    ok, time.monotonic()
+                )
                 if self.ready.get(cid) != ready:
                     self.ready[cid] = ready
                     self.post(wire1.Ready(cid, ready))
@@ -181,6 +187,7 @@ class Child:
         elif isinstance(frame, wire1.Drop):
             entry = self.clients.pop(frame.cid, None)
             self.ready.pop(frame.cid, None)
+            self.availability.pop(frame.cid, None)
             if entry is not None:
                 _unregister(*entry)
 

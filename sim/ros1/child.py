@@ -11,7 +11,8 @@ an ``answer`` frame) and wait; nothing of rospy is in the mission's process.
 
 Frames are msgspec JSON lists: down ``["config", {...}]``, ``["answer", qid, ok, detail,
 found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``,
-``["withdraw", robot]`` (its servers leave the graph), ``["stop"]``;
+``["withdraw", robot]`` (its servers leave the graph), ``["serve", robot]`` (they come
+back, where the robot was last told to be), ``["stop"]``;
 up ``["up", error]``, ``["ask", qid, robot, what, row, col, target]`` (``what``:
 ``move_base`` or an operation), ``["cancel", qid]``. Run as ``python -m
 btcap.sim.ros1.child FD`` with ``ROS_MASTER_URI`` set.
@@ -50,11 +51,13 @@ class Sim:
         self._lock = threading.Lock()
         self._ids = itertools.count(1)
         self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
-        start = (int(config["start"][0]), int(config["start"][1]))
-        self.robots = {
-            r["name"]: _Robot(self, r["name"], r["namespace"], r["operations"], start)
-            for r in config["robots"]
-        }
+        start = self.start = (int(config["start"][0]), int(config["start"][1]))
+        #: Each robot's namespace and operations, to serve it again after a withdraw.
+        self.config = {r["name"]: (r["namespace"], r["operations"]) for r in config["robots"]}
+        self.robots = {name: _Robot(self, name, *c, start) for name, c in self.config.items()}
+        self.withdrawn: set[str] = set()
+        #: Each robot's last ``state`` frame's fields, published again when it is served again.
+        self.last: dict[str, list[Any]] = {}
 
     # -- frames -------------------------------------------------------------------
     def post(self, frame: list[Any]) -> None:
@@ -86,6 +89,14 @@ class Sim:
             with self._lock:
                 self._pending.pop(qid, None)
 
+    def serve_again(self, name: str) -> None:
+        """A withdrawn robot's servers and topics back, its last state published."""
+        self.withdrawn.discard(name)
+        robot = self.robots[name] = _Robot(self, name, *self.config[name], self.start)
+        last = self.last.get(name)
+        if last is not None:
+            robot.publish(*last)
+
     def run(self) -> None:
         """Act on the parent's frames until ``stop`` or the pipe closing."""
         while True:
@@ -101,13 +112,17 @@ class Sim:
                     got[1].extend(frame[2:])
                     got[0].set()
             elif kind == "state":
+                self.last[frame[1]] = frame[2:]
                 robot = self.robots.get(frame[1])
                 if robot is not None:
                     robot.publish(*frame[2:])
             elif kind == "withdraw":
                 gone = self.robots.pop(frame[1], None)
                 if gone is not None:
+                    self.withdrawn.add(frame[1])
                     gone.close()
+            elif kind == "serve" and frame[1] in self.withdrawn:
+                self.serve_again(frame[1])
             elif kind == "stop":
                 break
         self.closing.set()

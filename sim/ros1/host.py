@@ -161,6 +161,16 @@ class Ros1Host(RosSimHost):
             with anyio.CancelScope(shield=True):
                 await anyio.to_thread.run_sync(started.close)
 
+    def withdraw_servers(self, name: str) -> None:
+        started = self.started
+        if started is not None and started.servers is not None:
+            started.servers.withdraw(name)
+
+    def serve_servers(self, name: str) -> None:
+        started = self.started
+        if started is not None and started.servers is not None:
+            started.servers.serve(name)
+
     def setup(self, name: str) -> RobotSetup:
         """The robot's implementations, their trees made of ROS 1 RosAction and RosService
         nodes on its bridge, each bidding only while the servers it calls answer."""

@@ -184,7 +184,14 @@ class SimServers1:
         """Take ``robot``'s servers and topics out of the ROS graph (the robot's body is
         gone; its agent may live on): its clients see them go, its bids stop."""
         if not self._closed:
-            self._post(["withdraw", robot])
+            with contextlib.suppress(OSError):  # the process is gone: so are the servers
+                self._post(["withdraw", robot])
+
+    def serve(self, robot: str) -> None:
+        """Put ``robot``'s withdrawn servers and topics back in the ROS graph."""
+        if not self._closed:
+            with contextlib.suppress(OSError):  # the process is gone: so are the servers
+                self._post(["serve", robot])
 
     def served(self) -> dict[str, dict[str, int]]:
         """Goals and calls each robot's servers took, per server."""

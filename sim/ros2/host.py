@@ -139,6 +139,14 @@ class Ros2Host(RosSimHost):
             log.info("sim.ros2_served", goals=servers.served())
             await anyio.to_thread.run_sync(_close, servers, links)
 
+    def withdraw_servers(self, name: str) -> None:
+        if self.servers is not None:
+            self.servers.withdraw(name)
+
+    def serve_servers(self, name: str) -> None:
+        if self.servers is not None:
+            self.servers.serve(name)
+
     def setup(self, name: str) -> RobotSetup:
         """The robot's implementations, their trees made of RosAction nodes on its bridge
         (:mod:`btcap.sim.ros2.steps`), each bidding only while the servers it calls are in

@@ -14,6 +14,7 @@ import asyncio
 import concurrent.futures
 import math
 import threading
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
@@ -43,6 +44,8 @@ __all__ = ["SimServers", "pose_at"]
 #: Wall seconds an execution waits between two looks at its goal (cancel requested? the
 #: robot moved on?) while the manager works on it.
 _POLL_S = 0.01
+#: Wall seconds a withdraw waits for the robot's executions to end (a bound).
+STOP_S = 5.0
 
 
 def pose_at(cell: Cell, cell_size_m: float, t: float) -> PoseStamped:
@@ -113,6 +116,11 @@ class _RobotServer:
         #: Goals taken per action (navigate_to_pose, explore, ...), for a run's record.
         self.served: Counter[str] = Counter()
         self._lock = threading.Lock()
+        #: Set when the robot's servers leave the graph: executions give up, nothing is
+        #: published any more (under ``_lock``, so no publish runs on a destroyed publisher).
+        self.withdrawn = threading.Event()
+        #: Executions running (a withdraw waits for them to end before destroying).
+        self.running = 0
         group = ReentrantCallbackGroup()
         accept: Callable[[Any], CancelResponse] = lambda _: CancelResponse.ACCEPT  # noqa: E731
         self.servers = [
@@ -145,6 +153,11 @@ class _RobotServer:
     def publish(self, msg: PositionUpdate) -> None:
         cell = (int(msg.position[0]), int(msg.position[1]))
         self.cell, self.phase = cell, msg.phase
+        with self._lock:
+            if not self.withdrawn.is_set():
+                self._publish(cell, msg)
+
+    def _publish(self, cell: Cell, msg: PositionUpdate) -> None:
         pose = pose_at(cell, self.cell_size_m, self.clock.now())
         self.pose_pub.publish(pose)
         self.state_pub.publish(
@@ -162,6 +175,28 @@ class _RobotServer:
     def _count(self, action: str) -> None:
         with self._lock:
             self.served[action] += 1
+            self.running += 1
+
+    def _done(self) -> None:
+        with self._lock:
+            self.running -= 1
+
+    def stop_executions(self, wait_s: float) -> None:
+        """Publish nothing more; executions give up (their goals aborted), waited for
+        ``wait_s`` at most (blocks: a thread)."""
+        with self._lock:
+            self.withdrawn.set()
+        deadline = time.monotonic() + wait_s
+        while self.running and time.monotonic() < deadline:
+            time.sleep(_POLL_S)
+
+    def destroy(self) -> None:
+        """Out of the ROS graph: action servers are not destroyed with their node (left
+        alone they stay in it, and clients would go on seeing a server that no longer
+        answers)."""
+        for action in self.servers:
+            action.destroy()
+        self.node.destroy_node()
 
     def _wait(
         self, goal: Any, answer: concurrent.futures.Future[SimResult], feedback: Callable[[], None]
@@ -174,16 +209,23 @@ class _RobotServer:
                 return answer.result(timeout=_POLL_S)
             except concurrent.futures.TimeoutError:
                 pass
-            if goal.is_cancel_requested or self.manager.closing.is_set() or not context.ok():
+            gone = self.manager.closing.is_set() or self.withdrawn.is_set() or not context.ok()
+            if goal.is_cancel_requested or gone:
                 self.manager.stop(self.robot)
                 answer.cancel()
                 return None
             feedback()
 
     def _navigate(self, goal: Any) -> Any:
+        self._count("navigate_to_pose")
+        try:
+            return self._navigate_to(goal)
+        finally:
+            self._done()
+
+    def _navigate_to(self, goal: Any) -> Any:
         p = goal.request.pose.pose.position
         target = cell_of(p.x, p.y, self.cell_size_m)
-        self._count("navigate_to_pose")
         answer = self.manager.ask(MoveTo(self.robot, target))
         told: list[Cell] = []
 
@@ -211,6 +253,12 @@ class _RobotServer:
     def _operation(self, op: str) -> Callable[[Any], Any]:
         def execute(goal: Any) -> Any:
             self._count(op)
+            try:
+                return operate(goal)
+            finally:
+                self._done()
+
+        def operate(goal: Any) -> Any:
             answer = self.manager.ask(Operate(self.robot, op, int(goal.request.target)))
             told: list[str] = []
 
@@ -276,20 +324,17 @@ class SimServers:
         if domain_id is None:
             domain_id = ros.domain_id
         rclpy.init(context=self.context, domain_id=domain_id)
-        link = self._manager = _Manager(loop, manager, clock)
+        self._manager = _Manager(loop, manager, clock)
+        self._serve_args = (robots, cell_size_m, clock, ros)
+        #: Withdraws and serves again, one at a time and in order, off the event loop.
+        self._changes = concurrent.futures.ThreadPoolExecutor(1, "btcap sim ros2 graph")
         # Each robot runs at most a drive and an operation at once (plus one superseded,
         # ending): threads enough that no execution waits for a thread.
         threads = 3 * len(robots) + 2
         self.executor = MultiThreadedExecutor(num_threads=threads, context=self.context)
-        self.nodes: list[Node] = []
         self.robots: dict[str, _RobotServer] = {}
-        for name, model in robots.items():
-            node = Node(f"sim_{name}", context=self.context)
-            self.nodes.append(node)
-            self.robots[name] = _RobotServer(
-                node, name, model, link, cell_size_m, start, clock, ros
-            )
-            self.executor.add_node(node)
+        for name in robots:
+            self._serve(name, start)
         self.thread = threading.Thread(target=self._spin, name="btcap sim ros2", daemon=True)
         self.thread.start()
 
@@ -300,10 +345,45 @@ class SimServers:
             if self.context.ok():
                 raise
 
+    def _serve(self, name: str, cell: Cell) -> _RobotServer:
+        robots, cell_size_m, clock, ros = self._serve_args
+        node = Node(f"sim_{name}", context=self.context)
+        server = self.robots[name] = _RobotServer(
+            node, name, robots[name], self._manager, cell_size_m, cell, clock, ros
+        )
+        self.executor.add_node(node)
+        return server
+
     def publish(self, msg: PositionUpdate) -> None:
         server = self.robots.get(msg.robot)
         if server is not None and self.context.ok():
             server.publish(msg)
+
+    # -- a robot's servers follow its life (called on the event loop; done off it) ---------
+    def withdraw(self, robot: str) -> None:
+        """Take ``robot``'s servers and topics out of the ROS graph: its executions end,
+        its clients see them go."""
+        if not self._manager.closing.is_set():
+            self._changes.submit(self._withdraw, robot)
+
+    def serve(self, robot: str) -> None:
+        """Put ``robot``'s withdrawn servers and topics back, where it was last told to be."""
+        if not self._manager.closing.is_set():
+            self._changes.submit(self._serve_again, robot)
+
+    def _withdraw(self, robot: str) -> None:
+        server = self.robots.get(robot)
+        if server is None or server.withdrawn.is_set() or not self.context.ok():
+            return
+        server.stop_executions(STOP_S)
+        self.executor.remove_node(server.node)
+        server.destroy()
+
+    def _serve_again(self, robot: str) -> None:
+        old = self.robots.get(robot)
+        if old is None or not old.withdrawn.is_set() or not self.context.ok():
+            return
+        self._serve(robot, old.cell).served = old.served
 
     def served(self) -> dict[str, dict[str, int]]:
         """Goals each robot's servers took, per action."""
@@ -312,14 +392,11 @@ class SimServers:
     def close(self) -> None:
         """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
         self._manager.closing.set()
+        self._changes.shutdown(wait=True)
         self.executor.shutdown(timeout_sec=5.0)
-        # Action servers are not destroyed with their node: left alone they stay in the
-        # ROS graph, and clients would go on seeing a server that no longer answers.
         for robot in self.robots.values():
-            for action in robot.servers:
-                action.destroy()
-        for node in self.nodes:
-            node.destroy_node()
+            if not robot.withdrawn.is_set():
+                robot.destroy()
         if self.context.ok():
             rclpy.shutdown(context=self.context)
         self.thread.join(timeout=5.0)

@@ -49,6 +49,45 @@ class RosSimHost(InProcessHost):
         self.manager = manager
         #: The robots' ROS settings: the scenario's ``ros`` block, else its defaults.
         self.ros = s.ros or ros
+        #: Robots whose servers are out of the ROS graph (they left or failed).
+        self.withdrawn: set[str] = set()
+
+    # -- a robot's servers follow its life: a real robot that fails or leaves takes its
+    # ROS side with it, and its clients (its own bids) see it go -----------------------
+    def leave(self, name: str) -> None:
+        super().leave(name)
+        self._withdraw(name)
+
+    def fail(self, name: str) -> None:
+        super().fail(name)
+        self._withdraw(name)
+
+    def recover(self, name: str) -> None:
+        self._serve(name)
+        super().recover(name)
+
+    def start(self, name: str) -> None:
+        self._serve(name)
+        super().start(name)
+
+    def _withdraw(self, name: str) -> None:
+        if name not in self.withdrawn:
+            self.withdrawn.add(name)
+            self.withdraw_servers(name)
+
+    def _serve(self, name: str) -> None:
+        if name in self.withdrawn:
+            self.withdrawn.discard(name)
+            self.serve_servers(name)
+
+    def withdraw_servers(self, name: str) -> None:
+        """Take robot ``name``'s servers and topics out of the ROS graph (on the loop: at
+        most a short write; the backend does the rest off it)."""
+        raise NotImplementedError
+
+    def serve_servers(self, name: str) -> None:
+        """Put robot ``name``'s withdrawn servers and topics back (as :meth:`withdraw_servers`)."""
+        raise NotImplementedError
 
     async def _manager_side(
         self, system_id: str

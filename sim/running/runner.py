@@ -157,6 +157,7 @@ async def run_scenario(
             clock=clock,
             config=cfg,
             registry=reg,
+            missions=True,  # the strategy's modules imported as it starts, off the loop
         )
         if math.isinf(clock.speedup):  # its life numbered by the run, as the robots': same ids
             operator.team.incarnation = 1

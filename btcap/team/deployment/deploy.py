@@ -51,12 +51,13 @@ async def open_agent(
     implementations: bool = True,
     ephemeral: bool = False,
     insecure: bool = False,
+    missions: bool = False,
 ) -> AsyncIterator[Agent]:
     """The configured robot (with its plugin's implementations and actors), in the team
     while the block runs; it says goodbye on exit, so the team re-assigns its work at
     once. ``robot``/``ephemeral``/``implementations=False`` make a short-lived observer or
     operator from the same file; ``insecure`` allows a keyless bind other hosts can
-    reach."""
+    reach; ``missions``: it will hold mission trees (see :class:`Agent`)."""
     ros = _ros_side(config, robot or config.robot) if implementations else None
     if ros is not None:
         ros.register(registry)
@@ -66,7 +67,7 @@ async def open_agent(
             raise config.error("ros", str(exc)) from None
     try:
         async with _serving(
-            config, registry, ros, robot, implementations, ephemeral, insecure
+            config, registry, ros, robot, implementations, ephemeral, insecure, missions
         ) as agent:
             yield agent
     finally:
@@ -95,6 +96,7 @@ async def _serving(
     implementations: bool,
     ephemeral: bool,
     insecure: bool,
+    missions: bool,
 ) -> AsyncIterator[Agent]:
     _, impls = config.load_capabilities(registry, implementations=implementations)
     if ros is not None:
@@ -122,6 +124,7 @@ async def _serving(
         config=config.agent_config(),
         registry=messages,
         actors=plugged.actors,
+        missions=missions,
     )
     if ros is not None:
         ros.attach(agent.system)

@@ -50,11 +50,12 @@ class Agent:
     :class:`~btcap.team.allocation.strategy.Strategy` object; by default ``config.strategy``.
 
     Nothing may hold the robot's event loop for long (its heartbeats would stop and its
-    team declare it failed): when a mission tree is first attached (this robot will hold
-    auctions), the agent imports in a worker thread what its strategy loads on first use
-    (``Strategy.modules``: numpy and scipy for the planning strategies, about a second of
-    CPU), so its first batch of auctions, planned in a worker thread too, rarely waits
-    for them. A robot that only runs others' work never imports them. In asyncio's debug
+    team declare it failed): the agent imports in a worker thread what its strategy loads
+    on first use (``Strategy.modules``: numpy and scipy for the planning strategies, 0.7
+    to 2.5 s), as it starts (before joining) when ``missions`` says it will hold mission
+    trees (an operator), else when a mission tree is first attached, so its first batch of
+    auctions, planned in a worker thread too, does not wait for them. A robot that only
+    runs others' work never imports them. In asyncio's debug
     mode (``python -X dev``) a callback that holds the loop longer than 50 ms is reported
     (:func:`btcap.actors.loops.report_stalls`).
     """
@@ -71,6 +72,7 @@ class Agent:
         registry: MessageRegistry | None = None,
         actors: Mapping[str, Actor] | None = None,
         strategy: str | Strategy | None = None,
+        missions: bool = False,
     ) -> None:
         if (why := check_member_name(robot)) is not None:
             raise ValueError(f"robot {robot!r}: {why}")
@@ -110,6 +112,7 @@ class Agent:
         self._extra = dict(actors or {})
         self._missions: weakref.WeakSet[Tree] = weakref.WeakSet()
         self._importing = False  # the strategy's modules (see the class)
+        self._missions_ahead = missions
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         """A teammate declared failed or gone costs nothing more: the transport stops
@@ -131,6 +134,8 @@ class Agent:
         report_stalls(asyncio.get_running_loop())  # in asyncio's debug mode
         await self.system.__aenter__()
         try:
+            if self._missions_ahead:  # before joining: its first auctions need them
+                self._import_strategy_modules()
             s = self.system
             s.spawn(self.team, Membership.PATH)
             s.spawn(self.departures, DepartureLog.PATH)
@@ -173,16 +178,20 @@ class Agent:
         A mission tree still attached when the agent exits is shut down with it.
         """
         tree = root if isinstance(root, Tree) else Tree(root, name=name, clock=self.clock)
+        self._import_strategy_modules()
+        tree.clock = self.clock
+        tree.attach(self.system)
+        self._missions.add(tree)
+        return tree
+
+    def _import_strategy_modules(self) -> None:
+        """Import the strategy's heavy modules in a worker thread, once (see the class)."""
         cold = [m for m in getattr(self.strategy, "modules", ()) if m not in sys.modules]
         if cold and not self._importing:  # for this robot's auctions, off the loop
             with contextlib.suppress(SystemClosed):  # not started: its first plan imports them
                 work = asyncio.to_thread(_import, cold)
                 self.system.start_task(work, name=f"{self.robot} imports")
                 self._importing = True
-        tree.clock = self.clock
-        tree.attach(self.system)
-        self._missions.add(tree)
-        return tree
 
     async def run_mission(
         self, root: Node | Tree, *, rate_hz: float | None = None, max_ticks: int | None = None

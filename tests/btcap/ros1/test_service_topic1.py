@@ -11,13 +11,14 @@ import msgspec
 import pytest
 from conftest import Servers
 from rosmaster1 import Master
-from tools1 import FOUND_S, bridge_on, run
+from tools1 import FOUND_S, bridge_on, run, settle
 
 from btcap.bt.composites import Parallel
 from btcap.bt.files import load_tree
 from btcap.bt.registry import default_registry
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
+from btcap.ros import wire1
 from btcap.ros.nodes1 import RosPublish, RosService, RosSubscribe, RosWaitForMessage
 from btcap.team.deployment.agentconfig import AgentConfigError, RobotConfig, load_agent_file
 from btcap.team.deployment.deploy import open_agent
@@ -150,3 +151,38 @@ async def test_a_distance_cost_reads_the_robots_pose_over_ros1(master: Master) -
             )
             await run(say, lambda s: bridge.latest("geometry_msgs/PoseStamped", "pose") is not None)
             assert cost({"goal": [0.0, 0.0]}, bridge) == 10.0
+
+
+async def test_a_service_gone_for_a_moment_stays_available_and_one_gone_for_good_does_not(
+    master: Master, servers: Servers, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The master forgets ``set_flag`` for 0.4 s (four of the child's 0.1 s checks fail, as
+    under load): the robot keeps bidding (no availability change reaches the bridge); then
+    for good: it stops, a window later."""
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            seen: list[bool] = []
+            dispatch = bridge._dispatch
+
+            def record(frame: object) -> None:
+                if isinstance(frame, wire1.Ready):
+                    seen.append(frame.ready)
+                dispatch(frame)
+
+            monkeypatch.setattr(bridge, "_dispatch", record)
+            ready = lambda: bridge.server_ready("service", "std_srvs/SetBool", "set_flag")  # noqa: E731
+            await settle(ready)
+            seen.clear()
+            name, node = "/husky1/set_flag", "/husky1/servers"
+            with master.proxy() as proxy:
+                _, _, uri = proxy.lookupService(node, name)
+                _, _, api = proxy.lookupNode(node, node)
+                assert proxy.unregisterService(node, name, uri)[2] == 1
+                await anyio.sleep(0.4)
+                proxy.registerService(node, name, uri, api)
+                await anyio.sleep(0.3)  # a check or more after it came back
+                assert seen == []
+                assert ready()
+                proxy.unregisterService(node, name, uri)
+            await settle(lambda: not ready())
+            assert seen == [False]

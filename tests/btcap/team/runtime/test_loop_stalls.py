@@ -137,3 +137,55 @@ async def test_a_batch_is_planned_in_a_worker_thread_and_one_auction_on_the_loop
     assert planned[0] == (1, True)
     assert any(n > 1 for n, _ in planned), planned  # the three auctions ran together
     assert all(on_loop == (n == 1) for n, on_loop in planned), planned
+
+
+#: A fresh interpreter starts a robot, then an agent that will hold missions, each with
+#: the default (optimal) strategy and no mission attached; prints which planning modules
+#: were loaded after each, and on which threads they were imported.
+AHEAD = """
+import asyncio, json, sys, threading
+
+imported = {}
+
+class Watch:
+    def find_spec(self, name, path=None, target=None):
+        if name in ("numpy", "scipy.optimize") and name not in imported:
+            imported[name] = threading.current_thread() is threading.main_thread()
+        return None
+
+sys.meta_path.insert(0, Watch())
+from btcap.team.runtime.agent import Agent
+from btcap.team.core.planning import PLANNING_MODULES
+
+async def main():
+    async with Agent("robot") as robot:
+        assert robot.strategy.name == "optimal"
+        await asyncio.sleep(0)
+    robot_loaded = [m for m in PLANNING_MODULES if m in sys.modules]
+    async with Agent("operator", missions=True):
+        for _ in range(6000):  # the worker thread's import, bounded by the test's timeout
+            if all(m in sys.modules for m in PLANNING_MODULES):
+                break
+            await asyncio.sleep(0.01)
+    return robot_loaded
+
+robot_loaded = asyncio.run(main())
+print(json.dumps({"robot": robot_loaded, "on_main_thread": imported}))
+"""
+
+
+def test_an_agent_that_will_hold_missions_imports_its_planners_as_it_starts_off_the_loop() -> None:
+    """The first batch of auctions of an operator does not wait for numpy and scipy: they
+    are imported in a worker thread as it starts (before joining), with no mission
+    attached yet; a robot that only runs others' work never imports them."""
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(AHEAD)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    said = json.loads(done.stdout.splitlines()[-1])
+    assert said["robot"] == []
+    assert said["on_main_thread"] == {"numpy": False, "scipy.optimize": False}

@@ -1,0 +1,70 @@
+"""A robot that fails or leaves a scenario behind ROS 1 takes its servers out of the ROS
+graph, as a real robot would, and gets them back when it recovers or joins again: the
+host's ``fail``/``leave``/``recover``/``start`` (what a scenario's events call), seen by
+the robot's own bridge."""
+
+from __future__ import annotations
+
+import time
+
+import anyio
+import numpy as np
+import pytest
+from simros1 import WHY_NOT, children, loopback
+
+from btcap.actors import Clock
+from btcap.sim.catalog import builtin_scenarios
+from btcap.sim.hosts import registry
+from btcap.sim.manager import SimConfig, SimulationManager
+from btcap.sim.ros1.client import RobotLink1
+from btcap.sim.ros1.host import Ros1Host
+from btcap.sim.scenario import load_scenario
+from btcap.sim.store import MissionState
+
+pytestmark = [
+    pytest.mark.ros1,
+    pytest.mark.skipif(WHY_NOT is not None, reason=str(WHY_NOT)),
+    pytest.mark.usefixtures("loopback"),
+    pytest.mark.timeout(200),
+]
+
+__all__ = ["loopback"]
+
+
+async def until(link: RobotLink1, missing: int) -> None:
+    """Until ``missing`` of the link's servers are gone from its bridge's view."""
+
+    def wait() -> bool:
+        while len(link.missing()) != missing:
+            anyio.from_thread.check_cancelled()
+            time.sleep(0.02)
+        return True
+
+    assert await anyio.to_thread.run_sync(wait, abandon_on_cancel=True)
+
+
+async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back() -> None:
+    s = load_scenario(builtin_scenarios()["full-team"])
+    grid = s.grid()
+    state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
+    manager = SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+    with anyio.fail_after(150):
+        async with Ros1Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
+            assert host.started is not None
+            assert host.started.links is not None
+            links = host.started.links.links
+            bebop, husky = links["bebop1"], links["husky1"]
+            assert bebop.missing() == []
+            assert husky.missing() == []
+            servers = len(bebop.servers)  # move_base and its operations
+            host.fail("bebop1")
+            await until(bebop, servers)
+            assert husky.missing() == []
+            host.recover("bebop1")
+            await until(bebop, 0)
+            host.leave("husky1")
+            await until(husky, len(husky.servers))
+            host.start("husky1")  # joins again
+            await until(husky, 0)
+            assert bebop.missing() == []
+    assert children() == []
