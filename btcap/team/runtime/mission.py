@@ -87,9 +87,6 @@ class MissionControl(Actor):
         #: Grows whenever waiting work may now find a robot (one came free, joined or
         #: changed): capability nodes waiting for one auction again at once.
         self.changes = 0
-        #: The capability nodes that asked for an executor, by id: the trees of those still
-        #: unassigned are ticked at once when the team changes (:meth:`_changed`).
-        self._askers: dict[int, Capability] = {}
         self.executor = ExecutorSide(
             robot, repository, self.body, self.stats, self.now, config=self.config
         )
@@ -154,27 +151,17 @@ class MissionControl(Actor):
         """This robot, or one its work ran on, came free: waiting work may find it now."""
         # The team hears it with the next heartbeat (its ``busy`` flag): not a broadcast per
         # finished task, which would cost every member a message each time.
-        self._changed()
+        self.changes += 1
 
     def _capabilities_known(self, robot: str) -> None:
-        self._changed()
-
-    def _changed(self) -> None:
-        """Waiting work may find a robot now: count it, and tick the trees of the nodes
-        still waiting at once (they would wait for their tree's period otherwise)."""
         self.changes += 1
-        for key, node in list(self._askers.items()):
-            if node.state is State.UNASSIGNED and node._tree is not None:
-                nudge_holder(node)
-            else:  # assigned, ended or out of its tree: it asks again if it needs to
-                del self._askers[key]
 
     def _on_team(self, event: TeamEvent, robot: str) -> None:
         if event in (TeamEvent.JOINED, TeamEvent.CHANGED, TeamEvent.FREED):
             if not self._reevaluation.budget(robot, self.now()):
                 self.stats.news_ignored += 1  # its news comes faster than we may act on it
                 return
-            self._changed()
+            self.changes += 1
             if self.config.reevaluate_s is not None and event is not TeamEvent.JOINED:
                 self._reevaluation.news()  # (a join is news once its capabilities are known)
         if event in (TeamEvent.LEFT, TeamEvent.FAILED):
@@ -275,7 +262,6 @@ class MissionControl(Actor):
         exclude: frozenset[str] = frozenset(),
     ) -> AssignmentRequest:
         """Start finding an executor for ``node``; never blocks the tick."""
-        self._askers[id(node)] = node
         return self.origin_side.request_assignment(
             node, inputs, local_only=local_only, exclude=exclude
         )

@@ -13,7 +13,6 @@ from capfixtures import COUNT, Probe, count_impl, team
 
 from btcap import ReactiveSequence, State, Tree
 from btcap.bt.running import nudge
-from btcap.team.capabilities.capability import Capability
 
 PERIOD_S = 100.0
 
@@ -79,63 +78,3 @@ async def test_a_local_run_starts_at_once_and_its_news_ticks_the_mission_tree() 
             assert tree.ticks == ticks + 1
             assert node.assignments == ["a"]
             await tree.shutdown()
-
-
-async def until_state(node: Capability, state: State) -> None:
-    for _ in range(200):  # each step lets the loop run; the clock jumps when idle
-        if node.state is state:
-            return
-        await asyncio.sleep(0)
-    raise AssertionError(f"{node.path}: not {state} but {node.state}")
-
-
-async def test_a_robot_joining_ticks_the_mission_tree_for_waiting_work() -> None:
-    """Nobody can take the task (its retry 1000 s away) until b joins: it is auctioned as
-    soon as b's capabilities are known, not at the tree's next period."""
-    with anyio.fail_after(20):
-        async with team() as t:
-            a = await t.add("a")
-            node = COUNT.node_type()("count", inputs={"x": 1, "stop": True}, retry_s=1000.0)
-            tree = a.mission(Counted(ReactiveSequence("root", children=[node]), clock=t.clock))
-            run = asyncio.ensure_future(tree.run(rate_hz=1 / PERIOD_S))
-            await until_state(node, State.UNASSIGNED)
-            ticks = tree.ticks
-            await t.add("b", [count_impl("b", 1.0, Probe())])
-            joined = t.clock.now()
-            assert await run is State.SUCCEEDED
-            assert node.assignments == ["b"]
-            # Without the nudge the node waits for the tree's next period (100 s).
-            assert t.clock.now() - joined < PERIOD_S / 10
-            assert tree.ticks > ticks
-            await tree.shutdown()
-
-
-async def test_a_robot_coming_free_of_others_work_ticks_the_mission_tree() -> None:
-    """b runs c's task; a's waits (its retry 1000 s away) until b's heartbeat says it came
-    free, then is auctioned at once, not at a's tree's next period."""
-    with anyio.fail_after(20):
-        async with team() as t:
-            a = await t.add("a")
-            c = await t.add("c")
-            await t.add("b", [count_impl("b", 1.0, Probe())])
-            await t.converged()
-            theirs = COUNT.node_type()("theirs", inputs={"x": 1})
-            c_tree = c.mission(ReactiveSequence("root", children=[theirs]))
-            c_run = asyncio.ensure_future(c_tree.run(rate_hz=20.0))
-            await until_state(theirs, State.RUNNING)
-            mine = COUNT.node_type()("mine", inputs={"x": 2, "stop": True}, retry_s=1000.0)
-            tree = a.mission(Counted(ReactiveSequence("root", children=[mine]), clock=t.clock))
-            run = asyncio.ensure_future(tree.run(rate_hz=1 / PERIOD_S))
-            await until_state(mine, State.UNASSIGNED)
-            for _ in range(50):  # b is busy: a's auction found nobody
-                if mine._request is None:
-                    break
-                await asyncio.sleep(0)
-            theirs.inputs["stop"] = True
-            freed = t.clock.now()
-            assert await c_run is State.SUCCEEDED
-            assert await run is State.SUCCEEDED
-            assert mine.assignments == ["b"]
-            assert t.clock.now() - freed < PERIOD_S / 10
-            await tree.shutdown()
-            await c_tree.shutdown()
