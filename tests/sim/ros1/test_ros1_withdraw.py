@@ -13,13 +13,13 @@ import pytest
 from simros1 import WHY_NOT, children, loopback
 
 from btcap.actors import Clock
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.hosts import registry
-from btcap.sim.manager import SimConfig, SimulationManager
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.ros1.client import RobotLink1
 from btcap.sim.ros1.host import Ros1Host
-from btcap.sim.scenario import load_scenario
-from btcap.sim.store import MissionState
+from btcap.sim.running.hosts import registry
+from btcap.sim.world.manager import SimConfig, SimulationManager
+from btcap.sim.world.store import MissionState
 
 pytestmark = [
     pytest.mark.ros1,

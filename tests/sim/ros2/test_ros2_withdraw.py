@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from btcap.actors import Clock
-from btcap.sim.catalog import builtin_scenarios
-from btcap.sim.hosts import registry
-from btcap.sim.manager import SimConfig, SimulationManager
-from btcap.sim.scenario import load_scenario
-from btcap.sim.store import MissionState
+from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.running.hosts import registry
+from btcap.sim.world.manager import SimConfig, SimulationManager
+from btcap.sim.world.store import MissionState
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(200)]
 
