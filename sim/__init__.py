@@ -1,4 +1,11 @@
-"""Simulation: a vectorised numpy grid world (cave maps, distance fields, moving robots)."""
+"""The simulator of the paper's mission, and the fault simulation of whole teams.
+
+Start with :mod:`btcap.sim.cli` (``btcap run``), then by role, each importing only those
+above it in this list: :mod:`~btcap.sim.world` (the grid world and its robots),
+:mod:`~btcap.sim.mission` (the mission, its capabilities and scenarios),
+:mod:`~btcap.sim.running` (running and recording a scenario, in this process or one
+process a robot), :mod:`~btcap.sim.ros1` and :mod:`~btcap.sim.ros2` (the same behind ROS,
+sharing :mod:`~btcap.sim.rosbase`), and :mod:`~btcap.sim.faults` (``btcap sim-test``)."""
 
 from typing import TYPE_CHECKING
 
