@@ -126,7 +126,12 @@ def pool_mission_tree(
         lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps)]
         # Items told apart by their id: an object dropped elsewhere is the same object,
         # its running lane told where it now lies, not a second lane started for it.
-        each = ParallelForEach(f"each_{kind}", children=lane, retry_failed=True, key=0)
+        # A failed carry dropped its object where the carrier was: it runs again from a
+        # list read after the drop (two polls later), not from the spot it was taken at.
+        wait = 4 * watch.options["poll_s"] if kind == "carry" else 0.0
+        each = ParallelForEach(
+            f"each_{kind}", children=lane, retry_failed=True, key=0, retry_after_s=wait
+        )
         for ln, cap in zip(lane, caps, strict=True):
             if kind == "goal":
                 wires.append((ln, "at", cap, "goal"))
