@@ -23,12 +23,19 @@ from typing import Any, ClassVar
 
 from btcap import Node, Parallel, ParallelForEach, Port, Sequence, State, Tree
 from btcap.actors import ActorError
-from btcap.sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY
+from btcap.sim.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY, STANDBY
 from btcap.sim.leaves import ClaimWork
 from btcap.sim.messages import ListWork, WorkList
 from btcap.sim.model import RobotModel
 
-__all__ = ["WatchWork", "WorkLane", "pool_lanes", "pool_mission_tree"]
+__all__ = [
+    "StandByLane",
+    "WatchWork",
+    "WorkLane",
+    "pool_lanes",
+    "pool_mission_tree",
+    "standby_lanes",
+]
 
 _KINDS = ("goal", "identify", "carry")
 _OPS = ("explore", "identify", "decontaminate")
@@ -49,6 +56,19 @@ def pool_lanes(models: Seq[RobotModel]) -> tuple[int, int, int]:
         own = [m for m in able[k] if not any(m.can(j) for j in scarcer)]
         out.append(max(1, len(own) or len(able[k])))
     return out[0], out[1], out[2]
+
+
+def standby_lanes(models: Seq[RobotModel]) -> int:
+    """Robots that stand by near objects awaiting identification: those that can carry
+    and get no lane of another pool (:func:`pool_lanes`: a Husky beside a Spot and a
+    Bebop); none where the carriers also identify or explore (they have work to do)."""
+    able = {k: [m for m in models if m.can(k)] for k in _OPS}
+    others = set()
+    for k in ("explore", "identify"):
+        scarcer = [j for j in _OPS if j != k and len(able[j]) < len(able[k])]
+        own = [m for m in able[k] if not any(m.can(j) for j in scarcer)] or able[k]
+        others |= {id(m) for m in own}
+    return sum(id(m) not in others for m in able["decontaminate"])
 
 
 class WatchWork(ClaimWork):
@@ -106,14 +126,45 @@ class WorkLane(Sequence):
         return super().on_tick()
 
 
+class StandByLane(WorkLane):
+    """A :class:`WorkLane` that stands a carrier by near an object awaiting
+    identification, so that it is near if the object turns out contaminated: it ends
+    (halting and resetting its children, which frees the robot) once the object is no
+    longer ``listed`` for identification or any carry waits (``carries``)."""
+
+    __slots__ = ()
+    INPUTS: ClassVar[Any] = {
+        "item": tuple[int, int, int],
+        "listed": list[tuple[int, int, int]],
+        "carries": list[tuple[int, int, int]],
+    }
+
+    def on_tick(self) -> State:
+        ident = self.inputs["item"][0]
+        wanted = any(i[0] == ident for i in self.inputs["listed"] or [])
+        if wanted and not self.inputs["carries"]:
+            return super().on_tick()
+        for c in self.children:
+            if c.state is not State.IDLE:
+                c.reset()
+        return State.SUCCEEDED
+
+
 def pool_mission_tree(
-    *, explorers: int = 1, identifiers: int = 1, carriers: int = 1, store: str = "sim/store"
+    *,
+    explorers: int = 1,
+    identifiers: int = 1,
+    carriers: int = 1,
+    standby: int = 0,
+    store: str = "sim/store",
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations, ``identifiers``
-    identifications and ``carriers`` carries at once; it succeeds once the cave is
-    explored and every object found is identified and, if contaminated, carried."""
+    identifications and ``carriers`` carries at once, and ``standby`` carriers standing
+    by near objects awaiting identification while no carry waits; it succeeds once the
+    cave is explored and every object found is identified and, if contaminated, carried."""
     parts: list[Node] = []
     wires: list[tuple[Node, str, Node, str]] = []
+    watches: dict[str, WatchWork] = {}
     for kind, interface, lanes in (
         ("goal", EXPLORE, explorers),
         ("identify", IDENTIFY, identifiers),
@@ -121,7 +172,7 @@ def pool_mission_tree(
     ):
         if lanes < 1:
             raise ValueError(f"{kind}: expected at least one lane, got {lanes}")
-        watch = WatchWork(f"list_{kind}", kind=kind, store=store)
+        watch = watches[kind] = WatchWork(f"list_{kind}", kind=kind, store=store)
         caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes)]
         lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps)]
         # Items told apart by their id: an object dropped elsewhere is the same object,
@@ -139,6 +190,21 @@ def pool_mission_tree(
                 wires += [(ln, "target", cap, "object"), (ln, "at", cap, "at")]
         parts.append(Parallel(f"{kind}_pool", children=[watch, each]))
         wires += [(watch, "items", each, "items"), (watch, "complete", each, "complete")]
+    if standby > 0:
+        caps = [STANDBY.node_type()("standby") for _ in range(standby)]
+        lanes = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(caps)]
+        each = ParallelForEach("each_standby", children=lanes, key=0)
+        for ln, cap in zip(lanes, caps, strict=True):
+            wires += [
+                (ln, "at", cap, "at"),
+                (watches["identify"], "items", ln, "listed"),
+                (watches["carry"], "items", ln, "carries"),
+            ]
+        wires += [
+            (watches["identify"], "items", each, "items"),
+            (watches["identify"], "complete", each, "complete"),
+        ]
+        parts.append(each)
     tree = Tree(Parallel("mission", children=parts), name="find_and_decontaminate_pool")
     for src, out, dst, inp in wires:
         tree.wire(src, out, dst, inp)

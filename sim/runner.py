@@ -29,7 +29,7 @@ from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
-from btcap.sim.pool import pool_lanes, pool_mission_tree
+from btcap.sim.pool import pool_lanes, pool_mission_tree, standby_lanes
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
 from btcap.sim.worldfeed import WorldFeed
@@ -250,8 +250,11 @@ def _mission(s: Scenario) -> Tree:
     if s.mission == "paper":
         return mission_tree(object_workers=s.object_workers)
     models = s.models()
-    explore, identify, carry = pool_lanes([models[r.model] for r in s.robots])
-    return pool_mission_tree(explorers=explore, identifiers=identify, carriers=carry)
+    team = [models[r.model] for r in s.robots]
+    explore, identify, carry = pool_lanes(team)
+    return pool_mission_tree(
+        explorers=explore, identifiers=identify, carriers=carry, standby=standby_lanes(team)
+    )
 
 
 def _outcome(result: MissionResult, s: Scenario) -> tuple[str, str]:

@@ -15,11 +15,12 @@ import pytest
 
 import btcap.cli
 import btcap.sim.runner
+from btcap import Leaf, State, Tree
 from btcap.cli import main
 from btcap.sim.bound import Presence, mission_bound, presence, scenario_bound
 from btcap.sim.grid import GridMap
 from btcap.sim.model import paper_team
-from btcap.sim.pool import pool_lanes
+from btcap.sim.pool import StandByLane, pool_lanes, standby_lanes
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import Event, Scenario, builtin_scenarios, load_scenario
 from btcap.sim.store import MissionState
@@ -151,3 +152,64 @@ async def test_a_carry_that_failed_runs_again_from_where_its_object_fell() -> No
     ]
     assert retried, "no carry failed after carrying: pick another seed"
     assert all(b.end - b.start < 8 * 1.2 + 2 for b in retried), [(b.start, b.end) for b in retried]
+
+
+def test_carriers_with_no_other_lane_stand_by() -> None:
+    team = paper_team()
+    h, sp, b = team["husky"], team["spot"], team["bebop"]
+    assert standby_lanes([h, sp, b]) == 1  # the Husky only carries: it stands by
+    assert standby_lanes([h, sp, b, h, sp, b]) == 2
+    assert standby_lanes([h, h, b]) == 0  # the Huskies identify: work, not waiting
+    assert standby_lanes([h]) == 0
+
+
+async def test_a_husky_stands_by_near_objects_before_any_is_found_contaminated() -> None:
+    # Seed 3: the first contaminated object is identified at 331 s. The Husky used to
+    # wait at the start until then and drive 134 s to it; it now follows the Spot to
+    # the objects awaiting identification and is there sooner.
+    s = scenario("full-team", 3)
+    with anyio.fail_after(RUN_S):
+        result = await run_fast(s)
+    assert result.completed
+    drives = [i for i in result.timeline if i.robot == "husky1" and i.kind == "move"]
+    assert drives[0].start < 60.0  # out long before any object is known contaminated
+    carry = min((i for i in result.timeline if i.kind == "decontaminate"), key=lambda i: i.start)
+    found_dirty = next(
+        j.end for j in result.timeline if j.kind == "identify" and j.target == carry.target
+    )
+    assert carry.start - found_dirty < 60.0  # was 135 s from the start
+    assert result.mission_time_s < 760.0  # was 802 s
+
+
+class Runs(Leaf):
+    """RUNNING for ever; counts its ticks and resets."""
+
+    def __init__(self) -> None:
+        super().__init__("runs")
+        self.ticks = self.resets = 0
+
+    def on_tick(self) -> State:
+        self.ticks += 1
+        return State.RUNNING
+
+    def on_reset(self) -> None:
+        self.resets += 1
+
+
+def test_a_standby_lane_ends_once_its_object_is_identified_or_a_carry_waits() -> None:
+    for listed, carries, ends in (
+        ([(4, 1, 2)], [], False),  # awaiting identification, nothing to carry: drive on
+        ([(5, 1, 2)], [], True),  # object 4 identified: no longer worth it
+        ([(4, 1, 2)], [(6, 3, 3)], True),  # a carry waits: the robot is wanted there
+    ):
+        child = Runs()
+        lane = StandByLane("lane", children=[child])
+        tree = Tree(lane)
+        lane.set_input("item", (4, 1, 2))
+        lane.set_input("listed", [(4, 1, 2)])
+        lane.set_input("carries", [])
+        assert tree.tick() is State.RUNNING
+        lane.set_input("listed", listed)
+        lane.set_input("carries", carries)
+        assert tree.tick() is (State.SUCCEEDED if ends else State.RUNNING)
+        assert (child.ticks, child.resets > 0) == ((1, True) if ends else (2, False))
