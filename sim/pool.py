@@ -58,6 +58,13 @@ def pool_lanes(models: Seq[RobotModel]) -> tuple[int, int, int]:
     return out[0], out[1], out[2]
 
 
+def spare_explorers(models: Seq[RobotModel]) -> int:
+    """Explore lanes beyond :func:`pool_lanes`' own: one for every other robot able to
+    explore, run only while nothing waits to be identified or carried (a Husky explores
+    before anything is found, then goes to the work only it and its like can do)."""
+    return sum(m.can("explore") for m in models) - pool_lanes(models)[0]
+
+
 def standby_lanes(models: Seq[RobotModel]) -> int:
     """Robots that stand by near objects awaiting identification: those that can carry
     and get no lane of another pool (:func:`pool_lanes`: a Husky beside a Spot and a
@@ -150,12 +157,35 @@ class StandByLane(WorkLane):
         return State.SUCCEEDED
 
 
+class SpareLane(WorkLane):
+    """A :class:`WorkLane` for a robot whose own pools have nothing for it now: it runs
+    only while no object waits to be identified or carried (``identify``, ``carry``),
+    and fails at once otherwise, halting and resetting its children (which frees the
+    robot for that work), so the item runs again in another lane."""
+
+    __slots__ = ()
+    INPUTS: ClassVar[Any] = {
+        "item": tuple[int, int, int],
+        "identify": list[tuple[int, int, int]],
+        "carry": list[tuple[int, int, int]],
+    }
+
+    def on_tick(self) -> State:
+        if not self.inputs["identify"] and not self.inputs["carry"]:
+            return super().on_tick()
+        for c in self.children:
+            if c.state is not State.IDLE:
+                c.reset()
+        return State.FAILED
+
+
 def pool_mission_tree(
     *,
     explorers: int = 1,
     identifiers: int = 1,
     carriers: int = 1,
     standby: int = 0,
+    spare_explorers: int = 0,
     store: str = "sim/store",
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations, ``identifiers``
@@ -165,6 +195,7 @@ def pool_mission_tree(
     parts: list[Node] = []
     wires: list[tuple[Node, str, Node, str]] = []
     watches: dict[str, WatchWork] = {}
+    spares: list[Node] = []
     for kind, interface, lanes in (
         ("goal", EXPLORE, explorers),
         ("identify", IDENTIFY, identifiers),
@@ -173,8 +204,13 @@ def pool_mission_tree(
         if lanes < 1:
             raise ValueError(f"{kind}: expected at least one lane, got {lanes}")
         watch = watches[kind] = WatchWork(f"list_{kind}", kind=kind, store=store)
-        caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes)]
-        lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps)]
+        spare = spare_explorers if kind == "goal" else 0
+        caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes + spare)]
+        lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:lanes])]
+        lane += [
+            SpareLane(f"spare_{kind}_{k + 1}", children=[c]) for k, c in enumerate(caps[lanes:])
+        ]
+        spares += lane[lanes:]
         # Items told apart by their id: an object dropped elsewhere is the same object,
         # its running lane told where it now lies, not a second lane started for it.
         # A failed carry dropped its object where the carrier was: it runs again from a
@@ -190,6 +226,8 @@ def pool_mission_tree(
                 wires += [(ln, "target", cap, "object"), (ln, "at", cap, "at")]
         parts.append(Parallel(f"{kind}_pool", children=[watch, each]))
         wires += [(watch, "items", each, "items"), (watch, "complete", each, "complete")]
+    for ln in spares:
+        wires += [(watches[k], "items", ln, k) for k in ("identify", "carry")]
     if standby > 0:
         caps = [STANDBY.node_type()("standby") for _ in range(standby)]
         lanes = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(caps)]

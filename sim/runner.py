@@ -29,7 +29,7 @@ from btcap.sim.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.manager import SimConfig, SimulationManager
 from btcap.sim.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.mission import mission_tree
-from btcap.sim.pool import pool_lanes, pool_mission_tree, standby_lanes
+from btcap.sim.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
 from btcap.sim.scenario import Event, Scenario, check_scenario
 from btcap.sim.store import MissionState, ObjectStore
 from btcap.sim.worldfeed import WorldFeed
@@ -253,7 +253,11 @@ def _mission(s: Scenario) -> Tree:
     team = [models[r.model] for r in s.robots]
     explore, identify, carry = pool_lanes(team)
     return pool_mission_tree(
-        explorers=explore, identifiers=identify, carriers=carry, standby=standby_lanes(team)
+        explorers=explore,
+        identifiers=identify,
+        carriers=carry,
+        standby=standby_lanes(team),
+        spare_explorers=spare_explorers(team),
     )
 
 

@@ -20,7 +20,7 @@ from btcap.cli import main
 from btcap.sim.bound import Presence, mission_bound, presence, scenario_bound
 from btcap.sim.grid import GridMap
 from btcap.sim.model import paper_team
-from btcap.sim.pool import StandByLane, pool_lanes, standby_lanes
+from btcap.sim.pool import SpareLane, StandByLane, pool_lanes, spare_explorers, standby_lanes
 from btcap.sim.runner import run_fast
 from btcap.sim.scenario import Event, Scenario, builtin_scenarios, load_scenario
 from btcap.sim.store import MissionState
@@ -213,3 +213,28 @@ def test_a_standby_lane_ends_once_its_object_is_identified_or_a_carry_waits() ->
         lane.set_input("carries", carries)
         assert tree.tick() is (State.SUCCEEDED if ends else State.RUNNING)
         assert (child.ticks, child.resets > 0) == ((1, True) if ends else (2, False))
+
+
+def test_robots_with_nothing_to_do_explore_while_no_object_waits() -> None:
+    team = paper_team()
+    h, sp, b = team["husky"], team["spot"], team["bebop"]
+    assert spare_explorers([h, sp, b]) == 1  # the Husky, beside the Bebop's own lane
+    assert spare_explorers([h, h, b]) == 2  # both Huskies before the Bebop joins
+    assert spare_explorers([h]) == 0
+    for identify, carry, runs in (
+        ([], [], True),
+        ([(1, 2, 3)], [], False),
+        ([], [(1, 2, 3)], False),
+    ):
+        child = Runs()
+        lane = SpareLane("lane", children=[child])
+        tree = Tree(lane)
+        lane.set_input("item", (0, 5, 5))
+        lane.set_input("identify", [])
+        lane.set_input("carry", [])
+        assert tree.tick() is State.RUNNING
+        lane.set_input("identify", identify)
+        lane.set_input("carry", carry)
+        # work waits: the exploration stops (the robot is freed) and the goal goes back
+        assert tree.tick() is (State.RUNNING if runs else State.FAILED)
+        assert child.resets == (0 if runs else 1)
