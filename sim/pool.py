@@ -206,7 +206,9 @@ def pool_mission_tree(
         watch = watches[kind] = WatchWork(f"list_{kind}", kind=kind, store=store)
         spare = spare_explorers if kind == "goal" else 0
         caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes + spare)]
-        lane = [WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:lanes])]
+        lane: list[WorkLane] = [
+            WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:lanes])
+        ]
         lane += [
             SpareLane(f"spare_{kind}_{k + 1}", children=[c]) for k, c in enumerate(caps[lanes:])
         ]
@@ -214,7 +216,8 @@ def pool_mission_tree(
         # Items told apart by their id: an object dropped elsewhere is the same object,
         # its running lane told where it now lies, not a second lane started for it.
         # A failed carry dropped its object where the carrier was: it runs again from a
-        # list read after the drop (two polls later), not from the spot it was taken at.
+        # list read after the drop (a poll begun after it has come back within four poll
+        # periods), not from the spot it was taken at.
         wait = 4 * watch.options["poll_s"] if kind == "carry" else 0.0
         each = ParallelForEach(
             f"each_{kind}", children=lane, retry_failed=True, key=0, retry_after_s=wait
@@ -226,13 +229,13 @@ def pool_mission_tree(
                 wires += [(ln, "target", cap, "object"), (ln, "at", cap, "at")]
         parts.append(Parallel(f"{kind}_pool", children=[watch, each]))
         wires += [(watch, "items", each, "items"), (watch, "complete", each, "complete")]
-    for ln in spares:
-        wires += [(watches[k], "items", ln, k) for k in ("identify", "carry")]
+    for spare_lane in spares:
+        wires += [(watches[k], "items", spare_lane, k) for k in ("identify", "carry")]
     if standby > 0:
-        caps = [STANDBY.node_type()("standby") for _ in range(standby)]
-        lanes = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(caps)]
-        each = ParallelForEach("each_standby", children=lanes, key=0)
-        for ln, cap in zip(lanes, caps, strict=True):
+        bys = [STANDBY.node_type()("standby") for _ in range(standby)]
+        stand = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(bys)]
+        each = ParallelForEach("each_standby", children=stand, key=0)
+        for ln, cap in zip(stand, bys, strict=True):
             wires += [
                 (ln, "at", cap, "at"),
                 (watches["identify"], "items", ln, "listed"),
