@@ -8,12 +8,16 @@ not yet identified, and objects found contaminated, each listed by the shared st
 it appears, and a :class:`~btcap.bt.foreach.ParallelForEach` runs a lane (one
 capability) per item, with as many lanes as the scenario has robots able to do it. An
 object is released to the carry pool the moment it is identified, and identification
-never waits on exploration or on a carry.
+never waits on exploration or on a carry. Robots the lanes leave out are not idle: a
+carrier with nothing else to do stands by at the objects awaiting identification
+(:class:`StandByLane`), and other explorers explore while nothing waits to be
+identified or carried (:class:`SpareLane`).
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
 runs again; a goal that another exploration covered leaves the list. Items are told
 apart by id: an object dropped by a failing robot keeps its lane (re-assigned with the
-capability), which is told where the object now lies.
+capability), which is told where the object now lies; a failed carry runs again only
+from a list read after its object fell.
 """
 
 from __future__ import annotations
