@@ -43,7 +43,10 @@ class ParallelForEach(Node):
       over. An item that leaves the list while its lane runs goes on running.
     - A lane that fails (or errs) ends that item: with ``retry_failed`` the item runs again
       while it is still listed (the list's source decides when it is no longer worth it),
-      otherwise it is counted in ``failed`` and not run again.
+      otherwise it is counted in ``failed`` and not run again. ``retry_after_s`` holds it
+      back that many clock seconds first, so it runs again from the list's details read
+      after the failure (an object dropped where its carrier failed), not from a reading
+      taken before it.
     - The node succeeds once ``complete`` is true (the list will not grow any more; wire
       it from the list's source, default true) and no listed item waits or runs; then it
       fails instead if any item failed without a retry. Until then it is RUNNING.
@@ -55,7 +58,7 @@ class ParallelForEach(Node):
     lanes run now.
     """
 
-    __slots__ = ("_finished", "_lanes", "_lost", "_restart", "_values")
+    __slots__ = ("_finished", "_lanes", "_lost", "_restart", "_retry_at", "_values")
     MIN_CHILDREN: ClassVar[int] = 1
     MAX_CHILDREN: ClassVar[int | None] = None
     INPUTS: ClassVar[Any] = {
@@ -68,6 +71,7 @@ class ParallelForEach(Node):
         "item_port": Port(str, "item", "the input of each lane that gets its item"),
         "retry_failed": Port(bool, False, "run an item again after its lane failed"),
         "key": Port(int | str | None, None, "tell items apart by this element of each"),
+        "retry_after_s": Port(float, 0.0, "clock seconds a failed item waits to run again"),
     }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -77,6 +81,7 @@ class ParallelForEach(Node):
         self._finished: set[Hashable] = set()
         self._lost: set[Hashable] = set()
         self._restart = False
+        self._retry_at: dict[Hashable, float] = {}  # failed items waiting to run again
 
     def width(self) -> int:
         """How many lanes may run at once; TreeError if the option cannot be met."""
@@ -132,6 +137,8 @@ class ParallelForEach(Node):
         elif s is _FAILED or s is _ERROR:
             if not self.options["retry_failed"]:
                 self._lost.add(k)
+            elif self.options["retry_after_s"] > 0:
+                self._retry_at[k] = self.clock.now() + self.options["retry_after_s"]
         else:
             return False
         self._lanes[i] = self._values[i] = None
@@ -144,6 +151,9 @@ class ParallelForEach(Node):
         if len(self._lanes) != n:
             self._lanes.extend([None] * (n - len(self._lanes)))
             self._values.extend([None] * (n - len(self._values)))
+        if self._retry_at:
+            now = self.clock.now()
+            self._retry_at = {k: t for k, t in self._retry_at.items() if t > now}
         items = self.inputs["items"] or []
         latest = {self._key(item): item for item in items}
         running: set[Hashable] = set()
@@ -159,6 +169,9 @@ class ParallelForEach(Node):
         for k, item in latest.items():
             if k in running or k in self._finished or k in self._lost:
                 continue
+            if k in self._retry_at:  # failed a moment ago: waits for fresh details
+                waiting = True
+                continue
             if len(running) >= width or not free:
                 waiting = True
                 break
@@ -171,6 +184,9 @@ class ParallelForEach(Node):
             if not self._ended(i, s):
                 running.add(k)
             elif s is _SUCCEEDED:
+                free.insert(0, i)
+            elif k not in self._lost:  # failed at once, to run again: not done yet
+                waiting = True
                 free.insert(0, i)
         out = self.outputs
         out["succeeded"], out["failed"] = len(self._finished), len(self._lost)

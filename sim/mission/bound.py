@@ -19,8 +19,11 @@ beats the bound); it is the largest of three:
   leaves, failures). A carry is the round trip from the decontamination area (where the
   previous carry ended; each robot's first one may start from the start cell) plus its
   operation; an identification its duration; exploring the reachable cells at the best
-  duration per cell a robot's disc can cover. Travel between identifications is not
-  counted (a lower bound needs no tour).
+  duration per cell a robot's disc can cover. The identifiers also drive to every
+  object they identify (the capability drives there first): together no less than a
+  minimum spanning tree of the start and the objects under path lengths
+  (:func:`visit_tree_m`), at the fastest identifier's speed; where the same robots
+  carry, their drives count once, the longer of the two bounds.
 - **carries after release**: for every time ``t``, the carries of objects that cannot
   be identified before ``t`` all happen after ``t`` (the scheduling bound for jobs with
   release times), each decontaminator's first one perhaps already driven to.
@@ -45,7 +48,7 @@ from btcap.sim.world.grid import GridMap
 from btcap.sim.world.model import RobotModel
 from btcap.sim.world.store import MissionState
 
-__all__ = ["Bound", "Presence", "cover_times", "mission_bound", "scenario_bound"]
+__all__ = ["Bound", "Presence", "cover_times", "mission_bound", "scenario_bound", "visit_tree_m"]
 
 _KINDS = ("explore", "identify", "decontaminate")
 
@@ -174,6 +177,35 @@ def cover_times(
     return cover
 
 
+def visit_tree_m(grid: GridMap, cells: Sequence[Cell]) -> float:
+    """Metres robots starting at ``grid.start`` drive, all together, to stand on every one
+    of ``cells`` (reachable ones): no less than a minimum spanning tree of the start and
+    the cells under path lengths. Each robot's drive, cut where it first reaches each
+    cell, is a chain of drives between them, each no shorter than their path length; the
+    chains of all robots join at the start and reach every cell, so together they are a
+    spanning tree of those points, and none is shorter than the minimum one."""
+    nodes = [grid.start, *dict.fromkeys(c for c in cells if c != grid.start)]
+    n = len(nodes)
+    if n < 2:
+        return 0.0
+    cs = grid.cell_size_m
+    far = np.empty((n, n))
+    for i, cell in enumerate(nodes):
+        field = distance_field(grid.free, cell)
+        far[i] = [path_length(field, other, cs) for other in nodes]
+    joined = np.zeros(n, dtype=bool)
+    joined[0] = True
+    nearest = far[0].copy()
+    total = 0.0
+    for _ in range(n - 1):  # Prim's: the nearest point not yet joined, one at a time
+        cand = np.where(joined, math.inf, nearest)
+        j = int(np.argmin(cand))
+        total += float(cand[j])
+        joined[j] = True
+        nearest = np.minimum(nearest, far[j])
+    return total
+
+
 def mission_bound(
     grid: GridMap,
     models: Sequence[RobotModel],
@@ -249,11 +281,27 @@ def mission_bound(
         "identify": sum(id_work),
         "decontaminate": max(0.0, sum(carry_work) - saved),
     }
+    # the identifiers' drives to every object they identify (carry_work has the carriers')
+    seen = [cell for cell, _ in objects if cell in index]
+    fastest = max((models[i].speed_mps for i in able["identify"]), default=1.0)
+    visits = visit_tree_m(grid, seen) / fastest
+    shared = bool(set(able["identify"]) & set(able["decontaminate"]))
+    dec_ops = sum(
+        min((dur(i, "decontaminate") for i in able["decontaminate"]), default=math.inf)
+        for _, dirty in objects
+        if dirty
+    )
     work_s = 0.0
     for size in (1, 2, 3):
         for kinds in combinations(_KINDS, size):
             robots = sorted({i for k in kinds for i in able[k]})
             total = sum(kind_work[k] for k in kinds)
+            if "identify" in kinds and "decontaminate" in kinds and shared:
+                # the same robots drive for both: at least the longer of the two drives
+                carry = max(kind_work["decontaminate"], dec_ops + visits)
+                total += carry - kind_work["decontaminate"]
+            elif "identify" in kinds:
+                total += visits
             if total > 0:
                 work_s = max(work_s, _finish([present[i] for i in robots], 0.0, total))
 

@@ -35,6 +35,7 @@ __all__ = [
     "IDENTIFY",
     "INTERFACES",
     "ROBOT_CACHE_SIZE",
+    "STANDBY",
     "Drive",
     "RobotSetup",
     "Step",
@@ -62,6 +63,14 @@ DECONTAMINATE = CapabilityInterface(
     outputs={},
     description="Carry a contaminated object to the decontamination area.",
 )
+STANDBY = CapabilityInterface(
+    "StandBy",
+    inputs={"at": tuple[int, int]},
+    outputs={},
+    description="Drive to where work may come soon (an object found, not yet identified), "
+    "to be near when it does; only robots that can carry stand by.",
+)
+#: The paper's capabilities (StandBy is the pool mission's own, offered beside them).
 INTERFACES = (EXPLORE, IDENTIFY, DECONTAMINATE)
 
 
@@ -85,6 +94,7 @@ class _Operation:
     target: str | None = None
     result: str | None = None
     then_decon: bool = False  # the robot goes on to the decontamination area
+    drive_only: bool = False  # no operation: the drive is the work (a robot able to ``op``)
 
 
 _OPERATIONS = (
@@ -93,6 +103,7 @@ _OPERATIONS = (
     _Operation(
         DECONTAMINATE, "decontaminate", "carry", goal="at", target="object", then_decon=True
     ),
+    _Operation(STANDBY, "decontaminate", "standby", goal="at", drive_only=True),
 )
 
 
@@ -203,7 +214,7 @@ def robot_setup(
         return path_length(cache.get(b), a, grid.cell_size_m) * cf
 
     def implementation(o: _Operation) -> Implementation:
-        duration = model.operation(o.op).duration_s
+        duration = 0.0 if o.drive_only else model.operation(o.op).duration_s
 
         def bid(inputs: Mapping[str, Any]) -> float | None:
             """What finishing would cost from here and now: the drive left (from where the
@@ -212,12 +223,14 @@ def robot_setup(
             if at is None or not grid.is_free(at):
                 return None
             target = None if o.target is None else inputs.get(o.target)
-            if o.target is None:  # explore: where the robot stands
+            if o.drive_only:  # the drive left is all of it
+                left = None
+            elif o.target is None:  # explore: where the robot stands
                 left = body.left_s(o.op, -1, duration) if body.position == at else None
             else:
                 left = None if target is None else body.left_s(o.op, int(target), duration)
             if left is None:  # not under way: drive there, work, (carry the object on)
-                task = (o.op, -1 if target is None else int(target), at)
+                task = (o.leaf if o.drive_only else o.op, -1 if target is None else int(target), at)
                 after = not model.bids_from_here and bidding_after()
                 start = body.bound_for(grid.decon_area, task) if after else body.position
                 cost = travel(start, at) + duration
@@ -233,10 +246,12 @@ def robot_setup(
             i, out = o.interface.bridge_types()
             bi = i(name="inputs")
             heading = _Heading("heading")
-            heading.setup_heading(body, o.op, grid.decon_area if o.then_decon else None)
+            heading.setup_heading(
+                body, o.leaf if o.drive_only else o.op, grid.decon_area if o.then_decon else None
+            )
             move = _step(drive.move("drive"))
-            work = _step(drive.operate(o.leaf, o.op))
-            leaf = work.nodes[-1]
+            work = Step(()) if o.drive_only else _step(drive.operate(o.leaf, o.op))
+            leaf = work.nodes[-1] if work.nodes else move.nodes[-1]
             bo = out(name="outputs") if o.result is not None else None
             children = [bi, heading, *move.nodes, *work.nodes]
             tree = Tree(Sequence(o.op, children=children if bo is None else [*children, bo]))
@@ -244,14 +259,15 @@ def robot_setup(
                 tree.wire(*wire)
             tree.wire(bi, o.goal, move.nodes[0], "goal")
             tree.wire(bi, o.goal, heading, "goal")
-            if o.target is not None:
+            if o.target is not None and work.nodes:
                 tree.wire(bi, o.target, work.nodes[0], "target")
                 tree.wire(bi, o.target, heading, "target")
             if bo is not None and o.result is not None:
                 tree.wire(leaf, o.result, bo, o.result)
             return tree
 
-        return Implementation(f"{o.op}-{robot}", o.interface, build, bid=bid)
+        name = o.leaf if o.drive_only else o.op
+        return Implementation(f"{name}-{robot}", o.interface, build, bid=bid)
 
     impls = [implementation(o) for o in _OPERATIONS if model.can(o.op)]
     return RobotSetup(impls, {Body.PATH: body})

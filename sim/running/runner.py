@@ -25,7 +25,7 @@ from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
 from btcap.sim.mission.paper import mission_tree
-from btcap.sim.mission.pool import pool_lanes, pool_mission_tree
+from btcap.sim.mission.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
 from btcap.sim.mission.scenario import Event, Scenario, check_scenario
 from btcap.sim.running.hosts import InProcessHost, RobotHost, agent_config, registry
 from btcap.sim.running.metrics import MissionLog, MissionResult, RobotError, collect
@@ -251,8 +251,15 @@ def _mission(s: Scenario) -> Tree:
     if s.mission == "paper":
         return mission_tree(object_workers=s.object_workers)
     models = s.models()
-    explore, identify, carry = pool_lanes([models[r.model] for r in s.robots])
-    return pool_mission_tree(explorers=explore, identifiers=identify, carriers=carry)
+    team = [models[r.model] for r in s.robots]
+    explore, identify, carry = pool_lanes(team)
+    return pool_mission_tree(
+        explorers=explore,
+        identifiers=identify,
+        carriers=carry,
+        standby=standby_lanes(team),
+        spare_explorers=spare_explorers(team),
+    )
 
 
 def _outcome(result: MissionResult, s: Scenario) -> tuple[str, str]:

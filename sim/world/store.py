@@ -32,6 +32,7 @@ class SimObject:
     decontaminated: bool = False
     carried_by: str | None = None
     claimed_by: str | None = None
+    seen: int = -1  # the order in which objects were found (and then identified)
 
     @property
     def finished(self) -> bool:
@@ -63,6 +64,7 @@ class MissionState:
     claims: dict[str, tuple[Literal["goal", "object"], int]] = field(default_factory=dict)
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     _next_goal: int = 0
+    _next_seen: int = 0
 
     def __post_init__(self) -> None:
         self.covered = np.zeros(self.grid.shape, dtype=bool)
@@ -123,6 +125,8 @@ class MissionState:
         for o in self.objects:
             if not o.found and disc[o.cell]:
                 o.found = True
+                o.seen = self._next_seen
+                self._next_seen += 1
                 found += 1
         for goal in self.goals.values():
             if not goal.done and goal.claimed_by is None and self.covered[goal.cell]:
@@ -202,7 +206,10 @@ class MissionState:
         if kind == "goal":
             items = [(g.id, *g.cell) for g in self.goals.values() if not g.done]
             return WorkList(items, explored)
-        found = [o for o in self.objects if o.found and not o.finished]
+        # the oldest news first: objects in the order they were found, then identified
+        found = sorted(
+            (o for o in self.objects if o.found and not o.finished), key=lambda o: o.seen
+        )
         if kind == "identify":
             items = [(o.id, *o.cell) for o in found if o.identified is None and not o.carried_by]
             return WorkList(items, explored)
@@ -215,6 +222,8 @@ class MissionState:
     def identify(self, obj: int) -> bool:
         o = self.objects[obj]
         o.identified = o.contaminated
+        o.seen = self._next_seen  # the carries in the order the objects were identified
+        self._next_seen += 1
         return o.contaminated
 
     def pick_up(self, obj: int, robot: str) -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+import anyio
 import pytest
 
 from btcap import (
@@ -20,6 +21,7 @@ from btcap import (
     TreeError,
     loads_tree,
 )
+from btcap.actors import ManualClock
 from btcap.bt.invariants import tick_checked as tick
 from btcap.bt.registry import default_registry
 
@@ -193,6 +195,47 @@ def test_failed_items_fail_the_node_or_run_again_with_retry() -> None:
     while (state := tick(tree)) is R:
         pass
     assert state is S
+
+
+class FailsOnce(Leaf):
+    """Fails its first item, succeeds after; logs every value it is ticked with."""
+
+    INPUTS: ClassVar[Any] = {"item": Port(tuple[int, int])}
+
+    def __init__(self, name: str, seen: list[tuple[int, int]]) -> None:
+        super().__init__(name)
+        self.seen = seen
+
+    def on_tick(self) -> State:
+        self.seen.append(self.inputs["item"])
+        return F if len(self.seen) == 1 else S
+
+
+async def test_a_failed_item_waits_retry_after_s_and_runs_again_from_its_latest_value() -> None:
+    # An object dropped where its carrier failed: the list read in the tick of the
+    # failure may still say where it was taken, so it runs again only from a later one.
+    with anyio.fail_after(5):
+        clock = ManualClock()
+        seen: list[tuple[int, int]] = []
+        lane = FailsOnce("a", seen)
+        each = ParallelForEach(
+            "each",
+            children=[lane],
+            key=0,
+            retry_failed=True,
+            retry_after_s=1.0,
+            inputs={"items": [(7, 0)], "complete": True},
+        )
+        tree = Tree(each, clock=clock)
+        assert tick(tree) is R  # started, failed: waits, the node with it
+        assert seen == [(7, 0)]
+        each.set_input("items", [(7, 1)])  # the list now says where the object lies
+        await clock.advance(0.9)
+        assert tick(tree) is R
+        assert seen == [(7, 0)]  # not yet
+        await clock.advance(0.1)
+        assert tick(tree) is S
+        assert seen == [(7, 0), (7, 1)]  # again, from where it lies now
 
 
 def test_started_again_after_its_result_it_forgets_the_items_done() -> None:

@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from btcap.sim.mission.bound import Presence, cover_times, mission_bound, scenario_bound
+from btcap.sim.mission.bound import (
+    Presence,
+    cover_times,
+    mission_bound,
+    scenario_bound,
+    visit_tree_m,
+)
 from btcap.sim.mission.catalog import builtin_scenarios
 from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.world.distance import distance_field
@@ -89,3 +95,21 @@ def test_the_bound_is_no_lower_than_the_straight_line_one_on_the_caves() -> None
     assert (cover[rows, cols] > line + 5.0).any()  # and later where the cave winds
     s = load_scenario(builtin_scenarios()["full-team"])
     assert scenario_bound(s).chains_s >= float(cover[rows, cols].max()) - 10.0 * 0.2
+
+
+def test_the_bound_counts_the_drives_to_identify_every_object() -> None:
+    # A corridor, start and decontamination area at one end, two clean objects at 20 and
+    # 40 m: one Husky must drive 40 m (1 m/s) besides its two 60 s identifications.
+    grid = GridMap.from_array(np.ones((1, 41), dtype=bool), start=(0, 0), decon_area=(0, 0))
+    husky = paper_team()["husky"]
+    objects = [((0, 40), False), ((0, 20), False)]
+    assert visit_tree_m(grid, [cell for cell, _ in objects]) == pytest.approx(40.0)
+    b = mission_bound(grid, [husky], objects)
+    explore = 41 * 60.0 / 709  # 41 cells at the seconds per cell of a 15 m disc
+    assert b.work_s == pytest.approx(2 * 60 + 40 + explore, abs=0.1)
+    # two robots may share the drives, never below a spanning tree: a cross of four arms
+    # of 10 m, start in its middle, needs 40 m whoever drives them
+    free = np.zeros((21, 21), dtype=bool)
+    free[10, :] = free[:, 10] = True
+    cross = GridMap.from_array(free, start=(10, 10), decon_area=(10, 10))
+    assert visit_tree_m(cross, [(0, 10), (20, 10), (10, 0), (10, 20)]) == pytest.approx(40.0)

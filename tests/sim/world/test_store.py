@@ -406,3 +406,17 @@ def test_random_claims_lose_and_double_nothing(
     assert s.coverage == 1.0
     assert all(o.found for o in s.objects)
     assert all(o.decontaminated == o.contaminated for o in s.objects)
+
+
+def test_work_lists_give_the_oldest_news_first() -> None:
+    # Object 0 lies far, object 1 near the start: found 1 then 0, so identified in that
+    # order (object ids are the scatter's, no order of the mission's); carried in the
+    # order they were identified. A list by id left object 1 waiting behind 0.
+    s = state_with(CORRIDOR, [(2, 25), (2, 3), (2, 12)], [True, True, False])
+    s.explore((2, 0), 4.0)
+    s.explore((2, 12), 4.0)
+    s.explore((2, 25), 4.0)
+    assert [i[0] for i in s.work_list("identify").items] == [1, 2, 0]
+    s.identify(1)
+    s.identify(0)
+    assert [i[0] for i in s.work_list("carry").items] == [1, 0]
