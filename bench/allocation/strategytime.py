@@ -17,6 +17,9 @@ capability author who never heard of that would write them (``naive``: every bid
 where the robot stands, ``bids_from_here`` in the team file; the framework then bounds
 the later cost itself, :func:`btcap.team.core.bidding.detour`).
 
+The simulation's draws are common random numbers (:mod:`btcap.sim.world.manager`): on one
+seed every strategy meets the same durations and failures for the same work.
+
 Reported per scenario and bids: each strategy's mission time (mean, min-max over the
 seeds); the default over the best other strategy on the same seed (mean, worst, seeds
 over :data:`TARGET`); moves, exchanges, hand-overs undone within 60 s, those the

@@ -5,6 +5,13 @@ vectorised world step brings the robot to its goal; operations end after the rob
 model's duration, randomised, and may fail with a set chance (seeded). Answers are
 deferred replies, so the manager serves every robot at once.
 
+The draws are common random numbers: each operation's jitter and failure come from a
+stream of their own, keyed by what the operation is (explore at this cell, identify or
+decontaminate this object) and how many such attempts ran to their end before, never from
+one stream shared by the run. Whichever robot does it and whenever, the same operation
+gets the same draw, so two runs of a seed that award the work differently differ by the
+awards, not by a reshuffle of every later draw (what comparing strategies needs).
+
 Each robot's body hears where it is and what it does as it happens (a
 :class:`~btcap.sim.world.messages.PositionUpdate` for every cell it drives into and every
 operation that starts, begins its timed work or ends), so what it bids for the work it
@@ -65,6 +72,7 @@ class _Op:
     fut: asyncio.Future[SimResult]
     event: SimEvent
     target: int
+    key: tuple[int, int, int]  # what the operation is, for its draws (see ``_key``)
     carrying: bool = False
     working: bool = False  # its timed work has begun (decontaminate: at the decon area)
 
@@ -81,6 +89,18 @@ class _Robot:
     carrying: int = -1
 
 
+_OPS = ("explore", "identify", "decontaminate")
+_STREAM = 0x0B7CA9  # this module's tag in the seed sequence of every draw
+
+
+def _key(op: str, target: int, cell: Cell) -> tuple[int, int, int]:
+    """What an operation is, for its draws: exploring at ``cell``, or working on object
+    ``target``; not who does it, nor when."""
+    if op == "explore":
+        return (0, int(cell[0]), int(cell[1]))
+    return (_OPS.index(op), target, 0)
+
+
 class SimulationManager(Actor):
     """One per simulation; lives beside the :class:`~sim.world.store.ObjectStore`."""
 
@@ -91,7 +111,8 @@ class SimulationManager(Actor):
         self.state = state
         self.config = config or SimConfig()
         self.world = World(state.grid)
-        self.rng = np.random.default_rng(self.config.seed)
+        #: Attempts that ran to their end, per operation key (see :meth:`draw`).
+        self._attempts: dict[tuple[int, int, int], int] = {}
         self.robots: dict[str, _Robot] = {}
         self.events: list[SimEvent] = []
         self._clock: TimeSource | None = None
@@ -188,6 +209,19 @@ class SimulationManager(Actor):
         self.world.activate(r.index)
 
     # -- requests ---------------------------------------------------------------------
+    def draw(self, op: str, target: int, cell: Cell) -> tuple[float, bool]:
+        """The duration factor and whether it fails, for the next attempt at ``op`` on
+        object ``target`` (explore: at ``cell``), by any robot: drawn from a stream of its
+        own (the seed, what the operation is and how many attempts at it ran to their
+        end), so it does not depend on what was drawn before. An attempt cut short
+        (superseded, stopped) leaves its draw to the next."""
+        key = _key(op, target, cell)
+        n = self._attempts.get(key, 0)
+        rng = np.random.default_rng([_STREAM, self.config.seed, *key, n])
+        j = self.config.delay_jitter
+        factor = float(rng.uniform(1 - j, 1 + j))
+        return factor, bool(rng.random() < self.config.failure_chance)
+
     def _robot(self, name: str) -> _Robot | None:
         r = self.robots.get(name)
         return r if r is not None and r.up else None
@@ -267,12 +301,11 @@ class SimulationManager(Actor):
             self.world.stop(r.index)
             self._end_move(r, False, "superseded")
         self._abort(r, "superseded")  # one operation at a time: a new request supersedes
-        model = r.model.operation(msg.op)
-        j = self.config.delay_jitter
-        duration = model.duration_s * float(self.rng.uniform(1 - j, 1 + j))
-        fails = bool(self.rng.random() < self.config.failure_chance)
+        key = _key(msg.op, msg.target, self.position(r.name))
+        factor, fails = self.draw(msg.op, msg.target, self.position(r.name))
+        duration = r.model.operation(msg.op).duration_s * factor
         fut: asyncio.Future[SimResult] = asyncio.get_running_loop().create_future()
-        op = _Op(fut, self._event(r.name, msg.op, target=msg.target), msg.target)
+        op = _Op(fut, self._event(r.name, msg.op, target=msg.target), msg.target, key)
         op.working = msg.op != "decontaminate"  # which first carries the object
         r.busy.append(op)
         self._tell_position(r)
@@ -303,6 +336,7 @@ class SimulationManager(Actor):
             await clock.sleep(duration)
             if op.fut.done():
                 return
+            self._attempts[op.key] = self._attempts.get(op.key, 0) + 1  # ran to its end
             cell = self.position(r.name)
             if fails:
                 self._end_op(r, op, SimResult(False, cell, "operation failed"))

@@ -65,9 +65,13 @@ class MissionState:
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     _next_goal: int = 0
     _next_seen: int = 0
+    #: Each cell's rank among frontier cells that may become goals, drawn once: which
+    #: cells become goals depends on the frontier, not on how many explorations drew before.
+    _rank: NDArray[np.float64] = field(init=False)
 
     def __post_init__(self) -> None:
         self.covered = np.zeros(self.grid.shape, dtype=bool)
+        self._rank = self.rng.random(self.grid.shape)
         self.add_goal(self.grid.start)
 
     @classmethod
@@ -140,8 +144,7 @@ class MissionState:
             return
         # A covered goal is done once its claimant lets go: it stands for no frontier.
         taken = [g.cell for g in self.pending_goals() if not self.covered[g.cell]]
-        order = self.rng.permutation(len(cand))
-        cand = cand[order]
+        cand = cand[np.argsort(self._rank[cand[:, 0], cand[:, 1]], kind="stable")]
         keep = np.ones(len(cand), dtype=bool)
         for t in taken:
             keep &= ((cand - np.asarray(t)) ** 2).sum(axis=1) > spacing * spacing

@@ -251,6 +251,7 @@ async def test_failed_work_is_retried_and_objects_are_identified_once() -> None:
     object whose decontamination failed is not identified a second time."""
     s = load_scenario(SMALL)
     s.sim = msgspec.structs.replace(s.sim, failure_chance=0.6)
+    s.seed = 1  # whose draws fail a decontamination (of seeds 1-8 all but 4 and 6 do)
     with anyio.fail_after(RUN_S):
         result = await run_fast(s)
     assert_sound(result, s)

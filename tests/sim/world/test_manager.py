@@ -239,11 +239,7 @@ async def test_decontaminating_a_taken_object_fails() -> None:
 async def test_jitter_randomises_durations_by_seed() -> None:
     def durations(seed: int) -> list[float]:
         m = SimulationManager(MissionState(GRID, objects()), config(delay_jitter=0.5, seed=seed))
-        draws = []
-        for _ in range(5):
-            draws.append(float(m.rng.uniform(0.5, 1.5)))
-            m.rng.random()
-        return draws
+        return [m.draw("identify", i, (0, 0))[0] for i in range(5)]
 
     assert durations(1) == durations(1)
     assert durations(1) != durations(2)
