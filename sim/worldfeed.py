@@ -90,8 +90,7 @@ class WorldFeed:
         ev: Event | None = None
         # keys built in C where it can (a batch mostly finds nothing changed: issue 32)
         robots = [
-            (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event))
-            for r in m.robots.values()
+            (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in m.robots.values()
         ]
         if robots != self._robots:
             self._robots = robots
