@@ -384,13 +384,18 @@ class Monitor:
 
     def flush(self) -> list[Event]:
         """Hand every change since the last flush on, as one batch; returns it."""
+        pending = self._pending
         for tap in self._taps:
-            self._flush_tap(tap)
+            ev = tap.flush()
+            if ev is not None:
+                pending.append(ev)
         for sample in self._sources:
-            self._sample(sample)
-        batch, self._pending = self._pending, []
-        if not batch:
-            return batch
+            ev = sample()
+            if ev is not None:
+                pending.append(ev)
+        if not pending:  # most batches of a --fast run: nothing changed
+            return []
+        batch, self._pending = pending, []
         for ev in batch:
             self.view.apply(ev)
         if self._recorder is not None:

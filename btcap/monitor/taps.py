@@ -42,7 +42,7 @@ class TreeTap:
         self._emit = emit
         self._ended = ended  # (execution, result) -> why, from what the monitor heard
         self._nodes: list[Node] = []  # in tree order, as last sent
-        self._shape: tuple[int, ...] = ()  # the tree's version and the slots' runs
+        self._shape: tuple[int, ...] = (-1,)  # the tree's version and the slots' runs
         self._slots: list[RemoteCapabilitySlot] = []
         self._paths: list[str] = []
         self._sent: list[State] = []
@@ -155,7 +155,9 @@ class TreeTap:
     def flush(self) -> Event | None:
         """The states changed since the last flush, or the whole tree if its shape changed
         (nodes came or went, or a slot took up or put down a run)."""
-        if self._shape_now() != self._shape:
+        if self.tree.version != self._shape[0] or (
+            self._slots and self._shape_now() != self._shape
+        ):
             return self.structure()
         if not self._changed_since:
             return None

@@ -16,6 +16,7 @@ draws them are in :mod:`btcap.monitor.scene`.
 from __future__ import annotations
 
 import math
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,9 @@ __all__ = ["POSE_EVERY_S", "WorldFeed"]
 #: Clock seconds between two poses of the robots at most (four simulator steps): a
 #: recording of a drive then costs a quarter of its messages (see the module's doc).
 POSE_EVERY_S = 2.0
+
+#: What of an object the world's picture shows (its key: compared at every batch).
+_OBJECT_KEY = attrgetter("found", "identified", "decontaminated", "carried_by", "cell")
 
 
 class WorldFeed:
@@ -45,7 +49,10 @@ class WorldFeed:
         grid = manager.state.grid
         self._cell = grid.cell_size_m
         self._height = grid.height
-        self._keys: dict[str, Any] = {}
+        # what each part was last sent for (see :meth:`sample`); None: never sent
+        self._robots: list[tuple[bool, int]] | None = None
+        self._objects: list[tuple[Any, ...]] | None = None
+        self._poses: bytes | None = None
 
     def _xy(self, row: int, col: int) -> list[float]:
         """A cell's centre in the ``map`` frame (x along columns, y up from the last row)."""
@@ -80,28 +87,29 @@ class WorldFeed:
     def _sample(self, *, final: bool) -> Event | None:
         m = self.manager
         now = m.now()
-        robots = m.robots.values()
-        keys = {
-            "robots": tuple(
-                (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in robots
-            ),
-            "objects": tuple(
-                (o.found, o.identified, o.decontaminated, o.carried_by, o.cell)
-                for o in m.state.objects
-            ),
-        }
-        ev: Event = {"t": now, "k": "world"}
-        for part, key in keys.items():
-            if self._keys.get(part) != key:
-                self._keys[part] = key
-                ev[part] = self._part(part)
-        if final or len(ev) > 2 or now >= self._pose_t + self.pose_every_s:
+        ev: Event | None = None
+        # keys built in C where it can (a batch mostly finds nothing changed: issue 32)
+        robots = [
+            (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in m.robots.values()
+        ]
+        if robots != self._robots:
+            self._robots = robots
+            ev = {"t": now, "k": "world", "robots": self._part("robots")}
+        objects = list(map(_OBJECT_KEY, m.state.objects))
+        if objects != self._objects:
+            self._objects = objects
+            if ev is None:
+                ev = {"t": now, "k": "world"}
+            ev["objects"] = self._part("objects")
+        if final or ev is not None or now >= self._pose_t + self.pose_every_s:
             where = m.cells.tobytes()
-            if self._keys.get("poses") != where:
-                self._keys["poses"] = where
+            if self._poses != where:
+                self._poses = where
                 self._pose_t = now
+                if ev is None:
+                    ev = {"t": now, "k": "world"}
                 ev["poses"] = self._part("poses")
-        return ev if len(ev) > 2 else None
+        return ev
 
     def _part(self, part: str) -> Any:
         m = self.manager
