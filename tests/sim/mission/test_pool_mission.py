@@ -26,6 +26,7 @@ from btcap.sim.mission.pool import (
     standby_lanes,
 )
 from btcap.sim.mission.scenario import Event, Scenario, builtin_scenarios, load_scenario
+from btcap.sim.running.metrics import Interval
 from btcap.sim.running.runner import run_fast
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.model import paper_team
@@ -142,21 +143,25 @@ async def test_a_carry_that_failed_runs_again_from_where_its_object_fell() -> No
     # where the object had been taken and carried it the whole way again (here: two
     # re-carries of 116 and 93 s; full-team-6 seed 5 lost 170 s so); from a list read
     # after the drop it is 8 s of work where the object lies.
-    s = scenario("full-team", 1)
-    # many operations fail: some carries surely do
-    s.sim = msgspec.structs.replace(s.sim, failure_chance=0.3)
-    with anyio.fail_after(RUN_S):
-        result = await run_fast(s)
-    assert result.completed
-    carries = sorted(
-        (i for i in result.timeline if i.kind == "decontaminate"), key=lambda i: i.start
-    )
-    retried = [
-        next(b for b in carries if b.target == a.target and b.start >= a.end)
-        for a in carries
-        if not a.ok and a.end - a.start > 20  # failed at its end, after carrying
-    ]
-    assert retried, "no carry failed after carrying: pick another seed"
+    retried: list[Interval] = []
+    for seed in range(1, 9):  # the first seed where a carry fails after carrying
+        s = scenario("full-team", seed)
+        # many operations fail: some carries surely do
+        s.sim = msgspec.structs.replace(s.sim, failure_chance=0.3)
+        with anyio.fail_after(RUN_S):
+            result = await run_fast(s)
+        assert result.completed
+        carries = sorted(
+            (i for i in result.timeline if i.kind == "decontaminate"), key=lambda i: i.start
+        )
+        retried = [
+            next(b for b in carries if b.target == a.target and b.start >= a.end)
+            for a in carries
+            if not a.ok and a.end - a.start > 20  # failed at its end, after carrying
+        ]
+        if retried:
+            break
+    assert retried, "no carry failed after carrying on seeds 1-8"
     assert all(b.end - b.start < 8 * 1.2 + 2 for b in retried), [(b.start, b.end) for b in retried]
 
 
