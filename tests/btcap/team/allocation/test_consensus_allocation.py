@@ -331,7 +331,12 @@ async def test_a_robot_that_lost_the_origin_and_took_it_back_is_told_its_tasks()
             assert "b" in a.team.alive()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
             tree = a.mission(ReactiveSequence("root", children=[node]))
-            await tick_until(tree, lambda _s: bool(_cons(a).core.own_tasks()), "the offer")
+            # a suspects b now and then (its probes to b are lost) and, waiting for no
+            # suspect, may agree meanwhile that nobody takes the task: the task then closes
+            # unassigned and opens again later, so its first opening is what is waited for
+            opened: list[AuctionRecord] = []
+            _cons(a).watch(opened.append)
+            await tick_until(tree, lambda _s: bool(opened), "the offer")
             cut[0] = False
             back = t.clock.now()
             state = await tick_until(tree, lambda s: s is not State.RUNNING)
