@@ -13,8 +13,9 @@ Within one task set (``version``) prices only rise, which is what makes the auct
 opening a task, a candidate declining an award or a holder going (lost, or moving on)
 raise the ``version``: every candidate hears the new set and reports again, and a task
 whose holder went is auctioned afresh (price 0). The origin has **converged** when every
-live candidate not under suspicion of failure has reported having seen the current set and either holds one of its tasks or claims
-something else (or nothing): nobody would bid again until something changes.
+live candidate not under suspicion of failure has reported having seen the current set
+and either holds one of its tasks or claims something else (or nothing): nobody would
+bid again until something changes (a suspect is waited for by nobody).
 """
 
 from __future__ import annotations
