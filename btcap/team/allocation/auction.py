@@ -181,6 +181,8 @@ class SingleItemAuction(Allocator):
             self._next_turn()
             await turn.wait()
             award = self._queue.round(auction_id, task)
+            if self.team is not None:  # a suspect's bid counts, but is asked last
+                award.defer(self.team.suspected())
             won = await offer(
                 self, award, self.award_timeout_s, self.stats, log, event="auction", min_wall=0.05
             )

@@ -158,7 +158,7 @@ class ConsensusAssigner(Allocator):
                 self._forgot.add(robot)
         elif event in (TeamEvent.FREED, TeamEvent.CHANGED):
             self._own.clear()  # preconditions may be met now
-        self._soon()
+        self._soon()  # (SUSPECTED: each step reads the suspects; a suspicion's end has no event)
 
     # -- the strategy -----------------------------------------------------------------
     async def assign(self, task: AssignmentTask) -> Assigned | Unassigned:
@@ -261,6 +261,7 @@ class ConsensusAssigner(Allocator):
         self._scheduled = False
         if self._system is None or not self.system.running:
             return
+        self.core.suspect(self.team.suspected() if self.team is not None else frozenset())
         reports, boards = self.core.step(self._own.costs(self.core.tasks()))
         if self.core.claim.task is not None and self.pricer is not None:
             self.pricer.claimed(self.core.claim.task)  # its award is one we asked for

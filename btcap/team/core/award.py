@@ -59,6 +59,16 @@ class AwardRound:
         self._bids = deque(bids)
         self._offered: Bid | None = None
 
+    def defer(self, robots: Iterable[str]) -> None:
+        """Ask the bids of ``robots`` (suspected of failure now) after all the others: an
+        award to a robot likely gone would wait the award timeout for nothing. Their
+        order among themselves, and the others', is kept."""
+        robots = set(robots)
+        if robots:
+            bids = list(self._bids)
+            first = [b for b in bids if b.robot not in robots]
+            self._bids = deque(first + [b for b in bids if b.robot in robots])
+
     @property
     def offered(self) -> Bid:
         """The bid whose award is being asked."""

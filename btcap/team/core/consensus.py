@@ -88,6 +88,7 @@ class Consensus(Generic[T]):
         self._owe: set[str] = set()  # origins to tell our claim again
         self._barred: set[ExecutionId] = set()  # refused us until its task set changes
         self._forgot: set[str] = set()  # members lost: their claims to us were dropped
+        self.suspected: frozenset[str] = frozenset()  # members under suspicion now
 
     @property
     def refused(self) -> int:
@@ -119,10 +120,21 @@ class Consensus(Generic[T]):
         if robot in self.members and len(self._forgot) < self.max_members:
             self._forgot.add(robot)
         self.members.discard(robot)
+        self.suspected -= {robot}
         self.market.lose(robot)
         for table in (self._offers, self._boards, self._prices, self._told):
             table.pop(robot, None)
         self._owe.discard(robot)
+
+    def suspect(self, robots: frozenset[str]) -> None:
+        """The members under suspicion of failure now (the whole set, before each step):
+        as an origin, agreement waits for none of them and what one holds is auctioned
+        again (:meth:`Market.suspect`); as a bidder, this robot stops bidding for a
+        suspect's tasks (its claim would hold nothing if the origin is gone). Both come
+        back as they were once a suspicion ends (refuted): the robot is waited for, its
+        tasks are bid for again."""
+        self.suspected = frozenset(robots & self.members - {self.robot})
+        self.market.suspect(self.suspected)
 
     # -- this robot's own tasks -------------------------------------------------------
     def open(self, task: Task[T]) -> None:
@@ -219,10 +231,12 @@ class Consensus(Generic[T]):
         return out
 
     def tasks(self) -> dict[ExecutionId, Task[T]]:
-        """Every open task known, of live origins (one a newer board no longer lists is
-        closed)."""
+        """Every open task known, of live origins not under suspicion (one a newer board
+        no longer lists is closed)."""
         out = dict(self.market.tasks)
         for origin, offer in self._offers.items():
+            if origin in self.suspected:
+                continue
             board = self._boards.get(origin)
             if board is not None and board.version >= offer.version:
                 listed = self._prices[origin]
@@ -363,11 +377,11 @@ class Consensus(Generic[T]):
         return reports, boards
 
     def retry(self) -> tuple[list[str], list[tuple[str, Board]]]:
-        """For the candidates this origin still waits for (a message may have been
-        lost): those to tell the task set again (they have not reported on it), and the
-        boards for those that must bid again."""
+        """For the candidates that have not settled (a message may have been lost), suspects
+        too (one that is alive after all is heard): those to tell the task set again (they
+        have not reported on it), and the boards for those that must bid again."""
         market, offer, boards = self.market, [], []
-        for robot in sorted(market.waiting_for() - {self.robot}):
+        for robot in sorted(market.unsettled() - {self.robot}):
             report = market.reports.get(robot)
             if report is None or report.version != market.version:
                 offer.append(robot)

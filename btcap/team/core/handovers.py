@@ -13,9 +13,9 @@ explicit costs and time:
   costs it now) for less than the robot taking it bids, less the margin: the same rule
   that would move it back once the robot is free. Such an exchange is not made.
 - :class:`Handovers`: a task handed from robot A to B is not handed back to A within
-  :data:`HOLD_S` seconds (a hold-down), whatever the bids say then. The shell counts
-  the hand-overs it refused, and any hand-over back within that time (with the
-  hold-down on, none).
+  :data:`HOLD_S` seconds (a hold-down), whatever the bids say then, directly or through
+  another robot (A -> B -> C -> A). The shell counts the hand-overs it refused, and any
+  hand-over back within that time (with the hold-down on, none).
 
 Sans-IO: the shell gives the clock's ``now``.
 """
@@ -23,7 +23,6 @@ Sans-IO: the shell gives the clock's ``now``.
 from __future__ import annotations
 
 from collections.abc import Hashable
-from dataclasses import dataclass
 
 __all__ = ["HOLD_S", "Handovers", "comes_back"]
 
@@ -40,44 +39,45 @@ def comes_back(received: float, held: float, taken: float, margin: float) -> boo
     return received + held < taken * (1.0 - margin) - 1e-9
 
 
-@dataclass(frozen=True, slots=True)
-class _Handover:
-    frm: str
-    to: str
-    at: float
-
-
 class Handovers:
-    """The latest hand-over of each task (a capability node: its running work moved or
-    exchanged), to bar handing it back to the robot it left within ``hold_s``."""
+    """The robots each task (a capability node: its running work moved or exchanged) left
+    lately, to bar handing it back to any of them within ``hold_s``: not only the last
+    one (a -> b -> c -> a within the hold-down undoes the move from a as surely as
+    a -> b -> a does)."""
 
-    __slots__ = ("_last", "hold_s")
+    __slots__ = ("_left", "hold_s")
 
     def __init__(self, hold_s: float = HOLD_S) -> None:
         if hold_s < 0:
             raise ValueError(f"hold_s {hold_s}: expected at least 0")
         self.hold_s = hold_s
-        self._last: dict[Hashable, _Handover] = {}
+        self._left: dict[Hashable, dict[str, float]] = {}  # task -> robot it left -> when
 
-    def barred(self, task: Hashable, now: float) -> str | None:
-        """The robot ``task`` may not go to now (the one it left less than ``hold_s``
-        ago), or None."""
-        last = self._last.get(task)
-        if last is None or now - last.at >= self.hold_s:
-            return None
-        return last.frm
+    def barred(self, task: Hashable, now: float) -> frozenset[str]:
+        """The robots ``task`` may not go to now (those it left less than ``hold_s``
+        ago)."""
+        left = self._left.get(task)
+        if not left:
+            return frozenset()
+        return frozenset(r for r, at in left.items() if now - at < self.hold_s)
 
     def allows(self, task: Hashable, to: str, now: float) -> bool:
         """Whether ``task`` may go to ``to`` now."""
-        return self.barred(task, now) != to
+        at = self._left.get(task, {}).get(to)
+        return at is None or now - at >= self.hold_s
 
     def moved(self, task: Hashable, frm: str, to: str, now: float) -> bool:
-        """``task`` went from ``frm`` to ``to``; True if that undid its last hand-over
-        (back to the robot it left less than :data:`HOLD_S` ago, whatever ``hold_s``)."""
-        last = self._last.get(task)
-        undone = last is not None and last.frm == to and now - last.at < HOLD_S
-        self._last[task] = _Handover(frm, to, now)
-        if len(self._last) > 64:  # those past both windows bar and count nothing
-            keep = max(self.hold_s, HOLD_S)
-            self._last = {k: h for k, h in self._last.items() if now - h.at < keep}
+        """``task`` went from ``frm`` to ``to``; True if that undid a hand-over (back to a
+        robot it left less than :data:`HOLD_S` ago, whatever ``hold_s``)."""
+        keep = max(self.hold_s, HOLD_S)
+        left = self._left.setdefault(task, {})
+        at = left.get(to)
+        undone = at is not None and now - at < HOLD_S
+        left[frm] = now
+        for robot in [r for r, t in left.items() if now - t >= keep]:
+            del left[robot]  # past both windows: bars and counts nothing
+        if len(self._left) > 64:
+            self._left = {
+                k: v for k, v in self._left.items() if any(now - t < keep for t in v.values())
+            }
         return undone

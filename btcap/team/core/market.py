@@ -13,8 +13,9 @@ Within one task set (``version``) prices only rise, which is what makes the auct
 opening a task, a candidate declining an award or a holder going (lost, or moving on)
 raise the ``version``: every candidate hears the new set and reports again, and a task
 whose holder went is auctioned afresh (price 0). The origin has **converged** when every
-live candidate has reported having seen the current set and either holds one of its tasks or claims
-something else (or nothing): nobody would bid again until something changes.
+live candidate not under suspicion of failure has reported having seen the current set
+and either holds one of its tasks or claims something else (or nothing): nobody would
+bid again until something changes (a suspect is waited for by nobody).
 """
 
 from __future__ import annotations
@@ -91,6 +92,7 @@ class Market(Generic[T]):
         self.owed: set[str] = set()  # robots to send the board to: they must bid again
         self.refused = 0
         self.ceiling = 0.0  # the outside option: over every cost a candidate reported
+        self.suspected: frozenset[str] = frozenset()  # members nobody waits for now
         self._seq = 0
 
     # -- the team and the task set -----------------------------------------------------
@@ -100,10 +102,24 @@ class Market(Generic[T]):
     def lose(self, robot: str) -> None:
         """A member left or failed: what it held is free (at its price) for the others."""
         self.members.discard(robot)
+        self.suspected -= {robot}
         self.owed.discard(robot)
         gone = self.reports.pop(robot, None)
         if gone is not None and self._holds(robot, gone.claim.task):
             self._free(gone.claim.task)
+
+    def suspect(self, robots: frozenset[str]) -> None:
+        """The members under suspicion of failure now (the whole set, each step): nobody
+        waits for them, and what one of them holds is auctioned afresh as if it were lost
+        (its award would wait on a robot likely gone). A suspect is still told and heard:
+        a claim it makes later may win again, and once its suspicion ends (refuted) it is
+        waited for again."""
+        robots = frozenset(robots & self.members - {self.origin})
+        for robot in sorted(robots - self.suspected):
+            report = self.reports.get(robot)
+            if report is not None and self._holds(robot, report.claim.task):
+                self._free(report.claim.task)
+        self.suspected = robots
 
     def open(self, task: Task[T]) -> None:
         if task.id.origin != self.origin:
@@ -229,8 +245,14 @@ class Market(Generic[T]):
         return task not in self.tasks or self._holds(robot, task)
 
     def converged(self) -> bool:
-        """Every candidate has seen our task set and holds one or wants none of ours."""
-        return all(self.settled(r) for r in self.candidates())
+        """Every candidate not under suspicion has seen our task set and holds one or
+        wants none of ours."""
+        return not self.waiting_for()
 
     def waiting_for(self) -> frozenset[str]:
+        """The candidates agreement waits for (never a suspect)."""
+        return self.unsettled() - self.suspected
+
+    def unsettled(self) -> frozenset[str]:
+        """Every candidate not settled, suspects included (they are still retried)."""
         return frozenset(r for r in self.candidates() if not self.settled(r))

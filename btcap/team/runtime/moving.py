@@ -194,9 +194,9 @@ class Reevaluation:
         # Others (this robot too) may take it over; its holder bids what finishing would
         # cost it now.
         others = (mc.repository.providers(iface.identity) & mc.alive()) - {ex.robot}
-        barred = self.handovers.barred(id(node), mc.now())
-        if barred in others:  # it left that robot lately: not back within the hold-down
-            others.discard(barred)
+        barred = self.handovers.barred(id(node), mc.now()) & others
+        if barred:  # it left those robots lately: not back within the hold-down
+            others -= barred
             mc.stats.held_back += 1
         if not others:
             return

@@ -331,7 +331,12 @@ async def test_a_robot_that_lost_the_origin_and_took_it_back_is_told_its_tasks()
             assert "b" in a.team.alive()
             node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
             tree = a.mission(ReactiveSequence("root", children=[node]))
-            await tick_until(tree, lambda _s: bool(_cons(a).core.own_tasks()), "the offer")
+            # a suspects b now and then (its probes to b are lost) and, waiting for no
+            # suspect, may agree meanwhile that nobody takes the task: the task then closes
+            # unassigned and opens again later, so its first opening is what is waited for
+            opened: list[AuctionRecord] = []
+            _cons(a).watch(opened.append)
+            await tick_until(tree, lambda _s: bool(opened), "the offer")
             cut[0] = False
             back = t.clock.now()
             state = await tick_until(tree, lambda s: s is not State.RUNNING)
@@ -339,3 +344,38 @@ async def test_a_robot_that_lost_the_origin_and_took_it_back_is_told_its_tasks()
             assert node.assignments == ["b"]
             assert t.clock.now() - back < window / 4
             await tree.shutdown()
+
+
+async def test_agreement_waits_for_no_suspected_member() -> None:
+    """s could run the task (cheaply) but never speaks, then goes quiet: once a suspects
+    it, the team agrees without it and a runs the task, long before the window ends or s
+    is declared failed; a task opened while s is suspected never waits for it."""
+    with anyio.fail_after(20):
+        probe = Probe()
+        cfg = {"reevaluate_s": None, "auction_window_s": 1000.0, "failure_timeout_s": 500.0}
+        async with team(strategy="consensus", **cfg) as t:
+            a = await t.add("a", [count_impl("a", 5.0, probe)])
+            async with silent_member(
+                t.net, "s", [count_impl("s", 0.1, probe)], t.clock, failure_timeout_s=500.0
+            ):
+                await until(lambda: a.repository.providers(COUNT.identity) == {"a", "s"})
+                await until(lambda: "s" in a.team.alive(), "a to know s")
+                core = _cons(a).core
+                for first in (True, False):
+                    node = COUNT.node_type()("count", inputs={"x": 1, "stop": True})
+                    tree = a.mission(ReactiveSequence("root", children=[node]))
+                    start = t.clock.now()
+                    if first:  # open before the suspicion: it waits for s alone
+                        tree.tick()
+                        await until(lambda: core.waiting_for() == {"s"}, "a's own claim")
+                        t.net.isolate("s")
+                    else:  # opened while s is suspected
+                        assert "s" in a.team.suspected()
+                    status = await tick_until(tree, lambda s: s is not State.RUNNING)
+                    assert status is State.SUCCEEDED
+                    assert node.assignments == ["a"]
+                    assert t.clock.now() - start < 100.0  # neither window nor failure
+                    assert "s" in a.team.suspected()  # still a member, suspected
+                    assert "s" in core.members
+                    await tree.shutdown()
+            assert not probe.violations

@@ -38,6 +38,19 @@ def test_the_bidders_are_asked_in_turn_until_one_accepts() -> None:
     }
 
 
+def test_a_suspects_bid_is_asked_last() -> None:
+    """The cheapest bidder ``a`` is suspected of failure when the award is made: ``b`` is
+    asked first (nobody waits the award timeout on a robot likely gone), ``a`` only if
+    every other bidder declined."""
+    award = AwardRound(A1, TASK, [bid("a", 1), bid("b", 2), bid("c", 3)])
+    award.defer({"a", "x"})
+    asked = []
+    while award.next() is not None:
+        asked.append(award.offered.robot)
+        award.declined("busy")
+    assert asked == ["b", "c", "a"]
+
+
 def test_when_everyone_declines_the_result_says_why_robot_by_robot() -> None:
     passed = {"d": "no answer"}
     award = AwardRound(A1, TASK, [bid("a", 1)], passed)

@@ -432,3 +432,80 @@ def test_a_robot_lost_while_it_held_a_task_that_closed_lets_it_go_when_back() ->
     assert tid(0) not in t.robots["a"].tasks()
     assert t.robots["a"].claim.task is None
     assert t.origin.market.reports["a"].claim == t.robots["a"].claim
+
+
+# -- suspicion of failure -------------------------------------------------------------------
+
+
+def test_agreement_waits_for_no_suspect() -> None:
+    """``a`` went silent before it heard the task: the origin waits for it until it is
+    suspected, then agrees at once on ``b`` (no window, no failure timeout)."""
+    t = Team({"a": {0: 1.0}, "b": {0: 2.0}}, 1)
+    dead = t.robots.pop("a")  # hears nothing, says nothing
+    for _ in range(10):
+        t.round()
+    assert not t.origin.converged()
+    assert t.origin.waiting_for() == {"a"}
+    t.origin.suspect(frozenset({"a"}))
+    assert t.origin.converged()
+    assert t.origin.waiting_for() == frozenset()
+    assert t.assignment() == {tid(0): "b"}
+    assert dead.claim.task is None
+
+
+def test_a_suspect_holding_a_task_has_it_auctioned_again() -> None:
+    """``a`` holds the task, then falls silent and is suspected: the task is not awarded
+    to it (the award would wait on a robot likely gone) but goes to ``b`` at once."""
+    t = Team({"a": {0: 1.0}, "b": {0: 2.0}}, 1)
+    t.run()
+    assert t.assignment() == {tid(0): "a"}
+    t.robots.pop("a")
+    t.origin.suspect(frozenset({"a"}))
+    assert t.assignment() == {}
+    t.run()
+    agreed(t)
+    assert t.assignment() == {tid(0): "b"}
+
+
+def test_a_refuted_suspect_is_waited_for_and_told_again() -> None:
+    """``a`` missed the task set and was suspected: the team agreed on ``b``. Once the
+    suspicion ends (``a`` refuted it) the origin waits for ``a`` again and tells it the
+    task set; ``a``, cheaper, wins the task."""
+    t = Team({"a": {0: 1.0}, "b": {0: 2.0}}, 1)
+    away = t.robots.pop("a")
+    t.origin.suspect(frozenset({"a"}))
+    t.run()
+    assert t.assignment() == {tid(0): "b"}
+    assert "a" in [to for to, _m in t.retry(ORIGIN)]  # a suspect is still told
+    t.robots["a"] = away
+    t.origin.suspect(frozenset())
+    assert not t.origin.converged()
+    assert t.origin.waiting_for() == {"a"}
+    t.run()
+    agreed(t)
+    assert t.assignment() == {tid(0): "a"}
+
+
+def test_a_robot_bids_for_no_task_of_a_suspected_origin() -> None:
+    """Robot ``a`` holds origin p's task; p is suspected: ``a`` turns to o's task rather
+    than hold one whose origin may be gone (o would wait for it in vain); once p's
+    suspicion ends, ``a`` bids for p's task again."""
+    t = Team({"a": {0: 10.0}}, 1)
+    t.robots["p"] = Consensus("p")
+    t.costs["p"] = {}
+    for c in t.robots.values():
+        for other in t.robots:
+            c.join(other)
+    task = Task(ExecutionId("p", "t", 1), frozenset({"a"}), None)
+    t.robots["p"].open(task)
+    t.costs["a"][task.id] = 1.0
+    t.run()
+    assert t.robots["a"].claim.task == task.id
+    t.robots["a"].suspect(frozenset({"p"}))
+    t.run()
+    agreed(t)
+    assert t.robots["a"].claim.task == tid(0)
+    assert task.id not in t.robots["a"].tasks()
+    t.robots["a"].suspect(frozenset())
+    t.run()
+    assert t.robots["a"].claim.task == task.id

@@ -32,11 +32,11 @@ def test_a_task_is_not_handed_back_within_the_hold_down() -> None:
     h = Handovers()
     assert h.allows("node", "a", 0.0)
     assert not h.moved("node", "a", "b", 10.0)
-    assert h.barred("node", 10.0) == "a"
+    assert h.barred("node", 10.0) == {"a"}
     assert not h.allows("node", "a", 10.0 + HOLD_S - 0.5)
     assert h.allows("node", "c", 20.0)  # on to a third robot: fine
     assert h.allows("node", "a", 10.0 + HOLD_S)  # the hold-down is over
-    assert h.barred("other", 10.0) is None
+    assert h.barred("other", 10.0) == frozenset()
 
 
 def test_a_hand_over_back_within_the_hold_down_is_counted_as_undone() -> None:
@@ -50,11 +50,28 @@ def test_a_hand_over_back_within_the_hold_down_is_counted_as_undone() -> None:
     assert not held.moved("node", "a", "b", 200.0)  # long after: a move like any other
 
 
+def test_a_task_is_not_handed_back_through_a_third_robot_either() -> None:
+    """a -> b -> c, then back to a within the hold-down undoes the move from a as surely
+    as a -> b -> a: barred (and counted, with no hold-down), as is b."""
+    h = Handovers()
+    h.moved("node", "a", "b", 0.0)
+    assert not h.moved("node", "b", "c", 10.0)
+    assert h.barred("node", 20.0) == {"a", "b"}
+    assert not h.allows("node", "a", 20.0)
+    assert h.allows("node", "a", HOLD_S)  # its hold-down is over; b's is not
+    assert h.barred("node", HOLD_S) == {"b"}
+    free = Handovers(hold_s=0.0)
+    free.moved("node", "a", "b", 0.0)
+    free.moved("node", "b", "c", 10.0)
+    assert free.allows("node", "a", 20.0)
+    assert free.moved("node", "c", "a", 20.0)  # back to a 20 s after it left: undone
+
+
 def test_many_tasks_handed_over_long_ago_are_forgotten() -> None:
     h = Handovers()
     for n in range(100):
         h.moved(n, "a", "b", float(n))
     h.moved("late", "a", "b", 1000.0)
-    assert len(h._last) <= 65
+    assert len(h._left) <= 65
     with pytest.raises(ValueError, match="hold_s"):
         Handovers(hold_s=-1.0)
