@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Collection
 
 import anyio
 from anyio.abc import TaskStatus
@@ -23,7 +24,8 @@ class InProcessNetwork:
 
     def __init__(self, registry: MessageRegistry | None = None, *, encode: bool = True) -> None:
         self._members: dict[str, InProcessTransport] = {}
-        self._cut: set[str] = set()
+        #: Systems cut off, each with the systems it still reaches (see :meth:`isolate`).
+        self._cut: dict[str, frozenset[str]] = {}
         self._everyone: frozenset[str] | None = None  # the members' names, until one changes
         self.codec = Codec(registry or MessageRegistry()) if encode else None
 
@@ -35,16 +37,18 @@ class InProcessNetwork:
         self._everyone = None
         return t
 
-    def isolate(self, system_id: str) -> None:
-        """Cut a system off (it neither sends nor receives) until :meth:`heal`."""
-        self._cut.add(system_id)
+    def isolate(self, system_id: str, *, keep: Collection[str] = ()) -> None:
+        """Cut a system off (it neither sends nor receives) until :meth:`heal`, except to
+        and from the systems in ``keep``: a simulated robot cut off from its team still
+        hears its own body, which the simulation stands in for."""
+        self._cut[system_id] = frozenset(keep)
 
     def heal(self, system_id: str) -> None:
-        self._cut.discard(system_id)
+        self._cut.pop(system_id, None)
 
     def _leave(self, system_id: str) -> None:
         self._members.pop(system_id, None)
-        self._cut.discard(system_id)
+        self._cut.pop(system_id, None)
         self._everyone = None
 
     def _names(self) -> frozenset[str]:
@@ -54,7 +58,9 @@ class InProcessNetwork:
         return self._everyone
 
     def _route(self, src: InProcessTransport, env: Envelope) -> None:
-        if src.system_id in self._cut:
+        cut = self._cut
+        kept = cut.get(src.system_id)
+        if kept is not None and env.recipient.system not in kept:
             src.stats.drop("isolated")
             return
         if env.sender.system != src.system_id:
@@ -72,7 +78,7 @@ class InProcessNetwork:
                 return
             dests = [dest]
         for dest in dests:
-            if dest.system_id in self._cut:
+            if cut and dest.system_id in cut and src.system_id not in cut[dest.system_id]:
                 src.stats.drop("isolated")
                 continue
             if dest._deliver is None:

@@ -30,6 +30,7 @@ from btcap.transports import InProcessNetwork, MessageRegistry, Transport
 from btcap.transports.log import get_logger
 
 __all__ = [
+    "SIM_SYSTEM",
     "InProcessHost",
     "RobotHost",
     "agent_config",
@@ -40,6 +41,9 @@ __all__ = [
 ]
 
 log = get_logger(__name__)
+
+#: The actor system of the simulation manager (the robots' bodies and the shared store).
+SIM_SYSTEM = "sim"
 
 
 def registry() -> MessageRegistry:
@@ -192,7 +196,9 @@ class InProcessHost:
             ev.set()
 
     def fail(self, name: str) -> None:
-        self.net.isolate(name)
+        # Cut off from the team, not from its own body: the simulation stands in for the
+        # robot's hardware, whose word that an operation stopped still reaches it.
+        self.net.isolate(name, keep=(SIM_SYSTEM,))
         self._up.discard(name)
 
     def recover(self, name: str) -> None:

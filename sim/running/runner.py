@@ -27,7 +27,13 @@ from btcap.monitor import Monitor
 from btcap.sim.mission.paper import mission_tree
 from btcap.sim.mission.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
 from btcap.sim.mission.scenario import Event, Scenario, check_scenario
-from btcap.sim.running.hosts import InProcessHost, RobotHost, agent_config, registry
+from btcap.sim.running.hosts import (
+    SIM_SYSTEM,
+    InProcessHost,
+    RobotHost,
+    agent_config,
+    registry,
+)
 from btcap.sim.running.metrics import MissionLog, MissionResult, RobotError, collect
 from btcap.sim.running.worldfeed import WorldFeed
 from btcap.sim.world.grid import GridMap
@@ -138,7 +144,9 @@ async def run_scenario(
     cfg = agent_config(s)
     async with (
         (host or InProcessHost)(s, clock, reg, grid) as robots,
-        ActorSystem("sim", transport=robots.transport("sim"), registry=reg, clock=clock) as simsys,
+        ActorSystem(
+            SIM_SYSTEM, transport=robots.transport(SIM_SYSTEM), registry=reg, clock=clock
+        ) as simsys,
     ):
         simsys.spawn(manager, SimulationManager.PATH)
         if monitor is not None:

@@ -246,6 +246,29 @@ async def test_isolate_drops_traffic_both_ways_until_heal() -> None:
             assert peer(c).notes == ["only c"]
 
 
+async def test_an_isolated_system_still_reaches_those_it_keeps() -> None:
+    """A simulated robot cut off from its team still hears its body (the simulation)."""
+    net = InProcessNetwork(registry())
+    with anyio.fail_after(5):
+        async with team(net, "a", "b", "sim") as (a, b, sim):
+            net.isolate("b", keep=("sim",))
+            assert (await b.ref("sim/peer").ask(Ping(1), expect=Pong)).n == 2
+            assert (await sim.ref("b/peer").ask(Ping(3), expect=Pong)).n == 4
+            with pytest.raises(AskTimeout):
+                await a.ref("b/peer").ask(Ping(0), timeout=0.02)
+            with pytest.raises(AskTimeout):
+                await b.ref("a/peer").ask(Ping(0), timeout=0.02)
+            b.broadcast("peer", Note("to nobody"))  # a broadcast leaves no cut-off system
+            sim.broadcast("peer", Note("to a and b"))
+            assert (await sim.ref("a/peer").ask(Ping(0), expect=Pong)).n == 1
+            assert (await sim.ref("b/peer").ask(Ping(0), expect=Pong)).n == 1
+            assert peer(a).notes == ["to a and b"]
+            assert peer(b).notes == ["to a and b"]
+            assert peer(sim).notes == []
+            net.heal("b")
+            assert (await a.ref("b/peer").ask(Ping(5), expect=Pong)).n == 6
+
+
 # -- failures come back typed ---------------------------------------------------------------
 
 

@@ -119,7 +119,7 @@ def test_presence_follows_joins_leaves_and_failures() -> None:
 
 def test_the_bound_is_below_every_paper_mission_run() -> None:
     # the paper's tree on its three scenarios, seed 1: figures from docs/mission.md
-    for name, seconds in (("full-team", 1326.0), ("huskies-bebop-joins", 1391.0)):
+    for name, seconds in (("full-team", 1326.0), ("huskies-bebop-joins", 1402.5)):
         s = scenario(name, 1, "paper")
         assert scenario_bound(s).seconds <= seconds
     state = MissionState.scatter(scenario("full-team", 1).grid(), 10, 0.5, np.random.default_rng(1))
