@@ -16,6 +16,7 @@ Foxglove server both send for one event.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import msgspec
@@ -237,7 +238,9 @@ def log_line(ev: Event) -> tuple[int, str, str] | None:
         bids = ", ".join(f"{r} {c:.1f}" for r, c in ev["bids"]) or "none"
         won = ev["winner"]
         text = f"auction {ev['id']} closed: {'won by ' + won if won else 'nobody took it'}"
-        return (_INFO if won else _WARNING), won or "", f"{text} (bids: {bids})"
+        # Nobody won: the line is the auctioneer's (the id starts with its name).
+        name = won or re.split("[~#]", ev["id"], maxsplit=1)[0]
+        return (_INFO if won else _WARNING), name, f"{text} (bids: {bids})"
     if kind == "finished":
         level = _INFO if ev["result"] == "succeeded" else _WARNING
         return level, "btcap", f"{ev['result']}: {ev['summary']}"

@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 
 import btcap.cli
 from btcap.cli import main
-from btcap.monitor.channels import EVENT_TOPICS, LOG_TOPIC
+from btcap.monitor.channels import EVENT_TOPICS, LOG_TOPIC, log_line
 from btcap.monitor.mcaprecord import McapRecorder
 from btcap.monitor.record import RecordError, read_metadata, read_record
 from btcap.monitor.replay import Replay
@@ -140,3 +140,11 @@ def test_a_file_that_is_not_mcap_is_refused_naming_it(tmp_path: Path) -> None:
     bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 3)
     with pytest.raises(RecordError, match=r"bad\.mcap: not a readable MCAP file"):
         read_record(bad)
+
+
+def test_an_auction_nobody_took_is_logged_under_its_auctioneer() -> None:
+    """Foxglove's Log panel shows each line's ``name``: an empty one reads ``[]``."""
+    close = {"k": "auction", "phase": "close", "t": 1.0, "bids": [["spot1", 73.2]]}
+    assert log_line({**close, "id": "operator~0001#83", "winner": None})[1:2] == ("operator",)
+    assert log_line({**close, "id": "husky1#2", "winner": None})[1:2] == ("husky1",)
+    assert log_line({**close, "id": "operator~0001#84", "winner": "spot1"})[1:2] == ("spot1",)
