@@ -35,7 +35,7 @@ import zmq
 
 from btcap import ReactiveSequence
 from btcap.actors import Address, Message
-from btcap.actors.heap import malloc_trim
+from btcap.actors.heap import HeapTrim, malloc_trim
 from btcap.bt.state import State
 from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
@@ -108,6 +108,11 @@ async def _live_rss_mb() -> float:
     freed their buffers (the trim blocks: off the loop)."""
     await asyncio.to_thread(malloc_trim)
     return _rss_mb()
+
+
+def _trimmed_since(heap: HeapTrim, trims: int) -> Callable[[], bool]:
+    """Whether the agent trimmed its heap since it had run ``trims`` trims."""
+    return lambda: heap.trims > trims
 
 
 async def _until(cond: Callable[[], bool], timeout: float) -> bool:
@@ -307,8 +312,7 @@ async def _sybil(quick: bool, ghosts: int | None = None) -> Result:
         swim, heap = r1.team.swim, r1.team.heap
         for _ in range(FLOODS):
             joins.clear()
-            trims = heap.trims
-            forgotten = swim.forgotten
+            forgotten, trims = swim.forgotten, heap.trims
             sending = asyncio.create_task(
                 asyncio.to_thread(_ghosts, r1.system.transport.endpoint, n, size)  # type: ignore[union-attr]
             )
@@ -327,7 +331,7 @@ async def _sybil(quick: bool, ghosts: int | None = None) -> Result:
             gone_s = time.monotonic() - t0
             # The burst is over: the agent trims its heap (an event, awaited; its timer
             # waits HeapTrim.every_s at most), then the trim's thread runs.
-            trimmed = await _until(lambda t=trims: heap.trims > t, heap.every_s + bound)
+            trimmed = await _until(_trimmed_since(heap, trims), heap.every_s + bound)
             await asyncio.sleep(1.0)
             gc.collect()
             rss_left = _rss_mb()
