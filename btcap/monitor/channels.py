@@ -16,7 +16,6 @@ Foxglove server both send for one event.
 
 from __future__ import annotations
 
-import re
 from typing import Any
 
 import msgspec
@@ -238,8 +237,9 @@ def log_line(ev: Event) -> tuple[int, str, str] | None:
         bids = ", ".join(f"{r} {c:.1f}" for r, c in ev["bids"]) or "none"
         won = ev["winner"]
         text = f"auction {ev['id']} closed: {'won by ' + won if won else 'nobody took it'}"
-        # Nobody won: the line is the auctioneer's (the id starts with its name).
-        name = won or re.split("[~#]", ev["id"], maxsplit=1)[0]
+        # Nobody won: the line is the auctioneer's (a recording made before close events
+        # named it has no name to give).
+        name = won or ev.get("auctioneer", "")
         return (_INFO if won else _WARNING), name, f"{text} (bids: {bids})"
     if kind == "finished":
         level = _INFO if ev["result"] == "succeeded" else _WARNING

@@ -348,6 +348,7 @@ class Monitor:
                 **base,
                 "t": rec.closed,
                 "phase": "close",
+                "auctioneer": rec.id.auctioneer,
                 "bids": [[b.robot, b.cost] for b in out.ranking] if out is not None else [],
                 "declined": dict(out.declined) if out is not None else {},
                 "reasons": reasons if won is not None else {"auctioneer": "cancelled"},
