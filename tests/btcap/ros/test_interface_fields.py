@@ -51,7 +51,8 @@ def test_bytes_are_ints_both_ways() -> None:
     msg = fill(cls, {"byte_values": [1, 255], "uint8_values": [7]}, "msg")
     back = to_plain(_serialized(msg))
     assert back["byte_values"] == [1, 255]
-    basic = to_plain(_serialized(fill(interface("test_msgs/BasicTypes", "msg"), {"byte_value": 9}, "m")))
+    basic_types = interface("test_msgs/BasicTypes", "msg")
+    basic = to_plain(_serialized(fill(basic_types, {"byte_value": 9}, "m")))
     assert basic["byte_value"] == 9
 
 
@@ -59,10 +60,14 @@ def test_bounded_strings_take_strings_up_to_their_bound() -> None:
     cls = interface("test_msgs/msg/Strings", "msg")
     assert field_types(cls)["bounded_string_value"] == "string<22>"
     assert port_type("string<22>") is str
-    assert to_plain(_serialized(fill(cls, {"bounded_string_value": "husky"}, "m")))[
-        "bounded_string_value"
-    ] == "husky"
-    with pytest.raises(RosError, match=r"^m\.bounded_string_value: 'x{30}' is longer than string<22>'s 22 characters$"):
+    assert (
+        to_plain(_serialized(fill(cls, {"bounded_string_value": "husky"}, "m")))[
+            "bounded_string_value"
+        ]
+        == "husky"
+    )
+    too_long = r"^m\.bounded_string_value: 'x{30}' is longer than string<22>'s 22 characters$"
+    with pytest.raises(RosError, match=too_long):
         fill(cls, {"bounded_string_value": "x" * 30}, "m")
 
 
