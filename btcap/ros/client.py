@@ -330,9 +330,32 @@ class RosBridge:
                 box[0] = (message, time.monotonic())
 
             cls = interface(type_name, "msg")
-            self.running().create_subscription(cls, key[1], store, self.qos())
+            self.running().create_subscription(
+                cls, key[1], store, self.qos(), **self.subscription_events(key[1])
+            )
         latest: tuple[Any, float] | None = box[0]
         return latest
+
+    def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
+        """``create_subscription``'s keyword that reports a publisher of ``topic`` whose
+        QoS the subscription does not accept (none of its messages arrive): a warning
+        (rclpy's own goes only to its console) and ``on_incompatible(policy)``."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+        from rclpy.qos import qos_policy_name_from_kind
+
+        def incompatible(event: Any) -> None:  # executor thread
+            policy = str(qos_policy_name_from_kind(event.last_policy_kind))
+            log.warning(
+                "btcap.ros.incompatible_qos",
+                topic=topic,
+                policy=policy,
+                why="a publisher offers a QoS this subscription does not accept: "
+                "none of its messages arrive",
+            )
+            if on_incompatible is not None:
+                on_incompatible(policy)
+
+        return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
