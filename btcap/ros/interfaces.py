@@ -20,7 +20,7 @@ import msgspec
 from btcap.ros.errors import RosError
 from btcap.ros.loader import load
 
-__all__ = ["check_field", "field_types", "fill", "interface", "port_type", "to_plain"]
+__all__ = ["check_field", "field_types", "fill", "interface", "kind_name", "port_type", "to_plain"]
 
 _KINDS = ("msg", "srv", "action")
 _NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)$")
@@ -43,6 +43,11 @@ _ARRAY = re.compile(r"^(.+?)\[(<=)?(\d*)\]$")
 _STRING = re.compile(r"^w?string(?:<=?(\d+)>?)?$")
 
 
+def kind_name(kind: str) -> str:
+    """``an action``, ``a msg``, ``a srv``: for errors."""
+    return f"an {kind}" if kind[0] in "aeiou" else f"a {kind}"
+
+
 def interface(type_name: str, kind: str) -> Any:
     """The class of ``pkg/kind/Name`` (``pkg/Name`` is taken as that kind), loading rclpy;
     RosError naming the type and what is wrong."""
@@ -57,7 +62,9 @@ def interface(type_name: str, kind: str) -> Any:
         )
     package, got, name = m.groups()
     if got != kind:
-        raise RosError(f"ROS interface type {type_name!r}: expected a {kind}, not a {got}")
+        raise RosError(
+            f"ROS interface type {type_name!r}: expected {kind_name(kind)}, not {kind_name(got)}"
+        )
     try:
         module = importlib.import_module(f"{package}.{got}")
     except ImportError:

@@ -88,7 +88,7 @@ def test_sequences_of_messages_and_byte_arrays() -> None:
         ("move_base_msgs/Fly", "action", "move_base_msgs has no action 'Fly'; it has MoveBase"),
         ("std_msgs/Nope", "msg", "std_msgs has no msg 'Nope'; it has Bool, Byte"),
         ("std_srvs/SetBool", "msg", "no package 'std_srvs' with msg types"),
-        ("std_srvs/srv/SetBool", "action", "expected a action, not a srv"),
+        ("std_srvs/srv/SetBool", "action", "expected an action, not a srv"),
         ("SetBool", "srv", "expected 'package/Name'"),
     ],
 )
