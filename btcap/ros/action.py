@@ -40,7 +40,12 @@ FEEDBACK_PREFIX = "feedback_"
 
 
 class _Goal:
-    """One goal's answers, written by the executor thread, read by the tick."""
+    """One goal's answers, written by the executor thread, read by the tick.
+
+    The bridge tracks it from its sending until it is over for the server: ended,
+    rejected, failed, or its cancel answered (:meth:`RosBridge.track
+    <btcap.ros.client.RosBridge.track>`), so closing the bridge cancels it even before the
+    server accepted it. A halted goal's answers tell the tree nothing any more."""
 
     __slots__ = (
         "bridge",
@@ -50,7 +55,9 @@ class _Goal:
         "feedback_at",
         "feedback_seen",
         "halted",
+        "halted_at",
         "handle",
+        "key",
         "lock",
         "name",
         "news",
@@ -66,7 +73,9 @@ class _Goal:
         self.news = news
         self.lock = threading.Lock()
         self.handle: Any = None
+        self.key: Any = None
         self.halted = False
+        self.halted_at = 0.0
         self.status: int | None = None
         self.result: Any = None
         self.error: str | None = None
@@ -75,58 +84,77 @@ class _Goal:
         self.feedback_seen: Any = None
         self.sent_at = now()
 
-    # executor thread
-    def on_response(self, future: Any) -> None:
-        try:
-            handle = future.result()
-        except Exception as exc:
-            self.error = f"the goal request failed: {exc}"
-            self.news()
-            return
-        if handle is None or not handle.accepted:
-            self.status = _REJECTED
-            self.news()
-            return
-        with self.lock:
-            self.handle = handle
-            self.feedback_at = now()
-            cancel = self.halted
-        self.bridge.track(handle)
-        if cancel:  # halted before the server accepted: cancel it now
-            handle.cancel_goal_async()
-            self.bridge.untrack(handle)
-            return
-        handle.get_result_async().add_done_callback(self.on_result)
-        self.news()
-
-    def on_result(self, future: Any) -> None:
-        try:
-            answer = future.result()
-        except Exception as exc:
-            self.error = f"the result request failed: {exc}"
-            self.news()
-            return
-        self.result = answer.result
-        self.status = answer.status
-        self.bridge.untrack(self.handle)
-        self.news()
-
-    def on_feedback(self, message: Any) -> None:
-        self.feedback = message.feedback
-        self.feedback_at = now()
-        self.news(True)
-
     # tick thread
+    def send(self, message: Any) -> None:
+        future, self.key = self.bridge.send_goal(self.client, message, self.on_feedback)
+        self.bridge.track(self)
+        future.add_done_callback(self.on_response)
+
     def halt(self) -> None:
         """Cancel the goal (now if accepted, else as soon as it is); once."""
         with self.lock:
             if self.halted:
                 return
             self.halted = True
+            self.halted_at = now()
             handle = self.handle
         if handle is not None and self.status is None:
-            handle.cancel_goal_async()
-            self.bridge.untrack(handle)
+            self._cancel(handle)
+
+    # executor thread
+    def on_response(self, future: Any) -> None:
+        try:
+            handle = future.result()
+        except Exception as exc:
+            self.error = f"the goal request failed: {exc}"
+            self._over()
+            return
+        if handle is None or not handle.accepted:
+            self.status = _REJECTED
+            self._over()
+            return
+        with self.lock:
+            self.handle = handle
+            self.feedback_at = now()
+            cancel = self.halted
+        # Also for a goal halted before: its result is how it ends for rclpy's client,
+        # which keeps the goal's feedback callback (and so this node) until then.
+        handle.get_result_async().add_done_callback(self.on_result)
+        if cancel:  # halted before the server accepted: cancel it now
+            self._cancel(handle)
+        else:
+            self.news()
+
+    def on_result(self, future: Any) -> None:
+        try:
+            answer = future.result()
+        except Exception as exc:
+            self.error = f"the result request failed: {exc}"
+        else:
+            self.result = answer.result
+            self.status = answer.status
+        self._over()
+
+    def on_feedback(self, message: Any) -> None:
+        self.feedback = message.feedback
+        self.feedback_at = now()
+        self.news(True)
+
+    # either thread
+    def _cancel(self, handle: Any) -> None:
+        future = handle.cancel_goal_async()
+        if future is None:  # ROS 1: its process answers for it
+            self.bridge.untrack(self)
+        else:
+            future.add_done_callback(lambda _: self.bridge.untrack(self))
+
+    def _over(self) -> None:
+        """Nothing more comes from the server: drop the goal from the bridge and what the
+        client keeps of it; tell the tree, unless halted."""
+        self.bridge.forget_goal(self.client, self.key)
+        self.bridge.untrack(self)
+        if not self.halted:
+            self.news()
 
 
 class RosAction(RosLeaf):
@@ -227,8 +255,7 @@ class RosAction(RosLeaf):
         outputs = self.outputs
         for k in outputs:
             outputs[k] = None
-        future = client.send_goal_async(msg, feedback_callback=goal.on_feedback)
-        future.add_done_callback(goal.on_response)
+        goal.send(msg)
         return _RUNNING
 
     def _finish(self, goal: _Goal) -> State:

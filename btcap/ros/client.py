@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
+import uuid
 from types import TracebackType
 from typing import Any, ClassVar
 
@@ -33,7 +34,7 @@ from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
 
-__all__ = ["FEEDBACK_WAKE_S", "ROS_BRIDGE", "RosBridge", "Waker"]
+__all__ = ["CLOSE_WAIT_S", "FEEDBACK_WAKE_S", "ROS_BRIDGE", "RosBridge", "Waker"]
 
 log = get_logger(__name__)
 
@@ -46,6 +47,14 @@ ROS_BRIDGE: Service[RosBridge] = Service("ros-bridge")
 #: makes every ROS node of this robot fail with the reason (``conflict``), logged once.
 CLAIM_WAIT_S = 1.5
 WATCH_S = 10.0
+
+#: Closing waits at most this long for the servers to answer the goals it cancels (and
+#: for the acceptance of goals sent just before, to cancel them then).
+CLOSE_WAIT_S = 2.0
+#: A halted goal whose cancel got no answer (its server gone) is forgotten this long after.
+FORGET_S = 30.0
+
+now = time.monotonic
 
 #: Feedback ticks a node's tree ahead of its period at most this often (50 Hz): enough to
 #: show progress, where a server's 1 kHz stream would tick the whole tree (and a remote
@@ -204,16 +213,14 @@ class RosBridge:
         return int(self._context.get_domain_id()) if self._context is not None else -1
 
     def close(self) -> None:
-        """Cancel open goals, destroy the node, stop and join the executor thread, leave
-        the domain. Idempotent."""
+        """Cancel open goals (waiting for the servers' answers, a goal not accepted yet
+        too, at most :data:`CLOSE_WAIT_S`), destroy the node, stop and join the executor
+        thread, leave the domain. Idempotent."""
         if self._closed:
             return
         self._closed = True
-        with self._lock:
-            goals, self._goals = list(self._goals.values()), {}
-        for handle in goals:
-            with contextlib.suppress(Exception):  # the server may be gone: nothing to cancel
-                handle.cancel_goal_async()
+        if self._thread is not None and self._thread.is_alive():
+            self._cancel_goals()
         if self._executor is not None:
             self._executor.shutdown(timeout_sec=2.0)
         if self._thread is not None:
@@ -323,9 +330,32 @@ class RosBridge:
                 box[0] = (message, time.monotonic())
 
             cls = interface(type_name, "msg")
-            self.running().create_subscription(cls, key[1], store, self.qos())
+            self.running().create_subscription(
+                cls, key[1], store, self.qos(), **self.subscription_events(key[1])
+            )
         latest: tuple[Any, float] | None = box[0]
         return latest
+
+    def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
+        """``create_subscription``'s keyword that reports a publisher of ``topic`` whose
+        QoS the subscription does not accept (none of its messages arrive): a warning
+        (rclpy's own goes only to its console) and ``on_incompatible(policy)``."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+        from rclpy.qos import qos_policy_name_from_kind
+
+        def incompatible(event: Any) -> None:  # executor thread
+            policy = str(qos_policy_name_from_kind(event.last_policy_kind))
+            log.warning(
+                "btcap.ros.incompatible_qos",
+                topic=topic,
+                policy=policy,
+                why="a publisher offers a QoS this subscription does not accept: "
+                "none of its messages arrive",
+            )
+            if on_incompatible is not None:
+                on_incompatible(policy)
+
+        return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
@@ -349,15 +379,55 @@ class RosBridge:
             if not loop.is_closed():
                 loop.call_soon_threadsafe(callback)
 
-    def track(self, handle: Any) -> None:
-        """A goal to cancel if the bridge closes while it is open."""
+    # -- goals (btcap.ros.action._Goal) ---------------------------------------------
+    def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
+        """Send ``goal`` with ``client``: the future of its answer, and the key that
+        :meth:`forget_goal` takes (here the goal's id, which this chooses)."""
+        from unique_identifier_msgs.msg import UUID
+
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))
+        future = client.send_goal_async(goal, feedback_callback=feedback, goal_uuid=goal_id)
+        return future, bytes(goal_id.uuid)
+
+    def forget_goal(self, client: Any, key: Any) -> None:
+        """Drop what rclpy's ``client`` keeps of a goal that is over without a result
+        (rejected, failed): its feedback callback, which holds the node and its tree;
+        rclpy drops it only once it has the goal's result."""
+        callbacks = getattr(client, "_feedback_callbacks", None)
+        if callbacks is not None:
+            callbacks.pop(key, None)
+
+    def track(self, goal: Any) -> None:
+        """A goal (``btcap.ros.action._Goal``) the server may still run: closing the
+        bridge cancels it, once accepted. Halted goals whose server never answered the
+        cancel (gone) are forgotten after :data:`FORGET_S`."""
         with self._lock:
-            self._goals[id(handle)] = handle
+            self._goals[id(goal)] = goal
+            if len(self._goals) > 64:
+                old = now() - FORGET_S
+                for k, g in list(self._goals.items()):
+                    if g.halted and g.halted_at < old:
+                        del self._goals[k]
 
     def open_goals(self) -> int:
-        """How many goals are open (sent, accepted, no result yet)."""
-        return len(self._goals)
+        """How many goals are open (sent, not halted, no result yet)."""
+        return sum(not g.halted for g in list(self._goals.values()))
 
-    def untrack(self, handle: Any) -> None:
+    def untrack(self, goal: Any) -> None:
         with self._lock:
-            self._goals.pop(id(handle), None)
+            self._goals.pop(id(goal), None)
+
+    def _cancel_goals(self) -> None:
+        """Halt every goal the servers may still run (an unaccepted one is cancelled as
+        its acceptance comes) and wait, at most :data:`CLOSE_WAIT_S`, for the servers
+        that are there to answer: a goal left running there would have nobody to stop it."""
+        with self._lock:
+            goals = list(self._goals.values())
+        for goal in goals:
+            with contextlib.suppress(Exception):  # the server may be gone: nothing to cancel
+                goal.halt()
+        end = now() + CLOSE_WAIT_S
+        while now() < end and any(
+            id(g) in self._goals and g.client.server_is_ready() for g in goals
+        ):
+            time.sleep(0.01)

@@ -311,6 +311,12 @@ class Ros1Bridge(RosBridge):
             self.send(wire1.Open(cid, "action", type_name, key[2]))
         return client
 
+    def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
+        return {}  # ROS 1 has no QoS to disagree on
+
+    def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
+        return client.send_goal_async(goal, feedback_callback=feedback), None
+
     def service_client(self, type_name: str, name: str) -> Any:
         key = ("service", type_name, self.resolve(name))
         client = self._clients.get(key)

@@ -20,7 +20,7 @@ import msgspec
 from btcap.ros.errors import RosError
 from btcap.ros.loader import load
 
-__all__ = ["check_field", "field_types", "fill", "interface", "port_type", "to_plain"]
+__all__ = ["check_field", "field_types", "fill", "interface", "kind_name", "port_type", "to_plain"]
 
 _KINDS = ("msg", "srv", "action")
 _NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)$")
@@ -34,9 +34,18 @@ _SCALARS: dict[str, Any] = {
     "boolean": bool,
     "bool": bool,
 }
-_SEQUENCE = re.compile(r"^sequence<(.+?)(?:,\s*\d+)?>$")
-_ARRAY = re.compile(r"^(.+?)\[(\d*)\]$")
-_STRING = re.compile(r"^w?string(?:<=\d+)?$")
+#: ``sequence<T>``, ``sequence<T, N>`` (at most N); ``T[N]`` (exactly N), ``T[]``, ``T[<=N]``.
+#: A message field's port type: its fields.
+_MESSAGE = dict[str, Any]
+_SEQUENCE = re.compile(r"^sequence<(.+?)(?:,\s*(\d+))?>$")
+_ARRAY = re.compile(r"^(.+?)\[(<=)?(\d*)\]$")
+#: ``string``, ``wstring``; bounded: ``string<22>`` (rosidl's text), ``string<=22`` (IDL's).
+_STRING = re.compile(r"^w?string(?:<=?(\d+)>?)?$")
+
+
+def kind_name(kind: str) -> str:
+    """``an action``, ``a msg``, ``a srv``: for errors."""
+    return f"an {kind}" if kind[0] in "aeiou" else f"a {kind}"
 
 
 def interface(type_name: str, kind: str) -> Any:
@@ -53,7 +62,9 @@ def interface(type_name: str, kind: str) -> Any:
         )
     package, got, name = m.groups()
     if got != kind:
-        raise RosError(f"ROS interface type {type_name!r}: expected a {kind}, not a {got}")
+        raise RosError(
+            f"ROS interface type {type_name!r}: expected {kind_name(kind)}, not {kind_name(got)}"
+        )
     try:
         module = importlib.import_module(f"{package}.{got}")
     except ImportError:
@@ -77,17 +88,27 @@ def field_types(msg_cls: Any) -> dict[str, str]:
     return types
 
 
+def _shape(ros_type: str) -> tuple[str, int | None, bool] | None:
+    """An array field's element type, bound and whether the bound is exact (``T[N]``);
+    None for a field that is no array."""
+    if (m := _SEQUENCE.match(ros_type)) is not None:
+        return m[1], int(m[2]) if m[2] else None, False
+    if (m := _ARRAY.match(ros_type)) is not None:
+        return m[1], int(m[3]) if m[3] else None, not m[2] and bool(m[3])
+    return None
+
+
 def port_type(ros_type: str) -> Any:
     """The port type of a field: int, float, bool, str, list[...] or dict for a message."""
-    if (m := _SEQUENCE.match(ros_type)) or (m := _ARRAY.match(ros_type)):
-        inner = port_type(m[1])
+    if (shape := _shape(ros_type)) is not None:
+        inner = port_type(shape[0])
         return list[inner]  # type: ignore[valid-type]
     if _STRING.match(ros_type):
         return str
     scalar = _SCALARS.get(ros_type)
     if scalar is not None:
         return scalar
-    return dict[str, Any]
+    return _MESSAGE
 
 
 def _int_bounds(ros_type: str) -> tuple[int, int] | None:
@@ -102,26 +123,54 @@ def _int_bounds(ros_type: str) -> tuple[int, int] | None:
 
 def check_field(value: Any, ros_type: str, where: str) -> Any:
     """``value`` as field type ``ros_type`` wants it (an int where a float is wanted
-    becomes a float); RosError naming ``where`` when it does not fit. rclpy checks field
-    types only with ROS_PYTHON_CHECK_FIELDS, and a wrong one fails deep in C otherwise."""
+    becomes a float); RosError naming ``where`` when it does not fit: its type, an
+    integer's range, a bounded string's length, an array's length (exact for ``T[N]``, at
+    most N for ``sequence<T, N>``) and each element, named by its index. rclpy checks
+    field types only with ROS_PYTHON_CHECK_FIELDS; otherwise a wrong one fails deep in C,
+    or goes out wrong (an int in a byte array)."""
     kind = port_type(ros_type)
-    if kind is dict[str, Any] or (
-        isinstance(value, list) and value and isinstance(value[0], Mapping)
-    ):
+    if kind == _MESSAGE:
+        if isinstance(value, Mapping) or hasattr(value, "get_fields_and_field_types"):
+            return value
+        if not hasattr(value, "_slot_types"):  # a ROS 1 message is taken as it is
+            raise RosError(f"{where}: {value!r} does not fit {ros_type} (expected its fields)")
         return value
+    shape = _shape(ros_type)
+    if shape is not None and isinstance(value, list | tuple):
+        inner, bound, exact = shape
+        if bound is not None and (len(value) != bound if exact else len(value) > bound):
+            raise RosError(
+                f"{where}: {len(value)} items do not fit {ros_type} "
+                f"({'exactly' if exact else 'at most'} {bound})"
+            )
+        if port_type(inner) == _MESSAGE or _STRING.match(inner):
+            return [check_field(v, inner, f"{where}[{i}]") for i, v in enumerate(value)]
     try:
         out = msgspec.convert(value, kind, strict=True)
     except msgspec.ValidationError as exc:
         raise RosError(f"{where}: {value!r} does not fit {ros_type} ({exc})") from None
+    if shape is not None:
+        bounds = _int_bounds(shape[0])
+        if bounds is not None:
+            for i, v in enumerate(out):
+                if not bounds[0] <= v <= bounds[1]:
+                    raise _out_of(v, shape[0], bounds, f"{where}[{i}]")
+        return out
     bounds = _int_bounds(ros_type)
     if bounds is not None and not bounds[0] <= out <= bounds[1]:
-        raise RosError(f"{where}: {value!r} is out of {ros_type}'s range {bounds[0]}..{bounds[1]}")
+        raise _out_of(value, ros_type, bounds, where)
+    if (m := _STRING.match(ros_type)) is not None and m[1] and len(out) > int(m[1]):
+        raise RosError(f"{where}: {value!r} is longer than {ros_type}'s {m[1]} characters")
     return out
 
 
+def _out_of(value: Any, ros_type: str, bounds: tuple[int, int], where: str) -> RosError:
+    return RosError(f"{where}: {value!r} is out of {ros_type}'s range {bounds[0]}..{bounds[1]}")
+
+
 def fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
-    """A ``msg_cls`` with ``values`` set (nested messages from dicts); RosError naming
-    ``where`` and the field when a name or value does not fit."""
+    """A ``msg_cls`` with ``values`` set (nested messages from dicts, also in arrays);
+    RosError naming ``where`` and the field when a name or value does not fit."""
     msg = msg_cls()
     types = field_types(msg_cls)
     for key, value in values.items():
@@ -129,26 +178,30 @@ def fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
             continue
         if key not in types:
             raise RosError(f"{where}: no field {key!r}; fields: {', '.join(types) or 'none'}")
-        value = check_field(value, types[key], f"{where}.{key}")
+        here = f"{where}.{key}"
+        value = _value(check_field(value, types[key], here), types[key], here)
         try:
-            setattr(msg, key, _value(getattr(msg, key), types[key], value, f"{where}.{key}"))
+            setattr(msg, key, value)
         except (AssertionError, TypeError, ValueError) as exc:
-            if isinstance(exc, RosError):
-                raise
             raise RosError(
-                f"{where}.{key}: {value!r} does not fit {types[key]} ({_reason(exc)})"
+                f"{here}: {value!r} does not fit {types[key]} ({_reason(exc)})"
             ) from None
     return msg
 
 
-def _value(current: Any, ros_type: str, value: Any, where: str) -> Any:
-    if isinstance(value, Mapping) and hasattr(current, "get_fields_and_field_types"):
-        return fill(type(current), value, where)
-    if isinstance(value, list) and value and isinstance(value[0], Mapping):
-        m = _SEQUENCE.match(ros_type) or _ARRAY.match(ros_type)
-        if m is not None and "/" in m[1]:
-            cls = interface(m[1], "msg")
-            return [fill(cls, v, f"{where}[{i}]") for i, v in enumerate(value)]
+def _value(value: Any, ros_type: str, where: str) -> Any:
+    """A checked plain value as rosidl holds it: messages from dicts, bytes for octets."""
+    if (shape := _shape(ros_type)) is not None:
+        inner = shape[0]
+        if inner == "octet":
+            return [bytes((v,)) for v in value]
+        if "/" in inner:
+            return [_value(v, inner, f"{where}[{i}]") for i, v in enumerate(value)]
+        return value
+    if ros_type == "octet":
+        return bytes((value,))
+    if isinstance(value, Mapping):
+        return fill(interface(ros_type, "msg"), value, where)
     return value
 
 
@@ -162,7 +215,9 @@ def to_plain(value: Any) -> Any:
     fields = getattr(value, "get_fields_and_field_types", None)
     if fields is not None:
         return {key: to_plain(getattr(value, key)) for key in fields()}
-    if isinstance(value, str | bytes | int | float | bool) or value is None:
+    if isinstance(value, bytes):  # rosidl's octet: one byte each
+        return value[0] if len(value) == 1 else list(value)
+    if isinstance(value, str | int | float | bool) or value is None:
         return value
     tolist = getattr(value, "tolist", None)  # array.array, numpy arrays
     if tolist is not None:

@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 from btcap.ros.errors import RosError
-from btcap.ros.interfaces import check_field, port_type
+from btcap.ros.interfaces import check_field, kind_name, port_type
 
 __all__ = ["Action1", "Service1", "field_types1", "fill1", "interface1", "port_type1", "to_plain1"]
 
@@ -60,7 +60,9 @@ def interface1(type_name: str, kind: str) -> Any:
         )
     package, got, name = m[1], m[2] or kind, m[3]
     if got != kind:
-        raise RosError(f"ROS 1 interface type {type_name!r}: expected a {kind}, not a {got}")
+        raise RosError(
+            f"ROS 1 interface type {type_name!r}: expected {kind_name(kind)}, not {kind_name(got)}"
+        )
     where = "srv" if kind == "srv" else "msg"
     try:
         module = importlib.import_module(f"{package}.{where}")

@@ -106,7 +106,16 @@ class RosSubscribe(RosLeaf):
     come (and, with ``max_age``, came at most that many seconds ago: a freshness
     condition); FAILED before, saying so."""
 
-    __slots__ = ("_latest", "_seen", "_since", "_subscription", "_topic", "_types", "_waits")
+    __slots__ = (
+        "_incompatible",
+        "_latest",
+        "_seen",
+        "_since",
+        "_subscription",
+        "_topic",
+        "_types",
+        "_waits",
+    )
     INPUTS: ClassVar[dict[str, Any]] = _NAME
     OPTIONS: ClassVar[dict[str, Any]] = {
         **_TOPIC,
@@ -137,6 +146,7 @@ class RosSubscribe(RosLeaf):
         self._seen: Any = None
         self._since = 0.0
         self._waits: Any = None  # RosWaitForMessage: news(), while it waits
+        self._incompatible: str | None = None  # a QoS policy a publisher disagrees on
 
     def on_setup(self) -> None:
         """Subscribe now, so the first tick may have a message, when the name is known
@@ -154,8 +164,13 @@ class RosSubscribe(RosLeaf):
             _drop(self, self._subscription, "destroy_subscription")
             self._subscription = None
             self._latest = None
+            self._incompatible = None
             self._subscription = bridge.running().create_subscription(
-                self._types, name, self._on_message, qos_of(self, bridge)
+                self._types,
+                name,
+                self._on_message,
+                qos_of(self, bridge),
+                **bridge.subscription_events(name, self._on_incompatible),
             )
             self._topic = name
 
@@ -165,8 +180,23 @@ class RosSubscribe(RosLeaf):
         if news is not None:
             news(False)
 
+    def _on_incompatible(self, policy: str) -> None:  # executor thread
+        self._incompatible = policy
+
     def _what(self) -> str:
         return f"topic {self._topic}"
+
+    def _none(self, why: str) -> State:
+        """FAILED for want of a message: ``why``, and a publisher whose QoS this node
+        does not accept, if one was seen (else the error says only "no message yet")."""
+        policy = self._incompatible
+        if policy is not None:
+            why += (
+                f": a publisher of it offers a QoS this node does not accept ({policy}), so "
+                "none of its messages arrive; set the node's reliability, durability or "
+                "depth to match"
+            )
+        return self.failed(f"{self._what()}: {why}")
 
     def _take(self, latest: tuple[Any, float]) -> None:
         message = latest[0]
@@ -184,7 +214,7 @@ class RosSubscribe(RosLeaf):
         self._subscribe()
         latest = self._latest
         if latest is None:
-            return self.failed(f"{self._what()}: no message yet")
+            return self._none("no message yet")
         age = self.options["max_age"]
         if age is not None and now() - latest[1] > age:
             return self.failed(f"{self._what()}: the latest message is older than {age} s")
@@ -222,7 +252,7 @@ class RosWaitForMessage(RosSubscribe):
         limit = self.options["timeout"]
         if limit is not None and t - self._since > limit:
             self._waits = None
-            return self.failed(f"{self._what()}: no message within timeout {limit} s")
+            return self._none(f"no message within timeout {limit} s")
         return _RUNNING
 
     def on_untick(self) -> None:

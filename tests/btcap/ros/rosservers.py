@@ -175,6 +175,13 @@ class Servers:
         self._stop.set()
         self.executor.shutdown(timeout_sec=3.0)
         self.thread.join(timeout=5.0)
+        # rclpy 7 (Jazzy): shutdown() returns without waiting for the callbacks its pool
+        # runs; a goal's execute callback still ending (aborted by _stop) would publish its
+        # status on a server destroyed below, and the task's "cannot use Destroyable
+        # because destruction was requested" was printed at exit as never retrieved.
+        pool = getattr(self.executor, "_executor", None)
+        if pool is not None:
+            pool.shutdown(wait=True)
         for server in self.actions:
             server.destroy()
         self.node.destroy_node()

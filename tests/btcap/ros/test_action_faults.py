@@ -130,7 +130,7 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     [
         ("test_msgs/action/Fibonaci", "test_msgs has no action 'Fibonaci'; it has "),
         ("no_such_msgs/action/Go", "no package 'no_such_msgs' with action interfaces"),
-        ("test_msgs/msg/Fibonacci", "expected a action, not a msg"),
+        ("test_msgs/msg/Fibonacci", "expected an action, not a msg"),
         ("Fibonacci", "expected 'package/action/Name'"),
     ],
 )

@@ -191,7 +191,7 @@ async def test_wrong_goal_fields_fail_with_one_line_naming_the_field(
     [
         ("actionlib/Tset", "actionlib has no action 'Tset'; it has Test, TestRequest, TwoInts"),
         ("no_such_msgs/Go", "no package 'no_such_msgs' with msg types is installed"),
-        ("std_msgs/msg/String", "expected a action, not a msg"),
+        ("std_msgs/msg/String", "expected an action, not a msg"),
         ("Test", "expected 'package/Name'"),
     ],
 )
