@@ -136,18 +136,10 @@ class Ros1Host(RosSimHost):
             raise Ros1SimError(why)
         check_ros_names(self.s, self.ros)
         ref, robots, loop = await self._manager_side(SYSTEM_ID)
-        started = _Started()
+        started, absent = _Started(), frozenset(self.withdrawn)
         try:
             await anyio.to_thread.run_sync(
-                _start,
-                started,
-                loop,
-                ref,
-                robots,
-                self.grid,
-                self.clock,
-                self.ros,
-                frozenset(self.withdrawn),
+                _start, started, loop, ref, robots, self.grid, self.clock, self.ros, absent
             )
         except BaseException:
             with anyio.CancelScope(shield=True):

@@ -126,16 +126,10 @@ class Ros2Host(RosSimHost):
             raise Ros2Unavailable(why)
         check_ros_names(self.s, self.ros)
         ref, robots, loop = await self._manager_side(SYSTEM_ID)
+        absent = frozenset(self.withdrawn)
         try:
             servers, self.links = await anyio.to_thread.run_sync(
-                _start,
-                loop,
-                ref,
-                robots,
-                self.grid,
-                self.clock,
-                self.ros,
-                frozenset(self.withdrawn),
+                _start, loop, ref, robots, self.grid, self.clock, self.ros, absent
             )
         except BaseException:
             await self._stack.aclose()

@@ -52,14 +52,18 @@ def world(name: str) -> tuple[Scenario, GridMap, SimulationManager]:
     return s, grid, SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
 
 
+def links_of(host: Ros1Host) -> dict[str, RobotLink1]:
+    """The started host's robot links by robot."""
+    assert host.started is not None
+    assert host.started.links is not None
+    return host.started.links.links
+
+
 async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back() -> None:
     s, grid, manager = world("full-team")
     with anyio.fail_after(150):
         async with Ros1Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
-            assert host.started is not None
-            assert host.started.links is not None
-            links = host.started.links.links
-            bebop, husky = links["bebop1"], links["husky1"]
+            bebop, husky = links_of(host)["bebop1"], links_of(host)["husky1"]
             assert bebop.missing() == []
             assert husky.missing() == []
             servers = len(bebop.servers)  # move_base and its operations
@@ -80,10 +84,7 @@ async def test_a_late_joiner_is_served_only_from_when_it_joins() -> None:
     s, grid, manager = world("huskies-bebop-joins")  # bebop1 joins at 120 s
     with anyio.fail_after(150):
         async with Ros1Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
-            assert host.started is not None
-            assert host.started.links is not None
-            links = host.started.links.links
-            bebop, husky = links["bebop1"], links["husky1"]
+            bebop, husky = links_of(host)["bebop1"], links_of(host)["husky1"]
             # Entered once the present robots' servers were found: the joiner's never were.
             assert len(bebop.missing()) == len(bebop.servers)
             assert husky.missing() == []
