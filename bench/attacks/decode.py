@@ -30,13 +30,12 @@ from typing import Any
 
 import zmq
 
-from btcap import ReactiveSequence
 from btcap.actors import Actor, Address, Message, handler
+from btcap.bench.attacks.echo import echo_mission, echo_team, until
 from btcap.bench.attacks.hostile import Ping, Pong, registry
 from btcap.bt.state import State
-from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
-from btcap.team.demo import ECHO, implementations
+from btcap.team.demo import ECHO
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.membership.roles import role_table
 from btcap.team.messages import CallForBids, ConsensusTasks, OpenTask
@@ -113,15 +112,6 @@ class _Watch:
     lags: list[float] = field(default_factory=list)
 
 
-async def _until(cond: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        await asyncio.sleep(0.01)
-    return True
-
-
 def _failures(me: str, into: list[str]) -> Callable[[TeamEvent, str], None]:
     def heard(event: TeamEvent, who: str) -> None:
         if event in (TeamEvent.FAILED, TeamEvent.LEFT):
@@ -141,30 +131,12 @@ async def _team(keys: Path | None) -> AsyncIterator[tuple[Agent, Agent, _Watch, 
         return ZmqTransport(name, _TCP, registry(), keys=keys / f"{name}.key_secret", trusted=keys)
 
     t1, to = transport("r1"), transport("origin")
-    to.add_peer("r1", t1.endpoint)
-    r1 = Agent(
-        "r1",
-        transport=t1,
-        registry=t1.codec.registry,
-        config=_CONFIG,
-        implementations=implementations("r1"),
-        actors={"probe": _Echo()},
-    )
-    origin = Agent("origin", transport=to, registry=to.codec.registry, config=_CONFIG)
     watch = _Watch()
-    async with r1, origin:
+    async with echo_team(t1, to, _CONFIG, {"probe": _Echo()}) as (r1, origin):
         for agent in (r1, origin):
             agent.team.subscribe(_failures(agent.robot, watch.failures))
-        await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
-        node = ECHO.node_type()("echo", inputs={"value": 1})
-        assert isinstance(node, Capability)
-        tree = origin.mission(ReactiveSequence("root", children=[node]))
+        await until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
         stop = asyncio.Event()
-
-        async def tick() -> None:
-            while not stop.is_set():
-                tree.tick()
-                await asyncio.sleep(0.01)
 
         async def ask() -> None:
             # Timed from when it was due, not sent: a loop stalled between two asks shows.
@@ -187,13 +159,14 @@ async def _team(keys: Path | None) -> AsyncIterator[tuple[Agent, Agent, _Watch, 
                 await asyncio.sleep(0.01)
                 watch.lags.append(time.perf_counter() - t0 - 0.01)
 
-        background = [asyncio.create_task(f()) for f in (tick, ask, lag)]
-        try:
-            await _until(lambda: node.state is State.RUNNING, 10.0)
-            yield r1, origin, watch, t1
-        finally:
-            stop.set()
-            await asyncio.gather(*background, return_exceptions=True)
+        async with echo_mission(origin) as mission:
+            background = [asyncio.create_task(f()) for f in (ask, lag)]
+            try:
+                await until(lambda: mission.node.state is State.RUNNING, 10.0)
+                yield r1, origin, watch, t1
+            finally:
+                stop.set()
+                await asyncio.gather(*background, return_exceptions=True)
 
 
 def _marked(msg: CallForBids | ConsensusTasks) -> bool:
@@ -231,7 +204,7 @@ async def _strike(attack: Attack, sock: zmq.Socket[Any], r1: ZmqTransport, watch
     else:  # the attacker's own socket, from its own thread
         await asyncio.to_thread(_send_all, sock, [attack.hello, *attack.frames])
     n = len(attack.frames)
-    done = await _until(lambda: counted.get(attack.reason, 0) - before + taken[0] >= n, 120.0)
+    done = await until(lambda: counted.get(attack.reason, 0) - before + taken[0] >= n, 120.0)
     cpu = time.thread_time() - cpu0 - idle * (time.perf_counter() - wall0)
     r1._deliver = inner
     await asyncio.sleep(0.3)  # a late stall still shows in the asks
@@ -293,7 +266,7 @@ async def _keyed(quick: bool) -> list[Result]:
                 eye.add_peer("r1", t1.endpoint)
                 shapes = frames(eye.codec, "eye", quick)
                 attack = Attack("observer_nested_calls", "eye", shapes["calls"], _ROLE)
-                await _until(lambda: "eye" in t1.peers(), 5.0)
+                await until(lambda: "eye" in t1.peers(), 5.0)
                 return [await _strike(attack, eye._dealers["r1"], t1, watch)]
             finally:
                 eye.close()
@@ -312,7 +285,7 @@ async def _keyless(quick: bool) -> list[Result]:
         ctx: zmq.Context[Any] = zmq.Context()
         try:
             with _raw_dealer(ctx, "mallory", t1.endpoint) as (sock, hello):
-                await _until(lambda: "mallory" in t1.peers(), 5.0)
+                await until(lambda: "mallory" in t1.peers(), 5.0)
                 for attack in (
                     Attack("stranger_nested_calls", "mallory", shapes["calls"], _TOO_BIG, hello),
                     Attack(

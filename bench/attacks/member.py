@@ -33,11 +33,10 @@ from typing import Any
 
 import zmq
 
-from btcap import ReactiveSequence
 from btcap.actors import Address, Message
 from btcap.actors.heap import HeapTrim, malloc_trim
+from btcap.bench.attacks.echo import echo_mission, until
 from btcap.bt.state import State
-from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
 from btcap.team.ids import AuctionId, ExecutionId
@@ -115,15 +114,6 @@ def _trimmed_since(heap: HeapTrim, trims: int) -> Callable[[], bool]:
     return lambda: heap.trims > trims
 
 
-async def _until(cond: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        await asyncio.sleep(0.01)
-    return True
-
-
 @contextlib.asynccontextmanager
 async def _team(config: AgentConfig = CONFIG) -> AsyncIterator[dict[str, Agent]]:
     """origin, r1, r2 and mallory on keyless tcp loopback, transports as deployed."""
@@ -148,7 +138,7 @@ async def _team(config: AgentConfig = CONFIG) -> AsyncIterator[dict[str, Agent]]
             for n in names:
                 await stack.enter_async_context(agents[n])
             origin = agents["origin"]
-            ok = await _until(
+            ok = await until(
                 lambda: (
                     {"r1", "r2"} <= origin.repository.providers(ECHO.identity)
                     and set(names) - {"origin"} <= set(origin.team.members)
@@ -175,7 +165,7 @@ async def _award_from_mallory(team: dict[str, Agent], award: Award) -> AwardRepl
     reply = await ref.ask(award, expect=AwardReply, timeout=2.0)
     if reply.accepted:  # measured: give the robot back for the next case
         mallory.system.tell(Address("r1", MC), CancelExecution(award.execution, "probe done"))
-        await _until(lambda: r1.mission_control.body.idle, 2.0)
+        await until(lambda: r1.mission_control.body.idle, 2.0)
     return reply
 
 
@@ -204,19 +194,9 @@ async def _lease(team: dict[str, Agent]) -> Result:
 async def _churn(team: dict[str, Agent]) -> Result:
     """300 heartbeats in 3 s with a flipped busy flag, while the origin's work runs."""
     origin, mallory = team["origin"], team["mallory"]
-    node = ECHO.node_type()("echo", inputs={"value": 1})
-    assert isinstance(node, Capability)
-    tree = origin.mission(ReactiveSequence("root", children=[node]))
-    stop = asyncio.Event()
-
-    async def tick() -> None:
-        while not stop.is_set():
-            tree.tick()
-            await asyncio.sleep(0.02)
-
-    ticking = asyncio.create_task(tick())
-    try:
-        if not await _until(lambda: node.state is State.RUNNING, 10.0):
+    async with echo_mission(origin, tick_s=0.02, shutdown=True) as mission:
+        node = mission.node
+        if not await until(lambda: node.state is State.RUNNING, 10.0):
             return "heartbeat_churn", False, {"error": "the mission did not start"}
         auctions = origin.allocator.stats.auctions
         t = mallory.team
@@ -235,10 +215,6 @@ async def _churn(team: dict[str, Agent]) -> Result:
             "assignments": list(node.assignments),
         }
         return "heartbeat_churn", held <= CHURN_MAX_AUCTIONS, figures
-    finally:
-        stop.set()
-        await ticking
-        await tree.shutdown()
 
 
 def _beat(hb: Heartbeat, beat: int) -> Heartbeat:
@@ -327,11 +303,11 @@ async def _sybil(quick: bool, ghosts: int | None = None) -> Result:
             # confirmed: it answered no probe): the bound, from the last beat, plus slack.
             bound = swim.params.forget_s(n + len(team)) + 2 * swim.params.period_s + 5.0
             t0 = time.monotonic()
-            await _until(lambda: not any(m.startswith("ghost-") for m in r1.team.members), bound)
+            await until(lambda: not any(m.startswith("ghost-") for m in r1.team.members), bound)
             gone_s = time.monotonic() - t0
             # The burst is over: the agent trims its heap (an event, awaited; its timer
             # waits HeapTrim.every_s at most), then the trim's thread runs.
-            trimmed = await _until(_trimmed_since(heap, trims), heap.every_s + bound)
+            trimmed = await until(_trimmed_since(heap, trims), heap.every_s + bound)
             await asyncio.sleep(1.0)
             gc.collect()
             rss_left = _rss_mb()

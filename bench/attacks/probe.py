@@ -26,9 +26,9 @@ from typing import Any
 
 import zmq
 
-from btcap import ReactiveSequence as SequenceNode
 from btcap.actors import Actor, Address, handler
 from btcap.bench.attacks.decode import probe_decode
+from btcap.bench.attacks.echo import echo_mission
 from btcap.bench.attacks.hostile import (
     Ping,
     Pong,
@@ -44,8 +44,6 @@ from btcap.bench.attacks.nodes import probe as node_actions
 from btcap.bench.attacks.roles import probe_roles
 from btcap.bench.common import write_result
 from btcap.bt.state import State
-from btcap.bt.tree import Tree
-from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
 from btcap.team.demo import ECHO, implementations
 from btcap.team.runtime.agent import Agent, AgentConfig
@@ -161,12 +159,6 @@ async def _until(cond: Callable[[], bool], timeout: float) -> None:
     while not cond():
         if time.monotonic() > deadline:
             raise TimeoutError("team did not get ready")
-        await asyncio.sleep(TICK_S)
-
-
-async def _tick(tree: Tree, stop: asyncio.Event) -> None:
-    while not stop.is_set():
-        tree.tick()
         await asyncio.sleep(TICK_S)
 
 
@@ -295,68 +287,65 @@ async def probe(quick: bool, *, more: bool = True) -> list[Check]:
                 else None
             )
         )
-        node = ECHO.node_type()("echo", inputs={"value": 1})
-        assert isinstance(node, Capability)
-        tree = origin.mission(SequenceNode("root", children=[node]))
         stop = asyncio.Event()
-        background = [
-            asyncio.create_task(_tick(tree, stop)),
-            asyncio.create_task(_ask_loop(origin, health, stop)),
-        ]
-        try:
-            await _until(lambda: node.state is State.RUNNING and node.outputs["value"] == 1, 10.0)
-            endpoint = _zmq(r1).endpoint
-            team_before = dict(r1.repository.team)
+        async with echo_mission(origin, TICK_S) as echo:
+            node, tree = echo.node, echo.tree
+            asking = asyncio.create_task(_ask_loop(origin, health, stop))
+            try:
+                running = State.RUNNING
+                await _until(lambda: node.state is running and node.outputs["value"] == 1, 10.0)
+                endpoint = _zmq(r1).endpoint
+                team_before = dict(r1.repository.team)
 
-            f = await _attack(
-                "fake_states",
-                lambda: fake_states(endpoint, counts.states, counts.state_bytes),
-                r1,
-                health,
-            )
-            f["team_unchanged"] = r1.repository.team == team_before
-            ok = f["team_unchanged"] and f["rss_after_mb"] - f["rss_before_mb"] <= RSS_SLACK_MB
-            ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
-            checks.append(Check("fake_states", ok and _healthy(f), f))
+                f = await _attack(
+                    "fake_states",
+                    lambda: fake_states(endpoint, counts.states, counts.state_bytes),
+                    r1,
+                    health,
+                )
+                f["team_unchanged"] = r1.repository.team == team_before
+                ok = f["team_unchanged"] and f["rss_after_mb"] - f["rss_before_mb"] <= RSS_SLACK_MB
+                ok = ok and f["stats"]["received"] >= counts.states  # reached the repository
+                checks.append(Check("fake_states", ok and _healthy(f), f))
 
-            def all_junk(moved: dict[str, int]) -> bool:
-                return moved["malformed"] + moved["received"] >= counts.junk
+                def all_junk(moved: dict[str, int]) -> bool:
+                    return moved["malformed"] + moved["received"] >= counts.junk
 
-            f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health, all_junk)
-            checks.append(Check("junk", all_junk(f["stats"]) and _healthy(f), f))
+                f = await _attack("junk", lambda: junk(endpoint, counts.junk), r1, health, all_junk)
+                checks.append(Check("junk", all_junk(f["stats"]) and _healthy(f), f))
 
-            f = await _attack(
-                "oversized",
-                lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES),
-                r1,
-                health,
-                lambda moved: moved["disconnects"] >= 1,
-            )
-            # Cut off by libzmq before the decoder saw it (it would count as malformed).
-            ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
-            checks.append(Check("oversized", ok and _healthy(f), f))
+                f = await _attack(
+                    "oversized",
+                    lambda: oversized(endpoint, 2 * MAX_MESSAGE_BYTES),
+                    r1,
+                    health,
+                    lambda moved: moved["disconnects"] >= 1,
+                )
+                # Cut off by libzmq before the decoder saw it (it would count as malformed).
+                ok = f["stats"]["disconnects"] >= 1 and f["stats"]["malformed"] == 0
+                checks.append(Check("oversized", ok and _healthy(f), f))
 
-            f = await _attack(
-                "hello_flood",
-                lambda: hello_flood(endpoint, counts.hellos),
-                r1,
-                health,
-                lambda _: len(_zmq(r1).peers()) <= MAX_PEERS,
-            )
-            f["latecomer_accepted"] = await _latecomer(endpoint, r1)
-            ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
-            ok = ok and f["latecomer_accepted"]
-            checks.append(Check("hello_flood", ok and _healthy(f), f))
+                f = await _attack(
+                    "hello_flood",
+                    lambda: hello_flood(endpoint, counts.hellos),
+                    r1,
+                    health,
+                    lambda _: len(_zmq(r1).peers()) <= MAX_PEERS,
+                )
+                f["latecomer_accepted"] = await _latecomer(endpoint, r1)
+                ok = f["peers_after"] <= MAX_PEERS and f["fds_after"] <= f["fds_before"] + FD_SLACK
+                ok = ok and f["latecomer_accepted"]
+                checks.append(Check("hello_flood", ok and _healthy(f), f))
 
-            node.set_input("value", 2)
-            await _until(lambda: node.outputs["value"] == 2, SETTLE_S)
-            node.set_input("stop", True)
-            await _until(lambda: tree.root.state is State.SUCCEEDED, SETTLE_S)
-        except TimeoutError:
-            pass
-        finally:
-            stop.set()
-            await asyncio.gather(*background, return_exceptions=True)
+                node.set_input("value", 2)
+                await _until(lambda: node.outputs["value"] == 2, SETTLE_S)
+                node.set_input("stop", True)
+                await _until(lambda: tree.root.state is State.SUCCEEDED, SETTLE_S)
+            except TimeoutError:
+                pass
+            finally:
+                stop.set()
+                await asking
         mission = {
             "state": tree.root.state.name,
             "assignments": list(node.assignments),

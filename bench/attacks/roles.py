@@ -20,18 +20,16 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import tempfile
-import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
-from btcap import ReactiveSequence as SequenceNode
+from btcap.bench.attacks.echo import echo_mission, echo_team, until
 from btcap.bench.attacks.hostile import registry
 from btcap.bt.messages import Tick
 from btcap.bt.state import State
-from btcap.team.capabilities.capability import Capability
 from btcap.team.core.members import TeamEvent
-from btcap.team.demo import ECHO, implementations
+from btcap.team.demo import ECHO
 from btcap.team.ids import AuctionId, ExecutionId
 from btcap.team.membership.roles import role_table
 from btcap.team.messages import (
@@ -62,15 +60,6 @@ Result = tuple[str, bool, dict[str, Any]]
 def _transport(name: str, keys: Path) -> ZmqTransport:
     member = name.partition("+")[0]
     return ZmqTransport(name, _TCP, registry(), keys=keys / f"{member}.key_secret", trusted=keys)
-
-
-async def _until(cond: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        await asyncio.sleep(0.01)
-    return True
 
 
 @contextlib.asynccontextmanager
@@ -107,17 +96,8 @@ async def probe_roles(quick: bool) -> list[Result]:
 async def _probe(keys: Path) -> list[Result]:
     results: list[Result] = []
     t1, to = _transport("r1", keys), _transport("origin", keys)
-    to.add_peer("r1", t1.endpoint)
-    r1 = Agent(
-        "r1",
-        transport=t1,
-        registry=t1.codec.registry,
-        config=_CONFIG,
-        implementations=implementations("r1"),
-    )
-    origin = Agent("origin", transport=to, registry=to.codec.registry, config=_CONFIG)
     failures: list[str] = []
-    async with r1, origin:
+    async with echo_team(t1, to, _CONFIG) as (r1, origin):
         origin.team.subscribe(
             lambda ev, who: (
                 failures.append(f"{ev.value}:{who}")
@@ -125,20 +105,10 @@ async def _probe(keys: Path) -> list[Result]:
                 else None
             )
         )
-        await _until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
-        node = ECHO.node_type()("echo", inputs={"value": 1})
-        assert isinstance(node, Capability)
-        tree = origin.mission(SequenceNode("root", children=[node]))
-        stop = asyncio.Event()
-
-        async def tick() -> None:
-            while not stop.is_set():
-                tree.tick()
-                await asyncio.sleep(0.01)
-
-        ticking = asyncio.create_task(tick())
-        try:
-            await _until(lambda: node.state is State.RUNNING, 10.0)
+        await until(lambda: "r1" in origin.repository.providers(ECHO.identity), 10.0)
+        async with echo_mission(origin) as mission:
+            node, tree = mission.node, mission.tree
+            await until(lambda: node.state is State.RUNNING, 10.0)
             run = next(iter(origin.mission_control.active), ExecutionId("origin", "x", 1))
             auction = AuctionId("eye", 1)
             grab: list[Message] = [
@@ -158,12 +128,9 @@ async def _probe(keys: Path) -> list[Result]:
             results.append(await _refused_all("op", keys, to, origin, forged, failures))
             results.append(await _second_r1(keys, to, t1))
             node.set_input("value", 2)
-            await _until(lambda: node.outputs.get("value") == 2, 5.0)
+            await until(lambda: node.outputs.get("value") == 2, 5.0)
             node.set_input("stop", True)
-            await _until(lambda: tree.root.state is State.SUCCEEDED, 5.0)
-        finally:
-            stop.set()
-            await ticking
+            await until(lambda: tree.root.state is State.SUCCEEDED, 5.0)
         ok = tree.root.state is State.SUCCEEDED and node.assignments == ["r1"] and not failures
         figures = {
             "state": tree.root.state.name,
@@ -193,7 +160,7 @@ async def _refused_all(
             if isinstance(msg, Heartbeat):
                 path = "team"
             _send(attacker, Address(target.system_id, path), msg)
-        done = await _until(
+        done = await until(
             lambda: target.stats.by_reason.get(_REFUSED, 0) - before >= len(msgs), 5.0
         )
     refused = target.stats.by_reason.get(_REFUSED, 0) - before

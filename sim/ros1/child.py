@@ -9,7 +9,8 @@ topics. rospy allows one ``init_node`` per process and runs each goal and call o
 its own: those threads ask the simulation through the parent (an ``ask`` frame, answered by
 an ``answer`` frame) and wait; nothing of rospy is in the mission's process.
 
-Frames are msgspec JSON lists: down ``["config", {...}]``, ``["answer", qid, ok, detail,
+Frames are msgspec JSON lists: down ``["config", {...}]`` (its ``absent`` robots are not
+served until a ``serve``: they join later), ``["answer", qid, ok, detail,
 found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``,
 ``["withdraw", robot]`` (its servers leave the graph), ``["serve", robot]`` (they come
 back, where the robot was last told to be), ``["stop"]``;
@@ -54,8 +55,13 @@ class Sim:
         start = self.start = (int(config["start"][0]), int(config["start"][1]))
         #: Each robot's namespace and operations, to serve it again after a withdraw.
         self.config = {r["name"]: (r["namespace"], r["operations"]) for r in config["robots"]}
-        self.robots = {name: _Robot(self, name, *c, start) for name, c in self.config.items()}
-        self.withdrawn: set[str] = set()
+        #: Robots out of the graph: withdrawn, or not joined yet (served from their join).
+        self.withdrawn: set[str] = set(config.get("absent", ()))
+        self.robots = {
+            name: _Robot(self, name, *c, start)
+            for name, c in self.config.items()
+            if name not in self.withdrawn
+        }
         #: Each robot's last ``state`` frame's fields, published again when it is served again.
         self.last: dict[str, list[Any]] = {}
 
@@ -90,7 +96,8 @@ class Sim:
                 self._pending.pop(qid, None)
 
     def serve_again(self, name: str) -> None:
-        """A withdrawn robot's servers and topics back, its last state published."""
+        """A withdrawn (or joining) robot's servers and topics back, its last state
+        published."""
         self.withdrawn.discard(name)
         robot = self.robots[name] = _Robot(self, name, *self.config[name], self.start)
         last = self.last.get(name)

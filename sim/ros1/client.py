@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import time
+from collections.abc import Collection
 
 from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.interfaces1 import interface1
@@ -73,11 +74,15 @@ class RobotLinks1:
             self.close()
             raise
 
-    def wait_for_servers(self, timeout_s: float = DISCOVERY_S) -> list[str]:
-        """Wait until every robot's servers are ready (a thread); the names of those not."""
+    def wait_for_servers(
+        self, timeout_s: float = DISCOVERY_S, *, absent: Collection[str] = ()
+    ) -> list[str]:
+        """Wait until every robot's servers are ready but ``absent`` robots' (not served
+        yet: they join later) (a thread); the names of those not."""
+        links = [link for name, link in self.links.items() if name not in absent]
         deadline = time.monotonic() + timeout_s
         while True:
-            missing = [m for link in self.links.values() for m in link.missing()]
+            missing = [m for link in links for m in link.missing()]
             if not missing or time.monotonic() > deadline:
                 return missing
             time.sleep(_POLL_S)

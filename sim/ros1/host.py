@@ -70,9 +70,11 @@ def _start(
     grid: GridMap,
     clock: TimeSource,
     ros: ScenarioRos,
+    absent: frozenset[str],
 ) -> None:
-    """Start the master (unless given), serve the robots, start their bridges and wait
-    until each found its servers (blocks: a thread); ``started`` holds what is up."""
+    """Start the master (unless given), serve the robots but the ``absent`` ones (they join
+    later), start every robot's bridge and wait until each served robot's found its
+    servers (blocks: a thread); ``started`` holds what is up."""
     uri = ros.master_uri
     if uri is None:
         started.master = RunMaster().start()
@@ -88,10 +90,11 @@ def _start(
         clock=clock,
         master_uri=uri,
         env=ros_env(uri),
+        absent=absent,
     )
     ros = _with_master(ros, uri)
     started.links = RobotLinks1(loop, robots, {name: ros.settings(name) for name in robots})
-    missing = started.links.wait_for_servers()
+    missing = started.links.wait_for_servers(absent=absent)
     if missing:
         raise Ros1SimError(f"ROS 1: no server found for {', '.join(missing)}")
 
@@ -133,10 +136,10 @@ class Ros1Host(RosSimHost):
             raise Ros1SimError(why)
         check_ros_names(self.s, self.ros)
         ref, robots, loop = await self._manager_side(SYSTEM_ID)
-        started = _Started()
+        started, absent = _Started(), frozenset(self.withdrawn)
         try:
             await anyio.to_thread.run_sync(
-                _start, started, loop, ref, robots, self.grid, self.clock, self.ros
+                _start, started, loop, ref, robots, self.grid, self.clock, self.ros, absent
             )
         except BaseException:
             with anyio.CancelScope(shield=True):

@@ -21,6 +21,7 @@ import subprocess
 import sys
 import threading
 from collections import Counter
+from collections.abc import Collection
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -49,7 +50,8 @@ class Ros1SimError(BtcapError, RuntimeError):
 
 class SimServers1:
     """Every simulated robot's ROS 1 servers, in one rospy process on ``master_uri``
-    (namespaces from ``namespaces``), until :meth:`close`."""
+    (namespaces from ``namespaces``), until :meth:`close`; those of ``absent`` robots (they
+    join later) from when :meth:`serve` puts them in the graph."""
 
     def __init__(
         self,
@@ -63,6 +65,7 @@ class SimServers1:
         clock: TimeSource,
         master_uri: str,
         env: dict[str, str] | None = None,
+        absent: Collection[str] = (),
     ) -> None:
         self.loop, self.ref, self.clock = loop, manager, clock
         # As the in-process leaves ask: an hour of the clock, in wall seconds, with margin.
@@ -85,6 +88,7 @@ class SimServers1:
                 }
                 for name, model in robots.items()
             ],
+            "absent": sorted(absent),
         }
         ours, theirs = socket.socketpair()
         for end in (ours, theirs):
@@ -188,7 +192,7 @@ class SimServers1:
                 self._post(["withdraw", robot])
 
     def serve(self, robot: str) -> None:
-        """Put ``robot``'s withdrawn servers and topics back in the ROS graph."""
+        """Put ``robot``'s withdrawn (or not yet served) servers and topics in the ROS graph."""
         if not self._closed:
             with contextlib.suppress(OSError):  # the process is gone: so are the servers
                 self._post(["serve", robot])

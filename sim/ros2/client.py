@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+from collections.abc import Collection
 
 from btcap_sim_msgs.msg import RobotState
 
@@ -82,9 +83,13 @@ class RobotLinks:
             self.close()
             raise
 
-    def wait_for_servers(self, timeout_s: float = DISCOVERY_S) -> list[str]:
-        """Every robot's action servers found (a thread); the names of those not found."""
-        return [m for link in self.links.values() for m in link.wait_for_servers(timeout_s)]
+    def wait_for_servers(
+        self, timeout_s: float = DISCOVERY_S, *, absent: Collection[str] = ()
+    ) -> list[str]:
+        """Every robot's action servers found but ``absent`` robots' (not served yet: they
+        join later) (a thread); the names of those not found."""
+        links = [link for name, link in self.links.items() if name not in absent]
+        return [m for link in links for m in link.wait_for_servers(timeout_s)]
 
     def close(self) -> None:
         """Close every robot's bridge: open goals cancelled, nodes destroyed, threads

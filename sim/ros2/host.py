@@ -55,9 +55,11 @@ def _start(
     grid: GridMap,
     clock: TimeSource,
     ros: ScenarioRos,
+    absent: frozenset[str],
 ) -> tuple[SimServers, RobotLinks]:
-    """Import rclpy, serve the robots, connect their clients and wait until each client
-    found its servers (blocks: a thread)."""
+    """Import rclpy, serve the robots but the ``absent`` ones (they join later), connect
+    every robot's clients and wait until each served robot's found its servers (blocks: a
+    thread)."""
     from btcap.ros.loader import load
 
     load()  # rclpy, with the wheels' import-time warnings silenced (btcap.ros.loader)
@@ -66,7 +68,14 @@ def _start(
 
     size = grid.cell_size_m
     servers = SimServers(
-        loop, manager, robots, cell_size_m=size, start=grid.start, clock=clock, ros=ros
+        loop,
+        manager,
+        robots,
+        cell_size_m=size,
+        start=grid.start,
+        clock=clock,
+        ros=ros,
+        absent=absent,
     )
     try:
         links = RobotLinks(loop, robots, ros)
@@ -74,7 +83,7 @@ def _start(
         servers.close()
         raise
     try:
-        missing = links.wait_for_servers()
+        missing = links.wait_for_servers(absent=absent)
     except BaseException:
         _close(servers, links)
         raise
@@ -117,9 +126,10 @@ class Ros2Host(RosSimHost):
             raise Ros2Unavailable(why)
         check_ros_names(self.s, self.ros)
         ref, robots, loop = await self._manager_side(SYSTEM_ID)
+        absent = frozenset(self.withdrawn)
         try:
             servers, self.links = await anyio.to_thread.run_sync(
-                _start, loop, ref, robots, self.grid, self.clock, self.ros
+                _start, loop, ref, robots, self.grid, self.clock, self.ros, absent
             )
         except BaseException:
             await self._stack.aclose()

@@ -16,7 +16,7 @@ import math
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import Any
 
 import rclpy
@@ -305,6 +305,7 @@ class SimServers:
     Made in a thread (it imports and starts rclpy); :meth:`publish` is the manager's
     ``on_position`` hook and runs on the event loop. ``ros`` (a scenario's block; None:
     its defaults) names the domain (unless ``domain_id``), the namespaces and the QoS.
+    ``absent`` robots (they join later) are served from when :meth:`serve` is called.
     """
 
     def __init__(
@@ -318,6 +319,7 @@ class SimServers:
         clock: TimeSource,
         domain_id: int | None = None,
         ros: ScenarioRos | None = None,
+        absent: Collection[str] = (),
     ) -> None:
         ros = ros or ScenarioRos()
         self.context = Context()
@@ -333,8 +335,11 @@ class SimServers:
         threads = 3 * len(robots) + 2
         self.executor = MultiThreadedExecutor(num_threads=threads, context=self.context)
         self.robots: dict[str, _RobotServer] = {}
+        #: Robots not served yet (they join later), served at ``start`` when they join.
+        self._unserved, self._start = set(absent), start
         for name in robots:
-            self._serve(name, start)
+            if name not in self._unserved:
+                self._serve(name, start)
         self.thread = threading.Thread(target=self._spin, name="btcap sim ros2", daemon=True)
         self.thread.start()
 
@@ -367,7 +372,8 @@ class SimServers:
             self._changes.submit(self._withdraw, robot)
 
     def serve(self, robot: str) -> None:
-        """Put ``robot``'s withdrawn servers and topics back, where it was last told to be."""
+        """Put ``robot``'s withdrawn servers and topics back, where it was last told to be
+        (a robot not served yet: its servers, at the start)."""
         if not self._manager.closing.is_set():
             self._changes.submit(self._serve_again, robot)
 
@@ -380,10 +386,14 @@ class SimServers:
         server.destroy()
 
     def _serve_again(self, robot: str) -> None:
-        old = self.robots.get(robot)
-        if old is None or not old.withdrawn.is_set() or not self.context.ok():
+        if not self.context.ok():
             return
-        self._serve(robot, old.cell).served = old.served
+        old = self.robots.get(robot)
+        if old is None and robot in self._unserved:  # it joins for the first time
+            self._unserved.discard(robot)
+            self._serve(robot, self._start)
+        elif old is not None and old.withdrawn.is_set():
+            self._serve(robot, old.cell).served = old.served
 
     def served(self) -> dict[str, dict[str, int]]:
         """Goals each robot's servers took, per action."""

@@ -49,8 +49,11 @@ class RosSimHost(InProcessHost):
         self.manager = manager
         #: The robots' ROS settings: the scenario's ``ros`` block, else its defaults.
         self.ros = s.ros or ros
-        #: Robots whose servers are out of the ROS graph (they left or failed).
-        self.withdrawn: set[str] = set()
+        #: Robots whose servers are out of the ROS graph: they left or failed, or have not
+        #: joined yet (a robot that joins later is served from when it joins, not before).
+        self.withdrawn: set[str] = {r.name for r in s.robots} - {
+            r.name for r in s.initially_present()
+        }
 
     # -- a robot's servers follow its life: a real robot that fails or leaves takes its
     # ROS side with it, and its clients (its own bids) see it go -----------------------

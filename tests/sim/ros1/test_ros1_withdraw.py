@@ -1,7 +1,7 @@
 """A robot that fails or leaves a scenario behind ROS 1 takes its servers out of the ROS
 graph, as a real robot would, and gets them back when it recovers or joins again: the
 host's ``fail``/``leave``/``recover``/``start`` (what a scenario's events call), seen by
-the robot's own bridge."""
+the robot's own bridge. A robot that joins later is served only from when it joins."""
 
 from __future__ import annotations
 
@@ -14,10 +14,11 @@ from simros1 import WHY_NOT, children, loopback
 
 from btcap.actors import Clock
 from btcap.sim.mission.catalog import builtin_scenarios
-from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.mission.scenario import Scenario, load_scenario
 from btcap.sim.ros1.client import RobotLink1
 from btcap.sim.ros1.host import Ros1Host
 from btcap.sim.running.hosts import registry
+from btcap.sim.world.grid import GridMap
 from btcap.sim.world.manager import SimConfig, SimulationManager
 from btcap.sim.world.store import MissionState
 
@@ -43,17 +44,26 @@ async def until(link: RobotLink1, missing: int) -> None:
     assert await anyio.to_thread.run_sync(wait, abandon_on_cancel=True)
 
 
-async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back() -> None:
-    s = load_scenario(builtin_scenarios()["full-team"])
+def world(name: str) -> tuple[Scenario, GridMap, SimulationManager]:
+    """Built-in scenario ``name``, its map and a simulation manager of it (seed 1)."""
+    s = load_scenario(builtin_scenarios()[name])
     grid = s.grid()
     state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
-    manager = SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+    return s, grid, SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+
+
+def links_of(host: Ros1Host) -> dict[str, RobotLink1]:
+    """The started host's robot links by robot."""
+    assert host.started is not None
+    assert host.started.links is not None
+    return host.started.links.links
+
+
+async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back() -> None:
+    s, grid, manager = world("full-team")
     with anyio.fail_after(150):
         async with Ros1Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
-            assert host.started is not None
-            assert host.started.links is not None
-            links = host.started.links.links
-            bebop, husky = links["bebop1"], links["husky1"]
+            bebop, husky = links_of(host)["bebop1"], links_of(host)["husky1"]
             assert bebop.missing() == []
             assert husky.missing() == []
             servers = len(bebop.servers)  # move_base and its operations
@@ -67,4 +77,20 @@ async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back() -
             host.start("husky1")  # joins again
             await until(husky, 0)
             assert bebop.missing() == []
+    assert children() == []
+
+
+async def test_a_late_joiner_is_served_only_from_when_it_joins() -> None:
+    s, grid, manager = world("huskies-bebop-joins")  # bebop1 joins at 120 s
+    with anyio.fail_after(150):
+        async with Ros1Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
+            bebop, husky = links_of(host)["bebop1"], links_of(host)["husky1"]
+            # Entered once the present robots' servers were found: the joiner's never were.
+            assert len(bebop.missing()) == len(bebop.servers)
+            assert husky.missing() == []
+            host.start("bebop1")  # it joins
+            await until(bebop, 0)
+            host.leave("bebop1")
+            await until(bebop, len(bebop.servers))
+            assert husky.missing() == []
     assert children() == []

@@ -1,7 +1,7 @@
 """A robot that fails or leaves a scenario behind ROS 2 takes its action servers out of the
 ROS graph, as a real robot would, and gets them back when it recovers or joins again: the
 host's ``fail``/``leave``/``recover``/``start`` (what a scenario's events call), seen by
-the robot's own bridge."""
+the robot's own bridge. A robot that joins later is served only from when it joins."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ import pytest
 
 from btcap.actors import Clock
 from btcap.sim.mission.catalog import builtin_scenarios
-from btcap.sim.mission.scenario import load_scenario
+from btcap.sim.mission.scenario import Scenario, load_scenario
 from btcap.sim.running.hosts import registry
+from btcap.sim.world.grid import GridMap
 from btcap.sim.world.manager import SimConfig, SimulationManager
 from btcap.sim.world.store import MissionState
 
@@ -34,15 +35,20 @@ async def until(link: object, missing: int) -> None:
     assert await anyio.to_thread.run_sync(wait, abandon_on_cancel=True)
 
 
+def world(name: str) -> tuple[Scenario, GridMap, SimulationManager]:
+    """Built-in scenario ``name``, its map and a simulation manager of it (seed 1)."""
+    s = load_scenario(builtin_scenarios()[name])
+    grid = s.grid()
+    state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
+    return s, grid, SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+
+
 async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back(
     ros_domain: int,
 ) -> None:
     from btcap.sim.ros2.host import Ros2Host
 
-    s = load_scenario(builtin_scenarios()["full-team"])
-    grid = s.grid()
-    state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
-    manager = SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+    s, grid, manager = world("full-team")
     with anyio.fail_after(150):
         async with Ros2Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
             assert host.links is not None
@@ -59,3 +65,22 @@ async def test_a_failed_or_left_robot_withdraws_its_servers_until_it_is_back(
             host.start("husky1")  # joins again
             await until(husky, 0)
             assert sorted(host.servers.served()) == sorted(r.name for r in s.robots)  # type: ignore[union-attr]
+
+
+async def test_a_late_joiner_is_served_only_from_when_it_joins(ros_domain: int) -> None:
+    from btcap.sim.ros2.host import Ros2Host
+
+    s, grid, manager = world("huskies-bebop-joins")  # bebop1 joins at 120 s
+    with anyio.fail_after(150):
+        async with Ros2Host(s, Clock(s.speedup), registry(), grid, manager=manager) as host:
+            assert host.links is not None
+            assert host.servers is not None
+            bebop, husky = host.links.links["bebop1"], host.links.links["husky1"]
+            # Entered once the present robots' servers were found: the joiner's never were.
+            assert [c.server_is_ready() for c in bebop.clients] == [False] * len(bebop.clients)
+            assert sorted(host.servers.served()) == ["husky1", "husky2"]
+            await until(husky, 0)
+            host.start("bebop1")  # it joins
+            await until(bebop, 0)
+            host.leave("bebop1")
+            await until(bebop, len(bebop.clients))
