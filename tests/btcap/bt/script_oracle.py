@@ -224,7 +224,9 @@ def compare_scripts(t: ScriptTree, ticks: int = 3) -> ScriptOutcome:
     factory = bt.BehaviorTreeFactory()
     try:
         theirs = factory.create_tree_from_text(t.xml)
-    except RuntimeError as exc:  # BehaviorTree.CPP refuses a script while creating the tree
+    # BehaviorTree.CPP refuses a script while creating the tree (a literal std::stod
+    # cannot hold throws std::out_of_range, which the bindings raise as IndexError)
+    except (RuntimeError, IndexError) as exc:
         try:
             loads_tree(t.xml, "xml", default_registry(plugins=False))
         except Exception:
