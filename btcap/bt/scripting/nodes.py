@@ -162,8 +162,9 @@ class ScriptPrecondition(ScriptNode, Decorator):
         child = self.children[0]
         s = child.tick()
         if s is _SUCCEEDED or s is _FAILED:
+            # Not reset: BehaviorTree.CPP only sets the child's status back to IDLE, so a
+            # SequenceWithMemory below keeps its place after a failure.
             self._started = False
-            child.reset()
             return s
         if s is _ERROR:  # a failure, the child keeps its error for whoever looks
             self._started = False
