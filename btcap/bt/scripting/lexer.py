@@ -64,8 +64,8 @@ def _number(text: str, real: bool, pos: int) -> Token:
     """A number literal, refused where BehaviorTree.CPP 4.8's conversion throws."""
     if real:
         value = float(text)
-        if math.isinf(value) or (abs(value) < _TINY and any(c in "123456789" for c in
-                                                           text.split("e")[0].split("E")[0])):
+        digits = text.lower().split("e")[0]
+        if math.isinf(value) or (abs(value) < _TINY and digits.strip("+0.") != ""):
             raise ScriptSyntaxError("double literal out of range", pos + 1)
         return Token("real", text, value, pos)
     number = int(text, 16) if text[:2] in ("0x", "0X") else int(text)

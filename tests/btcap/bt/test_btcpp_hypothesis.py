@@ -302,3 +302,21 @@ def test_precondition_keeps_a_sequence_with_memory_in_place() -> None:
     got = [mine.tick() for _ in range(5)]
     assert got == [theirs.tick() for _ in range(5)]
     assert got[2] == ("S", ["tick b"])  # resumed at the Inverter
+
+
+def test_a_skipped_control_node_is_halted_in_behaviortree_cpp_only() -> None:
+    """Documented (docs/btcpp.md, Scripts): BehaviorTree.CPP's control node keeps the
+    RUNNING status it set when it gave SKIPPED, so its parent halts it and its
+    ``_onHalted`` runs; btcap's does not. If either side changes, so must the docs."""
+    code = "h := 0"
+    body = '<AsyncSequence _onHalted="h += 1"><AlwaysSuccess _skipIf="true"/></AsyncSequence>'
+    xml = (
+        '<root BTCPP_format="4"><BehaviorTree ID="Main"><Sequence>'
+        f'<Script code="{code}"/>{body}</Sequence></BehaviorTree></root>'
+    )
+    theirs = bt.BehaviorTreeFactory().create_tree_from_text(xml)
+    assert theirs.tick_exactly_once() == bt.NodeStatus.SUCCESS
+    assert theirs.root_blackboard().get_string("h") == "1"
+    mine = loads_tree(xml, "xml", default_registry(plugins=False))
+    assert mine.tick() is State.SUCCEEDED
+    assert mine.blackboard["h"] == 0
