@@ -316,7 +316,11 @@ def _assign(
         old: Any = values.get(name)
         if old is None and op != ":=" and untyped:
             raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
-        value = k if fixed else rhs()
+        if fixed:
+            value = k
+        else:  # the right side first: it may assign the entry (BehaviorTree.CPP reads after)
+            value = rhs()
+            old = values.get(name)
         t = type(value)
         if value is EMPTY:
             raise ScriptError(f"the value assigned to {key!r} is empty ('..' of two numbers)")

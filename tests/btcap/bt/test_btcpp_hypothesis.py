@@ -51,8 +51,11 @@ def _settings(examples: int) -> settings:
 # -- scripts ---------------------------------------------------------------------------
 
 _ENTRIES = ("i1", "i2", "d1", "d2", "s1", "s2")
-_INTS = ("0", "1", "2", "7", "+4", "0x1F", "0X10", "9007199254740993", "9223372036854775807")
-_INTS_BAD = ("9223372036854775808", "0x8000000000000000", "18446744073709551615")
+_INTS = ("0", "1", "2", "7", "+4", "0x1F", "0X10", "00012")
+_INTS_BAD = (
+    "9007199254740991", "9007199254740992", "9007199254740993", "9223372036854775807",
+    "9223372036854775808", "0x8000000000000000", "18446744073709551615",
+)  # fmt: skip
 _REALS = ("0.5", "2.5", "1.0", "3e2", "1E3", "1.5e-1", "1e308", "2.2250738585072014e-308")
 _REALS_BAD = ("1.8e308", "1e400", "1e-310", "4.9e-324")
 _TEXTS = (
@@ -70,7 +73,7 @@ def _atom(draw: st.DrawFn, depth: int, fam: str, wild: bool) -> str:
     refused literals, strings in arithmetic), so that errors are compared too."""
     pick = draw(st.integers(0, 9))
     if depth > 0 and pick == 0:
-        return f"({draw(_expression(depth - 1, wild))})"
+        return f"({draw(_expression(depth - 1, wild, '' if wild else fam))})"
     if depth > 0 and pick == 1:  # an assignment inside an expression
         key = draw(st.sampled_from(_ENTRIES[:4] if fam != "concat" else _ENTRIES))
         return f"({key} {draw(st.sampled_from((':=', '=', '+=')))} {draw(_atom(0, fam, wild))})"
@@ -105,28 +108,37 @@ def _operand(draw: st.DrawFn, depth: int, fam: str, wild: bool) -> str:
 
 
 @st.composite
-def _expression(draw: st.DrawFn, depth: int, wild: bool) -> str:
+def _expression(draw: st.DrawFn, depth: int, wild: bool, fam: str = "") -> str:
+    """``fam`` given: an expression of that family whose value is of its kind (no
+    comparison or logic on top), as the entry it is assigned to wants."""
     mixed = wild and draw(st.integers(0, 4)) == 0  # families mixed: refused by both
 
     def family() -> str:
         return draw(st.sampled_from(tuple(_BINARY)))
 
+    if fam:
+        return draw(_operand(depth, fam, wild))
     fam = family()
 
-    def comparison() -> str:
+    def comparison(needed: bool = False) -> str:
         out = draw(_operand(depth, family() if mixed else fam, wild))
-        for _ in range(draw(st.sampled_from((0, 0, 1, 1, 2)))):
+        for _ in range(draw(st.sampled_from((1, 2) if needed else (0, 0, 1, 1, 2)))):
             op = draw(st.sampled_from(("==", "!=", "<", ">", "<=", ">=")))
             out += f"{draw(_BLANKS)}{op} {draw(_operand(depth, family() if mixed else fam, wild))}"
         return out
 
-    out = comparison()
-    for _ in range(draw(st.sampled_from((0, 0, 1, 2)))):
-        out += f" {draw(st.sampled_from(('&&', '||')))}{draw(_BLANKS)}{comparison()}"
+    logic = draw(st.sampled_from((0, 0, 1, 2)))
+    out = comparison(bool(logic) and not wild)  # && and || want bools: comparisons
+    for _ in range(logic):
+        out += f" {draw(st.sampled_from(('&&', '||')))}{draw(_BLANKS)}{comparison(not wild)}"
     if depth > 0 and draw(st.integers(0, 5)) == 0:
         then = draw(_expression(depth - 1, wild))
         out = f"{out} ?{draw(_BLANKS)}{then} : {comparison()}"
     return out
+
+
+#: The family whose values an entry of each kind takes (tame statements).
+_KIND_FAMILY = {"i": ("bit",), "d": ("math", "bit"), "s": ("concat",)}
 
 
 @st.composite
@@ -134,8 +146,13 @@ def _statement(draw: st.DrawFn, wild: bool) -> str:
     if draw(st.integers(0, 4)) == 0:
         return draw(_expression(1, wild))
     key = draw(st.sampled_from((*_ENTRIES, "u1") if wild else _ENTRIES))
-    op = draw(st.sampled_from((":=", "=", "=", "+=", "-=", "*=", "/=")))
-    return f"{draw(_BLANKS)}{key}{draw(_BLANKS)}{op} {draw(_expression(1, wild))}"
+    if wild or draw(st.integers(0, 3)) == 0:
+        op = draw(st.sampled_from((":=", "=", "=", "+=", "-=", "*=", "/=")))
+        return f"{draw(_BLANKS)}{key}{draw(_BLANKS)}{op} {draw(_expression(1, wild))}"
+    fam = draw(st.sampled_from(_KIND_FAMILY[key[0]]))
+    ops = (":=", "=", "+=") if key[0] == "s" else (":=", "=", "+=", "-=", "*=")
+    op = draw(st.sampled_from(ops))
+    return f"{draw(_BLANKS)}{key}{draw(_BLANKS)}{op} {draw(_expression(1, wild, fam))}"
 
 
 def _attr(text: str) -> str:
@@ -186,6 +203,7 @@ FOUND = [
     "i := 5; x := i + 9007199254740993",  # no double holds it: an error, right side too
     "x := 9007199254740993 & 1",
     "x := 9007199254740992 ? 1 : 2",
+    "d := 0.5; d += (d := 5)",  # a compound assignment reads its entry after the right side
 ]
 
 
