@@ -359,9 +359,9 @@ def compare_conditions(root: Any, ticks: int = 10, once: bool = False) -> Script
             return ScriptOutcome(t, "conditions_checked_when_idle", None)
         if _condition_skipped(mine):  # BehaviorTree.CPP throws, or ticks an IDLE root forever
             return ScriptOutcome(t, "skipped_condition", None)
-        want = theirs.tick()
-        if mine.now:
+        if mine.now:  # before BehaviorTree.CPP's tick, which may throw then (as compare)
             return ScriptOutcome(t, sorted(mine.now)[0], None)
+        want = theirs.tick()
         a, b = counters()
         if got != want or a != b:
             return ScriptOutcome(t, None, f"tick {t}: btcap {got} {a}\nBT.CPP {want} {b}\n{xml}")
