@@ -277,8 +277,14 @@ def _conditioned(root: El, rng: random.Random) -> El:
             else:
                 kids.append(child)
         el.children = kids
-    for el in root.walk():  # documented: a control node that skipped is halted in BT.CPP
-        if el.children and not any(_skips(d) for d in el.walk()) and rng.random() < 0.25:
+    # Documented: a control node or decorator that gave SKIPPED (its children skipped)
+    # stays RUNNING in BehaviorTree.CPP, so it is halted later (its _onHalted runs) and
+    # its pre-conditions are not checked on its next tick; none on such nodes here.
+    for el in root.walk():
+        if el.children and any(_skips(d) for d in el.walk()[1:]):
+            for attr in ("_failureIf", "_successIf", "_skipIf", "_while"):
+                el.attrs.pop(attr, None)
+        elif el.children and rng.random() < 0.25:
             el.attrs["_onHalted"] = "h += 1"
     return root
 
