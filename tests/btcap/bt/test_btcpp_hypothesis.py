@@ -60,7 +60,8 @@ _REALS = ("0.5", "2.5", "1.0", "3e2", "1E3", "1.5e-1", "1e308", "2.2250738585072
 _REALS_BAD = ("1.8e308", "1e400", "1e-310", "4.9e-324")
 _TEXTS = (
     "'ab'", "'2'", "'2.5'", "'true'", "'false'", "''", '"x"', "'-3'", "' 12'", "'12abc'",
-    "'0x10'", "'0x1p3'", "'-0x1.8p1'", "'0x'", "'1e5'", "'.5'", "'inf'", "'nan'",
+    "'0x10'", "'0x1p3'", "'-0x1.8p1'", "'0x'", "'1e5'", "'.5'", "'inf'", "'nan'", "'1e400'",
+    "'1e-310'",
 )  # fmt: skip
 _PREFIX = {"math": ("-",), "bit": ("~", "!"), "concat": ()}
 _BINARY = {"math": ("+", "-", "*", "/"), "bit": ("&", "|", "^"), "concat": ("..",)}
@@ -204,6 +205,8 @@ FOUND = [
     "x := 9007199254740993 & 1",
     "x := 9007199254740992 ? 1 : 2",
     "d := 0.5; d += (d := 5)",  # a compound assignment reads its entry after the right side
+    "x := '1e400' == 1",  # a string beyond a double's range: strtod's ERANGE, an error
+    "x := 1; x = '1e-310'",
 ]
 
 
