@@ -179,7 +179,7 @@ def script_trees(draw: st.DrawFn) -> script_oracle.ScriptTree:
     return script_oracle.ScriptTree(xml, codes)
 
 
-@_settings(100)
+@_settings(80)
 @given(script_trees())
 def test_generated_scripts_agree_with_behaviortree_cpp(t: script_oracle.ScriptTree) -> None:
     with capture_logs(), warnings.catch_warnings():
