@@ -312,14 +312,19 @@ def _assign(
         values[name] = new
         return new
 
+    create = op == ":="
+
     def assign() -> Any:
-        old: Any = values.get(name)
-        if old is None and op != ":=" and untyped:
-            raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+        old: Any
         if fixed:
+            old = values.get(name)
+            if old is None and not create and untyped:
+                raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
             value = k
-        else:  # the right side first: it may assign the entry (BehaviorTree.CPP reads after)
-            value = rhs()
+        else:
+            if not create and untyped and values.get(name) is None:
+                raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+            value = rhs()  # first: it may assign the entry (BehaviorTree.CPP reads it after)
             old = values.get(name)
         t = type(value)
         if value is EMPTY:
