@@ -8,8 +8,11 @@ the rate the file says, and so on. Each follows the rules of Nav2's C++ source
 - a halt (btcap's untick of the node while it runs) is Nav2's: the node forgets its
   position and counts, and its running children start afresh when next ticked
   (:func:`halt_child`);
-- Nav2's ``SKIPPED`` status (a BehaviorTree.CPP precondition) has no btcap equivalent
-  and plays no part here.
+- a skipped child (a BehaviorTree.CPP pre-condition's SKIPPED) counts as Nav2's
+  sources at commit a3a97043 say: RecoveryNode is SKIPPED when its first child is, and
+  fails, keeping its retries, when its recovery is; PipelineSequence and RoundRobin
+  pass a skipped child over and are SKIPPED when every child was; RateController and
+  SingleTrigger pass SKIPPED on.
 
 Nav2's nodes that need the robot (``DistanceController``, ``SpeedController``,
 ``GoalUpdatedController``, ...) are not here: a dry run stands in for them and says so.
@@ -42,6 +45,7 @@ _FAILED = State.FAILED
 _ERROR = State.ERROR
 _IDLE = State.IDLE
 _PAUSED = State.PAUSED
+_SKIPPED = State.SKIPPED
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
@@ -96,10 +100,10 @@ class RecoveryNode(_Nav2Control):
         while self._retries <= limit:
             if self._index == 0:
                 s = main.tick()
-                if s is _SUCCEEDED:
+                if s is _SUCCEEDED or s is _SKIPPED:
                     halt_child(recovery)
                     self._halt_all()
-                    return _SUCCEEDED
+                    return s
                 if not _failed(s):
                     return _RUNNING
                 if self._retries >= limit:
@@ -114,6 +118,10 @@ class RecoveryNode(_Nav2Control):
                     self._index = 0
                 elif _failed(s):
                     break
+                elif s is _SKIPPED:  # no recovery possible: fails, not a retry spent
+                    self._index = 0
+                    halt_child(recovery)
+                    return _FAILED
                 else:
                     return _RUNNING
         self._halt_all()
@@ -144,16 +152,19 @@ class PipelineSequence(_Nav2Control):
         self._last = 0
 
     def on_tick(self) -> State:
+        skipped = 0
         for i, c in enumerate(self.children):
             s = c.tick()
             if _failed(s):
                 self._halt_all()
                 return _FAILED
-            if s is not _SUCCEEDED and i >= self._last:
+            if s is _SKIPPED:
+                skipped += 1
+            elif s is not _SUCCEEDED and i >= self._last:
                 self._last = i
                 return _RUNNING
         self._halt_all()
-        return _SUCCEEDED
+        return _SKIPPED if skipped == len(self.children) else _SUCCEEDED
 
     def _halt_all(self) -> None:
         for c in self.children:
@@ -186,12 +197,14 @@ class RoundRobin(_Nav2Control):
         children = self.children
         n = len(children)
         wrap = self.inputs["wrap_around"]
-        while self._failures < n:
+        skipped = 0
+        while self._failures + skipped < n:
             s = children[self._index].tick()
-            if s is _SUCCEEDED or _failed(s):
+            if s is _SUCCEEDED or s is _SKIPPED or _failed(s):
                 self._index += 1
                 if self._index == n:
                     if not wrap:
+                        skipped += s is _SKIPPED
                         self._failures += _failed(s)
                         break
                     self._index = 0
@@ -200,13 +213,16 @@ class RoundRobin(_Nav2Control):
                 for c in children:
                     halt_child(c)
                 return _SUCCEEDED
+            if s is _SKIPPED:
+                skipped += 1
+                continue
             if not _failed(s):
                 return _RUNNING
             self._failures += 1
         for c in children:
             halt_child(c)
         self.on_reset()
-        return _FAILED
+        return _SKIPPED if skipped == n else _FAILED
 
     def on_reset(self) -> None:
         self._high = -1

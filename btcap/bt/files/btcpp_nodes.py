@@ -100,10 +100,8 @@ def script_code(text: str) -> str:
 
 
 def _else(text: str) -> str:
-    if text not in ("SUCCESS", "FAILURE", "RUNNING"):
-        raise MappingError(
-            f"expected SUCCESS, FAILURE or RUNNING, got {text!r} (btcap has no SKIPPED)"
-        )
+    if text not in ("SUCCESS", "FAILURE", "RUNNING", "SKIPPED"):
+        raise MappingError(f"expected SUCCESS, FAILURE, RUNNING or SKIPPED, got {text!r}")
     return text
 
 

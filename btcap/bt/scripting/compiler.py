@@ -112,6 +112,8 @@ def _binary(
     is an entry (read inline: the usual ``n + 1`` costs one call)."""
     if op in _ARITH:
         f = _ARITH[op]
+        if type(const) is int and not -EXACT <= const <= EXACT:
+            const = None  # no double holds it exactly: checked, as the left side is
         if const is not None and entry is not None:
             k, values, name, key = const, entry.values, entry.name, entry.name
 
@@ -179,8 +181,9 @@ def _binary(
         if not (_number(a) and _number(b)):
             raise ScriptError(f"operator {op!r}: not permitted on a {kind(a)} and a {kind(b)}")
         what = f"operator {op!r} needs integers"
-        x = integral(a, what) if type(a) is float else a
-        y = integral(b, what) if type(b) is float else b
+        # an integer goes through a double first, as in BehaviorTree.CPP: 2**53 is refused
+        x = integral(a, what) if type(a) is float else exact(a)
+        y = integral(b, what) if type(b) is float else exact(b)
         return float(bit(x, y))
 
     return bitwise
@@ -309,11 +312,20 @@ def _assign(
         values[name] = new
         return new
 
+    create = op == ":="
+
     def assign() -> Any:
-        old: Any = values.get(name)
-        if old is None and op != ":=" and untyped:
-            raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
-        value = k if fixed else rhs()
+        old: Any
+        if fixed:
+            old = values.get(name)
+            if old is None and not create and untyped:
+                raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+            value = k
+        else:
+            if not create and untyped and values.get(name) is None:
+                raise ScriptError(f"entry {key!r} does not exist yet; create it with ':='")
+            value = rhs()  # first: it may assign the entry (BehaviorTree.CPP reads it after)
+            old = values.get(name)
         t = type(value)
         if value is EMPTY:
             raise ScriptError(f"the value assigned to {key!r} is empty ('..' of two numbers)")
@@ -392,7 +404,7 @@ def _truthy(c: Any) -> bool:
     fails), as in BehaviorTree.CPP 4.8."""
     if type(c) is str:
         return to_number(c, {}, words=False) != 0.0
-    return float(c) != 0.0
+    return float(exact(c)) != 0.0
 
 
 def compile_script(script: Script, cells: Mapping[str, Cell], enums: Mapping[str, int]) -> Compiled:

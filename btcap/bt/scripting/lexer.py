@@ -3,12 +3,15 @@
 Written by hand from the grammar of BehaviorTree.CPP 4.8 (its ``any_types.hpp``): a
 number must not run on into a letter, ``_`` or ``.`` (``1..2`` is an error there too),
 ``+3`` is a literal but ``-3`` is the negation of ``3`` (the parser's business), strings
-are quoted with ``'`` or ``"`` and have no escapes. A new line is whitespace only inside
-parentheses; at the top level statements are separated by ``;``.
+are quoted with ``'`` or ``"`` and have no escapes. A new line is whitespace, as any
+blank: statements are separated by ``;`` only. A literal must fit what BehaviorTree.CPP
+stores it in: an integer an int64, a double a finite normal double (its ``std::stod``
+refuses the rest), else the script is refused when it loads.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from typing import NamedTuple
 
@@ -32,7 +35,7 @@ class ScriptSyntaxError(BtcapError, ValueError):
 
 
 class Token(NamedTuple):
-    kind: str  # "int", "real", "str", "name", "bool", "op", "nl", "end"
+    kind: str  # "int", "real", "str", "name", "bool", "op", "end"
     text: str
     value: object
     pos: int  # 0-based offset in the script
@@ -48,11 +51,27 @@ _NUMBER = re.compile(
     r"|(?P<int>[+]?\d+)"
 )
 _NAME = re.compile(r"[A-Za-z_@]\w*")
-_BLANK = " \t\r\f\v"
+_BLANK = " \t\r\f\v\n"
+_INT64 = 2**63
+_TINY = 2.2250738585072014e-308  # the smallest normal double
 
 
 def _is_name_char(c: str) -> bool:
     return c.isalnum() or c == "_"
+
+
+def _number(text: str, real: bool, pos: int) -> Token:
+    """A number literal, refused where BehaviorTree.CPP 4.8's conversion throws."""
+    if real:
+        value = float(text)
+        digits = text.lower().split("e")[0]
+        if math.isinf(value) or (abs(value) < _TINY and digits.strip("+0.") != ""):
+            raise ScriptSyntaxError("double literal out of range", pos + 1)
+        return Token("real", text, value, pos)
+    number = int(text, 16) if text[:2] in ("0x", "0X") else int(text)
+    if number >= _INT64:
+        raise ScriptSyntaxError("integer literal out of range (int64)", pos + 1)
+    return Token("int", text, number, pos)
 
 
 def tokenize(text: str) -> list[Token]:
@@ -71,11 +90,7 @@ def tokenize(text: str) -> list[Token]:
         if c == "\\" and text[i + 1 : i + 2] == "\n":  # an escaped new line is a blank
             i += 2
             continue
-        if c == "\n":
-            out.append(Token("nl", c, None, i))
-            i += 1
-            continue
-        operand = not out or (out[-1].kind in ("op", "nl") and out[-1].text != ")")
+        operand = not out or (out[-1].kind == "op" and out[-1].text != ")")
         if c.isdigit() or (c == "+" and operand and text[i + 1 : i + 2].isdigit()):
             m = _NUMBER.match(text, i)
             assert m is not None
@@ -83,12 +98,7 @@ def tokenize(text: str) -> list[Token]:
             if end < n and (text[end] == "." or _is_name_char(text[end])):
                 kind = "double" if m.lastgroup == "real" else "integer"
                 raise ScriptSyntaxError(f"invalid suffix on {kind} literal", end + 1)
-            if m.lastgroup == "hex":
-                out.append(Token("int", m.group(), int(m.group(), 16), i))
-            elif m.lastgroup == "real":
-                out.append(Token("real", m.group(), float(m.group()), i))
-            else:
-                out.append(Token("int", m.group(), int(m.group()), i))
+            out.append(_number(m.group(), m.lastgroup == "real", i))
             i = end
             continue
         if c in "'\"":

@@ -129,7 +129,7 @@ class ScriptCondition(ScriptNode, Leaf):
         return _SUCCEEDED if to_bool(value, "the condition's value") else _FAILED
 
 
-_ELSE = {"SUCCESS": _SUCCEEDED, "FAILURE": _FAILED, "RUNNING": _RUNNING}
+_ELSE = {"SUCCESS": _SUCCEEDED, "FAILURE": _FAILED, "RUNNING": _RUNNING, "SKIPPED": _SKIPPED}
 
 
 class ScriptPrecondition(ScriptNode, Decorator):
@@ -141,14 +141,16 @@ class ScriptPrecondition(ScriptNode, Decorator):
     SCRIPTS = ("if",)
     OPTIONS: ClassVar[dict[str, Any]] = {
         "if": Port(str, description="the condition"),
-        "else": Port(str, "FAILURE", description="SUCCESS, FAILURE or RUNNING"),
+        "else": Port(str, "FAILURE", description="SUCCESS, FAILURE, RUNNING or SKIPPED"),
     }
 
     def declare_ports(self) -> None:
         super().declare_ports()
         word = self.options["else"]
         if word not in _ELSE:
-            raise TreeError(f"Precondition else={word!r}: expected SUCCESS, FAILURE or RUNNING")
+            raise TreeError(
+                f"Precondition else={word!r}: expected SUCCESS, FAILURE, RUNNING or SKIPPED"
+            )
         self._else = _ELSE[word]
         self._started = False
 
@@ -160,8 +162,9 @@ class ScriptPrecondition(ScriptNode, Decorator):
         child = self.children[0]
         s = child.tick()
         if s is _SUCCEEDED or s is _FAILED:
+            # Not reset: BehaviorTree.CPP only sets the child's status back to IDLE, so a
+            # SequenceWithMemory below keeps its place after a failure.
             self._started = False
-            child.reset()
             return s
         if s is _ERROR:  # a failure, the child keeps its error for whoever looks
             self._started = False

@@ -9,8 +9,9 @@ arithmetic (unary ``-``, then ``* /``, then ``+ -``), bitwise (``~`` and
 ``!``, then ``&``, then ``| ^``) and string concatenation ``..``. BehaviorTree.CPP 4.8
 groups arithmetic to the right: ``1 - 2 - 3`` is ``1 - (2 - 3)`` and ``8 / 2 * 2`` is
 ``8 / (2 * 2)``; the others to the left (checked against it). A prefix operator
-applies to one atom: a literal, an entry name, ``true``/``false`` or a parenthesised
-expression (where new lines are allowed). Statements are separated by ``;``.
+applies to an atom (a literal, an entry name, ``true``/``false`` or a parenthesised
+expression), perhaps after more prefixes of its family: ``--x`` and ``~!x`` are read,
+``-~x`` is refused. Statements are separated by ``;``.
 
 A hand parser: the language is tiny and its rules (the families, chaining) are
 BehaviorTree.CPP's own, which no general parser library states more simply; this one
@@ -56,18 +57,13 @@ class _Parser:
     def __init__(self, text: str) -> None:
         self.toks = tokenize(text)
         self.i = 0
-        self.nested = 0  # inside parentheses, new lines are blanks
         self.reads: dict[str, int] = {}  # entry -> where first read
         self.writes: dict[str, None] = {}
         self.creates: dict[str, None] = {}
         self.seen: list[str] = []  # operator families used in the current expression
 
     def peek(self) -> Token:
-        tok = self.toks[self.i]
-        while tok.kind == "nl" and self.nested:
-            self.i += 1
-            tok = self.toks[self.i]
-        return tok
+        return self.toks[self.i]
 
     def take(self) -> Token:
         tok = self.peek()
@@ -126,9 +122,7 @@ class _Parser:
         if not self.is_op("?"):
             return cond
         tok = self.take()
-        self.nested += 1
         then = self.expression()
-        self.nested -= 1
         if not self.is_op(":"):
             raise self.fail("expected ':'")
         self.take()
@@ -181,7 +175,11 @@ class _Parser:
             if seen and seen[0] != fam:
                 raise self.fail("operator cannot be mixed with previous operators", tok)
             seen.append(fam)
-            return ("unary", tok.pos, tok.text, self.atom())
+            # More prefixes of the same family may follow (BehaviorTree.CPP 4.8 reads
+            # ``--x`` and ``~!x``; ``-~x`` mixes two families and is refused there too).
+            same = ("-",) if fam == "math" else ("~", "!")
+            inner = self.prefix(seen) if self.is_op(*same) else self.atom()
+            return ("unary", tok.pos, tok.text, inner)
         return self.atom()
 
     def atom(self) -> Expr:
@@ -193,11 +191,9 @@ class _Parser:
             self.reads.setdefault(key, tok.pos)
             return ("name", tok.pos, key)
         if tok.kind == "op" and tok.text == "(":
-            self.nested += 1
             inner = self.expression()
             if not self.is_op(")"):
                 raise self.fail("expected ')'")
-            self.nested -= 1
             self.take()
             return inner
         raise self.fail("expected operand", tok)

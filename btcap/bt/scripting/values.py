@@ -26,8 +26,10 @@ _INT64 = 2**63
 #: The largest integer a double holds exactly; BehaviorTree.CPP refuses to convert
 #: larger ones (its arithmetic and comparisons work on doubles).
 EXACT = 2**53 - 1
+_TINY = 2.2250738585072014e-308  # the smallest normal double
 _LEADING = re.compile(
-    r"\s*(?P<sign>[+-]?)(?:0[xX](?P<hex>[0-9a-fA-F]+)"
+    r"\s*(?P<sign>[+-]?)(?:0[xX](?P<hex>[0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)"
+    r"(?P<exp>[pP][+-]?\d+)?"
     r"|(?P<dec>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan))",
     re.IGNORECASE,
 )
@@ -78,9 +80,22 @@ def to_number(text: str, enums: Mapping[str, int], *, words: bool = True) -> flo
     m = _LEADING.match(text)  # C's strtod: the number the string starts with
     if m is None:
         raise ScriptError(f"the string {text!r} is not a number")
-    if m.group("hex"):
-        return float(int(m.group("hex"), 16)) * (-1.0 if m.group("sign") == "-" else 1.0)
-    return float(m.group("sign") + m.group("dec"))
+    # strtod's ERANGE, which BehaviorTree.CPP's conversion refuses: a number too large,
+    # or a decimal one too small for a normal double (an exact hexadecimal one is kept)
+    too = ScriptError(f"the string {text!r} holds a number out of a double's range")
+    if m.group("hex"):  # C99's hexadecimal floats too: '0x1.8p1' is 3
+        try:
+            value = float.fromhex(m.group("hex") + (m.group("exp") or "p0"))
+        except OverflowError:
+            raise too from None
+    else:
+        digits = m.group("dec")
+        value = float(digits)
+        if digits[0].isalpha():  # inf, nan: as written
+            return float(m.group("sign") + digits)
+        if math.isinf(value) or (value < _TINY and digits.lower().split("e")[0].strip("0.")):
+            raise too
+    return -value if m.group("sign") == "-" else value
 
 
 def to_bool(value: object, what: str) -> bool:
@@ -98,7 +113,7 @@ def to_bool(value: object, what: str) -> bool:
 
 def integral(value: float, what: str) -> int:
     """A float that holds an int64 exactly, as that int (else an error, as in C++)."""
-    if math.isnan(value) or value != math.floor(value) or not -_INT64 <= value < _INT64:
+    if not math.isfinite(value) or value != math.floor(value) or not -_INT64 <= value < _INT64:
         raise ScriptError(f"{what}: {to_text(value)} is not an integer")
     return int(value)
 

@@ -248,6 +248,8 @@ class BtcapRun:
 
     def _watch(self, node: Node, old: State, new: State) -> None:
         parent = node.parent_node
+        if new is State.ERROR and "its condition was skipped" in str(node.error):
+            self.now.add("skipped_condition")  # seen even if a retry resets it at once
         if isinstance(node, Parallel) and new in (State.SUCCEEDED, State.FAILED):
             self.decided.append(node)
         if new is State.PAUSED and old in _ACTIVE and _progress(node):

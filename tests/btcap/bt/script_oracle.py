@@ -224,7 +224,9 @@ def compare_scripts(t: ScriptTree, ticks: int = 3) -> ScriptOutcome:
     factory = bt.BehaviorTreeFactory()
     try:
         theirs = factory.create_tree_from_text(t.xml)
-    except RuntimeError as exc:  # BehaviorTree.CPP refuses a script while creating the tree
+    # BehaviorTree.CPP refuses a script while creating the tree (a literal std::stod
+    # cannot hold throws std::out_of_range, which the bindings raise as IndexError)
+    except (RuntimeError, IndexError) as exc:
         try:
             loads_tree(t.xml, "xml", default_registry(plugins=False))
         except Exception:
@@ -340,6 +342,11 @@ def compare_conditions(root: Any, ticks: int = 10, once: bool = False) -> Script
         theirs = BtcppRun(xml, scripts, once)
     except RuntimeError:
         return ScriptOutcome(0, "refused by BehaviorTree.CPP", None)
+    # The counters exist before the first tick: if the comparison stops before
+    # BehaviorTree.CPP's first tick, its Tree halts every node when destroyed, and an
+    # _onHalted on an entry that does not exist throws there (std::terminate).
+    for key in _COUNTERS:
+        theirs.tree.root_blackboard().set_int(key, 0)
     mine = BtcapRun(xml, scripts, once)
 
     def counters() -> tuple[dict[str, str], dict[str, str]]:
@@ -347,19 +354,31 @@ def compare_conditions(root: Any, ticks: int = 10, once: bool = False) -> Script
         a = {k: to_text(v) for k, v in mine.tree.blackboard.outputs.items() if v is not None}
         return a, {k: board.get_string(k) for k in board.get_keys() if k in _COUNTERS}
 
-    for t in range(ticks):
+    # Checked on every root tick: tickOnce makes several, and a node that finished in one
+    # may be re-checked in the next.
+    rechecked = []
+    root_tick = mine.tree.tick
+
+    def checked_root_tick() -> State:
         before = {id(n): n.state for n in mine.tree.root.walk()}
+        state: State = root_tick()
+        if _rechecked(mine, before):
+            rechecked.append(True)
+        return state
+
+    mine.tree.tick = checked_root_tick
+    for t in range(ticks):
         try:
             got = mine.tick()
         except WakingForever:
             return ScriptOutcome(t, WAKES_FOREVER, None)
-        if _rechecked(mine, before):
+        if rechecked:
             return ScriptOutcome(t, "conditions_checked_when_idle", None)
         if _condition_skipped(mine):  # BehaviorTree.CPP throws, or ticks an IDLE root forever
             return ScriptOutcome(t, "skipped_condition", None)
-        want = theirs.tick()
-        if mine.now:
+        if mine.now:  # before BehaviorTree.CPP's tick, which may throw then (as compare)
             return ScriptOutcome(t, sorted(mine.now)[0], None)
+        want = theirs.tick()
         a, b = counters()
         if got != want or a != b:
             return ScriptOutcome(t, None, f"tick {t}: btcap {got} {a}\nBT.CPP {want} {b}\n{xml}")

@@ -202,3 +202,58 @@ def test_single_trigger_passes_one_result_then_fails_until_halted() -> None:
     tree.reset()
     assert tick(tree) is S
     assert child.ticks == 3
+
+
+# -- a skipped child (the SKIPPED cases of each file above) ----------------------------
+
+K = State.SKIPPED
+
+
+def test_recovery_is_skipped_when_its_first_child_is() -> None:
+    """recovery_node.cpp: first child SKIPPED -> halt(), SKIPPED."""
+    nav, fix = Scripted("nav", K), Scripted("fix", S)
+    tree = Tree(RecoveryNode("r", children=[nav, fix]))
+    assert tick(tree) is K
+    assert fix.ticks == 0
+
+
+def test_recovery_fails_when_its_recovery_is_skipped_keeping_its_retries() -> None:
+    """recovery_node.cpp: recovery SKIPPED -> index 0, FAILURE, not a retry spent (and
+    retry_count_ kept: no halt())."""
+    nav, fix = Scripted("nav", F, F, F, F), Scripted("fix", S, K, S)
+    tree = Tree(RecoveryNode("r", children=[nav, fix], inputs={"number_of_retries": 2}))
+    assert tick(tree) is F  # nav F, fix S (1 retry spent), nav F, fix K: failure
+    assert (nav.ticks, fix.ticks) == (2, 2)
+    assert tick(tree) is F  # nav F, fix S (2 retries spent), nav F: retries spent
+    assert (nav.ticks, fix.ticks) == (4, 3)
+
+
+def test_pipeline_passes_a_skipped_child_over_and_is_skipped_when_all_are() -> None:
+    """pipeline_sequence.cpp: SKIPPED counted, loop goes on; all skipped -> SKIPPED."""
+    a, b, c = Scripted("a", K, K), Scripted("b", R, K), Scripted("c", S)
+    tree = Tree(PipelineSequence("p", children=[a, b]))
+    assert tick(tree) is R  # a skipped, b runs
+    assert tick(tree) is K  # both skipped
+    tree2 = Tree(PipelineSequence("p2", children=[Scripted("k", K), c]))
+    assert tick(tree2) is S
+
+
+def test_round_robin_passes_a_skipped_child_over_and_is_skipped_when_all_are() -> None:
+    """round_robin_node.cpp: SKIPPED moves to the next child; all skipped -> SKIPPED,
+    some failed -> FAILURE."""
+    a, b = Scripted("a", K, K), Scripted("b", S, F)
+    tree = Tree(RoundRobin("rr", children=[a, b], inputs={"wrap_around": True}))
+    assert tick(tree) is S  # a skipped, b succeeds
+    assert tick(tree) is F  # starts after b: a skipped, b fails: not all skipped
+    both = Tree(RoundRobin("rr2", children=[Scripted("x", K), Scripted("y", K)]))
+    assert tick(both) is K
+
+
+def test_rate_controller_and_single_trigger_pass_skipped_on() -> None:
+    """rate_controller.cpp, single_trigger_node.cpp: a skipped child gives SKIPPED and
+    SingleTrigger keeps its first time."""
+    child = Scripted("c", K, S)
+    trigger = Tree(SingleTrigger("t", children=[child]))
+    assert [tick(trigger), tick(trigger), tick(trigger)] == [K, S, F]
+    rate = Tree(RateController("rc", children=[Scripted("d", K)], inputs={"hz": 1.0}))
+    assert tick(rate) is K
