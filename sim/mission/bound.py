@@ -41,7 +41,7 @@ from itertools import combinations
 import numpy as np
 
 from btcap.sim.mission.cover import cover_times
-from btcap.sim.mission.opdraws import Draws, least_factor
+from btcap.sim.mission.opdraws import Draws, least_factors
 from btcap.sim.mission.presence import Presence, finish, presence
 from btcap.sim.mission.routes import Legs, pieces_m, visit_tree_m
 from btcap.sim.mission.scenario import Scenario
@@ -126,27 +126,36 @@ def mission_bound(
     for j, (cell, dirty) in enumerate(objects):
         found = float(cover[cell]) if grid.reachable[cell] else math.inf
         drive = path_length(from_start, cell, cs)
-        f_id = least_factor(draws, jitter, "identify", j)
-        ident = min(
-            (
-                max(found, present[i].start + drive / models[i].speed_mps)
-                + models[i].operation("identify").duration_s * f_id
-                for i in able["identify"]
-            ),
-            default=math.inf,
+        first, extra = least_factors(draws, jitter, "identify", j)
+        # the first attempt to end, by whoever is there soonest; a retry by the quickest
+        ident = (
+            min(
+                (
+                    max(found, present[i].start + drive / models[i].speed_mps)
+                    + models[i].operation("identify").duration_s * first
+                    for i in able["identify"]
+                ),
+                default=math.inf,
+            )
+            + least("identify") * extra
         )
         end, dec_op, back = ident, 0.0, 0.0
         if dirty:
-            f_dec = least_factor(draws, jitter, "decontaminate", j)
             back = path_length(from_decon, cell, cs)
-            dec_op = least("decontaminate") * f_dec
-            end = math.inf
-            for i in able["decontaminate"]:
-                v, d = models[i].speed_mps, models[i].operation("decontaminate").duration_s
-                at = max(ident, present[i].start + drive / v)
-                end = min(end, at + back / v + d * f_dec)
+            dec_op = least("decontaminate") * sum(least_factors(draws, jitter, "decontaminate", j))
+            # picked up by the soonest there, carried (perhaps handed on) at most at the
+            # fastest carrier's speed
+            picked = min(
+                (
+                    max(ident, present[i].start + drive / models[i].speed_mps)
+                    for i in able["decontaminate"]
+                ),
+                default=math.inf,
+            )
+            end = picked + back / _speed(models, able["decontaminate"]) + dec_op
         chains = max(chains, end)
-        objs.append(_Object(cell, dirty, found, ident, least("identify") * f_id, dec_op, back))
+        id_op = least("identify") * (first + extra)
+        objs.append(_Object(cell, dirty, found, ident, id_op, dec_op, back))
 
     legs = Legs(grid, [o.cell for o in objs])
     work_s = _work(grid, models, present, jitter, able, objs, legs)

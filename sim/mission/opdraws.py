@@ -11,7 +11,7 @@ from __future__ import annotations
 from btcap.sim.world.manager import SimConfig, SimulationManager
 from btcap.sim.world.store import MissionState
 
-__all__ = ["Draws", "least_factor"]
+__all__ = ["Draws", "least_factors"]
 
 
 class Draws:
@@ -22,19 +22,19 @@ class Draws:
         self.config = config
         self._manager = SimulationManager(state, config)
 
-    def factor(self, op: str, target: int) -> float:
-        """The least factor (of its model's duration) that all attempts at ``op`` on
-        object ``target`` add up to before one succeeds, in any run.
+    def factors(self, op: str, target: int) -> tuple[float, float]:
+        """The factors (of a model's duration) of ``op`` on object ``target`` in any
+        run: the first attempt to end, and at least what follows until one succeeds.
 
-        The first attempt to end drew the stream's first draw (every attempt started
-        before any ended draws it); if that draw fails, the one that succeeds started
-        after it ended, drew a later one and took at least the shortest factor. Attempts
-        cut short draw again and only add time.
+        Every attempt started before any ended draws the stream's first draw, so the
+        first to end took that factor, and failed if it fails; then the one that
+        succeeds started after it ended, drew a later one and took at least the
+        shortest factor. Attempts cut short draw again and only add time.
         """
         first, fails = self._manager.draw(op, target, (0, 0))
-        return first + (1 - self.config.delay_jitter) if fails else first
+        return first, (1 - self.config.delay_jitter) if fails else 0.0
 
 
-def least_factor(draws: Draws | None, jitter: float, op: str, target: int) -> float:
-    """:meth:`Draws.factor` if the draws are known, else the shortest draw."""
-    return draws.factor(op, target) if draws is not None else 1 - jitter
+def least_factors(draws: Draws | None, jitter: float, op: str, target: int) -> tuple[float, float]:
+    """:meth:`Draws.factors` if the draws are known, else the shortest draw and nothing."""
+    return draws.factors(op, target) if draws is not None else (1 - jitter, 0.0)
