@@ -18,8 +18,10 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
 - **work**: for every set of task kinds (explore, identify, decontaminate), the work
   only the robots able to do one of them can do, over their presence in time (joins,
   leaves, failures). Exploring the reachable cells at the best duration per cell a
-  robot's disc can cover; identifying and carrying every object at its duration, the
-  carries driven to the decontamination area, and the drives to the objects as
+  robot's disc can cover, and no fewer explorations than cells farther apart than the
+  widest disc's diameter (:func:`~btcap.sim.mission.cover.apart`); identifying and
+  carrying every object at its duration, the carries driven to the decontamination
+  area, and the drives to the objects as
   :func:`~btcap.sim.mission.routes.pieces_m` bounds them (from the start or the
   decontamination area; a clean object too where only these robots identify), or at
   least a spanning tree of them (:func:`~btcap.sim.mission.routes.visit_tree_m`).
@@ -40,7 +42,7 @@ from itertools import combinations
 
 import numpy as np
 
-from btcap.sim.mission.cover import cover_times
+from btcap.sim.mission.cover import apart, cover_times
 from btcap.sim.mission.opdraws import Draws, least_factors
 from btcap.sim.mission.presence import Presence, finish, presence
 from btcap.sim.mission.routes import Legs, pieces_m, visit_tree_m
@@ -211,8 +213,14 @@ def _work(
         default=math.inf,
     )
     every = range(len(objs))
+    widest = max((models[i].operation("explore").radius_m for i in able["explore"]), default=0)
+    shortest = min(
+        (models[i].operation("explore").duration_s * (1 - jitter) for i in able["explore"]),
+        default=0.0,
+    )
+    explorations = apart(grid, widest / cs) * shortest if able["explore"] else 0.0
     ops = {
-        "explore": n_cells * per_cell if n_cells else 0.0,
+        "explore": max(n_cells * per_cell if n_cells else 0.0, explorations),
         "identify": sum(o.id_op for o in objs),
         "decontaminate": sum(o.dec_op for o in objs if o.dirty),
     }

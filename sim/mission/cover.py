@@ -21,7 +21,7 @@ from btcap.sim.world.distance import distance_field
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.model import RobotModel
 
-__all__ = ["cover_times", "nearest_within"]
+__all__ = ["apart", "cover_times", "nearest_within"]
 
 #: Rounds of :func:`cover_times` at most (each lengthens the chains by one exploration).
 _MAX_ROUNDS = 10_000
@@ -119,3 +119,20 @@ def cover_times(
         if not changed:
             break
     return cover
+
+
+def apart(grid: GridMap, radius_cells: float) -> int:
+    """How many explorations of discs of ``radius_cells`` at most, at the least, cover
+    every reachable cell: the size of a set of reachable cells farther than twice that
+    apart (in reading order, each the first not yet too near one taken). A disc holds
+    no two cells farther apart than its diameter, so each such cell needs an exploration
+    of its own, whatever the order, robots or goals."""
+    cells = np.argwhere(grid.reachable)
+    left = np.ones(len(cells), dtype=bool)
+    far = (2 * radius_cells) ** 2
+    count = 0
+    while left.any():
+        first = cells[int(np.argmax(left))]
+        count += 1
+        left &= ((cells - first) ** 2).sum(axis=1) > far
+    return count

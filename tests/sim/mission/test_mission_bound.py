@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from btcap.sim.mission.bound import Draws, Presence, cover_times, mission_bound, scenario_bound
+from btcap.sim.mission.cover import apart
 from btcap.sim.mission.routes import Legs, pieces_m
 from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.mission.scenariofile import SimSettings
@@ -73,6 +74,17 @@ def test_a_far_cell_waits_for_the_chain_of_explorations_that_reach_it() -> None:
     # joining at 100 s puts every exploration after it
     late = cover_times(grid, [DRONE], [Presence(start=100.0)])
     assert late[0, 20] == pytest.approx(107.0)
+
+
+def test_cells_far_apart_need_an_exploration_each() -> None:
+    # A disc of 2 cells covers 5 cells of a corridor: 41 cells need 9 explorations (the
+    # cells 0, 5, ..., 40 are more than a diameter apart), at 1 s each, for any explorer;
+    # the store's frontier goals take 14 (sites 0, 3, ..., 39). The area alone says 3.3.
+    grid = corridor()
+    assert apart(grid, 2.0) == 9
+    walked = store_walk(grid, DRONE)
+    assert len(np.unique(walked[grid.reachable])) == 14
+    assert mission_bound(grid, [DRONE], []).work_s == pytest.approx(9.0)
 
 
 def test_pieces_price_the_visits_to_clean_objects_beside_the_carries() -> None:
