@@ -30,7 +30,12 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
   bound for jobs with release times), each robot driving its first piece from wherever it
   stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``).
 
-Computed in a fraction of a second on the built-in caves.
+What it takes from the simulation and the store (:mod:`btcap.sim.world.store`), not from
+a mission tree: robots explore only at goals the store hands out and drive along shortest
+paths at their speed; only found objects are handed out to identify, only objects found
+contaminated to carry; the mission is complete only once every reachable cell is covered
+and every object found is finished. Computed in a fraction of a second on the built-in
+caves.
 """
 
 from __future__ import annotations

@@ -85,7 +85,10 @@ def pieces_m(
     Dropping the other stops of a drive makes it no longer, so each point's piece is no
     shorter than the path from its predecessor: together no less than the cheapest
     choice of a predecessor for every point, each clean point and each start used once,
-    the decontamination area once a dirty point (an assignment problem).
+    the decontamination area once a dirty point (an assignment problem). A carry handed
+    on (the carrier fails or is stopped and drops the object, another takes it on)
+    changes nothing: swapping the two robots' drives from the handover on gives drives
+    no longer in all, in which one robot carries the object all the way.
     """
     points = [*clean, *dirty]
     if not points:
