@@ -13,7 +13,7 @@ from scipy.optimize import linear_sum_assignment
 from btcap.sim.world.distance import Cell, distance_field, path_length
 from btcap.sim.world.grid import GridMap
 
-__all__ = ["Legs", "forest_m", "pieces_m", "visit_tree_m"]
+__all__ = ["Legs", "pieces_m", "visit_tree_m"]
 
 
 class Legs:
@@ -60,15 +60,6 @@ def visit_tree_m(grid: GridMap, cells: Sequence[Cell]) -> float:
     legs = Legs(grid, others)
     keep = [0, *range(2, 2 + len(others))]
     return sum(_mst_edges(legs.m[np.ix_(keep, keep)]))
-
-
-def forest_m(legs: Legs, points: Sequence[int], robots: int) -> float:
-    """Metres ``robots`` robots, each starting anywhere, drive all together to stand on
-    every one of ``points`` (indices into ``legs``): each drives a path through some of
-    them, so together they are a spanning forest of at most ``robots`` trees, no shorter
-    than a minimum spanning tree less its ``robots - 1`` longest edges."""
-    edges = sorted(_mst_edges(legs.m[np.ix_(points, points)]))
-    return sum(edges[: max(0, len(edges) - max(0, robots - 1))])
 
 
 def pieces_m(
