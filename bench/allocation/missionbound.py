@@ -6,7 +6,9 @@ one Explore loop beside ``object_workers`` identify-then-carry loops) and with t
 mission (``pool``: a lane per goal, object to identify and object to carry, carriers
 standing by near objects awaiting identification, spare explorers; see
 :mod:`btcap.sim.mission.pool`), and divides its mission time by the scenario's lower bound
-(:mod:`btcap.sim.mission.bound`: what no allocation, tree or timing could beat, stated there).
+(:mod:`btcap.sim.mission.bound`: what no allocation, tree or timing could beat, stated there;
+the operations on objects priced by the seed's own draws, as every run of the seed draws
+them; each seed's entry also gives the bound at the shortest draws).
 
 Scenarios: ``full-team`` (Husky, Spot, Bebop), ``full-team-6`` (the same team grown to
 six: two of each) and ``huskies-bebop-joins`` (a Bebop joins for a while, a Husky fails
@@ -14,7 +16,8 @@ for a while); ``--scenarios`` adds ``single-husky`` (one robot doing everything:
 time is mostly driving between objects and goals, which the bound does not price).
 
 Reported per scenario and mission, over the seeds: mission time and bound (means),
-time / bound (mean, min, max), runs not completed, auctions, and each robot model's
+time / bound (mean, min, max), runs not completed, auctions, which part of the bound
+binds (chains, work or release, counted over the seeds), and each robot model's
 utilisation (busy / present, mean over its robots and the seeds); then the mean of
 time / bound over every scenario and seed, against :data:`TARGET`, and how many runs
 beat the bound (a lower bound: none may).
@@ -26,6 +29,7 @@ import argparse
 import asyncio
 import statistics
 import time
+from collections import Counter
 from collections.abc import Sequence
 from typing import Any, Literal, cast
 
@@ -89,11 +93,22 @@ def run(
         rows[name] = {}
         for mission in missions:
             times, bounds, auctions, lost = [], [], [], 0
+            parts: list[dict[str, Any]] = []
             busy: dict[str, list[float]] = {}
             for seed in seeds:
                 s = scenario(name, seed, mission)
                 models = {r.name: r.model for r in s.robots}
-                bound = scenario_bound(s).seconds
+                b = scenario_bound(s)
+                bound = b.seconds
+                parts.append(
+                    {
+                        "binds": b.binding,
+                        "chains_s": b.chains_s,
+                        "work_s": b.work_s,
+                        "release_s": b.release_s,
+                        "shortest_draws_s": scenario_bound(s, seed_draws=False).seconds,
+                    }
+                )
                 result = asyncio.run(run_fast(s))
                 times.append(result.mission_time_s)
                 bounds.append(bound)
@@ -107,9 +122,10 @@ def run(
                 "mission_s": round(statistics.mean(times), 1),
                 "bound_s": round(statistics.mean(bounds), 1),
                 "per_seed": [
-                    {"seed": seed, "mission_s": t, "bound_s": b}
-                    for seed, t, b in zip(seeds, times, bounds, strict=True)
+                    {"seed": seed, "mission_s": t, "bound_s": b, **part}
+                    for seed, t, b, part in zip(seeds, times, bounds, parts, strict=True)
                 ],
+                "binds": dict(Counter(p["binds"] for p in parts)),
                 "vs_bound": _spread(ratio),
                 "not_completed": lost,
                 "auctions": round(statistics.mean(auctions), 1),
@@ -134,16 +150,17 @@ def run(
 def _print(out: dict[str, Any]) -> None:
     print(f"mission time / lower bound, seeds {out['seeds']} (mean [min-max] over the seeds)")
     head = f"{'scenario':<20} {'mission':<7} {'time s':>7} {'bound s':>7} {'time/bound':>20}"
-    print(f"{head} {'auctions':>8}  utilisation by model")
+    print(f"{head} {'auctions':>8}  {'binds':<18} utilisation by model")
     for name, by in out["scenarios"].items():
         for mission, r in by.items():
             v = r["vs_bound"]
             spread = f"{v['mean']:.2f} [{v['min']:.2f}-{v['max']:.2f}]"
             lost = f" !{r['not_completed']}" if r["not_completed"] else ""
             util = ", ".join(f"{m} {u:.0%}" for m, u in r["utilisation"].items())
+            binds = " ".join(f"{k} {n}" for k, n in r["binds"].items())
             print(
                 f"{name:<20} {mission:<7} {r['mission_s']:>7.0f} {r['bound_s']:>7.0f} "
-                f"{spread:>20}{lost} {r['auctions']:>8.0f}  {util}"
+                f"{spread:>20}{lost} {r['auctions']:>8.0f}  {binds:<18} {util}"
             )
     for mission, v in out["vs_bound"].items():
         met = "met" if out["met"][mission] else "NOT met"
