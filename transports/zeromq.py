@@ -221,6 +221,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         self._configured.discard(system_id)
         self._strangers.dropped(system_id)  # forgotten either way
         self._known.pop(system_id.encode(), None)
+        self._claims.forget(system_id)
         self._unlink(system_id)
 
     def _unlink(self, system_id: str) -> None:

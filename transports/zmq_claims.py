@@ -25,7 +25,7 @@ import zmq
 
 from btcap.errors import BtcapError
 from btcap.transports.identity import OBSERVER, is_observer_id
-from btcap.transports.log import get_logger
+from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.message import Message
 from btcap.transports.security import Curve
 
@@ -47,6 +47,9 @@ RoleTable = Mapping[str, frozenset[type[Message]] | None]
 _INSTANCE_MAX = 64
 _REMEMBER = 256  #: refused connections and logged newcomers remembered (bounded)
 TELL_S = 3.0  #: how long the socket telling a newcomer why stays open
+MAX_TELLING = 8
+"""Newcomers told why at once, at most: each costs a socket and a descriptor for
+:data:`TELL_S`, and any local process can claim a live name from endless endpoints."""
 
 
 class NameTaken(BtcapError, RuntimeError):
@@ -86,12 +89,19 @@ class Claims:
         self.instances: dict[str, str] = {}  #: peer -> the instance its hello named
         self.refused_links: dict[bytes, None] = {}  #: keyed routing ids refused
         self.refused = 0  #: second processes refused
+        self.newcomers = 0  #: the (name, endpoint)s they came from, logged at a falling rate
         self._told: dict[tuple[str, str], None] = {}
-        self._tellers: set[zmq.Socket[bytes]] = set()
+        self._tellers: dict[zmq.Socket[bytes], tuple[str, str]] = {}  #: -> who it tells
 
     def seen(self, peer: str, instance: str) -> None:
+        """``peer`` (a peer we keep: only those, so made-up names leave nothing behind)
+        runs as ``instance``."""
         if instance:
             self.instances[peer] = instance
+
+    def forget(self, peer: str) -> None:
+        """``peer`` is no longer a peer of ours."""
+        self.instances.pop(peer, None)
 
     def is_second(self, peer: str, instance: str) -> bool:
         """Whether a hello under ``peer``'s name (from another endpoint, while our link to
@@ -117,8 +127,11 @@ class Claims:
             self._remember(self.refused_links, raw_ident)
         since = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(up_since))
         why = f"{peer} is already live at {live_at} (since {since}); stop it or use another name"
-        if (peer, endpoint) not in self._told:
+        new = (peer, endpoint) not in self._told
+        if new:
             self._remember(self._told, (peer, endpoint))
+            self.newcomers += 1
+        if new and worth_logging(self.newcomers):  # endless endpoints, not endless lines
             log.warning(
                 "transport.name_taken",
                 system=self.system,
@@ -126,7 +139,10 @@ class Claims:
                 newcomer=endpoint,
                 live_at=live_at,
                 detail="a second process under a live member's name: refused",
+                count=self.newcomers,
             )
+        if len(self._tellers) >= MAX_TELLING or (peer, endpoint) in self._tellers.values():
+            return None  # refused all the same; told once the ones being told are
         return self._tell(ctx, curve, own_id, peer, endpoint, why)
 
     def _tell(
@@ -151,14 +167,14 @@ class Claims:
             log.info("transport.name_taken_untold", system=self.system, peer=peer, error=str(exc))
             sock.close(0)
             return None
-        self._tellers.add(sock)
+        self._tellers[sock] = (peer, endpoint)
         return sock
 
     def done_telling(self, sock: zmq.Socket[bytes] | None = None) -> None:
         """Close a socket that told a newcomer why (None: all of them, on close)."""
         for s in [sock] if sock is not None else list(self._tellers):
             if s in self._tellers:
-                self._tellers.discard(s)
+                del self._tellers[s]
                 s.close(0)
 
     def blocked(self, raw_ident: bytes) -> bool:

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from btcap._enum import FastEnumType
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
+from btcap.transports.zmq_claims import Claims
 from btcap.transports.zmq_endpoints import SCHEMES, check_id
 from btcap.transports.zmq_monitors import Monitor
 from btcap.transports.zmq_sockets import reject
@@ -126,6 +127,7 @@ class PeerFates:
     _endpoints: dict[str, str]
     _configured: set[str]
     _monitors: dict[str, Monitor]
+    _claims: Claims
     _loop: asyncio.AbstractEventLoop | None
     _closed: bool
 
@@ -235,6 +237,7 @@ class PeerFates:
             self._malformed("bad hello", ident, str(exc)[:200])
             return False
         if known is None:
+            self._claims.seen(peer, instance)  # only now: refused names leave nothing
             self._stranger(peer)
         event = "transport.peer_joined" if known is None else "transport.peer_moved"
         log.info(event, system=self.system_id, peer=peer, endpoint=endpoint)

@@ -279,7 +279,8 @@ class PeerRules:
             monitor = self._monitors.get(peer)
         up_since = None if monitor is None else monitor.up_since
         if up_since is None or known is None or not self._claims.is_second(peer, instance):
-            self._claims.seen(peer, instance)
+            if known is not None:  # a newcomer's is noted once it is admitted (_admit)
+                self._claims.seen(peer, instance)
             return False
         raw = self._raw_ident if self.curve is not None else None
         self.stats.drop("name taken")

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
+from btcap.team.core.auction import bounded
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Effect, Pause, Refused, Send, Start
 from btcap.team.core.fence import EXECUTOR_SHARE
@@ -176,7 +177,7 @@ class HostLeases(Generic[R]):
         h = self.hosted.get(execution)
         if h is None:
             return []
-        why = msg.reason or "cancelled"
+        why = bounded(msg.reason) or "cancelled"  # logged here, sent back in our status
         # A run that may have acted confirms it stopped: its origin need not wait out the
         # lease before the task runs elsewhere (an unstarted one never acts: no word).
         done = ExecutionStatus(execution, self.robot, RunState.LOST, {}, h.seq, why)

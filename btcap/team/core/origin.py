@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from btcap.team.core.auction import bounded
 from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.fence import Fences
 from btcap.team.ids import ExecutionId
@@ -153,7 +154,9 @@ class OriginLeases:
             refused = Refused(sender, msg, f"status of {msg.execution}, run by {t.executor}")
             return [refused] if msg.state in _DONE_OR_LOST else [refused, Send(sender, stop)]
         if msg.state is RunState.LOST:  # stopped there: nothing to wait for
-            return self._lose(t, f"executor no longer has it ({msg.detail})", now, stopped=True)
+            # The executor's words go into a log line and a message back: cut to size.
+            why = f"executor no longer has it ({bounded(msg.detail)})"
+            return self._lose(t, why, now, stopped=True)
         outputs = convert(t, msg.outputs)
         if isinstance(outputs, str):
             return [Refused(sender, msg, outputs)]
@@ -161,7 +164,7 @@ class OriginLeases:
         t.state = msg.state
         t.outputs = outputs
         t.acked = max(t.acked, msg.seq)
-        t.detail = msg.detail
+        t.detail = bounded(msg.detail)
         if msg.state in RUN_DONE:  # the result is taken once; duplicates are ignored
             del self.tracked[t.execution]
             self._end(t.execution)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from btcap.team.core.auction import REASON_CHARS
 from btcap.team.core.body import Body
 from btcap.team.core.effects import Drop, Pause, Refused, Send, Start
 from btcap.team.core.hosting import FINISHED_KEPT, Hosted, HostLeases
@@ -156,6 +157,14 @@ def test_pause_and_cancel_only_from_the_origin() -> None:
     assert hl.hosted[E1].state is RunState.PAUSED
     assert hl.cancel("a", CancelExecution(E1, "reset")) == [Drop(E1, "reset", "run-1")]
     assert hl.cancel("a", CancelExecution(E1, "again")) == []
+
+
+def test_a_cancel_reason_is_cut_to_size() -> None:
+    """The origin's reason goes into our log line and our status back: bounded."""
+    hl = host()
+    take(hl, E1)
+    cut = "r" * REASON_CHARS
+    assert hl.cancel("a", CancelExecution(E1, "r" * 900_000)) == [Drop(E1, cut, "run-1")]
 
 
 def test_a_queued_run_is_not_paused_and_is_dropped_first() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from btcap.team.core.auction import REASON_CHARS
 from btcap.team.core.effects import Effect, Lost, Refused, Send
 from btcap.team.core.origin import ENDED_KEPT, OriginLeases
 from btcap.team.ids import ExecutionId
@@ -70,6 +71,19 @@ def test_the_executor_saying_it_lost_the_run_loses_it() -> None:
     gone = ExecutionStatus(E1, "b", RunState.LOST, {}, 0, "unknown execution")
     why = "executor no longer has it (unknown execution)"
     assert o.status("b", gone, now=0.1) == lost(E1, "b", why)
+
+
+def test_an_executors_words_are_kept_and_passed_on_cut_to_size() -> None:
+    """A member that won a run may say anything in its reports: what it says goes into
+    our log line and our cancel back, so it is cut to REASON_CHARS."""
+    o = OriginLeases("a")
+    t = o.track(E1, "b", 1.0, now=0.0)
+    long = "x" * 900_000
+    o.status("b", ExecutionStatus(E1, "b", RunState.RUNNING, {}, 1, long), now=0.1)
+    assert t.detail == "x" * REASON_CHARS
+    gone = ExecutionStatus(E1, "b", RunState.LOST, {}, 2, long)
+    why = f"executor no longer has it ({'x' * REASON_CHARS})"
+    assert o.status("b", gone, now=0.2) == lost(E1, "b", why)
 
 
 def test_a_robot_declared_dead_that_reports_again_is_told_to_stop() -> None:
