@@ -208,9 +208,7 @@ class ObjectPool(ParallelForEach):
         lane = self.children[i]
         most = self.options["identify_at_once"]
         if most > 0 and isinstance(lane, ObjectLane):
-            under_way = sum(
-                c.children[0].state in _ACTIVE for c in self.children if c is not lane
-            )
+            under_way = sum(c.children[0].state in _ACTIVE for c in self.children if c is not lane)
             lane.may_identify = under_way < most
         return super()._run(i, item)
 
