@@ -27,7 +27,13 @@ from typing import Any, ClassVar
 
 from btcap import Node, Parallel, ParallelForEach, Port, Sequence, State, Tree
 from btcap.actors import ActorError
-from btcap.sim.mission.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY, STANDBY
+from btcap.sim.mission.capabilities import (
+    DECONTAMINATE,
+    EXPLORE,
+    IDENTIFY,
+    SPARE_EXPLORE,
+    STANDBY,
+)
 from btcap.sim.mission.leaves import ClaimWork
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
@@ -191,7 +197,7 @@ class ObjectPool(ParallelForEach):
     and ``carries_waiting`` (those of them to carry), so robots that only stand by or
     explore meanwhile know when they are wanted."""
 
-    __slots__ = ()
+    __slots__ = ("_near",)
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
@@ -204,13 +210,46 @@ class ObjectPool(ParallelForEach):
         ),
     }
 
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._near: tuple[int, int] | None = None  # the last identification's object
+
     def _run(self, i: int, item: Any) -> State:
         lane = self.children[i]
         most = self.options["identify_at_once"]
-        if most > 0 and isinstance(lane, ObjectLane):
-            under_way = sum(c.children[0].state in _ACTIVE for c in self.children if c is not lane)
-            lane.may_identify = under_way < most
+        if most > 0 and isinstance(lane, ObjectLane) and lane.children[0].state is State.IDLE:
+            lane.may_identify = self._turn(i, item, most)
+            if lane.may_identify and not item[3]:
+                self._near = (int(item[1]), int(item[2]))
         return super()._run(i, item)
+
+    def _turn(self, i: int, item: Any, most: int) -> bool:
+        """Whether lane ``i`` may start identifying ``item``: fewer than ``most``
+        identifications are under way, and of the objects waiting for one it is among
+        the nearest the last one started (where its identifier went: the next drive is
+        short), not merely the oldest."""
+        waiting: list[tuple[int, int]] = []
+        under_way = 0
+        for j, lane in enumerate(self.children):
+            if j == i or self._lanes[j] is None:
+                continue
+            identify = lane.children[0]
+            if identify.state in _ACTIVE:
+                under_way += 1
+            elif identify.state is State.IDLE and not self._values[j][3]:
+                waiting.append((int(self._values[j][1]), int(self._values[j][2])))
+        free = most - under_way
+        if free <= 0:
+            return False
+        near = self._near
+        if near is None or len(waiting) < free:
+            return True
+
+        def far(cell: tuple[int, int]) -> int:
+            return (cell[0] - near[0]) ** 2 + (cell[1] - near[1]) ** 2
+
+        mine = far((int(item[1]), int(item[2])))
+        return sum(far(c) < mine for c in waiting) < free
 
     def on_tick(self) -> State:
         state = super().on_tick()
@@ -333,7 +372,8 @@ def pool_mission_tree(
     parts.append(Parallel("object_pool", children=[watch_objects, each_object]))
     # goals: the explore lanes, then the spare ones
     watch_goals = WatchWork("list_goal", kind="goal", store=store)
-    caps = [EXPLORE.node_type()("explore") for _ in range(explorers + spare_explorers)]
+    caps = [EXPLORE.node_type()("explore") for _ in range(explorers)]
+    caps += [SPARE_EXPLORE.node_type()("explore_meanwhile") for _ in range(spare_explorers)]
     goal_lanes: list[WorkLane] = [
         WorkLane(f"goal_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:explorers])
     ]
