@@ -174,7 +174,11 @@ class ObjectLane(WorkLane):
         self.outputs["target"] = int(ident)
         self.outputs["at"] = (int(row), int(col))
         identify, carry = self.children
-        if not known and identify.state is not State.SUCCEEDED:
+        # An identification under way runs to its end even once the store knows the
+        # result (the store hears it from the simulation before the capability reports):
+        # left unticked, it would stay running and hold its turn for ever.
+        started = identify.state in _ACTIVE
+        if (not known or started) and identify.state is not State.SUCCEEDED:
             if identify.state is State.IDLE and not self.may_identify:
                 return State.RUNNING  # its turn comes when an identification ends
             s = identify.tick()

@@ -326,3 +326,19 @@ async def test_a_husky_that_finds_an_object_contaminated_carries_it_next() -> No
         for i, j in zip(found, nxt, strict=True)
     )
     assert len(found) >= 3 and chained >= len(found) - 1, (chained, len(found))
+
+
+def test_an_identification_under_way_runs_to_its_end_once_the_store_knows_it() -> None:
+    # The store hears an identification's result from the simulation before the
+    # capability reports it: the next list says "known contaminated" while the
+    # Identify node still runs. Left unticked, it stayed running for ever and held the
+    # only identification turn (full-team seed 8 never identified another object and
+    # ran into its time limit).
+    identify, carry = Identifies(True), Runs()
+    tree = Tree(ObjectLane("lane", children=[identify, carry]))
+    tree.root.set_input("item", (3, 1, 2, 0))
+    tree.tick()
+    assert identify.state is State.RUNNING
+    tree.root.set_input("item", (3, 1, 2, 1))
+    tree.tick()
+    assert identify.state is State.SUCCEEDED and carry.ticks == 1
