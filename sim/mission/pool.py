@@ -201,7 +201,7 @@ class ObjectPool(ParallelForEach):
     and ``carries_waiting`` (those of them to carry), so robots that only stand by or
     explore meanwhile know when they are wanted."""
 
-    __slots__ = ("_near",)
+    __slots__ = ()
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
@@ -214,26 +214,20 @@ class ObjectPool(ParallelForEach):
         ),
     }
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._near: tuple[int, int] | None = None  # the last identification's object
-
     def _run(self, i: int, item: Any) -> State:
         lane = self.children[i]
         most = self.options["identify_at_once"]
         if most > 0 and isinstance(lane, ObjectLane) and lane.children[0].state is State.IDLE:
             lane.may_identify = self._turn(i, item, most)
-            if lane.may_identify and not item[3]:
-                self._near = (int(item[1]), int(item[2]))
         return super()._run(i, item)
 
     def _turn(self, i: int, item: Any, most: int) -> bool:
         """Whether lane ``i`` may start identifying ``item``: fewer than ``most``
         identifications are under way, and of the objects waiting for one it is among
-        the nearest the last one started (where its identifier went: the next drive is
-        short), not merely the oldest."""
-        waiting: list[tuple[int, int]] = []
-        under_way = 0
+        the first listed (the oldest news: found first)."""
+        order = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
+        mine = order.get(item[0], len(order))
+        under_way = before = 0
         for j, lane in enumerate(self.children):
             if j == i or self._lanes[j] is None:
                 continue
@@ -241,19 +235,8 @@ class ObjectPool(ParallelForEach):
             if identify.state in _ACTIVE:
                 under_way += 1
             elif identify.state is State.IDLE and not self._values[j][3]:
-                waiting.append((int(self._values[j][1]), int(self._values[j][2])))
-        free = most - under_way
-        if free <= 0:
-            return False
-        near = self._near
-        if near is None or len(waiting) < free:
-            return True
-
-        def far(cell: tuple[int, int]) -> int:
-            return (cell[0] - near[0]) ** 2 + (cell[1] - near[1]) ** 2
-
-        mine = far((int(item[1]), int(item[2])))
-        return sum(far(c) < mine for c in waiting) < free
+                before += order.get(self._values[j][0], len(order)) < mine
+        return under_way + before < most
 
     def on_tick(self) -> State:
         state = super().on_tick()
