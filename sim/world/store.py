@@ -207,6 +207,7 @@ class MissionState:
         contaminated and not yet carried away, or (``object``) every found object with work
         left, flagged 1 once known contaminated; ``complete`` once no more can come."""
         explored = self.exploration_complete
+        items: list[tuple[int, ...]]
         if kind == "goal":
             items = [(g.id, *g.cell) for g in self.goals.values() if not g.done]
             return WorkList(items, explored)

@@ -7,6 +7,7 @@ catch a hang.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, ClassVar
 
 import anyio
 import msgspec
@@ -15,8 +16,6 @@ import pytest
 
 import btcap.cli
 import btcap.sim.running.runner
-from typing import Any, ClassVar
-
 from btcap import Leaf, Port, State, Tree
 from btcap.cli import main
 from btcap.sim.mission.bound import Presence, mission_bound, presence, scenario_bound
@@ -282,12 +281,14 @@ def test_an_object_lane_carries_in_the_tick_its_identification_ends() -> None:
         tree.root.set_input("item", (3, 1, 2, known))
         states = [tree.tick(), tree.tick()]
         if known:  # known contaminated (a carry that failed): no second identification
-            assert identify.ticks == 0 and carry.ticks == 2
+            assert identify.ticks == 0
+            assert carry.ticks == 2
         elif dirty:
             assert states == [State.RUNNING, State.RUNNING]
             assert carry.ticks == 1  # in the tick the identification succeeded
         else:
-            assert states == [State.RUNNING, State.SUCCEEDED] and carry.ticks == 0
+            assert states == [State.RUNNING, State.SUCCEEDED]
+            assert carry.ticks == 0
 
 
 def test_an_object_pool_caps_identifications_and_counts_work_waiting_for_a_robot() -> None:
@@ -305,7 +306,8 @@ def test_an_object_pool_caps_identifications_and_counts_work_waiting_for_a_robot
     assert (pool.outputs["waiting"], pool.outputs["carries_waiting"]) == (2, 0)
     for _ in range(3):  # the first is identified: its carry runs, the second's turn
         tree.tick()
-    assert first.ticks == 4 and second.ticks >= 1
+    assert first.ticks == 4
+    assert second.ticks >= 1
 
 
 async def test_a_husky_that_finds_an_object_contaminated_carries_it_next() -> None:
@@ -325,7 +327,8 @@ async def test_a_husky_that_finds_an_object_contaminated_carries_it_next() -> No
         j is not None and (j.kind, j.target) == ("decontaminate", i.target)
         for i, j in zip(found, nxt, strict=True)
     )
-    assert len(found) >= 3 and chained >= len(found) - 1, (chained, len(found))
+    assert len(found) >= 3
+    assert chained >= len(found) - 1, (chained, len(found))
 
 
 def test_an_identification_under_way_runs_to_its_end_once_the_store_knows_it() -> None:
@@ -341,4 +344,5 @@ def test_an_identification_under_way_runs_to_its_end_once_the_store_knows_it() -
     assert identify.state is State.RUNNING
     tree.root.set_input("item", (3, 1, 2, 1))
     tree.tick()
-    assert identify.state is State.SUCCEEDED and carry.ticks == 1
+    assert identify.state is State.SUCCEEDED
+    assert carry.ticks == 1

@@ -442,4 +442,5 @@ def test_the_object_list_holds_each_object_with_its_work_left() -> None:
     s.decontaminated(1)
     s.decontaminated(0)
     listed = s.work_list("object")
-    assert listed.items == [] and listed.complete == s.exploration_complete
+    assert listed.items == []
+    assert listed.complete == s.exploration_complete
