@@ -3,15 +3,18 @@
 The paper's tree (:mod:`btcap.sim.mission.paper`) runs one Explore loop beside
 ``object_workers`` loops that each hold an object from its identification to the end of
 its carry: an object waits for a loop while a loop waits for a Husky, and the Spot is
-idle meanwhile. Here each kind of work is a pool: exploration goals, objects found and
-not yet identified, and objects found contaminated, each listed by the shared store as
-it appears, and a :class:`~btcap.bt.foreach.ParallelForEach` runs a lane (one
-capability) per item, with as many lanes as the scenario has robots able to do it. An
-object is released to the carry pool the moment it is identified, and identification
-never waits on exploration or on a carry. Robots the lanes leave out are not idle: a
-carrier with nothing else to do stands by at the objects awaiting identification
-(:class:`StandByLane`), and other explorers explore while nothing waits to be
-identified or carried (:class:`SpareLane`).
+idle meanwhile. Here work comes from pools the shared store lists as it appears, each run
+by a :class:`~btcap.bt.foreach.ParallelForEach`: exploration goals (a lane each, as many
+at once as robots explore and do nothing scarcer), and objects found with work left, a
+lane each (:class:`ObjectLane`: identify, then carry if contaminated), so identification
+never waits on exploration or on a carry. The carry is auctioned in the tick the
+identification ends: the robot that identified the object, if it can carry, is then the
+nearest bidder, before other work takes it. Identifications take turns (as many at once
+as robots identify and do nothing scarcer, oldest-found first), so a carrier is not
+handed one a Spot will do. Robots the lanes leave out are not idle: a carrier with
+nothing else to do stands by at the objects awaiting identification
+(:class:`StandByLane`), and robots that explore and can also do object work explore
+while no object's work waits for a robot (:class:`SpareLane`).
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
 runs again; a goal that another exploration covered leaves the list. Items are told
@@ -39,11 +42,15 @@ from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
 
 __all__ = [
+    "ObjectLane",
+    "ObjectPool",
+    "SpareLane",
     "StandByLane",
     "WatchWork",
     "WorkLane",
     "pool_lanes",
     "pool_mission_tree",
+    "spare_explorers",
     "standby_lanes",
 ]
 
