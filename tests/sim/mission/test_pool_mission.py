@@ -19,12 +19,14 @@ import btcap.sim.running.runner
 from btcap import Leaf, Port, State, Tree
 from btcap.cli import main
 from btcap.sim.mission.bound import Presence, mission_bound, presence, scenario_bound
+from btcap.sim.mission.capabilities import robot_setup
 from btcap.sim.mission.pool import (
     ObjectLane,
     ObjectPool,
     SpareLane,
     StandByLane,
     pool_lanes,
+    pool_mission_tree,
     spare_explorers,
     standby_lanes,
 )
@@ -346,3 +348,20 @@ def test_an_identification_under_way_runs_to_its_end_once_the_store_knows_it() -
     tree.tick()
     assert identify.state is State.SUCCEEDED
     assert carry.ticks == 1
+
+
+def test_only_robots_that_can_also_do_object_work_explore_meanwhile() -> None:
+    # A spare exploration is cut short when object work waits for a robot: run by the
+    # Bebop (a lane is not a robot), that halted the one robot that can do none of it
+    # (full-team seed 3: the Bebop idle 41 s while the Husky explored on).
+    grid = scenario("full-team", 1).grid()
+    team = paper_team()
+    offered = {
+        name: {i.interface.name for i in robot_setup(name, team[name], grid).implementations}
+        for name in ("husky", "spot", "bebop")
+    }
+    assert "ExploreMeanwhile" in offered["husky"]
+    assert "ExploreMeanwhile" not in offered["bebop"] | offered["spot"]
+    tree = pool_mission_tree(explorers=1, spare_explorers=1)
+    spare = next(n for n in tree.nodes() if isinstance(n, SpareLane))
+    assert type(spare.children[0]).INTERFACE.name == "ExploreMeanwhile"
