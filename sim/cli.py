@@ -104,7 +104,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--mission",
         choices=("paper", "pool"),
         help="the mission tree: paper (the paper's loops; the built-in scenarios' choice) or "
-        "pool (a lane per goal, object to identify and object to carry)",
+        "pool (a lane per goal and per object: identify, then carry)",
     )
     p.add_argument(
         "--fast",

@@ -3,8 +3,9 @@
 Each scenario and seed runs the real mission (every robot an agent, ``run_fast`` on a
 virtual clock, the scenario's jitter and failures) with the paper's tree (``paper``:
 one Explore loop beside ``object_workers`` identify-then-carry loops) and with the pool
-mission (``pool``: a lane per goal, object to identify and object to carry, carriers
-standing by near objects awaiting identification, spare explorers; see
+mission (``pool``: a lane per goal and per object found, which identifies it and
+carries it if contaminated, carriers standing by near objects awaiting identification,
+spare explorers; see
 :mod:`btcap.sim.mission.pool`), and divides its mission time by the scenario's lower bound
 (:mod:`btcap.sim.mission.bound`: what no allocation, tree or timing could beat, stated there;
 the operations on objects priced by the seed's own draws, as every run of the seed draws

@@ -35,6 +35,7 @@ __all__ = [
     "IDENTIFY",
     "INTERFACES",
     "ROBOT_CACHE_SIZE",
+    "SPARE_EXPLORE",
     "STANDBY",
     "Drive",
     "RobotSetup",
@@ -70,7 +71,16 @@ STANDBY = CapabilityInterface(
     description="Drive to where work may come soon (an object found, not yet identified), "
     "to be near when it does; only robots that can carry stand by.",
 )
-#: The paper's capabilities (StandBy is the pool mission's own, offered beside them).
+SPARE_EXPLORE = CapabilityInterface(
+    "ExploreMeanwhile",
+    inputs={"goal": tuple[int, int]},
+    outputs={"found": Port(int, 0)},
+    description="Explore a goal while no object work waits; only robots that can also "
+    "identify or carry offer it, so cutting it short for such work frees a robot that "
+    "can do that work (an explorer that can do nothing else is never stopped for it).",
+)
+#: The paper's capabilities (StandBy and ExploreMeanwhile are the pool mission's own,
+#: offered beside them).
 INTERFACES = (EXPLORE, IDENTIFY, DECONTAMINATE)
 
 
@@ -95,6 +105,8 @@ class _Operation:
     result: str | None = None
     then_decon: bool = False  # the robot goes on to the decontamination area
     drive_only: bool = False  # no operation: the drive is the work (a robot able to ``op``)
+    name: str = ""  # the implementation's name (before "-robot"); default: leaf or op
+    also: tuple[str, ...] = ()  # offered only by robots able to do one of these too
 
 
 _OPERATIONS = (
@@ -104,6 +116,15 @@ _OPERATIONS = (
         DECONTAMINATE, "decontaminate", "carry", goal="at", target="object", then_decon=True
     ),
     _Operation(STANDBY, "decontaminate", "standby", goal="at", drive_only=True),
+    _Operation(
+        SPARE_EXPLORE,
+        "explore",
+        "explore",
+        goal="goal",
+        result="found",
+        name="explore_meanwhile",
+        also=("identify", "decontaminate"),
+    ),
 )
 
 
@@ -266,8 +287,12 @@ def robot_setup(
                 tree.wire(leaf, o.result, bo, o.result)
             return tree
 
-        name = o.leaf if o.drive_only else o.op
+        name = o.name or (o.leaf if o.drive_only else o.op)
         return Implementation(f"{name}-{robot}", o.interface, build, bid=bid)
 
-    impls = [implementation(o) for o in _OPERATIONS if model.can(o.op)]
+    impls = [
+        implementation(o)
+        for o in _OPERATIONS
+        if model.can(o.op) and (not o.also or any(model.can(k) for k in o.also))
+    ]
     return RobotSetup(impls, {Body.PATH: body})

@@ -3,15 +3,18 @@
 The paper's tree (:mod:`btcap.sim.mission.paper`) runs one Explore loop beside
 ``object_workers`` loops that each hold an object from its identification to the end of
 its carry: an object waits for a loop while a loop waits for a Husky, and the Spot is
-idle meanwhile. Here each kind of work is a pool: exploration goals, objects found and
-not yet identified, and objects found contaminated, each listed by the shared store as
-it appears, and a :class:`~btcap.bt.foreach.ParallelForEach` runs a lane (one
-capability) per item, with as many lanes as the scenario has robots able to do it. An
-object is released to the carry pool the moment it is identified, and identification
-never waits on exploration or on a carry. Robots the lanes leave out are not idle: a
-carrier with nothing else to do stands by at the objects awaiting identification
-(:class:`StandByLane`), and other explorers explore while nothing waits to be
-identified or carried (:class:`SpareLane`).
+idle meanwhile. Here work comes from pools the shared store lists as it appears, each run
+by a :class:`~btcap.bt.foreach.ParallelForEach`: exploration goals (a lane each, as many
+at once as robots explore and do nothing scarcer), and objects found with work left, a
+lane each (:class:`ObjectLane`: identify, then carry if contaminated), so identification
+never waits on exploration or on a carry. The carry is auctioned in the tick the
+identification ends: the robot that identified the object, if it can carry, is then the
+nearest bidder, before other work takes it. Identifications take turns (as many at once
+as robots identify and do nothing scarcer, oldest-found first), so a carrier is not
+handed one a Spot will do. Robots the lanes leave out are not idle: a carrier with
+nothing else to do stands by at the objects awaiting identification
+(:class:`StandByLane`), and robots that explore and can also do object work explore
+while no object's work waits for a robot (:class:`SpareLane`).
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
 runs again; a goal that another exploration covered leaves the list. Items are told
@@ -27,21 +30,33 @@ from typing import Any, ClassVar
 
 from btcap import Node, Parallel, ParallelForEach, Port, Sequence, State, Tree
 from btcap.actors import ActorError
-from btcap.sim.mission.capabilities import DECONTAMINATE, EXPLORE, IDENTIFY, STANDBY
+from btcap.sim.mission.capabilities import (
+    DECONTAMINATE,
+    EXPLORE,
+    IDENTIFY,
+    SPARE_EXPLORE,
+    STANDBY,
+)
 from btcap.sim.mission.leaves import ClaimWork
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
 
 __all__ = [
+    "ObjectLane",
+    "ObjectPool",
+    "SpareLane",
     "StandByLane",
     "WatchWork",
     "WorkLane",
     "pool_lanes",
     "pool_mission_tree",
+    "spare_explorers",
     "standby_lanes",
 ]
 
-_KINDS = ("goal", "identify", "carry")
+_KINDS = ("goal", "identify", "carry", "object")
+_ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
+_NOT_BEGUN = (State.IDLE, State.UNASSIGNED)  # no robot has it yet
 _OPS = ("explore", "identify", "decontaminate")
 
 
@@ -89,9 +104,9 @@ class WatchWork(ClaimWork):
     offering work done since, which a lane would try again and again.)"""
 
     __slots__ = ()
-    OUTPUTS: ClassVar[Any] = {"items": list[tuple[int, int, int]], "complete": bool}
+    OUTPUTS: ClassVar[Any] = {"items": list[tuple[int, ...]], "complete": bool}
     OPTIONS: ClassVar[Any] = {
-        "kind": Port(str, description="goal, identify or carry"),
+        "kind": Port(str, description="goal, identify, carry or object"),
         "store": Port(str, "sim/store"),
         "poll_s": Port(float, 0.5, "clock seconds between two lists"),
     }
@@ -131,55 +146,167 @@ class WorkLane(Sequence):
     OUTPUTS: ClassVar[Any] = {"target": int, "at": tuple[int, int]}
 
     def on_tick(self) -> State:
-        ident, row, col = self.inputs["item"]
+        ident, row, col = self.inputs["item"][:3]
         self.outputs["target"] = int(ident)
         self.outputs["at"] = (int(row), int(col))
         return super().on_tick()
+
+
+def _halt_all(lane: Node) -> None:
+    for c in lane.children:
+        if c.state is not State.IDLE:
+            c.reset()
+
+
+class ObjectLane(WorkLane):
+    """All the work one object ``(id, row, col, contaminated)`` still needs: its first
+    child identifies it (unless the item says it is known contaminated), its second
+    carries it if contaminated, opened in the very tick the identification ends, so the
+    robot that identified it (if it can carry) is the nearest bidder and is not taken by
+    other work first; a clean object's lane succeeds there. A lane that fails (either
+    step) runs again from the store's latest news of the object."""
+
+    __slots__ = ("may_identify",)
+    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int, int]}
+    MIN_CHILDREN: ClassVar[int] = 2
+    MAX_CHILDREN: ClassVar[int | None] = 2
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        #: Whether an identification may start now (its pool's limit; see ObjectPool).
+        self.may_identify = True
+
+    def on_tick(self) -> State:
+        ident, row, col, known = self.inputs["item"]
+        self.outputs["target"] = int(ident)
+        self.outputs["at"] = (int(row), int(col))
+        identify, carry = self.children
+        # An identification under way runs to its end even once the store knows the
+        # result (the store hears it from the simulation before the capability reports):
+        # left unticked, it would stay running and hold its turn for ever.
+        started = identify.state in _ACTIVE
+        if (not known or started) and identify.state is not State.SUCCEEDED:
+            if identify.state is State.IDLE and not self.may_identify:
+                return State.RUNNING  # its turn comes when an identification ends
+            s = identify.tick()
+            if s is State.FAILED or s is State.ERROR:
+                return State.FAILED
+            if s is not State.SUCCEEDED:
+                return State.RUNNING
+            if not identify.outputs["contaminated"]:
+                return State.SUCCEEDED
+        s = carry.tick()
+        if s is State.SUCCEEDED:
+            return s
+        return State.FAILED if s is State.FAILED or s is State.ERROR else State.RUNNING
+
+
+class ObjectPool(ParallelForEach):
+    """The :class:`ObjectLane` of every object with work left; beside the counts of
+    :class:`~btcap.bt.foreach.ParallelForEach` it says how much work waits for a robot:
+    ``waiting`` (objects listed without a lane, lanes whose capability is unassigned)
+    and ``carries_waiting`` (those of them to carry), so robots that only stand by or
+    explore meanwhile know when they are wanted."""
+
+    __slots__ = ()
+    OUTPUTS: ClassVar[Any] = {
+        **ParallelForEach.OUTPUTS,
+        "waiting": int,
+        "carries_waiting": int,
+    }
+    OPTIONS: ClassVar[Any] = {
+        **ParallelForEach.OPTIONS,
+        "identify_at_once": Port(
+            int, 0, "identifications at once (the rest wait for one to end); 0: no limit"
+        ),
+    }
+
+    def _run(self, i: int, item: Any) -> State:
+        lane = self.children[i]
+        most = self.options["identify_at_once"]
+        if most > 0 and isinstance(lane, ObjectLane) and lane.children[0].state is State.IDLE:
+            lane.may_identify = self._turn(i, item, most)
+        return super()._run(i, item)
+
+    def _turn(self, i: int, item: Any, most: int) -> bool:
+        """Whether lane ``i`` may start identifying ``item``: fewer than ``most``
+        identifications are under way, and of the objects waiting for one it is among
+        the first listed (the oldest news: found first)."""
+        order = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
+        mine = order.get(item[0], len(order))
+        under_way = before = 0
+        for j, lane in enumerate(self.children):
+            if j == i or self._lanes[j] is None:
+                continue
+            identify = lane.children[0]
+            if identify.state in _ACTIVE:
+                under_way += 1
+            elif identify.state is State.IDLE and not self._values[j][3]:
+                before += order.get(self._values[j][0], len(order)) < mine
+        return under_way + before < most
+
+    def on_tick(self) -> State:
+        state = super().on_tick()
+        waiting = carries = 0
+        for i, lane in enumerate(self.children):
+            if self._lanes[i] is None or lane.state not in _ACTIVE:
+                continue
+            identify, carry = lane.children
+            if carry.state is State.UNASSIGNED:
+                waiting += 1
+                carries += 1
+            elif carry.state is State.IDLE and identify.state in _NOT_BEGUN:
+                waiting += 1
+        held = set(self._lanes)
+        for item in self.inputs["items"] or []:
+            if item[0] not in held and self._unstarted(item[0]):
+                waiting += 1
+                carries += bool(item[3])
+        self.outputs["waiting"], self.outputs["carries_waiting"] = waiting, carries
+        return state
+
+    def _unstarted(self, key: int) -> bool:
+        return key not in self._finished and key not in self._lost
 
 
 class StandByLane(WorkLane):
     """A :class:`WorkLane` that stands a carrier by near an object awaiting
     identification, so that it is near if the object turns out contaminated: it ends
     (halting and resetting its children, which frees the robot) once the object is no
-    longer ``listed`` for identification or any carry waits (``carries``)."""
+    longer ``listed`` awaiting identification (flag 0) or a carry waits for a robot
+    (``waiting`` > 0: one being carried is no reason to stop)."""
 
     __slots__ = ()
     INPUTS: ClassVar[Any] = {
         "item": tuple[int, int, int],
-        "listed": list[tuple[int, int, int]],
-        "carries": list[tuple[int, int, int]],
+        "listed": list[tuple[int, ...]],
+        "waiting": Port(int, 0),
     }
 
     def on_tick(self) -> State:
         ident = self.inputs["item"][0]
-        wanted = any(i[0] == ident for i in self.inputs["listed"] or [])
-        if wanted and not self.inputs["carries"]:
+        listed = self.inputs["listed"] or []
+        wanted = any(i[0] == ident and not any(i[3:]) for i in listed)
+        if wanted and not self.inputs["waiting"]:
             return super().on_tick()
-        for c in self.children:
-            if c.state is not State.IDLE:
-                c.reset()
+        _halt_all(self)
         return State.SUCCEEDED
 
 
 class SpareLane(WorkLane):
     """A :class:`WorkLane` for a robot whose own pools have nothing for it now: it runs
-    only while no object waits to be identified or carried (``identify``, ``carry``),
-    and fails at once otherwise, halting and resetting its children (which frees the
-    robot for that work), so the item runs again in another lane."""
+    only while no object's work waits for a robot (``waiting``: an identification or a
+    carry not yet taken; one under way is no reason to stop), and fails at once
+    otherwise, halting and resetting its children (which frees the robot for that work),
+    so the item runs again in another lane."""
 
     __slots__ = ()
-    INPUTS: ClassVar[Any] = {
-        "item": tuple[int, int, int],
-        "identify": list[tuple[int, int, int]],
-        "carry": list[tuple[int, int, int]],
-    }
+    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int], "waiting": Port(int, 0)}
 
     def on_tick(self) -> State:
-        if not self.inputs["identify"] and not self.inputs["carry"]:
+        if not self.inputs["waiting"]:
             return super().on_tick()
-        for c in self.children:
-            if c.state is not State.IDLE:
-                c.reset()
+        _halt_all(self)
         return State.FAILED
 
 
@@ -190,66 +317,89 @@ def pool_mission_tree(
     carriers: int = 1,
     standby: int = 0,
     spare_explorers: int = 0,
+    objects: int = 0,
     store: str = "sim/store",
 ) -> Tree:
-    """The pool mission with at most ``explorers`` explorations, ``identifiers``
-    identifications and ``carriers`` carries at once, and ``standby`` carriers standing
-    by near objects awaiting identification while no carry waits; it succeeds once the
-    cave is explored and every object found is identified and, if contaminated, carried."""
-    parts: list[Node] = []
-    wires: list[tuple[Node, str, Node, str]] = []
-    watches: dict[str, WatchWork] = {}
-    spares: list[Node] = []
-    for kind, interface, lanes in (
-        ("goal", EXPLORE, explorers),
-        ("identify", IDENTIFY, identifiers),
-        ("carry", DECONTAMINATE, carriers),
-    ):
+    """The pool mission with at most ``explorers`` explorations at once (and
+    ``spare_explorers`` more while no object's work waits), an object lane for each of
+    up to ``objects`` objects with work left at once (at least ``identifiers +
+    carriers``: the lanes only hold work, robots are the auction's), and ``standby``
+    carriers standing by near objects awaiting identification while no carry waits; it
+    succeeds once the cave is explored and every object found is identified and, if
+    contaminated, carried."""
+    for kind, lanes in (("goal", explorers), ("identify", identifiers), ("carry", carriers)):
         if lanes < 1:
             raise ValueError(f"{kind}: expected at least one lane, got {lanes}")
-        watch = watches[kind] = WatchWork(f"list_{kind}", kind=kind, store=store)
-        spare = spare_explorers if kind == "goal" else 0
-        caps = [interface.node_type()(interface.name.lower()) for _ in range(lanes + spare)]
-        lane: list[WorkLane] = [
-            WorkLane(f"{kind}_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:lanes])
+    parts: list[Node] = []
+    wires: list[tuple[Node, str, Node, str]] = []
+    # objects: a lane each, identify then carry
+    watch_objects = WatchWork("list_object", kind="object", store=store)
+    n_objects = max(objects, identifiers + carriers)
+    object_lanes: list[Node] = []
+    for k in range(n_objects):
+        identify = IDENTIFY.node_type()("identify")
+        carry = DECONTAMINATE.node_type()("decontaminate")
+        lane = ObjectLane(f"object_{k + 1}", children=[identify, carry])
+        object_lanes.append(lane)
+        wires += [
+            (lane, "target", identify, "object"),
+            (lane, "at", identify, "at"),
+            (lane, "target", carry, "object"),
+            (lane, "at", carry, "at"),
         ]
-        lane += [
-            SpareLane(f"spare_{kind}_{k + 1}", children=[c]) for k, c in enumerate(caps[lanes:])
-        ]
-        spares += lane[lanes:]
-        # Items told apart by their id: an object dropped elsewhere is the same object,
-        # its running lane told where it now lies, not a second lane started for it.
-        # A failed carry dropped its object where the carrier was: it runs again from a
-        # list read after the drop (a poll begun after it has come back within four poll
-        # periods), not from the spot it was taken at.
-        wait = 4 * watch.options["poll_s"] if kind == "carry" else 0.0
-        each = ParallelForEach(
-            f"each_{kind}", children=lane, retry_failed=True, key=0, retry_after_s=wait
-        )
-        for ln, cap in zip(lane, caps, strict=True):
-            if kind == "goal":
-                wires.append((ln, "at", cap, "goal"))
-            else:
-                wires += [(ln, "target", cap, "object"), (ln, "at", cap, "at")]
-        parts.append(Parallel(f"{kind}_pool", children=[watch, each]))
-        wires += [(watch, "items", each, "items"), (watch, "complete", each, "complete")]
-    for spare_lane in spares:
-        wires += [(watches[k], "items", spare_lane, k) for k in ("identify", "carry")]
+    # Items told apart by their id: an object dropped elsewhere is the same object, its
+    # running lane told where it now lies, not a second lane started for it. A failed
+    # carry dropped its object where the carrier was: it runs again from a list read
+    # after the drop (a poll begun after it has come back within four poll periods).
+    each_object = ObjectPool(
+        "each_object",
+        children=object_lanes,
+        retry_failed=True,
+        key=0,
+        retry_after_s=4 * watch_objects.options["poll_s"],
+        identify_at_once=identifiers,
+    )
+    wires += [
+        (watch_objects, "items", each_object, "items"),
+        (watch_objects, "complete", each_object, "complete"),
+    ]
+    parts.append(Parallel("object_pool", children=[watch_objects, each_object]))
+    # goals: the explore lanes, then the spare ones
+    watch_goals = WatchWork("list_goal", kind="goal", store=store)
+    caps = [EXPLORE.node_type()("explore") for _ in range(explorers)]
+    caps += [SPARE_EXPLORE.node_type()("explore_meanwhile") for _ in range(spare_explorers)]
+    goal_lanes: list[WorkLane] = [
+        WorkLane(f"goal_{k + 1}", children=[cap]) for k, cap in enumerate(caps[:explorers])
+    ]
+    goal_lanes += [
+        SpareLane(f"spare_goal_{k + 1}", children=[c]) for k, c in enumerate(caps[explorers:])
+    ]
+    each_goal = ParallelForEach("each_goal", children=goal_lanes, retry_failed=True, key=0)
+    for ln, cap in zip(goal_lanes, caps, strict=True):
+        wires.append((ln, "at", cap, "goal"))
+        if isinstance(ln, SpareLane):
+            wires.append((each_object, "waiting", ln, "waiting"))
+    wires += [
+        (watch_goals, "items", each_goal, "items"),
+        (watch_goals, "complete", each_goal, "complete"),
+    ]
+    parts.append(Parallel("goal_pool", children=[watch_goals, each_goal]))
     if standby > 0:
+        watch_new = WatchWork("list_identify", kind="identify", store=store)
         bys = [STANDBY.node_type()("standby") for _ in range(standby)]
         stand = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(bys)]
         each = ParallelForEach("each_standby", children=stand, key=0)
         for ln, cap in zip(stand, bys, strict=True):
             wires += [
                 (ln, "at", cap, "at"),
-                (watches["identify"], "items", ln, "listed"),
-                (watches["carry"], "items", ln, "carries"),
+                (watch_objects, "items", ln, "listed"),
+                (each_object, "carries_waiting", ln, "waiting"),
             ]
         wires += [
-            (watches["identify"], "items", each, "items"),
-            (watches["identify"], "complete", each, "complete"),
+            (watch_new, "items", each, "items"),
+            (watch_new, "complete", each, "complete"),
         ]
-        parts.append(each)
+        parts.append(Parallel("standby_pool", children=[watch_new, each]))
     tree = Tree(Parallel("mission", children=parts), name="find_and_decontaminate_pool")
     for src, out, dst, inp in wires:
         tree.wire(src, out, dst, inp)

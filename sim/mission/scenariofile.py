@@ -305,8 +305,9 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
         _doc(
             "The mission tree: `paper`, the paper's (one Explore loop beside "
             "`object_workers` identify-and-decontaminate loops), or `pool` (a lane per "
-            "goal, object to identify and object to carry, as many at once of each as "
-            "robots can do it; objects go to the carry pool once identified)."
+            "goal and per object found, which identifies the object and carries it if "
+            "contaminated, the carry auctioned the moment it is identified; as many "
+            "explorations and identifications at once as robots can do them)."
         ),
     ] = "paper"
     team_file: Annotated[

@@ -49,6 +49,9 @@ __all__ = ["HostFactory", "Progress", "run_scenario"]
 
 log = get_logger(__name__)
 
+#: Object lanes of the pool mission at most (one per object the scenario scatters up to
+#: this; beyond, an object waits for a lane to come free).
+MAX_OBJECT_LANES = 64
 #: Seconds the robots present at the start have to join the team: of the wall on a real
 #: clock, of the clock on a virtual one (where wall time must decide nothing).
 TEAM_FORMS_S = 60.0
@@ -267,6 +270,7 @@ def _mission(s: Scenario) -> Tree:
         carriers=carry,
         standby=standby_lanes(team),
         spare_explorers=spare_explorers(team),
+        objects=min(s.objects, MAX_OBJECT_LANES),
     )
 
 

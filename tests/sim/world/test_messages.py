@@ -25,6 +25,8 @@ def _strategy(hint: Any) -> st.SearchStrategy[Any]:
     args = typing.get_args(hint)
     if hint is int:
         return INT64
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:  # tuple[int, ...]
+        return st.lists(_strategy(args[0]), max_size=5).map(tuple)
     if origin is tuple:
         return st.tuples(*(_strategy(a) for a in args))
     if origin is list:

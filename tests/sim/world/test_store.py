@@ -420,3 +420,27 @@ def test_work_lists_give_the_oldest_news_first() -> None:
     s.identify(1)
     s.identify(0)
     assert [i[0] for i in s.work_list("carry").items] == [1, 0]
+
+
+def test_the_object_list_holds_each_object_with_its_work_left() -> None:
+    # One list for the pool mission's object lanes: an object awaiting identification
+    # (flag 0), then, once known contaminated, to carry (flag 1); gone once clean or
+    # decontaminated.
+    s = state_with(CORRIDOR, [(2, 25), (2, 3), (2, 12)], [True, True, False])
+    s.explore((2, 0), 4.0)
+    s.explore((2, 12), 4.0)
+    assert s.work_list("object").items == [(1, 2, 3, 0), (2, 2, 12, 0)]
+    assert not s.work_list("object").complete
+    s.identify(1)
+    s.identify(2)
+    assert s.work_list("object").items == [(1, 2, 3, 1)]
+    s.pick_up(1, "husky")
+    s.drop(1, (2, 5))
+    assert s.work_list("object").items == [(1, 2, 5, 1)]  # where it fell
+    s.explore((2, 25), 4.0)
+    s.identify(0)
+    s.decontaminated(1)
+    s.decontaminated(0)
+    listed = s.work_list("object")
+    assert listed.items == []
+    assert listed.complete == s.exploration_complete
