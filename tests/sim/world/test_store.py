@@ -420,3 +420,22 @@ def test_work_lists_give_the_oldest_news_first() -> None:
     s.identify(1)
     s.identify(0)
     assert [i[0] for i in s.work_list("carry").items] == [1, 0]
+
+
+def test_every_change_of_an_objects_picture_is_counted() -> None:
+    """The monitor's world feed reads the objects only when the state counts a change."""
+    s = state_with(CORRIDOR, [(2, 3), (2, 20)], [True, True])
+    counted = [s.changes]
+    s.explore((2, 0), 4.0)  # finds object 0
+    s.explore((2, 0), 4.0)  # finds nothing new
+    counted.append(s.changes)
+    s.identify(0)
+    counted.append(s.changes)
+    s.pick_up(0, "husky1")
+    counted.append(s.changes)
+    s.drop(0, (2, 10))
+    counted.append(s.changes)
+    s.pick_up(0, "husky1")
+    s.decontaminated(0)
+    counted.append(s.changes)
+    assert counted == [0, 1, 2, 3, 4, 6]
