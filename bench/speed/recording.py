@@ -225,7 +225,11 @@ def _count(name: str, conditions: Sequence[str]) -> dict[str, Any] | None:
 
 
 def _child(name: str, condition: str) -> None:
-    """One run (what :func:`_count` has valgrind count); ``idle`` loads the scenario only."""
+    """One run (what :func:`_count` has valgrind count); ``idle`` loads the scenario only.
+    Every condition imports the recorders first, so the counts differ by the run alone
+    (MCAP's modules cost some 20 ms of CPU once, whatever the run's length)."""
+    import btcap.monitor.mcaprecord  # noqa: F401
+
     with tempfile.TemporaryDirectory() as tmp:
         if condition == "idle":
             load_scenario(builtin_scenarios()[name])
