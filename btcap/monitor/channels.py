@@ -208,6 +208,8 @@ LOG_TOPIC = "/log"
 LOG_SCHEMA: dict[str, Any] = LOG
 
 _INFO, _WARNING = 2, 3
+#: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:func:`messages`).
+_PICTURES = frozenset({"robot", "tree", "states"})
 _encode = msgspec.json.Encoder()
 
 
@@ -252,8 +254,11 @@ def messages(ev: Event) -> tuple[int, list[tuple[str, dict[str, Any], bytes]]]:
     its ``foxglove.Log`` line if it has one, and its drawing if it is of the world
     (``(topic, schema, JSON)`` each)."""
     ns = round(float(ev["t"]) * 1e9)
-    topic, schema = event_schema(ev["k"])
+    kind = ev["k"]
+    topic, schema = EVENT_TOPICS.get(kind, OTHER_TOPIC)
     out = [(topic, schema, _encode.encode(ev))]
+    if kind in _PICTURES:  # most events (a tree's states): no line, no drawing
+        return ns, out
     line = log_line(ev)
     if line is not None:
         level, name, text = line

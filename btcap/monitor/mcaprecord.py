@@ -86,24 +86,32 @@ class McapRecorder:
         if self._closed:
             return
         try:
-            for ev in batch:
-                self._add(ev)
+            self._add(batch)
             self._file.flush()
         except OSError as exc:
             self._failed(exc)
 
-    def _add(self, ev: Event) -> None:
-        t = float(ev["t"])
-        if self._chunk_t is None:
-            self._chunk_t = t
-        elif t >= self._chunk_t + self._chunk_s:  # by the event's clock: the same every run
-            self._writer.flush()  # type: ignore[no-untyped-call]
-            self._chunk_t = t
-        ns, out = messages(ev)
-        self._sequence += 1
-        for topic, schema, data in out:
-            cid = self._channel(topic, schema)
-            self._writer.add_message(cid, ns, data, ns, self._sequence)
+    def _add(self, batch: Iterable[Event]) -> None:
+        # one loop over the batch, names bound once: a run writes thousands of messages
+        writer, channels, sequence = self._writer, self._channels, self._sequence
+        add = writer.add_message
+        try:
+            for ev in batch:
+                t = float(ev["t"])
+                if self._chunk_t is None:
+                    self._chunk_t = t
+                elif t >= self._chunk_t + self._chunk_s:  # by the clock: the same every run
+                    writer.flush()  # type: ignore[no-untyped-call]
+                    self._chunk_t = t
+                ns, out = messages(ev)
+                sequence += 1
+                for topic, schema, data in out:
+                    cid = channels.get(topic)
+                    if cid is None:
+                        cid = self._channel(topic, schema)
+                    add(cid, ns, data, ns, sequence)
+        finally:
+            self._sequence = sequence
 
     def close(self) -> None:
         if self._closed:

@@ -107,6 +107,23 @@ class TreeTap:
             shape += (id(run.run.tree), run.run.tree.version) if run is not None else (0, 0)
         return tuple(shape)
 
+    def _reshaped(self) -> bool:
+        """Whether the shape differs from the last :meth:`structure`'s, read in place:
+        this runs at every batch, and nearly always finds it the same (no tuple built)."""
+        shape = self._shape
+        if self.tree.version != shape[0]:
+            return True
+        i = 1
+        for slot in self._slots:
+            run = slot.current
+            if run is None:
+                if shape[i]:
+                    return True
+            elif shape[i] != id(tree := run.run.tree) or shape[i + 1] != tree.version:
+                return True
+            i += 2
+        return False
+
     def structure(self) -> Event:
         """The whole tree as one event (sent at the start and whenever it changed)."""
         own = list(self.tree.nodes())
@@ -155,9 +172,7 @@ class TreeTap:
     def flush(self) -> Event | None:
         """The states changed since the last flush, or the whole tree if its shape changed
         (nodes came or went, or a slot took up or put down a run)."""
-        if self.tree.version != self._shape[0] or (
-            self._slots and self._shape_now() != self._shape
-        ):
+        if self._reshaped():
             return self.structure()
         if not self._changed_since:
             return None

@@ -52,6 +52,7 @@ class WorldFeed:
         # what each part was last sent for (see :meth:`sample`); None: never sent
         self._robots: list[tuple[bool, int]] | None = None
         self._objects: list[tuple[Any, ...]] | None = None
+        self._changes = -1  # the state's count of object changes when last compared
         self._poses: bytes | None = None
 
     def _xy(self, row: int, col: int) -> list[float]:
@@ -76,7 +77,8 @@ class WorldFeed:
         """The parts of the world that changed since the last sample (``world``), or None;
         poses at most once per :attr:`pose_every_s` unless another part changed too.
         Each part is compared by a cheap key first (the step's cells as bytes, the robots'
-        operations, the objects' fields) and only built when that changed."""
+        operations, the objects' fields once the state counts a change of any) and only
+        built when that changed."""
         return self._sample(final=False)
 
     def last(self) -> Event | None:
@@ -95,12 +97,15 @@ class WorldFeed:
         if robots != self._robots:
             self._robots = robots
             ev = {"t": now, "k": "world", "robots": self._part("robots")}
-        objects = list(map(_OBJECT_KEY, m.state.objects))
-        if objects != self._objects:
-            self._objects = objects
-            if ev is None:
-                ev = {"t": now, "k": "world"}
-            ev["objects"] = self._part("objects")
+        changes = m.state.changes  # objects change through the state's methods only
+        if changes != self._changes:
+            self._changes = changes
+            objects = list(map(_OBJECT_KEY, m.state.objects))
+            if objects != self._objects:
+                self._objects = objects
+                if ev is None:
+                    ev = {"t": now, "k": "world"}
+                ev["objects"] = self._part("objects")
         if final or ev is not None or now >= self._pose_t + self.pose_every_s:
             where = m.cells.tobytes()
             if self._poses != where:

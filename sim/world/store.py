@@ -65,6 +65,10 @@ class MissionState:
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     _next_goal: int = 0
     _next_seen: int = 0
+    #: Grows whenever an object changes what a picture of it shows (found, identified,
+    #: picked up, dropped, decontaminated): a watcher (the monitor's world feed, at every
+    #: simulation step) needs no walk over the objects to see that none did.
+    changes: int = field(default=0, init=False)
     #: Each cell's rank among frontier cells that may become goals, drawn once: which
     #: cells become goals depends on the frontier, not on how many explorations drew before.
     _rank: NDArray[np.float64] = field(init=False)
@@ -132,6 +136,7 @@ class MissionState:
                 o.seen = self._next_seen
                 self._next_seen += 1
                 found += 1
+        self.changes += found
         for goal in self.goals.values():
             if not goal.done and goal.claimed_by is None and self.covered[goal.cell]:
                 goal.done = True
@@ -234,24 +239,28 @@ class MissionState:
     def identify(self, obj: int) -> bool:
         o = self.objects[obj]
         o.identified = o.contaminated
+        self.changes += 1
         o.seen = self._next_seen  # the carries in the order the objects were identified
         self._next_seen += 1
         return o.contaminated
 
     def pick_up(self, obj: int, robot: str) -> None:
         self.objects[obj].carried_by = robot
+        self.changes += 1
 
     def drop(self, obj: int, cell: Cell) -> None:
         """The carrier failed: the object stays where it fell, still to be decontaminated."""
         o = self.objects[obj]
         o.carried_by = None
         o.cell = cell
+        self.changes += 1
 
     def decontaminated(self, obj: int) -> None:
         o = self.objects[obj]
         o.carried_by = None
         o.decontaminated = True
         o.cell = self.grid.decon_area
+        self.changes += 1
 
     @property
     def mission_complete(self) -> bool:

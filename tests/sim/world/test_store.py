@@ -444,3 +444,22 @@ def test_the_object_list_holds_each_object_with_its_work_left() -> None:
     listed = s.work_list("object")
     assert listed.items == []
     assert listed.complete == s.exploration_complete
+
+
+def test_every_change_of_an_objects_picture_is_counted() -> None:
+    """The monitor's world feed reads the objects only when the state counts a change."""
+    s = state_with(CORRIDOR, [(2, 3), (2, 20)], [True, True])
+    counted = [s.changes]
+    s.explore((2, 0), 4.0)  # finds object 0
+    s.explore((2, 0), 4.0)  # finds nothing new
+    counted.append(s.changes)
+    s.identify(0)
+    counted.append(s.changes)
+    s.pick_up(0, "husky1")
+    counted.append(s.changes)
+    s.drop(0, (2, 10))
+    counted.append(s.changes)
+    s.pick_up(0, "husky1")
+    s.decontaminated(0)
+    counted.append(s.changes)
+    assert counted == [0, 1, 2, 3, 4, 6]
