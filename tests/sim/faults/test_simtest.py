@@ -22,9 +22,8 @@ DATA = Path(__file__).parents[1] / "data" / "simtest"
 #: Seeds per chunk: 6 chunks, 300 seeds (about 0.05 s of CPU each).
 CHUNK = 50
 #: The runs of the plain plans, by seed: a run is deterministic (test_a_seed_replays_to_
-#: the_same_trace), so the tests that judge the same seeds share them (one xdist worker).
+#: the_same_trace), so the tests that judge the same seeds share them.
 _plain: dict[int, Outcome] = {}
-pytestmark = pytest.mark.xdist_group("simtest")
 
 
 def plain_run(seed: int) -> Outcome:

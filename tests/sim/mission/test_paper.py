@@ -30,10 +30,6 @@ from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.implementation import Implementation
 
 pytestmark = pytest.mark.slow  # whole missions (the suite's bound for them: conftest)
-#: The tests that share a scenario's runs through :func:`mission`, on one xdist worker
-#: (``--dist loadgroup``), so each run is made once.
-JOINS = pytest.mark.xdist_group("paper-huskies-bebop-joins")
-FULL = pytest.mark.xdist_group("paper-full-team")
 
 SEEDS = (1, 2, 3)
 #: CPU seconds the costliest fast mission here needs (single-husky: up to ~8 s).
@@ -182,7 +178,6 @@ def joins_at(s: Scenario, at: float) -> Scenario:
     return msgspec.structs.replace(s, events=events)
 
 
-@JOINS
 @pytest.mark.parametrize("seed", SEEDS)
 async def test_explore_moves_to_the_joining_bebop_at_once(seed: int) -> None:
     """The Bebop joins just after a Husky began exploring at its goal: although the Bebop
@@ -303,7 +298,6 @@ async def test_a_failed_husky_loses_its_work_and_gets_work_again_when_it_returns
     assert again[0].start <= back + 5.0
 
 
-@JOINS
 async def test_a_failed_huskys_work_is_reassigned_while_it_is_down() -> None:
     busy = 0
     for seed in (1, 2, 3, 4, 5):
@@ -319,7 +313,6 @@ async def test_a_failed_huskys_work_is_reassigned_while_it_is_down() -> None:
 # -- team size and re-evaluation -------------------------------------------------------
 
 
-@FULL
 @pytest.mark.parametrize("seed", SEEDS)
 async def test_the_full_team_is_much_faster_than_one_husky(seed: int) -> None:
     team = await mission("full-team", seed)
@@ -333,10 +326,7 @@ def work_done(result: MissionResult) -> dict[str, float]:
     return {k: v for k, v in result.summary.items() if k != "goals"}
 
 
-@pytest.mark.parametrize(
-    "name",
-    [pytest.param("full-team", marks=FULL), pytest.param("huskies-bebop-joins", marks=JOINS)],
-)
+@pytest.mark.parametrize("name", ["full-team", "huskies-bebop-joins"])
 async def test_reevaluation_never_lowers_the_mission_outcome(name: str) -> None:
     """With running work re-evaluated every mission still completes, with all the work
     done (every object found and identified, every contaminated one cleaned, the whole
