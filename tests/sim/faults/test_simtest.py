@@ -14,20 +14,30 @@ import pytest
 
 from btcap.cli import main
 from btcap.sim.faults.plan import Fault, load_plan, plan_for, save_plan
-from btcap.sim.faults.run import run_plan
+from btcap.sim.faults.run import Outcome, run_plan
 from btcap.sim.faults.shrink import kind_of, shrink
 
 DATA = Path(__file__).parents[1] / "data" / "simtest"
 
 #: Seeds per chunk: 6 chunks, 300 seeds (about 0.05 s of CPU each).
 CHUNK = 50
+#: The runs of the plain plans, by seed: a run is deterministic (test_a_seed_replays_to_
+#: the_same_trace), so the tests that judge the same seeds share them.
+_plain: dict[int, Outcome] = {}
+
+
+def plain_run(seed: int) -> Outcome:
+    """``run_plan(plan_for(seed))``, made once per module."""
+    if seed not in _plain:
+        _plain[seed] = run_plan(plan_for(seed))
+    return _plain[seed]
 
 
 @pytest.mark.parametrize("start", range(0, 6 * CHUNK, CHUNK))
 def test_every_invariant_holds_for_hundreds_of_seeds(start: int) -> None:
     failed = []
     for seed in range(start, start + CHUNK):
-        outcome = run_plan(plan_for(seed))
+        outcome = plain_run(seed)
         if not outcome.ok:
             failed.append(f"btcap sim-test --seed {seed} --trace: {outcome.violations[0]}")
     assert not failed, "\n".join(failed)
@@ -47,7 +57,7 @@ def test_the_faults_really_happen_over_the_seeds() -> None:
     kinds: set[str] = set()
     sent = dropped = duplicated = delayed = cut = held = 0
     for seed in range(40):
-        outcome = run_plan(plan_for(seed))
+        outcome = plain_run(seed)
         kinds |= {f.kind for f in outcome.plan.faults}
         c = outcome.counters
         sent, dropped, duplicated = sent + c.sent, dropped + c.dropped, duplicated + c.duplicated
