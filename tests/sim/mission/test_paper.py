@@ -155,11 +155,14 @@ async def test_a_single_husky_starts_the_cheapest_available_task(
     durations) count as cheapest: either is a cheapest choice, and the auctioneer breaks
     them by the order its auctions closed (within one auction by robot id), not by cost.
     """
+    plain = {seed: await mission("single-husky", seed) for seed in SEEDS}  # unwatched
     log = ChoiceLog("husky1", monkeypatch)
     for seed in SEEDS:
         with anyio.fail_after(RUN_S):
             result = await run_fast(scenario("single-husky", seed))
         assert result.completed
+        # Watching changes nothing: the observer's extra bids leave the run as it was.
+        assert msgspec.json.encode(result) == msgspec.json.encode(plain[seed]), seed
     assert len(log.choices) >= 20 * len(SEEDS)
     for choice in log.choices:
         # The observer prices what the Husky bid: the award is one of the waiting tasks.
