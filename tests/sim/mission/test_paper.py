@@ -96,7 +96,9 @@ class ChoiceLog:
     implementations (the same bid functions it answers calls for bids with), the mission
     tree (which capability nodes wait for an executor, with their current inputs), and the
     operator's strategy (each award). At every award to ``robot`` it prices every waiting
-    task with that robot's own bid function, at that moment."""
+    task with that robot's own bid function, at that moment. Bids are pure and the
+    wrapped ``assign`` is awaited in the auction's own task (no extra loop iteration), so
+    a watched run is byte-equal to an unwatched one (checked below)."""
 
     def __init__(self, robot: str, monkeypatch: pytest.MonkeyPatch) -> None:
         self.robot = robot
@@ -155,11 +157,14 @@ async def test_a_single_husky_starts_the_cheapest_available_task(
     durations) count as cheapest: either is a cheapest choice, and the auctioneer breaks
     them by the order its auctions closed (within one auction by robot id), not by cost.
     """
+    plain = {seed: await mission("single-husky", seed) for seed in SEEDS}  # unwatched
     log = ChoiceLog("husky1", monkeypatch)
     for seed in SEEDS:
         with anyio.fail_after(RUN_S):
             result = await run_fast(scenario("single-husky", seed))
         assert result.completed
+        # Watching changes nothing: the observer's extra bids leave the run as it was.
+        assert msgspec.json.encode(result) == msgspec.json.encode(plain[seed]), seed
     assert len(log.choices) >= 20 * len(SEEDS)
     for choice in log.choices:
         # The observer prices what the Husky bid: the award is one of the waiting tasks.
