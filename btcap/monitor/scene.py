@@ -101,7 +101,11 @@ def _map(ev: Event, stamp: dict[str, int]) -> list[Message]:
     rows: list[str] = ev["rows"]
     cell = float(ev["cell_m"])
     width = len(rows[0]) if rows else 0
-    data = b"".join(bytes(_RGBA.get(ch, _RGBA["#"])) for row in reversed(rows) for ch in row)
+    # each cell's character becomes its colour's four bytes in one C pass (str.translate
+    # maps a character to a string of any length; latin-1 holds bytes 0-255 as they are)
+    cells = "".join(reversed(rows))
+    table = {ord(ch): bytes(_RGBA.get(ch, _RGBA["#"])).decode("latin-1") for ch in set(cells)}
+    data = cells.translate(table).encode("latin-1")
     grid = {
         "timestamp": stamp,
         "frame_id": MAP_FRAME,
