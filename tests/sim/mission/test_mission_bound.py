@@ -19,11 +19,11 @@ from btcap.sim.mission.routes import Legs, pieces_m
 from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.mission.scenariofile import SimSettings
 from btcap.sim.running.runner import run_fast
-from btcap.sim.world.distance import distance_field
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.manager import SimConfig, SimulationManager
 from btcap.sim.world.model import OperationModel, RobotModel
 from btcap.sim.world.store import MissionState
+from tests.sim.mission.test_explore_bound import walk
 
 DATA = Path(__file__).parents[1] / "data"
 #: A fast explorer with a small disc: 2 cells, 1 s, 100 m/s (its drives barely count).
@@ -46,19 +46,7 @@ def store_walk(grid: GridMap, model: RobotModel) -> np.ndarray:
     """One explorer through the store's goals, nearest first, until none is left: when
     each cell was first covered."""
     state = MissionState(grid, [], rng=np.random.default_rng(0))
-    op = model.operation("explore")
-    first = np.full(grid.shape, np.inf)
-    at, t = grid.start, 0.0
-    while pending := state.pending_goals():
-        steps = distance_field(grid.free, at)
-        goal = min(pending, key=lambda g: (steps[g.cell], g.id))
-        t += steps[goal.cell] * grid.cell_size_m / model.speed_mps + op.duration_s
-        at = goal.cell
-        before = state.covered.copy()
-        state.explore(at, op.radius_m)
-        state.goal_done(goal.id)
-        first[state.covered & ~before] = t
-    return first
+    return walk(state, model, "nearest", np.random.default_rng(0))
 
 
 def test_a_far_cell_waits_for_the_chain_of_explorations_that_reach_it() -> None:
