@@ -8,19 +8,14 @@ from __future__ import annotations
 import time
 
 import anyio
-import numpy as np
 import pytest
 from simros1 import WHY_NOT, children, loopback
 
 from btcap.actors import Clock
-from btcap.sim.mission.catalog import builtin_scenarios
-from btcap.sim.mission.scenario import Scenario, load_scenario
 from btcap.sim.ros1.client import RobotLink1
 from btcap.sim.ros1.host import Ros1Host
 from btcap.sim.running.hosts import registry
-from btcap.sim.world.grid import GridMap
-from btcap.sim.world.manager import SimConfig, SimulationManager
-from btcap.sim.world.store import MissionState
+from tests.sim.rosbase.rosworld import world
 
 pytestmark = [
     pytest.mark.ros1,
@@ -42,14 +37,6 @@ async def until(link: RobotLink1, missing: int) -> None:
         return True
 
     assert await anyio.to_thread.run_sync(wait, abandon_on_cancel=True)
-
-
-def world(name: str) -> tuple[Scenario, GridMap, SimulationManager]:
-    """Built-in scenario ``name``, its map and a simulation manager of it (seed 1)."""
-    s = load_scenario(builtin_scenarios()[name])
-    grid = s.grid()
-    state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
-    return s, grid, SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
 
 
 def links_of(host: Ros1Host) -> dict[str, RobotLink1]:

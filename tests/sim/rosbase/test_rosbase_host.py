@@ -5,17 +5,13 @@ themselves are tested in tests/sim/ros2 and tests/sim/ros1)."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from btcap.actors import Clock
-from btcap.sim.mission.catalog import builtin_scenarios
-from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.ros1.host import Ros1Host
 from btcap.sim.ros2.host import Ros2Host
 from btcap.sim.running.hosts import registry
-from btcap.sim.world.manager import SimConfig, SimulationManager
-from btcap.sim.world.store import MissionState
+from tests.sim.rosbase.rosworld import world
 
 
 @pytest.mark.parametrize("host_type", [Ros2Host, Ros1Host])
@@ -25,9 +21,6 @@ from btcap.sim.world.store import MissionState
 def test_a_late_joiner_starts_out_of_the_ros_graph(
     host_type: type[Ros2Host | Ros1Host], name: str, absent: set[str]
 ) -> None:
-    s = load_scenario(builtin_scenarios()[name])
-    grid = s.grid()
-    state = MissionState.scatter(grid, s.objects, s.contaminated_share, np.random.default_rng(1))
-    manager = SimulationManager(state, SimConfig(s.sim.step_s, 0.0, 0.0, 1))
+    s, grid, manager = world(name)
     host = host_type(s, Clock(s.speedup), registry(), grid, manager=manager)
     assert host.withdrawn == absent
