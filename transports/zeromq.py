@@ -102,6 +102,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
     connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
     A trusted folder is polled every ``trusted_poll_s`` seconds (0: never): a key removed
     from it is refused and its links closed (:mod:`~btcap.transports.trust`).
+    An inbound connection that says no hello within ``hello_timeout_s`` is closed, and at
+    most ``max_newcomers`` wait for theirs (:mod:`~btcap.transports.newcomers`).
     """
 
     def __init__(
@@ -122,8 +124,13 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         stranger_ttl_s: float = 30.0,
         max_strangers: int = 64,
         trusted_poll_s: float = DEFAULT_POLL_S,
+        hello_timeout_s: float = 10.0,
+        max_newcomers: int = 128,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
+        if hello_timeout_s <= 0 or max_newcomers < 1:
+            what = f"hello_timeout_s={hello_timeout_s}, max_newcomers={max_newcomers}"
+            raise ValueError(f"{what}: expected both > 0")
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self._first_listing = first_listing(trusted)  # before the keys load
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
@@ -146,7 +153,14 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         allow_sockets(self._ctx)
         try:
             self._router, self._events = open_router(
-                self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id
+                self._ctx,
+                bind,
+                self.curve,
+                max_message_bytes,
+                self.stats,
+                system_id,
+                hello_timeout_s,
+                max_newcomers,
             )
         except ValueError:
             if self._own_ctx:
@@ -223,6 +237,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         self._known.pop(system_id.encode(), None)
         self._claims.forget(system_id)
         self._unlink(system_id)
+        if self._events.watch is not None and not self._closed:
+            self._events.watch.dropped(system_id)  # its links must say hello again
 
     def _unlink(self, system_id: str) -> None:
         sock = self._dealers.pop(system_id, None)
@@ -373,6 +389,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             peer = self._known.get(ident)
             if peer is None:
                 peer = self._recall(ident)
+                if peer is not None and self._events.watch is not None:
+                    self._events.watch.spoke(body.obj, peer)  # dialled back: a link again
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")
