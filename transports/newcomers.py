@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Hashable
 
-__all__ = ["LINKS_PER_PEER", "Newcomers"]
+__all__ = ["LINKS_PER_PEER", "Close", "Newcomers"]
 
 LINKS_PER_PEER = 4
 """Inbound connections kept per peer: its link, one while it relinks, and spare."""

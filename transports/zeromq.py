@@ -36,7 +36,12 @@ from btcap.transports.security import (
     curve_for,
 )
 from btcap.transports.trust import DEFAULT_POLL_S, first_listing, watch_trusted
-from btcap.transports.zmq_endpoints import SCHEMES, check_id, check_transport_args
+from btcap.transports.zmq_endpoints import (
+    SCHEMES,
+    check_id,
+    check_newcomer_args,
+    check_transport_args,
+)
 from btcap.transports.zmq_io import (
     EVENTS,
     NOBLOCK,
@@ -128,9 +133,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         max_newcomers: int = 128,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
-        if hello_timeout_s <= 0 or max_newcomers < 1:
-            what = f"hello_timeout_s={hello_timeout_s}, max_newcomers={max_newcomers}"
-            raise ValueError(f"{what}: expected both > 0")
+        check_newcomer_args(hello_timeout_s, max_newcomers)
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self._first_listing = first_listing(trusted)  # before the keys load
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
@@ -222,12 +225,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             self._monitors[system_id] = monitor
             if self._loop is not None:
                 self._watch(monitor)
-
-    def _watch(self, monitor: Monitor) -> None:
-        assert self._loop is not None
-        self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
-        # Events that came before we watched have already reset the descriptor.
-        self._loop.call_soon(self._on_monitor, monitor)
 
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
@@ -356,19 +353,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         if not self._closed and self._events.drain(_BATCH) and self._loop is not None:
             self._loop.call_soon(self._on_events)
 
-    def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._relink, self._unreachable) and self._loop is not None:
-            self._loop.call_soon(self._on_monitor, monitor)
-
-    def _relink(self, monitor: Monitor) -> None:
-        # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
-        peer = monitor.peer
-        if self._monitors.get(peer) is monitor and not self._closed:
-            log.info("transport.peer_relinked", system=self.system_id, peer=peer)
-            self._connect(peer, self._endpoints.pop(peer))
-            if peer not in self._configured:  # gone for good unless it speaks again
-                self._fate(peer, self._strangers.lapsed(peer))
-
     def _authenticated(self, ident: bytes, part: zmq.Frame, extra: int) -> Received | None:
         member, problem = authenticated(ident, part)
         if problem:
@@ -388,9 +372,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
             if peer is None:
-                peer = self._recall(ident)
-                if peer is not None and self._events.watch is not None:
-                    self._events.watch.spoke(body.obj, peer)  # dialled back: a link again
+                peer = self._recall(ident, body.obj)
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")

@@ -113,7 +113,7 @@ class NewcomerWatch:
         if self._closed or not isinstance(frame, zmq.Frame):
             return
         with contextlib.suppress(zmq.ZMQError, ValueError, TypeError):
-            fd = int(frame.get(zmq.SRCFD))  # type: ignore[arg-type]
+            fd = int(frame.get(zmq.SRCFD))
             if fd < 0 or self.book.peer_of(fd) == peer:
                 return
             key = self.book.waiting[fd][1] if fd in self.book.waiting else None

@@ -27,7 +27,7 @@ from btcap.bench.attacks.hostile import Ping, Pong, registry
 from btcap.transports import ZmqTransport
 from btcap.transports.zmq_newcomers import NO_HELLO
 
-__all__ = ["greet", "probe_silent", "silent_connections"]
+__all__ = ["frame", "greet", "hung_up", "probe_silent", "silent_connections"]
 
 _HOST = "127.0.0.1"
 _DEADLINE_S = 1.0
@@ -42,19 +42,28 @@ def _greeting() -> bytes:
     return b"\xff" + bytes(8) + b"\x7f" + b"\x03\x00" + b"NULL".ljust(20, b"\0") + bytes(32)
 
 
-def _ready() -> bytes:
+def _ready(identity: bytes) -> bytes:
     """The READY command of a DEALER (NULL mechanism), as a short command frame."""
-    name, value = b"Socket-Type", b"DEALER"
-    body = b"\x05READY" + bytes([len(name)]) + name + struct.pack(">I", len(value)) + value
+    body = b"\x05READY"
+    for name, value in ((b"Socket-Type", b"DEALER"), (b"Identity", identity)):
+        body += bytes([len(name)]) + name + struct.pack(">I", len(value)) + value
     return bytes([0x04, len(body)]) + body
 
 
-def greet(port: int, timeout: float = 10.0) -> socket.socket:
+def frame(body: bytes) -> bytes:
+    """One ZMTP message frame (the last of its message) carrying ``body``."""
+    if len(body) < 256:
+        return bytes([0x00, len(body)]) + body
+    return b"\x02" + struct.pack(">Q", len(body)) + body
+
+
+def greet(port: int, identity: bytes = b"", timeout: float = 10.0) -> socket.socket:
     """A raw connection to a ZeroMQ socket at ``127.0.0.1:port`` that completes the
-    NULL handshake (its greeting and READY read back) and then says nothing."""
+    NULL handshake (its greeting and READY read back; ``identity``: the routing id it
+    asks for) and then says nothing."""
     sock = socket.create_connection((_HOST, port), timeout=timeout)
     try:
-        sock.sendall(_greeting() + _ready())
+        sock.sendall(_greeting() + _ready(identity))
         got = b""
         while len(got) < 64 + 2:  # the server's greeting and the head of its READY
             chunk = sock.recv(4096)
