@@ -161,3 +161,22 @@ async def test_a_key_holder_that_never_speaks_is_closed(tmp_path: Path) -> None:
 def test_limits_must_be_positive() -> None:
     with pytest.raises(ValueError, match="hello_timeout_s=0"):
         ZmqTransport("a", TCP, messages(), hello_timeout_s=0)
+
+
+@pytest.mark.parametrize("scheme", ["tcp", "ipc"])
+async def test_a_silent_dealer_is_closed_over_tcp_and_ipc(scheme: str, tmp_path: Path) -> None:
+    """A pyzmq DEALER that never sends: closed, and its reconnection closed again."""
+    bind = TCP if scheme == "tcp" else f"ipc://{tmp_path}/a.sock"
+    ctx: Ctx = zmq.Context()
+    try:
+        with anyio.fail_after(LIMIT_S):
+            async with zmq_system("a", bind, hello_timeout_s=0.3) as (_, ta):
+                sock = ctx.socket(zmq.DEALER)
+                sock.setsockopt(zmq.LINGER, 0)
+                sock.connect(ta.endpoint)
+                try:
+                    await until(lambda: no_hello(ta) >= 2)
+                finally:
+                    sock.close(0)
+    finally:
+        ctx.term()
