@@ -52,8 +52,11 @@ def local_address(bound: str) -> object:
 def socket_key(fd: int, local: object) -> Hashable | None:
     """The identity of the connection on ``fd`` if it is one accepted on ``local`` (see
     :func:`local_address`), else None (closed meanwhile, or the number reused)."""
+    sock = _duplicate(fd)
+    if sock is None:
+        return None
     try:
-        with socket.socket(fileno=os.dup(fd)) as sock:
+        with sock:
             if sock.getsockopt(socket.SOL_SOCKET, socket.SO_ACCEPTCONN):
                 return None  # a listener, not a connection
             name = sock.getsockname()
@@ -71,8 +74,11 @@ def socket_key(fd: int, local: object) -> Hashable | None:
 def shut(fd: int, key: Hashable) -> bool:
     """Shut down the connection on ``fd`` if it is still the socket ``key`` names; libzmq
     then closes it as one its peer hung up. Whether it was shut."""
+    sock = _duplicate(fd)
+    if sock is None:
+        return False
     try:
-        with socket.socket(fileno=os.dup(fd)) as sock:
+        with sock:
             st = os.fstat(sock.fileno())
             if (st.st_dev, st.st_ino) != key:
                 return False
@@ -80,6 +86,20 @@ def shut(fd: int, key: Hashable) -> bool:
             return True
     except OSError:
         return False
+
+
+def _duplicate(fd: int) -> socket.socket | None:
+    """A socket on a duplicate of ``fd`` (the caller closes it), None if ``fd`` is closed
+    or no socket now (libzmq reuses numbers for its own descriptors too)."""
+    try:
+        dup = os.dup(fd)
+    except OSError:
+        return None
+    try:
+        return socket.socket(fileno=dup)
+    except OSError:
+        os.close(dup)
+        return None
 
 
 class NewcomerWatch:
