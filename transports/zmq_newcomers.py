@@ -145,7 +145,10 @@ class NewcomerWatch:
         """``peer`` is no longer a peer: its connections must say hello again, in time."""
         if self._closed or not self.book.linked(peer):
             return
-        loop = asyncio.get_running_loop()
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:  # not from the loop (links exist only while it runs): no clock
+            return
         self._shut(self.book.dropped(peer, loop.time()), NO_HELLO)
         self._arm(loop)
 
