@@ -36,7 +36,12 @@ from btcap.transports.security import (
     curve_for,
 )
 from btcap.transports.trust import DEFAULT_POLL_S, first_listing, watch_trusted
-from btcap.transports.zmq_endpoints import SCHEMES, check_id, check_transport_args
+from btcap.transports.zmq_endpoints import (
+    SCHEMES,
+    check_id,
+    check_newcomer_args,
+    check_transport_args,
+)
 from btcap.transports.zmq_io import (
     EVENTS,
     NOBLOCK,
@@ -102,6 +107,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
     connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
     A trusted folder is polled every ``trusted_poll_s`` seconds (0: never): a key removed
     from it is refused and its links closed (:mod:`~btcap.transports.trust`).
+    An inbound connection that says no hello within ``hello_timeout_s`` is closed, and at
+    most ``max_newcomers`` wait for theirs (:mod:`~btcap.transports.newcomers`).
     """
 
     def __init__(
@@ -122,8 +129,11 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         stranger_ttl_s: float = 30.0,
         max_strangers: int = 64,
         trusted_poll_s: float = DEFAULT_POLL_S,
+        hello_timeout_s: float = 10.0,
+        max_newcomers: int = 128,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
+        check_newcomer_args(hello_timeout_s, max_newcomers)
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self._first_listing = first_listing(trusted)  # before the keys load
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
@@ -146,7 +156,14 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         allow_sockets(self._ctx)
         try:
             self._router, self._events = open_router(
-                self._ctx, bind, self.curve, max_message_bytes, self.stats, system_id
+                self._ctx,
+                bind,
+                self.curve,
+                max_message_bytes,
+                self.stats,
+                system_id,
+                hello_timeout_s,
+                max_newcomers,
             )
         except ValueError:
             if self._own_ctx:
@@ -209,12 +226,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
             if self._loop is not None:
                 self._watch(monitor)
 
-    def _watch(self, monitor: Monitor) -> None:
-        assert self._loop is not None
-        self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
-        # Events that came before we watched have already reset the descriptor.
-        self._loop.call_soon(self._on_monitor, monitor)
-
     def remove_peer(self, system_id: str) -> None:
         """Forget a peer: messages to it become undeliverable, messages from it dropped."""
         self._unclassify(system_id)
@@ -223,6 +234,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         self._known.pop(system_id.encode(), None)
         self._claims.forget(system_id)
         self._unlink(system_id)
+        if self._events.watch is not None and not self._closed:
+            self._events.watch.dropped(system_id)  # its links must say hello again
 
     def _unlink(self, system_id: str) -> None:
         sock = self._dealers.pop(system_id, None)
@@ -340,19 +353,6 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         if not self._closed and self._events.drain(_BATCH) and self._loop is not None:
             self._loop.call_soon(self._on_events)
 
-    def _on_monitor(self, monitor: Monitor) -> None:
-        if monitor.drain(_BATCH, self._relink, self._unreachable) and self._loop is not None:
-            self._loop.call_soon(self._on_monitor, monitor)
-
-    def _relink(self, monitor: Monitor) -> None:
-        # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
-        peer = monitor.peer
-        if self._monitors.get(peer) is monitor and not self._closed:
-            log.info("transport.peer_relinked", system=self.system_id, peer=peer)
-            self._connect(peer, self._endpoints.pop(peer))
-            if peer not in self._configured:  # gone for good unless it speaks again
-                self._fate(peer, self._strangers.lapsed(peer))
-
     def _authenticated(self, ident: bytes, part: zmq.Frame, extra: int) -> Received | None:
         member, problem = authenticated(ident, part)
         if problem:
@@ -372,7 +372,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         if kind == _MSG_BYTE:
             peer = self._known.get(ident)
             if peer is None:
-                peer = self._recall(ident)
+                peer = self._recall(ident, body.obj)
             if peer is None:
                 self.stats.unknown_peer += 1
                 reject(self.stats, self.system_id, "unknown peer", ident, "no hello")

@@ -8,7 +8,14 @@ from __future__ import annotations
 
 from btcap.transports.base import BROADCAST
 
-__all__ = ["SCHEMES", "check_endpoint", "check_id", "check_transport_args", "parse_hello"]
+__all__ = [
+    "SCHEMES",
+    "check_endpoint",
+    "check_id",
+    "check_newcomer_args",
+    "check_transport_args",
+    "parse_hello",
+]
 
 SCHEMES = ("tcp://", "ipc://", "inproc://")
 
@@ -55,6 +62,13 @@ def check_transport_args(system_id: str, bind: str, advertise: str | None, max_b
         raise ValueError(f"advertise {advertise!r}: {why}")
     if max_bytes < 1024:
         raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
+
+
+def check_newcomer_args(hello_timeout_s: float, max_newcomers: int) -> None:
+    """How long an inbound connection may stay silent, and how many may (both > 0)."""
+    if not (hello_timeout_s > 0 and max_newcomers > 0):
+        what = f"hello_timeout_s={hello_timeout_s}, max_newcomers={max_newcomers}"
+        raise ValueError(f"{what}: expected both > 0")
 
 
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:

@@ -22,13 +22,15 @@ from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.refusals import FAILED, HANDSHAKE_EVENTS, REFUSED, SUCCEEDED, Refusals
 from btcap.transports.security import Curve
 from btcap.transports.zmq_io import EVENTS, NOBLOCK, POLLIN, fd_of
+from btcap.transports.zmq_newcomers import NewcomerWatch
 
-__all__ = ["DISCONNECTED", "RETRIED", "Monitor", "RouterEvents"]
+__all__ = ["ACCEPTED", "DISCONNECTED", "RETRIED", "Monitor", "RouterEvents"]
 
 log = get_logger(__name__)
 
 # Plain ints, as zmq_io's flags: pyzmq's enums cost an enum call on every use.
 DISCONNECTED = int(zmq.EVENT_DISCONNECTED)
+ACCEPTED = int(zmq.EVENT_ACCEPTED)
 RETRIED = int(zmq.EVENT_CONNECT_RETRIED)
 
 
@@ -144,7 +146,17 @@ class RouterEvents:
     one (the transport's DEALERs share it).
     """
 
-    __slots__ = ("curve", "disconnects", "fd", "refusals", "router", "socket", "stats", "system")
+    __slots__ = (
+        "curve",
+        "disconnects",
+        "fd",
+        "refusals",
+        "router",
+        "socket",
+        "stats",
+        "system",
+        "watch",
+    )
 
     def __init__(
         self,
@@ -160,12 +172,14 @@ class RouterEvents:
         self.curve = curve
         self.refusals = Refusals(system, stats, None if curve is None else curve.keys.public)
         self.disconnects = 0
+        #: Closes connections that say no hello (set once the ROUTER is bound).
+        self.watch: NewcomerWatch | None = None
         # REFUSED and FAILED, not EVENT_HANDSHAKE_FAILED_NO_DETAIL: with it watched, libzmq
         # 4.3.5 leaves a handshake that fails for want of a ZAP handler (a transport not yet
         # serving) hanging for good instead of closing it, and the peer never retries. (A
         # DEALER's monitor may watch it: it never runs ZAP.)
         self.socket: zmq.Socket[bytes] = router.get_monitor_socket(
-            REFUSED | FAILED | DISCONNECTED, addr=name
+            REFUSED | FAILED | DISCONNECTED | ACCEPTED, addr=name
         )
         self.fd = fd_of(self.socket)
 
@@ -174,8 +188,9 @@ class RouterEvents:
 
         Refused handshakes (a key not on the allow-list) are unknown peers, told by the
         ZAP handler; disconnects are counted in :attr:`disconnects` and logged now and then.
+        Accepts and disconnects, with the descriptor each names, go to :attr:`watch`.
         """
-        sock = self.socket
+        sock, watch = self.socket, self.watch
         for _ in range(limit):
             if not sock.getsockopt(EVENTS) & POLLIN:  # type: ignore[operator]
                 return False
@@ -186,17 +201,24 @@ class RouterEvents:
                 self.stats.drop("handshake refused")
             elif kind == FAILED:
                 self.refusals.handshake_failed(value)
+            elif kind == ACCEPTED:
+                if watch is not None:
+                    watch.accepted(value)
             elif kind == DISCONNECTED:
+                if watch is not None:
+                    watch.gone(value)
                 self.disconnects += 1
                 if worth_logging(self.disconnects):
                     log.info(
                         "transport.disconnected",
                         system=self.system,
-                        detail="a peer left, or sent more than max_message_bytes",
+                        detail="a peer left, sent more than max_message_bytes or said no hello",
                         count=self.disconnects,
                     )
         return True
 
     def close(self) -> None:
+        if self.watch is not None:
+            self.watch.close()
         self.router.disable_monitor()
         self.socket.close(0)

@@ -28,7 +28,7 @@ from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
 from btcap.transports.zmq_claims import Claims
 from btcap.transports.zmq_endpoints import SCHEMES, check_id
-from btcap.transports.zmq_monitors import Monitor
+from btcap.transports.zmq_monitors import Monitor, RouterEvents
 from btcap.transports.zmq_sockets import reject
 
 __all__ = ["UNREACHABLE_TRIES", "Fate", "PeerBook", "PeerFates"]
@@ -37,6 +37,8 @@ log = get_logger(__name__)
 
 UNREACHABLE_TRIES = 3
 """Failed dials after which a stranger that never spoke is dropped."""
+_BATCH = 256
+"""Monitor events read per callback before other callbacks get a turn."""
 
 
 class Fate(enum.Enum, metaclass=FastEnumType):
@@ -128,6 +130,7 @@ class PeerFates:
     _configured: set[str]
     _monitors: dict[str, Monitor]
     _claims: Claims
+    _events: RouterEvents
     _loop: asyncio.AbstractEventLoop | None
     _closed: bool
 
@@ -142,6 +145,26 @@ class PeerFates:
         def _second(self, peer: str, endpoint: str, known: str | None, instance: str) -> bool: ...
 
         def _malformed(self, reason: str, ident: bytes, detail: str) -> bool: ...
+
+    def _watch(self, monitor: Monitor) -> None:
+        """Read ``monitor``'s events (what happens to our link to its peer) from now on."""
+        assert self._loop is not None
+        self._loop.add_reader(monitor.fd, self._on_monitor, monitor)
+        # Events that came before we watched have already reset the descriptor.
+        self._loop.call_soon(self._on_monitor, monitor)
+
+    def _on_monitor(self, monitor: Monitor) -> None:
+        if monitor.drain(_BATCH, self._relink, self._unreachable) and self._loop is not None:
+            self._loop.call_soon(self._on_monitor, monitor)
+
+    def _relink(self, monitor: Monitor) -> None:
+        # A fresh DEALER, its hello first (see zmq_sockets: why not the dropped one).
+        peer = monitor.peer
+        if self._monitors.get(peer) is monitor and not self._closed:
+            log.info("transport.peer_relinked", system=self.system_id, peer=peer)
+            self._connect(peer, self._endpoints.pop(peer))
+            if peer not in self._configured:  # gone for good unless it speaks again
+                self._fate(peer, self._strangers.lapsed(peer))
 
     def forget(self, system_id: str) -> None:
         """A peer has gone (declared failed, or left): stop dialling it, close its sockets
@@ -177,13 +200,16 @@ class PeerFates:
         else:
             self.remove_peer(peer)
 
-    def _recall(self, ident: bytes) -> str | None:
-        """A forgotten peer speaks again (it was declared failed, falsely): dial it back."""
+    def _recall(self, ident: bytes, frame: object) -> str | None:
+        """A forgotten peer speaks again (it was declared failed, falsely): dial it back;
+        the connection ``frame`` came over is its link again."""
         peer = ident.decode(errors="replace")
         endpoint = self._strangers.recall(peer)
         if endpoint is None or not self._admit(peer, endpoint, True):
             return None
         self._strangers.vouched(peer)
+        if self._events.watch is not None:
+            self._events.watch.spoke(frame, peer)
         return peer
 
     def introduce(self, system_id: str, endpoint: str) -> bool:

@@ -32,7 +32,7 @@ from btcap.transports.zmq_claims import (
     split_hello,
 )
 from btcap.transports.zmq_endpoints import parse_hello
-from btcap.transports.zmq_monitors import Monitor
+from btcap.transports.zmq_monitors import Monitor, RouterEvents
 from btcap.transports.zmq_peers import PeerBook
 from btcap.transports.zmq_sockets import reject
 
@@ -72,6 +72,7 @@ class PeerRules:
     _endpoints: dict[str, str]
     _monitors: dict[str, Monitor]
     _strangers: PeerBook
+    _events: RouterEvents
     _loop: asyncio.AbstractEventLoop | None
     _stopped: asyncio.Future[None] | None
     accept_hello: bool
@@ -302,6 +303,8 @@ class PeerRules:
                 return self._malformed("bad hello", ident, str(exc))
             if self._admit(peer, endpoint, self.accept_hello, instance):
                 self.hellos += 1
+                if self._events.watch is not None:
+                    self._events.watch.spoke(body.obj, peer)  # this connection is peer's
         elif kind == REFUSAL:
             self._refused_by(ident, bytes(body[1:]))
         else:

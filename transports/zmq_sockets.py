@@ -22,6 +22,7 @@ from btcap.transports.refusals import HANDSHAKE_EVENTS
 from btcap.transports.security import Curve
 from btcap.transports.zmq_io import NOBLOCK
 from btcap.transports.zmq_monitors import DISCONNECTED, RETRIED, Monitor, RouterEvents
+from btcap.transports.zmq_newcomers import NewcomerWatch
 
 __all__ = [
     "COPY_THRESHOLD",
@@ -76,8 +77,12 @@ def open_router(
     max_message_bytes: int,
     stats: TransportStats,
     system: str,
+    hello_timeout_s: float,
+    max_newcomers: int,
 ) -> tuple[zmq.Socket[bytes], RouterEvents]:
-    """The ROUTER a transport receives on, bound to ``bind``, with its event monitor."""
+    """The ROUTER a transport receives on, bound to ``bind``, with its event monitor,
+    which closes connections that say no hello within ``hello_timeout_s`` (at most
+    ``max_newcomers`` wait: see :mod:`~btcap.transports.newcomers`)."""
     sock: zmq.Socket[bytes] = ctx.socket(zmq.ROUTER)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
@@ -100,6 +105,8 @@ def open_router(
         events.close()
         sock.close(0)
         raise ValueError(f"cannot bind {bind!r}: {exc}") from None
+    bound = sock.getsockopt_string(zmq.LAST_ENDPOINT)
+    events.watch = NewcomerWatch(bound, stats, system, hello_timeout_s, max_newcomers)
     return sock, events
 
 

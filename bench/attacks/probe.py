@@ -42,6 +42,7 @@ from btcap.bench.attacks.hostile import (
 from btcap.bench.attacks.member import probe_members
 from btcap.bench.attacks.nodes import probe as node_actions
 from btcap.bench.attacks.roles import probe_roles
+from btcap.bench.attacks.silent import probe_silent
 from btcap.bench.common import write_result
 from btcap.bt.state import State
 from btcap.team.core.members import TeamEvent
@@ -72,6 +73,7 @@ MORE_PROBES = [
     probe_roles,
     probe_members,
     probe_decode,
+    probe_silent,
 ]
 
 

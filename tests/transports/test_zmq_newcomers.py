@@ -1,0 +1,77 @@
+"""How a connection is named and shut (transports/zmq_newcomers.py): only a connection
+accepted on our endpoint, only the very socket named, and no descriptor left behind
+when the number now holds something else."""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+from btcap.transports.zmq_newcomers import local_address, shut, socket_key
+
+
+def open_files() -> int:
+    return len(os.listdir("/proc/self/fd"))
+
+
+@pytest.fixture
+def pair() -> Iterator[tuple[socket.socket, socket.socket, socket.socket]]:
+    """A listener on loopback, a client and the connection it accepted."""
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        client = socket.create_connection(listener.getsockname())
+        accepted, _ = listener.accept()
+        with client, accepted:
+            yield listener, client, accepted
+
+
+def test_an_accepted_connection_is_named_and_shut(
+    pair: tuple[socket.socket, socket.socket, socket.socket],
+) -> None:
+    listener, client, accepted = pair
+    local = local_address(f"tcp://127.0.0.1:{listener.getsockname()[1]}")
+    key = socket_key(accepted.fileno(), local)
+    assert key is not None
+    assert socket_key(listener.fileno(), local) is None  # the listener is no connection
+    assert socket_key(client.fileno(), local) is None  # not accepted on our endpoint
+    assert not shut(accepted.fileno(), ("other", 1))  # not the socket named
+    assert shut(accepted.fileno(), key)
+    assert client.recv(1) == b""  # the peer sees the end
+
+
+def test_a_number_that_holds_no_socket_leaves_nothing_open() -> None:
+    """An accept event read after its descriptor's number went to a pipe (libzmq's own
+    mailboxes use them): the duplicate made to look at it is closed again."""
+    read, write = os.pipe()
+    try:
+        before = open_files()
+        assert socket_key(read, 5) is None
+        assert not shut(read, (0, 0))
+        assert open_files() == before
+    finally:
+        os.close(read)
+        os.close(write)
+
+
+def test_a_closed_number_is_nothing() -> None:
+    read, write = os.pipe()
+    os.close(read)
+    os.close(write)
+    assert socket_key(read, 5) is None
+    assert not shut(read, (0, 0))
+
+
+@pytest.mark.parametrize(
+    ("bound", "local"),
+    [
+        ("tcp://127.0.0.1:7101", 7101),
+        ("tcp://[::1]:7101", 7101),
+        ("ipc:///tmp/a.sock", "/tmp/a.sock"),
+        ("ipc://@abstract", b"\0abstract"),
+        ("inproc://x", None),
+    ],
+)
+def test_local_address(bound: str, local: object) -> None:
+    assert local_address(bound) == local
