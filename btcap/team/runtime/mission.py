@@ -341,4 +341,7 @@ class MissionControl(Actor):
         """Called by the slot after each tick of a hosted run."""
         if state is State.SUCCEEDED:
             self.repository.record_success(hosted.run.implementation.interface.name)
-        self.perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs, self.now()))
+        why = hosted.run.why_error() if state is State.ERROR else ""  # for the origin's user
+        self.perform(
+            self.host.ticked(hosted.execution, _RUN_STATE[state], outputs, self.now(), why)
+        )
