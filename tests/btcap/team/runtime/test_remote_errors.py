@@ -36,7 +36,7 @@ async def test_an_exception_on_the_executor_is_told_at_the_origin_once() -> None
     with anyio.fail_after(10):
         async with team() as t:
             a = await t.add("a")
-            b = await t.add("b", [Implementation("bare-b", BARE, lambda: _Boom("boom"))])
+            await t.add("b", [Implementation("bare-b", BARE, lambda: _Boom("boom"))])
             await t.converged(BARE.identity)
             node = BARE.node_type()("bare")
             tree = a.mission(ReactiveSequence("root", children=[node]))
@@ -52,7 +52,8 @@ async def test_an_exception_on_the_executor_is_told_at_the_origin_once() -> None
                 assert await tick_until(tree, done) is State.FAILED
                 for _ in range(3):  # a failed capability stays failed, told once
                     assert tree.tick() is State.FAILED
-            assert node.assignments == ["b"] and seen
+            assert node.assignments == ["b"]
+            assert seen
             told = _told_of_b(caught)
             assert len(told) == 1, told
             # what raised, where, and what to do about it
@@ -60,7 +61,8 @@ async def test_an_exception_on_the_executor_is_told_at_the_origin_once() -> None
                 assert words in told[0], (words, told[0])
             at_origin = [e for e in logs if e["event"] == "mission.remote_error"]
             assert len(at_origin) == 1, logs
-            assert at_origin[0]["robot"] == "b" and "actuator fault" in at_origin[0]["detail"]
+            assert at_origin[0]["robot"] == "b"
+            assert "actuator fault" in at_origin[0]["detail"]
             # the executor's report carried it (the origin's tracked detail)
             assert "RuntimeError" in seen[-1].tracked.detail
             await tree.shutdown()
