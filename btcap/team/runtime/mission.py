@@ -129,6 +129,9 @@ class MissionControl(Actor):
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
         self.executor.runs = RunFactory(self.system)
+        self.executor.runs.prepare(
+            i for impls in self.repository.implementations.values() for i in impls
+        )
         self._unsubscribe.append(self.team.subscribe(self._on_team))
         # A robot that joins (or rejoins after a partition) is news for waiting work only
         # once its capabilities arrive, which may be after the auction its join set off.
