@@ -7,10 +7,10 @@ from __future__ import annotations
 import warnings
 
 import anyio
-from capfixtures import team, tick_until
+from capfixtures import step, team, tick_until
 from structlog.testing import capture_logs
 
-from btcap import Leaf, NodeErrorWarning, ReactiveSequence, State
+from btcap import Leaf, NodeErrorWarning, ReactiveSequence, State, UnassignableWarning
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation
 from btcap.team.capabilities.proxies import RemoteExecution
@@ -83,4 +83,47 @@ async def test_a_plain_failure_on_the_executor_is_no_error_at_the_origin() -> No
                 assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.FAILED
             assert not [w for w in caught if issubclass(w.category, NodeErrorWarning)]
             assert not [e for e in logs if e["event"] == "mission.remote_error"]
+            await tree.shutdown()
+
+
+class _NoDevice(Leaf):
+    """An implementation whose device is not there: its setup raises at every award."""
+
+    def on_setup(self) -> None:
+        raise ConnectionError("gripper not connected")
+
+    def on_tick(self) -> State:
+        return State.SUCCEEDED
+
+
+async def test_an_award_declined_for_good_is_a_capability_nobody_can_take() -> None:
+    """b bids (it could) but declines every award (its setup fails): the origin's user is
+    told as for a capability nobody can take, with b's reason, not left waiting in
+    silence as if b were only busy."""
+    with anyio.fail_after(10):
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b", [Implementation("bare-b", BARE, lambda: _NoDevice("nd"))])
+            await t.converged(BARE.identity)
+            node = BARE.node_type()("bare")
+            tree = a.mission(ReactiveSequence("root", children=[node]))
+
+            def told() -> list[str]:
+                return [
+                    str(w.message)
+                    for w in caught
+                    if issubclass(w.category, UnassignableWarning)
+                    and "setup of 'bare-b' failed" in str(w.message)
+                ]
+
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                for _ in range(400):
+                    tree.tick()
+                    if told():
+                        break
+                    await step()
+            assert node.assignments == []
+            assert len(told()) == 1
+            assert "gripper not connected" in told()[0]
             await tree.shutdown()
