@@ -105,6 +105,7 @@ if TYPE_CHECKING:
     from btcap.team.runtime.agent import Agent, AgentConfig
     from btcap.team.runtime.protocol import protocol_registry
     from btcap.team.settings import MissionConfig
+    from btcap.transports.refusals import HandshakeWarning
 
 __version__ = "0.1.0"
 
@@ -192,6 +193,7 @@ _EXPORTS = {
     "btcap.errors": ("BtcapError",),
     "btcap.monitor": ("Monitor", "Replay"),
     "btcap.team.runtime.agent": ("Agent", "AgentConfig"),
+    "btcap.transports.refusals": ("HandshakeWarning",),
     "btcap.team.capabilities.capability": (
         "Capability",
         "CapabilityInterface",
@@ -249,6 +251,7 @@ __all__ = [
     "Fallback",
     "ForceFailure",
     "ForceSuccess",
+    "HandshakeWarning",
     "IfThenElse",
     "IllegalTransition",
     "Implementation",

@@ -8,8 +8,13 @@ catch it. This module imports nothing of btcap: every layer may use it.
 
 from __future__ import annotations
 
-__all__ = ["BtcapError"]
+__all__ = ["BtcapError", "BtcapWarning"]
 
 
 class BtcapError(Exception):
     """An error btcap raises on purpose; its message says what was wrong and where."""
+
+
+class BtcapWarning(UserWarning):
+    """Base class of btcap's warnings, to filter them all at once (here, below every
+    layer, so the transports' warnings have it too)."""

@@ -175,9 +175,12 @@ async def _run_and_write(
     run: Callable[[Monitor | None], Awaitable[MissionResult]],
     folder: Path,
     out: Path,
+    monitors: list[Monitor | None],
     monitor: Monitor | None,
 ) -> MissionResult:
-    """Run, then write the results while the monitor still serves how the run ended."""
+    """Run, then write the results while the monitor still serves how the run ended
+    (``monitor`` goes into ``monitors``: the caller asks it how its recording went)."""
+    monitors.append(monitor)
     result = await run(monitor)
     try:
         _write(result, folder)
@@ -341,7 +344,8 @@ def run_command(args: argparse.Namespace) -> int:
             ros = {"ros2": args.ros2, "ros1": args.ros1}
             run = functools.partial(_run_one, s, console, *flags, stopper, **ros, btlog=btlog)
             keep = None if args.no_record else record
-            write = functools.partial(_run_and_write, run, folder, out)
+            monitors: list[Monitor | None] = []  # which recorded, and how that went
+            write = functools.partial(_run_and_write, run, folder, out, monitors)
             started = time.perf_counter()
             meta = run_metadata(s, fast=args.fast, distributed=args.distributed)
             result = asyncio.run(
@@ -359,7 +363,15 @@ def run_command(args: argparse.Namespace) -> int:
             idle = idle_robots_note(result, s.object_workers) if s.mission == "paper" else None
             if idle is not None:
                 console.print(idle, markup=False, soft_wrap=True)
-            if keep is not None:
+            failed = next((m.recording_failed for m in monitors if m is not None), None)
+            if keep is not None and failed is not None:  # said by the log too, long ago
+                console.print(
+                    f"recording {keep} stopped before the end: {failed}; it holds what came "
+                    f"before (btcap replay {keep} reads up to there)",
+                    markup=False,
+                    soft_wrap=True,
+                )
+            elif keep is not None:
                 console.print(f"recorded {keep} (btcap replay {keep})", markup=False)
             if btlog is not None:
                 console.print(f"wrote {btlog} (open it in Groot2)", markup=False)

@@ -7,20 +7,29 @@ any message flows, so both robots would wait in silence. libzmq tells a socket m
 turns that into one warning per peer, again at most every ``quiet_s`` while it lasts,
 naming the key file and the config field to check, and paces the re-dials of a link that
 failed (libzmq gives up on a refused one; re-dialling at once would be a storm).
+
+Those lines are log records, which a program that configured no logging never sees
+(btcap's loggers end in a NullHandler), so the first of each peer or key is also a
+:class:`HandshakeWarning`, which Python shows by default and
+``warnings.filterwarnings("ignore", category=btcap.HandshakeWarning)`` quietens (the
+``btcap`` commands do: their log shows it).
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import zmq
 
+from btcap.errors import BtcapWarning
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
 
-__all__ = ["HANDSHAKE_EVENTS", "Refusals", "fingerprint"]
+__all__ = ["HANDSHAKE_EVENTS", "HandshakeWarning", "Refusals", "fingerprint"]
 
 log = get_logger(__name__)
 
@@ -38,6 +47,11 @@ _UNCLEAR_TRIES = 3
 one is worth a warning."""
 _FIRST_RETRY_S = 0.25
 _MAX_RETRY_S = 30.0
+
+
+class HandshakeWarning(BtcapWarning):
+    """A handshake failed (a key refused, by either side; keys on one side only; a stale
+    copy of a key): said once per peer or key of a transport, naming what to check."""
 
 
 def fingerprint(key: bytes) -> str:
@@ -79,6 +93,21 @@ class Refusals:
         self.clock = clock
         self._seen: dict[str, _Seen] = {}
         self._failures: dict[str, int] = {}
+        self._warned: dict[str, None] = {}  # what was a warning (bounded as _seen)
+
+    def _warn(self, what: str, why: str, event: str) -> None:
+        """The first time of ``what``: a :class:`HandshakeWarning` too (see the module)."""
+        if what in self._warned:
+            return
+        self._warned[what] = None
+        while len(self._warned) > self.max_entries:
+            del self._warned[next(iter(self._warned))]
+        text = (
+            f"{self.system}: {why} (said once; logged as {event} while it lasts, logger "
+            "'btcap.transports.refusals')"
+        )
+        with contextlib.suppress(HandshakeWarning):  # made an error by a filter: logged
+            warnings.warn_explicit(text, HandshakeWarning, "<btcap handshake>", 0, module="btcap")
 
     def _worth_a_line(self, what: str) -> int:
         """How many times ``what`` happened since its last line, if it deserves one now
@@ -120,6 +149,7 @@ class Refusals:
                     count=times,
                     **ours,
                 )
+                self._warn(f"peer {peer}", why, "transport.handshake_refused")
         return min(_MAX_RETRY_S, _FIRST_RETRY_S * 2.0 ** min(n - 1, 16))
 
     def _why_failed(self, peer: str, endpoint: str, event: int, value: int, n: int) -> str | None:
@@ -182,6 +212,7 @@ class Refusals:
             detail=why,
             count=times,
         )
+        self._warn(f"key {key.decode(errors='replace')}", why, "transport.key_refused")
 
     def handshake_failed(self, value: int) -> None:
         """A peer failed the handshake with us (libzmq tells no address for this)."""
@@ -204,3 +235,4 @@ class Refusals:
         else:
             why = f"a peer failed the handshake (zmq error {value:#x})"
         log.warning("transport.handshake_failed", system=me, detail=why, count=times)
+        self._warn(f"failed {value}", why, "transport.handshake_failed")

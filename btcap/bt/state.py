@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 
 from btcap._enum import FastEnumType
-from btcap.errors import BtcapError
+from btcap.errors import BtcapError, BtcapWarning
 
 __all__ = [
     "ACTIVE",
@@ -110,10 +110,6 @@ class TreeTimeout(TreeError, TimeoutError):
         self.running = running
         self.state = state
         self.ticks = ticks
-
-
-class BtcapWarning(UserWarning):
-    """Base class of btcap's warnings, to filter them all at once."""
 
 
 class RestartLoopWarning(BtcapWarning):

@@ -23,6 +23,7 @@ from typing import Protocol
 
 from btcap.bt.state import NodeErrorWarning, TreeError, UnassignableWarning
 from btcap.errors import BtcapError
+from btcap.transports.refusals import HandshakeWarning
 
 __all__ = ["CliError", "Stopped", "build_parser", "main"]
 
@@ -129,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         configure_logging(args.log_level, json=args.log_json)
         # The command's log shows each node error and each capability nobody can take;
         # the warnings that tell a library's user of them by default would say it twice.
-        for told in (NodeErrorWarning, UnassignableWarning):
+        for told in (NodeErrorWarning, UnassignableWarning, HandshakeWarning):
             warnings.filterwarnings("ignore", category=told)
         handler: Callable[[argparse.Namespace], int] = args.handler
         return handler(args)

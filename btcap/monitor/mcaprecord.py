@@ -61,6 +61,7 @@ class McapRecorder:
     ) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
+        self.failed: str | None = None
         self._file = path.open("wb")
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(PROFILE, f"btcap {btcap.__version__}")
@@ -71,7 +72,11 @@ class McapRecorder:
         self._chunk_s = chunk_s
         self._chunk_t: float | None = None  # clock time of the open chunk's first event
         self._closed = False
-        self._file.flush()
+        try:
+            self._file.flush()
+        except OSError:
+            self._failed_start()
+            raise
 
     def _channel(self, topic: str, schema: dict[str, Any]) -> int:
         cid = self._channels.get(topic)
@@ -123,10 +128,18 @@ class McapRecorder:
         except OSError as exc:
             self._failed(exc)
 
+    def _failed_start(self) -> None:
+        """The header could not be written: the file is closed, what it buffered dropped."""
+        with contextlib.suppress(OSError):
+            self._file.close()  # (flushes again and fails, but closes)
+        with contextlib.suppress(OSError):
+            self._file.raw.close()
+
     def _failed(self, exc: OSError) -> None:
         """A full disk ends the recording (said once), never the monitor or the robot."""
         self._closed = True
-        log.error("monitor.record_failed", path=str(self.path), error=exc.strerror or str(exc))
+        self.failed = exc.strerror or str(exc)
+        log.error("monitor.record_failed", path=str(self.path), error=self.failed)
         with contextlib.suppress(OSError):
             self._file.close()
 

@@ -420,6 +420,12 @@ class Monitor:
     def hub(self) -> Hub:
         return self._hub
 
+    @property
+    def recording_failed(self) -> str | None:
+        """Why the recording stopped before the run's end (a full disk), or None: a
+        caller that says where it recorded says this instead."""
+        return self._recorder.failed if self._recorder is not None else None
+
 
 def _node_of(execution: str) -> str:
     """The node an execution id names, as its runs and auctions are matched by (the id's

@@ -51,6 +51,8 @@ class Recording(Protocol):
     """Where a monitor's batches go: JSON Lines or MCAP."""
 
     path: Path
+    #: Why the recording stopped before its end (a full disk), or None.
+    failed: str | None
 
     def write(self, batch: list[Event]) -> None: ...
 
@@ -58,12 +60,16 @@ class Recording(Protocol):
 
 
 def open_recorder(path: Path, metadata: Mapping[str, str] | None = None) -> Recording:
-    """A recorder for ``path``: MCAP if it ends ``.mcap``, else JSON Lines."""
-    if path.suffix.lower() == ".mcap":
-        from btcap.monitor.mcaprecord import McapRecorder  # mcap only when asked for
+    """A recorder for ``path``: MCAP if it ends ``.mcap``, else JSON Lines. An OSError
+    names the file (a full disk's says only "No space left on device")."""
+    try:
+        if path.suffix.lower() == ".mcap":
+            from btcap.monitor.mcaprecord import McapRecorder  # mcap only when asked for
 
-        return McapRecorder(path, metadata)
-    return Recorder(path, metadata)
+            return McapRecorder(path, metadata)
+        return Recorder(path, metadata)
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write the recording {path}: {exc.strerror}") from None
 
 
 class Recorder:
@@ -73,6 +79,7 @@ class Recorder:
     def __init__(self, path: Path, metadata: Mapping[str, str] | None = None) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
+        self.failed: str | None = None
         self._file = path.open("wb")
         head: dict[str, Any] = {"format": FORMAT, "version": VERSION}
         if metadata:
@@ -96,7 +103,8 @@ class Recorder:
 
     def _failed(self, exc: OSError) -> None:
         """A full disk ends the recording (said once), never the monitor or the robot."""
-        log.error("monitor.record_failed", path=str(self.path), error=exc.strerror or str(exc))
+        self.failed = exc.strerror or str(exc)
+        log.error("monitor.record_failed", path=str(self.path), error=self.failed)
         with contextlib.suppress(OSError):
             self._file.close()
 

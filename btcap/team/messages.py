@@ -200,6 +200,9 @@ class CallForBids(Message):
     holder: ExecutionId | None = None
     handing: ExecutionId | None = None
     extended: bool = False
+    #: The auctioneer's clock speed-up (0: a virtual clock, or not said): a robot whose
+    #: clock runs at another rate does not bid (see :class:`Award`).
+    speedup: float = 0.0
 
 
 class Bid(Message):
@@ -244,6 +247,10 @@ class Award(Message):
     #: An exchange: the winner holds this (paused) beside ``handing``, which it runs and
     #: hands over; it starts when ``handing`` is released.
     handing: ExecutionId | None = None
+    #: The origin's clock speed-up (clock seconds per wall second; 0: a virtual clock, or
+    #: not said): leases are clock seconds, so a winner whose clock runs at another rate
+    #: declines (its run could act after the origin gave it up).
+    speedup: float = 0.0
 
 
 class AwardReply(Message):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import warnings
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
@@ -148,3 +149,37 @@ def test_lines_are_rate_limited_per_peer_and_cleared_once_admitted() -> None:
         refusals.we_refused("10.0.0.9", f"{0:040d}".encode())  # forgotten: told again
     assert len(logs) == 101
     assert logs[-1]["key"] == "00000000\u2026"
+
+
+async def test_a_refused_key_is_a_warning_on_both_machines_once_without_logging(
+    keys: Path,
+) -> None:
+    """A program that configured no logging (btcap's loggers end in a NullHandler) still
+    hears of a refused key, on both sides, once each however often it is re-dialled: a
+    HandshakeWarning (a BtcapWarning) saying what to check; filters quieten it."""
+    from btcap import BtcapWarning, HandshakeWarning
+
+    assert issubclass(HandshakeWarning, BtcapWarning)
+    with warnings.catch_warnings(record=True) as caught, anyio.fail_after(15):
+        warnings.simplefilter("always")
+        alpha = keyed("alpha", keys, "team")
+        operator = keyed("operator", keys, "ours", peers={"alpha": alpha.endpoint})
+        async with both(alpha, operator):
+            refused = alpha.stats.by_reason
+            with anyio.fail_after(8):  # told, then dialled again twice (0.25 s, 0.5 s on)
+                for _ in range(2000):
+                    if len(_handshake(caught)) >= 2 and refused["handshake refused"] >= 3:
+                        break
+                    await anyio.sleep(0.01)
+    told = _handshake(caught)
+    assert len(told) == 2, told
+    ours = next(t for t in told if "refused our key" in t)
+    theirs = next(t for t in told if "not in our trusted folder" in t)
+    assert ours.startswith("operator: alpha refused our key: is operator.key in its trusted")
+    assert theirs.startswith("alpha: refused 127.0.0.1: its key ")
+
+
+def _handshake(caught: list[warnings.WarningMessage]) -> list[str]:
+    from btcap import HandshakeWarning
+
+    return [str(w.message) for w in caught if issubclass(w.category, HandshakeWarning)]

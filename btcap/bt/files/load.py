@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import typing
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -24,7 +24,7 @@ from btcap.bt.tree import Tree
 if typing.TYPE_CHECKING:
     from btcap.actors import TimeSource
 
-__all__ = ["TreeFileWarning", "load_tree", "loads_tree", "validate_file"]
+__all__ = ["TreeFileWarning", "load_tree", "loads_tree", "tree_builder", "validate_file"]
 
 
 class TreeFileWarning(UserWarning):
@@ -115,6 +115,35 @@ def load_tree(
     p = Path(path)
     opts = XmlOptions(main, stub_missing, tuple(models), stub_script)
     return _load(read_bytes(p), _format(p), str(p), registry, clock, p.parent, p, opts, entries)
+
+
+def tree_builder(
+    path: str | os.PathLike[str], registry: NodeRegistry | None = None
+) -> Callable[[], Tree]:
+    """What builds the tree ``path`` describes, again and again, the file read and parsed
+    once, now (raises TreeFileError if it does not parse): a capability implementation's
+    tree is built for every run, and reading and parsing is most of what that costs
+    (YAML: about 60 %). Files it refers to are read at the first build and kept. A
+    BehaviorTree.CPP ``.xml`` file is read at every build (:func:`load_tree`)."""
+    p = Path(path)
+    fmt = _format(p)
+    if fmt == "xml":
+        return lambda: load_tree(p, registry)
+    reg = registry if registry is not None else default_registry()
+    where, stack = str(p), (p.resolve(),)
+    cache: dict[Path, Any] = {}
+    try:
+        spec = parse(decode(read_bytes(p), fmt, where), where)
+    except RecursionError:
+        raise TreeFileError([f"{where}: nodes nested too deep to read"]) from None
+
+    def build() -> Tree:
+        try:
+            return Builder(spec, where, reg, p.parent, stack, cache).build_main(None)
+        except RecursionError:
+            raise TreeFileError([f"{where}: nodes nested too deep to read"]) from None
+
+    return build
 
 
 def loads_tree(

@@ -23,6 +23,7 @@ from btcap.team.allocation.strategy import (
 from btcap.team.capabilities.capability import ASSIGNER_PATH
 from btcap.team.core.auction import Auction, AuctionOutcome
 from btcap.team.core.award import AwardRound
+from btcap.team.core.fence import speedup_of
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned, against_holder
 from btcap.team.core.turns import AUCTION, AwardQueue, BatchPolicy, PlanJob
@@ -153,6 +154,7 @@ class SingleItemAuction(Allocator):
                 task.handing,
                 # time-extended: busy robots say what a new task would cost them later
                 self._extended and task.holder is None and task.handing is None,
+                speedup_of(clock),
             )
             me = self.address
             for robot in sorted(task.candidates):

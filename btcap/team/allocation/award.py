@@ -7,10 +7,13 @@ from __future__ import annotations
 
 from typing import Any
 
+import msgspec
+
 from btcap.actors import Actor, ActorError, AskTimeout, within
 from btcap.team.allocation.strategy import AuctionStats
 from btcap.team.capabilities.capability import ASSIGNER_PATH
 from btcap.team.core.award import AwardRound
+from btcap.team.core.fence import speedup_of
 from btcap.team.core.task import Assigned
 from btcap.team.messages import AwardReply
 from btcap.transports import Address
@@ -38,7 +41,10 @@ async def offer(
     # bounds the wait, not a timeout context of its own; on a virtual one, ``within``.
     wall = clock.to_wall(timeout_s)
     limit = max(wall, min_wall) if wall > 0 else None
+    rate = speedup_of(clock)
     while (ask := award.next()) is not None:
+        if rate:
+            ask = msgspec.structs.replace(ask, speedup=rate)
         robot = award.offered.robot
         executor = system.ref(Address(robot, ASSIGNER_PATH))
         try:

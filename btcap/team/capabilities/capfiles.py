@@ -42,11 +42,10 @@ from typing import Any
 
 import msgspec
 
-from btcap.bt.files import load_tree
+from btcap.bt.files.load import tree_builder
 from btcap.bt.ports import Port
 from btcap.bt.registry import NodeRegistry, default_registry
 from btcap.bt.state import TreeError
-from btcap.bt.tree import Tree
 from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import BidFunction, Implementation, Precondition
 from btcap.team.capabilities.loader import load_callable
@@ -240,11 +239,8 @@ def load_implementation(
     reg = registry or default_registry(plugins=False)
     register_interfaces(reg, known.values())
     tree_path = (file.parent / spec.tree).resolve()
-
-    def build() -> Tree:
-        return load_tree(tree_path, reg)
-
     try:
+        build = tree_builder(tree_path, reg)  # read and parsed once, built for every run
         build()  # fail now, naming the files, rather than at the first award
     except TreeError as exc:
         raise CapabilityFileError(f"{where}: tree: {exc}") from None

@@ -40,6 +40,9 @@ class Precondition(msgspec.Struct, frozen=True):
     scope: Scope = Scope.LOCAL
 
 
+#: The longest exception text a run's error report repeats.
+_TEXT = 300
+
 BidFunction = Callable[[Mapping[str, Any]], float | None]
 
 
@@ -84,6 +87,20 @@ class ImplementationRun:
         for key, src, port in out._pulls or ():
             values[key] = src.outputs[port]
         return state, dict(values)
+
+    def why_error(self) -> str:
+        """Which node of the run raised what (the first one found), for the origin of a
+        run that ended in ERROR: its user is on another robot and sees no log of ours."""
+        for node in self.tree.nodes():
+            exc = node.error
+            if exc is not None:
+                text = str(exc)
+                text = text if len(text) <= _TEXT else text[:_TEXT] + "..."
+                return (
+                    f"implementation {self.implementation.name!r}: node {node.path!r} "
+                    f"({type(node).__name__}) raised {type(exc).__name__}: {text}"
+                )
+        return f"implementation {self.implementation.name!r} ended in ERROR"
 
     def pause(self) -> None:
         self.tree.untick()

@@ -15,6 +15,7 @@ from typing import Any, Protocol
 from btcap.bt.state import State
 from btcap.team.capabilities.capability import Capability
 from btcap.team.capabilities.implementation import ImplementationRun
+from btcap.team.capabilities.remote_error import tell_remote_error
 from btcap.team.core.body import Body
 from btcap.team.core.origin import Tracked
 from btcap.team.ids import ExecutionId
@@ -161,6 +162,9 @@ class RemoteExecution(_Handle):
             if self._side.fenced(self.id):
                 return State.ASSIGNED, {}
             t.live = True
+        if t.state is RunState.ERROR:  # ended: the origin's user hears why, not only that
+            tell_remote_error(self.node, self.node.interface().name, self.robot, t.detail)
+            return State.ERROR, t.outputs
         t.seq += 1
         self._side.send(self.robot, ExecutionInputs(self.id, t.seq, dict(inputs), t.stamp))
         return _NODE_STATE[t.state], t.outputs

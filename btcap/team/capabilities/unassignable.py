@@ -2,7 +2,8 @@
 
 The capability node logs its empty auctions (``capability.unassigned``), but a program
 that configured no logging would see a mission wait for ever in silence. So the first
-empty auction that was not about busy robots, and the end of an
+empty auction that was not about busy robots (an award declined for good, such as a
+setup that fails at every award, is not about a busy robot), and the end of an
 ``assignment_timeout_s``, are also warnings, once per node of a tree: Python shows them
 by default, and ``warnings.filterwarnings("ignore", category=btcap.UnassignableWarning)``
 quietens them.
@@ -42,10 +43,30 @@ class _Capability(Protocol):
     def path(self) -> str: ...
 
 
+#: What an award declined for good says (its robot bids, wins and declines again at every
+#: auction: not a robot that is only occupied): its implementation's setup failed, the
+#: lease is over its max_lease_s, its clock runs at another speed-up, it cannot run these
+#: inputs, or it lacks the implementation or a remote capability slot.
+_FOR_GOOD = (
+    "setup of ",
+    "max_lease_s",
+    "clock speed-up",
+    "cannot execute",
+    "no implementation",
+    "no remote capability slot",
+)
+
+
+def _not_now(text: str) -> bool:
+    if text.startswith("declined the award") and any(m in text for m in _FOR_GOOD):
+        return False
+    return any(marker in text for marker in _NOT_NOW)
+
+
 def nobody_able(why: Mapping[str, str]) -> bool:
     """Whether an empty auction's reasons (robot -> why) say that nobody in the team can
     take the work at all, rather than that the robots able to are occupied."""
-    return not any(marker in text for text in why.values() for marker in _NOT_NOW)
+    return not any(_not_now(text) for text in why.values())
 
 
 def tell_nobody(

@@ -25,9 +25,19 @@ finished) says so, and a run that said so never acts again.
 
 from __future__ import annotations
 
+from typing import Protocol
+
 from btcap.team.ids import ExecutionId
 
-__all__ = ["DRIFT", "EXECUTOR_SHARE", "STOP_SLACK", "Fences", "executor_lease_s"]
+__all__ = [
+    "DRIFT",
+    "EXECUTOR_SHARE",
+    "STOP_SLACK",
+    "Fences",
+    "executor_lease_s",
+    "speedup_of",
+    "speedups_differ",
+]
 
 #: The largest difference between a robot clock's rate and true time (±1 %: quartz is
 #: within 0.01 %, NTP slews at most 0.05 %).
@@ -37,6 +47,25 @@ EXECUTOR_SHARE = 0.9
 #: What is left for the executor to stop its run, as a share of ``lease_s`` (0.08: 64 ms
 #: at the default 0.8 s lease), with both clocks at the worst drift.
 STOP_SLACK = 1.0 / (1.0 + DRIFT) - EXECUTOR_SHARE / (1.0 - DRIFT)
+
+
+class _Rated(Protocol):
+    def to_wall(self, seconds: float) -> float: ...
+
+
+def speedup_of(clock: _Rated) -> float:
+    """A clock's speed-up (clock seconds per wall second), 0.0 for a virtual clock."""
+    wall = clock.to_wall(1.0)
+    return 1.0 / wall if wall > 0 else 0.0
+
+
+def speedups_differ(ours: float, theirs: float) -> bool:
+    """Whether two robots' clocks run at rates the fence was not made for: the leases
+    are clock seconds, and it holds for rates within :data:`DRIFT` of each other (a
+    speed-up of 0: a virtual clock, or not said, is not judged)."""
+    if ours <= 0 or theirs <= 0:
+        return False
+    return abs(ours / theirs - 1.0) > 2 * DRIFT
 
 
 def executor_lease_s(lease_s: float) -> float:

@@ -198,9 +198,9 @@ class HostLeases(Generic[R]):
             h.until = max(h.until, echo + h.lease_s)
 
     # -- the run ----------------------------------------------------------------------
-    def status(self, h: Hosted[R], now: float | None = None) -> ExecutionStatus:
+    def status(self, h: Hosted[R], now: float | None = None, detail: str = "") -> ExecutionStatus:
         """``h``'s report, stamped ``now`` (this robot's clock) for its origin to echo."""
-        return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq, "", now)
+        return ExecutionStatus(h.execution, self.robot, h.state, h.outputs, h.seq, detail, now)
 
     def ticked(
         self,
@@ -208,13 +208,15 @@ class HostLeases(Generic[R]):
         state: RunState,
         outputs: dict[str, Any],
         now: float | None = None,
+        detail: str = "",
     ) -> list[Effect]:
-        """The slot ticked the run: report it; a finished run is kept as a final status."""
+        """The slot ticked the run: report it (``detail``: why it ended in ERROR, for the
+        origin's user); a finished run is kept as a final status."""
         h = self.hosted.get(execution)
         if h is None:
             return []
         h.state, h.outputs = state, outputs
-        report = self.status(h, now)
+        report = self.status(h, now, detail)
         out: list[Effect] = [Send(h.origin, report)]
         if state in RUN_DONE:
             self.finished[execution] = report

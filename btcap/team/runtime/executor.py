@@ -24,6 +24,7 @@ from btcap.team.core.body import Body
 from btcap.team.core.bounds import BidBook, Budgets, bid_memory_s
 from btcap.team.core.costwatch import CostWatch
 from btcap.team.core.effects import Drop, Effect, Send
+from btcap.team.core.fence import speedup_of, speedups_differ
 from btcap.team.core.hosting import Hosted, HostLeases
 from btcap.team.ids import ExecutionId
 from btcap.team.membership.repository import CapabilityRepository
@@ -72,6 +73,7 @@ class ExecutorSide:
         self.calls = Budgets(CALLS_PER_S, CALLS_BURST)
         self.slot: RemoteCapabilitySlot | None = None
         self.runs: RunFactory | None = None
+        self._rates_told: set[str] = set()  # origins told their clock rate differs
         #: Runs of this robot's own capability nodes, awarded and not yet adopted.
         self.local_runs: dict[ExecutionId, ImplementationRun] = {}
         self.costs = CostWatch(0.2)
@@ -174,6 +176,8 @@ class ExecutorSide:
         now = self.now()
         if not self.calls.allow(sender, now):
             return None
+        if (why := self._other_rate(sender, cfb.speedup)) is not None:
+            return NoBid(cfb.auction, self.robot, why)
         answer = self.evaluate(cfb)
         if isinstance(answer, Bid):
             self.bids.bid(cfb.auction, cfb.interface, now)
@@ -191,12 +195,30 @@ class ExecutorSide:
             return "no remote capability slot"
         return self.unmet(impl.preconditions) or impl
 
+    def _other_rate(self, sender: str, theirs: float) -> str | None:
+        """Why not, if the origin's clock runs at another speed-up than ours: its lease
+        would end there long before (or after) it ends here (logged once per origin)."""
+        ours = speedup_of(self.runs.system.clock) if self.runs is not None else 0.0
+        if not speedups_differ(ours, theirs):
+            return None
+        why = (
+            f"clock speed-up {ours:g} here and {theirs:g} at {sender}: every robot of "
+            "a team runs at the same one (timing.speedup in each agent file), or a run "
+            "could act after its origin gave it up"
+        )
+        if sender not in self._rates_told:
+            if len(self._rates_told) >= 256:  # (bounded: a line again now and then)
+                self._rates_told.clear()
+            self._rates_told.add(sender)
+            log.error("mission.speedup_differs", robot=self.robot, origin=sender, detail=why)
+        return why
+
     def accept(self, sender: str, msg: Award) -> str | None:
         """Take the award, or say why not; nothing is held after a refusal."""
         if self.host.repeated(sender, msg):  # a copy of one we hold (the network's)
             return None
         refused = self.bids.refuse(sender, msg, self.now()) or self.host.refuse_award(sender, msg)
-        impl = refused or self._implementation(msg)
+        impl = refused or self._other_rate(sender, msg.speedup) or self._implementation(msg)
         if isinstance(impl, str):
             return impl
         assert self.runs is not None

@@ -129,6 +129,9 @@ class MissionControl(Actor):
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
         self.executor.runs = RunFactory(self.system)
+        self.executor.runs.prepare(
+            i for impls in self.repository.implementations.values() for i in impls
+        )
         self._unsubscribe.append(self.team.subscribe(self._on_team))
         # A robot that joins (or rejoins after a partition) is news for waiting work only
         # once its capabilities arrive, which may be after the auction its join set off.
@@ -341,4 +344,7 @@ class MissionControl(Actor):
         """Called by the slot after each tick of a hosted run."""
         if state is State.SUCCEEDED:
             self.repository.record_success(hosted.run.implementation.interface.name)
-        self.perform(self.host.ticked(hosted.execution, _RUN_STATE[state], outputs, self.now()))
+        why = hosted.run.why_error() if state is State.ERROR else ""  # for the origin's user
+        self.perform(
+            self.host.ticked(hosted.execution, _RUN_STATE[state], outputs, self.now(), why)
+        )

@@ -38,6 +38,21 @@ async def test_an_implementation_from_files_runs_through_its_bridges() -> None:
     assert node.assignments == ["solo"]
 
 
+def test_an_implementations_tree_file_is_read_and_parsed_once(tmp_path: Path) -> None:
+    """Every run builds a fresh tree, but not from the file: reading and parsing it (most
+    of a build's cost, on the robot's event loop at an award) happens once, at load."""
+    for name in ("greet.yaml", "greet_impl.yaml"):
+        (tmp_path / name).write_bytes((EXAMPLES / name).read_bytes())
+    interfaces = load_interfaces(EXAMPLES / "interfaces.yaml")
+    impl = load_implementation(tmp_path / "greet.yaml", interfaces)
+    first = impl.instantiate()
+    (tmp_path / "greet_impl.yaml").write_text("not: [a, tree\n")  # read again: refused
+    runs = [impl.instantiate() for _ in range(3)]
+    roots = {id(r.tree.root) for r in (first, *runs)}
+    assert len(roots) == 4  # each run its own nodes
+    assert [n.path for n in runs[-1].tree.nodes()] == [n.path for n in first.tree.nodes()]
+
+
 @pytest.mark.parametrize(
     ("text", "needle"),
     [

@@ -1,0 +1,51 @@
+"""An error on the executor, told at the origin: a :class:`~btcap.bt.state.NodeErrorWarning`.
+
+When an implementation raises on another robot, that robot logs and warns in its own
+process; the robot whose mission tree holds the capability only saw it fail, with no
+word of why, and the person running the mission watches the origin. So the executor's
+report says which node raised what (``ExecutionStatus.detail``), and the origin tells
+it: a log line every time (``mission.remote_error``, logger ``btcap``) and, the first
+time for each capability node of a tree, the warning a node's own error gives, quietened
+by the same filter (``warnings.filterwarnings("ignore", category=btcap.NodeErrorWarning)``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Protocol
+
+from btcap.bt.host import TreeHost
+from btcap.bt.state import NodeErrorWarning
+from btcap.transports.log import get_logger
+
+__all__ = ["tell_remote_error"]
+
+log = get_logger("btcap.mission")
+
+
+class _Capability(Protocol):
+    _tree: TreeHost | None
+
+    @property
+    def path(self) -> str: ...
+
+
+def tell_remote_error(node: _Capability, interface: str, robot: str, detail: str) -> None:
+    """``node``'s run on ``robot`` ended in ERROR, for the reason ``detail`` (its words)."""
+    why = detail or "its implementation ended in ERROR (it gave no reason)"
+    log.error("mission.remote_error", capability=node.path, robot=robot, detail=why)
+    tree = node._tree
+    key = f"{node.path} remote error"
+    if tree is not None:
+        if key in tree._told:
+            return
+        tree._told.add(key)
+    message = (
+        f"capability {node.path!r} ({interface}) ran on robot {robot!r}, where {why}; it "
+        "FAILED here, and its parent decides what follows. Fix the implementation on "
+        f"{robot} (that robot's log, logger 'btcap', has the traceback), or have it report "
+        "a failure it expects as one (return FAILED); later errors of this capability go "
+        "to the log only (logger 'btcap')"
+    )
+    where = f"<capability {node.path}>"
+    warnings.warn_explicit(message, NodeErrorWarning, where, 0, module="btcap")

@@ -1,0 +1,84 @@
+"""Building an implementation's subtree for an award stays off the event loop on a real
+clock: a file-backed implementation reads, parses and builds its tree afresh for every
+run (a 300-node tree costs ~40 ms of CPU, a 2000-node one ~300 ms), which on the loop
+holds up the robot's heartbeats. Judged by the thread each run was built in, not by time."""
+
+from __future__ import annotations
+
+import threading
+
+import anyio
+from capfixtures import team, tick_until, until
+
+from btcap import AlwaysSuccess, Leaf, ReactiveSequence, Sequence, State
+from btcap.team.capabilities.capability import CapabilityInterface
+from btcap.team.capabilities.implementation import Implementation
+
+BARE = CapabilityInterface("Bare")
+
+
+class _Mark(Leaf):
+    """Says which root it ran under, so a test knows which built tree a run used."""
+
+    def __init__(self, ran: list[int]) -> None:
+        super().__init__("mark")
+        self.ran = ran
+
+    def on_tick(self) -> State:
+        assert self.parent_node is not None
+        self.ran.append(id(self.parent_node))
+        return State.SUCCEEDED
+
+
+class _Built:
+    """Which thread built each root node (the implementation's own build function)."""
+
+    def __init__(self) -> None:
+        self.thread: dict[int, int] = {}
+        self.ran: list[int] = []
+
+    def __call__(self) -> Sequence:
+        steps = [AlwaysSuccess(f"step{i}") for i in range(5)]
+        root = Sequence("work", children=[*steps, _Mark(self.ran)])
+        self.thread[id(root)] = threading.get_ident()
+        return root
+
+
+async def test_every_awarded_run_was_built_off_the_loop_thread() -> None:
+    loop_thread = threading.get_ident()
+    built = _Built()
+    with anyio.fail_after(30):
+        async with team(real_time=True) as t:
+            a = await t.add("a")
+            b = await t.add("b", [Implementation("bare-b", BARE, built)])
+            await t.converged(BARE.identity)
+            hosted = b.mission_control.host.hosted
+            for _ in range(4):  # four runs in turn: the first, then each from a fresh spare
+                node = BARE.node_type()("bare")
+                tree = a.mission(ReactiveSequence("root", children=[node]))
+                await tick_until(tree, lambda s: s is not State.RUNNING)
+                assert node.state is State.SUCCEEDED
+                assert node.assignments == ["b"]
+                await tree.shutdown()
+                await until(lambda: not hosted, "b's run to end")
+            runs = set(built.ran)
+            assert len(runs) == 4
+            on_loop = [r for r in runs if built.thread[r] == loop_thread]
+            assert on_loop == [], f"{len(on_loop)} of 4 runs built on the loop thread"
+
+
+async def test_on_a_virtual_clock_runs_are_built_inline_as_before() -> None:
+    """--fast stays reproducible: no worker threads decide what is ready when."""
+    loop_thread = threading.get_ident()
+    built = _Built()
+    with anyio.fail_after(30):
+        async with team() as t:
+            a = await t.add("a")
+            await t.add("b", [Implementation("bare-b", BARE, built)])
+            await t.converged(BARE.identity)
+            node = BARE.node_type()("bare")
+            tree = a.mission(ReactiveSequence("root", children=[node]))
+            assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+            await tree.shutdown()
+    assert built.thread
+    assert set(built.thread.values()) == {loop_thread}
