@@ -1,0 +1,233 @@
+"""A schedule made in hindsight: how soon the object work could end if every robot knew
+where the objects lie, when each is found and what each operation's draws are.
+
+The mission-time bound (:mod:`btcap.sim.mission.bound`) is below every run; this is a
+schedule above the best one of the same relaxed world, to say how much of a mission's
+gap to its bound is the bound's slack and how much the mission's. The world is the
+bound's: each object is found at its cover time (:func:`~btcap.sim.mission.cover.cover_times`,
+the explorations' work itself not scheduled), robots drive shortest paths at their
+speed, from the start once present, and are out of the team during their gaps and after
+leaving; an object's identification is done by one robot, again until its draws say it
+succeeds; a contaminated one is carried by one robot from where it lies to the
+decontamination area (at that robot's speed) and decontaminated there, again until it
+succeeds. The schedule is the best one of many task orders, each decoded greedily (each
+task, in turn, to the robot able to end it soonest) and improved by swapping tasks:
+feasible in that world, so the best schedule of that world is no later, but not proven
+to be the best. The mission ends no sooner than its last cell's cover time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from btcap.sim.mission.cover import cover_times
+from btcap.sim.mission.opdraws import Draws
+from btcap.sim.mission.presence import Presence
+from btcap.sim.mission.routes import Legs
+from btcap.sim.world.distance import Cell
+from btcap.sim.world.grid import GridMap
+from btcap.sim.world.model import RobotModel
+
+__all__ = ["Hindsight", "hindsight_schedule"]
+
+
+@dataclass(frozen=True, slots=True)
+class Hindsight:
+    """The schedule's end (seconds), its object work's end alone, and each robot's busy
+    seconds (driving and working; the robots in the order given)."""
+
+    seconds: float
+    work_end_s: float
+    busy_s: tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class _Task:
+    obj: int
+    carry: bool
+    release: float  # found (identify); carries are released by their identification
+    factor: float  # the sum of its attempts' factors
+
+
+def _fit(p: Presence, depart: float, drive: float, ready: float, work: float) -> float:
+    """The earliest departure, no sooner than ``depart``, for a drive of ``drive`` s then
+    ``work`` s of work begun no sooner than ``ready``, all while present; inf if none.
+    The robot leaves as late as still lets the work begin at its earliest."""
+    candidates = [depart, p.start, *(g1 for _, g1 in p.gaps)]
+    for d in sorted(c for c in candidates if c >= depart):
+        begin = max(d + drive, ready)
+        d = max(d, begin - drive)
+        end = begin + work
+        if d < p.start or end > p.end:
+            continue
+        if any(g0 < end and d < g1 for g0, g1 in p.gaps):
+            continue
+        return d
+    return math.inf
+
+
+class _World:
+    def __init__(
+        self,
+        grid: GridMap,
+        models: Sequence[RobotModel],
+        present: Sequence[Presence],
+        tasks: Sequence[_Task],
+        cells: Sequence[Cell],
+    ) -> None:
+        self.models, self.present, self.tasks = list(models), list(present), list(tasks)
+        self.m = Legs(grid, cells).m
+        kinds = ["decontaminate" if t.carry else "identify" for t in tasks]
+        self.able = [{k for k in range(len(tasks)) if m.can(kinds[k])} for m in models]
+        self.work = [  # each robot's seconds of work on each task, a carry's drive too
+            [
+                m.operation(kinds[k]).duration_s * t.factor
+                + (self.m[2 + t.obj, 1] / m.speed_mps if t.carry else 0.0)
+                if k in self.able[i]
+                else math.inf
+                for k, t in enumerate(tasks)
+            ]
+            for i, m in enumerate(models)
+        ]
+
+    def decode(
+        self, order: Sequence[int], gene: list[int] | None = None
+    ) -> tuple[float, list[float], list[int]]:
+        """Each task in ``order`` (identifications before their carries) to its robot in
+        ``gene``, or, where that is -1 or unable, to the robot able to end it soonest: the
+        object work's end, each robot's busy seconds and the robots chosen."""
+        n = len(self.models)
+        free = [p.start for p in self.present]
+        at = [0] * n  # index into the legs: 0 start, 1 decontamination area, 2 + object
+        busy = [0.0] * n
+        chosen = [-1] * len(self.tasks)
+        ident_end: dict[int, float] = {}
+        end_all = 0.0
+        for k in order:
+            t = self.tasks[k]
+            ready = ident_end.get(t.obj, math.inf) if t.carry else t.release
+            best = (math.inf, -1, 0.0, 0.0)
+            want = gene[k] if gene is not None else -1
+            for i in [want] if want >= 0 and k in self.able[want] else range(n):
+                if k not in self.able[i]:
+                    continue
+                model = self.models[i]
+                drive = self.m[at[i], 2 + t.obj] / model.speed_mps
+                work = self.work[i][k]
+                d = _fit(self.present[i], free[i], drive, ready, work)
+                if math.isinf(d):
+                    continue
+                end = max(d + drive, ready) + work
+                if end < best[0]:
+                    best = (end, i, drive, work)
+            end, i, drive, work = best
+            if i < 0:
+                return math.inf, busy, chosen
+            free[i], at[i] = end, 1 if t.carry else 2 + t.obj
+            busy[i] += float(drive + work)
+            chosen[k] = i
+            if not t.carry:
+                ident_end[t.obj] = end
+            end_all = max(end_all, end)
+        return end_all, busy, chosen
+
+
+def _valid(order: list[int], tasks: Sequence[_Task]) -> bool:
+    seen: set[int] = set()
+    for k in order:
+        if tasks[k].carry and tasks[k].obj not in seen:
+            return False
+        if not tasks[k].carry:
+            seen.add(tasks[k].obj)
+    return True
+
+
+def hindsight_schedule(
+    grid: GridMap,
+    models: Sequence[RobotModel],
+    objects: Sequence[tuple[Cell, bool]],
+    present: Sequence[Presence],
+    jitter: float,
+    draws: Draws,
+    *,
+    tries: int = 300,
+    seed: int = 0,
+) -> Hindsight:
+    """The best of ``tries`` random task orders (and the found-first order), each
+    improved by swapping pairs of tasks while that ends the work sooner."""
+    cover = cover_times(grid, models, present, jitter)
+    explored = float(cover[grid.reachable].max()) if grid.reachable.any() else 0.0
+    tasks: list[_Task] = []
+    cells: list[Cell] = []
+    for j, (cell, dirty) in enumerate(objects):
+        if not grid.reachable[cell]:
+            continue
+        obj = len(cells)
+        cells.append(cell)
+        found = float(cover[cell])
+        tasks.append(_Task(obj, False, found, sum(draws.attempts("identify", j))))
+        if dirty:
+            tasks.append(_Task(obj, True, found, sum(draws.attempts("decontaminate", j))))
+    world = _World(grid, models, present, tasks, cells)
+    rng = np.random.default_rng(seed)
+    first = sorted(range(len(tasks)), key=lambda k: (tasks[k].release, tasks[k].carry))
+    best_end, best_busy = math.inf, [0.0] * len(models)
+    for attempt in range(tries):
+        order = first if attempt == 0 else _random_order(rng, tasks)
+        end, busy, gene = world.decode(order)
+        end, busy = _improve(world, order, gene, end, busy)
+        if end < best_end:
+            best_end, best_busy = end, busy
+    return Hindsight(
+        round(max(best_end, explored), 1),
+        round(best_end, 1),
+        tuple(round(b, 1) for b in best_busy),
+    )
+
+
+def _improve(
+    world: _World, order: list[int], gene: list[int], end: float, busy: list[float]
+) -> tuple[float, list[float]]:
+    """Hill-climb from ``order`` and ``gene``: move a task to another robot, or swap two
+    tasks in the order (their robots kept or chosen afresh), while that ends the work
+    sooner."""
+    tasks = world.tasks
+    improved = True
+    while improved:
+        improved = False
+        for k in range(len(tasks)):
+            for i in range(len(world.models)):
+                if i == gene[k] or k not in world.able[i]:
+                    continue
+                trial_gene = gene.copy()
+                trial_gene[k] = i
+                e, bz, _ = world.decode(order, trial_gene)
+                if e < end - 1e-9:
+                    gene, end, busy, improved = trial_gene, e, bz, True
+        for a in range(len(order)):
+            for b in range(a + 1, len(order)):
+                trial = order.copy()
+                trial[a], trial[b] = trial[b], trial[a]
+                if not _valid(trial, tasks):
+                    continue
+                for g in (gene, None):  # its robots as they were, or chosen afresh
+                    e, bz, chosen = world.decode(trial, g)
+                    if e < end - 1e-9:
+                        order, gene, end, busy, improved = trial, chosen, e, bz, True
+                        break
+    return end, busy
+
+
+def _random_order(rng: np.random.Generator, tasks: Sequence[_Task]) -> list[int]:
+    """A random order of the tasks with each carry after its identification."""
+    order = [int(k) for k in rng.permutation(len(tasks))]
+    pos = {(tasks[k].obj, tasks[k].carry): i for i, k in enumerate(order)}
+    for obj in {t.obj for t in tasks if t.carry}:
+        a, b = pos[(obj, False)], pos[(obj, True)]
+        if a > b:
+            order[a], order[b] = order[b], order[a]
+    return order
