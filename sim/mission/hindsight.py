@@ -28,11 +28,12 @@ from btcap.sim.mission.cover import cover_times
 from btcap.sim.mission.opdraws import Draws
 from btcap.sim.mission.presence import Presence
 from btcap.sim.mission.routes import Legs
-from btcap.sim.world.distance import Cell
+from btcap.sim.world.distance import Cell, distance_field
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.model import RobotModel
+from btcap.sim.world.store import MissionState
 
-__all__ = ["Hindsight", "hindsight_schedule"]
+__all__ = ["Hindsight", "hindsight_schedule", "walked_found"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,7 +96,10 @@ class _World:
         ]
 
     def decode(
-        self, order: Sequence[int], gene: list[int] | None = None
+        self,
+        order: Sequence[int],
+        gene: list[int] | None = None,
+        plan: list[tuple[int, int, bool, float, float]] | None = None,
     ) -> tuple[float, list[float], list[int]]:
         """Each task in ``order`` (identifications before their carries) to its robot in
         ``gene``, or, where that is -1 or unable, to the robot able to end it soonest: the
@@ -127,6 +131,8 @@ class _World:
             end, i, drive, work = best
             if i < 0:
                 return math.inf, busy, chosen
+            if plan is not None:  # robot, object, carry, work's start and end
+                plan.append((i, t.obj, t.carry, end - work, end))
             free[i], at[i] = end, 1 if t.carry else 2 + t.obj
             busy[i] += float(drive + work)
             chosen[k] = i
@@ -156,11 +162,15 @@ def hindsight_schedule(
     *,
     tries: int = 300,
     seed: int = 0,
+    plan: list[tuple[int, int, bool, float, float]] | None = None,
+    found: tuple[Sequence[float], float] | None = None,
 ) -> Hindsight:
     """The best of ``tries`` random task orders (and the found-first order), each
     improved by swapping pairs of tasks while that ends the work sooner."""
     cover = cover_times(grid, models, present, jitter)
     explored = float(cover[grid.reachable].max()) if grid.reachable.any() else 0.0
+    if found is not None:
+        explored = found[1]
     tasks: list[_Task] = []
     cells: list[Cell] = []
     for j, (cell, dirty) in enumerate(objects):
@@ -168,20 +178,22 @@ def hindsight_schedule(
             continue
         obj = len(cells)
         cells.append(cell)
-        found = float(cover[cell])
-        tasks.append(_Task(obj, False, found, sum(draws.attempts("identify", j))))
+        at = float(cover[cell]) if found is None else found[0][j]
+        tasks.append(_Task(obj, False, at, sum(draws.attempts("identify", j))))
         if dirty:
-            tasks.append(_Task(obj, True, found, sum(draws.attempts("decontaminate", j))))
+            tasks.append(_Task(obj, True, at, sum(draws.attempts("decontaminate", j))))
     world = _World(grid, models, present, tasks, cells)
     rng = np.random.default_rng(seed)
     first = sorted(range(len(tasks)), key=lambda k: (tasks[k].release, tasks[k].carry))
-    best_end, best_busy = math.inf, [0.0] * len(models)
+    best_end, best_busy, best = math.inf, [0.0] * len(models), (first, [-1] * len(tasks))
     for attempt in range(tries):
         order = first if attempt == 0 else _random_order(rng, tasks)
         end, busy, gene = world.decode(order)
-        end, busy = _improve(world, order, gene, end, busy)
+        end, busy, order, gene = _improve(world, order, gene, end, busy)
         if end < best_end:
-            best_end, best_busy = end, busy
+            best_end, best_busy, best = end, busy, (order, gene)
+    if plan is not None:
+        world.decode(*best, plan=plan)
     return Hindsight(
         round(max(best_end, explored), 1),
         round(best_end, 1),
@@ -191,7 +203,7 @@ def hindsight_schedule(
 
 def _improve(
     world: _World, order: list[int], gene: list[int], end: float, busy: list[float]
-) -> tuple[float, list[float]]:
+) -> tuple[float, list[float], list[int], list[int]]:
     """Hill-climb from ``order`` and ``gene``: move a task to another robot, or swap two
     tasks in the order (their robots kept or chosen afresh), while that ends the work
     sooner."""
@@ -219,7 +231,7 @@ def _improve(
                     if e < end - 1e-9:
                         order, gene, end, busy, improved = trial, chosen, e, bz, True
                         break
-    return end, busy
+    return end, busy, order, gene
 
 
 def _random_order(rng: np.random.Generator, tasks: Sequence[_Task]) -> list[int]:
@@ -231,3 +243,56 @@ def _random_order(rng: np.random.Generator, tasks: Sequence[_Task]) -> list[int]
         if a > b:
             order[a], order[b] = order[b], order[a]
     return order
+
+
+def walked_found(
+    grid: GridMap,
+    models: Sequence[RobotModel],
+    present: Sequence[Presence],
+    objects: Sequence[tuple[Cell, bool]],
+    draws: Draws,
+) -> tuple[list[float], float] | None:
+    """When each object is found, and the last cell, if the robots that can only explore
+    walk the store's goals, each taking the pending goal nearest to it when it comes
+    free (explorations at the seed's draws, again until they succeed); None if no robot
+    only explores."""
+    pure = [
+        i
+        for i, m in enumerate(models)
+        if m.can("explore") and not m.can("identify") and not m.can("decontaminate")
+    ]
+    if not pure:
+        return None
+    state = MissionState(grid, [], rng=np.random.default_rng(0))
+    cs = grid.cell_size_m
+    first = np.full(grid.shape, math.inf)
+    ready = [(present[i].start, i, grid.start) for i in pure]  # (free at, robot, cell)
+    running: list[tuple[float, int, Cell, int]] = []  # (ends, robot, cell, goal id)
+    while ready or running:
+        ready.sort()
+        running.sort()
+        if ready and (not running or ready[0][0] <= running[0][0]):
+            t, i, at = ready.pop(0)
+            pending = [g for g in state.pending_goals() if g.claimed_by is None]
+            if t >= present[i].end:
+                continue
+            if not pending:
+                if running:  # a goal may come with the next exploration's end
+                    ready.append((running[0][0], i, at))
+                continue
+            steps = distance_field(grid.free, at)
+            goal = min(pending, key=lambda g: (steps[g.cell], g.id))
+            goal.claimed_by = str(i)
+            op = models[i].operation("explore")
+            factor = sum(draws.attempts("explore", -1, cell=goal.cell))
+            end = t + steps[goal.cell] * cs / models[i].speed_mps + op.duration_s * factor
+            running.append((end, i, goal.cell, goal.id))
+        else:
+            end, i, cell, goal_id = running.pop(0)
+            before = state.covered.copy()
+            state.explore(cell, models[i].operation("explore").radius_m)
+            state.goal_done(goal_id)
+            first[state.covered & ~before] = end
+            ready.append((end, i, cell))
+    last = float(first[grid.reachable].max()) if grid.reachable.any() else 0.0
+    return [float(first[cell]) for cell, _ in objects], last
