@@ -28,7 +28,10 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
 - **after release**: for every time ``t``, the work on objects that cannot be found (or,
   for carries alone, identified) before ``t`` all happens after ``t`` (the scheduling
   bound for jobs with release times), each robot driving its first piece from wherever it
-  stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``).
+  stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``): no
+  farther from the start than it can have driven since it joined, so that piece is no
+  shorter than the path from the start less that reach (the triangle inequality; a gap
+  in its presence only shortens the reach).
 
 What it takes from the simulation and the store (:mod:`btcap.sim.world.store`), not from
 a mission tree: robots explore only at goals the store hands out and drive along shortest

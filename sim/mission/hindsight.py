@@ -1,19 +1,25 @@
 """A schedule made in hindsight: how soon the object work could end if every robot knew
 where the objects lie, when each is found and what each operation's draws are.
 
-The mission-time bound (:mod:`btcap.sim.mission.bound`) is below every run; this is a
-schedule above the best one of the same relaxed world, to say how much of a mission's
-gap to its bound is the bound's slack and how much the mission's. The world is the
-bound's: each object is found at its cover time (:func:`~btcap.sim.mission.cover.cover_times`,
-the explorations' work itself not scheduled), robots drive shortest paths at their
-speed, from the start once present, and are out of the team during their gaps and after
-leaving; an object's identification is done by one robot, again until its draws say it
-succeeds; a contaminated one is carried by one robot from where it lies to the
-decontamination area (at that robot's speed) and decontaminated there, again until it
-succeeds. The schedule is the best one of many task orders, each decoded greedily (each
-task, in turn, to the robot able to end it soonest) and improved by swapping tasks:
-feasible in that world, so the best schedule of that world is no later, but not proven
-to be the best. The mission ends no sooner than its last cell's cover time.
+The mission-time bound (:mod:`btcap.sim.mission.bound`) is below every run, and its
+parts but the exploration work are below the best schedule of a world that relaxes the
+real one; this is one schedule of that world, so above its best. Where it equals the
+bound, the bound has no slack in that world and what is left of a mission's gap is the
+mission's or the relaxation's; where it is above, at most that much is the bound's.
+
+The world is the bound's: each object is found at its cover time
+(:func:`~btcap.sim.mission.cover.cover_times`; exploring costs the other robots nothing),
+robots drive shortest paths at their speed, from the start once present, and are out of
+the team during their gaps and after leaving; an object's identification is done by one
+robot, again until its draws say it succeeds; a contaminated one is carried by one robot
+from where it lies to the decontamination area (at that robot's speed) and
+decontaminated there, again until it succeeds. The mission ends no sooner than its last
+cell's cover time. The schedule is the best one of many task orders, each decoded
+greedily (each task, in turn, to the robot able to end it soonest, or to the one a
+robot choice says) and improved by moving a task to another robot or swapping two while
+that ends the work sooner: feasible in that world, not proven to be its best.
+:func:`walked_found` gives, instead of the cover times, when the robots that only
+explore find each object walking the store's goals nearest first.
 """
 
 from __future__ import annotations
@@ -26,14 +32,16 @@ import numpy as np
 
 from btcap.sim.mission.cover import cover_times
 from btcap.sim.mission.opdraws import Draws
-from btcap.sim.mission.presence import Presence
+from btcap.sim.mission.presence import Presence, presence
 from btcap.sim.mission.routes import Legs
+from btcap.sim.mission.scenario import Scenario
 from btcap.sim.world.distance import Cell, distance_field
 from btcap.sim.world.grid import GridMap
+from btcap.sim.world.manager import SimConfig
 from btcap.sim.world.model import RobotModel
 from btcap.sim.world.store import MissionState
 
-__all__ = ["Hindsight", "hindsight_schedule", "walked_found"]
+__all__ = ["Hindsight", "hindsight_schedule", "scenario_hindsight", "walked_found"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,3 +304,23 @@ def walked_found(
             ready.append((end, i, cell))
     last = float(first[grid.reachable].max()) if grid.reachable.any() else 0.0
     return [float(first[cell]) for cell, _ in objects], last
+
+
+def scenario_hindsight(s: Scenario, *, tries: int = 20) -> Hindsight:
+    """The schedule of scenario ``s`` made in hindsight, its objects as the runner
+    scatters them and their operations as its seed draws them."""
+    grid = s.grid()
+    state = MissionState.scatter(
+        grid, s.objects, s.contaminated_share, np.random.default_rng(s.seed)
+    )
+    models = s.models()
+    config = SimConfig(s.sim.step_s, s.sim.delay_jitter, s.sim.failure_chance, s.seed)
+    return hindsight_schedule(
+        grid,
+        [models[r.model] for r in s.robots],
+        [(o.cell, o.contaminated) for o in state.objects],
+        presence([r.name for r in s.robots], s.events),
+        s.sim.delay_jitter,
+        Draws(state, config),
+        tries=tries,
+    )

@@ -77,8 +77,10 @@ def pieces_m(
 
     Cut a robot's drive at every point it must stand on and at every carry: each piece
     leads to a point from where the robot was, its start (``robots`` pieces at most: the
-    start, or ``anywhere`` they stand, at no cost), the decontamination area (only after
-    a carry: as many as dirty points) or a clean point (a dirty one is left by its carry).
+    start, or ``anywhere`` they stand, at no cost, or at the path from the start less
+    ``reach_m`` if they stand no farther than that from it), the decontamination area
+    (only after a carry: as many as dirty points) or a clean point (a dirty one is left
+    by its carry).
     Dropping the other stops of a drive makes it no longer, so each point's piece is no
     shorter than the path from its predecessor: together no less than the cheapest
     choice of a predecessor for every point, each clean point and each start used once,
