@@ -66,6 +66,10 @@ def _fit(p: Presence, depart: float, drive: float, ready: float, work: float) ->
     """The earliest departure, no sooner than ``depart``, for a drive of ``drive`` s then
     ``work`` s of work begun no sooner than ``ready``, all while present; inf if none.
     The robot leaves as late as still lets the work begin at its earliest."""
+    if not p.gaps:  # the common case, quickly
+        d = max(depart, p.start)
+        begin = max(d + drive, ready)
+        return max(d, begin - drive) if begin + work <= p.end else math.inf
     candidates = [depart, p.start, *(g1 for _, g1 in p.gaps)]
     for d in sorted(c for c in candidates if c >= depart):
         begin = max(d + drive, ready)
@@ -89,13 +93,13 @@ class _World:
         cells: Sequence[Cell],
     ) -> None:
         self.models, self.present, self.tasks = list(models), list(present), list(tasks)
-        self.m = Legs(grid, cells).m
+        self.m = Legs(grid, cells).m.tolist()  # floats: quicker to index than numpy's
         kinds = ["decontaminate" if t.carry else "identify" for t in tasks]
         self.able = [{k for k in range(len(tasks)) if m.can(kinds[k])} for m in models]
         self.work = [  # each robot's seconds of work on each task, a carry's drive too
             [
                 m.operation(kinds[k]).duration_s * t.factor
-                + (self.m[2 + t.obj, 1] / m.speed_mps if t.carry else 0.0)
+                + (self.m[2 + t.obj][1] / m.speed_mps if t.carry else 0.0)
                 if k in self.able[i]
                 else math.inf
                 for k, t in enumerate(tasks)
@@ -128,7 +132,7 @@ class _World:
                 if k not in self.able[i]:
                     continue
                 model = self.models[i]
-                drive = self.m[at[i], 2 + t.obj] / model.speed_mps
+                drive = self.m[at[i]][2 + t.obj] / model.speed_mps
                 work = self.work[i][k]
                 d = _fit(self.present[i], free[i], drive, ready, work)
                 if math.isinf(d):
