@@ -202,7 +202,7 @@ def _print(out: dict[str, Any]) -> None:
         )
     h = out["hindsight_vs_bound"]
     print(
-        f"hindsight schedule / bound (the bound's slack at most) {h['mean']:.3f} "
+        f"hindsight / bound (at most the bound's slack in its world) {h['mean']:.3f} "
         f"[{h['min']:.2f}-{h['max']:.2f}]; time / hindsight: "
         + ", ".join(f"{m} {v['mean']:.3f}" for m, v in out["vs_hindsight"].items())
     )

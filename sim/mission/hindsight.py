@@ -283,7 +283,7 @@ def walked_found(
     while ready or running:
         ready.sort()
         running.sort()
-        if ready and (not running or ready[0][0] <= running[0][0]):
+        if ready and (not running or ready[0][0] < running[0][0]):  # ends come first
             t, i, at = ready.pop(0)
             pending = [g for g in state.pending_goals() if g.claimed_by is None]
             if t >= present[i].end:

@@ -55,6 +55,10 @@ def test_a_walk_finds_objects_as_the_store_hands_out_goals() -> None:
     first = walk(state, DRONE, "nearest", np.random.default_rng(0))
     assert found[0] == pytest.approx([first[0, 20], first[0, 40]])
     assert found[1] == pytest.approx(first[grid.reachable].max())
+    # two explorers: one waits while the other's exploration may still add goals
+    two = walked_found(grid, [DRONE, DRONE], [Presence(), Presence()], objects, draws())
+    assert two is not None
+    assert two[0][1] <= found[0][1]
     # the cart cannot only explore: no walk without a robot that does
     assert walked_found(grid, [CART], [Presence()], objects, draws()) is None
 
