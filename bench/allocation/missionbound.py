@@ -20,11 +20,12 @@ Reported per scenario and mission, over the seeds: mission time, bound and a sch
 made in hindsight (means; :mod:`btcap.sim.mission.hindsight`: the object work planned
 knowing where the objects lie, in the bound's relaxed world: where it equals the bound,
 the bound has no slack in that world and the rest of the gap is the mission's or the
-relaxation's), time / bound (mean, min, max), runs not completed, auctions, which part
-of the bound binds (chains, work or release, counted over the seeds), and each robot
-model's utilisation (busy / present, mean over its robots and the seeds); then the mean
-of time / bound over every scenario and seed, against :data:`TARGET`, hindsight / bound
-and time / hindsight, and how many runs beat the bound (a lower bound: none may).
+relaxation's; ``-`` where no robot only explores), time / bound (mean, min, max), runs
+not completed, auctions, which part of the bound binds (chains, work or release, counted
+over the seeds), and each robot model's utilisation (busy / present, mean over its
+robots and the seeds); then the mean of time / bound over every scenario and seed,
+against :data:`TARGET`, hindsight / bound and time / hindsight, and how many runs beat
+the bound (a lower bound: none may).
 """
 
 from __future__ import annotations
@@ -94,12 +95,12 @@ def run(
     out: dict[str, Any] = {"seeds": seeds, "missions": list(missions), "target": TARGET}
     rows: dict[str, dict[str, Any]] = {}
     ratios: dict[str, list[float]] = {m: [] for m in missions}
-    hindsight: dict[tuple[str, int], float] = {}  # the same for both missions
+    hindsight: dict[tuple[str, int], float | None] = {}  # the same for both missions
     for name in scenarios:
         rows[name] = {}
         for mission in missions:
             times, bounds, auctions, lost = [], [], [], 0
-            ahead: list[float] = []
+            ahead: list[float | None] = []
             parts: list[dict[str, Any]] = []
             busy: dict[str, list[float]] = {}
             for seed in seeds:
@@ -108,7 +109,8 @@ def run(
                 b = scenario_bound(s)
                 bound = b.seconds
                 if (name, seed) not in hindsight:
-                    hindsight[name, seed] = scenario_hindsight(s).seconds
+                    h = scenario_hindsight(s)
+                    hindsight[name, seed] = h.seconds if h is not None else None
                 ahead.append(hindsight[name, seed])
                 parts.append(
                     {
@@ -132,8 +134,7 @@ def run(
             rows[name][mission] = {
                 "mission_s": round(statistics.mean(times), 1),
                 "bound_s": round(statistics.mean(bounds), 1),
-                "hindsight_s": round(statistics.mean(ahead), 1),
-                "hindsight_vs_bound": _spread([h / b for h, b in zip(ahead, bounds, strict=True)]),
+                "hindsight_s": _mean([h for h in ahead if h is not None]),
                 "per_seed": [
                     {"seed": seed, "mission_s": t, "bound_s": b, **part}
                     for seed, t, b, part in zip(seeds, times, bounds, parts, strict=True)
@@ -147,14 +148,14 @@ def run(
     out["scenarios"] = rows
     out["vs_bound"] = {m: _spread(r) for m, r in ratios.items()}
     out["met"] = {m: r["mean"] <= TARGET for m, r in out["vs_bound"].items()}
-    out["hindsight_vs_bound"] = _spread(
-        [p["hindsight_s"] / p["bound_s"] for by in rows.values() for p in _seeds(by)]
-    )
+    ahead_ratio = [p["hindsight_s"] / p["bound_s"] for by in rows.values() for p in _seeds(by)]
+    out["hindsight_vs_bound"] = _spread(ahead_ratio) if ahead_ratio else None
     out["vs_hindsight"] = {
         m: _spread(
-            [p["mission_s"] / p["hindsight_s"] for by in rows.values() for p in by[m]["per_seed"]]
+            [p["mission_s"] / p["hindsight_s"] for by in rows.values() for p in _seeds(by, m)]
         )
         for m in missions
+        if ahead_ratio
     }
     # a lower bound: no completed run may beat it (a run that did would disprove it)
     out["below_bound"] = sum(
@@ -169,10 +170,19 @@ def run(
     return out
 
 
-def _seeds(by: dict[str, Any]) -> list[dict[str, Any]]:
-    """One scenario's per-seed entries of its first mission (bound and hindsight are the
-    same for every mission)."""
-    return list(next(iter(by.values()))["per_seed"])
+def _seeds(by: dict[str, Any], mission: str | None = None) -> list[dict[str, Any]]:
+    """One scenario's per-seed entries that have a hindsight schedule, of ``mission``
+    or the first (bound and hindsight are the same for every mission)."""
+    rows = by[mission] if mission is not None else next(iter(by.values()))
+    return [p for p in rows["per_seed"] if p["hindsight_s"] is not None]
+
+
+def _mean(values: list[float]) -> float | None:
+    return round(statistics.mean(values), 1) if values else None
+
+
+def _figure(seconds: float | None) -> str:
+    return "-" if seconds is None else f"{seconds:.0f}"
 
 
 def _print(out: dict[str, Any]) -> None:
@@ -191,7 +201,7 @@ def _print(out: dict[str, Any]) -> None:
             binds = " ".join(f"{k} {n}" for k, n in r["binds"].items())
             print(
                 f"{name:<20} {mission:<7} {r['mission_s']:>7.0f} {r['bound_s']:>7.0f} "
-                f"{r['hindsight_s']:>11.0f} {spread:>20}{lost} {r['auctions']:>8.0f}  "
+                f"{_figure(r['hindsight_s']):>11} {spread:>20}{lost} {r['auctions']:>8.0f}  "
                 f"{binds:<18} {util}"
             )
     for mission, v in out["vs_bound"].items():
@@ -201,11 +211,12 @@ def _print(out: dict[str, Any]) -> None:
             f"[{v['min']:.2f}-{v['max']:.2f}]; target <= {out['target']}: {met}"
         )
     h = out["hindsight_vs_bound"]
-    print(
-        f"hindsight / bound (at most the bound's slack in its world) {h['mean']:.3f} "
-        f"[{h['min']:.2f}-{h['max']:.2f}]; time / hindsight: "
-        + ", ".join(f"{m} {v['mean']:.3f}" for m, v in out["vs_hindsight"].items())
-    )
+    if h is not None:
+        print(
+            f"hindsight / bound (at most the bound's slack in its world) {h['mean']:.3f} "
+            f"[{h['min']:.2f}-{h['max']:.2f}]; time / hindsight: "
+            + ", ".join(f"{m} {v['mean']:.3f}" for m, v in out["vs_hindsight"].items())
+        )
     print(f"runs faster than their bound (must be 0): {out['below_bound']}")
     print(f"({out['seconds']} s)")
 

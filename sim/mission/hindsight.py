@@ -268,11 +268,7 @@ def walked_found(
     walk the store's goals, each taking the pending goal nearest to it when it comes
     free (explorations at the seed's draws, again until they succeed); None if no robot
     only explores."""
-    pure = [
-        i
-        for i, m in enumerate(models)
-        if m.can("explore") and not m.can("identify") and not m.can("decontaminate")
-    ]
+    pure = _only_explore(models)
     if not pure:
         return None
     state = MissionState(grid, [], rng=np.random.default_rng(0))
@@ -310,14 +306,27 @@ def walked_found(
     return [float(first[cell]) for cell, _ in objects], last
 
 
-def scenario_hindsight(s: Scenario, *, tries: int = 20) -> Hindsight:
+def _only_explore(models: Sequence[RobotModel]) -> list[int]:
+    """The robots that can explore and nothing else."""
+    return [
+        i
+        for i, m in enumerate(models)
+        if m.can("explore") and not m.can("identify") and not m.can("decontaminate")
+    ]
+
+
+def scenario_hindsight(s: Scenario, *, tries: int = 20) -> Hindsight | None:
     """The schedule of scenario ``s`` made in hindsight, its objects as the runner
-    scatters them and their operations as its seed draws them."""
+    scatters them and their operations as its seed draws them; None where no robot only
+    explores (then the robots that do the object work explore too, which this world
+    leaves out: its schedule could end before the bound)."""
     grid = s.grid()
     state = MissionState.scatter(
         grid, s.objects, s.contaminated_share, np.random.default_rng(s.seed)
     )
     models = s.models()
+    if not _only_explore([models[r.model] for r in s.robots]):
+        return None
     config = SimConfig(s.sim.step_s, s.sim.delay_jitter, s.sim.failure_chance, s.seed)
     return hindsight_schedule(
         grid,
