@@ -16,12 +16,16 @@ six: two of each) and ``huskies-bebop-joins`` (a Bebop joins for a while, a Husk
 for a while); ``--scenarios`` adds ``single-husky`` (one robot doing everything: its
 time is mostly driving between objects and goals, which the bound does not price).
 
-Reported per scenario and mission, over the seeds: mission time and bound (means),
-time / bound (mean, min, max), runs not completed, auctions, which part of the bound
-binds (chains, work or release, counted over the seeds), and each robot model's
-utilisation (busy / present, mean over its robots and the seeds); then the mean of
-time / bound over every scenario and seed, against :data:`TARGET`, and how many runs
-beat the bound (a lower bound: none may).
+Reported per scenario and mission, over the seeds: mission time, bound and a schedule
+made in hindsight (means; :mod:`btcap.sim.mission.hindsight`: the object work planned
+knowing where the objects lie, in the bound's relaxed world: where it equals the bound,
+the bound has no slack in that world and the rest of the gap is the mission's or the
+relaxation's; ``-`` where no robot only explores), time / bound (mean, min, max), runs
+not completed, auctions, which part of the bound binds (chains, work or release, counted
+over the seeds), and each robot model's utilisation (busy / present, mean over its
+robots and the seeds); then the mean of time / bound over every scenario and seed,
+against :data:`TARGET`, hindsight / bound and time / hindsight, and how many runs beat
+the bound (a lower bound: none may).
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ from typing import Any, Literal, cast
 from btcap.bench.common import write_result
 from btcap.sim.mission.bound import scenario_bound
 from btcap.sim.mission.catalog import builtin_scenarios
+from btcap.sim.mission.hindsight import scenario_hindsight
 from btcap.sim.mission.scenario import Scenario, grow_team, load_scenario
 from btcap.sim.running.runner import run_fast
 
@@ -90,10 +95,12 @@ def run(
     out: dict[str, Any] = {"seeds": seeds, "missions": list(missions), "target": TARGET}
     rows: dict[str, dict[str, Any]] = {}
     ratios: dict[str, list[float]] = {m: [] for m in missions}
+    hindsight: dict[tuple[str, int], float | None] = {}  # the same for both missions
     for name in scenarios:
         rows[name] = {}
         for mission in missions:
             times, bounds, auctions, lost = [], [], [], 0
+            ahead: list[float | None] = []
             parts: list[dict[str, Any]] = []
             busy: dict[str, list[float]] = {}
             for seed in seeds:
@@ -101,6 +108,10 @@ def run(
                 models = {r.name: r.model for r in s.robots}
                 b = scenario_bound(s)
                 bound = b.seconds
+                if (name, seed) not in hindsight:
+                    h = scenario_hindsight(s)
+                    hindsight[name, seed] = h.seconds if h is not None else None
+                ahead.append(hindsight[name, seed])
                 parts.append(
                     {
                         "binds": b.binding,
@@ -108,6 +119,7 @@ def run(
                         "work_s": b.work_s,
                         "release_s": b.release_s,
                         "shortest_draws_s": scenario_bound(s, seed_draws=False).seconds,
+                        "hindsight_s": hindsight[name, seed],
                     }
                 )
                 result = asyncio.run(run_fast(s))
@@ -122,6 +134,7 @@ def run(
             rows[name][mission] = {
                 "mission_s": round(statistics.mean(times), 1),
                 "bound_s": round(statistics.mean(bounds), 1),
+                "hindsight_s": _mean([h for h in ahead if h is not None]),
                 "per_seed": [
                     {"seed": seed, "mission_s": t, "bound_s": b, **part}
                     for seed, t, b, part in zip(seeds, times, bounds, parts, strict=True)
@@ -135,6 +148,15 @@ def run(
     out["scenarios"] = rows
     out["vs_bound"] = {m: _spread(r) for m, r in ratios.items()}
     out["met"] = {m: r["mean"] <= TARGET for m, r in out["vs_bound"].items()}
+    ahead_ratio = [p["hindsight_s"] / p["bound_s"] for by in rows.values() for p in _seeds(by)]
+    out["hindsight_vs_bound"] = _spread(ahead_ratio) if ahead_ratio else None
+    out["vs_hindsight"] = {
+        m: _spread(
+            [p["mission_s"] / p["hindsight_s"] for by in rows.values() for p in _seeds(by, m)]
+        )
+        for m in missions
+        if ahead_ratio
+    }
     # a lower bound: no completed run may beat it (a run that did would disprove it)
     out["below_bound"] = sum(
         p["mission_s"] < p["bound_s"]
@@ -148,9 +170,27 @@ def run(
     return out
 
 
+def _seeds(by: dict[str, Any], mission: str | None = None) -> list[dict[str, Any]]:
+    """One scenario's per-seed entries that have a hindsight schedule, of ``mission``
+    or the first (bound and hindsight are the same for every mission)."""
+    rows = by[mission] if mission is not None else next(iter(by.values()))
+    return [p for p in rows["per_seed"] if p["hindsight_s"] is not None]
+
+
+def _mean(values: list[float]) -> float | None:
+    return round(statistics.mean(values), 1) if values else None
+
+
+def _figure(seconds: float | None) -> str:
+    return "-" if seconds is None else f"{seconds:.0f}"
+
+
 def _print(out: dict[str, Any]) -> None:
     print(f"mission time / lower bound, seeds {out['seeds']} (mean [min-max] over the seeds)")
-    head = f"{'scenario':<20} {'mission':<7} {'time s':>7} {'bound s':>7} {'time/bound':>20}"
+    head = (
+        f"{'scenario':<20} {'mission':<7} {'time s':>7} {'bound s':>7} {'hindsight s':>11} "
+        f"{'time/bound':>20}"
+    )
     print(f"{head} {'auctions':>8}  {'binds':<18} utilisation by model")
     for name, by in out["scenarios"].items():
         for mission, r in by.items():
@@ -161,13 +201,21 @@ def _print(out: dict[str, Any]) -> None:
             binds = " ".join(f"{k} {n}" for k, n in r["binds"].items())
             print(
                 f"{name:<20} {mission:<7} {r['mission_s']:>7.0f} {r['bound_s']:>7.0f} "
-                f"{spread:>20}{lost} {r['auctions']:>8.0f}  {binds:<18} {util}"
+                f"{_figure(r['hindsight_s']):>11} {spread:>20}{lost} {r['auctions']:>8.0f}  "
+                f"{binds:<18} {util}"
             )
     for mission, v in out["vs_bound"].items():
         met = "met" if out["met"][mission] else "NOT met"
         print(
             f"{mission}: time / bound over every scenario and seed {v['mean']:.3f} "
             f"[{v['min']:.2f}-{v['max']:.2f}]; target <= {out['target']}: {met}"
+        )
+    h = out["hindsight_vs_bound"]
+    if h is not None:
+        print(
+            f"hindsight / bound (at most the bound's slack in its world) {h['mean']:.3f} "
+            f"[{h['min']:.2f}-{h['max']:.2f}]; time / hindsight: "
+            + ", ".join(f"{m} {v['mean']:.3f}" for m, v in out["vs_hindsight"].items())
         )
     print(f"runs faster than their bound (must be 0): {out['below_bound']}")
     print(f"({out['seconds']} s)")

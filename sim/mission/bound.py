@@ -28,7 +28,10 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
 - **after release**: for every time ``t``, the work on objects that cannot be found (or,
   for carries alone, identified) before ``t`` all happens after ``t`` (the scheduling
   bound for jobs with release times), each robot driving its first piece from wherever it
-  stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``).
+  stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``): no
+  farther from the start than it can have driven since it joined, so that piece is no
+  shorter than the path from the start less that reach (the triangle inequality; a gap
+  in its presence only shortens the reach).
 
 What it takes from the simulation and the store (:mod:`btcap.sim.world.store`), not from
 a mission tree: robots explore only at goals the store hands out and drive along shortest
@@ -184,6 +187,8 @@ def _drives_s(
     robots: Sequence[int],
     *,
     anywhere: bool,
+    since: float = math.inf,
+    present: Sequence[Presence] = (),
 ) -> float:
     """Seconds ``robots`` (the identifiers and decontaminators together) drive for objects
     ``which``: the carries to the decontamination area at the fastest carrier's speed,
@@ -194,7 +199,15 @@ def _drives_s(
     clean = [2 + j for j in which if not objs[j].dirty] if only_ours else []
     carry = sum(objs[j].back_m for j in which if objs[j].dirty)
     carry_s = carry / _speed(models, able["decontaminate"]) if dirty else 0.0
-    pieces = pieces_m(legs, clean, dirty, len(robots), anywhere=anywhere)
+    reach = (
+        max(  # how far from the start a robot can be at ``since``
+            (models[i].speed_mps * max(0.0, since - present[i].start) for i in robots),
+            default=0.0,
+        )
+        if anywhere and present
+        else math.inf
+    )
+    pieces = pieces_m(legs, clean, dirty, len(robots), anywhere=anywhere, reach_m=reach)
     return carry_s + pieces / _speed(models, robots)
 
 
@@ -261,14 +274,24 @@ def _release(
     for since in {o.ident for o in objs if o.dirty}:  # carries of objects identified later
         later = [j for j, o in enumerate(objs) if o.dirty and o.ident >= since]
         total = sum(objs[j].dec_op for j in later) + _drives_s(
-            models, {**able, "identify": []}, objs, later, legs, carriers, anywhere=True
+            models,
+            {**able, "identify": []},
+            objs,
+            later,
+            legs,
+            carriers,
+            anywhere=True,
+            since=since,
+            present=present,
         )
         out = max(out, finish([present[i] for i in carriers], since, total))
     both = sorted(set(carriers) | set(able["identify"]))
     for since in {o.found for o in objs}:  # all the work on objects found later
         later = [j for j, o in enumerate(objs) if o.found >= since]
         ops = sum(objs[j].id_op + objs[j].dec_op for j in later)
-        total = ops + _drives_s(models, able, objs, later, legs, both, anywhere=True)
+        total = ops + _drives_s(
+            models, able, objs, later, legs, both, anywhere=True, since=since, present=present
+        )
         out = max(out, finish([present[i] for i in both], since, total))
     return out
 

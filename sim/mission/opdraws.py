@@ -34,6 +34,21 @@ class Draws:
         first, fails = self._manager.draw(op, target, (0, 0))
         return first, (1 - self.config.delay_jitter) if fails else 0.0
 
+    def attempts(
+        self, op: str, target: int, most: int = 50, cell: tuple[int, int] = (0, 0)
+    ) -> list[float]:
+        """The factors of every attempt at ``op`` on object ``target`` (explore: at
+        ``cell``) run to its end until one succeeds (``most`` at most): what one robot
+        doing it again and again until it succeeds spends, as multiples of its model's
+        duration."""
+        out = []
+        for n in range(most):
+            factor, fails = self._manager.draw(op, target, cell, attempt=n)
+            out.append(factor)
+            if not fails:
+                break
+        return out
+
 
 def least_factors(draws: Draws | None, jitter: float, op: str, target: int) -> tuple[float, float]:
     """:meth:`Draws.factors` if the draws are known, else the shortest draw and nothing."""

@@ -63,7 +63,13 @@ def visit_tree_m(grid: GridMap, cells: Sequence[Cell]) -> float:
 
 
 def pieces_m(
-    legs: Legs, clean: Sequence[int], dirty: Sequence[int], robots: int, *, anywhere: bool
+    legs: Legs,
+    clean: Sequence[int],
+    dirty: Sequence[int],
+    robots: int,
+    *,
+    anywhere: bool,
+    reach_m: float = math.inf,
 ) -> float:
     """Metres robots that carry (and perhaps identify) drive to stand on every one of
     ``clean`` and ``dirty`` (indices into ``legs``), besides the carries themselves
@@ -71,8 +77,10 @@ def pieces_m(
 
     Cut a robot's drive at every point it must stand on and at every carry: each piece
     leads to a point from where the robot was, its start (``robots`` pieces at most: the
-    start, or ``anywhere`` they stand, at no cost), the decontamination area (only after
-    a carry: as many as dirty points) or a clean point (a dirty one is left by its carry).
+    start, or ``anywhere`` they stand, at no cost, or at the path from the start less
+    ``reach_m`` if they stand no farther than that from it), the decontamination area
+    (only after a carry: as many as dirty points) or a clean point (a dirty one is left
+    by its carry).
     Dropping the other stops of a drive makes it no longer, so each point's piece is no
     shorter than the path from its predecessor: together no less than the cheapest
     choice of a predecessor for every point, each clean point and each start used once,
@@ -86,8 +94,10 @@ def pieces_m(
         return 0.0
     starts = [0] * robots + [1] * len(dirty) + list(clean)
     cost = legs.m[np.ix_(starts, points)].T.copy()  # rows: points, columns: predecessors
-    if anywhere:
-        cost[:, :robots] = 0.0
+    if anywhere:  # no farther from the start than ``reach_m``
+        first = cost[:, :robots]
+        near = np.isfinite(first) & (first > reach_m)
+        cost[:, :robots] = np.where(near, first - reach_m, 0.0)
     for r in range(len(clean)):  # no point is its own predecessor
         cost[r, robots + len(dirty) + r] = math.inf
     big = 1e12

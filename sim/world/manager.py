@@ -209,14 +209,17 @@ class SimulationManager(Actor):
         self.world.activate(r.index)
 
     # -- requests ---------------------------------------------------------------------
-    def draw(self, op: str, target: int, cell: Cell) -> tuple[float, bool]:
+    def draw(
+        self, op: str, target: int, cell: Cell, attempt: int | None = None
+    ) -> tuple[float, bool]:
         """The duration factor and whether it fails, for the next attempt at ``op`` on
         object ``target`` (explore: at ``cell``), by any robot: drawn from a stream of its
         own (the seed, what the operation is and how many attempts at it ran to their
         end), so it does not depend on what was drawn before. An attempt cut short
-        (superseded, stopped) leaves its draw to the next."""
+        (superseded, stopped) leaves its draw to the next. ``attempt``: the draw of the
+        attempt after that many ended, instead of the next."""
         key = _key(op, target, cell)
-        n = self._attempts.get(key, 0)
+        n = self._attempts.get(key, 0) if attempt is None else attempt
         rng = np.random.default_rng([_STREAM, self.config.seed, *key, n])
         j = self.config.delay_jitter
         factor = float(rng.uniform(1 - j, 1 + j))

@@ -10,10 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import anyio
+import msgspec
 import numpy as np
 import pytest
 
 from btcap.sim.mission.bound import Draws, Presence, cover_times, mission_bound, scenario_bound
+from btcap.sim.mission.catalog import builtin_scenarios
 from btcap.sim.mission.cover import apart
 from btcap.sim.mission.routes import Legs, pieces_m
 from btcap.sim.mission.scenario import load_scenario
@@ -90,6 +92,26 @@ def test_pieces_price_the_visits_to_clean_objects_beside_the_carries() -> None:
     assert 30.0 < pieces + 10.0 <= 60.0
     b = mission_bound(grid, [DRONE, CART], [((0, 10), False), ((20, 10), False), ((10, 0), True)])
     assert b.work_s >= 3 * 10 + 1 + 50 - 1e-9
+
+
+def test_after_release_a_robot_stands_no_farther_than_it_can_have_driven() -> None:
+    # The cross of the test above: from anywhere, one robot's first piece is free (30 m
+    # in all: start at one clean end, 20 m to the other, the carry's 10 m back out); a
+    # robot that can have driven only 4 m from the start pays 6 m of its first 10 m.
+    free = np.zeros((21, 21), dtype=bool)
+    free[10, :] = free[:, 10] = True
+    grid = GridMap.from_array(free, start=(10, 10), decon_area=(10, 10))
+    legs = Legs(grid, [(0, 10), (20, 10), (10, 0)])
+    assert pieces_m(legs, [2, 3], [4], 1, anywhere=True) == pytest.approx(30.0)
+    assert pieces_m(legs, [2, 3], [4], 1, anywhere=True, reach_m=4.0) == pytest.approx(36.0)
+    assert pieces_m(legs, [2, 3], [4], 1, anywhere=True, reach_m=0.0) == pytest.approx(
+        pieces_m(legs, [2, 3], [4], 1, anywhere=False)
+    )
+    # full-team seed 3: the Husky's carries of the objects identified from 91 s on begin
+    # no farther than 91 m from the start: 424.1 s with its first piece free, 466.7 s now,
+    # the end of a schedule (test_hindsight)
+    s = msgspec.structs.replace(load_scenario(builtin_scenarios()["full-team"]), seed=3)
+    assert scenario_bound(s).release_s == pytest.approx(466.7)
 
 
 def test_the_work_on_objects_found_late_waits_for_their_discovery() -> None:
