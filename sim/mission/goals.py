@@ -69,12 +69,16 @@ class GoalPool(ParallelForEach):
         busy = {k for k in self._lanes if k is not None}
         skip = busy | self._finished | self._lost | set(self._retry_at)
         waiting = [it for it in items if self._key(it) not in skip]
-        exploring = [(int(v[1]), int(v[2])) for k, v in zip(self._lanes, self._values) if k]
+        exploring = [
+            (int(v[1]), int(v[2]))
+            for k, v in zip(self._lanes, self._values, strict=True)
+            if k is not None
+        ]
+        start = self._grid.start if self._grid is not None else None
         out: list[Any] = []
         for i in free:
             if not waiting:
                 break
-            start = self._grid.start if self._grid is not None else None
             best = min(
                 range(len(waiting)),
                 key=lambda j: self._score(self._at.get(i, start), waiting[j], exploring),
