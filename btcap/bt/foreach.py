@@ -51,8 +51,10 @@ class ParallelForEach(Node):
       it from the list's source, default true) and no listed item waits or runs; then it
       fails instead if any item failed without a retry. Until then it is RUNNING.
     - A lane is ticked in the tick its item starts; a finished lane is reset before its
-      next item, so every item starts from a fresh lane. Untick unticks the running lanes
-      (they keep their progress, as a Parallel's children do); reset forgets every item.
+      next item, so every item starts from a fresh lane; which waiting item a free lane
+      takes is :meth:`order`'s (the list's order unless a subclass says otherwise).
+      Untick unticks the running lanes (they keep their progress, as a Parallel's
+      children do); reset forgets every item.
 
     Outputs ``succeeded`` and ``failed`` count the items so far; ``running`` is how many
     lanes run now.
@@ -166,6 +168,11 @@ class ParallelForEach(Node):
         width = self.width()
         free = [i for i, k in enumerate(self._lanes) if k is None]
         waiting = False
+        if free and len(latest) > len(running):
+            ordered = {self._key(item): item for item in self.order(list(latest.values()))}
+            done = running | self._finished | self._lost
+            waiting = any(k not in ordered and k not in done for k in latest)
+            latest = ordered
         for k, item in latest.items():
             if k in running or k in self._finished or k in self._lost:
                 continue
@@ -195,6 +202,14 @@ class ParallelForEach(Node):
             return _RUNNING
         self._restart = True
         return _FAILED if self._lost else _SUCCEEDED
+
+    def order(self, items: list[Any]) -> list[Any]:
+        """The listed ``items`` in the order free lanes take them, asked in a tick where
+        a lane is free, after the running lanes were ticked (so a lane that just ended is
+        free): as listed here; a subclass may put first what is best to do next (the
+        exploration goal nearest to where an explorer is now, say) and leave out what
+        must wait (it is not started in this tick, nor is the node done meanwhile)."""
+        return items
 
     def _forget(self) -> None:
         for c in self.children:

@@ -37,7 +37,9 @@ from btcap.sim.mission.capabilities import (
     SPARE_EXPLORE,
     STANDBY,
 )
+from btcap.sim.mission.goals import GoalPool
 from btcap.sim.mission.leaves import ClaimWork
+from btcap.sim.world.grid import GridMap
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
 
@@ -101,15 +103,24 @@ class WatchWork(ClaimWork):
     """Lists the work of ``kind`` waiting in the store, asking again every ``poll_s``:
     RUNNING while more may come or some is left, SUCCEEDED once none is left nor can
     come. (It lists on after the list is complete: a list left as it was then would keep
-    offering work done since, which a lane would try again and again.)"""
+    offering work done since, which a lane would try again and again.) ``listed_at`` is
+    the clock time the list was asked for: work ended before it is off the list."""
 
-    __slots__ = ()
-    OUTPUTS: ClassVar[Any] = {"items": list[tuple[int, ...]], "complete": bool}
+    __slots__ = ("_asked",)
+    OUTPUTS: ClassVar[Any] = {
+        "items": list[tuple[int, ...]],
+        "complete": bool,
+        "listed_at": float,
+    }
     OPTIONS: ClassVar[Any] = {
         "kind": Port(str, description="goal, identify, carry or object"),
         "store": Port(str, "sim/store"),
         "poll_s": Port(float, 0.5, "clock seconds between two lists"),
     }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._asked = 0.0
+        super().__init__(*args, **kwargs)
 
     def declare_ports(self) -> None:
         if self.options["kind"] not in _KINDS:
@@ -118,6 +129,8 @@ class WatchWork(ClaimWork):
     def on_tick(self) -> State:
         if self._task is None and self.clock.now() < self._again_at:
             return State.RUNNING
+        if self._task is None:
+            self._asked = self.clock.now()
         reply = self._poll(self._list)
         if reply is None:
             return State.RUNNING
@@ -125,6 +138,7 @@ class WatchWork(ClaimWork):
         self._again_at = self.clock.now() + self.options["poll_s"]
         self.outputs["items"] = [tuple(i) for i in reply.items]
         self.outputs["complete"] = reply.complete
+        self.outputs["listed_at"] = self._asked
         return State.SUCCEEDED if reply.complete and not reply.items else State.RUNNING
 
     async def _list(self) -> WorkList:
@@ -319,6 +333,8 @@ def pool_mission_tree(
     spare_explorers: int = 0,
     objects: int = 0,
     store: str = "sim/store",
+    grid: GridMap | None = None,
+    near_m: float = 0.0,
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations at once (and
     ``spare_explorers`` more while no object's work waits), an object lane for each of
@@ -326,7 +342,9 @@ def pool_mission_tree(
     carriers``: the lanes only hold work, robots are the auction's), and ``standby``
     carriers standing by near objects awaiting identification while no carry waits; it
     succeeds once the cave is explored and every object found is identified and, if
-    contaminated, carried."""
+    contaminated, carried. A free explore lane takes the goal nearest (by path on
+    ``grid``) to where its last goal left its explorer, those within ``near_m`` of a goal
+    being explored last (:class:`~btcap.sim.mission.goals.GoalPool`)."""
     for kind, lanes in (("goal", explorers), ("identify", identifiers), ("carry", carriers)):
         if lanes < 1:
             raise ValueError(f"{kind}: expected at least one lane, got {lanes}")
@@ -374,7 +392,9 @@ def pool_mission_tree(
     goal_lanes += [
         SpareLane(f"spare_goal_{k + 1}", children=[c]) for k, c in enumerate(caps[explorers:])
     ]
-    each_goal = ParallelForEach("each_goal", children=goal_lanes, retry_failed=True, key=0)
+    each_goal = GoalPool(
+        "each_goal", children=goal_lanes, retry_failed=True, key=0, grid=grid, near_m=near_m
+    )
     for ln, cap in zip(goal_lanes, caps, strict=True):
         wires.append((ln, "at", cap, "goal"))
         if isinstance(ln, SpareLane):
@@ -382,6 +402,7 @@ def pool_mission_tree(
     wires += [
         (watch_goals, "items", each_goal, "items"),
         (watch_goals, "complete", each_goal, "complete"),
+        (watch_goals, "listed_at", each_goal, "listed_at"),
     ]
     parts.append(Parallel("goal_pool", children=[watch_goals, each_goal]))
     if standby > 0:

@@ -220,7 +220,7 @@ async def run_scenario(
                     await clock.sleep_until(t0 + e.at)
                     apply(e)
 
-            tree = _mission(s)
+            tree = _mission(s, grid)
             operator.mission(tree)
             tree.observe(mlog)
             if monitor is not None:
@@ -257,7 +257,7 @@ async def run_scenario(
     return result
 
 
-def _mission(s: Scenario) -> Tree:
+def _mission(s: Scenario, grid: GridMap) -> Tree:
     """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`."""
     if s.mission == "paper":
         return mission_tree(object_workers=s.object_workers)
@@ -271,6 +271,8 @@ def _mission(s: Scenario) -> Tree:
         standby=standby_lanes(team),
         spare_explorers=spare_explorers(team),
         objects=min(s.objects, MAX_OBJECT_LANES),
+        grid=grid,
+        near_m=max((m.operation("explore").radius_m for m in team if m.can("explore")), default=0),
     )
 
 

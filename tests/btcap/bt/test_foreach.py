@@ -348,3 +348,33 @@ def test_behaviortree_cpp_xml_spells_it_with_the_btcap_prefix_and_feeds_it_an_en
     tree.blackboard["todo"], tree.blackboard["no_more"] = [3, 4, 5], True  # it grew
     assert tick(tree) is S  # one at a time: a lane done at once takes the next item
     assert Taken.seen == [3, 4, 5]
+
+
+class _Chooses(ParallelForEach):
+    """Free lanes take the largest items first; items in ``held`` wait."""
+
+    held: ClassVar[set[int]] = set()
+
+    def order(self, items: list[Any]) -> list[Any]:
+        return sorted((i for i in items if i not in self.held), reverse=True)
+
+
+def test_a_subclass_chooses_which_item_a_free_lane_takes_and_what_waits() -> None:
+    log: list[tuple[str, int]] = []
+    source = Source()
+    each = _Chooses("each", children=[Lane(f"lane{i}", log, set()) for i in range(2)])
+    tree = Tree(ReactiveSequence("root", children=[_Always(source), each]))
+    tree.wire(source, "items", each, "items")
+    tree.wire(source, "complete", each, "complete")
+    _Chooses.held = {3}
+    source.items, source.complete = [1, 2, 3, 4], True
+    assert tick(tree) is R
+    assert sorted(running(each)) == [2, 4]  # not the first two listed
+    for _ in range(10):
+        assert tick(tree) is R  # 3 is held back: waiting, so the node is not done
+    assert [item for what, item in log if what == "start"] == [4, 2, 1]
+    _Chooses.held = set()
+    for _ in range(10):
+        if tick(tree) is S:
+            break
+    assert [item for what, item in log if what == "start"] == [4, 2, 1, 3]
