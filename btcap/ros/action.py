@@ -98,7 +98,9 @@ class _Goal:
             self.halted = True
             self.halted_at = now()
             handle = self.handle
-        if handle is not None and self.status is None:
+        if self.bridge.halt_goal(self.key):  # ROS 1: cancelled now, and forgotten
+            self.bridge.untrack(self)
+        elif handle is not None and self.status is None:
             self._cancel(handle)
 
     # executor thread

@@ -389,6 +389,12 @@ class RosBridge:
         future = client.send_goal_async(goal, feedback_callback=feedback, goal_uuid=goal_id)
         return future, bytes(goal_id.uuid)
 
+    def halt_goal(self, key: Any) -> bool:
+        """Whether halting goal ``key`` was done here, whatever its state (ROS 1); False:
+        the node cancels it, once the server accepted it (ROS 2: a cancel before the
+        acceptance would find no goal of that id on the server)."""
+        return False
+
     def forget_goal(self, client: Any, key: Any) -> None:
         """Drop what rclpy's ``client`` keeps of a goal that is over without a result
         (rejected, failed): its feedback callback, which holds the node and its tree;

@@ -315,7 +315,18 @@ class Ros1Bridge(RosBridge):
         return {}  # ROS 1 has no QoS to disagree on
 
     def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
-        return client.send_goal_async(goal, feedback_callback=feedback), None
+        handle = client.send_goal(goal, feedback_callback=feedback)
+        return handle.response, handle
+
+    def halt_goal(self, key: Any) -> bool:
+        """Cancel goal ``key`` (its GoalHandle1) now, accepted or not (actionlib recalls a
+        goal whose cancel comes before it), and forget it here: nothing of it is news to
+        the node any more, and a goal whose server died would never end, holding the
+        node and its tree. The rospy process keeps it, to cancel again when closing."""
+        if self._handles.pop(key.gid, None) is not None:
+            with contextlib.suppress(RosError):  # the process is gone: it cancelled its goals
+                self.send(wire1.Cancel(key.gid))
+        return True
 
     def service_client(self, type_name: str, name: str) -> Any:
         key = ("service", type_name, self.resolve(name))
