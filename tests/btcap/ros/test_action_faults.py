@@ -3,10 +3,12 @@ the goal or the type is wrong, the bridge closes with a goal open."""
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import subprocess
 import sys
+import weakref
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -61,13 +63,20 @@ async def test_a_server_killed_mid_goal_fails_the_node_saying_why(
     )
     with anyio.fail_after(20):
         tree = tree_of(node)
-        await tick_until(tree, lambda s: node.outputs["feedback_sequence"] is not None)
+        outputs = node.outputs
+        await tick_until(tree, lambda s: outputs["feedback_sequence"] is not None)
         server_process.send_signal(signal.SIGKILL)
         state = await tick_until(tree)
     assert state is State.FAILED
     why = str(node.error)
     assert "no feedback for feedback_timeout 1.0 s" in why or "the server left" in why, why
     assert bridge.open_goals() == 0
+    # The goal never ends for rclpy's client, which keeps its callbacks: they must not
+    # hold the node's tree.
+    gone = weakref.ref(tree)
+    del node, tree
+    gc.collect()
+    assert gone() is None
 
 
 async def test_a_1khz_feedback_stream_does_not_stall_ticking(
