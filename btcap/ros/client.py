@@ -272,8 +272,9 @@ class RosBridge:
             raise RosError("empty ROS name: expected an action, service or topic name")
         if name.startswith("/"):
             return check_namespace(name, "ROS name") if name != "/" else name
-        if name.startswith("~"):
-            name = f"{self.settings.node_name}{name[1:]}"
+        if name.startswith("~"):  # private: ROS 1's ~foo, ROS 2's ~/foo
+            rest = name[1:].lstrip("/")
+            name = f"{self.settings.node_name}/{rest}" if rest else self.settings.node_name
         return check_namespace(f"{self.namespace.rstrip('/')}/{name}", "ROS name")
 
     def qos(self, qos: Qos | None = None) -> Any:
