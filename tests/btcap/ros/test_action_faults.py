@@ -173,3 +173,27 @@ async def test_closing_the_bridge_cancels_open_goals_and_leaves_no_thread(
     left = [t.name for t in set(threading.enumerate()) - before if t.name.startswith("btcap-ros")]
     assert not left, left
     assert bridge.node is None
+
+
+async def test_a_service_killed_mid_call_fails_the_node_saying_why(
+    server_process: subprocess.Popen[str], bridge: RosBridge
+) -> None:
+    """As a RosAction whose server leaves mid-goal: the call fails once the server is
+    gone from the graph, not only when server_timeout (here a minute) is up."""
+    from btcap.ros.service import RosService
+
+    node = RosService(
+        "call",
+        service_type="std_srvs/srv/SetBool",
+        service_name="set_bool_slow",
+        server_timeout=60.0,
+        bridge=bridge,
+        inputs={"data": True},
+    )
+    with anyio.fail_after(45):
+        tree = tree_of(node)
+        await tick_until(tree, lambda s: node._future is not None)
+        server_process.send_signal(signal.SIGKILL)
+        state = await tick_until(tree)
+    assert state is State.FAILED
+    assert str(node.error).endswith("(std_srvs/srv/SetBool): the server left during the call")
