@@ -76,7 +76,9 @@ class RosService(RosLeaf):
         if now() - self._sent_at > limit:
             self._stop()
             return self.failed(f"{self._what()}: no response within server_timeout {limit} s")
-        if not self._client.service_is_ready():  # as RosAction's goal: no answer will come
+        # As RosAction's goal: no answer will come. (ROS 1's call fails by itself when its
+        # connection breaks, sooner than its readiness, checked every 100 ms, says so.)
+        if self.types.version != 1 and not self._client.service_is_ready():
             self._stop()
             return self.failed(f"{self._what()}: the server left during the call")
         return _RUNNING
