@@ -54,6 +54,7 @@ PROBE_S = 3.0
 START_S = 60.0
 STOP_S = 10.0
 DEFAULT_MASTER = "http://localhost:11311/"
+_RESTART = ": restart the robot's agent (or make a new Ros1Bridge)"
 
 
 class _Transport(xmlrpc.client.Transport):
@@ -254,6 +255,17 @@ class Ros1Bridge(RosBridge):
                 log.error(
                     "btcap.ros1.frame", node=self.fqn, frame=type(frame).__name__, why=str(exc)
                 )
+        if not self._closed and self.conflict is None:
+            # Not closing: it crashed or was killed. Every ROS node of the robot fails
+            # now saying so (their servers would otherwise just look gone).
+            code: int | None = None
+            with contextlib.suppress(subprocess.TimeoutExpired, AttributeError):
+                code = self.process.wait(timeout=1.0)  # type: ignore[union-attr]
+            self.conflict = (
+                f"the ROS 1 node {self.fqn}'s rospy process ended unasked (exit code {code})"
+                + _RESTART
+            )
+            log.error("btcap.ros1.process_ended", node=self.fqn, code=code)
         self._lost("its rospy process ended")
 
     def _dispatch(self, frame: Any) -> None:

@@ -59,7 +59,7 @@ def count(server: actionlib.SimpleActionServer, goal: object) -> None:
         server.set_succeeded(TestResult(result=5))
         return
     i = 0
-    while n < 0 or i < n:
+    while (n < 0 or i < n) and not rospy.is_shutdown():  # a goal nobody cancels ends too
         if server.is_preempt_requested():
             server.set_preempted(TestResult(result=i))
             event("count.preempted")

@@ -99,3 +99,38 @@ async def test_a_process_default_socket_timeout_does_not_break_the_pipe(
                 assert await run(node) is State.SUCCEEDED, node.error
     finally:
         socket.setdefaulttimeout(old)
+
+
+async def test_a_rospy_process_that_dies_fails_every_node_at_once_saying_so(
+    master: Master, servers: Servers
+) -> None:
+    """Killed (or crashed) under a running bridge: the robot's ROS nodes fail at their
+    next tick naming it, not after wait_for_server_timeout as if their servers had gone."""
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            node = RosAction(
+                "act",
+                action_type="actionlib/Test",
+                action_name="count",
+                bridge=bridge,
+                inputs={"goal": -2},
+                server_timeout=FOUND_S,
+            )
+            await run(node, lambda s: node.outputs["feedback_feedback"] is not None)
+            assert bridge.process is not None
+            bridge.process.kill()
+            assert await run(node) is State.FAILED
+            assert "its rospy process ended" in str(node.error)
+            again = RosAction(
+                "again",
+                action_type="actionlib/Test",
+                action_name="count",
+                bridge=bridge,
+                inputs={"goal": 1},
+                wait_for_server_timeout=FOUND_S,
+            )
+            assert await run(again) is State.ERROR
+    assert str(again.error) == (
+        "node 'again': the ROS 1 node /husky1/btcap's rospy process ended unasked (exit "
+        "code -9): restart the robot's agent (or make a new Ros1Bridge)"
+    )
