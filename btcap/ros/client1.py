@@ -299,6 +299,8 @@ class Ros1Bridge(RosBridge):
                     future.set(exception=RosError(frame.error))
                 else:
                     future.set(types.Response().deserialize(frame.data))
+        elif isinstance(frame, wire1.Notice):
+            log.warning("btcap.ros1.notice", node=self.fqn, why=frame.text)
         elif isinstance(frame, wire1.Up) and frame.error and not self._closed:
             self.conflict = f"the ROS 1 node {self.fqn} was shut down: {frame.error}"
             log.error("btcap.ros1.shutdown", node=self.fqn, why=frame.error)

@@ -134,3 +134,19 @@ async def test_a_rospy_process_that_dies_fails_every_node_at_once_saying_so(
         "node 'again': the ROS 1 node /husky1/btcap's rospy process ended unasked (exit "
         "code -9): restart the robot's agent (or make a new Ros1Bridge)"
     )
+
+
+async def test_a_restarted_master_is_said_once_with_what_it_means(master: Master) -> None:
+    """rospy never registers again with a new master, so what was registered before is
+    unknown to it: the bridge says so in one warning, not only through servers that look
+    gone."""
+    from structlog.testing import capture_logs
+
+    with anyio.fail_after(30), capture_logs() as logs:
+        async with bridge_on(master):
+            await anyio.to_thread.run_sync(master.stop)
+            await anyio.to_thread.run_sync(master.start)  # the same port, a new pid
+            await settle(lambda: any(e["event"] == "btcap.ros1.notice" for e in logs))
+    (notice,) = [e for e in logs if e["event"] == "btcap.ros1.notice"]
+    assert notice["why"].startswith(f"the ROS 1 master {master.uri} restarted (pid ")
+    assert "\n" not in notice["why"]
