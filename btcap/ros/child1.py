@@ -144,7 +144,8 @@ class Child:
 
         try:
             with xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), _Timeout()) as proxy:
-                code, _, pid = proxy.getPid(self.rospy.get_name())
+                answer: Any = proxy.getPid(self.rospy.get_name())
+            code, _, pid = answer
         except Exception:
             return None
         return int(pid) if code == 1 else None
