@@ -39,6 +39,10 @@ _REJECTED = -1
 FEEDBACK_PREFIX = "feedback_"
 
 
+def _quiet(minor: bool = False) -> None:
+    """A halted goal's news: none."""
+
+
 class _Goal:
     """One goal's answers, written by the executor thread, read by the tick.
 
@@ -98,7 +102,13 @@ class _Goal:
             self.halted = True
             self.halted_at = now()
             handle = self.handle
-        if handle is not None and self.status is None:
+            # Nothing of it is news any more; the client may keep this goal's callbacks
+            # for good (its server died: no result ever comes), so they must not hold
+            # the node's tree.
+            self.news = _quiet
+        if self.bridge.halt_goal(self.key):  # ROS 1: cancelled now, and forgotten
+            self.bridge.untrack(self)
+        elif handle is not None and self.status is None:
             self._cancel(handle)
 
     # executor thread

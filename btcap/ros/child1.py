@@ -27,6 +27,7 @@ import socket
 import sys
 import threading
 import time
+import xmlrpc.client
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -40,6 +41,8 @@ __all__ = ["main"]
 #: services (a master lookup and a probe connection, as rospy's wait_for_service does).
 ACTION_POLL_S = 0.02
 SERVICE_POLL_S = 0.1
+#: How often it asks the master its pid (a new one: the master restarted).
+MASTER_POLL_S = 1.0
 #: How long closing waits for the servers to acknowledge the open goals' cancels.
 CANCEL_ACK_S = 5.0
 _KINDS = {"action": "action", "service": "srv", "publisher": "msg", "subscriber": "msg"}
@@ -72,6 +75,7 @@ class Child:
         self._stopping = threading.Event()
         self._writer = threading.Thread(target=self._writer_loop, name="btcap-ros1-writer")
         self._poller = threading.Thread(target=self._poll, name="btcap-ros1-poller", daemon=True)
+        self.master_pid: int | None = None
 
     # -- frames out (any thread) --------------------------------------------------------
     def post(self, frame: Any, flush: tuple[str, int] | None = None) -> None:
@@ -111,12 +115,15 @@ class Child:
 
     # -- readiness -------------------------------------------------------------------
     def _poll(self) -> None:
-        last_services = 0.0
+        last_services = last_master = 0.0
         while not self._stopping.wait(ACTION_POLL_S):
             t = time.monotonic()
             services = t - last_services >= SERVICE_POLL_S
             if services:
                 last_services = t
+            if t - last_master >= MASTER_POLL_S:
+                last_master = t
+                self._check_master()
             for cid, (kind, _, client) in list(self.clients.items()):
                 if kind == "action":
                     ok = _action_ready(client)
@@ -130,6 +137,38 @@ class Child:
                 if self.ready.get(cid) != ready:
                     self.ready[cid] = ready
                     self.post(wire1.Ready(cid, ready))
+
+    def ask_master_pid(self) -> int | None:
+        """The master's pid, or None if it does not answer now (within 0.5 s)."""
+        import rosgraph
+
+        try:
+            with xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), _Timeout()) as proxy:
+                answer: Any = proxy.getPid(self.rospy.get_name())
+            code, _, pid = answer
+        except Exception:
+            return None
+        return int(pid) if code == 1 else None
+
+    def _check_master(self) -> None:
+        """Tell the bridge once the master restarted (its pid changed): ROS 1 nodes never
+        register again, so what was registered before is unknown to the new one."""
+        pid = self.ask_master_pid()
+        if pid is None:  # gone for now: its services' checks say so
+            return
+        import rosgraph
+
+        uri = rosgraph.get_master_uri()
+        if self.master_pid is not None and pid != self.master_pid:
+            self.post(
+                wire1.Notice(
+                    f"the ROS 1 master {uri} restarted (pid {self.master_pid}, now {pid}): it "
+                    "knows nothing registered before, and ROS 1 nodes do not register again, "
+                    "so the servers and topics of nodes started before it (this robot's "
+                    "too) stay unknown to it until those nodes restart"
+                )
+            )
+        self.master_pid = pid
 
     def _service_ready(self, name: str) -> bool:
         import rosgraph
@@ -277,6 +316,13 @@ class Child:
         self._writer.join(timeout=2.0)
 
 
+class _Timeout(xmlrpc.client.Transport):
+    def make_connection(self, host: Any) -> Any:
+        conn = super().make_connection(host)
+        conn.timeout = 0.5
+        return conn
+
+
 def _unregister(kind: str, types: Any, client: Any) -> None:
     if kind == "action":
         client.stop()
@@ -316,6 +362,7 @@ def main(argv: list[str]) -> int:
         text = str(exc).strip().splitlines()
         conn.send_bytes(wire1.encode(wire1.Up(error=text[0] if text else repr(exc))))
         return 1
+    child.master_pid = child.ask_master_pid()  # now: it may restart before the first check
     child.post(wire1.Up())
 
     def on_shutdown(reason: str) -> None:  # rospy's thread: the master, or our own stop

@@ -272,8 +272,9 @@ class RosBridge:
             raise RosError("empty ROS name: expected an action, service or topic name")
         if name.startswith("/"):
             return check_namespace(name, "ROS name") if name != "/" else name
-        if name.startswith("~"):
-            name = f"{self.settings.node_name}{name[1:]}"
+        if name.startswith("~"):  # private: ROS 1's ~foo, ROS 2's ~/foo
+            rest = name[1:].lstrip("/")
+            name = f"{self.settings.node_name}/{rest}" if rest else self.settings.node_name
         return check_namespace(f"{self.namespace.rstrip('/')}/{name}", "ROS name")
 
     def qos(self, qos: Qos | None = None) -> Any:
@@ -388,6 +389,12 @@ class RosBridge:
         goal_id = UUID(uuid=list(uuid.uuid4().bytes))
         future = client.send_goal_async(goal, feedback_callback=feedback, goal_uuid=goal_id)
         return future, bytes(goal_id.uuid)
+
+    def halt_goal(self, key: Any) -> bool:
+        """Whether halting goal ``key`` was done here, whatever its state (ROS 1); False:
+        the node cancels it, once the server accepted it (ROS 2: a cancel before the
+        acceptance would find no goal of that id on the server)."""
+        return False
 
     def forget_goal(self, client: Any, key: Any) -> None:
         """Drop what rclpy's ``client`` keeps of a goal that is over without a result

@@ -39,6 +39,7 @@ from btcap.ros.facade1 import (
     Subscription1,
 )
 from btcap.ros.interfaces1 import interface1
+from btcap.ros.outbox1 import Outbox
 from btcap.ros.versions import ROS1, Types
 from btcap.team.rossettings import Qos, RosSettings
 from btcap.transports.log import get_logger
@@ -53,6 +54,7 @@ PROBE_S = 3.0
 START_S = 60.0
 STOP_S = 10.0
 DEFAULT_MASTER = "http://localhost:11311/"
+_RESTART = ": restart the robot's agent (or make a new Ros1Bridge)"
 
 
 class _Transport(xmlrpc.client.Transport):
@@ -96,7 +98,9 @@ class Ros1Bridge(RosBridge):
         self.process: subprocess.Popen[bytes] | None = None
         self._conn: Connection | None = None
         self._reader: threading.Thread | None = None
-        self._send_lock = threading.Lock()
+        self._sock: socket.socket | None = None
+        self._outbox: Outbox | None = None
+        self._depths: dict[int, int] = {}  # a publisher's queue size, by cid
         self._ids = itertools.count(1)
         self._servers: dict[int, ActionClient1 | ServiceClient1] = {}
         self._handles: dict[int, GoalHandle1] = {}
@@ -126,7 +130,9 @@ class Ros1Bridge(RosBridge):
                     env=env,
                     stdin=subprocess.DEVNULL,
                 )
-            conn = self._conn = Connection(ours.detach())
+            self._sock = ours
+            self._outbox = Outbox(ours, f"btcap-ros1-writer{self.fqn}")
+            conn = self._conn = Connection(os.dup(ours.fileno()))
             if not conn.poll(START_S):
                 raise RosError(f"ROS 1 node {self.fqn}: not up within {START_S} s")
             up = wire1.decode_up(conn.recv_bytes())
@@ -153,8 +159,8 @@ class Ros1Bridge(RosBridge):
         if self._closed:
             return
         self._closed = True
-        process, conn = self.process, self._conn
-        if conn is not None:
+        process, conn, outbox = self.process, self._conn, self._outbox
+        if outbox is not None:
             with contextlib.suppress(RosError):  # the process is gone already
                 self.send(wire1.Stop())
         if process is not None:
@@ -164,10 +170,14 @@ class Ros1Bridge(RosBridge):
                 log.warning("btcap.ros1.kill", node=self.fqn, why=f"no exit in {STOP_S} s")
                 process.kill()
                 process.wait()
+        if outbox is not None:  # the process is gone: what it did not read fails at once
+            outbox.close(timeout=STOP_S)
         if self._reader is not None:
             self._reader.join(timeout=STOP_S)
         if conn is not None:
             conn.close()
+        if self._sock is not None:
+            self._sock.close()
         self._lost("the bridge closed")
         self.node = None
 
@@ -181,28 +191,32 @@ class Ros1Bridge(RosBridge):
         return next(self._ids)
 
     def send(self, frame: wire1.Down) -> None:
-        """Write one frame to the rospy process (a short write; from any thread)."""
-        conn = self._conn
-        if conn is None or self._dead is not None:
+        """Send one frame to the rospy process, never waiting for it (from any thread:
+        :class:`~btcap.ros.outbox1.Outbox`); a publisher's messages waiting beyond its
+        queue size are dropped, oldest first, as rospy's own queue does."""
+        outbox = self._outbox
+        if outbox is None or self._dead is not None:
             raise RosError(f"ROS 1 bridge {self.fqn}: {self._dead or 'not started'}")
-        data = wire1.encode(frame)
-        with self._send_lock:
-            try:
-                conn.send_bytes(data)
-            except OSError as exc:
-                raise RosError(f"ROS 1 bridge {self.fqn}: its process is gone ({exc})") from None
+        cid = frame.cid if isinstance(frame, wire1.Publish) else None
+        try:
+            outbox.put(wire1.encode(frame), cid, self._depths.get(cid or 0, 0))
+        except OSError as exc:
+            raise RosError(f"ROS 1 bridge {self.fqn}: its process is gone ({exc})") from None
 
     def open(
         self, kind: str, type_name: str, name: str, qos: tuple[int, bool] = (10, False)
     ) -> int:
         cid = self.next_id()
         self.running()
+        if kind == "publisher":
+            self._depths[cid] = qos[0]
         self.send(wire1.Open(cid, kind, type_name, name, qos[0], qos[1]))
         return cid
 
     def drop(self, cid: int) -> None:
         self._servers.pop(cid, None)
         self._subs.pop(cid, None)
+        self._depths.pop(cid, None)
         if self._dead is None and not self._closed:
             self.send(wire1.Drop(cid))
 
@@ -241,6 +255,17 @@ class Ros1Bridge(RosBridge):
                 log.error(
                     "btcap.ros1.frame", node=self.fqn, frame=type(frame).__name__, why=str(exc)
                 )
+        if not self._closed and self.conflict is None:
+            # Not closing: it crashed or was killed. Every ROS node of the robot fails
+            # now saying so (their servers would otherwise just look gone).
+            code: int | None = None
+            with contextlib.suppress(subprocess.TimeoutExpired, AttributeError):
+                code = self.process.wait(timeout=1.0)  # type: ignore[union-attr]
+            self.conflict = (
+                f"the ROS 1 node {self.fqn}'s rospy process ended unasked (exit code {code})"
+                + _RESTART
+            )
+            log.error("btcap.ros1.process_ended", node=self.fqn, code=code)
         self._lost("its rospy process ended")
 
     def _dispatch(self, frame: Any) -> None:
@@ -274,6 +299,8 @@ class Ros1Bridge(RosBridge):
                     future.set(exception=RosError(frame.error))
                 else:
                     future.set(types.Response().deserialize(frame.data))
+        elif isinstance(frame, wire1.Notice):
+            log.warning("btcap.ros1.notice", node=self.fqn, why=frame.text)
         elif isinstance(frame, wire1.Up) and frame.error and not self._closed:
             self.conflict = f"the ROS 1 node {self.fqn} was shut down: {frame.error}"
             log.error("btcap.ros1.shutdown", node=self.fqn, why=frame.error)
@@ -315,7 +342,18 @@ class Ros1Bridge(RosBridge):
         return {}  # ROS 1 has no QoS to disagree on
 
     def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
-        return client.send_goal_async(goal, feedback_callback=feedback), None
+        handle = client.send_goal(goal, feedback_callback=feedback)
+        return handle.response, handle
+
+    def halt_goal(self, key: Any) -> bool:
+        """Cancel goal ``key`` (its GoalHandle1) now, accepted or not (actionlib recalls a
+        goal whose cancel comes before it), and forget it here: nothing of it is news to
+        the node any more, and a goal whose server died would never end, holding the
+        node and its tree. The rospy process keeps it, to cancel again when closing."""
+        if self._handles.pop(key.gid, None) is not None:
+            with contextlib.suppress(RosError):  # the process is gone: it cancelled its goals
+                self.send(wire1.Cancel(key.gid))
+        return True
 
     def service_client(self, type_name: str, name: str) -> Any:
         key = ("service", type_name, self.resolve(name))

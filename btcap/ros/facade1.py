@@ -178,10 +178,14 @@ class ActionClient1:
         return self.ready
 
     def send_goal_async(self, goal: Any, feedback_callback: Any = None) -> Future1:
+        return self.send_goal(goal, feedback_callback).response
+
+    def send_goal(self, goal: Any, feedback_callback: Any = None) -> GoalHandle1:
+        """Send ``goal``: its handle, whose ``response`` is done once it is accepted."""
         handle = GoalHandle1(self, self.bridge.next_id(), feedback_callback)
         self.bridge.open_goal(handle)
         self.bridge.send(wire1.Goal(self.cid, handle.gid, serialize(goal)))
-        return handle.response
+        return handle
 
     def destroy(self) -> None:
         self.bridge.drop(self.cid)

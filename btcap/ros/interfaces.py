@@ -11,6 +11,7 @@ interface and the field.
 from __future__ import annotations
 
 import importlib
+import math
 import re
 from collections.abc import Mapping
 from typing import Any
@@ -20,7 +21,16 @@ import msgspec
 from btcap.ros.errors import RosError
 from btcap.ros.loader import load
 
-__all__ = ["check_field", "field_types", "fill", "interface", "kind_name", "port_type", "to_plain"]
+__all__ = [
+    "FLOAT32_MAX",
+    "check_field",
+    "field_types",
+    "fill",
+    "interface",
+    "kind_name",
+    "port_type",
+    "to_plain",
+]
 
 _KINDS = ("msg", "srv", "action")
 _NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)$")
@@ -28,6 +38,9 @@ _SHORT = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z][A-Za-z0-9_]*)$")
 
 _INTS = {"byte", "char", "octet"} | {f"{s}int{n}" for s in ("", "u") for n in (8, 16, 32, 64)}
 _FLOATS = {"float", "double", "float32", "float64", "long double"}
+#: The largest finite float32, as rosidl bounds it (an infinity is a float32 too).
+FLOAT32_MAX = 3.402823466e38
+_FLOAT32 = ("float", "float32")
 _SCALARS: dict[str, Any] = {
     **dict.fromkeys(_INTS, int),
     **dict.fromkeys(_FLOATS, float),
@@ -155,16 +168,22 @@ def check_field(value: Any, ros_type: str, where: str) -> Any:
             for i, v in enumerate(out):
                 if not bounds[0] <= v <= bounds[1]:
                     raise _out_of(v, shape[0], bounds, f"{where}[{i}]")
+        elif shape[0] in _FLOAT32:
+            for i, v in enumerate(out):
+                if abs(v) > FLOAT32_MAX and not math.isinf(v):
+                    raise _out_of(v, shape[0], (-FLOAT32_MAX, FLOAT32_MAX), f"{where}[{i}]")
         return out
     bounds = _int_bounds(ros_type)
     if bounds is not None and not bounds[0] <= out <= bounds[1]:
         raise _out_of(value, ros_type, bounds, where)
+    if ros_type in _FLOAT32 and abs(out) > FLOAT32_MAX and not math.isinf(out):
+        raise _out_of(value, ros_type, (-FLOAT32_MAX, FLOAT32_MAX), where)
     if (m := _STRING.match(ros_type)) is not None and m[1] and len(out) > int(m[1]):
         raise RosError(f"{where}: {value!r} is longer than {ros_type}'s {m[1]} characters")
     return out
 
 
-def _out_of(value: Any, ros_type: str, bounds: tuple[int, int], where: str) -> RosError:
+def _out_of(value: Any, ros_type: str, bounds: tuple[float, float], where: str) -> RosError:
     return RosError(f"{where}: {value!r} is out of {ros_type}'s range {bounds[0]}..{bounds[1]}")
 
 

@@ -21,13 +21,15 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 from btcap.ros.errors import RosError
-from btcap.ros.interfaces import check_field, kind_name, port_type
+from btcap.ros.interfaces import _shape, check_field, kind_name, port_type
 
 __all__ = ["Action1", "Service1", "field_types1", "fill1", "interface1", "port_type1", "to_plain1"]
 
 _NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/(?:(msg|srv|action)/)?([A-Za-z][A-Za-z0-9_]*)$")
 _TIMES = ("time", "duration")
-_BYTES = re.compile(r"^(uint8|char|byte)\[\d*\]$")
+#: Arrays genpy holds as bytes (ROS 1's ``byte[]`` is a list of int8).
+_BYTES = re.compile(r"^(uint8|char)\[\d*\]$")
+_ALIASES = {"byte": "int8", "char": "uint8"}
 
 
 class Action1(NamedTuple):
@@ -154,22 +156,47 @@ def _fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
 
 def _value(current: Any, ros_type: str, value: Any, where: str) -> Any:
     if ros_type in _TIMES:
-        if not isinstance(value, Mapping) or set(value) - {"secs", "nsecs"}:
-            raise RosError(f"{where}: {value!r} does not fit {ros_type}: expected {{secs, nsecs}}")
-        secs = check_field(value.get("secs", 0), "int32", f"{where}.secs")
-        nsecs = check_field(value.get("nsecs", 0), "int32", f"{where}.nsecs")
-        return type(current)(secs, nsecs)
+        return _time(type(current), ros_type, value, where)
     if _is_message(current):
         if not isinstance(value, Mapping):
             raise RosError(f"{where}: {value!r} does not fit {ros_type}: expected a mapping")
         return _fill(type(current), value, where)
-    if isinstance(value, list) and value and isinstance(value[0], Mapping):
-        inner = ros_type.split("[", 1)[0]
-        if "/" not in inner:
-            raise RosError(f"{where}: {value!r} does not fit {ros_type}")
-        cls = interface1(inner, "msg")
-        return [_fill(cls, v, f"{where}[{i}]") for i, v in enumerate(value)]
-    value = check_field(value, ros_type, where)
+    shape = _shape(ros_type)
+    if shape is not None and "/" in shape[0] and isinstance(value, list | tuple):
+        check_field(value, ros_type, where)  # its length, and each item a message's fields
+        cls = interface1(shape[0], "msg")
+        return [
+            v if _is_message(v) else _fill(cls, v, f"{where}[{i}]") for i, v in enumerate(value)
+        ]
+    if shape is not None and shape[0] in _TIMES and isinstance(value, list | tuple):
+        import genpy
+
+        kind = genpy.Time if shape[0] == "time" else genpy.Duration
+        check_field([0] * len(value), f"int32{ros_type[len(shape[0]) :]}", where)  # length
+        return [_time(kind, shape[0], v, f"{where}[{i}]") for i, v in enumerate(value)]
+    value = check_field(value, _as_checked(ros_type), where)
     if _BYTES.match(ros_type):  # genpy holds uint8[] / char[] as bytes
-        return bytes(check_field(v, "uint8", f"{where}[{i}]") for i, v in enumerate(value))
+        return bytes(value)
     return value
+
+
+def _as_checked(ros_type: str) -> str:
+    """A ROS 1 field type as :func:`check_field` reads it: ROS 1's ``byte`` is a signed
+    int8 and its ``char`` an unsigned uint8 (ROS 2 has them the other way round)."""
+    base, bracket, rest = ros_type.partition("[")
+    base = _ALIASES.get(base, base)
+    return f"{base}{bracket}{rest}"
+
+
+def _time(kind: Any, ros_type: str, value: Any, where: str) -> Any:
+    """A genpy Time (``secs``, ``nsecs``: uint32) or Duration (int32) from ``{secs,
+    nsecs}``."""
+    if not isinstance(value, Mapping) or set(value) - {"secs", "nsecs"}:
+        raise RosError(f"{where}: {value!r} does not fit {ros_type}: expected {{secs, nsecs}}")
+    part = "uint32" if ros_type == "time" else "int32"
+    secs = check_field(value.get("secs", 0), part, f"{where}.secs")
+    nsecs = check_field(value.get("nsecs", 0), part, f"{where}.nsecs")
+    made = kind(secs, nsecs)  # normalized: nsecs over a second carry into secs
+    if ros_type == "time" and made.secs > 2**32 - 1:
+        raise RosError(f"{where}: {value!r} is past time's last second, {2**32 - 1}")
+    return made

@@ -4,7 +4,8 @@ Inputs are the Request's fields, outputs the Response's. The call goes out with 
 ``call_async`` and the response is read at the tick it brings about (the node's tree is
 ticked soon when it comes); ``wait_for_server_timeout`` bounds the wait for the service
 to appear and ``server_timeout`` the wait for its response, so a missing or slow server
-fails the node, saying which. ``service_name`` is read when a call starts.
+fails the node, saying which; a server that leaves the graph during the call fails it
+then. ``service_name`` is read when a call starts.
 """
 
 from __future__ import annotations
@@ -75,6 +76,11 @@ class RosService(RosLeaf):
         if now() - self._sent_at > limit:
             self._stop()
             return self.failed(f"{self._what()}: no response within server_timeout {limit} s")
+        # As RosAction's goal: no answer will come. (ROS 1's call fails by itself when its
+        # connection breaks, sooner than its readiness, checked every 100 ms, says so.)
+        if self.types.version != 1 and not self._client.service_is_ready():
+            self._stop()
+            return self.failed(f"{self._what()}: the server left during the call")
         return _RUNNING
 
     def _call(self) -> State:

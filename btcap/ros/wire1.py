@@ -21,6 +21,7 @@ __all__ = [
     "Feedback",
     "Goal",
     "Message",
+    "Notice",
     "Open",
     "Publish",
     "Ready",
@@ -126,8 +127,14 @@ class Message(_Frame):
     data: bytes
 
 
+class Notice(_Frame):
+    """Something the robot's user should know (the master restarted), in one line."""
+
+    text: str
+
+
 Down = Open | Drop | Goal | Cancel | Call | Publish | Stop
-UpFrame = Up | Ready | Accepted | Feedback | Done | Reply | Message
+UpFrame = Up | Ready | Accepted | Feedback | Done | Reply | Message | Notice
 
 _encoder = msgspec.msgpack.Encoder()
 _down = msgspec.msgpack.Decoder(Down)

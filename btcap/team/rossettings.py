@@ -9,11 +9,20 @@ ROS 2's rules, checked here so a bad one is refused as the file is read, naming 
 from __future__ import annotations
 
 import re
+import urllib.parse
 from typing import Annotated, Literal
 
 import msgspec
 
-__all__ = ["DomainId", "Qos", "RosBackend", "RosSettings", "check_namespace", "check_node_name"]
+__all__ = [
+    "DomainId",
+    "Qos",
+    "RosBackend",
+    "RosSettings",
+    "check_master_uri",
+    "check_namespace",
+    "check_node_name",
+]
 
 _TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
 _NAMESPACE = re.compile(rf"^(/{_TOKEN})+$|^/$")
@@ -40,6 +49,25 @@ def check_namespace(value: str, where: str = "namespace") -> str:
         raise ValueError(
             f"{where}: {value!r} is no ROS 2 namespace: expected '/' and names of letters, "
             "digits and '_' not starting with a digit ('/husky1', '/team/husky1')"
+        )
+    return value
+
+
+def check_master_uri(value: str | None, where: str = "master_uri") -> str | None:
+    """``value`` if it is a ROS 1 master's URI (``http://HOST:PORT/``) or None, else
+    ValueError: rospy would take ``localhost:11311`` and fail only when the robot starts."""
+    if value is None:
+        return value
+    try:
+        url = urllib.parse.urlsplit(value)
+        port = url.port
+    except ValueError:
+        port = None
+        url = urllib.parse.urlsplit("")
+    if url.scheme not in ("http", "https") or not url.hostname or port is None:
+        raise ValueError(
+            f"{where}: {value!r} is no ROS 1 master URI: expected http://HOST:PORT/ "
+            "(e.g. http://localhost:11311/)"
         )
     return value
 
@@ -103,6 +131,7 @@ class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
         if self.namespace is not None:
             check_namespace(self.namespace)
         check_node_name(self.node_name)
+        check_master_uri(self.master_uri)
 
     def namespace_of(self, robot: str) -> str:
         """The namespace, ``/ROBOT`` when none is set (ValueError if that is no name)."""

@@ -19,6 +19,7 @@ from btcap.team.rossettings import (
     Qos,
     RosBackend,
     RosSettings,
+    check_master_uri,
     check_namespace,
     check_node_name,
 )
@@ -206,6 +207,7 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
             )
         check_namespace(self.namespace.replace(ROBOT_FIELD, "robot"))
         check_node_name(self.node_name)
+        check_master_uri(self.master_uri)
 
     def namespace_of(self, robot: str) -> str:
         """``robot``'s namespace (ValueError if its name makes no ROS name)."""

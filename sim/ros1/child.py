@@ -12,7 +12,8 @@ an ``answer`` frame) and wait; nothing of rospy is in the mission's process.
 Frames are msgspec JSON lists: down ``["config", {...}]`` (its ``absent`` robots are not
 served until a ``serve``: they join later), ``["answer", qid, ok, detail,
 found, contaminated]``, ``["state", robot, row, col, op, target, phase, t]``,
-``["withdraw", robot]`` (its servers leave the graph), ``["serve", robot]`` (they come
+``["withdraw", robot]`` (its executions give up, the robot stopping, and its servers
+leave the graph), ``["serve", robot]`` (they come
 back, where the robot was last told to be), ``["stop"]``;
 up ``["up", error]``, ``["ask", qid, robot, what, row, col, target]`` (``what``:
 ``move_base`` or an operation), ``["cancel", qid]``. Run as ``python -m
@@ -25,6 +26,7 @@ import itertools
 import socket
 import sys
 import threading
+import time
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -36,6 +38,8 @@ __all__ = ["main"]
 
 #: Seconds a goal's thread waits between two looks at its goal (preempted? moved on?).
 POLL_S = 0.01
+#: Seconds a withdraw waits for the robot's executions to end (a bound).
+STOP_S = 5.0
 
 
 class Sim:
@@ -153,6 +157,11 @@ class _Robot:
         self.sim, self.name = sim, name
         self.cell = start
         self.phase = ""
+        #: Set when the robot's servers leave the graph: executions give up (the robot
+        #: stops, its goals end ABORTED), as behind ROS 2.
+        self.withdrawn = threading.Event()
+        self.running = 0
+        self._lock = threading.Lock()
         self._types = (PoseStamped, RobotState, MoveBaseFeedback, MoveBaseResult)
         ns = namespace.rstrip("/")
         self.server = actionlib.SimpleActionServer(
@@ -179,7 +188,21 @@ class _Robot:
         state = self._types[1](row=row, col=col, operation=op, target=target, phase=phase)
         self.state_pub.publish(state)
 
+    def _gone(self) -> bool:
+        return self.withdrawn.is_set()
+
+    def _count(self, n: int) -> None:
+        with self._lock:
+            self.running += n
+
     def _navigate(self, goal: Any) -> None:  # the server's execute thread
+        self._count(1)
+        try:
+            self._navigate_to(goal)
+        finally:
+            self._count(-1)
+
+    def _navigate_to(self, goal: Any) -> None:
         p = goal.target_pose.pose.position
         target = cell_of(p.x, p.y, self.sim.size)
         qid = self.sim.ask(self.name, "move_base", target, -1)
@@ -191,8 +214,11 @@ class _Robot:
                 told.append(cell)
                 self.server.publish_feedback(self._types[2](base_position=self.pose(cell, 0.0)))
 
-        got = self.sim.wait(qid, self.server.is_preempt_requested, feedback)
-        if got is None:
+        preempted = lambda: self.server.is_preempt_requested() or self._gone()  # noqa: E731
+        got = self.sim.wait(qid, preempted, feedback)
+        if got is None and self._gone():
+            self.server.set_aborted(self._types[3](), "the robot's servers were withdrawn")
+        elif got is None:
             self.server.set_preempted(self._types[3](), "preempted: the robot stopped")
         elif got[0]:
             self.server.set_succeeded(self._types[3](), f"at {list(target)}")
@@ -201,17 +227,30 @@ class _Robot:
 
     def _operation(self, op: str) -> Any:
         def call(request: Any) -> Any:  # a thread of rospy's per connection
+            self._count(1)
+            try:
+                return operate(request)
+            finally:
+                self._count(-1)
+
+        def operate(request: Any) -> Any:
             qid = self.sim.ask(self.name, op, self.cell, int(request.target))
-            got = self.sim.wait(qid)
+            got = self.sim.wait(qid, self._gone)
             if got is None:
-                return (False, "the simulation is closing", 0, False)
+                why = "withdrawn" if self._gone() else "the simulation is closing"
+                return (False, why, 0, False)
             ok, detail, found, contaminated = got
             return (bool(ok), str(detail), int(found), bool(contaminated))
 
         return call
 
     def close(self) -> None:
-        """Leave the ROS graph: the action server, services and topics unregistered."""
+        """Leave the ROS graph: executions give up (waited for, a bound), then the action
+        server, services and topics unregistered."""
+        self.withdrawn.set()
+        deadline = time.monotonic() + STOP_S
+        while self.running and time.monotonic() < deadline:
+            time.sleep(POLL_S)
         self.server.action_server.stop()
         for service in self.services:
             service.shutdown("the simulation stopped")

@@ -18,7 +18,7 @@ from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.interfaces1 import interface1
 from btcap.sim.ros1.names1 import MOVE_BASE, MOVE_BASE_TYPE, OPERATE_TYPE, STATE_TYPE
 from btcap.sim.ros2.names import OPERATIONS
-from btcap.sim.rosbase.state import StateLink
+from btcap.sim.rosbase.state import StateLink, close_bridges
 from btcap.sim.world.model import RobotModel
 from btcap.team.rossettings import RosSettings
 
@@ -88,6 +88,6 @@ class RobotLinks1:
             time.sleep(_POLL_S)
 
     def close(self) -> None:
-        """Close every bridge: goals cancelled, the rospy processes gone (a thread)."""
-        for bridge in self.bridges.values():
-            bridge.close()
+        """Close every bridge, all at once: goals cancelled, the rospy processes gone (a
+        thread)."""
+        close_bridges(self.bridges.values())

@@ -21,7 +21,7 @@ from btcap_sim_msgs.msg import RobotState
 from btcap.ros.client import RosBridge
 from btcap.sim.mission.scenariofile import ScenarioRos
 from btcap.sim.ros2.names import NAVIGATE_TYPE, OPERATE_TYPE, OPERATIONS
-from btcap.sim.rosbase.state import StateLink
+from btcap.sim.rosbase.state import StateLink, close_bridges
 from btcap.sim.world.model import RobotModel
 from btcap.team.rossettings import Qos
 
@@ -92,7 +92,7 @@ class RobotLinks:
         return [m for link in links for m in link.wait_for_servers(timeout_s)]
 
     def close(self) -> None:
-        """Close every robot's bridge: open goals cancelled, nodes destroyed, threads
+        """Close every robot's bridge, all at once (each waits up to CLOSE_WAIT_S for its
+        servers to answer its cancels): open goals cancelled, nodes destroyed, threads
         joined (blocks: a thread)."""
-        for bridge in self.bridges.values():
-            bridge.close()
+        close_bridges(self.bridges.values())

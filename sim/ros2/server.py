@@ -400,13 +400,20 @@ class SimServers:
         return {name: dict(server.served) for name, server in self.robots.items()}
 
     def close(self) -> None:
-        """Stop spinning, destroy the nodes, shut the context down (blocks: a thread)."""
+        """Stop spinning, wait for the executions to end, destroy the nodes, shut the
+        context down (blocks: a thread)."""
         self._manager.closing.set()
         self._changes.shutdown(wait=True)
         self.executor.shutdown(timeout_sec=5.0)
+        self.thread.join(timeout=5.0)
+        # rclpy 7 (Jazzy): shutdown() returns without waiting for the callbacks its pool
+        # runs (and leaves the pool's threads behind): an execution still ending (it gives
+        # up on `closing` within _POLL_S) would publish on a server destroyed below.
+        pool = getattr(self.executor, "_executor", None)
+        if pool is not None:
+            pool.shutdown(wait=True)
         for robot in self.robots.values():
             if not robot.withdrawn.is_set():
                 robot.destroy()
         if self.context.ok():
             rclpy.shutdown(context=self.context)
-        self.thread.join(timeout=5.0)

@@ -3,10 +3,12 @@ the goal or the type is wrong, the bridge closes with a goal open."""
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import subprocess
 import sys
+import weakref
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -61,13 +63,20 @@ async def test_a_server_killed_mid_goal_fails_the_node_saying_why(
     )
     with anyio.fail_after(20):
         tree = tree_of(node)
-        await tick_until(tree, lambda s: node.outputs["feedback_sequence"] is not None)
+        outputs = node.outputs
+        await tick_until(tree, lambda s: outputs["feedback_sequence"] is not None)
         server_process.send_signal(signal.SIGKILL)
         state = await tick_until(tree)
     assert state is State.FAILED
     why = str(node.error)
     assert "no feedback for feedback_timeout 1.0 s" in why or "the server left" in why, why
     assert bridge.open_goals() == 0
+    # The goal never ends for rclpy's client, which keeps its callbacks: they must not
+    # hold the node's tree.
+    gone = weakref.ref(tree)
+    del node, tree
+    gc.collect()
+    assert gone() is None
 
 
 async def test_a_1khz_feedback_stream_does_not_stall_ticking(
@@ -164,3 +173,27 @@ async def test_closing_the_bridge_cancels_open_goals_and_leaves_no_thread(
     left = [t.name for t in set(threading.enumerate()) - before if t.name.startswith("btcap-ros")]
     assert not left, left
     assert bridge.node is None
+
+
+async def test_a_service_killed_mid_call_fails_the_node_saying_why(
+    server_process: subprocess.Popen[str], bridge: RosBridge
+) -> None:
+    """As a RosAction whose server leaves mid-goal: the call fails once the server is
+    gone from the graph, not only when server_timeout (here a minute) is up."""
+    from btcap.ros.service import RosService
+
+    node = RosService(
+        "call",
+        service_type="std_srvs/srv/SetBool",
+        service_name="set_bool_slow",
+        server_timeout=60.0,
+        bridge=bridge,
+        inputs={"data": True},
+    )
+    with anyio.fail_after(45):
+        tree = tree_of(node)
+        await tick_until(tree, lambda s: node._future is not None)
+        server_process.send_signal(signal.SIGKILL)
+        state = await tick_until(tree)
+    assert state is State.FAILED
+    assert str(node.error).endswith("(std_srvs/srv/SetBool): the server left during the call")

@@ -100,6 +100,16 @@ def test_bounded_strings_take_strings_up_to_their_bound() -> None:
             r"^goal\.poses\[1\]\.header\.stamp\.sec: -1\.5 does not fit int32",
         ),
         (
+            "test_msgs/msg/UnboundedSequences",
+            {"float32_values": [1.0, float("inf"), 1e40]},
+            r"^goal\.float32_values\[2\]: 1e\+40 is out of float's range ",
+        ),
+        (
+            "test_msgs/msg/BasicTypes",
+            {"float32_value": -1e39},
+            r"^goal\.float32_value: -1e\+39 is out of float's range ",
+        ),
+        (
             "nav_msgs/msg/Path",
             {"poses": [{"pose": {}}, 3]},
             r"^goal\.poses\[1\]: 3 does not fit geometry_msgs/PoseStamped",

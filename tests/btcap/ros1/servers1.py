@@ -7,7 +7,8 @@
   forever (the test kills the process); -5: no feedback for 2 s, then SUCCEEDED.
 - ``move_base`` (move_base_msgs/MoveBase): three feedbacks at the target, SUCCEEDED.
 - ``slow`` (actionlib/Test, ActionServer): accepts a goal 0.5 s after it came, then
-  SUCCEEDED with result 7 after 2 s unless canceled (then PREEMPTED).
+  SUCCEEDED with result 7 after 2 s unless canceled (then PREEMPTED; RECALLED, event
+  ``slow.recalled``, if canceled before it accepted).
 - ``picky`` (actionlib/Test, ActionServer): rejects every goal.
 - services ``set_flag`` (std_srvs/SetBool: echoes) and ``stall`` (std_srvs/Trigger:
   answers after 10 s); topic ``chatter_in`` echoed on ``chatter_out`` as ``echo: ...``.
@@ -58,7 +59,7 @@ def count(server: actionlib.SimpleActionServer, goal: object) -> None:
         server.set_succeeded(TestResult(result=5))
         return
     i = 0
-    while n < 0 or i < n:
+    while (n < 0 or i < n) and not rospy.is_shutdown():  # a goal nobody cancels ends too
         if server.is_preempt_requested():
             server.set_preempted(TestResult(result=i))
             event("count.preempted")
@@ -112,7 +113,9 @@ class Slow:
     def on_cancel(self, handle: actionlib.ServerGoalHandle) -> None:
         gid = handle.get_goal_id().id
         self.canceled.add(gid)
-        if handle.get_goal_status().status == 0:  # PENDING: recall it now
+        # PENDING, or RECALLING (actionlib's own move on a cancel of a pending goal,
+        # made before it calls this): recall it now
+        if handle.get_goal_status().status in (0, 7):
             handle.set_canceled(TestResult(result=-7))
             event("slow.recalled")
 

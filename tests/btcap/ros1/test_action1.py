@@ -3,6 +3,9 @@ test's own, each way a goal can end, said in the node's error."""
 
 from __future__ import annotations
 
+import gc
+import weakref
+
 import anyio
 import pytest
 from conftest import Servers
@@ -10,6 +13,7 @@ from rosmaster1 import Master
 from tools1 import FOUND_S, bridge_on, registered, run, settle
 
 from btcap.bt.state import State
+from btcap.bt.tree import Tree
 from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.errors import RosError
 from btcap.ros.nodes1 import RosAction
@@ -107,18 +111,41 @@ async def test_halt_after_acceptance_preempts_the_goal(master: Master, servers: 
     assert servers.events["count.succeeded"] == 0
 
 
-async def test_halt_before_acceptance_preempts_the_goal_once_accepted(
+async def test_halt_before_acceptance_cancels_the_goal_at_once(
     master: Master, servers: Servers
 ) -> None:
+    """actionlib takes a cancel of a goal it has not accepted (it recalls it, even one
+    whose cancel comes first), so the halt sends it at once; the bridge keeps nothing
+    of the goal after."""
     with anyio.fail_after(30):
         async with bridge_on(master) as bridge:
             node = count_node(bridge, 1, "slow")
             await run(node, lambda s: servers.events["slow.goal"] == 1)
-            assert servers.events["slow.accepted"] == 0  # the server holds it 0.5 s
             node._tree.untick()  # type: ignore[union-attr]
-            await settle(lambda: servers.events["slow.canceled"] == 1)
-    assert servers.events["slow.accepted"] == 1
+            assert bridge._handles == {}
+            await settle(lambda: servers.events["slow.recalled"] + servers.events["slow.canceled"])
     assert servers.events["slow.succeeded"] == 0
+
+
+async def test_a_goal_whose_server_died_holds_nothing_of_the_tree(
+    master: Master, servers: Servers
+) -> None:
+    """A goal of a killed server never ends for actionlib: once the node gave it up, the
+    bridge keeps nothing of it (its callbacks hold the node and its tree)."""
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            node = count_node(bridge, -4)
+            tree = Tree(node)
+            tree.setup()
+            outputs = node.outputs
+            await run(node, lambda s: outputs["feedback_feedback"] is not None)
+            servers.kill()
+            assert await run(node) is State.FAILED
+            assert bridge._handles == {}
+            gone = weakref.ref(tree)
+            del node, tree
+            gc.collect()
+            assert gone() is None
 
 
 async def test_a_server_killed_mid_goal_fails_the_node_saying_why(

@@ -124,3 +124,61 @@ def test_a_fixed_arrays_length_is_refused_before_the_wire() -> None:
     ) as info:
         fill1(cls, {"covariance": [0.0] * 3}, "pose")
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("type_name", "values", "says"),
+    [
+        # out-of-range numbers name the field, down to the element, before genpy's struct
+        ("std_msgs/Float32", {"data": 1e40}, "m.data: 1e+40 is out of float32's range"),
+        ("std_msgs/Float32MultiArray", {"data": [1.0, -1e40]}, "m.data[1]: -1e+40 is out of"),
+        # ROS 1's byte is a signed int8, its char an unsigned uint8
+        ("std_msgs/Byte", {"data": 200}, "m.data: 200 is out of int8's range -128..127"),
+        ("std_msgs/ByteMultiArray", {"data": [1, 128]}, "m.data[1]: 128 is out of int8's"),
+        ("std_msgs/Char", {"data": -1}, "m.data: -1 is out of uint8's range 0..255"),
+        # time is uint32 seconds and nanoseconds, duration int32
+        ("std_msgs/Header", {"stamp": {"secs": -1}}, "m.stamp.secs: -1 is out of uint32's"),
+        ("std_msgs/Time", {"data": {"secs": 2**32 - 1, "nsecs": 10**9}}, "m.data: {'secs'"),
+        ("std_msgs/Duration", {"data": {"secs": 2**31}}, "m.data.secs: 2147483648 is out of"),
+        # an array of messages: each item named
+        ("nav_msgs/Path", {"poses": [{}, 5]}, "m.poses[1]: 5 does not fit geometry_msgs/Pose"),
+        ("nav_msgs/Path", {"poses": [{}, {"pose": 1}]}, "m.poses[1].pose: 1 does not fit"),
+    ],
+)
+def test_values_out_of_a_fields_range_are_one_line_naming_it(
+    type_name: str, values: dict, says: str
+) -> None:
+    with pytest.raises(RosError) as info:
+        fill1(interface1(type_name, "msg"), values, "m")
+    assert str(info.value).startswith(says)
+    assert "\n" not in str(info.value)
+
+
+def test_values_in_range_that_genpy_takes() -> None:
+    """What the checks must not refuse: ROS 1's signed bytes, a time past 2038 (uint32),
+    negative durations, infinities as float32, a tuple of messages' fields."""
+    msg = lambda t, v: to_plain1(fill1(interface1(t, "msg"), v, "m"))  # noqa: E731
+    assert msg("std_msgs/Byte", {"data": -5}) == {"data": -5}
+    assert msg("std_msgs/ByteMultiArray", {"data": [-128, 127]})["data"] == [-128, 127]
+    assert msg("std_msgs/Char", {"data": 255}) == {"data": 255}
+    assert msg("std_msgs/Time", {"data": {"secs": 3_000_000_000}})["data"]["secs"] == 3_000_000_000
+    assert msg("std_msgs/Duration", {"data": {"secs": -2, "nsecs": 5}}) == {
+        "data": {"secs": -2, "nsecs": 5}
+    }
+    assert msg("std_msgs/Float32", {"data": float("inf")}) == {"data": float("inf")}
+    path = msg("nav_msgs/Path", {"poses": ({"pose": {"position": {"x": 1}}},)})
+    assert path["poses"][0]["pose"]["position"]["x"] == 1.0
+
+
+def test_a_fixed_array_of_messages_is_refused_at_another_length() -> None:
+    """genpy writes however many items a fixed array of messages has (its reader then
+    misreads the rest of the message): the length is checked here."""
+    from genpy.dynamic import generate_dynamic
+
+    point = "float64 x\nfloat64 y\nfloat64 z"
+    text = f"geometry_msgs/Point[2] corners\n{'=' * 80}\nMSG: geometry_msgs/Point\n{point}\n"
+    cls = generate_dynamic("btcap_test/Box", text)["btcap_test/Box"]
+    box = fill1(cls, {"corners": [{"x": 1}, {"y": 2}]}, "box")
+    assert [c.x for c in box.corners] == [1.0, 0.0]
+    with pytest.raises(RosError, match=r"^box\.corners: 3 items do not fit .*\(exactly 2\)$"):
+        fill1(cls, {"corners": [{}, {}, {}]}, "box")

@@ -186,3 +186,25 @@ async def test_a_service_gone_for_a_moment_stays_available_and_one_gone_for_good
                 proxy.unregisterService(node, name, uri)
             await settle(lambda: not ready())
             assert seen == [False]
+
+
+async def test_a_service_killed_mid_call_fails_the_node_saying_why(
+    master: Master, servers: Servers
+) -> None:
+    """As on ROS 2 (tests/btcap/ros/test_action_faults.py): not at server_timeout."""
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            node = RosService(
+                "call",
+                service_type="std_srvs/Trigger",
+                service_name="stall",
+                bridge=bridge,
+                server_timeout=60.0,
+                wait_for_server_timeout=FOUND_S,
+            )
+            await run(node, lambda s: servers.events["stall.called"] == 1)
+            servers.kill()
+            assert await run(node) is State.FAILED
+    why = str(node.error)
+    assert why.startswith("RosService 'call': service /husky1/stall (std_srvs/Trigger): ")
+    assert "the call failed: " in why or why.endswith("the server left during the call"), why

@@ -24,6 +24,12 @@ from btcap.team.rossettings import Qos, RosSettings
         ),
         ("{qos: {depth: 0}}", "ros.qos.depth: Expected `int` >= 1"),
         (
+            "{backend: ros1, master_uri: 'localhost:11311'}",
+            "ros.master_uri: 'localhost:11311' is no ROS 1 master URI: expected http://HOST:PORT/",
+        ),
+        ("{master_uri: 'http://localhost/'}", "ros.master_uri: 'http://localhost/' is no ROS 1"),
+        ("{master_uri: 'http://h:99999/'}", "ros.master_uri: 'http://h:99999/' is no ROS 1"),
+        (
             "{domian_id: 3}",
             "ros: Object contains unknown field `domian_id`; "
             "expected one of backend, master_uri, domain_id",

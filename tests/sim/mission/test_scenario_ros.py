@@ -84,6 +84,7 @@ async def test_the_fast_mode_leaves_the_block_aside(tmp_path: Path) -> None:
         ("ros: {domain_id: 300}\n", ("ros.domain_id", "<= 232")),
         ("ros: {qos: {reliability: sometimes}}\n", ("ros.qos.reliability", "'best_effort'")),
         ("ros: {domain: 3}\n", ("ros", "unknown field `domain`", "domain_id")),
+        ("ros: {backend: ros1, master_uri: ':11311'}\n", ("ros.master_uri", "http://HOST:PORT/")),
     ],
 )
 def test_a_bad_value_is_one_line_naming_file_and_field(

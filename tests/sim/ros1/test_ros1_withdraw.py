@@ -12,6 +12,7 @@ import pytest
 from simros1 import WHY_NOT, children, loopback
 
 from btcap.actors import Clock
+from btcap.bt.tree import Tree
 from btcap.sim.ros1.client import RobotLink1
 from btcap.sim.ros1.host import Ros1Host
 from btcap.sim.running.hosts import registry
@@ -80,4 +81,62 @@ async def test_a_late_joiner_is_served_only_from_when_it_joins() -> None:
             host.leave("bebop1")
             await until(bebop, len(bebop.servers))
             assert husky.missing() == []
+    assert children() == []
+
+
+async def test_a_robot_withdrawn_mid_drive_stops_and_its_goal_ends() -> None:
+    """husky1 drives to the farthest cell through its move_base (its own bridge's
+    RosAction) when its servers are withdrawn: its execution gives up and the robot stops
+    where it is, as behind ROS 2 (it drove on to the goal, and the execution ended later
+    on a server gone from the graph)."""
+    import numpy as np
+
+    from btcap.actors import ActorSystem
+    from btcap.bt.state import State
+    from btcap.ros.nodes1 import RosAction
+    from btcap.sim.running.hosts import SIM_SYSTEM
+    from btcap.sim.world.manager import SimulationManager
+
+    s, grid, manager = world("full-team")
+    free = np.argwhere(grid.free)
+    far = free[np.argmax(np.abs(free - np.array(grid.start)).sum(axis=1))]
+    x, y = float(far[1]) * grid.cell_size_m, float(far[0]) * grid.cell_size_m
+    target = {"header": {"frame_id": "map"}, "pose": {"position": {"x": x, "y": y}}}
+    for r in s.robots:
+        manager.add_robot(r.name, s.models()[r.model])
+    clock, reg = Clock(5.0), registry()
+    with anyio.fail_after(150):
+        async with (
+            Ros1Host(s, clock, reg, grid, manager=manager) as host,
+            ActorSystem(
+                SIM_SYSTEM, transport=host.transport(SIM_SYSTEM), registry=reg, clock=clock
+            ) as sim,
+        ):
+            sim.spawn(manager, SimulationManager.PATH)
+            assert host.started is not None
+            assert host.started.servers is not None
+            husky = links_of(host)["husky1"]
+            nav = RosAction(
+                "go",
+                action_type="move_base_msgs/MoveBase",
+                action_name="move_base",
+                bridge=husky.bridge,
+                inputs={"target_pose": target},
+                server_timeout=30.0,
+            )
+            tree = Tree(nav)
+            tree.setup()
+            while nav.outputs["feedback_base_position"] is None:
+                assert tree.tick() is State.RUNNING, nav.error
+                await anyio.sleep(0.01)
+            assert manager.robots["husky1"].move is not None
+            host.started.servers.withdraw("husky1")
+            while (state := tree.tick()) is State.RUNNING:  # noqa: ASYNC110 (ticking)
+                await anyio.sleep(0.01)
+            assert state is State.FAILED
+            while manager.robots["husky1"].move is not None:  # noqa: ASYNC110 (the loop's)
+                await anyio.sleep(0.01)
+            assert manager.position("husky1") != tuple(far)  # stopped, not driven on
+            assert "the goal was aborted" in str(nav.error), nav.error
+            await tree.shutdown()
     assert children() == []
