@@ -10,10 +10,10 @@ lane each (:class:`ObjectLane`: identify, then carry if contaminated), so identi
 never waits on exploration or on a carry. The carry is auctioned in the tick the
 identification ends: the robot that identified the object, if it can carry, is then the
 nearest bidder, before other work takes it. Identifications take turns (as many at once
-as robots identify and do nothing scarcer, oldest-found first), so a carrier is not
-handed one a Spot will do. Robots the lanes leave out are not idle: a carrier with
-nothing else to do stands by at the objects awaiting identification
-(:class:`StandByLane`), and robots that explore and can also do object work explore
+as robots identify and do nothing scarcer), so a carrier is not handed one a Spot will
+do, along one plan (:mod:`~btcap.sim.mission.idplan`: nearest first from where each
+identifier is); a carrier with nothing else to do stands by where that plan sends the
+identifiers (:class:`StandByLane`), and robots that explore and can also do object work explore
 while no object's work waits for a robot (:class:`SpareLane`).
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
@@ -25,6 +25,7 @@ from a list read after its object fell.
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from collections.abc import Sequence as Seq
 from typing import Any, ClassVar
 
@@ -37,6 +38,7 @@ from btcap.sim.mission.capabilities import (
     SPARE_EXPLORE,
     STANDBY,
 )
+from btcap.sim.mission.idplan import Pace, Turns
 from btcap.sim.mission.leaves import ClaimWork
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
@@ -206,67 +208,105 @@ class ObjectPool(ParallelForEach):
     :class:`~btcap.bt.foreach.ParallelForEach` it says how much work waits for a robot:
     ``waiting`` (objects listed without a lane, lanes whose capability is unassigned)
     and ``carries_waiting`` (those of them to carry), so robots that only stand by or
-    explore meanwhile know when they are wanted."""
+    explore meanwhile know when they are wanted; and ``plan``: the objects awaiting
+    identification in the order they will be identified (under way first, then as
+    :mod:`~btcap.sim.mission.idplan` routes the identifiers), where carriers stand by.
+    With ``identify_at_once`` set, an identification starts when fewer are under way
+    and its object is the first planned for an identifier that is free."""
 
-    __slots__ = ()
+    __slots__ = ("_turns",)
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
         "carries_waiting": int,
+        "plan": list[tuple[int, int, int]],
     }
     OPTIONS: ClassVar[Any] = {
         **ParallelForEach.OPTIONS,
         "identify_at_once": Port(
             int, 0, "identifications at once (the rest wait for one to end); 0: no limit"
         ),
+        "identify_wait_s": Port(
+            float, 240.0, "an object awaiting identification this long goes before nearer ones"
+        ),
+        "identify_speed": Port(float, 1.0, "cells per second an identifier drives"),
+        "identify_s": Port(float, 0.0, "seconds an identification takes"),
     }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._turns = Turns()
 
     def _run(self, i: int, item: Any) -> State:
         lane = self.children[i]
         most = self.options["identify_at_once"]
-        if most > 0 and isinstance(lane, ObjectLane) and lane.children[0].state is State.IDLE:
-            lane.may_identify = self._turn(i, item, most)
-        return super()._run(i, item)
+        if most <= 0 or not isinstance(lane, ObjectLane):
+            return super()._run(i, item)
+        identify = lane.children[0]
+        if identify.state is State.IDLE:
+            under_way = sum(
+                j != i and k is not None and self.children[j].children[0].state in _ACTIVE
+                for j, k in enumerate(self._lanes)
+            )
+            lane.may_identify = under_way < most and self._turns.may_start(item[0], self._plan())
+        was = identify.state
+        state = super()._run(i, item)
+        if was is State.IDLE and identify.state is not State.IDLE:
+            self._turns.started(item[0], (int(item[1]), int(item[2])), self._plan())
+        elif was in _ACTIVE and identify.state not in _ACTIVE:
+            self._turns.free(item[0])
+        return state
 
-    def _turn(self, i: int, item: Any, most: int) -> bool:
-        """Whether lane ``i`` may start identifying ``item``: fewer than ``most``
-        identifications are under way, and of the objects waiting for one it is among
-        the first listed (the oldest news: found first)."""
-        order = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
-        mine = order.get(item[0], len(order))
-        under_way = before = 0
-        for j, lane in enumerate(self.children):
-            if j == i or self._lanes[j] is None:
-                continue
-            identify = lane.children[0]
-            if identify.state in _ACTIVE:
-                under_way += 1
-            elif identify.state is State.IDLE and not self._values[j][3]:
-                before += order.get(self._values[j][0], len(order)) < mine
-        return under_way + before < most
+    def _plan(self) -> list[tuple[Hashable, int]]:
+        """The plan of the objects in a lane awaiting their turn (oldest listed first)."""
+        listed = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
+        held = sorted(
+            (listed.get(v[0], len(listed)), v[0], (int(v[1]), int(v[2])))
+            for j, v in enumerate(self._values)
+            if v is not None and not v[3] and self.children[j].children[0].state is State.IDLE
+        )
+        o = self.options
+        pace = Pace(o["identify_speed"], o["identify_s"], o["identify_wait_s"])
+        awaiting = [(k, cell) for _, k, cell in held]
+        return self._turns.plan(o["identify_at_once"], awaiting, self.clock.now(), pace)
 
     def on_tick(self) -> State:
+        items = self.inputs["items"] or []
+        self._turns.listed([it[0] for it in items if not it[3]], self.clock.now())
         state = super().on_tick()
         waiting = carries = 0
+        under_way = set()
         for i, lane in enumerate(self.children):
             if self._lanes[i] is None or lane.state not in _ACTIVE:
                 continue
             identify, carry = lane.children
+            if identify.state in _ACTIVE:
+                under_way.add(self._lanes[i])
             if carry.state is State.UNASSIGNED:
                 waiting += 1
                 carries += 1
             elif carry.state is State.IDLE and identify.state in _NOT_BEGUN:
                 waiting += 1
+        self._turns.ended(under_way)  # also lanes that failed or were reset
         held = set(self._lanes)
-        for item in self.inputs["items"] or []:
+        for item in items:
             if item[0] not in held and self._unstarted(item[0]):
                 waiting += 1
                 carries += bool(item[3])
         self.outputs["waiting"], self.outputs["carries_waiting"] = waiting, carries
+        # where carriers stand by: under way, planned, then those in no lane yet
+        at = {it[0]: (int(it[0]), int(it[1]), int(it[2])) for it in items if not it[3]}
+        first = self._turns.order(self._plan() if self.options["identify_at_once"] else [])
+        order = [at[k] for k in first if k in at]
+        self.outputs["plan"] = order + [v for k, v in at.items() if k not in first]
         return state
 
     def _unstarted(self, key: int) -> bool:
         return key not in self._finished and key not in self._lost
+
+    def on_reset(self) -> None:
+        super().on_reset()
+        self._turns = Turns()
 
 
 class StandByLane(WorkLane):
@@ -319,12 +359,14 @@ def pool_mission_tree(
     spare_explorers: int = 0,
     objects: int = 0,
     store: str = "sim/store",
+    pace: Pace | None = None,
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations at once (and
     ``spare_explorers`` more while no object's work waits), an object lane for each of
     up to ``objects`` objects with work left at once (at least ``identifiers +
     carriers``: the lanes only hold work, robots are the auction's), and ``standby``
-    carriers standing by near objects awaiting identification while no carry waits; it
+    carriers standing by near objects awaiting identification while no carry waits
+    (where the identifiers go next: ``pace`` prices their plan, :mod:`.idplan`); it
     succeeds once the cave is explored and every object found is identified and, if
     contaminated, carried."""
     for kind, lanes in (("goal", explorers), ("identify", identifiers), ("carry", carriers)):
@@ -358,6 +400,7 @@ def pool_mission_tree(
         key=0,
         retry_after_s=4 * watch_objects.options["poll_s"],
         identify_at_once=identifiers,
+        **(pace or Pace()).options(),
     )
     wires += [
         (watch_objects, "items", each_object, "items"),
@@ -384,8 +427,7 @@ def pool_mission_tree(
         (watch_goals, "complete", each_goal, "complete"),
     ]
     parts.append(Parallel("goal_pool", children=[watch_goals, each_goal]))
-    if standby > 0:
-        watch_new = WatchWork("list_identify", kind="identify", store=store)
+    if standby > 0:  # at the objects identified next: the identifiers' plan
         bys = [STANDBY.node_type()("standby") for _ in range(standby)]
         stand = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(bys)]
         each = ParallelForEach("each_standby", children=stand, key=0)
@@ -396,10 +438,10 @@ def pool_mission_tree(
                 (each_object, "carries_waiting", ln, "waiting"),
             ]
         wires += [
-            (watch_new, "items", each, "items"),
-            (watch_new, "complete", each, "complete"),
+            (each_object, "plan", each, "items"),
+            (watch_objects, "complete", each, "complete"),
         ]
-        parts.append(Parallel("standby_pool", children=[watch_new, each]))
+        parts.append(each)
     tree = Tree(Parallel("mission", children=parts), name="find_and_decontaminate_pool")
     for src, out, dst, inp in wires:
         tree.wire(src, out, dst, inp)

@@ -24,6 +24,7 @@ from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
 from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
+from btcap.sim.mission.idplan import identifier_pace
 from btcap.sim.mission.paper import mission_tree
 from btcap.sim.mission.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
 from btcap.sim.mission.scenario import Event, Scenario, check_scenario
@@ -220,7 +221,7 @@ async def run_scenario(
                     await clock.sleep_until(t0 + e.at)
                     apply(e)
 
-            tree = _mission(s)
+            tree = _mission(s, grid.cell_size_m)
             operator.mission(tree)
             tree.observe(mlog)
             if monitor is not None:
@@ -257,8 +258,9 @@ async def run_scenario(
     return result
 
 
-def _mission(s: Scenario) -> Tree:
-    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`."""
+def _mission(s: Scenario, cell_size_m: float) -> Tree:
+    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`,
+    its identifiers' plan priced at :func:`identifier_pace`."""
     if s.mission == "paper":
         return mission_tree(object_workers=s.object_workers)
     models = s.models()
@@ -271,6 +273,7 @@ def _mission(s: Scenario) -> Tree:
         standby=standby_lanes(team),
         spare_explorers=spare_explorers(team),
         objects=min(s.objects, MAX_OBJECT_LANES),
+        pace=identifier_pace(team, cell_size_m),
     )
 
 
