@@ -210,25 +210,22 @@ class ObjectPool(ParallelForEach):
     and ``carries_waiting`` (those of them to carry), so robots that only stand by or
     explore meanwhile know when they are wanted; and ``plan``: the objects awaiting
     identification in the order they will be identified (under way first, then as
-    :mod:`~btcap.sim.mission.idplan` routes the identifiers), where carriers stand by.
-    With ``identify_at_once`` set, an identification starts when fewer are under way
-    and its object is the first planned for an identifier that is free."""
+    :mod:`~btcap.sim.mission.idplan` routes the identifiers), where carriers stand by;
+    with ``identify_at_once``, the next to start is the first planned for a free one."""
 
     __slots__ = ("_turns",)
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
         "carries_waiting": int,
-        "plan": list[tuple[int, int, int]],
+        "plan": list[tuple[int, ...]],
     }
     OPTIONS: ClassVar[Any] = {
         **ParallelForEach.OPTIONS,
         "identify_at_once": Port(
             int, 0, "identifications at once (the rest wait for one to end); 0: no limit"
         ),
-        "identify_wait_s": Port(
-            float, 240.0, "an object awaiting identification this long goes before nearer ones"
-        ),
+        "identify_wait_s": Port(float, 240.0, "an object waiting this long goes before nearer"),
         "identify_speed": Port(float, 1.0, "cells per second an identifier drives"),
         "identify_s": Port(float, 0.0, "seconds an identification takes"),
     }
@@ -275,13 +272,15 @@ class ObjectPool(ParallelForEach):
         self._turns.listed([it[0] for it in items if not it[3]], self.clock.now())
         state = super().on_tick()
         waiting = carries = 0
-        under_way = set()
+        under_way, known = set(), set()
         for i, lane in enumerate(self.children):
             if self._lanes[i] is None or lane.state not in _ACTIVE:
                 continue
             identify, carry = lane.children
             if identify.state in _ACTIVE:
                 under_way.add(self._lanes[i])
+            elif identify.state is State.SUCCEEDED:
+                known.add(self._lanes[i])
             if carry.state is State.UNASSIGNED:
                 waiting += 1
                 carries += 1
@@ -297,8 +296,9 @@ class ObjectPool(ParallelForEach):
         # where carriers stand by: under way, planned, then those in no lane yet
         at = {it[0]: (int(it[0]), int(it[1]), int(it[2])) for it in items if not it[3]}
         first = self._turns.order(self._plan() if self.options["identify_at_once"] else [])
-        order = [at[k] for k in first if k in at]
-        self.outputs["plan"] = order + [v for k, v in at.items() if k not in first]
+        skip = set(first) | known | self._finished | self._lost
+        plan = [at[k] for k in first if k in at] + [v for k, v in at.items() if k not in skip]
+        self.outputs["plan"] = plan
         return state
 
     def _unstarted(self, key: int) -> bool:
@@ -313,8 +313,9 @@ class StandByLane(WorkLane):
     """A :class:`WorkLane` that stands a carrier by near an object awaiting
     identification, so that it is near if the object turns out contaminated: it ends
     (halting and resetting its children, which frees the robot) once the object is no
-    longer ``listed`` awaiting identification (flag 0) or a carry waits for a robot
-    (``waiting`` > 0: one being carried is no reason to stop)."""
+    longer ``listed`` awaiting identification (the object pool's ``plan``; a flag
+    after the cell: 0) or a carry waits for a robot (``waiting`` > 0: one being carried
+    is no reason to stop)."""
 
     __slots__ = ()
     INPUTS: ClassVar[Any] = {
@@ -434,7 +435,7 @@ def pool_mission_tree(
         for ln, cap in zip(stand, bys, strict=True):
             wires += [
                 (ln, "at", cap, "at"),
-                (watch_objects, "items", ln, "listed"),
+                (each_object, "plan", ln, "listed"),
                 (each_object, "carries_waiting", ln, "waiting"),
             ]
         wires += [
