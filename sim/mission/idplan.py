@@ -60,7 +60,7 @@ def plan(
     if not robots:
         return [(w.key, -1) for w in waiting]
     at = [r.cell for r in robots]
-    ready = [0.0] * len(robots)
+    ready = [0.0 if r.busy is None else op_s for r in robots]  # busy: still identifying
     left = list(waiting)
     out: list[tuple[Hashable, int]] = []
 
@@ -133,8 +133,10 @@ class Turns:
     def plan(
         self, most: int, awaiting: Sequence[tuple[Hashable, Cell]], now: float, pace: Pace
     ) -> list[tuple[Hashable, int]]:
-        """:func:`plan` of ``awaiting`` (oldest first; computed again only when they,
-        the identifiers or the clock changed)."""
+        """:func:`plan` of ``awaiting``, oldest listed first (computed again only when
+        they, the identifiers or the clock changed)."""
+        rank = {k: n for n, k in enumerate(self.since)}  # in the list's order
+        awaiting = sorted(awaiting, key=lambda a: rank.get(a[0], len(rank)))
         while len(self.robots) < most:
             self.robots.append(Identifier())
         key = (now, tuple(awaiting), tuple((r.cell, r.busy) for r in self.robots), pace)

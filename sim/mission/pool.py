@@ -255,16 +255,14 @@ class ObjectPool(ParallelForEach):
         return state
 
     def _plan(self) -> list[tuple[Hashable, int]]:
-        """The plan of the objects in a lane awaiting their turn (oldest listed first)."""
-        listed = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
-        held = sorted(
-            (listed.get(v[0], len(listed)), v[0], (int(v[1]), int(v[2])))
-            for j, v in enumerate(self._values)
-            if v is not None and not v[3] and self.children[j].children[0].state is State.IDLE
-        )
+        """The plan of the objects awaiting their turn in a lane or to run again soon
+        (no other is taken for them meanwhile)."""
+        lanes = zip(self._values, self.children, strict=True)
+        values = [v for v, c in lanes if v is not None and c.children[0].state is State.IDLE]
+        values += [it for it in self.inputs["items"] or [] if it[0] in self._retry_at]
+        awaiting = [(v[0], (int(v[1]), int(v[2]))) for v in values if not v[3]]
         o = self.options
         pace = Pace(o["identify_speed"], o["identify_s"], o["identify_wait_s"])
-        awaiting = [(k, cell) for _, k, cell in held]
         return self._turns.plan(o["identify_at_once"], awaiting, self.clock.now(), pace)
 
     def on_tick(self) -> State:
