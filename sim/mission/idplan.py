@@ -86,19 +86,23 @@ def plan(
 @dataclass(frozen=True, slots=True)
 class Pace:
     """How the plan prices an identifier's work: ``speed`` cells per second driven,
-    ``op_s`` seconds an identification, and ``cap_s`` the wait after which an object
-    goes before nearer ones."""
+    ``op_s`` seconds an identification, ``cap_s`` the wait after which an object goes
+    before nearer ones, and whether the identifiers also ``carry`` (then one that found
+    its object contaminated is not free until the carry's auction is over: it is the
+    nearest bidder, and a turn opened meanwhile took it away from the carry)."""
 
     speed: float = 1.0
     op_s: float = 0.0
     cap_s: float = 240.0
+    carry: bool = False
 
-    def options(self) -> dict[str, float]:
+    def options(self) -> dict[str, float | bool]:
         """As the :class:`~btcap.sim.mission.pool.ObjectPool`'s options."""
         return {
             "identify_speed": self.speed,
             "identify_s": self.op_s,
             "identify_wait_s": self.cap_s,
+            "identify_carries": self.carry,
         }
 
 
@@ -111,7 +115,7 @@ def identifier_pace(models: Sequence[RobotModel], cell_size_m: float) -> Pace:
     quickest = min(m.operation("identify").duration_s for m in able)
     own = [m for m in able if m.operation("identify").duration_s == quickest]
     mps = sum(m.speed_mps for m in own) / len(own)
-    return Pace(mps / cell_size_m, quickest)
+    return Pace(mps / cell_size_m, quickest, carry=all(m.can("decontaminate") for m in own))
 
 
 class Turns:

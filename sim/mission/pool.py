@@ -228,6 +228,7 @@ class ObjectPool(ParallelForEach):
         "identify_wait_s": Port(float, 240.0, "an object waiting this long goes before nearer"),
         "identify_speed": Port(float, 1.0, "cells per second an identifier drives"),
         "identify_s": Port(float, 0.0, "seconds an identification takes"),
+        "identify_carries": Port(bool, False, "identifiers carry: held for a carry auctioned"),
     }
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -241,22 +242,25 @@ class ObjectPool(ParallelForEach):
             return super()._run(i, item)
         identify = lane.children[0]
         if identify.state is State.IDLE:
-            under_way = sum(
-                j != i and k is not None and self.children[j].children[0].state in _ACTIVE
-                for j, k in enumerate(self._lanes)
-            )
+            lanes = [c for k, c in zip(self._lanes, self.children, strict=True) if k is not None]
+            under_way = sum(c is not lane and c.children[0].state in _ACTIVE for c in lanes)
             lane.may_identify = under_way < most and self._turns.may_start(item[0], self._plan())
         was = identify.state
         state = super()._run(i, item)
         if was is State.IDLE and identify.state is not State.IDLE:
             self._turns.started(item[0], (int(item[1]), int(item[2])), self._plan())
-        elif was in _ACTIVE and identify.state not in _ACTIVE:
+        elif was in _ACTIVE and not self._identifying(lane):
             self._turns.free(item[0])
         return state
 
+    def _identifying(self, lane: Node) -> bool:
+        """Its identifier is not free: identifying, or to carry what it found (Pace)."""
+        identify, carry = lane.children
+        held = self.options["identify_carries"] and carry.state is State.UNASSIGNED
+        return identify.state in _ACTIVE or (held and identify.state is State.SUCCEEDED)
+
     def _plan(self) -> list[tuple[Hashable, int]]:
-        """The plan of the objects awaiting their turn in a lane or to run again soon
-        (no other is taken for them meanwhile)."""
+        """The plan of the objects awaiting a turn in a lane, or to run again soon."""
         lanes = zip(self._values, self.children, strict=True)
         values = [v for v, c in lanes if v is not None and c.children[0].state is State.IDLE]
         values += [it for it in self.inputs["items"] or [] if it[0] in self._retry_at]
@@ -275,13 +279,12 @@ class ObjectPool(ParallelForEach):
             if self._lanes[i] is None or lane.state not in _ACTIVE:
                 continue
             identify, carry = lane.children
-            if identify.state in _ACTIVE:
+            if self._identifying(lane):
                 under_way.add(self._lanes[i])
             elif identify.state is State.SUCCEEDED:
                 known.add(self._lanes[i])
             if carry.state is State.UNASSIGNED:
-                waiting += 1
-                carries += 1
+                waiting, carries = waiting + 1, carries + 1
             elif carry.state is State.IDLE and identify.state in _NOT_BEGUN:
                 waiting += 1
         self._turns.ended(under_way)  # also lanes that failed or were reset
