@@ -306,6 +306,43 @@ def test_the_spot_identifies_nearest_first_and_the_husky_stands_by_where_it_goes
     assert stood == identified
 
 
+class Assigned(Leaf):
+    """Stands in for a carry: UNASSIGNED (its auction under way) for ``after`` ticks,
+    then RUNNING."""
+
+    def __init__(self, after: int) -> None:
+        super().__init__("carry")
+        self.after, self.ticks = after, 0
+
+    def on_tick(self) -> State:
+        self.ticks += 1
+        return State.UNASSIGNED if self.ticks <= self.after else State.RUNNING
+
+
+def test_an_identifier_that_carries_is_held_for_the_carry_of_what_it_found() -> None:
+    # huskies-bebop-joins seed 2 (Huskies identify and carry, one of them down): the
+    # next identification's turn opened in the tick the carry was auctioned, and the
+    # Husky that had just found the object contaminated took that identification
+    # instead of the carry. Where identifiers carry, the turn waits for the carry's
+    # auction; where they do not (a Spot), it does not.
+    for carries, held in ((True, True), (False, False)):
+        found = ObjectLane("o0", children=[Identifies(True), Assigned(after=3)])
+        other = ObjectLane("o1", children=[Identifies(False), Runs()])
+        pool = ObjectPool(
+            "pool", children=[found, other], key=0, identify_at_once=1, identify_carries=carries
+        )
+        tree = Tree(pool)
+        pool.set_input("items", [(0, 0, 0, 0), (1, 0, 5, 0)])
+        pool.set_input("complete", False)
+        for _ in range(3):  # identified, then its carry unassigned for 3 ticks
+            tree.tick()
+        assert found.children[1].state is State.UNASSIGNED
+        assert (other.children[0].ticks == 0) is held
+        for _ in range(3):
+            tree.tick()
+        assert found.children[1].state is State.RUNNING and other.children[0].ticks > 0
+
+
 def test_an_object_lane_carries_in_the_tick_its_identification_ends() -> None:
     # The carry's auction opens at once, while the robot that identified the object is
     # the nearest bidder: before, the carry was listed a poll later, and the robot had
