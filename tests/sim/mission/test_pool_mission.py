@@ -340,7 +340,8 @@ def test_an_identifier_that_carries_is_held_for_the_carry_of_what_it_found() -> 
         assert (other.children[0].ticks == 0) is held
         for _ in range(3):
             tree.tick()
-        assert found.children[1].state is State.RUNNING and other.children[0].ticks > 0
+        assert found.children[1].state is State.RUNNING
+        assert other.children[0].ticks > 0
 
 
 def test_an_object_lane_carries_in_the_tick_its_identification_ends() -> None:
