@@ -29,7 +29,7 @@ from collections.abc import Hashable
 from collections.abc import Sequence as Seq
 from typing import Any, ClassVar
 
-from btcap import Node, Parallel, ParallelForEach, Port, Sequence, State, Tree
+from btcap import Node, Parallel, ParallelForEach, Port, State, Tree
 from btcap.actors import ActorError
 from btcap.sim.mission.capabilities import (
     DECONTAMINATE,
@@ -39,6 +39,7 @@ from btcap.sim.mission.capabilities import (
     STANDBY,
 )
 from btcap.sim.mission.idplan import Pace, Turns
+from btcap.sim.mission.lanes import SpareLane, StandByLane, WorkLane
 from btcap.sim.mission.leaves import ClaimWork
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
@@ -137,27 +138,6 @@ class WatchWork(ClaimWork):
         except ActorError:
             return WorkList([], False)
         return reply
-
-
-class WorkLane(Sequence):
-    """A Sequence for one work item ``(id, row, col)``, which it gives its children as
-    outputs ``target`` and ``at`` before ticking them."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int]}
-    OUTPUTS: ClassVar[Any] = {"target": int, "at": tuple[int, int]}
-
-    def on_tick(self) -> State:
-        ident, row, col = self.inputs["item"][:3]
-        self.outputs["target"] = int(ident)
-        self.outputs["at"] = (int(row), int(col))
-        return super().on_tick()
-
-
-def _halt_all(lane: Node) -> None:
-    for c in lane.children:
-        if c.state is not State.IDLE:
-            c.reset()
 
 
 class ObjectLane(WorkLane):
@@ -308,48 +288,6 @@ class ObjectPool(ParallelForEach):
     def on_reset(self) -> None:
         super().on_reset()
         self._turns = Turns()
-
-
-class StandByLane(WorkLane):
-    """A :class:`WorkLane` that stands a carrier by near an object awaiting
-    identification, so that it is near if the object turns out contaminated: it ends
-    (halting and resetting its children, which frees the robot) once the object is no
-    longer ``listed`` awaiting identification (the object pool's ``plan``; a flag
-    after the cell: 0) or a carry waits for a robot (``waiting`` > 0: one being carried
-    is no reason to stop)."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {
-        "item": tuple[int, int, int],
-        "listed": list[tuple[int, ...]],
-        "waiting": Port(int, 0),
-    }
-
-    def on_tick(self) -> State:
-        ident = self.inputs["item"][0]
-        listed = self.inputs["listed"] or []
-        wanted = any(i[0] == ident and not any(i[3:]) for i in listed)
-        if wanted and not self.inputs["waiting"]:
-            return super().on_tick()
-        _halt_all(self)
-        return State.SUCCEEDED
-
-
-class SpareLane(WorkLane):
-    """A :class:`WorkLane` for a robot whose own pools have nothing for it now: it runs
-    only while no object's work waits for a robot (``waiting``: an identification or a
-    carry not yet taken; one under way is no reason to stop), and fails at once
-    otherwise, halting and resetting its children (which frees the robot for that work),
-    so the item runs again in another lane."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int], "waiting": Port(int, 0)}
-
-    def on_tick(self) -> State:
-        if not self.inputs["waiting"]:
-            return super().on_tick()
-        _halt_all(self)
-        return State.FAILED
 
 
 def pool_mission_tree(
