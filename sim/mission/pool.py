@@ -10,10 +10,10 @@ lane each (:class:`ObjectLane`: identify, then carry if contaminated), so identi
 never waits on exploration or on a carry. The carry is auctioned in the tick the
 identification ends: the robot that identified the object, if it can carry, is then the
 nearest bidder, before other work takes it. Identifications take turns (as many at once
-as robots identify and do nothing scarcer, oldest-found first), so a carrier is not
-handed one a Spot will do. Robots the lanes leave out are not idle: a carrier with
-nothing else to do stands by at the objects awaiting identification
-(:class:`StandByLane`), and robots that explore and can also do object work explore
+as robots identify and do nothing scarcer), so a carrier is not handed one a Spot will
+do, along one plan (:mod:`~btcap.sim.mission.idplan`: nearest first from where each
+identifier is); a carrier with nothing else to do stands by where that plan sends the
+identifiers (:class:`StandByLane`), and robots that explore and can also do object work explore
 while no object's work waits for a robot (:class:`SpareLane`).
 
 A lane that fails leaves its item listed (the store still has it to do) and the item
@@ -25,10 +25,11 @@ from a list read after its object fell.
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from collections.abc import Sequence as Seq
 from typing import Any, ClassVar
 
-from btcap import Node, Parallel, ParallelForEach, Port, Sequence, State, Tree
+from btcap import Node, Parallel, ParallelForEach, Port, State, Tree
 from btcap.actors import ActorError
 from btcap.sim.mission.capabilities import (
     DECONTAMINATE,
@@ -38,6 +39,8 @@ from btcap.sim.mission.capabilities import (
     STANDBY,
 )
 from btcap.sim.mission.goals import GoalPool
+from btcap.sim.mission.idplan import Pace, Turns
+from btcap.sim.mission.lanes import SpareLane, StandByLane, WorkLane
 from btcap.sim.mission.leaves import ClaimWork
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.messages import ListWork, WorkList
@@ -151,27 +154,6 @@ class WatchWork(ClaimWork):
         return reply
 
 
-class WorkLane(Sequence):
-    """A Sequence for one work item ``(id, row, col)``, which it gives its children as
-    outputs ``target`` and ``at`` before ticking them."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int]}
-    OUTPUTS: ClassVar[Any] = {"target": int, "at": tuple[int, int]}
-
-    def on_tick(self) -> State:
-        ident, row, col = self.inputs["item"][:3]
-        self.outputs["target"] = int(ident)
-        self.outputs["at"] = (int(row), int(col))
-        return super().on_tick()
-
-
-def _halt_all(lane: Node) -> None:
-    for c in lane.children:
-        if c.state is not State.IDLE:
-            c.reset()
-
-
 class ObjectLane(WorkLane):
     """All the work one object ``(id, row, col, contaminated)`` still needs: its first
     child identifies it (unless the item says it is known contaminated), its second
@@ -220,108 +202,106 @@ class ObjectPool(ParallelForEach):
     :class:`~btcap.bt.foreach.ParallelForEach` it says how much work waits for a robot:
     ``waiting`` (objects listed without a lane, lanes whose capability is unassigned)
     and ``carries_waiting`` (those of them to carry), so robots that only stand by or
-    explore meanwhile know when they are wanted."""
+    explore meanwhile know when they are wanted; and ``plan``: the objects awaiting
+    identification in the order they will be identified (under way first, then as
+    :mod:`~btcap.sim.mission.idplan` routes the identifiers), where carriers stand by;
+    with ``identify_at_once``, the next to start is the first planned for a free one."""
 
-    __slots__ = ()
+    __slots__ = ("_turns",)
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
         "carries_waiting": int,
+        "plan": list[tuple[int, ...]],
     }
     OPTIONS: ClassVar[Any] = {
         **ParallelForEach.OPTIONS,
         "identify_at_once": Port(
             int, 0, "identifications at once (the rest wait for one to end); 0: no limit"
         ),
+        "identify_wait_s": Port(float, 240.0, "an object waiting this long goes before nearer"),
+        "identify_speed": Port(float, 1.0, "cells per second an identifier drives"),
+        "identify_s": Port(float, 0.0, "seconds an identification takes"),
+        "identify_carries": Port(bool, False, "identifiers carry: held for a carry auctioned"),
     }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._turns = Turns()
 
     def _run(self, i: int, item: Any) -> State:
         lane = self.children[i]
         most = self.options["identify_at_once"]
-        if most > 0 and isinstance(lane, ObjectLane) and lane.children[0].state is State.IDLE:
-            lane.may_identify = self._turn(i, item, most)
-        return super()._run(i, item)
+        if most <= 0 or not isinstance(lane, ObjectLane):
+            return super()._run(i, item)
+        identify = lane.children[0]
+        if identify.state is State.IDLE:
+            lanes = [c for k, c in zip(self._lanes, self.children, strict=True) if k is not None]
+            under_way = sum(c is not lane and c.children[0].state in _ACTIVE for c in lanes)
+            lane.may_identify = under_way < most and self._turns.may_start(item[0], self._plan())
+        was = identify.state
+        state = super()._run(i, item)
+        if was is State.IDLE and identify.state is not State.IDLE:
+            self._turns.started(item[0], (int(item[1]), int(item[2])), self._plan())
+        elif was in _ACTIVE and not self._identifying(lane):
+            self._turns.free(item[0])
+        return state
 
-    def _turn(self, i: int, item: Any, most: int) -> bool:
-        """Whether lane ``i`` may start identifying ``item``: fewer than ``most``
-        identifications are under way, and of the objects waiting for one it is among
-        the first listed (the oldest news: found first)."""
-        order = {it[0]: n for n, it in enumerate(self.inputs["items"] or [])}
-        mine = order.get(item[0], len(order))
-        under_way = before = 0
-        for j, lane in enumerate(self.children):
-            if j == i or self._lanes[j] is None:
-                continue
-            identify = lane.children[0]
-            if identify.state in _ACTIVE:
-                under_way += 1
-            elif identify.state is State.IDLE and not self._values[j][3]:
-                before += order.get(self._values[j][0], len(order)) < mine
-        return under_way + before < most
+    def _identifying(self, lane: Node) -> bool:
+        """Its identifier is not free: identifying, or to carry what it found (Pace)."""
+        identify, carry = lane.children
+        held = self.options["identify_carries"] and carry.state is State.UNASSIGNED
+        return identify.state in _ACTIVE or (held and identify.state is State.SUCCEEDED)
+
+    def _plan(self) -> list[tuple[Hashable, int]]:
+        """The plan of the objects awaiting a turn in a lane, or to run again soon."""
+        lanes = zip(self._values, self.children, strict=True)
+        values = [v for v, c in lanes if v is not None and c.children[0].state is State.IDLE]
+        values += [it for it in self.inputs["items"] or [] if it[0] in self._retry_at]
+        awaiting = [(v[0], (int(v[1]), int(v[2]))) for v in values if not v[3]]
+        o = self.options
+        pace = Pace(o["identify_speed"], o["identify_s"], o["identify_wait_s"])
+        return self._turns.plan(o["identify_at_once"], awaiting, self.clock.now(), pace)
 
     def on_tick(self) -> State:
+        items = self.inputs["items"] or []
+        self._turns.listed([it[0] for it in items if not it[3]], self.clock.now())
         state = super().on_tick()
         waiting = carries = 0
+        under_way, known = set(), set()
         for i, lane in enumerate(self.children):
             if self._lanes[i] is None or lane.state not in _ACTIVE:
                 continue
             identify, carry = lane.children
+            if self._identifying(lane):
+                under_way.add(self._lanes[i])
+            elif identify.state is State.SUCCEEDED:
+                known.add(self._lanes[i])
             if carry.state is State.UNASSIGNED:
-                waiting += 1
-                carries += 1
+                waiting, carries = waiting + 1, carries + 1
             elif carry.state is State.IDLE and identify.state in _NOT_BEGUN:
                 waiting += 1
+        self._turns.ended(under_way)  # also lanes that failed or were reset
         held = set(self._lanes)
-        for item in self.inputs["items"] or []:
+        for item in items:
             if item[0] not in held and self._unstarted(item[0]):
                 waiting += 1
                 carries += bool(item[3])
         self.outputs["waiting"], self.outputs["carries_waiting"] = waiting, carries
+        # where carriers stand by: under way, planned, then those in no lane yet
+        at = {it[0]: (int(it[0]), int(it[1]), int(it[2])) for it in items if not it[3]}
+        first = self._turns.order(self._plan() if self.options["identify_at_once"] else [])
+        skip = set(first) | known | self._finished | self._lost
+        plan = [at[k] for k in first if k in at] + [v for k, v in at.items() if k not in skip]
+        self.outputs["plan"] = plan
         return state
 
     def _unstarted(self, key: int) -> bool:
         return key not in self._finished and key not in self._lost
 
-
-class StandByLane(WorkLane):
-    """A :class:`WorkLane` that stands a carrier by near an object awaiting
-    identification, so that it is near if the object turns out contaminated: it ends
-    (halting and resetting its children, which frees the robot) once the object is no
-    longer ``listed`` awaiting identification (flag 0) or a carry waits for a robot
-    (``waiting`` > 0: one being carried is no reason to stop)."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {
-        "item": tuple[int, int, int],
-        "listed": list[tuple[int, ...]],
-        "waiting": Port(int, 0),
-    }
-
-    def on_tick(self) -> State:
-        ident = self.inputs["item"][0]
-        listed = self.inputs["listed"] or []
-        wanted = any(i[0] == ident and not any(i[3:]) for i in listed)
-        if wanted and not self.inputs["waiting"]:
-            return super().on_tick()
-        _halt_all(self)
-        return State.SUCCEEDED
-
-
-class SpareLane(WorkLane):
-    """A :class:`WorkLane` for a robot whose own pools have nothing for it now: it runs
-    only while no object's work waits for a robot (``waiting``: an identification or a
-    carry not yet taken; one under way is no reason to stop), and fails at once
-    otherwise, halting and resetting its children (which frees the robot for that work),
-    so the item runs again in another lane."""
-
-    __slots__ = ()
-    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int], "waiting": Port(int, 0)}
-
-    def on_tick(self) -> State:
-        if not self.inputs["waiting"]:
-            return super().on_tick()
-        _halt_all(self)
-        return State.FAILED
+    def on_reset(self) -> None:
+        super().on_reset()
+        self._turns = Turns()
 
 
 def pool_mission_tree(
@@ -335,12 +315,14 @@ def pool_mission_tree(
     store: str = "sim/store",
     grid: GridMap | None = None,
     near_m: float = 0.0,
+    pace: Pace | None = None,
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations at once (and
     ``spare_explorers`` more while no object's work waits), an object lane for each of
     up to ``objects`` objects with work left at once (at least ``identifiers +
     carriers``: the lanes only hold work, robots are the auction's), and ``standby``
-    carriers standing by near objects awaiting identification while no carry waits; it
+    carriers standing by near objects awaiting identification while no carry waits
+    (where the identifiers go next: ``pace`` prices their plan, :mod:`.idplan`); it
     succeeds once the cave is explored and every object found is identified and, if
     contaminated, carried. A free explore lane takes the goal nearest (by path on
     ``grid``) to where its last goal left its explorer, those within ``near_m`` of a goal
@@ -376,6 +358,7 @@ def pool_mission_tree(
         key=0,
         retry_after_s=4 * watch_objects.options["poll_s"],
         identify_at_once=identifiers,
+        **(pace or Pace()).options(),
     )
     wires += [
         (watch_objects, "items", each_object, "items"),
@@ -405,22 +388,21 @@ def pool_mission_tree(
         (watch_goals, "listed_at", each_goal, "listed_at"),
     ]
     parts.append(Parallel("goal_pool", children=[watch_goals, each_goal]))
-    if standby > 0:
-        watch_new = WatchWork("list_identify", kind="identify", store=store)
+    if standby > 0:  # at the objects identified next: the identifiers' plan
         bys = [STANDBY.node_type()("standby") for _ in range(standby)]
         stand = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(bys)]
         each = ParallelForEach("each_standby", children=stand, key=0)
         for ln, cap in zip(stand, bys, strict=True):
             wires += [
                 (ln, "at", cap, "at"),
-                (watch_objects, "items", ln, "listed"),
+                (each_object, "plan", ln, "listed"),
                 (each_object, "carries_waiting", ln, "waiting"),
             ]
         wires += [
-            (watch_new, "items", each, "items"),
-            (watch_new, "complete", each, "complete"),
+            (each_object, "plan", each, "items"),
+            (watch_objects, "complete", each, "complete"),
         ]
-        parts.append(Parallel("standby_pool", children=[watch_new, each]))
+        parts.append(each)
     tree = Tree(Parallel("mission", children=parts), name="find_and_decontaminate_pool")
     for src, out, dst, inp in wires:
         tree.wire(src, out, dst, inp)

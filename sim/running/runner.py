@@ -24,6 +24,7 @@ from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
 from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
+from btcap.sim.mission.idplan import identifier_pace
 from btcap.sim.mission.paper import mission_tree
 from btcap.sim.mission.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
 from btcap.sim.mission.scenario import Event, Scenario, check_scenario
@@ -258,7 +259,8 @@ async def run_scenario(
 
 
 def _mission(s: Scenario, grid: GridMap) -> Tree:
-    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`."""
+    """The scenario's mission tree; the pool mission's lanes: see :func:`pool_lanes`,
+    its identifiers' plan priced at :func:`identifier_pace`."""
     if s.mission == "paper":
         return mission_tree(object_workers=s.object_workers)
     models = s.models()
@@ -273,6 +275,7 @@ def _mission(s: Scenario, grid: GridMap) -> Tree:
         objects=min(s.objects, MAX_OBJECT_LANES),
         grid=grid,
         near_m=max((m.operation("explore").radius_m for m in team if m.can("explore")), default=0),
+        pace=identifier_pace(team, grid.cell_size_m),
     )
 
 

@@ -16,7 +16,7 @@ import pytest
 
 import btcap.cli
 import btcap.sim.running.runner
-from btcap import Leaf, Port, State, Tree
+from btcap import Leaf, Parallel, ParallelForEach, Port, State, Tree
 from btcap.cli import main
 from btcap.sim.mission.bound import Presence, mission_bound, presence, scenario_bound
 from btcap.sim.mission.capabilities import robot_setup
@@ -273,6 +273,76 @@ class Identifies(Leaf):
             return State.RUNNING
         self.outputs["contaminated"] = self.dirty
         return State.SUCCEEDED
+
+
+def test_the_spot_identifies_nearest_first_and_the_husky_stands_by_where_it_goes() -> None:
+    # Found in this order along a corridor, near end and far end in turn: oldest-found
+    # first drove full-team's one Spot back and forth (seed 9: 842 m, 917 s). The
+    # identifications now follow a plan routed from where the Spot stands, and the Husky
+    # standing by reads the same plan: it waits at the object identified next, not at
+    # the oldest one (with a ranking of its own, it waited where the Spot was not going).
+    cells = {0: (0, 0), 1: (0, 100), 2: (0, 2), 3: (0, 102)}
+    lanes = [ObjectLane(f"o{k}", children=[Identifies(False), Runs()]) for k in range(4)]
+    pool = ObjectPool("pool", children=lanes, key=0, identify_at_once=1)
+    stand = StandByLane("standby_1", children=[Runs()])
+    each = ParallelForEach("each_standby", children=[stand], key=0)
+    tree = Tree(Parallel("mission", children=[pool, each]))
+    tree.wire(pool, "plan", each, "items")
+    tree.wire(pool, "plan", stand, "listed")
+    identified: list[int] = []
+    stood: list[int] = []
+    for _ in range(20):  # ticks: each identification takes two
+        listed = [(k, *cells[k], 0) for k in cells if k not in identified]
+        pool.set_input("items", listed)
+        pool.set_input("complete", not listed)
+        each.set_input("complete", not listed)
+        tree.tick()
+        for lane in lanes:
+            key = lane.inputs.get("item", (None,))[0]
+            if lane.children[0].state is State.SUCCEEDED and key not in identified:
+                identified.append(key)
+        if stand.state is State.RUNNING and stand.inputs["item"][0] not in stood:
+            stood.append(stand.inputs["item"][0])
+    assert identified == [0, 2, 1, 3]  # oldest-found first: [0, 1, 2, 3]
+    assert stood == identified
+
+
+class Assigned(Leaf):
+    """Stands in for a carry: UNASSIGNED (its auction under way) for ``after`` ticks,
+    then RUNNING."""
+
+    def __init__(self, after: int) -> None:
+        super().__init__("carry")
+        self.after, self.ticks = after, 0
+
+    def on_tick(self) -> State:
+        self.ticks += 1
+        return State.UNASSIGNED if self.ticks <= self.after else State.RUNNING
+
+
+def test_an_identifier_that_carries_is_held_for_the_carry_of_what_it_found() -> None:
+    # huskies-bebop-joins seed 2 (Huskies identify and carry, one of them down): the
+    # next identification's turn opened in the tick the carry was auctioned, and the
+    # Husky that had just found the object contaminated took that identification
+    # instead of the carry. Where identifiers carry, the turn waits for the carry's
+    # auction; where they do not (a Spot), it does not.
+    for carries, held in ((True, True), (False, False)):
+        found = ObjectLane("o0", children=[Identifies(True), Assigned(after=3)])
+        other = ObjectLane("o1", children=[Identifies(False), Runs()])
+        pool = ObjectPool(
+            "pool", children=[found, other], key=0, identify_at_once=1, identify_carries=carries
+        )
+        tree = Tree(pool)
+        pool.set_input("items", [(0, 0, 0, 0), (1, 0, 5, 0)])
+        pool.set_input("complete", False)
+        for _ in range(3):  # identified, then its carry unassigned for 3 ticks
+            tree.tick()
+        assert found.children[1].state is State.UNASSIGNED
+        assert (other.children[0].ticks == 0) is held
+        for _ in range(3):
+            tree.tick()
+        assert found.children[1].state is State.RUNNING
+        assert other.children[0].ticks > 0
 
 
 def test_an_object_lane_carries_in_the_tick_its_identification_ends() -> None:
