@@ -86,7 +86,7 @@ if TYPE_CHECKING:
     from btcap.bt.switch import Switch
     from btcap.bt.tree import Subtree, Tree, Wire
     from btcap.bt.utility import Utility
-    from btcap.errors import BtcapError
+    from btcap.errors import BtcapError, HandshakeWarning
     from btcap.monitor import Monitor, Replay
     from btcap.team.allocation.strategies import BatchStrategy
     from btcap.team.allocation.strategy import Allocator, RobotContext, Strategy
@@ -105,7 +105,6 @@ if TYPE_CHECKING:
     from btcap.team.runtime.agent import Agent, AgentConfig
     from btcap.team.runtime.protocol import protocol_registry
     from btcap.team.settings import MissionConfig
-    from btcap.transports.refusals import HandshakeWarning
 
 __version__ = "0.1.0"
 
@@ -190,10 +189,9 @@ _EXPORTS = {
     "btcap.bt.blackboard": ("Blackboard",),
     "btcap.bt.tree": ("Subtree", "Tree", "Wire"),
     "btcap.bt.utility": ("Utility",),
-    "btcap.errors": ("BtcapError",),
+    "btcap.errors": ("BtcapError", "HandshakeWarning"),
     "btcap.monitor": ("Monitor", "Replay"),
     "btcap.team.runtime.agent": ("Agent", "AgentConfig"),
-    "btcap.transports.refusals": ("HandshakeWarning",),
     "btcap.team.capabilities.capability": (
         "Capability",
         "CapabilityInterface",

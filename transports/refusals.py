@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import zmq
 
-from btcap.errors import BtcapWarning
+from btcap.errors import HandshakeWarning
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
 
@@ -47,11 +47,6 @@ _UNCLEAR_TRIES = 3
 one is worth a warning."""
 _FIRST_RETRY_S = 0.25
 _MAX_RETRY_S = 30.0
-
-
-class HandshakeWarning(BtcapWarning):
-    """A handshake failed (a key refused, by either side; keys on one side only; a stale
-    copy of a key): said once per peer or key of a transport, naming what to check."""
 
 
 def fingerprint(key: bytes) -> str:

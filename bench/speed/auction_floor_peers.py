@@ -44,7 +44,7 @@ __all__ = [
 ]
 
 VARIANTS = ("blocking", "asyncio")
-SIZES = {"call": 149, "bid": 91, "award": 116, "accept": 89, "cancel": 83}
+SIZES = {"call": 160, "bid": 91, "award": 123, "accept": 89, "cancel": 83}
 """Bytes on the wire per message of btcap's round (its frame: kind byte and envelope)."""
 CALL, BID, AWARD, ACCEPT, CANCEL = range(5)
 NOBLOCK = int(zmq.NOBLOCK)

@@ -22,8 +22,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from btcap.bt.state import NodeErrorWarning, TreeError, UnassignableWarning
-from btcap.errors import BtcapError
-from btcap.transports.refusals import HandshakeWarning
+from btcap.errors import BtcapError, HandshakeWarning
 
 __all__ = ["CliError", "Stopped", "build_parser", "main"]
 

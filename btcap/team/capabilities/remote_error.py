@@ -20,7 +20,7 @@ from btcap.transports.log import get_logger
 
 __all__ = ["tell_remote_error"]
 
-log = get_logger("btcap.mission")
+log = get_logger(__name__)
 
 
 class _Capability(Protocol):
