@@ -19,7 +19,7 @@ from mcap.reader import make_reader
 from btcap.monitor import Monitor
 from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
-from btcap.monitor.scene import SCENE_TOPICS, scene_messages
+from btcap.monitor.scene import SCENE_TOPICS, Scene, map_messages
 from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.running import worldfeed
 from btcap.sim.running.metrics import MissionResult
@@ -118,9 +118,12 @@ def test_the_world_is_drawn_in_foxglove_schemas(
              for j in range(len(rows[0]))]  # fmt: skip
     assert walls == [ch == "#" for row in reversed(rows) for ch in row]
     robots = {r.name for r in load_scenario(SMALL).robots}
+    frames = [{tf["child_frame_id"] for tf in m["transforms"]} for t, m in msgs if t == "/tf"]
+    assert frames[0] == robots  # every robot at first, then those that moved
+    assert all(f and f <= robots for f in frames)
+    assert sum(map(len, frames)) < len(frames) * len(robots)
     for t, m in msgs:
         if t == "/tf":
-            assert {tf["child_frame_id"] for tf in m["transforms"]} == robots
             for tf in m["transforms"]:
                 x, y = tf["translation"]["x"], tf["translation"]["y"]
                 assert rows[len(rows) - 1 - int(y // cell)][int(x // cell)] != "#"
@@ -145,7 +148,7 @@ def test_a_map_is_drawn_upside_up() -> None:
     """Row 0 of the map file is the top of the picture: the grid's last row."""
     ev = {"t": 2.5, "k": "map", "rows": ["#.", ".:"], "cell_m": 0.5,
           "start": [0.25, 0.25], "decon": [0.75, 0.75]}  # fmt: skip
-    (t1, _, grid), (t2, _, areas) = scene_messages(ev, 2_500_000_000)
+    (t1, _, grid), (t2, _, areas) = map_messages(ev, 2_500_000_000)
     assert (t1, t2) == ("/map", "/scene/areas")
     assert grid["timestamp"] == {"sec": 2, "nsec": 500_000_000}
     pixels = base64.b64decode(grid["data"])
@@ -174,9 +177,20 @@ def test_poses_are_thinned_out_and_end_exact(
     anyio.run(_record, tmp_path / "every.jsonl")
     every = [ev for ev in read_record(tmp_path / "every.jsonl") if "poses" in ev]
     assert len(every) > len(poses)
-    assert every[-1]["poses"] == poses[-1]["poses"]
-    for ev in poses:  # the same run: where the robots were then, as every step has it
-        assert [e for e in every if e["t"] <= ev["t"]][-1]["poses"] == ev["poses"]
+    # each event holds the robots that moved: added up, where all of them were then
+    seen, seen_every = _poses_so_far(poses), _poses_so_far(every)
+    assert seen_every[-1][1] == seen[-1][1]
+    for t, where in seen:  # the same run: where the robots were then, as every step has it
+        assert [w for u, w in seen_every if u <= t][-1] == where
+
+
+def _poses_so_far(events: list[dict[str, Any]]) -> list[tuple[float, dict[str, Any]]]:
+    so_far: dict[str, Any] = {}
+    out = []
+    for ev in events:
+        so_far.update(ev["poses"])
+        out.append((ev["t"], dict(so_far)))
+    return out
 
 
 @pytest.mark.slow
