@@ -1,6 +1,6 @@
 """The monitor's channels live over the Foxglove WebSocket protocol (``--foxglove``).
 
-The Foxglove SDK (``pip install 'btcap[foxglove]'``, package ``foxglove-sdk``) serves
+The Foxglove SDK (package ``foxglove-sdk``, a dependency of btcap) serves
 them: its server runs on a thread of its own (Rust), and a message handed to it is queued
 there, so the event loop only encodes each batch's messages once, as the MCAP recorder
 does (:class:`btcap.monitor.channels.Channels`: the same topics, schemas and bytes, the

@@ -55,17 +55,20 @@ _decode = msgspec.json.Decoder(dict[str, Any])
 
 
 class _File(io.FileIO):
-    """The file the SDK's writer writes to, unbuffered (each write reaches the system at
-    once); it keeps the first error (the writer reports none to Python)."""
+    """The file the SDK's writer writes to, unbuffered: each write reaches the system at
+    once. The first failure (a full disk) is kept and every write after it dropped, and
+    the writer is told they went well: the recorder says it once (the SDK would warn at
+    every message after it)."""
 
     error: OSError | None = None
 
     def write(self, data: Any, /) -> int:
-        try:
-            return super().write(data)
-        except OSError as exc:
-            self.error = self.error or exc
-            raise
+        if self.error is None:
+            try:
+                return super().write(data)
+            except OSError as exc:
+                self.error = exc
+        return len(data)
 
 
 class McapRecorder:
@@ -91,19 +94,15 @@ class McapRecorder:
             compression_threads=0,  # zstd in this thread: no worker, the same bytes
         )
         self._closed = self._said = False
-        try:
-            self._writer = foxglove.open_mcap(
-                self._file, context=self._context, writer_options=options
-            )
-            meta = {"btcap_version": btcap.__version__, **(metadata or {})}
-            self._writer.write_metadata(METADATA_NAME, dict(sorted(meta.items())))
-        except Exception:
-            self._file.close()
-            raise OSError(f"cannot write MCAP: {self._file.error or 'the writer failed'}") from None
+        self._writer = foxglove.open_mcap(self._file, context=self._context, writer_options=options)
+        meta = {"btcap_version": btcap.__version__, **(metadata or {})}
+        self._writer.write_metadata(METADATA_NAME, dict(sorted(meta.items())))
         self._log: dict[str, Callable[[bytes, int], None]] = {}  # topic -> its channel's log
         self._messages = Channels().messages
         self._chunk_s = chunk_s
         self._chunk_t: float | None = None  # clock time of the open chunk's first event
+        if self._file.error is not None:
+            self._failed(self._file.error)
 
     def _channel(self, topic: str, schema: dict[str, Any]) -> Callable[[bytes, int], None]:
         log_ = self._log.get(topic)
@@ -145,7 +144,7 @@ class McapRecorder:
         if self._closed:
             return
         self._closed = True
-        with contextlib.suppress(Exception):  # a failed file: said below
+        with contextlib.suppress(RuntimeError):  # a failed file: said below
             self._writer.close()
         error = self._file.error
         try:
@@ -161,7 +160,7 @@ class McapRecorder:
             return
         self._said = self._closed = True
         log.error("monitor.record_failed", path=str(self.path), error=exc.strerror or str(exc))
-        with contextlib.suppress(Exception):
+        with contextlib.suppress(RuntimeError):  # the SDK's error: the file failed
             self._writer.close()
         with contextlib.suppress(OSError):
             self._file.close()

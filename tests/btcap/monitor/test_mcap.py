@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 from mcap.reader import make_reader
+from structlog.testing import capture_logs
 
 import btcap.cli
 from btcap.cli import main
@@ -159,6 +160,24 @@ def test_a_file_cut_short_is_read_up_to_its_last_whole_chunk(
         assert got == events[: len(got)]
         seen.append(len(got))
     assert seen[0] >= seen[1] >= seen[2] > 0
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (a full disk)")
+def test_a_full_disk_ends_an_mcap_recording_said_once(
+    runs: dict[str, Path], caplog: pytest.LogCaptureFixture
+) -> None:
+    """The SDK's writer is told its writes went well once one failed: the recorder says
+    it once and stops, the SDK warns at no message after it, nothing is raised."""
+    events = read_record(runs["run.jsonl"])
+    with capture_logs() as logs:
+        recorder = McapRecorder(Path("/dev/full"), {"scenario": "small"}, chunk_size=4096)
+        for i in range(0, len(events), 10):
+            recorder.write(events[i : i + 10])
+        recorder.close()
+    failed = [e for e in logs if e["event"] == "monitor.record_failed"]
+    assert [e["path"] for e in failed] == ["/dev/full"], logs
+    assert [r.getMessage() for r in caplog.records if r.name.startswith("foxglove")] == []
 
 
 def test_a_file_that_is_not_mcap_is_refused_naming_it(tmp_path: Path) -> None:

@@ -158,6 +158,57 @@ def test_a_map_is_drawn_upside_up() -> None:
     assert [e["id"] for e in areas["entities"]] == ["decon", "start"]
 
 
+def test_the_scene_is_drawn_whole_from_what_changed() -> None:
+    """World events hold only the robots and objects that changed; each /scene message
+    is still the whole picture (Foxglove draws a topic's last message alone after a
+    seek), the same bytes as one drawn from a single event holding everything."""
+    a, b = {"up": True, "task": "idle"}, {"up": True, "task": "explore"}
+    o1 = {"id": 1, "x": 1.5, "y": 2.5, "status": "hidden", "by": None}
+    o2 = {"id": 2, "x": 3.5, "y": 0.5, "status": "found", "by": None}
+    scene = Scene()
+    scene.draw({"t": 1.0, "k": "world", "robots": {"r1": a, "r2": a}, "objects": [o1, o2],
+                "poses": {"r1": [0.5, 0.5], "r2": [1.5, 0.5]}}, 1_000_000_000)  # fmt: skip
+    carried = {**o1, "status": "carried", "by": "r2"}
+    drawn = scene.draw({"t": 2.0, "k": "world", "robots": {"r2": b}, "objects": [carried],
+                        "poses": {"r2": [2.5, 0.5]}}, 2_000_000_000)  # fmt: skip
+    whole = Scene().draw({"t": 2.0, "k": "world", "robots": {"r1": a, "r2": b},
+                          "objects": [carried, o2]}, 2_000_000_000)  # fmt: skip
+    assert [t for t, _, _ in drawn] == ["/tf", "/scene/robots", "/scene/objects"]
+    assert drawn[1:] == whole
+    (tf,) = [json.loads(data) for t, _, data in drawn if t == "/tf"]
+    assert [f["child_frame_id"] for f in tf["transforms"]] == ["r2"]  # the robot that moved
+    assert json.loads(scene.transforms(3_000_000_000))["transforms"][0]["translation"] == {
+        "x": 0.5, "y": 0.5, "z": 0.0}  # fmt: skip
+    assert scene.robots == {"r1": a, "r2": b}
+
+
+@pytest.mark.slow
+def test_world_events_hold_only_what_changed(
+    recorded: tuple[Path, Path, MissionResult],
+) -> None:
+    """The first world event holds every robot, object and pose; each later one only
+    those that changed since they were last sent."""
+    worlds = [ev for ev in read_record(recorded[1]) if ev["k"] == "world"]
+    robots = {r.name for r in load_scenario(SMALL).robots}
+    first = {part: next(ev[part] for ev in worlds if part in ev) for part in
+             ("robots", "objects", "poses")}  # fmt: skip
+    assert set(first["robots"]) == set(first["poses"]) == robots
+    last: dict[str, dict[Any, Any]] = {"objects": {}, "poses": {}}
+    sent = {"objects": 0, "poses": 0}
+    for ev in worlds:
+        for o in ev.get("objects", []):
+            assert last["objects"].get(o["id"]) != o  # only objects that changed
+            last["objects"][o["id"]] = o
+            sent["objects"] += 1
+        for robot, xy in ev.get("poses", {}).items():
+            assert last["poses"].get(robot) != xy  # only robots that moved
+            last["poses"][robot] = xy
+            sent["poses"] += 1
+    with_objects = sum("objects" in ev for ev in worlds)
+    assert sent["objects"] < with_objects * len(first["objects"])
+    assert sent["poses"] < sum("poses" in ev for ev in worlds) * len(robots)
+
+
 @pytest.mark.slow
 def test_poses_are_thinned_out_and_end_exact(
     recorded: tuple[Path, Path, MissionResult],
