@@ -10,8 +10,8 @@ null is typed by its other type, and ``bids``, an array of ``[robot, cost]`` pai
 described but not listed among the properties: that reader takes no arrays of arrays.
 A simulation's ``map`` and ``world`` events are drawn as well, as Foxglove's 3D panel
 reads them (:mod:`btcap.monitor.scene`); the Foxglove schemas are in
-:mod:`btcap.monitor.foxschemas`. :func:`messages` is what a recording and the live
-Foxglove server both send for one event.
+:mod:`btcap.monitor.foxschemas`. :class:`Channels` says what a recording and the live
+Foxglove server both send for each event.
 """
 
 from __future__ import annotations
@@ -209,7 +209,7 @@ LOG_TOPIC = "/log"
 LOG_SCHEMA: dict[str, Any] = LOG
 
 _INFO, _WARNING = 2, 3
-#: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:func:`messages`).
+#: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:meth:`Channels.messages`).
 _PICTURES = frozenset({"robot", "tree", "states"})
 _encode = msgspec.json.Encoder()
 

@@ -85,8 +85,9 @@ class WorldFeed:
         return self._sample(final=False)
 
     def last(self) -> Event | None:
-        """:meth:`sample` once more at the end, poses whatever their rate: the final
-        picture is exact."""
+        """:meth:`sample` once more at the end, poses whatever their rate, and every
+        robot's state and task: the final picture is exact, and a timeline of each
+        robot's task (Foxglove's State Transitions panel) runs to the end."""
         return self._sample(final=True)
 
     def _sample(self, *, final: bool) -> Event | None:
@@ -97,9 +98,10 @@ class WorldFeed:
         robots = [
             (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in m.robots.values()
         ]
-        if robots != self._robots:
+        if robots != self._robots or final:  # at the end every robot: lanes run to it
             last, self._robots = self._robots, robots
-            ev = {"t": now, "k": "world", "robots": self._changed_robots(robots, last)}
+            changed = self._changed_robots(robots, None if final else last)
+            ev = {"t": now, "k": "world", "robots": changed}
         changes = m.state.changes  # objects change through the state's methods only
         if changes != self._changes:
             self._changes = changes
