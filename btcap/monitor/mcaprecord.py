@@ -8,10 +8,11 @@ message is its event's clock time (virtual in ``--fast`` runs), the messages are
 file in the order of the event stream, and nothing in the file comes from the wall
 clock, so two runs of a deterministic simulation write the same bytes and a replay reads
 the events back in the order the JSON Lines recorder wrote them. Chunks are
-zstd-compressed (in the calling thread: the same bytes every time); the writer writes
-straight to the file (no buffer of its own), and a chunk is closed when it holds 256 KiB
-or spans 60 s of the clock, so a run that is killed leaves a file readable up to its
-last whole chunk.
+zstd-compressed (in the calling thread: the same bytes every time); a chunk is closed
+when it holds 256 KiB or spans 60 s of the clock, and is then in the file whole (the
+writer seeks back to fill in its length, which empties the writer's own buffer into the
+file, opened unbuffered), so a run that is killed leaves a file readable up to its last
+whole chunk.
 """
 
 from __future__ import annotations
