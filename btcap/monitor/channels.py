@@ -292,8 +292,7 @@ def world_message(ev: Event, ns: int) -> bytes | None:
     :func:`btcap.monitor.mcaprecord.read_mcap` puts the event back together."""
     if "poses" not in ev:
         return _encode.encode(ev)
-    rest = {k: v for k, v in ev.items() if k != "poses"}
     t = ev["t"]
-    if len(rest) == 2 and isinstance(t, float) and ns / 1e9 == t:
+    if len(ev) == 3 and isinstance(t, float) and ns / 1e9 == t:  # t, k and poses
         return None
-    return _encode.encode(rest)
+    return _encode.encode({k: v for k, v in ev.items() if k != "poses"})

@@ -160,6 +160,8 @@ class Scene:
         # each entity's JSON after its timestamp (``,"frame_id":...}``), by robot or object
         self._robots: dict[str, bytes] = {}
         self._objects: dict[int, bytes] = {}
+        self._frames: dict[str, bytes] = {}  # a transform's JSON from after its timestamp to x
+        self._parts: dict[tuple[str, bool], tuple[bytes, bytes, bytes]] = {}  # _robot_parts
 
     def draw(self, ev: Event, ns: int) -> list[tuple[str, dict[str, Any], bytes]]:
         """What a ``map`` or ``world`` event at ``ns`` is drawn as, ``(topic, schema,
@@ -170,18 +172,17 @@ class Scene:
         if kind != "world":
             return []
         out = []
-        stamp = time_of(ns)
+        stamp = _encode.encode(time_of(ns))
+        head = b'{"timestamp":' + stamp + b","  # an entity's or a transform's start
         poses: dict[str, list[float]] | None = ev.get("poses")
         if poses:
             self.poses.update(poses)
-            out.append(("/tf", FRAME_TRANSFORMS, _transforms(poses, stamp)))
+            out.append(("/tf", FRAME_TRANSFORMS, self._transforms(poses, head)))
         robots: dict[str, dict[str, Any]] | None = ev.get("robots")
-        head = b""
         if robots:
             for robot, r in robots.items():
                 self.robots[robot] = r
-                self._robots[robot] = _rest(_robot(robot, r))
-            head = b'{"timestamp":' + _encode.encode(stamp) + b","
+                self._robots[robot] = self._robot(robot, bool(r["up"]), r["task"])
             entities = b",".join([head + rest for rest in self._robots.values()])
             data = b'{"deletions":[],"entities":[' + entities + b"]}"
             out.append(("/scene/robots", SCENE_UPDATE, data))
@@ -190,31 +191,46 @@ class Scene:
             for o in objects:
                 self.objects[o["id"]] = o
                 self._objects[o["id"]] = _rest(_object(o))
-            head = head or b'{"timestamp":' + _encode.encode(stamp) + b","
             entities = b",".join([head + rest for rest in self._objects.values()])
             # entities gone from the picture are dropped: all deleted, then these
-            deletion = _encode.encode({"timestamp": stamp, "type": 1, "id": ""})
+            deletion = head + b'"type":1,"id":""}'
             data = b'{"deletions":[' + deletion + b'],"entities":[' + entities + b"]}"
             out.append(("/scene/objects", SCENE_UPDATE, data))
         return out
 
+    def _robot(self, robot: str, up: bool, task: Any) -> bytes:
+        """A robot's entity JSON after its timestamp (:func:`_robot`'s, from its parts
+        kept: two strings are encoded, not the dozen objects of an entity)."""
+        parts = self._parts.get((robot, up))
+        if parts is None:
+            parts = self._parts[robot, up] = _robot_parts(robot, up)
+        a, b, c = parts
+        label = f"{robot} ({'up' if up else 'down'})\n{task}"
+        return a + _encode.encode(task) + b + _encode.encode(label) + c
+
     def transforms(self, ns: int) -> bytes:
         """``/tf`` with every robot where it last was, at ``ns`` (for a late client)."""
-        return _transforms(self.poses, time_of(ns))
+        return self._transforms(self.poses, b'{"timestamp":' + _encode.encode(time_of(ns)) + b",")
+
+    def _transforms(self, poses: dict[str, list[float]], head: bytes) -> bytes:
+        """``foxglove.FrameTransforms`` of ``poses``, each transform ``head`` (its
+        timestamp), a robot's frames kept, then its ``x`` and ``y``: the JSON a dict of
+        each encodes to, for a quarter of the instructions (poses are most messages)."""
+        frames = self._frames
+        parts = []
+        for robot, (x, y) in poses.items():
+            frame = frames.get(robot)
+            if frame is None:
+                name = _encode.encode(robot)
+                frame = frames[robot] = _PARENT + name
+            xy = _encode.encode(x) + b',"y":' + _encode.encode(y)
+            parts.append(head + frame + b',"translation":{"x":' + xy + _TRANSFORM_END)
+        return b'{"transforms":[' + b",".join(parts) + b"]}"
 
 
-def _transforms(poses: dict[str, list[float]], stamp: dict[str, int]) -> bytes:
-    transforms = [
-        {
-            "timestamp": stamp,
-            "parent_frame_id": MAP_FRAME,
-            "child_frame_id": robot,
-            "translation": {"x": x, "y": y, "z": 0.0},
-            "rotation": _IDENTITY,
-        }
-        for robot, (x, y) in poses.items()
-    ]
-    return _encode.encode({"transforms": transforms})
+_PARENT = b'"parent_frame_id":' + _encode.encode(MAP_FRAME) + b',"child_frame_id":'
+#: A transform's JSON after its translation's ``y``.
+_TRANSFORM_END = b',"z":0.0},"rotation":' + _encode.encode(_IDENTITY) + b"}"
 
 
 def _rest(entity: dict[str, Any]) -> bytes:
@@ -222,16 +238,14 @@ def _rest(entity: dict[str, Any]) -> bytes:
     return _encode.encode(entity)[1:]
 
 
-def _robot(robot: str, r: dict[str, Any]) -> dict[str, Any]:
-    up = bool(r["up"])
+def _robot(robot: str, up: bool, task: Any, label: str) -> dict[str, Any]:
     state = "up" if up else "down"
     sphere = {
         "pose": _pose(0.0, 0.0, ROBOT_M / 2),
         "size": {"x": ROBOT_M, "y": ROBOT_M, "z": ROBOT_M},
         "color": _color(_UP if up else _DOWN),
     }
-    meta = [{"key": "state", "value": state}, {"key": "task", "value": r["task"]}]
-    label = f"{robot} ({state})\n{r['task']}"
+    meta = [{"key": "state", "value": state}, {"key": "task", "value": task}]
     return _entity(
         robot,
         f"robot/{robot}",
@@ -239,6 +253,15 @@ def _robot(robot: str, r: dict[str, Any]) -> dict[str, Any]:
         spheres=[sphere],
         texts=[_text(label, ROBOT_M + 0.5, y=2 * ROBOT_M)],  # north of it
     )
+
+
+def _robot_parts(robot: str, up: bool) -> tuple[bytes, bytes, bytes]:
+    """A robot's entity JSON (after its timestamp) around its task and its label: what
+    :func:`_robot` encodes to is ``a + task + b + label + c`` (JSON each)."""
+    task, label = "\x00task\x00", "\x00label\x00"  # found once each in the JSON
+    a, rest = _rest(_robot(robot, up, task, label)).split(_encode.encode(task))
+    b, c = rest.split(_encode.encode(label))
+    return a, b, c
 
 
 def _object(o: dict[str, Any]) -> dict[str, Any]:

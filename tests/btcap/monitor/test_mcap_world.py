@@ -180,6 +180,14 @@ def test_the_scene_is_drawn_whole_from_what_changed() -> None:
     assert json.loads(scene.transforms(3_000_000_000))["transforms"][0]["translation"] == {
         "x": 0.5, "y": 0.5, "z": 0.0}  # fmt: skip
     assert scene.robots == {"r1": a, "r2": b}
+    # a robot's entity is kept as JSON parts around its task and label: any text fits
+    odd = {"up": False, "task": 'move "to" (1, 2)\n\u00e9'}
+    (_, _, data), *_ = Scene().draw({"t": 0.0, "k": "world", "robots": {"r\u00e9": odd}}, 0)
+    (entity,) = json.loads(data)["entities"]
+    assert entity["frame_id"] == "r\u00e9"
+    assert entity["texts"][0]["text"] == f"r\u00e9 (down)\n{odd['task']}"
+    assert entity["metadata"] == [{"key": "state", "value": "down"},
+                                  {"key": "task", "value": odd["task"]}]  # fmt: skip
 
 
 @pytest.mark.slow
