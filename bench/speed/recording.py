@@ -1,8 +1,8 @@
 """What a recording costs a ``--fast`` run: the paper's scenarios run in the fast mode
 with no monitor (``none``), a monitor that writes nothing (``monitor``), recording JSON
 Lines (``jsonl``), recording MCAP (``mcap``: the monitor's events, the simulated world
-drawn for Foxglove) and serving the live Foxglove server with no client (``foxglove``, if
-the SDK is installed), taking turns in the same process so load hits all alike.
+drawn for Foxglove) and serving the live Foxglove server with no client (``foxglove``),
+taking turns in the same process so load hits all alike.
 
 The verdict (the budget: a recording costs ≤ 5 % of a ``--fast`` run, with and without in
 the same turn) is read from pairs: each turn runs every condition once (the order
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import importlib.util
 import os
 import statistics
 import sys
@@ -49,9 +48,7 @@ from btcap.sim.running.runner import run_fast
 __all__ = ["main", "run"]
 
 SCENARIOS = ("single-husky", "huskies-bebop-joins", "full-team")
-CONDITIONS: tuple[str, ...] = ("none", "monitor", "jsonl", "mcap")
-if importlib.util.find_spec("foxglove") is not None:
-    CONDITIONS += ("foxglove",)
+CONDITIONS: tuple[str, ...] = ("none", "monitor", "jsonl", "mcap", "foxglove")
 
 
 def _timed(f: Callable[..., Any], spent: list[float]) -> Callable[..., Any]:

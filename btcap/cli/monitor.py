@@ -55,9 +55,13 @@ def add_monitor_option(p: argparse.ArgumentParser) -> None:
         type=parse_address,
         metavar="[HOST:]PORT",
         help="serve the monitor's channels to Foxglove or Lichtblick over the Foxglove "
-        "WebSocket protocol (loopback unless HOST is given; 0: a free port; needs "
-        "btcap[foxglove])",
+        "WebSocket protocol (loopback unless HOST is given; 0: a free port)",
     )
+
+
+#: Said when the Foxglove SDK cannot be imported (a broken install: btcap depends on it).
+_NO_SDK = ("--foxglove and MCAP recordings need the Foxglove SDK, a dependency of btcap: "
+           "pip install 'foxglove-sdk>=0.30,<0.31' ({})")  # fmt: skip
 
 
 @contextlib.asynccontextmanager
@@ -84,8 +88,7 @@ async def serving(
         )
         await monitor.start()
     except ImportError as exc:
-        raise CliError(f"--foxglove needs the Foxglove SDK: pip install 'btcap[foxglove]' "
-                       f"({exc})") from None  # fmt: skip
+        raise CliError(_NO_SDK.format(exc)) from None
     except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
         raise CliError(str(exc)) from None
     try:
@@ -133,7 +136,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         type=parse_address,
         metavar="[HOST:]PORT",
         help="also play it to Foxglove over its WebSocket protocol, as it plays on the page "
-        "(loopback unless a host is given; needs btcap[foxglove])",
+        "(loopback unless a host is given)",
     )
     p.add_argument("--speed", type=float, help="clock seconds per wall second")
     p.add_argument("--paused", action="store_true", help="start paused at the beginning")
@@ -234,8 +237,7 @@ def _foxglove(address: tuple[str, int]) -> FoxgloveLive:
     try:
         from btcap.monitor.foxlive import FoxgloveLive
     except ImportError as exc:
-        raise CliError(f"--foxglove needs the Foxglove SDK: pip install 'btcap[foxglove]' "
-                       f"({exc})") from None  # fmt: skip
+        raise CliError(_NO_SDK.format(exc)) from None
     if not is_loopback(address[0]):
         log = get_logger(__name__)
         log.warning("monitor.public", host=address[0], note="Foxglove: anyone sees the team")

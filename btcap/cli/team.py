@@ -182,10 +182,13 @@ def _until_stopped(
     return result[0]
 
 
-async def _monitor_imports(wanted: bool, *, serve: bool, foxglove: bool = False) -> None:
-    """Import the monitor (and its web server if it will ``serve``) in a worker thread
-    before the robot joins: it opens once the agent has (it needs the agent), and its
-    imports (aiohttp: a third of a second) would hold a member's event loop."""
+async def _monitor_imports(
+    wanted: bool, *, serve: bool, foxglove: bool = False, mcap: bool = False
+) -> None:
+    """Import the monitor (and its web server if it will ``serve``, the Foxglove SDK's
+    server or MCAP writer if it will serve ``foxglove`` or record ``mcap``) in a worker
+    thread before the robot joins: it opens once the agent has (it needs the agent), and
+    its imports (aiohttp: a third of a second) would hold a member's event loop."""
     if not wanted:
         return
     import importlib
@@ -193,7 +196,8 @@ async def _monitor_imports(wanted: bool, *, serve: bool, foxglove: bool = False)
     import anyio
 
     names = ["btcap.monitor.monitor", *(["btcap.monitor.server"] if serve else [])]
-    for name in names + (["btcap.monitor.foxlive"] if foxglove else []):
+    names += ["btcap.monitor.foxlive"] if foxglove else []
+    for name in names + (["btcap.monitor.mcaprecord"] if mcap else []):
         await anyio.to_thread.run_sync(importlib.import_module, name)
 
 
@@ -314,7 +318,8 @@ def _mission(args: argparse.Namespace) -> int:
     async def run() -> MissionReport:
         fox = args.foxglove is not None
         wanted = args.monitor is not None or args.record is not None or fox
-        await _monitor_imports(wanted, serve=args.monitor is not None, foxglove=fox)
+        mcap = args.record is not None and args.record.suffix.lower() == ".mcap"
+        await _monitor_imports(wanted, serve=args.monitor is not None, foxglove=fox, mcap=mcap)
         async with (
             open_agent(config, registry, robot=robot, missions=True) as agent,
             serving(

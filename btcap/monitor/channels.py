@@ -10,8 +10,8 @@ null is typed by its other type, and ``bids``, an array of ``[robot, cost]`` pai
 described but not listed among the properties: that reader takes no arrays of arrays.
 A simulation's ``map`` and ``world`` events are drawn as well, as Foxglove's 3D panel
 reads them (:mod:`btcap.monitor.scene`); the Foxglove schemas are in
-:mod:`btcap.monitor.foxschemas`. :func:`messages` is what a recording and the live
-Foxglove server both send for one event.
+:mod:`btcap.monitor.foxschemas`. :class:`Channels` says what a recording and the live
+Foxglove server both send for each event.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Any
 import msgspec
 
 from btcap.monitor.foxschemas import LOG, time_of
-from btcap.monitor.scene import OBJECT_COLORS, scene_messages
+from btcap.monitor.scene import OBJECT_COLORS, Scene
 from btcap.monitor.view import Event
 
 __all__ = [
@@ -29,9 +29,10 @@ __all__ = [
     "LOG_SCHEMA",
     "LOG_TOPIC",
     "OTHER_TOPIC",
+    "Channels",
     "event_schema",
     "log_line",
-    "messages",
+    "world_message",
 ]
 
 _STR = {"type": "string"}
@@ -165,10 +166,10 @@ EVENT_TOPICS: dict[str, tuple[str, dict[str, Any]]] = {
         "/btcap/world",
         _obj(
             "btcap.World",
-            "What changed in the simulated world, each part whole: robots' poses "
-            "([x, y] metres), robots' state and task, objects and their status.",
+            "What changed in the simulated world: the state and task of the robots whose "
+            "state or task changed, the objects whose status or place changed. Where the "
+            "robots are is on /tf (foxglove.FrameTransforms) only.",
             {
-                "poses": {"type": "object", "properties": {}, "additionalProperties": _XY},
                 "robots": {
                     "type": "object",
                     "properties": {},
@@ -208,7 +209,7 @@ LOG_TOPIC = "/log"
 LOG_SCHEMA: dict[str, Any] = LOG
 
 _INFO, _WARNING = 2, 3
-#: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:func:`messages`).
+#: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:meth:`Channels.messages`).
 _PICTURES = frozenset({"robot", "tree", "states"})
 _encode = msgspec.json.Encoder()
 
@@ -249,21 +250,49 @@ def log_line(ev: Event) -> tuple[int, str, str] | None:
     return None
 
 
-def messages(ev: Event) -> tuple[int, list[tuple[str, dict[str, Any], bytes]]]:
-    """What one event is sent as, at its clock time in nanoseconds: its typed channel,
-    its ``foxglove.Log`` line if it has one, and its drawing if it is of the world
-    (``(topic, schema, JSON)`` each)."""
-    ns = round(float(ev["t"]) * 1e9)
-    kind = ev["k"]
-    topic, schema = EVENT_TOPICS.get(kind, OTHER_TOPIC)
-    out = [(topic, schema, _encode.encode(ev))]
-    if kind in _PICTURES:  # most events (a tree's states): no line, no drawing
+class Channels:
+    """What a stream of monitor events is sent as, event by event (:meth:`messages`):
+    a recording and the live Foxglove server each keep one, since a world event holds
+    only what changed and its drawing is the whole picture so far (:class:`Scene`)."""
+
+    def __init__(self) -> None:
+        self.scene = Scene()
+
+    def messages(self, ev: Event) -> tuple[int, list[tuple[str, dict[str, Any], bytes]]]:
+        """What one event is sent as, at its clock time in nanoseconds: its typed
+        channel, its ``foxglove.Log`` line if it has one, and its drawing if it is of
+        the world (``(topic, schema, JSON)`` each). A world event's poses go on ``/tf``
+        alone (:func:`world_message` says what its typed channel holds)."""
+        t = ev["t"]
+        ns = round(float(t) * 1e9)
+        kind = ev["k"]
+        if kind in _PICTURES:  # most events (a tree's states): no line, no drawing
+            return ns, [(*EVENT_TOPICS[kind], _encode.encode(ev))]
+        if kind == "world":
+            data = world_message(ev, ns)
+            out = [] if data is None else [(*EVENT_TOPICS["world"], data)]
+            return ns, out + self.scene.draw(ev, ns)
+        topic, schema = EVENT_TOPICS.get(kind, OTHER_TOPIC)
+        out = [(topic, schema, _encode.encode(ev))]
+        line = log_line(ev)
+        if line is not None:
+            level, name, text = line
+            msg = {"timestamp": time_of(ns), "level": level, "message": text, "name": name,
+                   "file": "", "line": 0}  # fmt: skip
+            out.append((LOG_TOPIC, LOG_SCHEMA, _encode.encode(msg)))
+        if kind == "map":
+            out += self.scene.draw(ev, ns)
         return ns, out
-    line = log_line(ev)
-    if line is not None:
-        level, name, text = line
-        msg = {"timestamp": time_of(ns), "level": level, "message": text, "name": name,
-               "file": "", "line": 0}  # fmt: skip
-        out.append((LOG_TOPIC, LOG_SCHEMA, _encode.encode(msg)))
-    out += [(t, s, _encode.encode(m)) for t, s, m in scene_messages(ev, ns)]
-    return ns, out
+
+
+def world_message(ev: Event, ns: int) -> bytes | None:
+    """A world event on ``/btcap/world``: without its poses, which ``/tf`` holds (the
+    message right after it), and none at all for an event of poses alone if its time is
+    a whole number of nanoseconds (as on a virtual clock), which ``/tf`` then carries;
+    :func:`btcap.monitor.mcaprecord.read_mcap` puts the event back together."""
+    if "poses" not in ev:
+        return _encode.encode(ev)
+    t = ev["t"]
+    if len(ev) == 3 and isinstance(t, float) and ns / 1e9 == t:  # t, k and poses
+        return None
+    return _encode.encode({k: v for k, v in ev.items() if k != "poses"})

@@ -1,15 +1,16 @@
 """The monitor's channels live over the Foxglove WebSocket protocol (``--foxglove``).
 
-The Foxglove SDK (``pip install 'btcap[foxglove]'``, package ``foxglove-sdk``) serves
+The Foxglove SDK (package ``foxglove-sdk``, a dependency of btcap) serves
 them: its server runs on a thread of its own (Rust), and a message handed to it is queued
 there, so the event loop only encodes each batch's messages once, as the MCAP recorder
-does (:func:`btcap.monitor.channels.messages`: the same topics, schemas and bytes, the
+does (:class:`btcap.monitor.channels.Channels`: the same topics, schemas and bytes, the
 clock time as log time). Foxglove or Lichtblick connect to ``ws://HOST:PORT``.
 
 Every channel btcap knows is advertised at the start, so a client can subscribe before
 the run sends anything. A client that subscribes later is sent, on subscribing, the last
 message of each channel that is a picture rather than news (the map, the scene, the
-trees): Foxglove's 3D panel shows the world at once, not from the next change.
+trees; ``/tf`` and ``/btcap/world``, which hold what changed, as the whole picture so
+far): Foxglove's 3D panel shows the world at once, not from the next change.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import foxglove
 import msgspec
 from foxglove.websocket import ChannelView, Client, ServerListener
 
-from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, messages
+from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, Channels
 from btcap.monitor.scene import SCENE_TOPICS
 from btcap.monitor.view import Event
 
@@ -35,6 +36,7 @@ BACKLOG = 4096
 LATCHED = frozenset({*SCENE_TOPICS, "/btcap/map", "/btcap/world", "/btcap/robots"})
 
 _encode = msgspec.json.Encoder()
+WORLD_TOPIC = EVENT_TOPICS["world"][0]
 
 
 class _Listener(ServerListener):
@@ -56,13 +58,14 @@ class _Listener(ServerListener):
 
 class FoxgloveLive:
     """A Foxglove WebSocket server on ``host``:``port`` (0: a free one) sending every
-    batch of monitor events as :func:`~btcap.monitor.channels.messages`; call in the
-    event loop."""
+    batch of monitor events as :class:`~btcap.monitor.channels.Channels` does; call in
+    the event loop."""
 
     def __init__(self, host: str, port: int) -> None:
         self._context = foxglove.Context()
         self._channels: dict[str, foxglove.Channel] = {}
         self._last: dict[str, tuple[bytes, int]] = {}
+        self._encoder = Channels()
         self.lock = threading.Lock()
         self.subscriptions = 0  #: channels subscribed, over all clients (for tests)
         self.sent = 0  #: messages handed to the SDK
@@ -98,6 +101,7 @@ class FoxgloveLive:
     def write(self, batch: Iterable[Event]) -> None:
         if self._closed:
             return
+        messages = self._encoder.messages
         for ev in batch:
             ns, out = messages(ev)
             for topic, schema, data in out:
@@ -109,8 +113,16 @@ class FoxgloveLive:
     def resend(self, topic: str) -> None:
         """Send ``topic``'s last message again (a client subscribed to it)."""
         last = self._last.get(topic)
-        if last is not None and not self._closed:
-            self._channels[topic].log(last[0], log_time=last[1])
+        if last is None or self._closed:
+            return
+        data, ns = last
+        scene = self._encoder.scene
+        if topic == "/tf":  # every robot, not only those that moved last
+            data = scene.transforms(ns)
+        elif topic == WORLD_TOPIC:  # every robot and object, as last told
+            whole = {"t": ns / 1e9, "k": "world", "robots": scene.robots}
+            data = _encode.encode({**whole, "objects": list(scene.objects.values())})
+        self._channels[topic].log(data, log_time=ns)
 
     def close(self) -> None:
         if not self._closed:

@@ -1,32 +1,39 @@
 """MCAP recordings: the monitor's events on typed JSON channels, with ``foxglove.Log``
 lines, a simulation's world drawn for Foxglove's 3D panel and the run's metadata, for
-Foxglove, Lichtblick and ``btcap replay`` (:func:`btcap.monitor.channels.messages`).
+Foxglove, Lichtblick and ``btcap replay`` (:class:`btcap.monitor.channels.Channels`).
 
-The log time of a message is its event's clock time (virtual in ``--fast`` runs), and
-its sequence number is its place in the event stream, so a replay reads the events back
-in exactly the order the JSON Lines recorder wrote them, and two runs of a deterministic
-simulation write the same bytes. Chunks are zstd-compressed; the file is flushed after
-every batch; a chunk is written when it holds 256 KiB or spans 60 s of the clock, so a run
-that is killed leaves a file readable up to its last whole chunk.
+Written by the Foxglove SDK's MCAP writer (Rust; ``foxglove-sdk``), which takes a
+message for a third of what the ``mcap`` library's Python writer did. The log time of a
+message is its event's clock time (virtual in ``--fast`` runs), the messages are in the
+file in the order of the event stream, and nothing in the file comes from the wall
+clock, so two runs of a deterministic simulation write the same bytes and a replay reads
+the events back in the order the JSON Lines recorder wrote them. Chunks are
+zstd-compressed (in the calling thread: the same bytes every time); a chunk is closed
+when it holds 256 KiB or spans 60 s of the clock, and is then in the file whole (the
+writer seeks back to fill in its length, which empties the writer's own buffer into the
+file, opened unbuffered), so a run that is killed leaves a file readable up to its last
+whole chunk.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import struct
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+import foxglove
 import msgspec
 import zstandard
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from mcap.exceptions import InvalidMagic, McapError
 from mcap.records import Channel, Message, Metadata
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
 
 import btcap
-from btcap.monitor.channels import LOG_TOPIC, messages
+from btcap.monitor.channels import EVENT_TOPICS, LOG_TOPIC, Channels
 from btcap.monitor.view import Event
 from btcap.transports.log import get_logger
 
@@ -42,9 +49,27 @@ CHUNK_S = 60.0
 #: The MCAP metadata record that holds the run's settings (scenario, seed, ...).
 METADATA_NAME = "btcap"
 PROFILE = ""  # no ROS: JSON channels
+_WORLD = EVENT_TOPICS["world"][0]
 
 _encode = msgspec.json.Encoder()
 _decode = msgspec.json.Decoder(dict[str, Any])
+
+
+class _File(io.FileIO):
+    """The file the SDK's writer writes to, unbuffered: each write reaches the system at
+    once. The first failure (a full disk) is kept and every write after it dropped, and
+    the writer is told they went well: the recorder says it once (the SDK would warn at
+    every message after it)."""
+
+    error: OSError | None = None
+
+    def write(self, data: Any, /) -> int:
+        if self.error is None:
+            try:
+                return super().write(data)
+            except OSError as exc:
+                self.error = exc
+        return len(data)
 
 
 class McapRecorder:
@@ -61,97 +86,110 @@ class McapRecorder:
     ) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
-        self.failed: str | None = None
-        self._file = path.open("wb")
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
-        self._writer.start(PROFILE, f"btcap {btcap.__version__}")
+        self.failed: str | None = None  # why the recording stopped early, once it did
+        self._file = _File(path, "w")
+        self._context = foxglove.Context()
+        options = MCAPWriteOptions(
+            compression=MCAPCompression.Zstd,
+            profile=PROFILE,
+            chunk_size=chunk_size,
+            compression_threads=0,  # zstd in this thread: no worker, the same bytes
+        )
+        self._closed = self._said = False
+        self._writer = foxglove.open_mcap(self._file, context=self._context, writer_options=options)
         meta = {"btcap_version": btcap.__version__, **(metadata or {})}
-        self._writer.add_metadata(METADATA_NAME, dict(sorted(meta.items())))
-        self._channels: dict[str, int] = {}
-        self._sequence = 0
+        self._writer.write_metadata(METADATA_NAME, dict(sorted(meta.items())))
+        self._log: dict[str, Callable[[bytes, int], None]] = {}  # topic -> its channel's log
+        self._messages = Channels().messages
         self._chunk_s = chunk_s
         self._chunk_t: float | None = None  # clock time of the open chunk's first event
-        self._closed = False
-        try:
-            self._file.flush()
-        except OSError:
+        if self._file.error is not None:  # the header: a recording that cannot start
+            error = self._file.error
             self._failed_start()
-            raise
+            raise error
 
-    def _channel(self, topic: str, schema: dict[str, Any]) -> int:
-        cid = self._channels.get(topic)
-        if cid is None:
-            sid = self._writer.register_schema(
-                schema["title"], "jsonschema", _encode.encode(schema)
+    def _channel(self, topic: str, schema: dict[str, Any]) -> Callable[[bytes, int], None]:
+        log_ = self._log.get(topic)
+        if log_ is None:
+            sdk_schema = foxglove.Schema(
+                name=schema["title"], encoding="jsonschema", data=_encode.encode(schema)
             )
-            cid = self._channels[topic] = self._writer.register_channel(topic, "json", sid)
-        return cid
+            channel = foxglove.Channel(
+                topic, schema=sdk_schema, message_encoding="json", context=self._context
+            )
+            log_ = self._log[topic] = channel.base.log
+        return log_
 
     def write(self, batch: Iterable[Event]) -> None:
         if self._closed:
             return
-        try:
-            self._add(batch)
-            self._file.flush()
-        except OSError as exc:
-            self._failed(exc)
+        self._add(batch)
+        if self._file.error is not None:
+            self._failed(self._file.error)
 
     def _add(self, batch: Iterable[Event]) -> None:
         # one loop over the batch, names bound once: a run writes thousands of messages
-        writer, channels, sequence = self._writer, self._channels, self._sequence
-        add = writer.add_message
-        try:
-            for ev in batch:
-                t = float(ev["t"])
-                if self._chunk_t is None:
-                    self._chunk_t = t
-                elif t >= self._chunk_t + self._chunk_s:  # by the clock: the same every run
-                    writer.flush()  # type: ignore[no-untyped-call]
-                    self._chunk_t = t
-                ns, out = messages(ev)
-                sequence += 1
-                for topic, schema, data in out:
-                    cid = channels.get(topic)
-                    if cid is None:
-                        cid = self._channel(topic, schema)
-                    add(cid, ns, data, ns, sequence)
-        finally:
-            self._sequence = sequence
+        logs, messages = self._log, self._messages
+        for ev in batch:
+            t = float(ev["t"])
+            if self._chunk_t is None:
+                self._chunk_t = t
+            elif t >= self._chunk_t + self._chunk_s:  # by the clock: the same every run
+                self._writer.flush()  # closes the chunk
+                self._chunk_t = t
+            ns, out = messages(ev)
+            for topic, schema, data in out:
+                log_ = logs.get(topic)
+                if log_ is None:
+                    log_ = self._channel(topic, schema)
+                log_(data, ns)
 
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
+        with contextlib.suppress(RuntimeError):  # a failed file: said below
+            self._writer.close()
+        error = self._file.error
         try:
-            self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.close()
         except OSError as exc:
-            self._failed(exc)
+            error = error or exc
+        if error is not None:
+            self._failed(error)
 
     def _failed_start(self) -> None:
-        """The header could not be written: the file is closed, what it buffered dropped."""
+        """The header could not be written: the writer and the file are closed."""
+        self._closed = self._said = True
+        with contextlib.suppress(RuntimeError):  # the SDK's error: the file failed
+            self._writer.close()
         with contextlib.suppress(OSError):
-            self._file.close()  # (flushes again and fails, but closes)
-        with contextlib.suppress(OSError):
-            self._file.raw.close()
+            self._file.close()
 
     def _failed(self, exc: OSError) -> None:
         """A full disk ends the recording (said once), never the monitor or the robot."""
-        self._closed = True
+        if self._said:
+            return
+        self._said = self._closed = True
         self.failed = exc.strerror or str(exc)
         log.error("monitor.record_failed", path=str(self.path), error=self.failed)
+        with contextlib.suppress(RuntimeError):  # the SDK's error: the file failed
+            self._writer.close()
         with contextlib.suppress(OSError):
             self._file.close()
 
 
 def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
-    """The monitor events of an MCAP recording in their order, and its ``btcap``
-    metadata. A file cut short (a killed run) is read up to its last whole chunk; a file
-    that is not MCAP raises :class:`ValueError` naming what is wrong."""
+    """The monitor events of an MCAP recording in their order (the file's), and its
+    ``btcap`` metadata. A world event's poses are read from ``/tf`` (see
+    :func:`btcap.monitor.channels.world_message`). A file cut short (a killed run) is read
+    up to its last whole chunk; a file that is not MCAP raises :class:`ValueError` naming
+    what is wrong."""
     topics: dict[int, str] = {}
-    found: list[tuple[int, bytes]] = []
+    found: list[tuple[str, bytes, int, bool]] = []  # topic, JSON, log time, after the world
     meta: dict[str, str] = {}
     header = False  # a whole record was read: an MCAP file, perhaps cut short
+    last = ""  # the topic of the message before
     with path.open("rb") as f:
         reader = StreamReader(f, record_size_limit=1 << 30)
         try:
@@ -160,8 +198,10 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
                 if isinstance(record, Channel):
                     topics[record.id] = record.topic
                 elif isinstance(record, Message):
-                    if topics.get(record.channel_id, LOG_TOPIC).startswith("/btcap/"):
-                        found.append((record.sequence, record.data))
+                    topic = topics.get(record.channel_id, LOG_TOPIC)
+                    if topic.startswith("/btcap/") or topic == "/tf":
+                        found.append((topic, record.data, record.log_time, last == _WORLD))
+                    last = topic
                 elif isinstance(record, Metadata) and record.name == METADATA_NAME:
                     meta = dict(record.metadata)
         except InvalidMagic:
@@ -170,11 +210,23 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
             # a record cut short (a killed run): what came before it stands, if anything
             if not header:
                 raise ValueError(f"not a readable MCAP file ({exc!r})") from None
-    found.sort(key=lambda m: m[0])
-    events = []
-    for sequence, data in found:
+    events: list[Event] = []
+    for number, (topic, data, ns, after_world) in enumerate(found, 1):
         try:
-            events.append(_decode.decode(data))
+            msg = _decode.decode(data)
+            if topic != "/tf":
+                events.append(msg)
+                continue
+            poses = {
+                tf["child_frame_id"]: [tf["translation"]["x"], tf["translation"]["y"]]
+                for tf in msg["transforms"]
+            }
         except msgspec.DecodeError as exc:
-            raise ValueError(f"message {sequence}: not a JSON object ({exc})") from None
+            raise ValueError(f"message {number}: not a JSON object ({exc})") from None
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"message {number} on /tf: no transform ({exc!r})") from None
+        if after_world and events and events[-1].get("k") == "world":
+            events[-1]["poses"] = poses  # the world event of the message before
+        else:
+            events.append({"t": ns / 1e9, "k": "world", "poses": poses})
     return events, meta

@@ -1,6 +1,6 @@
 """Writes btcap.json beside this file: a Foxglove layout for btcap recordings and the
 live ``--foxglove`` server, made with the Foxglove SDK's layout API
-(``pip install 'btcap[foxglove]'``; ``python examples/foxglove/make_layout.py``).
+(installed with btcap; ``python examples/foxglove/make_layout.py``).
 
 Panels: the 3D panel (the map, the robots with their labels, the objects and the
 decontamination area, seen from above, centred on the default 120 x 80 m cave), the Log

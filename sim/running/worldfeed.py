@@ -3,13 +3,15 @@
 A monitor samples :meth:`WorldFeed.sample` at every batch (every simulation step on a
 virtual clock), so a recording holds what every robot was doing and what became of every
 object step by step, and the same bytes in every ``--fast`` run of a seed. Each part
-(poses, robots' state and task, objects) is sent whole when it changed and not at all
-otherwise: robots that stand still cost nothing. Poses, the bulk of a recording (robots
-drive most of a mission), are sent at most once per ``pose_every_s`` clock seconds
-(:data:`POSE_EVERY_S`), and at once with a change of a robot's state or task or of an
-object, and by :meth:`WorldFeed.last` at the end: a robot then hops a few cells at a
-time in Foxglove (which draws the latest pose, it interpolates nothing), but stands
-where it was whenever it starts or ends a task. The events' shapes and how Foxglove
+(poses, robots' state and task, objects) holds only the robots or objects that changed
+since it was last sent, and is left out when none did: robots that stand still and
+objects nobody touched cost nothing (the first event holds every one; a reader adds each
+event to what it had, as :class:`btcap.monitor.scene.Scene` does). Poses, the bulk of a
+recording (robots drive most of a mission), are sent at most once per ``pose_every_s``
+clock seconds (:data:`POSE_EVERY_S`), and at once with a change of a robot's state or
+task or of an object, and by :meth:`WorldFeed.last` at the end: a robot then hops a few
+cells at a time in Foxglove (which draws the latest pose, it interpolates nothing), but
+stands where it was whenever it starts or ends a task. The events' shapes and how Foxglove
 draws them are in :mod:`btcap.monitor.scene`.
 """
 
@@ -54,6 +56,7 @@ class WorldFeed:
         self._objects: list[tuple[Any, ...]] | None = None
         self._changes = -1  # the state's count of object changes when last compared
         self._poses: bytes | None = None
+        self._cells: dict[str, list[int]] = {}  # each robot's cell as its pose was last sent
 
     def _xy(self, row: int, col: int) -> list[float]:
         """A cell's centre in the ``map`` frame (x along columns, y up from the last row)."""
@@ -82,8 +85,9 @@ class WorldFeed:
         return self._sample(final=False)
 
     def last(self) -> Event | None:
-        """:meth:`sample` once more at the end, poses whatever their rate: the final
-        picture is exact."""
+        """:meth:`sample` once more at the end, poses whatever their rate, and every
+        robot's state and task: the final picture is exact, and a timeline of each
+        robot's task (Foxglove's State Transitions panel) runs to the end."""
         return self._sample(final=True)
 
     def _sample(self, *, final: bool) -> Event | None:
@@ -94,39 +98,58 @@ class WorldFeed:
         robots = [
             (r.up, id(r.busy[-1].event) if r.busy else id(r.move_event)) for r in m.robots.values()
         ]
-        if robots != self._robots:
-            self._robots = robots
-            ev = {"t": now, "k": "world", "robots": self._part("robots")}
+        if robots != self._robots or final:  # at the end every robot: lanes run to it
+            last, self._robots = self._robots, robots
+            changed = self._changed_robots(robots, None if final else last)
+            ev = {"t": now, "k": "world", "robots": changed}
         changes = m.state.changes  # objects change through the state's methods only
         if changes != self._changes:
             self._changes = changes
             objects = list(map(_OBJECT_KEY, m.state.objects))
             if objects != self._objects:
-                self._objects = objects
+                last_objects, self._objects = self._objects, objects
                 if ev is None:
                     ev = {"t": now, "k": "world"}
-                ev["objects"] = self._part("objects")
+                was = last_objects or []
+                ev["objects"] = [
+                    self._object(o)
+                    for i, (o, key) in enumerate(zip(m.state.objects, objects, strict=True))
+                    if i >= len(was) or key != was[i]
+                ]
         if final or ev is not None or now >= self._pose_t + self.pose_every_s:
             where = m.cells.tobytes()
             if self._poses != where:
                 self._poses = where
-                self._pose_t = now
-                if ev is None:
-                    ev = {"t": now, "k": "world"}
-                ev["poses"] = self._part("poses")
+                moved = self._moved()
+                if moved:
+                    self._pose_t = now
+                    if ev is None:
+                        ev = {"t": now, "k": "world"}
+                    ev["poses"] = moved
         return ev
 
-    def _part(self, part: str) -> Any:
+    def _changed_robots(
+        self, keys: list[tuple[bool, int]], last: list[tuple[bool, int]] | None
+    ) -> dict[str, dict[str, Any]]:
+        """The robots whose key differs from ``last`` (all of them at first)."""
+        return {
+            name: {"up": r.up, "task": _task(r.busy, r.move_event)}
+            for i, (name, r) in enumerate(self.manager.robots.items())
+            if last is None or i >= len(last) or keys[i] != last[i]
+        }
+
+    def _moved(self) -> dict[str, list[float]]:
+        """The poses of the robots whose cell differs from the last poses sent."""
         m = self.manager
-        if part == "poses":
-            cells = m.cells.tolist()
-            return {name: self._xy(*cells[r.index]) for name, r in m.robots.items()}
-        if part == "robots":
-            return {
-                name: {"up": r.up, "task": _task(r.busy, r.move_event)}
-                for name, r in m.robots.items()
-            }
-        return [self._object(o) for o in m.state.objects]
+        cells = m.cells.tolist()
+        sent = self._cells
+        moved = {}
+        for name, r in m.robots.items():
+            cell = cells[r.index]
+            if sent.get(name) != cell:
+                sent[name] = cell
+                moved[name] = self._xy(*cell)
+        return moved
 
     def _object(self, o: SimObject) -> dict[str, Any]:
         if o.decontaminated:

@@ -22,7 +22,6 @@ from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.running.runner import run_fast
 
 websockets = pytest.importorskip("websockets")
-pytest.importorskip("foxglove")
 
 SMALL = Path(__file__).parents[2] / "sim" / "data" / "small.yaml"
 #: The SDK's server (foxglove-sdk 0.30) speaks the Foxglove WebSocket protocol under this
@@ -33,8 +32,11 @@ _MESSAGE_DATA = 1  # a binary frame's opcode
 ADVERTISED = len(EVENT_TOPICS) + 1 + len(SCENE_TOPICS)
 
 
-async def _watch(ws: object, topics: dict[int, str], got: Counter[str]) -> None:
-    """Subscribe to every channel advertised; count the messages of each."""
+async def _watch(
+    ws: object, topics: dict[int, str], got: Counter[str], kept: dict[str, bytes] | None = None
+) -> None:
+    """Subscribe to every channel advertised; count the messages of each (and keep the
+    first of each in ``kept``)."""
     async for frame in ws:  # type: ignore[attr-defined]
         if isinstance(frame, str):
             msg = json.loads(frame)
@@ -48,6 +50,8 @@ async def _watch(ws: object, topics: dict[int, str], got: Counter[str]) -> None:
         elif frame[0] == _MESSAGE_DATA:
             (sub,) = struct.unpack_from("<I", frame, 1)
             got[topics[sub]] += 1
+            if kept is not None:
+                kept.setdefault(topics[sub], frame[13:])  # after the subscription, the time
 
 
 @pytest.mark.slow
@@ -85,6 +89,37 @@ async def test_a_client_receives_every_channel_during_a_run(tmp_path: Path) -> N
     }
     assert set(topics.values()) == set(recorded)  # advertised up front: every channel
     assert dict(got) == recorded  # before the run's end: the monitor still served
+
+
+@pytest.mark.slow
+async def test_a_client_that_comes_late_is_sent_the_whole_picture() -> None:
+    """/tf and /btcap/world hold what changed; a client that subscribes after the run
+    is sent every robot's pose and every robot and object, not the last change alone."""
+    kept: dict[str, bytes] = {}
+    scenario = load_scenario(SMALL)
+    with anyio.fail_after(60):
+        async with Monitor(port=None, foxglove=("127.0.0.1", 0)) as monitor:
+            await run_fast(scenario, monitor=monitor)
+            monitor.flush()
+            async with (
+                websockets.connect(
+                    f"ws://127.0.0.1:{monitor.live.port}", subprotocols=[SUBPROTOCOL]
+                ) as ws,
+                anyio.create_task_group() as tg,
+            ):
+                tg.start_soon(_watch, ws, {}, Counter(), kept)
+                while not {"/tf", "/btcap/world", "/scene/objects"} <= set(kept):  # noqa: ASYNC110 - frames on the socket, no event to wait on
+                    await anyio.sleep(0.01)
+                tg.cancel_scope.cancel()
+    robots = {r.name for r in scenario.robots}
+    tf = json.loads(kept["/tf"])
+    assert {t["child_frame_id"] for t in tf["transforms"]} == robots
+    world = json.loads(kept["/btcap/world"])
+    assert set(world["robots"]) == robots
+    drawn = json.loads(kept["/scene/objects"])["entities"]
+    assert sorted(o["id"] for o in world["objects"]) == sorted(
+        int(e["id"].split("/")[1]) for e in drawn
+    )
 
 
 @pytest.mark.slow

@@ -6,6 +6,8 @@ still readable up to its last whole chunk."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -50,6 +52,28 @@ def _messages(path: Path) -> tuple[Any, list[tuple[str, dict[str, Any]]]]:
     return summary, msgs
 
 
+def _typed(events: list[dict[str, Any]], kind: str | None = None) -> list[dict[str, Any]]:
+    """The events (of ``kind``) as their typed channel holds them: world events without
+    their poses, and none of poses alone."""
+    out = []
+    for ev in events:
+        if kind is not None and ev["k"] != kind:
+            continue
+        if ev["k"] == "world":
+            ev = {k: v for k, v in ev.items() if k != "poses"}
+            if len(ev) == 2:
+                continue
+        out.append(ev)
+    return out
+
+
+def _poses(tf: dict[str, Any]) -> dict[str, list[float]]:
+    return {
+        t["child_frame_id"]: [t["translation"]["x"], t["translation"]["y"]]
+        for t in tf["transforms"]
+    }
+
+
 @pytest.mark.slow
 def test_channels_have_their_schemas_and_the_jsonl_events(runs: dict[str, Path]) -> None:
     summary, msgs = _messages(runs["one.mcap"])
@@ -67,9 +91,13 @@ def test_channels_have_their_schemas_and_the_jsonl_events(runs: dict[str, Path])
             kind = next(k for k, (topic, _) in EVENT_TOPICS.items() if topic == ch.topic)
             assert schema.name == EVENT_TOPICS[kind][1]["title"]
             assert json.loads(schema.data)["title"] == schema.name
-            assert summary.statistics.channel_message_counts[ch.id] == kinds[kind]
+            assert summary.statistics.channel_message_counts[ch.id] == len(_typed(jsonl, kind))
+    # each /btcap/ message is its event as the JSON Lines recording has it, but a world
+    # event's poses, which are on /tf alone (an event of poses alone is /tf alone)
     events = [m for topic, m in msgs if topic.startswith("/btcap/")]
-    assert sorted(map(json.dumps, events)) == sorted(map(json.dumps, jsonl))
+    assert sorted(map(json.dumps, events)) == sorted(map(json.dumps, _typed(jsonl)))
+    poses = [ev["poses"] for ev in jsonl if "poses" in ev]
+    assert [_poses(m) for topic, m in msgs if topic == "/tf"] == poses
     assert read_record(runs["one.mcap"]) == jsonl  # in the stream's order, not by time
     # a chunk at least every 60 s of clock: a crash loses at most a minute of a live run
     assert summary.statistics.chunk_count >= jsonl[-1]["t"] // 60
@@ -133,6 +161,55 @@ def test_a_file_cut_short_is_read_up_to_its_last_whole_chunk(
         assert got == events[: len(got)]
         seen.append(len(got))
     assert seen[0] >= seen[1] >= seen[2] > 0
+
+
+_FILLS_UP = """
+import json, resource, signal, sys
+from pathlib import Path
+from structlog.testing import capture_logs
+from btcap.monitor.mcaprecord import McapRecorder
+from btcap.monitor.record import read_record
+
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails: EFBIG
+events = read_record(Path(sys.argv[1]))
+resource.setrlimit(resource.RLIMIT_FSIZE, (16384, 16384))  # the disk fills mid-run
+with capture_logs() as logs:
+    recorder = McapRecorder(Path(sys.argv[2]), {"scenario": "small"}, chunk_size=4096)
+    for i in range(0, len(events), 10):
+        recorder.write(events[i : i + 10])
+    recorder.close()
+print(json.dumps({"logs": [e for e in logs if e["event"] == "monitor.record_failed"],
+                  "failed": recorder.failed}))
+"""
+
+
+def test_a_full_disk_ends_an_mcap_recording_said_once(
+    runs: dict[str, Path], tmp_path: Path
+) -> None:
+    """The SDK's writer is told its writes went well once one failed: the recorder says
+    it once and stops, the SDK warns at no message after it, nothing is raised. (In a
+    process of its own, whose files may grow to 16 KiB: the disk fills mid-run.)"""
+    out = tmp_path / "run.mcap"
+    done = subprocess.run(
+        [sys.executable, "-c", _FILLS_UP, str(runs["run.jsonl"]), str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    said = json.loads(done.stdout)
+    assert [e["path"] for e in said["logs"]] == [str(out)], said
+    assert said["failed"] == "File too large", said
+    assert "foxglove" not in done.stderr.lower(), done.stderr  # no warning per message
+    assert 0 < out.stat().st_size <= 16384
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (a full disk)")
+def test_an_mcap_recording_that_cannot_start_raises_and_leaves_nothing_open() -> None:
+    with pytest.raises(OSError, match="No space left"):
+        McapRecorder(Path("/dev/full"), {"scenario": "small"})
 
 
 def test_a_file_that_is_not_mcap_is_refused_naming_it(tmp_path: Path) -> None:

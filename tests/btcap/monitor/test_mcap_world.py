@@ -19,7 +19,7 @@ from mcap.reader import make_reader
 from btcap.monitor import Monitor
 from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
-from btcap.monitor.scene import SCENE_TOPICS, scene_messages
+from btcap.monitor.scene import SCENE_TOPICS, Scene, map_messages
 from btcap.sim.mission.scenario import load_scenario
 from btcap.sim.running import worldfeed
 from btcap.sim.running.metrics import MissionResult
@@ -118,9 +118,12 @@ def test_the_world_is_drawn_in_foxglove_schemas(
              for j in range(len(rows[0]))]  # fmt: skip
     assert walls == [ch == "#" for row in reversed(rows) for ch in row]
     robots = {r.name for r in load_scenario(SMALL).robots}
+    frames = [{tf["child_frame_id"] for tf in m["transforms"]} for t, m in msgs if t == "/tf"]
+    assert frames[0] == robots  # every robot at first, then those that moved
+    assert all(f and f <= robots for f in frames)
+    assert sum(map(len, frames)) < len(frames) * len(robots)
     for t, m in msgs:
         if t == "/tf":
-            assert {tf["child_frame_id"] for tf in m["transforms"]} == robots
             for tf in m["transforms"]:
                 x, y = tf["translation"]["x"], tf["translation"]["y"]
                 assert rows[len(rows) - 1 - int(y // cell)][int(x // cell)] != "#"
@@ -145,7 +148,7 @@ def test_a_map_is_drawn_upside_up() -> None:
     """Row 0 of the map file is the top of the picture: the grid's last row."""
     ev = {"t": 2.5, "k": "map", "rows": ["#.", ".:"], "cell_m": 0.5,
           "start": [0.25, 0.25], "decon": [0.75, 0.75]}  # fmt: skip
-    (t1, _, grid), (t2, _, areas) = scene_messages(ev, 2_500_000_000)
+    (t1, _, grid), (t2, _, areas) = map_messages(ev, 2_500_000_000)
     assert (t1, t2) == ("/map", "/scene/areas")
     assert grid["timestamp"] == {"sec": 2, "nsec": 500_000_000}
     pixels = base64.b64decode(grid["data"])
@@ -153,6 +156,65 @@ def test_a_map_is_drawn_upside_up() -> None:
     assert grid["cell_size"] == {"x": 0.5, "y": 0.5}
     assert grid["column_count"] == 2
     assert [e["id"] for e in areas["entities"]] == ["decon", "start"]
+
+
+def test_the_scene_is_drawn_whole_from_what_changed() -> None:
+    """World events hold only the robots and objects that changed; each /scene message
+    is still the whole picture (Foxglove draws a topic's last message alone after a
+    seek), the same bytes as one drawn from a single event holding everything."""
+    a, b = {"up": True, "task": "idle"}, {"up": True, "task": "explore"}
+    o1 = {"id": 1, "x": 1.5, "y": 2.5, "status": "hidden", "by": None}
+    o2 = {"id": 2, "x": 3.5, "y": 0.5, "status": "found", "by": None}
+    scene = Scene()
+    scene.draw({"t": 1.0, "k": "world", "robots": {"r1": a, "r2": a}, "objects": [o1, o2],
+                "poses": {"r1": [0.5, 0.5], "r2": [1.5, 0.5]}}, 1_000_000_000)  # fmt: skip
+    carried = {**o1, "status": "carried", "by": "r2"}
+    drawn = scene.draw({"t": 2.0, "k": "world", "robots": {"r2": b}, "objects": [carried],
+                        "poses": {"r2": [2.5, 0.5]}}, 2_000_000_000)  # fmt: skip
+    whole = Scene().draw({"t": 2.0, "k": "world", "robots": {"r1": a, "r2": b},
+                          "objects": [carried, o2]}, 2_000_000_000)  # fmt: skip
+    assert [t for t, _, _ in drawn] == ["/tf", "/scene/robots", "/scene/objects"]
+    assert drawn[1:] == whole
+    (tf,) = [json.loads(data) for t, _, data in drawn if t == "/tf"]
+    assert [f["child_frame_id"] for f in tf["transforms"]] == ["r2"]  # the robot that moved
+    assert json.loads(scene.transforms(3_000_000_000))["transforms"][0]["translation"] == {
+        "x": 0.5, "y": 0.5, "z": 0.0}  # fmt: skip
+    assert scene.robots == {"r1": a, "r2": b}
+    # a robot's entity is kept as JSON parts around its task and label: any text fits
+    odd = {"up": False, "task": 'move "to" (1, 2)\n\u00e9'}
+    (_, _, data), *_ = Scene().draw({"t": 0.0, "k": "world", "robots": {"r\u00e9": odd}}, 0)
+    (entity,) = json.loads(data)["entities"]
+    assert entity["frame_id"] == "r\u00e9"
+    assert entity["texts"][0]["text"] == f"r\u00e9 (down)\n{odd['task']}"
+    assert entity["metadata"] == [{"key": "state", "value": "down"},
+                                  {"key": "task", "value": odd["task"]}]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_world_events_hold_only_what_changed(
+    recorded: tuple[Path, Path, MissionResult],
+) -> None:
+    """The first world event holds every robot, object and pose; each later one only
+    those that changed since they were last sent."""
+    worlds = [ev for ev in read_record(recorded[1]) if ev["k"] == "world"]
+    robots = {r.name for r in load_scenario(SMALL).robots}
+    first = {part: next(ev[part] for ev in worlds if part in ev) for part in
+             ("robots", "objects", "poses")}  # fmt: skip
+    assert set(first["robots"]) == set(first["poses"]) == robots
+    last: dict[str, dict[Any, Any]] = {"objects": {}, "poses": {}}
+    sent = {"objects": 0, "poses": 0}
+    for ev in worlds:
+        for o in ev.get("objects", []):
+            assert last["objects"].get(o["id"]) != o  # only objects that changed
+            last["objects"][o["id"]] = o
+            sent["objects"] += 1
+        for robot, xy in ev.get("poses", {}).items():
+            assert last["poses"].get(robot) != xy  # only robots that moved
+            last["poses"][robot] = xy
+            sent["poses"] += 1
+    with_objects = sum("objects" in ev for ev in worlds)
+    assert sent["objects"] < with_objects * len(first["objects"])
+    assert sent["poses"] < sum("poses" in ev for ev in worlds) * len(robots)
 
 
 @pytest.mark.slow
@@ -174,9 +236,20 @@ def test_poses_are_thinned_out_and_end_exact(
     anyio.run(_record, tmp_path / "every.jsonl")
     every = [ev for ev in read_record(tmp_path / "every.jsonl") if "poses" in ev]
     assert len(every) > len(poses)
-    assert every[-1]["poses"] == poses[-1]["poses"]
-    for ev in poses:  # the same run: where the robots were then, as every step has it
-        assert [e for e in every if e["t"] <= ev["t"]][-1]["poses"] == ev["poses"]
+    # each event holds the robots that moved: added up, where all of them were then
+    seen, seen_every = _poses_so_far(poses), _poses_so_far(every)
+    assert seen_every[-1][1] == seen[-1][1]
+    for t, where in seen:  # the same run: where the robots were then, as every step has it
+        assert [w for u, w in seen_every if u <= t][-1] == where
+
+
+def _poses_so_far(events: list[dict[str, Any]]) -> list[tuple[float, dict[str, Any]]]:
+    so_far: dict[str, Any] = {}
+    out = []
+    for ev in events:
+        so_far.update(ev["poses"])
+        out.append((ev["t"], dict(so_far)))
+    return out
 
 
 @pytest.mark.slow
