@@ -6,6 +6,7 @@ same result, so each finding is checked on several seeds, in seconds of wall tim
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -13,7 +14,7 @@ from typing import Any
 import anyio
 import msgspec
 import pytest
-from sidemissions import SideMissions
+from sidework import SideWork, run_mission
 
 import btcap.sim.running.hosts
 import btcap.sim.running.runner
@@ -42,11 +43,11 @@ RUN_S = 30 * MISSION_CPU_S
 
 Key = tuple[str, int, bool]  # (scenario, seed, reevaluate)
 _results: dict[Key, MissionResult] = {}
-_side: SideMissions | None = None
+_side = SideWork()
 
 #: The shipped scenarios' runs each test reads through :func:`mission`, in the order
 #: the tests read them: those of the selected tests are computed ahead on a worker
-#: process (tests/sidemissions.py) while this one makes the tests' own variants. A run
+#: process (tests/sidework.py) while this one makes the tests' own variants. A run
 #: missing here is made in this process when asked for: this list only saves time.
 READS: dict[str, list[Key]] = {
     "test_a_single_husky_starts_the_cheapest_available_task": [
@@ -72,21 +73,19 @@ READS: dict[str, list[Key]] = {
 
 @pytest.fixture(scope="module", autouse=True)
 def _side_missions(request: pytest.FixtureRequest) -> Iterator[None]:
-    global _side
     mine = {
         getattr(item, "originalname", "")
         for item in request.session.items
         if getattr(item, "module", None) is request.module
     }
     keys = dict.fromkeys(k for test, ks in READS.items() if test in mine for k in ks)
-    _side = SideMissions(
-        (k, scenario(k[0], k[1], reevaluate=k[2])) for k in keys if k not in _results
-    )
+    for k in keys:
+        if k not in _results:
+            _side.submit(k, run_mission, scenario(k[0], k[1], reevaluate=k[2]))
     try:
         yield
     finally:
         _side.close()
-        _side = None
 
 
 def scenario(name: str, seed: int, *, reevaluate: bool = True) -> Scenario:
@@ -101,10 +100,11 @@ async def mission(name: str, seed: int, *, reevaluate: bool = True) -> MissionRe
     key = (name, seed, reevaluate)
     if key not in _results:
         with anyio.fail_after(RUN_S):
-            made = await _side.take(key) if _side is not None else None
-            if made is None:
-                made = await run_fast(scenario(name, seed, reevaluate=reevaluate))
-            _results[key] = made
+            ahead = _side.take(key)
+            if ahead is not None:
+                _results[key] = await asyncio.wrap_future(ahead)
+            else:
+                _results[key] = await run_fast(scenario(name, seed, reevaluate=reevaluate))
     return _results[key]
 
 

@@ -1,0 +1,56 @@
+"""Deterministic work computed ahead on one worker process while the suite goes on.
+
+A fast mission (``run_fast``) or a fault-simulator seed (``run_plan``) is deterministic:
+its result does not depend on the process, the hash seed or the machine's load
+(tests/sim/running/test_mission_run.py, tests/sim/running/test_cli_run.py and
+tests/sim/faults/test_simtest.py check it). A module whose tests read many such results
+may have some computed on the machine's second core while its own process computes the
+others. Only wall time changes: each result is the one this process would compute (the
+same function, the same environment, ``BTCAP_DEBUG`` included).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import multiprocessing
+from collections.abc import Callable, Hashable
+from concurrent.futures import Future, ProcessPoolExecutor
+from typing import Any
+
+from btcap.sim.mission.scenario import Scenario
+from btcap.sim.running.metrics import MissionResult
+
+__all__ = ["SideWork", "run_mission"]
+
+
+def run_mission(scenario: Scenario) -> MissionResult:
+    """One fast mission, in the worker (importable there: ``tests`` is on its path)."""
+    from btcap.sim.running.runner import run_fast
+
+    return asyncio.run(run_fast(scenario))
+
+
+class SideWork:
+    """Calls handed to one spawned worker (no fork of the suite's threads), run in the
+    order submitted; :meth:`take` hands each result's future over once, or ``None`` for
+    a key never submitted (the caller then does the work itself)."""
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._futures: dict[Hashable, Future[Any]] = {}
+
+    def submit(self, key: Hashable, fn: Callable[..., Any], *args: Any) -> None:
+        if self._pool is None:
+            spawn = multiprocessing.get_context("spawn")
+            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=spawn)
+        self._futures[key] = self._pool.submit(fn, *args)
+
+    def take(self, key: Hashable) -> Future[Any] | None:
+        return self._futures.pop(key, None)
+
+    def close(self) -> None:
+        """Cancel what has not started and wait for the worker to end."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        self._futures.clear()
