@@ -13,14 +13,16 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import os
 from collections.abc import Callable, Hashable
 from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
 from btcap.sim.mission.scenario import Scenario
 from btcap.sim.running.metrics import MissionResult
 
-__all__ = ["SideWork", "run_mission"]
+__all__ = ["SideWork", "record_fast", "record_mission", "run_mission"]
 
 
 def run_mission(scenario: Scenario) -> MissionResult:
@@ -28,6 +30,20 @@ def run_mission(scenario: Scenario) -> MissionResult:
     from btcap.sim.running.runner import run_fast
 
     return asyncio.run(run_fast(scenario))
+
+
+async def record_fast(scenario: Scenario, path: Path) -> MissionResult:
+    """A fast mission recorded by a monitor (no server) into ``path`` (JSON Lines)."""
+    from btcap.monitor import Monitor
+    from btcap.sim.running.runner import run_fast
+
+    async with Monitor(port=None, record=path) as monitor:
+        return await run_fast(scenario, monitor=monitor)
+
+
+def record_mission(scenario: Scenario, path: Path) -> bool:
+    """:func:`record_fast` in the worker: whether the mission completed."""
+    return asyncio.run(record_fast(scenario, path)).completed
 
 
 class SideWork:
@@ -40,6 +56,10 @@ class SideWork:
         self._futures: dict[Hashable, Future[Any]] = {}
 
     def submit(self, key: Hashable, fn: Callable[..., Any], *args: Any) -> None:
+        """Queue ``fn(*args)`` on the worker; not under pytest-xdist, whose workers have
+        the cores already (and each would make every run its module lists)."""
+        if os.environ.get("PYTEST_XDIST_WORKER"):
+            return
         if self._pool is None:
             spawn = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=1, mp_context=spawn)
