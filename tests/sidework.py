@@ -6,7 +6,8 @@ its result does not depend on the process, the hash seed or the machine's load
 tests/sim/faults/test_simtest.py check it). A module whose tests read many such results
 may have some computed on the machine's second core while its own process computes the
 others. Only wall time changes: each result is the one this process would compute (the
-same function, the same environment, ``BTCAP_DEBUG`` included).
+same function, the same environment, ``BTCAP_DEBUG`` included), and a warning fails it
+there as here (the worker takes the warning filters in force when it starts).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from __future__ import annotations
 import asyncio
 import multiprocessing
 import os
+import re
+import warnings
 from collections.abc import Callable, Hashable
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
@@ -46,6 +49,29 @@ def record_mission(scenario: Scenario, path: Path) -> bool:
     return asyncio.run(record_fast(scenario, path)).completed
 
 
+Filter = tuple[str, str, type[Warning], str, int]  # warnings.filterwarnings' arguments
+
+
+def _filters() -> list[Filter]:
+    """The warning filters in force here (in a test: the suite's, warnings as errors)."""
+
+    def text(pattern: re.Pattern[str] | str | None) -> str:
+        return getattr(pattern, "pattern", pattern) or ""
+
+    return [
+        (action, text(message), category, text(module), lineno)
+        for action, message, category, module, lineno in warnings.filters
+    ]
+
+
+def _same_filters(filters: list[Filter]) -> None:
+    """The worker's initializer: the test process's filters, so a warning that would fail
+    a test made here fails it when made on the worker."""
+    warnings.resetwarnings()
+    for action, message, category, module, lineno in reversed(filters):
+        warnings.filterwarnings(action, message, category, module, lineno)  # type: ignore[arg-type]
+
+
 class SideWork:
     """Calls handed to one spawned worker (no fork of the suite's threads), run in the
     order submitted; :meth:`take` hands each result's future over once, or ``None`` for
@@ -62,7 +88,9 @@ class SideWork:
             return
         if self._pool is None:
             spawn = multiprocessing.get_context("spawn")
-            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=spawn)
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=spawn, initializer=_same_filters, initargs=(_filters(),)
+            )
         self._futures[key] = self._pool.submit(fn, *args)
 
     def take(self, key: Hashable) -> Future[Any] | None:
