@@ -19,13 +19,12 @@ import re
 import warnings
 from collections.abc import Callable, Hashable
 from concurrent.futures import Future, ProcessPoolExecutor
-from pathlib import Path
 from typing import Any
 
 from btcap.sim.mission.scenario import Scenario
 from btcap.sim.running.metrics import MissionResult
 
-__all__ = ["SideWork", "record_fast", "record_mission", "run_mission"]
+__all__ = ["SideWork", "run_mission"]
 
 
 def run_mission(scenario: Scenario) -> MissionResult:
@@ -33,20 +32,6 @@ def run_mission(scenario: Scenario) -> MissionResult:
     from btcap.sim.running.runner import run_fast
 
     return asyncio.run(run_fast(scenario))
-
-
-async def record_fast(scenario: Scenario, path: Path) -> MissionResult:
-    """A fast mission recorded by a monitor (no server) into ``path`` (JSON Lines)."""
-    from btcap.monitor import Monitor
-    from btcap.sim.running.runner import run_fast
-
-    async with Monitor(port=None, record=path) as monitor:
-        return await run_fast(scenario, monitor=monitor)
-
-
-def record_mission(scenario: Scenario, path: Path) -> bool:
-    """:func:`record_fast` in the worker: whether the mission completed."""
-    return asyncio.run(record_fast(scenario, path)).completed
 
 
 Filter = tuple[str, str, type[Warning], str, int]  # warnings.filterwarnings' arguments

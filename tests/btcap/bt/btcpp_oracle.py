@@ -15,7 +15,6 @@ excused.
 from __future__ import annotations
 
 import random
-from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -382,32 +381,3 @@ def compare(root: El, ticks: int = 10, once: bool = False) -> Outcome:
     if sorted(got_halt) != sorted(want_halt):
         return Outcome(ticks, None, f"halt: btcap {got_halt} BehaviorTree.CPP {want_halt}\n{xml}")
     return Outcome(ticks, None, None)
-
-
-@dataclass
-class Agreement:
-    """What :func:`agree_over` compared: the first mismatch (``None``: none), how each
-    comparison ended, the ticks compared exactly and the node tags of trees ticked."""
-
-    mismatch: str | None
-    stopped: Counter[str]
-    compared_ticks: int
-    seen: set[str]
-
-
-def agree_over(seeds: range, once: bool) -> Agreement:
-    """:func:`compare` over the random trees of ``seeds`` (10 ticks each), up to the
-    first mismatch; picklable, for a worker process (tests/sidework.py)."""
-    stopped: Counter[str] = Counter()
-    seen: set[str] = set()
-    compared_ticks = 0
-    for seed in seeds:
-        root = random_tree(random.Random(seed), max_depth=4 + seed % 2)
-        out = compare(root, ticks=10, once=once)
-        if out.mismatch is not None:
-            return Agreement(f"seed {seed}: {out.mismatch}", stopped, compared_ticks, seen)
-        compared_ticks += out.ticks
-        stopped[out.stopped_by or "compared to the end"] += 1
-        if out.ticks:
-            seen.update(e.tag for e in root.walk())
-    return Agreement(None, stopped, compared_ticks, seen)

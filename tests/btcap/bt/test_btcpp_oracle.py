@@ -6,7 +6,8 @@ differences (:data:`btcap.bt.files.btcpp_nodes.DIFFERENCES`), each shown here on
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import random
+from collections import Counter
 
 import pytest
 
@@ -22,11 +23,10 @@ from btcpp_oracle import (
     BtcapRun,
     BtcppRun,
     El,
-    agree_over,
     compare,
     document,
+    random_tree,
 )
-from sidework import SideWork
 
 from btcap.bt.files.btcpp_nodes import DIFFERENCES, STANDARD, Standard
 
@@ -51,43 +51,23 @@ def test_every_generated_node_type_is_mapped() -> None:
         assert tag in STANDARD
 
 
-#: The random trees compared for each way of ticking.
-SEEDS = range(2500)
-#: Wall seconds to wait for the worker's comparisons: a hang bound, not a speed measure.
-SIDE_S = 900.0
-
-
-@pytest.fixture(scope="module")
-def tick_once_ahead(request: pytest.FixtureRequest) -> Iterator[SideWork]:
-    """The tickOnce comparisons, made on a worker process (tests/sidework.py) while this
-    one makes the tickExactlyOnce ones, when both are selected. Set up in the first
-    one's setup, so the worker ignores the warning that test ignores."""
-    side = SideWork()
-    ways = [
-        item.callspec.params["once"]
-        for item in request.session.items
-        if isinstance(item, pytest.Function)
-        and item.module is request.module
-        and item.originalname == "test_random_trees_agree_with_behaviortree_cpp"
-    ]
-    if ways == [False, True]:
-        side.submit(True, agree_over, SEEDS, True)
-    try:
-        yield side
-    finally:
-        side.close()
-
-
 # Random reactive trees restart branches on purpose; btcap's warning about that is noise here.
 @pytest.mark.filterwarnings("ignore::btcap.bt.state.RestartLoopWarning")
 @pytest.mark.parametrize("once", [False, True], ids=["tickExactlyOnce", "tickOnce"])
-def test_random_trees_agree_with_behaviortree_cpp(once: bool, tick_once_ahead: SideWork) -> None:
+def test_random_trees_agree_with_behaviortree_cpp(once: bool) -> None:
     """Tree.tick is tickExactlyOnce, Tree.tick_once is tickOnce (a node that yields asks
     to be ticked again at once: AsyncSequence, AsyncFallback, a retry of an instant child)."""
-    ahead = tick_once_ahead.take(once)
-    found = agree_over(SEEDS, once) if ahead is None else ahead.result(SIDE_S)
-    assert found.mismatch is None, found.mismatch
-    stopped, seen, compared_ticks = found.stopped, found.seen, found.compared_ticks
+    stopped: Counter[str] = Counter()
+    seen: Counter[str] = Counter()
+    compared_ticks = 0
+    for seed in range(2500):
+        root = random_tree(random.Random(seed), max_depth=4 + seed % 2)
+        out = compare(root, ticks=10, once=once)
+        assert out.mismatch is None, f"seed {seed}: {out.mismatch}"
+        compared_ticks += out.ticks
+        stopped[out.stopped_by or "compared to the end"] += 1
+        if out.ticks:
+            seen.update(e.tag for e in root.walk())
     assert set(stopped) - {"compared to the end", WAKES_FOREVER} <= KNOWN_DIFFERENCES | {
         k for k in stopped if k.startswith("refused by BehaviorTree.CPP")
     }

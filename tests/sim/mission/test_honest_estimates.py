@@ -8,22 +8,20 @@ estimate caused: a robot 35 s into a drive still bidding its cost from the start
 
 from __future__ import annotations
 
-import asyncio
 import random
-from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
 
 import anyio
 import msgspec
 import pytest
-from sidework import SideWork, record_fast, record_mission
 
+from btcap.monitor import Monitor
 from btcap.monitor.record import read_record
 from btcap.monitor.view import Event
 from btcap.sim.mission.capabilities import robot_setup
 from btcap.sim.mission.scenario import builtin_scenarios, check_scenario, grow_team, load_scenario
 from btcap.sim.mission.scenariofile import Scenario
+from btcap.sim.running.runner import run_fast
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.messages import PositionUpdate
 from btcap.sim.world.model import paper_team
@@ -36,9 +34,6 @@ from btcap.team.messages import Bid, CallForBids
 #: A hand-over undone within this many clock seconds is one too many.
 UNDONE_S = 5.0
 RUN_S = 60.0
-#: Wall seconds to wait for a recording the worker makes (it may still be on the one
-#: before): a hang bound, not a speed measure.
-SIDE_S = 4 * RUN_S
 
 
 def undone_handovers(events: list[Event], within: float = UNDONE_S) -> list[str]:
@@ -69,15 +64,12 @@ def undone_handovers(events: list[Event], within: float = UNDONE_S) -> list[str]
     return found
 
 
-def paper_scenario(name: str) -> Scenario:
-    return load_scenario(builtin_scenarios()[name])
-
-
-def six_robots(seed: int) -> Scenario:
-    """The team of the report: the full team grown to six robots."""
-    s = msgspec.structs.replace(load_scenario(builtin_scenarios()["full-team"]), seed=seed)
-    grow_team(s, 6)
-    return s
+async def recorded(s: Scenario, path: Path) -> list[Event]:
+    with anyio.fail_after(RUN_S):
+        async with Monitor(port=None, record=path) as monitor:
+            result = await run_fast(s, monitor=monitor)
+    assert result.completed, s.name
+    return read_record(path)
 
 
 def hidden_style(seed: int) -> Scenario:
@@ -98,56 +90,6 @@ def hidden_style(seed: int) -> Scenario:
     return check_scenario(msgspec.convert(data, Scenario))
 
 
-#: The scenario each recorded test runs, from its one parameter.
-SCENARIOS: dict[str, Callable[[Any], Scenario]] = {
-    "test_no_hand_over_is_undone_in_the_paper_scenarios": paper_scenario,
-    "test_no_hand_over_is_undone_with_six_robots": six_robots,
-    "test_no_hand_over_is_undone_on_unseen_scenarios": hidden_style,
-}
-#: Every other selected recorded run is made ahead on a worker process while this one
-#: makes the rest (tests/sidework.py: a fast run records the same bytes in any process).
-_side = SideWork()
-_paths: dict[tuple[str, Any], Path] = {}  # where the worker records each run
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _side_records(
-    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[None]:
-    folder = tmp_path_factory.mktemp("side-records")
-    runs = [
-        (item.originalname, *item.callspec.params.values())
-        for item in request.session.items
-        if isinstance(item, pytest.Function)
-        and item.module is request.module
-        and item.originalname in SCENARIOS
-    ]
-    for i, (test, param) in enumerate(runs):
-        if i % 2:
-            path = folder / f"{i}.jsonl"
-            _side.submit((test, param), record_mission, SCENARIOS[test](param), path)
-            _paths[test, param] = path
-    try:
-        yield
-    finally:
-        _side.close()
-
-
-async def recorded(node: pytest.Function, tmp_path: Path) -> list[Event]:
-    """The recording of the test's scenario, made here or ahead on the worker."""
-    (param,) = node.callspec.params.values()
-    key = (node.originalname, param)
-    ahead = _side.take(key)
-    with anyio.fail_after(RUN_S if ahead is None else SIDE_S):
-        if ahead is not None:
-            completed, path = await asyncio.wrap_future(ahead), _paths[key]
-        else:
-            path = tmp_path / "m.jsonl"
-            completed = (await record_fast(SCENARIOS[node.originalname](param), path)).completed
-    assert completed, key
-    return read_record(path)
-
-
 def test_the_detector_finds_a_hand_over_undone() -> None:
     run = {"k": "run", "phase": "start", "execution": "o:n#1", "robot": "a", "t": 1.0}
     events: list[Event] = [
@@ -162,27 +104,24 @@ def test_the_detector_finds_a_hand_over_undone() -> None:
 
 
 @pytest.mark.parametrize("name", ["full-team", "huskies-bebop-joins"])  # one Husky: no hand-over
-async def test_no_hand_over_is_undone_in_the_paper_scenarios(
-    name: str, request: pytest.FixtureRequest, tmp_path: Path
-) -> None:
-    assert undone_handovers(await recorded(request.node, tmp_path)) == []
+async def test_no_hand_over_is_undone_in_the_paper_scenarios(name: str, tmp_path: Path) -> None:
+    s = load_scenario(builtin_scenarios()[name])
+    assert undone_handovers(await recorded(s, tmp_path / "m.jsonl")) == []
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-async def test_no_hand_over_is_undone_with_six_robots(
-    seed: int, request: pytest.FixtureRequest, tmp_path: Path
-) -> None:
+async def test_no_hand_over_is_undone_with_six_robots(seed: int, tmp_path: Path) -> None:
     """The team of the report: spot1 and spot2 passed an Identify to and fro."""
-    assert undone_handovers(await recorded(request.node, tmp_path)) == []
+    s = msgspec.structs.replace(load_scenario(builtin_scenarios()["full-team"]), seed=seed)
+    grow_team(s, 6)
+    assert undone_handovers(await recorded(s, tmp_path / "m.jsonl")) == []
 
 
 @pytest.mark.parametrize("seed", [11, 17, 21, 23, 36])
-async def test_no_hand_over_is_undone_on_unseen_scenarios(
-    seed: int, request: pytest.FixtureRequest, tmp_path: Path
-) -> None:
+async def test_no_hand_over_is_undone_on_unseen_scenarios(seed: int, tmp_path: Path) -> None:
     """Seeds 17, 21, 23 and 36 each handed work over and back with stale estimates (5 of
     seeds 11-40 did; none does now)."""
-    assert undone_handovers(await recorded(request.node, tmp_path)) == []
+    assert undone_handovers(await recorded(hidden_style(seed), tmp_path / "m.jsonl")) == []
 
 
 # -- the estimate itself ---------------------------------------------------------------
