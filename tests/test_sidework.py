@@ -24,6 +24,7 @@ def side() -> Iterator[SideWork]:
         work.close()
 
 
+@pytest.mark.slow  # spawns a process
 def test_a_warning_on_the_worker_is_an_error_as_here(side: SideWork) -> None:
     side.submit("told", warnings.warn, "told on the worker", RuntimeWarning)
     side.submit("ignored", warnings.warn, "ignored on the worker", btcap.NodeErrorWarning)
