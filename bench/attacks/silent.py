@@ -19,10 +19,11 @@ import os
 import socket
 import struct
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Iterator
 from typing import Any
 
 from btcap.actors import Actor, ActorSystem, Address, handler
+from btcap.bench.attacks.echo import until
 from btcap.bench.attacks.hostile import Ping, Pong, registry
 from btcap.transports import ZmqTransport
 from btcap.transports.zmq_newcomers import NO_HELLO
@@ -139,15 +140,6 @@ async def _pair(**target: Any) -> AsyncIterator[tuple[ActorSystem, ZmqTransport]
         to.close()
 
 
-async def _until(cond: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        await asyncio.sleep(0.01)
-    return True
-
-
 async def _flood(n: int, **target: Any) -> dict[str, Any]:
     """``n`` silent connections to a target made with ``target``'s options while an
     honest peer asks it: what the target held once they were open, and once they
@@ -167,8 +159,8 @@ async def _flood(n: int, **target: Any) -> dict[str, Any]:
 
             cap = target.get("max_newcomers", n)
             evicted = max(0, n - cap)
-            await _until(lambda: t1.stats.by_reason.get(NO_HELLO, 0) >= evicted, _SETTLE_S)
-            await _until(lambda: held() <= cap, _SETTLE_S)  # libzmq closes them in its thread
+            await until(lambda: t1.stats.by_reason.get(NO_HELLO, 0) >= evicted, _SETTLE_S)
+            await until(lambda: held() <= cap, _SETTLE_S)  # libzmq closes them in its thread
             held_flood = held()
             errors = 0
             for seq in range(1, 4):
@@ -177,11 +169,11 @@ async def _flood(n: int, **target: Any) -> dict[str, Any]:
                 except Exception:
                     errors += 1
             deadline = target.get("hello_timeout_s", 0.0)
-            closed = deadline < _SETTLE_S and await _until(
+            closed = deadline < _SETTLE_S and await until(
                 lambda: all(hung_up(s) for s in socks), _SETTLE_S
             )
             if closed:
-                await _until(lambda: held() <= 0, _SETTLE_S)
+                await until(lambda: held() <= 0, _SETTLE_S)
             held_after = held()
         finally:
             for sock in socks:

@@ -102,6 +102,8 @@ class Outbox:
                     waiting = self._pending.get(entry.cid)
                     if waiting and waiting[0] is entry:
                         waiting.popleft()
+                        if not waiting:  # (a publisher is opened per run: none stays)
+                            del self._pending[entry.cid]
                 if entry.dropped:
                     continue
                 self._writing = True

@@ -21,6 +21,7 @@ from btcap.bt.files.schema import (
     WireSpec,
     file_info,
     is_type_option,
+    literal,
     set_file_info,
 )
 from btcap.bt.node import Node
@@ -332,7 +333,7 @@ class Builder:
                     ok = False
                     continue
             try:
-                options[key] = check_port(value, port, where)
+                options[key] = check_port(literal(value), port, where)
             except TreeError as exc:
                 self.problems.append(str(exc))
                 ok = False
@@ -394,7 +395,8 @@ class Builder:
                 )
                 continue
             try:
-                node.set_input(key, check_port(value, port, f"{self.where}: {loc} input {key!r}"))
+                where = f"{self.where}: {loc} input {key!r}"
+                node.set_input(key, check_port(literal(value), port, where))
             except TreeError as exc:
                 self.problems.append(str(exc))
                 self._bad_inputs.add((*at, key))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import typing
 from collections.abc import Iterable
@@ -28,6 +29,7 @@ __all__ = [
     "WireSpec",
     "file_info",
     "is_type_option",
+    "literal",
     "set_file_info",
 ]
 
@@ -139,3 +141,10 @@ def is_type_option(cls: type[Node], key: str, port: Port) -> bool:
     if t is type or typing.get_origin(t) is type:
         return True
     return d is Any or isinstance(d, type) or typing.get_origin(d) is not None
+
+
+def literal(value: Any) -> Any:
+    """A file's value for one node: a list or mapping copied, since one parse of a file
+    may build many trees (a capability implementation's, one per run) and a node may
+    change what it was given (a port of type Any keeps the very object)."""
+    return copy.deepcopy(value) if isinstance(value, list | dict) else value
