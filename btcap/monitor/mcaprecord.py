@@ -96,7 +96,13 @@ class McapRecorder:
             compression_threads=0,  # zstd in this thread: no worker, the same bytes
         )
         self._closed = self._said = False
-        self._writer = foxglove.open_mcap(self._file, context=self._context, writer_options=options)
+        try:
+            self._writer = foxglove.open_mcap(
+                self._file, context=self._context, writer_options=options
+            )
+        except BaseException:
+            self._file.close()
+            raise
         meta = {"btcap_version": btcap.__version__, **(metadata or {})}
         self._writer.write_metadata(METADATA_NAME, dict(sorted(meta.items())))
         self._log: dict[str, Callable[[bytes, int], None]] = {}  # topic -> its channel's log

@@ -35,6 +35,10 @@ class RunFactory:
         #: Runs an award had to build on the loop (no spare was ready).
         self.built_on_loop = 0
 
+    def ready(self, impl: Implementation) -> bool:
+        """Whether a run of ``impl`` is built ahead, so its next award takes no build."""
+        return _key(impl) in self._spares
+
     @property
     def _threads(self) -> bool:
         return self.system.clock.to_wall(1.0) > 0.0  # a real clock (virtual: 0)

@@ -50,10 +50,15 @@ async def test_every_awarded_run_was_built_off_the_loop_thread() -> None:
     with anyio.fail_after(30):
         async with team(real_time=True) as t:
             a = await t.add("a")
-            b = await t.add("b", [Implementation("bare-b", BARE, built)])
+            impl = Implementation("bare-b", BARE, built)
+            b = await t.add("b", [impl])
             await t.converged(BARE.identity)
             hosted = b.mission_control.host.hosted
+            runs = b.mission_control.executor.runs
             for _ in range(4):  # four runs in turn: the first, then each from a fresh spare
+                # (awards in turn, each once the last one's spare is built: however slow
+                # the machine, an award then finds a spare built in the thread)
+                await until(lambda: runs.ready(impl), "b's spare to be built")
                 node = BARE.node_type()("bare")
                 tree = a.mission(ReactiveSequence("root", children=[node]))
                 await tick_until(tree, lambda s: s is not State.RUNNING)
@@ -61,9 +66,9 @@ async def test_every_awarded_run_was_built_off_the_loop_thread() -> None:
                 assert node.assignments == ["b"]
                 await tree.shutdown()
                 await until(lambda: not hosted, "b's run to end")
-            runs = set(built.ran)
-            assert len(runs) == 4
-            on_loop = [r for r in runs if built.thread[r] == loop_thread]
+            done = set(built.ran)
+            assert len(done) == 4
+            on_loop = [r for r in done if built.thread[r] == loop_thread]
             assert on_loop == [], f"{len(on_loop)} of 4 runs built on the loop thread"
 
 
