@@ -55,11 +55,10 @@ from btcap.sim.mission.opdraws import Draws, least_factors
 from btcap.sim.mission.presence import Presence, finish, presence
 from btcap.sim.mission.routes import Legs, pieces_m, visit_tree_m
 from btcap.sim.mission.scenario import Scenario
+from btcap.sim.mission.seeded import seeded_world
 from btcap.sim.world.distance import Cell, distance_field, path_length
 from btcap.sim.world.grid import GridMap
-from btcap.sim.world.manager import SimConfig
 from btcap.sim.world.model import RobotModel
-from btcap.sim.world.store import MissionState
 
 __all__ = [
     "Bound",
@@ -306,17 +305,7 @@ def _disc_cells(models: Sequence[RobotModel], i: int, cell_size_m: float) -> int
 def scenario_bound(s: Scenario, *, seed_draws: bool = True) -> Bound:
     """The bound of scenario ``s`` with its objects as the runner scatters them, and the
     operations on them as its seed draws them (``seed_draws``; else the shortest)."""
-    grid = s.grid()
-    state = MissionState.scatter(
-        grid, s.objects, s.contaminated_share, np.random.default_rng(s.seed)
-    )
-    models = s.models()
-    config = SimConfig(s.sim.step_s, s.sim.delay_jitter, s.sim.failure_chance, s.seed)
+    w = seeded_world(s)
     return mission_bound(
-        grid,
-        [models[r.model] for r in s.robots],
-        [(o.cell, o.contaminated) for o in state.objects],
-        presence([r.name for r in s.robots], s.events),
-        s.sim.delay_jitter,
-        Draws(state, config) if seed_draws else None,
+        w.grid, w.robots, w.objects, w.presence, w.jitter, w.draws if seed_draws else None
     )

@@ -32,12 +32,12 @@ import numpy as np
 
 from btcap.sim.mission.cover import cover_times
 from btcap.sim.mission.opdraws import Draws
-from btcap.sim.mission.presence import Presence, presence
+from btcap.sim.mission.presence import Presence
 from btcap.sim.mission.routes import Legs
 from btcap.sim.mission.scenario import Scenario
+from btcap.sim.mission.seeded import seeded_world
 from btcap.sim.world.distance import Cell, distance_field
 from btcap.sim.world.grid import GridMap
-from btcap.sim.world.manager import SimConfig
 from btcap.sim.world.model import RobotModel
 from btcap.sim.world.store import MissionState
 
@@ -320,20 +320,9 @@ def scenario_hindsight(s: Scenario, *, tries: int = 20) -> Hindsight | None:
     scatters them and their operations as its seed draws them; None where no robot only
     explores (then the robots that do the object work explore too, which this world
     leaves out: its schedule could end before the bound)."""
-    grid = s.grid()
-    state = MissionState.scatter(
-        grid, s.objects, s.contaminated_share, np.random.default_rng(s.seed)
-    )
-    models = s.models()
-    if not _only_explore([models[r.model] for r in s.robots]):
+    w = seeded_world(s)
+    if not _only_explore(w.robots):
         return None
-    config = SimConfig(s.sim.step_s, s.sim.delay_jitter, s.sim.failure_chance, s.seed)
     return hindsight_schedule(
-        grid,
-        [models[r.model] for r in s.robots],
-        [(o.cell, o.contaminated) for o in state.objects],
-        presence([r.name for r in s.robots], s.events),
-        s.sim.delay_jitter,
-        Draws(state, config),
-        tries=tries,
+        w.grid, w.robots, w.objects, w.presence, w.jitter, w.draws, tries=tries
     )
