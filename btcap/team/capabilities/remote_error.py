@@ -11,11 +11,8 @@ by the same filter (``warnings.filterwarnings("ignore", category=btcap.NodeError
 
 from __future__ import annotations
 
-import warnings
-from typing import Protocol
-
-from btcap.bt.host import TreeHost
 from btcap.bt.state import NodeErrorWarning
+from btcap.team.capabilities.unassignable import Told, tell_once
 from btcap.transports.log import get_logger
 
 __all__ = ["tell_remote_error"]
@@ -23,23 +20,10 @@ __all__ = ["tell_remote_error"]
 log = get_logger(__name__)
 
 
-class _Capability(Protocol):
-    _tree: TreeHost | None
-
-    @property
-    def path(self) -> str: ...
-
-
-def tell_remote_error(node: _Capability, interface: str, robot: str, detail: str) -> None:
+def tell_remote_error(node: Told, interface: str, robot: str, detail: str) -> None:
     """``node``'s run on ``robot`` ended in ERROR, for the reason ``detail`` (its words)."""
     why = detail or "its implementation ended in ERROR (it gave no reason)"
     log.error("mission.remote_error", capability=node.path, robot=robot, detail=why)
-    tree = node._tree
-    key = f"{node.path} remote error"
-    if tree is not None:
-        if key in tree._told:
-            return
-        tree._told.add(key)
     message = (
         f"capability {node.path!r} ({interface}) ran on robot {robot!r}, where {why}; it "
         "FAILED here, and its parent decides what follows. Fix the implementation on "
@@ -47,5 +31,4 @@ def tell_remote_error(node: _Capability, interface: str, robot: str, detail: str
         "a failure it expects as one (return FAILED); later errors of this capability go "
         "to the log only (logger 'btcap')"
     )
-    where = f"<capability {node.path}>"
-    warnings.warn_explicit(message, NodeErrorWarning, where, 0, module="btcap")
+    tell_once(node, "remote error", message, NodeErrorWarning)

@@ -18,7 +18,7 @@ from typing import Protocol
 from btcap.bt.host import TreeHost
 from btcap.bt.state import UnassignableWarning
 
-__all__ = ["nobody_able", "tell_nobody", "tell_timeout"]
+__all__ = ["Told", "nobody_able", "tell_nobody", "tell_once", "tell_timeout"]
 
 #: Reasons that say a robot could take the work but not now (routine while a team is
 #: busy): it was busy, took another task of the same round, kept its own work, did not
@@ -34,7 +34,7 @@ _NOT_NOW = (
 )
 
 
-class _Capability(Protocol):
+class Told(Protocol):
     """What telling needs of a :class:`~btcap.team.capabilities.capability.Capability`."""
 
     _tree: TreeHost | None
@@ -69,9 +69,7 @@ def nobody_able(why: Mapping[str, str]) -> bool:
     return not any(_not_now(text) for text in why.values())
 
 
-def tell_nobody(
-    node: _Capability, interface: str, why: Mapping[str, str], timeout_s: float
-) -> None:
+def tell_nobody(node: Told, interface: str, why: Mapping[str, str], timeout_s: float) -> None:
     """Nobody could take ``node``: each robot's reason in ``why``; ``timeout_s``: its
     ``assignment_timeout_s`` (0: it waits for ever)."""
     reasons = "; ".join(f"{robot}: {text}" for robot, text in sorted(why.items()))
@@ -80,7 +78,7 @@ def tell_nobody(
         if timeout_s > 0
         else ", or set assignment_timeout_s on the node to fail after a wait"
     )
-    _tell(
+    tell_once(
         node,
         "nobody",
         f"capability {node.path!r} ({interface}): nobody in the team can take it "
@@ -89,9 +87,9 @@ def tell_nobody(
     )
 
 
-def tell_timeout(node: _Capability, interface: str, timeout_s: float, auctions: int) -> None:
+def tell_timeout(node: Told, interface: str, timeout_s: float, auctions: int) -> None:
     """``node`` waited its ``assignment_timeout_s`` and failed."""
-    _tell(
+    tell_once(
         node,
         "timeout",
         f"capability {node.path!r} ({interface}) failed: nobody took it within its "
@@ -101,8 +99,13 @@ def tell_timeout(node: _Capability, interface: str, timeout_s: float, auctions: 
     )
 
 
-def _tell(node: _Capability, what: str, message: str) -> None:
-    """Warn once per node of a tree and ``what``."""
+def tell_once(
+    node: Told,
+    what: str,
+    message: str,
+    category: type[Warning] = UnassignableWarning,
+) -> None:
+    """Warn once per node of a tree and ``what`` (later ones go to the log only)."""
     tree = node._tree
     key = f"{node.path} {what}"
     if tree is not None:
@@ -110,4 +113,4 @@ def _tell(node: _Capability, what: str, message: str) -> None:
             return
         tree._told.add(key)
     where = f"<capability {node.path}>"
-    warnings.warn_explicit(message, UnassignableWarning, where, 0, module="btcap")
+    warnings.warn_explicit(message, category, where, 0, module="btcap")
