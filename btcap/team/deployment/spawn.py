@@ -6,6 +6,11 @@ Two handles on the same child process: :class:`AgentProcess` for synchronous cod
 running in an event loop (:func:`open_agent`, :func:`open_agents`), built on anyio's
 process and stream API so waiting for a child never blocks the loop. Both read the same
 announcements: one JSON line per agent, with its robot and bound endpoint.
+
+Starting a robot is CPU work (an interpreter, its imports, its capability files), so
+starting many at once on a small machine makes every one of them late: the functions that
+start several processes start :data:`STARTS_AT_ONCE` at a time (:class:`StartGate`), and
+each one's ready deadline counts from its own start, not from the batch's.
 """
 
 from __future__ import annotations
@@ -18,7 +23,8 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import AsyncIterator, Sequence
+from contextlib import asynccontextmanager
 from pathlib import Path
 from types import TracebackType
 
@@ -29,8 +35,10 @@ import msgspec
 from btcap.team.deployment.agentspec import AgentSpec, check_specs
 
 __all__ = [
+    "STARTS_AT_ONCE",
     "AgentProcess",
     "AsyncAgentProcess",
+    "StartGate",
     "listening",
     "open_agent",
     "open_agents",
@@ -39,6 +47,39 @@ __all__ = [
 ]
 
 Specs = AgentSpec | Sequence[AgentSpec]
+
+#: Agent processes started at once by default: a few keep both cores of a small machine
+#: busy; 50 at once made each late enough to miss a 20 s ready deadline under load.
+STARTS_AT_ONCE = 4
+
+
+def _check_at_once(at_once: int) -> None:
+    if at_once < 1:
+        raise ValueError(f"at_once={at_once}: expected at least 1 process starting at a time")
+
+
+class StartGate:
+    """At most ``at_once`` agent processes starting at a time: hold a :meth:`turn` from
+    before a process is created until its agents listen (or it failed to start).
+    ``starting`` counts the turns held now, ``peak`` the most held at once."""
+
+    def __init__(self, at_once: int = STARTS_AT_ONCE) -> None:
+        _check_at_once(at_once)
+        self.at_once = at_once
+        self._limiter = anyio.CapacityLimiter(at_once)
+        self.starting = 0
+        self.peak = 0
+
+    @asynccontextmanager
+    async def turn(self) -> AsyncIterator[None]:
+        """Wait for a turn, and hold it while the block runs."""
+        async with self._limiter:
+            self.starting += 1
+            self.peak = max(self.peak, self.starting)
+            try:
+                yield
+            finally:
+                self.starting -= 1
 
 
 def _specs(spec: Specs) -> list[AgentSpec]:
@@ -106,11 +147,15 @@ class _Announcements:
         return all(r in self.endpoints for r in self.robots)
 
     def timed_out(self, limit: float) -> TimeoutError:
-        missing = [r for r in self.robots if r not in self.endpoints]
-        return TimeoutError(f"agents {missing} did not start within {limit} s")
+        missing = ", ".join(r for r in self.robots if r not in self.endpoints)
+        return TimeoutError(f"agent {missing} did not listen within {limit:g} s of its start")
 
     def exited(self, code: int | None) -> RuntimeError:
-        return RuntimeError(f"agent process {self.robots} exited (code {code}) before it was ready")
+        robots = ", ".join(self.robots)
+        return RuntimeError(
+            f"the process of agent {robots} exited (code {code}) before it listened "
+            "(its log says why)"
+        )
 
 
 class _Launched:
@@ -231,15 +276,23 @@ def spawn_agent(
 
 
 def spawn_agents(
-    groups: Sequence[Specs], *, timeout: float = 20.0, stderr: int | None = None
+    groups: Sequence[Specs],
+    *,
+    timeout: float = 20.0,
+    stderr: int | None = None,
+    at_once: int = STARTS_AT_ONCE,
 ) -> list[AgentProcess]:
-    """Start one process per group (a spec, or a list of specs sharing a process), in
-    parallel, and wait until every agent listens. On failure, the others are killed."""
+    """Start one process per group (a spec, or a list of specs sharing a process),
+    ``at_once`` at a time, and wait until every agent listens; each has ``timeout``
+    seconds from its own start. On failure, the others are killed."""
+    _check_at_once(at_once)
     procs: list[AgentProcess] = []
     try:
-        for group in groups:
+        for i, group in enumerate(groups):
+            if i >= at_once:  # a turn: the oldest still starting must listen first
+                procs[i - at_once].wait_ready()
             procs.append(AgentProcess(group, timeout=timeout, stderr=stderr, wait=False))
-        for p in procs:
+        for p in procs:  # (those that listen already return at once)
             p.wait_ready()
     except BaseException:
         for p in procs:
@@ -354,14 +407,21 @@ async def open_agent(
 
 
 async def open_agents(
-    groups: Sequence[Specs], *, timeout: float = 20.0, stderr: int | None = None
+    groups: Sequence[Specs],
+    *,
+    timeout: float = 20.0,
+    stderr: int | None = None,
+    at_once: int = STARTS_AT_ONCE,
 ) -> list[AsyncAgentProcess]:
-    """:func:`open_agent` for each group, in parallel; if any fails, all are killed (the
-    failures are raised as an ExceptionGroup)."""
+    """:func:`open_agent` for each group, ``at_once`` at a time (each has ``timeout``
+    seconds from its own start); if any fails, all are killed (the failures are raised
+    as an ExceptionGroup)."""
+    gate = StartGate(at_once)
     opened: dict[int, AsyncAgentProcess] = {}
 
     async def one(i: int, group: Specs) -> None:
-        opened[i] = await open_agent(group, timeout=timeout, stderr=stderr)
+        async with gate.turn():
+            opened[i] = await open_agent(group, timeout=timeout, stderr=stderr)
 
     try:
         async with anyio.create_task_group() as tg:
