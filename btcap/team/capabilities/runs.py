@@ -146,7 +146,8 @@ def _warn_thread_build(impl: Implementation, exc: Exception) -> None:
         "which holds the robot up while it builds; make its build work off the loop's thread"
     )
     log.warning("mission.prebuild_failed", implementation=impl.name, error=error)
-    warnings.warn_explicit(message, BtcapWarning, f"<implementation {impl.name}>", 0, module="btcap")
+    where = f"<implementation {impl.name}>"
+    warnings.warn_explicit(message, BtcapWarning, where, 0, module="btcap")
 
 
 def _build(impl: Implementation, clock: TimeSource) -> ImplementationRun:

@@ -7,8 +7,10 @@ what is judged is when the host starts them, counted, not how fast a machine is.
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import anyio
@@ -61,8 +63,7 @@ class Starts:
         self.told += 1
         assert proc.process.stdin is not None
         await proc.process.stdin.send(b"go\n")
-        while not proc.ready:
-            await anyio.sleep(0.01)
+        await _until(lambda: proc.ready)
 
 
 def host(starts: Starts, **options: float) -> ProcessHost:
@@ -70,9 +71,16 @@ def host(starts: Starts, **options: float) -> ProcessHost:
     return ProcessHost(s, Clock(speedup=1.0), registry(), s.grid(), spawn=starts, **options)
 
 
-async def _started(starts: Starts, n: int) -> None:
-    while len(starts.procs) < n:
+async def _until(cond: Callable[[], bool]) -> None:
+    """Check ``cond`` every 10 ms (the test's fail_after bounds it)."""
+    for _ in itertools.count():
+        if cond():
+            return
         await anyio.sleep(0.01)
+
+
+async def _started(starts: Starts, n: int) -> None:
+    await _until(lambda: len(starts.procs) >= n)
 
 
 async def test_fifty_robots_start_three_at_a_time() -> None:
@@ -118,8 +126,7 @@ async def test_a_robot_that_does_not_come_up_is_one_line_naming_it_and_why() -> 
             robots.start("fine")
             await _started(starts, 3)
             await starts.tell(starts.procs[2])
-            while len(robots.errors) < 2:
-                await anyio.sleep(0.01)
+            await _until(lambda: len(robots.errors) >= 2)
             assert robots.present() == {"fine"}
     errors = {e.robot: e.error for e in robots.errors}
     assert errors == {
