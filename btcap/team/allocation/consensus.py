@@ -42,6 +42,7 @@ from btcap.team.allocation.strategy import (
 from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.award import AwardRound, bounded
 from btcap.team.core.consensus import Board, Claim, Consensus, Report, Task
+from btcap.team.core.fence import speedup_of
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import AuctionId, ExecutionId
@@ -179,6 +180,7 @@ class ConsensusAssigner(Allocator):
             task.holder,
             task.holder_robot,
             task.margin,
+            speedup_of(clock),
         )
         self.core.open(Task(task.execution, task.candidates, spec))
         try:
