@@ -8,7 +8,7 @@ in this process. A robot that *fails* for a while is frozen (SIGSTOP, then SIGCO
 it falls silent exactly as a robot whose computer hangs would; one that *leaves* is
 terminated and says goodbye; one that *joins* is started.
 
-Robots start a few at a time (:class:`~btcap.team.deployment.spawn.StartGate`): each
+Robots start a few at a time (:class:`~btcap.team.deployment.startgate.StartGate`): each
 start is CPU work, and fifty at once on two cores made every one of them late. A robot
 waiting for its turn is not started at all if it leaves meanwhile; each one's ready
 deadline counts from its own start, and one that does not come up is one line in the
@@ -36,7 +36,8 @@ from btcap.sim.running.metrics import MissionResult, RobotError
 from btcap.sim.running.runner import Progress, run_scenario
 from btcap.sim.world.grid import GridMap
 from btcap.team.deployment.agentconfig import Timing
-from btcap.team.deployment.spawn import STARTS_AT_ONCE, AsyncAgentProcess, StartGate
+from btcap.team.deployment.spawn import AsyncAgentProcess
+from btcap.team.deployment.startgate import STARTS_AT_ONCE, StartGate
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 from btcap.transports.log import get_logger
 

@@ -34,8 +34,8 @@ from btcap.team.allocation.own_costs import OwnCosts
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
-    AuctionStats,
     AuctionWatcher,
+    ConsensusStats,
     Pricer,
     TeamView,
 )
@@ -59,16 +59,6 @@ from btcap.transports.log import get_logger, worth_logging
 __all__ = ["ConsensusAssigner", "ConsensusStats"]
 
 log = get_logger(__name__)
-
-
-@dataclass(slots=True)
-class ConsensusStats(AuctionStats):
-    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window;
-    ``messages``: consensus messages sent (offers, claims and prices)."""
-
-    messages: int = 0  #: consensus messages sent
-    refused: int = 0  #: messages speaking for another robot, or with an impossible cost
-    dropped: int = 0  #: tasks and view entries over the bounds a peer sent
 
 
 @dataclass(slots=True)

@@ -7,10 +7,8 @@ running in an event loop (:func:`open_agent`, :func:`open_agents`), built on any
 process and stream API so waiting for a child never blocks the loop. Both read the same
 announcements: one JSON line per agent, with its robot and bound endpoint.
 
-Starting a robot is CPU work (an interpreter, its imports, its capability files), so
-starting many at once on a small machine makes every one of them late: the functions that
-start several processes start :data:`STARTS_AT_ONCE` at a time (:class:`StartGate`), and
-each one's ready deadline counts from its own start, not from the batch's.
+The functions that start several processes start a few at a time, each with its ready
+deadline from its own start (:mod:`~btcap.team.deployment.startgate` says why).
 """
 
 from __future__ import annotations
@@ -23,8 +21,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import AsyncIterator, Sequence
-from contextlib import asynccontextmanager
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 
@@ -33,12 +30,11 @@ import anyio.abc
 import msgspec
 
 from btcap.team.deployment.agentspec import AgentSpec, check_specs
+from btcap.team.deployment.startgate import STARTS_AT_ONCE, StartGate, check_at_once
 
 __all__ = [
-    "STARTS_AT_ONCE",
     "AgentProcess",
     "AsyncAgentProcess",
-    "StartGate",
     "listening",
     "open_agent",
     "open_agents",
@@ -47,39 +43,6 @@ __all__ = [
 ]
 
 Specs = AgentSpec | Sequence[AgentSpec]
-
-#: Agent processes started at once by default: a few keep both cores of a small machine
-#: busy; 50 at once made each late enough to miss a 20 s ready deadline under load.
-STARTS_AT_ONCE = 4
-
-
-def _check_at_once(at_once: int) -> None:
-    if at_once < 1:
-        raise ValueError(f"at_once={at_once}: expected at least 1 process starting at a time")
-
-
-class StartGate:
-    """At most ``at_once`` agent processes starting at a time: hold a :meth:`turn` from
-    before a process is created until its agents listen (or it failed to start).
-    ``starting`` counts the turns held now, ``peak`` the most held at once."""
-
-    def __init__(self, at_once: int = STARTS_AT_ONCE) -> None:
-        _check_at_once(at_once)
-        self.at_once = at_once
-        self._limiter = anyio.CapacityLimiter(at_once)
-        self.starting = 0
-        self.peak = 0
-
-    @asynccontextmanager
-    async def turn(self) -> AsyncIterator[None]:
-        """Wait for a turn, and hold it while the block runs."""
-        async with self._limiter:
-            self.starting += 1
-            self.peak = max(self.peak, self.starting)
-            try:
-                yield
-            finally:
-                self.starting -= 1
 
 
 def _specs(spec: Specs) -> list[AgentSpec]:
@@ -285,7 +248,7 @@ def spawn_agents(
     """Start one process per group (a spec, or a list of specs sharing a process),
     ``at_once`` at a time, and wait until every agent listens; each has ``timeout``
     seconds from its own start. On failure, the others are killed."""
-    _check_at_once(at_once)
+    check_at_once(at_once)
     procs: list[AgentProcess] = []
     try:
         for i, group in enumerate(groups):
