@@ -9,9 +9,9 @@ descriptor by a hello the transport admitted:
 
 - a *newcomer* (accepted, no admitted hello yet) is closed ``deadline`` seconds after it
   was accepted; at most ``cap`` wait at once, the oldest making room;
-- a *link* (its hello admitted) is kept while its peer is; at most :data:`LINKS_PER_PEER`
-  per peer, the oldest making room (a relinking peer has two for a moment; a name
-  claimed over and over has no more);
+- a *link* (its hello admitted) is kept while its peer is; at most ``links``
+  (:data:`LINKS_PER_PEER` by default) per peer, the oldest making room (a relinking
+  peer has two for a moment; a name claimed over and over has no more);
 - a link whose peer the transport dropped is a newcomer again: it is closed unless it
   says hello (or is dialled back) within ``deadline``.
 
@@ -37,11 +37,13 @@ Close = list[tuple[int, Hashable]]
 class Newcomers:
     """Inbound connections without an admitted hello, and the peers of those with one."""
 
-    def __init__(self, deadline: float, cap: int) -> None:
-        if deadline <= 0 or cap < 1:
-            raise ValueError(f"hello deadline {deadline} s and cap {cap}: both must be > 0")
+    def __init__(self, deadline: float, cap: int, links: int = LINKS_PER_PEER) -> None:
+        if deadline <= 0 or cap < 1 or links < 1:
+            what = f"hello deadline {deadline} s, cap {cap} and links {links}"
+            raise ValueError(f"{what}: all must be > 0")
         self.deadline = deadline
         self.cap = cap
+        self.links_per_peer = links
         #: Newcomers, oldest first: descriptor -> (since when, key).
         self.waiting: OrderedDict[int, tuple[float, Hashable]] = OrderedDict()
         #: Links: descriptor -> (peer, key); and each peer's, oldest first.
@@ -79,7 +81,7 @@ class Newcomers:
         peer_links = self._of.setdefault(peer, OrderedDict())
         peer_links[fd] = None
         close: Close = []
-        while len(peer_links) > LINKS_PER_PEER:
+        while len(peer_links) > self.links_per_peer:
             oldest = next(iter(peer_links))
             close.append((oldest, self.links[oldest][1]))
             self.gone(oldest)

@@ -28,6 +28,7 @@ from btcap.transports.bounds import MAX_DEPTH
 from btcap.transports.codec import Codec, CodecError, Envelope
 from btcap.transports.log import get_logger
 from btcap.transports.message import MessageRegistry
+from btcap.transports.newcomers import LINKS_PER_PEER
 from btcap.transports.security import (
     DEFAULT_MAX_MESSAGE_BYTES,
     KeyPair,
@@ -107,8 +108,8 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
     connection that sends a bigger one (see :attr:`disconnects`). Roles: PeerRules.
     A trusted folder is polled every ``trusted_poll_s`` seconds (0: never): a key removed
     from it is refused and its links closed (:mod:`~btcap.transports.trust`).
-    An inbound connection that says no hello within ``hello_timeout_s`` is closed, and at
-    most ``max_newcomers`` wait for theirs (:mod:`~btcap.transports.newcomers`).
+    Inbound connections: closed if silent ``hello_timeout_s``, ``max_newcomers`` silent at
+    most, ``links_per_peer`` per peer (``newcomers``; :mod:`~btcap.transports.newcomers`).
     """
 
     def __init__(
@@ -131,9 +132,10 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
         trusted_poll_s: float = DEFAULT_POLL_S,
         hello_timeout_s: float = 10.0,
         max_newcomers: int = 128,
+        links_per_peer: int = LINKS_PER_PEER,
     ) -> None:
         check_transport_args(system_id, bind, advertise, max_message_bytes)
-        check_newcomer_args(hello_timeout_s, max_newcomers)
+        self.newcomers = check_newcomer_args(hello_timeout_s, max_newcomers, links_per_peer)
         self._strangers = PeerBook(stranger_ttl_s, max_strangers, max_peers)
         self._first_listing = first_listing(trusted)  # before the keys load
         self.curve = curve_for(system_id, bind, keys, trusted, insecure)
@@ -162,8 +164,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
                 max_message_bytes,
                 self.stats,
                 system_id,
-                hello_timeout_s,
-                max_newcomers,
+                self.newcomers,
             )
         except ValueError:
             if self._own_ctx:

@@ -6,10 +6,13 @@ line what is wrong; it needs no pyzmq, so a settings file is checked without loa
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from btcap.transports.base import BROADCAST
 
 __all__ = [
     "SCHEMES",
+    "NewcomerLimits",
     "check_endpoint",
     "check_id",
     "check_newcomer_args",
@@ -64,11 +67,29 @@ def check_transport_args(system_id: str, bind: str, advertise: str | None, max_b
         raise ValueError(f"max_message_bytes {max_bytes}: expected at least 1024")
 
 
-def check_newcomer_args(hello_timeout_s: float, max_newcomers: int) -> None:
-    """How long an inbound connection may stay silent, and how many may (both > 0)."""
+class NewcomerLimits(NamedTuple):
+    """How long an inbound connection may stay silent, how many may wait for their hello
+    at once, and how many links a peer keeps (:mod:`~btcap.transports.newcomers`)."""
+
+    hello_timeout_s: float
+    max_newcomers: int
+    links_per_peer: int
+
+
+def check_newcomer_args(
+    hello_timeout_s: float, max_newcomers: int, links_per_peer: int
+) -> NewcomerLimits:
+    """The limits, checked: the first two > 0, and at least 2 links per peer (one that
+    relinks holds two for a moment)."""
     if not (hello_timeout_s > 0 and max_newcomers > 0):
         what = f"hello_timeout_s={hello_timeout_s}, max_newcomers={max_newcomers}"
         raise ValueError(f"{what}: expected both > 0")
+    if links_per_peer < 2:
+        raise ValueError(
+            f"links_per_peer={links_per_peer}: expected at least 2 (a peer that relinks "
+            "holds two links for a moment)"
+        )
+    return NewcomerLimits(hello_timeout_s, max_newcomers, links_per_peer)
 
 
 def parse_hello(ident: bytes, payload: bytes, own_id: str) -> tuple[str, str]:

@@ -25,7 +25,7 @@ import zmq
 
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger, worth_logging
-from btcap.transports.newcomers import Close, Newcomers
+from btcap.transports.newcomers import LINKS_PER_PEER, Close, Newcomers
 
 __all__ = ["NO_HELLO", "TOO_MANY_LINKS", "NewcomerWatch", "local_address", "shut", "socket_key"]
 
@@ -107,9 +107,15 @@ class NewcomerWatch:
     shuts what it says to, on the running loop's time."""
 
     def __init__(
-        self, bound: str, stats: TransportStats, system: str, deadline: float, cap: int
+        self,
+        bound: str,
+        stats: TransportStats,
+        system: str,
+        deadline: float,
+        cap: int,
+        links: int = LINKS_PER_PEER,
     ) -> None:
-        self.book = Newcomers(deadline, cap)
+        self.book = Newcomers(deadline, cap, links)
         self.local = local_address(bound)
         self.stats = stats
         self.system = system

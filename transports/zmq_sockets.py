@@ -20,6 +20,7 @@ from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.refusals import HANDSHAKE_EVENTS
 from btcap.transports.security import Curve
+from btcap.transports.zmq_endpoints import NewcomerLimits
 from btcap.transports.zmq_io import NOBLOCK
 from btcap.transports.zmq_monitors import DISCONNECTED, RETRIED, Monitor, RouterEvents
 from btcap.transports.zmq_newcomers import NewcomerWatch
@@ -77,12 +78,11 @@ def open_router(
     max_message_bytes: int,
     stats: TransportStats,
     system: str,
-    hello_timeout_s: float,
-    max_newcomers: int,
+    limits: NewcomerLimits,
 ) -> tuple[zmq.Socket[bytes], RouterEvents]:
     """The ROUTER a transport receives on, bound to ``bind``, with its event monitor,
-    which closes connections that say no hello within ``hello_timeout_s`` (at most
-    ``max_newcomers`` wait: see :mod:`~btcap.transports.newcomers`)."""
+    which closes connections that say no hello in time (``limits``: see
+    :mod:`~btcap.transports.newcomers`)."""
     sock: zmq.Socket[bytes] = ctx.socket(zmq.ROUTER)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM, _RECV_HWM)
@@ -106,7 +106,7 @@ def open_router(
         sock.close(0)
         raise ValueError(f"cannot bind {bind!r}: {exc}") from None
     bound = sock.getsockopt_string(zmq.LAST_ENDPOINT)
-    events.watch = NewcomerWatch(bound, stats, system, hello_timeout_s, max_newcomers)
+    events.watch = NewcomerWatch(bound, stats, system, *limits)
     return sock, events
 
 

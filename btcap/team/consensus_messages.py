@@ -29,6 +29,10 @@ class OpenTask(msgspec.Struct, frozen=True, array_like=True):
     holder: ExecutionId | None = None
     holder_robot: str | None = None
     margin: float = 0.0
+    #: The origin's clock speed-up (0: a virtual clock, or not said): a robot whose clock
+    #: runs at another rate claims none of its tasks, saying why (as it declines a call
+    #: for bids: :class:`~btcap.team.messages.CallForBids`).
+    speedup: float = 0.0
 
 
 class ConsensusTasks(Message):

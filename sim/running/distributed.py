@@ -7,13 +7,19 @@ The simulation manager, the shared store and the operator (holding the mission t
 in this process. A robot that *fails* for a while is frozen (SIGSTOP, then SIGCONT), so
 it falls silent exactly as a robot whose computer hangs would; one that *leaves* is
 terminated and says goodbye; one that *joins* is started.
+
+Robots start a few at a time (:class:`~btcap.team.deployment.startgate.StartGate`): each
+start is CPU work, and fifty at once on two cores made every one of them late. A robot
+waiting for its turn is not started at all if it leaves meanwhile; each one's ready
+deadline counts from its own start, and one that does not come up is one line in the
+result's errors naming it and why.
 """
 
 from __future__ import annotations
 
 import signal
 import tempfile
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from contextlib import AsyncExitStack
 from pathlib import Path
 from typing import Any
@@ -31,12 +37,19 @@ from btcap.sim.running.runner import Progress, run_scenario
 from btcap.sim.world.grid import GridMap
 from btcap.team.deployment.agentconfig import Timing
 from btcap.team.deployment.spawn import AsyncAgentProcess
+from btcap.team.deployment.startgate import STARTS_AT_ONCE, StartGate
 from btcap.transports import MessageRegistry, Transport, ZmqTransport
 from btcap.transports.log import get_logger
 
-__all__ = ["ProcessHost", "robot_factory", "run_distributed"]
+__all__ = ["READY_S", "ProcessHost", "Spawn", "robot_factory", "run_distributed"]
 
 log = get_logger(__name__)
+
+#: Wall seconds a robot's process has to listen, from when its start began.
+READY_S = 20.0
+
+#: Starts a robot's process from its configuration file (path, robot), returning at once.
+Spawn = Callable[[Path, str], Awaitable[AsyncAgentProcess]]
 
 
 def robot_factory(robot: str, scenario: dict[str, Any]) -> RobotSetup:
@@ -51,7 +64,9 @@ class ProcessHost:
 
     Each process is watched by a task of the host's task group: one that does not come
     up, or exits without being asked to, is recorded in ``errors`` (its log lines are on
-    our stderr, or in ``stderr`` when given).
+    our stderr, or in ``stderr`` when given). ``starts_at_once`` processes start at a
+    time, each given ``ready_s`` wall seconds from its own start to listen. ``spawn``
+    starts a robot's process (default: ``btcap agent FILE``).
     """
 
     def __init__(
@@ -62,6 +77,9 @@ class ProcessHost:
         grid: GridMap,
         *,
         stderr: int | None = None,
+        starts_at_once: int = STARTS_AT_ONCE,
+        ready_s: float = READY_S,
+        spawn: Spawn | None = None,
     ) -> None:
         self.s = s
         self.clock = clock
@@ -69,10 +87,13 @@ class ProcessHost:
         self.errors: list[RobotError] = []
         self.started: dict[str, AsyncAgentProcess] = {}  # every process started, by robot
         self._stderr = stderr
+        self.starts = StartGate(starts_at_once)  #: the robots starting now (and at most)
+        self.ready_s = ready_s
+        self._spawn: Spawn = spawn or self._agent
         self._endpoints: dict[str, str] = {}
         self._procs: dict[str, AsyncAgentProcess] = {}
         self._leaving: set[AsyncAgentProcess] = set()
-        self._starting: set[str] = set()  # spawned, process not created yet
+        self._starting: set[str] = set()  # started, process not created yet
         self._left_early: set[str] = set()  # left before its process existed
         self._frozen: set[str] = set()
         self._config = agent_options(s)
@@ -134,14 +155,45 @@ class ProcessHost:
             },
         }
 
+    async def _agent(self, path: Path, name: str) -> AsyncAgentProcess:
+        return await AsyncAgentProcess.spawn_config(
+            path, name, stderr=self._stderr, log_level="error"
+        )
+
     async def _life(self, name: str, path: Path) -> None:
+        async with self.starts.turn():  # a few at once; the rest wait here
+            proc = await self._begin(name, path)
+            if proc is None:
+                return
+            # Known at once, so a robot that leaves or fails while it starts is stopped
+            # or frozen.
+            self._procs[name] = proc
+            self.started[name] = proc
+            try:
+                await proc.wait_ready(self.ready_s)  # from this robot's start
+            except Exception as exc:  # it never came up: exited, or timed out
+                if proc not in self._leaving:
+                    record_error(self.errors, self.clock.now(), name, _not_started(exc))
+                await proc.kill()
+            else:
+                log.info("sim.robot_up", robot=name, pid=proc.pid, endpoint=proc.endpoint)
+        code = await proc.wait()
+        if self._procs.get(name) is proc:
+            del self._procs[name]
+        if proc not in self._leaving and proc.ready:
+            record_error(self.errors, self.clock.now(), name, f"process exited with code {code}")
+
+    async def _begin(self, name: str, path: Path) -> AsyncAgentProcess | None:
+        """The robot's process, created now it has its turn; None if it left meanwhile
+        (stopped if it left while the process was being created) or could not be created."""
         try:
-            proc = await AsyncAgentProcess.spawn_config(
-                path, name, stderr=self._stderr, log_level="error"
-            )
+            if name in self._left_early:  # it left while waiting for its turn
+                self._left_early.discard(name)
+                return None
+            proc = await self._spawn(path, name)
         except OSError as exc:
-            record_error(self.errors, self.clock.now(), name, exc)
-            return
+            record_error(self.errors, self.clock.now(), name, f"did not start: {exc}")
+            return None
         finally:
             self._starting.discard(name)
         if name in self._left_early:  # it left while its process was being created
@@ -149,23 +201,8 @@ class ProcessHost:
             self.started[name] = proc
             self._leaving.add(proc)
             await proc.stop()
-            return
-        # Known at once, so a robot that leaves or fails while it starts is stopped or frozen.
-        self._procs[name] = proc
-        self.started[name] = proc
-        try:
-            await proc.wait_ready()
-        except Exception as exc:  # it never came up: exited, or timed out
-            if proc not in self._leaving:
-                record_error(self.errors, self.clock.now(), name, exc)
-            await proc.kill()
-        else:
-            log.info("sim.robot_up", robot=name, pid=proc.pid, endpoint=proc.endpoint)
-        code = await proc.wait()
-        if self._procs.get(name) is proc:
-            del self._procs[name]
-        if proc not in self._leaving and proc.ready:
-            record_error(self.errors, self.clock.now(), name, f"process exited with code {code}")
+            return None
+        return proc
 
     def leave(self, name: str) -> None:
         if name in self._starting:
@@ -189,6 +226,13 @@ class ProcessHost:
 
     def present(self) -> set[str]:
         return {n for n, p in self._procs.items() if p.ready and p.alive()} - self._frozen
+
+
+def _not_started(exc: Exception) -> str:
+    """One line: why a robot's process did not come up."""
+    if isinstance(exc, TimeoutError | RuntimeError):
+        return f"did not start: {exc}"
+    return f"did not start: {type(exc).__name__}: {exc}"
 
 
 async def run_distributed(

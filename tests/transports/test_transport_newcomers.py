@@ -84,6 +84,18 @@ def test_a_name_claimed_over_and_over_keeps_a_few_links() -> None:
     assert [fd for fd in book.links] == list(range(kept, 10))
 
 
+def test_the_links_kept_per_peer_are_an_option() -> None:
+    book = Newcomers(deadline=10.0, cap=100, links=2)
+    closed = []
+    for fd in range(5):
+        book.accepted(fd, f"k{fd}", now=0.0)
+        closed += book.spoke(fd, "r1", f"k{fd}")
+    assert [fd for fd, _ in closed] == [0, 1, 2]
+    assert list(book.links) == [3, 4]
+    with pytest.raises(ValueError, match="links 0"):
+        Newcomers(deadline=10.0, cap=100, links=0)
+
+
 def test_a_link_named_again_by_another_peer_moves() -> None:
     book = Newcomers(deadline=10.0, cap=8)
     book.spoke(5, "a", "k5")

@@ -161,6 +161,8 @@ async def test_a_key_holder_that_never_speaks_is_closed(tmp_path: Path) -> None:
 def test_limits_must_be_positive() -> None:
     with pytest.raises(ValueError, match="hello_timeout_s=0"):
         ZmqTransport("a", TCP, messages(), hello_timeout_s=0)
+    with pytest.raises(ValueError, match="links_per_peer=1: expected at least 2"):
+        ZmqTransport("a", TCP, messages(), links_per_peer=1)
 
 
 @pytest.mark.parametrize("scheme", ["tcp", "ipc"])

@@ -34,14 +34,15 @@ from btcap.team.allocation.own_costs import OwnCosts
 from btcap.team.allocation.strategy import (
     Allocator,
     AuctionRecord,
-    AuctionStats,
     AuctionWatcher,
+    ConsensusStats,
     Pricer,
     TeamView,
 )
 from btcap.team.core.auction import AuctionOutcome
 from btcap.team.core.award import AwardRound, bounded
 from btcap.team.core.consensus import Board, Claim, Consensus, Report, Task
+from btcap.team.core.fence import speedup_of
 from btcap.team.core.members import TeamEvent
 from btcap.team.core.task import Assigned, AssignmentTask, Unassigned
 from btcap.team.ids import AuctionId, ExecutionId
@@ -58,16 +59,6 @@ from btcap.transports.log import get_logger, worth_logging
 __all__ = ["ConsensusAssigner", "ConsensusStats"]
 
 log = get_logger(__name__)
-
-
-@dataclass(slots=True)
-class ConsensusStats(AuctionStats):
-    """``auctions``: tasks offered; ``early_closes``: awarded on agreement, not the window;
-    ``messages``: consensus messages sent (offers, claims and prices)."""
-
-    messages: int = 0  #: consensus messages sent
-    refused: int = 0  #: messages speaking for another robot, or with an impossible cost
-    dropped: int = 0  #: tasks and view entries over the bounds a peer sent
 
 
 @dataclass(slots=True)
@@ -179,6 +170,7 @@ class ConsensusAssigner(Allocator):
             task.holder,
             task.holder_robot,
             task.margin,
+            speedup_of(clock),
         )
         self.core.open(Task(task.execution, task.candidates, spec))
         try:

@@ -52,6 +52,7 @@ class OwnCosts:
                     spec.identity,
                     spec.inputs,
                     spec.holder,
+                    speedup=spec.speedup,
                 )
                 got = pricer.evaluate(cfb)
                 cached = (spec, got if isinstance(got, Bid) else got.reason)

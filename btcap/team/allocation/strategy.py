@@ -44,6 +44,7 @@ __all__ = [
     "AuctionRecord",
     "AuctionStats",
     "AuctionWatcher",
+    "ConsensusStats",
     "Pricer",
     "RobotContext",
     "Strategy",
@@ -113,6 +114,17 @@ class AuctionStats:
     unassigned: int = 0
     declined_awards: int = 0
     early_closes: int = 0
+
+
+@dataclass(slots=True)
+class ConsensusStats(AuctionStats):
+    """The consensus strategy's (:mod:`~btcap.team.allocation.consensus`): ``auctions``:
+    tasks offered; ``early_closes``: awarded on agreement, not the window; ``messages``:
+    consensus messages sent (offers, claims and prices)."""
+
+    messages: int = 0  #: consensus messages sent
+    refused: int = 0  #: messages speaking for another robot, or with an impossible cost
+    dropped: int = 0  #: tasks and view entries over the bounds a peer sent
 
 
 class Allocator(Actor, abc.ABC):

@@ -15,6 +15,7 @@ import msgspec
 
 from btcap.team.rossettings import RosSettings
 from btcap.team.settings import Allocation, Timing
+from btcap.transports.newcomers import LINKS_PER_PEER
 
 __all__ = [
     "AgentFile",
@@ -67,6 +68,31 @@ class Network(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     max_peers: Annotated[
         int, msgspec.Meta(gt=0, description="At most this many peers are kept.")
     ] = 1024
+    hello_timeout_s: Annotated[
+        float,
+        msgspec.Meta(
+            gt=0,
+            description="Seconds an inbound connection may stay silent: every teammate "
+            "says hello first, so one that says none in time is closed (it holds a file "
+            "descriptor until then).",
+        ),
+    ] = 10.0
+    max_newcomers: Annotated[
+        int,
+        msgspec.Meta(
+            gt=0,
+            description="At most this many inbound connections wait for their hello at "
+            "once; beyond, the oldest is closed.",
+        ),
+    ] = 128
+    links_per_peer: Annotated[
+        int,
+        msgspec.Meta(
+            ge=2,
+            description="Inbound connections kept per teammate (at least 2: one that "
+            "reconnects holds two for a moment); beyond, the oldest is closed.",
+        ),
+    ] = LINKS_PER_PEER
 
 
 class Keys(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):

@@ -6,6 +6,9 @@ Two handles on the same child process: :class:`AgentProcess` for synchronous cod
 running in an event loop (:func:`open_agent`, :func:`open_agents`), built on anyio's
 process and stream API so waiting for a child never blocks the loop. Both read the same
 announcements: one JSON line per agent, with its robot and bound endpoint.
+
+The functions that start several processes start a few at a time, each with its ready
+deadline from its own start (:mod:`~btcap.team.deployment.startgate` says why).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import anyio.abc
 import msgspec
 
 from btcap.team.deployment.agentspec import AgentSpec, check_specs
+from btcap.team.deployment.startgate import STARTS_AT_ONCE, StartGate, check_at_once
 
 __all__ = [
     "AgentProcess",
@@ -106,11 +110,15 @@ class _Announcements:
         return all(r in self.endpoints for r in self.robots)
 
     def timed_out(self, limit: float) -> TimeoutError:
-        missing = [r for r in self.robots if r not in self.endpoints]
-        return TimeoutError(f"agents {missing} did not start within {limit} s")
+        missing = ", ".join(r for r in self.robots if r not in self.endpoints)
+        return TimeoutError(f"agent {missing} did not listen within {limit:g} s of its start")
 
     def exited(self, code: int | None) -> RuntimeError:
-        return RuntimeError(f"agent process {self.robots} exited (code {code}) before it was ready")
+        robots = ", ".join(self.robots)
+        return RuntimeError(
+            f"the process of agent {robots} exited (code {code}) before it listened "
+            "(its log says why)"
+        )
 
 
 class _Launched:
@@ -231,15 +239,23 @@ def spawn_agent(
 
 
 def spawn_agents(
-    groups: Sequence[Specs], *, timeout: float = 20.0, stderr: int | None = None
+    groups: Sequence[Specs],
+    *,
+    timeout: float = 20.0,
+    stderr: int | None = None,
+    at_once: int = STARTS_AT_ONCE,
 ) -> list[AgentProcess]:
-    """Start one process per group (a spec, or a list of specs sharing a process), in
-    parallel, and wait until every agent listens. On failure, the others are killed."""
+    """Start one process per group (a spec, or a list of specs sharing a process),
+    ``at_once`` at a time, and wait until every agent listens; each has ``timeout``
+    seconds from its own start. On failure, the others are killed."""
+    check_at_once(at_once)
     procs: list[AgentProcess] = []
     try:
-        for group in groups:
+        for i, group in enumerate(groups):
+            if i >= at_once:  # a turn: the oldest still starting must listen first
+                procs[i - at_once].wait_ready()
             procs.append(AgentProcess(group, timeout=timeout, stderr=stderr, wait=False))
-        for p in procs:
+        for p in procs:  # (those that listen already return at once)
             p.wait_ready()
     except BaseException:
         for p in procs:
@@ -354,14 +370,21 @@ async def open_agent(
 
 
 async def open_agents(
-    groups: Sequence[Specs], *, timeout: float = 20.0, stderr: int | None = None
+    groups: Sequence[Specs],
+    *,
+    timeout: float = 20.0,
+    stderr: int | None = None,
+    at_once: int = STARTS_AT_ONCE,
 ) -> list[AsyncAgentProcess]:
-    """:func:`open_agent` for each group, in parallel; if any fails, all are killed (the
-    failures are raised as an ExceptionGroup)."""
+    """:func:`open_agent` for each group, ``at_once`` at a time (each has ``timeout``
+    seconds from its own start); if any fails, all are killed (the failures are raised
+    as an ExceptionGroup)."""
+    gate = StartGate(at_once)
     opened: dict[int, AsyncAgentProcess] = {}
 
     async def one(i: int, group: Specs) -> None:
-        opened[i] = await open_agent(group, timeout=timeout, stderr=stderr)
+        async with gate.turn():
+            opened[i] = await open_agent(group, timeout=timeout, stderr=stderr)
 
     try:
         async with anyio.create_task_group() as tg:

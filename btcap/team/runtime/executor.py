@@ -130,7 +130,10 @@ class ExecutorSide:
         return out
 
     def evaluate(self, cfb: CallForBids) -> Bid | NoBid:
-        """This robot's answer to a call for bids (reserves nothing)."""
+        """This robot's answer to a call for bids (reserves nothing); its auctioneer is
+        the sender (checked by the caller: a call's sender, a consensus task's origin)."""
+        if (why := self._other_rate(cfb.auction.auctioneer, cfb.speedup)) is not None:
+            return NoBid(cfb.auction, self.robot, why)
         impls = self.repository.local_implementations(cfb.interface, cfb.identity)
         holding = cfb.holder is not None and self.body.holds(cfb.holder)
         handing = (
@@ -176,9 +179,7 @@ class ExecutorSide:
         now = self.now()
         if not self.calls.allow(sender, now):
             return None
-        if (why := self._other_rate(sender, cfb.speedup)) is not None:
-            return NoBid(cfb.auction, self.robot, why)
-        answer = self.evaluate(cfb)
+        answer = self.evaluate(cfb)  # (one on a clock of another speed-up declines)
         if isinstance(answer, Bid):
             self.bids.bid(cfb.auction, cfb.interface, now)
         return answer

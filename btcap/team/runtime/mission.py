@@ -128,7 +128,7 @@ class MissionControl(Actor):
 
     # -- life cycle -------------------------------------------------------------------
     def on_start(self) -> None:
-        self.executor.runs = RunFactory(self.system)
+        self.executor.runs = RunFactory(self.system, self.stats)
         self.executor.runs.prepare(
             i for impls in self.repository.implementations.values() for i in impls
         )

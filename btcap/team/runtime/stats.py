@@ -26,3 +26,6 @@ class MissionStats:
     refused: int = 0  #: messages a peer had no right to send, or that made no sense
     errors: int = 0  #: failures of this robot's own code (bid functions, builds), logged
     news_ignored: int = 0  #: teammates' news over their budget (see Reevaluation.budget)
+    #: runs an award built on the event loop, with no spare built ahead in a worker
+    #: thread (two awards faster than a spare, or a build that fails in a thread)
+    built_on_loop: int = 0

@@ -6,6 +6,7 @@ holds up the robot's heartbeats. Judged by the thread each run was built in, not
 from __future__ import annotations
 
 import threading
+import warnings
 
 import anyio
 from capfixtures import team, tick_until, until
@@ -87,3 +88,86 @@ async def test_on_a_virtual_clock_runs_are_built_inline_as_before() -> None:
             await tree.shutdown()
     assert built.thread
     assert set(built.thread.values()) == {loop_thread}
+
+
+class _LoopOnly:
+    """A build that works on the loop's thread only (say, one that needs the running
+    loop): it fails in a worker thread."""
+
+    def __init__(self) -> None:
+        self.loop_thread = threading.get_ident()
+
+    def __call__(self) -> Sequence:
+        if threading.get_ident() != self.loop_thread:
+            raise RuntimeError("needs the loop's thread")
+        return Sequence("work", children=[AlwaysSuccess("step")])
+
+
+async def test_a_build_that_fails_in_a_thread_is_warned_once_and_counted() -> None:
+    def told(caught: list[warnings.WarningMessage]) -> list[str]:
+        return [str(w.message) for w in caught if "'bare-b'" in str(w.message)]
+
+    with anyio.fail_after(30), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        async with team(real_time=True) as t:
+            a = await t.add("a")
+            b = await t.add("b", [Implementation("bare-b", BARE, _LoopOnly())])
+            await t.converged(BARE.identity)
+            await until(lambda: bool(told(caught)), "b's warning")
+            hosted = b.mission_control.host.hosted
+            for _ in range(3):  # each award builds on the loop, and works
+                node = BARE.node_type()("bare")
+                tree = a.mission(ReactiveSequence("root", children=[node]))
+                assert await tick_until(tree, lambda s: s is not State.RUNNING) is State.SUCCEEDED
+                assert node.assignments == ["b"]
+                await tree.shutdown()
+                await until(lambda: not hosted, "b's run to end")
+            assert b.mission_control.stats.built_on_loop == 3
+            assert b.mission_control.executor.runs is not None
+            assert b.mission_control.executor.runs.built_on_loop == 3
+    (message,) = told(caught)  # once, however many awards
+    assert "RuntimeError: needs the loop's thread" in message
+    assert "worker thread" in message
+
+
+class _Held:
+    """Builds in worker threads wait until released, counting how many wait at once."""
+
+    def __init__(self) -> None:
+        self.loop_thread = threading.get_ident()
+        self.lock = threading.Lock()
+        self.release = threading.Event()
+        self.active = 0
+        self.peak = 0
+
+    def __call__(self) -> Sequence:
+        if threading.get_ident() != self.loop_thread:
+            with self.lock:
+                self.active += 1
+                self.peak = max(self.peak, self.active)
+            try:
+                self.release.wait(30)
+            finally:
+                with self.lock:
+                    self.active -= 1
+        return Sequence("work", children=[AlwaysSuccess("step")])
+
+
+async def test_spares_are_built_one_thread_at_a_time() -> None:
+    """A robot with four implementations builds a spare of each at its start: one at a
+    time, the others queued, not four threads taking every core."""
+    held = _Held()
+    impls = [Implementation(f"bare-{i}", BARE, held) for i in range(4)]
+    try:
+        with anyio.fail_after(30):
+            async with team(real_time=True) as t:
+                b = await t.add("b", impls)
+                runs = b.mission_control.executor.runs
+                assert runs is not None
+                await until(lambda: held.peak >= 2 or runs.queued == 3, "builds to start")
+                assert (held.peak, held.active) == (1, 1)
+                held.release.set()
+                await until(lambda: all(runs.ready(i) for i in impls), "every spare")
+                assert held.peak == 1
+    finally:
+        held.release.set()

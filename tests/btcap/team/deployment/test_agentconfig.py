@@ -19,6 +19,7 @@ from btcap.team.deployment.agentconfig import (
 )
 from btcap.team.runtime.agent import AgentConfig
 from btcap.team.runtime.protocol import protocol_registry
+from btcap.transports.newcomers import LINKS_PER_PEER
 from btcap.transports.security import write_key_pair
 
 ROOT = Path(__file__).resolve().parents[4]
@@ -37,6 +38,9 @@ network:
 timing: {{tick_hz: 20, heartbeat_s: 0.2, failure_timeout_s: 2.0, lease_s: 3.0, speedup: 2}}
 allocation: {{rebid_on_join: 0.25}}
 """
+
+
+BIND = "bind: tcp://127.0.0.1:*"
 
 
 def _write(tmp_path: Path, text: str, name: str = "robot.yaml") -> Path:
@@ -117,6 +121,13 @@ def test_paths_are_relative_to_the_file_and_key_paths_expand_the_environment(
             "network.seeds[1]: Object missing required field `endpoint`",
         ),
         ("endpoint:", "ednpoint:", "network.seeds[0]: Object contains unknown field `ednpoint`"),
+        # the transport's guards against silent connections
+        (BIND, f"{BIND}\n  hello_timeout_s: 0", "network.hello_timeout_s: Expected `float` > 0"),
+        (BIND, f"{BIND}\n  hello_timeout_s: soon", "network.hello_timeout_s: Expected `float`"),
+        (BIND, f"{BIND}\n  hello_timeout_s: .inf", "network.hello_timeout_s"),
+        (BIND, f"{BIND}\n  max_newcomers: 0", "network.max_newcomers: Expected `int` >= 1"),
+        (BIND, f"{BIND}\n  links_per_peer: 1", "network.links_per_peer: Expected `int` >= 2"),
+        (BIND, f"{BIND}\n  links_per_peer: 2.5", "network.links_per_peer: Expected `int`"),
         ("tick_hz: 20", "tick_hz: 0", "timing.tick_hz: Expected `float` > 0.0"),
         ("tick_hz: 20", "tick_hz: fast", "timing.tick_hz: Expected `float`, got `str`"),
         ("tick_hz: 20", "tick_hz: 20, tick_rate: 3", "timing: Object contains unknown field"),
@@ -215,6 +226,24 @@ def test_keys_make_an_encrypted_transport_and_bad_key_files_are_named(tmp_path: 
     (keys / "alpha.key_secret").write_text("not a certificate")
     with pytest.raises(AgentConfigError, match=r"keys\.secret: "):
         load_agent_file(_write(tmp_path, text)).transport(protocol_registry())
+
+
+def test_the_silent_connection_guards_reach_the_transport(tmp_path: Path) -> None:
+    text = GOOD.replace(
+        BIND, f"{BIND}\n  hello_timeout_s: 2.5\n  max_newcomers: 16\n  links_per_peer: 3"
+    )
+    config = load_agent_file(_write(tmp_path, text))
+    assert (config.network.hello_timeout_s, config.network.links_per_peer) == (2.5, 3)
+    transport = config.transport(protocol_registry())
+    try:
+        assert transport.newcomers == (2.5, 16, 3)
+    finally:
+        transport.close()
+    transport = load_agent_file(_write(tmp_path, GOOD)).transport(protocol_registry())
+    try:  # the transport's own defaults
+        assert transport.newcomers == (10.0, 128, LINKS_PER_PEER)
+    finally:
+        transport.close()
 
 
 def test_a_keyless_bind_other_hosts_reach_is_refused_naming_the_field(tmp_path: Path) -> None:

@@ -359,7 +359,7 @@ async def test_an_agent_that_fails_is_named_and_stops_its_process(logs: Path) ->
     """One agent of a process cannot bind: it is logged and printed with its robot, its
     neighbour is stopped, and the process exits with status 1 (no hang, no silence)."""
     bad = spec("g1", 1.0, bind="tcp://no-such-interface:*")
-    exited = pytest.raises(RuntimeError, match=r"\['g0', 'g1'\] exited \(code 1\)")
+    exited = pytest.raises(RuntimeError, match=r"agent g0, g1 exited \(code 1\)")
     with logs.open("ab") as log_file, anyio.fail_after(30), exited:
         await open_agent([spec("g0", 1.0), bad], timeout=30.0, stderr=log_file.fileno())
     text = await anyio.Path(logs).read_text()

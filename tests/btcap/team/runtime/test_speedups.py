@@ -2,7 +2,9 @@
 the robots' clocks run at the same rate (within the stated drift). A robot whose clock
 runs at another speed-up than the auctioneer's does not bid (nor take an award), saying
 why, instead of running work that could still act after the origin gave it up and
-re-assigned it; the origin's user hears it as a capability nobody can take."""
+re-assigned it; the origin's user hears it as a capability nobody can take. Alike with
+consensus allocation: such a robot claims none of the origin's tasks, saying why, rather
+than winning one and declining its award (a round per task wasted)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import contextlib
 import warnings
 
 import anyio
+import pytest
 from capfixtures import COUNT, Probe, config, count_impl
 from structlog.testing import capture_logs
 
@@ -20,8 +23,12 @@ from btcap.team.runtime.background import start_in_background
 from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 
+STRATEGIES = pytest.mark.parametrize("strategy", ["auction", "consensus"])
 
-async def _team_at(speedups: dict[str, float], probe: Probe) -> contextlib.AsyncExitStack:
+
+async def _team_at(
+    speedups: dict[str, float], probe: Probe, strategy: str = "auction"
+) -> contextlib.AsyncExitStack:
     """Robots (only "b" implements COUNT), each on its own clock."""
     net = InProcessNetwork(protocol_registry())
     stack = contextlib.AsyncExitStack()
@@ -31,7 +38,7 @@ async def _team_at(speedups: dict[str, float], probe: Probe) -> contextlib.Async
             transport=net.transport(robot),
             clock=Clock(speedup=speedup),
             implementations=[count_impl("b", 1.0, probe)] if robot == "b" else [],
-            config=config(),
+            config=config(strategy=strategy),
         )
         life = await start_in_background(agent)
         stack.push_async_callback(life.stop)
@@ -54,10 +61,13 @@ def _slower_b_told(caught: list[warnings.WarningMessage]) -> bool:
     )
 
 
-async def test_a_robot_on_a_clock_of_another_speedup_does_not_bid_and_says_why() -> None:
+@STRATEGIES
+async def test_a_robot_on_a_clock_of_another_speedup_does_not_bid_and_says_why(
+    strategy: str,
+) -> None:
     probe = Probe()
     with anyio.fail_after(20), capture_logs() as logs:
-        stack = await _team_at({"a": 10.0, "b": 5.0}, probe)
+        stack = await _team_at({"a": 10.0, "b": 5.0}, probe, strategy)
         async with stack:
             a, b = stack.agents["a"], stack.agents["b"]  # type: ignore[attr-defined]
             await _converged(a, b)
@@ -69,6 +79,8 @@ async def test_a_robot_on_a_clock_of_another_speedup_does_not_bid_and_says_why()
                     tree.tick()
                     await anyio.sleep(0.01)
             assert node.assignments == []
+            assert a.allocator.stats.declined_awards == 0  # b was never offered one
+            assert b.mission_control.stats.declined == 0
             assert b.mission_control.stats.hosted == 0
             assert probe.ticks["b"] == 0  # the work never ran on b
             await tree.shutdown()
@@ -77,10 +89,11 @@ async def test_a_robot_on_a_clock_of_another_speedup_does_not_bid_and_says_why()
     assert "timing.speedup" in told[0]["detail"]
 
 
-async def test_robots_on_clocks_of_one_speedup_work_together() -> None:
+@STRATEGIES
+async def test_robots_on_clocks_of_one_speedup_work_together(strategy: str) -> None:
     probe = Probe()
     with anyio.fail_after(20):
-        stack = await _team_at({"a": 10.0, "b": 10.0}, probe)
+        stack = await _team_at({"a": 10.0, "b": 10.0}, probe, strategy)
         async with stack:
             a, b = stack.agents["a"], stack.agents["b"]  # type: ignore[attr-defined]
             await _converged(a, b)
