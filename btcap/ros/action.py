@@ -177,8 +177,9 @@ class RosAction(RosLeaf):
     the reason in ``error``, when it is aborted, canceled by the server or rejected, when
     no server appears within ``wait_for_server_timeout`` or answers the goal within
     ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, when
-    the goal has no result ``result_timeout_s`` after it was sent (it is cancelled), or
-    when the server leaves the graph mid-goal.
+    the goal has no result ``result_timeout_s`` after it was sent (it is cancelled), when
+    the server leaves the graph mid-goal, or, on ROS 1, at once when the action's server
+    has another type.
     """
 
     __slots__ = ("_goal", "_last", "_types")
@@ -272,8 +273,12 @@ class RosAction(RosLeaf):
     def _send(self) -> State:
         bridge = self.bridge
         name = self._last = self.ros_name()
-        client = bridge.action_client(self.options["action_type"], name)
-        if (missing := self._server_missing(client.server_is_ready(), name)) is not None:
+        kind = self.options["action_type"]
+        client = bridge.action_client(kind, name)
+        ready = client.server_is_ready()
+        if not ready and (wrong := self.mismatched(client, f"action {name}", kind)) is not None:
+            return wrong
+        if (missing := self._server_missing(ready, name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "action_name"}
         msg = self.types.fill(self._types.Goal, fields, f"{self._what()} goal")

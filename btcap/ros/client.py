@@ -359,6 +359,10 @@ class RosBridge:
 
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
+    def mismatch(self, client: Any) -> str | None:
+        """The type of ``client``'s peer, if another than its own (ROS 1's tells); None."""
+        return None
+
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
         whenever a goal or call answers or an awaited message comes (feedback does not),
