@@ -284,9 +284,9 @@ def run_command(args: argparse.Namespace) -> int:
 
             one = wants_ros1(args.ros1, args.ros2, s.ros)
             backend = "ros1" if one else "ros2"  # the ROS the run goes over, for its errors
-            ros = msgspec.structs.replace(s.ros or ScenarioRos(), backend=backend)
+            block = msgspec.structs.replace(s.ros or ScenarioRos(), backend=backend)
             try:
-                check_ros_names(s, ros)
+                check_ros_names(s, block)
             except ScenarioError as exc:
                 raise CliError(str(exc)) from None
             refused = ros1_refused if one else ros2_refused
