@@ -276,15 +276,20 @@ def run_command(args: argparse.Namespace) -> int:
         if args.ros1 and args.ros2:
             raise CliError("--ros1 and --ros2: one ROS version at a time")
         if args.ros1 or args.ros2 or s.ros is not None:
+            import msgspec
+
             from btcap.sim.mission.scenariofile import ScenarioRos
             from btcap.sim.ros1 import ros1_refused, wants_ros1
             from btcap.sim.ros2 import ros2_refused
 
+            one = wants_ros1(args.ros1, args.ros2, s.ros)
+            backend = "ros1" if one else "ros2"  # the ROS the run goes over, for its errors
+            block = msgspec.structs.replace(s.ros or ScenarioRos(), backend=backend)
             try:
-                check_ros_names(s, s.ros or ScenarioRos())
+                check_ros_names(s, block)
             except ScenarioError as exc:
                 raise CliError(str(exc)) from None
-            refused = ros1_refused if wants_ros1(args.ros1, args.ros2, s.ros) else ros2_refused
+            refused = ros1_refused if one else ros2_refused
             why = refused(fast=args.fast, distributed=args.distributed)
             if why is not None:
                 raise CliError(why if args.ros1 or args.ros2 else f"{s.source}: ros: {why}")

@@ -9,6 +9,9 @@ records them in the goal's :class:`_Goal`; the tick reads them. Halting cancels 
 also when the server has not accepted it yet (the answer, when it comes, is cancelled
 then: the race BehaviorTree.ROS2 #18/#53 and Nav2 #6426 report); halting twice does
 nothing more. Every way to fail says why in ``node.error``; no timeout is a success.
+``result_timeout_s`` bounds a goal's whole run (a server that accepts it and never ends
+it would hold the node RUNNING for ever): past it the goal is cancelled and the node
+fails.
 
 The news (accepted, rejected, feedback, result) ticks the node's tree soon
 (:meth:`~btcap.ros.base.RosLeaf.news`). ``action_name`` is read when a goal is sent: a
@@ -173,8 +176,10 @@ class RosAction(RosLeaf):
     SUCCEEDED when the goal succeeds (the Result's fields in the outputs); FAILED, with
     the reason in ``error``, when it is aborted, canceled by the server or rejected, when
     no server appears within ``wait_for_server_timeout`` or answers the goal within
-    ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, or
-    when the server leaves the graph mid-goal.
+    ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, when
+    the goal has no result ``result_timeout_s`` after it was sent (it is cancelled), when
+    the server leaves the graph mid-goal, or, on ROS 1, at once when the action's server
+    has another type.
     """
 
     __slots__ = ("_goal", "_last", "_types")
@@ -185,6 +190,11 @@ class RosAction(RosLeaf):
         "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
         **SERVER_OPTIONS,
         "feedback_timeout": seconds("fail after this long without feedback; null: never", None),
+        "result_timeout_s": seconds(
+            "cancel the goal and fail if it has no result this long after it was sent; "
+            "null: wait as long as the server runs it",
+            None,
+        ),
     }
 
     def declare_ports(self) -> None:
@@ -236,6 +246,13 @@ class RosAction(RosLeaf):
             self._goal = None
             return self.failed(f"{self._what()}: {goal.error}")
         t = now()
+        overall = self.options["result_timeout_s"]
+        if overall is not None and t - goal.sent_at > overall:
+            self._stop()  # cancels it, also if the server has not accepted it yet
+            return self.failed(
+                f"{self._what()}: no result within result_timeout_s {overall} s; the goal "
+                "was cancelled"
+            )
         if goal.handle is None:
             if t - goal.sent_at > self.options["server_timeout"]:
                 self._stop()
@@ -256,8 +273,12 @@ class RosAction(RosLeaf):
     def _send(self) -> State:
         bridge = self.bridge
         name = self._last = self.ros_name()
-        client = bridge.action_client(self.options["action_type"], name)
-        if (missing := self._server_missing(client.server_is_ready(), name)) is not None:
+        kind = self.options["action_type"]
+        client = bridge.action_client(kind, name)
+        ready = client.server_is_ready()
+        if not ready and (wrong := self.mismatched(client, f"action {name}", kind)) is not None:
+            return wrong
+        if (missing := self._server_missing(ready, name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "action_name"}
         msg = self.types.fill(self._types.Goal, fields, f"{self._what()} goal")

@@ -231,6 +231,16 @@ class RosLeaf(Leaf):
             )
         return _RUNNING
 
+    def mismatched(self, client: Any, what: str, expected: str) -> State | None:
+        """FAILED, saying so, when the peer of ``client`` (its server, or its topic's
+        publisher) has another type than ``expected``; None when none was seen. ``what``
+        names the action, service or topic."""
+        found = self.bridge.mismatch(client)
+        if found is None:
+            return None
+        self._waiting_since = None
+        return self.failed(f"{what}: type mismatch: expected {expected}, found {found}")
+
     def failed(self, why: str) -> State:
         """FAILED, with ``why`` (one line) as the node's error."""
         self.error = RosError(f"{type(self).__name__} {self.path!r}: {why}")

@@ -10,7 +10,8 @@ each round trip); feedback and topic messages go through a writer thread, which 
 the latest of a goal or topic while earlier ones wait, so a flood costs the pipe at most
 one frame per write and never holds rospy's thread. A poller thread checks each action
 and service server and reports its availability on change, by the rule of
-:mod:`btcap.ros.availability` (one failed check under load does not make a server gone).
+:mod:`btcap.ros.availability` (one failed check under load does not make a server gone),
+and, for a client that found no peer, a peer of another type (:mod:`btcap.ros.peers1`).
 ``Stop`` (or the pipe closing: the agent is gone) cancels the open goals, unregisters
 every publisher, subscriber and client from the master, and exits.
 
@@ -34,6 +35,7 @@ from typing import Any
 from btcap.ros import wire1
 from btcap.ros.availability import Availability
 from btcap.ros.interfaces1 import interface1
+from btcap.ros.peers1 import PeerTypes
 
 __all__ = ["main"]
 
@@ -43,6 +45,9 @@ ACTION_POLL_S = 0.02
 SERVICE_POLL_S = 0.1
 #: How often it asks the master its pid (a new one: the master restarted).
 MASTER_POLL_S = 1.0
+#: How often it asks the master the types of the topics that action clients without a
+#: server and subscribers without a publisher wait on (btcap.ros.peers1).
+TYPES_POLL_S = 0.2
 #: How long closing waits for the servers to acknowledge the open goals' cancels.
 CANCEL_ACK_S = 5.0
 _KINDS = {"action": "action", "service": "srv", "publisher": "msg", "subscriber": "msg"}
@@ -65,6 +70,8 @@ class Child:
         self.actionlib = actionlib
         self.conn = conn
         self.clients: dict[int, tuple[str, Any, Any]] = {}  # cid -> (kind, types, client)
+        self.names: dict[int, str] = {}  # cid -> its resolved name
+        self.peers = PeerTypes(rospy.get_name())
         self.goals: dict[int, tuple[Any, Any]] = {}  # gid -> (ClientGoalHandle, its client)
         self.ready: dict[int, bool] = {}
         self.availability: dict[int, Availability] = {}
@@ -115,7 +122,7 @@ class Child:
 
     # -- readiness -------------------------------------------------------------------
     def _poll(self) -> None:
-        last_services = last_master = 0.0
+        last_services = last_master = last_types = 0.0
         while not self._stopping.wait(ACTION_POLL_S):
             t = time.monotonic()
             services = t - last_services >= SERVICE_POLL_S
@@ -124,12 +131,20 @@ class Child:
             if t - last_master >= MASTER_POLL_S:
                 last_master = t
                 self._check_master()
-            for cid, (kind, _, client) in list(self.clients.items()):
+            types = t - last_types >= TYPES_POLL_S
+            if types:
+                last_types = t
+                self.peers.new_round()
+            for cid, (kind, cls, client) in list(self.clients.items()):
                 if kind == "action":
                     ok = _action_ready(client)
+                    if types:
+                        self._check_type(cid, kind, cls, ok)
                 elif kind == "service" and services:
-                    ok = self._service_ready(client.resolved_name)
+                    ok = self._service_ready(cid, cls, client.resolved_name)
                 else:
+                    if kind == "subscriber" and types:
+                        self._check_type(cid, kind, cls, _publisher_connected(client))
                     continue
                 ready = self.availability.setdefault(cid, Availability()).check(
                     ok, time.monotonic()
@@ -170,7 +185,25 @@ class Child:
             )
         self.master_pid = pid
 
-    def _service_ready(self, name: str) -> bool:
+    def _check_type(self, cid: int, kind: str, types: Any, connected: bool) -> None:
+        """An action client's or subscriber's peer: none to say once it connected to one
+        (some peer has its type), else the type the master says its name has."""
+        name = self.names.get(cid, "")
+        if connected:
+            found = ""
+        elif kind == "action":
+            found = self.peers.action(types, name)
+        else:
+            found = self.peers.topic(types, name)
+        self._found(cid, found)
+
+    def _found(self, cid: int, found: str) -> None:
+        """Tell the bridge when what client ``cid``'s peer is typed as changes (before its
+        readiness: a node reads the mismatch first)."""
+        if self.peers.news(cid, found):
+            self.post(wire1.Mismatch(cid, found))
+
+    def _service_ready(self, cid: int, types: Any, name: str) -> bool:
         import rosgraph
         import rosgraph.network
 
@@ -186,6 +219,7 @@ class Child:
                     "service": name,
                 }
                 rosgraph.network.write_ros_handshake_header(s, header)
+                self._found(cid, self.peers.service(cid, types, uri, s))
         except Exception:  # not registered, or registered by a process that is gone
             return False
         return True
@@ -225,8 +259,10 @@ class Child:
             self._open(frame)
         elif isinstance(frame, wire1.Drop):
             entry = self.clients.pop(frame.cid, None)
+            self.names.pop(frame.cid, None)
             self.ready.pop(frame.cid, None)
             self.availability.pop(frame.cid, None)
+            self.peers.forget(frame.cid)
             if entry is not None:
                 _unregister(*entry)
 
@@ -247,6 +283,7 @@ class Child:
                 self.post_latest(("m", cid), wire1.Message(cid, _bytes(message)))
 
             client = rospy.Subscriber(frame.name, types, on_message, queue_size=frame.depth)
+        self.names[frame.cid] = frame.name
         self.clients[frame.cid] = (frame.kind, types, client)
 
     def _send_goal(self, frame: wire1.Goal) -> None:
@@ -330,6 +367,11 @@ def _unregister(kind: str, types: Any, client: Any) -> None:
         client.close()
     else:
         client.unregister()
+
+
+def _publisher_connected(subscriber: Any) -> bool:
+    impl = subscriber.impl
+    return impl is not None and bool(impl.connections)
 
 
 def _action_ready(client: Any) -> bool:

@@ -270,12 +270,13 @@ class RosBridge:
         """``name`` in the robot's namespace (``/husky1/navigate_to_pose``)."""
         if not name:
             raise RosError("empty ROS name: expected an action, service or topic name")
+        backend = self.settings.backend
         if name.startswith("/"):
-            return check_namespace(name, "ROS name") if name != "/" else name
+            return check_namespace(name, "ROS name", backend) if name != "/" else name
         if name.startswith("~"):  # private: ROS 1's ~foo, ROS 2's ~/foo
             rest = name[1:].lstrip("/")
             name = f"{self.settings.node_name}/{rest}" if rest else self.settings.node_name
-        return check_namespace(f"{self.namespace.rstrip('/')}/{name}", "ROS name")
+        return check_namespace(f"{self.namespace.rstrip('/')}/{name}", "ROS name", backend)
 
     def qos(self, qos: Qos | None = None) -> Any:
         """An rclpy QoSProfile from ``qos`` (the settings' default when None)."""
@@ -357,6 +358,10 @@ class RosBridge:
                 on_incompatible(policy)
 
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
+
+    def mismatch(self, client: Any) -> str | None:
+        """The type of ``client``'s peer, if another than its own (ROS 1's tells); None."""
+        return None
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)

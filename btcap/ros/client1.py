@@ -299,6 +299,10 @@ class Ros1Bridge(RosBridge):
                     future.set(exception=RosError(frame.error))
                 else:
                     future.set(types.Response().deserialize(frame.data))
+        elif isinstance(frame, wire1.Mismatch):
+            client = self._servers.get(frame.cid) or self._subs.get(frame.cid)
+            if client is not None:
+                client.mismatch = frame.found or None
         elif isinstance(frame, wire1.Notice):
             log.warning("btcap.ros1.notice", node=self.fqn, why=frame.text)
         elif isinstance(frame, wire1.Up) and frame.error and not self._closed:
@@ -340,6 +344,12 @@ class Ros1Bridge(RosBridge):
 
     def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
         return {}  # ROS 1 has no QoS to disagree on
+
+    def mismatch(self, client: Any) -> str | None:
+        """The type ``client``'s peer has, as the rospy process last found it
+        (:mod:`btcap.ros.peers1`), when another than the client's own."""
+        found: str | None = getattr(client, "mismatch", None)
+        return found
 
     def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
         handle = client.send_goal(goal, feedback_callback=feedback)

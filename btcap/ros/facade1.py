@@ -166,13 +166,15 @@ class GoalHandle1:
 
 
 class ActionClient1:
-    """An actionlib ActionClient in the rospy process."""
+    """An actionlib ActionClient in the rospy process. ``mismatch``: the type its server
+    has, when another than its own (None: none seen)."""
 
-    __slots__ = ("bridge", "cid", "ready", "types")
+    __slots__ = ("bridge", "cid", "mismatch", "ready", "types")
 
     def __init__(self, bridge: Ros1Bridge, cid: int, types: Any) -> None:
         self.bridge, self.cid, self.types = bridge, cid, types
         self.ready = False
+        self.mismatch: str | None = None
 
     def server_is_ready(self) -> bool:
         return self.ready
@@ -192,13 +194,14 @@ class ActionClient1:
 
 
 class ServiceClient1:
-    """A rospy ServiceProxy in the rospy process."""
+    """A rospy ServiceProxy in the rospy process; ``mismatch`` as an action client's."""
 
-    __slots__ = ("bridge", "cid", "ready", "types")
+    __slots__ = ("bridge", "cid", "mismatch", "ready", "types")
 
     def __init__(self, bridge: Ros1Bridge, cid: int, types: Any) -> None:
         self.bridge, self.cid, self.types = bridge, cid, types
         self.ready = False
+        self.mismatch: str | None = None
 
     def service_is_ready(self) -> bool:
         return self.ready
@@ -221,10 +224,14 @@ class Publisher1:
 
 
 class Subscription1:
-    __slots__ = ("bridge", "callback", "cid", "types")
+    """A rospy Subscriber in the rospy process; ``mismatch``: the type its topic is
+    published with, when another than its own and no publisher of its own type is there."""
+
+    __slots__ = ("bridge", "callback", "cid", "mismatch", "types")
 
     def __init__(self, bridge: Ros1Bridge, cid: int, types: Any, callback: Any) -> None:
         self.bridge, self.cid, self.types, self.callback = bridge, cid, types, callback
+        self.mismatch: str | None = None
 
     def on_message(self, data: bytes) -> None:  # the bridge's reader thread
         self.callback(self.types().deserialize(data))

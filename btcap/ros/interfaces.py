@@ -23,6 +23,7 @@ from btcap.ros.loader import load
 
 __all__ = [
     "FLOAT32_MAX",
+    "array_shape",
     "check_field",
     "field_types",
     "fill",
@@ -101,7 +102,7 @@ def field_types(msg_cls: Any) -> dict[str, str]:
     return types
 
 
-def _shape(ros_type: str) -> tuple[str, int | None, bool] | None:
+def array_shape(ros_type: str) -> tuple[str, int | None, bool] | None:
     """An array field's element type, bound and whether the bound is exact (``T[N]``);
     None for a field that is no array."""
     if (m := _SEQUENCE.match(ros_type)) is not None:
@@ -113,7 +114,7 @@ def _shape(ros_type: str) -> tuple[str, int | None, bool] | None:
 
 def port_type(ros_type: str) -> Any:
     """The port type of a field: int, float, bool, str, list[...] or dict for a message."""
-    if (shape := _shape(ros_type)) is not None:
+    if (shape := array_shape(ros_type)) is not None:
         inner = port_type(shape[0])
         return list[inner]  # type: ignore[valid-type]
     if _STRING.match(ros_type):
@@ -148,7 +149,7 @@ def check_field(value: Any, ros_type: str, where: str) -> Any:
         if not hasattr(value, "_slot_types"):  # a ROS 1 message is taken as it is
             raise RosError(f"{where}: {value!r} does not fit {ros_type} (expected its fields)")
         return value
-    shape = _shape(ros_type)
+    shape = array_shape(ros_type)
     if shape is not None and isinstance(value, list | tuple):
         inner, bound, exact = shape
         if bound is not None and (len(value) != bound if exact else len(value) > bound):
@@ -210,7 +211,7 @@ def fill(msg_cls: Any, values: Mapping[str, Any], where: str) -> Any:
 
 def _value(value: Any, ros_type: str, where: str) -> Any:
     """A checked plain value as rosidl holds it: messages from dicts, bytes for octets."""
-    if (shape := _shape(ros_type)) is not None:
+    if (shape := array_shape(ros_type)) is not None:
         inner = shape[0]
         if inner == "octet":
             return [bytes((v,)) for v in value]

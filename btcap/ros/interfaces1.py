@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 from btcap.ros.errors import RosError
-from btcap.ros.interfaces import _shape, check_field, kind_name, port_type
+from btcap.ros.interfaces import array_shape, check_field, kind_name, port_type
 
 __all__ = ["Action1", "Service1", "field_types1", "fill1", "interface1", "port_type1", "to_plain1"]
 
@@ -161,7 +161,7 @@ def _value(current: Any, ros_type: str, value: Any, where: str) -> Any:
         if not isinstance(value, Mapping):
             raise RosError(f"{where}: {value!r} does not fit {ros_type}: expected a mapping")
         return _fill(type(current), value, where)
-    shape = _shape(ros_type)
+    shape = array_shape(ros_type)
     if shape is not None and "/" in shape[0] and isinstance(value, list | tuple):
         check_field(value, ros_type, where)  # its length, and each item a message's fields
         cls = interface1(shape[0], "msg")

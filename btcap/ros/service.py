@@ -5,7 +5,8 @@ Inputs are the Request's fields, outputs the Response's. The call goes out with 
 ticked soon when it comes); ``wait_for_server_timeout`` bounds the wait for the service
 to appear and ``server_timeout`` the wait for its response, so a missing or slow server
 fails the node, saying which; a server that leaves the graph during the call fails it
-then. ``service_name`` is read when a call starts.
+then, and one of another type (seen on ROS 1) before any call. ``service_name`` is read
+when a call starts.
 """
 
 from __future__ import annotations
@@ -67,7 +68,9 @@ class RosService(RosLeaf):
             self._future = None
             exc = future.exception()
             if exc is not None:
-                return self.failed(f"{self._what()}: the call failed: {exc}")
+                kind = self.options["service_type"]
+                wrong = self.mismatched(self._client, f"service {self._name}", kind)
+                return wrong or self.failed(f"{self._what()}: the call failed: {exc}")
             outputs = self.outputs
             for k, v in self.types.to_plain(future.result()).items():
                 outputs[k] = v
@@ -85,7 +88,10 @@ class RosService(RosLeaf):
 
     def _call(self) -> State:
         name = self._name = self.ros_name()
-        client = self._client = self.bridge.service_client(self.options["service_type"], name)
+        kind = self.options["service_type"]
+        client = self._client = self.bridge.service_client(kind, name)
+        if (wrong := self.mismatched(client, f"service {name}", kind)) is not None:
+            return wrong
         if (missing := self._server_missing(client.service_is_ready(), name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "service_name"}

@@ -187,8 +187,12 @@ class RosSubscribe(RosLeaf):
         return f"topic {self._topic}"
 
     def _none(self, why: str) -> State:
-        """FAILED for want of a message: ``why``, and a publisher whose QoS this node
-        does not accept, if one was seen (else the error says only "no message yet")."""
+        """FAILED for want of a message: ``why``, and a publisher of another type or
+        whose QoS this node does not accept, if one was seen (else the error says only
+        "no message yet")."""
+        found = self.bridge.mismatch(self._subscription)
+        if found is not None:
+            why += f": type mismatch: expected {self.options['topic_type']}, found {found}"
         policy = self._incompatible
         if policy is not None:
             why += (
@@ -230,7 +234,8 @@ class RosSubscribe(RosLeaf):
 
 class RosWaitForMessage(RosSubscribe):
     """RUNNING until a message arrives after its first tick (since it was halted or reset),
-    then SUCCEEDED with it in the outputs; FAILED after ``timeout`` seconds if set."""
+    then SUCCEEDED with it in the outputs; FAILED after ``timeout`` seconds if set, and at
+    once when the topic is published with another type only (seen on ROS 1)."""
 
     __slots__ = ()
     OPTIONS: ClassVar[dict[str, Any]] = {
@@ -249,6 +254,9 @@ class RosWaitForMessage(RosSubscribe):
             self._waits = None
             self._take(latest)
             return _SUCCEEDED
+        if self.bridge.mismatch(self._subscription) is not None:  # none of its would come
+            self._waits = None
+            return self._none("no message")
         limit = self.options["timeout"]
         if limit is not None and t - self._since > limit:
             self._waits = None

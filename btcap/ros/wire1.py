@@ -21,6 +21,7 @@ __all__ = [
     "Feedback",
     "Goal",
     "Message",
+    "Mismatch",
     "Notice",
     "Open",
     "Publish",
@@ -127,6 +128,15 @@ class Message(_Frame):
     data: bytes
 
 
+class Mismatch(_Frame):
+    """Client ``cid``'s peer has another type than the client (``found``: its type, said
+    in one phrase), or, ``found`` empty, no more (sent on every change): an action
+    server's or a publisher's type from the master, a service's from its probe header."""
+
+    cid: int
+    found: str
+
+
 class Notice(_Frame):
     """Something the robot's user should know (the master restarted), in one line."""
 
@@ -134,7 +144,7 @@ class Notice(_Frame):
 
 
 Down = Open | Drop | Goal | Cancel | Call | Publish | Stop
-UpFrame = Up | Ready | Accepted | Feedback | Done | Reply | Message | Notice
+UpFrame = Up | Ready | Accepted | Feedback | Done | Reply | Message | Mismatch | Notice
 
 _encoder = msgspec.msgpack.Encoder()
 _down = msgspec.msgpack.Decoder(Down)

@@ -1,9 +1,11 @@
-"""The ``ros:`` block of agent and scenario files: which ROS 2 graph a robot joins.
+"""The ``ros:`` block of agent and scenario files: which ROS graph (ROS 2, or ROS 1 with
+``backend: ros1``) a robot joins.
 
 Plain msgspec types, importing nothing of ROS, so the one settings schema (and ``btcap
 schema agent``) covers the block while an agent without it never loads the bridge
 (:mod:`btcap.ros`, which reads these settings when the block is there). Names follow
-ROS 2's rules, checked here so a bad one is refused as the file is read, naming the field.
+ROS 2's rules, checked here so a bad one is refused as the file is read, naming the field
+and the ROS the block is for.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ __all__ = [
     "check_master_uri",
     "check_namespace",
     "check_node_name",
+    "ros_label",
 ]
 
 _TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
@@ -43,12 +46,19 @@ DomainId = Annotated[
 ]
 
 
-def check_namespace(value: str, where: str = "namespace") -> str:
-    """``value`` if it is an absolute ROS 2 namespace (``/husky1``), else ValueError."""
+def ros_label(backend: str) -> str:
+    """``ROS 1`` or ``ROS 2``: the ROS a ``backend`` value names, for errors (a ROS 1
+    block's errors must not send its user to ROS 2's rules)."""
+    return "ROS 1" if backend == "ros1" else "ROS 2"
+
+
+def check_namespace(value: str, where: str = "namespace", backend: str = "ros2") -> str:
+    """``value`` if it is an absolute namespace (``/husky1``) of ``backend``'s ROS, else
+    ValueError naming that ROS."""
     if not _NAMESPACE.match(value):
         raise ValueError(
-            f"{where}: {value!r} is no ROS 2 namespace: expected '/' and names of letters, "
-            "digits and '_' not starting with a digit ('/husky1', '/team/husky1')"
+            f"{where}: {value!r} is no {ros_label(backend)} namespace: expected '/' and names "
+            "of letters, digits and '_' not starting with a digit ('/husky1', '/team/husky1')"
         )
     return value
 
@@ -72,12 +82,13 @@ def check_master_uri(value: str | None, where: str = "master_uri") -> str | None
     return value
 
 
-def check_node_name(value: str, where: str = "node_name") -> str:
-    """``value`` if it is a ROS 2 node name (``btcap``), else ValueError."""
+def check_node_name(value: str, where: str = "node_name", backend: str = "ros2") -> str:
+    """``value`` if it is a node name (``btcap``) of ``backend``'s ROS, else ValueError
+    naming that ROS."""
     if not _NODE.match(value):
         raise ValueError(
-            f"{where}: {value!r} is no ROS 2 node name: expected letters, digits and '_', "
-            "not starting with a digit"
+            f"{where}: {value!r} is no {ros_label(backend)} node name: expected letters, "
+            "digits and '_', not starting with a digit"
         )
     return value
 
@@ -122,19 +133,20 @@ class RosSettings(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
             "`/husky1/navigate_to_pose`); null: '/' and the robot's name."
         ),
     ] = None
-    node_name: Annotated[str, _doc("The name of the robot's ROS 2 node.")] = "btcap"
+    node_name: Annotated[str, _doc("The name of the robot's ROS node.")] = "btcap"
     qos: Annotated[Qos, _doc("QoS of topics whose node sets none.")] = msgspec.field(
         default_factory=Qos
     )
 
     def __post_init__(self) -> None:
         if self.namespace is not None:
-            check_namespace(self.namespace)
-        check_node_name(self.node_name)
+            check_namespace(self.namespace, backend=self.backend)
+        check_node_name(self.node_name, backend=self.backend)
         check_master_uri(self.master_uri)
 
     def namespace_of(self, robot: str) -> str:
         """The namespace, ``/ROBOT`` when none is set (ValueError if that is no name)."""
         if self.namespace is not None:
             return self.namespace
-        return check_namespace(f"/{robot}", f"namespace (from the robot's name {robot!r})")
+        where = f"namespace (from the robot's name {robot!r})"
+        return check_namespace(f"/{robot}", where, self.backend)

@@ -31,6 +31,7 @@ from btcap.sim.mission.scenariofile import (
 )
 from btcap.sim.world.grid import MapError
 from btcap.team.filecheck import field_first, not_finite
+from btcap.team.rossettings import ros_label
 from btcap.transports.zmq_endpoints import check_id
 
 __all__ = [
@@ -116,15 +117,16 @@ def _check(s: Scenario, where: str) -> Scenario:
 
 
 def check_ros_names(s: Scenario, ros: ScenarioRos) -> None:
-    """ScenarioError, naming the file and robot, if a robot's name makes no ROS 2
-    namespace under ``ros`` (the scenario's block, or the defaults ``--ros2`` uses)."""
+    """ScenarioError, naming the file and robot, if a robot's name makes no namespace of
+    the ROS of ``ros`` (the scenario's block, or the defaults ``--ros2``/``--ros1`` use)."""
+    label = ros_label(ros.backend)
     for i, r in enumerate(s.robots):
         try:
             ros.namespace_of(r.name)
         except ValueError as exc:
             raise ScenarioError(
-                f"{s.source}: robots[{i}].name: {r.name!r} makes no ROS 2 namespace "
-                f"({exc}); expected letters, digits and '_' behind ROS 2"
+                f"{s.source}: robots[{i}].name: {r.name!r} makes no {label} namespace "
+                f"({exc}); expected letters, digits and '_' behind {label}"
             ) from None
 
 

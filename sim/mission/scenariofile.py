@@ -192,7 +192,7 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
             "`pose` and `state` topics and `stop` service are served there."
         ),
     ] = "/" + ROBOT_FIELD
-    node_name: Annotated[str, _doc("The name of each robot's ROS 2 node (in its namespace).")] = (
+    node_name: Annotated[str, _doc("The name of each robot's ROS node (in its namespace).")] = (
         "btcap"
     )
     qos: Annotated[Qos, _doc("QoS of the robots' topics (the `pose` topic, subscriptions).")] = (
@@ -205,14 +205,14 @@ class ScenarioRos(msgspec.Struct, forbid_unknown_fields=True, kw_only=True, froz
                 f"namespace: {self.namespace!r} has no {ROBOT_FIELD}: expected a pattern "
                 "giving each robot a namespace of its own ('/{robot}', '/team/{robot}')"
             )
-        check_namespace(self.namespace.replace(ROBOT_FIELD, "robot"))
-        check_node_name(self.node_name)
+        check_namespace(self.namespace.replace(ROBOT_FIELD, "robot"), backend=self.backend)
+        check_node_name(self.node_name, backend=self.backend)
         check_master_uri(self.master_uri)
 
     def namespace_of(self, robot: str) -> str:
         """``robot``'s namespace (ValueError if its name makes no ROS name)."""
         ns = self.namespace.replace(ROBOT_FIELD, robot)
-        return check_namespace(ns, f"ros.namespace (for robot {robot!r})")
+        return check_namespace(ns, f"ros.namespace (for robot {robot!r})", self.backend)
 
     def settings(self, robot: str) -> RosSettings:
         """The ``ros`` settings of ``robot``'s node, as its agent file would have them."""

@@ -198,6 +198,9 @@ class _Robot:
     def _navigate(self, goal: Any) -> None:  # the server's execute thread
         self._count(1)
         try:
+            if self._gone():  # accepted as the robot was withdrawn: never drive it
+                self.server.set_aborted(self._types[3](), "the robot's servers were withdrawn")
+                return
             self._navigate_to(goal)
         finally:
             self._count(-1)
@@ -234,6 +237,8 @@ class _Robot:
                 self._count(-1)
 
         def operate(request: Any) -> Any:
+            if self._gone():  # came as the robot was withdrawn: never ask the simulation
+                return (False, "withdrawn", 0, False)
             qid = self.sim.ask(self.name, op, self.cell, int(request.target))
             got = self.sim.wait(qid, self._gone)
             if got is None:
@@ -244,14 +249,29 @@ class _Robot:
 
         return call
 
+    def _busy(self) -> bool:
+        """Whether an execution runs or a goal is on its way to one: accepted by actionlib
+        (ACTIVE) but its execute callback not counted yet, or waiting (PENDING) for the
+        server's loop, which takes it up to 0.1 s after the goal it preempted ended. Under
+        the server's locks (in the order actionlib takes them), so a goal's acceptance is
+        seen whole."""
+        server = self.server
+        with server.action_server.lock, server.lock:
+            return bool(self.running) or server.is_active() or server.is_new_goal_available()
+
     def close(self) -> None:
-        """Leave the ROS graph: executions give up (waited for, a bound), then the action
+        """Leave the ROS graph: executions give up (waited for, a bound), goals accepted
+        or waiting meanwhile too (they end ABORTED without driving), then the action
         server, services and topics unregistered."""
         self.withdrawn.set()
         deadline = time.monotonic() + STOP_S
-        while self.running and time.monotonic() < deadline:
+        actions = self.server.action_server
+        while True:
+            with actions.lock:  # no goal comes between the last look and the stop
+                if not self._busy() or time.monotonic() >= deadline:
+                    actions.stop()
+                    break
             time.sleep(POLL_S)
-        self.server.action_server.stop()
         for service in self.services:
             service.shutdown("the simulation stopped")
         self.pose_pub.unregister()

@@ -33,3 +33,12 @@ def test_a_name_resolves_in_the_robots_namespace(
 def test_a_private_name_of_a_node_at_the_root() -> None:
     bridge = RosBridge(RosSettings(namespace="/"), robot="husky1")
     assert bridge.resolve("~foo") == "/btcap/foo"
+
+
+@pytest.mark.parametrize(("bridge", "label"), [(RosBridge, "ROS 2"), (Ros1Bridge, "ROS 1")])
+def test_a_bad_name_is_refused_in_the_terms_of_the_bridges_ros(
+    bridge: type[RosBridge], label: str
+) -> None:
+    backend = "ros1" if bridge is Ros1Bridge else "ros2"
+    with pytest.raises(ValueError, match=f"ROS name: '/husky1/9lives' is no {label} namespace"):
+        bridge(RosSettings(backend=backend), robot="husky1").resolve("9lives")

@@ -170,6 +170,33 @@ async def test_no_feedback_within_feedback_timeout_fails_and_preempts(
     assert str(node.error).endswith("no feedback for feedback_timeout 0.5 s")
 
 
+@pytest.mark.parametrize(
+    ("goal", "name", "ended"), [(-2, "count", "count.preempted"), (1, "slow", "")]
+)
+async def test_no_result_within_result_timeout_cancels_the_goal_and_fails(
+    master: Master, servers: Servers, goal: int, name: str, ended: str
+) -> None:
+    """``count`` -2 runs (feedback and all) until canceled; ``slow`` accepts only 0.5 s
+    after the goal came: past result_timeout_s either is canceled (recalled if not
+    accepted yet) and the node fails saying so. Without it both ran on (RUNNING)."""
+    with anyio.fail_after(30):
+        async with bridge_on(master) as bridge:
+            node = count_node(bridge, goal, name, result_timeout_s=0.3)
+            assert await run(node) is State.FAILED
+            if ended:
+                await settle(lambda: servers.events[ended] == 1)
+            else:
+                await settle(
+                    lambda: servers.events["slow.recalled"] + servers.events["slow.canceled"]
+                )
+            assert bridge.open_goals() == 0
+    assert str(node.error).endswith(
+        f"action /husky1/{name} ({TEST}): no result within result_timeout_s 0.3 s; the goal "
+        "was cancelled"
+    )
+    assert servers.events["count.succeeded"] + servers.events["slow.succeeded"] == 0
+
+
 async def test_a_feedback_flood_does_not_stall_ticking(master: Master, servers: Servers) -> None:
     """The server sends feedback as fast as it can for 1 s (thousands): the tick keeps
     going and sees it change many times; the rospy process sends only the latest while the

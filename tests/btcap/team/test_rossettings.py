@@ -17,6 +17,9 @@ from btcap.team.rossettings import Qos, RosSettings
         ("{namespace: husky1}", "ros.namespace: 'husky1' is no ROS 2 namespace"),
         ("{namespace: /1husky}", "ros.namespace: '/1husky' is no ROS 2 namespace"),
         ("{node_name: my-node}", "ros.node_name: 'my-node' is no ROS 2 node name"),
+        # A ROS 1 block's errors name ROS 1 (they said "ROS 2" whatever the backend).
+        ("{backend: ros1, namespace: husky1}", "ros.namespace: 'husky1' is no ROS 1 namespace"),
+        ("{backend: ros1, node_name: my-node}", "ros.node_name: 'my-node' is no ROS 1 node name"),
         ("{domain_id: 300}", "ros.domain_id: Expected `int` <= 232"),
         (
             "{qos: {reliability: sometimes}}",
@@ -54,3 +57,10 @@ def test_the_namespace_defaults_to_the_robots_name() -> None:
     assert settings.qos == Qos(reliability="reliable", durability="volatile", depth=10)
     with pytest.raises(ValueError, match=r"from the robot's name 'bad name'"):
         settings.namespace_of("bad name")
+
+
+def test_a_ros1_robot_whose_name_makes_no_namespace_is_told_so_in_ros1s_terms() -> None:
+    with pytest.raises(ValueError, match=r"'/bad name' is no ROS 1 namespace"):
+        RosSettings(backend="ros1").namespace_of("bad name")
+    with pytest.raises(ValueError, match=r"'/bad name' is no ROS 2 namespace"):
+        RosSettings().namespace_of("bad name")

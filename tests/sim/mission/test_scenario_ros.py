@@ -81,6 +81,8 @@ async def test_the_fast_mode_leaves_the_block_aside(tmp_path: Path) -> None:
         ("ros: {namespace: /husky}\n", ("ros.namespace", "no {robot}", "'/{robot}'")),
         ("ros: {namespace: '/9{robot}'}\n", ("ros.namespace", "no ROS 2 namespace")),
         ("ros: {node_name: 'my node'}\n", ("ros.node_name", "no ROS 2 node name")),
+        ("ros: {backend: ros1, namespace: '/9{robot}'}\n", ("ros.namespace", "no ROS 1 namespace")),
+        ("ros: {backend: ros1, node_name: 'my node'}\n", ("ros.node_name", "no ROS 1 node name")),
         ("ros: {domain_id: 300}\n", ("ros.domain_id", "<= 232")),
         ("ros: {qos: {reliability: sometimes}}\n", ("ros.qos.reliability", "'best_effort'")),
         ("ros: {domain: 3}\n", ("ros", "unknown field `domain`", "domain_id")),
@@ -123,12 +125,20 @@ def test_run_with_the_block_is_refused_with_fast_naming_the_file(
     _usage(capsys, ["run", str(path), "--fast", "--out", str(tmp_path / "o")], f"{path}: ros: ")
 
 
-def test_run_ros2_refuses_a_robot_name_that_makes_no_namespace(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize(
+    ("ros", "flag", "label"),
+    [
+        ("", "--ros2", "ROS 2"),
+        ("", "--ros1", "ROS 1"),
+        ("ros: {backend: ros1}\n", None, "ROS 1"),
+    ],
+)
+def test_run_refuses_a_robot_name_that_makes_no_namespace_naming_the_runs_ros(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros: str, flag: str | None, label: str
 ) -> None:
-    path = _file(tmp_path, "", robots="  - {name: spot-1, model: spot}\n")
-    argv = ["run", str(path), "--ros2", "--out", str(tmp_path / "o")]
-    _usage(capsys, argv, "robots[0].name: 'spot-1' makes no ROS 2 namespace")
+    path = _file(tmp_path, ros, robots="  - {name: spot-1, model: spot}\n")
+    argv = ["run", str(path), *([flag] if flag else []), "--out", str(tmp_path / "o")]
+    _usage(capsys, argv, f"robots[0].name: 'spot-1' makes no {label} namespace")
 
 
 @no_ros

@@ -5,17 +5,25 @@ the robot's own bridge. A robot that joins later is served only from when it joi
 
 from __future__ import annotations
 
+import contextlib
 import time
+from collections.abc import AsyncIterator
+from typing import Any
 
 import anyio
+import numpy as np
 import pytest
 from simros1 import WHY_NOT, children, loopback
 
-from btcap.actors import Clock
+from btcap.actors import ActorSystem, Clock
+from btcap.bt.state import State
 from btcap.bt.tree import Tree
+from btcap.ros.nodes1 import RosAction
 from btcap.sim.ros1.client import RobotLink1
 from btcap.sim.ros1.host import Ros1Host
-from btcap.sim.running.hosts import registry
+from btcap.sim.running.hosts import SIM_SYSTEM, registry
+from btcap.sim.world.distance import Cell
+from btcap.sim.world.manager import SimulationManager
 from tests.sim.rosbase.rosworld import world
 
 pytestmark = [
@@ -84,19 +92,10 @@ async def test_a_late_joiner_is_served_only_from_when_it_joins() -> None:
     assert children() == []
 
 
-async def test_a_robot_withdrawn_mid_drive_stops_and_its_goal_ends() -> None:
-    """husky1 drives to the farthest cell through its move_base (its own bridge's
-    RosAction) when its servers are withdrawn: its execution gives up and the robot stops
-    where it is, as behind ROS 2 (it drove on to the goal, and the execution ended later
-    on a server gone from the graph)."""
-    import numpy as np
-
-    from btcap.actors import ActorSystem
-    from btcap.bt.state import State
-    from btcap.ros.nodes1 import RosAction
-    from btcap.sim.running.hosts import SIM_SYSTEM
-    from btcap.sim.world.manager import SimulationManager
-
+@contextlib.asynccontextmanager
+async def simulated() -> AsyncIterator[tuple[Ros1Host, SimulationManager, dict[str, Any], Cell]]:
+    """The full team behind ROS 1, its simulation manager running, and a move_base target
+    pose at the free cell farthest from the start (the cell too)."""
     s, grid, manager = world("full-team")
     free = np.argwhere(grid.free)
     far = free[np.argmax(np.abs(free - np.array(grid.start)).sum(axis=1))]
@@ -105,27 +104,43 @@ async def test_a_robot_withdrawn_mid_drive_stops_and_its_goal_ends() -> None:
     for r in s.robots:
         manager.add_robot(r.name, s.models()[r.model])
     clock, reg = Clock(5.0), registry()
+    async with (
+        Ros1Host(s, clock, reg, grid, manager=manager) as host,
+        ActorSystem(
+            SIM_SYSTEM, transport=host.transport(SIM_SYSTEM), registry=reg, clock=clock
+        ) as sim,
+    ):
+        sim.spawn(manager, SimulationManager.PATH)
+        assert host.started is not None
+        assert host.started.servers is not None
+        yield host, manager, target, (int(far[0]), int(far[1]))
+
+
+def go(host: Ros1Host, target: dict[str, Any], name: str = "go") -> tuple[Tree, RosAction]:
+    """A tree of one RosAction sending husky1's move_base to ``target``, set up."""
+    nav = RosAction(
+        name,
+        action_type="move_base_msgs/MoveBase",
+        action_name="move_base",
+        bridge=links_of(host)["husky1"].bridge,
+        inputs={"target_pose": target},
+        server_timeout=30.0,
+    )
+    tree = Tree(nav)
+    tree.setup()
+    return tree, nav
+
+
+async def test_a_robot_withdrawn_mid_drive_stops_and_its_goal_ends() -> None:
+    """husky1 drives to the farthest cell through its move_base (its own bridge's
+    RosAction) when its servers are withdrawn: its execution gives up and the robot stops
+    where it is, as behind ROS 2 (it drove on to the goal, and the execution ended later
+    on a server gone from the graph)."""
     with anyio.fail_after(150):
-        async with (
-            Ros1Host(s, clock, reg, grid, manager=manager) as host,
-            ActorSystem(
-                SIM_SYSTEM, transport=host.transport(SIM_SYSTEM), registry=reg, clock=clock
-            ) as sim,
-        ):
-            sim.spawn(manager, SimulationManager.PATH)
+        async with simulated() as (host, manager, target, far):
             assert host.started is not None
             assert host.started.servers is not None
-            husky = links_of(host)["husky1"]
-            nav = RosAction(
-                "go",
-                action_type="move_base_msgs/MoveBase",
-                action_name="move_base",
-                bridge=husky.bridge,
-                inputs={"target_pose": target},
-                server_timeout=30.0,
-            )
-            tree = Tree(nav)
-            tree.setup()
+            tree, nav = go(host, target)
             while nav.outputs["feedback_base_position"] is None:
                 assert tree.tick() is State.RUNNING, nav.error
                 await anyio.sleep(0.01)
@@ -136,7 +151,39 @@ async def test_a_robot_withdrawn_mid_drive_stops_and_its_goal_ends() -> None:
             assert state is State.FAILED
             while manager.robots["husky1"].move is not None:  # noqa: ASYNC110 (the loop's)
                 await anyio.sleep(0.01)
-            assert manager.position("husky1") != tuple(far)  # stopped, not driven on
+            assert manager.position("husky1") != far  # stopped, not driven on
             assert "the goal was aborted" in str(nav.error), nav.error
             await tree.shutdown()
+    assert children() == []
+
+
+async def test_a_goal_taken_just_before_a_withdraw_ends_with_it_undriven() -> None:
+    """A second goal preempts the first: actionlib's SimpleActionServer holds it PENDING
+    until its loop takes it up, up to 0.1 s after the first one ended. Withdrawn at once
+    after that end, the robot's close() waited only for executions running: it saw none,
+    stopped the server, and the goal was taken up after, never answered. Now close() waits
+    for it too: it ends ABORTED, without driving."""
+    with anyio.fail_after(150):
+        async with simulated() as (host, manager, target, far):
+            assert host.started is not None
+            assert host.started.servers is not None
+            first, one = go(host, target, "first")
+            while one.outputs["feedback_base_position"] is None:
+                assert first.tick() is State.RUNNING, one.error
+                await anyio.sleep(0.01)
+            second, two = go(host, target, "second")
+            while (state := first.tick()) is State.RUNNING:
+                assert second.tick() is State.RUNNING, two.error
+                await anyio.sleep(0.002)
+            host.started.servers.withdraw("husky1")  # as soon as the first one ended
+            assert "the goal was preempted" in str(one.error), one.error
+            while (state := second.tick()) is State.RUNNING:  # noqa: ASYNC110 (ticking)
+                await anyio.sleep(0.01)
+            assert state is State.FAILED
+            assert "the goal was aborted" in str(two.error), two.error
+            while manager.robots["husky1"].move is not None:  # noqa: ASYNC110 (the loop's)
+                await anyio.sleep(0.01)
+            assert manager.position("husky1") != far
+            await first.shutdown()
+            await second.shutdown()
     assert children() == []
