@@ -9,7 +9,7 @@ records them in the goal's :class:`_Goal`; the tick reads them. Halting cancels 
 also when the server has not accepted it yet (the answer, when it comes, is cancelled
 then: the race BehaviorTree.ROS2 #18/#53 and Nav2 #6426 report); halting twice does
 nothing more. Every way to fail says why in ``node.error``; no timeout is a success.
-``result_timeout_s`` bounds a goal's whole run (a server that accepts it and never ends
+``result_timeout`` bounds a goal's whole run (a server that accepts it and never ends
 it would hold the node RUNNING for ever): past it the goal is cancelled and the node
 fails.
 
@@ -177,7 +177,7 @@ class RosAction(RosLeaf):
     the reason in ``error``, when it is aborted, canceled by the server or rejected, when
     no server appears within ``wait_for_server_timeout`` or answers the goal within
     ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, when
-    the goal has no result ``result_timeout_s`` after it was sent (it is cancelled), when
+    the goal has no result ``result_timeout`` after it was sent (it is cancelled), when
     the server leaves the graph mid-goal, or, on ROS 1, at once when the action's server
     has another type.
     """
@@ -190,7 +190,7 @@ class RosAction(RosLeaf):
         "action_type": Port(str, description="e.g. `nav2_msgs/action/NavigateToPose`"),
         **SERVER_OPTIONS,
         "feedback_timeout": seconds("fail after this long without feedback; null: never", None),
-        "result_timeout_s": seconds(
+        "result_timeout": seconds(
             "cancel the goal and fail if it has no result this long after it was sent; "
             "null: wait as long as the server runs it",
             None,
@@ -246,11 +246,11 @@ class RosAction(RosLeaf):
             self._goal = None
             return self.failed(f"{self._what()}: {goal.error}")
         t = now()
-        overall = self.options["result_timeout_s"]
+        overall = self.options["result_timeout"]
         if overall is not None and t - goal.sent_at > overall:
             self._stop()  # cancels it, also if the server has not accepted it yet
             return self.failed(
-                f"{self._what()}: no result within result_timeout_s {overall} s; the goal "
+                f"{self._what()}: no result within result_timeout {overall} s; the goal "
                 "was cancelled"
             )
         if goal.handle is None:

@@ -110,14 +110,14 @@ async def test_no_result_within_result_timeout_cancels_the_goal_and_fails(
     servers: Servers, bridge: RosBridge, name: str
 ) -> None:
     """``fibonacci_hold`` accepts and runs until canceled, ``fibonacci_late`` accepts only
-    LATE_S after the goal came: past result_timeout_s either is canceled (the late one as
+    LATE_S after the goal came: past result_timeout either is canceled (the late one as
     soon as it is accepted) and the node fails saying so. Without it both ran on."""
-    node = action(bridge, name, result_timeout_s=0.1)
+    node = action(bridge, name, result_timeout=0.1)
     with anyio.fail_after(10):
         assert await tick_until(tree_of(node)) is State.FAILED
         await wait_for(lambda: servers.events[f"{name}.canceled"] == 1)
     assert str(node.error).endswith(
-        f"action /husky1/{name} ({FIB}): no result within result_timeout_s 0.1 s; the goal "
+        f"action /husky1/{name} ({FIB}): no result within result_timeout 0.1 s; the goal "
         "was cancelled"
     )
     assert servers.events["cancel_requests"] == 1
@@ -125,7 +125,7 @@ async def test_no_result_within_result_timeout_cancels_the_goal_and_fails(
 
 
 def test_result_timeout_is_off_unless_set() -> None:
-    assert RosAction.OPTIONS["result_timeout_s"].default is None
+    assert RosAction.OPTIONS["result_timeout"].default is None
 
 
 async def test_discovery_is_bounded_by_its_own_timeout_not_by_the_answer_one(

@@ -177,11 +177,11 @@ async def test_no_result_within_result_timeout_cancels_the_goal_and_fails(
     master: Master, servers: Servers, goal: int, name: str, ended: str
 ) -> None:
     """``count`` -2 runs (feedback and all) until canceled; ``slow`` accepts only 0.5 s
-    after the goal came: past result_timeout_s either is canceled (recalled if not
+    after the goal came: past result_timeout either is canceled (recalled if not
     accepted yet) and the node fails saying so. Without it both ran on (RUNNING)."""
     with anyio.fail_after(30):
         async with bridge_on(master) as bridge:
-            node = count_node(bridge, goal, name, result_timeout_s=0.3)
+            node = count_node(bridge, goal, name, result_timeout=0.3)
             assert await run(node) is State.FAILED
             if ended:
                 await settle(lambda: servers.events[ended] == 1)
@@ -191,7 +191,7 @@ async def test_no_result_within_result_timeout_cancels_the_goal_and_fails(
                 )
             assert bridge.open_goals() == 0
     assert str(node.error).endswith(
-        f"action /husky1/{name} ({TEST}): no result within result_timeout_s 0.3 s; the goal "
+        f"action /husky1/{name} ({TEST}): no result within result_timeout 0.3 s; the goal "
         "was cancelled"
     )
     assert servers.events["count.succeeded"] + servers.events["slow.succeeded"] == 0
