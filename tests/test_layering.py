@@ -469,12 +469,7 @@ def test_nothing_outside_btcap_ros_imports_it() -> None:
 
 #: Private names a module still takes from another, left to their own change (each entry
 #: goes when its name is made public or shared).
-PRIVATE_IMPORTS_LEFT = {
-    ("btcap.bt.switch", "_collapse"),
-    ("btcap.bt.switch", "_halt"),
-    ("btcap.bench.allocation.exchanges", "_events"),
-    ("btcap.bench.allocation.exchanges", "_instance"),
-}
+PRIVATE_IMPORTS_LEFT: set[tuple[str, str]] = set()
 
 
 def _private_imports(name: str, path: Path) -> Iterator[tuple[str, str]]:

@@ -22,12 +22,12 @@ import numpy as np
 from btcap.bench.allocation.optimum import (
     Costs,
     Events,
-    _events,
-    _instance,
     allocate,
     load_map,
     ratios,
     seed_list,
+    seeded_events,
+    seeded_instance,
 )
 from btcap.sim.world.grid import GridMap
 from btcap.team.core.exchange import Running, find_exchanges
@@ -82,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         for r, t in ((20, 20), (50, 50)):
             out: dict[str, list[float]] = {}
             for seed in a.seeds:
-                cost = _instance(grid, np.random.default_rng(seed), r, t)
+                cost = seeded_instance(grid, np.random.default_rng(seed), r, t)
                 got = asyncio.run(allocate(cost, a.strategy, Events((0.0,) * t), None, seed))
                 _measure(cost, got.final, list(range(r)), out)
             _row(f"{r} x {t}", out)
@@ -92,8 +92,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         out = {}
         for seed in a.seeds[:10]:
             rng = np.random.default_rng(1000 + seed)
-            cost = _instance(grid, rng, robots, tasks)
-            events = _events(rng, case, tasks, size)
+            cost = seeded_instance(grid, rng, robots, tasks)
+            events = seeded_events(rng, case, tasks, size)
             done = asyncio.run(allocate(cost, a.strategy, events, 30.0, seed))
             _measure(cost, done.final, [i for i in range(robots) if i not in done.failed], out)
         _row(case, out)

@@ -120,7 +120,7 @@ class Events:
     join_at: tuple[float, ...] = ()
 
 
-def _instance(grid: GridMap, rng: np.random.Generator, robots: int, tasks: int) -> Costs:
+def seeded_instance(grid: GridMap, rng: np.random.Generator, robots: int, tasks: int) -> Costs:
     cache = DistanceCache(grid.free, maxsize=tasks + 1)
     starts = grid.random_free_cells(robots, rng, replace=True)
     goals = grid.random_free_cells(tasks, rng, replace=True)
@@ -239,7 +239,7 @@ async def allocate(
     return Allocation(final, failed, net.messages, cpu)
 
 
-def _events(rng: np.random.Generator, case: str, tasks: int, robots: int) -> Events:
+def seeded_events(rng: np.random.Generator, case: str, tasks: int, robots: int) -> Events:
     """Seeded events of ``case``; ``robots`` (those failing or joining) is its size."""
     at_once = (0.0,) * tasks
     if case == "arrivals":
@@ -302,7 +302,7 @@ def _static(
         msgs: dict[str, list[float]] = {s: [] for s in strategies}
         cpu: dict[str, list[float]] = {s: [] for s in strategies}
         for seed in seeds:
-            cost = _instance(grid, np.random.default_rng(seed), r, t)
+            cost = seeded_instance(grid, np.random.default_rng(seed), r, t)
             for strategy in strategies:
                 got = asyncio.run(allocate(cost, strategy, Events((0.0,) * t), None, seed))
                 ratio, span = ratios(cost, got.final, list(range(r)))
@@ -332,8 +332,8 @@ def _dynamic(grid: GridMap, quick: bool, seeds: Sequence[int]) -> dict[str, Any]
         false: dict[str, list[tuple[str, str]]] = {label: [] for label in labels}
         for seed in seeds:
             rng = np.random.default_rng(1000 + seed)
-            cost = _instance(grid, rng, robots, tasks)
-            events = _events(rng, case, tasks, size)
+            cost = seeded_instance(grid, rng, robots, tasks)
+            events = seeded_events(rng, case, tasks, size)
             for label, strategy, period in columns:
                 got = allocate(cost, strategy, events, period, seed, false=false[label])
                 done = asyncio.run(got)

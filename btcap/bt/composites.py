@@ -45,7 +45,7 @@ _SKIPPED = State.SKIPPED
 _ACTIVE = (State.RUNNING, State.ASSIGNED, State.UNASSIGNED)
 
 
-def _halt(node: Node) -> None:
+def halt_active(node: Node) -> None:
     """Untick ``node`` if it has work in progress."""
     if node.state in _ACTIVE:
         node.untick()
@@ -65,7 +65,7 @@ class Composite(Node):
         """Untick children after ``index`` that were ticked last time and are still active."""
         children = self.children
         for i in range(index + 1, min(self._high, len(children) - 1) + 1):
-            _halt(children[i])
+            halt_active(children[i])
         self._high = index
 
     def on_reset(self) -> None:
@@ -385,14 +385,14 @@ class IfThenElse(Composite):
         s = cond.tick()
         if s is _SUCCEEDED:
             if otherwise is not None:
-                _halt(otherwise)
-            return _collapse(then.tick())
+                halt_active(otherwise)
+            return collapse(then.tick())
         if s is _FAILED or s is _ERROR:
-            _halt(then)
-            return _collapse(otherwise.tick()) if otherwise is not None else _FAILED
+            halt_active(then)
+            return collapse(otherwise.tick()) if otherwise is not None else _FAILED
         # The condition is undecided: neither branch may keep working meanwhile.
         for branch in self.children[1:]:
-            _halt(branch)
+            halt_active(branch)
         return _RUNNING
 
     def utility(self) -> Utility:
@@ -404,7 +404,7 @@ class IfThenElse(Composite):
         )
 
 
-def _collapse(s: State) -> State:
+def collapse(s: State) -> State:
     """Map a child's state to what a composite reports for it."""
     if s is _SUCCEEDED:
         return s

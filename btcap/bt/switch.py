@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from btcap.bt.composites import Composite, _collapse, _halt
+from btcap.bt.composites import Composite, collapse, halt_active
 from btcap.bt.node import Node
 from btcap.bt.ports import Port
 from btcap.bt.state import State, TreeError
@@ -50,11 +50,11 @@ class Switch(Composite):
         except ValueError:
             chosen = children[-1] if len(cases) < len(children) else None
         if self._active is not None and self._active is not chosen:
-            _halt(self._active)
+            halt_active(self._active)
         self._active = chosen
         if chosen is None:
             return _FAILED
-        return _collapse(chosen.tick())
+        return collapse(chosen.tick())
 
     def on_reset(self) -> None:
         super().on_reset()
