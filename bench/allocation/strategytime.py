@@ -176,12 +176,23 @@ def _row(
 
 
 def _vs_best(row: dict[str, Any], default: str) -> list[float]:
-    """The default's mission time over the best other strategy's, seed by seed."""
+    """``default``'s mission time over the best other strategy's, seed by seed."""
     times = row["mission_s"]
     others = [s for s in times if s != default]
     if default not in times or not others:
         return []
     return [times[default][k] / min(times[s][k] for s in others) for k in times[default]]
+
+
+def _spread(row: dict[str, Any]) -> str:
+    """Every strategy's seeds over :data:`TARGET` x the best of the others: what the
+    target asks against how far equally good decisions move a seed (the noise floor;
+    see docs/allocation.md, "The default on every seed")."""
+    return " ".join(
+        f"{s} {sum(x > TARGET for x in r)}/{len(r)}"
+        for s in row["mission_s"]
+        if (r := _vs_best(row, s))
+    )
 
 
 def _met(out: dict[str, Any], default: str) -> bool | None:
@@ -214,6 +225,9 @@ def _print(out: dict[str, Any]) -> None:
         if r:
             over = sum(x > TARGET for x in r)
             print(f"{key:>14} {statistics.mean(r):.3f} {max(r):.3f} {over}/{len(r)}")
+    print(f"every strategy: seeds > {TARGET} x the best of the others")
+    for key, row in out["rows"].items():
+        print(f"{key:>14} {_spread(row)}")
     print("moved / exchanged / undone within 60 s / held back / exchanges foreseen back")
     for key, row in out["rows"].items():
         cells = ["/".join(str(row["counts"][s][c]) for c in COUNTS) for s in strategies]
