@@ -38,6 +38,13 @@ def test_the_default_is_judged_against_the_best_other_strategy_seed_by_seed() ->
     assert st._met(out, "optimal") is False
 
 
+def test_every_strategy_is_judged_against_the_best_of_the_others() -> None:
+    # seed 1: auction is 5 % over the best (optimal), seed 2: optimal is 2 % over auction
+    row = {"mission_s": {"optimal": {"1": 100.0, "2": 102.0}, "auction": {"1": 105.0, "2": 100.0}}}
+    row["mission_s"]["sequential"] = {"1": 100.5, "2": 100.9}
+    assert st._over(row) == {"optimal": 1, "auction": 1, "sequential": 0}
+
+
 def test_the_command_line_names_what_it_expected() -> None:
     with pytest.raises(SystemExit):
         st.main(["--scenarios", "nine"])
