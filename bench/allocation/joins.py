@@ -8,7 +8,8 @@ the Bebop what doing it would cost, and the work moves only if the Bebop bids at
 factor plus the operation's seconds. This prints, per seed, both bids at the join in
 those cost units and the same comparison in seconds (the drive at each robot's speed
 plus the work), whether the work moved, when the Bebop got its first task, and when
-the Husky's exploration ended.
+the Husky's exploration ended. ``--bids time`` runs the robots bidding seconds instead
+(the scenario's ``bids``), to see the same join priced in time.
 
 Figures come from the run's own events (the simulation manager's records of every
 drive with its goal and every operation), so they are what happened, not a model.
@@ -40,9 +41,10 @@ def _goal(detail: str) -> tuple[int, int] | None:
     return int(row), int(col)
 
 
-async def _one(seed: int, mission: str) -> dict[str, Any]:
+async def _one(seed: int, mission: str, bids: str = "paper") -> dict[str, Any]:
     s = load_scenario(builtin_scenarios()["huskies-bebop-joins"])
     s.seed, s.mission = seed, cast(Literal["paper", "pool"], mission)
+    s.bids = cast(Literal["paper", "time"], bids)
     join = next(e.at for e in s.events if e.kind == "join")
     joiner = next(e.robot for e in s.events if e.kind == "join")
     models = s.models()
@@ -71,7 +73,8 @@ async def _one(seed: int, mission: str) -> dict[str, Any]:
     running = [
         i for i in tl if i.robot != joiner and i.kind == "explore" and i.start <= join < i.end
     ]
-    out: dict[str, Any] = {"seed": seed, "mission": mission, "moved": result.moved}
+    out: dict[str, Any] = {"seed": seed, "mission": mission, "bids": bids}
+    out |= {"moved": result.moved, "mission_s": result.mission_time_s}
     first = next((i for i in tl if i.robot == joiner and i.start >= join), None)
     out["joiner_first_task_after_s"] = None if first is None else round(first.start - join, 1)
     if not running:
@@ -121,10 +124,14 @@ async def _one(seed: int, mission: str) -> dict[str, Any]:
 
 
 def run(
-    quick: bool = False, *, seeds: Sequence[int] | None = None, missions: Sequence[str] = ("paper",)
+    quick: bool = False,
+    *,
+    seeds: Sequence[int] | None = None,
+    missions: Sequence[str] = ("paper",),
+    bids: str = "paper",
 ) -> dict[str, Any]:
     seeds = list(seeds) if seeds is not None else list(SEEDS[:2] if quick else SEEDS)
-    rows = [asyncio.run(_one(seed, m)) for m in missions for seed in seeds]
+    rows = [asyncio.run(_one(seed, m, bids)) for m in missions for seed in seeds]
     for r in rows:
         print(r)
     out = {"rows": rows}
@@ -138,8 +145,9 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str,
     p = argparse.ArgumentParser(prog="python -m btcap.bench.allocation.joins", description=__doc__)
     p.add_argument("--seeds", type=seed_list)
     p.add_argument("--missions", default="paper")
+    p.add_argument("--bids", choices=("paper", "time"), default="paper")
     a = p.parse_args(argv)
-    return run(quick, seeds=a.seeds, missions=a.missions.split(","))
+    return run(quick, seeds=a.seeds, missions=a.missions.split(","), bids=a.bids)
 
 
 if __name__ == "__main__":

@@ -62,8 +62,9 @@ QUICK_SEEDS = (1, 2)
 TARGET = 1.10
 
 
-def scenario(name: str, seed: int, mission: str) -> Scenario:
-    """Scenario ``name`` of :data:`SCENARIOS` with ``seed`` and ``mission``."""
+def scenario(name: str, seed: int, mission: str, bids: str | None = None) -> Scenario:
+    """Scenario ``name`` of :data:`SCENARIOS` with ``seed`` and ``mission``, its robots
+    bidding ``bids`` (paper or time; None: the scenario's)."""
     base, robots = SCENARIOS[name]
     s = load_scenario(builtin_scenarios()[base])
     if robots:
@@ -71,6 +72,8 @@ def scenario(name: str, seed: int, mission: str) -> Scenario:
         s.name = name
     s.seed = seed
     s.mission = cast(Literal["paper", "pool"], mission)
+    if bids is not None:
+        s.bids = cast(Literal["paper", "time"], bids)
     return s
 
 
@@ -88,11 +91,13 @@ def run(
     scenarios: Sequence[str] = DEFAULT,
     seeds: Sequence[int] | None = None,
     missions: Sequence[str] = MISSIONS,
+    bids: str | None = None,
 ) -> dict[str, Any]:
     """Every scenario, seed and mission; writes ``bench/results/missionbound.json``."""
     seeds = list(seeds) if seeds is not None else list(QUICK_SEEDS if quick else SEEDS)
     t0 = time.perf_counter()
     out: dict[str, Any] = {"seeds": seeds, "missions": list(missions), "target": TARGET}
+    out["bids"] = bids or "scenario"
     rows: dict[str, dict[str, Any]] = {}
     ratios: dict[str, list[float]] = {m: [] for m in missions}
     hindsight: dict[tuple[str, int], float | None] = {}  # the same for both missions
@@ -104,7 +109,7 @@ def run(
             parts: list[dict[str, Any]] = []
             busy: dict[str, list[float]] = {}
             for seed in seeds:
-                s = scenario(name, seed, mission)
+                s = scenario(name, seed, mission, bids)
                 models = {r.name: r.model for r in s.robots}
                 b = scenario_bound(s)
                 bound = b.seconds
@@ -230,6 +235,9 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str,
     p.add_argument("--seeds", type=seed_list, help="scenario seeds, e.g. 1-5 or 3,7")
     p.add_argument("--scenarios", help=f"some of {', '.join(SCENARIOS)}")
     p.add_argument("--missions", help="paper, pool or both (default)")
+    p.add_argument(
+        "--bids", choices=("paper", "time"), help="what robots bid (default: the scenario's, paper)"
+    )
     a = p.parse_args(argv)
     names = a.scenarios.split(",") if a.scenarios else list(DEFAULT)
     if unknown := sorted(set(names) - set(SCENARIOS)):
@@ -237,7 +245,7 @@ def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str,
     missions = a.missions.split(",") if a.missions else list(MISSIONS)
     if unknown := sorted(set(missions) - set(MISSIONS)):
         p.error(f"--missions: {', '.join(unknown)}; expected paper and/or pool")
-    return run(a.quick, scenarios=names, seeds=a.seeds, missions=missions)
+    return run(a.quick, scenarios=names, seeds=a.seeds, missions=missions, bids=a.bids)
 
 
 if __name__ == "__main__":

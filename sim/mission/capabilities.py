@@ -3,9 +3,11 @@
 Implementations are small trees of sim leaves: drive to the target, then ask the
 simulation manager for the operation. A robot bids the paper's cost: path length to the
 target (and, to decontaminate, on to the decontamination area) times its distance cost
-factor, plus the operation's duration. The same estimate, asked again while the robot
-drives or works, says what finishing would cost from where it is now: the drive left and
-the work left (its :class:`~btcap.sim.world.robot.Body` hears of every cell and operation).
+factor, plus the operation's duration; or, bidding time (:data:`BidUnit`), the seconds
+that drive takes at its speed, plus the operation's duration. The same estimate, asked
+again while the robot drives or works, says what finishing would cost from where it is
+now: the drive left and the work left (its :class:`~btcap.sim.world.robot.Body` hears of
+every cell and operation).
 A bid for other work *after* the work held (to queue it, or a time-extended bid; see
 :func:`~btcap.team.core.bidding.bidding_after`) starts where that work leaves the robot:
 the end of the run it drives for, or the decontamination area while it carries.
@@ -16,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Literal, Protocol
 
 from btcap import Leaf, Node, Port, Sequence, State, Tree
 from btcap.actors import Actor
@@ -37,11 +39,18 @@ __all__ = [
     "ROBOT_CACHE_SIZE",
     "SPARE_EXPLORE",
     "STANDBY",
+    "BidUnit",
     "Drive",
     "RobotSetup",
     "Step",
     "robot_setup",
 ]
+
+#: What a bid is in: ``paper``, the paper's cost units (metres x cost factor + seconds of
+#: work), or ``time``, seconds (the drive at the robot's speed + the work): the paper's
+#: unit prices a Bebop's 21 m flight as 21 though it takes 7 s, so only time bids give
+#: work to the robot that ends it first.
+BidUnit = Literal["paper", "time"]
 
 #: Distance fields each robot keeps for its bids (4 bytes a map cell each).
 ROBOT_CACHE_SIZE = 64
@@ -223,13 +232,18 @@ def robot_setup(
     *,
     manager: str = "sim/manager",
     drive: Drive | None = None,
+    bids: BidUnit = "paper",
 ) -> RobotSetup:
     """The implementations of one simulated robot (only those its model can do), whose
-    leaves ``drive`` makes (default: asking ``manager``)."""
+    leaves ``drive`` makes (default: asking ``manager``), bidding in ``bids``: the
+    paper's cost units, or seconds (:data:`BidUnit`)."""
     drive = drive or _ManagerDrive(robot, manager)
     body = Body(robot, grid.start)
     cache = DistanceCache(grid.free, maxsize=ROBOT_CACHE_SIZE)
-    cf = model.cost_factor
+    if bids not in ("paper", "time"):
+        raise ValueError(f"bids: expected 'paper' or 'time', got {bids!r}")
+    # a metre's price: the paper's cost factor, or the seconds it takes to drive
+    cf = model.cost_factor if bids == "paper" else 1.0 / model.speed_mps
 
     def travel(a: Cell, b: Cell) -> float:
         return path_length(cache.get(b), a, grid.cell_size_m) * cf

@@ -312,6 +312,15 @@ class Scenario(msgspec.Struct, forbid_unknown_fields=True):
             "explorations and identifications at once as robots can do them)."
         ),
     ] = "paper"
+    bids: Annotated[
+        Literal["paper", "time"],
+        _doc(
+            "What robots bid for work: `paper`, the paper's cost units (metres driven x "
+            "the model's `cost_factor`, plus seconds of work), or `time`, seconds (the "
+            "drive at the model's `speed_mps`, plus the work), so work goes to the robot "
+            "that ends it first (docs/mission.md, Fig. 5)."
+        ),
+    ] = "paper"
     team_file: Annotated[
         str | None,
         _doc(

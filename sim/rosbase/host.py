@@ -112,7 +112,7 @@ class RosSimHost(InProcessHost):
         from btcap.ros.capability import with_ros
 
         model = next(r.model for r in self.s.robots if r.name == name)
-        setup = robot_setup(name, self.models[model], self.grid, drive=drive)
+        setup = robot_setup(name, self.models[model], self.grid, drive=drive, bids=self.s.bids)
         setup.implementations = [with_ros(i, link.bridge) for i in setup.implementations]
         link.body = setup.actors[Body.PATH]
         return setup

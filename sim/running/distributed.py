@@ -56,7 +56,7 @@ def robot_factory(robot: str, scenario: dict[str, Any]) -> RobotSetup:
     """Run in the robot's process: rebuild the map and its implementations."""
     s = msgspec.convert(scenario, Scenario)
     model = next(r.model for r in s.robots if r.name == robot)
-    return robot_setup(robot, s.models()[model], s.grid())
+    return robot_setup(robot, s.models()[model], s.grid(), bids=s.bids)
 
 
 class ProcessHost:

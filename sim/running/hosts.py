@@ -188,7 +188,7 @@ class InProcessHost:
     def setup(self, name: str) -> RobotSetup:
         """What robot ``name`` brings to its agent, each time it starts."""
         model = next(r.model for r in self.s.robots if r.name == name)
-        return robot_setup(name, self.models[model], self.grid)
+        return robot_setup(name, self.models[model], self.grid, bids=self.s.bids)
 
     def leave(self, name: str) -> None:
         ev = self._stop.get(name)
