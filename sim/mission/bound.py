@@ -29,9 +29,12 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
   for carries alone, identified) before ``t`` all happens after ``t`` (the scheduling
   bound for jobs with release times), each robot driving its first piece from wherever it
   stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``): no
-  farther from the start than it can have driven since it joined, so that piece is no
-  shorter than the path from the start less that reach (the triangle inequality; a gap
-  in its presence only shortens the reach).
+  farther from the start than it can have driven since it joined (each robot its own
+  reach), so that piece is no shorter than the path from the start less that reach (the
+  triangle inequality; a gap in its presence only shortens the reach). Then the same
+  with each object worked on by one robot at a time (its identification, carry and
+  decontamination, each after its release: :mod:`~btcap.sim.mission.preemptive`), so
+  robots wait while fewer objects are known than robots can work on.
 
 What it takes from the simulation and the store (:mod:`btcap.sim.world.store`), not from
 a mission tree: robots explore only at goals the store hands out and drive along shortest
@@ -39,6 +42,16 @@ paths at their speed; only found objects are handed out to identify, only object
 contaminated to carry; the mission is complete only once every reachable cell is covered
 and every object found is finished. Computed in a fraction of a second on the built-in
 caves.
+
+What it does not take: that a carry stays whole. A carrier that fails, or is stopped or
+sent elsewhere, drops the object where it is (:meth:`~btcap.sim.world.store.MissionState.drop`)
+and another may carry it on, so two carriers can share one carry: the work divides as
+finely as the work part divides it, and bounds on whole carries (two carriers, three long
+carries: one carrier does two) do not hold. Where the paths to the decontamination area
+join, one carrier brings an object part of the way and fetches another beyond the join
+while the second carrier finishes the first: full-team-6 seed 4 has such a schedule
+ending at 273.6 s against this bound's 272.7 s, where the best split of whole carries
+ends at 338.8 s (``tests/sim/mission/test_bound_relay.py``).
 """
 
 from __future__ import annotations
@@ -52,6 +65,7 @@ import numpy as np
 
 from btcap.sim.mission.cover import apart, cover_times
 from btcap.sim.mission.opdraws import Draws, least_factors
+from btcap.sim.mission.preemptive import Drive, Job, preemptive_end
 from btcap.sim.mission.presence import Presence, finish, presence
 from btcap.sim.mission.routes import Legs, pieces_m, visit_tree_m
 from btcap.sim.mission.scenario import Scenario
@@ -169,6 +183,7 @@ def mission_bound(
     legs = Legs(grid, [o.cell for o in objs])
     work_s = _work(grid, models, present, jitter, able, objs, legs)
     release_s = _release(models, present, able, objs, legs)
+    release_s = max(release_s, _one_at_a_time(models, present, able, objs, legs, release_s))
     seconds = max(chains, work_s, release_s)
     return Bound(round(seconds, 1), round(chains, 1), round(work_s, 1), round(release_s, 1))
 
@@ -199,10 +214,9 @@ def _drives_s(
     carry = sum(objs[j].back_m for j in which if objs[j].dirty)
     carry_s = carry / _speed(models, able["decontaminate"]) if dirty else 0.0
     reach = (
-        max(  # how far from the start a robot can be at ``since``
-            (models[i].speed_mps * max(0.0, since - present[i].start) for i in robots),
-            default=0.0,
-        )
+        [  # how far from the start each robot can be at ``since``
+            models[i].speed_mps * max(0.0, since - present[i].start) for i in robots
+        ]
         if anywhere and present
         else math.inf
     )
@@ -293,6 +307,54 @@ def _release(
         )
         out = max(out, finish([present[i] for i in both], since, total))
     return out
+
+
+def _one_at_a_time(
+    models: Sequence[RobotModel],
+    present: Sequence[Presence],
+    able: dict[str, list[int]],
+    objs: Sequence[_Object],
+    legs: Legs,
+    lo: float,
+) -> float:
+    """The after-release part with each object worked on by one robot at a time
+    (:mod:`btcap.sim.mission.preemptive`): the carriers' carries, each after its
+    identification; then the identifiers' and carriers' work, each identification after
+    its discovery and each carry after its identification. The drives after each time are
+    those :func:`_release` counts (less the carries, which are the jobs' own)."""
+    carriers = able["decontaminate"]
+    speed = _speed(models, carriers)
+
+    def carry(j: int) -> float:
+        o = objs[j]
+        return o.back_m / speed + o.dec_op if o.dirty else 0.0
+
+    def pieces(later: list[int], robots: list[int], kinds: dict[str, list[int]], t: float) -> float:
+        carried = sum(objs[j].back_m for j in later if objs[j].dirty) / speed
+        drive = _drives_s(
+            models, kinds, objs, later, legs, robots, anywhere=True, since=t, present=present
+        )
+        return max(0.0, drive - carried) if later else 0.0
+
+    no_id = {**able, "identify": []}
+    dirty = [j for j, o in enumerate(objs) if o.dirty]
+    carry_drives = [
+        Drive(t, pieces([j for j in dirty if objs[j].ident >= t], carriers, no_id, t))
+        for t in {0.0} | {objs[j].ident for j in dirty}
+    ]
+    out = preemptive_end(
+        [present[i] for i in carriers],
+        [Job(((objs[j].ident, carry(j)),)) for j in dirty],
+        carry_drives,
+        lo=lo,
+    )
+    both = sorted(set(carriers) | set(able["identify"]))
+    drives = carry_drives + [
+        Drive(t, pieces([j for j, o in enumerate(objs) if o.found >= t], both, able, t))
+        for t in {0.0} | {o.found for o in objs}
+    ]
+    jobs = [Job(((o.found, o.id_op), (o.ident, carry(j)))) for j, o in enumerate(objs)]
+    return preemptive_end([present[i] for i in both], jobs, drives, lo=max(lo, out))
 
 
 def _disc_cells(models: Sequence[RobotModel], i: int, cell_size_m: float) -> int:
