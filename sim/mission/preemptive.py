@@ -138,6 +138,7 @@ def preemptive_end(
         return lo
     if _fits(present, jobs, chunks, lo):  # the common case: the bound is known already
         return lo
+    known = lo
     hi = max(lo, 1.0) * 2
     while not _fits(present, jobs, chunks, hi):
         if hi > 1e7:
@@ -146,4 +147,5 @@ def preemptive_end(
     while hi - lo > _TOLERANCE_S:
         mid = (lo + hi) / 2
         lo, hi = (lo, mid) if _fits(present, jobs, chunks, mid) else (mid, hi)
-    return lo  # no schedule ends by it
+    # no schedule ends by ``lo``: less the solver's tolerance, in case it is one
+    return max(known, lo - _TOLERANCE_S)
