@@ -16,8 +16,8 @@ seconds of driving (each ``Drive``: at least so much driving after its time, by 
 robots at once) fit in the robots' presence. Every run is such a schedule (each robot does
 one thing at a time, and only while present), so none ends sooner. It is the classic
 bound for identical machines, preemption and release times (P | pmtn, r_j | Cmax, a
-max-flow), with machines present in windows: a linear program over the intervals between
-releases and presence changes, solved for the least end by bisection.
+max-flow), with machines present in windows: a linear program over the spans between
+releases and presence changes, the end a variable of it within each span in turn.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from btcap.sim.mission.presence import Presence
 
 __all__ = ["Drive", "Job", "preemptive_end"]
 
-#: Bisection stops once the end is known to this many seconds.
-_TOLERANCE_S = 0.01
+#: The solver's tolerance, taken off the end it finds (seconds).
+_SLACK_S = 1e-3
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,57 +71,67 @@ def _chunks(drives: Sequence[Drive]) -> list[tuple[float, float]]:
     return out
 
 
-def _fits(
+def _here(p: Presence, t: float) -> bool:
+    """Whether ``p`` is present just after ``t``."""
+    return p.start <= t < p.end and not any(g0 <= t < g1 for g0, g1 in p.gaps)
+
+
+def _least_end(
     present: Sequence[Presence],
-    jobs: Sequence[Job],
-    chunks: Sequence[tuple[float, float]],
-    end: float,
-) -> bool:
-    """Whether the jobs and drive chunks fit in the robots' presence before ``end``: a
-    feasibility program over the spans between releases and presence changes, each part
-    and chunk split over the spans after its release, no span holding more than its
-    robots' presence, nor more of one job than its length."""
-    cuts = {0.0, end}
-    for p in present:
-        cuts |= {p.start, p.end, *(t for g in p.gaps for t in g)}
-    cuts |= {r for j in jobs for r, _ in j.parts} | {r for r, _ in chunks}
-    times = sorted(t for t in cuts if 0.0 <= t <= end)
-    spans = [(a, b) for a, b in pairwise(times) if b > a]
+    items: Sequence[tuple[int, float, float]],
+    times: Sequence[float],
+    lo: float,
+    hi: float,
+) -> float | None:
+    """The least end in [``lo``, ``hi``] of a schedule of ``items`` (job or -1 for a
+    drive, release, seconds) over the spans between ``times`` (the last begins at
+    ``times[-1]`` and lasts until the end, the robots present as at its start), each
+    item split over the spans after its release, no span holding more than its robots'
+    presence nor more of one job than its length; None if there is none."""
+    spans = list(pairwise(times))
+    last = times[-1]
     cap = [sum(p.within(a, b) for p in present) for a, b in spans]
-    rows: list[list[int]] = []  # for each (job part | chunk): its columns
-    owner: list[int] = []  # each column's job (-1: a drive)
-    span_of: list[int] = []
-    demand: list[float] = []
-    items = [(j, r, s) for j, job in enumerate(jobs) for r, s in job.parts if s > 0]
-    items += [(-1, r, s) for r, s in chunks]
-    for j, release, seconds in items:
+    robots = sum(_here(p, last) for p in present)
+    columns: list[tuple[int, int]] = []  # (item, span); span len(spans): the last
+    for i, (_, release, _) in enumerate(items):
         usable = [k for k, (a, _) in enumerate(spans) if a >= release and cap[k] > 0]
+        if release <= last and robots > 0:
+            usable.append(len(spans))
         if not usable:
-            return False
-        rows.append(list(range(len(owner), len(owner) + len(usable))))
-        owner += [j] * len(usable)
-        span_of += usable
-        demand.append(seconds)
-    n = len(owner)
-    if n == 0:
-        return True
-    a_eq = np.zeros((len(rows), n))
-    for i, cols in enumerate(rows):
-        a_eq[i, cols] = 1.0
-    limits: dict[tuple[int, int], list[int]] = {}  # (span, job or -1) -> its columns
-    for c, (j, k) in enumerate(zip(owner, span_of, strict=True)):
-        limits.setdefault((k, -2), []).append(c)  # everything in the span
-        if j >= 0:
-            limits.setdefault((k, j), []).append(c)
-    a_ub = np.zeros((len(limits), n))
-    b_ub = np.zeros(len(limits))
-    for i, ((k, j), cols) in enumerate(limits.items()):
-        a_ub[i, cols] = 1.0
-        b_ub[i] = cap[k] if j == -2 else spans[k][1] - spans[k][0]
+            return None
+        columns += [(i, k) for k in usable]
+    n = len(columns) + 1  # the end is the last variable
+    a_eq = np.zeros((len(items), n))
+    for c, (i, _) in enumerate(columns):
+        a_eq[i, c] = 1.0
+    groups: dict[tuple[int, int], list[int]] = {}  # (span, job or -2: all) -> columns
+    for c, (i, k) in enumerate(columns):
+        groups.setdefault((k, -2), []).append(c)
+        if items[i][0] >= 0:
+            groups.setdefault((k, items[i][0]), []).append(c)
+    a_ub = np.zeros((len(groups), n))
+    b_ub = np.zeros(len(groups))
+    for row, ((k, j), cols) in enumerate(groups.items()):
+        a_ub[row, cols] = 1.0
+        if k < len(spans):
+            b_ub[row] = cap[k] if j == -2 else spans[k][1] - spans[k][0]
+        else:  # the last span: (end - last) seconds, times its robots for all of them
+            width = robots if j == -2 else 1
+            a_ub[row, -1] = -width
+            b_ub[row] = -width * last
+    cost = np.zeros(n)
+    cost[-1] = 1.0
+    bounds = [(0.0, None)] * (n - 1) + [(max(lo, last), hi)]
     res = linprog(
-        np.zeros(n), A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=np.array(demand), method="highs"
+        cost,
+        A_ub=a_ub,
+        b_ub=b_ub,
+        A_eq=a_eq,
+        b_eq=np.array([s for _, _, s in items]),
+        bounds=bounds,
+        method="highs",
     )
-    return bool(res.status == 0)
+    return float(res.x[-1]) if res.status == 0 else None
 
 
 def preemptive_end(
@@ -132,20 +142,24 @@ def preemptive_end(
     lo: float = 0.0,
 ) -> float:
     """The least end of a schedule of ``jobs`` and ``drives`` by robots present as
-    ``present`` says (no sooner than ``lo``, a known lower bound; inf if none fits)."""
-    chunks = _chunks([d for d in drives if d.seconds > 0])
-    if not any(s > 0 for j in jobs for _, s in j.parts) and not chunks:
+    ``present`` says (no sooner than ``lo``, a known lower bound; inf if none fits).
+
+    The end lies between two successive changes (a release, a robot joining, leaving,
+    failing or back): it is sought between each two in turn, from the one ``lo`` is in,
+    the spans before it fixed and the last one ending at the end."""
+    items = [(j, r, s) for j, job in enumerate(jobs) for r, s in job.parts if s > 0]
+    items += [(-1, r, s) for r, s in _chunks([d for d in drives if d.seconds > 0])]
+    if not items:
         return lo
-    if _fits(present, jobs, chunks, lo):  # the common case: the bound is known already
-        return lo
-    known = lo
-    hi = max(lo, 1.0) * 2
-    while not _fits(present, jobs, chunks, hi):
-        if hi > 1e7:
-            return math.inf
-        lo, hi = hi, hi * 2
-    while hi - lo > _TOLERANCE_S:
-        mid = (lo + hi) / 2
-        lo, hi = (lo, mid) if _fits(present, jobs, chunks, mid) else (mid, hi)
-    # no schedule ends by ``lo``: less the solver's tolerance, in case it is one
-    return max(known, lo - _TOLERANCE_S)
+    cuts = {0.0, *(r for _, r, _ in items)}
+    for p in present:
+        cuts |= {p.start, p.end, *(t for g in p.gaps for t in g)}
+    times = sorted(t for t in cuts if t < math.inf)
+    for k in range(len(times)):
+        after = times[k + 1] if k + 1 < len(times) else math.inf
+        if after <= lo:
+            continue
+        end = _least_end(present, items, times[: k + 1], lo, after)
+        if end is not None:
+            return max(lo, end - _SLACK_S)
+    return math.inf
