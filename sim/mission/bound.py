@@ -213,15 +213,16 @@ def _drives_s(
     clean = [2 + j for j in which if not objs[j].dirty] if only_ours else []
     carry = sum(objs[j].back_m for j in which if objs[j].dirty)
     carry_s = carry / _speed(models, able["decontaminate"]) if dirty else 0.0
-    reach = (
-        [  # how far from the start each robot can be at ``since``
-            models[i].speed_mps * max(0.0, since - present[i].start) for i in robots
-        ]
-        if anywhere and present
-        else math.inf
-    )
+    reach = _reach(models, robots, present, since) if anywhere and present else math.inf
     pieces = pieces_m(legs, clean, dirty, len(robots), anywhere=anywhere, reach_m=reach)
     return carry_s + pieces / _speed(models, robots)
+
+
+def _reach(
+    models: Sequence[RobotModel], robots: Sequence[int], present: Sequence[Presence], t: float
+) -> list[float]:
+    """How far from the start each robot can be at ``t`` (metres)."""
+    return [models[i].speed_mps * max(0.0, t - present[i].start) for i in robots]
 
 
 def _work(
@@ -318,10 +319,10 @@ def _one_at_a_time(
     lo: float,
 ) -> float:
     """The after-release part with each object worked on by one robot at a time
-    (:mod:`btcap.sim.mission.preemptive`): the carriers' carries, each after its
-    identification; then the identifiers' and carriers' work, each identification after
-    its discovery and each carry after its identification. The drives after each time are
-    those :func:`_release` counts (less the carries, which are the jobs' own)."""
+    (:mod:`btcap.sim.mission.preemptive`): the identifiers' identifications, each after
+    its discovery, driving to every object (each leaves it for the next); the carriers'
+    carries, each after its identification; then both together. The drives after each
+    time are those :func:`_release` counts (less the carries, which are the jobs' own)."""
     carriers = able["decontaminate"]
     speed = _speed(models, carriers)
 
@@ -336,8 +337,24 @@ def _one_at_a_time(
         )
         return max(0.0, drive - carried) if later else 0.0
 
+    identifiers = able["identify"]
+    points = [j for j, o in enumerate(objs) if o.found < math.inf]
+
+    def visits(t: float) -> float:
+        later = [2 + j for j in points if objs[j].found >= t]
+        reach = _reach(models, identifiers, present, t)
+        metres = pieces_m(legs, later, [], len(identifiers), anywhere=True, reach_m=reach)
+        return metres / _speed(models, identifiers)
+
+    if identifiers:
+        lo = preemptive_end(
+            [present[i] for i in identifiers],
+            [Job(((objs[j].found, objs[j].id_op),)) for j in points],
+            [Drive(t, visits(t)) for t in {0.0} | {objs[j].found for j in points}],
+            lo=lo,
+        )
     no_id = {**able, "identify": []}
-    dirty = [j for j, o in enumerate(objs) if o.dirty]
+    dirty = [j for j in points if objs[j].dirty]
     carry_drives = [
         Drive(t, pieces([j for j in dirty if objs[j].ident >= t], carriers, no_id, t))
         for t in {0.0} | {objs[j].ident for j in dirty}
@@ -350,10 +367,10 @@ def _one_at_a_time(
     )
     both = sorted(set(carriers) | set(able["identify"]))
     drives = carry_drives + [
-        Drive(t, pieces([j for j, o in enumerate(objs) if o.found >= t], both, able, t))
-        for t in {0.0} | {o.found for o in objs}
+        Drive(t, pieces([j for j in points if objs[j].found >= t], both, able, t))
+        for t in {0.0} | {objs[j].found for j in points}
     ]
-    jobs = [Job(((o.found, o.id_op), (o.ident, carry(j)))) for j, o in enumerate(objs)]
+    jobs = [Job(((objs[j].found, objs[j].id_op), (objs[j].ident, carry(j)))) for j in points]
     return preemptive_end([present[i] for i in both], jobs, drives, lo=max(lo, out))
 
 

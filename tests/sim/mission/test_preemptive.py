@@ -17,6 +17,7 @@ from btcap.sim.mission.preemptive import Drive, Job, preemptive_end
 from btcap.sim.mission.presence import Presence
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.model import OperationModel, RobotModel
+from tests.sim.mission.test_bound_relay import CARRIER
 from tests.sim.mission.test_mission_bound import DRONE, corridor
 
 
@@ -54,6 +55,10 @@ def test_the_bound_waits_while_one_object_is_known() -> None:
     assert b.seconds == pytest.approx(157.5)
     assert b.binding == "release"
     assert max(b.chains_s, b.work_s) < 151.0
+    # a carrier beside them adds nothing to identify with: the identifiers alone wait
+    # (the three together, one at a time on each object, say 114 s; spread, 101 s)
+    carts = mission_bound(grid, [DRONE, fast, fast, CARRIER], objects)
+    assert carts.seconds == pytest.approx(157.5)
 
 
 def test_each_robot_is_no_farther_than_it_can_have_driven() -> None:
