@@ -41,6 +41,14 @@ def test_an_object_known_alone_keeps_one_robot_working() -> None:
     late = [Presence(), Presence(start=50.0)]
     assert preemptive_end(late, jobs) == pytest.approx(175.0, abs=0.02)
     assert preemptive_end([Presence()], jobs) == pytest.approx(300.0, abs=0.02)
+    # 30 s of driving after 50 s is also driving after 0: a need of 10 s then adds nothing
+    alone = [Presence()]
+    assert preemptive_end(alone, [], [Drive(0.0, 10.0), Drive(50.0, 30.0)]) == pytest.approx(
+        80.0, abs=0.02
+    )
+    assert preemptive_end(alone, [], [Drive(0.0, 40.0), Drive(50.0, 30.0)]) == pytest.approx(
+        80.0, abs=0.02
+    )
 
 
 def test_the_bound_waits_while_one_object_is_known() -> None:
