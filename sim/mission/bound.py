@@ -322,55 +322,63 @@ def _one_at_a_time(
     (:mod:`btcap.sim.mission.preemptive`): the identifiers' identifications, each after
     its discovery, driving to every object (each leaves it for the next); the carriers'
     carries, each after its identification; then both together. The drives after each
-    time are those :func:`_release` counts (less the carries, which are the jobs' own)."""
+    time are those :func:`_release` counts for the objects found (or identified) after
+    it, less their carries, which are the jobs' own; a carry of another object may be
+    that driving."""
     carriers = able["decontaminate"]
     speed = _speed(models, carriers)
-
-    def carry(j: int) -> float:
-        o = objs[j]
-        return o.back_m / speed + o.dec_op if o.dirty else 0.0
-
-    def pieces(later: list[int], robots: list[int], kinds: dict[str, list[int]], t: float) -> float:
-        carried = sum(objs[j].back_m for j in later if objs[j].dirty) / speed
-        drive = _drives_s(
-            models, kinds, objs, later, legs, robots, anywhere=True, since=t, present=present
-        )
-        return max(0.0, drive - carried) if later else 0.0
-
     identifiers = able["identify"]
     points = [j for j, o in enumerate(objs) if o.found < math.inf]
 
-    def visits(t: float) -> float:
-        later = [2 + j for j in points if objs[j].found >= t]
-        reach = _reach(models, identifiers, present, t)
-        metres = pieces_m(legs, later, [], len(identifiers), anywhere=True, reach_m=reach)
-        return metres / _speed(models, identifiers)
+    def carry(j: int) -> tuple[tuple[float, float, bool], ...]:
+        o = objs[j]
+        return ((o.ident, o.back_m / speed, True), (o.ident, o.dec_op, False)) if o.dirty else ()
 
-    if identifiers:
+    def drive(of: list[int], jobs: list[int], robots: list[int], t: float) -> Drive:
+        """The driving of ``robots`` after ``t`` for the objects of ``jobs`` (indices
+        into ``of``, the objects of the jobs)."""
+        later = [of[k] for k in jobs]
+        kinds = able if set(identifiers) <= set(robots) else {**able, "identify": []}
+        carried = sum(objs[j].back_m for j in later if objs[j].dirty) / speed
+        s = _drives_s(
+            models, kinds, objs, later, legs, robots, anywhere=True, since=t, present=present
+        )
+        return Drive(t, max(0.0, s - carried) if later else 0.0, frozenset(jobs))
+
+    def visits(t: float) -> Drive:
+        later = [j for j in points if objs[j].found >= t]
+        reach = _reach(models, identifiers, present, t)
+        metres = pieces_m(
+            legs, [2 + j for j in later], [], len(identifiers), anywhere=True, reach_m=reach
+        )
+        return Drive(t, metres / _speed(models, identifiers))
+
+    if identifiers:  # no carries among their jobs: any moving of theirs is driving
         lo = preemptive_end(
             [present[i] for i in identifiers],
-            [Job(((objs[j].found, objs[j].id_op),)) for j in points],
-            [Drive(t, visits(t)) for t in {0.0} | {objs[j].found for j in points}],
+            [Job(((objs[j].found, objs[j].id_op, False),)) for j in points],
+            [visits(t) for t in {0.0} | {objs[j].found for j in points}],
             lo=lo,
         )
-    no_id = {**able, "identify": []}
-    dirty = [j for j in points if objs[j].dirty]
-    carry_drives = [
-        Drive(t, pieces([j for j in dirty if objs[j].ident >= t], carriers, no_id, t))
-        for t in {0.0} | {objs[j].ident for j in dirty}
-    ]
+    dirty = [j for j in points if objs[j].dirty]  # the carriers' jobs: the carries
+    idents = {0.0} | {objs[j].ident for j in dirty}
+
+    def identified(of: list[int], t: float) -> list[int]:
+        return [k for k, j in enumerate(of) if objs[j].dirty and objs[j].ident >= t]
+
     out = preemptive_end(
         [present[i] for i in carriers],
-        [Job(((objs[j].ident, carry(j)),)) for j in dirty],
-        carry_drives,
+        [Job(carry(j)) for j in dirty],
+        [drive(dirty, identified(dirty, t), carriers, t) for t in idents],
         lo=lo,
     )
-    both = sorted(set(carriers) | set(able["identify"]))
-    drives = carry_drives + [
-        Drive(t, pieces([j for j in points if objs[j].found >= t], both, able, t))
+    both = sorted(set(carriers) | set(identifiers))
+    found = [
+        drive(points, [k for k, j in enumerate(points) if objs[j].found >= t], both, t)
         for t in {0.0} | {objs[j].found for j in points}
     ]
-    jobs = [Job(((objs[j].found, objs[j].id_op), (objs[j].ident, carry(j)))) for j in points]
+    drives = [drive(points, identified(points, t), carriers, t) for t in idents] + found
+    jobs = [Job(((objs[j].found, objs[j].id_op, False), *carry(j))) for j in points]
     return preemptive_end([present[i] for i in both], jobs, drives, lo=max(lo, out))
 
 

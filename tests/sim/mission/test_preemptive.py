@@ -31,7 +31,7 @@ def test_an_object_known_alone_keeps_one_robot_working() -> None:
     # each release the work says 150 s (300 / 2; 50 + 200 / 2), but until 50 only one
     # robot can work: 250 s are left for two at 50, so 175 s at the least.
     both = [Presence(), Presence()]
-    jobs = [Job(((0.0, 100.0),)), Job(((50.0, 100.0),)), Job(((50.0, 100.0),))]
+    jobs = [Job(((r, 100.0, False),)) for r in (0.0, 50.0, 50.0)]
     assert preemptive_end(both, jobs) == pytest.approx(175.0, abs=0.02)
     # driving that must come after 0 fills the idle robot's time before 50; after 50 it
     # adds to the end
