@@ -51,6 +51,20 @@ def test_an_object_known_alone_keeps_one_robot_working() -> None:
     )
 
 
+def test_a_carry_may_be_the_driving_for_other_objects() -> None:
+    # One robot carries an object for 10 s from 5 s on, and must move 10 s after 5 s for
+    # objects found later: carrying the first to the decontamination area may be its way
+    # to them, so 15 s; driving the later ones' own carries does not count twice: 25 s.
+    alone = [Presence()]
+    carry = [Job(((5.0, 10.0, True),))]
+    assert preemptive_end(alone, carry, [Drive(5.0, 10.0)]) == pytest.approx(15.0, abs=0.02)
+    own = [Drive(5.0, 10.0, frozenset({0}))]
+    assert preemptive_end(alone, carry, own) == pytest.approx(25.0, abs=0.02)
+    # work that is not moving never counts as driving
+    work = [Job(((5.0, 10.0, False),))]
+    assert preemptive_end(alone, work, [Drive(5.0, 10.0)]) == pytest.approx(25.0, abs=0.02)
+
+
 def test_the_bound_waits_while_one_object_is_known() -> None:
     # A corridor: the drone finds the object at the start at 1 s, those at 39 and 40 m at
     # 14 s (its 14th exploration). Two fast identifiers (100 s each): after 1 s the work
