@@ -14,7 +14,9 @@ them; each seed's entry also gives the bound at the shortest draws).
 Scenarios: ``full-team`` (Husky, Spot, Bebop), ``full-team-6`` (the same team grown to
 six: two of each) and ``huskies-bebop-joins`` (a Bebop joins for a while, a Husky fails
 for a while); ``--scenarios`` adds ``single-husky`` (one robot doing everything: its
-time is mostly driving between objects and goals, which the bound does not price).
+time is mostly driving between objects and goals, which the bound does not price) and
+grown teams, to check the bound on others (``full-team-4``, ``full-team-9``: the robots
+in turn; ``huskies-bebop-joins-5``: two Huskies more).
 
 Reported per scenario and mission, over the seeds: mission time, bound and a schedule
 made in hindsight (means; :mod:`btcap.sim.mission.hindsight`: the object work planned
@@ -53,6 +55,9 @@ SCENARIOS = {
     "full-team-6": ("full-team", 6),
     "huskies-bebop-joins": ("huskies-bebop-joins", 0),
     "single-husky": ("single-husky", 0),
+    "full-team-4": ("full-team", 4),
+    "full-team-9": ("full-team", 9),
+    "huskies-bebop-joins-5": ("huskies-bebop-joins", 5),
 }
 DEFAULT = ("full-team", "full-team-6", "huskies-bebop-joins")
 MISSIONS = ("paper", "pool")

@@ -29,9 +29,12 @@ run of a seed (:mod:`btcap.sim.mission.opdraws`). The bound is the largest of th
   for carries alone, identified) before ``t`` all happens after ``t`` (the scheduling
   bound for jobs with release times), each robot driving its first piece from wherever it
   stands at ``t`` (:func:`~btcap.sim.mission.routes.pieces_m` with ``anywhere``): no
-  farther from the start than it can have driven since it joined, so that piece is no
-  shorter than the path from the start less that reach (the triangle inequality; a gap
-  in its presence only shortens the reach).
+  farther from the start than it can have driven since it joined (each robot its own
+  reach), so that piece is no shorter than the path from the start less that reach (the
+  triangle inequality; a gap in its presence only shortens the reach). Then the same
+  with each object worked on by one robot at a time (its identification, carry and
+  decontamination, each after its release: :mod:`~btcap.sim.mission.preemptive`), so
+  robots wait while fewer objects are known than robots can work on.
 
 What it takes from the simulation and the store (:mod:`btcap.sim.world.store`), not from
 a mission tree: robots explore only at goals the store hands out and drive along shortest
@@ -39,6 +42,16 @@ paths at their speed; only found objects are handed out to identify, only object
 contaminated to carry; the mission is complete only once every reachable cell is covered
 and every object found is finished. Computed in a fraction of a second on the built-in
 caves.
+
+What it does not take: that a carry stays whole. A carrier that fails, or is stopped or
+sent elsewhere, drops the object where it is (:meth:`~btcap.sim.world.store.MissionState.drop`)
+and another may carry it on, so two carriers can share one carry: the work divides as
+finely as the work part divides it, and bounds on whole carries (two carriers, three long
+carries: one carrier does two) do not hold. Where the paths to the decontamination area
+join, one carrier brings an object part of the way and fetches another beyond the join
+while the second carrier finishes the first: full-team-6 seed 4 has such a schedule
+ending at 273.6 s against this bound's 272.7 s, where the best split of whole carries
+ends at 338.8 s (``tests/sim/mission/test_bound_relay.py``).
 """
 
 from __future__ import annotations
@@ -52,6 +65,7 @@ import numpy as np
 
 from btcap.sim.mission.cover import apart, cover_times
 from btcap.sim.mission.opdraws import Draws, least_factors
+from btcap.sim.mission.preemptive import Drive, Job, preemptive_end
 from btcap.sim.mission.presence import Presence, finish, presence
 from btcap.sim.mission.routes import Legs, pieces_m, visit_tree_m
 from btcap.sim.mission.scenario import Scenario
@@ -169,6 +183,7 @@ def mission_bound(
     legs = Legs(grid, [o.cell for o in objs])
     work_s = _work(grid, models, present, jitter, able, objs, legs)
     release_s = _release(models, present, able, objs, legs)
+    release_s = max(release_s, _one_at_a_time(models, present, able, objs, legs, release_s))
     seconds = max(chains, work_s, release_s)
     return Bound(round(seconds, 1), round(chains, 1), round(work_s, 1), round(release_s, 1))
 
@@ -198,16 +213,16 @@ def _drives_s(
     clean = [2 + j for j in which if not objs[j].dirty] if only_ours else []
     carry = sum(objs[j].back_m for j in which if objs[j].dirty)
     carry_s = carry / _speed(models, able["decontaminate"]) if dirty else 0.0
-    reach = (
-        max(  # how far from the start a robot can be at ``since``
-            (models[i].speed_mps * max(0.0, since - present[i].start) for i in robots),
-            default=0.0,
-        )
-        if anywhere and present
-        else math.inf
-    )
+    reach = _reach(models, robots, present, since) if anywhere and present else math.inf
     pieces = pieces_m(legs, clean, dirty, len(robots), anywhere=anywhere, reach_m=reach)
     return carry_s + pieces / _speed(models, robots)
+
+
+def _reach(
+    models: Sequence[RobotModel], robots: Sequence[int], present: Sequence[Presence], t: float
+) -> list[float]:
+    """How far from the start each robot can be at ``t`` (metres)."""
+    return [models[i].speed_mps * max(0.0, t - present[i].start) for i in robots]
 
 
 def _work(
@@ -293,6 +308,78 @@ def _release(
         )
         out = max(out, finish([present[i] for i in both], since, total))
     return out
+
+
+def _one_at_a_time(
+    models: Sequence[RobotModel],
+    present: Sequence[Presence],
+    able: dict[str, list[int]],
+    objs: Sequence[_Object],
+    legs: Legs,
+    lo: float,
+) -> float:
+    """The after-release part with each object worked on by one robot at a time
+    (:mod:`btcap.sim.mission.preemptive`): the identifiers' identifications, each after
+    its discovery, driving to every object (each leaves it for the next); the carriers'
+    carries, each after its identification; then both together. The drives after each
+    time are those :func:`_release` counts for the objects found (or identified) after
+    it, less their carries, which are the jobs' own; a carry of another object may be
+    that driving."""
+    carriers = able["decontaminate"]
+    speed = _speed(models, carriers)
+    identifiers = able["identify"]
+    points = [j for j, o in enumerate(objs) if o.found < math.inf]
+
+    def carry(j: int) -> tuple[tuple[float, float, bool], ...]:
+        o = objs[j]
+        return ((o.ident, o.back_m / speed, True), (o.ident, o.dec_op, False)) if o.dirty else ()
+
+    def drive(of: list[int], jobs: list[int], robots: list[int], t: float) -> Drive:
+        """The driving of ``robots`` after ``t`` for the objects of ``jobs`` (indices
+        into ``of``, the objects of the jobs)."""
+        later = [of[k] for k in jobs]
+        kinds = able if set(identifiers) <= set(robots) else {**able, "identify": []}
+        carried = sum(objs[j].back_m for j in later if objs[j].dirty) / speed
+        s = _drives_s(
+            models, kinds, objs, later, legs, robots, anywhere=True, since=t, present=present
+        )
+        return Drive(t, max(0.0, s - carried) if later else 0.0, frozenset(jobs))
+
+    def visits(t: float) -> Drive:
+        later = [j for j in points if objs[j].found >= t]
+        reach = _reach(models, identifiers, present, t)
+        metres = pieces_m(
+            legs, [2 + j for j in later], [], len(identifiers), anywhere=True, reach_m=reach
+        )
+        return Drive(t, metres / _speed(models, identifiers))
+
+    if identifiers:  # no carries among their jobs: any moving of theirs is driving
+        lo = preemptive_end(
+            [present[i] for i in identifiers],
+            [Job(((objs[j].found, objs[j].id_op, False),)) for j in points],
+            [visits(t) for t in {0.0} | {objs[j].found for j in points}],
+            lo=lo,
+        )
+    dirty = [j for j in points if objs[j].dirty]  # the carriers' jobs: the carries
+    idents = {0.0} | {objs[j].ident for j in dirty}
+
+    def identified(of: list[int], t: float) -> list[int]:
+        return [k for k, j in enumerate(of) if objs[j].dirty and objs[j].ident >= t]
+
+    out = preemptive_end(
+        [present[i] for i in carriers],
+        [Job(carry(j)) for j in dirty],
+        [drive(dirty, identified(dirty, t), carriers, t) for t in idents],
+        lo=lo,
+    )
+    both = sorted(set(carriers) | set(identifiers))
+    found = [
+        drive(points, [k for k, j in enumerate(points) if objs[j].found >= t], both, t)
+        for t in {0.0} | {objs[j].found for j in points}
+    ]
+    drives = [drive(points, identified(points, t), carriers, t) for t in idents] + found
+    jobs = [Job(((objs[j].found, objs[j].id_op, False), *carry(j))) for j in points]
+    return preemptive_end([present[i] for i in both], jobs, drives, lo=max(lo, out))
 
 
 def _disc_cells(models: Sequence[RobotModel], i: int, cell_size_m: float) -> int:

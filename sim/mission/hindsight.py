@@ -14,8 +14,12 @@ the team during their gaps and after leaving; an object's identification is done
 robot, again until its draws say it succeeds; a contaminated one is carried by one robot
 from where it lies to the decontamination area (at that robot's speed) and
 decontaminated there, again until it succeeds. The mission ends no sooner than its last
-cell's cover time. The schedule is the best one of many task orders, each decoded
-greedily (each task, in turn, to the robot able to end it soonest, or to the one a
+cell's cover time. Keeping each carry whole is this world's, not the simulator's: there
+a carrier that is stopped drops the object and another may carry it on, which can end
+sooner (full-team-6 seed 4: 273.6 s handed on where two paths join, against 338.8 s
+here; ``tests/sim/mission/test_bound_relay.py``), so where this schedule is above the
+bound, part of the gap may be its own. The schedule is the best one of many task orders,
+each decoded greedily (each task, in turn, to the robot able to end it soonest, or to the one a
 robot choice says) and improved by moving a task to another robot or swapping two while
 that ends the work sooner: feasible in that world, not proven to be its best.
 :func:`walked_found` gives, instead of the cover times, when the robots that only

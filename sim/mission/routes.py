@@ -69,7 +69,7 @@ def pieces_m(
     robots: int,
     *,
     anywhere: bool,
-    reach_m: float = math.inf,
+    reach_m: float | Sequence[float] = math.inf,
 ) -> float:
     """Metres robots that carry (and perhaps identify) drive to stand on every one of
     ``clean`` and ``dirty`` (indices into ``legs``), besides the carries themselves
@@ -94,10 +94,11 @@ def pieces_m(
         return 0.0
     starts = [0] * robots + [1] * len(dirty) + list(clean)
     cost = legs.m[np.ix_(starts, points)].T.copy()  # rows: points, columns: predecessors
-    if anywhere:  # no farther from the start than ``reach_m``
+    if anywhere:  # no farther from the start than ``reach_m`` (one for all, or each its own)
         first = cost[:, :robots]
-        near = np.isfinite(first) & (first > reach_m)
-        cost[:, :robots] = np.where(near, first - reach_m, 0.0)
+        limit = np.broadcast_to(np.asarray(reach_m, dtype=float), (robots,))[None, :]
+        near = np.isfinite(first) & (first > limit)
+        cost[:, :robots] = np.where(near, first - limit, 0.0)
     for r in range(len(clean)):  # no point is its own predecessor
         cost[r, robots + len(dirty) + r] = math.inf
     big = 1e12
