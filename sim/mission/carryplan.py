@@ -133,15 +133,15 @@ class CarryTurns:
                 self._began[k] = (now, now - self._freed_at <= FROM_AREA_S)
 
     def free_at(self, now: float, under_way: Mapping[Hashable, Cell]) -> list[float]:
-        """When each carrier comes free: now if it has no carry; else its carry's begin
-        plus its seconds (the drive out half of it if it began from standing by: where
-        the carrier stood is the auction's), but never now (it has not come free)."""
+        """When each carrier comes free, soonest first: now if it has no carry; else its
+        carry's begin plus its seconds (half the drive out if it began from standing by:
+        where the carrier stood is the auction's), but never now (it is not free yet)."""
         busy = []
         for k, cell in under_way.items():
             at, from_area = self._began.get(k, (now, True))
             secs = self.pace.seconds(self.metres(cell), out=1.0 if from_area else 0.5)
             busy.append(max(now + 1.0, at + secs))
-        return sorted(busy) + [now] * max(0, self.carriers - len(busy))
+        return sorted(busy + [now] * max(0, self.carriers - len(busy)))
 
     def offer(
         self, now: float, waiting: Mapping[Hashable, Cell], under_way: Mapping[Hashable, Cell]

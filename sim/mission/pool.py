@@ -331,8 +331,10 @@ class ObjectPool(ParallelForEach):
         waiting: dict[Hashable, Cell] = {}
         under_way: dict[Hashable, Cell] = {}
         for k, v, lane in zip(self._lanes, self._values, self.children, strict=True):
-            if k is None or v is None or lane.children[0].state is not State.SUCCEEDED:
+            if k is None or v is None:
                 continue
+            if not v[3] and lane.children[0].state is not State.SUCCEEDED:
+                continue  # not known contaminated yet
             carry = lane.children[1].state
             if carry is State.RUNNING or carry is State.ASSIGNED:
                 under_way[k] = (int(v[1]), int(v[2]))
