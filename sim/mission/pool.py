@@ -38,10 +38,12 @@ from btcap.sim.mission.capabilities import (
     SPARE_EXPLORE,
     STANDBY,
 )
+from btcap.sim.mission.carryplan import CarryPace, CarryTurns, carry_metres
 from btcap.sim.mission.goals import GoalPool
 from btcap.sim.mission.idplan import Pace, Turns
-from btcap.sim.mission.lanes import SpareLane, StandByLane, WorkLane
+from btcap.sim.mission.lanes import ObjectLane, SpareLane, StandByLane, WorkLane
 from btcap.sim.mission.leaves import ClaimWork
+from btcap.sim.world.distance import Cell
 from btcap.sim.world.grid import GridMap
 from btcap.sim.world.messages import ListWork, WorkList
 from btcap.sim.world.model import RobotModel
@@ -154,49 +156,6 @@ class WatchWork(ClaimWork):
         return reply
 
 
-class ObjectLane(WorkLane):
-    """All the work one object ``(id, row, col, contaminated)`` still needs: its first
-    child identifies it (unless the item says it is known contaminated), its second
-    carries it if contaminated, opened in the very tick the identification ends, so the
-    robot that identified it (if it can carry) is the nearest bidder and is not taken by
-    other work first; a clean object's lane succeeds there. A lane that fails (either
-    step) runs again from the store's latest news of the object."""
-
-    __slots__ = ("may_identify",)
-    INPUTS: ClassVar[Any] = {"item": tuple[int, int, int, int]}
-    MIN_CHILDREN: ClassVar[int] = 2
-    MAX_CHILDREN: ClassVar[int | None] = 2
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        #: Whether an identification may start now (its pool's limit; see ObjectPool).
-        self.may_identify = True
-
-    def on_tick(self) -> State:
-        ident, row, col, known = self.inputs["item"]
-        self.outputs["target"] = int(ident)
-        self.outputs["at"] = (int(row), int(col))
-        identify, carry = self.children
-        # An identification under way runs to its end even once the store knows the
-        # result (the store hears it from the simulation before the capability reports):
-        # left unticked, it would stay running and hold its turn for ever.
-        started = identify.state in _ACTIVE
-        if (not known or started) and identify.state is not State.SUCCEEDED:
-            if identify.state is State.IDLE and not self.may_identify:
-                return State.RUNNING  # its turn comes when an identification ends
-            s = identify.tick()
-            if s is State.FAILED or s is State.ERROR:
-                return State.FAILED
-            if s is not State.SUCCEEDED:
-                return State.RUNNING
-            if not identify.outputs["contaminated"]:
-                return State.SUCCEEDED
-        s = carry.tick()
-        if s is State.SUCCEEDED:
-            return s
-        return State.FAILED if s is State.FAILED or s is State.ERROR else State.RUNNING
-
-
 class ObjectPool(ParallelForEach):
     """The :class:`ObjectLane` of every object with work left; beside the counts of
     :class:`~btcap.bt.foreach.ParallelForEach` it says how much work waits for a robot:
@@ -205,9 +164,12 @@ class ObjectPool(ParallelForEach):
     explore meanwhile know when they are wanted; and ``plan``: the objects awaiting
     identification in the order they will be identified (under way first, then as
     :mod:`~btcap.sim.mission.idplan` routes the identifiers), where carriers stand by;
-    with ``identify_at_once``, the next to start is the first planned for a free one."""
+    with ``identify_at_once``, the next to start is the first planned for a free one.
+    With ``carriers`` (robots that only carry) and a ``carry_pace`` and ``grid`` to price
+    carries on, the carries waiting are offered as :mod:`~btcap.sim.mission.carryplan`
+    says (those it starts on a carrier free now), not all at once."""
 
-    __slots__ = ("_turns",)
+    __slots__ = ("_carries", "_offer", "_turns")
     OUTPUTS: ClassVar[Any] = {
         **ParallelForEach.OUTPUTS,
         "waiting": int,
@@ -223,14 +185,29 @@ class ObjectPool(ParallelForEach):
         "identify_speed": Port(float, 1.0, "cells per second an identifier drives"),
         "identify_s": Port(float, 0.0, "seconds an identification takes"),
         "identify_carries": Port(bool, False, "identifiers carry: held for a carry auctioned"),
+        "carriers": Port(int, 0, "robots that only carry (0: every carry offered at once)"),
     }
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        *args: Any,
+        grid: GridMap | None = None,
+        carry_pace: CarryPace | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self._turns = Turns()
+        n = self.options["carriers"]
+        self._carries: CarryTurns | None = None
+        if n > 0 and grid is not None and carry_pace is not None:
+            self._carries = CarryTurns(n, carry_pace, carry_metres(grid))
+        self._offer: tuple[set[Hashable], set[Hashable]] = (set(), set())  # planned, offered
 
     def _run(self, i: int, item: Any) -> State:
         lane = self.children[i]
+        if isinstance(lane, ObjectLane):
+            planned, offered = self._offer
+            lane.may_carry = item[0] not in planned or item[0] in offered
         most = self.options["identify_at_once"]
         if most <= 0 or not isinstance(lane, ObjectLane):
             return super()._run(i, item)
@@ -266,6 +243,7 @@ class ObjectPool(ParallelForEach):
     def on_tick(self) -> State:
         items = self.inputs["items"] or []
         self._turns.listed([it[0] for it in items if not it[3]], self.clock.now())
+        self._offer = self._carry_offer(items)
         state = super().on_tick()
         waiting = carries = 0
         under_way, known = set(), set()
@@ -296,12 +274,38 @@ class ObjectPool(ParallelForEach):
         self.outputs["plan"] = plan
         return state
 
+    def _carry_offer(self, items: list[tuple[int, ...]]) -> tuple[set[Hashable], set[Hashable]]:
+        """The carries planned and, of them, those offered now (:class:`CarryTurns`); a
+        carry not planned (its identification ends in this tick) is offered at once."""
+        if self._carries is None:
+            return set(), set()
+        waiting: dict[Hashable, Cell] = {}
+        under_way: dict[Hashable, Cell] = {}
+        for k, v, lane in zip(self._lanes, self._values, self.children, strict=True):
+            if k is None or v is None:
+                continue
+            if not v[3] and lane.children[0].state is not State.SUCCEEDED:
+                continue  # not known contaminated yet
+            carry = lane.children[1].state
+            if carry is State.RUNNING or carry is State.ASSIGNED:
+                under_way[k] = (int(v[1]), int(v[2]))
+            elif carry in _NOT_BEGUN:
+                waiting[k] = (int(v[1]), int(v[2]))
+        for it in items:  # known contaminated, in no lane yet
+            if it[3] and it[0] not in self._lanes and self._unstarted(it[0]):
+                waiting[it[0]] = (int(it[1]), int(it[2]))
+        offered = self._carries.offer(self.clock.now(), waiting, under_way)
+        return set(waiting), offered
+
     def _unstarted(self, key: int) -> bool:
         return key not in self._finished and key not in self._lost
 
     def on_reset(self) -> None:
         super().on_reset()
         self._turns = Turns()
+        if self._carries is not None:
+            self._carries.forget()
+        self._offer = (set(), set())
 
 
 def pool_mission_tree(
@@ -316,13 +320,15 @@ def pool_mission_tree(
     grid: GridMap | None = None,
     near_m: float = 0.0,
     pace: Pace | None = None,
+    carry_pace: CarryPace | None = None,
 ) -> Tree:
     """The pool mission with at most ``explorers`` explorations at once (and
     ``spare_explorers`` more while no object's work waits), an object lane for each of
     up to ``objects`` objects with work left at once (at least ``identifiers +
     carriers``: the lanes only hold work, robots are the auction's), and ``standby``
     carriers standing by near objects awaiting identification while no carry waits
-    (where the identifiers go next: ``pace`` prices their plan, :mod:`.idplan`); it
+    (where the identifiers go next: ``pace`` prices their plan, :mod:`.idplan`; while
+    carries wait for them, ``carry_pace`` prices the carries' plan, :mod:`.carryplan`); it
     succeeds once the cave is explored and every object found is identified and, if
     contaminated, carried. A free explore lane takes the goal nearest (by path on
     ``grid``) to where its last goal left its explorer, those within ``near_m`` of a goal
@@ -358,6 +364,9 @@ def pool_mission_tree(
         key=0,
         retry_after_s=4 * watch_objects.options["poll_s"],
         identify_at_once=identifiers,
+        carriers=standby,
+        grid=grid,
+        carry_pace=carry_pace,
         **(pace or Pace()).options(),
     )
     wires += [
@@ -391,7 +400,7 @@ def pool_mission_tree(
     if standby > 0:  # at the objects identified next: the identifiers' plan
         bys = [STANDBY.node_type()("standby") for _ in range(standby)]
         stand = [StandByLane(f"standby_{k + 1}", children=[c]) for k, c in enumerate(bys)]
-        each = ParallelForEach("each_standby", children=stand, key=0)
+        each = ParallelForEach("each_standby", children=stand, key=0, retry_failed=True)
         for ln, cap in zip(stand, bys, strict=True):
             wires += [
                 (ln, "at", cap, "at"),

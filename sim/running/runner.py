@@ -24,6 +24,7 @@ from btcap.actors import ActorSystem, Clock, ManualClock, TimeSource
 from btcap.bt.files.btlog import BtlogRecorder
 from btcap.bt.state import DONE
 from btcap.monitor import Monitor
+from btcap.sim.mission.carryplan import carrier_pace
 from btcap.sim.mission.idplan import identifier_pace
 from btcap.sim.mission.paper import mission_tree
 from btcap.sim.mission.pool import pool_lanes, pool_mission_tree, spare_explorers, standby_lanes
@@ -276,6 +277,7 @@ def _mission(s: Scenario, grid: GridMap) -> Tree:
         grid=grid,
         near_m=max((m.operation("explore").radius_m for m in team if m.can("explore")), default=0),
         pace=identifier_pace(team, grid.cell_size_m),
+        carry_pace=carrier_pace(team),
     )
 
 

@@ -216,11 +216,13 @@ class Runs(Leaf):
 
 
 def test_a_standby_lane_ends_once_its_object_is_identified_or_a_carry_waits() -> None:
-    for listed, waiting, ends in (
-        ([(4, 1, 2, 0), (6, 3, 3, 1)], 0, False),  # a carry under way: drive on
-        ([(5, 1, 2, 0)], 0, True),  # object 4 identified clean: no longer worth it
-        ([(4, 1, 2, 1)], 0, True),  # object 4 identified contaminated: its carry comes
-        ([(4, 1, 2, 0)], 1, True),  # a carry waits for a robot: the robot is wanted there
+    for listed, waiting, ends, state in (
+        ([(4, 1, 2, 0), (6, 3, 3, 1)], 0, False, State.RUNNING),  # a carry under way: on
+        ([(5, 1, 2, 0)], 0, True, State.SUCCEEDED),  # 4 identified clean: not worth it
+        ([(4, 1, 2, 1)], 0, True, State.SUCCEEDED),  # 4 identified contaminated: carry
+        # a carry waits for a robot: the robot is wanted there; object 4 still awaits
+        # identification, so the lane fails (its pool stands by there again later)
+        ([(4, 1, 2, 0)], 1, True, State.FAILED),
     ):
         child = Runs()
         lane = StandByLane("lane", children=[child])
@@ -231,7 +233,7 @@ def test_a_standby_lane_ends_once_its_object_is_identified_or_a_carry_waits() ->
         assert tree.tick() is State.RUNNING
         lane.set_input("listed", listed)
         lane.set_input("waiting", waiting)
-        assert tree.tick() is (State.SUCCEEDED if ends else State.RUNNING)
+        assert tree.tick() is state
         assert (child.ticks, child.resets > 0) == ((1, True) if ends else (2, False))
 
 
