@@ -196,7 +196,7 @@ class ZmqTransport(PeerFates, PeerRules, Transport):
 
     @property
     def disconnects(self) -> int:
-        """Inbound connections closed: by peers, or by libzmq for an oversized frame."""
+        """Inbound connections closed (by peers, libzmq or us), counted as libzmq reports them."""
         return self._events.disconnects
 
     # -- peers ------------------------------------------------------------------------

@@ -171,6 +171,10 @@ class RouterEvents:
         self.system = system
         self.curve = curve
         self.refusals = Refusals(system, stats, None if curve is None else curve.keys.public)
+        #: Inbound connections libzmq dropped: their peer hung up, a frame over
+        #: MAXMSGSIZE, or the transport shut them (no hello, too many links, a revoked
+        #: key). Counted when the loop reads libzmq's event, after libzmq has let go of
+        #: the connection: a moment after ``stats.by_reason`` counts one shut.
         self.disconnects = 0
         #: Closes connections that say no hello (set once the ROUTER is bound).
         self.watch: NewcomerWatch | None = None
