@@ -26,6 +26,7 @@ from btcap.bt.state import State, TreeError
 from btcap.bt.utility import Utility, fallback_utility, parallel_utility, sequence_utility
 
 __all__ = [
+    "Composite",
     "Fallback",
     "IfThenElse",
     "Parallel",
@@ -33,6 +34,8 @@ __all__ = [
     "ReactiveSequence",
     "Sequence",
     "SequenceWithMemory",
+    "collapse",
+    "halt_active",
 ]
 
 _RUNNING = State.RUNNING

@@ -46,6 +46,8 @@ def finish(robots: Sequence[Presence], since: float, work: float) -> float:
     it after ``since`` (inf if they are never present long enough)."""
     if work <= 0:
         return since
+    if math.isinf(since):  # (work after a time never reached: inf - inf looped for ever)
+        return math.inf
     hi = since + work
     while sum(p.within(since, hi) for p in robots) < work:
         if hi - since > 1e7:

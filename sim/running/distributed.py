@@ -131,6 +131,9 @@ class ProcessHost:
     def start(self, name: str) -> None:
         path = self._dir / f"{name}.json"
         path.write_bytes(msgspec.json.encode(self._config_file(name)))
+        if name in self._starting:  # it left and joins again before its process exists:
+            self._left_early.discard(name)  # the start under way still starts it (once)
+            return
         self._starting.add(name)
         self._left_early.discard(name)
         self._task(self._life, name, path, name=f"robot {name}")

@@ -7,6 +7,7 @@ the virtual clock, bounded by ``fail_after`` only to catch a hang.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import anyio
@@ -163,3 +164,13 @@ async def test_no_mission_beats_the_bound(name: str, seed: int, mission: str) ->
     assert result.completed
     bound = scenario_bound(s)
     assert bound.seconds <= result.mission_time_s, (bound, result.mission_time_s)
+
+
+@pytest.mark.parametrize("dirty", [False, True])
+def test_a_team_that_cannot_explore_nor_carry_has_no_finite_bound(dirty: bool) -> None:
+    """Nothing is ever found (nor carried), so the work on objects never begins: inf, at
+    once (the after-release part looped for ever on a carry released at inf: ``btcap run``
+    of a team of Spots hung after its run)."""
+    grid = GridMap.from_array(np.ones((1, 40), dtype=bool), start=(0, 0), decon_area=(0, 0))
+    spot = RobotModel(cost_factor=1.0, speed_mps=1.0, identify=OperationModel(10.0))
+    assert mission_bound(grid, [spot], [((0, 20), dirty)]).seconds == math.inf

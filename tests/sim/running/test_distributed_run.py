@@ -107,7 +107,8 @@ async def test_a_robot_process_that_dies_is_reported_and_the_team_finishes() -> 
 
 async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> None:
     """The Bebop joins and leaves a millisecond of wall time later, long before its
-    process listens: it is stopped then, not left running until the mission ends."""
+    process listens: it is stopped then, not left running until the mission ends; or,
+    while the others still hold the start turns (a busy machine), never started."""
     s = msgspec.structs.replace(
         scenario("dynamic"),
         events=[
@@ -122,7 +123,8 @@ async def test_a_robot_that_leaves_while_its_process_starts_never_works() -> Non
     assert result.errors == []
     assert (result.robot_failures, result.robots_left) == (0, 1)
     assert not [i for i in result.timeline if i.robot == "bebop1"]
-    assert not hosts.made[0].started["bebop1"].alive()
+    proc = hosts.made[0].started.get("bebop1")
+    assert proc is None or not proc.alive()
 
 
 async def test_a_frozen_robot_process_is_declared_failed_and_credited_nothing() -> None:

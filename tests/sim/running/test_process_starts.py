@@ -32,6 +32,8 @@ if sys.stdin.readline():
     print(f"agent {name} listening on tcp://127.0.0.1:1", flush=True)
     sys.stdin.read()
 """
+#: Wall seconds the stand-ins have to listen where one must not: the test waits that long.
+READY_S = 4.0
 #: Exits at once, before it listens.
 EXITS = "import sys; sys.exit(3)"
 
@@ -117,10 +119,12 @@ async def test_a_robot_that_leaves_while_waiting_for_its_turn_is_never_started()
 
 
 async def test_a_robot_that_does_not_come_up_is_one_line_naming_it_and_why() -> None:
-    """One never listens (its deadline passes, and the next starts then), one exits."""
+    """One never listens (its deadline passes, and the next starts then), one exits.
+    The deadline holds "fine" too (from its start to its line, an interpreter's start on
+    a busy machine): generous, not 0.5 s."""
     starts = Starts({"silent": WHEN_TOLD, "broken": EXITS})
     with anyio.fail_after(60):
-        async with host(starts, starts_at_once=1, ready_s=0.5) as robots:
+        async with host(starts, starts_at_once=1, ready_s=READY_S) as robots:
             robots.start("silent")  # never told to listen
             robots.start("broken")
             robots.start("fine")
@@ -130,7 +134,7 @@ async def test_a_robot_that_does_not_come_up_is_one_line_naming_it_and_why() -> 
             assert robots.present() == {"fine"}
     errors = {e.robot: e.error for e in robots.errors}
     assert errors == {
-        "silent": "did not start: agent silent did not listen within 0.5 s of its start",
+        "silent": f"did not start: agent silent did not listen within {READY_S:g} s of its start",
         "broken": "did not start: the process of agent broken exited (code 3) before it "
         "listened (its log says why)",
     }
@@ -140,3 +144,25 @@ async def test_a_robot_that_does_not_come_up_is_one_line_naming_it_and_why() -> 
 def test_starting_none_at_a_time_is_refused() -> None:
     with pytest.raises(ValueError, match="at_once=0"):
         host(Starts(), starts_at_once=0)
+
+
+async def test_a_robot_that_leaves_and_joins_again_while_waiting_is_started_once() -> None:
+    """Its start waiting for a turn goes on: a second start would be a second process
+    for one robot, the first one's orphaned (present, bidding, never stopped)."""
+    starts = Starts()
+    with anyio.fail_after(60):
+        async with host(starts, starts_at_once=1) as robots:
+            robots.start("first")
+            robots.start("second")
+            await _started(starts, 1)
+            robots.leave("second")  # still waiting for first's turn to end
+            robots.start("second")  # and back before it had its turn
+            await starts.tell(starts.procs[0])
+            await _started(starts, 2)
+            await starts.tell(starts.procs[1])
+            robots.start("third")  # (so a second process of "second" would have come first)
+            await _started(starts, 3)
+            await starts.tell(starts.procs[2])
+            assert [p.robot for p in starts.procs] == ["first", "second", "third"]
+            assert robots.present() == {"first", "second", "third"}
+    assert all(not p.alive() for p in starts.procs)
