@@ -40,6 +40,8 @@ __all__ = ["Drive", "Job", "preemptive_end"]
 
 #: The solver's tolerance, taken off the end it finds (seconds).
 _SLACK_S = 1e-3
+#: ``linprog``'s status for a problem with no solution.
+_INFEASIBLE = 2
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,7 +133,13 @@ def _least_end(
         bounds=[(0.0, None)] * (n - 1) + [(max(lo, last), hi)],
         method="highs",
     )
-    return float(res.x[-1]) if res.status == 0 else None
+    if res.status == 0:
+        return float(res.x[-1])
+    if res.status == _INFEASIBLE:
+        return None  # no schedule ends in this span: the end lies later
+    # The solver could not tell (numerical trouble, a limit): the span's start is the
+    # least end it allows, so the bound stays below every schedule rather than above.
+    return max(lo, last)
 
 
 def preemptive_end(

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import OptimizeResult
 
 from btcap.bench.allocation.missionbound import scenario
+from btcap.sim.mission import preemptive
 from btcap.sim.mission.bound import mission_bound, scenario_bound
 from btcap.sim.mission.hindsight import scenario_hindsight
 from btcap.sim.mission.preemptive import Drive, Job, preemptive_end
@@ -104,3 +106,20 @@ def test_the_bound_stays_below_a_schedule_made_in_hindsight(name: str, seed: int
     h = scenario_hindsight(s, tries=3)
     assert h is not None
     assert scenario_bound(s).seconds <= h.seconds
+
+
+def test_a_solver_that_cannot_tell_gives_the_span_start_not_a_later_end(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Only "infeasible" moves the search to a later span: a solver that gave up
+    (numerical trouble, a limit) must not push the bound above every schedule."""
+    both = [Presence(), Presence()]
+    jobs = [Job(((r, 100.0, False),)) for r in (0.0, 50.0, 50.0)]
+    gave_up = OptimizeResult(status=4, x=None, message="numerical difficulties")
+    monkeypatch.setattr(preemptive, "linprog", lambda *a, **k: gave_up)
+    # two jobs come at 50, so the end is sought from the span that starts there: its
+    # start is the answer (before, the search went on past every span: inf)
+    assert preemptive_end(both, jobs) == pytest.approx(50.0, abs=0.01)
+    infeasible = OptimizeResult(status=2, x=None, message="infeasible")
+    monkeypatch.setattr(preemptive, "linprog", lambda *a, **k: infeasible)
+    assert preemptive_end(both, jobs) == float("inf")
