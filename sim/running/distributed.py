@@ -179,6 +179,8 @@ class ProcessHost:
                     record_error(self.errors, self.clock.now(), name, _not_started(exc))
                 await proc.kill()
             else:
+                if name in self._frozen:  # it failed before it was up: down from now on
+                    proc.send_signal(signal.SIGSTOP)
                 log.info("sim.robot_up", robot=name, pid=proc.pid, endpoint=proc.endpoint)
         code = await proc.wait()
         if self._procs.get(name) is proc:
@@ -216,10 +218,15 @@ class ProcessHost:
             self._task(proc.stop, name=f"stop {name}")
 
     def fail(self, name: str) -> None:
+        """Freeze the robot's process; one not up yet (waiting for its turn, or not yet
+        listening: frozen then, it would miss its ready deadline) is frozen once it is
+        up, unless it recovered meanwhile, so it never works while counted down."""
+        if name not in self._procs and name not in self._starting:
+            return
+        self._frozen.add(name)
         proc = self._procs.get(name)
-        if proc is not None:
+        if proc is not None and proc.ready:
             proc.send_signal(signal.SIGSTOP)
-            self._frozen.add(name)
 
     def recover(self, name: str) -> None:
         proc = self._procs.get(name)

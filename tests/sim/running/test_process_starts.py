@@ -166,3 +166,35 @@ async def test_a_robot_that_leaves_and_joins_again_while_waiting_is_started_once
             assert [p.robot for p in starts.procs] == ["first", "second", "third"]
             assert robots.present() == {"first", "second", "third"}
     assert all(not p.alive() for p in starts.procs)
+
+
+def _stopped(proc: AsyncAgentProcess) -> bool:
+    """Whether the process is stopped by a signal (state T in /proc)."""
+    stat = Path(f"/proc/{proc.pid}/stat").read_text()
+    return stat.rpartition(")")[2].split()[0] == "T"
+
+
+async def test_a_robot_that_fails_before_it_is_up_is_frozen_once_up() -> None:
+    """Failing while its start waits for a turn, or while its process is not listening
+    yet, it is frozen as it comes up (frozen earlier, it would miss its ready deadline);
+    before, the failure was dropped and it worked while the manager counted it down."""
+    starts = Starts()
+    with anyio.fail_after(60):
+        async with host(starts, starts_at_once=1) as robots:
+            robots.start("first")
+            robots.start("waiting")
+            await _started(starts, 1)
+            robots.fail("waiting")  # no process yet: it waits for first's turn
+            robots.fail("first")  # a process, not listening yet
+            await starts.tell(starts.procs[0])
+            await _started(starts, 2)
+            await starts.tell(starts.procs[1])
+            first, waiting = starts.procs
+            assert _stopped(first) and _stopped(waiting)
+            assert robots.present() == set()
+            assert robots.errors == []
+            robots.recover("waiting")
+            await _until(lambda: not _stopped(waiting))
+            assert robots.present() == {"waiting"}
+            robots.recover("first")
+    assert all(not p.alive() for p in starts.procs)
