@@ -190,7 +190,8 @@ async def test_a_robot_that_fails_before_it_is_up_is_frozen_once_up() -> None:
             await _started(starts, 2)
             await starts.tell(starts.procs[1])
             first, waiting = starts.procs
-            assert _stopped(first) and _stopped(waiting)
+            assert _stopped(first)
+            assert _stopped(waiting)
             assert robots.present() == set()
             assert robots.errors == []
             robots.recover("waiting")
