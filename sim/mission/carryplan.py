@@ -149,8 +149,8 @@ class CarryTurns:
         """Of the carries ``waiting`` (to begin; where their objects lie), those the
         plan starts now, given those ``under_way`` (a robot has them)."""
         self._track(now, under_way)
-        if not waiting:
-            return set()
+        if not waiting or len(under_way) >= self.carriers:
+            return set()  # no carrier free now: the plan could start nothing
         free_at = self.free_at(now, under_way)
         carries = [(k, self.pace.seconds(self.metres(c))) for k, c in waiting.items()]
         key = (tuple(free_at), tuple(carries))
