@@ -29,7 +29,15 @@ from btcap.errors import HandshakeWarning
 from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger
 
-__all__ = ["HANDSHAKE_EVENTS", "HandshakeWarning", "Refusals", "fingerprint"]
+__all__ = [
+    "FAILED",
+    "HANDSHAKE_EVENTS",
+    "REFUSED",
+    "SUCCEEDED",
+    "HandshakeWarning",
+    "Refusals",
+    "fingerprint",
+]
 
 log = get_logger(__name__)
 

@@ -19,13 +19,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from btcap.bench.allocation.args import load_map, seed_list
 from btcap.bench.allocation.optimum import (
     Costs,
     Events,
     allocate,
-    load_map,
     ratios,
-    seed_list,
     seeded_events,
     seeded_instance,
 )

@@ -140,7 +140,7 @@ def run(
 
 
 def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str, Any]:
-    from btcap.bench.allocation.optimum import seed_list
+    from btcap.bench.allocation.args import seed_list
 
     p = argparse.ArgumentParser(prog="python -m btcap.bench.allocation.joins", description=__doc__)
     p.add_argument("--seeds", type=seed_list)

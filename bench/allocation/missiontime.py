@@ -72,7 +72,15 @@ from btcap.sim.world.model import RobotModel
 from btcap.sim.world.store import MissionState
 from btcap.team.allocation.strategies import names as strategy_names
 
-__all__ = ["Job", "Reference", "main", "nearest_first", "run", "scenario"]
+__all__ = [
+    "TEAM_FILE",
+    "Job",
+    "Reference",
+    "main",
+    "nearest_first",
+    "run",
+    "scenario",
+]
 
 ROBOTS = (3, 5, 8, 10)
 OBJECTS = 20
@@ -361,7 +369,7 @@ def _print(out: dict[str, Any]) -> None:
 
 def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str, Any]:
     """The command line: ``--seeds``, ``--robots``, ``--strategies``."""
-    from btcap.bench.allocation.optimum import seed_list
+    from btcap.bench.allocation.args import seed_list
 
     p = argparse.ArgumentParser(prog="python -m btcap.bench missiontime", description=__doc__)
     p.add_argument("--quick", action="store_true", default=quick)

@@ -47,6 +47,7 @@ from scipy.optimize import linear_sum_assignment
 
 from btcap import AlwaysRunning, ReactiveSequence, Tree
 from btcap.actors import ManualClock
+from btcap.bench.allocation.args import load_map, seed_list
 from btcap.bench.common import write_result
 from btcap.sim.world.distance import DistanceCache, path_length
 from btcap.sim.world.grid import GridMap
@@ -59,7 +60,17 @@ from btcap.team.runtime.protocol import protocol_registry
 from btcap.transports import InProcessNetwork
 from btcap.transports.codec import Envelope
 
-__all__ = ["Allocation", "Events", "allocate", "main", "ratios", "run"]
+__all__ = [
+    "Allocation",
+    "Costs",
+    "Events",
+    "allocate",
+    "main",
+    "ratios",
+    "run",
+    "seeded_events",
+    "seeded_instance",
+]
 
 TASK = CapabilityInterface("Task", inputs={"task": int}, description="go and do task #task")
 #: The static rows: robots x tasks.
@@ -359,32 +370,6 @@ def _print_static(out: dict[str, Any], strategies: list[str]) -> None:
             cell = f"{by[s]['mean']:.3f} ({by[s]['max']:.3f}) {msgs:6.0f} {cpu:7.1f}"
             cells.append(f"{cell:>{width}}")
         print(f"{key:>7} {' '.join(cells)}")
-
-
-def seed_list(text: str) -> list[int]:
-    """``0-19`` or ``3,5,8`` (or both, comma-separated) as a list of seeds."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        lo, _, hi = part.strip().partition("-")
-        try:
-            seeds += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"--seeds {text!r}: expected seeds like 0-19 or 3,5,8"
-            ) from None
-    return seeds
-
-
-def load_map(text: str) -> GridMap:
-    """``cave:SEED`` (an 80x60 generated cave) or a map file (.npy, .png, .txt)."""
-    if text.startswith("cave:"):
-        try:
-            return GridMap.generate_cave(80, 60, seed=int(text[5:]))
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"--map {text!r}: expected cave:SEED with an integer seed"
-            ) from None
-    return GridMap.load(text)
 
 
 def run(

@@ -240,7 +240,7 @@ def _print(out: dict[str, Any]) -> None:
 
 def main(argv: Sequence[str] | None = None, *, quick: bool = False) -> dict[str, Any]:
     """The command line (see the module)."""
-    from btcap.bench.allocation.optimum import seed_list
+    from btcap.bench.allocation.args import seed_list
 
     p = argparse.ArgumentParser(prog="python -m btcap.bench strategytime", description=__doc__)
     p.add_argument("--quick", action="store_true", default=quick)

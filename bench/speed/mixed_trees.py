@@ -38,6 +38,8 @@ __all__ = [
     "STEPS",
     "MixedRun",
     "MixedSpec",
+    "PtScripted",
+    "Scripted",
     "Stepper",
     "btcap_run",
     "build_btcap",

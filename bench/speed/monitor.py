@@ -33,7 +33,8 @@ from typing import Any
 import btcap
 from btcap.bench.common import percentiles, write_result
 from btcap.bench.speed.mixed_trees import btcap_run, mixed_spec
-from btcap.bench.speed.tick import MIXED_SEED, MIXED_TREES, balanced_spec, build_btcap, flat_spec
+from btcap.bench.speed.shapes import balanced_spec, build_btcap, flat_spec
+from btcap.bench.speed.tick import MIXED_SEED, MIXED_TREES
 
 __all__ = ["run"]
 
@@ -76,8 +77,8 @@ def _build(shape: str) -> _Shape:
         tree = btcap.Tree(build_btcap(spec))
         tree.setup()
         return _Shape(tree.tick, [tree])
-    specs = [mixed_spec(MIXED_SEED + i, parallel=shape == "mixed_parallel") for i in range(12)]
-    assert len(specs) == MIXED_TREES
+    parallel = shape == "mixed_parallel"
+    specs = [mixed_spec(MIXED_SEED + i, parallel=parallel) for i in range(MIXED_TREES)]
     r = btcap_run(specs)
     trees = [tick.__self__ for tick in r.ticks]  # type: ignore[attr-defined]
     return _Shape(r.run, trees, r.reset)

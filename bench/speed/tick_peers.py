@@ -52,8 +52,8 @@ def load_average() -> float:
 
 
 def btcpp_tick(spec: Any) -> Callable[[], object] | None:
-    """A tick of ``spec`` (a :class:`~btcap.bench.speed.tick.Spec`) in BehaviorTree.CPP, checked to
-    give the expected result; None without ``behaviortreepy``."""
+    """A tick of ``spec`` (a :class:`~btcap.bench.speed.shapes.Spec`) in
+    BehaviorTree.CPP, checked to give the expected result; None without ``behaviortreepy``."""
     try:
         import behaviortreepy as bt  # type: ignore[import-untyped,import-not-found,unused-ignore]
     except ImportError:

@@ -33,6 +33,8 @@ __all__ = [
     "registry",
     "run_on",
     "secure",
+    "serve_peer",
+    "serve_raw_peer",
     "until_stdin_closes",
     "uvloop_installed",
 ]

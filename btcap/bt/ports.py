@@ -24,6 +24,7 @@ __all__ = [
     "check_port",
     "check_value",
     "check_wired",
+    "normalize_ports",
     "type_name",
     "wire_problem",
 ]

@@ -24,7 +24,13 @@ from typing import Protocol
 from btcap.bt.state import NodeErrorWarning, TreeError, UnassignableWarning
 from btcap.errors import BtcapError, HandshakeWarning
 
-__all__ = ["CliError", "Stopped", "build_parser", "main"]
+__all__ = [
+    "CliError",
+    "Stopped",
+    "build_parser",
+    "configure_logging",
+    "main",
+]
 
 
 class CliError(BtcapError):

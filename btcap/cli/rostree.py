@@ -21,7 +21,14 @@ if TYPE_CHECKING:
     from btcap.bt.registry import NodeRegistry
     from btcap.bt.tree import Tree
 
-__all__ = ["ROS_TYPES", "add_ros_options", "bridge_for", "ros_problems", "use_ros"]
+__all__ = [
+    "ROS_TYPES",
+    "add_ros_options",
+    "bridge_for",
+    "ros_problems",
+    "use_ros",
+    "wanted",
+]
 
 #: The node types of btcap.ros (its ``NODE_TYPES``), by name: known without importing it.
 ROS_TYPES = ("RosAction", "RosService", "RosPublish", "RosSubscribe", "RosWaitForMessage")

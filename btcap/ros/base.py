@@ -26,7 +26,17 @@ from btcap.ros.errors import RosError
 from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos
 
-__all__ = ["QOS_OPTIONS", "SERVER_OPTIONS", "RosLeaf", "give", "name_input", "now", "qos_of"]
+__all__ = [
+    "QOS_OPTIONS",
+    "SERVER_OPTIONS",
+    "RosLeaf",
+    "give",
+    "name_input",
+    "now",
+    "qos_of",
+    "seconds",
+    "seconds_options",
+]
 
 _FAILED = State.FAILED
 _RUNNING = State.RUNNING

@@ -26,7 +26,13 @@ from btcap.transports import BROADCAST, Address, Codec, MessageRegistry
 from btcap.transports.base import Deliver, Transport, TransportStats
 from btcap.transports.codec import Envelope
 
-__all__ = ["FaultyNetwork", "FaultyTransport", "LinkFaults", "NetCounters"]
+__all__ = [
+    "FaultyNetwork",
+    "FaultyTransport",
+    "LinkFaults",
+    "NetCounters",
+    "Tap",
+]
 
 #: Called with (sender, recipient, envelope) for each copy about to be delivered; returns
 #: extra recipients (a test-only fault: misdelivery the protocol cannot be asked to survive).

@@ -16,6 +16,7 @@ import msgspec
 __all__ = [
     "CAPABILITIES",
     "FAULT_KINDS",
+    "ORIGIN",
     "STRATEGIES",
     "Fault",
     "Plan",

@@ -25,6 +25,7 @@ __all__ = [
     "RobotError",
     "RobotStats",
     "collect",
+    "idle_robots_note",
 ]
 
 

@@ -47,7 +47,12 @@ from btcap.team.runtime.agent import Agent
 from btcap.transports import MessageRegistry
 from btcap.transports.log import get_logger
 
-__all__ = ["HostFactory", "Progress", "run_scenario"]
+__all__ = [
+    "HostFactory",
+    "Progress",
+    "run_fast",
+    "run_scenario",
+]
 
 log = get_logger(__name__)
 

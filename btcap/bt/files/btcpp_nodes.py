@@ -29,10 +29,12 @@ __all__ = [
     "STANDARD",
     "UNSUPPORTED",
     "V3_NAMES",
+    "MappingError",
     "Standard",
     "node_table",
     "parse_bool",
     "parse_int",
+    "script_code",
 ]
 
 

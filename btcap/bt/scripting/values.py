@@ -20,7 +20,17 @@ from typing import Any
 
 from btcap.errors import BtcapError
 
-__all__ = ["EXACT", "ScriptError", "convert", "exact", "to_bool", "to_number", "to_text"]
+__all__ = [
+    "EXACT",
+    "ScriptError",
+    "convert",
+    "exact",
+    "integral",
+    "kind",
+    "to_bool",
+    "to_number",
+    "to_text",
+]
 
 _INT64 = 2**63
 #: The largest integer a double holds exactly; BehaviorTree.CPP refuses to convert

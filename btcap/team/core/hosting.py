@@ -36,7 +36,11 @@ from btcap.team.messages import (
     RunState,
 )
 
-__all__ = ["HostLeases", "Hosted"]
+__all__ = [
+    "FINISHED_KEPT",
+    "HostLeases",
+    "Hosted",
+]
 
 R = TypeVar("R")
 

@@ -33,7 +33,11 @@ from btcap.team.runtime.stats import MissionStats
 from btcap.team.settings import MissionConfig
 from btcap.transports.log import get_logger, wanted
 
-__all__ = ["ExecutorSide"]
+__all__ = [
+    "CALLS_BURST",
+    "CALLS_PER_S",
+    "ExecutorSide",
+]
 
 log = get_logger(__name__)
 

@@ -8,15 +8,14 @@ import asyncio
 import numpy as np
 import pytest
 
+from btcap.bench.allocation.args import load_map, seed_list
 from btcap.bench.allocation.optimum import (
     Allocation,
     Costs,
     Events,
     allocate,
-    load_map,
     main,
     ratios,
-    seed_list,
 )
 
 # Two tasks; r00 and r01 are there from the start, r02 joins (or stands by) and is far
