@@ -43,4 +43,3 @@ async def test_a_call_on_the_event_loop_is_refused_before_it_connects() -> None:
         "its timeout): run it in a thread"
     )
     assert not isinstance(err.value, RosCallError)
-

@@ -64,7 +64,7 @@ async def test_a_stalled_master_is_said_once_and_its_services_count_as_gone(
     """rosgraph's own proxy has no timeout: the process's poller waited for the master's
     answer for ever, and the service stayed ready."""
     assert master.process is not None
-    with anyio.fail_after(60), capture_logs() as logs:
+    with anyio.fail_after(45), capture_logs() as logs:
         async with bridge_on(master) as bridge:
             client = bridge.service_client("std_srvs/SetBool", "set_flag")
             await settle(lambda: client.ready)

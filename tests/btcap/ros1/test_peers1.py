@@ -74,7 +74,7 @@ async def test_a_service_slow_to_answer_its_probe_once_is_read_again(
     header (the probe connects and is written: the client counts as ready); once it goes
     on, its header says its type. A timed-out read was kept as "nothing found" for good,
     and the call then failed with rospy's md5sum error."""
-    with anyio.fail_after(60):
+    with anyio.fail_after(45):
         async with bridge_on(master) as bridge:
             with stopped(servers.process.pid):
                 client = bridge.service_client("std_srvs/Trigger", "set_flag")
@@ -155,7 +155,7 @@ async def test_a_topic_of_two_types_waits_for_its_own_and_notes_the_other(
     and ``theirs`` is said once."""
     topic = {"topic_type": "std_msgs/String", "topic_name": "mixed"}
     with (
-        anyio.fail_after(60),
+        anyio.fail_after(45),
         capture_logs() as logs,
         talker(master, "mine", "std_msgs/String", "mixed") as mine,
         talker(master, "theirs", "std_msgs/Int32", "mixed"),
