@@ -76,6 +76,7 @@ class Child:
         self.names: dict[int, str] = {}  # cid -> its resolved name
         self.peers = PeerTypes(rospy.get_name(), self.ask)
         self._silent = False  # the master's last call timed out (said once)
+        self.up = False  # Up was sent: the bridge reads notices from then on
         self.goals: dict[int, tuple[Any, Any]] = {}  # gid -> (ClientGoalHandle, its client)
         self.ready: dict[int, bool] = {}
         self.availability: dict[int, Availability] = {}
@@ -176,7 +177,7 @@ class Child:
                 timeout_s=MASTER_CALL_S,
             )
         except rpc1.RosCallError as exc:
-            if exc.stalled and not self._silent:
+            if exc.stalled and not self._silent and self.up:
                 self._silent = True
                 self.post(
                     wire1.Notice(
@@ -427,6 +428,7 @@ def main(argv: list[str]) -> int:
         return 1
     child.master_pid = child.ask_master_pid()  # now: it may restart before the first check
     child.post(wire1.Up())
+    child.up = True
 
     def on_shutdown(reason: str) -> None:  # rospy's thread: the master, or our own stop
         if not child.stopping:

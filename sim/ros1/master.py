@@ -17,7 +17,6 @@ import time
 
 from btcap.errors import BtcapError
 from btcap.ros import rpc1
-from btcap.ros.rpc1 import RosCallError
 
 __all__ = ["RunMaster", "RunMasterError", "free_port", "ros_env"]
 
@@ -105,7 +104,7 @@ class RunMaster:
             try:
                 rpc1.call(self.uri, "getPid", "/btcap_run", timeout_s=ASK_S)
                 return
-            except RosCallError:  # not listening yet (or not answering: asked again)
+            except rpc1.RosCallError:  # not listening yet (or not answering: asked again)
                 pass
             if time.monotonic() > deadline:
                 raise RunMasterError(f"rosmaster on port {self.port}: no answer in {READY_S} s")
