@@ -22,13 +22,13 @@ import subprocess
 import sys
 import tempfile
 import time
-import xmlrpc.client
 from pathlib import Path
 from typing import Any
 
 from btcap.bench.common import percentiles, write_result
 from btcap.bt.state import State
 from btcap.bt.tree import Tree
+from btcap.ros import rpc1
 from btcap.ros.client1 import Ros1Bridge
 from btcap.ros.nodes1 import RosAction
 from btcap.team.rossettings import RosSettings
@@ -63,11 +63,9 @@ def _start_master(home: Path) -> tuple[subprocess.Popen[bytes], str]:
     deadline = time.monotonic() + 30.0
     while True:
         try:
-            with xmlrpc.client.ServerProxy(uri) as proxy:
-                answer: Any = proxy.getPid("/bench")
-            if answer[0] == 1:
-                return master, uri
-        except OSError:
+            rpc1.call(uri, "getPid", "/bench", timeout_s=2.0)
+            return master, uri
+        except rpc1.RosCallError:  # not up yet
             pass
         if time.monotonic() > deadline or master.poll() is not None:
             master.kill()

@@ -28,11 +28,10 @@ import socket
 import sys
 import threading
 import time
-import xmlrpc.client
 from multiprocessing.connection import Connection
 from typing import Any
 
-from btcap.ros import wire1
+from btcap.ros import rpc1, wire1
 from btcap.ros.availability import Availability
 from btcap.ros.interfaces1 import interface1
 from btcap.ros.peers1 import PeerTypes
@@ -45,9 +44,13 @@ ACTION_POLL_S = 0.02
 SERVICE_POLL_S = 0.1
 #: How often it asks the master its pid (a new one: the master restarted).
 MASTER_POLL_S = 1.0
-#: How often it asks the master the types of the topics that action clients without a
-#: server and subscribers without a publisher wait on (btcap.ros.peers1).
+#: How often it asks the types of the publishers that action clients without a server
+#: and subscribers without a publisher wait on (btcap.ros.peers1) ...
 TYPES_POLL_S = 0.2
+#: ... and those of the clients connected to one (another type beside it is noted).
+PEERS_POLL_S = 2.0
+#: How long a call to the master may take (btcap.ros.rpc1): it answers in milliseconds.
+MASTER_CALL_S = 1.0
 #: How long closing waits for the servers to acknowledge the open goals' cancels.
 CANCEL_ACK_S = 5.0
 _KINDS = {"action": "action", "service": "srv", "publisher": "msg", "subscriber": "msg"}
@@ -71,7 +74,9 @@ class Child:
         self.conn = conn
         self.clients: dict[int, tuple[str, Any, Any]] = {}  # cid -> (kind, types, client)
         self.names: dict[int, str] = {}  # cid -> its resolved name
-        self.peers = PeerTypes(rospy.get_name())
+        self.peers = PeerTypes(rospy.get_name(), self.ask)
+        self._silent = False  # the master's last call timed out (said once)
+        self.up = False  # Up was sent: the bridge reads notices from then on
         self.goals: dict[int, tuple[Any, Any]] = {}  # gid -> (ClientGoalHandle, its client)
         self.ready: dict[int, bool] = {}
         self.availability: dict[int, Availability] = {}
@@ -122,7 +127,7 @@ class Child:
 
     # -- readiness -------------------------------------------------------------------
     def _poll(self) -> None:
-        last_services = last_master = last_types = 0.0
+        last_services = last_master = last_types = last_peers = 0.0
         while not self._stopping.wait(ACTION_POLL_S):
             t = time.monotonic()
             services = t - last_services >= SERVICE_POLL_S
@@ -135,16 +140,19 @@ class Child:
             if types:
                 last_types = t
                 self.peers.new_round()
+            peers = types and t - last_peers >= PEERS_POLL_S
+            if peers:
+                last_peers = t
             for cid, (kind, cls, client) in list(self.clients.items()):
                 if kind == "action":
                     ok = _action_ready(client)
                     if types:
-                        self._check_type(cid, kind, cls, ok)
+                        self._check_type(cid, kind, cls, ok, peers)
                 elif kind == "service" and services:
                     ok = self._service_ready(cid, cls, client.resolved_name)
                 else:
                     if kind == "subscriber" and types:
-                        self._check_type(cid, kind, cls, _publisher_connected(client))
+                        self._check_type(cid, kind, cls, _publisher_connected(client), peers)
                     continue
                 ready = self.availability.setdefault(cid, Availability()).check(
                     ok, time.monotonic()
@@ -153,17 +161,40 @@ class Child:
                     self.ready[cid] = ready
                     self.post(wire1.Ready(cid, ready))
 
-    def ask_master_pid(self) -> int | None:
-        """The master's pid, or None if it does not answer now (within 0.5 s)."""
+    def ask(self, method: str, *args: Any) -> Any:
+        """The value of master call ``method`` (this node's name first, then ``args``),
+        within MASTER_CALL_S, else RosCallError; the first call of a stall (a master that
+        took the connection and did not answer: nothing else would say so) tells the
+        bridge, in one line naming the master and the call."""
         import rosgraph
 
         try:
-            with xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), _Timeout()) as proxy:
-                answer: Any = proxy.getPid(self.rospy.get_name())
-            code, _, pid = answer
-        except Exception:
+            value = rpc1.call(
+                rosgraph.get_master_uri(),
+                method,
+                self.rospy.get_name(),
+                *args,
+                timeout_s=MASTER_CALL_S,
+            )
+        except rpc1.RosCallError as exc:
+            if exc.stalled and not self._silent and self.up:
+                self._silent = True
+                self.post(
+                    wire1.Notice(
+                        f"{exc} (until it answers, this robot's services count as gone "
+                        "and its peers' types are unknown)"
+                    )
+                )
+            raise
+        self._silent = False
+        return value
+
+    def ask_master_pid(self) -> int | None:
+        """The master's pid, or None if it does not answer now."""
+        try:
+            return int(self.ask("getPid"))
+        except (rpc1.RosCallError, TypeError, ValueError):
             return None
-        return int(pid) if code == 1 else None
 
     def _check_master(self) -> None:
         """Tell the bridge once the master restarted (its pid changed): ROS 1 nodes never
@@ -185,17 +216,16 @@ class Child:
             )
         self.master_pid = pid
 
-    def _check_type(self, cid: int, kind: str, types: Any, connected: bool) -> None:
-        """An action client's or subscriber's peer: none to say once it connected to one
-        (some peer has its type), else the type the master says its name has."""
-        name = self.names.get(cid, "")
-        if connected:
-            found = ""
-        elif kind == "action":
-            found = self.peers.action(types, name)
-        else:
-            found = self.peers.topic(types, name)
+    def _check_type(self, cid: int, kind: str, types: Any, connected: bool, peers: bool) -> None:
+        """An action client's or subscriber's peers: the types of each (a client
+        ``connected`` to one has its type: its others only noted, looked at if ``peers``)."""
+        if connected and not peers:
+            self._found(cid, "")
+            return
+        found, noted = self.peers.check(kind, types, self.names.get(cid, ""), connected)
         self._found(cid, found)
+        if self.peers.note(cid, noted) and noted:
+            self.post(wire1.Notice(noted))
 
     def _found(self, cid: int, found: str) -> None:
         """Tell the bridge when what client ``cid``'s peer is typed as changes (before its
@@ -204,12 +234,11 @@ class Child:
             self.post(wire1.Mismatch(cid, found))
 
     def _service_ready(self, cid: int, types: Any, name: str) -> bool:
-        import rosgraph
         import rosgraph.network
 
         rospy = self.rospy
         try:
-            uri = rosgraph.Master(rospy.get_name()).lookupService(name)
+            uri = str(self.ask("lookupService", name))
             host, port = rospy.core.parse_rosrpc_uri(uri)
             with socket.create_connection((host, port), timeout=0.5) as s:
                 header = {
@@ -219,7 +248,7 @@ class Child:
                     "service": name,
                 }
                 rosgraph.network.write_ros_handshake_header(s, header)
-                self._found(cid, self.peers.service(cid, types, uri, s))
+                self._found(cid, self.peers.service(types, uri, s))
         except Exception:  # not registered, or registered by a process that is gone
             return False
         return True
@@ -353,13 +382,6 @@ class Child:
         self._writer.join(timeout=2.0)
 
 
-class _Timeout(xmlrpc.client.Transport):
-    def make_connection(self, host: Any) -> Any:
-        conn = super().make_connection(host)
-        conn.timeout = 0.5
-        return conn
-
-
 def _unregister(kind: str, types: Any, client: Any) -> None:
     if kind == "action":
         client.stop()
@@ -406,6 +428,7 @@ def main(argv: list[str]) -> int:
         return 1
     child.master_pid = child.ask_master_pid()  # now: it may restart before the first check
     child.post(wire1.Up())
+    child.up = True
 
     def on_shutdown(reason: str) -> None:  # rospy's thread: the master, or our own stop
         if not child.stopping:

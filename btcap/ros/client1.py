@@ -8,7 +8,8 @@ its own threads; a robot's ROS 1 side is therefore a child process
 one reader thread, which completes the node's futures and stores feedback and messages
 for the next tick, as rclpy's executor thread does, so nothing of ROS 1 ever runs on the
 event loop. :meth:`Ros1Bridge.start` first asks the master its pid over XML-RPC with a short
-timeout (rospy itself would retry an unreachable master forever) and fails in one line;
+timeout (:mod:`btcap.ros.rpc1`; rospy itself would retry an unreachable master forever) and
+fails in one line;
 :meth:`Ros1Bridge.close` has the process cancel the open goals, unregister everything from
 the master and exit, and reaps it.
 """
@@ -16,18 +17,16 @@ the master and exit, and reaps it.
 from __future__ import annotations
 
 import contextlib
-import http.client
 import itertools
 import os
 import socket
 import subprocess
 import sys
 import threading
-import xmlrpc.client
 from multiprocessing.connection import Connection
 from typing import Any, ClassVar
 
-from btcap.ros import wire1
+from btcap.ros import rpc1, wire1
 from btcap.ros.client import RosBridge
 from btcap.ros.errors import RosError
 from btcap.ros.facade1 import (
@@ -57,30 +56,16 @@ DEFAULT_MASTER = "http://localhost:11311/"
 _RESTART = ": restart the robot's agent (or make a new Ros1Bridge)"
 
 
-class _Transport(xmlrpc.client.Transport):
-    def make_connection(self, host: Any) -> http.client.HTTPConnection:
-        conn = super().make_connection(host)
-        conn.timeout = PROBE_S
-        return conn
-
-
 def probe_master(uri: str) -> None:
     """Nothing if the ROS 1 master at ``uri`` answers ``getPid``; else RosError saying so
     in one line (blocks up to PROBE_S: call it off the event loop)."""
-    why = ""
     try:
-        with xmlrpc.client.ServerProxy(uri, transport=_Transport()) as proxy:
-            answer: Any = proxy.getPid("/btcap_probe")
-        code, status = answer[0], answer[1]
-        if code == 1:
-            return
-        why = f"it refused getPid: {status}"
-    except (OSError, ValueError, xmlrpc.client.Error, http.client.HTTPException) as exc:
-        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-    raise RosError(
-        f"ROS 1 master {uri} does not answer ({why}): start one (`roscore`) or set "
-        "ros.master_uri (else ROS_MASTER_URI) to where it runs"
-    )
+        rpc1.call(uri, "getPid", "/btcap_probe", timeout_s=PROBE_S)
+    except rpc1.RosCallError as exc:
+        raise RosError(
+            f"ROS 1 master {uri} does not answer getPid ({exc.why}): start one (`roscore`) "
+            "or set ros.master_uri (else ROS_MASTER_URI) to where it runs"
+        ) from None
 
 
 class Ros1Bridge(RosBridge):

@@ -14,15 +14,16 @@ import socket
 import subprocess
 import tempfile
 import time
-import xmlrpc.client
-from typing import Any
 
 from btcap.errors import BtcapError
+from btcap.ros import rpc1
 
 __all__ = ["RunMaster", "RunMasterError", "free_port", "ros_env"]
 
 #: A bound, not a measure: rosmaster answers in about half a second here.
 READY_S = 30.0
+#: ... and each of its asks whether it is up.
+ASK_S = 2.0
 
 
 class RunMasterError(BtcapError, RuntimeError):
@@ -101,11 +102,9 @@ class RunMaster:
                 why = err.strip().splitlines()[-1] if err.strip() else "no message"
                 raise RunMasterError(f"rosmaster on port {self.port} exited: {why}")
             try:
-                with xmlrpc.client.ServerProxy(self.uri) as proxy:
-                    answer: Any = proxy.getPid("/btcap_run")
-                if answer[0] == 1:
-                    return
-            except OSError:
+                rpc1.call(self.uri, "getPid", "/btcap_run", timeout_s=ASK_S)
+                return
+            except rpc1.RosCallError:  # not listening yet (or not answering: asked again)
                 pass
             if time.monotonic() > deadline:
                 raise RunMasterError(f"rosmaster on port {self.port}: no answer in {READY_S} s")

@@ -29,7 +29,7 @@ async def test_an_unreachable_master_is_one_line_and_starts_nothing() -> None:
         await bridge.__aenter__()
     line = str(err.value)
     assert "\n" not in line
-    assert line.startswith(f"ROS 1 master {uri} does not answer (")
+    assert line.startswith(f"ROS 1 master {uri} does not answer getPid (")
     assert "Connection refused" in line
     assert bridge.process is None
     assert bridge.node is None
