@@ -13,7 +13,9 @@ descriptor by a hello the transport admitted:
   (:data:`LINKS_PER_PEER` by default) per peer, the oldest making room (a relinking
   peer has two for a moment; a name claimed over and over has no more);
 - a link whose peer the transport dropped is a newcomer again: it is closed unless it
-  says hello (or is dialled back) within ``deadline``.
+  says hello (or is dialled back) within ``deadline``;
+- time the caller could not read in (a stalled event loop) does not count: a hello sent
+  then waits unread, and an honest newcomer must not be closed for the caller's delay.
 
 Connections are named by their descriptor (what libzmq's events carry) with a ``key``
 naming the socket itself, for the caller to check that a descriptor still holds the
@@ -116,6 +118,13 @@ class Newcomers:
             close.append((fd, key))
         self.closed += len(close)
         return close
+
+    def stalled(self, seconds: float) -> None:
+        """Nothing was read for ``seconds`` (the caller's loop was held up): no newcomer's
+        wait counts them, since a hello that came meanwhile is not read yet."""
+        if seconds > 0:
+            for fd, (since, key) in self.waiting.items():
+                self.waiting[fd] = (since + seconds, key)
 
     def next_due(self) -> float | None:
         """When the oldest newcomer's deadline passes, None if none waits."""

@@ -27,7 +27,15 @@ from btcap.transports.base import TransportStats
 from btcap.transports.log import get_logger, worth_logging
 from btcap.transports.newcomers import LINKS_PER_PEER, Close, Newcomers
 
-__all__ = ["NO_HELLO", "TOO_MANY_LINKS", "NewcomerWatch", "local_address", "shut", "socket_key"]
+__all__ = [
+    "NO_HELLO",
+    "STALL_S",
+    "TOO_MANY_LINKS",
+    "NewcomerWatch",
+    "local_address",
+    "shut",
+    "socket_key",
+]
 
 log = get_logger(__name__)
 
@@ -102,6 +110,12 @@ def _duplicate(fd: int) -> socket.socket | None:
         return None
 
 
+#: A timer this late means the loop was held up (a callback may take ~50 ms; a loaded
+#: machine adds some), not that a newcomer stayed silent; then every wait pauses for the
+#: delay, and this long more, for the loop to read what came meanwhile.
+STALL_S = 0.25
+
+
 class NewcomerWatch:
     """Feeds a ROUTER's connection events and admitted hellos to :class:`Newcomers` and
     shuts what it says to, on the running loop's time."""
@@ -120,6 +134,7 @@ class NewcomerWatch:
         self.stats = stats
         self.system = system
         self._timer: asyncio.TimerHandle | None = None
+        self._due = 0.0  # when the timer was meant to fire
         self._closed = False
 
     def accepted(self, fd: int) -> None:
@@ -167,6 +182,7 @@ class NewcomerWatch:
     def _arm(self, loop: asyncio.AbstractEventLoop) -> None:
         due = self.book.next_due()
         if due is not None and self._timer is None:
+            self._due = due
             self._timer = loop.call_at(due, self._expire)
 
     def _expire(self) -> None:
@@ -174,6 +190,9 @@ class NewcomerWatch:
         if self._closed:
             return
         loop = asyncio.get_running_loop()
+        late = loop.time() - self._due
+        if late > STALL_S:  # the loop was held up: hellos sent meanwhile are still unread,
+            self.book.stalled(late + STALL_S)  # so the wait pauses, and they get read first
         self._shut(self.book.due(loop.time()), NO_HELLO)
         self._arm(loop)
 

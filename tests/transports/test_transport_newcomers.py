@@ -18,6 +18,19 @@ def test_a_silent_connection_is_closed_at_its_deadline_not_before() -> None:
     assert book.closed == 1
 
 
+def test_a_stall_does_not_count_against_newcomers() -> None:
+    book = Newcomers(deadline=10.0, cap=8)
+    book.accepted(5, "k5", now=0.0)
+    book.accepted(6, "k6", now=4.0)
+    book.stalled(7.5)  # the caller read nothing for 7.5 s
+    assert book.due(17.0) == []
+    assert book.next_due() == 17.5
+    assert book.due(17.5) == [(5, "k5")]
+    book.stalled(0.0)
+    assert book.due(21.4) == []
+    assert book.due(21.5) == [(6, "k6")]
+
+
 def test_a_hello_in_time_keeps_the_connection() -> None:
     book = Newcomers(deadline=10.0, cap=8)
     book.accepted(5, "k5", now=0.0)

@@ -6,11 +6,21 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from collections.abc import Iterator
 
+import anyio
 import pytest
 
-from btcap.transports.zmq_newcomers import local_address, shut, socket_key
+from btcap.transports.base import TransportStats
+from btcap.transports.zmq_newcomers import (
+    NO_HELLO,
+    STALL_S,
+    NewcomerWatch,
+    local_address,
+    shut,
+    socket_key,
+)
 
 
 def copies(fd: int) -> int:
@@ -84,3 +94,30 @@ def test_a_closed_number_is_nothing() -> None:
 )
 def test_local_address(bound: str, local: object) -> None:
     assert local_address(bound) == local
+
+
+async def test_a_stalled_loop_does_not_count_against_a_newcomer(
+    pair: tuple[socket.socket, socket.socket, socket.socket],
+) -> None:
+    """The loop is held up past a newcomer's deadline (its hello, sent meanwhile, unread):
+    it is not closed as the loop wakes, only once its deadline passes with the loop live."""
+    listener, client, accepted = pair
+    deadline = 0.3
+    watch = NewcomerWatch(
+        f"tcp://127.0.0.1:{listener.getsockname()[1]}", TransportStats(), "a", deadline, cap=8
+    )
+    with anyio.fail_after(10):
+        try:
+            watch.accepted(accepted.fileno())
+            time.sleep(deadline + 2 * STALL_S)  # noqa: ASYNC251 - the stall under test
+            await anyio.sleep(STALL_S / 2)  # the timer fires late, the loop reads again
+            assert watch.stats.by_reason.get(NO_HELLO, 0) == 0
+            client.setblocking(False)
+            with pytest.raises(BlockingIOError):
+                client.recv(1)  # still open
+            while not watch.stats.by_reason.get(NO_HELLO, 0):  # noqa: ASYNC110 - no event
+                await anyio.sleep(0.01)
+            client.setblocking(True)
+            assert client.recv(1) == b""  # silent with the loop live: closed after all
+        finally:
+            watch.close()
