@@ -113,7 +113,7 @@ async def test_a_stalled_loop_does_not_count_against_a_newcomer(
             watch.accepted(accepted.fileno())
             time.sleep(deadline + 2 * STALL_S)  # noqa: ASYNC251 - the stall under test
             woke = asyncio.get_running_loop().time()
-            while (due := watch.book.next_due()) is not None and due <= woke:  # noqa: ASYNC110
+            while (due := watch.book.next_due()) is not None and due <= woke:
                 await anyio.lowlevel.checkpoint()  # until the late timer has fired
             assert watch.stats.by_reason.get(NO_HELLO, 0) == 0
             assert due is not None  # still waiting: its wait paused for the stall
