@@ -30,6 +30,7 @@ from btcap.bt.running import nudge
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
+from btcap.ros.peers import PeerTypes
 from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
@@ -119,6 +120,7 @@ class RosBridge:
         self._wake: Any = None
         self._claim: Any = None
         self._watch: Any = None
+        self._peers: PeerTypes | None = None
         #: Why this robot must not use ROS (a twin in its namespace), or None.
         self.conflict: str | None = None
         #: Whether news (a goal answered...) ticks the node's tree soon; False: it waits
@@ -147,6 +149,7 @@ class RosBridge:
             )
             self._executor = SingleThreadedExecutor(context=context)
             self._executor.add_node(self.node)
+            self._peers = PeerTypes(self.node, self._executor.create_task)
             self._thread = threading.Thread(
                 target=self._spin, name=f"btcap-ros{self.fqn}", daemon=True
             )
@@ -359,9 +362,11 @@ class RosBridge:
 
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
-    def mismatch(self, client: Any) -> str | None:
-        """The type of ``client``'s peer, if another than its own (ROS 1's tells); None."""
-        return None
+    def mismatch(self, client: Any, asker: str = "") -> str | None:
+        """The type of ``client``'s peers when none has its own (:mod:`btcap.ros.peers`,
+        which tells ``asker``, the node, of any other type once); None."""
+        peers = self._peers
+        return None if peers is None or self.node is None else peers.ask(client, asker)
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
