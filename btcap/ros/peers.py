@@ -24,6 +24,7 @@ import contextlib
 import threading
 import time
 import warnings
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -116,6 +117,10 @@ class PeerTypes:
         self._node = node
         self._submit = submit
         self._names: dict[tuple[str, str, str], _Name] = {}
+        #: Each client's endpoint(), found once (reading it costs more than the rest).
+        self._keys: weakref.WeakKeyDictionary[Any, tuple[str, str, str] | None] = (
+            weakref.WeakKeyDictionary()
+        )
         self._lock = threading.Lock()
         #: Graph reads done (for tests: bounded, not one per tick).
         self.checks = 0
@@ -124,7 +129,12 @@ class PeerTypes:
         """(On the tick) the type of ``client``'s peers when none has the client's own,
         as last found; reads the graph anew, off the loop, at ``asker``'s first question
         and at most every :data:`CHECK_S`. ``asker`` names the node in what is told."""
-        key = endpoint(client)
+        try:
+            key = self._keys[client]
+        except KeyError:
+            key = self._keys[client] = endpoint(client)
+        except TypeError:  # not weakly referable (no rclpy client)
+            key = endpoint(client)
         if key is None:
             return None
         t = now()

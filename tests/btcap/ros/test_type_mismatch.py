@@ -144,22 +144,20 @@ async def test_a_publisher_is_told_of_a_subscriber_of_another_type_once(
     however often it ticks, and it is told once."""
     node = RosPublish("pub", topic_type=POSE, topic_name="echo_in", rate_hz=200.0, bridge=bridge)
     tree = tree_of(node)
-    ticks = 0
     started = time.monotonic()
     assert bridge._peers is not None
     with anyio.fail_after(2 * FOUND_S):
         while not told() or bridge._peers.checks < 3:
             assert tree.tick() is State.RUNNING
-            ticks += 1
             await anyio.sleep(0.002)
     elapsed = time.monotonic() - started
     assert told() == [
         f"RosPublish 'pub': topic /husky1/echo_in: type mismatch: expected {POSE}, found "
         "std_msgs/msg/String: none of this node's messages reach that subscriber"
     ]
-    # At the first question, then at most once per CHECK_S (fewer on a loaded machine).
+    # At the first question, then at most once per CHECK_S (fewer on a loaded machine),
+    # not at each of its ticks (a tick every 2 ms or so).
     assert bridge._peers.checks <= 2 + elapsed / peers.CHECK_S
-    assert ticks > 10 * bridge._peers.checks
 
 
 async def test_peers_of_the_nodes_own_type_are_no_mismatch(
