@@ -21,6 +21,7 @@ a goal, request or wait that can never be answered fails then, saying so.
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 import warnings
@@ -37,6 +38,8 @@ log = get_logger(__name__)
 
 #: How often, at most, the graph is read again for one name while nodes ask of it.
 CHECK_S = 1.0
+#: An answer older than this (nobody asked for a while) is no answer: read the graph anew.
+_FRESH_S = 3 * CHECK_S
 #: Names and askers remembered: whatever names trees read from their blackboards, the
 #: bridge holds a bounded amount.
 _NAMES = 256
@@ -145,15 +148,15 @@ class PeerTypes:
                 if len(self._names) > _NAMES:
                     self._forget()
             entry.asked_at = t
+            age = t - entry.checked_at if entry.checked_at is not None else math.inf
+            fresh = age < _FRESH_S  # else asked of again after a while: wait for news
             new = asker not in entry.askers and len(entry.askers) < _ASKERS
-            known = entry.others if new else []
+            known = entry.others if new and fresh else []
             if new:  # told at once of what is known, and the graph read anew
                 entry.askers[asker] = set(known)
-            due = not entry.pending and (
-                new or entry.checked_at is None or t - entry.checked_at >= CHECK_S
-            )
+            due = not entry.pending and (new or age >= CHECK_S)
             entry.pending = entry.pending or due
-            found = entry.found
+            found = entry.found if fresh else None
         if known:
             _tell(entry, asker, ", ".join(known))
         if due:
@@ -164,8 +167,8 @@ class PeerTypes:
         return found
 
     def _forget(self) -> None:
-        """Drop the name asked of longest ago (under the lock)."""
-        key = min(self._names, key=lambda k: self._names[k].asked_at)
+        """Drop the name asked of longest ago but the one just added (under the lock)."""
+        key = min(list(self._names)[:-1], key=lambda k: self._names[k].asked_at)
         del self._names[key]
 
     # executor thread
