@@ -363,10 +363,8 @@ class RosBridge:
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
     def mismatch(self, client: Any, asker: str = "") -> str | None:
-        """The type of ``client``'s peers when none has its own (:mod:`btcap.ros.peers`,
-        which tells ``asker``, the node, of any other type once); None."""
-        peers = self._peers
-        return None if peers is None or self.node is None else peers.ask(client, asker)
+        """The type of ``client``'s peers if none has its own; tells ``asker`` (``peers``)."""
+        return None if self._peers is None or self.node is None else self._peers.ask(client, asker)
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)
