@@ -286,14 +286,11 @@ class RosBridge:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         q = qos if qos is not None else self.settings.qos
+        reliable, lasting = q.reliability == "reliable", q.durability == "transient_local"
         return QoSProfile(
             depth=q.depth,
-            reliability=ReliabilityPolicy.RELIABLE
-            if q.reliability == "reliable"
-            else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL
-            if q.durability == "transient_local"
-            else DurabilityPolicy.VOLATILE,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if lasting else DurabilityPolicy.VOLATILE,
         )
 
     def action_client(self, type_name: str, name: str) -> Any:
@@ -324,20 +321,22 @@ class RosBridge:
 
     def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
         """The latest message of ``topic`` and when it came (``time.monotonic``), or None
-        before the first; the subscription starts at the first call and lasts as long as
-        the bridge. For cost functions that read a topic (a robot's pose)."""
+        before the first (a publisher of another type is told); subscribed at the first
+        call, for as long as the bridge. For cost functions that read a topic (a pose)."""
         key = (type_name, self.resolve(topic))
         box = self._latest.get(key)
         if box is None:
-            box = self._latest[key] = [None]
+            box = [None]
 
             def store(message: Any, box: list[Any] = box) -> None:  # executor thread
                 box[0] = (message, time.monotonic())
 
+            events = self.subscription_events(key[1])
             cls = interface(type_name, "msg")
-            self.running().create_subscription(
-                cls, key[1], store, self.qos(), **self.subscription_events(key[1])
-            )
+            box.append(self.running().create_subscription(cls, key[1], store, self.qos(), **events))
+            self._latest[key] = box
+        if box[0] is None:
+            self.mismatch(box[1], f"RosBridge {self.fqn} (a cost reads it)")
         latest: tuple[Any, float] | None = box[0]
         return latest
 

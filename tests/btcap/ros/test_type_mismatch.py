@@ -189,3 +189,23 @@ async def test_peers_of_the_nodes_own_type_are_no_mismatch(
             await anyio.sleep(0.005)
     assert wait.state is State.SUCCEEDED, wait.error
     assert all("RosWaitForMessage 'wait'" in line for line in told())
+
+
+async def test_a_cost_reading_a_topic_of_another_type_is_told(
+    servers: Servers, bridge: RosBridge, told: Callable[[], list[str]]
+) -> None:
+    """A distance bid reads the robot's pose (bridge.latest): published as another type,
+    none comes and the robot never bids; it is told once why."""
+    from std_msgs.msg import String
+
+    servers.node.create_publisher(String, "odom", 10)
+    with anyio.fail_after(FOUND_S):
+        while not told():
+            assert bridge.latest(POSE, "odom") is None
+            await anyio.sleep(0.01)
+        assert bridge.latest(POSE, "odom") is None
+    assert told() == [
+        "RosBridge /husky1/btcap (a cost reads it): topic /husky1/odom: type mismatch: "
+        f"expected {POSE}, found std_msgs/msg/String: none of that publisher's messages "
+        "reach this node"
+    ]
