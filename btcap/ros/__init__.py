@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     )
     from btcap.ros.client import ROS_BRIDGE, RosBridge
     from btcap.ros.client1 import Ros1Bridge
-    from btcap.ros.errors import RosError, RosMissing
+    from btcap.ros.errors import RosError, RosMissing, RosTypeWarning
     from btcap.ros.service import RosService
     from btcap.ros.topic import RosPublish, RosSubscribe, RosWaitForMessage
     from btcap.team.rossettings import Qos, RosSettings
@@ -43,6 +43,7 @@ __all__ = [
     "RosService",
     "RosSettings",
     "RosSubscribe",
+    "RosTypeWarning",
     "RosWaitForMessage",
     "Server",
     "distance_cost",
@@ -66,7 +67,7 @@ __getattr__, __dir__ = lazy_exports(
         ],
         "btcap.ros.client": ["ROS_BRIDGE", "RosBridge"],
         "btcap.ros.client1": ["Ros1Bridge"],
-        "btcap.ros.errors": ["RosError", "RosMissing"],
+        "btcap.ros.errors": ["RosError", "RosMissing", "RosTypeWarning"],
         "btcap.ros.service": ["RosService"],
         "btcap.ros.topic": ["RosPublish", "RosSubscribe", "RosWaitForMessage"],
         "btcap.team.rossettings": ["Qos", "RosSettings"],

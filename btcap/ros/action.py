@@ -178,8 +178,9 @@ class RosAction(RosLeaf):
     no server appears within ``wait_for_server_timeout`` or answers the goal within
     ``server_timeout`` (seconds), when ``feedback_timeout`` passes without feedback, when
     the goal has no result ``result_timeout`` after it was sent (it is cancelled), when
-    the server leaves the graph mid-goal, or, on ROS 1, at once when the action's server
-    has another type.
+    the server leaves the graph mid-goal, or, as soon as it is seen, when only a server
+    of another type serves the action (also told once as a
+    :class:`~btcap.ros.errors.RosTypeWarning`).
     """
 
     __slots__ = ("_goal", "_last", "_types")

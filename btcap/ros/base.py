@@ -241,11 +241,17 @@ class RosLeaf(Leaf):
             )
         return _RUNNING
 
+    def peer_type(self, client: Any) -> str | None:
+        """The type of ``client``'s peers (its server, its topic's publishers or
+        subscribers) when none has its own, as last found; the bridge tells of any peer of
+        another type once per node (ROS 2: :mod:`btcap.ros.peers`)."""
+        return self.bridge.mismatch(client, f"{type(self).__name__} {self.path!r}")
+
     def mismatched(self, client: Any, what: str, expected: str) -> State | None:
-        """FAILED, saying so, when the peer of ``client`` (its server, or its topic's
-        publisher) has another type than ``expected``; None when none was seen. ``what``
-        names the action, service or topic."""
-        found = self.bridge.mismatch(client)
+        """FAILED, saying so, when the peers of ``client`` (its server, or its topic's
+        publishers) have another type than ``expected`` (none has it); None when none was
+        seen. ``what`` names the action, service or topic."""
+        found = self.peer_type(client)
         if found is None:
             return None
         self._waiting_since = None

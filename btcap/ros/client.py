@@ -30,6 +30,7 @@ from btcap.bt.running import nudge
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
+from btcap.ros.peers import PeerTypes
 from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
@@ -119,6 +120,7 @@ class RosBridge:
         self._wake: Any = None
         self._claim: Any = None
         self._watch: Any = None
+        self._peers: PeerTypes | None = None
         #: Why this robot must not use ROS (a twin in its namespace), or None.
         self.conflict: str | None = None
         #: Whether news (a goal answered...) ticks the node's tree soon; False: it waits
@@ -147,6 +149,7 @@ class RosBridge:
             )
             self._executor = SingleThreadedExecutor(context=context)
             self._executor.add_node(self.node)
+            self._peers = PeerTypes(self.node, self._executor.create_task)
             self._thread = threading.Thread(
                 target=self._spin, name=f"btcap-ros{self.fqn}", daemon=True
             )
@@ -283,14 +286,11 @@ class RosBridge:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         q = qos if qos is not None else self.settings.qos
+        reliable, lasting = q.reliability == "reliable", q.durability == "transient_local"
         return QoSProfile(
             depth=q.depth,
-            reliability=ReliabilityPolicy.RELIABLE
-            if q.reliability == "reliable"
-            else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL
-            if q.durability == "transient_local"
-            else DurabilityPolicy.VOLATILE,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if lasting else DurabilityPolicy.VOLATILE,
         )
 
     def action_client(self, type_name: str, name: str) -> Any:
@@ -321,20 +321,22 @@ class RosBridge:
 
     def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
         """The latest message of ``topic`` and when it came (``time.monotonic``), or None
-        before the first; the subscription starts at the first call and lasts as long as
-        the bridge. For cost functions that read a topic (a robot's pose)."""
+        before the first (a publisher of another type is told); subscribed at the first
+        call, for as long as the bridge. For cost functions that read a topic (a pose)."""
         key = (type_name, self.resolve(topic))
         box = self._latest.get(key)
         if box is None:
-            box = self._latest[key] = [None]
+            box = [None]
 
             def store(message: Any, box: list[Any] = box) -> None:  # executor thread
                 box[0] = (message, time.monotonic())
 
+            events = self.subscription_events(key[1])
             cls = interface(type_name, "msg")
-            self.running().create_subscription(
-                cls, key[1], store, self.qos(), **self.subscription_events(key[1])
-            )
+            box.append(self.running().create_subscription(cls, key[1], store, self.qos(), **events))
+            self._latest[key] = box
+        if box[0] is None:
+            self.mismatch(box[1], f"RosBridge {self.fqn} (a cost reads it)")
         latest: tuple[Any, float] | None = box[0]
         return latest
 
@@ -359,9 +361,9 @@ class RosBridge:
 
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
-    def mismatch(self, client: Any) -> str | None:
-        """The type of ``client``'s peer, if another than its own (ROS 1's tells); None."""
-        return None
+    def mismatch(self, client: Any, asker: str = "") -> str | None:
+        """The type of ``client``'s peers if none has its own; tells ``asker`` (``peers``)."""
+        return None if self._peers is None or self.node is None else self._peers.ask(client, asker)
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)

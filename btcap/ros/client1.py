@@ -330,7 +330,7 @@ class Ros1Bridge(RosBridge):
     def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
         return {}  # ROS 1 has no QoS to disagree on
 
-    def mismatch(self, client: Any) -> str | None:
+    def mismatch(self, client: Any, asker: str = "") -> str | None:
         """The type ``client``'s peer has, as the rospy process last found it
         (:mod:`btcap.ros.peers1`), when another than the client's own."""
         found: str | None = getattr(client, "mismatch", None)

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from btcap.bt.state import TreeError
+from btcap.errors import BtcapWarning
 
-__all__ = ["INSTALL_HINT", "RosError", "RosMissing"]
+__all__ = ["INSTALL_HINT", "RosError", "RosMissing", "RosTypeWarning"]
 
 #: How to get ROS 2 for the bridge.
 INSTALL_HINT = (
@@ -24,3 +25,10 @@ class RosMissing(RosError, ImportError):
 
     def __init__(self, what: str = "ROS 2 (rclpy)") -> None:
         super().__init__(f"{what} is not installed: {INSTALL_HINT}")
+
+
+class RosTypeWarning(BtcapWarning):
+    """A ROS node's peer on its name (a server, publisher or subscriber) has another type
+    than the node's, so they never talk: said once per node and type, naming both types
+    (``warnings.filterwarnings("ignore", category=btcap.ros.RosTypeWarning)`` quietens it;
+    the log line ``btcap.ros.type_mismatch`` stays)."""

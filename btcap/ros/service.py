@@ -5,8 +5,8 @@ Inputs are the Request's fields, outputs the Response's. The call goes out with 
 ticked soon when it comes); ``wait_for_server_timeout`` bounds the wait for the service
 to appear and ``server_timeout`` the wait for its response, so a missing or slow server
 fails the node, saying which; a server that leaves the graph during the call fails it
-then, and one of another type (seen on ROS 1) before any call. ``service_name`` is read
-when a call starts.
+then, and one of another type only (no server of the node's type) as soon as it is seen,
+before any call. ``service_name`` is read when a call starts.
 """
 
 from __future__ import annotations
@@ -90,9 +90,13 @@ class RosService(RosLeaf):
         name = self._name = self.ros_name()
         kind = self.options["service_type"]
         client = self._client = self.bridge.service_client(kind, name)
-        if (wrong := self.mismatched(client, f"service {name}", kind)) is not None:
+        ready = client.service_is_ready()
+        # ROS 2 finds a server of another type not ready; ROS 1's probe connects to it.
+        if (not ready or self.types.version == 1) and (
+            wrong := self.mismatched(client, f"service {name}", kind)
+        ) is not None:
             return wrong
-        if (missing := self._server_missing(client.service_is_ready(), name)) is not None:
+        if (missing := self._server_missing(ready, name)) is not None:
             return missing
         fields = {k: v for k, v in self.inputs.items() if k != "service_name"}
         request = self.types.fill(self._types.Request, fields, f"{self._what()} request")

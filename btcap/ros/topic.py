@@ -47,7 +47,9 @@ _NAME = name_input("topic_name", "topic")
 
 class RosPublish(RosLeaf):
     """Publishes a message made of its inputs: once (SUCCEEDED), or every ``1/rate_hz``
-    seconds while ticked (RUNNING until halted)."""
+    seconds while ticked (RUNNING until halted). A subscriber of another type on the topic
+    is told once (ROS 2: a :class:`~btcap.ros.errors.RosTypeWarning`); it does not fail
+    the node, which reaches the subscribers of its own type."""
 
     __slots__ = ("_next_at", "_publisher", "_topic", "_types")
     INPUTS: ClassVar[dict[str, Any]] = _NAME
@@ -80,6 +82,7 @@ class RosPublish(RosLeaf):
                     self._types, name, qos_of(self, bridge)
                 )
                 self._topic = name
+        self.peer_type(self._publisher)  # told once if a subscriber has another type
         rate = self.options["rate_hz"]
         t = now()
         if rate is None or t >= self._next_at:
@@ -190,7 +193,7 @@ class RosSubscribe(RosLeaf):
         """FAILED for want of a message: ``why``, and a publisher of another type or
         whose QoS this node does not accept, if one was seen (else the error says only
         "no message yet")."""
-        found = self.bridge.mismatch(self._subscription)
+        found = self.peer_type(self._subscription)
         if found is not None:
             why += f": type mismatch: expected {self.options['topic_type']}, found {found}"
         policy = self._incompatible
@@ -234,8 +237,8 @@ class RosSubscribe(RosLeaf):
 
 class RosWaitForMessage(RosSubscribe):
     """RUNNING until a message arrives after its first tick (since it was halted or reset),
-    then SUCCEEDED with it in the outputs; FAILED after ``timeout`` seconds if set, and at
-    once when the topic is published with another type only (seen on ROS 1)."""
+    then SUCCEEDED with it in the outputs; FAILED after ``timeout`` seconds if set, and as
+    soon as the topic is seen published with another type only."""
 
     __slots__ = ()
     OPTIONS: ClassVar[dict[str, Any]] = {
@@ -254,7 +257,7 @@ class RosWaitForMessage(RosSubscribe):
             self._waits = None
             self._take(latest)
             return _SUCCEEDED
-        if self.bridge.mismatch(self._subscription) is not None:  # none of its would come
+        if self.peer_type(self._subscription) is not None:  # none of its would come
             self._waits = None
             return self._none("no message")
         limit = self.options["timeout"]
