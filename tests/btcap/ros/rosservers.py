@@ -182,6 +182,15 @@ class Servers:
         pool = getattr(self.executor, "_executor", None)
         if pool is not None:
             pool.shutdown(wait=True)
+        # A callback handler that ran on in the pool after shutdown() raised from the
+        # executor's destroyed guard condition ("cannot use Destroyable"); its task stays
+        # in the executor's list and printed that as "never retrieved" whenever it was
+        # collected, into whichever later test read stderr. Read it here.
+        with self.executor._tasks_lock:
+            tasks = [task for task, _entity, _node in self.executor._tasks]
+        for task in tasks:
+            if task.done():
+                task.exception()
         for server in self.actions:
             server.destroy()
         self.node.destroy_node()
