@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -165,6 +166,8 @@ def replay_command(args: argparse.Namespace) -> int:
         replay = Replay.open(args.file, speed=args.speed)
     except (RecordError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    if replay.cut is not None:  # a killed run's file: what was read, said before anything
+        print(f"btcap: warning: {replay.cut}", file=sys.stderr, flush=True)
     if args.to_mcap is not None:
         return _to_mcap(args.file, replay.events, args.to_mcap)
     if args.plot is not None:

@@ -28,6 +28,7 @@ __all__ = [
     "open_recorder",
     "read_metadata",
     "read_record",
+    "read_recording",
 ]
 
 log = get_logger(__name__)
@@ -111,7 +112,15 @@ class Recorder:
 
 def read_record(path: str | Path) -> list[Event]:
     """The events of a recording (JSON Lines or MCAP), in order; a bad file is refused
-    naming the line (JSON Lines) or the message (MCAP)."""
+    naming the line (JSON Lines) or the message (MCAP). A file that breaks off (a killed
+    run) gives what comes before the break: :func:`read_recording` says where."""
+    return read_recording(path)[0]
+
+
+def read_recording(path: str | Path) -> tuple[list[Event], str | None]:
+    """:func:`read_record`, and None if the file is whole, else one line naming the file,
+    where it breaks off and what was read up to there: a run killed mid-write leaves its
+    last line or chunk unfinished, which is skipped, never silently."""
     path = Path(path)
     try:
         with path.open("rb") as f:
@@ -119,8 +128,13 @@ def read_record(path: str | Path) -> list[Event]:
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
     if head.startswith(b"\x89MCAP"):
-        return _read_mcap(path)[0]
-    return _read_lines(path)
+        events, _, cut = _read_mcap(path)
+    else:
+        events, cut = _read_lines(path)
+    if cut is None:
+        return events, None
+    upto = f", up to {max(float(e['t']) for e in events):.1f} s" if events else ""
+    return events, f"{path}: {cut}; read {len(events)} events{upto}"
 
 
 def read_metadata(path: str | Path) -> dict[str, str]:
@@ -140,11 +154,11 @@ def read_metadata(path: str | Path) -> dict[str, str]:
     return {str(k): str(v) for k, v in meta.items()} if isinstance(meta, dict) else {}
 
 
-def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
+def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
     from btcap.monitor.mcaprecord import read_mcap
 
     try:
-        events, meta = read_mcap(path)
+        events, meta, cut = read_mcap(path)
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
     except ValueError as exc:
@@ -152,10 +166,10 @@ def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
     view = TeamView()
     for number, obj in enumerate(events, 1):
         _check(view, obj, f"{path}: message {number}")
-    return events, meta
+    return events, meta, cut
 
 
-def _read_lines(path: Path) -> list[Event]:
+def _read_lines(path: Path) -> tuple[list[Event], str | None]:
     try:
         lines = path.read_bytes().splitlines()
     except OSError as exc:
@@ -173,7 +187,7 @@ def _read_lines(path: Path) -> list[Event]:
             if number == 1:
                 raise RecordError(f"{path}:1: not a btcap recording (not JSON Lines)") from None
             if number == len(lines):  # the last line of a run that was killed mid-write
-                break
+                return events, f"line {number} is cut short (a run that was killed?), skipped"
             raise RecordError(f"{path}:{number}: not a JSON object ({exc})") from None
         if number == 1:
             if obj.get("format") != FORMAT:
@@ -184,7 +198,7 @@ def _read_lines(path: Path) -> list[Event]:
             continue
         _check(view, obj, f"{path}:{number}")
         events.append(obj)
-    return events
+    return events, None
 
 
 def _check(view: TeamView, obj: Event, where: str) -> None:
