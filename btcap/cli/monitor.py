@@ -195,8 +195,10 @@ def _to_mcap(source: Path, events: list[dict[str, object]], out: Path) -> int:
         recorder = McapRecorder(out, meta)
     except (RecordError, OSError) as exc:
         raise CliError(f"--to-mcap {out}: {getattr(exc, 'strerror', None) or exc}") from None
-    recorder.write(events)
-    recorder.close()
+    try:
+        recorder.write(events)
+    finally:
+        recorder.close()
     print(f"wrote {out} ({len(events)} events)")
     return 0
 

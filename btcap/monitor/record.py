@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import msgspec
 
 from btcap.errors import BtcapError
+from btcap.monitor.shapes import check_shape
 from btcap.monitor.view import Event, TeamView
 from btcap.transports.log import get_logger
 
@@ -171,9 +172,11 @@ def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
 
 def _read_lines(path: Path) -> tuple[list[Event], str | None]:
     try:
-        lines = path.read_bytes().splitlines()
+        data = path.read_bytes()
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    lines = data.splitlines()
+    whole = data.endswith(b"\n")  # the recorder ends every line: else the last was cut
     if not lines:
         raise RecordError(f"{path}: empty file, not a btcap recording")
     events: list[Event] = []
@@ -186,7 +189,7 @@ def _read_lines(path: Path) -> tuple[list[Event], str | None]:
         except msgspec.DecodeError as exc:
             if number == 1:
                 raise RecordError(f"{path}:1: not a btcap recording (not JSON Lines)") from None
-            if number == len(lines):  # the last line of a run that was killed mid-write
+            if number == len(lines) and not whole:  # a run killed mid-write
                 return events, f"line {number} is cut short (a run that was killed?), skipped"
             raise RecordError(f"{path}:{number}: not a JSON object ({exc})") from None
         if number == 1:
@@ -211,6 +214,7 @@ def _check(view: TeamView, obj: Event, where: str) -> None:
             if name in obj and not isinstance(obj[name], str):
                 raise TypeError(f"{name!r} is {obj[name]!r}, expected a name")
         view.apply(obj)
+        check_shape(obj)  # what the MCAP channels and the Foxglove scene read
     except KeyError as exc:
         raise RecordError(f"{where}: a {obj['k']!r} event: no {exc}") from None
     except (TypeError, ValueError, AttributeError) as exc:
