@@ -121,7 +121,9 @@ def read_record(path: str | Path) -> list[Event]:
 def read_recording(path: str | Path) -> tuple[list[Event], str | None]:
     """:func:`read_record`, and None if the file is whole, else one line naming the file,
     where it breaks off and what was read up to there: a run killed mid-write leaves its
-    last line or chunk unfinished, which is skipped, never silently."""
+    last line or chunk unfinished, which is skipped, never silently. A run killed between
+    two writes leaves whole lines: that file is said to hold no end of the run (a monitor
+    that stops records how the run ended, ``finished``, whatever ended it)."""
     path = Path(path)
     try:
         with path.open("rb") as f:
@@ -133,7 +135,9 @@ def read_recording(path: str | Path) -> tuple[list[Event], str | None]:
     else:
         events, cut = _read_lines(path)
     if cut is None:
-        return events, None
+        if not events or any(e["k"] == "finished" for e in events):
+            return events, None
+        cut = "holds no end of the run (no 'finished' event: a run that was killed?)"
     upto = f", up to {max(float(e['t']) for e in events):.1f} s" if events else ""
     return events, f"{path}: {cut}; read {len(events)} events{upto}"
 

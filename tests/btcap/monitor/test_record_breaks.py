@@ -127,3 +127,17 @@ def test_any_time_converts_to_mcap_and_back(t0: float, tmp_path: Path) -> None:
     _jsonl(jsonl, events)
     assert main(["replay", str(jsonl), "--to-mcap", str(mcap)]) == 0
     assert read_recording(mcap) == (events, None)
+
+
+def test_whole_lines_without_the_end_of_the_run_are_said(tmp_path: Path) -> None:
+    """A run killed between two writes leaves whole lines, and no ``finished`` event,
+    which a monitor that stops always records."""
+    events = _events(5)[:-1]
+    path = tmp_path / "run.jsonl"
+    _jsonl(path, events)
+    got, cut = read_recording(path)
+    assert got == events
+    assert cut == (
+        f"{path}: holds no end of the run (no 'finished' event: a run that was killed?); "
+        f"read {len(events)} events, up to 5.0 s"
+    )
