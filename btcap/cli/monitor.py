@@ -90,7 +90,7 @@ async def serving(
         await monitor.start()
     except ImportError as exc:
         raise CliError(_NO_SDK.format(exc)) from None
-    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
+    except (OSError, RuntimeError) as exc:  # an address in use: the message names it
         raise CliError(str(exc)) from None
     try:
         if address is not None:
@@ -248,5 +248,5 @@ def _foxglove(address: tuple[str, int]) -> FoxgloveLive:
         log.warning("monitor.public", host=address[0], note="Foxglove: anyone sees the team")
     try:
         return FoxgloveLive(*address)
-    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
-        raise CliError(f"--foxglove {address[0]}:{address[1]}: {exc}") from None
+    except OSError as exc:  # it names the address
+        raise CliError(f"--foxglove: {exc}") from None

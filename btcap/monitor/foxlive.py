@@ -76,14 +76,19 @@ class FoxgloveLive:
         ]:
             self._channel(topic, schema)
         listener = _Listener(self, asyncio.get_running_loop())
-        self._server = foxglove.start_server(
-            name="btcap",
-            host=host,
-            port=port,
-            context=self._context,
-            server_listener=listener,
-            message_backlog_size=BACKLOG,
-        )
+        try:
+            self._server = foxglove.start_server(
+                name="btcap",
+                host=host,
+                port=port,
+                context=self._context,
+                server_listener=listener,
+                message_backlog_size=BACKLOG,
+            )
+        except RuntimeError as exc:  # the SDK's FoxgloveError: a port in use, a host unknown
+            why = str(exc).removeprefix("FoxgloveError: ")
+            where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+            raise OSError(f"the Foxglove server cannot listen on {where}: {why}") from None
         self.port: int = self._server.port
         self._closed = False
 
