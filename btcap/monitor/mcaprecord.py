@@ -198,10 +198,10 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
     is never dropped unsaid. A file that is not MCAP raises :class:`ValueError` naming
     what is wrong."""
     topics: dict[int, str] = {}
-    found: list[tuple[str, bytes, int, bool]] = []  # topic, JSON, log time, after the world
+    found: list[tuple[str, bytes, int, bool]] = []  # topic, JSON, log time, a world's own /tf
     meta: dict[str, str] = {}
     header = False  # a whole record was read: an MCAP file, perhaps cut short
-    last = ""  # the topic of the message before
+    last = ("", -1)  # the topic and log time of the message before
     cut: str | None = None
     ended = False  # the data section's end was read: every message was
     with path.open("rb") as f:
@@ -215,8 +215,10 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
                 elif isinstance(record, Message):
                     topic = topics.get(record.channel_id, LOG_TOPIC)
                     if topic.startswith("/btcap/") or topic == "/tf":
-                        found.append((topic, record.data, record.log_time, last == _WORLD))
-                    last = topic
+                        # a world event's own /tf: right after it, at its time
+                        own = last == (_WORLD, record.log_time)
+                        found.append((topic, record.data, record.log_time, own))
+                    last = (topic, record.log_time)
                 elif isinstance(record, Metadata) and record.name == METADATA_NAME:
                     meta = dict(record.metadata)
                 elif isinstance(record, DataEnd):
@@ -232,7 +234,7 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
             why = str(exc) or type(exc).__name__
             cut = _broken(f.tell(), size, ended, why, cut_short=isinstance(exc, _CUT))
     events: list[Event] = []
-    for number, (topic, data, ns, after_world) in enumerate(found, 1):
+    for number, (topic, data, ns, own) in enumerate(found, 1):
         try:
             msg = _decode.decode(data)
             if topic != "/tf":
@@ -246,7 +248,7 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
             raise ValueError(f"message {number}: not a JSON object ({exc})") from None
         except (KeyError, TypeError) as exc:
             raise ValueError(f"message {number} on /tf: no transform ({exc!r})") from None
-        if after_world and events and events[-1].get("k") == "world":
+        if own and events and events[-1].get("k") == "world":
             events[-1]["poses"] = poses  # the world event of the message before
         else:
             events.append({"t": ns / 1e9, "k": "world", "poses": poses})

@@ -121,7 +121,8 @@ class WorldFeed:
         if robots != self._robots or final:  # at the end every robot: lanes run to it
             last, self._robots = self._robots, robots
             changed = self._changed_robots(robots, None if final else last)
-            ev = {"t": now, "k": "world", "robots": changed}
+            if changed or final:  # none: only robots not in the team yet changed
+                ev = {"t": now, "k": "world", "robots": changed}
         changes = m.state.changes  # objects change through the state's methods only
         if changes != self._changes:
             self._changes = changes

@@ -17,6 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from btcap.monitor import Monitor
+from btcap.monitor.mcaprecord import McapRecorder
 from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
 from btcap.monitor.scene import SCENE_TOPICS, Scene, map_messages
@@ -306,3 +307,22 @@ async def test_a_robot_is_drawn_from_when_it_joins(tmp_path: Path) -> None:
         ]
     assert all("robot/bebop1" not in ids for t, ids in drawn if t < joined)
     assert any("robot/bebop1" in ids for t, ids in drawn)
+
+
+def test_poses_alone_are_not_taken_for_an_earlier_world_event(tmp_path: Path) -> None:
+    """A world event that draws nothing (on /btcap/world alone) and, next in the file, an
+    event of poses alone at a later time (on /tf alone): two events read back, not one
+    with the poses moved to the first one's time."""
+    events = [
+        {"t": 0.0, "k": "robot", "robot": "r1"},
+        {"t": 10.0, "k": "world", "robots": {}},
+        {"t": 12.0, "k": "world", "poses": {"r1": [1.0, 2.0]}},
+        {"t": 12.0, "k": "world", "robots": {"r1": {"up": True, "task": "x"}}},
+        {"t": 14.0, "k": "world", "poses": {"r1": [1.0, 4.0]}},
+    ]
+    path = tmp_path / "run.mcap"
+    recorder = McapRecorder(path)
+    for ev in events:
+        recorder.write([ev])
+    recorder.close()
+    assert read_record(path) == events
