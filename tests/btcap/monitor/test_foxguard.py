@@ -5,7 +5,11 @@ programs, this machine's pages, Foxglove's web app and desktop apps are served."
 
 from __future__ import annotations
 
+import functools
+import http.server
+import shutil
 import threading
+from pathlib import Path
 
 import anyio
 import pytest
@@ -73,3 +77,57 @@ async def test_another_sites_page_is_refused_and_programs_are_served() -> None:
         finally:
             live.close()
     assert not [t for t in threading.enumerate() if t.name == "foxglove-guard"]
+
+
+_PAGE = b"""<!doctype html><title>pending</title><script>
+const ws = new WebSocket("ws://127.0.0.1:" + location.hash.slice(1), "foxglove.sdk.v1");
+ws.onmessage = () => { document.title = "served"; };
+ws.onerror = () => { document.title = "refused"; };
+</script>"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    shutil.which("chromium") is None or shutil.which("chromedriver") is None,
+    reason="needs Debian's chromium and chromium-driver (as test_monitor_browser.py)",
+)
+async def test_a_browser_page_of_another_site_is_refused(tmp_path: Path) -> None:
+    """In headless Chromium, a page of ``evil.example`` (resolved to this machine, as a
+    site would have it by DNS rebinding or a WebSocket to 127.0.0.1) is refused; a page
+    served here is served."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.support.wait import WebDriverWait
+
+    (tmp_path / "page.html").write_bytes(_PAGE)
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(tmp_path))
+    pages = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=pages.serve_forever, daemon=True).start()
+    options = Options()
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--host-resolver-rules=MAP evil.example 127.0.0.1"):  # fmt: skip
+        options.add_argument(arg)
+    options.binary_location = str(shutil.which("chromium"))
+    driver = webdriver.Chrome(service=Service(str(shutil.which("chromedriver"))), options=options)
+    live = FoxgloveLive("127.0.0.1", 0)
+    seen = {}
+    try:
+
+        def visit(site: str) -> str:
+            driver.get(f"http://{site}:{pages.server_port}/page.html#{live.port}")
+            WebDriverWait(driver, 30, poll_frequency=0.1).until(
+                lambda d: d.title != "pending", f"{site}'s page to connect or fail"
+            )
+            return str(driver.title)
+
+        with anyio.fail_after(90):
+            for site in ("evil.example", "localhost"):
+                seen[site] = await anyio.to_thread.run_sync(visit, site)
+    finally:
+        live.close()
+        driver.quit()
+        pages.shutdown()
+        pages.server_close()
+    assert seen == {"evil.example": "refused", "localhost": "served"}
+    assert live.refused == 1
