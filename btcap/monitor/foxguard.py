@@ -7,14 +7,19 @@ and its API has no setting for them; browsers let any web site open a WebSocket 
 request head and hands the connection on to the SDK byte for byte only if:
 
 - bound to loopback, its ``Host`` is one of this machine's names (DNS rebinding);
-- it has no ``Origin`` (a program: Foxglove's and Lichtblick's desktop apps, a script),
-  or one of this machine (a page served here), or Foxglove's web app
-  (:data:`VIEWER_ORIGINS`), or a scheme no web site has (``file:``, an app's own).
+- it has no ``Origin`` (a program, a script), or one of this machine (a page served
+  here), or Foxglove's web app (:data:`VIEWER_ORIGINS`), or one that is not a web site's
+  (``http``/``https``): a desktop app's page (Foxglove's and Lichtblick's are Electron
+  apps; Chromium says ``null`` for a ``file:`` page, an app's own scheme otherwise).
 
-Anything else is answered ``403 Forbidden`` and closed. The guard runs an event loop on a
-thread of its own, so the run's loop is not held; a client that reads slowly holds only
-its own relay (each side waits for the other to take what it has), and the SDK's queue
-for it drops the oldest messages as before.
+Anything else is answered ``403 Forbidden`` and closed. What it cannot stop: Chromium
+says ``null`` for a sandboxed frame of any site too, the very header a desktop app's
+``file:`` page sends (nothing else in the request differs), so a site that opens the
+WebSocket from such a frame is served; refusing ``null`` would refuse the desktop apps.
+
+The guard runs an event loop on a thread of its own, so the run's loop is not held; a
+client that reads slowly holds only its own relay (each side waits for the other to take
+what it has), and the SDK's queue for it drops the oldest messages as before.
 """
 
 from __future__ import annotations
@@ -51,8 +56,8 @@ def refusal(head: bytes, loopback: bool) -> str | None:
     if origin is None or origin in VIEWER_ORIGINS:
         return None
     parts = urlsplit(origin)
-    if parts.scheme not in ("http", "https") and origin != "null":
-        return None  # a desktop app's page (file:, app:): no web site has one
+    if parts.scheme not in ("http", "https"):
+        return None  # a desktop app's page (file: is "null", app:): see the module's doc
     if parts.hostname is not None and is_loopback(parts.hostname):
         return None
     return f"Origin {origin!r} is another site"

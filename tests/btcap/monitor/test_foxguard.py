@@ -37,7 +37,7 @@ def _head(host: str, origin: str | None = None) -> bytes:
         ("evil.example:8765", None, False),  # DNS rebinding: a site's name for 127.0.0.1
         ("127.0.0.1:8765", "http://evil.example", False),  # another site's page
         ("127.0.0.1:8765", "https://evil.example:443", False),
-        ("127.0.0.1:8765", "null", False),  # a sandboxed frame of any site
+        ("127.0.0.1:8765", "null", True),  # a file: page (a desktop app's; a sandboxed frame's)
         ("127.0.0.1:8765", "https://app.foxglove.dev", True),  # Foxglove's web app
         ("127.0.0.1:8765", "http://localhost:3000", True),  # a page served here
         ("127.0.0.1:8765", "http://[::1]:8080", True),
