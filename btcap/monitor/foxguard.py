@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import socket
 import threading
 from urllib.parse import urlsplit
 
@@ -78,19 +79,28 @@ class FoxgloveGuard:
         self.refused = 0  #: connections answered 403 (for tests)
         self._inner = inner
         self._loopback = is_loopback(host)
-        self._loop = asyncio.new_event_loop()
         self._tasks: set[asyncio.Task[None]] = set()
+        # one socket, as the monitor page binds (``localhost`` is 127.0.0.1: one port)
+        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind((host, port))
+        except BaseException:
+            sock.close()
+            raise
+        self.port: int = sock.getsockname()[1]
+        self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="foxglove-guard")
         self._thread.daemon = True
         self._thread.start()
-        # bound in the guard's loop (the caller's may be running): a bind takes a moment
-        start = asyncio.start_server(self._serve, host, port, limit=HEAD_MAX)
+        # served by the guard's loop (the caller's may be running)
+        start = asyncio.start_server(self._serve, sock=sock, limit=HEAD_MAX)
         try:
             self._server = asyncio.run_coroutine_threadsafe(start, self._loop).result()
         except BaseException:
+            sock.close()
             self._end()
             raise
-        self.port: int = self._server.sockets[0].getsockname()[1]
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()
