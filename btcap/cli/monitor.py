@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -89,7 +90,7 @@ async def serving(
         await monitor.start()
     except ImportError as exc:
         raise CliError(_NO_SDK.format(exc)) from None
-    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
+    except (OSError, RuntimeError) as exc:  # an address in use: the message names it
         raise CliError(str(exc)) from None
     try:
         if address is not None:
@@ -165,6 +166,8 @@ def replay_command(args: argparse.Namespace) -> int:
         replay = Replay.open(args.file, speed=args.speed)
     except (RecordError, ValueError) as exc:
         raise CliError(str(exc)) from None
+    if replay.cut is not None:  # a killed run's file: what was read, said before anything
+        print(f"btcap: warning: {replay.cut}", file=sys.stderr, flush=True)
     if args.to_mcap is not None:
         return _to_mcap(args.file, replay.events, args.to_mcap)
     if args.plot is not None:
@@ -192,8 +195,10 @@ def _to_mcap(source: Path, events: list[dict[str, object]], out: Path) -> int:
         recorder = McapRecorder(out, meta)
     except (RecordError, OSError) as exc:
         raise CliError(f"--to-mcap {out}: {getattr(exc, 'strerror', None) or exc}") from None
-    recorder.write(events)
-    recorder.close()
+    try:
+        recorder.write(events)
+    finally:
+        recorder.close()
     print(f"wrote {out} ({len(events)} events)")
     return 0
 
@@ -243,5 +248,5 @@ def _foxglove(address: tuple[str, int]) -> FoxgloveLive:
         log.warning("monitor.public", host=address[0], note="Foxglove: anyone sees the team")
     try:
         return FoxgloveLive(*address)
-    except (OSError, RuntimeError) as exc:  # the SDK says a port in use with RuntimeError
-        raise CliError(f"--foxglove {address[0]}:{address[1]}: {exc}") from None
+    except OSError as exc:  # it names the address
+        raise CliError(f"--foxglove: {exc}") from None

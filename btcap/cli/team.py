@@ -48,6 +48,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="allow a bind reachable from other hosts without keys",
     )
     add_monitor_option(p)
+    _record_option(p, "this robot's host tree and runs, the auctions it holds and the "
+                   "team's joins and failures as it sees them")  # fmt: skip
     p.add_argument(
         "--until-stdin-closes",
         action="store_true",
@@ -84,14 +86,18 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     _join_options(p, default_wait=10.0)
     p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
     add_monitor_option(p)
+    _record_option(p, "the mission's runs, auctions and the team's joins and failures")
+    p.set_defaults(handler=_mission)
+
+
+def _record_option(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "--record",
         type=Path,
         metavar="FILE",
-        help="record the mission's runs, auctions and the team's joins and failures for "
-        "btcap replay or a script: MCAP for Foxglove if FILE ends .mcap, else JSON Lines",
+        help=f"record {what} for btcap replay or a script: MCAP for Foxglove if FILE ends "
+        ".mcap, else JSON Lines",
     )
-    p.set_defaults(handler=_mission)
 
 
 def _join_options(p: argparse.ArgumentParser, *, default_wait: float) -> None:
@@ -224,11 +230,15 @@ def _agent(args: argparse.Namespace) -> int:
 
     async def serve() -> None:
         fox = args.foxglove is not None
-        await _monitor_imports(args.monitor is not None or fox, serve=args.monitor is not None,
-                               foxglove=fox)  # fmt: skip
+        wanted = args.monitor is not None or args.record is not None or fox
+        mcap = args.record is not None and args.record.suffix.lower() == ".mcap"
+        await _monitor_imports(wanted, serve=args.monitor is not None, foxglove=fox, mcap=mcap)
+        meta = {"robot": config.robot, "config": str(args.config)}
         async with (
             open_agent(config, registry, insecure=args.insecure) as agent,
-            serving(args.monitor, agent.robot, foxglove=args.foxglove) as monitor,
+            serving(
+                args.monitor, agent.robot, args.record, meta, foxglove=args.foxglove
+            ) as monitor,
         ):
             if monitor is not None:
                 monitor.add_agent(agent)

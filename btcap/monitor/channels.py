@@ -32,6 +32,7 @@ __all__ = [
     "Channels",
     "event_schema",
     "log_line",
+    "log_time",
     "world_message",
 ]
 
@@ -211,6 +212,7 @@ LOG_SCHEMA: dict[str, Any] = LOG
 _INFO, _WARNING = 2, 3
 #: Kinds that are neither told as a ``foxglove.Log`` line nor drawn (:meth:`Channels.messages`).
 _PICTURES = frozenset({"robot", "tree", "states"})
+_MAX_NS = (1 << 64) - 1
 _encode = msgspec.json.Encoder()
 
 
@@ -263,8 +265,7 @@ class Channels:
         channel, its ``foxglove.Log`` line if it has one, and its drawing if it is of
         the world (``(topic, schema, JSON)`` each). A world event's poses go on ``/tf``
         alone (:func:`world_message` says what its typed channel holds)."""
-        t = ev["t"]
-        ns = round(float(t) * 1e9)
+        ns = log_time(ev["t"])
         kind = ev["k"]
         if kind in _PICTURES:  # most events (a tree's states): no line, no drawing
             return ns, [(*EVENT_TOPICS[kind], _encode.encode(ev))]
@@ -283,6 +284,16 @@ class Channels:
         if kind == "map":
             out += self.scene.draw(ev, ns)
         return ns, out
+
+
+def log_time(t: float) -> int:
+    """An event's clock time as an MCAP log time: nanoseconds, an unsigned 64-bit number.
+    A time outside it (a negative one, or past the year 2554) is clamped to its end: the
+    event's own ``t`` is in its JSON, which is what a replay reads back."""
+    ns = float(t) * 1e9
+    if not 0.0 <= ns < _MAX_NS:  # NaN too
+        return _MAX_NS if ns > 0 else 0
+    return round(ns)
 
 
 def world_message(ev: Event, ns: int) -> bytes | None:

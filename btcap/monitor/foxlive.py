@@ -11,6 +11,10 @@ the run sends anything. A client that subscribes later is sent, on subscribing, 
 message of each channel that is a picture rather than news (the map, the scene, the
 trees; ``/tf`` and ``/btcap/world``, which hold what changed, as the whole picture so
 far): Foxglove's 3D panel shows the world at once, not from the next change.
+
+The SDK's server checks neither ``Host`` nor ``Origin``; it listens on a loopback port of
+its own, behind :class:`~btcap.monitor.foxguard.FoxgloveGuard`, which keeps the monitor
+page's rules (no DNS rebinding, no other web site's page).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import msgspec
 from foxglove.websocket import ChannelView, Client, ServerListener
 
 from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, Channels
+from btcap.monitor.foxguard import FoxgloveGuard
 from btcap.monitor.scene import SCENE_TOPICS
 from btcap.monitor.view import Event
 
@@ -76,15 +81,28 @@ class FoxgloveLive:
         ]:
             self._channel(topic, schema)
         listener = _Listener(self, asyncio.get_running_loop())
-        self._server = foxglove.start_server(
-            name="btcap",
-            host=host,
-            port=port,
-            context=self._context,
-            server_listener=listener,
-            message_backlog_size=BACKLOG,
-        )
-        self.port: int = self._server.port
+        where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+        # The SDK's server on a loopback port of its own, behind the guard (the monitor
+        # page's rules for Host and Origin, which the SDK does not check).
+        try:
+            self._server = foxglove.start_server(
+                name="btcap",
+                host="127.0.0.1",
+                port=0,
+                context=self._context,
+                server_listener=listener,
+                message_backlog_size=BACKLOG,
+            )
+        except RuntimeError as exc:  # the SDK's FoxgloveError
+            why = str(exc).removeprefix("FoxgloveError: ")
+            raise OSError(f"the Foxglove server cannot listen on {where}: {why}") from None
+        try:
+            self._guard = FoxgloveGuard(host, port, self._server.port)
+        except OSError as exc:  # a port in use, a host unknown
+            self._server.stop()
+            why = exc.strerror or str(exc)
+            raise OSError(f"the Foxglove server cannot listen on {where}: {why}") from None
+        self.port: int = self._guard.port
         self._closed = False
 
     def _channel(self, topic: str, schema: dict[str, Any]) -> foxglove.Channel:
@@ -124,7 +142,13 @@ class FoxgloveLive:
             data = _encode.encode({**whole, "objects": list(scene.objects.values())})
         self._channels[topic].log(data, log_time=ns)
 
+    @property
+    def refused(self) -> int:
+        """Connections the guard refused (another site's page, a foreign Host)."""
+        return self._guard.refused
+
     def close(self) -> None:
         if not self._closed:
             self._closed = True
             self._server.stop()
+            self._guard.close()

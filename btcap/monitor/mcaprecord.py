@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import struct
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
@@ -28,8 +29,8 @@ import foxglove
 import msgspec
 import zstandard
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from mcap.exceptions import InvalidMagic, McapError
-from mcap.records import Channel, Message, Metadata
+from mcap.exceptions import EndOfFile, InvalidMagic, McapError, RecordLengthLimitExceeded
+from mcap.records import Channel, DataEnd, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 import btcap
@@ -51,6 +52,9 @@ METADATA_NAME = "btcap"
 PROFILE = ""  # no ROS: JSON channels
 _WORLD = EVENT_TOPICS["world"][0]
 
+#: Errors of a record that runs past the end of the file (the SDK's writer leaves a chunk
+#: it has not closed with an unknown length, which is over any limit).
+_CUT = (EndOfFile, RecordLengthLimitExceeded, struct.error)
 _encode = msgspec.json.Encoder()
 _decode = msgspec.json.Decoder(dict[str, Any])
 
@@ -185,19 +189,24 @@ class McapRecorder:
             self._file.close()
 
 
-def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
-    """The monitor events of an MCAP recording in their order (the file's), and its
-    ``btcap`` metadata. A world event's poses are read from ``/tf`` (see
-    :func:`btcap.monitor.channels.world_message`). A file cut short (a killed run) is read
-    up to its last whole chunk; a file that is not MCAP raises :class:`ValueError` naming
+def read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
+    """The monitor events of an MCAP recording in their order (the file's), its ``btcap``
+    metadata, and where the file breaks off if it does (None for a whole file). A world
+    event's poses are read from ``/tf`` (see :func:`btcap.monitor.channels.world_message`).
+    A file cut short (a killed run) or damaged (a chunk whose CRC does not match) is read
+    up to its last whole, intact chunk, and the third value says so: what comes after
+    is never dropped unsaid. A file that is not MCAP raises :class:`ValueError` naming
     what is wrong."""
     topics: dict[int, str] = {}
-    found: list[tuple[str, bytes, int, bool]] = []  # topic, JSON, log time, after the world
+    found: list[tuple[str, bytes, int, bool]] = []  # topic, JSON, log time, a world's own /tf
     meta: dict[str, str] = {}
     header = False  # a whole record was read: an MCAP file, perhaps cut short
-    last = ""  # the topic of the message before
+    last = ("", -1)  # the topic and log time of the message before
+    cut: str | None = None
+    ended = False  # the data section's end was read: every message was
     with path.open("rb") as f:
-        reader = StreamReader(f, record_size_limit=1 << 30)
+        size = os.fstat(f.fileno()).st_size
+        reader = StreamReader(f, record_size_limit=1 << 30, validate_crcs=True)
         try:
             for record in reader.records:
                 header = True
@@ -206,18 +215,26 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
                 elif isinstance(record, Message):
                     topic = topics.get(record.channel_id, LOG_TOPIC)
                     if topic.startswith("/btcap/") or topic == "/tf":
-                        found.append((topic, record.data, record.log_time, last == _WORLD))
-                    last = topic
+                        # a world event's own /tf: right after it, at its time
+                        own = last == (_WORLD, record.log_time)
+                        found.append((topic, record.data, record.log_time, own))
+                    last = (topic, record.log_time)
                 elif isinstance(record, Metadata) and record.name == METADATA_NAME:
                     meta = dict(record.metadata)
+                elif isinstance(record, DataEnd):
+                    ended = True
         except InvalidMagic:
-            raise ValueError("not an MCAP file (no MCAP magic)") from None
+            if not header:
+                raise ValueError("not an MCAP file (no MCAP magic)") from None
+            cut = _broken(f.tell(), size, ended, "no closing magic", cut_short=True)
         except (McapError, ValueError, struct.error, zstandard.ZstdError) as exc:
-            # a record cut short (a killed run): what came before it stands, if anything
+            # a record cut short (a killed run) or damaged: what came before it stands
             if not header:
                 raise ValueError(f"not a readable MCAP file ({exc!r})") from None
+            why = str(exc) or type(exc).__name__
+            cut = _broken(f.tell(), size, ended, why, cut_short=isinstance(exc, _CUT))
     events: list[Event] = []
-    for number, (topic, data, ns, after_world) in enumerate(found, 1):
+    for number, (topic, data, ns, own) in enumerate(found, 1):
         try:
             msg = _decode.decode(data)
             if topic != "/tf":
@@ -231,8 +248,18 @@ def read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
             raise ValueError(f"message {number}: not a JSON object ({exc})") from None
         except (KeyError, TypeError) as exc:
             raise ValueError(f"message {number} on /tf: no transform ({exc!r})") from None
-        if after_world and events and events[-1].get("k") == "world":
+        if own and events and events[-1].get("k") == "world":
             events[-1]["poses"] = poses  # the world event of the message before
         else:
             events.append({"t": ns / 1e9, "k": "world", "poses": poses})
-    return events, meta
+    return events, meta, cut
+
+
+def _broken(at: int, size: int, ended: bool, why: str, *, cut_short: bool) -> str:
+    """Where and how a file breaks off, for a person: after its messages (every one read),
+    cut short (a record that runs past the end: a killed run), or damaged."""
+    if ended:
+        return f"its summary breaks off at byte {at} of {size} ({why}); every message was read"
+    if cut_short:
+        return f"cut short at byte {size}, in a record never finished (a run that was killed?)"
+    return f"damaged at byte {at} of {size} ({why}): nothing after it was read"

@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import msgspec
 
 from btcap.errors import BtcapError
+from btcap.monitor.shapes import check_shape
 from btcap.monitor.view import Event, TeamView
 from btcap.transports.log import get_logger
 
@@ -28,6 +29,7 @@ __all__ = [
     "open_recorder",
     "read_metadata",
     "read_record",
+    "read_recording",
 ]
 
 log = get_logger(__name__)
@@ -111,7 +113,17 @@ class Recorder:
 
 def read_record(path: str | Path) -> list[Event]:
     """The events of a recording (JSON Lines or MCAP), in order; a bad file is refused
-    naming the line (JSON Lines) or the message (MCAP)."""
+    naming the line (JSON Lines) or the message (MCAP). A file that breaks off (a killed
+    run) gives what comes before the break: :func:`read_recording` says where."""
+    return read_recording(path)[0]
+
+
+def read_recording(path: str | Path) -> tuple[list[Event], str | None]:
+    """:func:`read_record`, and None if the file is whole, else one line naming the file,
+    where it breaks off and what was read up to there: a run killed mid-write leaves its
+    last line or chunk unfinished, which is skipped, never silently. A run killed between
+    two writes leaves whole lines: that file is said to hold no end of the run (a monitor
+    that stops records how the run ended, ``finished``, whatever ended it)."""
     path = Path(path)
     try:
         with path.open("rb") as f:
@@ -119,8 +131,15 @@ def read_record(path: str | Path) -> list[Event]:
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
     if head.startswith(b"\x89MCAP"):
-        return _read_mcap(path)[0]
-    return _read_lines(path)
+        events, _, cut = _read_mcap(path)
+    else:
+        events, cut = _read_lines(path)
+    if cut is None:
+        if not events or any(e["k"] == "finished" for e in events):
+            return events, None
+        cut = "holds no end of the run (no 'finished' event: a run that was killed?)"
+    upto = f", up to {max(float(e['t']) for e in events):.1f} s" if events else ""
+    return events, f"{path}: {cut}; read {len(events)} events{upto}"
 
 
 def read_metadata(path: str | Path) -> dict[str, str]:
@@ -140,11 +159,11 @@ def read_metadata(path: str | Path) -> dict[str, str]:
     return {str(k): str(v) for k, v in meta.items()} if isinstance(meta, dict) else {}
 
 
-def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
+def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str], str | None]:
     from btcap.monitor.mcaprecord import read_mcap
 
     try:
-        events, meta = read_mcap(path)
+        events, meta, cut = read_mcap(path)
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
     except ValueError as exc:
@@ -152,14 +171,16 @@ def _read_mcap(path: Path) -> tuple[list[Event], dict[str, str]]:
     view = TeamView()
     for number, obj in enumerate(events, 1):
         _check(view, obj, f"{path}: message {number}")
-    return events, meta
+    return events, meta, cut
 
 
-def _read_lines(path: Path) -> list[Event]:
+def _read_lines(path: Path) -> tuple[list[Event], str | None]:
     try:
-        lines = path.read_bytes().splitlines()
+        data = path.read_bytes()
     except OSError as exc:
         raise RecordError(f"{path}: cannot read the recording: {exc.strerror}") from None
+    lines = data.splitlines()
+    whole = data.endswith(b"\n")  # the recorder ends every line: else the last was cut
     if not lines:
         raise RecordError(f"{path}: empty file, not a btcap recording")
     events: list[Event] = []
@@ -172,8 +193,8 @@ def _read_lines(path: Path) -> list[Event]:
         except msgspec.DecodeError as exc:
             if number == 1:
                 raise RecordError(f"{path}:1: not a btcap recording (not JSON Lines)") from None
-            if number == len(lines):  # the last line of a run that was killed mid-write
-                break
+            if number == len(lines) and not whole:  # a run killed mid-write
+                return events, f"line {number} is cut short (a run that was killed?), skipped"
             raise RecordError(f"{path}:{number}: not a JSON object ({exc})") from None
         if number == 1:
             if obj.get("format") != FORMAT:
@@ -184,7 +205,7 @@ def _read_lines(path: Path) -> list[Event]:
             continue
         _check(view, obj, f"{path}:{number}")
         events.append(obj)
-    return events
+    return events, None
 
 
 def _check(view: TeamView, obj: Event, where: str) -> None:
@@ -197,6 +218,7 @@ def _check(view: TeamView, obj: Event, where: str) -> None:
             if name in obj and not isinstance(obj[name], str):
                 raise TypeError(f"{name!r} is {obj[name]!r}, expected a name")
         view.apply(obj)
+        check_shape(obj)  # what the MCAP channels and the Foxglove scene read
     except KeyError as exc:
         raise RecordError(f"{where}: a {obj['k']!r} event: no {exc}") from None
     except (TypeError, ValueError, AttributeError) as exc:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from btcap.monitor.hub import Hub
-from btcap.monitor.record import read_record
+from btcap.monitor.record import RecordError, read_recording
 from btcap.monitor.view import Event, TeamView
 
 __all__ = ["Replay"]
@@ -38,6 +38,8 @@ class Replay:
         if not (math.isfinite(self.speed) and self.speed > 0):
             raise ValueError(f"replay speed {self.speed}: expected a positive number")
         self.playing = True
+        #: Where the recording breaks off, if it does (:func:`read_recording`), else None.
+        self.cut: str | None = None
         self.view = TeamView()
         self.t = self.start
         self._cursor = 0
@@ -48,7 +50,13 @@ class Replay:
 
     @classmethod
     def open(cls, path: str | Path, **kw: Any) -> Replay:
-        return cls(read_record(path), title=kw.pop("title", Path(path).name), **kw)
+        """A replay of the recording at ``path``; :attr:`cut` says if it breaks off."""
+        events, cut = read_recording(path)
+        if not events:
+            raise RecordError(f"{cut or path}: the recording holds no events")
+        replay = cls(events, title=kw.pop("title", Path(path).name), **kw)
+        replay.cut = cut
+        return replay
 
     def add_sink(self, sink: Callable[[list[Event]], None]) -> None:
         """Hand ``sink`` the events played so far, then each batch as it plays."""

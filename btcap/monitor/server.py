@@ -18,7 +18,7 @@ import msgspec
 from aiohttp import WSMsgType, web
 
 from btcap.monitor.hub import END, Hub
-from btcap.monitor.net import is_loopback
+from btcap.monitor.net import LOCAL_NAMES, is_loopback
 from btcap.transports.log import get_logger
 
 __all__ = ["MonitorServer", "Source"]
@@ -34,7 +34,6 @@ DRAIN_S = 2.0
 
 _encode = msgspec.json.Encoder()
 #: What a browser on this machine may call a loopback server.
-_LOCAL_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
 
 
 class Source(Protocol):
@@ -101,7 +100,7 @@ class MonitorServer:
         reach it by DNS rebinding), and a WebSocket only from this page (browsers let
         any site open one)."""
         host = request.host
-        if is_loopback(self.host) and host.rsplit(":", 1)[0] not in _LOCAL_NAMES:
+        if is_loopback(self.host) and host.rsplit(":", 1)[0] not in LOCAL_NAMES:
             raise web.HTTPForbidden(text=f"monitor: not served to host {host!r}")
         origin = request.headers.get("Origin")
         if origin is not None and urlsplit(origin).netloc != host:

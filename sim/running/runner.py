@@ -159,11 +159,13 @@ async def run_scenario(
         ) as simsys,
     ):
         simsys.spawn(manager, SimulationManager.PATH)
+        feed: WorldFeed | None = None
         if monitor is not None:
             monitor.follow(clock)  # on virtual time: a run's recording is reproducible too
             # The simulated world too (btcap.sim.running.worldfeed): the map, then robots and
             # objects step by step (poses every 2 s at most), for Foxglove's 3D panel.
-            feed = WorldFeed(manager)
+            present = {r.name for r in s.initially_present()}
+            feed = WorldFeed(manager, absent=[r.name for r in s.robots if r.name not in present])
             monitor.emit(feed.map_event(clock.now()))
             monitor.add_source(feed.sample, last=feed.last)
             if isinstance(robots, InProcessHost):
@@ -205,6 +207,8 @@ async def run_scenario(
                 if e.kind == "join":
                     manager.robot_up(e.robot)
                     robots.start(e.robot)
+                    if feed is not None:
+                        feed.joined(e.robot)
                 elif e.kind == "leave":
                     manager.robot_down(e.robot)
                     robots.leave(e.robot)

@@ -18,6 +18,7 @@ draws them are in :mod:`btcap.monitor.scene`.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from operator import attrgetter
 from typing import Any
 
@@ -40,7 +41,13 @@ _OBJECT_KEY = attrgetter("found", "identified", "decontaminated", "carried_by", 
 class WorldFeed:
     """Reads the simulation's ground truth (a :class:`SimulationManager`'s) for a monitor."""
 
-    def __init__(self, manager: SimulationManager, *, pose_every_s: float | None = None) -> None:
+    def __init__(
+        self,
+        manager: SimulationManager,
+        *,
+        pose_every_s: float | None = None,
+        absent: Iterable[str] = (),
+    ) -> None:
         if pose_every_s is None:
             pose_every_s = POSE_EVERY_S
         if not pose_every_s >= 0:
@@ -57,6 +64,19 @@ class WorldFeed:
         self._changes = -1  # the state's count of object changes when last compared
         self._poses: bytes | None = None
         self._cells: dict[str, list[int]] = {}  # each robot's cell as its pose was last sent
+        #: Robots not in the team yet (a scenario's later joiners): the simulation has them
+        #: idle at the start, up, from the first step; the picture leaves them out until
+        #: :meth:`joined`, as the team does.
+        self._absent = set(absent)
+
+    def joined(self, robot: str) -> None:
+        """``robot`` joined the team: the next sample has its state, task and pose."""
+        if robot not in self._absent:
+            return
+        self._absent.discard(robot)
+        if self._robots is not None:  # its key as never sent: compared, it differs
+            self._robots[list(self.manager.robots).index(robot)] = (False, -1)
+        self._poses = None  # the cells are compared again, and its cell was never sent
 
     def _xy(self, row: int, col: int) -> list[float]:
         """A cell's centre in the ``map`` frame (x along columns, y up from the last row)."""
@@ -101,7 +121,8 @@ class WorldFeed:
         if robots != self._robots or final:  # at the end every robot: lanes run to it
             last, self._robots = self._robots, robots
             changed = self._changed_robots(robots, None if final else last)
-            ev = {"t": now, "k": "world", "robots": changed}
+            if changed or final:  # none: only robots not in the team yet changed
+                ev = {"t": now, "k": "world", "robots": changed}
         changes = m.state.changes  # objects change through the state's methods only
         if changes != self._changes:
             self._changes = changes
@@ -132,10 +153,11 @@ class WorldFeed:
         self, keys: list[tuple[bool, int]], last: list[tuple[bool, int]] | None
     ) -> dict[str, dict[str, Any]]:
         """The robots whose key differs from ``last`` (all of them at first)."""
+        absent = self._absent
         return {
             name: {"up": r.up, "task": _task(r.busy, r.move_event)}
             for i, (name, r) in enumerate(self.manager.robots.items())
-            if last is None or i >= len(last) or keys[i] != last[i]
+            if (last is None or i >= len(last) or keys[i] != last[i]) and name not in absent
         }
 
     def _moved(self) -> dict[str, list[float]]:
@@ -144,7 +166,10 @@ class WorldFeed:
         cells = m.cells.tolist()
         sent = self._cells
         moved = {}
+        absent = self._absent
         for name, r in m.robots.items():
+            if name in absent:
+                continue
             cell = cells[r.index]
             if sent.get(name) != cell:
                 sent[name] = cell

@@ -311,6 +311,14 @@ class BtcapRun:
             _Script.current = None
         return self.run.log
 
+    def reset(self) -> None:
+        """:meth:`Tree.reset <btcap.bt.tree.Tree.reset>`: every node starts over."""
+        _Script.current = self.run
+        try:
+            self.tree.reset()
+        finally:
+            _Script.current = None
+
 
 class BtcppRun:
     """The XML in BehaviorTree.CPP 4.8, with the same scripted leaves."""

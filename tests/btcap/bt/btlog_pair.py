@@ -47,6 +47,34 @@ def run_many(
     return [(read_btlog(ours), read_btlog(cpp)) for ours, cpp in files]
 
 
+def run_plans(
+    cases: list[tuple[str, dict[str, str], str]], tmp: Path
+) -> list[tuple[Btlog, Btlog] | None]:
+    """Each tree played by its plan in both, ``t`` a tick, ``h`` btcap's ``tree.reset()``
+    and BehaviorTree.CPP's ``haltTree`` (each logged as the latter); None for a tree whose
+    ticks give other results after a halt (a documented difference, not the log's)."""
+    loggers = []
+    files = []
+    for k, (xml, scripts, plan) in enumerate(cases):
+        mine, theirs = BtcapRun(xml, scripts), BtcppRun(xml, scripts)
+        del mine.tree.tick  # as in run_many
+        mine.tree.setup()
+        ours, cpp = tmp / f"plan{k}.btlog", tmp / f"plan{k}-btcpp.btlog"
+        same = True
+        with BtlogRecorder(mine.tree, ours):
+            loggers.append((bt.FileLogger(theirs.tree, str(cpp)), theirs))
+            for step in plan:
+                if step == "t":
+                    same = same and mine.tick() == theirs.tick()
+                else:
+                    mine.reset()
+                    theirs.halt()
+        files.append((ours, cpp) if same else None)
+    settled([f for f in files if f is not None])
+    loggers.clear()
+    return [None if f is None else (read_btlog(f[0]), read_btlog(f[1])) for f in files]
+
+
 def settled(files: list[tuple[Path, Path]], quiet: int = 3, limit_s: float = 30.0) -> None:
     """Wait until BehaviorTree.CPP's writer threads have written what they were given.
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import socket
 import struct
 from collections import Counter
 from pathlib import Path
@@ -130,6 +131,22 @@ def test_run_serves_foxglove_on_loopback(
     args = ["run", str(SMALL), "--fast", "--quiet", "--no-record", "--out", str(tmp_path)]
     assert main([*args, "--foxglove", "0"]) == 0
     assert "foxglove: ws://127.0.0.1:" in capsys.readouterr().out
+
+
+def test_a_foxglove_address_that_cannot_be_bound_is_named_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(btcap.cli, "configure_logging", lambda level, json=False: None)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        args = ["run", str(SMALL), "--fast", "--quiet", "--no-record", "--out", str(tmp_path)]
+        assert main([*args, "--foxglove", str(port)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"btcap: error: the Foxglove server cannot listen on 127.0.0.1:{port}: ")
+    assert "address already in use" in err.lower()
+    assert err.count("\n") == 1
 
 
 def test_the_example_layout_is_current_and_shows_our_channels() -> None:

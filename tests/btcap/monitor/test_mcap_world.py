@@ -17,6 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from btcap.monitor import Monitor
+from btcap.monitor.mcaprecord import McapRecorder
 from btcap.monitor.monitor import FOLLOW_EVERY_S
 from btcap.monitor.record import read_record
 from btcap.monitor.scene import SCENE_TOPICS, Scene, map_messages
@@ -276,3 +277,52 @@ def test_robots_objects_and_areas_show_from_above(
     assert sizes["cubes"]
     assert min(sizes["spheres"]) >= 2.0
     assert min(sizes["cubes"]) >= 1.5
+
+
+async def test_a_robot_is_drawn_from_when_it_joins(tmp_path: Path) -> None:
+    """dynamic.yaml's bebop1 joins at 30 s: the simulation has it idle at the start from
+    the first step, the picture (its state, task and pose) only once it joined."""
+    path = tmp_path / "run.mcap"
+    scenario = load_scenario(SMALL.with_name("dynamic.yaml"))
+    with anyio.fail_after(60):
+        async with Monitor(port=None, record=path, title="dynamic") as monitor:
+            await run_fast(scenario, monitor=monitor)
+    events = read_record(path)
+    (joined,) = [e["t"] for e in events if e["k"] == "team" and e["robot"] == "bebop1"][:1]
+    assert joined >= 30
+    seen = [
+        e["t"]
+        for e in events
+        if e["k"] == "world" and ("bebop1" in e.get("robots", {}) or "bebop1" in e.get("poses", {}))
+    ]
+    assert seen
+    assert seen[0] >= joined
+    first = next(e for e in events if e["k"] == "world" and e["t"] == seen[0])
+    assert first["robots"]["bebop1"]["up"]
+    assert "bebop1" in first["poses"]  # where it stands as it joins
+    with path.open("rb") as f:
+        drawn = [
+            (m.log_time / 1e9, [e["id"] for e in json.loads(m.data)["entities"]])
+            for _, ch, m in make_reader(f).iter_messages(topics=["/scene/robots"])
+        ]
+    assert all("robot/bebop1" not in ids for t, ids in drawn if t < joined)
+    assert any("robot/bebop1" in ids for t, ids in drawn)
+
+
+def test_poses_alone_are_not_taken_for_an_earlier_world_event(tmp_path: Path) -> None:
+    """A world event that draws nothing (on /btcap/world alone) and, next in the file, an
+    event of poses alone at a later time (on /tf alone): two events read back, not one
+    with the poses moved to the first one's time."""
+    events = [
+        {"t": 0.0, "k": "robot", "robot": "r1"},
+        {"t": 10.0, "k": "world", "robots": {}},
+        {"t": 12.0, "k": "world", "poses": {"r1": [1.0, 2.0]}},
+        {"t": 12.0, "k": "world", "robots": {"r1": {"up": True, "task": "x"}}},
+        {"t": 14.0, "k": "world", "poses": {"r1": [1.0, 4.0]}},
+    ]
+    path = tmp_path / "run.mcap"
+    recorder = McapRecorder(path)
+    for ev in events:
+        recorder.write([ev])
+    recorder.close()
+    assert read_record(path) == events
