@@ -75,7 +75,8 @@ def test_identifiers_that_carry_are_routed_nearest_first_however_long_objects_wa
     team = paper_team()
     husky = identifier_pace([team["husky"], team["bebop"]], 1.0)
     spot = identifier_pace([team["husky"], team["spot"], team["bebop"]], 1.0)
-    assert husky.carry and not spot.carry
+    assert husky.carry
+    assert not spot.carry
     awaiting = [(0, (0, 100)), (1, (0, 2))]
     for pace, first in ((husky, 1), (spot, 0)):
         turns = Turns()
