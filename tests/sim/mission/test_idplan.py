@@ -67,3 +67,22 @@ def test_the_pace_is_the_quickest_identifiers() -> None:
     team = paper_team()
     pace = identifier_pace([team["husky"], team["spot"], team["bebop"]], 0.5)
     assert (pace.speed, pace.op_s) == (team["spot"].speed_mps / 0.5, 2.0)
+
+
+def test_identifiers_that_carry_are_routed_nearest_first_however_long_objects_waited() -> None:
+    # Huskies identify and carry: every object waits on them, and a cap would send one
+    # across the cave to the oldest object (the far one) before the one beside it
+    team = paper_team()
+    husky = identifier_pace([team["husky"], team["bebop"]], 1.0)
+    spot = identifier_pace([team["husky"], team["spot"], team["bebop"]], 1.0)
+    assert husky.carry
+    assert not spot.carry
+    awaiting = [(0, (0, 100)), (1, (0, 2))]
+    for pace, first in ((husky, 1), (spot, 0)):
+        turns = Turns()
+        turns.listed([0, 1], 0.0)  # the far one listed first
+        turns.plan(1, awaiting, 0.0, pace)
+        turns.started(9, (0, 0), [(9, 0)])  # the identifier stands at (0, 0)
+        turns.free(9)
+        order = turns.plan(1, awaiting, 300.0, pace)  # both waited 300 s
+        assert order[0][0] == first
