@@ -97,6 +97,7 @@ class Monitor:
         self._last_join: tuple[float, str] | None = None
         self._lost: dict[str, str] = {}  # execution -> why it was lost
         self._ended: dict[str, tuple[str, str | None]] = {}  # node -> (result, why)
+        self._hosting: set[str] = set()  # executions whose start a slot reported
         self._asked: dict[str, float] = {}  # node -> when its last auction opened
         self._detach: list[Callable[[], None]] = []
         self._pacer = Pacer(self._safe_flush, self.batch_s)
@@ -217,7 +218,7 @@ class Monitor:
         while name in names:
             k += 1
             name = f"{tree.name}~{k}"
-        tap = TreeTap(tree, robot, name, self._emit_run, self._run_ended)
+        tap = TreeTap(tree, robot, name, self._emit_run, self._run_ended, self._emit_hosted)
         self._taps.append(tap)
         self.emit(tap.structure())
 
@@ -293,6 +294,22 @@ class Monitor:
         for tap in self._taps:
             self._flush_tap(tap)
         self._pending.append(ev)
+
+    def _emit_hosted(self, ev: Event) -> None:
+        """A run a robot's slot took up or put down, handed on as one of a capability's
+        (:meth:`_emit_run`) unless the capability node it runs for is watched here too:
+        that node reports the run (as its origin sees it, moves and losses included)."""
+        key = ev["execution"]
+        if ev["phase"] == "start":
+            origin, node = ev["origin"], ev["node"]
+            if any(t.robot == origin and node in t.capabilities for t in self._taps):
+                return
+            self._hosting.add(key)
+        elif key in self._hosting:
+            self._hosting.discard(key)
+        else:
+            return  # its start was not handed on
+        self._emit_run(ev)
 
     def _robot(self, robot: str, now: float) -> None:
         if robot not in self._status:

@@ -9,7 +9,10 @@ whose state differs from the last batch are sent: a page sees the latest state o
 node per batch, as it would from coalesced changes.
 
 The implementation a :class:`~btcap.team.capabilities.slot.RemoteCapabilitySlot` runs for another
-robot is a tree of its own: it is shown below the slot while it runs.
+robot is a tree of its own: it is shown below the slot while it runs. The runs a slot
+takes up and puts down are reported at once too (the slot tells the tap, nothing per
+tick): a hosted run may start and end between two batches, and the recording of a robot
+whose origins are elsewhere (``btcap agent --record``) would not hold it otherwise.
 """
 
 from __future__ import annotations
@@ -22,7 +25,10 @@ from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.monitor.view import Event
 from btcap.team.capabilities.capability import Capability
+from btcap.team.capabilities.implementation import ImplementationRun
 from btcap.team.capabilities.slot import RemoteCapabilitySlot
+from btcap.team.core.hosting import Hosted
+from btcap.team.messages import RUN_DONE, RunState
 
 __all__ = ["Emit", "TreeTap"]
 
@@ -36,11 +42,21 @@ class TreeTap:
     """Observes one tree of one robot: states batched, capability runs at once."""
 
     def __init__(
-        self, tree: Tree, robot: str, name: str, emit: Emit, ended: Callable[[str, str], str | None]
+        self,
+        tree: Tree,
+        robot: str,
+        name: str,
+        emit: Emit,
+        ended: Callable[[str, str], str | None],
+        hosted: Emit | None = None,
     ) -> None:
         self.tree, self.robot, self.name = tree, robot, name
         self._emit = emit
         self._ended = ended  # (execution, result) -> why, from what the monitor heard
+        self._hosted = hosted or emit  # the runs its slots take up and put down
+        self._watched: dict[RemoteCapabilitySlot, Callable[[], None]] = {}
+        #: The paths of the tree's capability nodes (their runs are reported from them).
+        self.capabilities: frozenset[str] = frozenset()
         self._nodes: list[Node] = []  # in tree order, as last sent
         self._shape: tuple[int, ...] = (-1,)  # the tree's version and the slots' runs
         self._slots: list[RemoteCapabilitySlot] = []
@@ -54,6 +70,9 @@ class TreeTap:
     def close(self) -> None:
         self._unobserve()
         self._unobserve_hosted()
+        for unwatch in self._watched.values():
+            unwatch()
+        self._watched.clear()
 
     def _unobserve_hosted(self) -> None:
         for undo in self._unhosted:
@@ -100,6 +119,34 @@ class TreeTap:
         ev = {"t": now, "k": "run", "phase": "end", "execution": cur[0], "result": result}
         self._emit({**ev, "why": why})
 
+    def _slot_run(self, hosted: Hosted[ImplementationRun], why: str | None) -> None:
+        """A slot of this tree took up a run for another robot (``why`` None) or put it
+        down: its result if it finished, else ``stopped`` and why."""
+        self._changed_since = True
+        ex = hosted.execution
+        ev: Event = {"t": self.tree.clock.now(), "k": "run", "execution": str(ex)}
+        if why is None:
+            capability = hosted.run.implementation.interface.name
+            where = {"robot": self.robot, "origin": ex.origin, "node": ex.node}
+            self._hosted({**ev, "phase": "start", **where, "capability": capability})
+            return
+        state = hosted.state
+        if state in RUN_DONE:
+            detail = hosted.run.why_error() if state is RunState.ERROR else ""
+            self._hosted({**ev, "phase": "end", "result": state.value, "why": detail or None})
+        else:
+            self._hosted({**ev, "phase": "end", "result": "stopped", "why": why})
+
+    def _watch_slots(self) -> None:
+        """Hear of the runs of this tree's slots (and of no slot it no longer has)."""
+        for slot in [s for s in self._watched if s not in self._slots]:
+            self._watched.pop(slot)()
+        for slot in self._slots:
+            if slot not in self._watched:
+                self._watched[slot] = slot.watch(self._slot_run)
+                if slot.current is not None:  # a run already under way when attached
+                    self._slot_run(slot.current, None)
+
     def _shape_now(self) -> tuple[int, ...]:
         shape = [self.tree.version]
         for slot in self._slots:
@@ -128,6 +175,8 @@ class TreeTap:
         """The whole tree as one event (sent at the start and whenever it changed)."""
         own = list(self.tree.nodes())
         self._slots = [n for n in own if isinstance(n, RemoteCapabilitySlot)]
+        self.capabilities = frozenset(n.path for n in own if isinstance(n, Capability))
+        self._watch_slots()
         self._unobserve_hosted()
         nodes: list[Node] = []
         parents: list[str | None] = []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from btcap.actors.services import Service
@@ -11,8 +12,11 @@ from btcap.bt.state import State, TreeError
 from btcap.team.capabilities.implementation import ImplementationRun
 from btcap.team.core.hosting import Hosted
 from btcap.team.ids import ExecutionId
+from btcap.transports.log import get_logger
 
-__all__ = ["SLOT_HOST", "RemoteCapabilitySlot", "SlotHost"]
+__all__ = ["SLOT_HOST", "RemoteCapabilitySlot", "SlotHost", "SlotWatcher"]
+
+log = get_logger(__name__)
 
 _RUNNING = State.RUNNING
 
@@ -31,6 +35,10 @@ class SlotHost(Protocol):
 #: The robot's :class:`SlotHost` among its actor system's services (its mission control).
 SLOT_HOST: Service[SlotHost] = Service("slot host")
 
+#: Told of a run the slot takes up (``why`` None) or puts down (``why``: ``finished``,
+#: or why it was stopped: cancelled, its origin gone, its lease lapsed ...).
+SlotWatcher = Callable[[Hosted[ImplementationRun], str | None], None]
+
 
 class RemoteCapabilitySlot(Leaf):
     """A node in a robot's own tree that runs one remote-requested implementation at a time.
@@ -40,11 +48,12 @@ class RemoteCapabilitySlot(Leaf):
     and dropped, leaving nothing behind. The slot itself keeps running as a service.
     """
 
-    __slots__ = ("_host", "current")
+    __slots__ = ("_host", "_watchers", "current")
 
     def __init__(self, name: str | None = "slot", **kwargs: object) -> None:
         self.current: Hosted[ImplementationRun] | None = None
         self._host: SlotHost | None = None
+        self._watchers: list[SlotWatcher] = []
         super().__init__(name, **kwargs)  # type: ignore[arg-type]
 
     def on_setup(self) -> None:
@@ -64,12 +73,32 @@ class RemoteCapabilitySlot(Leaf):
         hosted.run.tree.setup()
         hosted.run.tree.alarm.outer = self._tree  # news for its nodes: this tree ticks
         self.current = hosted
+        self._tell(hosted, None)
         nudge_holder(self)  # its first tick now, not this tree's next period
         return None
 
-    def unload(self, execution: ExecutionId) -> None:
-        if self.current is not None and self.current.execution == execution:
+    def unload(self, execution: ExecutionId, why: str = "unloaded") -> None:
+        """Put the run of ``execution`` down (nothing if it is not the current one);
+        ``why``: ``finished``, or why it was stopped, for the watchers."""
+        hosted = self.current
+        if hosted is not None and hosted.execution == execution:
             self.current = None
+            self._tell(hosted, why)
+
+    def _tell(self, hosted: Hosted[ImplementationRun], why: str | None) -> None:
+        for watcher in tuple(self._watchers):  # (one may unsubscribe as it is told)
+            try:
+                watcher(hosted, why)
+            except Exception as exc:  # an onlooker's fault must not stop the run
+                log.error("slot.watcher_failed", execution=str(hosted.execution), exc_info=exc)
+
+    def watch(self, watcher: SlotWatcher) -> Callable[[], None]:
+        """Tell ``watcher`` of each run as the slot takes it up and puts it down (a
+        monitor records a run shorter than its batches from this); nothing per tick.
+        Returns an unsubscribe."""
+        self._watchers.append(watcher)
+        w = self._watchers
+        return lambda: w.remove(watcher) if watcher in w else None
 
     def on_tick(self) -> State:
         h = self.current

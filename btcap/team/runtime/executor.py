@@ -279,7 +279,7 @@ class ExecutorSide:
     def drop(self, e: Drop) -> None:
         """Stop and remove a run the core dropped."""
         if self.slot is not None:
-            self.slot.unload(e.execution)
+            self.slot.unload(e.execution, e.why)
         if wanted("btcap.mission", logging.INFO):  # once a round, on the winner
             log.info("mission.hosted_done", robot=self.robot, execution=str(e.execution), why=e.why)
         self.close(e.run)

@@ -119,3 +119,9 @@ async def test_agent_and_mission_run_record_mcap(tmp_path: Path) -> None:
     assert [(e["phase"], e.get("robot")) for e in runs] == [("start", "ada"), ("end", None)]
     assert runs[0]["capability"] == "Greet"
     assert runs[1]["result"] == "succeeded"
+    hosted = [e for e in agent_events if e["k"] == "run"]  # the same run, as ada ran it
+    assert [(e["phase"], e["execution"]) for e in hosted] == [
+        ("start", runs[0]["execution"]),
+        ("end", runs[0]["execution"]),
+    ]
+    assert (hosted[0]["origin"], hosted[1]["result"]) == ("operator", "succeeded")

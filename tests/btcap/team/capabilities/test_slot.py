@@ -84,6 +84,41 @@ async def test_slot_refuses_a_second_run_and_runs_only_once_set_up() -> None:
             assert slot.load(hosted(4)) == "slot not set up"
 
 
+async def test_slot_watchers_hear_each_run_taken_up_and_put_down_with_why() -> None:
+    """What a monitor records a hosted run from: told at once, never per tick; a watcher
+    that raises is logged and the run goes on; an unsubscribed one hears nothing."""
+    with anyio.fail_after(10):
+        probe = Probe()
+        async with team() as t:
+            b = await t.add("b", [count_impl("b", 1.0, probe)])
+            slot = b.mission_control.slot
+            assert slot is not None
+            heard: list[tuple[str, str | None]] = []
+
+            def broken(h: Hosted[ImplementationRun], why: str | None) -> None:
+                raise RuntimeError("an onlooker's bug")
+
+            unwatch = slot.watch(lambda h, why: heard.append((str(h.execution), why)))
+            slot.watch(broken)
+
+            def hosted(i: int) -> Hosted[ImplementationRun]:
+                run = count_impl("b", 1.0, probe).instantiate(b.clock)
+                return Hosted(ExecutionId("x", "root", i), run, {"x": 1}, 1.0, 0.0, 1.0)
+
+            first, second = hosted(1), hosted(2)
+            with capture_logs() as logs:
+                assert slot.load(first) is None
+                slot.unload(first.execution, "cancelled")
+            assert heard == [("x:root#1", None), ("x:root#1", "cancelled")]
+            assert [e["event"] for e in logs] == ["slot.watcher_failed"] * 2
+            unwatch()
+            assert slot.load(second) is None
+            slot.unload(second.execution)
+            assert len(heard) == 2
+            await first.run.close()
+            await second.run.close()
+
+
 async def test_a_robot_without_a_slot_runs_only_its_own_capabilities() -> None:
     with anyio.fail_after(10):
         probe = Probe()
