@@ -237,8 +237,13 @@ async def test_a_restarted_process_is_followed_to_its_new_endpoint(keyed: bool, 
     first = make("s", folder, peers={"r": r.endpoint})
     with anyio.fail_after(10), capture_logs() as logs:
         async with serving(r, got=got):
-            async with serving(first):
+            heard: list[Envelope] = []
+            async with serving(first, got=heard):
                 await eventually(lambda: r.endpoint_of("s") == first.endpoint, "r met s")
+                # r's own link to s is up (else its closing may come before r dialled it,
+                # and there is no link to see drop: a race a loaded machine loses)
+                tell(r, "s", Heartbeat("r", 1, 0))
+                await eventually(lambda: len(heard) == 1, "s heard r")
             # The first one died (its sockets closed) and r saw its link drop (a real
             # restart takes longer than that; a hello racing the drop is a second process
             # as far as r can tell); a new life elsewhere says hello.
