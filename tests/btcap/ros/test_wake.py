@@ -19,7 +19,8 @@ from btcap.bt.node import Node
 from btcap.bt.state import DONE, State
 from btcap.bt.tree import Tree
 from btcap.ros.action import RosAction
-from btcap.ros.client import FEEDBACK_WAKE_S, RosBridge, Waker
+from btcap.ros.client import RosBridge
+from btcap.ros.waker import FEEDBACK_WAKE_S, Waker
 from btcap.ros.service import RosService
 from btcap.ros.topic import RosWaitForMessage
 from btcap.team.capabilities.capability import CapabilityInterface
