@@ -22,9 +22,9 @@ from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
 from btcap.bt.state import State
 from btcap.ros.client import RosBridge
-from btcap.ros.waker import Waker
 from btcap.ros.errors import RosError
 from btcap.ros.versions import ROS2, Types
+from btcap.ros.waker import Waker
 from btcap.team.rossettings import Qos
 
 __all__ = [

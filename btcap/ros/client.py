@@ -57,6 +57,7 @@ FORGET_S = 30.0
 
 now = time.monotonic
 
+
 class RosBridge:
     """One robot's rclpy node, context and executor thread.
 
