@@ -9,7 +9,10 @@ no subscriber of B. The graph knows each endpoint's type: an action server publi
 listed by node, a topic's publishers and subscribers carry their type.
 
 A tree node asks (:meth:`PeerTypes.ask`, on the tick) while it waits for its server or a
-message, and at each tick of a publisher. The answer is the one last found: the graph is
+message, and at each tick of a publisher; so does a robot's bid for a capability while a
+server its implementation needs is not ready (:func:`~btcap.ros.capability.with_ros`), and
+a cost reading a topic that has no message yet (:meth:`RosBridge.latest
+<btcap.ros.client.RosBridge.latest>`). The answer is the one last found: the graph is
 read on the bridge's executor thread, never on the event loop, at a node's first question
 and then at most every :data:`CHECK_S` per name. A peer of another type is told once per
 node and type, as a :class:`~btcap.ros.errors.RosTypeWarning` and a log line
