@@ -21,9 +21,10 @@ from msgspec import Meta
 from btcap.bt.node import Leaf
 from btcap.bt.ports import Port
 from btcap.bt.state import State
-from btcap.ros.client import RosBridge, Waker
+from btcap.ros.client import RosBridge
 from btcap.ros.errors import RosError
 from btcap.ros.versions import ROS2, Types
+from btcap.ros.waker import Waker
 from btcap.team.rossettings import Qos
 
 __all__ = [
@@ -175,7 +176,7 @@ class RosLeaf(Leaf):
     def news(self) -> Callable[[bool], None]:
         """What the bridge's executor thread calls when there is news for this node
         (``news(minor)``; feedback is minor): its tree is ticked soon (a
-        :class:`~btcap.ros.client.Waker` hands it to the event loop the node ticks on),
+        :class:`~btcap.ros.waker.Waker` hands it to the event loop the node ticks on),
         and the bridge's own hook (:meth:`RosBridge.wake_on`) is called. On the tick."""
         hook = self._news
         if hook is None:

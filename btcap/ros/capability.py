@@ -5,7 +5,11 @@ An implementation whose tree holds RosAction and RosService nodes needs their se
 :func:`with_ros` wraps its bid so the robot declines (bids None) while any of them is
 missing from the ROS graph, and adds ``cost(inputs, bridge)`` if given. The agent does
 this for every implementation file when its file has a ``ros:`` block; programs call it
-(or :func:`ros_implementation`) themselves.
+(or :func:`ros_implementation`) themselves. A robot that declines because the only server
+of a name has another type says so once per server and type (a
+:class:`~btcap.ros.errors.RosTypeWarning` and the log line ``btcap.ros.type_mismatch``,
+naming the robot, the implementation, the name and both types): it would otherwise just
+never take the task, and nobody would know why.
 """
 
 from __future__ import annotations
@@ -24,6 +28,9 @@ from btcap.team.capabilities.capability import CapabilityInterface
 from btcap.team.capabilities.implementation import Implementation, Precondition
 
 __all__ = ["RosCost", "Server", "distance_cost", "ros_implementation", "servers_of", "with_ros"]
+
+#: What a server of another type does to a bid (after "type mismatch: ...").
+_DECLINED = "it declines to bid until a server of its type answers"
 
 #: ``cost(inputs, bridge)``: a bid term, or None for "cannot do these inputs".
 RosCost = Callable[[Mapping[str, Any], RosBridge], float | None]
@@ -69,10 +76,15 @@ def with_ros(
     the ROS graph, plus ``cost(inputs, bridge)``."""
     needed = list(servers) if servers is not None else servers_of(impl.build())
     inner = impl.bid
+    # Who is told, once per server and type, when the only server there has another type.
+    asker = (
+        f"robot {bridge.robot or bridge.fqn}, implementation {impl.name!r} of capability "
+        f"{impl.interface.name}"
+    )
 
     def bid(inputs: Mapping[str, Any]) -> float | None:
         for s in needed:
-            if not bridge.server_ready(s.kind, s.type_name, s.name):
+            if not bridge.server_ready(s.kind, s.type_name, s.name, asker, _DECLINED):
                 return None
         total = 0.0
         for term in (

@@ -3,11 +3,12 @@
 The tree never waits on ROS: nodes call rclpy's non-blocking calls (``send_goal_async``,
 ``call_async``, ``publish``) from the tick, and rclpy's callbacks run on the bridge's
 executor thread, where they store what arrived (a result, the latest feedback or message)
-for the next tick to read, and hand the news to the event loop through a :class:`Waker`:
-the node's tree is ticked soon instead of at its next period, one hand-over at a time and
-feedback at most every :data:`FEEDBACK_WAKE_S`, so a 1 kHz feedback stream does not flood
-the loop. :meth:`RosBridge.start` (imports, discovery) runs in a worker thread when
-awaited. :meth:`RosBridge.close` cancels the goals still open, destroys the node and joins
+for the next tick to read, and hand the news to the event loop through a
+:class:`~btcap.ros.waker.Waker`: the node's tree is ticked soon instead of at its next
+period, one hand-over at a time and feedback at most every
+:data:`~btcap.ros.waker.FEEDBACK_WAKE_S`, so a 1 kHz feedback stream does not flood the
+loop. :meth:`RosBridge.start` (imports, discovery) runs in a worker thread when awaited.
+:meth:`RosBridge.close` cancels the goals still open, destroys the node and joins
 the thread: nothing of ROS is left running.
 
 Names resolve in the robot's namespace (``navigate_to_pose`` -> ``/husky1/navigate_to_pose``),
@@ -26,7 +27,6 @@ from typing import Any, ClassVar
 import anyio
 
 from btcap.actors import ActorSystem, Service
-from btcap.bt.running import nudge
 from btcap.ros.errors import RosError
 from btcap.ros.interfaces import interface
 from btcap.ros.loader import load
@@ -35,7 +35,7 @@ from btcap.ros.versions import ROS2, Types
 from btcap.team.rossettings import Qos, RosSettings, check_namespace
 from btcap.transports.log import get_logger
 
-__all__ = ["CLOSE_WAIT_S", "FEEDBACK_WAKE_S", "ROS_BRIDGE", "RosBridge", "Waker"]
+__all__ = ["CLOSE_WAIT_S", "ROS_BRIDGE", "RosBridge"]
 
 log = get_logger(__name__)
 
@@ -57,40 +57,6 @@ FORGET_S = 30.0
 
 now = time.monotonic
 
-#: Feedback ticks a node's tree ahead of its period at most this often (50 Hz): enough to
-#: show progress, where a server's 1 kHz stream would tick the whole tree (and a remote
-#: run's origin, told after every tick) a thousand times a second.
-FEEDBACK_WAKE_S = 0.02
-
-
-class Waker:
-    """News from the executor thread for a tree: ``waker()`` makes the event loop
-    :func:`~btcap.bt.running.nudge` the tree soon (``call_soon_threadsafe``), once however
-    many news come before it does; ``waker(minor=True)`` (feedback) only if the last
-    hand-over was at least :data:`FEEDBACK_WAKE_S` ago."""
-
-    __slots__ = ("_call", "last", "pending", "tree")
-
-    def __init__(self, tree: Any, loop: Any) -> None:
-        self.tree = tree
-        self._call = loop.call_soon_threadsafe
-        self.pending = False
-        self.last = 0.0
-
-    def __call__(self, minor: bool = False) -> None:  # any thread
-        if self.pending or (minor and time.monotonic() - self.last < FEEDBACK_WAKE_S):
-            return
-        self.pending = True
-        try:
-            self._call(self._fire)
-        except RuntimeError:  # the loop is closed: nobody ticks the tree any more
-            self.pending = False
-
-    def _fire(self) -> None:  # the loop's thread
-        self.pending = False
-        self.last = time.monotonic()
-        nudge(self.tree)
-
 
 class RosBridge:
     """One robot's rclpy node, context and executor thread.
@@ -109,6 +75,8 @@ class RosBridge:
             self.namespace = "/"
         else:
             self.namespace = self.settings.namespace_of(robot)
+        #: The robot's name ("" if not given): what a capability's bid is told as.
+        self.robot = robot
         self.rclpy: Any = None
         self.node: Any = None
         self._context: Any = None
@@ -313,11 +281,21 @@ class RosBridge:
             client = self._clients[key] = self.running().create_client(cls, key[2])
         return client
 
-    def server_ready(self, kind: str, type_name: str, name: str) -> bool:
-        """Whether an action (``kind="action"``) or service server answers ``name`` now."""
+    def server_ready(
+        self, kind: str, type_name: str, name: str, asker: str = "", effect: str = ""
+    ) -> bool:
+        """Whether an action (``kind="action"``) or service server of ``type_name`` answers
+        ``name`` now. While none does but one of another type is there, ``asker`` (if
+        given: a capability's bid) is told once per type, with ``effect`` (:meth:`mismatch`)."""
         if kind == "action":
-            return bool(self.action_client(type_name, name).server_is_ready())
-        return bool(self.service_client(type_name, name).service_is_ready())
+            client = self.action_client(type_name, name)
+            ready = bool(client.server_is_ready())
+        else:
+            client = self.service_client(type_name, name)
+            ready = bool(client.service_is_ready())
+        if not ready and asker:
+            self.mismatch(client, asker, effect)
+        return ready
 
     def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
         """The latest message of ``topic`` and when it came (``time.monotonic``), or None
@@ -361,9 +339,11 @@ class RosBridge:
 
         return {"event_callbacks": SubscriptionEventCallbacks(incompatible_qos=incompatible)}
 
-    def mismatch(self, client: Any, asker: str = "") -> str | None:
-        """The type of ``client``'s peers if none has its own; tells ``asker`` (``peers``)."""
-        return None if self._peers is None or self.node is None else self._peers.ask(client, asker)
+    def mismatch(self, client: Any, asker: str = "", effect: str = "") -> str | None:
+        """The type of ``client``'s peers if none has its own; tells ``asker`` once per type
+        (``peers``), with ``effect`` if given (what that does to it; else its role's)."""
+        peers = self._peers
+        return None if peers is None or self.node is None else peers.ask(client, asker, effect)
 
     def wake_on(self, callback: Any, loop: Any = None) -> None:
         """Also call ``callback()`` on the event loop ``loop`` (the running one by default)

@@ -39,6 +39,7 @@ from btcap.ros.facade1 import (
 )
 from btcap.ros.interfaces1 import interface1
 from btcap.ros.outbox1 import Outbox
+from btcap.ros.peers import tell
 from btcap.ros.versions import ROS1, Types
 from btcap.team.rossettings import Qos, RosSettings
 from btcap.transports.log import get_logger
@@ -53,6 +54,9 @@ PROBE_S = 3.0
 START_S = 60.0
 STOP_S = 10.0
 DEFAULT_MASTER = "http://localhost:11311/"
+#: Types told to askers at most (then told again: a bound, not a measure).
+_TOLD = 256
+_UNREAD = "none of that publisher's messages reach this node"
 _RESTART = ": restart the robot's agent (or make a new Ros1Bridge)"
 
 
@@ -92,6 +96,10 @@ class Ros1Bridge(RosBridge):
         self._calls: dict[int, tuple[Future1, Any]] = {}
         self._subs: dict[int, Subscription1] = {}
         self._dead: str | None = None
+        #: What each client is told as (``action /husky1/move_base``, its type), by cid,
+        #: and the (asker, cid, type) already told (bounded: :meth:`mismatch`).
+        self._labels: dict[int, tuple[str, str]] = {}
+        self._told: set[tuple[str, int, str]] = set()
 
     # -- life cycle ---------------------------------------------------------------
     def start(self) -> Ros1Bridge:
@@ -200,6 +208,7 @@ class Ros1Bridge(RosBridge):
 
     def drop(self, cid: int) -> None:
         self._servers.pop(cid, None)
+        self._labels.pop(cid, None)
         self._subs.pop(cid, None)
         self._depths.pop(cid, None)
         if self._dead is None and not self._closed:
@@ -323,6 +332,7 @@ class Ros1Bridge(RosBridge):
             types = interface1(type_name, "action")
             cid = self.next_id()
             client = self._clients[key] = self._servers[cid] = ActionClient1(self, cid, types)
+            self._labels[cid] = (f"action {key[2]}", type_name)
             self.running()
             self.send(wire1.Open(cid, "action", type_name, key[2]))
         return client
@@ -330,11 +340,33 @@ class Ros1Bridge(RosBridge):
     def subscription_events(self, topic: str, on_incompatible: Any = None) -> dict[str, Any]:
         return {}  # ROS 1 has no QoS to disagree on
 
-    def mismatch(self, client: Any, asker: str = "") -> str | None:
+    def mismatch(self, client: Any, asker: str = "", effect: str = "") -> str | None:
         """The type ``client``'s peer has, as the rospy process last found it
-        (:mod:`btcap.ros.peers1`), when another than the client's own."""
+        (:mod:`btcap.ros.peers1`), when another than the client's own. With ``effect``
+        (what that does to ``asker``: a bid, a cost), ``asker`` is told once per type, as
+        on ROS 2; a node fails saying it instead."""
         found: str | None = getattr(client, "mismatch", None)
+        if found is not None and effect:
+            cid = client.cid
+            key = (asker, cid, found)
+            if key not in self._told and cid in self._labels:
+                if len(self._told) >= _TOLD:
+                    self._told.clear()  # (a line again now and then, never unbounded)
+                self._told.add(key)
+                what, expected = self._labels[cid]
+                tell(asker, what, expected, found, effect)
         return found
+
+    def server_ready(
+        self, kind: str, type_name: str, name: str, asker: str = "", effect: str = ""
+    ) -> bool:
+        """As :meth:`RosBridge.server_ready`; a server the rospy process found to have
+        another type is not ready (a service's probe connects to it all the same)."""
+        if kind == "action":
+            client = self.action_client(type_name, name)
+        else:
+            client = self.service_client(type_name, name)
+        return self.mismatch(client, asker, effect) is None and bool(client.ready)
 
     def send_goal(self, client: Any, goal: Any, feedback: Any) -> tuple[Any, Any]:
         handle = client.send_goal(goal, feedback_callback=feedback)
@@ -357,22 +389,29 @@ class Ros1Bridge(RosBridge):
             types = interface1(type_name, "srv")
             cid = self.next_id()
             client = self._clients[key] = self._servers[cid] = ServiceClient1(self, cid, types)
+            self._labels[cid] = (f"service {key[2]}", type_name)
             self.running()
             self.send(wire1.Open(cid, "service", type_name, key[2]))
         return client
 
     def latest(self, type_name: str, topic: str) -> tuple[Any, float] | None:
+        """As :meth:`RosBridge.latest`: before the first message, a topic published only
+        with another type is told once."""
         key = (type_name, self.resolve(topic))
         box = self._latest.get(key)
         if box is None:
             import time
 
-            box = self._latest[key] = [None]
+            box = [None]
 
             def store(message: Any, box: list[Any] = box) -> None:  # the reader thread
                 box[0] = (message, time.monotonic())
 
             cls = interface1(type_name, "msg")
-            self.running().create_subscription(cls, key[1], store, self.qos())
+            box.append(self.running().create_subscription(cls, key[1], store, self.qos()))
+            self._labels[box[1].cid] = (f"topic {key[1]}", type_name)
+            self._latest[key] = box
+        if box[0] is None:
+            self.mismatch(box[1], f"RosBridge {self.fqn} (a cost reads it)", _UNREAD)
         latest: tuple[Any, float] | None = box[0]
         return latest

@@ -29,6 +29,7 @@ class RosMissing(RosError, ImportError):
 
 class RosTypeWarning(BtcapWarning):
     """A ROS node's peer on its name (a server, publisher or subscriber) has another type
-    than the node's, so they never talk: said once per node and type, naming both types
+    than the node's, so they never talk: said once per node (or a robot's bid, or a cost
+    reading a topic) and type, naming both types
     (``warnings.filterwarnings("ignore", category=btcap.ros.RosTypeWarning)`` quietens it;
     the log line ``btcap.ros.type_mismatch`` stays)."""

@@ -9,7 +9,10 @@ no subscriber of B. The graph knows each endpoint's type: an action server publi
 listed by node, a topic's publishers and subscribers carry their type.
 
 A tree node asks (:meth:`PeerTypes.ask`, on the tick) while it waits for its server or a
-message, and at each tick of a publisher. The answer is the one last found: the graph is
+message, and at each tick of a publisher; so does a robot's bid for a capability while a
+server its implementation needs is not ready (:func:`~btcap.ros.capability.with_ros`), and
+a cost reading a topic that has no message yet (:meth:`RosBridge.latest
+<btcap.ros.client.RosBridge.latest>`). The answer is the one last found: the graph is
 read on the bridge's executor thread, never on the event loop, at a node's first question
 and then at most every :data:`CHECK_S` per name. A peer of another type is told once per
 node and type, as a :class:`~btcap.ros.errors.RosTypeWarning` and a log line
@@ -32,7 +35,7 @@ from typing import Any
 from btcap.ros.errors import RosTypeWarning
 from btcap.transports.log import get_logger
 
-__all__ = ["CHECK_S", "PeerTypes", "endpoint", "type_name"]
+__all__ = ["CHECK_S", "PeerTypes", "endpoint", "tell", "type_name"]
 
 log = get_logger(__name__)
 
@@ -90,6 +93,7 @@ class _Name:
         "asked_at",
         "askers",
         "checked_at",
+        "effects",
         "found",
         "name",
         "others",
@@ -110,6 +114,8 @@ class _Name:
         self.pending = False
         #: The nodes that asked, each with the types it was told of.
         self.askers: dict[str, set[str]] = {}
+        #: What a peer of another type does to an asker, where not its role's (a bid's).
+        self.effects: dict[str, str] = {}
 
 
 class PeerTypes:
@@ -128,10 +134,11 @@ class PeerTypes:
         #: Graph reads done (for tests: bounded, not one per tick).
         self.checks = 0
 
-    def ask(self, client: Any, asker: str) -> str | None:
+    def ask(self, client: Any, asker: str, effect: str = "") -> str | None:
         """(On the tick) the type of ``client``'s peers when none has the client's own,
         as last found; reads the graph anew, off the loop, at ``asker``'s first question
-        and at most every :data:`CHECK_S`. ``asker`` names the node in what is told."""
+        and at most every :data:`CHECK_S`. ``asker`` names the node in what is told, and
+        ``effect`` what that does to it (by default: to a node of the client's role)."""
         try:
             key = self._keys[client]
         except KeyError:
@@ -154,6 +161,8 @@ class PeerTypes:
             known = entry.others if new and fresh else []
             if new:  # told at once of what is known, and the graph read anew
                 entry.askers[asker] = set(known)
+                if effect:
+                    entry.effects[asker] = effect
             due = not entry.pending and (new or age >= CHECK_S)
             entry.pending = entry.pending or due
             found = entry.found if fresh else None
@@ -230,9 +239,17 @@ def _strip(feedback: str) -> str:
 def _tell(entry: _Name, asker: str, found: str) -> None:
     """One line for ``asker``: its name has a peer of type ``found`` (either thread)."""
     kind, effect = _EFFECT[entry.role]
-    what = f"{kind} {entry.name}"
-    log.warning("btcap.ros.type_mismatch", node=asker, name=what, expected=entry.ours, found=found)
-    text = f"{asker}: {what}: type mismatch: expected {entry.ours}, found {found}: {effect}"
+    tell(asker, f"{kind} {entry.name}", entry.ours, found, entry.effects.get(asker, effect))
+
+
+def tell(asker: str, what: str, expected: str, found: str, effect: str) -> None:
+    """Say once, as a :class:`~btcap.ros.errors.RosTypeWarning` and the log line
+    ``btcap.ros.type_mismatch``, that ``what`` (``action /husky1/navigate``) has a peer of
+    type ``found`` where ``asker`` expects ``expected``, and ``effect`` (any thread; the
+    caller keeps it to once: ROS 1's bridge, :class:`PeerTypes` here)."""
+    log.warning("btcap.ros.type_mismatch", node=asker, name=what, expected=expected, found=found)
+    text = f"{asker}: {what}: type mismatch: expected {expected}, found {found}: {effect}"
     # A filter that makes it an error has nobody to raise it to on this thread.
     with contextlib.suppress(Warning):
-        warnings.warn_explicit(text, RosTypeWarning, f"<ros {entry.name}>", 0, module="btcap")
+        where = f"<ros {what.rpartition(' ')[2]}>"
+        warnings.warn_explicit(text, RosTypeWarning, where, 0, module="btcap")

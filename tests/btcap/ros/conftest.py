@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import importlib.util
 import os
-from collections.abc import AsyncIterator, Iterator
+import warnings
+from collections.abc import AsyncIterator, Callable, Iterator
 
 import pytest
 import rosnet
 from rosservers import Servers
 
 from btcap.ros.client import RosBridge
+from btcap.ros.errors import RosTypeWarning
 from btcap.team.rossettings import RosSettings
 
 _DOMAINS = rosnet.domain_ids()
@@ -58,6 +60,14 @@ async def bridge(ros_domain: int) -> AsyncIterator[RosBridge]:
     async with RosBridge(RosSettings(domain_id=ros_domain), robot="husky1") as b:
         yield b
     assert b.node is None
+
+
+@pytest.fixture
+def told() -> Iterator[Callable[[], list[str]]]:
+    """The RosTypeWarnings said so far (from the bridge's executor thread too)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RosTypeWarning)
+        yield lambda: [str(w.message) for w in caught if w.category is RosTypeWarning]
 
 
 @pytest.fixture

@@ -9,8 +9,7 @@ or "no message yet", and a publisher said nothing at all."""
 from __future__ import annotations
 
 import time
-import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import anyio
 import pytest
@@ -21,21 +20,12 @@ from btcap.bt.state import State
 from btcap.ros import peers
 from btcap.ros.action import RosAction
 from btcap.ros.client import RosBridge
-from btcap.ros.errors import RosTypeWarning
 from btcap.ros.service import RosService
 from btcap.ros.topic import RosPublish, RosSubscribe, RosWaitForMessage
 
 pytestmark = pytest.mark.ros
 
 POSE = "geometry_msgs/msg/PoseStamped"
-
-
-@pytest.fixture
-def told() -> Iterator[Callable[[], list[str]]]:
-    """The RosTypeWarnings said so far (from the bridge's executor thread too)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RosTypeWarning)
-        yield lambda: [str(w.message) for w in caught if w.category is RosTypeWarning]
 
 
 async def test_an_action_served_with_another_type_fails_saying_so(

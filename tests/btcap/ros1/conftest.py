@@ -12,12 +12,15 @@ import importlib.util
 import subprocess
 import sys
 import threading
+import warnings
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 from rosmaster1 import READY_S, Master
+
+from btcap.ros.errors import RosTypeWarning
 
 
 def _why_not() -> str | None:
@@ -35,6 +38,14 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("ros1") is not None:
             item.add_marker(pytest.mark.skip(reason=why))
+
+
+@pytest.fixture
+def told() -> Iterator[Callable[[], list[str]]]:
+    """The RosTypeWarnings said so far (from the bridge's threads too)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RosTypeWarning)
+        yield lambda: [str(w.message) for w in caught if w.category is RosTypeWarning]
 
 
 @pytest.fixture
