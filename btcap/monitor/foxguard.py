@@ -19,7 +19,10 @@ WebSocket from such a frame is served; refusing ``null`` would refuse the deskto
 
 The guard runs an event loop on a thread of its own, so the run's loop is not held; a
 client that reads slowly holds only its own relay (each side waits for the other to take
-what it has), and the SDK's queue for it drops the oldest messages as before.
+what it has), and the SDK's queue for it drops the oldest messages as before. At most
+:data:`PENDING_MAX` connections wait to send their request head (for at most
+:data:`HEAD_S` each), the oldest making room: clients that connect and say nothing cannot
+hold the run's descriptors (it shares them with its ZeroMQ sockets).
 """
 
 from __future__ import annotations
@@ -28,17 +31,20 @@ import asyncio
 import contextlib
 import socket
 import threading
+from collections import OrderedDict
 from urllib.parse import urlsplit
 
 from btcap.monitor.net import LOCAL_NAMES, is_loopback
 
-__all__ = ["VIEWER_ORIGINS", "FoxgloveGuard", "refusal"]
+__all__ = ["HEAD_MAX", "HEAD_S", "PENDING_MAX", "VIEWER_ORIGINS", "FoxgloveGuard", "refusal"]
 
 #: Web apps that may open the live view from a browser (Foxglove's).
 VIEWER_ORIGINS = frozenset({"https://app.foxglove.dev", "https://studio.foxglove.dev"})
 #: Bytes of a request head at most, and seconds to send it in.
 HEAD_MAX = 16 * 1024
 HEAD_S = 10.0
+#: Connections waiting for their request head at most (a viewer sends it at once).
+PENDING_MAX = 64
 _CHUNK = 64 * 1024
 _FORBIDDEN = b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
 
@@ -80,6 +86,8 @@ class FoxgloveGuard:
         self._inner = inner
         self._loopback = is_loopback(host)
         self._tasks: set[asyncio.Task[None]] = set()
+        #: The connections whose head is awaited, oldest first.
+        self._pending: OrderedDict[asyncio.Task[None], None] = OrderedDict()
         # one socket, as the monitor page binds (``localhost`` is 127.0.0.1: one port)
         sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
         try:
@@ -106,11 +114,16 @@ class FoxgloveGuard:
         task = asyncio.current_task()
         assert task is not None
         self._tasks.add(task)
+        self._pending[task] = None
+        while len(self._pending) > PENDING_MAX:  # the oldest silent one makes room
+            self._pending.popitem(last=False)[0].cancel()
         try:
             try:
                 head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_S)
             except (asyncio.IncompleteReadError, asyncio.LimitOverrunError, TimeoutError):
                 return  # not a request: closed below
+            finally:
+                self._pending.pop(task, None)
             if refusal(head, self._loopback) is not None:
                 self.refused += 1
                 writer.write(_FORBIDDEN)

@@ -5,6 +5,7 @@ programs, this machine's pages, Foxglove's web app and desktop apps are served."
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import http.server
 import shutil
@@ -131,3 +132,34 @@ async def test_a_browser_page_of_another_site_is_refused(tmp_path: Path) -> None
         pages.server_close()
     assert seen == {"evil.example": "refused", "localhost": "served"}
     assert live.refused == 1
+
+
+async def test_silent_connections_cannot_pile_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Clients that connect and send no request head are held at most PENDING_MAX at a
+    time, the oldest closed for a newer one (they would hold the run's descriptors for
+    HEAD_S each, without bound); the newer ones are still served."""
+    from btcap.monitor import foxguard
+
+    monkeypatch.setattr(foxguard, "HEAD_S", 3600.0)  # never the timeout that closes them
+    monkeypatch.setattr(foxguard, "PENDING_MAX", 3)
+    with anyio.fail_after(30):
+        live = FoxgloveLive("127.0.0.1", 0)
+        streams = []
+        try:
+            for _ in range(4):  # accepted in this order (the listen queue's)
+                streams.append(await asyncio.open_connection("127.0.0.1", live.port))
+            assert await streams[0][0].read() == b""  # the oldest, closed by the guard
+            for reader, writer in streams[1:]:
+                writer.write(_head(f"127.0.0.1:{live.port}", None)[:-2] + _UPGRADE)
+                assert (await reader.readline()).startswith(b"HTTP/1.1 101")
+        finally:
+            for _, writer in streams:
+                writer.close()
+            live.close()
+
+
+_UPGRADE = (
+    b"Connection: Upgrade\r\nSec-WebSocket-Version: 13\r\n"
+    b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+    b"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
+)
