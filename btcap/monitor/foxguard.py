@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import secrets
 import socket
 import threading
 from collections import OrderedDict
@@ -36,7 +37,15 @@ from urllib.parse import urlsplit
 
 from btcap.monitor.net import LOCAL_NAMES, is_loopback
 
-__all__ = ["HEAD_MAX", "HEAD_S", "PENDING_MAX", "VIEWER_ORIGINS", "FoxgloveGuard", "refusal"]
+__all__ = [
+    "HEAD_MAX",
+    "HEAD_S",
+    "PENDING_MAX",
+    "VIEWER_ORIGINS",
+    "FoxgloveGuard",
+    "hidden_loopback",
+    "refusal",
+]
 
 #: Web apps that may open the live view from a browser (Foxglove's).
 VIEWER_ORIGINS = frozenset({"https://app.foxglove.dev", "https://studio.foxglove.dev"})
@@ -70,6 +79,12 @@ def refusal(head: bytes, loopback: bool) -> str | None:
     return f"Origin {origin!r} is another site"
 
 
+def hidden_loopback() -> str:
+    """A random address of 127.0.0.0/8 for the SDK's own server: a page that may reach
+    any loopback port cannot guess it (nor the port), so it cannot pass the guard by."""
+    return "127." + ".".join(str(1 + secrets.randbelow(254)) for _ in range(3))
+
+
 def _hostname(host: str) -> str:
     """A ``Host`` header without its port (``[::1]:8765`` -> ``[::1]``), lower case."""
     if host.startswith("["):
@@ -79,11 +94,12 @@ def _hostname(host: str) -> str:
 
 class FoxgloveGuard:
     """Listens on ``host``:``port`` (0: a free port) and relays the connections it lets in
-    to the SDK's server on ``127.0.0.1``:``inner``; :meth:`close` stops it and its thread."""
+    to the SDK's server on ``inner_host``:``inner``; :meth:`close` stops it and its thread."""
 
-    def __init__(self, host: str, port: int, inner: int) -> None:
+    def __init__(self, host: str, port: int, inner: int, inner_host: str = "127.0.0.1") -> None:
         self.refused = 0  #: connections answered 403 (for tests)
         self._inner = inner
+        self._inner_host = inner_host
         self._loopback = is_loopback(host)
         self._tasks: set[asyncio.Task[None]] = set()
         #: The connections whose head is awaited, oldest first.
@@ -129,7 +145,7 @@ class FoxgloveGuard:
                 writer.write(_FORBIDDEN)
                 await writer.drain()
                 return
-            inner_r, inner_w = await asyncio.open_connection("127.0.0.1", self._inner)
+            inner_r, inner_w = await asyncio.open_connection(self._inner_host, self._inner)
             try:
                 inner_w.write(head)
                 await asyncio.gather(_pipe(reader, inner_w), _pipe(inner_r, writer))

@@ -163,3 +163,23 @@ _UPGRADE = (
     b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
     b"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
 )
+
+
+async def test_the_sdks_own_port_is_not_on_127_0_0_1() -> None:
+    """A page may open a WebSocket to any loopback port, and scan 127.0.0.1's for one that
+    answers: the SDK's own server (no Host or Origin rules) must not be there to find."""
+    with anyio.fail_after(30):
+        live = FoxgloveLive("127.0.0.1", 0)
+        try:
+            with pytest.raises(ConnectionRefusedError):
+                async with websockets.connect(
+                    f"ws://127.0.0.1:{live._server.port}",
+                    subprotocols=[SUBPROTOCOL],
+                    origin="http://evil.example",
+                ):
+                    pass
+            url = f"ws://127.0.0.1:{live.port}"
+            async with websockets.connect(url, subprotocols=[SUBPROTOCOL]) as ws:
+                assert '"op":"serverInfo"' in await ws.recv()  # through the guard
+        finally:
+            live.close()
