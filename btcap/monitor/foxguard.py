@@ -102,6 +102,7 @@ class FoxgloveGuard:
         self._inner_host = inner_host
         self._loopback = is_loopback(host)
         self._tasks: set[asyncio.Task[None]] = set()
+        self._closing = False
         #: The connections whose head is awaited, oldest first.
         self._pending: OrderedDict[asyncio.Task[None], None] = OrderedDict()
         # one socket, as the monitor page binds (``localhost`` is 127.0.0.1: one port)
@@ -127,6 +128,9 @@ class FoxgloveGuard:
             raise
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self._closing:  # accepted as the guard closed: its task starts only now
+            writer.close()
+            return
         task = asyncio.current_task()
         assert task is not None
         self._tasks.add(task)
@@ -166,11 +170,17 @@ class FoxgloveGuard:
             self._end()
 
     async def _shutdown(self) -> None:
+        """End every task of the guard's loop: the relays, and those of connections
+        accepted just before (a task not started yet would never close its socket)."""
+        self._closing = True
+        for sock in self._server.sockets:  # no more accepts; those under way end first
+            self._loop.remove_reader(sock.fileno())  # (3.11 leaks one that ends after close)
+        me = asyncio.current_task()
+        while tasks := asyncio.all_tasks() - {me}:
+            for task in tasks & self._tasks:
+                task.cancel()
+            await asyncio.wait(tasks)
         self._server.close()
-        tasks = list(self._tasks)
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
         await self._server.wait_closed()
 
     def _end(self) -> None:

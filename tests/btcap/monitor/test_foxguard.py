@@ -6,16 +6,18 @@ programs, this machine's pages, Foxglove's web app and desktop apps are served."
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import http.server
 import shutil
+import socket
 import threading
 from pathlib import Path
 
 import anyio
 import pytest
 
-from btcap.monitor.foxguard import refusal
+from btcap.monitor.foxguard import FoxgloveGuard, refusal
 from btcap.monitor.foxlive import FoxgloveLive
 
 websockets = pytest.importorskip("websockets")
@@ -183,3 +185,15 @@ async def test_the_sdks_own_port_is_not_on_127_0_0_1() -> None:
                 assert '"op":"serverInfo"' in await ws.recv()  # through the guard
         finally:
             live.close()
+
+
+def test_a_connection_accepted_as_the_guard_closes_is_closed_too() -> None:
+    """A connection the guard accepted just before closing (its task not started) was
+    left open, its client waiting on it and its descriptor held."""
+    for _ in range(10):
+        guard = FoxgloveGuard("127.0.0.1", 0, 1)
+        with socket.create_connection(("127.0.0.1", guard.port)) as client:
+            guard.close()
+            client.settimeout(10.0)  # a bound: closed, it answers at once
+            with contextlib.suppress(ConnectionResetError):  # not accepted yet: reset
+                assert client.recv(1) == b""
