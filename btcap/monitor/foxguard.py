@@ -19,26 +19,41 @@ WebSocket from such a frame is served; refusing ``null`` would refuse the deskto
 
 The guard runs an event loop on a thread of its own, so the run's loop is not held; a
 client that reads slowly holds only its own relay (each side waits for the other to take
-what it has), and the SDK's queue for it drops the oldest messages as before.
+what it has), and the SDK's queue for it drops the oldest messages as before. At most
+:data:`PENDING_MAX` connections wait to send their request head (for at most
+:data:`HEAD_S` each), the oldest making room: clients that connect and say nothing cannot
+hold the run's descriptors (it shares them with its ZeroMQ sockets).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import secrets
 import socket
 import threading
+from collections import OrderedDict
 from urllib.parse import urlsplit
 
 from btcap.monitor.net import LOCAL_NAMES, is_loopback
 
-__all__ = ["VIEWER_ORIGINS", "FoxgloveGuard", "refusal"]
+__all__ = [
+    "HEAD_MAX",
+    "HEAD_S",
+    "PENDING_MAX",
+    "VIEWER_ORIGINS",
+    "FoxgloveGuard",
+    "hidden_loopback",
+    "refusal",
+]
 
 #: Web apps that may open the live view from a browser (Foxglove's).
 VIEWER_ORIGINS = frozenset({"https://app.foxglove.dev", "https://studio.foxglove.dev"})
 #: Bytes of a request head at most, and seconds to send it in.
 HEAD_MAX = 16 * 1024
 HEAD_S = 10.0
+#: Connections waiting for their request head at most (a viewer sends it at once).
+PENDING_MAX = 64
 _CHUNK = 64 * 1024
 _FORBIDDEN = b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
 
@@ -64,6 +79,12 @@ def refusal(head: bytes, loopback: bool) -> str | None:
     return f"Origin {origin!r} is another site"
 
 
+def hidden_loopback() -> str:
+    """A random address of 127.0.0.0/8 for the SDK's own server: a page that may reach
+    any loopback port cannot guess it (nor the port), so it cannot pass the guard by."""
+    return "127." + ".".join(str(1 + secrets.randbelow(254)) for _ in range(3))
+
+
 def _hostname(host: str) -> str:
     """A ``Host`` header without its port (``[::1]:8765`` -> ``[::1]``), lower case."""
     if host.startswith("["):
@@ -73,13 +94,17 @@ def _hostname(host: str) -> str:
 
 class FoxgloveGuard:
     """Listens on ``host``:``port`` (0: a free port) and relays the connections it lets in
-    to the SDK's server on ``127.0.0.1``:``inner``; :meth:`close` stops it and its thread."""
+    to the SDK's server on ``inner_host``:``inner``; :meth:`close` stops it and its thread."""
 
-    def __init__(self, host: str, port: int, inner: int) -> None:
+    def __init__(self, host: str, port: int, inner: int, inner_host: str = "127.0.0.1") -> None:
         self.refused = 0  #: connections answered 403 (for tests)
         self._inner = inner
+        self._inner_host = inner_host
         self._loopback = is_loopback(host)
         self._tasks: set[asyncio.Task[None]] = set()
+        self._closing = False
+        #: The connections whose head is awaited, oldest first.
+        self._pending: OrderedDict[asyncio.Task[None], None] = OrderedDict()
         # one socket, as the monitor page binds (``localhost`` is 127.0.0.1: one port)
         sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
         try:
@@ -103,20 +128,28 @@ class FoxgloveGuard:
             raise
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self._closing:  # accepted as the guard closed: its task starts only now
+            writer.close()
+            return
         task = asyncio.current_task()
         assert task is not None
         self._tasks.add(task)
+        self._pending[task] = None
+        while len(self._pending) > PENDING_MAX:  # the oldest silent one makes room
+            self._pending.popitem(last=False)[0].cancel()
         try:
             try:
                 head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), HEAD_S)
             except (asyncio.IncompleteReadError, asyncio.LimitOverrunError, TimeoutError):
                 return  # not a request: closed below
+            finally:
+                self._pending.pop(task, None)
             if refusal(head, self._loopback) is not None:
                 self.refused += 1
                 writer.write(_FORBIDDEN)
                 await writer.drain()
                 return
-            inner_r, inner_w = await asyncio.open_connection("127.0.0.1", self._inner)
+            inner_r, inner_w = await asyncio.open_connection(self._inner_host, self._inner)
             try:
                 inner_w.write(head)
                 await asyncio.gather(_pipe(reader, inner_w), _pipe(inner_r, writer))
@@ -137,11 +170,17 @@ class FoxgloveGuard:
             self._end()
 
     async def _shutdown(self) -> None:
+        """End every task of the guard's loop: the relays, and those of connections
+        accepted just before (a task not started yet would never close its socket)."""
+        self._closing = True
+        for sock in self._server.sockets:  # no more accepts; those under way end first
+            self._loop.remove_reader(sock.fileno())  # (3.11 leaks one that ends after close)
+        me = asyncio.current_task()
+        while tasks := asyncio.all_tasks() - {me}:
+            for task in tasks & self._tasks:
+                task.cancel()
+            await asyncio.wait(tasks)
         self._server.close()
-        tasks = list(self._tasks)
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
         await self._server.wait_closed()
 
     def _end(self) -> None:

@@ -14,7 +14,10 @@ far): Foxglove's 3D panel shows the world at once, not from the next change.
 
 The SDK's server checks neither ``Host`` nor ``Origin``; it listens on a loopback port of
 its own, behind :class:`~btcap.monitor.foxguard.FoxgloveGuard`, which keeps the monitor
-page's rules (no DNS rebinding, no other web site's page).
+page's rules (no DNS rebinding, no other web site's page). A page can reach any loopback
+port, and scanning 127.0.0.1's ports takes a script minutes: so the SDK's port is on a
+random address of 127.0.0.0/8 (Linux answers on all of it), about 2^38 places to look,
+and on 127.0.0.1 only where no other can be bound.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import msgspec
 from foxglove.websocket import ChannelView, Client, ServerListener
 
 from btcap.monitor.channels import EVENT_TOPICS, LOG_SCHEMA, LOG_TOPIC, Channels
-from btcap.monitor.foxguard import FoxgloveGuard
+from btcap.monitor.foxguard import FoxgloveGuard, hidden_loopback
 from btcap.monitor.scene import SCENE_TOPICS
 from btcap.monitor.view import Event
 
@@ -84,20 +87,23 @@ class FoxgloveLive:
         where = f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
         # The SDK's server on a loopback port of its own, behind the guard (the monitor
         # page's rules for Host and Origin, which the SDK does not check).
-        try:
-            self._server = foxglove.start_server(
-                name="btcap",
-                host="127.0.0.1",
-                port=0,
-                context=self._context,
-                server_listener=listener,
-                message_backlog_size=BACKLOG,
-            )
-        except RuntimeError as exc:  # the SDK's FoxgloveError
-            why = str(exc).removeprefix("FoxgloveError: ")
+        for inner in (hidden_loopback(), "127.0.0.1"):  # the latter: 127.0.0.1 alone (macOS)
+            try:
+                self._server = foxglove.start_server(
+                    name="btcap",
+                    host=inner,
+                    port=0,
+                    context=self._context,
+                    server_listener=listener,
+                    message_backlog_size=BACKLOG,
+                )
+                break
+            except RuntimeError as exc:  # the SDK's FoxgloveError
+                why = str(exc).removeprefix("FoxgloveError: ")
+        else:
             raise OSError(f"the Foxglove server cannot listen on {where}: {why}") from None
         try:
-            self._guard = FoxgloveGuard(host, port, self._server.port)
+            self._guard = FoxgloveGuard(host, port, self._server.port, inner)
         except OSError as exc:  # a port in use, a host unknown
             self._server.stop()
             why = exc.strerror or str(exc)

@@ -6,13 +6,16 @@ once a subscriber connects: a master that accepts the connection and never answe
 stopped or wedged process) held the caller for ever, and with it the rospy process's
 poller (every server's readiness, every type check). Here each call has a bound and fails
 in one line naming the URI and the call; it refuses to run on an event loop's thread (it
-blocks: a thread's work).
+blocks: a thread's work). The bound is the whole call's, not each read's: a peer that
+sends its answer a byte at a time cannot hold the caller longer.
 """
 
 from __future__ import annotations
 
 import http.client
+import socket
 import sys
+import time
 import xmlrpc.client
 from typing import Any
 
@@ -40,12 +43,47 @@ class RosCallError(RosError):
 class _Bounded(xmlrpc.client.Transport):
     def __init__(self, timeout_s: float) -> None:
         super().__init__()
-        self.timeout_s = timeout_s
+        self.deadline = time.monotonic() + timeout_s
 
     def make_connection(self, host: Any) -> http.client.HTTPConnection:
-        conn = super().make_connection(host)
-        conn.timeout = self.timeout_s  # connect, send and each read
+        chost, self._extra_headers, _ = self.get_host_info(host)
+        conn = _Connection(chost, self.deadline)
+        self._connection = host, conn  # closed by ServerProxy's exit
         return conn
+
+
+class _Connection(http.client.HTTPConnection):
+    """Connects, sends and reads within what is left until ``deadline``."""
+
+    def __init__(self, host: str, deadline: float) -> None:
+        super().__init__(host, timeout=_left(deadline))
+        self.deadline = deadline
+
+    def connect(self) -> None:
+        super().connect()
+        sock = _Socket(fileno=self.sock.detach())
+        sock.deadline = self.deadline
+        self.sock = sock
+
+
+class _Socket(socket.socket):
+    deadline = 0.0
+
+    def sendall(self, data: Any, flags: int = 0) -> None:
+        self.settimeout(_left(self.deadline))
+        super().sendall(data, flags)
+
+    def recv_into(self, buffer: Any, nbytes: int = 0, flags: int = 0) -> int:
+        self.settimeout(_left(self.deadline))
+        return super().recv_into(buffer, nbytes, flags)
+
+
+def _left(deadline: float) -> float:
+    """Seconds left until ``deadline``; TimeoutError once none are."""
+    left = deadline - time.monotonic()
+    if left <= 0:
+        raise TimeoutError("timed out")
+    return left
 
 
 def call(uri: str, method: str, *args: Any, timeout_s: float = CALL_S, who: str = "") -> Any:

@@ -5,16 +5,19 @@ programs, this machine's pages, Foxglove's web app and desktop apps are served."
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import functools
 import http.server
 import shutil
+import socket
 import threading
 from pathlib import Path
 
 import anyio
 import pytest
 
-from btcap.monitor.foxguard import refusal
+from btcap.monitor.foxguard import FoxgloveGuard, refusal
 from btcap.monitor.foxlive import FoxgloveLive
 
 websockets = pytest.importorskip("websockets")
@@ -131,3 +134,66 @@ async def test_a_browser_page_of_another_site_is_refused(tmp_path: Path) -> None
         pages.server_close()
     assert seen == {"evil.example": "refused", "localhost": "served"}
     assert live.refused == 1
+
+
+async def test_silent_connections_cannot_pile_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Clients that connect and send no request head are held at most PENDING_MAX at a
+    time, the oldest closed for a newer one (they would hold the run's descriptors for
+    HEAD_S each, without bound); the newer ones are still served."""
+    from btcap.monitor import foxguard
+
+    monkeypatch.setattr(foxguard, "HEAD_S", 3600.0)  # never the timeout that closes them
+    monkeypatch.setattr(foxguard, "PENDING_MAX", 3)
+    with anyio.fail_after(30):
+        live = FoxgloveLive("127.0.0.1", 0)
+        streams = []
+        try:
+            for _ in range(4):  # accepted in this order (the listen queue's)
+                streams.append(await asyncio.open_connection("127.0.0.1", live.port))
+            assert await streams[0][0].read() == b""  # the oldest, closed by the guard
+            for reader, writer in streams[1:]:
+                writer.write(_head(f"127.0.0.1:{live.port}", None)[:-2] + _UPGRADE)
+                assert (await reader.readline()).startswith(b"HTTP/1.1 101")
+        finally:
+            for _, writer in streams:
+                writer.close()
+            live.close()
+
+
+_UPGRADE = (
+    b"Connection: Upgrade\r\nSec-WebSocket-Version: 13\r\n"
+    b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+    b"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
+)
+
+
+async def test_the_sdks_own_port_is_not_on_127_0_0_1() -> None:
+    """A page may open a WebSocket to any loopback port, and scan 127.0.0.1's for one that
+    answers: the SDK's own server (no Host or Origin rules) must not be there to find."""
+    with anyio.fail_after(30):
+        live = FoxgloveLive("127.0.0.1", 0)
+        try:
+            with pytest.raises(ConnectionRefusedError):
+                async with websockets.connect(
+                    f"ws://127.0.0.1:{live._server.port}",
+                    subprotocols=[SUBPROTOCOL],
+                    origin="http://evil.example",
+                ):
+                    pass
+            url = f"ws://127.0.0.1:{live.port}"
+            async with websockets.connect(url, subprotocols=[SUBPROTOCOL]) as ws:
+                assert '"op":"serverInfo"' in await ws.recv()  # through the guard
+        finally:
+            live.close()
+
+
+def test_a_connection_accepted_as_the_guard_closes_is_closed_too() -> None:
+    """A connection the guard accepted just before closing (its task not started) was
+    left open, its client waiting on it and its descriptor held."""
+    for _ in range(10):
+        guard = FoxgloveGuard("127.0.0.1", 0, 1)
+        with socket.create_connection(("127.0.0.1", guard.port)) as client:
+            guard.close()
+            client.settimeout(10.0)  # a bound: closed, it answers at once
+            with contextlib.suppress(ConnectionResetError):  # not accepted yet: reset
+                assert client.recv(1) == b""
