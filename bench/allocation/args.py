@@ -15,11 +15,12 @@ def seed_list(text: str) -> list[int]:
     for part in text.split(","):
         lo, _, hi = part.strip().partition("-")
         try:
-            seeds += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
+            more = list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
         except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"--seeds {text!r}: expected seeds like 0-19 or 3,5,8"
-            ) from None
+            more = []
+        if not more:  # not numbers, or a range running backwards (5-3)
+            raise argparse.ArgumentTypeError(f"--seeds {text!r}: expected seeds like 0-19 or 3,5,8")
+        seeds += more
     return seeds
 
 

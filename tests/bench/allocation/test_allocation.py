@@ -82,6 +82,8 @@ def test_seeds_and_maps_are_read_from_the_command_line() -> None:
     assert seed_list("1000-1002,7") == [1000, 1001, 1002, 7]
     with pytest.raises(argparse.ArgumentTypeError, match="expected seeds like 0-19"):
         seed_list("x-3")
+    with pytest.raises(argparse.ArgumentTypeError, match="'1,5-3'"):
+        seed_list("1,5-3")  # backwards: nothing to run, not an empty run
     assert load_map("cave:7").source == "<cave 80x60 seed=7>"
     with pytest.raises(argparse.ArgumentTypeError, match="cave:SEED"):
         load_map("cave:seven")
