@@ -62,3 +62,31 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("slow") and item.get_closest_marker("timeout") is None:
             item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
+
+
+def _modules(items: list[pytest.Item]) -> dict[object, list[pytest.Item]]:
+    mine: dict[object, list[pytest.Item]] = {}
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is not None:
+            mine.setdefault(module, []).append(item)
+    return mine
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A test module may start deterministic work its tests will read (``start_ahead``,
+    given its selected tests) once the suite is collected, to run beside the tests
+    before it; ``stop_ahead`` ends it with the session."""
+    if session.config.option.collectonly:
+        return
+    for module, items in _modules(session.items).items():
+        start = getattr(module, "start_ahead", None)
+        if callable(start):
+            start(items)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    for module in _modules(session.items):
+        stop = getattr(module, "stop_ahead", None)
+        if callable(stop):
+            stop()

@@ -24,7 +24,7 @@ from typing import Any
 from btcap.sim.mission.scenario import Scenario
 from btcap.sim.running.metrics import MissionResult
 
-__all__ = ["SideWork", "run_mission"]
+__all__ = ["AHEAD", "SideWork", "run_mission"]
 
 
 def run_mission(scenario: Scenario) -> MissionResult:
@@ -65,6 +65,7 @@ class SideWork:
     def __init__(self) -> None:
         self._pool: ProcessPoolExecutor | None = None
         self._futures: dict[Hashable, Future[Any]] = {}
+        self._holders: set[str] = set()
 
     def submit(self, key: Hashable, fn: Callable[..., Any], *args: Any) -> None:
         """Queue ``fn(*args)`` on the worker; not under pytest-xdist, whose workers have
@@ -78,8 +79,29 @@ class SideWork:
             )
         self._futures[key] = self._pool.submit(fn, *args)
 
-    def take(self, key: Hashable) -> Future[Any] | None:
-        return self._futures.pop(key, None)
+    def take(self, key: Hashable, *, steal: bool = False) -> Future[Any] | None:
+        """``steal``: a call the worker has not started is cancelled and ``None`` given
+        (the caller makes it now rather than wait for its turn)."""
+        future = self._futures.pop(key, None)
+        if steal and future is not None and future.cancel():
+            return None
+        return future
+
+    def hold(self, holder: str) -> None:
+        """``holder`` (a test module) takes work from the worker until it releases it."""
+        self._holders.add(holder)
+
+    def release(self, holder: str) -> None:
+        """``holder`` is done: once nobody holds it, the worker ends (what is left is
+        cancelled), so no later test sees it."""
+        self._holders.discard(holder)
+        if not self._holders:
+            self.close()
+
+    def pids(self) -> set[int]:
+        """The worker's process ids (none before the first call or after :meth:`close`)."""
+        processes = getattr(self._pool, "_processes", None) or {}
+        return set(processes)
 
     def close(self) -> None:
         """Cancel what has not started and wait for the worker to end."""
@@ -87,3 +109,10 @@ class SideWork:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
         self._futures.clear()
+
+
+#: The worker test modules share: each queues the work its selected tests will read once
+#: the suite is collected (``start_ahead``, tests/conftest.py), in the suite's order, so
+#: it is made on the second core while the tests before those modules run here; each
+#: module releases it when it ends (or the session does).
+AHEAD = SideWork()

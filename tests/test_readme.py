@@ -11,11 +11,15 @@ file (tests/test_docs.py keeps it equal), which is tested on its own.
 
 from __future__ import annotations
 
+import os
 import re
 import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
+from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,14 +85,55 @@ def test_every_block_says_what_it_is() -> None:
     assert len(_of("python")) >= 3
 
 
+def run_block(block: Block, folder: Path) -> subprocess.CompletedProcess[str]:
+    """In its own interpreter, from the repository's root, as a reader would paste it."""
+    script = folder / "block.py"
+    script.write_text(block.code, encoding="utf-8")
+    return subprocess.run(
+        [sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+
+
+def _run_in_a_folder_of_its_own(block: Block) -> subprocess.CompletedProcess[str]:
+    with tempfile.TemporaryDirectory(prefix="btcap-block-") as folder:
+        return run_block(block, Path(folder))
+
+
+#: The selected python blocks' runs, started once the suite is collected (tests/conftest.py
+#: calls :func:`start_ahead`): one at a time on a thread, each exactly as the test would run
+#: it (its own interpreter waits on nothing of this one), so they run beside the tests
+#: collected before this module rather than after them. Not under pytest-xdist, whose
+#: workers have the cores; a block not started here is run by its test.
+_ahead: dict[str, Future[subprocess.CompletedProcess[str]]] = {}
+_pool: ThreadPoolExecutor | None = None
+
+
+def start_ahead(items: Sequence[pytest.Item]) -> None:
+    global _pool
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    for item in items:
+        block = getattr(item, "callspec", None) and item.callspec.params.get("block")
+        if getattr(item, "originalname", "") == "test_python_block_runs_as_written" and block:
+            if _pool is None:
+                _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="readme-blocks")
+            _ahead[str(block)] = _pool.submit(_run_in_a_folder_of_its_own, block)
+
+
+def stop_ahead() -> None:
+    """Drop the runs not started; wait for the one running (each is bounded: 60 s)."""
+    global _pool
+    if _pool is not None:
+        _pool.shutdown(wait=True, cancel_futures=True)
+        _pool = None
+    _ahead.clear()
+
+
 @pytest.mark.parametrize("block", _of("python"), ids=str)
 def test_python_block_runs_as_written(block: Block, tmp_path: Path) -> None:
     """In its own interpreter, from the repository's root, as a reader would paste it."""
-    script = tmp_path / "block.py"
-    script.write_text(block.code, encoding="utf-8")
-    done = subprocess.run(
-        [sys.executable, str(script)], cwd=ROOT, capture_output=True, text=True, timeout=60
-    )
+    ahead = _ahead.pop(str(block), None)
+    done = run_block(block, tmp_path) if ahead is None else ahead.result()
     assert done.returncode == 0, f"{block}:\n{block.code}\n{done.stderr}"
 
 

@@ -97,7 +97,9 @@ def test_a_silent_seed_is_told_with_where_it_was_looked_for(
 
 def _robot(tmp_path: Path, robot: str, *, cost: float | None, seeds: list[str]) -> Path:
     """A robot on an ipc socket that greets in 2 s at ``cost`` (None: it cannot); a
-    silent robot is declared failed after 1 s, long before a 30 s lease lapses."""
+    silent robot is declared failed after 1 s, long before a 10 s lease lapses (the
+    lease, not the failure, decides when the next run of a killed robot's task may
+    start: docs/concepts.md, the fence; so no longer than the failure needs)."""
     impl = ""
     if cost is not None:
         tree = tmp_path / f"{robot}-tree.yaml"
@@ -122,7 +124,7 @@ def _robot(tmp_path: Path, robot: str, *, cost: float | None, seeds: list[str]) 
         f"capabilities:\n  interfaces: [{CAPS / 'interfaces.yaml'}]\n{impl}"
         f"network:\n  bind: ipc://{tmp_path}/{robot}.sock\n"
         + (f"  seeds:\n{seed_lines}" if seeds else "")
-        + "timing: {tick_hz: 20, heartbeat_s: 0.1, failure_timeout_s: 1.0, lease_s: 30,"
+        + "timing: {tick_hz: 20, heartbeat_s: 0.1, failure_timeout_s: 1.0, lease_s: 10,"
         " keepalive_s: 0.2}\n"
     )
     return path

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from sidework import SideWork
+from sidework import AHEAD
 
 from btcap.cli import main
 from btcap.sim.faults.plan import Fault, load_plan, plan_for, save_plan
@@ -26,34 +26,36 @@ CHUNK = 50
 #: The runs of the plain plans, by seed: a run is deterministic (test_a_seed_replays_to_
 #: the_same_trace), so the tests that judge the same seeds share them.
 _plain: dict[int, Outcome] = {}
-#: The later half of the chunks' seeds, run ahead on a worker process while this one
-#: runs the first half (tests/sidework.py: a seed's outcome is the same in any process).
-_side = SideWork()
 #: Wall seconds to wait for a seed the worker runs: a hang bound, not a speed measure.
 SIDE_S = 600.0
 
 
+def start_ahead(items: list[pytest.Item]) -> None:
+    """The selected chunks' seeds, queued on the suite's worker process once the suite is
+    collected (tests/conftest.py; tests/sidework.py: a seed's outcome is the same in any
+    process): made there while the tests before this module run here."""
+    AHEAD.hold(__name__)
+    for item in items:
+        if getattr(item, "originalname", "") == "test_every_invariant_holds_for_hundreds_of_seeds":
+            start = item.callspec.params["start"]
+            for seed in range(start, start + CHUNK):
+                AHEAD.submit(seed, run_plan, plan_for(seed))
+
+
+def stop_ahead() -> None:
+    AHEAD.release(__name__)
+
+
 @pytest.fixture(scope="module", autouse=True)
-def _side_seeds(request: pytest.FixtureRequest) -> Iterator[None]:
-    starts = [
-        item.callspec.params["start"]
-        for item in request.session.items
-        if getattr(item, "module", None) is request.module
-        and getattr(item, "originalname", "") == "test_every_invariant_holds_for_hundreds_of_seeds"
-    ]
-    for start in starts[len(starts) // 2 :]:
-        for seed in range(start, start + CHUNK):
-            _side.submit(seed, run_plan, plan_for(seed))
-    try:
-        yield
-    finally:
-        _side.close()
+def _release_the_worker() -> Iterator[None]:
+    yield
+    AHEAD.release(__name__)
 
 
 def plain_run(seed: int) -> Outcome:
     """``run_plan(plan_for(seed))``, made once per module."""
     if seed not in _plain:
-        ahead = _side.take(seed)
+        ahead = AHEAD.take(seed, steal=True)  # not started there: made here at once
         _plain[seed] = run_plan(plan_for(seed)) if ahead is None else ahead.result(SIDE_S)
     return _plain[seed]
 

@@ -7,14 +7,14 @@ same result, so each finding is checked on several seeds, in seconds of wall tim
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator
+from collections.abc import Hashable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import anyio
 import msgspec
 import pytest
-from sidework import SideWork, run_mission
+from sidework import AHEAD, run_mission
 
 import btcap.sim.running.hosts
 import btcap.sim.running.runner
@@ -43,12 +43,12 @@ RUN_S = 30 * MISSION_CPU_S
 
 Key = tuple[str, int, bool]  # (scenario, seed, reevaluate)
 _results: dict[Key, MissionResult] = {}
-_side = SideWork()
 
 #: The shipped scenarios' runs each test reads through :func:`mission`, in the order
-#: the tests read them: those of the selected tests are computed ahead on a worker
-#: process (tests/sidework.py) while this one makes the tests' own variants. A run
-#: missing here is made in this process when asked for: this list only saves time.
+#: the tests read them: those of the selected tests are computed ahead on the suite's
+#: worker process (tests/sidework.py: queued once the suite is collected) while this one
+#: runs the tests before this module and then the tests' own variants. A run missing here
+#: is made in this process when asked for: this list only saves time.
 READS: dict[str, list[Key]] = {
     "test_a_single_husky_starts_the_cheapest_available_task": [
         ("single-husky", seed, True) for seed in SEEDS
@@ -71,21 +71,46 @@ READS: dict[str, list[Key]] = {
 }
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _side_missions(request: pytest.FixtureRequest) -> Iterator[None]:
-    mine = {
-        getattr(item, "originalname", "")
-        for item in request.session.items
-        if getattr(item, "module", None) is request.module
+def variants() -> dict[str, list[tuple[str, Scenario]]]:
+    """The variants a test makes of a shipped scenario that need no other run first, by
+    test: (key, scenario); made ahead on the worker too (:func:`variant`)."""
+    joins = [(seed, scenario("huskies-bebop-joins", seed)) for seed in SEEDS]
+    return {
+        "test_a_nearly_finished_exploration_stays": [
+            (f"nearly-finished-{seed}", no_failures(s)) for seed, s in joins
+        ],
+        "test_explore_goes_back_to_a_husky_when_the_bebop_leaves": [
+            (f"leaves-early-{seed}", leaves_early(s, 240.0)) for seed, s in joins
+        ],
+        "test_a_failed_husky_loses_its_work_and_gets_work_again_when_it_returns": [
+            (f"fails-earlier-{seed}", fails_earlier(s, 300.0, 200.0)) for seed, s in joins
+        ],
     }
+
+
+def start_ahead(items: list[pytest.Item]) -> None:
+    """Queue the runs the selected tests read on the worker (tests/conftest.py calls this
+    once the suite is collected)."""
+    mine = {getattr(item, "originalname", "") for item in items}
     keys = dict.fromkeys(k for test, ks in READS.items() if test in mine for k in ks)
+    AHEAD.hold(__name__)
     for k in keys:
         if k not in _results:
-            _side.submit(k, run_mission, scenario(k[0], k[1], reevaluate=k[2]))
-    try:
-        yield
-    finally:
-        _side.close()
+            AHEAD.submit(k, run_mission, scenario(k[0], k[1], reevaluate=k[2]))
+    for test, runs in variants().items():
+        if test in mine:
+            for key, s in runs:
+                AHEAD.submit(key, run_mission, s)
+
+
+def stop_ahead() -> None:
+    AHEAD.release(__name__)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _release_the_worker() -> Iterator[None]:
+    yield
+    AHEAD.release(__name__)  # no later test sees the worker (tests/sim/running/test_sweep.py)
 
 
 def scenario(name: str, seed: int, *, reevaluate: bool = True) -> Scenario:
@@ -99,13 +124,18 @@ async def mission(name: str, seed: int, *, reevaluate: bool = True) -> MissionRe
     """A shipped scenario's result; computed once per module (the mode is deterministic)."""
     key = (name, seed, reevaluate)
     if key not in _results:
-        with anyio.fail_after(RUN_S):
-            ahead = _side.take(key)
-            if ahead is not None:
-                _results[key] = await asyncio.wrap_future(ahead)
-            else:
-                _results[key] = await run_fast(scenario(name, seed, reevaluate=reevaluate))
+        _results[key] = await variant(key, scenario(name, seed, reevaluate=reevaluate))
     return _results[key]
+
+
+async def variant(key: Hashable, s: Scenario) -> MissionResult:
+    """``run_fast(s)``: the worker's run of it if it was queued under ``key`` (and has
+    started), else made here."""
+    with anyio.fail_after(RUN_S):
+        ahead = AHEAD.take(key, steal=True)
+        if ahead is not None:
+            return await asyncio.wrap_future(ahead)
+        return await run_fast(s)
 
 
 def mark_time(result: MissionResult, event: str, robot: str) -> float:
@@ -275,10 +305,9 @@ async def test_a_nearly_finished_exploration_stays(seed: int) -> None:
     """The shipped scenario: the Bebop joins when the exploring Husky is well into its
     60 s; it bids what is left, not what it bid from the start, and keeps the work (no
     operation fails here: one the simulation's draw fails would not be kept either)."""
-    s = scenario("huskies-bebop-joins", seed)
-    s.sim = msgspec.structs.replace(s.sim, failure_chance=0.0)
-    with anyio.fail_after(RUN_S):
-        result = await run_fast(s)
+    result = await variant(
+        f"nearly-finished-{seed}", no_failures(scenario("huskies-bebop-joins", seed))
+    )
     joined = mark_time(result, "joined", "bebop1")
     busy = next(
         i
@@ -287,6 +316,11 @@ async def test_a_nearly_finished_exploration_stays(seed: int) -> None:
     )
     assert joined - busy.start > 30.0  # over half of it done
     assert busy.ok
+
+
+def no_failures(s: Scenario) -> Scenario:
+    """No operation fails (the Husky's exploration is not cut short by the draw)."""
+    return msgspec.structs.replace(s, sim=msgspec.structs.replace(s.sim, failure_chance=0.0))
 
 
 def leaves_early(s: Scenario, at: float) -> Scenario:
@@ -299,8 +333,7 @@ def leaves_early(s: Scenario, at: float) -> Scenario:
 @pytest.mark.parametrize("seed", SEEDS)
 async def test_explore_goes_back_to_a_husky_when_the_bebop_leaves(seed: int) -> None:
     s = leaves_early(scenario("huskies-bebop-joins", seed), 240.0)
-    with anyio.fail_after(RUN_S):
-        result = await run_fast(s)
+    result = await variant(f"leaves-early-{seed}", s)
     assert result.completed
     left = mark_time(result, "left", "bebop1")
     assert left == pytest.approx(240.0, abs=1.0)
@@ -337,8 +370,7 @@ async def test_a_failed_husky_loses_its_work_and_gets_work_again_when_it_returns
     seed: int,
 ) -> None:
     s = fails_earlier(scenario("huskies-bebop-joins", seed), 300.0, 200.0)
-    with anyio.fail_after(RUN_S):
-        result = await run_fast(s)
+    result = await variant(f"fails-earlier-{seed}", s)
     assert result.completed
     failed, back = down(result, "husky2")
     assert (failed, back) == (300.0, 500.0)
