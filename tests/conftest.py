@@ -76,13 +76,23 @@ def _modules(items: list[pytest.Item]) -> dict[object, list[pytest.Item]]:
 def pytest_collection_finish(session: pytest.Session) -> None:
     """A test module may start deterministic work its tests will read (``start_ahead``,
     given its selected tests) once the suite is collected, to run beside the tests
-    before it; ``stop_ahead`` ends it with the session."""
+    before it; ``stop_ahead`` ends it after its last test, or with the session."""
     if session.config.option.collectonly:
         return
     for module, items in _modules(session.items).items():
         start = getattr(module, "start_ahead", None)
         if callable(start):
             start(items)
+
+
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> None:
+    """A module's work ahead ends with its last test (``stop_ahead``), so no later test
+    sees its worker (tests/sim/running/test_sweep.py counts leftover processes)."""
+    module = getattr(item, "module", None)
+    if module is not None and getattr(nextitem, "module", None) is not module:
+        stop = getattr(module, "stop_ahead", None)
+        if callable(stop):
+            stop()
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -43,12 +42,6 @@ def start_ahead(items: list[pytest.Item]) -> None:
 
 
 def stop_ahead() -> None:
-    AHEAD.release(__name__)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _release_the_worker() -> Iterator[None]:
-    yield
     AHEAD.release(__name__)
 
 

@@ -107,12 +107,6 @@ def stop_ahead() -> None:
     AHEAD.release(__name__)
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _release_the_worker() -> Iterator[None]:
-    yield
-    AHEAD.release(__name__)  # no later test sees the worker (tests/sim/running/test_sweep.py)
-
-
 def scenario(name: str, seed: int, *, reevaluate: bool = True) -> Scenario:
     s = msgspec.structs.replace(load_scenario(builtin_scenarios()[name]), seed=seed)
     if not reevaluate:

@@ -7,7 +7,6 @@ catch a hang.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -73,12 +72,6 @@ def start_ahead(items: list[pytest.Item]) -> None:
 
 
 def stop_ahead() -> None:
-    AHEAD.release(__name__)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _release_the_worker() -> Iterator[None]:
-    yield
     AHEAD.release(__name__)
 
 
